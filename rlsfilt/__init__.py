@@ -1,0 +1,19 @@
+"""rlsfilt: recursive least-squares identification of dynamic systems.
+
+A filterpy-style toolkit: `RecursiveLeastSquares` mirrors filterpy's
+``KalmanFilter`` API (``predict``/``update(z, H)``/``batch_filter``, ``x``,
+``P``, ``K``, ``y``, ``S``) so it drops in beside Kalman filters.
+"""
+
+from .exceptions import ForgettingSkippedWarning, NotFittedError, NumericalWarning
+from .filters import RecursiveLeastSquares
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "RecursiveLeastSquares",
+    "NotFittedError",
+    "NumericalWarning",
+    "ForgettingSkippedWarning",
+    "__version__",
+]

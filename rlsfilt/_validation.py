@@ -1,0 +1,117 @@
+"""Argument checks shared by the whole package.
+
+Every message follows one grammar: the argument's name in backticks, what
+was expected, and what was received, for example
+"`lam` must be in (0, 1]; got 1.5".
+"""
+
+import numbers
+
+import numpy as np
+
+__all__ = []
+
+
+def check_int(value, name, minimum=None):
+    """Return `value` as an ``int``, rejecting floats, bools and small values."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        raise TypeError(f"`{name}` must be an integer; got {value!r} ({type(value).__name__})")
+    value = int(value)
+    if minimum is not None and value < minimum:
+        raise ValueError(f"`{name}` must be >= {minimum}; got {value}")
+    return value
+
+
+def check_scalar(value, name):
+    """Return `value` as a float, accepting a 0-d or single-element array."""
+    if isinstance(value, (bool, np.bool_)):
+        raise TypeError(f"`{name}` must be a real number; got {value!r}")
+    if isinstance(value, numbers.Real):
+        return float(value)
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise TypeError(f"`{name}` must be a real number; got {value!r}") from None
+    if arr.size != 1:
+        raise ValueError(f"`{name}` must be a scalar; got an array of shape {arr.shape}")
+    return float(arr.reshape(()))
+
+
+def check_lam(lam, name="lam"):
+    """Forgetting factor in (0, 1]."""
+    lam = check_scalar(lam, name)
+    if not 0.0 < lam <= 1.0:  # also rejects NaN
+        raise ValueError(f"`{name}` must be in (0, 1]; got {lam}")
+    return lam
+
+
+def check_variance(R, name="R"):
+    """Measurement-noise variance: a positive finite scalar or a (1, 1) array."""
+    if not isinstance(R, numbers.Real) or isinstance(R, bool):
+        arr = np.asarray(R, dtype=float) if not isinstance(R, bool) else None
+        if arr is None or arr.size != 1 or arr.ndim > 2:
+            shape = getattr(arr, "shape", None)
+            raise ValueError(
+                f"`{name}` must be a positive scalar variance or a (1, 1) array; got "
+                + (f"an array of shape {shape}" if shape is not None else repr(R))
+            )
+        R = arr.reshape(())
+    R = float(R)
+    if not (np.isfinite(R) and R > 0.0):
+        raise ValueError(f"`{name}` must be a positive finite variance; got {R}")
+    return R
+
+
+def check_covariance(C, n, name, definite=False):
+    """Return a symmetric ``(n, n)`` covariance from a scalar or a matrix.
+
+    A scalar ``c`` means ``c * I``. The matrix must be finite, symmetric (to
+    round-off) and positive semidefinite, or positive definite when
+    `definite` is true. The result is a new, exactly symmetric array.
+    """
+    arr = np.asarray(C, dtype=float)
+    if arr.size == 1 and arr.ndim <= 2 and arr.shape != (n, n):
+        c = float(arr.reshape(()))
+        arr = c * np.eye(n)
+    elif arr.shape != (n, n):
+        raise ValueError(f"`{name}` must be a scalar or have shape ({n}, {n}); got {arr.shape}")
+    else:
+        arr = arr.copy()
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"`{name}` must be finite; got NaN or inf entries")
+    scale = max(float(np.max(np.abs(arr))), np.finfo(float).tiny)
+    if np.max(np.abs(arr - arr.T)) > 1e-10 * scale:
+        raise ValueError(f"`{name}` must be symmetric; got max |{name} - {name}^T| = "
+                         f"{np.max(np.abs(arr - arr.T)):.3g}")
+    arr = 0.5 * (arr + arr.T)
+    eig_min = float(np.linalg.eigvalsh(arr)[0]) if n else 0.0
+    tol = n * np.finfo(float).eps * scale
+    if definite and eig_min <= 0.0:
+        raise ValueError(
+            f"`{name}` must be positive definite; got smallest eigenvalue {eig_min:.3g}"
+        )
+    if eig_min < -tol:
+        raise ValueError(
+            f"`{name}` must be positive semidefinite; got smallest eigenvalue {eig_min:.3g}"
+        )
+    return arr
+
+
+def check_finite(arr, name):
+    """Raise if `arr` holds NaN or inf, naming the first bad index."""
+    bad = ~np.isfinite(arr)
+    if bad.any():
+        idx = np.unravel_index(int(np.argmax(bad)), arr.shape)
+        idx = idx[0] if len(idx) == 1 else tuple(int(i) for i in idx)
+        raise ValueError(f"`{name}` must be finite; got {arr[bad].flat[0]} at index {idx}")
+    return arr
+
+
+def as_float_array(value, name):
+    """``np.asarray(value, float)`` with a message that names the argument."""
+    try:
+        return np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise TypeError(
+            f"`{name}` must be numeric array-like; got {type(value).__name__}: {exc}"
+        ) from None

@@ -1,0 +1,5 @@
+"""Recursive least-squares filters."""
+
+from .rls import RecursiveLeastSquares
+
+__all__ = ["RecursiveLeastSquares"]

@@ -1,0 +1,28 @@
+"""Shared fixtures: seeded randomness and a non-interactive plot backend."""
+
+import os
+
+os.environ.setdefault("MPLBACKEND", "Agg")
+
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+
+@pytest.fixture
+def rng():
+    """A fresh, seeded generator for each test."""
+    return np.random.default_rng(20261121)
+
+
+def arx_record(rng, n_samples=400, noise_std=0.1, a=(-1.5, 0.7), b=(1.0, 0.5)):
+    """Regressors and targets of a second-order ARX plant driven by white noise.
+
+    Returns ``(Hs, zs)`` with rows ``[-y(t-1), -y(t-2), u(t-1), u(t-2)]``.
+    """
+    u = rng.standard_normal(n_samples)
+    y = np.zeros(n_samples)
+    e = noise_std * rng.standard_normal(n_samples)
+    for t in range(2, n_samples):
+        y[t] = -a[0] * y[t - 1] - a[1] * y[t - 2] + b[0] * u[t - 1] + b[1] * u[t - 2] + e[t]
+    Hs = np.column_stack([-y[1:-1], -y[:-2], u[1:-1], u[:-2]])
+    return Hs, y[2:]
