@@ -31,6 +31,21 @@ from ..exceptions import ForgettingSkippedWarning
 __all__ = ["RecursiveLeastSquares"]
 
 _LOG_2PI = math.log(2.0 * math.pi)
+_F8 = np.dtype(np.float64)
+
+# Run batch_filter through the compiled kernels of `_kernels` (numba). The
+# tests switch this off to compare with the pure-NumPy `_batch_reference`.
+_COMPILED = True
+_kernels = None
+
+
+def _get_kernels():
+    """Import the numba kernels on first use, so ``import rlsfilt`` stays light."""
+    global _kernels
+    if _kernels is None:
+        from . import _kernels as k
+        _kernels = k
+    return _kernels
 
 
 class RecursiveLeastSquares:
@@ -236,9 +251,12 @@ class RecursiveLeastSquares:
         else:
             Q = check_covariance(Q, self.dim_x, "Q")
             q_zero = not Q.any()
-        self.P = _predict_covariance(self._checked_P(), self._lam, None if q_zero else Q)
+        P = self.P
+        if P is not self._P_own:            # assigned by the user: check it once
+            P = self._checked_P()
+        self.P = self._P_own = P = _predict_covariance(P, self._lam, None if q_zero else Q)
         self.x_prior = self.x.copy()
-        self.P_prior = self.P.copy()
+        self.P_prior = P.copy()
         self._updates_since_predict = 0
 
     def update(self, z, H, R=None):
@@ -254,26 +272,54 @@ class RecursiveLeastSquares:
         R : float, optional
             Measurement-noise variance for this call only.
         """
-        phi = self._as_regressor(H, "H")
-        r = self._R if R is None else check_variance(R, "R")
-        zc = self._as_measurement(z, "z")
-        x, P = self._checked_x(), self._checked_P()
-        self._note_update()
-        self._clear_lazy()
-        self.H = phi
-        g, s = _innovation(P, phi, r)
-        self.S = s * self._I_z
-        self.SI = self._I_z / s
-        if zc is None:
-            self.z = np.full((self.dim_z, 1), np.nan)
-            self.y = np.full((self.dim_z, 1), np.nan)
-            self.K = np.zeros((self.dim_x, 1))
-            self._log_likelihood, self._likelihood = 0.0, 1.0
+        # The common case (a float64 row, a float measurement, the filter's
+        # own x and P) skips the conversions; the arithmetic is the compiled
+        # step that batch_filter runs, so both agree bit for bit.
+        n, m = self.dim_x, self.dim_z
+        if (type(H) is np.ndarray and H.dtype is _F8 and H.size == n and 0 < H.ndim <= 2
+                and H.shape[-1] == n and H.flags.c_contiguous):
+            phi = H.reshape(n)
         else:
-            self.z = zc
-            self.x, self.P, self.y, self.K = _apply_update(x, P, phi, zc, g, s)
-        self.x_post = self.x.copy()
-        self.P_post = self.P.copy()
+            phi = self._as_regressor(H, "H").reshape(n)
+        r = self._R if R is None else check_variance(R, "R")
+        if m == 1 and isinstance(z, float):
+            zc = np.empty((1, 1))
+            zc[0, 0] = z
+            missing = z != z
+            if not missing and z - z != 0.0:
+                self._as_measurement(z, "z")            # raises: z is inf
+        else:
+            zc = self._as_measurement(z, "z")
+            missing = zc is None
+            if missing:
+                zc = np.empty((m, 1))
+                zc.fill(np.nan)
+        x, P = self.x, self.P
+        if x is not self._x_own:
+            x = np.ascontiguousarray(self._checked_x(), dtype=float)
+        if P is not self._P_own:
+            P = np.ascontiguousarray(self._checked_P(), dtype=float)
+        xn, Pn, y, K = np.empty((n, m)), np.empty((n, n)), np.empty((m, 1)), np.empty((n, 1))
+        S, SI, Hc = np.empty((m, m)), np.empty((m, m)), np.empty((1, n))
+        x_post, P_post = np.empty((n, m)), np.empty((n, n))
+        s = (_kernels or _get_kernels()).update_kernel(
+            x, P, phi, zc, r, missing, xn, Pn, y, K, S, SI, Hc, x_post, P_post)
+        if s != s:
+            check_finite(phi, "H")                   # raises: H is not finite
+        if self._updates_since_predict:
+            self._note_update()
+        else:
+            self._updates_since_predict = 1
+        self._log_likelihood = self._likelihood = self._mahalanobis = None
+        self.H, self.z, self.S, self.SI = Hc, zc, S, SI
+        self.x = self._x_own = xn
+        self.P = self._P_own = Pn
+        if missing:
+            y.fill(np.nan)
+            K.fill(0.0)
+            self._log_likelihood, self._likelihood = 0.0, 1.0
+        self.y, self.K = y, K
+        self.x_post, self.P_post = x_post, P_post
 
     def predict_update(self, z, H, R=None):
         """One textbook RLS step: :meth:`predict` then :meth:`update`."""
@@ -377,9 +423,9 @@ class RecursiveLeastSquares:
         Rv = self._as_batch_variances(Rs, len(Z))
         if saver is not None:
             return self._batch_stepwise(Z, Hm, Rv, update_first, saver, store_covariances)
-        out = _batch_reference(self._checked_x(), self._checked_P(), Z, Hm, Rv, self._lam,
-                               None if self._Q_is_zero else self._Q, update_first,
-                               store_covariances)
+        run = _get_kernels().batch_compiled if _COMPILED else _batch_reference
+        out = run(self._checked_x(), self._checked_P(), Z, Hm, Rv, self._lam,
+                  None if self._Q_is_zero else self._Q, update_first, store_covariances)
         self._adopt_last_step(out, Hm, Z, Rv, update_first)
         return out.means, out.covariances, out.means_p, out.covariances_p
 
@@ -409,7 +455,7 @@ class RecursiveLeastSquares:
 
     def _adopt_last_step(self, out, Hm, Z, Rv, update_first):
         """Leave the filter as the step-by-step loop would have left it."""
-        self.x, self.P = out.x, out.P
+        self.x, self.P = self._x_own, self._P_own = out.x, out.P
         if len(Z) == 0:
             return
         self._clear_lazy()
@@ -472,8 +518,8 @@ class RecursiveLeastSquares:
         ``lam``, ``R`` and ``Q`` are kept; diagnostics are cleared.
         """
         n, m = self.dim_x, self.dim_z
-        self.x = self._x0.copy()
-        self.P = self._P0.copy()
+        self.x = self._x_own = self._x0.copy()
+        self.P = self._P_own = self._P0.copy()
         self.x_prior, self.P_prior = self.x.copy(), self.P.copy()
         self.x_post, self.P_post = self.x.copy(), self.P.copy()
         self.H = np.zeros((1, n))
@@ -639,7 +685,7 @@ class RecursiveLeastSquares:
 # ----------------------------------------------------------------------
 def _predict_covariance(P, lam, Q):
     """``P / lam + Q`` as a new array (Q None means zero)."""
-    P = P / lam if lam != 1.0 else P.copy()
+    P = P * (1.0 / lam) if lam != 1.0 else P.copy()
     if Q is not None:
         P += Q
     return P
