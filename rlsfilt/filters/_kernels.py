@@ -41,7 +41,7 @@ __all__ = []
 MODE_EXPONENTIAL = 0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _predict_inplace(P, il, Q, q_zero):
     """``P <- P * il + Q`` in place (``Q`` ignored when `q_zero`)."""
     n = P.shape[0]
@@ -55,7 +55,7 @@ def _predict_inplace(P, il, Q, q_zero):
                 P[j, i] = P[j, i] * il + Q[j, i]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _predict_gain_inplace(P, il, Q, q_zero, predict, phi, g):
     """Optional predict fused with ``g = P phi``; returns nothing.
 
@@ -87,7 +87,7 @@ def _predict_gain_inplace(P, il, Q, q_zero, predict, phi, g):
                 g[i] += v * pj
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _innovation_variance(phi, g, r):
     """``s = phi . g + r``."""
     s = 0.0
@@ -96,7 +96,7 @@ def _innovation_variance(phi, g, r):
     return s + r
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _residual(x, phi, z, y):
     """``y = z - phi . x`` for each output column; ``y`` has ``dim_z`` entries."""
     n, m = x.shape
@@ -107,7 +107,7 @@ def _residual(x, phi, z, y):
         y[c] = z[c] - acc
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _measurement_update(x, P, g, c, y, K, xn, Pn):
     """``K = g c``, ``xn = x + K y^T``, ``Pn = P - (g g^T) c``.
 
@@ -126,7 +126,15 @@ def _measurement_update(x, P, g, c, y, K, xn, Pn):
             Pn[i, j] = P[i, j] - (gi * g[j]) * c
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
+def _copy2(a, b):
+    """``b[:] = a`` for 2-D arrays, as a plain loop."""
+    for i in range(a.shape[0]):
+        for j in range(a.shape[1]):
+            b[i, j] = a[i, j]
+
+
+@njit(cache=True, inline="always")
 def _any_nan(z):
     for v in z:
         if v != v:
@@ -134,11 +142,64 @@ def _any_nan(z):
     return False
 
 
+@njit(cache=True, inline="always")
+def _estimate_update(x, g, c, y, K):
+    """``K = g c`` and ``x <- x + K y^T`` in place."""
+    n, m = x.shape
+    for i in range(n):
+        ki = g[i] * c
+        K[i] = ki
+        for j in range(m):
+            x[i, j] = x[i, j] + ki * y[j]
+
+
+@njit(cache=True, inline="always")
+def _covariance_pass(P, g, c, update, predict, il, Q, q_zero, phin, gn):
+    """One sweep over ``P``: update, predict and the next gain, fused.
+
+    ``P <- P - (g g^T) c`` (when `update`), then ``P <- P * il + Q`` (when
+    `predict`), while accumulating ``gn = P phin`` for the next step. The
+    elementwise arithmetic is exactly that of the separate steps.
+    """
+    n = P.shape[0]
+    for i in range(n):
+        gn[i] = 0.0
+    if update and predict and q_zero:            # the common case, branch-free
+        for i in range(n):
+            gi = g[i]
+            hi = phin[i]
+            for j in range(n):
+                v = (P[i, j] - (gi * g[j]) * c) * il
+                P[i, j] = v
+                gn[j] += v * hi
+    elif update and predict:
+        for i in range(n):
+            gi = g[i]
+            hi = phin[i]
+            for j in range(n):
+                v = (P[i, j] - (gi * g[j]) * c) * il + Q[i, j]
+                P[i, j] = v
+                gn[j] += v * hi
+    elif update:
+        for i in range(n):
+            gi = g[i]
+            hi = phin[i]
+            for j in range(n):
+                v = P[i, j] - (gi * g[j]) * c
+                P[i, j] = v
+                gn[j] += v * hi
+    else:
+        _predict_gain_inplace(P, il, Q, q_zero, predict, phin, gn)
+
+
 @njit(cache=True)
 def batch_filter_kernel(x, P, Z, Hm, Rv, il, Q, q_zero, update_first, mode, params,
-                        means, means_p, covs, covs_p, ys, ss,
+                        means, covs, covs_p, ys, ss,
                         x_prior, P_prior, x_post, P_post, K):
     """Run the recursion over a record, in place on the working ``x``, ``P``.
+
+    Each step makes one sweep over ``P`` that applies the measurement
+    update, the next time update and the next gain ``P phi`` together.
 
     Parameters
     ----------
@@ -149,15 +210,19 @@ def batch_filter_kernel(x, P, Z, Hm, Rv, il, Q, q_zero, update_first, mode, para
     il : float
         ``1 / lam``.
     Q : (n, n), q_zero : bool
-        Random walk and whether it is identically zero.
+        Random walk and whether it is identically zero (then ``Q`` may be
+        empty).
     update_first : bool
         Update before predict in each step.
     mode : int, params : (p,) float64
         Covariance-update mode (``MODE_EXPONENTIAL``) and its parameters.
-    means, means_p : (N, n, m)
-        Estimate histories (written).
+    means : (N, n, m)
+        Estimate after each update (written). The estimates after each
+        predict are the same numbers shifted by one step (or not shifted
+        with `update_first`); the caller builds them.
     covs, covs_p : (N, n, n) or (0, n, n)
-        Covariance histories; not written when their length is 0.
+        Covariances after each update and each predict; not written when
+        their length is 0.
     ys : (N, m), ss : (N,)
         Residuals (NaN when missing) and innovation variances (written).
     x_prior, P_prior, x_post, P_post : arrays shaped as x and P
@@ -172,48 +237,64 @@ def batch_filter_kernel(x, P, Z, Hm, Rv, il, Q, q_zero, update_first, mode, para
     """
     N = Z.shape[0]
     n, m = x.shape
-    store = covs.shape[0] == N and N > 0
-    plain = il == 1.0 and q_zero       # predict is the identity
+    if N == 0:
+        return np.nan
+    store = covs.shape[0] == N
+    predict = not (il == 1.0 and q_zero)       # otherwise the time update is the identity
     g = np.empty(n)
+    gn = np.empty(n)
     y = np.empty(m)
+    # the time update before the first measurement update, and its gain
+    _predict_gain_inplace(P, il, Q, q_zero, predict and not update_first, Hm[0], g)
+    if not update_first:
+        if store:
+            _copy2(P, covs_p[0])
+        if N == 1:
+            _copy2(x, x_prior)
+            _copy2(P, P_prior)
     s = np.nan
     for k in range(N):
         phi = Hm[k]
-        if not update_first:
-            _predict_gain_inplace(P, il, Q, q_zero, not plain, phi, g)
-            means_p[k] = x
-            if store:
-                covs_p[k] = P
-            if k == N - 1:
-                x_prior[:] = x
-                P_prior[:] = P
-        else:
-            _predict_gain_inplace(P, il, Q, q_zero, False, phi, g)
         s = _innovation_variance(phi, g, Rv[k])
         ss[k] = s
+        c = 1.0 / s
         z = Z[k]
-        if _any_nan(z):
+        update = not _any_nan(z)
+        if update:
+            _residual(x, phi, z, y)
+            _estimate_update(x, g, c, y, K)
+            for j in range(m):
+                ys[k, j] = y[j]
+        else:
             for j in range(m):
                 ys[k, j] = np.nan
-        else:
-            _residual(x, phi, z, y)
-            _measurement_update(x, P, g, 1.0 / s, y, K, x, P)
-            ys[k] = y
-        means[k] = x
-        if store:
-            covs[k] = P
-        if k == N - 1:
-            x_post[:] = x
-            P_post[:] = P
-        if update_first:
-            if not plain:
-                _predict_inplace(P, il, Q, q_zero)
-            means_p[k] = x
+        _copy2(x, means[k])
+        if k < N - 1:
+            kp = k if update_first else k + 1        # index of the predict that follows
+            if store:                                 # unfused, to record P in between
+                _covariance_pass(P, g, c, update, False, il, Q, q_zero, phi, gn)
+                _copy2(P, covs[k])
+                _predict_gain_inplace(P, il, Q, q_zero, predict, Hm[k + 1], gn)
+                _copy2(P, covs_p[kp])
+            else:
+                _covariance_pass(P, g, c, update, predict, il, Q, q_zero, Hm[k + 1], gn)
+            g, gn = gn, g
+            if k == N - 2 and not update_first:
+                _copy2(x, x_prior)
+                _copy2(P, P_prior)
+        else:                                         # the last step
+            _covariance_pass(P, g, c, update, False, il, Q, q_zero, phi, gn)
             if store:
-                covs_p[k] = P
-            if k == N - 1:
-                x_prior[:] = x
-                P_prior[:] = P
+                _copy2(P, covs[k])
+            _copy2(x, x_post)
+            _copy2(P, P_post)
+            if update_first:
+                if predict:
+                    _predict_inplace(P, il, Q, q_zero)
+                if store:
+                    _copy2(P, covs_p[k])
+                _copy2(x, x_prior)
+                _copy2(P, P_prior)
     return s
 
 
@@ -281,7 +362,6 @@ def batch_compiled(x, P, Z, Hm, Rv, lam, Q, update_first, store_covariances,
     n, m = x.shape
     out = _BatchResult()
     out.means = np.empty((N, n, m))
-    out.means_p = np.empty((N, n, m))
     if store_covariances:
         covs, covs_p = np.empty((N, n, n)), np.empty((N, n, n))
         out.covariances, out.covariances_p = covs, covs_p
@@ -302,8 +382,16 @@ def batch_compiled(x, P, Z, Hm, Rv, lam, Q, update_first, store_covariances,
         xw, Pw, np.ascontiguousarray(Z, dtype=np.float64),
         np.ascontiguousarray(Hm, dtype=np.float64), np.ascontiguousarray(Rv, dtype=np.float64),
         1.0 / lam, Qa, q_zero, bool(update_first), int(mode), params,
-        out.means, out.means_p, covs, covs_p, out.ys, out.ss,
+        out.means, covs, covs_p, out.ys, out.ss,
         x_prior, P_prior, x_post, P_post, K)
+    # the estimate is unchanged by a time update
+    if update_first:
+        out.means_p = out.means.copy()
+    else:
+        out.means_p = np.empty((N, n, m))
+        if N:
+            out.means_p[0] = x
+            out.means_p[1:] = out.means[:-1]
     out.x, out.P = xw, Pw
     if N:
         out.x_prior, out.P_prior = x_prior, P_prior

@@ -174,6 +174,7 @@ class RecursiveLeastSquares:
         self._P0 = check_covariance(P0, self.dim_x, "P0", definite=True)
         self._x0 = self._as_state(np.zeros((self.dim_x, self.dim_z)) if x0 is None else x0, "x0")
         self._warned_skip = False
+        self._row, self._row2 = (self.dim_x,), (1, self.dim_x)   # regressor shapes
         self.reset()
 
     # ------------------------------------------------------------------
@@ -276,8 +277,8 @@ class RecursiveLeastSquares:
         # own x and P) skips the conversions; the arithmetic is the compiled
         # step that batch_filter runs, so both agree bit for bit.
         n, m = self.dim_x, self.dim_z
-        if (type(H) is np.ndarray and H.dtype is _F8 and H.size == n and 0 < H.ndim <= 2
-                and H.shape[-1] == n and H.flags.c_contiguous):
+        if type(H) is np.ndarray and H.dtype is _F8 and (H.shape == self._row
+                                                                  or H.shape == self._row2):
             phi = H.reshape(n)
         else:
             phi = self._as_regressor(H, "H").reshape(n)
