@@ -1,0 +1,311 @@
+"""Time rlsfilt's RLS against its peers on one ARX workload.
+
+Every contender runs exponentially forgetting RLS (``lam = 0.99``,
+``P0 = 1e4 I``) on the same regressors and measurements of an ARX plant
+with ``dim_x`` parameters, and the script prints the time per sample and
+its ratio to a careful hand-written compiled loop
+(:mod:`handwritten`, the yardstick; ratio < 1 means faster than it):
+
+========================  ===================================================
+``batch_filter``          ``RecursiveLeastSquares.batch_filter(store_covariances=False)``
+``batch_filter+P``        the same, storing both covariance histories
+``kernel``                rlsfilt's compiled kernel without the Python wrapper
+``predict+update``        the streaming pair, one Python call each per sample
+``handwritten``           the yardstick (``benchmarks/handwritten.py``)
+``numpy loop``            a lean pure-NumPy loop
+``filterpy``              ``filterpy.kalman.KalmanFilter`` as RLS (predict+update)
+``padasip``               ``padasip.filters.FilterRLS.run``
+``statsmodels``           ``statsmodels.api.RecursiveLS(...).fit()`` (no forgetting)
+========================  ===================================================
+
+The slow contenders (pure Python per sample) run on the first
+``--peer-samples`` samples only; all times are per sample. Every contender
+runs once per round, rounds are interleaved and the best round counts, which
+keeps the ratios meaningful on a busy machine (absolute times are not).
+
+Usage::
+
+    python benchmarks/bench_rls.py --smoke          # a few seconds (CI)
+    python benchmarks/bench_rls.py                  # the full table, minutes
+    python benchmarks/bench_rls.py --plot bench.png --markdown
+
+Install the peers with ``pip install rlsfilt[bench]``; a peer that is not
+installed is skipped.
+"""
+
+import argparse
+import os
+import sys
+import time
+import warnings
+
+import numpy as np
+from scipy.signal import lfilter
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+from handwritten import rls_handwritten  # noqa: E402
+
+import rlsfilt  # noqa: E402
+from rlsfilt.filters import _kernels  # noqa: E402
+
+LAM = 0.99
+P0 = 1e4
+FULL_DIMS = (2, 5, 10, 20, 50)
+COLUMNS = ("batch_filter", "batch_filter+P", "kernel", "predict+update", "handwritten",
+           "numpy loop", "filterpy", "padasip", "statsmodels")
+
+
+# ----------------------------------------------------------------------
+# the workload
+# ----------------------------------------------------------------------
+def arx_data(dim_x, n_samples, rng):
+    """Regressors ``(N, dim_x)`` and outputs ``(N,)`` of a stable ARX plant.
+
+    ``na = dim_x // 2`` output lags and ``nb = dim_x - na`` input lags, a
+    white-noise input, poles of radius 0.6 and noise of standard deviation
+    0.1.
+    """
+    na, nb = dim_x // 2, dim_x - dim_x // 2
+    lag = max(na, nb)
+    total = n_samples + lag
+    u = rng.standard_normal(total)
+    poles = 0.6 * np.exp(1j * np.pi * rng.uniform(0.1, 0.9, na))
+    a = np.real(np.poly(np.concatenate([poles[: na // 2], np.conj(poles[: na // 2]),
+                                        np.real(poles[na // 2 * 2:])])))
+    b = np.concatenate([[0.0], rng.uniform(-1.0, 1.0, nb)])
+    y = lfilter(b, a, u) + lfilter([1.0], a, 0.1 * rng.standard_normal(total))
+    cols = [-y[lag - i: total - i] for i in range(1, na + 1)]
+    cols += [u[lag - i: total - i] for i in range(1, nb + 1)]
+    Hs = np.ascontiguousarray(np.column_stack(cols))
+    return Hs, np.ascontiguousarray(y[lag:])
+
+
+# ----------------------------------------------------------------------
+# the contenders: each takes (Hs, zs) and runs the whole record
+# ----------------------------------------------------------------------
+def run_batch(Hs, zs):
+    rls = rlsfilt.RecursiveLeastSquares(Hs.shape[1], lam=LAM, P0=P0)
+    rls.batch_filter(zs, Hs, store_covariances=False)
+    return rls.x.ravel()
+
+
+def run_batch_cov(Hs, zs):
+    rls = rlsfilt.RecursiveLeastSquares(Hs.shape[1], lam=LAM, P0=P0)
+    rls.batch_filter(zs, Hs, store_covariances=True)
+    return rls.x.ravel()
+
+
+def run_kernel(Hs, zs):
+    n = Hs.shape[1]
+    out = _kernels.batch_compiled(np.zeros((n, 1)), P0 * np.eye(n), zs.reshape(-1, 1), Hs,
+                                  np.ones(1), LAM, None, False, False)
+    return out.x.ravel()
+
+
+def run_stream(Hs, zs):
+    rls = rlsfilt.RecursiveLeastSquares(Hs.shape[1], lam=LAM, P0=P0)
+    predict, update = rls.predict, rls.update
+    for k in range(len(zs)):
+        predict()
+        update(zs[k], Hs[k])
+    return rls.x.ravel()
+
+
+def run_handwritten(Hs, zs):
+    n = Hs.shape[1]
+    thetas, _ = rls_handwritten(Hs, zs, LAM, P0 * np.eye(n), np.zeros(n))
+    return thetas[-1]
+
+
+def run_numpy(Hs, zs):
+    n = Hs.shape[1]
+    P = P0 * np.eye(n)
+    th = np.zeros(n)
+    for h, z in zip(Hs, zs):
+        g = P @ h
+        s = LAM + h @ g
+        th = th + g * ((z - h @ th) / s)
+        P = (P - np.outer(g, g / s)) / LAM
+        P = 0.5 * (P + P.T)
+    return th
+
+
+def run_filterpy(Hs, zs):
+    from filterpy.kalman import KalmanFilter
+
+    n = Hs.shape[1]
+    kf = KalmanFilter(dim_x=n, dim_z=1)
+    kf.F = np.eye(n)
+    kf.P = P0 * np.eye(n)
+    kf.R = np.eye(1)
+    kf.alpha = np.sqrt(1.0 / LAM)
+    for k in range(len(zs)):
+        kf.predict()
+        kf.update(zs[k], H=Hs[k:k + 1])
+    return kf.x.ravel()
+
+
+def run_padasip(Hs, zs):
+    from padasip.filters import FilterRLS
+
+    f = FilterRLS(Hs.shape[1], mu=LAM, eps=1.0 / P0, w="zeros")
+    f.run(zs, Hs)
+    return f.w
+
+
+def run_statsmodels(Hs, zs):
+    import statsmodels.api as sm
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = sm.RecursiveLS(zs, Hs).fit()
+    return np.asarray(res.params)
+
+
+CONTENDERS = {
+    "batch_filter": (run_batch, "full", None),
+    "batch_filter+P": (run_batch_cov, "cov", None),
+    "kernel": (run_kernel, "full", None),
+    "predict+update": (run_stream, "peer", None),
+    "handwritten": (run_handwritten, "full", None),
+    "numpy loop": (run_numpy, "peer", None),
+    "filterpy": (run_filterpy, "peer", "filterpy"),
+    "padasip": (run_padasip, "peer", "padasip"),
+    "statsmodels": (run_statsmodels, "peer", "statsmodels"),
+}
+
+
+def _available(module):
+    if module is None:
+        return True
+    try:
+        __import__(module)
+    except ImportError:
+        return False
+    return True
+
+
+# ----------------------------------------------------------------------
+# timing
+# ----------------------------------------------------------------------
+def bench(dims, n_samples, peer_samples, rounds, max_cov_numbers=2e7, max_numbers=2e7,
+          rng=0, log=print):
+    """Time every contender; returns ``{dim_x: {name: seconds per sample}}``.
+
+    The compiled contenders run on ``min(n_samples, max_numbers / dim_x)``
+    samples (the estimate history is ``N x dim_x``), ``batch_filter+P`` on
+    at most ``max_cov_numbers / dim_x**2`` and the per-sample Python ones on
+    ``peer_samples``.
+    """
+    rng = np.random.default_rng(rng)
+    results = {}
+    for n in dims:
+        N = int(min(n_samples, max_numbers / n))
+        Hs, zs = arx_data(n, N, rng)
+        sizes = {"full": N, "cov": int(min(N, max_cov_numbers / n**2)),
+                 "peer": min(N, peer_samples)}
+        todo = {name: (fn, sizes[kind]) for name, (fn, kind, mod) in CONTENDERS.items()
+                if _available(mod)}
+        for fn, _ in todo.values():                 # compile / load caches, warm up
+            fn(Hs[:50], zs[:50])
+        best = {name: np.inf for name in todo}
+        for _ in range(rounds):
+            for name, (fn, size) in todo.items():
+                t0 = time.perf_counter()
+                fn(Hs[:size], zs[:size])
+                best[name] = min(best[name], (time.perf_counter() - t0) / size)
+        results[n] = best
+        log(f"dim_x = {n:3d}: N = {N}, " + ", ".join(
+            f"{k} {v * 1e9:.0f} ns" for k, v in best.items()))
+    return results
+
+
+def ratio_table(results, markdown=False):
+    """Text table of time per sample relative to the hand-written loop."""
+    names = [c for c in COLUMNS if any(c in r for r in results.values())]
+    head = ["dim_x", "handwritten [ns]"] + [c for c in names if c != "handwritten"]
+    rows = []
+    for n, r in results.items():
+        ref = r["handwritten"]
+        row = [str(n), f"{ref * 1e9:.0f}"]
+        for c in names:
+            if c == "handwritten":
+                continue
+            row.append(f"{r[c] / ref:.3g}" if c in r else "-")
+        rows.append(row)
+    if markdown:
+        lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+        lines += ["| " + " | ".join(row) + " |" for row in rows]
+        return "\n".join(lines)
+    widths = [max(len(h), *(len(row[i]) for row in rows)) for i, h in enumerate(head)]
+    fmt = "  ".join("{:>%d}" % w for w in widths)
+    return "\n".join([fmt.format(*head)] + [fmt.format(*row) for row in rows])
+
+
+def streaming_vs_filterpy(results):
+    """Speed-up of rlsfilt's predict+update pair over filterpy's, per dim_x."""
+    return {n: r["filterpy"] / r["predict+update"] for n, r in results.items()
+            if "filterpy" in r and "predict+update" in r}
+
+
+def plot(results, path=None, ax=None):
+    """Time per sample against dim_x, one line per contender; returns the axes."""
+    import matplotlib.pyplot as plt
+
+    if ax is None:
+        _, ax = plt.subplots(figsize=(7, 4.5))
+    dims = list(results)
+    for c in COLUMNS:
+        ys = [results[n].get(c, np.nan) * 1e9 for n in dims]
+        if not np.all(np.isnan(ys)):
+            ax.loglog(dims, ys, "o-", label=c)
+    ax.set_xlabel(r"number of parameters $n$ (dim_x)")
+    ax.set_ylabel("time per sample [ns]")
+    ax.set_title(r"RLS, $\lambda = 0.99$, ARX workload")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    if path:
+        ax.figure.savefig(path, dpi=120, bbox_inches="tight")
+    return ax
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--smoke", action="store_true",
+                        help="tiny sizes, one round: checks that everything runs (seconds)")
+    parser.add_argument("--dims", type=int, nargs="+", help="values of dim_x (default: "
+                        "2 5 10 20 50, smoke: 2 5)")
+    parser.add_argument("-N", "--samples", type=float, default=1e6,
+                        help="samples for the compiled contenders (default 1e6)")
+    parser.add_argument("--peer-samples", type=int, default=3000,
+                        help="samples for the per-sample Python contenders (default 3000)")
+    parser.add_argument("--rounds", type=int, default=5, help="interleaved rounds (default 5)")
+    parser.add_argument("--plot", metavar="PATH", help="save a plot of the times")
+    parser.add_argument("--markdown", action="store_true", help="print the table as Markdown")
+    args = parser.parse_args(argv)
+    if args.smoke:
+        dims = args.dims or [2, 5]
+        n_samples, peer_samples, rounds = 2000, 100, 1
+    else:
+        dims = args.dims or list(FULL_DIMS)
+        n_samples, peer_samples, rounds = int(args.samples), args.peer_samples, args.rounds
+    results = bench(dims, n_samples, peer_samples, rounds)
+    print()
+    print("time per sample as a ratio to the hand-written compiled loop (< 1: faster);")
+    print("the second column is the loop's own time per sample")
+    print(ratio_table(results, markdown=args.markdown))
+    speedup = streaming_vs_filterpy(results)
+    if speedup:
+        print()
+        print("streaming predict+update, speed-up over filterpy's KalmanFilter: " + ", ".join(
+            f"dim_x={n}: {v:.1f}x" for n, v in speedup.items()))
+    if args.plot:
+        plot(results, args.plot)
+        print(f"plot saved to {args.plot}")
+    return results
+
+
+if __name__ == "__main__":
+    main()
