@@ -205,8 +205,9 @@ def batch_filter_kernel(x, P, Z, Hm, Rv, il, Q, q_zero, update_first, mode, para
     ----------
     x : (n, m) float64, P : (n, n) float64
         Working state (overwritten with the final state).
-    Z : (N, m), Hm : (N, n), Rv : (N,)
-        Measurements (NaN rows missing), regressors, noise variances.
+    Z : (N, m), Hm : (N, n), Rv : (N,) or (1,)
+        Measurements (NaN rows missing), regressors, noise variances (one
+        for all steps when ``Rv`` has length 1).
     il : float
         ``1 / lam``.
     Q : (n, n), q_zero : bool
@@ -240,6 +241,7 @@ def batch_filter_kernel(x, P, Z, Hm, Rv, il, Q, q_zero, update_first, mode, para
     if N == 0:
         return np.nan
     store = covs.shape[0] == N
+    r_each = Rv.shape[0] == N                  # else one variance for all steps
     predict = not (il == 1.0 and q_zero)       # otherwise the time update is the identity
     g = np.empty(n)
     gn = np.empty(n)
@@ -255,7 +257,7 @@ def batch_filter_kernel(x, P, Z, Hm, Rv, il, Q, q_zero, update_first, mode, para
     s = np.nan
     for k in range(N):
         phi = Hm[k]
-        s = _innovation_variance(phi, g, Rv[k])
+        s = _innovation_variance(phi, g, Rv[k if r_each else 0])
         ss[k] = s
         c = 1.0 / s
         z = Z[k]
@@ -370,6 +372,11 @@ def batch_compiled(x, P, Z, Hm, Rv, lam, Q, update_first, store_covariances,
         out.covariances = out.covariances_p = None
     out.ys = np.empty((N, m))
     out.ss = np.empty(N)
+    Rv = np.asarray(Rv, dtype=np.float64)
+    if Rv.ndim == 1 and N > 1 and Rv.strides[0] == 0:      # a broadcast scalar
+        Rv = np.ascontiguousarray(Rv[:1])
+    else:
+        Rv = np.ascontiguousarray(Rv)
     xw = np.array(x, dtype=np.float64, order="C")
     Pw = np.array(P, dtype=np.float64, order="C")
     q_zero = Q is None
@@ -380,7 +387,7 @@ def batch_compiled(x, P, Z, Hm, Rv, lam, Q, update_first, store_covariances,
     K = np.zeros(n)
     s = batch_filter_kernel(
         xw, Pw, np.ascontiguousarray(Z, dtype=np.float64),
-        np.ascontiguousarray(Hm, dtype=np.float64), np.ascontiguousarray(Rv, dtype=np.float64),
+        np.ascontiguousarray(Hm, dtype=np.float64), Rv,
         1.0 / lam, Qa, q_zero, bool(update_first), int(mode), params,
         out.means, covs, covs_p, out.ys, out.ss,
         x_prior, P_prior, x_post, P_post, K)

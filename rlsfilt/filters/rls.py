@@ -660,14 +660,15 @@ class RecursiveLeastSquares:
         check_finite(Hm, "Hs")
         if np.isinf(Z).any():
             check_finite(np.where(np.isnan(Z), 0.0, Z), "zs")
-        return Z.copy(), Hm.copy()
+        return Z, Hm                    # read only below: no copies of long records
 
     def _as_batch_variances(self, Rs, N):
+        # one shared variance is a read-only broadcast view: no O(N) array
         if Rs is None:
-            return np.full(N, self._R)
+            return np.broadcast_to(self._R, (N,))
         arr = as_float_array(Rs, "Rs")
         if arr.ndim == 0:
-            return np.full(N, check_variance(arr, "Rs"))
+            return np.broadcast_to(check_variance(arr, "Rs"), (N,))
         if arr.ndim == 3 and arr.shape[1:] == (1, 1):
             arr = arr.reshape(-1)
         if arr.ndim != 1 or len(arr) != N:

@@ -1,0 +1,281 @@
+"""The compiled (numba) recursion against the pure-NumPy reference path.
+
+`batch_filter` runs the compiled kernel; ``rlsfilt.filters.rls._COMPILED =
+False`` switches it to ``_batch_reference``. The two must agree to 1e-12 on
+well-conditioned data for every option, and the streaming ``update`` must
+reproduce the batch run bit for bit (it runs the same compiled step).
+"""
+
+import numpy as np
+import pytest
+from conftest import arx_record
+from numpy.testing import assert_allclose, assert_array_equal
+
+from rlsfilt import RecursiveLeastSquares
+from rlsfilt.filters import _kernels
+from rlsfilt.filters import rls as rls_module
+
+STATE = ("x", "P", "x_prior", "P_prior", "x_post", "P_post", "y", "K", "S", "SI", "z", "H")
+
+
+def _record(rng, n_samples, dim_z=1, missing=(), scale=1.0):
+    Hs, zs = arx_record(rng, n_samples=n_samples + 2)
+    if dim_z > 1:
+        zs = np.column_stack([zs] + [Hs @ rng.standard_normal(4) + 0.1 * rng.standard_normal(len(zs))
+                                     for _ in range(dim_z - 1)])
+    zs = scale * zs.astype(float)
+    for k in missing:
+        zs[k] = np.nan
+    return Hs, zs
+
+
+def _close(a, b, name, rtol=1e-12):
+    """Equal to `rtol` relative to the largest entry of each step's array."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    assert a.shape == b.shape, name
+    assert_array_equal(np.isnan(a), np.isnan(b), err_msg=name)
+    mag = np.abs(np.nan_to_num(b))
+    scale = mag.max(axis=(1, 2), keepdims=True) if a.ndim == 3 else (mag.max() if b.size else 1.0)
+    assert np.all(np.abs(np.nan_to_num(a - b)) <= rtol * np.maximum(scale, 1e-300)), name
+
+
+def _run_both(monkeypatch, make, zs, Hs, **kwargs):
+    a, b = make(), make()
+    out_c = a.batch_filter(zs, Hs, **kwargs)
+    monkeypatch.setattr(rls_module, "_COMPILED", False)
+    out_r = b.batch_filter(zs, Hs, **kwargs)
+    monkeypatch.setattr(rls_module, "_COMPILED", True)
+    return a, b, out_c, out_r
+
+
+OPTIONS = [
+    # lam, Q, use_Rs, update_first, store_covariances, dim_z, missing
+    (1.0, 0.0, False, False, True, 1, ()),
+    (0.95, 0.0, False, False, True, 1, ()),
+    (0.95, 0.0, False, True, True, 1, ()),
+    (0.97, 1e-4, False, False, True, 1, ()),
+    (0.97, "matrix", True, True, True, 1, ()),
+    (0.9, 0.0, True, False, False, 1, (0, 7, 150, 299)),
+    (0.9, 1e-3, False, True, False, 1, (3, 4, 5, 299)),
+    (1.0, 1e-5, True, False, True, 3, (10, 298)),
+    (0.98, 0.0, False, True, True, 3, (0, 1, 200)),
+    (1.0, 0.0, True, True, False, 2, (150,)),
+]
+
+
+@pytest.mark.parametrize("lam, Q, use_Rs, update_first, store, dim_z, missing", OPTIONS)
+def test_compiled_equals_reference(rng, monkeypatch, lam, Q, use_Rs, update_first, store,
+                                   dim_z, missing):
+    Hs, zs = _record(rng, 300, dim_z, missing)
+    if isinstance(Q, str):
+        A = rng.standard_normal((4, 4))
+        Q = 1e-4 * (A @ A.T) / 4
+    kwargs = {"update_first": update_first, "store_covariances": store}
+    if use_Rs:
+        kwargs["Rs"] = rng.uniform(0.5, 2.0, len(zs))
+
+    def make():
+        return RecursiveLeastSquares(4, dim_z, lam=lam, Q=Q, P0=100.0, R=0.7)
+
+    a, b, out_c, out_r = _run_both(monkeypatch, make, zs, Hs, **kwargs)
+    for name, c, r in zip(("means", "covariances", "means_p", "covariances_p"), out_c, out_r):
+        if r is None:
+            assert c is None, name
+        else:
+            _close(c, r, name)
+    for name in STATE:
+        _close(getattr(a, name), getattr(b, name), name)
+    assert a.log_likelihood == pytest.approx(b.log_likelihood, rel=1e-12)
+    assert a.mahalanobis == pytest.approx(b.mahalanobis, rel=1e-12, abs=1e-300, nan_ok=True)
+
+
+@pytest.mark.parametrize("update_first", [False, True])
+@pytest.mark.parametrize("n_samples", [0, 1, 2])
+def test_compiled_equals_reference_on_tiny_records(rng, monkeypatch, update_first, n_samples):
+    Hs, zs = _record(rng, 5)
+    Hs, zs = Hs[:n_samples], zs[:n_samples]
+
+    def make():
+        return RecursiveLeastSquares(4, lam=0.9, Q=1e-3)
+
+    a, b, out_c, out_r = _run_both(monkeypatch, make, zs, Hs, update_first=update_first)
+    for c, r in zip(out_c, out_r):
+        assert c.shape == r.shape
+        assert_allclose(c, r, rtol=1e-12, atol=1e-12)
+    for name in STATE:
+        assert_allclose(getattr(a, name), getattr(b, name), rtol=1e-12, atol=1e-12,
+                        err_msg=name)
+
+
+@pytest.mark.parametrize("update_first", [False, True])
+@pytest.mark.parametrize("store", [False, True])
+def test_residual_and_variance_histories(rng, update_first, store):
+    """The kernel's residuals ``ys`` and innovation variances ``ss`` match the reference."""
+    Hs, zs = _record(rng, 200, dim_z=2, missing=(5, 100, 199))
+    Z = zs.reshape(len(zs), -1)
+    x0, P0 = np.zeros((4, 2)), 50.0 * np.eye(4)
+    Q = 1e-4 * np.eye(4)
+    Rv = rng.uniform(0.5, 2.0, len(Z))
+    args = (x0, P0, Z, Hs, Rv, 0.95, Q, update_first, store)
+    ref = rls_module._batch_reference(*args)
+    out = _kernels.batch_compiled(*args)
+    _close(out.ys, ref.ys, "ys")
+    _close(out.ss, ref.ss, "ss")
+    assert np.isnan(out.ys[[5, 100, 199]]).all() and not np.isnan(np.delete(out.ys, [5, 100, 199],
+                                                                         axis=0)).any()
+    for name in ("x", "P", "x_prior", "P_prior", "x_post", "P_post", "K_last"):
+        _close(getattr(out, name), getattr(ref, name), name)
+    assert out.s_last == pytest.approx(ref.s_last, rel=1e-12)
+    # the caller's arrays are untouched
+    assert_array_equal(x0, 0.0)
+    assert_array_equal(P0, 50.0 * np.eye(4))
+
+
+def test_compiled_covariance_is_exactly_symmetric(rng):
+    Hs, zs = _record(rng, 3000)
+    rls = RecursiveLeastSquares(4, lam=0.95, Q=1e-6)
+    _, covs, _, covs_p = rls.batch_filter(zs, Hs)
+    assert_array_equal(covs, covs.transpose(0, 2, 1))
+    assert_array_equal(covs_p, covs_p.transpose(0, 2, 1))
+    assert np.all(np.linalg.eigvalsh(covs[-100:]) > 0)
+
+
+def test_compiled_matches_lstsq_on_a_long_record(rng):
+    """An independent oracle for the compiled path: lam = 1 with the batch start is OLS."""
+    n_samples = 20000
+    Hs, zs = _record(rng, n_samples)
+    rls = RecursiveLeastSquares(4)
+    rls.initialize(zs[:8], Hs[:8])
+    rls.batch_filter(zs[8:], Hs[8:], store_covariances=False)
+    theta, *_ = np.linalg.lstsq(Hs, zs, rcond=None)
+    assert_allclose(rls.x.ravel(), theta, rtol=1e-9, atol=1e-12)
+    assert_allclose(rls.P, np.linalg.inv(Hs.T @ Hs), rtol=1e-8)
+
+
+# ----------------------------------------------------------------------
+# the streaming fast path
+# ----------------------------------------------------------------------
+@pytest.mark.parametrize("dim_z", [1, 2])
+def test_streaming_equals_batch_bit_for_bit(rng, dim_z):
+    Hs, zs = _record(rng, 150, dim_z=dim_z, missing=(20, 149))
+    a = RecursiveLeastSquares(4, dim_z, lam=0.96, Q=1e-5)
+    b = a.copy()
+    m, c, mp, cp = a.batch_filter(zs, Hs)
+    for k in range(len(zs)):
+        b.predict()
+        assert_array_equal(cp[k], b.P)
+        b.update(zs[k] if dim_z > 1 else float(zs[k]), Hs[k])
+        assert_array_equal(m[k], b.x)
+        assert_array_equal(c[k], b.P)
+    for name in STATE:
+        assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+
+
+def test_streaming_accepts_every_regressor_layout(rng):
+    """Rows that are lists, ints, strided views or (1, n) all give the same step."""
+    Hs, zs = _record(rng, 30)
+    Hs = np.round(Hs * 4)                    # integers, exactly representable
+    Hf = np.asfortranarray(Hs)               # rows are strided views
+    Hi = Hs.astype(int)
+    ref = RecursiveLeastSquares(4, lam=0.97)
+    others = [RecursiveLeastSquares(4, lam=0.97) for _ in range(4)]
+    for k in range(len(zs)):
+        ref.predict_update(zs[k], Hs[k])
+        others[0].predict_update(zs[k], Hf[k])
+        others[1].predict_update(zs[k], list(Hs[k]))
+        others[2].predict_update(np.array([[zs[k]]]), Hs[k].reshape(1, -1))
+        others[3].predict_update(int(round(zs[k])) if k % 2 else zs[k], Hi[k])
+    for o in others[:3]:
+        assert_array_equal(o.x, ref.x)
+        assert_array_equal(o.P, ref.P)
+    assert_array_equal(others[3].P, ref.P)      # P does not depend on the measurements
+
+
+def test_streaming_uses_user_assigned_state(rng):
+    """A state assigned by the user (any dtype, layout) is validated and used once."""
+    Hs, zs = _record(rng, 20)
+    a, b = RecursiveLeastSquares(4, lam=0.9), RecursiveLeastSquares(4, lam=0.9)
+    a.predict_update(zs[0], Hs[0])
+    b.predict_update(zs[0], Hs[0])
+    P = np.asfortranarray(a.P * 2.0)
+    a.P = P
+    b.P = np.ascontiguousarray(P)
+    a.x = np.array([[1], [2], [3], [4]])          # integers
+    b.x = np.array([[1.0], [2.0], [3.0], [4.0]])
+    for k in range(1, len(zs)):
+        a.predict_update(zs[k], Hs[k])
+        b.predict_update(zs[k], Hs[k])
+    assert_array_equal(a.x, b.x)
+    assert_array_equal(a.P, b.P)
+    assert_array_equal(P, np.asfortranarray(b.P) * 0 + P)   # the assigned array is untouched
+    a.P = np.eye(3)
+    with pytest.raises(ValueError, match=r"`P` must be an array of shape \(4, 4\)"):
+        a.predict()
+    a.P = np.eye(4)
+    a.x = np.zeros(3)
+    with pytest.raises(ValueError, match=r"`x` must be an array of shape \(4, 1\)"):
+        a.update(1.0, Hs[0])
+
+
+def test_streaming_never_reuses_arrays(rng):
+    """Each step makes new arrays, so ``history.append(rls.x)`` works as with filterpy."""
+    Hs, zs = _record(rng, 10)
+    rls = RecursiveLeastSquares(4, lam=0.9)
+    seen = []
+    for k in range(len(zs)):
+        rls.predict()
+        rls.update(zs[k], Hs[k])
+        seen.append({name: getattr(rls, name) for name in STATE})
+    ids = [id(v) for step in seen for v in step.values()]
+    assert len(set(ids)) == len(ids)
+    assert not np.shares_memory(rls.x, rls.x_post) and not np.shares_memory(rls.P, rls.P_post)
+    assert not np.shares_memory(rls.H, Hs)
+
+
+@pytest.mark.parametrize("bad, match", [(np.inf, r"`z` must be finite or NaN"),
+                                        (-np.inf, r"`z` must be finite or NaN")])
+def test_streaming_rejects_infinite_measurement_without_changing_state(rng, bad, match):
+    rls = RecursiveLeastSquares(2)
+    rls.update(1.0, [1.0, 0.5])
+    before = {name: getattr(rls, name).copy() for name in STATE}
+    with pytest.raises(ValueError, match=match):
+        rls.update(bad, np.array([1.0, 2.0]))
+    for name in STATE:
+        assert_array_equal(getattr(rls, name), before[name], err_msg=name)
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf])
+def test_streaming_rejects_non_finite_regressor_without_changing_state(bad):
+    rls = RecursiveLeastSquares(2)
+    rls.update(1.0, [1.0, 0.5])
+    before = {name: getattr(rls, name).copy() for name in STATE}
+    with pytest.raises(ValueError, match=r"`H` must be finite; got (nan|inf) at index 1"):
+        rls.update(2.0, np.array([1.0, bad]))
+    for name in STATE:
+        assert_array_equal(getattr(rls, name), before[name], err_msg=name)
+
+
+def test_import_does_not_load_numba():
+    """``import rlsfilt`` stays light: numba loads on the first compiled call."""
+    import subprocess
+    import sys
+
+    code = ("import sys, rlsfilt; assert 'numba' not in sys.modules, 'numba imported'; "
+            "r = rlsfilt.RecursiveLeastSquares(2); r.update(1.0, [1.0, 2.0]); "
+            "assert 'numba' in sys.modules")
+    subprocess.run([sys.executable, "-c", code], check=True, cwd=_root(), env=_env())
+
+
+def _root():
+    import pathlib
+
+    return str(pathlib.Path(__file__).resolve().parents[1])
+
+
+def _env(**extra):
+    import os
+
+    env = dict(os.environ)
+    env["PYTHONPATH"] = _root() + os.pathsep + env.get("PYTHONPATH", "")
+    env.update(extra)
+    return env
