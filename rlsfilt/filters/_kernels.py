@@ -241,6 +241,9 @@ def batch_filter_kernel(x, P, Z, Hm, Rv, il, Q, q_zero, update_first, mode, para
     if N == 0:
         return np.nan
     store = covs.shape[0] == N
+    if m == 1 and not store:
+        return _run_single(x, P, Z, Hm, Rv, il, Q, q_zero, update_first, means, ys, ss,
+                           x_prior, P_prior, x_post, P_post, K)
     r_each = Rv.shape[0] == N                  # else one variance for all steps
     predict = not (il == 1.0 and q_zero)       # otherwise the time update is the identity
     g = np.empty(n)
@@ -295,6 +298,70 @@ def batch_filter_kernel(x, P, Z, Hm, Rv, il, Q, q_zero, update_first, mode, para
                     _predict_inplace(P, il, Q, q_zero)
                 if store:
                     _copy2(P, covs_p[k])
+                _copy2(x, x_prior)
+                _copy2(P, P_prior)
+    return s
+
+
+@njit(cache=True)
+def _run_single(x, P, Z, Hm, Rv, il, Q, q_zero, update_first, means, ys, ss,
+                x_prior, P_prior, x_post, P_post, K):
+    """`batch_filter_kernel` for one output without covariance histories.
+
+    The hot path of ARX fits and long records: the same arithmetic in the
+    same order as the general loop (so the results are identical), written
+    with scalars for the single output.
+    """
+    N = Z.shape[0]
+    n = x.shape[0]
+    r_each = Rv.shape[0] == N
+    predict = not (il == 1.0 and q_zero)
+    th = x[:, 0]
+    g = np.empty(n)
+    gn = np.empty(n)
+    _predict_gain_inplace(P, il, Q, q_zero, predict and not update_first, Hm[0], g)
+    if not update_first and N == 1:
+        _copy2(x, x_prior)
+        _copy2(P, P_prior)
+    s = np.nan
+    for k in range(N):
+        h = Hm[k]
+        acc = 0.0
+        for i in range(n):
+            acc += h[i] * g[i]
+        s = acc + Rv[k if r_each else 0]          # s = h . g + r
+        ss[k] = s
+        c = 1.0 / s
+        zk = Z[k, 0]
+        update = zk == zk                          # not missing
+        if update:
+            acc = 0.0
+            for i in range(n):
+                acc += h[i] * th[i]
+            y = zk - acc                           # y = z - h . x
+            ys[k, 0] = y
+            for i in range(n):
+                ki = g[i] * c                      # K = g / s
+                K[i] = ki
+                th[i] = th[i] + ki * y             # x = x + K y
+        else:
+            ys[k, 0] = np.nan
+        mk = means[k]
+        for i in range(n):
+            mk[i, 0] = th[i]
+        if k < N - 1:
+            _covariance_pass(P, g, c, update, predict, il, Q, q_zero, Hm[k + 1], gn)
+            g, gn = gn, g
+            if k == N - 2 and not update_first:
+                _copy2(x, x_prior)
+                _copy2(P, P_prior)
+        else:
+            _covariance_pass(P, g, c, update, False, il, Q, q_zero, h, gn)
+            _copy2(x, x_post)
+            _copy2(P, P_post)
+            if update_first:
+                if predict:
+                    _predict_inplace(P, il, Q, q_zero)
                 _copy2(x, x_prior)
                 _copy2(P, P_prior)
     return s
