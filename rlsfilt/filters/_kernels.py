@@ -41,7 +41,7 @@ __all__ = []
 MODE_EXPONENTIAL = 0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _predict_inplace(P, il, Q, q_zero):
     """``P <- P * il + Q`` in place (``Q`` ignored when `q_zero`)."""
     n = P.shape[0]
@@ -55,7 +55,7 @@ def _predict_inplace(P, il, Q, q_zero):
                 P[j, i] = P[j, i] * il + Q[j, i]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _predict_gain_inplace(P, il, Q, q_zero, predict, phi, g):
     """Optional predict fused with ``g = P phi``; returns nothing.
 
@@ -126,7 +126,7 @@ def _measurement_update(x, P, g, c, y, K, xn, Pn):
             Pn[i, j] = P[i, j] - (gi * g[j]) * c
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _copy2(a, b):
     """``b[:] = a`` for 2-D arrays, as a plain loop."""
     for i in range(a.shape[0]):
