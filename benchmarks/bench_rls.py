@@ -139,6 +139,7 @@ def run_filterpy(Hs, zs):
     kf = KalmanFilter(dim_x=n, dim_z=1)
     kf.F = np.eye(n)
     kf.P = P0 * np.eye(n)
+    kf.Q = np.zeros((n, n))
     kf.R = np.eye(1)
     kf.alpha = np.sqrt(1.0 / LAM)
     for k in range(len(zs)):
@@ -240,7 +241,7 @@ def ratio_table(results, markdown=False):
         lines += ["| " + " | ".join(row) + " |" for row in rows]
         return "\n".join(lines)
     widths = [max(len(h), *(len(row[i]) for row in rows)) for i, h in enumerate(head)]
-    fmt = "  ".join("{:>%d}" % w for w in widths)
+    fmt = "  ".join(f"{{:>{w}}}" for w in widths)
     return "\n".join([fmt.format(*head)] + [fmt.format(*row) for row in rows])
 
 

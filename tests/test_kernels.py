@@ -21,8 +21,9 @@ STATE = ("x", "P", "x_prior", "P_prior", "x_post", "P_post", "y", "K", "S", "SI"
 def _record(rng, n_samples, dim_z=1, missing=(), scale=1.0):
     Hs, zs = arx_record(rng, n_samples=n_samples + 2)
     if dim_z > 1:
-        zs = np.column_stack([zs] + [Hs @ rng.standard_normal(4) + 0.1 * rng.standard_normal(len(zs))
-                                     for _ in range(dim_z - 1)])
+        extra = [Hs @ rng.standard_normal(4) + 0.1 * rng.standard_normal(len(zs))
+                 for _ in range(dim_z - 1)]
+        zs = np.column_stack([zs] + extra)
     zs = scale * zs.astype(float)
     for k in missing:
         zs[k] = np.nan
