@@ -368,16 +368,39 @@ def _run_single(x, P, Z, Hm, Rv, il, Q, q_zero, update_first, means, ys, ss,
 
 
 @njit(cache=True)
-def update_kernel(x, P, phi, z, r, missing, xn, Pn, y, K, S, SI, Hc, x_post, P_post):
+def predict_kernel(x, P, il, Q, q_zero, Pn, x_prior, P_prior):
+    """Streaming time update: ``Pn = P * il + Q`` (``Pn`` may be ``P``) and the prior copies."""
+    n, m = x.shape
+    if q_zero:
+        for i in range(n):
+            for j in range(n):
+                v = P[i, j] * il
+                Pn[i, j] = v
+                P_prior[i, j] = v
+    else:
+        for i in range(n):
+            for j in range(n):
+                v = P[i, j] * il + Q[i, j]
+                Pn[i, j] = v
+                P_prior[i, j] = v
+    for i in range(n):
+        for j in range(m):
+            x_prior[i, j] = x[i, j]
+
+
+@njit(cache=True)
+def update_kernel(x, P, phi, z, z0, zmode, r, xn, Pn, y, K, S, SI, Hc, x_post, P_post):
     """One measurement update for the streaming :meth:`update`.
 
     Reads ``x`` (n, m), ``P`` (n, n), the regressor ``phi`` (n,) and the
-    measurement ``z`` (m, 1) and writes the new estimate ``xn`` and
-    covariance ``Pn`` with their copies ``x_post``, ``P_post``, the residual
-    ``y`` (m, 1), the gain ``K`` (n, 1), ``S = s I`` and ``SI = I / s``
-    (m, m), and a copy ``Hc`` (1, n) of ``phi``. When `missing` is true
-    ``y``, ``K`` are not written and ``xn``, ``Pn`` are copies of ``x``,
-    ``P``. ``phi`` is first tested for finiteness.
+    measurement ``z`` (m, 1); with ``zmode`` 1 the kernel first writes the
+    scalar ``z0`` into ``z``, with 2 the measurement is missing and ``z`` is
+    filled with NaN. Writes the new estimate ``xn`` and covariance ``Pn``
+    (which may be ``x`` and ``P`` themselves) with their copies ``x_post``,
+    ``P_post``, the residual ``y`` (m, 1), the gain ``K`` (n, 1),
+    ``S = s I`` and ``SI = I / s`` (m, m), and a copy ``Hc`` (1, n) of
+    ``phi``. A missing measurement leaves the state unchanged, ``y`` NaN and
+    ``K`` zero. ``phi`` is first tested for finiteness.
 
     Returns
     -------
@@ -390,9 +413,15 @@ def update_kernel(x, P, phi, z, r, missing, xn, Pn, y, K, S, SI, Hc, x_post, P_p
         v = phi[i]
         if v - v != 0.0:          # NaN or inf
             return np.nan
+    missing = zmode == 2
+    if zmode == 1:
+        z[0, 0] = z0
+    elif missing:
+        for j in range(m):
+            z[j, 0] = np.nan
     for i in range(n):
         Hc[0, i] = phi[i]
-    g = np.empty(n)
+    g = K[:, 0]                   # K's storage holds g = P phi until the end
     _predict_gain_inplace(P, 1.0, P, True, False, phi, g)
     s = _innovation_variance(phi, g, r)
     c = 1.0 / s
@@ -403,19 +432,27 @@ def update_kernel(x, P, phi, z, r, missing, xn, Pn, y, K, S, SI, Hc, x_post, P_p
         S[i, i] = s
         SI[i, i] = c
     if missing:
-        xn[:] = x
-        Pn[:] = P
-    else:
-        yv = np.empty(m)
-        Kv = np.empty(n)
-        _residual(x, phi, z[:, 0], yv)
-        _measurement_update(x, P, g, c, yv, Kv, xn, Pn)
         for j in range(m):
-            y[j, 0] = yv[j]
+            y[j, 0] = np.nan
         for i in range(n):
-            K[i, 0] = Kv[i]
-    x_post[:] = xn
-    P_post[:] = Pn
+            K[i, 0] = 0.0
+        _copy2(x, xn)
+        _copy2(P, Pn)
+    else:
+        yv = y[:, 0]
+        _residual(x, phi, z[:, 0], yv)
+        for i in range(n):                    # x = x + K y^T, K = g / s
+            ki = g[i] * c
+            for j in range(m):
+                xn[i, j] = x[i, j] + ki * yv[j]
+        for i in range(n):                    # P = P - (g g^T) / s
+            gi = g[i]
+            for j in range(n):
+                Pn[i, j] = P[i, j] - (gi * g[j]) * c
+        for i in range(n):
+            K[i, 0] = g[i] * c
+    _copy2(xn, x_post)
+    _copy2(Pn, P_post)
     return s
 
 

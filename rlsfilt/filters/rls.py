@@ -12,6 +12,8 @@ state ``x`` and ``P``, diagnostics ``y``, ``K``, ``S``, ``SI`` and the lazy
 
 import copy
 import math
+import sys
+import sysconfig
 import warnings
 
 import numpy as np
@@ -46,6 +48,40 @@ def _get_kernels():
         from . import _kernels as k
         _kernels = k
     return _kernels
+
+
+def _free_refcount():
+    """What ``sys.getrefcount`` reports for an array nobody else can see.
+
+    The streaming methods recycle the arrays of the previous step (``y``,
+    ``K``, ``S``, ``x_prior``, ...) instead of allocating new ones, but only
+    when the filter holds the sole references: one attribute, one private
+    reference (a tuple or a second attribute) and the local variable. Any
+    reference held elsewhere (a list of past estimates, a view, a Saver)
+    raises the count and a fresh array is made, so no array a user can see
+    ever changes. The count is measured here rather than assumed; recycling
+    is off where it cannot be measured reliably (no ``getrefcount``, or a
+    free-threaded build).
+    """
+    if not hasattr(sys, "getrefcount") or sysconfig.get_config_var("Py_GIL_DISABLED"):
+        return None
+
+    class _Holder:
+        pass
+
+    h = _Holder()
+    h.y = np.empty(1)
+    h.spare = (h.y,)
+    (y,) = h.spare
+    via_tuple = sys.getrefcount(y)
+    h.P = np.empty(1)
+    h.P_own = h.P
+    P = h.P
+    via_attribute = sys.getrefcount(P)
+    return via_tuple if via_tuple == via_attribute else None
+
+
+_FREE = _free_refcount()
 
 
 class RecursiveLeastSquares:
@@ -165,6 +201,12 @@ class RecursiveLeastSquares:
     array([0.8, 0.5])
     """
 
+    # Bookkeeping of the streaming fast path lives in slots, outside
+    # ``__dict__``, so that filterpy's Saver (which records every entry of
+    # ``__dict__``) sees only the filter's state.
+    __slots__ = ("__dict__", "__weakref__", "_x_own", "_P_own", "_spare_prior", "_spare_update",
+                 "_row", "_row2")
+
     def __init__(self, dim_x, dim_z=1, lam=1.0, *, P0=1e4, x0=None, R=1.0, Q=0.0):
         self.dim_x = check_int(dim_x, "dim_x", minimum=1)
         self.dim_z = check_int(dim_z, "dim_z", minimum=1)
@@ -252,12 +294,26 @@ class RecursiveLeastSquares:
         else:
             Q = check_covariance(Q, self.dim_x, "Q")
             q_zero = not Q.any()
-        P = self.P
-        if P is not self._P_own:            # assigned by the user: check it once
-            P = self._checked_P()
-        self.P = self._P_own = P = _predict_covariance(P, self._lam, None if q_zero else Q)
-        self.x_prior = self.x.copy()
-        self.P_prior = P.copy()
+        x, P = self.x, self.P
+        rc = sys.getrefcount
+        x_prior, P_prior = self._spare_prior
+        # Nobody else holds P or the last priors (the usual case, see
+        # _free_refcount): P^- overwrites P, the priors are rewritten in place.
+        recycled = (x is self._x_own and P is self._P_own and rc(P) == _FREE
+                    and rc(x_prior) == _FREE and rc(P_prior) == _FREE)
+        if recycled:
+            Pn = P
+        else:
+            n = self.dim_x
+            x = np.ascontiguousarray(self._checked_x(), dtype=float)
+            P = np.ascontiguousarray(self._checked_P(), dtype=float)
+            Pn, x_prior, P_prior = np.empty((n, n)), np.empty((n, self.dim_z)), np.empty((n, n))
+        (_kernels or _get_kernels()).predict_kernel(
+            x, P, 1.0 / self._lam, Q, q_zero, Pn, x_prior, P_prior)
+        if not recycled:
+            self.x = self._x_own = x
+            self.P = self._P_own = Pn
+            self.x_prior, self.P_prior = self._spare_prior = x_prior, P_prior
         self._updates_since_predict = 0
 
     def update(self, z, H, R=None):
@@ -277,50 +333,64 @@ class RecursiveLeastSquares:
         # own x and P) skips the conversions; the arithmetic is the compiled
         # step that batch_filter runs, so both agree bit for bit.
         n, m = self.dim_x, self.dim_z
-        if type(H) is np.ndarray and H.dtype is _F8 and (H.shape == self._row
-                                                                  or H.shape == self._row2):
+        if type(H) is np.ndarray and H.dtype is _F8 and H.shape == self._row:
+            phi = H
+        elif type(H) is np.ndarray and H.dtype is _F8 and H.shape == self._row2:
             phi = H.reshape(n)
         else:
             phi = self._as_regressor(H, "H").reshape(n)
         r = self._R if R is None else check_variance(R, "R")
-        if m == 1 and isinstance(z, float):
-            zc = np.empty((1, 1))
-            zc[0, 0] = z
+        zf = m == 1 and isinstance(z, float)
+        if zf:
             missing = z != z
             if not missing and z - z != 0.0:
                 self._as_measurement(z, "z")            # raises: z is inf
         else:
-            zc = self._as_measurement(z, "z")
-            missing = zc is None
-            if missing:
-                zc = np.empty((m, 1))
-                zc.fill(np.nan)
+            zvalue = self._as_measurement(z, "z")
+            missing = zvalue is None
         x, P = self.x, self.P
-        if x is not self._x_own:
-            x = np.ascontiguousarray(self._checked_x(), dtype=float)
-        if P is not self._P_own:
-            P = np.ascontiguousarray(self._checked_P(), dtype=float)
-        xn, Pn, y, K = np.empty((n, m)), np.empty((n, n)), np.empty((m, 1)), np.empty((n, 1))
-        S, SI, Hc = np.empty((m, m)), np.empty((m, m)), np.empty((1, n))
-        x_post, P_post = np.empty((n, m)), np.empty((n, n))
+        rc = sys.getrefcount
+        y, K, S, SI, Hc, zc, x_post, P_post = self._spare_update
+        # Nobody else holds x, P or the last step's diagnostics (the usual
+        # case, see _free_refcount): update them in place, no allocations.
+        recycled = (x is self._x_own and P is self._P_own and (zf or missing)
+                    and rc(x) == _FREE and rc(P) == _FREE and rc(y) == _FREE
+                    and rc(K) == _FREE and rc(S) == _FREE and rc(SI) == _FREE
+                    and rc(Hc) == _FREE and rc(zc) == _FREE and rc(x_post) == _FREE
+                    and rc(P_post) == _FREE)
+        if recycled:
+            xn, Pn = x, P
+        else:
+            if x is not self._x_own:
+                x = np.ascontiguousarray(self._checked_x(), dtype=float)
+            if P is not self._P_own:
+                P = np.ascontiguousarray(self._checked_P(), dtype=float)
+            xn, Pn = np.empty((n, m)), np.empty((n, n))
+            y, K, S, SI = np.empty((m, 1)), np.empty((n, 1)), np.empty((m, m)), np.empty((m, m))
+            Hc, x_post, P_post = np.empty((1, n)), np.empty((n, m)), np.empty((n, n))
+            if zf or missing:                # the kernel writes z (or NaN) into zc
+                zc = np.empty((m, 1))
+            else:
+                zc = zvalue
+        zmode, z0 = (2, 0.0) if missing else ((1, z) if zf else (0, 0.0))
         s = (_kernels or _get_kernels()).update_kernel(
-            x, P, phi, zc, r, missing, xn, Pn, y, K, S, SI, Hc, x_post, P_post)
+            x, P, phi, zc, z0, zmode, r, xn, Pn, y, K, S, SI, Hc, x_post, P_post)
         if s != s:
             check_finite(phi, "H")                   # raises: H is not finite
         if self._updates_since_predict:
             self._note_update()
         else:
             self._updates_since_predict = 1
-        self._log_likelihood = self._likelihood = self._mahalanobis = None
-        self.H, self.z, self.S, self.SI = Hc, zc, S, SI
-        self.x = self._x_own = xn
-        self.P = self._P_own = Pn
         if missing:
-            y.fill(np.nan)
-            K.fill(0.0)
-            self._log_likelihood, self._likelihood = 0.0, 1.0
-        self.y, self.K = y, K
-        self.x_post, self.P_post = x_post, P_post
+            self._log_likelihood, self._likelihood, self._mahalanobis = 0.0, 1.0, None
+        else:
+            self._log_likelihood = self._likelihood = self._mahalanobis = None
+        if not recycled:
+            self._spare_update = (y, K, S, SI, Hc, zc, x_post, P_post)
+            self.H, self.z, self.S, self.SI, self.y, self.K = Hc, zc, S, SI, y, K
+            self.x = self._x_own = xn
+            self.P = self._P_own = Pn
+            self.x_post, self.P_post = x_post, P_post
 
     def predict_update(self, z, H, R=None):
         """One textbook RLS step: :meth:`predict` then :meth:`update`."""
@@ -530,6 +600,10 @@ class RecursiveLeastSquares:
         self._I_z = np.eye(m)
         self.S = np.zeros((m, m))
         self.SI = np.zeros((m, m))
+        # arrays the streaming methods may overwrite when nobody else holds them
+        self._spare_prior = (self.x_prior, self.P_prior)
+        self._spare_update = (self.y, self.K, self.S, self.SI, self.H, self.z, self.x_post,
+                              self.P_post)
         self._updates_since_predict = 0
         # before any update, as filterpy: nothing observed yet
         self._log_likelihood = math.log(np.finfo(float).tiny)
