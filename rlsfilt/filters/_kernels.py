@@ -192,6 +192,43 @@ def _covariance_pass(P, g, c, update, predict, il, Q, q_zero, phin, gn):
         _predict_gain_inplace(P, il, Q, q_zero, predict, phin, gn)
 
 
+@njit(cache=True, inline="always")
+def _covariance_pass_store(P, g, c, update, predict, il, Q, q_zero, phin, gn, C_post, C_prior):
+    """`_covariance_pass` that also writes ``P`` after the update into
+    ``C_post`` and after the predict into ``C_prior`` (same arithmetic)."""
+    n = P.shape[0]
+    for i in range(n):
+        gn[i] = 0.0
+    if update and predict and q_zero:            # the common case, branch-free
+        for i in range(n):
+            gi = g[i]
+            hi = phin[i]
+            for j in range(n):
+                v = P[i, j] - (gi * g[j]) * c
+                C_post[i, j] = v
+                v = v * il
+                C_prior[i, j] = v
+                P[i, j] = v
+                gn[j] += v * hi
+    else:
+        for i in range(n):
+            gi = g[i]
+            hi = phin[i]
+            for j in range(n):
+                v = P[i, j]
+                if update:
+                    v = v - (gi * g[j]) * c
+                C_post[i, j] = v
+                if predict:
+                    if q_zero:
+                        v = v * il
+                    else:
+                        v = v * il + Q[i, j]
+                C_prior[i, j] = v
+                P[i, j] = v
+                gn[j] += v * hi
+
+
 @njit(cache=True)
 def batch_filter_kernel(x, P, Z, Hm, Rv, il, Q, q_zero, update_first, mode, params,
                         means, covs, covs_p, ys, ss,
@@ -276,11 +313,9 @@ def batch_filter_kernel(x, P, Z, Hm, Rv, il, Q, q_zero, update_first, mode, para
         _copy2(x, means[k])
         if k < N - 1:
             kp = k if update_first else k + 1        # index of the predict that follows
-            if store:                                 # unfused, to record P in between
-                _covariance_pass(P, g, c, update, False, il, Q, q_zero, phi, gn)
-                _copy2(P, covs[k])
-                _predict_gain_inplace(P, il, Q, q_zero, predict, Hm[k + 1], gn)
-                _copy2(P, covs_p[kp])
+            if store:
+                _covariance_pass_store(P, g, c, update, predict, il, Q, q_zero, Hm[k + 1], gn,
+                                       covs[k], covs_p[kp])
             else:
                 _covariance_pass(P, g, c, update, predict, il, Q, q_zero, Hm[k + 1], gn)
             g, gn = gn, g
