@@ -36,6 +36,7 @@ installed is skipped.
 """
 
 import argparse
+import json
 import os
 import sys
 import time
@@ -55,8 +56,8 @@ from rlsfilt.filters import _kernels  # noqa: E402
 LAM = 0.99
 P0 = 1e4
 FULL_DIMS = (2, 5, 10, 20, 50)
-COLUMNS = ("batch_filter", "batch_filter+P", "write 2 N n^2", "kernel", "predict+update", "handwritten",
-           "numpy loop", "filterpy", "padasip", "statsmodels")
+COLUMNS = ("batch_filter", "batch_filter+P", "write 2 N n^2", "kernel", "predict+update",
+           "handwritten", "numpy loop", "filterpy", "padasip", "statsmodels")
 
 
 # ----------------------------------------------------------------------
@@ -266,19 +267,23 @@ def streaming_vs_filterpy(results):
 def plot(results, path=None, ax=None):
     """Time per sample against dim_x, one line per contender; returns the axes."""
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import NullFormatter
 
     if ax is None:
-        _, ax = plt.subplots(figsize=(7, 4.5))
-    dims = list(results)
+        _, ax = plt.subplots(figsize=(8, 4.5))
+    dims = sorted(results)
     for c in COLUMNS:
         ys = [results[n].get(c, np.nan) * 1e9 for n in dims]
         if not np.all(np.isnan(ys)):
             ax.loglog(dims, ys, "o-", label=c)
+    ax.set_xticks(dims)
+    ax.set_xticklabels([str(n) for n in dims])
+    ax.xaxis.set_minor_formatter(NullFormatter())
     ax.set_xlabel(r"number of parameters $n$ (dim_x)")
     ax.set_ylabel("time per sample [ns]")
     ax.set_title(r"RLS, $\lambda = 0.99$, ARX workload")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
+    ax.grid(True, which="major", alpha=0.3)
+    ax.legend(fontsize=8, loc="center left", bbox_to_anchor=(1.01, 0.5))
     if path:
         ax.figure.savefig(path, dpi=120, bbox_inches="tight")
     return ax
@@ -297,6 +302,8 @@ def main(argv=None):
     parser.add_argument("--rounds", type=int, default=5, help="interleaved rounds (default 5)")
     parser.add_argument("--plot", metavar="PATH", help="save a plot of the times")
     parser.add_argument("--markdown", action="store_true", help="print the table as Markdown")
+    parser.add_argument("--json", metavar="PATH",
+                        help="also save the times (seconds per sample) as JSON")
     args = parser.parse_args(argv)
     if args.smoke:
         dims = args.dims or [2, 5]
@@ -314,6 +321,9 @@ def main(argv=None):
         print()
         print("streaming predict+update, speed-up over filterpy's KalmanFilter: " + ", ".join(
             f"dim_x={n}: {v:.1f}x" for n, v in speedup.items()))
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump({str(n): r for n, r in results.items()}, f, indent=1)
     if args.plot:
         plot(results, args.plot)
         print(f"plot saved to {args.plot}")

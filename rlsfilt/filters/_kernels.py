@@ -21,12 +21,16 @@ bit)::
     P <- P - (g g^T) c                       g_i g_j = g_j g_i exactly, so
                                              P stays exactly symmetric
 
-The cost per step is about ``3 dim_x^2`` multiply-adds (one sweep over ``P``
-for the predict and gain, one for the rank-one update) plus
-``2 dim_x dim_z`` for the residual and estimate. Both sweeps run along rows
-of the C-contiguous ``P`` with no reduction in the inner loop, so LLVM
-vectorizes them without any reassociation (no ``fastmath``): the results do
-not depend on the vector width.
+The batch kernel makes one sweep over ``P`` per step that applies the
+measurement update, the next time update and the next gain together
+(``v = (P_ij - g_i g_j c) * il; P_ij = v; g'_j += v phi'_i``): about
+``6 dim_x^2`` floating-point operations and one read and one write of ``P``
+per step, plus ``4 dim_x dim_z`` for the residual and the estimate. The
+sweep runs along rows of the C-contiguous ``P`` with no reduction in the
+inner loop, so LLVM vectorizes it without any reassociation (no
+``fastmath``): the results do not depend on the vector width, and the
+streaming methods, which run the same arithmetic in separate calls, agree
+with the batch kernel bit for bit.
 
 ``mode`` selects the covariance update (only ``MODE_EXPONENTIAL`` so far:
 exponential forgetting plus an optional random walk ``Q``); ``params`` is a
@@ -273,6 +277,8 @@ def batch_filter_kernel(x, P, Z, Hm, Rv, il, Q, q_zero, update_first, mode, para
     s : float
         Innovation variance of the last step (NaN when ``N == 0``).
     """
+    if mode != MODE_EXPONENTIAL:
+        raise ValueError("batch_filter_kernel: unknown covariance-update mode")
     N = Z.shape[0]
     n, m = x.shape
     if N == 0:
