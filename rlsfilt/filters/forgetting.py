@@ -66,11 +66,13 @@ def mode_code(forgetting):
     return MODES.index(forgetting)
 
 
-def mode_params(code, params, dim_x, lam):
+def mode_params(code, params, dim_x, lam, R=1.0):
     """Validate the user's ``forgetting_params`` dict; return a float tuple.
 
-    Defaults: directional ``eps = 1e-12``; constant trace ``trace = dim_x``,
-    ``ratio = 1e4``; EFRA ``alpha = 0.5``, ``beta = delta = 0.005``; variable
+    Defaults: directional ``eps = 1e-12``; constant trace ``trace = dim_x R
+    (1 - lam)`` (the trace at which plain exponential forgetting settles for
+    white, unit-power regressors; needs ``lam < 1``), ``ratio = 1e4``; EFRA
+    ``alpha = 0.5``, ``beta = delta = 0.005``; variable
     ``lam_min = max(0.5, 1 - 10 (1 - lam))`` (at most `lam`),
     ``trace_max = 10 dim_x``.
     """
@@ -96,7 +98,12 @@ def mode_params(code, params, dim_x, lam):
         p.setdefault("eps", 1e-12)
         positive("eps")
     elif code == CONSTANT_TRACE:
-        p.setdefault("trace", float(dim_x))
+        if "trace" not in p:
+            if lam == 1.0:
+                raise ValueError("forgetting='constant_trace' with lam = 1 needs an explicit "
+                                 "`forgetting_params['trace']` (the default is "
+                                 "dim_x * R * (1 - lam))")
+            p["trace"] = dim_x * R * (1.0 - lam)
         p.setdefault("ratio", 1e4)
         positive("trace")
         positive("ratio")
@@ -175,7 +182,7 @@ def update_constant_trace(x, P, phi, z, g, s, r, lam, params):
     with :math:`c_1 + n c_2 =` ``trace`` and :math:`c_1 / c_2 =` ``ratio``,
     so ``trace(P)`` is constant and ``cond(P)`` is at most about ``ratio``.
     The normalization is the forgetting (``lam_t = tr(P_bar) / tr(P)``
-    before the ``c_2`` term), so `lam` plays no role in this mode.
+    before the ``c_2`` term), so `lam` enters only through the default ``trace``.
     """
     trace, ratio = params
     n = P.shape[0]
@@ -192,20 +199,22 @@ def update_efra(x, P, phi, z, g, s, r, lam, params):
     r"""Exponential forgetting and resetting (Salgado, Goodwin & Middleton 1988).
 
     .. math:: K = \alpha g / s,\quad x \leftarrow x + K y^T,\quad
-              P \leftarrow P / \lambda - \alpha g g^T / s + \beta I - \delta P^2
+              P \leftarrow P / \lambda - \alpha g g^T / s + \beta r I - (\delta / r) P^2
 
-    ``P`` stays between :func:`efra_bounds` ``(sigma_min, sigma_max)`` once it
-    starts there (the filter clips the eigenvalues of ``P`` once before the
-    first EFRA step).
+    This is the paper's recursion (written for unit noise variance) applied
+    to ``P / r``, so the constants do not depend on the units of the data.
+    ``P / r`` stays between :func:`efra_bounds` ``(sigma_min, sigma_max)``
+    once it starts there (the filter clips the eigenvalues of ``P`` once
+    before the first EFRA step).
     """
     alpha, beta, delta = params
     n = P.shape[0]
     y = z - (phi @ x).T
     K = (alpha / s) * g
     x = x + K * y.T
-    Pn = P / lam - (alpha / s) * np.outer(g, g) - delta * (P @ P)
+    Pn = P / lam - (alpha / s) * np.outer(g, g) - (delta / r) * (P @ P)
     Pn = 0.5 * (Pn + Pn.T)                 # P @ P is symmetric only to round-off
-    Pn[np.diag_indices(n)] += beta
+    Pn[np.diag_indices(n)] += beta * r
     return x, Pn, y, K, lam
 
 

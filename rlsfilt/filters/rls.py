@@ -73,8 +73,10 @@ class RecursiveLeastSquares(_FilterBase):
     forgetting_params : dict, optional
         Constants of the chosen mode: ``"directional"``: ``eps`` (1e-12,
         smallest ``phi P phi^T / R`` that triggers forgetting);
-        ``"constant_trace"``: ``trace`` (``dim_x``, the constant
-        ``trace(P)``; scale it with ``R`` and the regressor power) and
+        ``"constant_trace"``: ``trace`` (``dim_x * R * (1 - lam)`` with the
+        `R` and `lam` given at construction: the trace plain forgetting
+        settles at for white unit-power regressors; scale it by the inverse
+        regressor power) and
         ``ratio`` (1e4, ``c1 / c2`` and so about the largest ``cond(P)``);
         ``"efra"``: ``alpha`` (0.5), ``beta`` (0.005), ``delta`` (0.005);
         ``"variable"``: ``lam_min`` (``max(0.5, 1 - 10 (1 - lam))``, the
@@ -173,12 +175,14 @@ class RecursiveLeastSquares(_FilterBase):
       (1 - \lambda) R / (H P H^T)`.
     * ``"constant_trace"`` (Goodwin & Sin 1984; Astrom & Wittenmark 1995):
       :math:`P \leftarrow c_1 \bar P / \operatorname{tr} \bar P + c_2 I`
-      after the plain update :math:`\bar P`; `lam` is not used.
+      after the plain update :math:`\bar P`; `lam` only sets the default ``trace``.
     * ``"efra"`` (Salgado, Goodwin & Middleton 1988): :math:`P \leftarrow
-      P/\lambda - \alpha g g^T / S + \beta I - \delta P^2`, gain
-      :math:`\alpha g / S`; the eigenvalues of ``P`` are clipped into
-      EFRA's invariant interval once before the first step after
-      construction, :meth:`reset` or :meth:`initialize`.
+      P/\lambda - \alpha g g^T / S + \beta R I - (\delta / R) P^2`
+      (the paper's recursion for ``P / R``), gain :math:`\alpha g / S`; the
+      eigenvalues of ``P / R`` are clipped into EFRA's invariant interval
+      once, by the first :meth:`predict` or :meth:`update` after
+      construction, :meth:`reset` or :meth:`initialize` (so the default
+      ``P0`` works).
     * ``"variable"`` (Fortescue, Kershenbaum & Ydstie 1981):
       :math:`\lambda_t = 1 - (1 - \lambda)\, y^T y / (m S)`, clipped to
       ``[lam_min, 1]`` and raised so that ``trace(P) <= trace_max``.
@@ -247,8 +251,8 @@ class RecursiveLeastSquares(_FilterBase):
         self.dim_z = check_int(dim_z, "dim_z", minimum=1)
         self._mode = _fg.mode_code(forgetting)
         self._forgetting_params_in = forgetting_params
-        self.lam = lam
         self.R = R
+        self.lam = lam
         self.Q = Q
         self.gate = gate
         self.check_every = check_int(check_every, "check_every", minimum=0)
@@ -272,7 +276,8 @@ class RecursiveLeastSquares(_FilterBase):
     @lam.setter
     def lam(self, value):
         lam = check_lam(value)
-        params = _fg.mode_params(self._mode, self._forgetting_params_in, self.dim_x, lam)
+        params = _fg.mode_params(self._mode, self._forgetting_params_in, self.dim_x, lam,
+                                 self._R)
         self._lam, self._params = lam, params
 
     @property
@@ -327,7 +332,10 @@ class RecursiveLeastSquares(_FilterBase):
         else:
             Q = check_covariance(Q, self.dim_x, "Q")
             q_zero = not Q.any()
-        P = _predict_covariance(self._checked_P(), self._time_lam(), None if q_zero else Q)
+        P = self._checked_P()
+        if self._efra_pending:
+            P = self._efra_start(P)
+        P = _predict_covariance(P, self._time_lam(), None if q_zero else Q)
         self.P = P if q_zero or self._Pi is None else _project(P, self._Pi)
         self.x_prior = self.x.copy()
         self.P_prior = self.P.copy()
@@ -650,7 +658,8 @@ class RecursiveLeastSquares(_FilterBase):
     def _efra_start(self, P):
         """Clip ``P`` into EFRA's invariant interval before its first step."""
         self._efra_pending = False
-        P = _fg.clip_eigenvalues(P, *_fg.efra_bounds(self._lam, *self._params))
+        lo, hi = _fg.efra_bounds(self._lam, *self._params)
+        P = _fg.clip_eigenvalues(P, lo * self._R, hi * self._R)
         return P if self._Pi is None else _project(P, self._Pi)
 
     def _time_lam(self):
