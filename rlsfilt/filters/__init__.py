@@ -1,5 +1,6 @@
 """Recursive least-squares filters."""
 
 from .rls import RecursiveLeastSquares
+from .sliding_window import SlidingWindowRLS
 
-__all__ = ["RecursiveLeastSquares"]
+__all__ = ["RecursiveLeastSquares", "SlidingWindowRLS"]

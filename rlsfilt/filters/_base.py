@@ -84,6 +84,32 @@ class _FilterBase:
         """Return an independent deep copy of the filter."""
         return copy.deepcopy(self)
 
+    def _batch_stepwise(self, Z, Hm, Rv, update_first, saver, store_covariances):
+        """Run ``predict``/``update`` over a validated record (the generic batch loop)."""
+        N = len(Z)
+        means = np.empty((N, self.dim_x, self.dim_z))
+        means_p = np.empty_like(means)
+        covs = np.empty((N, self.dim_x, self.dim_x)) if store_covariances else None
+        covs_p = np.empty_like(covs) if store_covariances else None
+        for k in range(N):
+            if not update_first:
+                self.predict()
+                means_p[k] = self.x
+                if store_covariances:
+                    covs_p[k] = self.P
+            self.update(Z[k], Hm[k], Rv[k])
+            means[k] = self.x
+            if store_covariances:
+                covs[k] = self.P
+            if update_first:
+                self.predict()
+                means_p[k] = self.x
+                if store_covariances:
+                    covs_p[k] = self.P
+            if saver is not None:
+                saver.save()
+        return means, covs, means_p, covs_p
+
     def _clear_lazy(self):
         self._log_likelihood = None
         self._likelihood = None

@@ -507,30 +507,6 @@ class RecursiveLeastSquares(_FilterBase):
         self._check_health(cheap=False)
         return out.means, out.covariances, out.means_p, out.covariances_p
 
-    def _batch_stepwise(self, Z, Hm, Rv, update_first, saver, store_covariances):
-        N = len(Z)
-        means = np.empty((N, self.dim_x, self.dim_z))
-        means_p = np.empty_like(means)
-        covs = np.empty((N, self.dim_x, self.dim_x)) if store_covariances else None
-        covs_p = np.empty_like(covs) if store_covariances else None
-        for k in range(N):
-            if not update_first:
-                self.predict()
-                means_p[k] = self.x
-                if store_covariances:
-                    covs_p[k] = self.P
-            self.update(Z[k], Hm[k], Rv[k])
-            means[k] = self.x
-            if store_covariances:
-                covs[k] = self.P
-            if update_first:
-                self.predict()
-                means_p[k] = self.x
-                if store_covariances:
-                    covs_p[k] = self.P
-            saver.save()
-        return means, covs, means_p, covs_p
-
     def _adopt_last_step(self, out, Hm, Z, Rv, update_first):
         """Leave the filter as the step-by-step loop would have left it."""
         self.x, self.P = out.x, out.P
