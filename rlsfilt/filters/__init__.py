@@ -2,5 +2,6 @@
 
 from .rls import RecursiveLeastSquares
 from .sliding_window import SlidingWindowRLS
+from .square_root import SquareRootRLS
 
-__all__ = ["RecursiveLeastSquares", "SlidingWindowRLS"]
+__all__ = ["RecursiveLeastSquares", "SlidingWindowRLS", "SquareRootRLS"]

@@ -11,6 +11,7 @@ import copy
 import math
 
 import numpy as np
+from scipy.linalg.lapack import dtrtri, dtrtrs
 
 from .._validation import as_float_array, check_finite, check_variance
 
@@ -230,3 +231,21 @@ def _gaussian_logpdf(y, s):
     return -0.5 * (m * (_LOG_2PI + math.log(s)) + float(np.vdot(y, y)) / s)
 
 
+def _tri_solve(U, B, trans=0):
+    """Solve ``U X = B`` (``U^T X = B`` with `trans` = 1), `U` upper triangular.
+
+    One LAPACK ``trtrs`` call per column: for the small matrices of RLS this
+    is far faster than a matrix right-hand side, which goes through a
+    (multithreaded) BLAS-3 ``trsm``.
+    """
+    if B.ndim == 1:
+        return dtrtrs(U, B, trans=trans)[0]
+    out = np.empty(B.shape)
+    for j in range(B.shape[1]):
+        out[:, j] = dtrtrs(U, B[:, j], trans=trans)[0]
+    return out
+
+
+def _tri_inv(U):
+    """Inverse of the upper-triangular `U` (LAPACK ``trtri``)."""
+    return dtrtri(U, lower=0)[0]

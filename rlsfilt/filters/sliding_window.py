@@ -5,10 +5,9 @@ import math
 
 import numpy as np
 from filterpy.common import pretty_str
-from scipy.linalg import solve_triangular
 
 from .._validation import check_covariance, check_int, check_variance
-from ._base import _FilterBase, _innovation
+from ._base import _FilterBase, _innovation, _tri_inv, _tri_solve
 
 __all__ = ["SlidingWindowRLS"]
 
@@ -316,7 +315,7 @@ def _window_lstsq(buf, n, m, x0, P0):
     if len(A) < n or (P0 is None and np.linalg.matrix_rank(A) < n):
         return None
     Qf, Rf = np.linalg.qr(A)
-    x = solve_triangular(Rf, Qf.T @ B)
-    Rinv = solve_triangular(Rf, np.eye(n))
+    x = _tri_solve(Rf, Qf.T @ B)
+    Rinv = _tri_inv(Rf)
     P = Rinv @ Rinv.T
     return x, 0.5 * (P + P.T)
