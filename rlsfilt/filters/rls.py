@@ -188,9 +188,11 @@ class RecursiveLeastSquares(_FilterBase):
       ``[lam_min, 1]`` and raised so that ``trace(P) <= trace_max``.
 
     **Constraints.** After :meth:`constrain` the estimate satisfies
-    ``A x = b``; plain updates keep it because ``A P = 0``. Modes that add
-    to ``P`` (``Q``, ``"efra"``, ``"constant_trace"``) project ``P`` onto
-    the null space of ``A`` after each step.
+    ``A x = b``; plain updates keep it because ``A P = 0``. To hold
+    ``A P = 0`` against round-off, and against the modes that add to ``P``
+    (``Q``, ``"efra"``, ``"constant_trace"``), ``P`` is projected onto the
+    null space of ``A`` (:math:`P \leftarrow \Pi P \Pi`) after each
+    predict and update, two small matrix products.
 
     Missing measurements (``z is None`` or any NaN in ``z``) keep the
     estimate (posterior = prior), as filterpy and statsmodels do. Then ``y``
@@ -336,7 +338,7 @@ class RecursiveLeastSquares(_FilterBase):
         if self._efra_pending:
             P = self._efra_start(P)
         P = _predict_covariance(P, self._time_lam(), None if q_zero else Q)
-        self.P = P if q_zero or self._Pi is None else _project(P, self._Pi)
+        self.P = P if self._Pi is None else _project(P, self._Pi)
         self.x_prior = self.x.copy()
         self.P_prior = self.P.copy()
         self._updates_since_predict = 0
@@ -759,7 +761,7 @@ def _measurement_step(mode, params, lam, x, P, phi, z, r, gate, Pi):
         if float(np.vdot(y, y)) > gate * gate * s:   # sqrt(y'y / S) > gate
             return x, P, y, np.zeros_like(g), g, s, 1.0, True
     x, P, y, K, lam_t = _fg.UPDATES[mode](x, P, phi, z, g, s, r, lam, params)
-    if Pi is not None and mode in (_fg.CONSTANT_TRACE, _fg.EFRA):
+    if Pi is not None:   # keep A P = 0 against round-off (and the I terms of some modes)
         P = _project(P, Pi)
     return x, P, y, K, g, s, lam_t, False
 
@@ -823,7 +825,7 @@ def _batch_reference(x, P, Z, Hm, Rv, lam, Q, update_first, store_covariances, *
     out.gated = np.zeros(N, dtype=bool)
     out.problem = None
     tlam = lam if mode == _fg.EXPONENTIAL else 1.0
-    project_q = Q is not None and Pi is not None
+    constrained = Pi is not None
     x_prior, P_prior = x, P
     K = np.zeros((n, 1))
     s = np.nan
@@ -831,7 +833,7 @@ def _batch_reference(x, P, Z, Hm, Rv, lam, Q, update_first, store_covariances, *
     for k in range(N):
         if not update_first:
             P = _predict_covariance(P, tlam, Q)
-            if project_q:
+            if constrained:
                 P = _project(P, Pi)
             x_prior, P_prior = x, P
             out.means_p[k] = x
@@ -851,7 +853,7 @@ def _batch_reference(x, P, Z, Hm, Rv, lam, Q, update_first, store_covariances, *
             out.covariances[k] = P
         if update_first:
             P = _predict_covariance(P, tlam, Q)
-            if project_q:
+            if constrained:
                 P = _project(P, Pi)
             x_prior, P_prior = x, P
             out.means_p[k] = x
