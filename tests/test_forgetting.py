@@ -271,3 +271,17 @@ def test_bad_forgetting_arguments():
         RecursiveLeastSquares(2, forgetting="constant_trace")
     with pytest.raises(ValueError, match=r"`gate` must be a positive finite number; got 0.0"):
         RecursiveLeastSquares(2, gate=0)
+
+
+def test_saver_records_gate_and_forgetting_state(rng):
+    from filterpy.common import Saver
+
+    Hs, zs, *_ = windup_record(rng, 50, 0, 0)
+    zs[20] += 10.0
+    rls = RecursiveLeastSquares(3, lam=0.95, R=SIGMA**2, forgetting="variable", gate=5.0)
+    saver = Saver(rls)
+    rls.batch_filter(zs, Hs, saver=saver)
+    saver.to_array()
+    assert saver.gated.sum() == 1 and saver.gated[20]
+    assert_array_equal(saver.n_gated[-1], 1)
+    assert np.all((saver.lam_t >= 0.8) & (saver.lam_t <= 1.0))

@@ -125,3 +125,15 @@ def test_bad_arguments(rng):
         sw.initialize(np.ones(8), np.ones((8, 2)))
     with pytest.raises(ValueError, match=r"`H` must have shape \(2,\) or \(1, 2\)"):
         sw.update(1.0, [1.0, 2.0, 3.0])
+
+
+def test_saver_round_trip(rng):
+    from filterpy.common import Saver
+
+    Hs, zs = arx_record(rng, n_samples=42)
+    sw = SlidingWindowRLS(4, 10)
+    saver = Saver(sw)
+    means, covs, _, _ = sw.batch_filter(zs, Hs, saver=saver)
+    saver.to_array()
+    assert_array_equal(saver.x, means)
+    assert_array_equal(saver.P, covs)

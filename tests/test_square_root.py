@@ -139,3 +139,15 @@ def test_bad_arguments():
         sq.x = np.zeros((3, 1))
     with pytest.raises(ValueError, match=r"`Hs` is rank-deficient: found 1 linearly independent"):
         sq.initialize([1.0, 2.0, 3.0], [[1.0, 1.0]] * 3)
+
+
+def test_saver_round_trip(rng):
+    from filterpy.common import Saver
+
+    Hs, zs = arx_record(rng, n_samples=42)
+    sq = SquareRootRLS(4, lam=0.95)
+    saver = Saver(sq)
+    means, covs, _, _ = sq.batch_filter(zs, Hs, saver=saver)
+    saver.to_array()
+    assert_array_equal(saver.x, means)
+    assert_array_equal(saver.P, covs)

@@ -144,7 +144,7 @@ def update_exponential(x, P, phi, z, g, s, r, lam, params):
     K = g / s                              # K = P H^T / S         (n, 1)
     x = x + K * y.T                        # x = x + K y^T         (n, m)
     P = P - np.outer(g, g) / s             # P = P - g g^T / S     exactly symmetric
-    return x, P, y, K, 1.0
+    return x, P, y, K, lam
 
 
 def update_directional(x, P, phi, z, g, s, r, lam, params):

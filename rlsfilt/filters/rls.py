@@ -88,7 +88,10 @@ class RecursiveLeastSquares(_FilterBase):
         counted in ``n_gated`` and flagged by ``gated``. ``R`` must describe
         the real measurement noise, or good samples are rejected (``R`` too
         small) or outliers pass (``R`` too large). Typical values are 3-5.
-        Off by default.
+        Off by default. Early samples pass easily while ``P`` is still
+        large; and an abrupt parameter change also makes large residuals,
+        so a gate delays (a tight gate can block) tracking of jumps: watch
+        ``n_gated`` or ``gated`` for runs of rejections.
     check_every : int, default 100
         Health check period (0 disables it): every `check_every` updates,
         and at the end of :meth:`batch_filter`, ``P`` is tested for positive
@@ -751,15 +754,17 @@ def _measurement_step(mode, params, lam, x, P, phi, z, r, gate, Pi):
 
     `z` is a ``(dim_z, 1)`` column or None (missing). Returns ``x, P, y, K,
     g, s, lam_t, gated``; for a missing or gated sample ``x`` and ``P`` are
-    the inputs, ``K`` is zero and ``lam_t`` is 1 (nothing is forgotten).
+    the inputs, ``K`` is zero and ``lam_t`` is 1 (nothing is forgotten),
+    or `lam` in the exponential mode (its predict forgot anyway).
     """
     g, s = _innovation(P, phi, r)          # g = P H^T, S = H P H^T + R
+    lam_skip = lam if mode == _fg.EXPONENTIAL else 1.0
     if z is None:
-        return x, P, None, np.zeros_like(g), g, s, 1.0, False
+        return x, P, None, np.zeros_like(g), g, s, lam_skip, False
     if gate is not None:
         y = z - (phi @ x).T
         if float(np.vdot(y, y)) > gate * gate * s:   # sqrt(y'y / S) > gate
-            return x, P, y, np.zeros_like(g), g, s, 1.0, True
+            return x, P, y, np.zeros_like(g), g, s, lam_skip, True
     x, P, y, K, lam_t = _fg.UPDATES[mode](x, P, phi, z, g, s, r, lam, params)
     if Pi is not None:   # keep A P = 0 against round-off (and the I terms of some modes)
         P = _project(P, Pi)

@@ -1,6 +1,5 @@
 """Exact least squares over a sliding window of the most recent samples."""
 
-import collections
 import math
 
 import numpy as np
@@ -120,7 +119,7 @@ class SlidingWindowRLS(_FilterBase):
     @property
     def n_samples(self):
         """Number of samples currently in the window."""
-        return len(self._buf)
+        return self._nw
 
     # ------------------------------------------------------------------
     # the recursion
@@ -163,15 +162,22 @@ class SlidingWindowRLS(_FilterBase):
             self.K = g / s                          # K = P H^T / S
             x = x + self.K * self.y.T               # x = x + K y^T
             P = P - np.outer(g, g) / s              # P = P - g g^T / S
-        self._buf.append((phi, zc, r))
+        # ring buffer: slot `_head` holds the oldest sample once the window is full
+        h = self._head
+        leaving = None
+        if self._nw == self.window and not np.isnan(self._wZ[h]).any():
+            leaving = (self._wH[h:h + 1].copy(), self._wZ[h].reshape(-1, 1).copy(), self._wR[h])
+        self._wH[h] = phi[0]
+        self._wZ[h] = np.nan if zc is None else zc[:, 0]
+        self._wR[h] = r
+        self._head = (h + 1) % self.window
+        self._nw = min(self._nw + 1, self.window)
         self._count += 1
         refit = False
-        if len(self._buf) > self.window:
-            old_phi, old_z, old_r = self._buf.popleft()
-            if old_z is not None:
-                ok, x, P = _downdate(x, P, old_phi, old_z, old_r)
-                refit = not ok
-        if len(self._buf) == self.window and not self.exact:
+        if leaving is not None:
+            ok, x, P = _downdate(x, P, *leaving)
+            refit = not ok
+        if self._nw == self.window and not self.exact:
             refit = refit or self._count >= self._next_exact_try
         if self.refresh and self._count % self.refresh == 0:
             refit = True
@@ -207,11 +213,14 @@ class SlidingWindowRLS(_FilterBase):
         Z, Hm = self._as_batch(zs, Hs)
         Rv = self._as_batch_variances(Rs, len(Z))
         keep = slice(max(0, len(Z) - self.window), len(Z))
-        self._buf = collections.deque(_rows(Z[keep], Hm[keep], Rv[keep]))
-        sol = _window_lstsq(self._buf, self.dim_x, self.dim_z, None, None)
+        k = len(Z[keep])
+        self._clear_window()
+        self._wH[:k], self._wZ[:k], self._wR[:k] = Hm[keep], Z[keep], Rv[keep]
+        self._nw, self._head = k, k % self.window
+        sol = self._window_lstsq(None, None)
         if sol is None:
             rank = np.linalg.matrix_rank(Hm[keep][~np.isnan(Z[keep]).any(axis=1)])
-            raise ValueError(f"`Hs` is rank-deficient: the last {len(self._buf)} samples have "
+            raise ValueError(f"`Hs` is rank-deficient: the last {k} samples have "
                              f"rank {rank}; need {self.dim_x} (one per parameter)")
         self.x, self.P = sol
         self.exact = True
@@ -247,7 +256,7 @@ class SlidingWindowRLS(_FilterBase):
         self._I_z = np.eye(m)
         self.S = np.zeros((m, m))
         self.SI = np.zeros((m, m))
-        self._buf = collections.deque()
+        self._clear_window()
         self._count = 0
         self._next_exact_try = 0
         self.exact = False
@@ -257,13 +266,25 @@ class SlidingWindowRLS(_FilterBase):
 
     def _refit(self):
         """Recompute ``x``, ``P`` from the stored window (exact if it can be)."""
-        sol = _window_lstsq(self._buf, self.dim_x, self.dim_z, None, None)
+        sol = self._window_lstsq(None, None)
         if sol is not None:
             self.exact = True
             return sol
         self.exact = False
         self._next_exact_try = self._count + self.window
-        return _window_lstsq(self._buf, self.dim_x, self.dim_z, self._x0, self._P0)
+        return self._window_lstsq(self._x0, self._P0)
+
+    def _window_lstsq(self, x0, P0):
+        k = self._nw
+        return _window_lstsq(self._wH[:k], self._wZ[:k], self._wR[:k], x0, P0)
+
+    def _clear_window(self):
+        """Empty ring buffer: rows ``_wH``, measurements ``_wZ`` (NaN = missing), ``_wR``."""
+        self._wH = np.zeros((self.window, self.dim_x))
+        self._wZ = np.full((self.window, self.dim_z), np.nan)
+        self._wR = np.ones(self.window)
+        self._nw = 0
+        self._head = 0
 
     def __repr__(self):
         return "\n".join([
@@ -282,11 +303,6 @@ class SlidingWindowRLS(_FilterBase):
         ])
 
 
-def _rows(Z, Hm, Rv):
-    for z, h, r in zip(Z, Hm, Rv):
-        yield (h.reshape(1, -1), None if np.isnan(z).any() else z.reshape(-1, 1), float(r))
-
-
 def _downdate(x, P, phi, z, r):
     """Remove sample ``(phi, z, r)``; returns ``ok, x, P`` (not ok: do not trust d)."""
     g = P @ phi.T                          # g = P H^T
@@ -299,15 +315,17 @@ def _downdate(x, P, phi, z, r):
     return True, x, P
 
 
-def _window_lstsq(buf, n, m, x0, P0):
-    """Weighted least squares on the window by QR; with a prior when `P0` is given.
+def _window_lstsq(Hw, Zw, Rw, x0, P0):
+    """Weighted least squares on the window rows by QR; with a prior when `P0` is given.
 
     Returns ``(x, P)``, or None when the rows do not determine every
     parameter (and no prior is given).
     """
-    rows = [(phi / math.sqrt(r), z.T / math.sqrt(r)) for phi, z, r in buf if z is not None]
-    A = np.concatenate([a for a, _ in rows]) if rows else np.zeros((0, n))
-    B = np.concatenate([b for _, b in rows]) if rows else np.zeros((0, m))
+    n = Hw.shape[1]
+    keep = ~np.isnan(Zw).any(axis=1)
+    w = 1.0 / np.sqrt(Rw[keep])
+    A = Hw[keep] * w[:, None]
+    B = Zw[keep] * w[:, None]
     if P0 is not None:   # prior rows: L^T (x - x0) with L L^T = P0^-1
         Lt = np.linalg.cholesky(np.linalg.inv(P0)).T
         A = np.concatenate([Lt, A])
