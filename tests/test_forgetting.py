@@ -284,4 +284,6 @@ def test_saver_records_gate_and_forgetting_state(rng):
     saver.to_array()
     assert saver.gated.sum() == 1 and saver.gated[20]
     assert_array_equal(saver.n_gated[-1], 1)
-    assert np.all((saver.lam_t >= 0.8) & (saver.lam_t <= 1.0))
+    lam_min = rls.forgetting_params["lam_min"]
+    assert lam_min == 0.5
+    assert np.all((saver.lam_t >= lam_min) & (saver.lam_t <= 1.0))
