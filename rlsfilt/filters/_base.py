@@ -25,6 +25,7 @@ class _FilterBase:
 
     Subclasses set ``dim_x``, ``dim_z``, ``_R`` and provide ``x`` and ``P``.
     """
+
     @property
     def R(self):
         """Measurement-noise variance (a positive float)."""
@@ -33,7 +34,6 @@ class _FilterBase:
     @R.setter
     def R(self, value):
         self._R = check_variance(value, "R")
-
 
     # ------------------------------------------------------------------
     # lazily computed diagnostics, as in filterpy
