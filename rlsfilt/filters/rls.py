@@ -835,6 +835,7 @@ def _batch_reference(x, P, Z, Hm, Rv, lam, Q, update_first, store_covariances, *
     K = np.zeros((n, 1))
     s = np.nan
     lam_t = lam
+    missing = np.isnan(Z).any(axis=1)
     for k in range(N):
         if not update_first:
             P = _predict_covariance(P, tlam, Q)
@@ -844,8 +845,7 @@ def _batch_reference(x, P, Z, Hm, Rv, lam, Q, update_first, store_covariances, *
             out.means_p[k] = x
             if store_covariances:
                 out.covariances_p[k] = P
-        z = Z[k]
-        zc = None if np.isnan(z).any() else z.reshape(m, 1)
+        zc = None if missing[k] else Z[k].reshape(m, 1)
         x, P, y, K, _, s, lam_t, gated = _measurement_step(
             mode, params, lam, x, P, Hm[k:k + 1], zc, Rv[k], gate, Pi)
         out.ss[k] = s
