@@ -492,6 +492,14 @@ class RecursiveLeastSquares(_FilterBase):
         ValueError
             If `zs`, `Hs` (and `Rs`) disagree in length; filterpy's
             ``KalmanFilter`` would silently truncate.
+
+        Notes
+        -----
+        Every forgetting mode, the gate and the constraints apply exactly as
+        in the step-by-step loop (the results are bitwise equal); gated
+        samples are added to ``n_gated``. The health check of ``P`` runs
+        every ``check_every`` steps inside the loop and once at the end, so
+        a failure is reported with its step in the record.
         """
         Z, Hm = self._as_batch(zs, Hs)
         Rv = self._as_batch_variances(Rs, len(Z))
