@@ -6,12 +6,14 @@ A filterpy-style toolkit: `RecursiveLeastSquares` mirrors filterpy's
 """
 
 from .exceptions import ForgettingSkippedWarning, NotFittedError, NumericalWarning
-from .filters import RecursiveLeastSquares
+from .filters import RecursiveLeastSquares, SlidingWindowRLS, SquareRootRLS
 
 __version__ = "0.1.0"
 
 __all__ = [
     "RecursiveLeastSquares",
+    "SlidingWindowRLS",
+    "SquareRootRLS",
     "NotFittedError",
     "NumericalWarning",
     "ForgettingSkippedWarning",

@@ -6,12 +6,14 @@ well-conditioned data for every option, and the streaming ``update`` must
 reproduce the batch run bit for bit (it runs the same compiled step).
 """
 
+import re
+
 import numpy as np
 import pytest
 from conftest import arx_record
 from numpy.testing import assert_allclose, assert_array_equal
 
-from rlsfilt import RecursiveLeastSquares
+from rlsfilt import NumericalWarning, RecursiveLeastSquares
 from rlsfilt.filters import _kernels
 from rlsfilt.filters import rls as rls_module
 
@@ -312,3 +314,58 @@ def test_streaming_recycles_only_arrays_nobody_else_holds(rng):
     ref.batch_filter(zs, Hs)
     assert_array_equal(rls.x, ref.x)
     assert_array_equal(rls.P, ref.P)
+
+
+# ----------------------------------------------------------------------
+# the compiled paths keep the health check and counters of the NumPy paths
+# ----------------------------------------------------------------------
+@pytest.mark.parametrize("update_first", [False, True])
+@pytest.mark.parametrize("store", [False, True])
+@pytest.mark.parametrize("step0", [0, 37])
+def test_compiled_health_check_reports_the_same_step(monkeypatch, update_first, store, step0):
+    """Windup (constant regressor, lam = 0.9) makes P ill-conditioned: both paths name one step."""
+    Hs = np.tile([1.0, 1.0], (400, 1))
+    zs = np.ones(400)
+    messages = []
+    for compiled in (True, False):
+        monkeypatch.setattr(rls_module, "_COMPILED", compiled)
+        rls = RecursiveLeastSquares(2, lam=0.9, P0=1.0, check_every=10)
+        if step0:
+            rls.batch_filter(zs[:step0], Hs[:step0])     # healthy so far
+        with pytest.warns(NumericalWarning) as record:
+            rls.batch_filter(zs[step0:], Hs[step0:], update_first=update_first,
+                             store_covariances=store)
+        messages.append(str(record[0].message))
+        assert rls.n_updates == 400
+    assert "ill-conditioned" in messages[0]
+    assert re.search(r"at step \d+ of batch_filter \(update \d+ since reset\)", messages[0])
+    step = lambda msg: re.search(r"at step (\d+)", msg).group(1)   # noqa: E731
+    assert step(messages[0]) == step(messages[1])
+
+
+def test_streaming_fast_path_keeps_counters_and_health_check(rng):
+    """The exponential fast path and the general path (a gate that never fires) agree."""
+    Hs, zs = _record(rng, 300, missing=(50, 51))
+    fast = RecursiveLeastSquares(4, lam=0.95, Q=1e-6, check_every=7)
+    general = RecursiveLeastSquares(4, lam=0.95, Q=1e-6, check_every=7, gate=1e300)
+    for k in range(len(zs)):
+        for f in (fast, general):
+            f.predict()
+            f.update(zs[k], Hs[k])
+        assert fast.n_updates == general.n_updates == k + 1
+        assert fast.gated is general.gated is False
+        assert fast.lam_t == general.lam_t
+    for name in STATE:
+        assert_allclose(getattr(fast, name), getattr(general, name), rtol=1e-10, atol=1e-12,
+                        err_msg=name)
+    # windup: both warn once, at the same update
+    Hw = np.tile([1.0, 1.0, 0.0, 0.0], (400, 1))
+    caught = []
+    for f in (RecursiveLeastSquares(4, lam=0.9, P0=1.0, check_every=10),
+              RecursiveLeastSquares(4, lam=0.9, P0=1.0, check_every=10, gate=1e300)):
+        with pytest.warns(NumericalWarning) as record:
+            for k in range(len(Hw)):
+                f.predict_update(1.0, Hw[k])
+        assert len(record) == 1
+        caught.append(str(record[0].message))
+    assert caught[0] == caught[1]

@@ -236,7 +236,8 @@ def _covariance_pass_store(P, g, c, update, predict, il, Q, q_zero, phin, gn, C_
 @njit(cache=True)
 def batch_filter_kernel(x, P, Z, Hm, Rv, il, Q, q_zero, update_first, mode, params,
                         means, covs, covs_p, ys, ss,
-                        x_prior, P_prior, x_post, P_post, K):
+                        x_prior, P_prior, x_post, P_post, K,
+                        check_every, step0, cond_max, P_fail):
     """Run the recursion over a record, in place on the working ``x``, ``P``.
 
     Each step makes one sweep over ``P`` that applies the measurement
@@ -271,27 +272,36 @@ def batch_filter_kernel(x, P, Z, Hm, Rv, il, Q, q_zero, update_first, mode, para
         The last step's prior and posterior (written when ``N > 0``).
     K : (n,)
         Gain of the last non-missing update (kept when none).
+    check_every, step0, cond_max, P_fail
+        Health check of ``P`` at the end of every step ``k`` with
+        ``(step0 + k + 1) % check_every == 0`` (none when `check_every` is
+        0), as ``rls._health_problem`` does it; the first failing ``P`` is
+        copied to ``P_fail`` (n, n).
 
     Returns
     -------
     s : float
         Innovation variance of the last step (NaN when ``N == 0``).
+    k_fail : int
+        Step of the first failed health check, or -1.
     """
     if mode != MODE_EXPONENTIAL:
         raise ValueError("batch_filter_kernel: unknown covariance-update mode")
     N = Z.shape[0]
     n, m = x.shape
     if N == 0:
-        return np.nan
+        return np.nan, -1
     store = covs.shape[0] == N
     if m == 1 and not store:
         return _run_single(x, P, Z, Hm, Rv, il, Q, q_zero, update_first, means, ys, ss,
-                           x_prior, P_prior, x_post, P_post, K)
+                           x_prior, P_prior, x_post, P_post, K,
+                           check_every, step0, cond_max, P_fail)
     r_each = Rv.shape[0] == N                  # else one variance for all steps
     predict = not (il == 1.0 and q_zero)       # otherwise the time update is the identity
     g = np.empty(n)
     gn = np.empty(n)
     y = np.empty(m)
+    k_fail = -1
     # the time update before the first measurement update, and its gain
     _predict_gain_inplace(P, il, Q, q_zero, predict and not update_first, Hm[0], g)
     if not update_first:
@@ -317,7 +327,26 @@ def batch_filter_kernel(x, P, Z, Hm, Rv, il, Q, q_zero, update_first, mode, para
             for j in range(m):
                 ys[k, j] = np.nan
         _copy2(x, means[k])
-        if k < N - 1:
+        check = k_fail < 0 and check_every > 0 and (step0 + k + 1) % check_every == 0
+        if k < N - 1 and check:                       # unfused, to look at P in between
+            kp = k if update_first else k + 1
+            _covariance_pass(P, g, c, update, False, il, Q, q_zero, phi, gn)
+            if store:
+                _copy2(P, covs[k])
+            if not update_first and _unhealthy(P, cond_max):
+                k_fail = k
+                _copy2(P, P_fail)
+            _predict_gain_inplace(P, il, Q, q_zero, predict, Hm[k + 1], gn)
+            if store:
+                _copy2(P, covs_p[kp])
+            if update_first and _unhealthy(P, cond_max):
+                k_fail = k
+                _copy2(P, P_fail)
+            g, gn = gn, g
+            if k == N - 2 and not update_first:
+                _copy2(x, x_prior)
+                _copy2(P, P_prior)
+        elif k < N - 1:
             kp = k if update_first else k + 1        # index of the predict that follows
             if store:
                 _covariance_pass_store(P, g, c, update, predict, il, Q, q_zero, Hm[k + 1], gn,
@@ -341,12 +370,36 @@ def batch_filter_kernel(x, P, Z, Hm, Rv, il, Q, q_zero, update_first, mode, para
                     _copy2(P, covs_p[k])
                 _copy2(x, x_prior)
                 _copy2(P, P_prior)
-    return s
+            if check and _unhealthy(P_post if not update_first else P, cond_max):
+                k_fail = k
+                _copy2(P_post if not update_first else P, P_fail)
+    return s, k_fail
+
+
+@njit(cache=True)
+def _unhealthy(P, cond_max):
+    """True when ``P`` fails ``rls._health_problem`` (no constraints): non-finite,
+    not positive definite, not symmetric to 1e-8, or condition number above
+    `cond_max`."""
+    n = P.shape[0]
+    A = np.empty((n, n))
+    asym = 0.0
+    scale = 0.0
+    for i in range(n):
+        for j in range(n):
+            v = P[i, j]
+            if v - v != 0.0:
+                return True
+            A[i, j] = 0.5 * (v + P[j, i])
+            asym = max(asym, abs(v - P[j, i]))
+            scale = max(scale, abs(v))
+    w = np.linalg.eigvalsh(A)
+    return w[0] <= 0.0 or asym > 1e-8 * scale or w[n - 1] > cond_max * w[0]
 
 
 @njit(cache=True)
 def _run_single(x, P, Z, Hm, Rv, il, Q, q_zero, update_first, means, ys, ss,
-                x_prior, P_prior, x_post, P_post, K):
+                x_prior, P_prior, x_post, P_post, K, check_every, step0, cond_max, P_fail):
     """`batch_filter_kernel` for one output without covariance histories.
 
     The hot path of ARX fits and long records: the same arithmetic in the
@@ -360,6 +413,7 @@ def _run_single(x, P, Z, Hm, Rv, il, Q, q_zero, update_first, means, ys, ss,
     th = x[:, 0]
     g = np.empty(n)
     gn = np.empty(n)
+    k_fail = -1
     _predict_gain_inplace(P, il, Q, q_zero, predict and not update_first, Hm[0], g)
     if not update_first and N == 1:
         _copy2(x, x_prior)
@@ -390,7 +444,21 @@ def _run_single(x, P, Z, Hm, Rv, il, Q, q_zero, update_first, means, ys, ss,
         mk = means[k]
         for i in range(n):
             mk[i, 0] = th[i]
-        if k < N - 1:
+        check = k_fail < 0 and check_every > 0 and (step0 + k + 1) % check_every == 0
+        if k < N - 1 and check:                       # unfused, to look at P in between
+            _covariance_pass(P, g, c, update, False, il, Q, q_zero, h, gn)
+            if not update_first and _unhealthy(P, cond_max):
+                k_fail = k
+                _copy2(P, P_fail)
+            _predict_gain_inplace(P, il, Q, q_zero, predict, Hm[k + 1], gn)
+            if update_first and _unhealthy(P, cond_max):
+                k_fail = k
+                _copy2(P, P_fail)
+            g, gn = gn, g
+            if k == N - 2 and not update_first:
+                _copy2(x, x_prior)
+                _copy2(P, P_prior)
+        elif k < N - 1:
             _covariance_pass(P, g, c, update, predict, il, Q, q_zero, Hm[k + 1], gn)
             g, gn = gn, g
             if k == N - 2 and not update_first:
@@ -405,7 +473,10 @@ def _run_single(x, P, Z, Hm, Rv, il, Q, q_zero, update_first, means, ys, ss,
                     _predict_inplace(P, il, Q, q_zero)
                 _copy2(x, x_prior)
                 _copy2(P, P_prior)
-    return s
+            if check and _unhealthy(P_post if not update_first else P, cond_max):
+                k_fail = k
+                _copy2(P_post if not update_first else P, P_fail)
+    return s, k_fail
 
 
 @njit(cache=True)
@@ -445,15 +516,16 @@ def update_kernel(x, P, phi, z, z0, zmode, r, xn, Pn, y, K, S, SI, Hc, x_post, P
 
     Returns
     -------
-    s : float
-        Innovation variance, or NaN when ``phi`` holds NaN or inf (nothing
-        is written then).
+    code : int
+        0; 1 when ``phi`` holds NaN or inf (nothing is written then); 2 when
+        the diagonal of the new ``P`` is not finite and positive (the cheap
+        health check).
     """
     n, m = x.shape
     for i in range(n):
         v = phi[i]
         if v - v != 0.0:          # NaN or inf
-            return np.nan
+            return 1
     missing = zmode == 2
     if zmode == 1:
         z[0, 0] = z0
@@ -494,16 +566,25 @@ def update_kernel(x, P, phi, z, z0, zmode, r, xn, Pn, y, K, S, SI, Hc, x_post, P
             K[i, 0] = g[i] * c
     _copy2(xn, x_post)
     _copy2(Pn, P_post)
-    return s
+    for i in range(n):
+        if not Pn[i, i] > 0.0 or Pn[i, i] == np.inf:
+            return 2
+    return 0
 
 
-def batch_compiled(x, P, Z, Hm, Rv, lam, Q, update_first, store_covariances,
-                   mode=MODE_EXPONENTIAL, params=None):
+def batch_compiled(x, P, Z, Hm, Rv, lam, Q, update_first, store_covariances, *,
+                   mode=MODE_EXPONENTIAL, params=(), gate=None, Pi=None, check_every=0,
+                   basis=None, cond_max=np.inf, step0=0):
     """Compiled counterpart of ``rls._batch_reference`` (same arguments, same result).
 
-    `x`, `P` are not modified. Returns a ``rls._BatchResult``.
+    Exponential forgetting without gate or constraints only (a ValueError
+    otherwise). `x`, `P` are not modified. Returns a ``rls._BatchResult``.
     """
-    from .rls import _BatchResult
+    from .rls import _BatchResult, _health_problem
+
+    if mode != MODE_EXPONENTIAL or gate is not None or Pi is not None:
+        raise ValueError("the compiled batch kernel runs exponential forgetting without gate "
+                         "or constraints only")
 
     N = len(Z)
     n, m = x.shape
@@ -526,16 +607,25 @@ def batch_compiled(x, P, Z, Hm, Rv, lam, Q, update_first, store_covariances,
     Pw = np.array(P, dtype=np.float64, order="C")
     q_zero = Q is None
     Qa = np.zeros((0, 0)) if q_zero else np.ascontiguousarray(Q, dtype=np.float64)
-    params = np.zeros(0) if params is None else np.ascontiguousarray(params, dtype=np.float64)
+    params = np.ascontiguousarray(np.asarray(params, dtype=np.float64).reshape(-1))
     x_prior, P_prior = np.empty((n, m)), np.empty((n, n))
     x_post, P_post = np.empty((n, m)), np.empty((n, n))
     K = np.zeros(n)
-    s = batch_filter_kernel(
+    P_fail = np.empty((n, n))
+    s, k_fail = batch_filter_kernel(
         xw, Pw, np.ascontiguousarray(Z, dtype=np.float64),
         np.ascontiguousarray(Hm, dtype=np.float64), Rv,
         1.0 / lam, Qa, q_zero, bool(update_first), int(mode), params,
         out.means, covs, covs_p, out.ys, out.ss,
-        x_prior, P_prior, x_post, P_post, K)
+        x_prior, P_prior, x_post, P_post, K,
+        int(check_every), int(step0), float(cond_max), P_fail)
+    out.gated = np.zeros(N, dtype=bool)
+    out.lam_t_last = lam
+    out.problem = None
+    if k_fail >= 0:
+        problem = _health_problem(P_fail, None, cond_max) or "`P` failed the health check"
+        out.problem = (f"{problem} at step {k_fail} of batch_filter (update "
+                       f"{step0 + k_fail + 1} since reset)")
     # the estimate is unchanged by a time update
     if update_first:
         out.means_p = out.means.copy()
@@ -548,5 +638,7 @@ def batch_compiled(x, P, Z, Hm, Rv, lam, Q, update_first, store_covariances,
     if N:
         out.x_prior, out.P_prior = x_prior, P_prior
         out.x_post, out.P_post = x_post, P_post
+        if np.isnan(out.ys[-1]).any():     # the last sample was missing: no gain
+            K[:] = 0.0
         out.y_last, out.K_last, out.s_last = out.ys[-1].copy(), K.reshape(n, 1), s
     return out
