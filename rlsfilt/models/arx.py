@@ -26,7 +26,7 @@ import numbers
 
 import numpy as np
 from scipy import signal
-from scipy.linalg import solve_triangular
+from scipy.linalg import lapack, solve_triangular
 
 from .._validation import check_int
 from ..exceptions import NotFittedError
@@ -899,8 +899,12 @@ def _qr_least_squares(Phi, target):
             "persistently exciting for these orders (or the orders are too high); use a richer "
             "input, more data or lower orders")
     Qf, Rf = np.linalg.qr(Phi)
-    theta = solve_triangular(Rf, Qf.T @ target)
-    Rinv = solve_triangular(Rf, np.eye(n))
+    c = Qf.T @ target
+    # back substitution one column at a time, and the triangular inverse from
+    # LAPACK's trtri: multi-column triangular solves hit a slow threaded BLAS
+    # path for tiny matrices on loaded machines (measured: 2-10 ms per call)
+    theta = np.column_stack([solve_triangular(Rf, c[:, i]) for i in range(c.shape[1])])
+    Rinv, info = lapack.dtrtri(Rf, lower=0)
     cov = Rinv @ Rinv.T
     return theta, 0.5 * (cov + cov.T)
 
