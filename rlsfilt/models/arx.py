@@ -2,23 +2,8 @@ r"""ARX models: structure, batch and recursive fits, and the python-control brid
 
 `ARX` is an estimator in the scikit-learn manner (``__init__`` stores the
 orders, ``fit`` returns ``self``, learned quantities end in ``_``) for the
-model of MATLAB's System Identification Toolbox:
-
-.. math::
-
-    y(t) + a_1 y(t-1) + \dots + a_{n_a} y(t-n_a)
-        = b_1 u(t-n_k) + \dots + b_{n_b} u(t-n_k-n_b+1) + e(t).
-
-Translation table (one input, one output):
-
-==========================  =====================================  ==================
-rlsfilt / MATLAB            SIPPY                                  lecture notes
-==========================  =====================================  ==================
-``ARX(na, nb, nk)``         ``na, nb, theta = nk - 1``             ``n = na``
-``b1`` multiplies u(t-nk)   first ``B`` coefficient after delay    ``b0`` when nk = 0
-``ARX(n, n + 1, nk=0)``     ``theta = -1`` (not expressible)       ``b0 u[k] .. bn u[k-n]``
-``A = [1, a1, .., a_na]``   ``DENOMINATOR``                        ``1 + a1 q^-1 ..``
-==========================  =====================================  ==================
+model of MATLAB's System Identification Toolbox; its docstring holds the
+convention and the translation table to SIPPY and the lecture notes.
 """
 
 import html
@@ -92,6 +77,29 @@ class ARX:
 
     Notes
     -----
+    **Convention** (MATLAB's ``arx(data, [na nb nk])``), for one input:
+
+    .. math::
+
+        y(t) + a_1 y(t-1) + \dots + a_{n_a} y(t-n_a)
+            = b_1 u(t-n_k) + \dots + b_{n_b} u(t-n_k-n_b+1) + e(t),
+
+    i.e. :math:`A(q) y(t) = B(q) u(t) + e(t)` with
+    :math:`A(q) = 1 + a_1 q^{-1} + \dots` and
+    :math:`B(q) = q^{-n_k}(b_1 + b_2 q^{-1} + \dots)`. Translation table:
+
+    ==================  ===========================  ==========================  ==================
+    quantity            rlsfilt and MATLAB           SIPPY                       lecture notes
+    ==================  ===========================  ==========================  ==================
+    orders              ``na, nb, nk``               ``[na, nb, theta]``         ``n`` (``m = n``)
+    delay               ``nk``: first term u(t-nk)   ``theta = nk - 1``          none: ``b0 u[k]``
+    b numbering         ``b1 .. b_nb``               ``b1 .. b_nb``              ``b0 .. bn`` = our
+                                                                                 ``b1 .. b_(n+1)``
+    the notes' model    ``ARX(n, n + 1, nk=0)``      not expressible (theta=-1)  order ``n``
+    sampled plant       ``ARX(2, 2, nk=1)``          ``[2, 2, 0]``               needs ``b0 = 0``
+    MATLAB ``B``        ``[zeros(1, nk), b1 ..]``    ``NUMERATOR``               --
+    ==================  ===========================  ==========================  ==================
+
     The model in regression form is :math:`y(t) = \varphi(t)\theta + e(t)`
     with
 
@@ -781,11 +789,13 @@ class ARX:
                     lag = s.nk[j] + m
                     arg = f"{self._u_name(j)}(t)" if lag == 0 else f"{self._u_name(j)}(t-{lag})"
                     rhs.append(_term(th[p, i], se[p, i], arg, pm))
-            left = " ".join([lhs[0]] + lhs[1:])
-            right = " ".join(rhs).lstrip("+ ").strip()
-            if rhs and rhs[0].startswith("- "):
-                right = "-" + right
-            lines.append(f"{left} = {right} + e(t)")
+            left = " ".join(lhs)
+            if rhs:  # the first term carries its sign without a separating space
+                first = rhs[0][2:] if rhs[0].startswith("+ ") else "-" + rhs[0][2:]
+                right = " ".join([first] + rhs[1:]) + " + e(t)"
+            else:
+                right = "e(t)"
+            lines.append(f"{left} = {right}")
         return lines
 
     def _summary_text(self):
