@@ -8,6 +8,8 @@ closed-form polynomial identities, or a brute-force loop.
 import control
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy import signal
 
 from rlsfilt import ARX, RecursiveLeastSquares
@@ -269,6 +271,38 @@ def test_from_tf_round_trip_and_sampled_plant():
     u = np.random.default_rng(3).standard_normal(100)
     resp = control.forced_response(Gd, 0.1 * np.arange(100), u).outputs
     np.testing.assert_allclose(m.simulate(u), resp, atol=1e-12)
+
+
+def _random_plant(gen, na, nb):
+    """Stable A with real poles of modulus in [0.1, 0.9]; b with nonzero ends."""
+    poles = gen.uniform(0.1, 0.9, na) * gen.choice([-1.0, 1.0], na)
+    a = np.poly(poles)[1:] if na else np.zeros(0)
+    b = gen.standard_normal(nb)
+    b[[0, -1]] = np.sign(b[[0, -1]]) * np.maximum(np.abs(b[[0, -1]]), 0.2)
+    return a, b
+
+
+@settings(max_examples=40, deadline=None)
+@given(na=st.integers(0, 3), nb=st.integers(1, 3), nk=st.integers(0, 3),
+       seed=st.integers(0, 2 ** 32 - 1))
+def test_property_structure_round_trips(na, nb, nk, seed):
+    """Any (na, nb, nk): exact recovery, lfilter == forced_response == simulate, tf round trip."""
+    gen = np.random.default_rng(seed)
+    a, b = _random_plant(gen, na, nb)
+    u = gen.standard_normal(120)
+    A, B = np.r_[1.0, a], np.r_[np.zeros(nk), b]
+    y = signal.lfilter(B, A, u)
+    model = ARX(na, nb, nk, dt=0.5).fit(u, y)
+    np.testing.assert_allclose(model.theta_, np.r_[a, b], rtol=1e-8, atol=1e-9)
+    true = ARX.from_polynomials(a, b, nk=nk, dt=0.5)
+    scale = 1 + np.max(np.abs(y))
+    np.testing.assert_allclose(true.simulate(u), y, rtol=0, atol=1e-10 * scale)
+    resp = control.forced_response(true.to_tf(), 0.5 * np.arange(120), u).outputs
+    np.testing.assert_allclose(resp, y, rtol=0, atol=1e-9 * scale)
+    back = ARX.from_tf(true.to_tf())
+    assert (back.na, back.nb, back.nk) == (na, nb, nk)
+    np.testing.assert_allclose(back.theta_, true.theta_, rtol=1e-12, atol=1e-14)
+    assert complex(true.to_tf().dcgain()).real == pytest.approx(b.sum() / A.sum(), rel=1e-9)
 
 
 # ----------------------------------------------------------------------

@@ -222,8 +222,17 @@ class ARX:
             by default, ``0`` starts from the prior ``x0``, ``P0`` instead.
         lam, P0, R, Q, x0
             ``"rls"`` only: passed to `RecursiveLeastSquares` (forgetting
-            factor, initial covariance used when ``k0 = 0``, noise variance,
-            random-walk covariance, initial estimate).
+            factor, initial covariance and estimate for a prior start with
+            ``k0 = 0``, noise variance, random-walk covariance).
+
+        Notes
+        -----
+        With ``method="rls"``, ``theta_`` is the filter's last estimate and
+        ``theta_cov_`` is ``noise_variance_ * P / R``, its covariance; with
+        ``lam = 1``, ``Q = 0`` and a batch start both equal the batch answer.
+        With forgetting they describe the exponentially weighted fit at the
+        end of the record, while ``noise_variance_`` (residuals of the final
+        estimate over all rows) overstates the noise if the plant changed.
 
         Returns
         -------
@@ -279,6 +288,12 @@ class ARX:
         k0 = n if opts["k0"] is None else check_int(opts["k0"], "k0", minimum=0)
         if k0 > rows:
             raise ValueError(f"`k0` must be <= the number of regressor rows ({rows}); got {k0}")
+        if k0 > 0:
+            given = [key for key in ("P0", "x0") if opts[key] is not None]
+            if given:
+                raise ValueError(
+                    f"`{given[0]}` only applies to a prior start (k0=0); the batch start on "
+                    f"k0={k0} rows sets both x0 and P0. Pass k0=0 to start from `{given[0]}`.")
         kw = {key: opts[key] for key in ("P0", "R", "Q", "x0") if opts[key] is not None}
         lam = 1.0 if opts["lam"] is None else opts["lam"]
         rls = RecursiveLeastSquares(n, dim_z=s.n_outputs, lam=lam, **kw)
