@@ -379,6 +379,11 @@ def test_mimo_matches_separate_single_output_fits(rng):
         np.testing.assert_allclose(se[[2 * i, 2 * i + 1]], se1[[0, 1]], rtol=1e-8)
         np.testing.assert_allclose(se[[2 * other, 2 * other + 1]], se1[[2, 3]], rtol=1e-8)
         np.testing.assert_allclose(se[4:], se1[4:], rtol=1e-8)
+    resid = model.residuals_
+    np.testing.assert_allclose(model.noise_covariance_, resid.T @ resid / (len(resid) - 8),
+                               rtol=1e-12)
+    np.testing.assert_allclose(np.diag(model.noise_covariance_), model.noise_variance_,
+                               rtol=1e-12)
     # truth recovered within noise
     np.testing.assert_allclose(model.a_[:, :, 0], A1, atol=0.05)
     np.testing.assert_allclose(model.b_[0][:, 0], B1[:, 0], atol=0.05)
@@ -457,6 +462,19 @@ def test_rls_prior_start_is_ridge(rng):
     expected = np.linalg.solve(Phi.T @ Phi + np.eye(2) / P0, Phi.T @ target + x0 / P0)
     np.testing.assert_allclose(model.theta_, expected, rtol=1e-9)
     assert not np.isnan(model.theta_history_).any()
+
+
+def test_rls_options_pass_through_to_the_filter(rng):
+    u, y = arx_data(rng, [-1.5, 0.7], [1.0, 0.5], 1, n=200)
+    opts = {"lam": 0.98, "R": 0.5, "Q": 1e-4}
+    model = ARX(2, 2, 1).fit(u, y, method="rls", k0=8, **opts)
+    Phi, target = model.regressors(u, y)
+    rls = RecursiveLeastSquares(4, **opts)
+    rls.initialize(target[:8], Phi[:8])
+    means = rls.batch_filter(target[8:], Phi[8:])[0]
+    np.testing.assert_allclose(model.theta_history_[8:], means[:, :, 0], rtol=1e-12)
+    np.testing.assert_allclose(model.theta_cov_, model.noise_variance_ * rls.P / 0.5, rtol=1e-12)
+    assert model.filter_.lam == 0.98 and model.filter_.R == 0.5
 
 
 def test_rls_mimo_shares_one_covariance(rng):
@@ -547,4 +565,8 @@ def test_summary_repr_and_html(rng):
     html = model._repr_html_()
     assert "<table>" in html and "&plusmn;" in html and "b2" in html
     assert model.summary()._repr_html_() == html
+    latex = model._repr_latex_()
+    assert latex.startswith("$$\\begin{aligned}y(t) - 1.5") and latex.endswith("\\end{aligned}$$")
+    assert f"(\\pm {se[2]:.2g})\\, u(t-1)" in latex and "&= " in latex
+    assert ARX(1, 1)._repr_latex_() is None
     assert repr(model).startswith("ARX(na=2, nb=2, nk=1, dt=0.1):")

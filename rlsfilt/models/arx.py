@@ -58,6 +58,10 @@ class ARX:
     noise_variance_ : float or ndarray of shape (ny,)
         Unbiased residual variance :math:`\hat\sigma^2 = \|y - \Phi\hat\theta\|^2
         / (N_{rows} - n_{params})` (NaN when there are no spare equations).
+    noise_covariance_ : ndarray, shape (ny, ny)
+        2-D `y` only: unbiased covariance of the residuals of the outputs
+        (its diagonal is ``noise_variance_``); the covariance of
+        ``vec(theta_)`` is ``kron(noise_covariance_, (Phi^T Phi)^-1)``.
     residuals_ : ndarray, shape (n_samples_,) or (n_samples_, ny)
         ``target - Phi @ theta_`` on the fitted rows.
     n_samples_ : int
@@ -278,6 +282,9 @@ class ARX:
         cov = sigma2[:, None, None] * cov_unscaled[None]
         self.theta_cov_ = cov[0] if info["y_1d"] else cov
         self.noise_variance_ = float(sigma2[0]) if info["y_1d"] else sigma2
+        if not info["y_1d"]:
+            self.noise_covariance_ = (resid.T @ resid / dof if dof > 0
+                                      else np.full((s.n_outputs, s.n_outputs), np.nan))
         self.residuals_ = resid[:, 0] if info["y_1d"] else resid
         self.n_samples_ = rows
         self.method_ = method
@@ -831,6 +838,40 @@ class ARX:
             return self._orders_text()
         return self._summary_text()
 
+    def _repr_latex_(self):
+        """The difference equation(s) with one standard error, for notebooks."""
+        if "theta_" not in self.__dict__:
+            return None
+        return "$$\\begin{aligned}" + " \\\\ ".join(self._latex_lines()) + "\\end{aligned}$$"
+
+    def _latex_lines(self):
+        s = self.structure_
+        se = self.std_errors_.reshape(self.n_params_, -1)
+        th = self._theta2()
+        _, b_sls = s.param_slices()
+
+        def sig(name, lag):
+            base = _latex_name(name)
+            return f"{base}(t)" if lag == 0 else f"{base}(t-{lag})"
+
+        def term(value, err, arg):
+            sign = "-" if value < 0 else "+"
+            return f"{sign} {abs(value):.5g}\\,(\\pm {err:.2g})\\, {arg}"
+
+        lines = []
+        for i in range(s.n_outputs):
+            lhs = [sig(self._y_name(i), 0)]
+            for j in range(s.n_outputs):
+                for k in range(1, s.na + 1):
+                    p = j * s.na + k - 1
+                    lhs.append(term(th[p, i], se[p, i], sig(self._y_name(j), k)))
+            rhs = [term(th[b_sls[j].start + m, i], se[b_sls[j].start + m, i],
+                        sig(self._u_name(j), s.nk[j] + m))
+                   for j in range(s.n_inputs) for m in range(s.nb[j])]
+            first = rhs[0][2:] if rhs[0].startswith("+ ") else "-" + rhs[0][2:]
+            lines.append(" ".join(lhs) + " &= " + " ".join([first] + rhs[1:]) + " + e(t)")
+        return lines
+
     def _repr_html_(self):
         if "theta_" not in self.__dict__:
             return f"<pre>{html.escape(self._orders_text())}</pre>"
@@ -903,6 +944,18 @@ def _check_dt(dt):
         raise ValueError(f"`dt` must be True (unspecified sampling period) or a positive "
                          f"sampling period; got {dt!r}")
     return dt
+
+
+def _latex_name(name):
+    """``y1`` -> ``y_{1}``; other names in \\mathrm."""
+    if len(name) > 1 and name[0] in "uy" and name[1:].isdigit():
+        return f"{name[0]}_{{{name[1:]}}}"
+    if len(name) == 1:
+        return name
+    special = {c: "\\" + c for c in "&%$#_{}"}
+    special.update({"~": "\\textasciitilde{}", "^": "\\textasciicircum{}",
+                    "\\": "\\textbackslash{}"})
+    return "\\mathrm{" + "".join(special.get(c, c) for c in name) + "}"
 
 
 def _fmt(t):
