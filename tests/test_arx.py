@@ -477,6 +477,34 @@ def test_rls_options_pass_through_to_the_filter(rng):
     assert model.filter_.lam == 0.98 and model.filter_.R == 0.5
 
 
+def test_rls_default_start_grows_until_full_rank(rng):
+    """A held input makes the first n_params rows rank-deficient: the start grows."""
+    u = np.repeat(rng.standard_normal(40), 10)
+    y = signal.lfilter([0, 1.0, 0.5], [1, -1.5, 0.7], u) + 0.1 * rng.standard_normal(400)
+    model = ARX(2, 2, 1).fit(u, y, method="rls")
+    Phi, _ = model.regressors(u, y)
+    ranks = [np.linalg.matrix_rank(Phi[:k]) for k in range(1, 40)]
+    assert model.k0_ == 1 + ranks.index(4) and model.k0_ > 4
+    np.testing.assert_allclose(model.theta_, ARX(2, 2, 1).fit(u, y).theta_, rtol=1e-9)
+    assert ARX(2, 2, 1).fit(u[:100], y[:100], method="rls").k0_ == model.k0_
+
+
+def test_rls_recursive_residuals_are_the_filter_innovations(rng):
+    u, y = arx_data(rng, [-1.5, 0.7], [1.0, 0.5], 1, n=150)
+    model = ARX(2, 2, 1).fit(u, y, method="rls", lam=0.95)
+    Phi, target = model.regressors(u, y)
+    rls = RecursiveLeastSquares(4, lam=0.95)
+    rls.initialize(target[:4], Phi[:4])
+    innov = []
+    for z, phi in zip(target[4:], Phi[4:]):
+        rls.predict_update(z, phi)
+        innov.append(rls.y[0, 0])
+    assert np.isnan(model.recursive_residuals_[:4]).all()
+    np.testing.assert_allclose(model.recursive_residuals_[4:], innov, rtol=1e-10, atol=1e-12)
+    prior = ARX(2, 2, 1).fit(u, y, method="rls", k0=0, x0=np.ones(4))
+    assert prior.recursive_residuals_[0] == pytest.approx(target[0] - Phi[0] @ np.ones(4))
+
+
 def test_rls_mimo_shares_one_covariance(rng):
     u, y, _ = _mimo_data(rng, N=300)
     batch = ARX(2, 2, 1).fit(u, y)
@@ -484,6 +512,8 @@ def test_rls_mimo_shares_one_covariance(rng):
     np.testing.assert_allclose(rec.theta_, batch.theta_, rtol=1e-9, atol=1e-11)
     assert rec.theta_history_.shape == (rec.n_samples_, 8, 2)
     assert rec.filter_.dim_z == 2
+    rr = rec.recursive_residuals_
+    assert rr.shape == (rec.n_samples_, 2) and np.isnan(rr[:7]).all() and np.isfinite(rr[8:]).all()
 
 
 # ----------------------------------------------------------------------

@@ -75,6 +75,13 @@ class ARX:
     theta_history_ : ndarray, shape (n_samples_, n_params[, ny])
         ``method="rls"`` only: the estimate after each row; rows before the
         batch start (``k0 - 1``) are NaN.
+    recursive_residuals_ : ndarray, shape (n_samples_,) or (n_samples_, ny)
+        ``method="rls"`` only: the a-priori residuals
+        :math:`y(t) - \varphi(t)\hat\theta(t-1)`, the errors the filter
+        actually made (NaN for the rows of the batch start). Under forgetting
+        these, not ``residuals_``, show how well the model tracked.
+    k0_ : int
+        ``method="rls"`` only: number of rows of the batch start.
     filter_ : RecursiveLeastSquares
         ``method="rls"`` only: the filter after the last sample, ready for
         more ``predict``/``update`` calls.
@@ -222,8 +229,11 @@ class ARX:
             `RecursiveLeastSquares` over the rows, started by batch least
             squares on the first `k0` rows.
         k0 : int, optional
-            ``"rls"`` only: number of rows of the batch start; ``n_params``
-            by default, ``0`` starts from the prior ``x0``, ``P0`` instead.
+            ``"rls"`` only: number of rows of the batch start. By default
+            ``n_params`` (the lecture notes' choice), or, when those first
+            rows do not determine every parameter (for example a PRBS held
+            for several samples), the fewest leading rows that do. ``0``
+            starts from the prior ``x0``, ``P0`` instead.
         lam, P0, R, Q, x0
             ``"rls"`` only: passed to `RecursiveLeastSquares` (forgetting
             factor, initial covariance and estimate for a prior start with
@@ -267,7 +277,8 @@ class ARX:
         Phi = _build(U, Y, s, s.max_lag)
         target = Y[s.max_lag:]
         rows = len(Phi)
-        for name in ("theta_history_", "filter_"):
+        for name in ("theta_history_", "filter_", "k0_", "recursive_residuals_",
+                     "noise_covariance_"):
             self.__dict__.pop(name, None)
         if method == "ls":
             theta, cov_unscaled = _qr_least_squares(Phi, target)
@@ -275,6 +286,14 @@ class ARX:
             theta, cov_unscaled, rls, history = self._fit_rls(Phi, target, s, opts)
             self.filter_ = rls
             self.theta_history_ = history[:, :, 0] if info["y_1d"] else history
+            # a-priori (recursive) residuals y(t) - phi(t) theta(t-1) after the batch start
+            prior = np.full_like(target, np.nan)
+            k0 = self.k0_
+            if k0 == 0 and rows:
+                prior[0] = target[0] - Phi[0] @ rls._x0
+                k0 = 1
+            prior[k0:] = target[k0:] - np.einsum("ij,ijk->ik", Phi[k0:], history[k0 - 1:-1])
+            self.recursive_residuals_ = prior[:, 0] if info["y_1d"] else prior
         resid = target - Phi @ theta
         dof = rows - s.n_params
         sigma2 = np.sum(resid ** 2, axis=0) / dof if dof > 0 else np.full(s.n_outputs, np.nan)
@@ -292,7 +311,8 @@ class ARX:
 
     def _fit_rls(self, Phi, target, s, opts):
         n, rows = s.n_params, len(Phi)
-        k0 = n if opts["k0"] is None else check_int(opts["k0"], "k0", minimum=0)
+        k0 = _full_rank_start(Phi) if opts["k0"] is None else check_int(opts["k0"], "k0",
+                                                                         minimum=0)
         if k0 > rows:
             raise ValueError(f"`k0` must be <= the number of regressor rows ({rows}); got {k0}")
         if k0 > 0:
@@ -311,6 +331,7 @@ class ARX:
         if k0 < rows:
             means = rls.batch_filter(target[k0:], Phi[k0:], store_covariances=False)[0]
             history[k0:] = means
+        self.k0_ = k0
         return rls.x.copy(), rls.P / rls.R, rls, history
 
     def _store(self, theta, s, info, dt):
@@ -985,6 +1006,36 @@ def _qr_least_squares(Phi, target):
     Rinv, info = lapack.dtrtri(Rf, lower=0)
     cov = Rinv @ Rinv.T
     return theta, 0.5 * (cov + cov.T)
+
+
+def _full_rank_start(Phi):
+    """Fewest leading rows (at least n_params) of `Phi` with full column rank.
+
+    The rank of a prefix grows with its length, so double until full rank,
+    then bisect. Raises the not-persistently-exciting error when even all
+    rows are rank-deficient.
+    """
+    rows, n = Phi.shape
+    if n == 0:
+        return 0
+
+    def full(k):
+        return np.linalg.matrix_rank(Phi[:k]) == n
+
+    if full(n):
+        return n
+    if not full(rows):
+        _qr_least_squares(Phi, np.zeros((rows, 1)))  # raises with the rank in the message
+    lo, hi = n, min(2 * n, rows)  # full(lo) is False
+    while not full(hi):
+        lo, hi = hi, min(2 * hi, rows)
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if full(mid):
+            hi = mid
+        else:
+            lo = mid
+    return hi
 
 
 def _trim(p):
