@@ -308,6 +308,26 @@ def test_property_structure_round_trips(na, nb, nk, seed):
 # ----------------------------------------------------------------------
 # several inputs and outputs
 # ----------------------------------------------------------------------
+def test_from_tf_matrix_plants_keep_the_transfer_matrix():
+    """Rows over a common denominator: the ARX has exactly the plant's transfer matrix."""
+    G = control.tf([[[1.0], [0.5, 0.2]], [[2.0, 0.0], [1.0]]],
+                   [[[1.0, -0.5], [1.0, -0.2, 0.1]], [[1.0, 0.3], [1.0, 0.3]]], 0.1)
+    model = ARX.from_tf(G)
+    assert model.a_.shape[:2] == (2, 2) and model.a_[0, 1].tolist() == [0.0] * model.na
+    assert model.nk == [0, 1]  # (2 z)/(z + 0.3) has a direct term; input 2 is delayed
+    H = model.to_tf()
+    for z in (1.0, 0.4 + 0.7j, -1.3, 3.0j):
+        np.testing.assert_allclose(H(z), G(z), rtol=1e-10)
+        np.testing.assert_allclose(model.to_ss()(z), G(z), rtol=1e-10)
+    miso = ARX.from_tf(G[0, :])
+    assert miso.a_.ndim == 1 and isinstance(miso.b_, list)
+    np.testing.assert_allclose(miso.to_tf()(0.3 + 0.2j), G[0, :](0.3 + 0.2j), rtol=1e-10)
+    u = np.random.default_rng(0).standard_normal((50, 2))
+    expected = (signal.lfilter([0, 1.0], [1, -0.5], u[:, 0])
+                + signal.lfilter([0, 0.5, 0.2], [1, -0.2, 0.1], u[:, 1]))
+    np.testing.assert_allclose(miso.simulate(u), expected, atol=1e-12)
+
+
 def test_miso_per_input_orders_and_delays(rng):
     a = np.array([-1.2, 0.4])
     b1, b2 = np.array([0.5]), np.array([1.0, -0.6, 0.2])
