@@ -545,9 +545,11 @@ def test_uncertainty_is_calibrated_over_repeated_experiments():
     With M = 1000 experiments the sample standard deviation of M standard
     normal values has standard error 1/sqrt(2 (M - 1)) = 0.022, and the
     mean 1/sqrt(M) = 0.032; the bands below are 4 standard errors wide, so a
-    correct implementation fails them with probability about 1e-4, while a
-    covariance off by 20 % (std off by 10 %) fails them with high
-    probability.
+    correct implementation fails them with probability about 1e-4 per
+    parameter, while a covariance off by 25 % (std off by 12 %) fails with
+    probability above 0.9. The noise-variance check is tighter still: its
+    band (4 sqrt(2 / dof) / sqrt(M) = 0.013) rejects the biased divisor
+    N_rows instead of N_rows - n_params (a 2 % bias here).
     """
     a, b, nk = np.array([-1.5, 0.7]), np.array([1.0, 0.5]), 1
     theta_true = np.r_[a, b]

@@ -239,15 +239,6 @@ class ARX:
             factor, initial covariance and estimate for a prior start with
             ``k0 = 0``, noise variance, random-walk covariance).
 
-        Notes
-        -----
-        With ``method="rls"``, ``theta_`` is the filter's last estimate and
-        ``theta_cov_`` is ``noise_variance_ * P / R``, its covariance; with
-        ``lam = 1``, ``Q = 0`` and a batch start both equal the batch answer.
-        With forgetting they describe the exponentially weighted fit at the
-        end of the record, while ``noise_variance_`` (residuals of the final
-        estimate over all rows) overstates the noise if the plant changed.
-
         Returns
         -------
         self : ARX
@@ -258,6 +249,15 @@ class ARX:
             NaN/inf in the data (the first bad index is named), mismatched
             lengths, bad orders, too few samples, or a regressor matrix
             without full column rank (input not persistently exciting).
+
+        Notes
+        -----
+        With ``method="rls"``, ``theta_`` is the filter's last estimate and
+        ``theta_cov_`` is ``noise_variance_ * P / R``, its covariance; with
+        ``lam = 1``, ``Q = 0`` and a batch start both equal the batch answer.
+        With forgetting they describe the exponentially weighted fit at the
+        end of the record, while ``noise_variance_`` (residuals of the final
+        estimate over all rows) overstates the noise if the plant changed.
         """
         if method not in ("ls", "rls"):
             raise ValueError(f"`method` must be 'ls' or 'rls'; got {method!r}")
