@@ -61,6 +61,7 @@ STRUCTURES = [  # (a, b, nk): includes feed-through, long delays, FIR, nb > na
     ([-1.2, 0.5, -0.1], [0.3], 3),
     ([], [1.0, 0.5, 0.25], 2),
     ([0.5], [2.0], 0),
+    ([], [2.0], 0),  # a static gain: no state at all
 ]
 
 
@@ -481,7 +482,9 @@ def test_rls_prior_start_is_ridge(rng):
     Phi, target = model.regressors(u, y)
     expected = np.linalg.solve(Phi.T @ Phi + np.eye(2) / P0, Phi.T @ target + x0 / P0)
     np.testing.assert_allclose(model.theta_, expected, rtol=1e-9)
-    assert not np.isnan(model.theta_history_).any()
+    assert not np.isnan(model.theta_history_).any() and model.k0_ == 0
+    same = ARX(1, 1, 1).fit(u, y, method="rls", P0=P0, x0=x0)  # a prior means k0 = 0
+    np.testing.assert_array_equal(same.theta_, model.theta_)
 
 
 def test_rls_options_pass_through_to_the_filter(rng):

@@ -233,7 +233,8 @@ class ARX:
             ``n_params`` (the lecture notes' choice), or, when those first
             rows do not determine every parameter (for example a PRBS held
             for several samples), the fewest leading rows that do. ``0``
-            starts from the prior ``x0``, ``P0`` instead.
+            starts from the prior ``x0``, ``P0`` instead (MATLAB ``rarx``);
+            that is the default when `P0` or `x0` is given.
         lam, P0, R, Q, x0
             ``"rls"`` only: passed to `RecursiveLeastSquares` (forgetting
             factor, initial covariance and estimate for a prior start with
@@ -311,8 +312,11 @@ class ARX:
 
     def _fit_rls(self, Phi, target, s, opts):
         n, rows = s.n_params, len(Phi)
-        k0 = _full_rank_start(Phi) if opts["k0"] is None else check_int(opts["k0"], "k0",
-                                                                         minimum=0)
+        prior = opts["P0"] is not None or opts["x0"] is not None
+        if opts["k0"] is not None:
+            k0 = check_int(opts["k0"], "k0", minimum=0)
+        else:  # a given prior means a prior start (MATLAB rarx); else the notes' batch start
+            k0 = 0 if prior else _full_rank_start(Phi)
         if k0 > rows:
             raise ValueError(f"`k0` must be <= the number of regressor rows ({rows}); got {k0}")
         if k0 > 0:
