@@ -624,4 +624,8 @@ def test_summary_repr_and_html(rng):
     assert latex.startswith("$$\\begin{aligned}y(t) - 1.5") and latex.endswith("\\end{aligned}$$")
     assert f"(\\pm {se[2]:.2g})\\, u(t-1)" in latex and "&= " in latex
     assert ARX(1, 1)._repr_latex_() is None
+    rec = ARX(2, 2, 1).fit(u, y, method="rls", lam=0.99)
+    assert "recursive least squares (lam=0.99, batch start on 4 rows)" in repr(rec)
+    true = ARX.from_polynomials([-0.5], [1.0])
+    assert "given coefficients (no fit)" in repr(true) and "(+/-0) u(t-1)" in repr(true)
     assert repr(model).startswith("ARX(na=2, nb=2, nk=1, dt=0.1):")

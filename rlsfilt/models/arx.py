@@ -849,6 +849,10 @@ class ARX:
         s = self.structure_
         how = {"ls": "batch least squares (QR)", "rls": "recursive least squares",
                "true": "given coefficients (no fit)"}[self.method_]
+        if self.method_ == "rls":
+            f = self.filter_
+            start = (f"batch start on {self.k0_} rows" if self.k0_ else "prior start")
+            how += f" (lam={f.lam:g}, {start})"
         out = [f"{self._orders_text()}: {s.n_inputs} input(s), {s.n_outputs} output(s), "
                f"{s.n_params} parameters per output",
                f"  estimated by {how} on {self.n_samples_} equations"]
