@@ -129,6 +129,34 @@ def test_fit_equals_lstsq_on_documented_regressors(rng, a, b, nk):
     assert model.n_params == model.n_params_ == len(theta)
 
 
+@pytest.mark.parametrize("a, b, nk", STRUCTURES)
+def test_fit_matches_statsmodels_ardl(rng, a, b, nk):
+    """An independent implementation: statsmodels' ARDL (OLS) gives theta and standard errors."""
+    ardl = pytest.importorskip("statsmodels.tsa.ardl")
+    u, y = arx_data(rng, a, b, nk, n=300)
+    model = ARX(len(a), len(b), nk).fit(u, y)
+    res = ardl.ARDL(y, len(a), u[:, None], order={0: list(range(nk, nk + len(b)))},
+                    trend="n").fit()
+    sign = np.r_[-np.ones(len(a)), np.ones(len(b))]  # ARDL writes +phi y(t-i)
+    np.testing.assert_allclose(model.theta_, sign * res.params, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(model.std_errors_, res.bse, rtol=1e-8)
+    rows = len(res.resid)  # (ARDL's `nobs` counts from the AR lags only)
+    assert model.n_samples_ == rows
+    assert model.noise_variance_ == pytest.approx(res.ssr / (rows - len(res.params)), rel=1e-9)
+
+
+def test_miso_matches_statsmodels_ardl(rng):
+    ardl = pytest.importorskip("statsmodels.tsa.ardl")
+    u = rng.standard_normal((300, 2))
+    y = (signal.lfilter([0.5], [1, -0.8], u[:, 0]) + signal.lfilter([0, 0, 0, 1.0, -0.5],
+                                                                  [1, -0.8], u[:, 1])
+         + 0.1 * rng.standard_normal(300))
+    model = ARX(1, [1, 2], [0, 3]).fit(u, y)
+    res = ardl.ARDL(y, 1, u, order={0: [0], 1: [3, 4]}, trend="n").fit()
+    np.testing.assert_allclose(model.theta_, [-1, 1, 1, 1] * res.params, rtol=1e-9)
+    np.testing.assert_allclose(model.std_errors_, res.bse, rtol=1e-8)
+
+
 def test_fit_returns_self_and_init_only_stores():
     model = ARX(2, 2)
     assert vars(model) == {"na": 2, "nb": 2, "nk": 1, "dt": True}
