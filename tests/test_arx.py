@@ -556,6 +556,22 @@ def test_rls_recursive_residuals_are_the_filter_innovations(rng):
     assert prior.recursive_residuals_[0] == pytest.approx(target[0] - Phi[0] @ np.ones(4))
 
 
+def test_rls_forwards_the_filter_s_other_options(rng, monkeypatch):
+    """Options ARX does not name (a forgetting mode, a gate, ...) reach the filter unchanged."""
+    seen = {}
+
+    class SpyRLS(RecursiveLeastSquares):
+        def __init__(self, dim_x, dim_z=1, lam=1.0, *, marker=None, **kwargs):
+            seen["marker"] = marker
+            super().__init__(dim_x, dim_z, lam, **kwargs)
+
+    monkeypatch.setattr("rlsfilt.models.arx.RecursiveLeastSquares", SpyRLS)
+    u, y = arx_data(rng, [-0.8], [0.5], 1, n=50)
+    model = ARX(1, 1, 1).fit(u, y, method="rls", marker=42, R=2.0)
+    assert seen == {"marker": 42} and isinstance(model.filter_, SpyRLS)
+    assert model.filter_.R == 2.0
+
+
 def test_rls_mimo_shares_one_covariance(rng):
     u, y, _ = _mimo_data(rng, N=300)
     batch = ARX(2, 2, 1).fit(u, y)
