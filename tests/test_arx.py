@@ -226,6 +226,9 @@ def test_to_tf_poles_and_dc_gain(rng, a, b, nk):
     expected_poles = np.r_[np.roots(np.r_[1.0, a]), np.zeros(len(den) - 1 - len(a))]
     np.testing.assert_allclose(np.sort_complex(G.poles()), np.sort_complex(expected_poles),
                                atol=1e-9)
+    A, B = model.polynomials()  # MATLAB's form for one input and one output
+    np.testing.assert_array_equal(A, np.r_[1.0, a])
+    np.testing.assert_array_equal(B, np.r_[np.zeros(nk), b])
     dc = np.sum(b) / (1.0 + np.sum(a))
     assert complex(G.dcgain()).real == pytest.approx(dc, rel=1e-12)
     assert complex(G(1.0)).real == pytest.approx(dc, rel=1e-12)
@@ -460,6 +463,32 @@ def test_mimo_simulate_and_transfer_matrix(rng):
     dl = model.to_dlti()
     _, yd, _ = signal.dlsim(dl, u)
     np.testing.assert_allclose(yd, y, atol=1e-9)
+
+
+@settings(max_examples=25, deadline=None)
+@given(ny=st.integers(1, 3), nu=st.integers(1, 2), na=st.integers(0, 2),
+       nb=st.lists(st.integers(1, 3), min_size=2, max_size=2),
+       nk=st.lists(st.integers(0, 2), min_size=2, max_size=2), seed=st.integers(0, 2 ** 32 - 1))
+def test_property_transfer_matrix_of_any_structure(ny, nu, na, nb, nk, seed):
+    """to_tf, to_ss and to_dlti are A(z)^-1 B(z) for any MIMO structure; simulate agrees."""
+    gen = np.random.default_rng(seed)
+    nb, nk = nb[:nu], nk[:nu]
+    N = 40 + 10 * ny * nu
+    u = gen.standard_normal((N, nu))
+    y = gen.standard_normal((N, ny))
+    model = ARX(na, nb, nk, dt=1.0).fit(u, y)
+    A, B = model.polynomials()  # (ny, ny, na + 1) and (ny, nu, max(nk + nb)): 2-D signals
+    G, sys = model.to_tf(), model.to_ss()
+    for z in (1.3, 0.5 + 0.9j, -1.1 + 0.2j):
+        Gz = np.linalg.solve(A @ z ** -np.arange(A.shape[2]), B @ z ** -np.arange(B.shape[2]))
+        np.testing.assert_allclose(np.reshape(G(z), (ny, nu)), Gz, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(np.reshape(sys(z), (ny, nu)), Gz, rtol=1e-9, atol=1e-12)
+    ys = model.simulate(u).reshape(N, ny)
+    dl = model.to_dlti() if ny == 1 and nu == 1 else signal.dlti(sys.A, sys.B, sys.C, sys.D,
+                                                                  dt=1.0)
+    _, yd = signal.dlsim(dl, u)[:2]
+    np.testing.assert_allclose(np.reshape(yd, (N, ny)), ys, rtol=1e-9,
+                               atol=1e-9 * (1 + np.abs(ys).max()))
 
 
 def test_mimo_predict_one_step(rng):

@@ -652,7 +652,8 @@ class ARX:
                 Am[blk, (i + 1) * ny:(i + 2) * ny] = np.eye(ny)
             Bm[blk] = Bk[i + 1] - Ak[i] @ D        # y(t) = x_1(t) + D u(t)
         Cm = np.zeros((ny, n * ny))
-        Cm[:, :ny] = np.eye(ny)
+        if n:  # a static gain (na = 0, nk = 0, nb = 1) has no state
+            Cm[:, :ny] = np.eye(ny)
         return Am, Bm, Cm, D.copy()
 
     def to_ss(self, noise=False):
