@@ -491,6 +491,31 @@ def test_property_transfer_matrix_of_any_structure(ny, nu, na, nb, nk, seed):
                                atol=1e-9 * (1 + np.abs(ys).max()))
 
 
+@settings(max_examples=20, deadline=None)
+@given(ny=st.integers(1, 2), na=st.integers(0, 2), nk=st.integers(0, 2),
+       horizon=st.integers(1, 4), seed=st.integers(0, 2 ** 32 - 1))
+def test_property_k_step_prediction_any_structure(ny, na, nk, horizon, seed):
+    """predict(horizon=k) runs the model k steps from the measured past (brute-force oracle)."""
+    gen = np.random.default_rng(seed)
+    N = 30
+    u, y = gen.standard_normal((N, 2)), gen.standard_normal((N, ny))
+    model = ARX(na, [2, 1], [nk, 1]).fit(u, y)
+    A, B = model.polynomials()
+    yhat = model.predict(u, y, horizon=horizon)
+
+    def out(ys, s):
+        return ys[s] if s >= 0 else np.zeros(ny)
+
+    for t in range(N):
+        ys = {s: out(y, s) for s in range(t - horizon - na, t - horizon + 1)}
+        for s in range(t - horizon + 1, t + 1):
+            acc = sum(B[:, :, k] @ (u[s - k] if s - k >= 0 else np.zeros(2))
+                      for k in range(B.shape[2]))
+            acc = acc - sum(A[:, :, k] @ ys.get(s - k, np.zeros(ny)) for k in range(1, na + 1))
+            ys[s] = acc
+        np.testing.assert_allclose(yhat[t], ys[t], rtol=1e-10, atol=1e-10)
+
+
 def test_mimo_predict_one_step(rng):
     u, y, _ = _mimo_data(rng, N=100)
     model = ARX(2, 2, 1).fit(u, y)
