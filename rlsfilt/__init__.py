@@ -5,8 +5,10 @@ A filterpy-style toolkit: `RecursiveLeastSquares` mirrors filterpy's
 ``P``, ``K``, ``y``, ``S``) so it drops in beside Kalman filters.
 """
 
+from . import datasets  # public subpackage: rlsfilt.datasets
 from .exceptions import ForgettingSkippedWarning, NotFittedError, NumericalWarning
 from .filters import RecursiveLeastSquares, SlidingWindowRLS, SquareRootRLS
+from .models import ARX
 
 __version__ = "0.1.0"
 
@@ -14,6 +16,8 @@ __all__ = [
     "RecursiveLeastSquares",
     "SlidingWindowRLS",
     "SquareRootRLS",
+    "ARX",
+    "datasets",
     "NotFittedError",
     "NumericalWarning",
     "ForgettingSkippedWarning",
