@@ -12,6 +12,8 @@ its ratio to a careful hand-written compiled loop
 ``write 2 N n^2``         allocating and filling two ``(N, n, n)`` arrays: the floor
                           of ``batch_filter+P`` on this machine
 ``kernel``                rlsfilt's compiled kernel without the Python wrapper
+``ARX.fit``               ``ARX(na, nb).fit(u, y, method="rls")``: regressors, the
+                          filter run and the fit's statistics
 ``predict+update``        the streaming pair, one Python call each per sample
 ``handwritten``           the yardstick (``benchmarks/handwritten.py``)
 ``numpy loop``            a lean pure-NumPy loop
@@ -56,8 +58,8 @@ from rlsfilt.filters import _kernels  # noqa: E402
 LAM = 0.99
 P0 = 1e4
 FULL_DIMS = (2, 5, 10, 20, 50)
-COLUMNS = ("batch_filter", "batch_filter+P", "write 2 N n^2", "kernel", "predict+update",
-           "handwritten", "numpy loop", "filterpy", "padasip", "statsmodels")
+COLUMNS = ("batch_filter", "batch_filter+P", "write 2 N n^2", "kernel", "ARX.fit",
+           "predict+update", "handwritten", "numpy loop", "filterpy", "padasip", "statsmodels")
 
 
 # ----------------------------------------------------------------------
@@ -82,7 +84,23 @@ def arx_data(dim_x, n_samples, rng):
     cols = [-y[lag - i: total - i] for i in range(1, na + 1)]
     cols += [u[lag - i: total - i] for i in range(1, nb + 1)]
     Hs = np.ascontiguousarray(np.column_stack(cols))
-    return Hs, np.ascontiguousarray(y[lag:])
+    zs = np.ascontiguousarray(y[lag:])
+    _IO[id(Hs)] = (u, y, na, nb)     # the raw record, for ARX.fit
+    return Hs, zs
+
+
+_IO = {}
+
+
+def run_arx_fit(Hs, zs):
+    """``ARX(na, nb).fit(u, y, method="rls")`` on the record behind ``Hs``, regressors included."""
+    base = Hs.base if Hs.base is not None and id(Hs.base) in _IO else Hs
+    u, y, na, nb = _IO[id(base)]
+    lag = max(na, nb)
+    N = len(zs)
+    model = rlsfilt.ARX(na, nb, nk=1).fit(u[:N + lag], y[:N + lag], method="rls", lam=LAM,
+                                          P0=P0)
+    return model.theta_
 
 
 # ----------------------------------------------------------------------
@@ -182,6 +200,7 @@ CONTENDERS = {
     "batch_filter+P": (run_batch_cov, "cov", None),
     "write 2 N n^2": (run_write_floor, "cov", None),
     "kernel": (run_kernel, "full", None),
+    "ARX.fit": (run_arx_fit, "full", None),
     "predict+update": (run_stream, "peer", None),
     "handwritten": (run_handwritten, "full", None),
     "numpy loop": (run_numpy, "peer", None),

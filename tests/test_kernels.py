@@ -369,3 +369,25 @@ def test_streaming_fast_path_keeps_counters_and_health_check(rng):
         assert len(record) == 1
         caught.append(str(record[0].message))
     assert caught[0] == caught[1]
+
+
+def test_compiled_health_decision_equals_health_problem():
+    """The kernel's shortcut (Cholesky, trace bound) decides as ``eigvalsh`` does."""
+    rng = np.random.default_rng(5)
+    decided = {True: 0, False: 0}
+    for _ in range(2000):
+        n = int(rng.integers(1, 8))
+        Qo, _ = np.linalg.qr(rng.standard_normal((n, n)))
+        w = 10.0 ** rng.uniform(-14, 3, n)
+        if rng.random() < 0.2:
+            w[0] = -abs(w[0]) * rng.random()
+        A = (Qo * w) @ Qo.T
+        A = 0.5 * (A + A.T)
+        if rng.random() < 0.05:
+            A[0, -1] += 1e-3 * np.abs(A).max()          # not symmetric
+        cond_max = 10.0 ** rng.uniform(2, 13) if rng.random() < 0.9 else np.inf
+        expected = rls_module._health_problem(A, None, cond_max) is not None
+        assert _kernels._unhealthy(A, cond_max) == expected
+        decided[expected] += 1
+    assert min(decided.values()) > 200
+    assert _kernels._unhealthy(np.array([[1.0, np.nan], [np.nan, 1.0]]), 1e12)
