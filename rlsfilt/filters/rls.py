@@ -85,6 +85,7 @@ def _free_refcount():
 
 _FREE = _free_refcount()
 
+
 class RecursiveLeastSquares(_FilterBase):
     r"""Recursive least-squares estimator with a filterpy ``KalmanFilter`` API.
 
