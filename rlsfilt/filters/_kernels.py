@@ -266,8 +266,9 @@ def batch_filter_kernel(x, P, Z, Hm, Rv, il, Q, q_zero, update_first, mode, para
     covs, covs_p : (N, n, n) or (0, n, n)
         Covariances after each update and each predict; not written when
         their length is 0.
-    ys : (N, m), ss : (N,)
-        Residuals (NaN when missing) and innovation variances (written).
+    ys : (N, m) or (1, m), ss : (N,) or (1,)
+        Residuals (NaN when missing) and innovation variances, for every
+        step or (length 1) for the last step only.
     x_prior, P_prior, x_post, P_post : arrays shaped as x and P
         The last step's prior and posterior (written when ``N > 0``).
     K : (n,)
@@ -297,11 +298,14 @@ def batch_filter_kernel(x, P, Z, Hm, Rv, il, Q, q_zero, update_first, mode, para
                            x_prior, P_prior, x_post, P_post, K,
                            check_every, step0, cond_max, P_fail)
     r_each = Rv.shape[0] == N                  # else one variance for all steps
+    hist = ys.shape[0] == N                    # else ys, ss hold the last step only
     predict = not (il == 1.0 and q_zero)       # otherwise the time update is the identity
     g = np.empty(n)
     gn = np.empty(n)
     y = np.empty(m)
     k_fail = -1
+    # steps to the next health check (a countdown: no division per step)
+    countdown = check_every - step0 % check_every if check_every > 0 else -1
     # the time update before the first measurement update, and its gain
     _predict_gain_inplace(P, il, Q, q_zero, predict and not update_first, Hm[0], g)
     if not update_first:
@@ -314,7 +318,8 @@ def batch_filter_kernel(x, P, Z, Hm, Rv, il, Q, q_zero, update_first, mode, para
     for k in range(N):
         phi = Hm[k]
         s = _innovation_variance(phi, g, Rv[k if r_each else 0])
-        ss[k] = s
+        hk = k if hist else 0          # histories, or just the last step
+        ss[hk] = s
         c = 1.0 / s
         z = Z[k]
         update = not _any_nan(z)
@@ -322,12 +327,15 @@ def batch_filter_kernel(x, P, Z, Hm, Rv, il, Q, q_zero, update_first, mode, para
             _residual(x, phi, z, y)
             _estimate_update(x, g, c, y, K)
             for j in range(m):
-                ys[k, j] = y[j]
+                ys[hk, j] = y[j]
         else:
             for j in range(m):
-                ys[k, j] = np.nan
+                ys[hk, j] = np.nan
         _copy2(x, means[k])
-        check = k_fail < 0 and check_every > 0 and (step0 + k + 1) % check_every == 0
+        countdown -= 1                 # zero when (step0 + k + 1) % check_every == 0
+        check = countdown == 0 and k_fail < 0
+        if countdown == 0:
+            countdown = check_every
         if k < N - 1 and check:                       # unfused, to look at P in between
             kp = k if update_first else k + 1
             _covariance_pass(P, g, c, update, False, il, Q, q_zero, phi, gn)
@@ -451,11 +459,14 @@ def _run_single(x, P, Z, Hm, Rv, il, Q, q_zero, update_first, means, ys, ss,
     N = Z.shape[0]
     n = x.shape[0]
     r_each = Rv.shape[0] == N
+    hist = ys.shape[0] == N
     predict = not (il == 1.0 and q_zero)
     th = x[:, 0]
     g = np.empty(n)
     gn = np.empty(n)
     k_fail = -1
+    # steps to the next health check (a countdown: no division per step)
+    countdown = check_every - step0 % check_every if check_every > 0 else -1
     _predict_gain_inplace(P, il, Q, q_zero, predict and not update_first, Hm[0], g)
     if not update_first and N == 1:
         _copy2(x, x_prior)
@@ -467,7 +478,8 @@ def _run_single(x, P, Z, Hm, Rv, il, Q, q_zero, update_first, means, ys, ss,
         for i in range(n):
             acc += h[i] * g[i]
         s = acc + Rv[k if r_each else 0]          # s = h . g + r
-        ss[k] = s
+        hk = k if hist else 0          # histories, or just the last step
+        ss[hk] = s
         c = 1.0 / s
         zk = Z[k, 0]
         update = zk == zk                          # not missing
@@ -476,17 +488,20 @@ def _run_single(x, P, Z, Hm, Rv, il, Q, q_zero, update_first, means, ys, ss,
             for i in range(n):
                 acc += h[i] * th[i]
             y = zk - acc                           # y = z - h . x
-            ys[k, 0] = y
+            ys[hk, 0] = y
             for i in range(n):
                 ki = g[i] * c                      # K = g / s
                 K[i] = ki
                 th[i] = th[i] + ki * y             # x = x + K y
         else:
-            ys[k, 0] = np.nan
+            ys[hk, 0] = np.nan
         mk = means[k]
         for i in range(n):
             mk[i, 0] = th[i]
-        check = k_fail < 0 and check_every > 0 and (step0 + k + 1) % check_every == 0
+        countdown -= 1                 # zero when (step0 + k + 1) % check_every == 0
+        check = countdown == 0 and k_fail < 0
+        if countdown == 0:
+            countdown = check_every
         if k < N - 1 and check:                       # unfused, to look at P in between
             _covariance_pass(P, g, c, update, False, il, Q, q_zero, h, gn)
             if not update_first and _unhealthy(P, cond_max):
@@ -616,11 +631,13 @@ def update_kernel(x, P, phi, z, z0, zmode, r, xn, Pn, y, K, S, SI, Hc, x_post, P
 
 def batch_compiled(x, P, Z, Hm, Rv, lam, Q, update_first, store_covariances, *,
                    mode=MODE_EXPONENTIAL, params=(), gate=None, Pi=None, check_every=0,
-                   basis=None, cond_max=np.inf, step0=0):
+                   basis=None, cond_max=np.inf, step0=0, histories=True):
     """Compiled counterpart of ``rls._batch_reference`` (same arguments, same result).
 
     Exponential forgetting without gate or constraints only (a ValueError
-    otherwise). `x`, `P` are not modified. Returns a ``rls._BatchResult``.
+    otherwise). `x`, `P` are not modified. Returns a ``rls._BatchResult``;
+    with ``histories=False`` its ``ys`` and ``ss`` hold the last step only
+    (``batch_filter`` needs no more), which saves ``N (dim_z + 1)`` numbers.
     """
     from .rls import _BatchResult, _health_problem
 
@@ -638,8 +655,9 @@ def batch_compiled(x, P, Z, Hm, Rv, lam, Q, update_first, store_covariances, *,
     else:
         covs = covs_p = np.empty((0, n, n))
         out.covariances = out.covariances_p = None
-    out.ys = np.empty((N, m))
-    out.ss = np.empty(N)
+    n_hist = N if histories else min(N, 1)
+    out.ys = np.empty((n_hist, m))
+    out.ss = np.empty(n_hist)
     Rv = np.asarray(Rv, dtype=np.float64)
     if Rv.ndim == 1 and N > 1 and Rv.strides[0] == 0:      # a broadcast scalar
         Rv = np.ascontiguousarray(Rv[:1])

@@ -10,6 +10,7 @@ state ``x`` and ``P``, diagnostics ``y``, ``K``, ``S``, ``SI`` and the lazy
 ``log_likelihood``, ``likelihood`` and ``mahalanobis``.
 """
 
+import functools
 import math
 import sys
 import sysconfig
@@ -682,7 +683,10 @@ class RecursiveLeastSquares(_FilterBase):
             P = self._efra_start(P)
         compiled = (_COMPILED and self._mode == _EXPONENTIAL and self._gate is None
                     and self._Pi is None)
-        run = _get_kernels().batch_compiled if compiled else _batch_reference
+        if compiled:      # the residual histories are not needed here: last step only
+            run = functools.partial(_get_kernels().batch_compiled, histories=False)
+        else:
+            run = _batch_reference
         out = run(self._checked_x(), P, Z, Hm, Rv, self._lam,
                   None if self._Q_is_zero else self._Q, update_first,
                   store_covariances, mode=self._mode, params=self._params,
