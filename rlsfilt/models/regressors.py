@@ -164,17 +164,20 @@ def _build(U, Y, s, start):
     pad = s.max_lag
     Up = np.vstack([np.zeros((pad, U.shape[1])), U])
     Yp = np.vstack([np.zeros((pad, Y.shape[1])), Y])
-    t = np.arange(start, N) + pad  # row index into the padded arrays
-    cols = []
+    # each column is a shifted slice of the padded record, written in place
+    # (no index arrays, no temporaries: long records build fast)
+    Phi = np.empty((max(N - start, 0), s.n_params))
+    lo, hi = start + pad, N + pad        # rows t = start .. N-1 of the padded arrays
+    col = 0
     for i in range(s.n_outputs):
         for k in range(1, s.na + 1):
-            cols.append(-Yp[t - k, i])
+            np.negative(Yp[lo - k:hi - k, i], out=Phi[:, col])
+            col += 1
     for j in range(s.n_inputs):
         for k in range(s.nk[j], s.nk[j] + s.nb[j]):
-            cols.append(Up[t - k, j])
-    if not cols:
-        return np.zeros((len(t), 0))
-    return np.column_stack(cols)
+            Phi[:, col] = Up[lo - k:hi - k, j]
+            col += 1
+    return Phi
 
 
 def arx_regressors(u, y, na, nb, nk=1, *, start=None):
