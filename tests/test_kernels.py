@@ -391,3 +391,20 @@ def test_compiled_health_decision_equals_health_problem():
         decided[expected] += 1
     assert min(decided.values()) > 200
     assert _kernels._unhealthy(np.array([[1.0, np.nan], [np.nan, 1.0]]), 1e12)
+
+
+def test_streaming_without_recycling_is_identical(rng, monkeypatch):
+    """With recycling off (as where reference counts cannot be trusted) nothing changes."""
+    Hs, zs = _record(rng, 60, missing=(7,))
+    a = RecursiveLeastSquares(4, lam=0.95)
+    for k in range(len(zs)):
+        a.predict_update(zs[k], Hs[k])
+    monkeypatch.setattr(rls_module, "_FREE", None)
+    b = RecursiveLeastSquares(4, lam=0.95)
+    ids = set()
+    for k in range(len(zs)):
+        b.predict_update(zs[k], Hs[k])
+        ids.add(id(b.x))
+    assert len(ids) > 1                               # fresh arrays each step
+    for name in STATE:
+        assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)

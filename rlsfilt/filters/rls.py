@@ -36,6 +36,8 @@ from ._base import _FilterBase, _innovation
 __all__ = ["RecursiveLeastSquares"]
 
 _F8 = np.dtype(np.float64)
+# (without getrefcount, or with _FREE None, no array compares equal: no recycling)
+_getrefcount = getattr(sys, "getrefcount", lambda obj: -1)
 
 # Run batch_filter through the compiled kernels of `_kernels` (numba). The
 # tests switch this off to compare with the pure-NumPy `_batch_reference`.
@@ -409,7 +411,7 @@ class RecursiveLeastSquares(_FilterBase):
             self._updates_since_predict = 0
             return
         x, P = self.x, self.P
-        rc = sys.getrefcount
+        rc = _getrefcount
         x_prior, P_prior = self._spare_prior
         # Nobody else holds P or the last priors (the usual case, see
         # _free_refcount): P^- overwrites P, the priors are rewritten in place.
@@ -454,15 +456,14 @@ class RecursiveLeastSquares(_FilterBase):
         # The common case (a float64 row, a float measurement, the filter's
         # own x and P) skips the conversions; the arithmetic is the compiled
         # step that batch_filter runs, so both agree bit for bit.
-        n, m = self.dim_x, self.dim_z
         if type(H) is np.ndarray and H.dtype is _F8 and H.shape == self._row:
             phi = H
         elif type(H) is np.ndarray and H.dtype is _F8 and H.shape == self._row2:
-            phi = H.reshape(n)
+            phi = H.reshape(self.dim_x)
         else:
-            phi = self._as_regressor(H, "H").reshape(n)
+            phi = self._as_regressor(H, "H").reshape(self.dim_x)
         r = self._R if R is None else check_variance(R, "R")
-        zf = m == 1 and isinstance(z, float)
+        zf = isinstance(z, float) and self.dim_z == 1
         if zf:
             missing = z != z
             if not missing and z - z != 0.0:
@@ -471,7 +472,7 @@ class RecursiveLeastSquares(_FilterBase):
             zvalue = self._as_measurement(z, "z")
             missing = zvalue is None
         x, P = self.x, self.P
-        rc = sys.getrefcount
+        rc = _getrefcount
         y, K, S, SI, Hc, zc, x_post, P_post = self._spare_update
         # Nobody else holds x, P or the last step's diagnostics (the usual
         # case, see _free_refcount): update them in place, no allocations.
@@ -483,6 +484,7 @@ class RecursiveLeastSquares(_FilterBase):
         if recycled:
             xn, Pn = x, P
         else:
+            n, m = self.dim_x, self.dim_z
             if x is not self._x_own:
                 x = np.ascontiguousarray(self._checked_x(), dtype=float)
             if P is not self._P_own:
