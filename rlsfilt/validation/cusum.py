@@ -237,6 +237,11 @@ def cusum(zs, Hs, alpha=0.05):
     ``pvalue`` is the right-hand side evaluated at the smallest ``a`` whose
     lines the path touches.
 
+    The CUSUM test reacts to changes that move the mean of the recursive
+    residuals; it has little power against a change of a coefficient whose
+    regressor has mean zero (Kramer, Ploberger & Alt 1988), where
+    :func:`cusum_squares` (a change of the residual variance) helps.
+
     References
     ----------
     .. [1] R. L. Brown, J. Durbin and J. M. Evans, "Techniques for testing the
@@ -245,19 +250,22 @@ def cusum(zs, Hs, alpha=0.05):
     .. [2] A. Zeileis, F. Leisch, K. Hornik and C. Kleiber, "strucchange: an R
        package for testing for structural change in linear regression
        models", *J. Stat. Softw.* 7(2), 2002.
+    .. [3] W. Kramer, W. Ploberger and R. Alt, "Testing for structural change
+       in dynamic models", *Econometrica* 56(6), 1355-1369, 1988.
 
     Examples
     --------
-    A regression whose slope changes halfway is flagged:
+    A regression whose intercept shifts halfway is flagged:
 
     >>> import numpy as np
     >>> from rlsfilt.validation import cusum
     >>> rng = np.random.default_rng(0)
     >>> H = np.column_stack([np.ones(400), rng.standard_normal(400)])
-    >>> slope = np.where(np.arange(400) < 200, 1.0, 1.5)
-    >>> z = 0.5 + slope * H[:, 1] + 0.1 * rng.standard_normal(400)
-    >>> cusum(z, H).rejected
-    True
+    >>> level = np.where(np.arange(400) < 200, 0.5, 0.6)
+    >>> z = level + 1.0 * H[:, 1] + 0.1 * rng.standard_normal(400)
+    >>> result = cusum(z, H)
+    >>> result.rejected, int(result.crossings[0])
+    (True, 266)
     """
     alpha = _check_alpha(alpha)
     w, start = recursive_residuals(zs, Hs)
