@@ -276,7 +276,7 @@ def select_order(u, y, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), criterion
     use_val = validation is not None
     V = table["val_loss"] if use_val else table["loss"]
     N = len(target_v) if use_val else rows
-    if np.any(V <= 0.0):
+    if np.any(V <= 1e-24 * float(np.mean(target ** 2))):
         raise ValueError("a candidate fits the data exactly (zero loss); information criteria "
                          "are undefined for noise-free data")
     crit = _criteria(V, N, table["n_params"])
