@@ -32,7 +32,8 @@ class ParameterIntervals:
     dof : int
         Degrees of freedom of the Student t quantile (rows minus parameters).
     quantile : float
-        The multiplier :math:`t_{(1+\\mathrm{level})/2}(\\mathrm{dof})`.
+        The multiplier :math:`t_{(1+\\mathrm{level})/2}(\\mathrm{dof})`
+        (infinite when there are no spare equations, ``dof <= 0``).
     """
 
     def __init__(self, names, estimate, std_error, level, dof):
@@ -42,10 +43,11 @@ class ParameterIntervals:
         self.level = level
         self.dof = dof
         self.quantile = float(student_t.ppf(0.5 + level / 2.0, dof)) if dof > 0 else math.inf
-        half = self.quantile * std_error
-        with np.errstate(invalid="ignore"):
-            self.lower = estimate - np.where(std_error == 0, 0.0, half)
-            self.upper = estimate + np.where(std_error == 0, 0.0, half)
+        # a zero standard error (a true model) gives a zero-width interval
+        safe = np.where(std_error == 0, 0.0, std_error)
+        half = np.where(std_error == 0, 0.0, self.quantile * np.where(safe == 0, 1.0, safe))
+        self.lower = estimate - half
+        self.upper = estimate + half
 
     def contains(self, theta):
         """Boolean array: which entries of `theta` lie inside their interval."""
