@@ -61,6 +61,7 @@ STRUCTURES = [  # (a, b, nk): includes feed-through, long delays, FIR, nb > na
     ([-1.2, 0.5, -0.1], [0.3], 3),
     ([], [1.0, 0.5, 0.25], 2),
     ([0.5], [2.0], 0),
+    ([], [2.0], 0),  # a static gain: no state at all
 ]
 
 
@@ -126,6 +127,34 @@ def test_fit_equals_lstsq_on_documented_regressors(rng, a, b, nk):
     np.testing.assert_allclose(model.residuals_, target - Phi @ theta, atol=1e-12)
     assert model.n_samples_ == len(Phi)
     assert model.n_params == model.n_params_ == len(theta)
+
+
+@pytest.mark.parametrize("a, b, nk", STRUCTURES)
+def test_fit_matches_statsmodels_ardl(rng, a, b, nk):
+    """An independent implementation: statsmodels' ARDL (OLS) gives theta and standard errors."""
+    ardl = pytest.importorskip("statsmodels.tsa.ardl")
+    u, y = arx_data(rng, a, b, nk, n=300)
+    model = ARX(len(a), len(b), nk).fit(u, y)
+    res = ardl.ARDL(y, len(a), u[:, None], order={0: list(range(nk, nk + len(b)))},
+                    trend="n").fit()
+    sign = np.r_[-np.ones(len(a)), np.ones(len(b))]  # ARDL writes +phi y(t-i)
+    np.testing.assert_allclose(model.theta_, sign * res.params, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(model.std_errors_, res.bse, rtol=1e-8)
+    rows = len(res.resid)  # (ARDL's `nobs` counts from the AR lags only)
+    assert model.n_samples_ == rows
+    assert model.noise_variance_ == pytest.approx(res.ssr / (rows - len(res.params)), rel=1e-9)
+
+
+def test_miso_matches_statsmodels_ardl(rng):
+    ardl = pytest.importorskip("statsmodels.tsa.ardl")
+    u = rng.standard_normal((300, 2))
+    y = (signal.lfilter([0.5], [1, -0.8], u[:, 0]) + signal.lfilter([0, 0, 0, 1.0, -0.5],
+                                                                  [1, -0.8], u[:, 1])
+         + 0.1 * rng.standard_normal(300))
+    model = ARX(1, [1, 2], [0, 3]).fit(u, y)
+    res = ardl.ARDL(y, 1, u, order={0: [0], 1: [3, 4]}, trend="n").fit()
+    np.testing.assert_allclose(model.theta_, [-1, 1, 1, 1] * res.params, rtol=1e-9)
+    np.testing.assert_allclose(model.std_errors_, res.bse, rtol=1e-8)
 
 
 def test_fit_returns_self_and_init_only_stores():
@@ -197,6 +226,9 @@ def test_to_tf_poles_and_dc_gain(rng, a, b, nk):
     expected_poles = np.r_[np.roots(np.r_[1.0, a]), np.zeros(len(den) - 1 - len(a))]
     np.testing.assert_allclose(np.sort_complex(G.poles()), np.sort_complex(expected_poles),
                                atol=1e-9)
+    A, B = model.polynomials()  # MATLAB's form for one input and one output
+    np.testing.assert_array_equal(A, np.r_[1.0, a])
+    np.testing.assert_array_equal(B, np.r_[np.zeros(nk), b])
     dc = np.sum(b) / (1.0 + np.sum(a))
     assert complex(G.dcgain()).real == pytest.approx(dc, rel=1e-12)
     assert complex(G(1.0)).real == pytest.approx(dc, rel=1e-12)
@@ -308,6 +340,26 @@ def test_property_structure_round_trips(na, nb, nk, seed):
 # ----------------------------------------------------------------------
 # several inputs and outputs
 # ----------------------------------------------------------------------
+def test_from_tf_matrix_plants_keep_the_transfer_matrix():
+    """Rows over a common denominator: the ARX has exactly the plant's transfer matrix."""
+    G = control.tf([[[1.0], [0.5, 0.2]], [[2.0, 0.0], [1.0]]],
+                   [[[1.0, -0.5], [1.0, -0.2, 0.1]], [[1.0, 0.3], [1.0, 0.3]]], 0.1)
+    model = ARX.from_tf(G)
+    assert model.a_.shape[:2] == (2, 2) and model.a_[0, 1].tolist() == [0.0] * model.na
+    assert model.nk == [0, 1]  # (2 z)/(z + 0.3) has a direct term; input 2 is delayed
+    H = model.to_tf()
+    for z in (1.0, 0.4 + 0.7j, -1.3, 3.0j):
+        np.testing.assert_allclose(H(z), G(z), rtol=1e-10)
+        np.testing.assert_allclose(model.to_ss()(z), G(z), rtol=1e-10)
+    miso = ARX.from_tf(G[0, :])
+    assert miso.a_.ndim == 1 and isinstance(miso.b_, list)
+    np.testing.assert_allclose(miso.to_tf()(0.3 + 0.2j), G[0, :](0.3 + 0.2j), rtol=1e-10)
+    u = np.random.default_rng(0).standard_normal((50, 2))
+    expected = (signal.lfilter([0, 1.0], [1, -0.5], u[:, 0])
+                + signal.lfilter([0, 0.5, 0.2], [1, -0.2, 0.1], u[:, 1]))
+    np.testing.assert_allclose(miso.simulate(u), expected, atol=1e-12)
+
+
 def test_miso_per_input_orders_and_delays(rng):
     a = np.array([-1.2, 0.4])
     b1, b2 = np.array([0.5]), np.array([1.0, -0.6, 0.2])
@@ -413,6 +465,57 @@ def test_mimo_simulate_and_transfer_matrix(rng):
     np.testing.assert_allclose(yd, y, atol=1e-9)
 
 
+@settings(max_examples=25, deadline=None)
+@given(ny=st.integers(1, 3), nu=st.integers(1, 2), na=st.integers(0, 2),
+       nb=st.lists(st.integers(1, 3), min_size=2, max_size=2),
+       nk=st.lists(st.integers(0, 2), min_size=2, max_size=2), seed=st.integers(0, 2 ** 32 - 1))
+def test_property_transfer_matrix_of_any_structure(ny, nu, na, nb, nk, seed):
+    """to_tf, to_ss and to_dlti are A(z)^-1 B(z) for any MIMO structure; simulate agrees."""
+    gen = np.random.default_rng(seed)
+    nb, nk = nb[:nu], nk[:nu]
+    N = 40 + 10 * ny * nu
+    u = gen.standard_normal((N, nu))
+    y = gen.standard_normal((N, ny))
+    model = ARX(na, nb, nk, dt=1.0).fit(u, y)
+    A, B = model.polynomials()  # (ny, ny, na + 1) and (ny, nu, max(nk + nb)): 2-D signals
+    G, sys = model.to_tf(), model.to_ss()
+    for z in (1.3, 0.5 + 0.9j, -1.1 + 0.2j):
+        Gz = np.linalg.solve(A @ z ** -np.arange(A.shape[2]), B @ z ** -np.arange(B.shape[2]))
+        np.testing.assert_allclose(np.reshape(G(z), (ny, nu)), Gz, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(np.reshape(sys(z), (ny, nu)), Gz, rtol=1e-9, atol=1e-12)
+    ys = model.simulate(u).reshape(N, ny)
+    dl = model.to_dlti() if ny == 1 and nu == 1 else signal.dlti(sys.A, sys.B, sys.C, sys.D,
+                                                                  dt=1.0)
+    _, yd = signal.dlsim(dl, u)[:2]
+    np.testing.assert_allclose(np.reshape(yd, (N, ny)), ys, rtol=1e-9,
+                               atol=1e-9 * (1 + np.abs(ys).max()))
+
+
+@settings(max_examples=20, deadline=None)
+@given(ny=st.integers(1, 2), na=st.integers(0, 2), nk=st.integers(0, 2),
+       horizon=st.integers(1, 4), seed=st.integers(0, 2 ** 32 - 1))
+def test_property_k_step_prediction_any_structure(ny, na, nk, horizon, seed):
+    """predict(horizon=k) runs the model k steps from the measured past (brute-force oracle)."""
+    gen = np.random.default_rng(seed)
+    N = 30
+    u, y = gen.standard_normal((N, 2)), gen.standard_normal((N, ny))
+    model = ARX(na, [2, 1], [nk, 1]).fit(u, y)
+    A, B = model.polynomials()
+    yhat = model.predict(u, y, horizon=horizon)
+
+    def out(ys, s):
+        return ys[s] if s >= 0 else np.zeros(ny)
+
+    for t in range(N):
+        ys = {s: out(y, s) for s in range(t - horizon - na, t - horizon + 1)}
+        for s in range(t - horizon + 1, t + 1):
+            acc = sum(B[:, :, k] @ (u[s - k] if s - k >= 0 else np.zeros(2))
+                      for k in range(B.shape[2]))
+            acc = acc - sum(A[:, :, k] @ ys.get(s - k, np.zeros(ny)) for k in range(1, na + 1))
+            ys[s] = acc
+        np.testing.assert_allclose(yhat[t], ys[t], rtol=1e-10, atol=1e-10)
+
+
 def test_mimo_predict_one_step(rng):
     u, y, _ = _mimo_data(rng, N=100)
     model = ARX(2, 2, 1).fit(u, y)
@@ -461,7 +564,9 @@ def test_rls_prior_start_is_ridge(rng):
     Phi, target = model.regressors(u, y)
     expected = np.linalg.solve(Phi.T @ Phi + np.eye(2) / P0, Phi.T @ target + x0 / P0)
     np.testing.assert_allclose(model.theta_, expected, rtol=1e-9)
-    assert not np.isnan(model.theta_history_).any()
+    assert not np.isnan(model.theta_history_).any() and model.k0_ == 0
+    same = ARX(1, 1, 1).fit(u, y, method="rls", P0=P0, x0=x0)  # a prior means k0 = 0
+    np.testing.assert_array_equal(same.theta_, model.theta_)
 
 
 def test_rls_options_pass_through_to_the_filter(rng):
@@ -477,6 +582,50 @@ def test_rls_options_pass_through_to_the_filter(rng):
     assert model.filter_.lam == 0.98 and model.filter_.R == 0.5
 
 
+def test_rls_default_start_grows_until_full_rank(rng):
+    """A held input makes the first n_params rows rank-deficient: the start grows."""
+    u = np.repeat(rng.standard_normal(40), 10)
+    y = signal.lfilter([0, 1.0, 0.5], [1, -1.5, 0.7], u) + 0.1 * rng.standard_normal(400)
+    model = ARX(2, 2, 1).fit(u, y, method="rls")
+    Phi, _ = model.regressors(u, y)
+    ranks = [np.linalg.matrix_rank(Phi[:k]) for k in range(1, 40)]
+    assert model.k0_ == 1 + ranks.index(4) and model.k0_ > 4
+    np.testing.assert_allclose(model.theta_, ARX(2, 2, 1).fit(u, y).theta_, rtol=1e-9)
+    assert ARX(2, 2, 1).fit(u[:100], y[:100], method="rls").k0_ == model.k0_
+
+
+def test_rls_recursive_residuals_are_the_filter_innovations(rng):
+    u, y = arx_data(rng, [-1.5, 0.7], [1.0, 0.5], 1, n=150)
+    model = ARX(2, 2, 1).fit(u, y, method="rls", lam=0.95)
+    Phi, target = model.regressors(u, y)
+    rls = RecursiveLeastSquares(4, lam=0.95)
+    rls.initialize(target[:4], Phi[:4])
+    innov = []
+    for z, phi in zip(target[4:], Phi[4:]):
+        rls.predict_update(z, phi)
+        innov.append(rls.y[0, 0])
+    assert np.isnan(model.recursive_residuals_[:4]).all()
+    np.testing.assert_allclose(model.recursive_residuals_[4:], innov, rtol=1e-10, atol=1e-12)
+    prior = ARX(2, 2, 1).fit(u, y, method="rls", k0=0, x0=np.ones(4))
+    assert prior.recursive_residuals_[0] == pytest.approx(target[0] - Phi[0] @ np.ones(4))
+
+
+def test_rls_forwards_the_filter_s_other_options(rng, monkeypatch):
+    """Options ARX does not name (a forgetting mode, a gate, ...) reach the filter unchanged."""
+    seen = {}
+
+    class SpyRLS(RecursiveLeastSquares):
+        def __init__(self, dim_x, dim_z=1, lam=1.0, *, marker=None, **kwargs):
+            seen["marker"] = marker
+            super().__init__(dim_x, dim_z, lam, **kwargs)
+
+    monkeypatch.setattr("rlsfilt.models.arx.RecursiveLeastSquares", SpyRLS)
+    u, y = arx_data(rng, [-0.8], [0.5], 1, n=50)
+    model = ARX(1, 1, 1).fit(u, y, method="rls", marker=42, R=2.0)
+    assert seen == {"marker": 42} and isinstance(model.filter_, SpyRLS)
+    assert model.filter_.R == 2.0
+
+
 def test_rls_mimo_shares_one_covariance(rng):
     u, y, _ = _mimo_data(rng, N=300)
     batch = ARX(2, 2, 1).fit(u, y)
@@ -484,6 +633,8 @@ def test_rls_mimo_shares_one_covariance(rng):
     np.testing.assert_allclose(rec.theta_, batch.theta_, rtol=1e-9, atol=1e-11)
     assert rec.theta_history_.shape == (rec.n_samples_, 8, 2)
     assert rec.filter_.dim_z == 2
+    rr = rec.recursive_residuals_
+    assert rr.shape == (rec.n_samples_, 2) and np.isnan(rr[:7]).all() and np.isfinite(rr[8:]).all()
 
 
 # ----------------------------------------------------------------------
@@ -495,9 +646,11 @@ def test_uncertainty_is_calibrated_over_repeated_experiments():
     With M = 1000 experiments the sample standard deviation of M standard
     normal values has standard error 1/sqrt(2 (M - 1)) = 0.022, and the
     mean 1/sqrt(M) = 0.032; the bands below are 4 standard errors wide, so a
-    correct implementation fails them with probability about 1e-4, while a
-    covariance off by 20 % (std off by 10 %) fails them with high
-    probability.
+    correct implementation fails them with probability about 1e-4 per
+    parameter, while a covariance off by 25 % (std off by 12 %) fails with
+    probability above 0.9. The noise-variance check is tighter still: its
+    band (4 sqrt(2 / dof) / sqrt(M) = 0.013) rejects the biased divisor
+    N_rows instead of N_rows - n_params (a 2 % bias here).
     """
     a, b, nk = np.array([-1.5, 0.7]), np.array([1.0, 0.5]), 1
     theta_true = np.r_[a, b]
@@ -569,4 +722,8 @@ def test_summary_repr_and_html(rng):
     assert latex.startswith("$$\\begin{aligned}y(t) - 1.5") and latex.endswith("\\end{aligned}$$")
     assert f"(\\pm {se[2]:.2g})\\, u(t-1)" in latex and "&= " in latex
     assert ARX(1, 1)._repr_latex_() is None
+    rec = ARX(2, 2, 1).fit(u, y, method="rls", lam=0.99)
+    assert "recursive least squares (lam=0.99, batch start on 4 rows)" in repr(rec)
+    true = ARX.from_polynomials([-0.5], [1.0])
+    assert "given coefficients (no fit)" in repr(true) and "(+/-0) u(t-1)" in repr(true)
     assert repr(model).startswith("ARX(na=2, nb=2, nk=1, dt=0.1):")

@@ -7,6 +7,7 @@ convention and the translation table to SIPPY and the lecture notes.
 """
 
 import html
+import inspect
 import numbers
 
 import numpy as np
@@ -16,7 +17,7 @@ from scipy.linalg import lapack, solve_triangular
 from .._validation import check_int
 from ..exceptions import NotFittedError
 from ..filters import RecursiveLeastSquares
-from .regressors import _build, arx_structure, as_io_data
+from .regressors import _as_signal, _build, arx_structure, as_io_data
 
 __all__ = ["ARX", "ARXSummary"]
 
@@ -75,6 +76,13 @@ class ARX:
     theta_history_ : ndarray, shape (n_samples_, n_params[, ny])
         ``method="rls"`` only: the estimate after each row; rows before the
         batch start (``k0 - 1``) are NaN.
+    recursive_residuals_ : ndarray, shape (n_samples_,) or (n_samples_, ny)
+        ``method="rls"`` only: the a-priori residuals
+        :math:`y(t) - \varphi(t)\hat\theta(t-1)`, the errors the filter
+        actually made (NaN for the rows of the batch start). Under forgetting
+        these, not ``residuals_``, show how well the model tracked.
+    k0_ : int
+        ``method="rls"`` only: number of rows of the batch start.
     filter_ : RecursiveLeastSquares
         ``method="rls"`` only: the filter after the last sample, ready for
         more ``predict``/``update`` calls.
@@ -208,7 +216,8 @@ class ARX:
     # ------------------------------------------------------------------
     # fitting
     # ------------------------------------------------------------------
-    def fit(self, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=None, x0=None):
+    def fit(self, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=None, x0=None,
+            **filter_options):
         r"""Estimate the parameters from an input/output record.
 
         Parameters
@@ -222,21 +231,20 @@ class ARX:
             `RecursiveLeastSquares` over the rows, started by batch least
             squares on the first `k0` rows.
         k0 : int, optional
-            ``"rls"`` only: number of rows of the batch start; ``n_params``
-            by default, ``0`` starts from the prior ``x0``, ``P0`` instead.
+            ``"rls"`` only: number of rows of the batch start. By default
+            ``n_params`` (the lecture notes' choice), or, when those first
+            rows do not determine every parameter (for example a PRBS held
+            for several samples), the fewest leading rows that do. ``0``
+            starts from the prior ``x0``, ``P0`` instead (MATLAB ``rarx``);
+            that is the default when `P0` or `x0` is given.
         lam, P0, R, Q, x0
             ``"rls"`` only: passed to `RecursiveLeastSquares` (forgetting
             factor, initial covariance and estimate for a prior start with
             ``k0 = 0``, noise variance, random-walk covariance).
-
-        Notes
-        -----
-        With ``method="rls"``, ``theta_`` is the filter's last estimate and
-        ``theta_cov_`` is ``noise_variance_ * P / R``, its covariance; with
-        ``lam = 1``, ``Q = 0`` and a batch start both equal the batch answer.
-        With forgetting they describe the exponentially weighted fit at the
-        end of the record, while ``noise_variance_`` (residuals of the final
-        estimate over all rows) overstates the noise if the plant changed.
+        **filter_options
+            ``"rls"`` only: any other keyword argument of
+            `RecursiveLeastSquares` (for example its forgetting mode), passed
+            through unchanged.
 
         Returns
         -------
@@ -248,14 +256,25 @@ class ARX:
             NaN/inf in the data (the first bad index is named), mismatched
             lengths, bad orders, too few samples, or a regressor matrix
             without full column rank (input not persistently exciting).
+
+        Notes
+        -----
+        With ``method="rls"``, ``theta_`` is the filter's last estimate and
+        ``theta_cov_`` is ``noise_variance_ * P / R``, its covariance; with
+        ``lam = 1``, ``Q = 0`` and a batch start both equal the batch answer.
+        With forgetting they describe the exponentially weighted fit at the
+        end of the record, while ``noise_variance_`` (residuals of the final
+        estimate over all rows) overstates the noise if the plant changed.
         """
         if method not in ("ls", "rls"):
             raise ValueError(f"`method` must be 'ls' or 'rls'; got {method!r}")
         opts = {"k0": k0, "lam": lam, "P0": P0, "R": R, "Q": Q, "x0": x0}
         if method == "ls":
-            given = [k for k, v in opts.items() if v is not None]
+            given = [k for k, v in opts.items() if v is not None] + list(filter_options)
             if given:
                 raise TypeError(f"`{given[0]}` only applies to method='rls'; got method='ls'")
+        _check_filter_options(filter_options)
+        opts["extra"] = filter_options
         U, Y, info = as_io_data(u, y)
         s = self._structure(U.shape[1], Y.shape[1])
         N = len(U)
@@ -267,18 +286,27 @@ class ARX:
         Phi = _build(U, Y, s, s.max_lag)
         target = Y[s.max_lag:]
         rows = len(Phi)
-        for name in ("theta_history_", "filter_"):
+        for name in ("theta_history_", "filter_", "k0_", "recursive_residuals_",
+                     "noise_covariance_"):
             self.__dict__.pop(name, None)
         if method == "ls":
             theta, cov_unscaled = _qr_least_squares(Phi, target)
         else:
-            theta, cov_unscaled, rls, history = self._fit_rls(Phi, target, s, opts)
+            theta, cov_unscaled, rls, history, x_start = self._fit_rls(Phi, target, s, opts)
             self.filter_ = rls
             self.theta_history_ = history[:, :, 0] if info["y_1d"] else history
+            # a-priori (recursive) residuals y(t) - phi(t) theta(t-1) after the batch start
+            prior = np.full_like(target, np.nan)
+            k0 = self.k0_
+            if k0 == 0 and rows:
+                prior[0] = target[0] - Phi[0] @ x_start
+                k0 = 1
+            prior[k0:] = target[k0:] - np.einsum("ij,ijk->ik", Phi[k0:], history[k0 - 1:-1])
+            self.recursive_residuals_ = prior[:, 0] if info["y_1d"] else prior
         resid = target - Phi @ theta
         dof = rows - s.n_params
         sigma2 = np.sum(resid ** 2, axis=0) / dof if dof > 0 else np.full(s.n_outputs, np.nan)
-        self._store(theta, s, info, dt=self.dt)
+        self._store(theta, s, info)
         cov = sigma2[:, None, None] * cov_unscaled[None]
         self.theta_cov_ = cov[0] if info["y_1d"] else cov
         self.noise_variance_ = float(sigma2[0]) if info["y_1d"] else sigma2
@@ -292,7 +320,11 @@ class ARX:
 
     def _fit_rls(self, Phi, target, s, opts):
         n, rows = s.n_params, len(Phi)
-        k0 = n if opts["k0"] is None else check_int(opts["k0"], "k0", minimum=0)
+        prior = opts["P0"] is not None or opts["x0"] is not None
+        if opts["k0"] is not None:
+            k0 = check_int(opts["k0"], "k0", minimum=0)
+        else:  # a given prior means a prior start (MATLAB rarx); else the notes' batch start
+            k0 = 0 if prior else _full_rank_start(Phi)
         if k0 > rows:
             raise ValueError(f"`k0` must be <= the number of regressor rows ({rows}); got {k0}")
         if k0 > 0:
@@ -303,17 +335,19 @@ class ARX:
                     f"k0={k0} rows sets both x0 and P0. Pass k0=0 to start from `{given[0]}`.")
         kw = {key: opts[key] for key in ("P0", "R", "Q", "x0") if opts[key] is not None}
         lam = 1.0 if opts["lam"] is None else opts["lam"]
-        rls = RecursiveLeastSquares(n, dim_z=s.n_outputs, lam=lam, **kw)
+        rls = RecursiveLeastSquares(n, dim_z=s.n_outputs, lam=lam, **kw, **opts["extra"])
         history = np.full((rows, n, s.n_outputs), np.nan)
+        x_start = rls.x.copy()
         if k0 > 0:
             rls.initialize(target[:k0], Phi[:k0])
             history[k0 - 1] = rls.x
         if k0 < rows:
             means = rls.batch_filter(target[k0:], Phi[k0:], store_covariances=False)[0]
             history[k0:] = means
-        return rls.x.copy(), rls.P / rls.R, rls, history
+        self.k0_ = k0
+        return rls.x.copy(), rls.P / rls.R, rls, history, x_start
 
-    def _store(self, theta, s, info, dt):
+    def _store(self, theta, s, info):
         """Set every fitted attribute derived from ``theta`` (n_params, ny)."""
         self.structure_ = s
         self._info = dict(info)
@@ -388,11 +422,10 @@ class ARX:
     def _theta2(self):
         return self.theta_.reshape(self.n_params_, -1)
 
-    def _data(self, u, y=None, what="predict"):
+    def _data(self, u, y=None):
         """Validate data against the fitted signal counts."""
         s = self.structure_
         if y is None:
-            from .regressors import _as_signal
             U, _, _ = _as_signal(u, "u")
             Y = None
         else:
@@ -490,7 +523,6 @@ class ARX:
         L = 0
         Ysim = np.zeros((N, ny))
         if y0 is not None:
-            from .regressors import _as_signal
             Y0, _, _ = _as_signal(y0, "y0")
             if Y0.shape[1] != ny:
                 raise ValueError(f"`y0` must have {ny} output column(s); got {Y0.shape[1]}")
@@ -620,7 +652,8 @@ class ARX:
                 Am[blk, (i + 1) * ny:(i + 2) * ny] = np.eye(ny)
             Bm[blk] = Bk[i + 1] - Ak[i] @ D        # y(t) = x_1(t) + D u(t)
         Cm = np.zeros((ny, n * ny))
-        Cm[:, :ny] = np.eye(ny)
+        if n:  # a static gain (na = 0, nk = 0, nb = 1) has no state
+            Cm[:, :ny] = np.eye(ny)
         return Am, Bm, Cm, D.copy()
 
     def to_ss(self, noise=False):
@@ -771,7 +804,7 @@ class ARX:
         return model
 
     def _set_truth(self, theta, s, info, noise_variance):
-        self._store(theta, s, info, dt=self.dt)
+        self._store(theta, s, info)
         ny = s.n_outputs
         nv = np.broadcast_to(np.asarray(noise_variance, float), (ny,)).copy()
         zero = np.zeros((ny, s.n_params, s.n_params))
@@ -824,6 +857,10 @@ class ARX:
         s = self.structure_
         how = {"ls": "batch least squares (QR)", "rls": "recursive least squares",
                "true": "given coefficients (no fit)"}[self.method_]
+        if self.method_ == "rls":
+            f = self.filter_
+            start = (f"batch start on {self.k0_} rows" if self.k0_ else "prior start")
+            how += f" (lam={f.lam:g}, {start})"
         out = [f"{self._orders_text()}: {s.n_inputs} input(s), {s.n_outputs} output(s), "
                f"{s.n_params} parameters per output",
                f"  estimated by {how} on {self.n_samples_} equations"]
@@ -936,6 +973,20 @@ class ARXSummary:
 # ----------------------------------------------------------------------
 # private helpers
 # ----------------------------------------------------------------------
+def _check_filter_options(options):
+    """Reject keywords that `RecursiveLeastSquares` does not take, naming the valid ones."""
+    if not options:
+        return
+    params = inspect.signature(RecursiveLeastSquares).parameters
+    valid = [name for name, p in params.items()
+             if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)
+             and name not in ("dim_x", "dim_z", "lam", "P0", "x0", "R", "Q")]
+    for name in options:
+        if name not in valid:
+            raise TypeError(f"`{name}` is not an option of ARX.fit or RecursiveLeastSquares; "
+                            f"the filter's other options are {valid}")
+
+
 def _check_dt(dt):
     if dt is True:
         return dt
@@ -985,6 +1036,36 @@ def _qr_least_squares(Phi, target):
     Rinv, info = lapack.dtrtri(Rf, lower=0)
     cov = Rinv @ Rinv.T
     return theta, 0.5 * (cov + cov.T)
+
+
+def _full_rank_start(Phi):
+    """Fewest leading rows (at least n_params) of `Phi` with full column rank.
+
+    The rank of a prefix grows with its length, so double until full rank,
+    then bisect. Raises the not-persistently-exciting error when even all
+    rows are rank-deficient.
+    """
+    rows, n = Phi.shape
+    if n == 0:
+        return 0
+
+    def full(k):
+        return np.linalg.matrix_rank(Phi[:k]) == n
+
+    if full(n):
+        return n
+    if not full(rows):
+        _qr_least_squares(Phi, np.zeros((rows, 1)))  # raises with the rank in the message
+    lo, hi = n, min(2 * n, rows)  # full(lo) is False
+    while not full(hi):
+        lo, hi = hi, min(2 * hi, rows)
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if full(mid):
+            hi = mid
+        else:
+            lo = mid
+    return hi
 
 
 def _trim(p):
