@@ -18,7 +18,8 @@ from rlsfilt import ARX, select_order
 def main(n_samples=4000, repeats=20):
     rng = np.random.default_rng(3)
     u = rng.standard_normal(n_samples)
-    y = lfilter([0, 1.0, 0.5], [1, -1.5, 0.7], u) + 0.1 * rng.standard_normal(n_samples)
+    e = 0.1 * rng.standard_normal(n_samples)
+    y = lfilter([0, 1.0, 0.5], [1, -1.5, 0.7], u) + lfilter([1.0], [1, -1.5, 0.7], e)
     grid = {"na": range(1, 6), "nb": range(1, 5), "nk": range(0, 3)}
     select_order(u, y, **grid)  # warm-up
     times = []
