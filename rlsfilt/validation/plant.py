@@ -9,7 +9,6 @@ their step responses, frequency responses, DC gains and poles are compared.
 import math
 import warnings
 
-import control
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
@@ -275,6 +274,8 @@ class PlantComparison:
 # private helpers
 # ----------------------------------------------------------------------
 def _model_tf(model):
+    import control  # lazily: python-control imports matplotlib.pyplot
+
     if isinstance(model, control.LTI):
         sys = model
     elif callable(getattr(model, "to_tf", None)):
@@ -294,6 +295,8 @@ def _model_tf(model):
 
 
 def _plant_tf(plant, model_tf):
+    import control
+
     if not isinstance(plant, control.LTI):
         raise TypeError(f"`plant` must be a python-control LTI system (control.tf, control.ss); "
                         f"got {type(plant).__name__}")
@@ -325,6 +328,8 @@ def _evaluate(sys, z):
 
 
 def _step(sys, time):
+    import control
+
     resp = control.step_response(sys, T=time, squeeze=False)
     return np.asarray(resp.outputs, dtype=float).reshape(sys.noutputs, sys.ninputs, len(time))
 
