@@ -382,6 +382,9 @@ def test_miso_per_input_orders_and_delays(rng):
         single = ARX.from_polynomials(a, bj, nk=kj)
         for z in (1.0, 0.3 + 0.8j, -0.9, 2.0j):
             assert complex(G(z)[0, j]) == pytest.approx(complex(single.to_tf()(z)), rel=1e-12)
+    back = ARX.from_tf(G)  # the transfer function keeps every order and delay
+    assert (back.na, back.nb, back.nk) == (2, [1, 3], [0, 3])
+    np.testing.assert_allclose(back.theta_, model.theta_, rtol=1e-10, atol=1e-12)
     names = model.param_names_
     assert names == ["a1", "a2", "b1[u1]", "b1[u2]", "b2[u2]", "b3[u2]"]
     # with noise: lstsq on the documented regressors

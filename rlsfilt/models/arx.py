@@ -736,11 +736,12 @@ class ARX:
 
         ``G`` is a discrete ``control.TransferFunction`` (or anything
         ``control.tf`` accepts, such as a ``StateSpace``). Each output's
-        entries are put over a common denominator ``A_i``; ``nk`` and ``nb``
-        per input are read off the numerators (leading zeros of ``B`` in
-        powers of ``z^-1`` are the delay). A SISO ``G = (b1 z^{n-nk} + ..) /
-        (z^n + a1 z^{n-1} + ..)`` gives exactly ``a_ = [a1, ..]``,
-        ``b_ = [b1, ..]`` and that ``nk``.
+        entries are put over a common denominator ``A_i``, the product of
+        the row's distinct denominators (minimal when they are equal or
+        coprime); ``nk`` and ``nb`` per input are read off the numerators
+        (leading zeros of ``B`` in powers of ``z^-1`` are the delay). A
+        SISO ``G = (b1 z^{n-nk} + ..) / (z^n + a1 z^{n-1} + ..)`` gives
+        exactly ``a_ = [a1, ..]``, ``b_ = [b1, ..]`` and that ``nk``.
         """
         import control
 
@@ -751,32 +752,33 @@ class ARX:
         ny, nu = G.noutputs, G.ninputs
         A_rows, B_rows = [], []
         for i in range(ny):
-            dens = [np.trim_zeros(np.asarray(G.den[i][j], float), "f") for j in range(nu)]
-            nums = [np.trim_zeros(np.asarray(G.num[i][j], float), "f") for j in range(nu)]
-            common = []
-            for d in dens:
-                d = d / d[0]
-                if not any(len(c) == len(d) and np.allclose(c, d, rtol=1e-12, atol=0)
-                           for c in common):
-                    common.append(d)
-            den = np.array([1.0])
-            for c in common:
-                den = np.polymul(den, c)
-            row = []
+            # each entry in powers of q^-1: den_q = [1, a1, ..] (trailing zeros, i.e. poles
+            # at z = 0, dropped), num_q = numerator shifted by the relative degree
+            ents = []
             for j in range(nu):
-                d0 = dens[j][0]
-                num = nums[j] / d0 if len(nums[j]) else np.zeros(1)
-                dj = dens[j] / d0
-                for c in common:
-                    if not (len(c) == len(dj) and np.allclose(c, dj, rtol=1e-12, atol=0)):
-                        num = np.polymul(num, c)
+                den = np.trim_zeros(np.asarray(G.den[i][j], float), "f")
+                num = np.trim_zeros(np.asarray(G.num[i][j], float), "f")
                 if len(num) > len(den):
                     raise ValueError(f"`G` must be proper (causal); entry ({i}, {j}) has a "
                                      f"numerator of degree {len(num) - 1} over a denominator "
                                      f"of degree {len(den) - 1}")
-                row.append(np.concatenate([np.zeros(len(den) - len(num)), num]))
+                num_q = np.concatenate([np.zeros(len(den) - len(num)), num]) / den[0]
+                ents.append((num_q if len(num) else np.zeros(1), _trim(den / den[0])))
+            common = []  # distinct denominators of the row; their product is A_i
+            for _, d in ents:
+                if not any(_same_poly(c, d) for c in common):
+                    common.append(d)
+            den = np.array([1.0])
+            for c in common:
+                den = np.convolve(den, c)
+            row = []
+            for num, d in ents:
+                for c in common:
+                    if not _same_poly(c, d):
+                        num = np.convolve(num, c)
+                row.append(_trim(num))
             A_rows.append(_trim(den))
-            B_rows.append([_trim(r) for r in row])
+            B_rows.append(row)
         na = max(len(a) for a in A_rows) - 1
         nk, nb = [], []
         for j in range(nu):
@@ -1066,6 +1068,11 @@ def _full_rank_start(Phi):
         else:
             lo = mid
     return hi
+
+
+def _same_poly(p, q):
+    """Equal coefficient arrays to round-off (same length)."""
+    return len(p) == len(q) and np.allclose(p, q, rtol=1e-12, atol=0)
 
 
 def _trim(p):
