@@ -111,3 +111,19 @@ def test_validate_errors():
     model = ARX(1, 1, 4).fit(d.u, d.y)
     with pytest.raises(ValueError, match="`u` and `y` must have the same length"):
         validate(model, d.u[:500], d.y)
+
+
+def test_report_accepts_pandas_recursive_and_true_models():
+    pd = pytest.importorskip("pandas")
+    d = datasets.dc_motor()
+    df = pd.DataFrame({"u": d.u, "y": d.y})
+    model = ARX(2, 2, 1, dt=d.dt).fit(df[["u"]], df["y"])
+    rep = validate(model, df[["u"]], df["y"], plant=d.plant)
+    assert rep.passed and rep.simulation_fit > 90
+    rls = ARX(2, 2, 1, dt=d.dt).fit(d.u, d.y, method="rls", lam=0.999)
+    assert validate(rls, d.u, d.y).simulation_fit > 90
+    true = ARX.from_polynomials(d.a, d.b, nk=d.nk, dt=d.dt)
+    rep_true = validate(true, d.u, d.y, plant=d.plant)
+    assert rep_true.plant_comparison.frequency_error < 1e-9
+    np.testing.assert_array_equal(rep_true.intervals.lower, rep_true.intervals.upper)
+    assert "Validation of ARX" in rep_true.summary()
