@@ -73,12 +73,13 @@ def test_band_nominal_response_and_shape():
     band = frequency_response_band(model, n_draws=500, rng=1)
     assert isinstance(band, FrequencyBand)
     z = np.exp(1j * band.omega * d.dt)
-    np.testing.assert_allclose(band.response[0], model.to_tf()(z), rtol=1e-10)
+    assert band.response.shape == band.magnitude_upper.shape == (1, 1, 300)
+    np.testing.assert_allclose(band.response[0, 0], model.to_tf()(z), rtol=1e-10)
     assert band.omega[-1] == pytest.approx(np.pi / d.dt)
     assert np.all(band.magnitude_lower <= band.magnitude_upper)
     assert np.all(band.phase_lower <= band.phase_upper)
     mid = band.omega < 0.9 * band.omega[-1]
-    assert band.contains(band.response)[0, mid].mean() > 0.95
+    assert band.contains(band.response)[0, 0, mid].mean() > 0.95
     # the same seed gives the same band
     again = frequency_response_band(model, n_draws=500, rng=1)
     np.testing.assert_array_equal(again.magnitude_upper, band.magnitude_upper)
@@ -92,7 +93,7 @@ def test_band_covers_the_true_response():
     for seed in range(n_exp):
         u, y = _record(seed)
         band = frequency_response_band(ARX(2, 2).fit(u, y), omega=omega, n_draws=400, rng=seed)
-        inside += band.contains(G_true[None])[0]
+        inside += band.contains(G_true)[0, 0]
     lo, hi = binom.ppf(0.0005, n_exp, 0.95), binom.ppf(0.9995, n_exp, 0.95)
     assert np.all((lo - 4 <= inside) & (inside <= hi)), inside   # 4: sampling error of quantiles
 
@@ -115,7 +116,46 @@ def test_band_several_inputs(rng):
     band = frequency_response_band(model, n_draws=200, rng=0)
     G = model.to_tf()
     z = np.exp(1j * band.omega)
-    np.testing.assert_allclose(band.response, np.asarray(G(z, squeeze=False))[0], rtol=1e-10)
+    np.testing.assert_allclose(band.response, np.asarray(G(z, squeeze=False)), rtol=1e-10)
+
+
+def test_band_several_outputs(rng):
+    """Joint draws of both outputs' parameters; nominal response is A(z)^-1 B(z)."""
+    n = 3000
+    u = rng.standard_normal(n)
+    E = rng.multivariate_normal([0, 0], [[0.01, 0.008], [0.008, 0.01]], size=n)
+    Y = np.zeros((n, 2))
+    for t in range(1, n):
+        Y[t, 0] = 0.5 * Y[t - 1, 0] + 0.2 * Y[t - 1, 1] + u[t - 1] + E[t, 0]
+        Y[t, 1] = -0.3 * Y[t - 1, 0] + 0.6 * Y[t - 1, 1] + 0.5 * u[t - 1] + E[t, 1]
+    model = ARX(1, 1).fit(u, Y)
+    om = np.linspace(0.01, np.pi, 50)
+    band = frequency_response_band(model, omega=om, n_draws=2000, rng=2)
+    z = np.exp(1j * om)
+    np.testing.assert_allclose(band.response, np.asarray(model.to_tf()(z, squeeze=False)),
+                               rtol=1e-10)
+    assert band.response.shape == (2, 1, 50)
+    true = control.ss([[0.5, 0.2], [-0.3, 0.6]], [[1.0], [0.5]], np.eye(2), 0, True)
+    G_true = np.asarray(true(z, squeeze=False))
+    # one experiment: the truth is within a few standard deviations everywhere
+    assert np.all(np.abs(np.abs(G_true) - np.abs(band.response)) < 4 * band.magnitude_std)
+    # the spread of |G| follows the linearized covariance of vec(theta_),
+    # kron(noise_covariance_, (Phi^T Phi)^-1), by the delta method
+    M = model.theta_cov_[0] / model.noise_variance_[0]
+    cov = np.kron(model.noise_covariance_, M)
+
+    def gain(vec, zk, out):
+        Th = vec.reshape(3, 2, order="F")            # columns = equations
+        A1, b = Th[:2].T, Th[2]
+        return abs(np.linalg.solve(np.eye(2) + A1 / zk, b / zk)[out])
+
+    vec0 = model.theta_.ravel(order="F")
+    for k in (5, 25):
+        for out in (0, 1):
+            J = np.array([(gain(vec0 + h, z[k], out) - gain(vec0 - h, z[k], out)) / 2e-7
+                          for h in 1e-7 * np.eye(6)])
+            assert band.magnitude_std[out, 0, k] == pytest.approx(np.sqrt(J @ cov @ J),
+                                                                  rel=0.1)
 
 
 def test_band_plot_and_errors(rng):
@@ -139,10 +179,6 @@ def test_band_plot_and_errors(rng):
         frequency_response_band(model, n_draws=1)
     with pytest.raises(ValueError, match="`omega` must hold finite non-negative frequencies"):
         frequency_response_band(model, omega=[-1.0])
-    u = rng.standard_normal(200)
-    two = ARX(1, 1).fit(u, np.column_stack([u, np.roll(u, 1)]) + rng.standard_normal((200, 2)))
-    with pytest.raises(ValueError, match="`model` must have one output"):
-        frequency_response_band(two)
     with pytest.raises(ValueError, match=r"`level` must be in \(0, 1\); got 1.0"):
         parameter_intervals(model, level=1.0)
     assert isinstance(control.tf(model.to_tf()), control.TransferFunction)
