@@ -108,10 +108,19 @@ def check_finite(arr, name):
 
 
 def as_float_array(value, name):
-    """``np.asarray(value, float)`` with a message that names the argument."""
+    """``np.asarray(value, float)`` with a message that names the argument.
+
+    Complex values are rejected instead of silently losing their imaginary part.
+    """
     try:
-        return np.asarray(value, dtype=float)
+        arr = np.asarray(value)
+        complex_values = np.iscomplexobj(arr)
+        if not complex_values:
+            arr = np.asarray(arr, dtype=float)
     except (TypeError, ValueError) as exc:
         raise TypeError(
             f"`{name}` must be numeric array-like; got {type(value).__name__}: {exc}"
         ) from None
+    if complex_values:
+        raise TypeError(f"`{name}` must be real; got complex values (dtype {arr.dtype})")
+    return arr

@@ -224,3 +224,18 @@ def test_bad_plants_for_from_tf_and_from_polynomials():
         ARX.from_polynomials([[-0.5]], [1.0])
     with pytest.raises(ValueError, match=r"`dt` must be True"):
         ARX.from_polynomials([-0.5], [1.0], dt=-0.1)
+
+
+def test_complex_data_is_rejected_not_truncated(data):
+    """Complex signals would lose their imaginary part silently; they are a TypeError."""
+    pd = pytest.importorskip("pandas")
+    u, y = data
+    with pytest.raises(TypeError, match=r"`u` must be real; got complex values"):
+        ARX(1, 1).fit(u + 1j, y)
+    with pytest.raises(TypeError, match=r"`y` must be real; got complex values"):
+        ARX(1, 1).fit(u, pd.Series(y + 0j))
+    with pytest.raises(TypeError, match=r"`u` must be real; got complex values"):
+        ARX(1, 1).fit(pd.DataFrame({"a": u, "b": u * 1j}), y)
+    model = ARX(1, 1).fit(u, y)
+    with pytest.raises(TypeError, match=r"`u` must be real"):
+        model.simulate(u.astype(complex))

@@ -68,3 +68,8 @@ def test_fit_percent_is_affine_invariant(scale, shift, seed):
     yhat = y + 0.5 * rng.standard_normal(64)
     assert fit_percent(scale * y + shift, scale * yhat + shift) == pytest.approx(
         fit_percent(y, yhat), rel=1e-9, abs=1e-9)
+
+
+def test_fit_percent_rejects_complex():
+    with pytest.raises(TypeError, match=r"`yhat` must be real; got complex values"):
+        fit_percent([1.0, 2.0, 3.0], [1.0, 2.0 + 1j, 3.0])

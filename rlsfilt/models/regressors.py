@@ -126,6 +126,8 @@ def _as_signal(x, name):
     elif getattr(x, "name", None) is not None and hasattr(x, "index"):  # pandas Series
         names = [str(x.name)]
     if hasattr(x, "to_numpy"):
+        if np.iscomplexobj(x.to_numpy()):
+            raise TypeError(f"`{name}` must be real; got complex values")
         try:
             x = x.to_numpy(dtype=float)
         except (TypeError, ValueError) as exc:
