@@ -13,7 +13,12 @@ __all__ = []
 
 
 def check_int(value, name, minimum=None):
-    """Return `value` as an ``int``, rejecting floats, bools and small values."""
+    """Return `value` as an ``int``, rejecting floats, bools and small values.
+
+    A 0-d integer array (``np.array(2)``) counts as its integer.
+    """
+    if isinstance(value, np.ndarray) and value.ndim == 0:
+        value = value.item()
     if isinstance(value, bool) or not isinstance(value, numbers.Integral):
         raise TypeError(f"`{name}` must be an integer; got {value!r} ({type(value).__name__})")
     value = int(value)

@@ -105,6 +105,9 @@ def test_bad_orders(data, kwargs, exc, match):
     ([2, 0], 1, r"`nb\[1\]` must be >= 1; got 0"),
     (2, [1, -1], r"`nk\[1\]` must be >= 0; got -1"),
     ([2, 1.0], 1, r"`nb\[1\]` must be an integer; got 1.0"),
+    ({2, 3}, 1, r"`nb` must be an integer or a sequence of integers \(one per input, in input "
+                r"order\); got set"),
+    (2, {0: 1, 1: 1}, r"`nk` must be an integer or a sequence of integers .*; got dict"),
 ])
 def test_bad_per_input_orders(rng, nb, nk, match):
     u, y = rng.standard_normal((100, 2)), rng.standard_normal(100)
@@ -112,6 +115,14 @@ def test_bad_per_input_orders(rng, nb, nk, match):
         ARX(2, nb, nk).fit(u, y)
     with pytest.raises((ValueError, TypeError), match=match):
         arx_regressors(u, y, 2, nb, nk)
+
+
+def test_zero_dimensional_array_orders_are_scalars(rng):
+    u, y = rng.standard_normal(100), rng.standard_normal(100)
+    model = ARX(np.array(2), np.array(2), np.array(1)).fit(u, y)
+    np.testing.assert_array_equal(model.theta_, ARX(2, 2, 1).fit(u, y).theta_)
+    with pytest.raises(TypeError, match=r"`nb` must be an integer; got 2.0"):
+        ARX(2, np.array(2.0)).fit(u, y)
 
 
 def test_bad_shapes_and_types(data):

@@ -25,6 +25,7 @@ first, and every output is regressed on the same row.
 """
 
 import numbers
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -75,10 +76,15 @@ class ARXStructure:
 
 def _per_input(value, name, n_inputs, minimum):
     """A scalar order or one per input, as a tuple of validated ints."""
-    if isinstance(value, (numbers.Integral, np.integer)) and not isinstance(value, bool):
+    if isinstance(value, np.ndarray) and value.ndim == 0:
+        value = value.item()
+    if isinstance(value, numbers.Integral) and not isinstance(value, bool):
         return (check_int(value, name, minimum=minimum),) * n_inputs
     if isinstance(value, (str, bytes)) or not hasattr(value, "__len__"):
         check_int(value, name, minimum=minimum)  # raises the TypeError
+    if not isinstance(value, (Sequence, np.ndarray)):  # sets and dicts have no input order
+        raise TypeError(f"`{name}` must be an integer or a sequence of integers (one per "
+                        f"input, in input order); got {type(value).__name__}")
     values = list(value)
     if len(values) != n_inputs:
         raise ValueError(
