@@ -250,3 +250,27 @@ def test_complex_data_is_rejected_not_truncated(data):
     model = ARX(1, 1).fit(u, y)
     with pytest.raises(TypeError, match=r"`u` must be real"):
         model.simulate(u.astype(complex))
+
+
+@pytest.mark.parametrize("call, exc, match", [
+    (lambda: ARX.from_polynomials([-0.5, np.nan], [1.0]), ValueError,
+     r"`a` must be finite; got nan at index 1"),
+    (lambda: ARX.from_polynomials([-0.5], [1.0, np.inf]), ValueError,
+     r"`b` must be finite; got inf at index 1"),
+    (lambda: ARX.from_polynomials([-0.5], [[1.0], [2.0, np.nan]], nk=[1, 1]), ValueError,
+     r"`b\[1\]` must be finite; got nan at index 1"),
+    (lambda: ARX.from_polynomials([-0.5], "ab"), TypeError, r"`b` must be numeric array-like"),
+    (lambda: ARX.from_polynomials(["x"], [1.0]), TypeError, r"`a` must be numeric array-like"),
+    (lambda: ARX.from_polynomials([-0.5], [1.0], noise_variance=-1.0), ValueError,
+     r"`noise_variance` must be a finite value >= 0; got -1.0"),
+    (lambda: ARX.from_polynomials([-0.5], [1.0], noise_variance=np.nan), ValueError,
+     r"`noise_variance` must be a finite value >= 0; got nan"),
+    (lambda: ARX.from_polynomials([-0.5], [1.0], noise_variance="x"), TypeError,
+     r"`noise_variance` must be a real number"),
+    (lambda: ARX.from_tf("z/(z - 0.5)"), TypeError,
+     r"`G` must be a discrete python-control LTI system \(control.tf, control.ss\); got str"),
+    (lambda: ARX.from_tf([1.0, 0.5]), TypeError, r"`G` must be a discrete python-control LTI"),
+])
+def test_bad_coefficients_for_true_models(call, exc, match):
+    with pytest.raises(exc, match=match):
+        call()

@@ -14,7 +14,7 @@ import numpy as np
 from scipy import signal
 from scipy.linalg import lapack, solve_triangular
 
-from .._validation import check_int
+from .._validation import as_float_array, check_finite, check_int, check_scalar
 from ..exceptions import NotFittedError
 from ..filters import RecursiveLeastSquares
 from .regressors import _as_signal, _build, arx_structure, as_io_data
@@ -713,15 +713,22 @@ class ARX:
             A model usable as if fitted (``theta_cov_`` is zero and
             ``n_samples_`` is 0).
         """
-        a = np.atleast_1d(np.asarray(a, dtype=float))
+        a = np.atleast_1d(as_float_array(a, "a"))
         if a.ndim != 1:
             raise ValueError(f"`a` must be 1-D [a1, ..., a_na]; got shape {a.shape}")
+        check_finite(a, "a")
         multi = isinstance(b, (list, tuple)) and len(b) > 0 and np.ndim(b[0]) >= 1
-        bs = [np.atleast_1d(np.asarray(bj, dtype=float)) for bj in (b if multi else [b])]
-        for j, bj in enumerate(bs):
+        bs = []
+        for j, bj in enumerate(b if multi else [b]):
+            name = f"b[{j}]" if multi else "b"
+            bj = np.atleast_1d(as_float_array(bj, name))
             if bj.ndim != 1 or bj.size == 0:
                 raise ValueError(f"`b` must hold 1-D coefficient arrays with nb >= 1; got shape "
                                  f"{bj.shape}" + (f" for input {j}" if multi else ""))
+            bs.append(check_finite(bj, name))
+        noise_variance = check_scalar(noise_variance, "noise_variance")
+        if not (np.isfinite(noise_variance) and noise_variance >= 0.0):
+            raise ValueError(f"`noise_variance` must be a finite value >= 0; got {noise_variance}")
         nb = [len(bj) for bj in bs]
         model = cls(na=len(a), nb=nb if multi else nb[0], nk=nk, dt=dt)
         s = model._structure(len(bs), 1)
@@ -745,6 +752,9 @@ class ARX:
         """
         import control
 
+        if not isinstance(G, control.LTI):
+            raise TypeError(f"`G` must be a discrete python-control LTI system (control.tf, "
+                            f"control.ss); got {type(G).__name__}")
         if not isinstance(G, control.TransferFunction):
             G = control.tf(G)
         if not G.isdtime(strict=True):
