@@ -127,3 +127,20 @@ def test_report_accepts_pandas_recursive_and_true_models():
     assert rep_true.plant_comparison.frequency_error < 1e-9
     np.testing.assert_array_equal(rep_true.intervals.lower, rep_true.intervals.upper)
     assert "Validation of ARX" in rep_true.summary()
+
+
+def test_signal_counts_must_match_the_fitted_model():
+    """Data with more inputs/outputs than the fit is named, not a NumPy matmul error."""
+    from rlsfilt.validation import information_criteria, residual_analysis
+
+    d = datasets.thermal_process()
+    model = ARX(1, 1, 4).fit(d.u, d.y)
+    u2 = np.column_stack([d.u, d.u])
+    y2 = np.column_stack([d.y, d.y])
+    msg = (r"`u` and `y` must have the 1 input and 1 output column\(s\) the model was fitted "
+           r"with; got `u` of shape \(1000, 2\) and `y` of shape \(1000,\)")
+    for call in (residual_analysis, information_criteria, validate):
+        with pytest.raises(ValueError, match=msg):
+            call(model, u2, d.y)
+        with pytest.raises(ValueError, match=r"1 output column\(s\) .* `y` of shape \(1000, 2\)"):
+            call(model, d.u, y2)

@@ -37,6 +37,11 @@ def one_step(model, u, y):
     theta = np.asarray(model.theta_, dtype=float)
     if theta.ndim == 1:
         theta = theta[:, None]
+    if Phi.shape[1] != theta.shape[0] or target.shape[1] != theta.shape[1]:
+        nu, ny = getattr(model, "n_inputs_", "?"), getattr(model, "n_outputs_", theta.shape[1])
+        raise ValueError(f"`u` and `y` must have the {nu} input and {ny} output column(s) the "
+                         f"model was fitted with; got `u` of shape {np.shape(u)} and `y` of "
+                         f"shape {np.shape(y)}")
     return Phi, target, target - Phi @ theta
 
 
