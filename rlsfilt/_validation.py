@@ -42,6 +42,33 @@ def check_scalar(value, name):
     return float(arr.reshape(()))
 
 
+def check_real(value, name, minimum=None, strict=False):
+    """A finite real number, ``>= minimum`` (``> minimum`` when `strict`) if given."""
+    value = check_scalar(value, name)
+    if minimum is None:
+        ok, want = np.isfinite(value), "a finite number"
+    elif strict:
+        ok = np.isfinite(value) and value > minimum
+        want = "a positive finite number" if minimum == 0 else f"a finite number > {minimum}"
+    else:
+        ok, want = np.isfinite(value) and value >= minimum, f"a finite value >= {minimum}"
+    if not ok:
+        raise ValueError(f"`{name}` must be {want}; got {value}")
+    return value
+
+
+def as_generator(rng, name="rng"):
+    """``np.random.default_rng(rng)`` with a message that names the argument."""
+    try:
+        return np.random.default_rng(rng)
+    except TypeError:
+        raise TypeError(f"`{name}` must be None, a non-negative integer seed or a "
+                        f"numpy.random.Generator; got {rng!r}") from None
+    except ValueError as exc:
+        raise ValueError(f"`{name}` must be None, a non-negative integer seed or a "
+                         f"numpy.random.Generator; got {rng!r} ({exc})") from None
+
+
 def check_lam(lam, name="lam"):
     """Forgetting factor in (0, 1]."""
     lam = check_scalar(lam, name)

@@ -182,3 +182,10 @@ def test_band_plot_and_errors(rng):
     with pytest.raises(ValueError, match=r"`level` must be in \(0, 1\); got 1.0"):
         parameter_intervals(model, level=1.0)
     assert isinstance(control.tf(model.to_tf()), control.TransferFunction)
+
+
+def test_band_names_a_bad_rng():
+    d = datasets.thermal_process(n_samples=200)
+    model = ARX(*d.orders, dt=d.dt).fit(d.u, d.y)
+    with pytest.raises(TypeError, match=r"`rng` must be None, a non-negative integer seed"):
+        frequency_response_band(model, rng="seed")

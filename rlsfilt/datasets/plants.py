@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import signal
 
-from .._validation import as_float_array, check_finite, check_int, check_scalar
+from .._validation import as_float_array, as_generator, check_finite, check_int, check_real
 from .inputs import multisine, prbs, steps, white_noise
 
 __all__ = [
@@ -163,10 +163,7 @@ def _make_input(spec, n_samples, rng, defaults):
 def _check_noise(noise, noise_std):
     if noise not in _NOISE_KINDS:
         raise ValueError(f"`noise` must be one of {list(_NOISE_KINDS)}; got {noise!r}")
-    noise_std = check_scalar(noise_std, "noise_std")
-    if not (np.isfinite(noise_std) and noise_std >= 0):
-        raise ValueError(f"`noise_std` must be a finite value >= 0; got {noise_std}")
-    return noise_std
+    return check_real(noise_std, "noise_std", minimum=0)
 
 
 def _add_noise(y_clean, A, noise, noise_std, gen):
@@ -198,13 +195,6 @@ def _zoh(num, den, dt):
     import control
 
     return control.sample_system(control.tf(num, den), dt, method="zoh")
-
-
-def _positive(value, name):
-    value = check_scalar(value, name)
-    if not (np.isfinite(value) and value > 0):
-        raise ValueError(f"`{name}` must be a positive finite number; got {value}")
-    return value
 
 
 # ----------------------------------------------------------------------
@@ -243,12 +233,14 @@ def thermal_process(n_samples=1000, *, gain=2.0, time_constant=20.0, delay=3, dt
     Dataset
     """
     n_samples = check_int(n_samples, "n_samples", minimum=1)
-    gain = check_scalar(gain, "gain")
-    tau = _positive(time_constant, "time_constant")
+    gain = check_real(gain, "gain")
+    if gain == 0.0:
+        raise ValueError("`gain` must be a finite nonzero number; got 0.0")
+    tau = check_real(time_constant, "time_constant", minimum=0, strict=True)
     delay = check_int(delay, "delay", minimum=0)
-    dt = _positive(dt, "dt")
+    dt = check_real(dt, "dt", minimum=0, strict=True)
     noise_std = _check_noise(noise, noise_std)
-    gen = np.random.default_rng(rng)
+    gen = as_generator(rng)
     import control
 
     plant = _zoh([gain], [tau, 1.0], dt)
@@ -293,15 +285,15 @@ def dc_motor(n_samples=2000, *, inertia=0.01, friction=0.1, motor_constant=0.01,
     Dataset
     """
     n_samples = check_int(n_samples, "n_samples", minimum=1)
-    J = _positive(inertia, "inertia")
-    b = _positive(friction, "friction")
-    K = _positive(motor_constant, "motor_constant")
-    R = _positive(resistance, "resistance")
-    L = _positive(inductance, "inductance")
-    dt = _positive(dt, "dt")
-    amplitude = check_scalar(amplitude, "amplitude")
+    J = check_real(inertia, "inertia", minimum=0, strict=True)
+    b = check_real(friction, "friction", minimum=0, strict=True)
+    K = check_real(motor_constant, "motor_constant", minimum=0, strict=True)
+    R = check_real(resistance, "resistance", minimum=0, strict=True)
+    L = check_real(inductance, "inductance", minimum=0, strict=True)
+    dt = check_real(dt, "dt", minimum=0, strict=True)
+    amplitude = check_real(amplitude, "amplitude", minimum=0, strict=True)
     noise_std = _check_noise(noise, noise_std)
-    gen = np.random.default_rng(rng)
+    gen = as_generator(rng)
     plant = _zoh([K], [J * L, J * R + b * L, b * R + K * K], dt)
     u = _make_input(input, n_samples, gen, {
         "prbs": {"hold": 2, "amplitude": amplitude}, "white": {"std": amplitude},
@@ -340,14 +332,12 @@ def mass_spring_damper(n_samples=2000, *, mass=1.0, stiffness=4.0, damping=0.1, 
     Dataset
     """
     n_samples = check_int(n_samples, "n_samples", minimum=1)
-    m = _positive(mass, "mass")
-    k = _positive(stiffness, "stiffness")
-    c = check_scalar(damping, "damping")
-    if not (np.isfinite(c) and c >= 0):
-        raise ValueError(f"`damping` must be a finite value >= 0; got {c}")
-    dt = _positive(dt, "dt")
+    m = check_real(mass, "mass", minimum=0, strict=True)
+    k = check_real(stiffness, "stiffness", minimum=0, strict=True)
+    c = check_real(damping, "damping", minimum=0)
+    dt = check_real(dt, "dt", minimum=0, strict=True)
     noise_std = _check_noise(noise, noise_std)
-    gen = np.random.default_rng(rng)
+    gen = as_generator(rng)
     plant = _zoh([1.0], [m, c, k], dt)
     u = _make_input(input, n_samples, gen, {"steps": {"hold": 50}})
     zeta = c / (2 * np.sqrt(k * m))
@@ -382,10 +372,10 @@ def nonminimum_phase(n_samples=1000, *, zero=0.5, dt=0.2, input="white", noise="
     Dataset
     """
     n_samples = check_int(n_samples, "n_samples", minimum=1)
-    z0 = _positive(zero, "zero")
-    dt = _positive(dt, "dt")
+    z0 = check_real(zero, "zero", minimum=0, strict=True)
+    dt = check_real(dt, "dt", minimum=0, strict=True)
     noise_std = _check_noise(noise, noise_std)
-    gen = np.random.default_rng(rng)
+    gen = as_generator(rng)
     plant = _zoh([-1.0 / z0, 1.0], [0.5, 1.5, 1.0], dt)
     u = _make_input(input, n_samples, gen, {"prbs": {"hold": 2}, "steps": {"hold": 50}})
     desc = (f"non-minimum-phase process (1 - s/{z0:g})/((s + 1)(0.5 s + 1)), ZOH at "
@@ -433,7 +423,7 @@ def time_varying(n_samples=2000, *, kind="jump", change_time=None, a_before=(-1.
     n_samples = check_int(n_samples, "n_samples", minimum=2)
     if kind not in ("jump", "drift"):
         raise ValueError(f"`kind` must be 'jump' or 'drift'; got {kind!r}")
-    dt = _positive(dt, "dt")
+    dt = check_real(dt, "dt", minimum=0, strict=True)
     noise_std = _check_noise("white", noise_std)
     vecs = {}
     for name, val in (("a_before", a_before), ("b_before", b_before), ("a_after", a_after),
@@ -461,7 +451,7 @@ def time_varying(n_samples=2000, *, kind="jump", change_time=None, a_before=(-1.
             raise ValueError("`change_time` only applies to kind='jump'; got kind='drift'")
         w = np.linspace(0.0, 1.0, n_samples)[:, None]
         theta_true = (1 - w) * th0 + w * th1
-    gen = np.random.default_rng(rng)
+    gen = as_generator(rng)
     u = _make_input(input, n_samples, gen, {"steps": {"hold": 50}})
     e = noise_std * gen.standard_normal(n_samples)
     y = np.zeros(n_samples)

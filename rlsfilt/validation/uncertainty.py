@@ -11,7 +11,7 @@ import math
 import numpy as np
 from scipy.stats import t as student_t
 
-from .._validation import check_int, check_scalar
+from .._validation import as_generator, check_int, check_scalar
 from ._model import check_fitted, orders
 
 __all__ = ["FrequencyBand", "ParameterIntervals", "frequency_response_band",
@@ -298,7 +298,7 @@ def frequency_response_band(model, omega=None, level=0.95, n_draws=1000, rng=Non
         omega = np.asarray(omega, dtype=float).ravel()
         if omega.size == 0 or not np.all(np.isfinite(omega)) or np.any(omega < 0):
             raise ValueError("`omega` must hold finite non-negative frequencies")
-    gen = np.random.default_rng(rng)
+    gen = as_generator(rng)
     draws = Theta + _parameter_noise(model, Theta.shape, n_draws, gen)   # (n, p, ny)
     G_nom = _response(Theta[None], model, omega, dt)[0]
     G = _response(draws, model, omega, dt)                     # (n, ny, nu, n_points)
