@@ -10,7 +10,6 @@ import importlib
 import pkgutil
 
 import matplotlib
-import numpy as np
 import pytest
 
 matplotlib.use("Agg")
@@ -41,7 +40,7 @@ def test_docstring_examples(name):
     finder = doctest.DocTestFinder(exclude_empty=True)
     runner = doctest.DocTestRunner(optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)
     report = []
-    for test in finder.find(module, name, globs={"np": np}):
+    for test in finder.find(module, name, globs={}):
         runner.run(test, out=report.append)
     result = runner.summarize(verbose=False)  # prints only on failure
     assert result.failed == 0, "".join(report)
