@@ -730,3 +730,18 @@ def test_summary_repr_and_html(rng):
     true = ARX.from_polynomials([-0.5], [1.0])
     assert "given coefficients (no fit)" in repr(true) and "(+/-0) u(t-1)" in repr(true)
     assert repr(model).startswith("ARX(na=2, nb=2, nk=1, dt=0.1):")
+
+
+@settings(max_examples=30, deadline=None)
+@given(n=st.integers(1, 4), silent=st.lists(st.integers(0, 30), min_size=4, max_size=4),
+       rows=st.integers(1, 40), seed=st.integers(0, 2 ** 32 - 1))
+def test_exact_start_rows_match_a_linear_scan(n, silent, rows, seed):
+    """The batch start (ARX rls, CUSUM) is the first prefix of full column rank."""
+    from rlsfilt.models.regressors import full_rank_rows
+
+    gen = np.random.default_rng(seed)
+    Phi = gen.standard_normal((rows, n))
+    for j in range(n):
+        Phi[:silent[j], j] = 0.0  # regressor j silent for its first rows
+    scan = next((k for k in range(n, rows + 1) if np.linalg.matrix_rank(Phi[:k]) == n), None)
+    assert full_rank_rows(Phi) == scan

@@ -17,7 +17,7 @@ from scipy.linalg import lapack, solve_triangular
 from .._validation import as_float_array, check_finite, check_int, check_scalar
 from ..exceptions import NotFittedError
 from ..filters import RecursiveLeastSquares
-from .regressors import _as_signal, _build, arx_structure, as_io_data
+from .regressors import _as_signal, _build, arx_structure, as_io_data, full_rank_rows
 
 __all__ = ["ARX", "ARXSummary"]
 
@@ -324,7 +324,9 @@ class ARX:
         if opts["k0"] is not None:
             k0 = check_int(opts["k0"], "k0", minimum=0)
         else:  # a given prior means a prior start (MATLAB rarx); else the notes' batch start
-            k0 = 0 if prior else _full_rank_start(Phi)
+            k0 = 0 if prior else full_rank_rows(Phi)
+            if k0 is None:  # not even all rows determine theta
+                _qr_least_squares(Phi, target)  # raises with the rank in the message
         if k0 > rows:
             raise ValueError(f"`k0` must be <= the number of regressor rows ({rows}); got {k0}")
         if k0 > 0:
@@ -1048,36 +1050,6 @@ def _qr_least_squares(Phi, target):
     Rinv, info = lapack.dtrtri(Rf, lower=0)
     cov = Rinv @ Rinv.T
     return theta, 0.5 * (cov + cov.T)
-
-
-def _full_rank_start(Phi):
-    """Fewest leading rows (at least n_params) of `Phi` with full column rank.
-
-    The rank of a prefix grows with its length, so double until full rank,
-    then bisect. Raises the not-persistently-exciting error when even all
-    rows are rank-deficient.
-    """
-    rows, n = Phi.shape
-    if n == 0:
-        return 0
-
-    def full(k):
-        return np.linalg.matrix_rank(Phi[:k]) == n
-
-    if full(n):
-        return n
-    if not full(rows):
-        _qr_least_squares(Phi, np.zeros((rows, 1)))  # raises with the rank in the message
-    lo, hi = n, min(2 * n, rows)  # full(lo) is False
-    while not full(hi):
-        lo, hi = hi, min(2 * hi, rows)
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        if full(mid):
-            hi = mid
-        else:
-            lo = mid
-    return hi
 
 
 def _same_poly(p, q):

@@ -232,3 +232,40 @@ def arx_regressors(u, y, na, nb, nk=1, *, start=None):
     Phi = _build(U, Y, s, start)
     target = Y[start:, 0].copy() if info["y_1d"] else Y[start:].copy()
     return Phi, target
+
+
+def full_rank_rows(Phi):
+    """Fewest leading rows of `Phi` (at least its column count) with full column rank.
+
+    This is where an exact least-squares start can be made (the lecture notes'
+    batch start of recursive least squares, and the start of the recursive
+    residuals of Brown, Durbin & Evans). The rank of a prefix grows with its
+    length, so the search doubles until full rank, then bisects: ``O(log N)``
+    rank computations.
+
+    Returns
+    -------
+    int or None
+        The number of rows, or None when even all rows are rank-deficient.
+    """
+    rows, n = Phi.shape
+    if n == 0:
+        return 0
+
+    def full(k):
+        return np.linalg.matrix_rank(Phi[:k]) == n
+
+    if rows < n or not full(rows):
+        return None
+    if full(n):
+        return n
+    lo, hi = n, min(2 * n, rows)  # full(lo) is False
+    while not full(hi):
+        lo, hi = hi, min(2 * hi, rows)
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if full(mid):
+            hi = mid
+        else:
+            lo = mid
+    return hi

@@ -26,6 +26,7 @@ from scipy.stats import norm
 
 from .._validation import as_float_array, check_finite, check_scalar
 from ..filters import RecursiveLeastSquares
+from ..models.regressors import full_rank_rows
 
 __all__ = ["CusumResult", "cusum", "cusum_squares", "recursive_residuals"]
 
@@ -426,17 +427,8 @@ def _as_regression(zs, Hs):
 
 def _exact_start(H):
     """Smallest k0 >= k such that the first k0 rows of `H` have rank k."""
-    N, k = H.shape
-    if np.linalg.matrix_rank(H) < k:
-        raise ValueError(f"`Hs` must have full column rank {k}; got rank "
+    start = full_rank_rows(H)
+    if start is None:
+        raise ValueError(f"`Hs` must have full column rank {H.shape[1]}; got rank "
                          f"{np.linalg.matrix_rank(H)} (a regressor is a combination of others)")
-    lo, hi = k, N  # rank(H[:hi]) == k; bisect on the monotone rank of prefixes
-    if np.linalg.matrix_rank(H[:lo]) == k:
-        return lo
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        if np.linalg.matrix_rank(H[:mid]) == k:
-            hi = mid
-        else:
-            lo = mid
-    return hi
+    return start
