@@ -142,12 +142,21 @@ def test_select_order_errors(rng):
         select_order(u, y, criterion="loss")
     with pytest.raises(ValueError, match=r"`y` must have shape \(N,\) \(one output\)"):
         select_order(u, np.zeros((200, 2)))
-    with pytest.raises(ValueError, match="`u` and `y` must have the same length; got 200 and"):
+    with pytest.raises(ValueError, match="`u` and `y` must have the same length; got 200 input "
+                                         "samples and 150 output samples"):
         select_order(u, y[:150])
     with pytest.raises(ValueError, match="`y` is too short for these orders"):
         select_order(u[:12], y[:12])
     with pytest.raises(TypeError, match="`validation` must be a pair"):
         select_order(u, y, validation=u)
+    with pytest.raises(ValueError, match=r"`validation\[0\]` and `validation\[1\]` must have the "
+                                         r"same length; got 10 input samples and 5 output"):
+        select_order(u, y, validation=(u[:10], y[:5]))
+    with pytest.raises(ValueError, match=r"`validation\[1\]` must be finite; got nan at index 3"):
+        select_order(u, y, validation=(u, np.r_[y[:3], np.nan, y[4:]]))
+    with pytest.raises(ValueError, match=r"`validation` input must have 1 column\(s\) like `u`; "
+                                         r"got 2"):
+        select_order(u, y, validation=(np.column_stack([u, u]), y))
     with pytest.raises(ValueError, match="exactly"):
         select_order(u, lfilter([0, 1.0], [1, -0.5], u), na=1, nb=1, nk=1)
 

@@ -152,17 +152,19 @@ def _as_signal(x, name):
     return arr.copy(), was_1d, names
 
 
-def as_io_data(u, y):
+def as_io_data(u, y, names=("u", "y")):
     """Validate an input/output record: ``U (N, nu)``, ``Y (N, ny)`` and metadata.
 
     Returns ``(U, Y, info)`` with ``info`` a dict holding ``u_1d``, ``y_1d``,
-    ``u_names`` and ``y_names`` (from pandas, or None).
+    ``u_names`` and ``y_names`` (from pandas, or None). `names` are the
+    argument names used in error messages.
     """
-    U, u_1d, u_names = _as_signal(u, "u")
-    Y, y_1d, y_names = _as_signal(y, "y")
+    uname, yname = names
+    U, u_1d, u_names = _as_signal(u, uname)
+    Y, y_1d, y_names = _as_signal(y, yname)
     if len(U) != len(Y):
-        raise ValueError(f"`u` and `y` must have the same length; got {len(U)} input samples "
-                         f"and {len(Y)} output samples")
+        raise ValueError(f"`{uname}` and `{yname}` must have the same length; got {len(U)} "
+                         f"input samples and {len(Y)} output samples")
     return U, Y, {"u_1d": u_1d, "y_1d": y_1d, "u_names": u_names, "y_names": y_names}
 
 

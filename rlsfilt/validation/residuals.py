@@ -9,7 +9,8 @@ MATLAB's ``resid`` and Ljung (1999, sec. 16.6).
 import numpy as np
 from scipy.stats import chi2, f, norm
 
-from .._validation import as_float_array, check_finite, check_int, check_scalar
+from .._validation import check_int, check_scalar
+from ..models.regressors import _as_signal
 from ._model import one_step
 
 __all__ = ["ResidualAnalysis", "residual_analysis"]
@@ -269,8 +270,7 @@ def residual_analysis(model, u, y, max_lag=25, alpha=0.01, *, output=0, model_df
     if model_df >= max_lag:
         raise ValueError(f"`max_lag` must exceed `model_df` = {model_df} (degrees of freedom "
                          f"left for the Ljung-Box test); got max_lag = {max_lag}")
-    U = check_finite(as_float_array(u, "u"), "u")
-    U = U[:, None] if U.ndim == 1 else U
+    U = _as_signal(u, "u")[0]  # (N, nu), validated by `one_step`
     e = E[:, output]
     n = len(e)
     N = len(U)

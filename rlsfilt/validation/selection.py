@@ -13,7 +13,8 @@ import numbers
 
 import numpy as np
 
-from .._validation import as_float_array, check_finite, check_int
+from .._validation import check_int
+from ..models.regressors import as_io_data
 from .criteria import _criteria
 
 __all__ = ["OrderSelection", "select_order"]
@@ -304,19 +305,9 @@ def _order_list(value, name, minimum):
 
 
 def _io(u, y, uname, yname):
-    U = check_finite(as_float_array(u, uname), uname)
-    Y = check_finite(as_float_array(y, yname), yname)
-    if U.ndim == 1:
-        U = U[:, None]
-    if Y.ndim == 1:
-        Y = Y[:, None]
-    if U.ndim != 2:
-        raise ValueError(f"`{uname}` must have shape (N,) or (N, nu); got {U.shape}")
-    if Y.ndim != 2 or Y.shape[1] != 1:
+    U, Y, _ = as_io_data(u, y, names=(uname, yname))
+    if Y.shape[1] != 1:
         raise ValueError(f"`{yname}` must have shape (N,) (one output); got {Y.shape}")
-    if len(U) != len(Y):
-        raise ValueError(f"`{uname}` and `{yname}` must have the same length; got {len(U)} "
-                         f"and {len(Y)}")
     return U, Y
 
 
