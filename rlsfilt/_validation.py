@@ -57,6 +57,14 @@ def check_real(value, name, minimum=None, strict=False):
     return value
 
 
+def check_probability(value, name):
+    """A significance or confidence level in the open interval (0, 1)."""
+    value = check_scalar(value, name)
+    if not 0.0 < value < 1.0:  # also rejects NaN
+        raise ValueError(f"`{name}` must be in (0, 1); got {value}")
+    return value
+
+
 def as_generator(rng, name="rng"):
     """``np.random.default_rng(rng)`` with a message that names the argument."""
     try:

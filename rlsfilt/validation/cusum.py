@@ -24,7 +24,7 @@ import numpy as np
 from scipy.optimize import brentq
 from scipy.stats import norm
 
-from .._validation import as_float_array, check_finite, check_scalar
+from .._validation import as_float_array, check_finite, check_probability
 from ..filters import RecursiveLeastSquares
 from ..models.regressors import full_rank_rows
 
@@ -272,7 +272,7 @@ def cusum(zs, Hs, alpha=0.05):
     >>> result.rejected, int(result.crossings[0])
     (True, 266)
     """
-    alpha = _check_alpha(alpha)
+    alpha = check_probability(alpha, "alpha")
     w, start = recursive_residuals(zs, Hs)
     m = len(w)
     if m < 2:
@@ -362,7 +362,7 @@ def cusum_squares(zs, Hs, alpha=0.05):
     >>> cusum_squares(z, H).rejected
     True
     """
-    alpha = _check_alpha(alpha)
+    alpha = check_probability(alpha, "alpha")
     one_sided = alpha / 2.0
     level = next((lv for lv in _EW_LEVELS if math.isclose(lv, one_sided)), None)
     if level is None:
@@ -399,13 +399,6 @@ def _bde_constant(alpha):
         if math.isclose(alpha, level):
             return a
     return brentq(lambda a: _bde_crossing_probability(a) - alpha, 1e-6, 10.0, xtol=1e-12)
-
-
-def _check_alpha(alpha):
-    alpha = check_scalar(alpha, "alpha")
-    if not 0.0 < alpha < 1.0:
-        raise ValueError(f"`alpha` must be in (0, 1); got {alpha}")
-    return alpha
 
 
 def _as_regression(zs, Hs):

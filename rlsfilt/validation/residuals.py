@@ -9,7 +9,7 @@ MATLAB's ``resid`` and Ljung (1999, sec. 16.6).
 import numpy as np
 from scipy.stats import chi2, f, norm
 
-from .._validation import check_int, check_scalar
+from .._validation import check_int, check_probability
 from ..models.regressors import _as_signal
 from ._model import one_step
 
@@ -258,9 +258,7 @@ def residual_analysis(model, u, y, max_lag=25, alpha=0.01, *, output=0, model_df
     False
     """
     max_lag = check_int(max_lag, "max_lag", minimum=1)
-    alpha = check_scalar(alpha, "alpha")
-    if not 0.0 < alpha < 1.0:
-        raise ValueError(f"`alpha` must be in (0, 1); got {alpha}")
+    alpha = check_probability(alpha, "alpha")
     Phi, _, E = one_step(model, u, y)
     ny = E.shape[1]
     output = check_int(output, "output", minimum=0)

@@ -11,7 +11,7 @@ import math
 import numpy as np
 from scipy.stats import t as student_t
 
-from .._validation import as_generator, check_int, check_scalar
+from .._validation import as_generator, check_int, check_probability
 from ._model import check_fitted, orders
 
 __all__ = ["FrequencyBand", "ParameterIntervals", "frequency_response_band",
@@ -213,7 +213,7 @@ def parameter_intervals(model, level=0.95):
     True
     """
     check_fitted(model)
-    level = _check_level(level)
+    level = check_probability(level, "level")
     theta = np.asarray(model.theta_, dtype=float)
     cov = np.asarray(model.theta_cov_, dtype=float)
     if cov.ndim == 2:
@@ -286,7 +286,7 @@ def frequency_response_band(model, omega=None, level=0.95, n_draws=1000, rng=Non
     (1, 1, 300)
     """
     check_fitted(model)
-    level = _check_level(level)
+    level = check_probability(level, "level")
     n_draws = check_int(n_draws, "n_draws", minimum=2)
     theta = np.asarray(model.theta_, dtype=float)
     Theta = theta.reshape(theta.shape[0], -1)                  # (p, ny)
@@ -367,13 +367,6 @@ def _response(thetas, model, omega, dt):
             Az[:, :, j, :] += thetas[:, j * na + k - 1, :, None] * zinv[None, None, :] ** k
     G = np.linalg.solve(Az.transpose(0, 3, 1, 2), Bz.transpose(0, 3, 1, 2))
     return G.transpose(0, 2, 3, 1)
-
-
-def _check_level(level):
-    level = check_scalar(level, "level")
-    if not 0.0 < level < 1.0:
-        raise ValueError(f"`level` must be in (0, 1); got {level}")
-    return level
 
 
 def _db(x):
