@@ -177,8 +177,13 @@ def test_band_plot_and_errors(rng):
         frequency_response_band(model, level=95)
     with pytest.raises(ValueError, match="`n_draws` must be >= 2; got 1"):
         frequency_response_band(model, n_draws=1)
-    with pytest.raises(ValueError, match="`omega` must hold finite non-negative frequencies"):
-        frequency_response_band(model, omega=[-1.0])
+    nyq = np.pi / d.dt
+    for bad in ([-1.0], [np.nan], [], [1.01 * nyq]):  # the same grid rules as PlantComparison
+        with pytest.raises(ValueError, match=rf"`omega` must hold finite frequencies in \[0, "
+                                             rf"{nyq:.6g}\] \(up to Nyquist\)"):
+            frequency_response_band(model, omega=bad)
+    with pytest.raises(TypeError, match="`omega` must be numeric array-like"):
+        frequency_response_band(model, omega="low")
     with pytest.raises(ValueError, match=r"`level` must be in \(0, 1\); got 1.0"):
         parameter_intervals(model, level=1.0)
     assert isinstance(control.tf(model.to_tf()), control.TransferFunction)

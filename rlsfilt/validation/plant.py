@@ -12,7 +12,7 @@ import warnings
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from .._validation import check_int
+from .._validation import as_float_array, check_int
 
 __all__ = ["PlantComparison"]
 
@@ -125,15 +125,7 @@ class PlantComparison:
                 f"{self.plant_tf.ninputs}x{self.plant_tf.noutputs}")
 
         # frequency responses up to Nyquist
-        nyquist = math.pi / self.dt
-        if omega is None:
-            self.omega = np.logspace(math.log10(nyquist) - 3.0, math.log10(nyquist), n_points)
-        else:
-            self.omega = np.asarray(omega, dtype=float).ravel()
-            if self.omega.size == 0 or not np.all(np.isfinite(self.omega)) \
-                    or np.any(self.omega < 0) or np.any(self.omega > nyquist * (1 + 1e-12)):
-                raise ValueError(f"`omega` must hold finite frequencies in [0, {nyquist:.6g}] "
-                                 "(up to Nyquist)")
+        self.omega = frequency_grid(omega, self.dt, n_points)
         z = np.exp(1j * self.omega * self.dt)
         self.response_model = _evaluate(self.model_tf, z)
         self.response_plant = _evaluate(self.plant_tf, z)
@@ -273,6 +265,25 @@ class PlantComparison:
 # ----------------------------------------------------------------------
 # private helpers
 # ----------------------------------------------------------------------
+def frequency_grid(omega, dt, n_points):
+    r"""Validated frequencies in rad per time unit, or the default grid.
+
+    The default is `n_points` logarithmically spaced frequencies from
+    :math:`10^{-3}\,\omega_N` to the Nyquist frequency
+    :math:`\omega_N = \pi / dt`; given frequencies must be finite and in
+    :math:`[0, \omega_N]` (a discrete frequency response is periodic beyond).
+    """
+    nyquist = math.pi / dt
+    if omega is None:
+        return np.logspace(math.log10(nyquist) - 3.0, math.log10(nyquist), n_points)
+    omega = as_float_array(omega, "omega").ravel()
+    if omega.size == 0 or not np.all(np.isfinite(omega)) or np.any(omega < 0) \
+            or np.any(omega > nyquist * (1 + 1e-12)):
+        raise ValueError(f"`omega` must hold finite frequencies in [0, {nyquist:.6g}] "
+                         "(up to Nyquist)")
+    return omega
+
+
 def _model_tf(model):
     import control  # lazily: python-control imports matplotlib.pyplot
 

@@ -13,6 +13,7 @@ from scipy.stats import t as student_t
 
 from .._validation import as_generator, check_int, check_probability
 from ._model import check_fitted, orders
+from .plant import frequency_grid
 
 __all__ = ["FrequencyBand", "ParameterIntervals", "frequency_response_band",
            "parameter_intervals"]
@@ -291,13 +292,7 @@ def frequency_response_band(model, omega=None, level=0.95, n_draws=1000, rng=Non
     theta = np.asarray(model.theta_, dtype=float)
     Theta = theta.reshape(theta.shape[0], -1)                  # (p, ny)
     dt = 1.0 if model.dt is True else float(model.dt)
-    if omega is None:
-        nyq = math.pi / dt
-        omega = np.logspace(math.log10(nyq) - 3.0, math.log10(nyq), 300)
-    else:
-        omega = np.asarray(omega, dtype=float).ravel()
-        if omega.size == 0 or not np.all(np.isfinite(omega)) or np.any(omega < 0):
-            raise ValueError("`omega` must hold finite non-negative frequencies")
+    omega = frequency_grid(omega, dt, 300)
     gen = as_generator(rng)
     draws = Theta + _parameter_noise(model, Theta.shape, n_draws, gen)   # (n, p, ny)
     G_nom = _response(Theta[None], model, omega, dt)[0]
