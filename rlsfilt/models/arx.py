@@ -168,11 +168,39 @@ class ARX:
     # scikit-learn estimator protocol
     # ------------------------------------------------------------------
     def get_params(self, deep=True):
-        """Constructor parameters as a dict (scikit-learn protocol)."""
+        """Constructor parameters as a dict (scikit-learn protocol).
+
+        Parameters
+        ----------
+        deep : bool, default True
+            Accepted for scikit-learn compatibility; ARX has no nested
+            estimators.
+
+        Returns
+        -------
+        dict
+            ``{"na": .., "nb": .., "nk": .., "dt": ..}``.
+        """
         return {"na": self.na, "nb": self.nb, "nk": self.nk, "dt": self.dt}
 
     def set_params(self, **params):
-        """Set constructor parameters; returns ``self`` (scikit-learn protocol)."""
+        """Set constructor parameters (scikit-learn protocol).
+
+        Parameters
+        ----------
+        **params
+            New values of ``na``, ``nb``, ``nk`` or ``dt``; call :meth:`fit`
+            again afterwards.
+
+        Returns
+        -------
+        self : ARX
+
+        Raises
+        ------
+        TypeError
+            For a name that is not a constructor parameter.
+        """
         valid = self.get_params()
         for key, value in params.items():
             if key not in valid:
@@ -476,6 +504,21 @@ class ARX:
         Returns
         -------
         yhat : ndarray, shape (N,) or (N, ny)
+
+        Examples
+        --------
+        Two-step-ahead prediction of ``y(t) = 0.9 y(t-1) + u(t-1)``: from
+        ``y(t-2)`` the model first predicts ``y(t-1)``, then ``y(t)``.
+
+        >>> import numpy as np
+        >>> from rlsfilt import ARX
+        >>> model = ARX.from_polynomials([-0.9], [1.0])
+        >>> u = np.array([1.0, 0.0, 0.0, 0.0])
+        >>> y = np.array([0.0, 1.0, 1.0, 0.5])   # measured, with disturbances
+        >>> model.predict(u, y, horizon=1)
+        array([0. , 1. , 0.9, 0.9])
+        >>> model.predict(u, y, horizon=2)       # yhat(3) = 0.9 * 0.9 * y(1)
+        array([0.  , 1.  , 0.9 , 0.81])
         """
         self._check_fitted("predict")
         U, Y = self._data(u, y)
@@ -516,6 +559,16 @@ class ARX:
         Returns
         -------
         y_sim : ndarray, shape (N,) or (N, ny)
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from rlsfilt import ARX
+        >>> model = ARX.from_polynomials([-0.5], [1.0])   # y(t) = 0.5 y(t-1) + u(t-1)
+        >>> model.simulate(np.ones(4))
+        array([0.  , 1.  , 1.5 , 1.75])
+        >>> model.simulate(np.ones(4), y0=[4.0])          # continue from y(0) = 4
+        array([4.  , 3.  , 2.5 , 2.25])
         """
         self._check_fitted("simulate")
         U, _ = self._data(u)
@@ -556,9 +609,21 @@ class ARX:
     def polynomials(self):
         """``(A, B)`` in MATLAB's form, coefficients of ascending powers of ``q^-1``.
 
-        Single output and input: ``A = [1, a1, .., a_na]`` and
-        ``B = [0]*nk + [b1, .., b_nb]``. In general ``A`` has shape
-        ``(ny, ny, na + 1)`` and ``B`` shape ``(ny, nu, max(nk + nb))``.
+        Returns
+        -------
+        A : ndarray
+            Single output and input: ``[1, a1, .., a_na]``; otherwise shape
+            ``(ny, ny, na + 1)`` with ``A[:, :, 0]`` the identity.
+        B : ndarray
+            Single output and input: ``[0]*nk + [b1, .., b_nb]``; otherwise
+            shape ``(ny, nu, max(nk + nb))``.
+
+        Examples
+        --------
+        >>> from rlsfilt import ARX
+        >>> A, B = ARX.from_polynomials([-1.5, 0.7], [1.0, 0.5], nk=2).polynomials()
+        >>> A, B
+        (array([ 1. , -1.5,  0.7]), array([0. , 0. , 1. , 0.5]))
         """
         self._check_fitted("polynomials")
         Apoly, Bpoly = self._poly_matrices()
@@ -618,6 +683,24 @@ class ARX:
         noise : bool, default False
             Return the noise model ``H(z) = 1 / A(z^{-1})`` (matrix
             ``A^{-1}`` for several outputs) instead.
+
+        Returns
+        -------
+        control.TransferFunction
+            SISO, or ``ny`` x ``nu`` (``ny`` x ``ny`` for the noise model).
+
+        Examples
+        --------
+        The lecture notes' ``y[k] = 0.5 y[k-1] + 2 u[k] + u[k-1]`` keeps its
+        feed-through ``b0 = 2``; a delay of 3 samples gives ``z^3`` below:
+
+        >>> from rlsfilt import ARX
+        >>> G = ARX.from_polynomials([-0.5], [2.0, 1.0], nk=0, dt=0.1).to_tf()
+        >>> G.num[0][0], G.den[0][0]
+        (array([2., 1.]), array([ 1. , -0.5]))
+        >>> G = ARX.from_polynomials([-0.5], [2.0], nk=3, dt=0.1).to_tf()
+        >>> G.num[0][0], G.den[0][0]
+        (array([2.]), array([ 1. , -0.5,  0. ,  0. ]))
         """
         self._check_fitted("to_tf")
         import control
@@ -663,8 +746,17 @@ class ARX:
 
         States are ``x_1 = y(t) - D u(t)`` and the partial sums of the
         difference equation; the realization has ``ny * max(na, nk + nb - 1)``
-        states and ``D = b1`` when ``nk = 0``. ``noise=True`` realizes the
-        noise model ``A(q)^{-1}``.
+        states and ``D = b1`` when ``nk = 0``.
+
+        Parameters
+        ----------
+        noise : bool, default False
+            Realize the noise model ``A(q)^{-1}`` instead of the input model.
+
+        Returns
+        -------
+        control.StateSpace
+            With sampling time ``dt``.
         """
         self._check_fitted("to_ss")
         import control
@@ -674,9 +766,17 @@ class ARX:
     def to_dlti(self, noise=False):
         """The model as a ``scipy.signal.dlti``.
 
-        A ``TransferFunction`` (padded positive powers of ``z``) for one input
-        and one output, a ``StateSpace`` (the realization of :meth:`to_ss`)
-        otherwise.
+        Parameters
+        ----------
+        noise : bool, default False
+            Return the noise model ``A(q)^{-1}`` instead.
+
+        Returns
+        -------
+        scipy.signal.dlti
+            A ``TransferFunction`` (positive powers of ``z``) for one input
+            and one output, a ``StateSpace`` (the realization of
+            :meth:`to_ss`) otherwise.
         """
         self._check_fitted("to_dlti")
         if self.n_outputs_ == 1 and (self.n_inputs_ == 1 or noise):
@@ -714,6 +814,13 @@ class ARX:
         ARX
             A model usable as if fitted (``theta_cov_`` is zero and
             ``n_samples_`` is 0).
+
+        Examples
+        --------
+        >>> from rlsfilt import ARX
+        >>> true = ARX.from_polynomials([-1.5, 0.7], [1.0, 0.5], nk=1, dt=0.1)
+        >>> [round(float(abs(p)), 4) for p in true.to_tf().poles()]
+        [0.8367, 0.8367]
         """
         a = np.atleast_1d(as_float_array(a, "a"))
         if a.ndim != 1:
@@ -751,6 +858,34 @@ class ARX:
         (leading zeros of ``B`` in powers of ``z^-1`` are the delay). A
         SISO ``G = (b1 z^{n-nk} + ..) / (z^n + a1 z^{n-1} + ..)`` gives
         exactly ``a_ = [a1, ..]``, ``b_ = [b1, ..]`` and that ``nk``.
+
+        Parameters
+        ----------
+        G : control.TransferFunction or control.StateSpace
+            A proper discrete-time system (``dt`` True or a number).
+
+        Returns
+        -------
+        ARX
+            A model usable as if fitted, with ``dt = G.dt``.
+
+        Raises
+        ------
+        TypeError
+            If `G` is not a python-control LTI system.
+        ValueError
+            If `G` is continuous-time, improper, or has a zero input column.
+
+        Examples
+        --------
+        A continuous plant sampled with a zero-order hold is ``ARX(2, 2, 1)``:
+
+        >>> import control
+        >>> from rlsfilt import ARX
+        >>> Gd = control.sample_system(control.tf([1.0], [1.0, 3.0, 2.0]), 0.1)
+        >>> model = ARX.from_tf(Gd)
+        >>> model.na, model.nb, model.nk
+        (2, 2, 1)
         """
         import control
 
@@ -834,7 +969,14 @@ class ARX:
         return f"ARX(na={self.na!r}, nb={self.nb!r}, nk={self.nk!r}, dt={self.dt!r})"
 
     def summary(self):
-        """A printable and notebook-friendly summary: equations with +- one standard error."""
+        """A printable and notebook-friendly summary: equations with +- one standard error.
+
+        Returns
+        -------
+        ARXSummary
+            ``print`` it for text (with a parameter table), or display it in
+            a notebook for HTML.
+        """
         self._check_fitted("summary")
         return ARXSummary(self)
 
