@@ -83,13 +83,24 @@ def white_noise(n_samples=1000, *, std=1.0, mean=0.0, rng=0):
     Parameters
     ----------
     n_samples : int, default 1000
+        Record length ``N``.
     std : float, default 1.0
+        Standard deviation.
     mean : float, default 0.0
+        Mean value.
     rng : int, Generator or None, default 0
+        Seed or generator; the default ``0`` gives the same signal on every
+        call, ``None`` fresh randomness.
 
     Returns
     -------
     u : ndarray, shape (n_samples,)
+
+    Examples
+    --------
+    >>> from rlsfilt.datasets import white_noise
+    >>> white_noise(5, std=2.0, rng=1).round(3)
+    array([ 0.691,  1.643,  0.661, -2.606,  1.811])
     """
     n_samples = check_int(n_samples, "n_samples", minimum=1)
     std = check_real(std, "std", minimum=0)
@@ -117,6 +128,8 @@ def multisine(n_samples=1000, *, n_components=None, band=(0.0, 1.0), rms=1.0,
         Schroeder phases :math:`\phi_k = -\pi k (k-1) / K` give a low crest
         factor; ``"random"`` draws them uniformly from `rng`.
     rng : int, Generator or None, default 0
+        Seed or generator; the default ``0`` gives the same signal on every
+        call, ``None`` fresh randomness.
 
     Returns
     -------
@@ -127,6 +140,16 @@ def multisine(n_samples=1000, *, n_components=None, band=(0.0, 1.0), rms=1.0,
     Each component completes an integer number of periods in ``n_samples``
     samples, so the spectrum has no leakage. ``K`` components excite an ARX
     model with up to ``2 K`` input parameters.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from rlsfilt.datasets import multisine
+    >>> u = multisine(256, n_components=8, rms=2.0)
+    >>> round(float(np.sqrt(np.mean(u ** 2))), 6)                # the requested RMS
+    2.0
+    >>> int(np.count_nonzero(np.abs(np.fft.rfft(u)) > 1e-9))     # eight spectral lines
+    8
     """
     n_samples = check_int(n_samples, "n_samples", minimum=4)
     rms = check_real(rms, "rms", minimum=0)
@@ -170,6 +193,7 @@ def steps(n_samples=1000, *, hold=100, amplitude=1.0, levels=None, rng=0):
     Parameters
     ----------
     n_samples : int, default 1000
+        Record length ``N``.
     hold : int, default 100
         Samples per level.
     amplitude : float, default 1.0
@@ -178,10 +202,18 @@ def steps(n_samples=1000, *, hold=100, amplitude=1.0, levels=None, rng=0):
         Explicit levels, repeated cyclically (for example ``[0, 1]`` for a
         square wave starting at 0); overrides the random levels.
     rng : int, Generator or None, default 0
+        Seed or generator; the default ``0`` gives the same signal on every
+        call, ``None`` fresh randomness.
 
     Returns
     -------
     u : ndarray, shape (n_samples,)
+
+    Examples
+    --------
+    >>> from rlsfilt.datasets import steps
+    >>> steps(6, hold=2, levels=[0, 1])
+    array([0., 0., 1., 1., 0., 0.])
     """
     n_samples = check_int(n_samples, "n_samples", minimum=1)
     hold = check_int(hold, "hold", minimum=1)

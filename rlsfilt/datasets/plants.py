@@ -213,6 +213,7 @@ def thermal_process(n_samples=1000, *, gain=2.0, time_constant=20.0, delay=3, dt
     Parameters
     ----------
     n_samples : int, default 1000
+        Record length ``N``.
     gain : float, default 2.0
         Static gain ``K`` (kelvin per unit of heater power).
     time_constant : float, default 20.0
@@ -225,12 +226,30 @@ def thermal_process(n_samples=1000, *, gain=2.0, time_constant=20.0, delay=3, dt
         Excitation (PRBS held 5 samples per bit by default), or the input
         record itself.
     noise : {"white", "colored", "output"}, default "white"
+        Noise model (see the module notes): white equation error (the ARX assumption),
+        colored equation error, or white output noise.
     noise_std : float, default 0.05
+        Standard deviation of the white noise ``e``.
     rng : int, Generator or None, default 0
+        Seed or generator for the input and the noise; the default ``0`` gives the same
+        record on every call, ``None`` fresh randomness.
 
     Returns
     -------
     Dataset
+        The record, the true plant and its ARX orders and coefficients.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from rlsfilt import ARX
+    >>> from rlsfilt.datasets import thermal_process
+    >>> ds = thermal_process()
+    >>> ds.orders                                     # 3 samples of dead time + the hold
+    (1, 1, 4)
+    >>> model = ARX(*ds.orders, dt=ds.dt).fit(ds.u, ds.y)
+    >>> np.round(ds.theta, 4), np.round(model.theta_, 4)
+    (array([-0.9512,  0.0975]), array([-0.9485,  0.0991]))
     """
     n_samples = check_int(n_samples, "n_samples", minimum=1)
     gain = check_real(gain, "gain")
@@ -266,6 +285,7 @@ def dc_motor(n_samples=2000, *, inertia=0.01, friction=0.1, motor_constant=0.01,
     Parameters
     ----------
     n_samples : int, default 2000
+        Record length ``N``.
     inertia, friction, motor_constant, resistance, inductance : float
         ``J`` (kg m^2), ``b`` (N m s), ``K`` (V s or N m/A), ``R`` (ohm),
         ``L`` (H).
@@ -276,13 +296,26 @@ def dc_motor(n_samples=2000, *, inertia=0.01, friction=0.1, motor_constant=0.01,
     input : str or array_like, default "prbs"
         PRBS held 2 samples per bit by default.
     noise : {"white", "colored", "output"}, default "white"
+        Noise model (see the module notes): white equation error (the ARX assumption),
+        colored equation error, or white output noise.
     noise_std : float, default 0.002
         In rad/s.
     rng : int, Generator or None, default 0
+        Seed or generator for the input and the noise; the default ``0`` gives the same
+        record on every call, ``None`` fresh randomness.
 
     Returns
     -------
     Dataset
+        The record, the true plant and its ARX orders and coefficients.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from rlsfilt.datasets import dc_motor
+    >>> ds = dc_motor()
+    >>> ds.orders, np.round(np.sort(np.abs(ds.plant.poles())), 4)
+    ((2, 2, 1), array([0.6066, 0.9047]))
     """
     n_samples = check_int(n_samples, "n_samples", minimum=1)
     J = check_real(inertia, "inertia", minimum=0, strict=True)
@@ -317,19 +350,34 @@ def mass_spring_damper(n_samples=2000, *, mass=1.0, stiffness=4.0, damping=0.1, 
     Parameters
     ----------
     n_samples : int, default 2000
+        Record length ``N``.
     mass, stiffness, damping : float
         ``m`` (kg), ``k`` (N/m), ``c`` (N s/m).
     dt : float, default 0.1
+        Sampling period in seconds.
     input : str or array_like, default "multisine"
         A Schroeder-phased multisine (50 components, full band) by default.
     noise : {"white", "colored", "output"}, default "white"
+        Noise model (see the module notes): white equation error (the ARX assumption),
+        colored equation error, or white output noise.
     noise_std : float, default 0.002
         In metres.
     rng : int, Generator or None, default 0
+        Seed or generator for the input and the noise; the default ``0`` gives the same
+        record on every call, ``None`` fresh randomness.
 
     Returns
     -------
     Dataset
+        The record, the true plant and its ARX orders and coefficients.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from rlsfilt.datasets import mass_spring_damper
+    >>> ds = mass_spring_damper()
+    >>> np.round(np.abs(ds.plant.poles()), 4)        # close to the unit circle
+    array([0.995, 0.995])
     """
     n_samples = check_int(n_samples, "n_samples", minimum=1)
     m = check_real(mass, "mass", minimum=0, strict=True)
@@ -359,17 +407,35 @@ def nonminimum_phase(n_samples=1000, *, zero=0.5, dt=0.2, input="white", noise="
     Parameters
     ----------
     n_samples : int, default 1000
+        Record length ``N``.
     zero : float, default 0.5
         Right-half-plane zero ``z0`` in rad/s (> 0).
     dt : float, default 0.2
+        Sampling period in seconds.
     input : str or array_like, default "white"
+        Excitation: a signal name (``"prbs"``, ``"white"``, ``"multisine"``, ``"steps"``) or
+        the input record itself.
     noise : {"white", "colored", "output"}, default "white"
+        Noise model (see the module notes): white equation error (the ARX assumption),
+        colored equation error, or white output noise.
     noise_std : float, default 0.02
+        Standard deviation of the white noise ``e``.
     rng : int, Generator or None, default 0
+        Seed or generator for the input and the noise; the default ``0`` gives the same
+        record on every call, ``None`` fresh randomness.
 
     Returns
     -------
     Dataset
+        The record, the true plant and its ARX orders and coefficients.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from rlsfilt.datasets import nonminimum_phase
+    >>> ds = nonminimum_phase()
+    >>> np.round(np.abs(ds.plant.zeros()), 4)        # outside the unit circle
+    array([1.1066])
     """
     n_samples = check_int(n_samples, "n_samples", minimum=1)
     z0 = check_real(zero, "zero", minimum=0, strict=True)
@@ -393,6 +459,7 @@ def time_varying(n_samples=2000, *, kind="jump", change_time=None, a_before=(-1.
     Parameters
     ----------
     n_samples : int, default 2000
+        Record length ``N``.
     kind : {"jump", "drift"}, default "jump"
         ``"jump"``: the parameters switch from the "before" to the "after"
         values at `change_time`. ``"drift"``: they move linearly from one to
@@ -406,17 +473,30 @@ def time_varying(n_samples=2000, *, kind="jump", change_time=None, a_before=(-1.
         moves the poles from 0.75 +- 0.37j to 0.6 +- 0.37j and changes the
         static gain from 7.5 to 5).
     dt : float, default 1.0
+        Sampling period in seconds.
     input : str or array_like, default "prbs"
+        Excitation: a signal name (``"prbs"``, ``"white"``, ``"multisine"``, ``"steps"``) or
+        the input record itself.
     noise_std : float, default 0.05
         Standard deviation of the white equation error.
     rng : int, Generator or None, default 0
+        Seed or generator for the input and the noise; the default ``0`` gives the same
+        record on every call, ``None`` fresh randomness.
 
     Returns
     -------
     Dataset
+        The record, the true plant and its ARX orders and coefficients.
         With ``theta_true`` (N, 4), the true ``[a1, a2, b1, b2]`` at each
         sample, ``change_time`` (``kind="jump"``) and ``plant_after``;
         ``a``, ``b`` and ``plant`` are the initial values.
+
+    Examples
+    --------
+    >>> from rlsfilt.datasets import time_varying
+    >>> ds = time_varying()
+    >>> ds.change_time, ds.theta_true[0].tolist(), ds.theta_true[-1].tolist()
+    (1000, [-1.5, 0.7, 1.0, 0.5], [-1.2, 0.5, 0.6, 0.9])
     """
     import control
 
