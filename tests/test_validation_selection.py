@@ -182,3 +182,11 @@ def test_any_grid_matches_brute_force(na_max, nb_max, nk_min, nk_span, n_inputs,
         ref = np.linalg.lstsq(Phi, y[t], rcond=None)[0]
         np.testing.assert_allclose(theta, ref, rtol=1e-8, atol=1e-10)
         assert row["loss"] == pytest.approx(np.mean((y[t] - Phi @ ref) ** 2), rel=1e-9)
+
+
+def test_summary_top_is_checked():
+    d = datasets.thermal_process(n_samples=400)
+    sel = select_order(d.u, d.y, na=[1], nb=[1], nk=[3, 4])
+    assert sel.summary(top=1).count("\n") == 2
+    with pytest.raises(ValueError, match=r"`top` must be >= 1; got 0"):
+        sel.summary(top=0)

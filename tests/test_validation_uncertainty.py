@@ -194,3 +194,23 @@ def test_band_names_a_bad_rng():
     model = ARX(*d.orders, dt=d.dt).fit(d.u, d.y)
     with pytest.raises(TypeError, match=r"`rng` must be None, a non-negative integer seed"):
         frequency_response_band(model, rng="seed")
+
+
+def test_contains_checks_shapes_and_plot_bode_makes_its_axes():
+    import matplotlib.pyplot as plt
+
+    d = datasets.thermal_process(n_samples=300)
+    model = ARX(*d.orders, dt=d.dt).fit(d.u, d.y)
+    ci = parameter_intervals(model)
+    with pytest.raises(ValueError, match=r"`theta` must have the shape of the estimate \(2,\); "
+                                         r"got \(3,\)"):
+        ci.contains([0.1, 0.2, 0.3])
+    with pytest.raises(ValueError, match=r"`theta` must have the shape .*; got \(2, 1\)"):
+        ci.contains([[-0.95], [0.1]])  # the same size but not the same layout
+    band = frequency_response_band(model, n_draws=50, rng=0)
+    with pytest.raises(ValueError, match=r"`response` must have shape \(1, 1, 300\); got \(299,\)"):
+        band.contains(band.response[0, 0, 1:])
+    assert band.contains(band.response[0, 0]).shape == (1, 1, 300)
+    ax_mag, ax_phase = band.plot_bode()
+    assert ax_mag.figure is ax_phase.figure and ax_phase.get_ylabel() == "phase (deg)"
+    plt.close("all")

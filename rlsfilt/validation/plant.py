@@ -213,6 +213,12 @@ class PlantComparison:
     def plot_bode(self, ax_mag=None, ax_phase=None):
         """Bode magnitude (dB) and phase (deg) of model and plant.
 
+        Parameters
+        ----------
+        ax_mag, ax_phase : matplotlib.axes.Axes, optional
+            Axes for magnitude and phase; a new figure with both is made
+            unless both are given.
+
         Returns
         -------
         (matplotlib.axes.Axes, matplotlib.axes.Axes)
@@ -241,6 +247,11 @@ class PlantComparison:
 
     def plot_step(self, ax=None):
         """Unit-step responses of model and plant.
+
+        Parameters
+        ----------
+        ax : matplotlib.axes.Axes, optional
+            Axes to draw in; a new figure is made if omitted.
 
         Returns
         -------

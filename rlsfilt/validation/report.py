@@ -150,6 +150,11 @@ class ValidationReport:
     def plot_comparison(self, ax=None):
         """Measured, simulated and one-step predicted output (MATLAB ``compare``).
 
+        Parameters
+        ----------
+        ax : matplotlib.axes.Axes, optional
+            Axes to draw in; a new figure is made if omitted.
+
         Returns
         -------
         matplotlib.axes.Axes

@@ -99,6 +99,11 @@ class ResidualAnalysis:
     def plot_autocorrelation(self, ax=None):
         """Stem plot of :math:`\\hat\\rho_\\varepsilon(k)` with its band.
 
+        Parameters
+        ----------
+        ax : matplotlib.axes.Axes, optional
+            Axes to draw in; a new figure is made if omitted.
+
         Returns
         -------
         matplotlib.axes.Axes
@@ -122,6 +127,11 @@ class ResidualAnalysis:
 
     def plot_cross_correlation(self, ax=None):
         """Cross-correlation :math:`\\hat\\rho_{\\varepsilon u}(\\tau)` with each input.
+
+        Parameters
+        ----------
+        ax : matplotlib.axes.Axes, optional
+            Axes to draw in; a new figure is made if omitted.
 
         Returns
         -------

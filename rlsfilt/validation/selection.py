@@ -92,7 +92,18 @@ class OrderSelection:
         return pd.DataFrame({name: self.table[name] for name in self.table.dtype.names})
 
     def summary(self, top=10):
-        """Text table of the `top` candidates, best first."""
+        """Text table of the `top` candidates, best first.
+
+        Parameters
+        ----------
+        top : int, default 10
+            Number of candidates listed.
+
+        Returns
+        -------
+        str
+        """
+        top = check_int(top, "top", minimum=1)
         order = np.argsort(self.values, kind="stable")[:top]
         val = not np.all(np.isnan(self.table["val_loss"]))
         head = f"{'na':>3} {'nb':>3} {'nk':>3} {'d':>3} {'loss':>11}"

@@ -11,7 +11,7 @@ import math
 import numpy as np
 from scipy.stats import t as student_t
 
-from .._validation import as_generator, check_int, check_probability
+from .._validation import as_float_array, as_generator, check_int, check_probability
 from ._model import check_fitted, orders
 from .plant import frequency_grid
 
@@ -51,8 +51,21 @@ class ParameterIntervals:
         self.upper = estimate + half
 
     def contains(self, theta):
-        """Boolean array: which entries of `theta` lie inside their interval."""
-        theta = np.asarray(theta, dtype=float).reshape(self.estimate.shape)
+        """Which entries of `theta` lie inside their interval.
+
+        Parameters
+        ----------
+        theta : array_like, the shape of ``estimate``
+            Parameter values to test, for example the true ones.
+
+        Returns
+        -------
+        ndarray of bool, the shape of ``estimate``
+        """
+        theta = as_float_array(theta, "theta")
+        if theta.shape != self.estimate.shape:
+            raise ValueError(f"`theta` must have the shape of the estimate "
+                             f"{self.estimate.shape}; got {theta.shape}")
         return (self.lower <= theta) & (theta <= self.upper)
 
     def summary(self):
@@ -110,8 +123,23 @@ class FrequencyBand:
                 f"level {self.level:g}>")
 
     def contains(self, response):
-        """Which points of a response ``(ny, nu, n_points)`` lie in the magnitude band."""
-        mag = np.abs(np.asarray(response)).reshape(self.magnitude_lower.shape)
+        """Which points of a frequency response lie in the magnitude band.
+
+        Parameters
+        ----------
+        response : array_like of complex, shape (ny, nu, n_points)
+            A response on `omega` (for one input and output, shape
+            ``(n_points,)`` works too).
+
+        Returns
+        -------
+        ndarray of bool, shape (ny, nu, n_points)
+        """
+        response = np.asarray(response)
+        if response.size != self.magnitude_lower.size:
+            raise ValueError(f"`response` must have shape {self.magnitude_lower.shape}; got "
+                             f"{response.shape}")
+        mag = np.abs(response).reshape(self.magnitude_lower.shape)
         return (self.magnitude_lower <= mag) & (mag <= self.magnitude_upper)
 
     def plot(self, fig=None, plant=None):
@@ -136,8 +164,26 @@ class FrequencyBand:
         self.plot_bode(ax_mag, ax_ph, plant=plant)
         return fig
 
-    def plot_bode(self, ax_mag, ax_phase, plant=None):
-        """Draw the band into existing magnitude and phase axes; returns them."""
+    def plot_bode(self, ax_mag=None, ax_phase=None, plant=None):
+        """Draw the band into magnitude and phase axes.
+
+        Parameters
+        ----------
+        ax_mag, ax_phase : matplotlib.axes.Axes, optional
+            Axes for magnitude and phase; a new figure with both is made
+            unless both are given.
+        plant : control.LTI, optional
+            A discrete system with the model's sample time to overlay.
+
+        Returns
+        -------
+        (matplotlib.axes.Axes, matplotlib.axes.Axes)
+            The magnitude and phase axes.
+        """
+        if ax_mag is None or ax_phase is None:
+            import matplotlib.pyplot as plt
+
+            _, (ax_mag, ax_phase) = plt.subplots(2, 1, sharex=True)
         ny, nu = self.response.shape[:2]
         pct = f"{100 * self.level:g}%"
         for c, (i, j) in enumerate((i, j) for i in range(ny) for j in range(nu)):
