@@ -214,3 +214,13 @@ def test_contains_checks_shapes_and_plot_bode_makes_its_axes():
     ax_mag, ax_phase = band.plot_bode()
     assert ax_mag.figure is ax_phase.figure and ax_phase.get_ylabel() == "phase (deg)"
     plt.close("all")
+
+
+def test_band_uses_the_fitted_structure_after_set_params():
+    """Changing the constructor orders without refitting must not reslice theta_."""
+    d = datasets.dc_motor(n_samples=400)
+    model = ARX(2, 2, 1, dt=d.dt).fit(d.u, d.y)
+    before = frequency_response_band(model, n_draws=20, rng=0).response
+    model.set_params(na=3, nk=2)
+    after = frequency_response_band(model, n_draws=20, rng=0).response
+    np.testing.assert_array_equal(after, before)

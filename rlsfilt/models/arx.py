@@ -21,9 +21,6 @@ from .regressors import _as_signal, _build, arx_structure, as_io_data, full_rank
 
 __all__ = ["ARX", "ARXSummary"]
 
-_RLS_OPTIONS = ("k0", "lam", "P0", "R", "Q", "x0")
-
-
 class ARX:
     r"""ARX model ``A(q) y(t) = B(q) u(t - nk) + e(t)`` fitted by batch or recursive least squares.
 

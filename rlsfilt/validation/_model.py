@@ -46,7 +46,11 @@ def one_step(model, u, y):
 
 
 def orders(model):
-    """``(na, nb tuple, nk tuple)`` of `model`."""
+    """``(na, nb tuple, nk tuple)`` of `model`: the fitted structure when known
+    (constructor parameters may have been changed by ``set_params`` since)."""
+    s = getattr(model, "structure_", None)
+    if s is not None:
+        return s.na, tuple(s.nb), tuple(s.nk)
     na = int(model.na)
     nb = np.atleast_1d(np.asarray(model.nb, dtype=int))
     nk = np.atleast_1d(np.asarray(model.nk, dtype=int))
