@@ -745,3 +745,15 @@ def test_exact_start_rows_match_a_linear_scan(n, silent, rows, seed):
         Phi[:silent[j], j] = 0.0  # regressor j silent for its first rows
     scan = next((k for k in range(n, rows + 1) if np.linalg.matrix_rank(Phi[:k]) == n), None)
     assert full_rank_rows(Phi) == scan
+
+
+def test_html_and_latex_escape_signal_names(rng):
+    """pandas names with markup characters render as text, not as HTML or broken LaTeX."""
+    pd = pytest.importorskip("pandas")
+    u, y = arx_data(rng, [-0.8], [0.5], 1, n=100)
+    model = ARX(1, 1).fit(pd.Series(u, name="P<in>"), pd.Series(y, name="T&out"))
+    html = model._repr_html_()
+    assert "P<in>" not in html and "P&lt;in&gt;(t-1)" in html and "T&amp;out(t)" in html
+    assert "&plusmn;" in html
+    assert "\\mathrm{T\\&out}(t)" in model._repr_latex_()
+    assert "T&out(t) - 0.8" in repr(model)  # plain text keeps the name as is

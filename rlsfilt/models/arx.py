@@ -977,33 +977,29 @@ class ARX:
         self._check_fitted("summary")
         return ARXSummary(self)
 
-    def _equation_lines(self, html_mode=False):
+    def _equation_lines(self, style="text"):
+        """The difference equation of each output with +- one standard error.
+
+        `style` is ``"text"``, ``"html"`` (names escaped, ``&plusmn;``) or
+        ``"latex"`` (an ``aligned`` row per output).
+        """
         s = self.structure_
         se = self.std_errors_.reshape(self.n_params_, -1)
         th = self._theta2()
-        pm = "&plusmn;" if html_mode else "+/-"
+        _, b_sls = s.param_slices()
+        fmt = _EQUATION_STYLES[style]
         lines = []
-        a_sl, b_sls = s.param_slices()
         for i in range(s.n_outputs):
-            lhs = [f"{self._y_name(i)}(t)"]
-            for j in range(s.n_outputs):
-                for k in range(1, s.na + 1):
-                    p = j * s.na + k - 1
-                    lhs.append(_term(th[p, i], se[p, i], f"{self._y_name(j)}(t-{k})", pm))
-            rhs = []
-            for j in range(s.n_inputs):
-                for m in range(s.nb[j]):
-                    p = b_sls[j].start + m
-                    lag = s.nk[j] + m
-                    arg = f"{self._u_name(j)}(t)" if lag == 0 else f"{self._u_name(j)}(t-{lag})"
-                    rhs.append(_term(th[p, i], se[p, i], arg, pm))
-            left = " ".join(lhs)
-            if rhs:  # the first term carries its sign without a separating space
-                first = rhs[0][2:] if rhs[0].startswith("+ ") else "-" + rhs[0][2:]
-                right = " ".join([first] + rhs[1:]) + " + e(t)"
-            else:
-                right = "e(t)"
-            lines.append(f"{left} = {right}")
+            lhs = [fmt["signal"](self._y_name(i), 0)]
+            lhs += [fmt["term"](th[p, i], se[p, i], fmt["signal"](self._y_name(j), k))
+                    for j in range(s.n_outputs) for k in range(1, s.na + 1)
+                    for p in [j * s.na + k - 1]]
+            rhs = [fmt["term"](th[p, i], se[p, i], fmt["signal"](self._u_name(j), s.nk[j] + m))
+                   for j in range(s.n_inputs) for m in range(s.nb[j])
+                   for p in [b_sls[j].start + m]]
+            # nb >= 1, so rhs is never empty; its first term carries its sign unspaced
+            first = rhs[0][2:] if rhs[0].startswith("+ ") else "-" + rhs[0][2:]
+            lines.append(" ".join(lhs) + fmt["equals"] + " ".join([first] + rhs[1:]) + " + e(t)")
         return lines
 
     def _summary_text(self):
@@ -1032,35 +1028,8 @@ class ARX:
         """The difference equation(s) with one standard error, for notebooks."""
         if "theta_" not in self.__dict__:
             return None
-        return "$$\\begin{aligned}" + " \\\\ ".join(self._latex_lines()) + "\\end{aligned}$$"
-
-    def _latex_lines(self):
-        s = self.structure_
-        se = self.std_errors_.reshape(self.n_params_, -1)
-        th = self._theta2()
-        _, b_sls = s.param_slices()
-
-        def sig(name, lag):
-            base = _latex_name(name)
-            return f"{base}(t)" if lag == 0 else f"{base}(t-{lag})"
-
-        def term(value, err, arg):
-            sign = "-" if value < 0 else "+"
-            return f"{sign} {abs(value):.5g}\\,(\\pm {err:.2g})\\, {arg}"
-
-        lines = []
-        for i in range(s.n_outputs):
-            lhs = [sig(self._y_name(i), 0)]
-            for j in range(s.n_outputs):
-                for k in range(1, s.na + 1):
-                    p = j * s.na + k - 1
-                    lhs.append(term(th[p, i], se[p, i], sig(self._y_name(j), k)))
-            rhs = [term(th[b_sls[j].start + m, i], se[b_sls[j].start + m, i],
-                        sig(self._u_name(j), s.nk[j] + m))
-                   for j in range(s.n_inputs) for m in range(s.nb[j])]
-            first = rhs[0][2:] if rhs[0].startswith("+ ") else "-" + rhs[0][2:]
-            lines.append(" ".join(lhs) + " &= " + " ".join([first] + rhs[1:]) + " + e(t)")
-        return lines
+        lines = self._equation_lines("latex")
+        return "$$\\begin{aligned}" + " \\\\ ".join(lines) + "\\end{aligned}$$"
 
     def _repr_html_(self):
         if "theta_" not in self.__dict__:
@@ -1111,7 +1080,7 @@ class ARXSummary:
         parts = [f"<p><b>{esc(m._orders_text())}</b>, {m.n_samples_} equations, noise "
                  "variance " + ", ".join(f"{v:.4g}" for v in np.atleast_1d(m.noise_variance_))
                  + "</p>"]
-        parts += [f"<p><code>{line}</code></p>" for line in m._equation_lines(html_mode=True)]
+        parts += [f"<p><code>{line}</code></p>" for line in m._equation_lines("html")]
         head = "".join(f"<th>{esc(m._y_name(i))} estimate</th><th>std err</th>"
                        for i in range(m.n_outputs_))
         rows = []
@@ -1166,9 +1135,22 @@ def _fmt(t):
     return t[0] if len(set(t)) == 1 and len(t) == 1 else list(t)
 
 
-def _term(value, se, arg, pm):
-    sign = "-" if value < 0 else "+"
-    return f"{sign} {abs(value):.5g} ({pm}{se:.2g}) {arg}"
+def _signal(name, lag):
+    return f"{name}(t)" if lag == 0 else f"{name}(t-{lag})"
+
+
+def _sign(value):
+    return "-" if value < 0 else "+"
+
+
+_EQUATION_STYLES = {
+    "text": {"signal": _signal, "equals": " = ",
+             "term": lambda v, e, arg: f"{_sign(v)} {abs(v):.5g} (+/-{e:.2g}) {arg}"},
+    "html": {"signal": lambda name, lag: _signal(html.escape(name), lag), "equals": " = ",
+             "term": lambda v, e, arg: f"{_sign(v)} {abs(v):.5g} (&plusmn;{e:.2g}) {arg}"},
+    "latex": {"signal": lambda name, lag: _signal(_latex_name(name), lag), "equals": " &= ",
+              "term": lambda v, e, arg: f"{_sign(v)} {abs(v):.5g}\\,(\\pm {e:.2g})\\, {arg}"},
+}
 
 
 def _qr_least_squares(Phi, target):
