@@ -756,4 +756,4 @@ def test_html_and_latex_escape_signal_names(rng):
     assert "P<in>" not in html and "P&lt;in&gt;(t-1)" in html and "T&amp;out(t)" in html
     assert "&plusmn;" in html
     assert "\\mathrm{T\\&out}(t)" in model._repr_latex_()
-    assert "T&out(t) - 0.8" in repr(model)  # plain text keeps the name as is
+    assert "T&out(t) - 0.79" in repr(model) and "P<in>(t-1)" in repr(model)  # plain text
