@@ -44,9 +44,10 @@ class ParameterIntervals:
         self.level = level
         self.dof = dof
         self.quantile = float(student_t.ppf(0.5 + level / 2.0, dof)) if dof > 0 else math.inf
-        # a zero standard error (a true model) gives a zero-width interval
-        safe = np.where(std_error == 0, 0.0, std_error)
-        half = np.where(std_error == 0, 0.0, self.quantile * np.where(safe == 0, 1.0, safe))
+        # a zero standard error (a true model) gives a zero-width interval, even when
+        # the quantile is infinite (no spare equations: inf * 0 is discarded here)
+        with np.errstate(invalid="ignore"):
+            half = np.where(std_error == 0, 0.0, self.quantile * std_error)
         self.lower = estimate - half
         self.upper = estimate + half
 
