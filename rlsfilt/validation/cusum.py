@@ -178,6 +178,20 @@ def recursive_residuals(zs, Hs):
        B* 37(2), 149-192, 1975.
     .. [2] A. C. Harvey, *The Econometric Analysis of Time Series*, 2nd ed.,
        Philip Allan, 1990.
+
+    Examples
+    --------
+    Under a constant regression the recursive residuals are white with the
+    noise's standard deviation (here 0.1):
+
+    >>> import numpy as np
+    >>> from rlsfilt.validation import recursive_residuals
+    >>> rng = np.random.default_rng(0)
+    >>> H = np.column_stack([np.ones(50), rng.standard_normal(50)])
+    >>> z = H @ [1.0, 2.0] + 0.1 * rng.standard_normal(50)
+    >>> w, start = recursive_residuals(z, H)
+    >>> start, w.shape, round(float(np.std(w, ddof=1)), 3)
+    (2, (48,), 0.103)
     """
     z, H = _as_regression(zs, Hs)
     k = H.shape[1]
