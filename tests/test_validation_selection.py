@@ -157,6 +157,9 @@ def test_select_order_errors(rng):
     with pytest.raises(ValueError, match=r"`validation` input must have 1 column\(s\) like `u`; "
                                          r"got 2"):
         select_order(u, y, validation=(np.column_stack([u, u]), y))
+    with pytest.raises(ValueError, match=r"`dt` must be True \(unspecified sampling period\) or "
+                                         r"a positive sampling period; got -1"):
+        select_order(u, y, dt=-1)
     with pytest.raises(ValueError, match="exactly"):
         select_order(u, lfilter([0, 1.0], [1, -0.5], u), na=1, nb=1, nk=1)
 
