@@ -77,6 +77,18 @@ def as_generator(rng, name="rng"):
                          f"numpy.random.Generator; got {rng!r} ({exc})") from None
 
 
+def check_dt(dt, name="dt"):
+    """A sampling period: ``True`` (unspecified, python-control's convention) or a
+    positive finite number."""
+    if dt is True:
+        return dt
+    ok = isinstance(dt, numbers.Real) and not isinstance(dt, bool) and np.isfinite(dt) and dt > 0
+    if not ok:
+        raise ValueError(f"`{name}` must be True (unspecified sampling period) or a positive "
+                         f"sampling period; got {dt!r}")
+    return dt
+
+
 def check_lam(lam, name="lam"):
     """Forgetting factor in (0, 1]."""
     lam = check_scalar(lam, name)

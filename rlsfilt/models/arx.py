@@ -14,7 +14,7 @@ import numpy as np
 from scipy import signal
 from scipy.linalg import lapack, solve_triangular
 
-from .._validation import as_float_array, check_finite, check_int, check_scalar
+from .._validation import as_float_array, check_dt, check_finite, check_int, check_scalar
 from ..exceptions import NotFittedError
 from ..filters import RecursiveLeastSquares
 from .regressors import _as_signal, _build, arx_structure, as_io_data, full_rank_rows
@@ -210,7 +210,7 @@ class ARX:
     # structure
     # ------------------------------------------------------------------
     def _structure(self, n_inputs, n_outputs):
-        _check_dt(self.dt)
+        check_dt(self.dt)
         return arx_structure(self.na, self.nb, self.nk, n_inputs, n_outputs)
 
     def regressors(self, u, y):
@@ -1107,16 +1107,6 @@ def _check_filter_options(options):
         if name not in valid:
             raise TypeError(f"`{name}` is not an option of ARX.fit or RecursiveLeastSquares; "
                             f"the filter's other options are {valid}")
-
-
-def _check_dt(dt):
-    if dt is True:
-        return dt
-    ok = isinstance(dt, numbers.Real) and not isinstance(dt, bool) and np.isfinite(dt) and dt > 0
-    if not ok:
-        raise ValueError(f"`dt` must be True (unspecified sampling period) or a positive "
-                         f"sampling period; got {dt!r}")
-    return dt
 
 
 def _latex_name(name):

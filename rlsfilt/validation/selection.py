@@ -13,8 +13,7 @@ import numbers
 
 import numpy as np
 
-from .._validation import check_int
-from ..models.arx import _check_dt
+from .._validation import check_dt, check_int
 from ..models.regressors import as_io_data
 from .criteria import _criteria
 
@@ -228,7 +227,7 @@ def select_order(u, y, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), criterion
     """
     if criterion not in _CRITERIA:
         raise ValueError(f"`criterion` must be one of {', '.join(_CRITERIA)}; got {criterion!r}")
-    _check_dt(dt)  # here, not later in best_model()
+    check_dt(dt)  # here, not later in best_model()
     na_list = _order_list(na, "na", 0)
     nb_list = _order_list(nb, "nb", 1)
     nk_list = _order_list(nk, "nk", 0)
