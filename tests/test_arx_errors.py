@@ -274,3 +274,26 @@ def test_complex_data_is_rejected_not_truncated(data):
 def test_bad_coefficients_for_true_models(call, exc, match):
     with pytest.raises(exc, match=match):
         call()
+
+
+@pytest.mark.parametrize("name", ["theta_", "a_", "b_", "theta_cov_", "noise_variance_",
+                                  "residuals_", "n_samples_", "param_names_"])
+def test_learned_attributes_before_fit_say_to_call_fit(name):
+    model = ARX(2, 2)
+    with pytest.raises(NotFittedError, match=rf"not fitted yet; call `fit\(u, y\)` before using "
+                                             rf"`{name}`"):
+        getattr(model, name)
+    assert not hasattr(model, name)  # NotFittedError is an AttributeError
+    with pytest.raises(AttributeError, match=r"'ARX' object has no attribute 'foo'"):
+        model.foo  # noqa: B018
+
+
+def test_attributes_of_other_fits_say_which_fit_sets_them(data):
+    model = ARX(1, 1).fit(*data)
+    with pytest.raises(AttributeError, match=r"`theta_history_` is only set by "
+                                             r"fit\(\.\.\., method='rls'\)"):
+        model.theta_history_  # noqa: B018
+    with pytest.raises(AttributeError, match=r"`noise_covariance_` is only set by a fit on 2-D"):
+        model.noise_covariance_  # noqa: B018
+    with pytest.raises(AttributeError, match=r"'ARX' object has no attribute 'foo_'"):
+        model.foo_  # noqa: B018

@@ -21,6 +21,11 @@ from .regressors import _as_signal, _build, arx_structure, as_io_data, full_rank
 
 __all__ = ["ARX", "ARXSummary"]
 
+# learned attributes that only some fits set, and which ones
+_ONLY_SET_BY = {name: "fit(..., method='rls')" for name in
+                ("theta_history_", "recursive_residuals_", "k0_", "filter_")}
+_ONLY_SET_BY["noise_covariance_"] = "a fit on 2-D `y` (several outputs)"
+
 class ARX:
     r"""ARX model ``A(q) y(t) = B(q) u(t - nk) + e(t)`` fitted by batch or recursive least squares.
 
@@ -394,6 +399,17 @@ class ARX:
     # ------------------------------------------------------------------
     # fitted-model helpers
     # ------------------------------------------------------------------
+    def __getattr__(self, name):
+        # only reached when normal lookup fails (also when a property raised
+        # AttributeError): say *why* a learned attribute is missing
+        learned = name.endswith("_") or isinstance(getattr(type(self), name, None), property)
+        if learned and not name.startswith("_"):
+            if "theta_" not in self.__dict__:
+                self._check_fitted(name)
+            if name in _ONLY_SET_BY:
+                raise AttributeError(f"`{name}` is only set by {_ONLY_SET_BY[name]}")
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+
     def _check_fitted(self, what):
         if "theta_" not in self.__dict__:
             raise NotFittedError(
