@@ -757,3 +757,13 @@ def test_html_and_latex_escape_signal_names(rng):
     assert "&plusmn;" in html
     assert "\\mathrm{T\\&out}(t)" in model._repr_latex_()
     assert "T&out(t) - 0.79" in repr(model) and "P<in>(t-1)" in repr(model)  # plain text
+
+
+@pytest.mark.parametrize("su, sy", [(1e-8, 1e6), (1e-12, 1e10)])
+def test_rank_decision_does_not_depend_on_units(rng, su, sy):
+    """Signals in very different units (nA beside MPa) are not 'not persistently exciting'."""
+    u, y = arx_data(rng, [-1.5, 0.7], [1.0, 0.5], 1, n=500, noise_std=0.01)
+    ref = ARX(2, 2, 1).fit(u, y)
+    scaled = ARX(2, 2, 1).fit(su * u, sy * y)
+    np.testing.assert_allclose(scaled.a_, ref.a_, rtol=1e-8)
+    np.testing.assert_allclose(scaled.b_ * su / sy, ref.b_, rtol=1e-8)

@@ -200,3 +200,12 @@ def test_cusum_squares_critical_values_are_derived_and_hold_their_level():
         rejected = np.sum(np.max(np.abs(S - np.arange(1, m + 1) / m), axis=1) > c0)
         lo, hi = _level_band(alpha, n_paths)
         assert lo <= rejected <= hi
+
+
+def test_exact_start_does_not_depend_on_units(rng):
+    z, H = _regression(rng, n=80)
+    Hs = H * [1e-9, 1.0, 1e9]
+    w, start = recursive_residuals(z, H)
+    ws, starts = recursive_residuals(z, Hs)
+    assert starts == start == 3
+    np.testing.assert_allclose(ws, w, rtol=1e-6)

@@ -17,7 +17,14 @@ from scipy.linalg import lapack, solve_triangular
 from .._validation import as_float_array, check_dt, check_finite, check_int, check_scalar
 from ..exceptions import NotFittedError
 from ..filters import RecursiveLeastSquares
-from .regressors import _as_signal, _build, arx_structure, as_io_data, full_rank_rows
+from .regressors import (
+    _as_signal,
+    _build,
+    arx_structure,
+    as_io_data,
+    column_rank,
+    full_rank_rows,
+)
 
 __all__ = ["ARX", "ARXSummary"]
 
@@ -1162,7 +1169,7 @@ _EQUATION_STYLES = {
 def _qr_least_squares(Phi, target):
     """``theta`` (n, ny) and ``(Phi^T Phi)^-1`` from a QR factorization of ``Phi``."""
     n = Phi.shape[1]
-    rank = np.linalg.matrix_rank(Phi) if n else 0
+    rank = column_rank(Phi)
     if rank < n:
         raise ValueError(
             f"the regressor matrix has rank {rank} < n_params = {n}: the input is not "

@@ -253,6 +253,7 @@ def full_rank_rows(Phi):
     rows, n = Phi.shape
     if n == 0:
         return 0
+    Phi = _unit_columns(Phi)
 
     def full(k):
         return np.linalg.matrix_rank(Phi[:k]) == n
@@ -271,3 +272,19 @@ def full_rank_rows(Phi):
         else:
             lo = mid
     return hi
+
+
+def column_rank(Phi):
+    """Numerical rank of `Phi` after scaling its columns to unit norm.
+
+    The rank decision then does not depend on the units of the signals: a
+    regressor in nanoamperes beside one in megapascals is not mistaken for a
+    zero column (Householder QR, which solves the problem, is itself
+    insensitive to column scaling; Golub & Van Loan 2013, sec. 5.3.7).
+    """
+    return int(np.linalg.matrix_rank(_unit_columns(Phi))) if Phi.shape[1] else 0
+
+
+def _unit_columns(Phi):
+    norms = np.linalg.norm(Phi, axis=0)
+    return Phi / np.where(norms > 0, norms, 1.0)

@@ -26,7 +26,7 @@ from scipy.stats import norm
 
 from .._validation import as_float_array, check_finite, check_probability
 from ..filters import RecursiveLeastSquares
-from ..models.regressors import full_rank_rows
+from ..models.regressors import _unit_columns, column_rank, full_rank_rows
 
 __all__ = ["CusumResult", "cusum", "cusum_squares", "recursive_residuals"]
 
@@ -169,7 +169,8 @@ def recursive_residuals(zs, Hs):
     :math:`w_t = y_t / \sqrt{S_t}` with ``y`` the a-priori residual
     :math:`z_t - h_t^T x_{t-1}` and :math:`S_t = 1 + h_t^T P_{t-1} h_t`
     (the filter's ``y`` and ``S``; Brown, Durbin & Evans 1975, eq. (2);
-    Harvey 1990, sec. 2.6).
+    Harvey 1990, sec. 2.6). The residuals depend on the column space of
+    `Hs` only, so its columns are scaled to unit norm first.
 
     References
     ----------
@@ -196,6 +197,9 @@ def recursive_residuals(zs, Hs):
     z, H = _as_regression(zs, Hs)
     k = H.shape[1]
     start = _exact_start(H)
+    # w_t depends on the column space of H only, so unit columns change nothing but
+    # keep the filter's rank decision independent of the regressors' units
+    H = _unit_columns(H)
     rls = RecursiveLeastSquares(dim_x=k, R=1.0)
     rls.initialize(z[:start], H[:start])
     Hr = H[start:]
@@ -437,5 +441,5 @@ def _exact_start(H):
     start = full_rank_rows(H)
     if start is None:
         raise ValueError(f"`Hs` must have full column rank {H.shape[1]}; got rank "
-                         f"{np.linalg.matrix_rank(H)} (a regressor is a combination of others)")
+                         f"{column_rank(H)} (a regressor is a combination of others)")
     return start
