@@ -193,3 +193,19 @@ def test_summary_top_is_checked():
     assert sel.summary(top=1).count("\n") == 2
     with pytest.raises(ValueError, match=r"`top` must be >= 1; got 0"):
         sel.summary(top=0)
+
+
+@pytest.mark.parametrize("su, sy", [(1e-8, 1e6), (1e-12, 1e10)])
+def test_selection_does_not_depend_on_units(su, sy):
+    """Rescaling u and y (other units) scales losses and parameters, never the choice."""
+    rng = np.random.default_rng(5)
+    u = rng.standard_normal(2000)
+    y = lfilter([0, 1.0, 0.5], [1, -1.5, 0.7], u)
+    y += lfilter([1.0], [1, -1.5, 0.7], 0.05 * rng.standard_normal(2000))
+    grid = {"na": range(1, 4), "nb": range(1, 4), "nk": range(0, 3)}
+    ref, scaled = select_order(u, y, **grid), select_order(su * u, sy * y, **grid)
+    assert scaled.best == ref.best == (2, 2, 1)
+    np.testing.assert_allclose(scaled.table["loss"], sy ** 2 * ref.table["loss"], rtol=1e-9)
+    i = ref.best_index
+    np.testing.assert_allclose(scaled.thetas[i], ref.thetas[i] * [1, 1, sy / su, sy / su],
+                               rtol=1e-8)

@@ -246,7 +246,11 @@ def select_order(u, y, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), criterion
         raise ValueError(f"`y` is too short for these orders: {len(Y)} samples leave {rows} "
                          f"aligned rows for up to {n_cols} regressors; use more data or "
                          "smaller orders")
-    R = np.linalg.qr(np.column_stack([Psi, target]), mode="r")
+    # unit columns: the least-squares cut-off of rank-deficient candidates and the
+    # conditioning no longer depend on the signals' units (losses are unchanged)
+    scale = np.linalg.norm(Psi, axis=0)
+    scale = np.where(scale > 0, scale, 1.0)
+    R = np.linalg.qr(np.column_stack([Psi / scale, target]), mode="r")
     r_y = R[:, -1]
 
     if validation is not None:
@@ -276,6 +280,7 @@ def select_order(u, y, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), criterion
         M = R[:, S]
         theta = np.linalg.lstsq(M, r_y, rcond=None)[0] if S else np.zeros(0)
         res = r_y - M @ theta
+        theta = theta / scale[S]
         table[i]["na"], table[i]["nb"], table[i]["nk"] = a, b, k
         table[i]["n_params"] = len(S)
         table[i]["loss"] = float(res @ res) / rows
