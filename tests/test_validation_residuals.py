@@ -162,3 +162,15 @@ def test_residual_analysis_errors(rng):
         residual_analysis(model, u, y, max_lag=10, model_df=10)
     with pytest.raises(TypeError, match="`max_lag` must be an integer; got 2.5"):
         residual_analysis(model, u, y, max_lag=2.5)
+
+
+@pytest.mark.parametrize("su, sy", [(1e-8, 1e6), (1e-12, 1e10)])
+def test_tests_do_not_depend_on_units(rng, su, sy):
+    """Rescaled signals give the same statistics (was: lagged inputs miscounted)."""
+    u, y = _record(rng, n=1000)
+    ref = residual_analysis(ARX(2, 2).fit(u, y), u, y)
+    scaled = residual_analysis(ARX(2, 2).fit(su * u, sy * y), su * u, sy * y)
+    assert scaled.df_independent == ref.df_independent == 2 * 25 + 1 - 2
+    assert scaled.pvalue_independent == pytest.approx(ref.pvalue_independent, rel=1e-9)
+    assert scaled.pvalue_white == pytest.approx(ref.pvalue_white, rel=1e-9)
+    np.testing.assert_allclose(scaled.cross_correlation, ref.cross_correlation, atol=1e-10)

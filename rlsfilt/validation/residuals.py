@@ -10,7 +10,7 @@ import numpy as np
 from scipy.stats import chi2, f, norm
 
 from .._validation import check_int, check_probability
-from ..models.regressors import _as_signal
+from ..models.regressors import _as_signal, _unit_columns
 from ._model import one_step
 
 __all__ = ["ResidualAnalysis", "residual_analysis"]
@@ -340,9 +340,11 @@ def _input_lag_test(e, Phi, U, t0, M):
     rows = (t - M >= 0) & (t + M <= N - 1)
     tr = t[rows]
     er = e[rows]
-    X0 = np.column_stack([np.ones(len(tr)), Phi[rows]])
-    L = np.column_stack([U[tr - tau, j] for j in range(U.shape[1])
-                         for tau in range(-M, M + 1)])
+    # unit columns, so that which directions count as "already a regressor" does not
+    # depend on the units of u and y (the F statistic itself is scale-invariant)
+    X0 = _unit_columns(np.column_stack([np.ones(len(tr)), Phi[rows]]))
+    L = _unit_columns(np.column_stack([U[tr - tau, j] for j in range(U.shape[1])
+                                       for tau in range(-M, M + 1)]))
     Q0 = _orthonormal_basis(X0)
     e0 = er - Q0 @ (Q0.T @ er)              # residual of the restricted regression
     L0 = L - Q0 @ (Q0.T @ L)                # lagged inputs orthogonal to the regressors
