@@ -737,14 +737,14 @@ def test_summary_repr_and_html(rng):
        rows=st.integers(1, 40), seed=st.integers(0, 2 ** 32 - 1))
 def test_exact_start_rows_match_a_linear_scan(n, silent, rows, seed):
     """The batch start (ARX rls, CUSUM) is the first prefix of full column rank."""
-    from rlsfilt.models.regressors import full_rank_rows
+    from rlsfilt.models.regressors import _full_rank_rows
 
     gen = np.random.default_rng(seed)
     Phi = gen.standard_normal((rows, n))
     for j in range(n):
         Phi[:silent[j], j] = 0.0  # regressor j silent for its first rows
     scan = next((k for k in range(n, rows + 1) if np.linalg.matrix_rank(Phi[:k]) == n), None)
-    assert full_rank_rows(Phi) == scan
+    assert _full_rank_rows(Phi) == scan
 
 
 def test_html_and_latex_escape_signal_names(rng):

@@ -20,10 +20,10 @@ from ..filters import RecursiveLeastSquares
 from .regressors import (
     _as_signal,
     _build,
+    _column_rank,
+    _full_rank_rows,
     arx_structure,
     as_io_data,
-    column_rank,
-    full_rank_rows,
 )
 
 __all__ = ["ARX", "ARXSummary"]
@@ -361,7 +361,7 @@ class ARX:
         if opts["k0"] is not None:
             k0 = check_int(opts["k0"], "k0", minimum=0)
         else:  # a given prior means a prior start (MATLAB rarx); else the notes' batch start
-            k0 = 0 if prior else full_rank_rows(Phi)
+            k0 = 0 if prior else _full_rank_rows(Phi)
             if k0 is None:  # not even all rows determine theta
                 _qr_least_squares(Phi, target)  # raises with the rank in the message
         if k0 > rows:
@@ -1169,7 +1169,7 @@ _EQUATION_STYLES = {
 def _qr_least_squares(Phi, target):
     """``theta`` (n, ny) and ``(Phi^T Phi)^-1`` from a QR factorization of ``Phi``."""
     n = Phi.shape[1]
-    rank = column_rank(Phi)
+    rank = _column_rank(Phi)
     if rank < n:
         raise ValueError(
             f"the regressor matrix has rank {rank} < n_params = {n}: the input is not "

@@ -236,7 +236,7 @@ def arx_regressors(u, y, na, nb, nk=1, *, start=None):
     return Phi, target
 
 
-def full_rank_rows(Phi):
+def _full_rank_rows(Phi):
     """Fewest leading rows of `Phi` (at least its column count) with full column rank.
 
     This is where an exact least-squares start can be made (the lecture notes'
@@ -274,7 +274,7 @@ def full_rank_rows(Phi):
     return hi
 
 
-def column_rank(Phi):
+def _column_rank(Phi):
     """Numerical rank of `Phi` after scaling its columns to unit norm.
 
     The rank decision then does not depend on the units of the signals: a

@@ -26,7 +26,7 @@ from scipy.stats import norm
 
 from .._validation import as_float_array, check_finite, check_probability
 from ..filters import RecursiveLeastSquares
-from ..models.regressors import _unit_columns, column_rank, full_rank_rows
+from ..models.regressors import _column_rank, _full_rank_rows, _unit_columns
 
 __all__ = ["CusumResult", "cusum", "cusum_squares", "recursive_residuals"]
 
@@ -438,8 +438,8 @@ def _as_regression(zs, Hs):
 
 def _exact_start(H):
     """Smallest k0 >= k such that the first k0 rows of `H` have rank k."""
-    start = full_rank_rows(H)
+    start = _full_rank_rows(H)
     if start is None:
         raise ValueError(f"`Hs` must have full column rank {H.shape[1]}; got rank "
-                         f"{column_rank(H)} (a regressor is a combination of others)")
+                         f"{_column_rank(H)} (a regressor is a combination of others)")
     return start
