@@ -123,14 +123,30 @@ class Dataset:
         return self.noise_std ** 2
 
     def true_model(self):
-        """The true plant as a fitted-like `rlsfilt.ARX` (``ARX.from_polynomials``)."""
+        """The true plant as a fitted-like `rlsfilt.ARX` (``ARX.from_polynomials``).
+
+        Returns
+        -------
+        ARX
+            With the true coefficients, ``dt`` and ``noise_variance_ =
+            noise_std ** 2``, the variance of ``e``. That is the variance of
+            the ARX equation error only for ``noise="white"``; for the colored
+            and output-error noise models ``e`` is filtered before it enters
+            the equation (see the module notes).
+        """
         from ..models import ARX
 
         return ARX.from_polynomials(self.a, self.b, nk=self.nk, dt=self.dt,
                                     noise_variance=self.noise_variance)
 
     def to_frame(self):
-        """The record as a pandas DataFrame indexed by time (needs pandas)."""
+        """The record as a pandas DataFrame indexed by time (needs pandas).
+
+        Returns
+        -------
+        pandas.DataFrame
+            Columns ``u`` and ``y``, index ``t`` in seconds.
+        """
         import pandas as pd
 
         return pd.DataFrame({"u": self.u, "y": self.y}, index=pd.Index(self.t, name="t"))
