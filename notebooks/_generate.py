@@ -1,0 +1,305 @@
+"""Write the notebooks in this folder from the cell lists below.
+
+The committed ``.ipynb`` files are what users open and what the test suite
+runs; this script is a convenience for editing them as plain text. Run
+``python notebooks/_generate.py`` from the repository root after editing a
+cell list, then commit the regenerated notebooks (they carry no outputs).
+Notebooks edited directly in Jupyter are fine too: clear their outputs
+before committing (``tests/test_notebooks.py`` checks that).
+"""
+
+import sys
+from pathlib import Path
+
+import nbformat
+
+HERE = Path(__file__).resolve().parent
+
+# ----------------------------------------------------------------------
+# 1. Quick start
+# ----------------------------------------------------------------------
+QUICKSTART = [
+    ("md", r"""# 1. Quick start: recursive least squares step by step
+
+This notebook follows the lecture notes (Lesson 11, *Recursive least-squares*) literally:
+
+1. initialize $P_{k_0}$ and $\hat\theta_{k_0}$ with a small batch least squares;
+2. sample a new data point $y[k]$, $u[k]$;
+3. form the regressor $\phi_k$;
+4. update $P_k$ with formula (1);
+5. update $\hat\theta_k$ with formula (2);
+6. repeat with the remaining data.
+
+We write the algorithm once in plain NumPy, check that it reproduces batch least squares at every
+step, and then run the same thing with `rlsfilt.RecursiveLeastSquares`."""),
+    ("code", r"""import numpy as np
+import matplotlib.pyplot as plt
+from scipy.signal import lfilter
+
+from rlsfilt import RecursiveLeastSquares
+
+rng = np.random.default_rng(11)"""),
+    ("md", r"""## A simulated plant in the notes' form
+
+The notes' ARX model of order $n$ has a direct term $b_0 u[k]$:
+
+$$\hat y[k] = -a_1 y[k-1] - \dots - a_n y[k-n] + b_0 u[k] + \dots + b_n u[k-n].$$
+
+We take $n = 2$ with $a = (-1.5, 0.7)$ and $b = (0.2, 1.0, 0.5)$, drive it with a random binary
+input and add white equation noise. (In MATLAB's `[na nb nk]` convention this is
+`na = 2, nb = 3, nk = 0`.)"""),
+    ("code", r"""a_true = np.array([-1.5, 0.7])          # a1, a2
+b_true = np.array([0.2, 1.0, 0.5])      # b0, b1, b2
+theta_true = np.r_[a_true, b_true]
+n, N = 2, 600
+
+u = np.where(rng.random(N) < 0.5, -1.0, 1.0)
+e = 0.05 * rng.standard_normal(N)
+y = lfilter(b_true, np.r_[1.0, a_true], u) + lfilter([1.0], np.r_[1.0, a_true], e)
+
+# regressor rows phi_k = [-y[k-1], -y[k-2], u[k], u[k-1], u[k-2]] for k = n .. N-1
+Phi = np.column_stack([-y[1:-1], -y[:-2], u[2:], u[1:-1], u[:-2]])
+Y = y[n:]
+d = Phi.shape[1]
+print(f"{len(Y)} complete rows, d = 2n + 1 = {d} parameters")"""),
+    ("md", r"""## Step 1: a small batch least squares
+
+The batch start needs at least $d = 2n+1$ independent rows (the notes' $l \ge 3n$). We use
+$k_0 = 10$ rows and solve through a QR factorization $\Phi_{k_0} = Q_1 R_1$ rather than by
+inverting $\Phi^\top\Phi$, which would square the condition number:
+$\hat\theta_{k_0} = R_1^{-1} Q_1^\top Y_{k_0}$ and $P_{k_0} = (\Phi_{k_0}^\top\Phi_{k_0})^{-1} = R_1^{-1}R_1^{-\top}$."""),
+    ("code", r"""k0 = 10
+Q1, R1 = np.linalg.qr(Phi[:k0])
+theta = np.linalg.solve(R1, Q1.T @ Y[:k0])
+R1inv = np.linalg.inv(R1)
+P = R1inv @ R1inv.T
+print("theta after the batch start:", np.round(theta, 3))"""),
+    ("md", r"""## Steps 2-6: formulas (1) and (2)
+
+With a regressor **row** $\phi_k$ the covariance update (1) needs no matrix inverse, only the scalar
+$1 + \phi_k P_{k-1} \phi_k^\top$:
+
+$$P_k = P_{k-1} - \frac{P_{k-1}\phi_k^\top \phi_k P_{k-1}}{1 + \phi_k P_{k-1} \phi_k^\top} \quad (1)
+\qquad
+\hat\theta_k = \hat\theta_{k-1} + P_k \phi_k^\top \big(y[k] - \phi_k\hat\theta_{k-1}\big) \quad (2)$$"""),
+    ("code", r"""history = np.empty((len(Y), d))
+history[:k0] = np.nan
+history[k0 - 1] = theta
+for k in range(k0, len(Y)):
+    phi = Phi[k]                         # step 3: the new regressor row
+    g = P @ phi                          # P_{k-1} phi^T
+    P = P - np.outer(g, g) / (1.0 + phi @ g)     # step 4: formula (1)
+    residual = Y[k] - phi @ theta        # a-priori residual
+    theta = theta + P @ phi * residual   # step 5: formula (2)
+    history[k] = theta
+
+print("true      :", theta_true)
+print("recursive :", np.round(theta, 4))"""),
+    ("md", r"""## It is batch least squares, at every step
+
+Because each step is an exact rearrangement of the batch solution, the recursive estimate after
+sample $k$ equals least squares on rows $0..k$. We check it at every step against
+`numpy.linalg.lstsq`."""),
+    ("code", r"""gap = max(
+    np.max(np.abs(history[k] - np.linalg.lstsq(Phi[:k + 1], Y[:k + 1], rcond=None)[0]))
+    for k in range(k0, len(Y))
+)
+print(f"largest |recursive - batch| over all steps: {gap:.1e}")
+assert gap < 1e-9"""),
+    ("code", r"""fig, ax = plt.subplots(figsize=(8, 4))
+names = ["a1", "a2", "b0", "b1", "b2"]
+k = np.arange(len(Y)) + n
+for i, name in enumerate(names):
+    line, = ax.plot(k, history[:, i], label=name)
+    ax.axhline(theta_true[i], color=line.get_color(), ls=":", lw=1)
+ax.set(xlabel="sample k", ylabel=r"$\hat\theta_k$", title="Recursive estimates (dotted: true)")
+ax.legend(ncol=5, loc="lower right")
+ax.set_ylim(-2, 1.5);"""),
+    ("md", r"""## The same with `RecursiveLeastSquares`
+
+`RecursiveLeastSquares` has the API of filterpy's `KalmanFilter`. `initialize` is step 1 (a QR batch
+start), `predict` is the time update (it only matters with forgetting or a random walk) and
+`update(z, H)` is formulas (1) and (2) with the regressor row as the measurement matrix `H`."""),
+    ("code", r"""rls = RecursiveLeastSquares(dim_x=d)
+rls.initialize(Y[:k0], Phi[:k0])
+for z, phi in zip(Y[k0:], Phi[k0:]):
+    rls.predict()
+    rls.update(z, H=phi)
+
+print(rls.x.ravel())
+np.testing.assert_allclose(rls.x.ravel(), theta, rtol=1e-10, atol=1e-12)
+np.testing.assert_allclose(rls.x.ravel(), np.linalg.lstsq(Phi, Y, rcond=None)[0], rtol=1e-9)"""),
+    ("md", r"""`batch_filter` runs the whole record at once and returns every intermediate estimate and
+covariance (time on axis 0). With $R$ set to the noise variance, `P` is the covariance of the
+estimate, so the standard errors come straight from its diagonal."""),
+    ("code", r"""sigma2 = np.mean((Y - Phi @ rls.x.ravel()) ** 2) * len(Y) / (len(Y) - d)
+rls = RecursiveLeastSquares(dim_x=d, R=sigma2)
+rls.initialize(Y[:k0], Phi[:k0])
+means, covs, _, _ = rls.batch_filter(Y[k0:], Phi[k0:])
+std = np.sqrt(np.diagonal(covs, axis1=1, axis2=2))
+
+for name, est, s, t in zip(names, means[-1, :, 0], std[-1], theta_true):
+    print(f"{name}: {est:8.4f} +- {s:.4f}   (true {t:5.2f})")
+assert np.all(np.abs(means[-1, :, 0] - theta_true) < 4 * std[-1])"""),
+    ("code", r"""fig, ax = plt.subplots(figsize=(8, 3.5))
+kk = np.arange(k0, len(Y)) + n
+for i, name in enumerate(names[2:], start=2):
+    ax.plot(kk, means[:, i, 0], label=name)
+    ax.fill_between(kk, means[:, i, 0] - 2 * std[:, i], means[:, i, 0] + 2 * std[:, i], alpha=0.2)
+ax.set(xlabel="sample k", ylabel="estimate", title="b coefficients with 2-sigma bands")
+ax.legend();"""),
+    ("md", r"""## Where next
+
+- Notebook 2 tracks plants whose parameters change (forgetting, windup and its remedies).
+- Notebook 3 validates a model and selects its order against the true plant.
+- Notebook 4 designs a controller on the identified model.
+- Notebook 5 puts `RecursiveLeastSquares` beside filterpy's `KalmanFilter`."""),
+]
+
+# ----------------------------------------------------------------------
+# 5. Beside filterpy
+# ----------------------------------------------------------------------
+FILTERPY = [
+    ("md", r"""# 5. rlsfilt beside filterpy
+
+`RecursiveLeastSquares` is written to sit next to filterpy's `KalmanFilter`: the same method names
+(`predict`, `update(z, H)`, `batch_filter`), the same state attributes (`x`, `P`, `K`, `y`, `S`),
+the same `Saver`. This notebook shows that
+
+1. one loop, written once, drives either filter;
+2. filterpy's `Saver` records either filter;
+3. RLS *is* a Kalman filter: with $F = I$ the two agree to round-off, for exponential
+   forgetting (filterpy's fading memory) and for a random-walk `Q`."""),
+    ("code", r"""import numpy as np
+import matplotlib.pyplot as plt
+from filterpy.common import Saver
+from filterpy.kalman import KalmanFilter
+
+from rlsfilt import RecursiveLeastSquares
+
+rng = np.random.default_rng(5)"""),
+    ("md", r"""## A plant whose gain drifts
+
+A first-order plant $y(t) = -a\,y(t-1) + b(t)\,u(t-1) + e(t)$ whose input gain $b$ changes from
+1.0 to 0.6 halfway. The regressor row is $\phi(t) = [-y(t-1),\ u(t-1)]$ and the parameters
+$\theta = [a, b]$."""),
+    ("code", r"""N = 800
+a = -0.9
+b = np.where(np.arange(N) < N // 2, 1.0, 0.6)
+u = np.where(rng.random(N) < 0.5, -1.0, 1.0)
+y = np.zeros(N)
+for t in range(1, N):
+    y[t] = -a * y[t - 1] + b[t] * u[t - 1] + 0.05 * rng.standard_normal()
+
+Hs = np.column_stack([-y[:-1], u[:-1]])    # (N-1, 2), time on axis 0
+zs = y[1:]
+theta_true = np.column_stack([np.full(N - 1, a), b[1:]])"""),
+    ("md", r"""## One loop for both filters
+
+The loop below is plain filterpy code. It runs unchanged on a `KalmanFilter` configured as a
+parameter estimator ($F = I$) and on a `RecursiveLeastSquares`, and filterpy's `Saver` records
+both."""),
+    ("code", r"""def run(f, zs, Hs):
+    saver = Saver(f)
+    for z, h in zip(zs, Hs):
+        f.predict()
+        f.update(z, H=h.reshape(1, -1))
+        saver.save()
+    saver.to_array()
+    return saver
+
+
+lam = 0.98                                  # forgetting factor: memory ~ 1/(1 - lam) = 50 samples
+
+kf = KalmanFilter(dim_x=2, dim_z=1)
+kf.F = np.eye(2)                            # constant parameters ...
+kf.Q = np.zeros((2, 2))
+kf.R = 1.0
+kf.P = 1e4 * np.eye(2)                      # ... broad prior, as MATLAB's rarx
+kf.alpha = 1 / np.sqrt(lam)                 # fading memory: P <- alpha^2 P = P / lam
+
+rls = RecursiveLeastSquares(dim_x=2, lam=lam, P0=1e4)
+
+s_kf = run(kf, zs, Hs)
+s_rls = run(rls, zs, Hs)
+print(s_kf.x.shape, s_rls.x.shape)          # (N-1, 2, 1) for both
+np.testing.assert_allclose(s_rls.x, s_kf.x, rtol=1e-8, atol=1e-10)
+np.testing.assert_allclose(s_rls.P, s_kf.P, rtol=1e-8, atol=1e-12)
+np.testing.assert_allclose(s_rls.K, s_kf.K, rtol=1e-8, atol=1e-12)
+np.testing.assert_allclose(s_rls.y, s_kf.y, rtol=1e-8, atol=1e-10)
+print("x, P, K and y agree at every step")"""),
+    ("md", r"""The per-step log-likelihoods agree as well (both compute $\log\mathcal N(y; 0, S)$ lazily):"""),
+    ("code", r"""np.testing.assert_allclose(s_rls.log_likelihood[1:], s_kf.log_likelihood[1:], rtol=1e-8)
+print(f"total log-likelihood: {np.sum(s_rls.log_likelihood[1:]):.2f}")"""),
+    ("md", r"""## The Kalman view: a random walk instead of forgetting
+
+Forgetting divides $P$ by $\lambda$ at every step. The Kalman-filter alternative is to say how fast
+the parameters move: $\theta_{t+1} = \theta_t + w_t$ with $w_t \sim \mathcal N(0, Q)$, so that the
+time update is $P \leftarrow P + Q$. `RecursiveLeastSquares(Q=...)` and `KalmanFilter` with the same
+`Q` are again the same filter; `batch_filter` has the same signature shape as filterpy's."""),
+    ("code", r"""q = np.diag([1e-6, 2e-4])       # the gain b is allowed to move, the pole hardly
+
+kf = KalmanFilter(dim_x=2, dim_z=1)
+kf.F, kf.Q, kf.R, kf.P = np.eye(2), q, 0.05 ** 2, 1e4 * np.eye(2)
+m_kf, c_kf, _, _ = kf.batch_filter(zs, Hs=[h.reshape(1, -1) for h in Hs])
+
+rls_q = RecursiveLeastSquares(dim_x=2, Q=q, R=0.05 ** 2, P0=1e4)
+m_rls, c_rls, _, _ = rls_q.batch_filter(zs, Hs)
+
+np.testing.assert_allclose(m_rls, m_kf, rtol=1e-7, atol=1e-9)
+np.testing.assert_allclose(c_rls, c_kf, rtol=1e-7, atol=1e-12)
+print("batch_filter: random-walk RLS == KalmanFilter")"""),
+    ("code", r"""fig, axes = plt.subplots(1, 2, figsize=(10, 3.5), sharey=True)
+t = np.arange(1, N)
+for ax, means, title in ((axes[0], s_rls.x, f"exponential forgetting, lam = {lam}"),
+                         (axes[1], m_rls, "random walk Q (Kalman view)")):
+    ax.plot(t, means[:, 0, 0], label="a estimate")
+    ax.plot(t, means[:, 1, 0], label="b estimate")
+    ax.plot(t, theta_true[:, 0], "k:", lw=1)
+    ax.plot(t, theta_true[:, 1], "k:", lw=1, label="true")
+    ax.set(xlabel="sample t", title=title)
+axes[0].set(ylabel="parameter", ylim=(-1.2, 1.4))
+axes[1].legend(loc="lower left");"""),
+    ("md", r"""Both track the change in $b$. Forgetting forgets every direction equally; the random walk lets
+each parameter move at its own rate, so the pole estimate stays quieter.
+
+## What differs from filterpy
+
+- `update(z, H)` validates `H` (one regressor row of length `dim_x`) and `z`; filterpy broadcasts
+  silently when `H` is given. `batch_filter` refuses inputs of different lengths instead of
+  truncating.
+- `initialize(zs, Hs)` starts the filter from batch least squares (the lecture notes' step 1), after
+  which every step equals batch least squares on all data so far.
+- A missing measurement (`None` or NaN) keeps the estimate and sets `K` to zero and `y` to NaN.
+- Several outputs share one regressor row (`dim_z > 1`) and one `P`."""),
+]
+
+NOTEBOOKS = {
+    "01_quickstart.ipynb": QUICKSTART,
+    "05_beside_filterpy.ipynb": FILTERPY,
+}
+
+
+def build(cells):
+    nb = nbformat.v4.new_notebook()
+    nb.metadata["kernelspec"] = {"name": "python3", "display_name": "Python 3",
+                                 "language": "python"}
+    nb.metadata["language_info"] = {"name": "python"}
+    for kind, src in cells:
+        make = nbformat.v4.new_markdown_cell if kind == "md" else nbformat.v4.new_code_cell
+        nb.cells.append(make(src.strip("\n")))
+    for i, cell in enumerate(nb.cells):   # stable ids keep diffs small
+        cell["id"] = f"cell-{i:02d}"
+    return nb
+
+
+def main(names=None):
+    for name, cells in NOTEBOOKS.items():
+        if names and name not in names:
+            continue
+        nbformat.write(build(cells), HERE / name)
+        print(f"wrote notebooks/{name}")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
