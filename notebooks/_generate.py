@@ -46,7 +46,7 @@ The notes' ARX model of order $n$ has a direct term $b_0 u[k]$:
 $$\hat y[k] = -a_1 y[k-1] - \dots - a_n y[k-n] + b_0 u[k] + \dots + b_n u[k-n].$$
 
 We take $n = 2$ with $a = (-1.5, 0.7)$ and $b = (0.2, 1.0, 0.5)$, drive it with a random binary
-input and add white equation noise. (In MATLAB's `[na nb nk]` convention this is
+input and add white equation noise of standard deviation 0.5. (In MATLAB's `[na nb nk]` convention this is
 `na = 2, nb = 3, nk = 0`.)"""),
     ("code", r"""a_true = np.array([-1.5, 0.7])          # a1, a2
 b_true = np.array([0.2, 1.0, 0.5])      # b0, b1, b2
@@ -54,7 +54,7 @@ theta_true = np.r_[a_true, b_true]
 n, N = 2, 600
 
 u = np.where(rng.random(N) < 0.5, -1.0, 1.0)
-e = 0.05 * rng.standard_normal(N)
+e = 0.5 * rng.standard_normal(N)
 y = lfilter(b_true, np.r_[1.0, a_true], u) + lfilter([1.0], np.r_[1.0, a_true], e)
 
 # regressor rows phi_k = [-y[k-1], -y[k-2], u[k], u[k-1], u[k-2]] for k = n .. N-1
@@ -112,9 +112,10 @@ k = np.arange(len(Y)) + n
 for i, name in enumerate(names):
     line, = ax.plot(k, history[:, i], label=name)
     ax.axhline(theta_true[i], color=line.get_color(), ls=":", lw=1)
-ax.set(xlabel="sample k", ylabel=r"$\hat\theta_k$", title="Recursive estimates (dotted: true)")
+ax.set(xlabel="sample k", ylabel=r"$\hat\theta_k$", xscale="log",
+       title="Recursive estimates after the batch start (dotted: true)")
 ax.legend(ncol=5, loc="lower right")
-ax.set_ylim(-2, 1.5);"""),
+ax.set_ylim(-2.2, 1.6);"""),
     ("md", r"""## The same with `RecursiveLeastSquares`
 
 `RecursiveLeastSquares` has the API of filterpy's `KalmanFilter`. `initialize` is step 1 (a QR batch
@@ -146,7 +147,8 @@ kk = np.arange(k0, len(Y)) + n
 for i, name in enumerate(names[2:], start=2):
     ax.plot(kk, means[:, i, 0], label=name)
     ax.fill_between(kk, means[:, i, 0] - 2 * std[:, i], means[:, i, 0] + 2 * std[:, i], alpha=0.2)
-ax.set(xlabel="sample k", ylabel="estimate", title="b coefficients with 2-sigma bands")
+ax.set(xlabel="sample k", ylabel="estimate", xscale="log",
+       title="b coefficients with 2-sigma bands")
 ax.legend();"""),
     ("md", r"""## Where next
 
