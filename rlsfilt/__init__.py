@@ -5,13 +5,17 @@ A filterpy-style toolkit: `RecursiveLeastSquares` mirrors filterpy's
 ``P``, ``K``, ``y``, ``S``) so it drops in beside Kalman filters.
 """
 
+from . import datasets  # public subpackage: rlsfilt.datasets
 from .exceptions import ForgettingSkippedWarning, NotFittedError, NumericalWarning
 from .filters import RecursiveLeastSquares
+from .models import ARX
 
 __version__ = "0.1.0"
 
 __all__ = [
     "RecursiveLeastSquares",
+    "ARX",
+    "datasets",
     "NotFittedError",
     "NumericalWarning",
     "ForgettingSkippedWarning",

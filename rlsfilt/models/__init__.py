@@ -1,0 +1,6 @@
+"""Models identified from input/output data: `ARX` and its regressors."""
+
+from .arx import ARX, ARXSummary
+from .regressors import ARXStructure, arx_regressors, arx_structure
+
+__all__ = ["ARX", "ARXSummary", "ARXStructure", "arx_regressors", "arx_structure"]

@@ -1,0 +1,516 @@
+"""ARX: regressors, batch and recursive fits, prediction, simulation and the control bridge.
+
+Every number is checked against an independent oracle: numpy's lstsq on
+regressors built here by hand, scipy.signal.lfilter, control.forced_response,
+closed-form polynomial identities, or a brute-force loop.
+"""
+
+import control
+import numpy as np
+import pytest
+from scipy import signal
+
+from rlsfilt import ARX, RecursiveLeastSquares
+from rlsfilt.models import arx_regressors
+
+
+# ----------------------------------------------------------------------
+# helpers (independent of the implementation)
+# ----------------------------------------------------------------------
+def hand_regressors(u, y, na, nb, nk):
+    """Rows [-y_1(t-1..t-na), ..., u_1(t-nk..t-nk-nb+1), ...] written as a plain loop."""
+    U = u.reshape(len(u), -1)
+    Y = y.reshape(len(y), -1)
+    nu, ny = U.shape[1], Y.shape[1]
+    nb = [nb] * nu if np.isscalar(nb) else list(nb)
+    nk = [nk] * nu if np.isscalar(nk) else list(nk)
+    t0 = max([na] + [k + b - 1 for b, k in zip(nb, nk)])
+    rows = []
+    for t in range(t0, len(U)):
+        row = []
+        for i in range(ny):
+            row += [-Y[t - k, i] for k in range(1, na + 1)]
+        for j in range(nu):
+            row += [U[t - k, j] for k in range(nk[j], nk[j] + nb[j])]
+        rows.append(row)
+    return np.array(rows), y[t0:]
+
+
+def arx_data(rng, a, b, nk, n=400, noise_std=0.1):
+    """SISO data from A(q) y = q^-nk B(q) u + e with a white-noise input."""
+    u = rng.standard_normal(n)
+    A = np.r_[1.0, a]
+    B = np.r_[np.zeros(nk), b]
+    e = noise_std * rng.standard_normal(n)
+    return u, signal.lfilter(B, A, u) + signal.lfilter([1.0], A, e)
+
+
+def padded(model):
+    """(num, den) of a SISO model in positive powers of z, padded to equal length."""
+    A = np.r_[1.0, model.a_]
+    B = np.r_[np.zeros(model.nk), model.b_]
+    n = max(len(A), len(B))
+    return np.r_[B, np.zeros(n - len(B))], np.r_[A, np.zeros(n - len(A))]
+
+
+STRUCTURES = [  # (a, b, nk): includes feed-through, long delays, FIR, nb > na
+    ([-1.5, 0.7], [1.0, 0.5], 1),
+    ([-0.8], [0.4, -0.2, 0.1], 0),
+    ([-1.2, 0.5, -0.1], [0.3], 3),
+    ([], [1.0, 0.5, 0.25], 2),
+    ([0.5], [2.0], 0),
+]
+
+
+# ----------------------------------------------------------------------
+# regressors
+# ----------------------------------------------------------------------
+def test_regressor_layout_documented_example():
+    u = np.arange(6.0)
+    y = 10.0 * np.arange(6.0)
+    Phi, target = ARX(na=2, nb=2, nk=1).regressors(u, y)
+    # rows t = 2..5: [-y(t-1), -y(t-2), u(t-1), u(t-2)]
+    expected = np.array([[-10, 0, 1, 0], [-20, -10, 2, 1], [-30, -20, 3, 2], [-40, -30, 4, 3]])
+    np.testing.assert_array_equal(Phi, expected)
+    np.testing.assert_array_equal(target, [20, 30, 40, 50])
+
+
+@pytest.mark.parametrize("na, nb, nk", [(2, 2, 1), (1, 3, 0), (3, 1, 4), (0, 2, 2), (2, 3, 0)])
+def test_regressors_match_hand_built(rng, na, nb, nk):
+    u, y = rng.standard_normal(30), rng.standard_normal(30)
+    Phi, target = ARX(na, nb, nk).regressors(u, y)
+    Phi_h, target_h = hand_regressors(u, y, na, nb, nk)
+    np.testing.assert_array_equal(Phi, Phi_h)
+    np.testing.assert_array_equal(target, target_h)
+    assert len(Phi) == 30 - max(na, nk + nb - 1)
+    Phi_f, target_f = arx_regressors(u, y, na, nb, nk)
+    np.testing.assert_array_equal(Phi_f, Phi)
+
+
+def test_regressors_miso_mimo_layout(rng):
+    u, y = rng.standard_normal((25, 2)), rng.standard_normal((25, 3))
+    Phi, target = ARX(2, [1, 3], [0, 2]).regressors(u, y)
+    Phi_h, target_h = hand_regressors(u, y, 2, [1, 3], [0, 2])
+    np.testing.assert_array_equal(Phi, Phi_h)
+    np.testing.assert_array_equal(target, target_h)
+    assert Phi.shape == (25 - 4, 3 * 2 + 4) and target.shape == (21, 3)
+
+
+def test_regressors_from_start_zero_pad(rng):
+    u, y = rng.standard_normal(10), rng.standard_normal(10)
+    Phi, target = arx_regressors(u, y, 2, 2, 1, start=0)
+    up, yp = np.r_[0, 0, u], np.r_[0, 0, y]
+    Phi_h, _ = hand_regressors(up, yp, 2, 2, 1)
+    np.testing.assert_array_equal(Phi, Phi_h)
+    np.testing.assert_array_equal(target, y)
+
+
+# ----------------------------------------------------------------------
+# batch fit
+# ----------------------------------------------------------------------
+@pytest.mark.parametrize("a, b, nk", STRUCTURES)
+def test_fit_equals_lstsq_on_documented_regressors(rng, a, b, nk):
+    u, y = arx_data(rng, a, b, nk)
+    model = ARX(len(a), len(b), nk).fit(u, y)
+    Phi, target = hand_regressors(u, y, len(a), len(b), nk)
+    theta, res, _, _ = np.linalg.lstsq(Phi, target, rcond=None)
+    np.testing.assert_allclose(model.theta_, theta, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(model.a_, theta[:len(a)], rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(model.b_, theta[len(a):], rtol=1e-10, atol=1e-12)
+    dof = len(Phi) - len(theta)
+    sigma2 = res[0] / dof
+    assert model.noise_variance_ == pytest.approx(sigma2, rel=1e-10)
+    np.testing.assert_allclose(model.theta_cov_, sigma2 * np.linalg.inv(Phi.T @ Phi), rtol=1e-8)
+    np.testing.assert_allclose(model.residuals_, target - Phi @ theta, atol=1e-12)
+    assert model.n_samples_ == len(Phi)
+    assert model.n_params == model.n_params_ == len(theta)
+
+
+def test_fit_returns_self_and_init_only_stores():
+    model = ARX(2, 2)
+    assert vars(model) == {"na": 2, "nb": 2, "nk": 1, "dt": True}
+    u = np.random.default_rng(1).standard_normal(50)
+    assert model.fit(u, np.sin(np.arange(50.0)) + u ** 2) is model
+    assert model.get_params() == {"na": 2, "nb": 2, "nk": 1, "dt": True}
+    assert model.set_params(na=3) is model and model.na == 3
+
+
+def test_noiseless_recovery_is_exact(rng):
+    a, b, nk = [-1.5, 0.7], [1.0, 0.5], 2
+    u, y = arx_data(rng, a, b, nk, n=100, noise_std=0.0)
+    model = ARX(2, 2, nk).fit(u, y)
+    np.testing.assert_allclose(model.theta_, a + b, rtol=1e-11, atol=1e-12)
+
+
+def test_lecture_notes_feedthrough_form(rng):
+    """The notes' y[k] = -a1 y[k-1] - .. + b0 u[k] + .. + bn u[k-n] is ARX(n, n+1, 0)."""
+    n, N = 2, 300
+    a = np.array([-1.1, 0.3])
+    bn = np.array([0.7, -0.4, 0.2])  # b0, b1, b2
+    u = rng.standard_normal(N)
+    y = np.zeros(N)
+    for k in range(N):  # the notes' recursion, zero before k = 0
+        y[k] = sum(-a[i - 1] * y[k - i] for i in range(1, n + 1) if k - i >= 0) + sum(
+            bn[i] * u[k - i] for i in range(n + 1) if k - i >= 0)
+    model = ARX(na=n, nb=n + 1, nk=0).fit(u, y)
+    np.testing.assert_allclose(model.a_, a, atol=1e-12)
+    np.testing.assert_allclose(model.b_, bn, atol=1e-12)   # our b1 is the notes' b0
+    G = model.to_tf()
+    # feed-through kept: G(inf) = b0, the impulse response starts with b0 at k = 0
+    assert G.num[0][0][0] / G.den[0][0][0] == pytest.approx(bn[0], rel=1e-12)
+    imp = control.impulse_response(G, T=np.arange(5.0)).outputs
+    np.testing.assert_allclose(imp, signal.lfilter(bn, np.r_[1, a], np.r_[1.0, np.zeros(4)]),
+                               atol=1e-12)
+    assert model.to_ss().D[0, 0] == pytest.approx(bn[0], rel=1e-12)
+    np.testing.assert_allclose(model.simulate(u), y, atol=1e-10)
+    assert "0.7 (+/-" in str(model.summary()) and "u(t) " in str(model.summary())
+
+
+# ----------------------------------------------------------------------
+# simulation and the python-control / scipy bridge
+# ----------------------------------------------------------------------
+@pytest.mark.parametrize("a, b, nk", STRUCTURES)
+def test_simulate_equals_lfilter_and_forced_response(rng, a, b, nk):
+    u, y = arx_data(rng, a, b, nk, n=300)
+    model = ARX(len(a), len(b), nk, dt=0.1).fit(u, y)
+    num, den = padded(model)
+    y_sim = model.simulate(u)
+    np.testing.assert_allclose(y_sim, signal.lfilter(num, den, u), rtol=0, atol=1e-9)
+    T = 0.1 * np.arange(len(u))
+    resp = control.forced_response(model.to_tf(), T, u)
+    np.testing.assert_allclose(resp.outputs, y_sim, rtol=0, atol=1e-9)
+    resp_ss = control.forced_response(model.to_ss(), T, u)
+    np.testing.assert_allclose(resp_ss.outputs, y_sim, rtol=0, atol=1e-9)
+    _, y_dlti = signal.dlsim(model.to_dlti(), u, t=T)
+    np.testing.assert_allclose(y_dlti[:, 0], y_sim, rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("a, b, nk", STRUCTURES)
+def test_to_tf_poles_and_dc_gain(rng, a, b, nk):
+    model = ARX.from_polynomials(a, b, nk=nk, dt=0.5)
+    G = model.to_tf()
+    assert G.dt == 0.5
+    num, den = padded(model)
+    assert len(G.den[0][0]) == len(den)
+    expected_poles = np.r_[np.roots(np.r_[1.0, a]), np.zeros(len(den) - 1 - len(a))]
+    np.testing.assert_allclose(np.sort_complex(G.poles()), np.sort_complex(expected_poles),
+                               atol=1e-9)
+    dc = np.sum(b) / (1.0 + np.sum(a))
+    assert complex(G.dcgain()).real == pytest.approx(dc, rel=1e-12)
+    assert complex(G(1.0)).real == pytest.approx(dc, rel=1e-12)
+
+
+def test_to_tf_with_unspecified_dt_and_noise_model(rng):
+    model = ARX.from_polynomials([-1.5, 0.7], [1.0, 0.5], nk=3)
+    assert model.to_tf().dt is True and model.to_ss().dt is True
+    H = model.to_tf(noise=True)
+    imp = control.impulse_response(H, T=np.arange(20.0)).outputs
+    np.testing.assert_allclose(imp, signal.lfilter([1.0], [1, -1.5, 0.7], np.eye(20)[0]),
+                               atol=1e-12)
+    _, h2 = signal.dimpulse(model.to_dlti(noise=True), n=20)
+    np.testing.assert_allclose(h2[0][:, 0], imp, atol=1e-12)
+
+
+def test_simulate_with_initial_outputs_continues_the_record(rng):
+    a, b = np.array([-1.5, 0.7]), np.array([1.0, 0.5])
+    u = rng.standard_normal(60)
+    y = np.zeros(60)
+    y[:2] = rng.standard_normal(2)
+    for t in range(2, 60):
+        y[t] = -a @ y[t - 2:t][::-1] + b @ u[t - 2:t][::-1]
+    model = ARX.from_polynomials(a, b)
+    np.testing.assert_allclose(model.simulate(u, y0=y[:2]), y, atol=1e-10)
+    # a longer y0 is kept as given; the rest continues from it
+    ys = model.simulate(u, y0=y[:10])
+    np.testing.assert_allclose(ys, y, atol=1e-10)
+
+
+@pytest.mark.parametrize("horizon", [1, 2, 3, 7])
+def test_predict_k_steps_matches_brute_force(rng, horizon):
+    a, b, nk = [-1.2, 0.5], [0.8, 0.3], 1
+    u, y = arx_data(rng, a, b, nk, n=40, noise_std=0.2)
+    model = ARX(2, 2, 1).fit(u, y)
+    A, B = np.r_[1.0, model.a_], np.r_[0.0, model.b_]
+    yhat = model.predict(u, y, horizon=horizon)
+    for t in range(len(u)):
+        # run the model from the measured past up to t - horizon (zeros before 0)
+        ys = {s: (y[s] if s >= 0 else 0.0) for s in range(t - horizon - 5, t - horizon + 1)}
+        for s in range(t - horizon + 1, t + 1):
+            ys[s] = (-sum(A[i] * ys.get(s - i, 0.0) for i in range(1, 3))
+                     + sum(B[i] * (u[s - i] if s - i >= 0 else 0.0) for i in range(3)))
+        assert yhat[t] == pytest.approx(ys[t], abs=1e-12)
+
+
+def test_predict_one_step_and_infinite_horizon(rng):
+    u, y = arx_data(rng, [-1.5, 0.7], [1.0, 0.5], 1, n=200)
+    model = ARX(2, 2, 1).fit(u, y)
+    Phi, _ = model.regressors(u, y)
+    np.testing.assert_allclose(model.predict(u, y)[model.max_lag:], Phi @ model.theta_,
+                               atol=1e-12)
+    np.testing.assert_allclose(model.predict(u, y, horizon=np.inf), model.simulate(u), atol=1e-12)
+    np.testing.assert_allclose(model.predict(u, y, horizon=len(u)), model.simulate(u),
+                               atol=1e-12)
+    # long but finite horizons converge to the simulation once the past is forgotten
+    np.testing.assert_allclose(model.predict(u, y, horizon=150)[150:],
+                               model.simulate(u)[150:], atol=1e-9)
+
+
+def test_from_tf_round_trip_and_sampled_plant():
+    model = ARX.from_polynomials([-1.2, 0.5, -0.1], [0.3, 0.2], nk=3, dt=0.2)
+    back = ARX.from_tf(model.to_tf())
+    assert (back.na, back.nb, back.nk, back.dt) == (3, 2, 3, 0.2)
+    np.testing.assert_allclose(back.theta_, model.theta_, atol=1e-14)
+    feed = ARX.from_tf(control.tf([2.0, 1.0], [1.0, -0.5], 1.0))  # (2 z + 1)/(z - 0.5)
+    assert (feed.na, feed.nb, feed.nk) == (1, 2, 0)
+    np.testing.assert_allclose(feed.b_, [2.0, 1.0])
+    Gc = control.tf([1.0], [1.0, 3.0, 2.0])
+    Gd = control.sample_system(Gc, 0.1, method="zoh")
+    m = ARX.from_tf(Gd)
+    u = np.random.default_rng(3).standard_normal(100)
+    resp = control.forced_response(Gd, 0.1 * np.arange(100), u).outputs
+    np.testing.assert_allclose(m.simulate(u), resp, atol=1e-12)
+
+
+# ----------------------------------------------------------------------
+# several inputs and outputs
+# ----------------------------------------------------------------------
+def test_miso_per_input_orders_and_delays(rng):
+    a = np.array([-1.2, 0.4])
+    b1, b2 = np.array([0.5]), np.array([1.0, -0.6, 0.2])
+    nk = [0, 3]
+    N = 400
+    u = rng.standard_normal((N, 2))
+    A = np.r_[1.0, a]
+    y = (signal.lfilter(np.r_[np.zeros(nk[0]), b1], A, u[:, 0])
+         + signal.lfilter(np.r_[np.zeros(nk[1]), b2], A, u[:, 1]))
+    model = ARX(2, [1, 3], nk).fit(u, y)
+    np.testing.assert_allclose(model.a_, a, atol=1e-11)
+    assert isinstance(model.b_, list) and len(model.b_) == 2
+    np.testing.assert_allclose(model.b_[0], b1, atol=1e-11)
+    np.testing.assert_allclose(model.b_[1], b2, atol=1e-11)
+    assert model.max_lag == 5 and model.n_params == 6
+    np.testing.assert_allclose(model.simulate(u), y, atol=1e-10)
+    G = model.to_tf()
+    assert (G.noutputs, G.ninputs) == (1, 2)
+    for j, (bj, kj) in enumerate(zip([b1, b2], nk)):
+        single = ARX.from_polynomials(a, bj, nk=kj)
+        for z in (1.0, 0.3 + 0.8j, -0.9, 2.0j):
+            assert complex(G(z)[0, j]) == pytest.approx(complex(single.to_tf()(z)), rel=1e-12)
+    names = model.param_names_
+    assert names == ["a1", "a2", "b1[u1]", "b1[u2]", "b2[u2]", "b3[u2]"]
+    # with noise: lstsq on the documented regressors
+    y_noisy = y + signal.lfilter([1.0], A, 0.1 * rng.standard_normal(N))
+    model.fit(u, y_noisy)
+    Phi, target = hand_regressors(u, y_noisy, 2, [1, 3], nk)
+    np.testing.assert_allclose(model.theta_, np.linalg.lstsq(Phi, target, rcond=None)[0],
+                               rtol=1e-10)
+
+
+def _mimo_data(rng, N=500, noise_std=0.05):
+    """Two coupled outputs, two inputs: A(q) y = B(q) u + e with matrix A."""
+    A1 = np.array([[-0.9, 0.2], [0.1, -0.5]])
+    A2 = np.array([[0.2, 0.0], [-0.05, 0.1]])
+    B1 = np.array([[1.0, 0.3], [0.0, 0.8]])   # u(t-1)
+    B2 = np.array([[0.5, 0.0], [0.2, -0.4]])  # u(t-2)
+    u = rng.standard_normal((N, 2))
+    y = np.zeros((N, 2))
+    e = noise_std * rng.standard_normal((N, 2))
+    for t in range(N):
+        acc = e[t].copy()
+        for k, Ak in ((1, A1), (2, A2)):
+            if t - k >= 0:
+                acc -= Ak @ y[t - k]
+        for k, Bk in ((1, B1), (2, B2)):
+            if t - k >= 0:
+                acc += Bk @ u[t - k]
+        y[t] = acc
+    return u, y, (A1, A2, B1, B2)
+
+
+def test_mimo_matches_separate_single_output_fits(rng):
+    u, y, (A1, A2, B1, B2) = _mimo_data(rng)
+    model = ARX(2, 2, 1).fit(u, y)
+    assert model.theta_.shape == (2 * 2 + 4, 2)
+    assert model.a_.shape == (2, 2, 2) and model.theta_cov_.shape == (2, 8, 8)
+    for i in range(2):
+        other = 1 - i
+        # output i alone, with the other output as an extra input: -a[i, other] = b of y_other
+        single = ARX(2, [2, 2, 2], [1, 1, 1]).fit(np.column_stack([y[:, other], u]), y[:, i])
+        np.testing.assert_allclose(model.a_[i, i], single.a_, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(model.a_[i, other], -single.b_[0], rtol=1e-9, atol=1e-12)
+        for j in range(2):
+            np.testing.assert_allclose(model.b_[j][i], single.b_[1 + j], rtol=1e-9, atol=1e-12)
+        assert model.noise_variance_[i] == pytest.approx(single.noise_variance_, rel=1e-9)
+        se, se1 = model.std_errors_[:, i], single.std_errors_
+        np.testing.assert_allclose(se[[2 * i, 2 * i + 1]], se1[[0, 1]], rtol=1e-8)
+        np.testing.assert_allclose(se[[2 * other, 2 * other + 1]], se1[[2, 3]], rtol=1e-8)
+        np.testing.assert_allclose(se[4:], se1[4:], rtol=1e-8)
+    # truth recovered within noise
+    np.testing.assert_allclose(model.a_[:, :, 0], A1, atol=0.05)
+    np.testing.assert_allclose(model.b_[0][:, 0], B1[:, 0], atol=0.05)
+
+
+def test_mimo_simulate_and_transfer_matrix(rng):
+    u, y, _ = _mimo_data(rng, N=200, noise_std=0.0)
+    model = ARX(2, 2, 1, dt=1.0).fit(u, y)
+    np.testing.assert_allclose(model.simulate(u), y, atol=1e-9)
+    A, B = model.polynomials()
+    G = model.to_tf()
+    sys = model.to_ss()
+    assert (G.noutputs, G.ninputs) == (2, 2)
+    for z in (1.0, 0.4 + 0.7j, -1.3, 3.0j):
+        w = z ** -np.arange(A.shape[2])
+        Az = A @ w
+        Bz = B @ (z ** -np.arange(B.shape[2]))
+        Gz = np.linalg.solve(Az, Bz)
+        np.testing.assert_allclose(G(z), Gz, rtol=1e-10)
+        np.testing.assert_allclose(sys(z), Gz, rtol=1e-10)
+        Hz = model.to_tf(noise=True)(z)
+        np.testing.assert_allclose(Hz, np.linalg.inv(Az), rtol=1e-10)
+    resp = control.forced_response(sys, np.arange(200.0), u.T)
+    np.testing.assert_allclose(resp.outputs.T, model.simulate(u), atol=1e-9)
+    dl = model.to_dlti()
+    _, yd, _ = signal.dlsim(dl, u)
+    np.testing.assert_allclose(yd, y, atol=1e-9)
+
+
+def test_mimo_predict_one_step(rng):
+    u, y, _ = _mimo_data(rng, N=100)
+    model = ARX(2, 2, 1).fit(u, y)
+    Phi, _ = model.regressors(u, y)
+    np.testing.assert_allclose(model.predict(u, y)[2:], Phi @ model.theta_, atol=1e-12)
+    np.testing.assert_allclose(model.predict(u, y, horizon=100), model.simulate(u), atol=1e-12)
+
+
+# ----------------------------------------------------------------------
+# recursive fit
+# ----------------------------------------------------------------------
+@pytest.mark.parametrize("a, b, nk", STRUCTURES[:3])
+def test_rls_ends_at_batch_answer(rng, a, b, nk):
+    u, y = arx_data(rng, a, b, nk, n=500)
+    batch = ARX(len(a), len(b), nk).fit(u, y)
+    rec = ARX(len(a), len(b), nk).fit(u, y, method="rls")
+    np.testing.assert_allclose(rec.theta_, batch.theta_, rtol=1e-9, atol=1e-11)
+    np.testing.assert_allclose(rec.theta_cov_, batch.theta_cov_, rtol=1e-7)
+    assert rec.noise_variance_ == pytest.approx(batch.noise_variance_, rel=1e-9)
+    n = rec.n_params
+    hist = rec.theta_history_
+    assert hist.shape == (rec.n_samples_, n)
+    assert np.isnan(hist[:n - 1]).all() and not np.isnan(hist[n - 1:]).any()
+    Phi, target = rec.regressors(u, y)
+    for k in (n - 1, n + 3, 100, len(Phi) - 1):
+        np.testing.assert_allclose(hist[k], np.linalg.lstsq(Phi[:k + 1], target[:k + 1],
+                                                            rcond=None)[0], rtol=1e-8, atol=1e-9)
+    assert isinstance(rec.filter_, RecursiveLeastSquares)
+    np.testing.assert_allclose(rec.filter_.x[:, 0], rec.theta_)
+
+
+def test_rls_forgetting_is_weighted_least_squares(rng):
+    u, y = arx_data(rng, [-1.5, 0.7], [1.0, 0.5], 1, n=300)
+    lam = 0.97
+    model = ARX(2, 2, 1).fit(u, y, method="rls", lam=lam, k0=10)
+    Phi, target = model.regressors(u, y)
+    w = np.sqrt(lam ** np.arange(len(Phi) - 1, -1, -1.0))
+    expected = np.linalg.lstsq(Phi * w[:, None], target * w, rcond=None)[0]
+    np.testing.assert_allclose(model.theta_, expected, rtol=1e-8)
+
+
+def test_rls_prior_start_is_ridge(rng):
+    u, y = arx_data(rng, [-0.8], [0.5], 1, n=100)
+    P0, x0 = 10.0, np.array([0.1, -0.2])
+    model = ARX(1, 1, 1).fit(u, y, method="rls", k0=0, P0=P0, x0=x0)
+    Phi, target = model.regressors(u, y)
+    expected = np.linalg.solve(Phi.T @ Phi + np.eye(2) / P0, Phi.T @ target + x0 / P0)
+    np.testing.assert_allclose(model.theta_, expected, rtol=1e-9)
+    assert not np.isnan(model.theta_history_).any()
+
+
+def test_rls_mimo_shares_one_covariance(rng):
+    u, y, _ = _mimo_data(rng, N=300)
+    batch = ARX(2, 2, 1).fit(u, y)
+    rec = ARX(2, 2, 1).fit(u, y, method="rls")
+    np.testing.assert_allclose(rec.theta_, batch.theta_, rtol=1e-9, atol=1e-11)
+    assert rec.theta_history_.shape == (rec.n_samples_, 8, 2)
+    assert rec.filter_.dim_z == 2
+
+
+# ----------------------------------------------------------------------
+# uncertainty calibration
+# ----------------------------------------------------------------------
+def test_uncertainty_is_calibrated_over_repeated_experiments():
+    """z = (theta_hat - theta_true) / std must be standard normal over seeded experiments.
+
+    With M = 1000 experiments the sample standard deviation of M standard
+    normal values has standard error 1/sqrt(2 (M - 1)) = 0.022, and the
+    mean 1/sqrt(M) = 0.032; the bands below are 4 standard errors wide, so a
+    correct implementation fails them with probability about 1e-4, while a
+    covariance off by 20 % (std off by 10 %) fails them with high
+    probability.
+    """
+    a, b, nk = np.array([-1.5, 0.7]), np.array([1.0, 0.5]), 1
+    theta_true = np.r_[a, b]
+    M, N, sigma = 1000, 200, 0.3
+    z = np.empty((M, 4))
+    ratio = np.empty(M)
+    cover = np.empty((M, 4), dtype=bool)
+    for m in range(M):
+        gen = np.random.default_rng(1000 + m)
+        u, y = arx_data(gen, a, b, nk, n=N, noise_std=sigma)
+        model = ARX(2, 2, 1).fit(u, y)
+        z[m] = (model.theta_ - theta_true) / model.std_errors_
+        ratio[m] = model.noise_variance_ / sigma ** 2
+        cover[m] = np.abs(z[m]) < 1.959964
+    band_std = 4 / np.sqrt(2 * (M - 1))
+    assert np.all(np.abs(z.std(axis=0, ddof=1) - 1) < band_std), z.std(axis=0, ddof=1)
+    assert np.all(np.abs(z.mean(axis=0)) < 4 / np.sqrt(M)), z.mean(axis=0)
+    # unbiased noise variance: E[s^2 / sigma^2] = 1, sd of the ratio sqrt(2 / dof)
+    dof = N - 2 - 4
+    assert abs(ratio.mean() - 1) < 4 * np.sqrt(2 / dof) / np.sqrt(M)
+    # 95 % intervals cover about 95 % (binomial sd sqrt(.05 * .95 / M) = 0.0069)
+    assert np.all(np.abs(cover.mean(axis=0) - 0.95) < 4 * np.sqrt(0.05 * 0.95 / M))
+
+
+def test_colored_noise_breaks_calibration():
+    """The same check fails for output-error data: ARX is biased there (it can fail)."""
+    a, b = np.array([-1.5, 0.7]), np.array([1.0, 0.5])
+    zs = []
+    for m in range(30):
+        gen = np.random.default_rng(m)
+        u = gen.standard_normal(400)
+        y = signal.lfilter([0, *b], [1, *a], u) + 0.5 * gen.standard_normal(400)
+        model = ARX(2, 2, 1).fit(u, y)
+        zs.append((model.theta_ - np.r_[a, b]) / model.std_errors_)
+    assert np.abs(np.mean(zs, axis=0)).max() > 5
+
+
+# ----------------------------------------------------------------------
+# pandas and display
+# ----------------------------------------------------------------------
+def test_pandas_inputs_and_names(rng):
+    pd = pytest.importorskip("pandas")
+    u, y = arx_data(rng, [-1.5, 0.7], [1.0, 0.5], 1, n=200)
+    ref = ARX(2, 2, 1).fit(u, y)
+    model = ARX(2, 2, 1).fit(pd.Series(u, name="heater"), pd.Series(y, name="temp"))
+    np.testing.assert_allclose(model.theta_, ref.theta_, rtol=1e-14)
+    assert "temp(t)" in repr(model) and "heater(t-1)" in repr(model)
+    frame = pd.DataFrame({"u1": u, "u2": rng.standard_normal(200)})
+    m2 = ARX(2, [2, 1], [1, 0]).fit(frame, pd.DataFrame({"y": y}))
+    np.testing.assert_allclose(m2.predict(frame, pd.DataFrame({"y": y}))[:, 0][2:],
+                               m2.regressors(frame.to_numpy(), y[:, None])[0] @ m2.theta_[:, 0])
+    assert m2.param_names_[-1] == "b1[u2]"
+
+
+def test_summary_repr_and_html(rng):
+    u, y = arx_data(rng, [-1.5, 0.7], [1.0, 0.5], 1, n=300)
+    model = ARX(2, 2, 1, dt=0.1)
+    assert repr(model) == "ARX(na=2, nb=2, nk=1, dt=0.1)"
+    model.fit(u, y)
+    text = str(model.summary())
+    se = model.std_errors_
+    assert "y(t) - 1.5" in text and f"(+/-{se[0]:.2g}) y(t-1)" in text
+    assert f"(+/-{se[3]:.2g}) u(t-2)" in text and "+ e(t)" in text
+    assert "batch least squares" in text and "a2" in text
+    html = model._repr_html_()
+    assert "<table>" in html and "&plusmn;" in html and "b2" in html
+    assert model.summary()._repr_html_() == html
+    assert repr(model).startswith("ARX(na=2, nb=2, nk=1, dt=0.1):")
