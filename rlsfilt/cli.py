@@ -23,16 +23,20 @@ with one ``nb``, ``nk`` per input.
 """
 
 import argparse
+import contextlib
 import csv
 import json
 import math
 import os
 import sys
+import threading
 import time
 
 import numpy as np
 
-from . import RecursiveLeastSquares, __version__
+from . import __version__
+from .datasets import PLANTS
+from .models import ARX
 
 __all__ = ["main"]
 
@@ -44,6 +48,8 @@ _MAX_LAG = 20            # lags shown by the residual tests
 _CONFIDENCE_Z = 2.5758   # two-sided 99 % normal quantile, as MATLAB's resid
 _PROGRESS_AFTER = 2.0    # seconds before a progress line appears
 _FORGETTING_MODES = ("exponential",)
+_DEFAULT_PLANT = "dc_motor"
+_TRACKING_LAM = 0.98     # demo forgetting factor for the time-varying plant
 
 
 class CLIError(Exception):
@@ -82,6 +88,10 @@ def main(argv=None):
     except (ValueError, TypeError, np.linalg.LinAlgError) as exc:
         # a library check fired on data that passed the command's own checks
         _error(str(exc).splitlines()[0])
+    except BrokenPipeError:  # the reader went away (`rlsfilt demo | head`)
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return EXIT_OK
     except OSError as exc:
         _error(f"{exc.strerror or exc}: '{exc.filename}'" if exc.filename else str(exc))
     except KeyboardInterrupt:
@@ -185,12 +195,16 @@ def _build_parser():
         "demo", help="identify a simulated plant and compare it with the truth",
         description="Simulate a known plant, identify it recursively and in batch, validate "
                     "the model and compare it with the true plant.")
-    demo.add_argument("--plant", default="second_order", choices=sorted(_DEMO_PLANTS),
-                      help="the simulated plant (default: second_order)")
-    demo.add_argument("--samples", type=_positive_int, default=1000, metavar="N",
-                      help="record length (default: 1000)")
-    demo.add_argument("--noise", type=_nonnegative_float, default=0.05, metavar="STD",
-                      help="standard deviation of the equation error e(t) (default: 0.05)")
+    demo.add_argument("--plant", default=_DEFAULT_PLANT, choices=sorted(PLANTS),
+                      help="the simulated plant, from rlsfilt.datasets "
+                           f"(default: {_DEFAULT_PLANT})")
+    demo.add_argument("--samples", type=_positive_int, default=None, metavar="N",
+                      help="record length (default: the dataset's)")
+    demo.add_argument("--noise", type=_nonnegative_float, default=None, metavar="STD",
+                      help="noise standard deviation (default: the dataset's)")
+    demo.add_argument("--lam", type=_lam, default=None,
+                      help=f"RLS forgetting factor (default: 1, or {_TRACKING_LAM} for "
+                           "time_varying)")
     demo.add_argument("--seed", type=_nonnegative_int, default=0, help="random seed (default: 0)")
     _add_output_options(demo)
     demo.set_defaults(run=_run_demo)
@@ -255,6 +269,7 @@ def _run_identify(args):
         dup = next(c for c in args.inputs if args.inputs.count(c) > 1)
         raise CLIError(f"column '{dup}' is given twice as --input")
     data = read_csv(args.file, columns, delimiter=args.delimiter, progress=progress)
+    progress.done()
     u = np.column_stack([data[c] for c in args.inputs])
     y = data[args.output]
     dt = args.dt if args.dt is not None else 1.0
@@ -267,10 +282,11 @@ def _run_identify(args):
     selection = None
     if args.select_order:
         na, nb, selection = _select_order(y, u, nk, args.max_order, progress)
+        progress.done()
     _check_rows(len(y), na, nb, nk, args.file)
-    fit = _identify(y, u, na, nb, nk, method=args.method, lam=args.lam, progress=progress)
-    progress.done()
-    fit.update(inputs=list(args.inputs), output=args.output, dt=dt, source=args.file,
+    fit = _identify(y, u, na, nb, nk, method=args.method, lam=args.lam, dt=dt,
+                    progress=progress)
+    fit.update(inputs=list(args.inputs), output=args.output, source=args.file,
                forgetting=args.forgetting if args.method == "rls" else None,
                order_selection=selection)
     result = _result_dict(fit)
@@ -288,54 +304,46 @@ def _run_identify(args):
 
 
 def _run_demo(args):
-    plant = _DEMO_PLANTS[args.plant]
-    rng = np.random.default_rng(args.seed)
-    u, y = _simulate_plant(plant, args.samples, args.noise, rng)
-    na, nb, nk = plant["na"], [plant["nb"]], [plant["nk"]]
-    _check_rows(len(y), na, nb, nk, "the simulated record")
+    from .datasets import PLANTS
+
+    kwargs = {"rng": args.seed}
+    if args.samples is not None:
+        kwargs["n_samples"] = args.samples
+    if args.noise is not None:
+        kwargs["noise_std"] = args.noise
+    ds = PLANTS[args.plant](**kwargs)
+    tracking = ds.theta_true is not None
+    lam = args.lam if args.lam is not None else (_TRACKING_LAM if tracking else 1.0)
+    na, nb, nk = ds.na, [ds.nb], [ds.nk]
+    _check_rows(len(ds.y), na, nb, nk, "the simulated record")
     progress = _Progress(enabled=not args.quiet)
-    fit = _identify(y, u[:, None], na, nb, nk, method="rls", lam=1.0, progress=progress)
-    batch = _identify(y, u[:, None], na, nb, nk, method="ls", lam=1.0)
-    progress.done()
-    fit.update(inputs=["u"], output="y", dt=plant["dt"], source=f"demo plant '{args.plant}'",
+    u = ds.u[:, None]
+    fit = _identify(ds.y, u, na, nb, nk, method="rls", lam=lam, dt=ds.dt, progress=progress)
+    batch = _identify(ds.y, u, na, nb, nk, method="ls", lam=1.0, dt=ds.dt, progress=progress)
+    # a time-varying plant is compared with the plant in force at the end of the record
+    theta_true = ds.theta_true[-1] if tracking else ds.theta
+    plant = ds.plant_after if tracking else ds.plant
+    fit.update(inputs=["u"], output="y", source=f"demo plant '{ds.name}'",
                forgetting="exponential", order_selection=None,
-               theta_true=np.concatenate([plant["a"], plant["b"]]),
-               theta_batch=batch["theta"])
-    fit["plant"] = _compare_with_plant(fit, plant)
+               theta_true=np.asarray(theta_true, dtype=float), theta_batch=batch["theta"],
+               theta_true_history=ds.theta_true, truth_label="true at the end" if tracking
+               else "true")
+    fit["plant"] = _compare_with_plant(fit["model"], plant, ds.n_samples)
     result = _result_dict(fit)
     if args.json:
         print(json.dumps(result, indent=2))
     else:
-        print(f"rlsfilt {__version__} demo: {plant['description']}")
-        print(f"  {args.samples} samples, PRBS input, noise std {args.noise}, seed {args.seed}\n")
+        print(f"rlsfilt {__version__} demo: {ds.description}")
+        print(f"  {ds.n_samples} samples, sample time {ds.dt:g} s, {ds.noise} noise of std "
+              f"{ds.noise_std:g}, seed {args.seed}")
+        print("  identified recursively (batch start, then one RLS update per sample) and by "
+              "batch least squares\n")
         print(_report(fit))
     if args.plot:
         _plot(fit, args.plot)
         if not args.json:
             print(f"\nfigure saved to {args.plot}")
     return EXIT_OK
-
-
-# Plants of the demo, in MATLAB's ARX convention. The lead replaces this
-# table with rlsfilt.datasets.PLANTS when that module lands.
-_DEMO_PLANTS = {
-    "second_order": dict(
-        description="second-order ARX plant, y(t) - 1.5 y(t-1) + 0.7 y(t-2) = "
-                    "u(t-1) + 0.5 u(t-2) + e(t)",
-        a=np.array([-1.5, 0.7]), b=np.array([1.0, 0.5]), na=2, nb=2, nk=1, dt=1.0),
-}
-
-
-def _simulate_plant(plant, n_samples, noise_std, rng):
-    from scipy.signal import lfilter
-
-    u = np.where(rng.random(n_samples) < 0.5, -1.0, 1.0)
-    e = noise_std * rng.standard_normal(n_samples)
-    a = np.concatenate([[1.0], plant["a"]])
-    b = np.concatenate([np.zeros(plant["nk"]), plant["b"]])
-    # ARX: A(q) y = B(q) u + e
-    y = lfilter(b, a, u) + lfilter([1.0], a, e)
-    return u, y
 
 
 # ----------------------------------------------------------------------
@@ -474,66 +482,68 @@ def _regressors(y, u, na, nb, nk, start=None):
     return np.column_stack(cols), y[t]
 
 
-def _identify(y, u, na, nb, nk, method="ls", lam=1.0, progress=None):
-    """Fit the ARX model; return a dict of everything the report shows."""
-    Phi, z = _regressors(y, u, na, nb, nk)
-    N, d = Phi.shape
-    if method == "ls":
-        Q, R = np.linalg.qr(Phi)
-        if np.min(np.abs(np.diag(R))) <= 1e-12 * np.max(np.abs(np.diag(R))):
-            raise CLIError("the regressors are rank-deficient: the input does not excite "
-                           "every parameter; lower the orders or use a richer input")
-        theta = np.linalg.solve(R, Q.T @ z)
-        Rinv = np.linalg.inv(R)
-        cov_unscaled = Rinv @ Rinv.T
-        history = None
+def _identify(y, u, na, nb, nk, method="ls", lam=1.0, dt=1.0, progress=None):
+    """Fit ``ARX(na, nb, nk)``; return a dict of everything the report shows."""
+    U = u if u.shape[1] > 1 else u[:, 0]
+    model = ARX(na=na, nb=list(nb) if len(nb) > 1 else nb[0],
+                nk=list(nk) if len(nk) > 1 else nk[0], dt=dt)
+    kwargs = {}
+    Phi, target = model.regressors(U, y)
+    if method == "rls":
+        kwargs = {"lam": lam, "k0": _batch_start_rows(Phi)}
+    task = (f"recursive least squares over {len(y)} samples" if method == "rls"
+            else f"least squares on {len(y)} samples")
+    with (progress or _Progress(False)).task(task):
+        model.fit(U, y, method=method, **kwargs)
+    lag = model.max_lag
+    a = np.atleast_1d(model.a_)
+    b = list(model.b_) if isinstance(model.b_, list) else [model.b_]
+    y_sim = np.asarray(model.simulate(U), dtype=float)
+    y_pred = np.full(len(y), np.nan)
+    theta_std = np.asarray(model.std_errors_, dtype=float)
+    sigma2 = float(model.noise_variance_)
+    history = getattr(model, "theta_history_", None)
+    if method == "rls" and lam < 1.0:
+        # With forgetting the final estimate describes the end of the record only; judge
+        # it by the recursive one-step residuals y(t) - phi(t) theta(t-1), the errors RLS
+        # actually made, and scale the covariance by their variance.
+        k0 = kwargs["k0"]
+        rows = np.arange(k0, len(Phi))
+        pred = np.einsum("ij,ij->i", Phi[rows], history[rows - 1])
+        resid = target[rows] - pred
+        y_pred[lag + rows] = pred
+        old, sigma2 = sigma2, float(resid @ resid / len(resid))
+        theta_std = theta_std * math.sqrt(sigma2 / old) if old > 0 else theta_std
+        u_rows = u[lag + rows]
+        residual_kind = "recursive"
     else:
-        k0 = min(N, 2 * d)
-        rls = RecursiveLeastSquares(dim_x=d, lam=lam)
-        rls.initialize(z[:k0], Phi[:k0])
-        history = np.empty((N, d))
-        history[:k0] = np.nan
-        history[k0 - 1] = rls.x[:, 0]
-        chunk = 5000
-        for s in range(k0, N, chunk):
-            e = min(N, s + chunk)
-            means, _, _, _ = rls.batch_filter(z[s:e], Phi[s:e], store_covariances=False)
-            history[s:e] = means[:, :, 0]
-            if progress is not None:
-                progress.show(f"recursive least squares: {e}/{N} samples")
-        theta = rls.x[:, 0].copy()
-        cov_unscaled = rls.P / rls.R
-    resid = z - Phi @ theta
-    dof = N - d
-    sigma2 = float(resid @ resid / dof) if dof > 0 else float("nan")
-    theta_std = np.sqrt(np.maximum(np.diag(cov_unscaled), 0.0) * sigma2)
-    a = theta[:na]
-    b, pos = [], na
-    for n in nb:
-        b.append(theta[pos:pos + n])
-        pos += n
-    y_sim = _simulate(a, b, nk, u)
-    y_pred = np.concatenate([np.full(len(y) - N, np.nan), Phi @ theta])
-    lag = len(y) - N
+        y_pred[lag:] = Phi @ np.asarray(model.theta_)
+        resid = np.asarray(model.residuals_, dtype=float)
+        u_rows = u[lag:]
+        residual_kind = "final"
+    used = ~np.isnan(y_pred)
     return dict(
-        na=na, nb=list(nb), nk=list(nk), method=method, lam=lam, theta=theta,
-        theta_std=theta_std, a=a, b=b, noise_variance=sigma2, n_samples=len(y),
-        n_used=N, y=y, u=u, y_sim=y_sim, y_pred=y_pred, residuals=resid,
-        fit_percent=_fit_percent(y, y_sim),
-        fit_percent_prediction=_fit_percent(y[lag:], y_pred[lag:]),
-        tests=_residual_tests(resid, u[lag:]), history=history,
-        loss=float(resid @ resid / N))
+        model=model, na=na, nb=list(nb), nk=list(nk), method=method, lam=lam, dt=dt,
+        theta=np.asarray(model.theta_), theta_std=theta_std,
+        a=a, b=b, noise_variance=sigma2, n_samples=len(y),
+        n_used=int(model.n_samples_), y=y, u=u, y_sim=y_sim, y_pred=y_pred, residuals=resid,
+        residual_kind=residual_kind, fit_percent=_fit_percent(y, y_sim),
+        fit_percent_prediction=_fit_percent(y[used], y_pred[used]),
+        tests=_residual_tests(resid, u_rows), history=history, k0=kwargs.get("k0"))
 
 
-def _simulate(a, b, nk, u):
-    """Noise-free simulation ``A(q) y = sum_i B_i(q) u_i`` from zero initial conditions."""
-    from scipy.signal import lfilter
+def _batch_start_rows(Phi):
+    """Rows of the batch start: the first ``n_params * 2**j`` rows that have full rank.
 
-    den = np.concatenate([[1.0], a])
-    y = np.zeros(len(u))
-    for j, bj in enumerate(b):
-        y += lfilter(np.concatenate([np.zeros(nk[j]), bj]), den, u[:, j])
-    return y
+    A slowly switching input (a PRBS with a long hold) can leave the first
+    ``n_params`` rows rank-deficient; doubling the block until it determines
+    every parameter keeps the lecture notes' start exact.
+    """
+    rows, n = Phi.shape
+    k0 = n
+    while k0 < rows and np.linalg.matrix_rank(Phi[:k0]) < n:
+        k0 = min(2 * k0, rows)
+    return k0
 
 
 def _fit_percent(y, yhat):
@@ -597,39 +607,27 @@ def _select_order(y, u, nk, max_order, progress):
                                                    candidates=rows)
 
 
-def _compare_with_plant(fit, plant):
+def _compare_with_plant(model, plant, n_samples):
     """Poles, DC gain, frequency and step responses of the model beside the true plant."""
     import control
 
-    dt = plant["dt"]
-    true = _to_tf(plant["a"], plant["b"], plant["nk"], dt)
-    model = _to_tf(fit["a"], fit["b"][0], fit["nk"][0], dt)
-    w = np.logspace(-2, math.log10(math.pi / dt), 200)
-    g_true = true(np.exp(1j * w * dt))
-    g_model = model(np.exp(1j * w * dt))
-    n = min(200, 5 * fit["n_samples"])
+    dt = float(plant.dt)
+    est = model.to_tf()
+    w = np.logspace(math.log10(math.pi / dt) - 3, math.log10(math.pi / dt), 300)
+    g_true = np.ravel(plant(np.exp(1j * w * dt)))
+    g_model = np.ravel(est(np.exp(1j * w * dt)))
+    n = min(400, n_samples)
     T = np.arange(n) * dt
-    step_true = control.step_response(true, T).outputs
-    step_model = control.step_response(model, T).outputs
+    step_true = np.ravel(control.step_response(plant, T).outputs)
+    step_model = np.ravel(control.step_response(est, T).outputs)
+    scale = max(float(np.max(np.abs(step_true))), np.finfo(float).tiny)
     return dict(
-        poles_true=np.sort_complex(true.poles()), poles_model=np.sort_complex(model.poles()),
-        dc_gain_true=float(np.real(true.dcgain())), dc_gain_model=float(np.real(model.dcgain())),
+        poles_true=np.sort_complex(plant.poles()), poles_model=np.sort_complex(est.poles()),
+        dc_gain_true=float(np.real(plant.dcgain())), dc_gain_model=float(np.real(est.dcgain())),
         freq=w, mag_true=np.abs(g_true), mag_model=np.abs(g_model),
         max_mag_error_db=float(np.max(np.abs(20 * np.log10(np.abs(g_model) / np.abs(g_true))))),
-        T=T, step_true=np.ravel(step_true), step_model=np.ravel(step_model),
-        step_error=float(np.max(np.abs(np.ravel(step_model) - np.ravel(step_true)))))
-
-
-def _to_tf(a, b, nk, dt):
-    """``B(q^-1) / A(q^-1)`` as a python-control transfer function in powers of z."""
-    import control
-
-    num = np.concatenate([np.zeros(nk), b])
-    den = np.concatenate([[1.0], a])
-    n = max(len(num), len(den))  # pad to equal length so z powers line up
-    num = np.concatenate([num, np.zeros(n - len(num))])
-    den = np.concatenate([den, np.zeros(n - len(den))])
-    return control.tf(num, den, dt)
+        T=T, step_true=step_true, step_model=step_model,
+        step_error=float(np.max(np.abs(step_model - step_true)) / scale))
 
 
 # ----------------------------------------------------------------------
@@ -713,6 +711,9 @@ def _report(fit):
                  f"nk={_fmt_list(fit['nk'])}   ({fit['source']})")
     lines.append(f"  output {fit['output']}, input {ins}, sample time {fit['dt']:g} s")
     lines.append(f"  {method}; {fit['n_used']} of {fit['n_samples']} samples in the regression")
+    if fit.get("k0"):
+        lines.append(f"  batch start on the first {fit['k0']} regressor rows, then one update "
+                     "per sample")
     if fit.get("order_selection"):
         sel = fit["order_selection"]
         lines.append(f"  orders chosen by {sel['criterion']} over na in 0..{sel['max_order']}, "
@@ -723,15 +724,17 @@ def _report(fit):
     has_true = "theta_true" in fit
     head = f"  {'param':<10}{'estimate':>12}{'std err':>11}{'t':>9}"
     if has_true:
-        head += f"{'true':>11}{'batch LS':>12}"
+        label = fit.get("truth_label", "true")
+        head += f"{label:>{max(11, len(label) + 2)}}{'batch LS':>12}"
     lines.append(head)
     lines.append("  " + "-" * (len(head) - 2))
     for i, name in enumerate(names):
         est, sd = fit["theta"][i], fit["theta_std"][i]
         tval = est / sd if sd > 0 else float("inf")
-        row = f"  {name:<10}{est:12.5f}{sd:11.2e}{tval:9.1f}"
+        row = f"  {name:<10}{est:12.6g}{sd:11.2e}{tval:9.1f}"
         if has_true:
-            row += f"{fit['theta_true'][i]:11.4f}{fit['theta_batch'][i]:12.5f}"
+            width = max(11, len(label) + 2)
+            row += f"{fit['theta_true'][i]:{width}.5g}{fit['theta_batch'][i]:12.6g}"
         lines.append(row)
     lines.append("")
     lines.append(f"  noise variance      {fit['noise_variance']:.4g}")
@@ -739,7 +742,10 @@ def _report(fit):
     lines.append(f"  fit (1-step pred.)  {fit['fit_percent_prediction']:.2f} %")
     t = fit["tests"]
     lines.append("")
-    lines.append(f"  residual tests (99 % bound {t['bound']:.3f}, lags 1..{t['lags'][-1]})")
+    kind = ("recursive one-step residuals y(t) - phi(t) theta(t-1)"
+            if fit.get("residual_kind") == "recursive" else "residuals of the final model")
+    lines.append(f"  residual tests on the {kind}")
+    lines.append(f"    99 % bound {t['bound']:.3f}, lags 1..{t['lags'][-1]}")
     ok = "pass" if t["white"] else "FAIL"
     lines.append(f"    whiteness     max |r_ee(k)| = {np.max(np.abs(t['autocorr'])):.3f}   "
                  f"Ljung-Box Q = {t['ljung_box']:.1f}, p = {t['ljung_box_pvalue']:.3f}   {ok}")
@@ -755,20 +761,29 @@ def _report(fit):
         lines.append(f"    poles model   {_fmt_poles(p['poles_model'])}")
         lines.append(f"    DC gain       true {p['dc_gain_true']:.4g}   "
                      f"model {p['dc_gain_model']:.4g}")
-        lines.append(f"    max Bode magnitude error {p['max_mag_error_db']:.2f} dB, "
-                     f"max step-response error {p['step_error']:.3g}")
+        lines.append(f"    max Bode magnitude error {p['max_mag_error_db']:.2f} dB up to the "
+                     f"Nyquist frequency")
+        lines.append(f"    max step-response error {100 * p['step_error']:.2f} % of the peak")
         gap = float(np.max(np.abs(fit["theta"] - fit["theta_batch"])))
-        lines.append(f"    max |RLS - batch LS| = {gap:.1e}")
+        if fit["lam"] == 1.0:
+            lines.append(f"    max |RLS - batch LS| = {gap:.1e}  (recursive = batch, as the "
+                         "notes promise)")
+        else:
+            lines.append(f"    RLS with forgetting (lam = {fit['lam']:g}) tracks the plant at the "
+                         "end; batch LS averages over the whole record")
     return "\n".join(lines)
 
 
 def _fmt_poles(poles):
+    at_origin = int(np.sum(np.abs(poles) < 1e-12))
     out = []
-    for z in poles:
+    for z in poles[np.abs(poles) >= 1e-12]:
         if abs(z.imag) < 1e-12:
             out.append(f"{z.real:.4f}")
         else:
             out.append(f"{z.real:.4f}{z.imag:+.4f}j")
+    if at_origin:
+        out.append(f"({at_origin} at z = 0)")
     return ", ".join(out)
 
 
@@ -793,13 +808,17 @@ def _plot(fit, path):
     ax.stem(tests["lags"], tests["autocorr"], basefmt=" ")
     ax.axhline(tests["bound"], color="r", ls="--", lw=0.8)
     ax.axhline(-tests["bound"], color="r", ls="--", lw=0.8, label="99 % bound")
-    ax.set(xlabel="lag k", ylabel="r_ee(k)", title="Residual autocorrelation")
+    ax.set(xlabel="lag k", ylabel=r"$r_{ee}(k)$", title="Residual autocorrelation")
     ax.legend(loc="upper right", fontsize="small")
     ax = axes[1, 0]
     if fit["history"] is not None:
+        t_rows = t[-fit["n_used"]:]
+        truth = fit.get("theta_true_history")
         for i, name in enumerate(_param_names(fit)):
-            line, = ax.plot(t[-fit["n_used"]:], fit["history"][:, i], lw=0.8, label=name)
-            if "theta_true" in fit:
+            line, = ax.plot(t_rows, fit["history"][:, i], lw=0.8, label=name)
+            if truth is not None:
+                ax.plot(t, truth[:, i], color=line.get_color(), ls=":", lw=0.8)
+            elif "theta_true" in fit:
                 ax.axhline(fit["theta_true"][i], color=line.get_color(), ls=":", lw=0.8)
         ax.set(title="RLS parameter estimates" + (" (dotted: true)" if "theta_true" in fit
                                                  else ""))
@@ -809,7 +828,7 @@ def _plot(fit, path):
         ax.set_xticks(np.arange(len(names)), names)
         ax.set(title="Estimates with 2 std errors")
     ax.set(xlabel="time t [s]" if fit["history"] is not None else "parameter",
-           ylabel="theta")
+           ylabel=r"$\hat\theta$")
     if fit["history"] is not None:
         ax.legend(loc="upper right", fontsize="small", ncol=2)
     ax = axes[1, 1]
@@ -817,14 +836,16 @@ def _plot(fit, path):
         p = fit["plant"]
         ax.loglog(p["freq"], p["mag_true"], label="true plant")
         ax.loglog(p["freq"], p["mag_model"], "--", label="identified")
-        ax.set(xlabel="frequency w [rad/s]", ylabel="|G(e^{jw dt})|", title="Bode magnitude")
+        ax.set(xlabel=r"frequency $\omega$ [rad/s]", ylabel=r"$|G(e^{j\omega\,dt})|$",
+               title="Bode magnitude")
     else:
         n = min(200, fit["n_samples"])
         T = np.arange(n) * dt
         for j, col in enumerate(fit["inputs"]):
             step = np.zeros((n, len(fit["inputs"])))
             step[:, j] = 1.0
-            ax.plot(T, _simulate(fit["a"], fit["b"], fit["nk"], step), label=f"from {col}")
+            y_step = fit["model"].simulate(step if step.shape[1] > 1 else step[:, 0])
+            ax.plot(T, y_step, label=f"from {col}")
         ax.set(xlabel="time t [s]", ylabel="y(t)", title="Step response of the model")
     ax.legend(loc="best", fontsize="small")
     try:
@@ -862,3 +883,29 @@ class _Progress:
             sys.stderr.write("\r\033[K")
             sys.stderr.flush()
             self.shown = False
+
+    @contextlib.contextmanager
+    def task(self, message):
+        """Show ``message`` with the elapsed time while a single long call runs."""
+        if not self.enabled:
+            yield
+            return
+        stop = threading.Event()
+        t0 = time.monotonic()
+
+        def tick():
+            while not stop.wait(0.25):
+                elapsed = time.monotonic() - t0
+                if elapsed >= _PROGRESS_AFTER:
+                    self.shown = True
+                    sys.stderr.write(f"\rrlsfilt: {message} ... {elapsed:.0f} s\033[K")
+                    sys.stderr.flush()
+
+        thread = threading.Thread(target=tick, daemon=True)
+        thread.start()
+        try:
+            yield
+        finally:
+            stop.set()
+            thread.join()
+            self.done()
