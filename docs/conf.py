@@ -8,6 +8,7 @@ notebook that changed.
 """
 
 import os
+import re
 import shutil
 import sys
 from pathlib import Path
@@ -82,3 +83,23 @@ html_theme = "sphinx_rtd_theme"
 html_title = f"rlsfilt {release}"
 html_static_path = []
 html_theme_options = {"navigation_depth": 3}
+
+
+# ----------------------------------------------------------------------
+# Fitted-attribute names such as ``n_samples_`` inside a numpydoc type
+# ("residuals_ : ndarray, shape (n_samples_,)") would be read by docutils as
+# hyperlink references. Escape their trailing underscore before numpydoc runs.
+# ----------------------------------------------------------------------
+_PARAM_LINE = re.compile(r"^(\s*[\w*, ]+ : )(.*)$")
+_TRAILING_UNDERSCORE = re.compile(r"(?<![`\w])([A-Za-z]\w*?)_(?=[\s,)\]]|$)")
+
+
+def _escape_fitted_names(app, what, name, obj, options, lines):
+    for i, line in enumerate(lines):
+        m = _PARAM_LINE.match(line)
+        if m:
+            lines[i] = m.group(1) + _TRAILING_UNDERSCORE.sub(r"\1\\_", m.group(2))
+
+
+def setup(app):
+    app.connect("autodoc-process-docstring", _escape_fitted_names, priority=400)

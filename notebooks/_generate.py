@@ -150,6 +150,26 @@ for i, name in enumerate(names[2:], start=2):
 ax.set(xlabel="sample k", ylabel="estimate", xscale="log",
        title="b coefficients with 2-sigma bands")
 ax.legend();"""),
+    ("md", r"""## In one line: `ARX(...).fit`
+
+`rlsfilt.ARX` builds the regressors itself from MATLAB's `[na nb nk]` orders. The notes' model of
+order $n$ has the direct term $b_0 u[k]$, so it is `ARX(na=n, nb=n+1, nk=0)`, and the notes' $b_0$
+is `ARX`'s $b_1$. `method="rls"` runs the same recursion as above (batch start on the first `k0`
+rows, then formulas (1) and (2)), `method="ls"` solves the batch problem through QR."""),
+    ("code", r"""from rlsfilt import ARX
+
+model = ARX(na=2, nb=3, nk=0).fit(u, y, method="rls", k0=k0)
+print(model.summary())
+
+np.testing.assert_allclose(model.theta_, theta, rtol=1e-9)          # our loop above
+np.testing.assert_allclose(model.theta_history_[k0:], history[k0:], rtol=1e-8, atol=1e-12)
+batch = ARX(na=2, nb=3, nk=0).fit(u, y)                             # batch least squares
+np.testing.assert_allclose(model.theta_, batch.theta_, rtol=1e-9)
+print("a =", model.a_, " b =", model.b_)"""),
+    ("md", r"""The fitted model converts to python-control for analysis and design (notebooks 3 and 4):"""),
+    ("code", r"""G = model.to_tf()
+print(G)
+print("poles:", np.round(G.poles(), 4), "  true:", np.round(np.roots(np.r_[1.0, a_true]), 4))"""),
     ("md", r"""## Where next
 
 - Notebook 2 tracks plants whose parameters change (forgetting, windup and its remedies).
