@@ -8,6 +8,8 @@ closed-form polynomial identities, or a brute-force loop.
 import control
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy import signal
 
 from rlsfilt import ARX, RecursiveLeastSquares
@@ -271,9 +273,61 @@ def test_from_tf_round_trip_and_sampled_plant():
     np.testing.assert_allclose(m.simulate(u), resp, atol=1e-12)
 
 
+def _random_plant(gen, na, nb):
+    """Stable A with real poles of modulus in [0.1, 0.9]; b with nonzero ends."""
+    poles = gen.uniform(0.1, 0.9, na) * gen.choice([-1.0, 1.0], na)
+    a = np.poly(poles)[1:] if na else np.zeros(0)
+    b = gen.standard_normal(nb)
+    b[[0, -1]] = np.sign(b[[0, -1]]) * np.maximum(np.abs(b[[0, -1]]), 0.2)
+    return a, b
+
+
+@settings(max_examples=40, deadline=None)
+@given(na=st.integers(0, 3), nb=st.integers(1, 3), nk=st.integers(0, 3),
+       seed=st.integers(0, 2 ** 32 - 1))
+def test_property_structure_round_trips(na, nb, nk, seed):
+    """Any (na, nb, nk): exact recovery, lfilter == forced_response == simulate, tf round trip."""
+    gen = np.random.default_rng(seed)
+    a, b = _random_plant(gen, na, nb)
+    u = gen.standard_normal(120)
+    A, B = np.r_[1.0, a], np.r_[np.zeros(nk), b]
+    y = signal.lfilter(B, A, u)
+    model = ARX(na, nb, nk, dt=0.5).fit(u, y)
+    np.testing.assert_allclose(model.theta_, np.r_[a, b], rtol=1e-8, atol=1e-9)
+    true = ARX.from_polynomials(a, b, nk=nk, dt=0.5)
+    scale = 1 + np.max(np.abs(y))
+    np.testing.assert_allclose(true.simulate(u), y, rtol=0, atol=1e-10 * scale)
+    resp = control.forced_response(true.to_tf(), 0.5 * np.arange(120), u).outputs
+    np.testing.assert_allclose(resp, y, rtol=0, atol=1e-9 * scale)
+    back = ARX.from_tf(true.to_tf())
+    assert (back.na, back.nb, back.nk) == (na, nb, nk)
+    np.testing.assert_allclose(back.theta_, true.theta_, rtol=1e-12, atol=1e-14)
+    assert complex(true.to_tf().dcgain()).real == pytest.approx(b.sum() / A.sum(), rel=1e-9)
+
+
 # ----------------------------------------------------------------------
 # several inputs and outputs
 # ----------------------------------------------------------------------
+def test_from_tf_matrix_plants_keep_the_transfer_matrix():
+    """Rows over a common denominator: the ARX has exactly the plant's transfer matrix."""
+    G = control.tf([[[1.0], [0.5, 0.2]], [[2.0, 0.0], [1.0]]],
+                   [[[1.0, -0.5], [1.0, -0.2, 0.1]], [[1.0, 0.3], [1.0, 0.3]]], 0.1)
+    model = ARX.from_tf(G)
+    assert model.a_.shape[:2] == (2, 2) and model.a_[0, 1].tolist() == [0.0] * model.na
+    assert model.nk == [0, 1]  # (2 z)/(z + 0.3) has a direct term; input 2 is delayed
+    H = model.to_tf()
+    for z in (1.0, 0.4 + 0.7j, -1.3, 3.0j):
+        np.testing.assert_allclose(H(z), G(z), rtol=1e-10)
+        np.testing.assert_allclose(model.to_ss()(z), G(z), rtol=1e-10)
+    miso = ARX.from_tf(G[0, :])
+    assert miso.a_.ndim == 1 and isinstance(miso.b_, list)
+    np.testing.assert_allclose(miso.to_tf()(0.3 + 0.2j), G[0, :](0.3 + 0.2j), rtol=1e-10)
+    u = np.random.default_rng(0).standard_normal((50, 2))
+    expected = (signal.lfilter([0, 1.0], [1, -0.5], u[:, 0])
+                + signal.lfilter([0, 0.5, 0.2], [1, -0.2, 0.1], u[:, 1]))
+    np.testing.assert_allclose(miso.simulate(u), expected, atol=1e-12)
+
+
 def test_miso_per_input_orders_and_delays(rng):
     a = np.array([-1.2, 0.4])
     b1, b2 = np.array([0.5]), np.array([1.0, -0.6, 0.2])
@@ -345,6 +399,11 @@ def test_mimo_matches_separate_single_output_fits(rng):
         np.testing.assert_allclose(se[[2 * i, 2 * i + 1]], se1[[0, 1]], rtol=1e-8)
         np.testing.assert_allclose(se[[2 * other, 2 * other + 1]], se1[[2, 3]], rtol=1e-8)
         np.testing.assert_allclose(se[4:], se1[4:], rtol=1e-8)
+    resid = model.residuals_
+    np.testing.assert_allclose(model.noise_covariance_, resid.T @ resid / (len(resid) - 8),
+                               rtol=1e-12)
+    np.testing.assert_allclose(np.diag(model.noise_covariance_), model.noise_variance_,
+                               rtol=1e-12)
     # truth recovered within noise
     np.testing.assert_allclose(model.a_[:, :, 0], A1, atol=0.05)
     np.testing.assert_allclose(model.b_[0][:, 0], B1[:, 0], atol=0.05)
@@ -425,6 +484,47 @@ def test_rls_prior_start_is_ridge(rng):
     assert not np.isnan(model.theta_history_).any()
 
 
+def test_rls_options_pass_through_to_the_filter(rng):
+    u, y = arx_data(rng, [-1.5, 0.7], [1.0, 0.5], 1, n=200)
+    opts = {"lam": 0.98, "R": 0.5, "Q": 1e-4}
+    model = ARX(2, 2, 1).fit(u, y, method="rls", k0=8, **opts)
+    Phi, target = model.regressors(u, y)
+    rls = RecursiveLeastSquares(4, **opts)
+    rls.initialize(target[:8], Phi[:8])
+    means = rls.batch_filter(target[8:], Phi[8:])[0]
+    np.testing.assert_allclose(model.theta_history_[8:], means[:, :, 0], rtol=1e-12)
+    np.testing.assert_allclose(model.theta_cov_, model.noise_variance_ * rls.P / 0.5, rtol=1e-12)
+    assert model.filter_.lam == 0.98 and model.filter_.R == 0.5
+
+
+def test_rls_default_start_grows_until_full_rank(rng):
+    """A held input makes the first n_params rows rank-deficient: the start grows."""
+    u = np.repeat(rng.standard_normal(40), 10)
+    y = signal.lfilter([0, 1.0, 0.5], [1, -1.5, 0.7], u) + 0.1 * rng.standard_normal(400)
+    model = ARX(2, 2, 1).fit(u, y, method="rls")
+    Phi, _ = model.regressors(u, y)
+    ranks = [np.linalg.matrix_rank(Phi[:k]) for k in range(1, 40)]
+    assert model.k0_ == 1 + ranks.index(4) and model.k0_ > 4
+    np.testing.assert_allclose(model.theta_, ARX(2, 2, 1).fit(u, y).theta_, rtol=1e-9)
+    assert ARX(2, 2, 1).fit(u[:100], y[:100], method="rls").k0_ == model.k0_
+
+
+def test_rls_recursive_residuals_are_the_filter_innovations(rng):
+    u, y = arx_data(rng, [-1.5, 0.7], [1.0, 0.5], 1, n=150)
+    model = ARX(2, 2, 1).fit(u, y, method="rls", lam=0.95)
+    Phi, target = model.regressors(u, y)
+    rls = RecursiveLeastSquares(4, lam=0.95)
+    rls.initialize(target[:4], Phi[:4])
+    innov = []
+    for z, phi in zip(target[4:], Phi[4:]):
+        rls.predict_update(z, phi)
+        innov.append(rls.y[0, 0])
+    assert np.isnan(model.recursive_residuals_[:4]).all()
+    np.testing.assert_allclose(model.recursive_residuals_[4:], innov, rtol=1e-10, atol=1e-12)
+    prior = ARX(2, 2, 1).fit(u, y, method="rls", k0=0, x0=np.ones(4))
+    assert prior.recursive_residuals_[0] == pytest.approx(target[0] - Phi[0] @ np.ones(4))
+
+
 def test_rls_mimo_shares_one_covariance(rng):
     u, y, _ = _mimo_data(rng, N=300)
     batch = ARX(2, 2, 1).fit(u, y)
@@ -432,6 +532,8 @@ def test_rls_mimo_shares_one_covariance(rng):
     np.testing.assert_allclose(rec.theta_, batch.theta_, rtol=1e-9, atol=1e-11)
     assert rec.theta_history_.shape == (rec.n_samples_, 8, 2)
     assert rec.filter_.dim_z == 2
+    rr = rec.recursive_residuals_
+    assert rr.shape == (rec.n_samples_, 2) and np.isnan(rr[:7]).all() and np.isfinite(rr[8:]).all()
 
 
 # ----------------------------------------------------------------------
@@ -513,4 +615,8 @@ def test_summary_repr_and_html(rng):
     html = model._repr_html_()
     assert "<table>" in html and "&plusmn;" in html and "b2" in html
     assert model.summary()._repr_html_() == html
+    latex = model._repr_latex_()
+    assert latex.startswith("$$\\begin{aligned}y(t) - 1.5") and latex.endswith("\\end{aligned}$$")
+    assert f"(\\pm {se[2]:.2g})\\, u(t-1)" in latex and "&= " in latex
+    assert ARX(1, 1)._repr_latex_() is None
     assert repr(model).startswith("ARX(na=2, nb=2, nk=1, dt=0.1):")

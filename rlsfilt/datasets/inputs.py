@@ -50,10 +50,11 @@ def prbs(n_samples=1000, *, amplitude=1.0, hold=1, nbits=None, offset=0.0, rng=0
 
     Examples
     --------
+    >>> import numpy as np
     >>> from rlsfilt.datasets import prbs
     >>> u = prbs(8, amplitude=2.0)
-    >>> sorted(set(u))
-    [-2.0, 2.0]
+    >>> np.unique(u)
+    array([-2.,  2.])
     """
     n_samples = check_int(n_samples, "n_samples", minimum=1)
     hold = check_int(hold, "hold", minimum=1)

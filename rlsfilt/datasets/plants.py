@@ -40,7 +40,7 @@ _NOISE_KINDS = ("white", "colored", "output")
 _COLORED_POLE = 0.9
 
 
-@dataclass(frozen=True, repr=False)
+@dataclass(frozen=True, repr=False, eq=False)
 class Dataset:
     """A simulated identification experiment with its true plant.
 

@@ -2,23 +2,8 @@ r"""ARX models: structure, batch and recursive fits, and the python-control brid
 
 `ARX` is an estimator in the scikit-learn manner (``__init__`` stores the
 orders, ``fit`` returns ``self``, learned quantities end in ``_``) for the
-model of MATLAB's System Identification Toolbox:
-
-.. math::
-
-    y(t) + a_1 y(t-1) + \dots + a_{n_a} y(t-n_a)
-        = b_1 u(t-n_k) + \dots + b_{n_b} u(t-n_k-n_b+1) + e(t).
-
-Translation table (one input, one output):
-
-==========================  =====================================  ==================
-rlsfilt / MATLAB            SIPPY                                  lecture notes
-==========================  =====================================  ==================
-``ARX(na, nb, nk)``         ``na, nb, theta = nk - 1``             ``n = na``
-``b1`` multiplies u(t-nk)   first ``B`` coefficient after delay    ``b0`` when nk = 0
-``ARX(n, n + 1, nk=0)``     ``theta = -1`` (not expressible)       ``b0 u[k] .. bn u[k-n]``
-``A = [1, a1, .., a_na]``   ``DENOMINATOR``                        ``1 + a1 q^-1 ..``
-==========================  =====================================  ==================
+model of MATLAB's System Identification Toolbox; its docstring holds the
+convention and the translation table to SIPPY and the lecture notes.
 """
 
 import html
@@ -73,6 +58,10 @@ class ARX:
     noise_variance_ : float or ndarray of shape (ny,)
         Unbiased residual variance :math:`\hat\sigma^2 = \|y - \Phi\hat\theta\|^2
         / (N_{rows} - n_{params})` (NaN when there are no spare equations).
+    noise_covariance_ : ndarray, shape (ny, ny)
+        2-D `y` only: unbiased covariance of the residuals of the outputs
+        (its diagonal is ``noise_variance_``); the covariance of
+        ``vec(theta_)`` is ``kron(noise_covariance_, (Phi^T Phi)^-1)``.
     residuals_ : ndarray, shape (n_samples_,) or (n_samples_, ny)
         ``target - Phi @ theta_`` on the fitted rows.
     n_samples_ : int
@@ -86,12 +75,42 @@ class ARX:
     theta_history_ : ndarray, shape (n_samples_, n_params[, ny])
         ``method="rls"`` only: the estimate after each row; rows before the
         batch start (``k0 - 1``) are NaN.
+    recursive_residuals_ : ndarray, shape (n_samples_,) or (n_samples_, ny)
+        ``method="rls"`` only: the a-priori residuals
+        :math:`y(t) - \varphi(t)\hat\theta(t-1)`, the errors the filter
+        actually made (NaN for the rows of the batch start). Under forgetting
+        these, not ``residuals_``, show how well the model tracked.
+    k0_ : int
+        ``method="rls"`` only: number of rows of the batch start.
     filter_ : RecursiveLeastSquares
         ``method="rls"`` only: the filter after the last sample, ready for
         more ``predict``/``update`` calls.
 
     Notes
     -----
+    **Convention** (MATLAB's ``arx(data, [na nb nk])``), for one input:
+
+    .. math::
+
+        y(t) + a_1 y(t-1) + \dots + a_{n_a} y(t-n_a)
+            = b_1 u(t-n_k) + \dots + b_{n_b} u(t-n_k-n_b+1) + e(t),
+
+    i.e. :math:`A(q) y(t) = B(q) u(t) + e(t)` with
+    :math:`A(q) = 1 + a_1 q^{-1} + \dots` and
+    :math:`B(q) = q^{-n_k}(b_1 + b_2 q^{-1} + \dots)`. Translation table:
+
+    ==================  ===========================  ==========================  ==================
+    quantity            rlsfilt and MATLAB           SIPPY                       lecture notes
+    ==================  ===========================  ==========================  ==================
+    orders              ``na, nb, nk``               ``[na, nb, theta]``         ``n`` (``m = n``)
+    delay               ``nk``: first term u(t-nk)   ``theta = nk - 1``          none: ``b0 u[k]``
+    b numbering         ``b1 .. b_nb``               ``b1 .. b_nb``              ``b0 .. bn`` = our
+                                                                                 ``b1 .. b_(n+1)``
+    the notes' model    ``ARX(n, n + 1, nk=0)``      not expressible (theta=-1)  order ``n``
+    sampled plant       ``ARX(2, 2, nk=1)``          ``[2, 2, 0]``               needs ``b0 = 0``
+    MATLAB ``B``        ``[zeros(1, nk), b1 ..]``    ``NUMERATOR``               --
+    ==================  ===========================  ==========================  ==================
+
     The model in regression form is :math:`y(t) = \varphi(t)\theta + e(t)`
     with
 
@@ -210,12 +229,24 @@ class ARX:
             `RecursiveLeastSquares` over the rows, started by batch least
             squares on the first `k0` rows.
         k0 : int, optional
-            ``"rls"`` only: number of rows of the batch start; ``n_params``
-            by default, ``0`` starts from the prior ``x0``, ``P0`` instead.
+            ``"rls"`` only: number of rows of the batch start. By default
+            ``n_params`` (the lecture notes' choice), or, when those first
+            rows do not determine every parameter (for example a PRBS held
+            for several samples), the fewest leading rows that do. ``0``
+            starts from the prior ``x0``, ``P0`` instead.
         lam, P0, R, Q, x0
             ``"rls"`` only: passed to `RecursiveLeastSquares` (forgetting
-            factor, initial covariance used when ``k0 = 0``, noise variance,
-            random-walk covariance, initial estimate).
+            factor, initial covariance and estimate for a prior start with
+            ``k0 = 0``, noise variance, random-walk covariance).
+
+        Notes
+        -----
+        With ``method="rls"``, ``theta_`` is the filter's last estimate and
+        ``theta_cov_`` is ``noise_variance_ * P / R``, its covariance; with
+        ``lam = 1``, ``Q = 0`` and a batch start both equal the batch answer.
+        With forgetting they describe the exponentially weighted fit at the
+        end of the record, while ``noise_variance_`` (residuals of the final
+        estimate over all rows) overstates the noise if the plant changed.
 
         Returns
         -------
@@ -246,7 +277,8 @@ class ARX:
         Phi = _build(U, Y, s, s.max_lag)
         target = Y[s.max_lag:]
         rows = len(Phi)
-        for name in ("theta_history_", "filter_"):
+        for name in ("theta_history_", "filter_", "k0_", "recursive_residuals_",
+                     "noise_covariance_"):
             self.__dict__.pop(name, None)
         if method == "ls":
             theta, cov_unscaled = _qr_least_squares(Phi, target)
@@ -254,6 +286,14 @@ class ARX:
             theta, cov_unscaled, rls, history = self._fit_rls(Phi, target, s, opts)
             self.filter_ = rls
             self.theta_history_ = history[:, :, 0] if info["y_1d"] else history
+            # a-priori (recursive) residuals y(t) - phi(t) theta(t-1) after the batch start
+            prior = np.full_like(target, np.nan)
+            k0 = self.k0_
+            if k0 == 0 and rows:
+                prior[0] = target[0] - Phi[0] @ rls._x0
+                k0 = 1
+            prior[k0:] = target[k0:] - np.einsum("ij,ijk->ik", Phi[k0:], history[k0 - 1:-1])
+            self.recursive_residuals_ = prior[:, 0] if info["y_1d"] else prior
         resid = target - Phi @ theta
         dof = rows - s.n_params
         sigma2 = np.sum(resid ** 2, axis=0) / dof if dof > 0 else np.full(s.n_outputs, np.nan)
@@ -261,6 +301,9 @@ class ARX:
         cov = sigma2[:, None, None] * cov_unscaled[None]
         self.theta_cov_ = cov[0] if info["y_1d"] else cov
         self.noise_variance_ = float(sigma2[0]) if info["y_1d"] else sigma2
+        if not info["y_1d"]:
+            self.noise_covariance_ = (resid.T @ resid / dof if dof > 0
+                                      else np.full((s.n_outputs, s.n_outputs), np.nan))
         self.residuals_ = resid[:, 0] if info["y_1d"] else resid
         self.n_samples_ = rows
         self.method_ = method
@@ -268,9 +311,16 @@ class ARX:
 
     def _fit_rls(self, Phi, target, s, opts):
         n, rows = s.n_params, len(Phi)
-        k0 = n if opts["k0"] is None else check_int(opts["k0"], "k0", minimum=0)
+        k0 = _full_rank_start(Phi) if opts["k0"] is None else check_int(opts["k0"], "k0",
+                                                                         minimum=0)
         if k0 > rows:
             raise ValueError(f"`k0` must be <= the number of regressor rows ({rows}); got {k0}")
+        if k0 > 0:
+            given = [key for key in ("P0", "x0") if opts[key] is not None]
+            if given:
+                raise ValueError(
+                    f"`{given[0]}` only applies to a prior start (k0=0); the batch start on "
+                    f"k0={k0} rows sets both x0 and P0. Pass k0=0 to start from `{given[0]}`.")
         kw = {key: opts[key] for key in ("P0", "R", "Q", "x0") if opts[key] is not None}
         lam = 1.0 if opts["lam"] is None else opts["lam"]
         rls = RecursiveLeastSquares(n, dim_z=s.n_outputs, lam=lam, **kw)
@@ -281,6 +331,7 @@ class ARX:
         if k0 < rows:
             means = rls.batch_filter(target[k0:], Phi[k0:], store_covariances=False)[0]
             history[k0:] = means
+        self.k0_ = k0
         return rls.x.copy(), rls.P / rls.R, rls, history
 
     def _store(self, theta, s, info, dt):
@@ -781,11 +832,13 @@ class ARX:
                     lag = s.nk[j] + m
                     arg = f"{self._u_name(j)}(t)" if lag == 0 else f"{self._u_name(j)}(t-{lag})"
                     rhs.append(_term(th[p, i], se[p, i], arg, pm))
-            left = " ".join([lhs[0]] + lhs[1:])
-            right = " ".join(rhs).lstrip("+ ").strip()
-            if rhs and rhs[0].startswith("- "):
-                right = "-" + right
-            lines.append(f"{left} = {right} + e(t)")
+            left = " ".join(lhs)
+            if rhs:  # the first term carries its sign without a separating space
+                first = rhs[0][2:] if rhs[0].startswith("+ ") else "-" + rhs[0][2:]
+                right = " ".join([first] + rhs[1:]) + " + e(t)"
+            else:
+                right = "e(t)"
+            lines.append(f"{left} = {right}")
         return lines
 
     def _summary_text(self):
@@ -805,6 +858,40 @@ class ARX:
         if "theta_" not in self.__dict__:
             return self._orders_text()
         return self._summary_text()
+
+    def _repr_latex_(self):
+        """The difference equation(s) with one standard error, for notebooks."""
+        if "theta_" not in self.__dict__:
+            return None
+        return "$$\\begin{aligned}" + " \\\\ ".join(self._latex_lines()) + "\\end{aligned}$$"
+
+    def _latex_lines(self):
+        s = self.structure_
+        se = self.std_errors_.reshape(self.n_params_, -1)
+        th = self._theta2()
+        _, b_sls = s.param_slices()
+
+        def sig(name, lag):
+            base = _latex_name(name)
+            return f"{base}(t)" if lag == 0 else f"{base}(t-{lag})"
+
+        def term(value, err, arg):
+            sign = "-" if value < 0 else "+"
+            return f"{sign} {abs(value):.5g}\\,(\\pm {err:.2g})\\, {arg}"
+
+        lines = []
+        for i in range(s.n_outputs):
+            lhs = [sig(self._y_name(i), 0)]
+            for j in range(s.n_outputs):
+                for k in range(1, s.na + 1):
+                    p = j * s.na + k - 1
+                    lhs.append(term(th[p, i], se[p, i], sig(self._y_name(j), k)))
+            rhs = [term(th[b_sls[j].start + m, i], se[b_sls[j].start + m, i],
+                        sig(self._u_name(j), s.nk[j] + m))
+                   for j in range(s.n_inputs) for m in range(s.nb[j])]
+            first = rhs[0][2:] if rhs[0].startswith("+ ") else "-" + rhs[0][2:]
+            lines.append(" ".join(lhs) + " &= " + " ".join([first] + rhs[1:]) + " + e(t)")
+        return lines
 
     def _repr_html_(self):
         if "theta_" not in self.__dict__:
@@ -880,6 +967,18 @@ def _check_dt(dt):
     return dt
 
 
+def _latex_name(name):
+    """``y1`` -> ``y_{1}``; other names in \\mathrm."""
+    if len(name) > 1 and name[0] in "uy" and name[1:].isdigit():
+        return f"{name[0]}_{{{name[1:]}}}"
+    if len(name) == 1:
+        return name
+    special = {c: "\\" + c for c in "&%$#_{}"}
+    special.update({"~": "\\textasciitilde{}", "^": "\\textasciicircum{}",
+                    "\\": "\\textbackslash{}"})
+    return "\\mathrm{" + "".join(special.get(c, c) for c in name) + "}"
+
+
 def _fmt(t):
     return t[0] if len(set(t)) == 1 and len(t) == 1 else list(t)
 
@@ -907,6 +1006,36 @@ def _qr_least_squares(Phi, target):
     Rinv, info = lapack.dtrtri(Rf, lower=0)
     cov = Rinv @ Rinv.T
     return theta, 0.5 * (cov + cov.T)
+
+
+def _full_rank_start(Phi):
+    """Fewest leading rows (at least n_params) of `Phi` with full column rank.
+
+    The rank of a prefix grows with its length, so double until full rank,
+    then bisect. Raises the not-persistently-exciting error when even all
+    rows are rank-deficient.
+    """
+    rows, n = Phi.shape
+    if n == 0:
+        return 0
+
+    def full(k):
+        return np.linalg.matrix_rank(Phi[:k]) == n
+
+    if full(n):
+        return n
+    if not full(rows):
+        _qr_least_squares(Phi, np.zeros((rows, 1)))  # raises with the rank in the message
+    lo, hi = n, min(2 * n, rows)  # full(lo) is False
+    while not full(hi):
+        lo, hi = hi, min(2 * hi, rows)
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if full(mid):
+            hi = mid
+        else:
+            lo = mid
+    return hi
 
 
 def _trim(p):
