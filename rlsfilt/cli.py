@@ -487,14 +487,12 @@ def _identify(y, u, na, nb, nk, method="ls", lam=1.0, dt=1.0, progress=None):
     U = u if u.shape[1] > 1 else u[:, 0]
     model = ARX(na=na, nb=list(nb) if len(nb) > 1 else nb[0],
                 nk=list(nk) if len(nk) > 1 else nk[0], dt=dt)
-    kwargs = {}
-    Phi, target = model.regressors(U, y)
-    if method == "rls":
-        kwargs = {"lam": lam, "k0": _batch_start_rows(Phi)}
+    kwargs = {"lam": lam} if method == "rls" else {}
     task = (f"recursive least squares over {len(y)} samples" if method == "rls"
             else f"least squares on {len(y)} samples")
     with (progress or _Progress(False)).task(task):
         model.fit(U, y, method=method, **kwargs)
+    Phi, _ = model.regressors(U, y)
     lag = model.max_lag
     a = np.atleast_1d(model.a_)
     b = list(model.b_) if isinstance(model.b_, list) else [model.b_]
@@ -503,15 +501,14 @@ def _identify(y, u, na, nb, nk, method="ls", lam=1.0, dt=1.0, progress=None):
     theta_std = np.asarray(model.std_errors_, dtype=float)
     sigma2 = float(model.noise_variance_)
     history = getattr(model, "theta_history_", None)
+    k0 = getattr(model, "k0_", None)
     if method == "rls" and lam < 1.0:
         # With forgetting the final estimate describes the end of the record only; judge
         # it by the recursive one-step residuals y(t) - phi(t) theta(t-1), the errors RLS
         # actually made, and scale the covariance by their variance.
-        k0 = kwargs["k0"]
-        rows = np.arange(k0, len(Phi))
-        pred = np.einsum("ij,ij->i", Phi[rows], history[rows - 1])
-        resid = target[rows] - pred
-        y_pred[lag + rows] = pred
+        rows = np.flatnonzero(~np.isnan(model.recursive_residuals_))
+        resid = model.recursive_residuals_[rows]
+        y_pred[lag + rows] = y[lag + rows] - resid
         old, sigma2 = sigma2, float(resid @ resid / len(resid))
         theta_std = theta_std * math.sqrt(sigma2 / old) if old > 0 else theta_std
         u_rows = u[lag + rows]
@@ -529,21 +526,7 @@ def _identify(y, u, na, nb, nk, method="ls", lam=1.0, dt=1.0, progress=None):
         n_used=int(model.n_samples_), y=y, u=u, y_sim=y_sim, y_pred=y_pred, residuals=resid,
         residual_kind=residual_kind, fit_percent=_fit_percent(y, y_sim),
         fit_percent_prediction=_fit_percent(y[used], y_pred[used]),
-        tests=_residual_tests(resid, u_rows), history=history, k0=kwargs.get("k0"))
-
-
-def _batch_start_rows(Phi):
-    """Rows of the batch start: the first ``n_params * 2**j`` rows that have full rank.
-
-    A slowly switching input (a PRBS with a long hold) can leave the first
-    ``n_params`` rows rank-deficient; doubling the block until it determines
-    every parameter keeps the lecture notes' start exact.
-    """
-    rows, n = Phi.shape
-    k0 = n
-    while k0 < rows and np.linalg.matrix_rank(Phi[:k0]) < n:
-        k0 = min(2 * k0, rows)
-    return k0
+        tests=_residual_tests(resid, u_rows), history=history, k0=k0)
 
 
 def _fit_percent(y, yhat):
