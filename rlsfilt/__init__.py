@@ -7,13 +7,15 @@ A filterpy-style toolkit: `RecursiveLeastSquares` mirrors filterpy's
 
 from . import datasets  # public subpackage: rlsfilt.datasets
 from .exceptions import ForgettingSkippedWarning, NotFittedError, NumericalWarning
-from .filters import RecursiveLeastSquares
+from .filters import RecursiveLeastSquares, SlidingWindowRLS, SquareRootRLS
 from .models import ARX
 
 __version__ = "0.1.0"
 
 __all__ = [
     "RecursiveLeastSquares",
+    "SlidingWindowRLS",
+    "SquareRootRLS",
     "ARX",
     "datasets",
     "NotFittedError",

@@ -1,5 +1,7 @@
 """Recursive least-squares filters."""
 
 from .rls import RecursiveLeastSquares
+from .sliding_window import SlidingWindowRLS
+from .square_root import SquareRootRLS
 
-__all__ = ["RecursiveLeastSquares"]
+__all__ = ["RecursiveLeastSquares", "SlidingWindowRLS", "SquareRootRLS"]

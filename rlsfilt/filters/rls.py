@@ -10,13 +10,12 @@ state ``x`` and ``P``, diagnostics ``y``, ``K``, ``S``, ``SI`` and the lazy
 ``log_likelihood``, ``likelihood`` and ``mahalanobis``.
 """
 
-import copy
 import math
 import warnings
 
 import numpy as np
 from filterpy.common import pretty_str
-from scipy.linalg import solve_triangular
+from scipy.linalg import null_space, solve_triangular
 
 from .._validation import (
     as_float_array,
@@ -24,16 +23,17 @@ from .._validation import (
     check_finite,
     check_int,
     check_lam,
+    check_scalar,
     check_variance,
 )
-from ..exceptions import ForgettingSkippedWarning
+from ..exceptions import ForgettingSkippedWarning, NumericalWarning
+from . import forgetting as _fg
+from ._base import _FilterBase, _innovation
 
 __all__ = ["RecursiveLeastSquares"]
 
-_LOG_2PI = math.log(2.0 * math.pi)
 
-
-class RecursiveLeastSquares:
+class RecursiveLeastSquares(_FilterBase):
     r"""Recursive least-squares estimator with a filterpy ``KalmanFilter`` API.
 
     Estimates ``x`` in the regression :math:`z_k = H_k x + v_k` where
@@ -63,6 +63,44 @@ class RecursiveLeastSquares:
     Q : float or array_like, default 0.0
         Covariance of the parameter random walk added in :meth:`predict`; a
         scalar means ``Q * I``.
+    forgetting : {"exponential", "directional", "constant_trace", "efra", \
+"variable"}, default "exponential"
+        How old data is forgotten (see Notes). ``"exponential"`` divides
+        ``P`` by `lam` in :meth:`predict` (filterpy's fading memory); the
+        others forget inside :meth:`update`, because they need the step's
+        regressor or residual, and bound ``P`` when the input stops
+        exciting the system (no covariance windup).
+    forgetting_params : dict, optional
+        Constants of the chosen mode: ``"directional"``: ``eps`` (1e-12,
+        smallest ``phi P phi^T / R`` that triggers forgetting);
+        ``"constant_trace"``: ``trace`` (``dim_x * R * (1 - lam)`` with the
+        `R` and `lam` given at construction: the trace plain forgetting
+        settles at for white unit-power regressors; scale it by the inverse
+        regressor power) and
+        ``ratio`` (1e4, ``c1 / c2`` and so about the largest ``cond(P)``);
+        ``"efra"``: ``alpha`` (0.5), ``beta`` (0.005), ``delta`` (0.005);
+        ``"variable"``: ``lam_min`` (``max(0.5, 1 - 10 (1 - lam))``, the
+        floor of the variable factor) and ``trace_max`` (``10 dim_x``).
+    gate : float, optional
+        Outlier gate: a measurement whose normalized residual
+        :math:`\sqrt{y^T y / S}` (``|y| / sqrt(S)`` for one output,
+        :math:`S = H P^- H^T + R`) exceeds `gate` is not applied; it is
+        counted in ``n_gated`` and flagged by ``gated``. ``R`` must describe
+        the real measurement noise, or good samples are rejected (``R`` too
+        small) or outliers pass (``R`` too large). Typical values are 3-5.
+        Off by default. Early samples pass easily while ``P`` is still
+        large; and an abrupt parameter change also makes large residuals,
+        so a gate delays (a tight gate can block) tracking of jumps: watch
+        ``n_gated`` or ``gated`` for runs of rejections.
+    check_every : int, default 100
+        Health check period (0 disables it): every `check_every` updates,
+        and at the end of :meth:`batch_filter`, ``P`` is tested for positive
+        definiteness and its condition number (one ``eigvalsh``, O(dim_x^3));
+        every update also checks cheaply (O(dim_x)) that the diagonal of
+        ``P`` is positive and finite. A failure issues one
+        :class:`~rlsfilt.NumericalWarning` naming the update.
+    cond_max : float, default 1e12
+        Condition number of ``P`` beyond which the health check warns.
 
     Attributes
     ----------
@@ -87,6 +125,18 @@ class RecursiveLeastSquares:
         Innovation covariance :math:`(H P^- H^T + R) I` and its inverse.
     dim_x, dim_z : int
         Dimensions given at construction.
+    gated : bool
+        Whether the gate rejected the last measurement.
+    n_gated : int
+        Number of measurements rejected by the gate since :meth:`reset`.
+    n_updates : int
+        Number of measurement updates since :meth:`reset`.
+    lam_t : float
+        Forgetting factor effectively applied by the last update (`lam` for
+        ``"exponential"``; the directional weight, the variable factor or
+        the constant-trace normalization otherwise).
+    constraints : tuple of ndarray or None
+        ``(A, b)`` given to :meth:`constrain`.
 
     Notes
     -----
@@ -113,6 +163,40 @@ class RecursiveLeastSquares:
     ``lam < 1`` it is exponentially weighted least squares, and
     ``y / sqrt(S)`` is the recursive residual of Brown, Durbin & Evans (1975).
 
+    **Forgetting modes.** Plain exponential forgetting winds up: while the
+    input does not excite a direction, ``P`` grows like ``lam**-k`` in it
+    and the next disturbance throws the estimate away. The other modes
+    (functions in :mod:`rlsfilt.filters.forgetting`) replace the last two
+    lines above; for them :meth:`predict` adds ``Q`` and records the priors
+    only, and the forgetting happens in :meth:`update` (so ``update`` alone
+    is a complete step; :meth:`predict_update` is the one-call textbook
+    step for every mode):
+
+    * ``"directional"`` (Kulhavy & Karny 1984; Bittanti, Bolzern & Campi
+      1990): forget only along the regressor, :math:`P^{-1} \leftarrow
+      P^{-1} + \varepsilon H^T H / R`, :math:`\varepsilon = \lambda -
+      (1 - \lambda) R / (H P H^T)`.
+    * ``"constant_trace"`` (Goodwin & Sin 1984; Astrom & Wittenmark 1995):
+      :math:`P \leftarrow c_1 \bar P / \operatorname{tr} \bar P + c_2 I`
+      after the plain update :math:`\bar P`; `lam` only sets the default ``trace``.
+    * ``"efra"`` (Salgado, Goodwin & Middleton 1988): :math:`P \leftarrow
+      P/\lambda - \alpha g g^T / S + \beta R I - (\delta / R) P^2`
+      (the paper's recursion for ``P / R``), gain :math:`\alpha g / S`; the
+      eigenvalues of ``P / R`` are clipped into EFRA's invariant interval
+      once, by the first :meth:`predict` or :meth:`update` after
+      construction, :meth:`reset` or :meth:`initialize` (so the default
+      ``P0`` works).
+    * ``"variable"`` (Fortescue, Kershenbaum & Ydstie 1981):
+      :math:`\lambda_t = 1 - (1 - \lambda)\, y^T y / (m S)`, clipped to
+      ``[lam_min, 1]`` and raised so that ``trace(P) <= trace_max``.
+
+    **Constraints.** After :meth:`constrain` the estimate satisfies
+    ``A x = b``; plain updates keep it because ``A P = 0``. To hold
+    ``A P = 0`` against round-off, and against the modes that add to ``P``
+    (``Q``, ``"efra"``, ``"constant_trace"``), ``P`` is projected onto the
+    null space of ``A`` (:math:`P \leftarrow \Pi P \Pi`) after each
+    predict and update, two small matrix products.
+
     Missing measurements (``z is None`` or any NaN in ``z``) keep the
     estimate (posterior = prior), as filterpy and statsmodels do. Then ``y``
     and ``z`` are NaN, ``K`` is zero, ``S`` is the predictive variance of the
@@ -131,6 +215,21 @@ class RecursiveLeastSquares:
     .. [4] R. L. Brown, J. Durbin and J. M. Evans, "Techniques for testing the
        constancy of regression relationships over time", *J. R. Stat. Soc.
        B* 37(2), 1975.
+    .. [5] R. Kulhavy and M. Karny, "Tracking of slowly varying parameters by
+       directional forgetting", *Proc. 9th IFAC World Congress*, 1984.
+    .. [6] S. Bittanti, P. Bolzern and M. Campi, "Convergence and exponential
+       convergence of identification algorithms with directional forgetting
+       factor", *Automatica* 26(5), 1990.
+    .. [7] G. C. Goodwin and K. S. Sin, *Adaptive Filtering, Prediction and
+       Control*, Prentice Hall, 1984.
+    .. [8] M. E. Salgado, G. C. Goodwin and R. H. Middleton, "Modified least
+       squares algorithm incorporating exponential resetting and
+       forgetting", *Int. J. Control* 47(2), 1988.
+    .. [9] T. R. Fortescue, L. S. Kershenbaum and B. E. Ydstie,
+       "Implementation of self-tuning regulators with variable forgetting
+       factors", *Automatica* 17(6), 1981.
+    .. [10] Y. Zhu and X. R. Li, "Recursive least squares with linear
+       constraints", *Communications in Information and Systems* 7(3), 2007.
 
     Examples
     --------
@@ -150,15 +249,25 @@ class RecursiveLeastSquares:
     array([0.8, 0.5])
     """
 
-    def __init__(self, dim_x, dim_z=1, lam=1.0, *, P0=1e4, x0=None, R=1.0, Q=0.0):
+    def __init__(self, dim_x, dim_z=1, lam=1.0, *, P0=1e4, x0=None, R=1.0, Q=0.0,
+                 forgetting="exponential", forgetting_params=None, gate=None,
+                 check_every=100, cond_max=1e12):
         self.dim_x = check_int(dim_x, "dim_x", minimum=1)
         self.dim_z = check_int(dim_z, "dim_z", minimum=1)
-        self.lam = lam
+        self._mode = _fg.mode_code(forgetting)
+        self._forgetting_params_in = forgetting_params
         self.R = R
+        self.lam = lam
         self.Q = Q
+        self.gate = gate
+        self.check_every = check_int(check_every, "check_every", minimum=0)
+        self.cond_max = _check_positive(cond_max, "cond_max")
         self._P0 = check_covariance(P0, self.dim_x, "P0", definite=True)
         self._x0 = self._as_state(np.zeros((self.dim_x, self.dim_z)) if x0 is None else x0, "x0")
         self._warned_skip = False
+        self.constraints = None
+        self._Pi = None          # orthogonal projector onto null(A)
+        self._null_basis = None  # orthonormal basis of null(A), for the health check
         self.reset()
 
     # ------------------------------------------------------------------
@@ -171,16 +280,29 @@ class RecursiveLeastSquares:
 
     @lam.setter
     def lam(self, value):
-        self._lam = check_lam(value)
+        lam = check_lam(value)
+        params = _fg.mode_params(self._mode, self._forgetting_params_in, self.dim_x, lam,
+                                 self._R)
+        self._lam, self._params = lam, params
 
     @property
-    def R(self):
-        """Measurement-noise variance (a positive float)."""
-        return self._R
+    def forgetting(self):
+        """Forgetting mode (read-only; chosen at construction)."""
+        return _fg.MODES[self._mode]
 
-    @R.setter
-    def R(self, value):
-        self._R = check_variance(value, "R")
+    @property
+    def forgetting_params(self):
+        """The constants of the forgetting mode, defaults filled in (a new dict)."""
+        return dict(zip(_fg._PARAM_NAMES[self._mode], self._params, strict=True))
+
+    @property
+    def gate(self):
+        """Outlier gate on the normalized residual, or None (off)."""
+        return self._gate
+
+    @gate.setter
+    def gate(self, value):
+        self._gate = None if value is None else _check_positive(value, "gate")
 
     @property
     def Q(self):
@@ -193,30 +315,6 @@ class RecursiveLeastSquares:
         self._Q_is_zero = not self._Q.any()
 
     # ------------------------------------------------------------------
-    # lazily computed diagnostics, as in filterpy
-    # ------------------------------------------------------------------
-    @property
-    def log_likelihood(self):
-        """Log-likelihood of the last measurement, ``log N(y; 0, S)``."""
-        if self._log_likelihood is None:
-            self._log_likelihood = _gaussian_logpdf(self.y, self.S[0, 0])
-        return self._log_likelihood
-
-    @property
-    def likelihood(self):
-        """``exp(log_likelihood)``, floored at the smallest positive float."""
-        if self._likelihood is None:
-            self._likelihood = max(math.exp(self.log_likelihood), np.finfo(float).tiny)
-        return self._likelihood
-
-    @property
-    def mahalanobis(self):
-        """Mahalanobis distance ``sqrt(y^T S^-1 y)`` of the last residual."""
-        if self._mahalanobis is None:
-            self._mahalanobis = math.sqrt(float(np.vdot(self.y, self.y)) / self.S[0, 0])
-        return self._mahalanobis
-
-    # ------------------------------------------------------------------
     # the recursion
     # ------------------------------------------------------------------
     def predict(self, Q=None):
@@ -224,7 +322,10 @@ class RecursiveLeastSquares:
 
         The estimate ``x`` is unchanged (constant or random-walk
         parameters). With ``lam = 1`` and ``Q = 0`` this only records
-        ``x_prior`` and ``P_prior``.
+        ``x_prior`` and ``P_prior``. For the forgetting modes other than
+        ``"exponential"`` the division by `lam` is not done here (their
+        forgetting needs the regressor and happens in :meth:`update`); only
+        ``Q`` is added.
 
         Parameters
         ----------
@@ -236,13 +337,22 @@ class RecursiveLeastSquares:
         else:
             Q = check_covariance(Q, self.dim_x, "Q")
             q_zero = not Q.any()
-        self.P = _predict_covariance(self._checked_P(), self._lam, None if q_zero else Q)
+        P = self._checked_P()
+        if self._efra_pending:
+            P = self._efra_start(P)
+        P = _predict_covariance(P, self._time_lam(), None if q_zero else Q)
+        self.P = P if self._Pi is None else _project(P, self._Pi)
         self.x_prior = self.x.copy()
         self.P_prior = self.P.copy()
         self._updates_since_predict = 0
 
     def update(self, z, H, R=None):
         r"""Measurement update with regressor row `H`.
+
+        For the forgetting modes other than ``"exponential"`` this includes
+        the step's forgetting. A measurement rejected by the gate leaves
+        ``x`` and ``P`` unchanged (``gated`` is True, ``y`` and ``S`` are
+        those of the rejected sample, ``K`` is zero).
 
         Parameters
         ----------
@@ -260,20 +370,27 @@ class RecursiveLeastSquares:
         x, P = self._checked_x(), self._checked_P()
         self._note_update()
         self._clear_lazy()
+        if self._efra_pending:
+            P = self._efra_start(P)
         self.H = phi
-        g, s = _innovation(P, phi, r)
+        x, P, y, K, g, s, lam_t, gated = _measurement_step(
+            self._mode, self._params, self._lam, x, P, phi, zc, r, self._gate, self._Pi)
         self.S = s * self._I_z
         self.SI = self._I_z / s
+        self.gated = gated
+        self.n_gated += gated
+        self.lam_t = lam_t
+        self.x, self.P, self.K = x, P, K
         if zc is None:
             self.z = np.full((self.dim_z, 1), np.nan)
             self.y = np.full((self.dim_z, 1), np.nan)
-            self.K = np.zeros((self.dim_x, 1))
             self._log_likelihood, self._likelihood = 0.0, 1.0
         else:
-            self.z = zc
-            self.x, self.P, self.y, self.K = _apply_update(x, P, phi, zc, g, s)
+            self.z, self.y = zc, y
         self.x_post = self.x.copy()
         self.P_post = self.P.copy()
+        self.n_updates += 1
+        self._check_health(cheap=True)
 
     def predict_update(self, z, H, R=None):
         """One textbook RLS step: :meth:`predict` then :meth:`update`."""
@@ -332,6 +449,9 @@ class RecursiveLeastSquares:
         Rinv = solve_triangular(Rf, np.eye(self.dim_x))
         P = self._R * (Rinv @ Rinv.T)
         self.P = 0.5 * (P + P.T)
+        self._efra_pending = self._mode == _fg.EFRA
+        if self.constraints is not None:   # keep the constraints given earlier
+            self.constrain(*self.constraints)
         self.x_prior = self.x_post = self.x.copy()
         self.P_prior = self.P_post = self.P.copy()
         self._updates_since_predict = 0
@@ -377,35 +497,20 @@ class RecursiveLeastSquares:
         Rv = self._as_batch_variances(Rs, len(Z))
         if saver is not None:
             return self._batch_stepwise(Z, Hm, Rv, update_first, saver, store_covariances)
-        out = _batch_reference(self._checked_x(), self._checked_P(), Z, Hm, Rv, self._lam,
+        P = self._checked_P()
+        if self._efra_pending and len(Z):
+            P = self._efra_start(P)
+        out = _batch_reference(self._checked_x(), P, Z, Hm, Rv, self._lam,
                                None if self._Q_is_zero else self._Q, update_first,
-                               store_covariances)
+                               store_covariances, mode=self._mode, params=self._params,
+                               gate=self._gate, Pi=self._Pi, check_every=self.check_every,
+                               basis=self._null_basis, cond_max=self.cond_max,
+                               step0=self.n_updates)
         self._adopt_last_step(out, Hm, Z, Rv, update_first)
+        if out.problem is not None and not self._warned_health:
+            self._warn_health(out.problem)
+        self._check_health(cheap=False)
         return out.means, out.covariances, out.means_p, out.covariances_p
-
-    def _batch_stepwise(self, Z, Hm, Rv, update_first, saver, store_covariances):
-        N = len(Z)
-        means = np.empty((N, self.dim_x, self.dim_z))
-        means_p = np.empty_like(means)
-        covs = np.empty((N, self.dim_x, self.dim_x)) if store_covariances else None
-        covs_p = np.empty_like(covs) if store_covariances else None
-        for k in range(N):
-            if not update_first:
-                self.predict()
-                means_p[k] = self.x
-                if store_covariances:
-                    covs_p[k] = self.P
-            self.update(Z[k], Hm[k], Rv[k])
-            means[k] = self.x
-            if store_covariances:
-                covs[k] = self.P
-            if update_first:
-                self.predict()
-                means_p[k] = self.x
-                if store_covariances:
-                    covs_p[k] = self.P
-            saver.save()
-        return means, covs, means_p, covs_p
 
     def _adopt_last_step(self, out, Hm, Z, Rv, update_first):
         """Leave the filter as the step-by-step loop would have left it."""
@@ -430,46 +535,133 @@ class RecursiveLeastSquares:
         self.x_prior = out.x_prior
         self.P_prior = out.P_prior
         self._updates_since_predict = 0 if update_first else 1
+        self.n_updates += len(Z)
+        self.n_gated += int(out.gated.sum())
+        self.gated = bool(out.gated[-1])
+        self.lam_t = out.lam_t_last
+        if self.gated:
+            self.K = np.zeros((self.dim_x, 1))
+
+    # ------------------------------------------------------------------
+    # equality constraints
+    # ------------------------------------------------------------------
+    def constrain(self, A, b):
+        r"""From now on keep the estimate on the affine set ``A x = b``.
+
+        The state and covariance are projected once (Zhu & Li 2007):
+
+        .. math::
+
+            W &= P A^T (A P A^T)^{-1} \\
+            x &\leftarrow x + W (b - A x), \qquad P \leftarrow P - W A P
+
+        after which :math:`A P = 0`, so every gain satisfies :math:`A K = 0`
+        and plain updates keep :math:`A x = b`. Started from
+        :meth:`initialize` with ``lam = 1`` this gives, at every later step,
+        the equality-constrained least-squares estimate (the KKT solution)
+        on all data so far, as statsmodels' ``RecursiveLS(constraints=...)``.
+        ``P`` is then singular (rank ``dim_x - rank(A)``); the health check
+        tests it on the null space of ``A``.
+
+        Parameters
+        ----------
+        A : array_like, shape (p, dim_x) or (dim_x,)
+            Constraint matrix of full row rank ``p < dim_x``.
+        b : float or array_like, shape (p,) or (p, dim_z)
+            Right-hand side; one column per output when ``dim_z > 1`` (a
+            1-D `b` applies to every output).
+
+        Returns
+        -------
+        self
+        """
+        n, m = self.dim_x, self.dim_z
+        A = as_float_array(A, "A")
+        if A.ndim == 1:
+            A = A.reshape(1, -1)
+        if A.ndim != 2 or A.shape[1] != n:
+            raise ValueError(f"`A` must have shape (p, {n}) (dim_x = {n} columns); got {A.shape}")
+        check_finite(A, "A")
+        p = A.shape[0]
+        rank = np.linalg.matrix_rank(A)
+        if rank != p or p >= n:
+            raise ValueError(f"`A` must have full row rank p < dim_x = {n}; got {p} rows of "
+                             f"rank {rank}")
+        bb = check_finite(as_float_array(b, "b"), "b")
+        if bb.ndim <= 1 and bb.size == p:
+            bb = np.repeat(bb.reshape(p, 1), m, axis=1)
+        if bb.shape != (p, m):
+            raise ValueError(f"`b` must have shape ({p},) or ({p}, {m}); got {bb.shape}")
+        x, P = self._checked_x(), self._checked_P()
+        if self._efra_pending:
+            P = self._efra_start(P)
+        PA = P @ A.T
+        W = np.linalg.solve(A @ PA, PA.T).T            # W = P A^T (A P A^T)^-1
+        self.x = x + W @ (bb - A @ x)                  # x <- x + W (b - A x)
+        P = P - W @ PA.T                               # P <- P - W A P
+        basis = null_space(A)
+        self._Pi = basis @ basis.T
+        self.P = _project(P, self._Pi)
+        self._null_basis = basis
+        self.constraints = (A.copy(), bb.copy())
+        self.x_post, self.P_post = self.x.copy(), self.P.copy()
+        return self
+
+    # ------------------------------------------------------------------
+    # health of P
+    # ------------------------------------------------------------------
+    def _check_health(self, cheap):
+        """Warn once if ``P`` is not positive definite or too ill-conditioned.
+
+        With `cheap`, only the diagonal is looked at (O(dim_x)) unless this
+        update is a multiple of ``check_every``; a suspicious diagonal
+        triggers the full check (``eigvalsh`` on ``P`` restricted to the
+        null space of the constraints, if any).
+        """
+        if self._warned_health or not self.check_every:
+            return
+        P = self.P
+        if cheap:
+            d = np.diagonal(P)
+            if (self.n_updates % self.check_every and np.isfinite(d).all()
+                    and (d > 0).all()):
+                return
+        problem = _health_problem(P, self._null_basis, self.cond_max)
+        if problem is not None:
+            self._warn_health(problem + f" at update {self.n_updates} since reset")
+
+    def _warn_health(self, message):
+        self._warned_health = True
+        warnings.warn(message + ". The estimate may be unreliable: use a forgetting mode that "
+                      "bounds P (forgetting='directional', 'efra', ...), SquareRootRLS, or more "
+                      "exciting input.", NumericalWarning, stacklevel=3)
+
+    def _efra_start(self, P):
+        """Clip ``P`` into EFRA's invariant interval before its first step."""
+        self._efra_pending = False
+        lo, hi = _fg.efra_bounds(self._lam, *self._params)
+        P = _fg.clip_eigenvalues(P, lo * self._R, hi * self._R)
+        return P if self._Pi is None else _project(P, self._Pi)
+
+    def _time_lam(self):
+        """Forgetting applied by predict(): `lam` only in the exponential mode."""
+        return self._lam if self._mode == _fg.EXPONENTIAL else 1.0
 
     # ------------------------------------------------------------------
     # filterpy helpers
     # ------------------------------------------------------------------
     def get_prediction(self):
         """Return ``(x, P)`` after a :meth:`predict`, without changing the filter."""
-        P = _predict_covariance(self._checked_P(), self._lam,
+        P = _predict_covariance(self._checked_P(), self._time_lam(),
                                 None if self._Q_is_zero else self._Q)
         return self._checked_x().copy(), P.copy()
-
-    def residual_of(self, z, H):
-        """A-priori residual ``z - H x`` for `z` and regressor `H`, shape ``(dim_z, 1)``."""
-        zc = self._as_measurement(z, "z")
-        if zc is None:
-            raise ValueError("`z` must be a measurement to form a residual; got a missing value")
-        return zc - self.measurement_of_state(self.x, H)
-
-    def measurement_of_state(self, x, H):
-        """Predicted measurement ``H x`` as a column ``(dim_z, 1)``."""
-        phi = self._as_regressor(H, "H")
-        return (phi @ self._as_state(x, "x")).T
-
-    def log_likelihood_of(self, z, H, R=None):
-        """Log-likelihood of measurement `z` with regressor `H` under the current state."""
-        phi = self._as_regressor(H, "H")
-        r = self._R if R is None else check_variance(R, "R")
-        zc = self._as_measurement(z, "z")
-        if zc is None:
-            return 0.0
-        _, s = _innovation(self._checked_P(), phi, r)
-        return _gaussian_logpdf(zc - (phi @ self._checked_x()).T, s)
-
-    def copy(self):
-        """Return an independent deep copy of the filter."""
-        return copy.deepcopy(self)
 
     def reset(self):
         """Return to the state given at construction (``x0``, ``P0``).
 
-        ``lam``, ``R`` and ``Q`` are kept; diagnostics are cleared.
+        ``lam``, ``R``, ``Q``, the forgetting mode and the gate are kept;
+        diagnostics and counters are cleared. Constraints given to
+        :meth:`constrain` are applied again to ``x0`` and ``P0``.
         """
         n, m = self.dim_x, self.dim_z
         self.x = self._x0.copy()
@@ -488,6 +680,14 @@ class RecursiveLeastSquares:
         self._log_likelihood = math.log(np.finfo(float).tiny)
         self._likelihood = np.finfo(float).tiny
         self._mahalanobis = 0.0
+        self.gated = False
+        self.n_gated = 0
+        self.n_updates = 0
+        self.lam_t = self._lam
+        self._warned_health = False
+        self._efra_pending = self._mode == _fg.EFRA
+        if self.constraints is not None:
+            self.constrain(*self.constraints)
 
     def __repr__(self):
         return "\n".join([
@@ -495,6 +695,9 @@ class RecursiveLeastSquares:
             pretty_str("dim_x", self.dim_x),
             pretty_str("dim_z", self.dim_z),
             pretty_str("lam", self._lam),
+            pretty_str("forgetting", self.forgetting),
+            pretty_str("gate", self._gate),
+            pretty_str("n_gated", self.n_gated),
             pretty_str("x", self.x),
             pretty_str("P", self.P),
             pretty_str("x_prior", self.x_prior),
@@ -516,15 +719,10 @@ class RecursiveLeastSquares:
     # ------------------------------------------------------------------
     # private helpers
     # ------------------------------------------------------------------
-    def _clear_lazy(self):
-        self._log_likelihood = None
-        self._likelihood = None
-        self._mahalanobis = None
-
     def _note_update(self):
         """Warn once when forgetting is skipped by two updates in a row."""
         if (self._updates_since_predict and not self._warned_skip
-                and (self._lam < 1.0 or not self._Q_is_zero)):
+                and (self._time_lam() < 1.0 or not self._Q_is_zero)):
             self._warned_skip = True
             warnings.warn(
                 "update() was called twice without predict() in between, so the forgetting "
@@ -532,106 +730,6 @@ class RecursiveLeastSquares:
                 "before each update() or use predict_update().",
                 ForgettingSkippedWarning, stacklevel=3)
         self._updates_since_predict += 1
-
-    def _as_regressor(self, H, name):
-        if type(H) is np.ndarray and H.dtype == np.float64:
-            phi = H
-        else:
-            phi = as_float_array(H, name)
-        n = self.dim_x
-        if phi.shape == (n,) or phi.shape == (1, n) or (n == 1 and phi.ndim == 0):
-            phi = phi.reshape(1, n)
-        else:
-            raise ValueError(f"`{name}` must have shape ({n},) or (1, {n}) (one regressor row of "
-                             f"dim_x = {n} entries); got shape {phi.shape}")
-        if not np.isfinite(phi).all():
-            check_finite(phi.ravel(), name)
-        return phi.copy()
-
-    def _as_measurement(self, z, name):
-        """Return `z` as a new ``(dim_z, 1)`` column, or None when missing."""
-        if z is None:
-            return None
-        zz = as_float_array(z, name)
-        m = self.dim_z
-        if zz.size != m or not (zz.ndim == 0 or zz.shape in ((m,), (m, 1), (1, 1))):
-            raise ValueError(f"`{name}` must be a scalar or have shape ({m},) (dim_z = {m}); "
-                             f"got shape {zz.shape}")
-        if np.isnan(zz).any():
-            return None
-        if np.isinf(zz).any():
-            raise ValueError(f"`{name}` must be finite or NaN (missing); got {zz.ravel()}")
-        return zz.reshape(m, 1).copy()
-
-    def _as_state(self, x, name):
-        arr = as_float_array(x, name)
-        n, m = self.dim_x, self.dim_z
-        if m == 1 and arr.shape == (n,):
-            arr = arr.reshape(n, 1)
-        if arr.shape != (n, m):
-            raise ValueError(f"`{name}` must have shape ({n}, {m}); got {arr.shape}")
-        return check_finite(arr.copy(), name)
-
-    def _checked_x(self):
-        x = self.x
-        if not isinstance(x, np.ndarray) or x.shape != (self.dim_x, self.dim_z):
-            raise ValueError(
-                f"`x` must be an array of shape ({self.dim_x}, {self.dim_z}); got "
-                f"{getattr(x, 'shape', type(x).__name__)}. Assign the estimate as a column, "
-                "e.g. rls.x = x.reshape(-1, 1).")
-        return x
-
-    def _checked_P(self):
-        P = self.P
-        if not isinstance(P, np.ndarray) or P.shape != (self.dim_x, self.dim_x):
-            raise ValueError(f"`P` must be an array of shape ({self.dim_x}, {self.dim_x}); got "
-                             f"{getattr(P, 'shape', type(P).__name__)}")
-        return P
-
-    def _as_batch(self, zs, Hs):
-        """Validate a record: ``Z`` (N, dim_z) with NaN for missing, ``H`` (N, dim_x)."""
-        n, m = self.dim_x, self.dim_z
-        if isinstance(zs, np.ndarray) or not any(v is None for v in zs):
-            Z = as_float_array(zs, "zs")
-        else:  # a list with None entries for missing samples
-            Z = np.array([np.full(m, np.nan) if v is None
-                          else as_float_array(v, "zs").reshape(-1) for v in zs])
-        if Z.ndim == 1 and m == 1:
-            Z = Z.reshape(-1, 1)
-        elif Z.ndim == 3 and Z.shape[2] == 1:
-            Z = Z[:, :, 0]
-        if Z.ndim != 2 or Z.shape[1] != m:
-            raise ValueError(f"`zs` must have shape (N,) or (N, {m}) (dim_z = {m}); got {Z.shape}")
-        Hm = as_float_array(Hs, "Hs")
-        if Hm.ndim == 3 and Hm.shape[1] == 1:
-            Hm = Hm[:, 0, :]
-        if Hm.ndim != 2 or Hm.shape[1] != n:
-            raise ValueError(f"`Hs` must have shape (N, {n}) (dim_x = {n}); got {Hm.shape}")
-        if len(Hm) != len(Z):
-            raise ValueError(f"`zs` and `Hs` must have the same length; got {len(Z)} measurements "
-                             f"and {len(Hm)} regressor rows")
-        check_finite(Hm, "Hs")
-        if np.isinf(Z).any():
-            check_finite(np.where(np.isnan(Z), 0.0, Z), "zs")
-        return Z.copy(), Hm.copy()
-
-    def _as_batch_variances(self, Rs, N):
-        if Rs is None:
-            return np.full(N, self._R)
-        arr = as_float_array(Rs, "Rs")
-        if arr.ndim == 0:
-            return np.full(N, check_variance(arr, "Rs"))
-        if arr.ndim == 3 and arr.shape[1:] == (1, 1):
-            arr = arr.reshape(-1)
-        if arr.ndim != 1 or len(arr) != N:
-            raise ValueError(f"`Rs` must be a scalar or have shape ({N},) (one variance per "
-                             f"measurement); got {arr.shape}")
-        bad = ~(np.isfinite(arr) & (arr > 0))
-        if bad.any():
-            i = int(np.argmax(bad))
-            raise ValueError(f"`Rs` must hold positive finite variances; got {arr[i]} at index {i}")
-        return arr.copy()
-
 
 # ----------------------------------------------------------------------
 # The arithmetic of one step, shared by the methods and the batch loop so
@@ -645,39 +743,80 @@ def _predict_covariance(P, lam, Q):
     return P
 
 
-def _innovation(P, phi, r):
-    """``g = P phi^T`` (dim_x, 1) and the scalar ``s = phi P phi^T + r``."""
-    g = P @ phi.T
-    return g, (phi @ g).item() + r
+def _project(P, Pi):
+    """``Pi P Pi`` made exactly symmetric (projection onto null(A))."""
+    P = Pi @ P @ Pi
+    return 0.5 * (P + P.T)
 
 
-def _apply_update(x, P, phi, z, g, s):
-    """Measurement update; returns new ``x, P, y, K``."""
-    y = z - (phi @ x).T                    # y = z - H x          (dim_z, 1)
-    K = g / s                              # K = P H^T / S         (dim_x, 1)
-    x = x + K * y.T                        # x = x + K y^T         (dim_x, dim_z)
-    P = P - np.outer(g, g) / s             # P = P - g g^T / S     exactly symmetric
-    return x, P, y, K
+def _measurement_step(mode, params, lam, x, P, phi, z, r, gate, Pi):
+    """One measurement update of any mode, with the gate and the constraints.
+
+    `z` is a ``(dim_z, 1)`` column or None (missing). Returns ``x, P, y, K,
+    g, s, lam_t, gated``; for a missing or gated sample ``x`` and ``P`` are
+    the inputs, ``K`` is zero and ``lam_t`` is 1 (nothing is forgotten),
+    or `lam` in the exponential mode (its predict forgot anyway).
+    """
+    g, s = _innovation(P, phi, r)          # g = P H^T, S = H P H^T + R
+    lam_skip = lam if mode == _fg.EXPONENTIAL else 1.0
+    if z is None:
+        return x, P, None, np.zeros_like(g), g, s, lam_skip, False
+    if gate is not None:
+        y = z - (phi @ x).T
+        if float(np.vdot(y, y)) > gate * gate * s:   # sqrt(y'y / S) > gate
+            return x, P, y, np.zeros_like(g), g, s, lam_skip, True
+    x, P, y, K, lam_t = _fg.UPDATES[mode](x, P, phi, z, g, s, r, lam, params)
+    if Pi is not None:   # keep A P = 0 against round-off (and the I terms of some modes)
+        P = _project(P, Pi)
+    return x, P, y, K, g, s, lam_t, False
 
 
-def _gaussian_logpdf(y, s):
-    """``log N(y; 0, s I)`` for a residual column `y` and scalar variance `s`."""
-    m = y.size
-    return -0.5 * (m * (_LOG_2PI + math.log(s)) + float(np.vdot(y, y)) / s)
+def _health_problem(P, basis, cond_max):
+    """None if ``P`` (on the null space `basis` of the constraints) is healthy,
+    else a description."""
+    if not np.isfinite(P).all():
+        return "`P` has non-finite entries"
+    Pr = P if basis is None else basis.T @ P @ basis
+    if Pr.size == 0:
+        return None
+    asym = float(np.max(np.abs(Pr - Pr.T)))
+    scale = float(np.max(np.abs(Pr)))
+    w = np.linalg.eigvalsh(0.5 * (Pr + Pr.T))
+    if w[0] <= 0.0:
+        return f"`P` is not positive definite (smallest eigenvalue {w[0]:.3g})"
+    if asym > 1e-8 * scale:
+        return f"`P` is not symmetric (max |P - P^T| = {asym:.3g})"
+    if w[-1] > cond_max * w[0]:
+        return f"`P` is ill-conditioned (condition number {w[-1] / w[0]:.3g} > {cond_max:.3g})"
+    return None
+
+
+def _check_positive(value, name):
+    value = check_scalar(value, name)
+    if not (math.isfinite(value) and value > 0.0):
+        raise ValueError(f"`{name}` must be a positive finite number; got {value}")
+    return value
 
 
 class _BatchResult:
     __slots__ = ("means", "covariances", "means_p", "covariances_p", "ys", "ss",
                  "x", "P", "x_prior", "P_prior", "x_post", "P_post", "y_last", "K_last",
-                 "s_last")
+                 "s_last", "gated", "lam_t_last", "problem")
 
 
-def _batch_reference(x, P, Z, Hm, Rv, lam, Q, update_first, store_covariances):
+def _batch_reference(x, P, Z, Hm, Rv, lam, Q, update_first, store_covariances, *,
+                     mode=_fg.EXPONENTIAL, params=(), gate=None, Pi=None, check_every=0,
+                     basis=None, cond_max=np.inf, step0=0):
     """Pure-NumPy batch recursion (the reference path for compiled kernels).
 
     Returns a `_BatchResult` with the histories, the recursive residuals
-    ``ys`` (N, dim_z) and innovation variances ``ss`` (N,), and the last
-    step's state.
+    ``ys`` (N, dim_z; NaN where missing, the rejected residual where gated),
+    innovation variances ``ss`` (N,), the gate decisions ``gated`` (N,),
+    the last step's state and ``problem``: None, or the first health
+    failure found by a full check every `check_every` steps (message with
+    the update number ``step0 + k + 1``). The cheap per-step diagonal check
+    of the streaming path is not done here; the caller checks once more at
+    the end.
     """
     N = len(Z)
     n, m = x.shape
@@ -688,36 +827,52 @@ def _batch_reference(x, P, Z, Hm, Rv, lam, Q, update_first, store_covariances):
     out.covariances_p = np.empty((N, n, n)) if store_covariances else None
     out.ys = np.full((N, m), np.nan)
     out.ss = np.empty(N)
+    out.gated = np.zeros(N, dtype=bool)
+    out.problem = None
+    tlam = lam if mode == _fg.EXPONENTIAL else 1.0
+    constrained = Pi is not None
     x_prior, P_prior = x, P
     K = np.zeros((n, 1))
     s = np.nan
+    lam_t = lam
     for k in range(N):
         if not update_first:
-            P = _predict_covariance(P, lam, Q)
+            P = _predict_covariance(P, tlam, Q)
+            if constrained:
+                P = _project(P, Pi)
             x_prior, P_prior = x, P
             out.means_p[k] = x
             if store_covariances:
                 out.covariances_p[k] = P
-        phi = Hm[k:k + 1]
-        g, s = _innovation(P, phi, Rv[k])
-        out.ss[k] = s
         z = Z[k]
-        if not np.isnan(z).any():
-            x, P, y, K = _apply_update(x, P, phi, z.reshape(m, 1), g, s)
+        zc = None if np.isnan(z).any() else z.reshape(m, 1)
+        x, P, y, K, _, s, lam_t, gated = _measurement_step(
+            mode, params, lam, x, P, Hm[k:k + 1], zc, Rv[k], gate, Pi)
+        out.ss[k] = s
+        out.gated[k] = gated
+        if y is not None:
             out.ys[k] = y[:, 0]
         x_post, P_post = x, P
         out.means[k] = x
         if store_covariances:
             out.covariances[k] = P
         if update_first:
-            P = _predict_covariance(P, lam, Q)
+            P = _predict_covariance(P, tlam, Q)
+            if constrained:
+                P = _project(P, Pi)
             x_prior, P_prior = x, P
             out.means_p[k] = x
             if store_covariances:
                 out.covariances_p[k] = P
+        if check_every and out.problem is None and (step0 + k + 1) % check_every == 0:
+            problem = _health_problem(P, basis, cond_max)
+            if problem is not None:
+                out.problem = (f"{problem} at step {k} of batch_filter (update "
+                               f"{step0 + k + 1} since reset)")
     out.x, out.P = x.copy(), P.copy()
     if N:
         out.x_prior, out.P_prior = x_prior.copy(), P_prior.copy()
         out.x_post, out.P_post = x_post.copy(), P_post.copy()
         out.y_last, out.K_last, out.s_last = out.ys[-1].copy(), K.copy(), s
+        out.lam_t_last = lam_t
     return out

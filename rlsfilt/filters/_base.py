@@ -1,0 +1,251 @@
+"""Shared base of the rlsfilt filters: argument checks and filterpy diagnostics.
+
+`RecursiveLeastSquares`, `SlidingWindowRLS` and `SquareRootRLS` differ in how
+they store and update the covariance, not in what they accept or report, so
+the validation of regressors, measurements and batch records, the lazy
+filterpy diagnostics (``log_likelihood``, ``likelihood``, ``mahalanobis``) and
+the small filterpy helpers live here once.
+"""
+
+import copy
+import math
+
+import numpy as np
+from scipy.linalg.lapack import dtrtri, dtrtrs
+
+from .._validation import as_float_array, check_finite, check_variance
+
+__all__ = []
+
+_LOG_2PI = math.log(2.0 * math.pi)
+
+
+class _FilterBase:
+    """Validation helpers and diagnostics shared by the filters.
+
+    Subclasses set ``dim_x``, ``dim_z``, ``_R`` and provide ``x`` and ``P``.
+    """
+
+    @property
+    def R(self):
+        """Measurement-noise variance (a positive float)."""
+        return self._R
+
+    @R.setter
+    def R(self, value):
+        self._R = check_variance(value, "R")
+
+    # ------------------------------------------------------------------
+    # lazily computed diagnostics, as in filterpy
+    # ------------------------------------------------------------------
+    @property
+    def log_likelihood(self):
+        """Log-likelihood of the last measurement, ``log N(y; 0, S)``."""
+        if self._log_likelihood is None:
+            self._log_likelihood = _gaussian_logpdf(self.y, self.S[0, 0])
+        return self._log_likelihood
+
+    @property
+    def likelihood(self):
+        """``exp(log_likelihood)``, floored at the smallest positive float."""
+        if self._likelihood is None:
+            self._likelihood = max(math.exp(self.log_likelihood), np.finfo(float).tiny)
+        return self._likelihood
+
+    @property
+    def mahalanobis(self):
+        """Mahalanobis distance ``sqrt(y^T S^-1 y)`` of the last residual."""
+        if self._mahalanobis is None:
+            self._mahalanobis = math.sqrt(float(np.vdot(self.y, self.y)) / self.S[0, 0])
+        return self._mahalanobis
+
+    def residual_of(self, z, H):
+        """A-priori residual ``z - H x`` for `z` and regressor `H`, shape ``(dim_z, 1)``."""
+        zc = self._as_measurement(z, "z")
+        if zc is None:
+            raise ValueError("`z` must be a measurement to form a residual; got a missing value")
+        return zc - self.measurement_of_state(self.x, H)
+
+    def measurement_of_state(self, x, H):
+        """Predicted measurement ``H x`` as a column ``(dim_z, 1)``."""
+        phi = self._as_regressor(H, "H")
+        return (phi @ self._as_state(x, "x")).T
+
+    def log_likelihood_of(self, z, H, R=None):
+        """Log-likelihood of measurement `z` with regressor `H` under the current state."""
+        phi = self._as_regressor(H, "H")
+        r = self._R if R is None else check_variance(R, "R")
+        zc = self._as_measurement(z, "z")
+        if zc is None:
+            return 0.0
+        _, s = _innovation(self._checked_P(), phi, r)
+        return _gaussian_logpdf(zc - (phi @ self._checked_x()).T, s)
+
+    def copy(self):
+        """Return an independent deep copy of the filter."""
+        return copy.deepcopy(self)
+
+    def _batch_stepwise(self, Z, Hm, Rv, update_first, saver, store_covariances):
+        """Run ``predict``/``update`` over a validated record (the generic batch loop)."""
+        N = len(Z)
+        means = np.empty((N, self.dim_x, self.dim_z))
+        means_p = np.empty_like(means)
+        covs = np.empty((N, self.dim_x, self.dim_x)) if store_covariances else None
+        covs_p = np.empty_like(covs) if store_covariances else None
+        for k in range(N):
+            if not update_first:
+                self.predict()
+                means_p[k] = self.x
+                if store_covariances:
+                    covs_p[k] = self.P
+            self.update(Z[k], Hm[k], Rv[k])
+            means[k] = self.x
+            if store_covariances:
+                covs[k] = self.P
+            if update_first:
+                self.predict()
+                means_p[k] = self.x
+                if store_covariances:
+                    covs_p[k] = self.P
+            if saver is not None:
+                saver.save()
+        return means, covs, means_p, covs_p
+
+    def _clear_lazy(self):
+        self._log_likelihood = None
+        self._likelihood = None
+        self._mahalanobis = None
+
+
+    def _as_regressor(self, H, name):
+        if type(H) is np.ndarray and H.dtype == np.float64:
+            phi = H
+        else:
+            phi = as_float_array(H, name)
+        n = self.dim_x
+        if phi.shape == (n,) or phi.shape == (1, n) or (n == 1 and phi.ndim == 0):
+            phi = phi.reshape(1, n)
+        else:
+            raise ValueError(f"`{name}` must have shape ({n},) or (1, {n}) (one regressor row of "
+                             f"dim_x = {n} entries); got shape {phi.shape}")
+        if not np.isfinite(phi).all():
+            check_finite(phi.ravel(), name)
+        return phi.copy()
+
+    def _as_measurement(self, z, name):
+        """Return `z` as a new ``(dim_z, 1)`` column, or None when missing."""
+        if z is None:
+            return None
+        zz = as_float_array(z, name)
+        m = self.dim_z
+        if zz.size != m or not (zz.ndim == 0 or zz.shape in ((m,), (m, 1), (1, 1))):
+            raise ValueError(f"`{name}` must be a scalar or have shape ({m},) (dim_z = {m}); "
+                             f"got shape {zz.shape}")
+        if np.isnan(zz).any():
+            return None
+        if np.isinf(zz).any():
+            raise ValueError(f"`{name}` must be finite or NaN (missing); got {zz.ravel()}")
+        return zz.reshape(m, 1).copy()
+
+    def _as_state(self, x, name):
+        arr = as_float_array(x, name)
+        n, m = self.dim_x, self.dim_z
+        if m == 1 and arr.shape == (n,):
+            arr = arr.reshape(n, 1)
+        if arr.shape != (n, m):
+            raise ValueError(f"`{name}` must have shape ({n}, {m}); got {arr.shape}")
+        return check_finite(arr.copy(), name)
+
+    def _checked_x(self):
+        x = self.x
+        if not isinstance(x, np.ndarray) or x.shape != (self.dim_x, self.dim_z):
+            raise ValueError(
+                f"`x` must be an array of shape ({self.dim_x}, {self.dim_z}); got "
+                f"{getattr(x, 'shape', type(x).__name__)}. Assign the estimate as a column, "
+                "e.g. rls.x = x.reshape(-1, 1).")
+        return x
+
+    def _checked_P(self):
+        P = self.P
+        if not isinstance(P, np.ndarray) or P.shape != (self.dim_x, self.dim_x):
+            raise ValueError(f"`P` must be an array of shape ({self.dim_x}, {self.dim_x}); got "
+                             f"{getattr(P, 'shape', type(P).__name__)}")
+        return P
+
+    def _as_batch(self, zs, Hs):
+        """Validate a record: ``Z`` (N, dim_z) with NaN for missing, ``H`` (N, dim_x)."""
+        n, m = self.dim_x, self.dim_z
+        if isinstance(zs, np.ndarray) or not any(v is None for v in zs):
+            Z = as_float_array(zs, "zs")
+        else:  # a list with None entries for missing samples
+            Z = np.array([np.full(m, np.nan) if v is None
+                          else as_float_array(v, "zs").reshape(-1) for v in zs])
+        if Z.ndim == 1 and m == 1:
+            Z = Z.reshape(-1, 1)
+        elif Z.ndim == 3 and Z.shape[2] == 1:
+            Z = Z[:, :, 0]
+        if Z.ndim != 2 or Z.shape[1] != m:
+            raise ValueError(f"`zs` must have shape (N,) or (N, {m}) (dim_z = {m}); got {Z.shape}")
+        Hm = as_float_array(Hs, "Hs")
+        if Hm.ndim == 3 and Hm.shape[1] == 1:
+            Hm = Hm[:, 0, :]
+        if Hm.ndim != 2 or Hm.shape[1] != n:
+            raise ValueError(f"`Hs` must have shape (N, {n}) (dim_x = {n}); got {Hm.shape}")
+        if len(Hm) != len(Z):
+            raise ValueError(f"`zs` and `Hs` must have the same length; got {len(Z)} measurements "
+                             f"and {len(Hm)} regressor rows")
+        check_finite(Hm, "Hs")
+        if np.isinf(Z).any():
+            check_finite(np.where(np.isnan(Z), 0.0, Z), "zs")
+        return Z.copy(), Hm.copy()
+
+    def _as_batch_variances(self, Rs, N):
+        if Rs is None:
+            return np.full(N, self._R)
+        arr = as_float_array(Rs, "Rs")
+        if arr.ndim == 0:
+            return np.full(N, check_variance(arr, "Rs"))
+        if arr.ndim == 3 and arr.shape[1:] == (1, 1):
+            arr = arr.reshape(-1)
+        if arr.ndim != 1 or len(arr) != N:
+            raise ValueError(f"`Rs` must be a scalar or have shape ({N},) (one variance per "
+                             f"measurement); got {arr.shape}")
+        bad = ~(np.isfinite(arr) & (arr > 0))
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise ValueError(f"`Rs` must hold positive finite variances; got {arr[i]} at index {i}")
+        return arr.copy()
+
+
+
+
+def _innovation(P, phi, r):
+    """``g = P phi^T`` (dim_x, 1) and the scalar ``s = phi P phi^T + r``."""
+    g = P @ phi.T
+    return g, (phi @ g).item() + r
+
+
+def _gaussian_logpdf(y, s):
+    """``log N(y; 0, s I)`` for a residual column `y` and scalar variance `s`."""
+    m = y.size
+    return -0.5 * (m * (_LOG_2PI + math.log(s)) + float(np.vdot(y, y)) / s)
+
+
+def _tri_solve(U, B, trans=0):
+    """Solve ``U X = B`` (``U^T X = B`` with `trans` = 1), `U` upper triangular.
+
+    One LAPACK ``trtrs`` call per column: for the small matrices of RLS this
+    is far faster than a matrix right-hand side, which goes through a
+    (multithreaded) BLAS-3 ``trsm``.
+    """
+    if B.ndim == 1:
+        return dtrtrs(U, B, trans=trans)[0]
+    out = np.empty(B.shape)
+    for j in range(B.shape[1]):
+        out[:, j] = dtrtrs(U, B[:, j], trans=trans)[0]
+    return out
+
+
+def _tri_inv(U):
+    """Inverse of the upper-triangular `U` (LAPACK ``trtri``)."""
+    return dtrtri(U, lower=0)[0]

@@ -1,0 +1,339 @@
+"""Exact least squares over a sliding window of the most recent samples."""
+
+import math
+
+import numpy as np
+from filterpy.common import pretty_str
+
+from .._validation import check_covariance, check_int, check_variance
+from ._base import _FilterBase, _innovation, _tri_inv, _tri_solve
+
+__all__ = ["SlidingWindowRLS"]
+
+
+class SlidingWindowRLS(_FilterBase):
+    r"""Recursive least squares over the last `window` samples (update + downdate).
+
+    Where exponential forgetting weights old data by ``lam**age`` forever, a
+    sliding window gives the *exact* least-squares estimate on the last
+    `window` samples and none before: each :meth:`update` adds the new
+    sample and removes the one that leaves the window (a downdate with the
+    matrix inversion lemma). The interface is that of
+    :class:`~rlsfilt.RecursiveLeastSquares` (``predict``/``update(z, H)``/
+    ``initialize``/``batch_filter``, ``x``, ``P``, ``y``, ``K``, ``S``).
+
+    Parameters
+    ----------
+    dim_x : int
+        Number of parameters.
+    window : int
+        Number of samples in the window (at least `dim_x`; missing samples
+        occupy a slot but carry no information).
+    dim_z : int, default 1
+        Number of outputs sharing the regressor.
+    P0 : float or array_like, default 1e4
+        Prior covariance used only until the window holds enough data to
+        determine every parameter (see Notes).
+    x0 : array_like, optional
+        Prior estimate, shape ``(dim_x,)`` or ``(dim_x, dim_z)``; zeros by
+        default.
+    R : float, default 1.0
+        Measurement-noise variance (per-call values given to :meth:`update`
+        are remembered for the downdate).
+    refresh : int or None, default ``10 * window``
+        Recompute the estimate from the stored window by QR every `refresh`
+        updates, which removes the round-off that downdating accumulates;
+        ``0`` never refreshes.
+
+    Attributes
+    ----------
+    x, P : ndarray
+        Estimate ``(dim_x, dim_z)`` and covariance ``(dim_x, dim_x)``:
+        :math:`P = (\sum_{k \in W} H_k^T H_k / R_k)^{-1}`.
+    x_prior, P_prior, x_post, P_post, H, z, y, K, S, SI
+        As in :class:`~rlsfilt.RecursiveLeastSquares`.
+    exact : bool
+        True once ``x`` is least squares on the window alone (the prior has
+        been dropped).
+    n_samples : int
+        Number of samples currently in the window.
+
+    Notes
+    -----
+    Adding a sample is the RLS update; removing the sample :math:`(H, z,
+    R)` that leaves the window is its inverse, the downdate
+
+    .. math::
+
+        g &= P H^T, \qquad d = R - H g \\
+        x &\leftarrow x - g (z - H x)^T / d \\
+        P &\leftarrow P + g g^T / d
+
+    (:math:`P^{-1} \leftarrow P^{-1} - H^T H / R`). :math:`d > 0` exactly
+    when the remaining samples still determine every parameter; when it
+    is not (clearly) positive the estimate is recomputed from the stored
+    window instead. Until the window first holds `window` samples (or after
+    :meth:`initialize`), the prior ``x0``, ``P0`` is part of the estimate
+    (ridge regression); when it fills, the estimate is recomputed by QR
+    from the window alone and is exact from then on (``exact`` is True). If
+    the window then does not determine every parameter, the prior is kept
+    and the exact start is tried again one window later. Downdating is the
+    numerically delicate half (Haykin 2002, sec. 9; Alexander, Pan &
+    Plemmons 1988), hence the periodic `refresh`.
+
+    References
+    ----------
+    .. [1] S. Haykin, *Adaptive Filter Theory*, 4th ed., Prentice Hall, 2002.
+    .. [2] S. T. Alexander, C.-T. Pan and R. J. Plemmons, "Analysis of a
+       recursive least squares hyperbolic rotation algorithm for signal
+       processing", *Linear Algebra Appl.* 98, 3-40, 1988.
+    .. [3] L. Ljung, *System Identification: Theory for the User*, 2nd ed.,
+       Prentice Hall, 1999, sec. 11.2.
+
+    Examples
+    --------
+    A gain that changes halfway is tracked with a 50-sample memory:
+
+    >>> import numpy as np
+    >>> from rlsfilt import SlidingWindowRLS
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.standard_normal(400)
+    >>> y = np.where(np.arange(400) < 200, 2.0, -1.0) * u + 0.01 * rng.standard_normal(400)
+    >>> sw = SlidingWindowRLS(dim_x=1, window=50)
+    >>> means, *_ = sw.batch_filter(y, u.reshape(-1, 1))
+    >>> np.round([means[199, 0, 0], means[399, 0, 0]], 2)
+    array([ 2., -1.])
+    """
+
+    def __init__(self, dim_x, window, dim_z=1, *, P0=1e4, x0=None, R=1.0, refresh=None):
+        self.dim_x = check_int(dim_x, "dim_x", minimum=1)
+        self.dim_z = check_int(dim_z, "dim_z", minimum=1)
+        self.window = check_int(window, "window", minimum=self.dim_x)
+        self.refresh = (10 * self.window if refresh is None
+                        else check_int(refresh, "refresh", minimum=0))
+        self.R = R
+        self._P0 = check_covariance(P0, self.dim_x, "P0", definite=True)
+        self._x0 = self._as_state(np.zeros((self.dim_x, self.dim_z)) if x0 is None else x0, "x0")
+        self.reset()
+
+    @property
+    def n_samples(self):
+        """Number of samples currently in the window."""
+        return self._nw
+
+    # ------------------------------------------------------------------
+    # the recursion
+    # ------------------------------------------------------------------
+    def predict(self):
+        """Record ``x_prior`` and ``P_prior`` (the window has no time update)."""
+        self._checked_P()
+        self.x_prior = self._checked_x().copy()
+        self.P_prior = self.P.copy()
+
+    def update(self, z, H, R=None):
+        """Add sample ``(z, H)`` to the window and drop the oldest one.
+
+        Parameters
+        ----------
+        z : float, array_like of shape (dim_z,), or None
+            Measurement; ``None`` or NaN marks it missing (it takes a slot in
+            the window but changes nothing).
+        H : array_like, shape (dim_x,) or (1, dim_x)
+            Regressor row.
+        R : float, optional
+            Noise variance of this sample.
+        """
+        phi = self._as_regressor(H, "H")
+        r = self._R if R is None else check_variance(R, "R")
+        zc = self._as_measurement(z, "z")
+        x, P = self._checked_x(), self._checked_P()
+        self._clear_lazy()
+        self.H = phi
+        g, s = _innovation(P, phi, r)
+        self.S, self.SI = s * self._I_z, self._I_z / s
+        if zc is None:
+            self.z = np.full((self.dim_z, 1), np.nan)
+            self.y = np.full((self.dim_z, 1), np.nan)
+            self.K = np.zeros((self.dim_x, 1))
+            self._log_likelihood, self._likelihood = 0.0, 1.0
+        else:
+            self.z = zc
+            self.y = zc - (phi @ x).T               # y = z - H x
+            self.K = g / s                          # K = P H^T / S
+            x = x + self.K * self.y.T               # x = x + K y^T
+            P = P - np.outer(g, g) / s              # P = P - g g^T / S
+        # ring buffer: slot `_head` holds the oldest sample once the window is full
+        h = self._head
+        leaving = None
+        if self._nw == self.window and not np.isnan(self._wZ[h]).any():
+            leaving = (self._wH[h:h + 1].copy(), self._wZ[h].reshape(-1, 1).copy(), self._wR[h])
+        self._wH[h] = phi[0]
+        self._wZ[h] = np.nan if zc is None else zc[:, 0]
+        self._wR[h] = r
+        self._head = (h + 1) % self.window
+        self._nw = min(self._nw + 1, self.window)
+        self._count += 1
+        refit = False
+        if leaving is not None:
+            ok, x, P = _downdate(x, P, *leaving)
+            refit = not ok
+        if self._nw == self.window and not self.exact:
+            refit = refit or self._count >= self._next_exact_try
+        if self.refresh and self._count % self.refresh == 0:
+            refit = True
+        if refit:
+            x, P = self._refit()
+        self.x, self.P = x, P
+        self.x_post, self.P_post = x.copy(), P.copy()
+
+    def predict_update(self, z, H, R=None):
+        """:meth:`predict` then :meth:`update`."""
+        self.predict()
+        self.update(z, H, R)
+
+    def initialize(self, zs, Hs, Rs=None):
+        """Start from exact least squares on the given samples.
+
+        The last ``min(len(zs), window)`` samples become the window.
+
+        Parameters
+        ----------
+        zs : array_like, shape (k0,) or (k0, dim_z)
+            Measurements (NaN marks missing ones).
+        Hs : array_like, shape (k0, dim_x)
+            Regressor rows.
+        Rs : float or array_like of shape (k0,), optional
+            Noise variances (``R`` if omitted).
+
+        Raises
+        ------
+        ValueError
+            If the samples kept do not determine every parameter.
+        """
+        Z, Hm = self._as_batch(zs, Hs)
+        Rv = self._as_batch_variances(Rs, len(Z))
+        keep = slice(max(0, len(Z) - self.window), len(Z))
+        k = len(Z[keep])
+        self._clear_window()
+        self._wH[:k], self._wZ[:k], self._wR[:k] = Hm[keep], Z[keep], Rv[keep]
+        self._nw, self._head = k, k % self.window
+        sol = self._window_lstsq(None, None)
+        if sol is None:
+            rank = np.linalg.matrix_rank(Hm[keep][~np.isnan(Z[keep]).any(axis=1)])
+            raise ValueError(f"`Hs` is rank-deficient: the last {k} samples have "
+                             f"rank {rank}; need {self.dim_x} (one per parameter)")
+        self.x, self.P = sol
+        self.exact = True
+        self.x_prior = self.x_post = self.x.copy()
+        self.P_prior = self.P_post = self.P.copy()
+
+    def batch_filter(self, zs, Hs, Rs=None, update_first=False, saver=None,
+                     store_covariances=True):
+        """Run the filter over a record; same arguments and returns as
+        :meth:`RecursiveLeastSquares.batch_filter`."""
+        Z, Hm = self._as_batch(zs, Hs)
+        Rv = self._as_batch_variances(Rs, len(Z))
+        return self._batch_stepwise(Z, Hm, Rv, update_first, saver, store_covariances)
+
+    # ------------------------------------------------------------------
+    # helpers
+    # ------------------------------------------------------------------
+    def get_prediction(self):
+        """Return ``(x, P)`` after a :meth:`predict` (unchanged: no time update)."""
+        return self._checked_x().copy(), self._checked_P().copy()
+
+    def reset(self):
+        """Empty the window and return to ``x0``, ``P0``."""
+        n, m = self.dim_x, self.dim_z
+        self.x = self._x0.copy()
+        self.P = self._P0.copy()
+        self.x_prior, self.P_prior = self.x.copy(), self.P.copy()
+        self.x_post, self.P_post = self.x.copy(), self.P.copy()
+        self.H = np.zeros((1, n))
+        self.z = np.zeros((m, 1))
+        self.y = np.zeros((m, 1))
+        self.K = np.zeros((n, 1))
+        self._I_z = np.eye(m)
+        self.S = np.zeros((m, m))
+        self.SI = np.zeros((m, m))
+        self._clear_window()
+        self._count = 0
+        self._next_exact_try = 0
+        self.exact = False
+        self._log_likelihood = math.log(np.finfo(float).tiny)
+        self._likelihood = np.finfo(float).tiny
+        self._mahalanobis = 0.0
+
+    def _refit(self):
+        """Recompute ``x``, ``P`` from the stored window (exact if it can be)."""
+        sol = self._window_lstsq(None, None)
+        if sol is not None:
+            self.exact = True
+            return sol
+        self.exact = False
+        self._next_exact_try = self._count + self.window
+        return self._window_lstsq(self._x0, self._P0)
+
+    def _window_lstsq(self, x0, P0):
+        k = self._nw
+        return _window_lstsq(self._wH[:k], self._wZ[:k], self._wR[:k], x0, P0)
+
+    def _clear_window(self):
+        """Empty ring buffer: rows ``_wH``, measurements ``_wZ`` (NaN = missing), ``_wR``."""
+        self._wH = np.zeros((self.window, self.dim_x))
+        self._wZ = np.full((self.window, self.dim_z), np.nan)
+        self._wR = np.ones(self.window)
+        self._nw = 0
+        self._head = 0
+
+    def __repr__(self):
+        return "\n".join([
+            "SlidingWindowRLS object",
+            pretty_str("dim_x", self.dim_x),
+            pretty_str("dim_z", self.dim_z),
+            pretty_str("window", self.window),
+            pretty_str("n_samples", self.n_samples),
+            pretty_str("exact", self.exact),
+            pretty_str("x", self.x),
+            pretty_str("P", self.P),
+            pretty_str("R", self._R),
+            pretty_str("y", self.y),
+            pretty_str("K", self.K),
+            pretty_str("S", self.S),
+        ])
+
+
+def _downdate(x, P, phi, z, r):
+    """Remove sample ``(phi, z, r)``; returns ``ok, x, P`` (not ok: do not trust d)."""
+    g = P @ phi.T                          # g = P H^T
+    d = r - (phi @ g).item()               # d = R - H P H^T  (> 0 if still determined)
+    if not d > 1e-8 * r:
+        return False, x, P
+    e = z - (phi @ x).T                    # residual of the leaving sample
+    x = x - (g / d) * e.T                  # x = x - g e^T / d
+    P = P + np.outer(g, g) / d             # P = P + g g^T / d
+    return True, x, P
+
+
+def _window_lstsq(Hw, Zw, Rw, x0, P0):
+    """Weighted least squares on the window rows by QR; with a prior when `P0` is given.
+
+    Returns ``(x, P)``, or None when the rows do not determine every
+    parameter (and no prior is given).
+    """
+    n = Hw.shape[1]
+    keep = ~np.isnan(Zw).any(axis=1)
+    w = 1.0 / np.sqrt(Rw[keep])
+    A = Hw[keep] * w[:, None]
+    B = Zw[keep] * w[:, None]
+    if P0 is not None:   # prior rows: L^T (x - x0) with L L^T = P0^-1
+        Lt = np.linalg.cholesky(np.linalg.inv(P0)).T
+        A = np.concatenate([Lt, A])
+        B = np.concatenate([Lt @ x0, B])
+    if len(A) < n or (P0 is None and np.linalg.matrix_rank(A) < n):
+        return None
+    Qf, Rf = np.linalg.qr(A)
+    x = _tri_solve(Rf, Qf.T @ B)
+    Rinv = _tri_inv(Rf)
+    P = Rinv @ Rinv.T
+    return x, 0.5 * (P + P.T)

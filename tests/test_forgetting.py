@@ -1,0 +1,289 @@
+"""Anti-windup forgetting modes of RecursiveLeastSquares."""
+
+import warnings
+
+import numpy as np
+import pytest
+from conftest import arx_record
+from numpy.testing import assert_allclose, assert_array_equal
+
+from rlsfilt import NumericalWarning, RecursiveLeastSquares
+
+ANTI_WINDUP = ["directional", "constant_trace", "efra", "variable"]
+THETA1 = np.array([1.0, 0.5, 0.25])
+THETA2 = np.array([0.5, -0.3, 0.8])
+SIGMA = 0.05
+
+
+def windup_record(rng, n1=500, n2=2000, n3=1000):
+    """FIR plant: rich input (n1), input held at 1 (n2), parameter jump and rich input (n3).
+
+    While the input is constant every regressor row is [1, 1, 1]: two of the
+    three parameter directions get no information at all.
+    """
+    N = n1 + n2 + n3 + 3
+    u = np.sign(rng.standard_normal(N))
+    u[n1 + 3:n1 + n2 + 3] = 1.0
+    Hs = np.column_stack([u[2:-1], u[1:-2], u[:-3]])
+    theta = np.where(np.arange(len(Hs))[:, None] < n1 + n2, THETA1, THETA2)
+    zs = (Hs * theta).sum(axis=1) + SIGMA * rng.standard_normal(len(Hs))
+    return Hs, zs, n1, n2
+
+
+# ----------------------------------------------------------------------
+# the windup scenario of the issue: lam = 0.98, 2000 samples of constant input
+# ----------------------------------------------------------------------
+def test_exponential_forgetting_winds_up_and_warns(rng):
+    Hs, zs, n1, n2 = windup_record(rng)
+    rls = RecursiveLeastSquares(3, lam=0.98, R=SIGMA**2)
+    with pytest.warns(NumericalWarning, match=r"ill-conditioned.*at step \d+ of batch_filter"):
+        _, P, _, _ = rls.batch_filter(zs, Hs)
+    assert np.trace(P[n1:n1 + n2], axis1=1, axis2=2).max() > 1e10
+
+
+@pytest.mark.parametrize("mode", ANTI_WINDUP)
+def test_anti_windup_bounded_and_tracks_jump(rng, mode):
+    Hs, zs, n1, n2 = windup_record(rng)
+    rls = RecursiveLeastSquares(3, lam=0.98, R=SIGMA**2, forgetting=mode)  # default P0 = 1e4 I
+    means, P, _, _ = rls.batch_filter(zs, Hs)
+    trace = np.trace(P, axis1=1, axis2=2)
+    assert trace[n1:].max() < 1e2                   # plain forgetting: > 1e10
+    assert np.all(np.linalg.eigvalsh(P[n1:])[:, 0] > 0)
+    j = n1 + n2
+    # identified before the input stopped, and still there when it returns
+    assert_allclose(means[n1 - 1, :, 0], THETA1, atol=0.05)
+    assert_allclose(means[j - 1, :, 0], THETA1, atol=0.05)
+    # tracks the jump once the input is rich again
+    err = np.abs(means[j:, :, 0] - THETA2).max(axis=1)
+    assert err[:10].max() > 0.2                     # the jump is real
+    assert err[-300:].max() < 0.05
+
+
+def test_constant_input_with_noisy_output_alone_is_not_windup(rng):
+    """Contrast: the exponential mode is fine as long as the data excite every direction."""
+    Hs, zs = arx_record(rng, n_samples=3000)
+    rls = RecursiveLeastSquares(4, lam=0.98, R=0.01)
+    _, P, _, _ = rls.batch_filter(zs, Hs)
+    assert np.trace(P[100:], axis1=1, axis2=2).max() < 1.0
+
+
+# ----------------------------------------------------------------------
+# each mode against its defining equations
+# ----------------------------------------------------------------------
+def _one_step(rls, phi, z):
+    x0, P0 = rls.x.copy(), rls.P.copy()
+    rls.predict_update(z, phi)
+    return x0, P0
+
+
+def test_directional_is_information_update_along_regressor(rng):
+    rls = RecursiveLeastSquares(3, lam=0.9, R=0.5, forgetting="directional", P0=2.0)
+    Hs, zs, *_ = windup_record(rng, 30, 5, 5)
+    for phi, z in zip(Hs, zs):
+        x0, P0 = _one_step(rls, phi, z)
+        rho = phi @ P0 @ phi / 0.5
+        eps = 0.9 - 0.1 / rho
+        info = np.linalg.inv(P0) + eps * np.outer(phi, phi) / 0.5
+        assert_allclose(np.linalg.inv(rls.P), info, rtol=1e-8, atol=1e-8 * np.abs(info).max())
+        # x = x0 + P phi' (z - phi x0) / R with the updated P
+        assert_allclose(rls.x[:, 0], x0[:, 0] + rls.P @ phi * (z - phi @ x0[:, 0]) / 0.5,
+                        rtol=1e-9, atol=1e-12)
+        assert rls.lam_t == pytest.approx(eps)
+
+
+def test_directional_leaves_unexcited_directions_alone():
+    rls = RecursiveLeastSquares(2, lam=0.9, forgetting="directional", P0=1.0)
+    for _ in range(500):
+        rls.predict_update(1.0, [1.0, 0.0])
+    # only the excited direction is forgotten; phi P phi' settles at R (1 - lam) / lam
+    assert_allclose(rls.P[0, 0], 0.1 / 0.9, rtol=1e-9)
+    assert_allclose(rls.P[1, 1], 1.0, rtol=1e-12)
+    assert rls.P[0, 1] == 0.0
+
+
+@pytest.mark.parametrize("mode", ["directional", "variable"])
+def test_modes_reduce_to_plain_rls_without_forgetting(rng, mode):
+    Hs, zs = arx_record(rng, n_samples=200)
+    plain = RecursiveLeastSquares(4, P0=10.0, R=0.3)
+    other = RecursiveLeastSquares(4, P0=10.0, R=0.3, forgetting=mode)
+    m1, P1, _, _ = plain.batch_filter(zs, Hs)
+    m2, P2, _, _ = other.batch_filter(zs, Hs)
+    assert_allclose(m2, m1, rtol=1e-12, atol=1e-14)
+    assert_allclose(P2, P1, rtol=1e-12, atol=1e-16)
+
+
+def test_constant_trace_formula(rng):
+    rls = RecursiveLeastSquares(4, lam=0.95, forgetting="constant_trace",
+                                forgetting_params={"trace": 2.0, "ratio": 100.0})
+    assert rls.forgetting_params == {"trace": 2.0, "ratio": 100.0}
+    Hs, zs = arx_record(rng, n_samples=50)
+    c2 = 2.0 / (100.0 + 4)
+    c1 = 2.0 - 4 * c2
+    for phi, z in zip(Hs, zs):
+        x0, P0 = _one_step(rls, phi, z)
+        Pb = P0 - np.outer(P0 @ phi, P0 @ phi) / (1.0 + phi @ P0 @ phi)
+        assert_allclose(rls.P, c1 * Pb / np.trace(Pb) + c2 * np.eye(4), rtol=1e-10, atol=1e-14)
+        assert np.trace(rls.P) == pytest.approx(2.0, rel=1e-13)
+        assert_allclose(rls.x[:, 0], x0[:, 0] + P0 @ phi * (z - phi @ x0[:, 0])
+                        / (1.0 + phi @ P0 @ phi), rtol=1e-10, atol=1e-13)
+    w = np.linalg.eigvalsh(rls.P)
+    assert w[-1] / w[0] < 100.0 + 4
+
+
+def test_constant_trace_default_trace():
+    rls = RecursiveLeastSquares(3, lam=0.98, R=0.5, forgetting="constant_trace")
+    assert rls.forgetting_params["trace"] == pytest.approx(3 * 0.5 * 0.02)
+
+
+def test_efra_formula_and_bounds(rng):
+    R = 0.04
+    rls = RecursiveLeastSquares(3, lam=0.95, R=R, forgetting="efra")
+    assert rls.forgetting_params == {"alpha": 0.5, "beta": 0.005, "delta": 0.005}
+    eta = 0.05 / 0.95
+    hi = (eta + np.sqrt(eta**2 + 4 * 0.005**2)) / 0.01
+    lo = (eta - 0.5 + np.sqrt((0.5 - eta) ** 2 + 4 * 0.005**2)) / 0.01
+    assert hi == pytest.approx(eta / 0.005 + 0.005 / eta, rel=0.01)   # the paper's estimate
+    Hs, zs, *_ = windup_record(rng, 200, 300, 200)
+    first = True
+    for phi, z in zip(Hs, zs):
+        x0, P0 = _one_step(rls, phi, z)
+        if first:   # P0 = 1e4 I was brought into the invariant set before the step
+            P0 = hi * R * np.eye(3)
+            first = False
+        s = R + phi @ P0 @ phi
+        P = P0 / 0.95 - 0.5 * np.outer(P0 @ phi, P0 @ phi) / s + 0.005 * R * np.eye(3) \
+            - 0.005 / R * P0 @ P0
+        assert_allclose(rls.P, P, rtol=1e-9, atol=1e-15)
+        assert_allclose(rls.x[:, 0], x0[:, 0] + 0.5 * P0 @ phi * (z - phi @ x0[:, 0]) / s,
+                        rtol=1e-9, atol=1e-13)
+        w = np.linalg.eigvalsh(rls.P / R)
+        assert lo * (1 - 1e-9) <= w[0] and w[-1] <= hi * (1 + 1e-9)
+
+
+def test_variable_forgetting_factor(rng):
+    R = SIGMA**2
+    rls = RecursiveLeastSquares(3, lam=0.98, R=R, forgetting="variable", P0=0.01)
+    assert rls.forgetting_params == {"lam_min": pytest.approx(0.8), "trace_max": 30.0}
+    Hs, zs, *_ = windup_record(rng, 300, 10, 50)
+    seen = set()
+    for phi, z in zip(Hs, zs):
+        x0, P0 = _one_step(rls, phi, z)
+        s = R + phi @ P0 @ phi
+        e = z - phi @ x0[:, 0]
+        lam_t = min(1.0, max(0.8, 1 - 0.02 * e**2 / s))
+        assert rls.lam_t == pytest.approx(lam_t, rel=1e-12)
+        Pb = P0 - np.outer(P0 @ phi, P0 @ phi) / s
+        assert_allclose(rls.P, Pb / lam_t, rtol=1e-10, atol=1e-16)
+        seen.add(round(lam_t, 1))
+    assert {0.8, 1.0} <= seen          # the floor and the ceiling were both hit
+    assert rls.lam_t <= 1.0
+
+
+def test_variable_trace_cap():
+    rls = RecursiveLeastSquares(2, lam=0.9, forgetting="variable",
+                                forgetting_params={"trace_max": 5.0, "lam_min": 0.5}, P0=1.0)
+    for k in range(300):
+        rls.predict_update(10.0 * (-1) ** k, [1.0, 1.0])   # big residuals, one direction
+    assert np.trace(rls.P) <= 5.0 * (1 + 1e-12)
+
+
+# ----------------------------------------------------------------------
+# how the modes fit the predict/update split
+# ----------------------------------------------------------------------
+@pytest.mark.parametrize("mode", ANTI_WINDUP)
+def test_predict_only_records_priors_for_regressor_modes(mode):
+    rls = RecursiveLeastSquares(2, lam=0.9, forgetting=mode, P0=3.0)
+    rls.predict()
+    assert_array_equal(rls.P, 3.0 * np.eye(2))
+    assert_array_equal(rls.P_prior, rls.P)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")     # no ForgettingSkippedWarning: update is a full step
+        rls.update(1.0, [1.0, 0.5])
+        rls.update(2.0, [0.5, 1.0])
+    rls2 = RecursiveLeastSquares(2, lam=0.9, forgetting=mode, P0=3.0)
+    rls2.predict_update(1.0, [1.0, 0.5])
+    rls2.predict_update(2.0, [0.5, 1.0])
+    assert_array_equal(rls.x, rls2.x)
+    assert_array_equal(rls.P, rls2.P)
+
+
+@pytest.mark.parametrize("mode", ["exponential"] + ANTI_WINDUP)
+@pytest.mark.parametrize("update_first", [False, True])
+def test_batch_filter_equals_stepwise_loop_for_every_mode(rng, mode, update_first):
+    Hs, zs, *_ = windup_record(rng, 100, 100, 100)
+    zs[[50, 150, 250]] += 5.0                       # outliers for the gate
+    zs[[60, 299]] = np.nan                          # missing samples
+    kw = dict(lam=0.95, R=SIGMA**2, Q=1e-6, forgetting=mode, gate=4.0)
+    batch = RecursiveLeastSquares(3, **kw)
+    means, covs, means_p, covs_p = batch.batch_filter(zs, Hs, update_first=update_first)
+    loop = RecursiveLeastSquares(3, **kw)
+    for k in range(len(zs)):
+        if not update_first:
+            loop.predict()
+            assert_allclose(means_p[k], loop.x, rtol=0, atol=0)
+            assert_allclose(covs_p[k], loop.P, rtol=0, atol=0)
+        loop.update(zs[k], Hs[k])
+        assert_array_equal(means[k], loop.x)
+        assert_array_equal(covs[k], loop.P)
+        if update_first:
+            loop.predict()
+    for name in ("x", "P", "x_prior", "P_prior", "x_post", "P_post", "y", "K", "S", "z", "H"):
+        assert_array_equal(getattr(batch, name), getattr(loop, name), err_msg=name)
+    assert batch.n_gated == loop.n_gated >= 3
+    assert batch.n_updates == loop.n_updates == len(zs)
+    assert batch.lam_t == loop.lam_t
+
+
+def test_repr_and_properties():
+    rls = RecursiveLeastSquares(2, lam=0.9, forgetting="efra")
+    assert rls.forgetting == "efra"
+    assert "efra" in repr(rls)
+    params = rls.forgetting_params
+    params["alpha"] = 2.0                            # a copy: the filter is unchanged
+    assert rls.forgetting_params["alpha"] == 0.5
+
+
+# ----------------------------------------------------------------------
+# bad arguments
+# ----------------------------------------------------------------------
+def test_bad_forgetting_arguments():
+    with pytest.raises(ValueError, match=r"`forgetting` must be one of 'exponential', "
+                                         r"'directional'.*got 'kalman'"):
+        RecursiveLeastSquares(2, forgetting="kalman")
+    with pytest.raises(TypeError, match=r"`forgetting_params` has unknown keys \['trace'\] for "
+                                        r"forgetting='efra'; allowed: alpha, beta, delta"):
+        RecursiveLeastSquares(2, lam=0.9, forgetting="efra", forgetting_params={"trace": 1})
+    with pytest.raises(TypeError, match=r"unknown keys \['eps'\].*allowed: none"):
+        RecursiveLeastSquares(2, forgetting_params={"eps": 1})
+    with pytest.raises(TypeError, match=r"`forgetting_params` must be a dict or None; got list"):
+        RecursiveLeastSquares(2, forgetting="efra", forgetting_params=[1])
+    with pytest.raises(ValueError, match=r"`forgetting_params\['beta'\]` must be a positive"):
+        RecursiveLeastSquares(2, lam=0.9, forgetting="efra", forgetting_params={"beta": -1})
+    with pytest.raises(ValueError, match=r"`forgetting_params\['alpha'\]` must be in \(0, 1\]"):
+        RecursiveLeastSquares(2, lam=0.9, forgetting="efra", forgetting_params={"alpha": 1.5})
+    with pytest.raises(ValueError, match=r"EFRA constants give an unstable recursion"):
+        RecursiveLeastSquares(2, lam=0.5, forgetting="efra", forgetting_params={"delta": 0.5})
+    with pytest.raises(ValueError, match=r"`forgetting_params\['lam_min'\]` must be in "
+                                         r"\(0, lam\] = \(0, 0.9\]; got 0.95"):
+        RecursiveLeastSquares(2, lam=0.9, forgetting="variable",
+                              forgetting_params={"lam_min": 0.95})
+    with pytest.raises(ValueError, match=r"constant_trace' with lam = 1 needs an explicit"):
+        RecursiveLeastSquares(2, forgetting="constant_trace")
+    with pytest.raises(ValueError, match=r"`gate` must be a positive finite number; got 0.0"):
+        RecursiveLeastSquares(2, gate=0)
+
+
+def test_saver_records_gate_and_forgetting_state(rng):
+    from filterpy.common import Saver
+
+    Hs, zs, *_ = windup_record(rng, 50, 0, 0)
+    zs[20] += 10.0
+    rls = RecursiveLeastSquares(3, lam=0.95, R=SIGMA**2, forgetting="variable", gate=5.0)
+    saver = Saver(rls)
+    rls.batch_filter(zs, Hs, saver=saver)
+    saver.to_array()
+    assert saver.gated.sum() == 1 and saver.gated[20]
+    assert_array_equal(saver.n_gated[-1], 1)
+    lam_min = rls.forgetting_params["lam_min"]
+    assert lam_min == 0.5
+    assert np.all((saver.lam_t >= lam_min) & (saver.lam_t <= 1.0))
