@@ -61,6 +61,7 @@ STRUCTURES = [  # (a, b, nk): includes feed-through, long delays, FIR, nb > na
     ([-1.2, 0.5, -0.1], [0.3], 3),
     ([], [1.0, 0.5, 0.25], 2),
     ([0.5], [2.0], 0),
+    ([], [2.0], 0),  # a static gain: no state at all
 ]
 
 
@@ -481,7 +482,9 @@ def test_rls_prior_start_is_ridge(rng):
     Phi, target = model.regressors(u, y)
     expected = np.linalg.solve(Phi.T @ Phi + np.eye(2) / P0, Phi.T @ target + x0 / P0)
     np.testing.assert_allclose(model.theta_, expected, rtol=1e-9)
-    assert not np.isnan(model.theta_history_).any()
+    assert not np.isnan(model.theta_history_).any() and model.k0_ == 0
+    same = ARX(1, 1, 1).fit(u, y, method="rls", P0=P0, x0=x0)  # a prior means k0 = 0
+    np.testing.assert_array_equal(same.theta_, model.theta_)
 
 
 def test_rls_options_pass_through_to_the_filter(rng):
@@ -545,9 +548,11 @@ def test_uncertainty_is_calibrated_over_repeated_experiments():
     With M = 1000 experiments the sample standard deviation of M standard
     normal values has standard error 1/sqrt(2 (M - 1)) = 0.022, and the
     mean 1/sqrt(M) = 0.032; the bands below are 4 standard errors wide, so a
-    correct implementation fails them with probability about 1e-4, while a
-    covariance off by 20 % (std off by 10 %) fails them with high
-    probability.
+    correct implementation fails them with probability about 1e-4 per
+    parameter, while a covariance off by 25 % (std off by 12 %) fails with
+    probability above 0.9. The noise-variance check is tighter still: its
+    band (4 sqrt(2 / dof) / sqrt(M) = 0.013) rejects the biased divisor
+    N_rows instead of N_rows - n_params (a 2 % bias here).
     """
     a, b, nk = np.array([-1.5, 0.7]), np.array([1.0, 0.5]), 1
     theta_true = np.r_[a, b]

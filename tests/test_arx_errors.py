@@ -141,7 +141,7 @@ def test_bad_method_and_options(data):
         ARX(2, 2).fit(*data, method="rls", k0=3)
     with pytest.raises(ValueError, match=r"`P0` only applies to a prior start \(k0=0\); the "
                                          r"batch start on k0=4 rows sets both x0 and P0"):
-        ARX(2, 2).fit(*data, method="rls", P0=100.0)
+        ARX(2, 2).fit(*data, method="rls", k0=4, P0=100.0)
     with pytest.raises(ValueError, match=r"`x0` only applies to a prior start"):
         ARX(2, 2).fit(*data, method="rls", k0=10, x0=np.zeros(4))
     with pytest.raises(TypeError, match=r"`foo` is not a parameter of ARX"):

@@ -233,20 +233,12 @@ class ARX:
             ``n_params`` (the lecture notes' choice), or, when those first
             rows do not determine every parameter (for example a PRBS held
             for several samples), the fewest leading rows that do. ``0``
-            starts from the prior ``x0``, ``P0`` instead.
+            starts from the prior ``x0``, ``P0`` instead (MATLAB ``rarx``);
+            that is the default when `P0` or `x0` is given.
         lam, P0, R, Q, x0
             ``"rls"`` only: passed to `RecursiveLeastSquares` (forgetting
             factor, initial covariance and estimate for a prior start with
             ``k0 = 0``, noise variance, random-walk covariance).
-
-        Notes
-        -----
-        With ``method="rls"``, ``theta_`` is the filter's last estimate and
-        ``theta_cov_`` is ``noise_variance_ * P / R``, its covariance; with
-        ``lam = 1``, ``Q = 0`` and a batch start both equal the batch answer.
-        With forgetting they describe the exponentially weighted fit at the
-        end of the record, while ``noise_variance_`` (residuals of the final
-        estimate over all rows) overstates the noise if the plant changed.
 
         Returns
         -------
@@ -258,6 +250,15 @@ class ARX:
             NaN/inf in the data (the first bad index is named), mismatched
             lengths, bad orders, too few samples, or a regressor matrix
             without full column rank (input not persistently exciting).
+
+        Notes
+        -----
+        With ``method="rls"``, ``theta_`` is the filter's last estimate and
+        ``theta_cov_`` is ``noise_variance_ * P / R``, its covariance; with
+        ``lam = 1``, ``Q = 0`` and a batch start both equal the batch answer.
+        With forgetting they describe the exponentially weighted fit at the
+        end of the record, while ``noise_variance_`` (residuals of the final
+        estimate over all rows) overstates the noise if the plant changed.
         """
         if method not in ("ls", "rls"):
             raise ValueError(f"`method` must be 'ls' or 'rls'; got {method!r}")
@@ -311,8 +312,11 @@ class ARX:
 
     def _fit_rls(self, Phi, target, s, opts):
         n, rows = s.n_params, len(Phi)
-        k0 = _full_rank_start(Phi) if opts["k0"] is None else check_int(opts["k0"], "k0",
-                                                                         minimum=0)
+        prior = opts["P0"] is not None or opts["x0"] is not None
+        if opts["k0"] is not None:
+            k0 = check_int(opts["k0"], "k0", minimum=0)
+        else:  # a given prior means a prior start (MATLAB rarx); else the notes' batch start
+            k0 = 0 if prior else _full_rank_start(Phi)
         if k0 > rows:
             raise ValueError(f"`k0` must be <= the number of regressor rows ({rows}); got {k0}")
         if k0 > 0:
