@@ -47,7 +47,7 @@ EXIT_USAGE = 2   # the command line itself is wrong (argparse's convention)
 _MAX_LAG = 20            # lags shown by the residual tests
 _CONFIDENCE_Z = 2.5758   # two-sided 99 % normal quantile, as MATLAB's resid
 _PROGRESS_AFTER = 2.0    # seconds before a progress line appears
-_FORGETTING_MODES = ("exponential",)
+_FORGETTING_MODES = ("exponential", "directional", "constant_trace", "efra", "variable")
 _DEFAULT_PLANT = "dc_motor"
 _TRACKING_LAM = 0.98     # demo forgetting factor for the time-varying plant
 
@@ -284,8 +284,13 @@ def _run_identify(args):
         na, nb, selection = _select_order(y, u, nk, args.max_order, progress)
         progress.done()
     _check_rows(len(y), na, nb, nk, args.file)
+    if args.forgetting != "exponential" and args.method != "rls":
+        raise CLIError(f"--forgetting {args.forgetting} needs --method rls")
+    if args.forgetting == "constant_trace" and args.lam == 1.0:
+        raise CLIError("--forgetting constant_trace needs --lam < 1 (it holds trace(P) at "
+                       "n_params * (1 - lam))")
     fit = _identify(y, u, na, nb, nk, method=args.method, lam=args.lam, dt=dt,
-                    progress=progress)
+                    forgetting=args.forgetting, progress=progress)
     fit.update(inputs=list(args.inputs), output=args.output, source=args.file,
                forgetting=args.forgetting if args.method == "rls" else None,
                order_selection=selection)
@@ -482,7 +487,8 @@ def _regressors(y, u, na, nb, nk, start=None):
     return np.column_stack(cols), y[t]
 
 
-def _identify(y, u, na, nb, nk, method="ls", lam=1.0, dt=1.0, progress=None):
+def _identify(y, u, na, nb, nk, method="ls", lam=1.0, dt=1.0, forgetting="exponential",
+              progress=None):
     """Fit ``ARX(na, nb, nk)``; return a dict of everything the report shows."""
     U = u if u.shape[1] > 1 else u[:, 0]
     model = ARX(na=na, nb=list(nb) if len(nb) > 1 else nb[0],
@@ -492,41 +498,85 @@ def _identify(y, u, na, nb, nk, method="ls", lam=1.0, dt=1.0, progress=None):
             else f"least squares on {len(y)} samples")
     with (progress or _Progress(False)).task(task):
         model.fit(U, y, method=method, **kwargs)
-    Phi, _ = model.regressors(U, y)
-    lag = model.max_lag
+        Phi, target = model.regressors(U, y)
+        if method == "rls" and forgetting != "exponential":
+            est = _refit_with_forgetting(model, Phi, target, lam, forgetting)
+        else:
+            est = dict(model=model, theta=np.asarray(model.theta_, dtype=float),
+                       theta_std=np.asarray(model.std_errors_, dtype=float),
+                       sigma2=float(model.noise_variance_),
+                       history=getattr(model, "theta_history_", None),
+                       recursive=getattr(model, "recursive_residuals_", None),
+                       k0=getattr(model, "k0_", None))
+    model = est["model"]
+    lag = len(y) - len(Phi)
     a = np.atleast_1d(model.a_)
     b = list(model.b_) if isinstance(model.b_, list) else [model.b_]
     y_sim = np.asarray(model.simulate(U), dtype=float)
     y_pred = np.full(len(y), np.nan)
-    theta_std = np.asarray(model.std_errors_, dtype=float)
-    sigma2 = float(model.noise_variance_)
-    history = getattr(model, "theta_history_", None)
-    k0 = getattr(model, "k0_", None)
-    if method == "rls" and lam < 1.0:
+    theta_std, sigma2 = est["theta_std"], est["sigma2"]
+    if method == "rls" and (lam < 1.0 or forgetting != "exponential"):
         # With forgetting the final estimate describes the end of the record only; judge
         # it by the recursive one-step residuals y(t) - phi(t) theta(t-1), the errors RLS
         # actually made, and scale the covariance by their variance.
-        rows = np.flatnonzero(~np.isnan(model.recursive_residuals_))
-        resid = model.recursive_residuals_[rows]
+        rows = np.flatnonzero(~np.isnan(est["recursive"]))
+        resid = est["recursive"][rows]
         y_pred[lag + rows] = y[lag + rows] - resid
         old, sigma2 = sigma2, float(resid @ resid / len(resid))
         theta_std = theta_std * math.sqrt(sigma2 / old) if old > 0 else theta_std
         u_rows = u[lag + rows]
         residual_kind = "recursive"
     else:
-        y_pred[lag:] = Phi @ np.asarray(model.theta_)
-        resid = np.asarray(model.residuals_, dtype=float)
+        y_pred[lag:] = Phi @ est["theta"]
+        resid = target - Phi @ est["theta"]
         u_rows = u[lag:]
         residual_kind = "final"
+    history, k0 = est["history"], est["k0"]
     used = ~np.isnan(y_pred)
     return dict(
         model=model, na=na, nb=list(nb), nk=list(nk), method=method, lam=lam, dt=dt,
-        theta=np.asarray(model.theta_), theta_std=theta_std,
+        theta=est["theta"], theta_std=theta_std,
         a=a, b=b, noise_variance=sigma2, n_samples=len(y),
-        n_used=int(model.n_samples_), y=y, u=u, y_sim=y_sim, y_pred=y_pred, residuals=resid,
+        n_used=len(Phi), y=y, u=u, y_sim=y_sim, y_pred=y_pred, residuals=resid,
         residual_kind=residual_kind, fit_percent=_fit_percent(y, y_sim),
         fit_percent_prediction=_fit_percent(y[used], y_pred[used]),
         tests=_residual_tests(resid, u_rows), history=history, k0=k0)
+
+
+def _refit_with_forgetting(model, Phi, target, lam, forgetting):
+    """The recursive fit of `model` repeated with a forgetting mode other than exponential.
+
+    Same batch start (``model.k0_`` rows), then ``RecursiveLeastSquares`` with
+    ``forgetting=`` over the remaining rows. Returns the quantities
+    `_identify` reports, with a coefficient-only ``ARX`` for simulation and
+    transfer functions.
+    """
+    from .filters import RecursiveLeastSquares
+
+    rows, n = Phi.shape
+    k0 = model.k0_
+    rls = RecursiveLeastSquares(n, lam=lam, forgetting=forgetting)
+    rls.initialize(target[:k0], Phi[:k0])
+    history = np.full((rows, n), np.nan)
+    history[k0 - 1] = rls.x[:, 0]
+    if k0 < rows:
+        means = rls.batch_filter(target[k0:], Phi[k0:], store_covariances=False)[0]
+        history[k0:] = means[:, :, 0]
+    theta = rls.x[:, 0].copy()
+    recursive = np.full(rows, np.nan)
+    recursive[k0:] = target[k0:] - np.einsum("ij,ij->i", Phi[k0:], history[k0 - 1:-1])
+    resid = target - Phi @ theta
+    sigma2 = float(resid @ resid / (rows - n)) if rows > n else float("nan")
+    na = model.structure_.na
+    nb = list(model.structure_.nb)
+    bs = np.split(theta[na:], np.cumsum(nb)[:-1])
+    nk = list(model.structure_.nk)
+    coef = ARX.from_polynomials(theta[:na], bs if len(bs) > 1 else bs[0],
+                                nk=nk if len(nk) > 1 else nk[0], dt=model.dt,
+                                noise_variance=sigma2)
+    std = np.sqrt(np.maximum(np.diag(rls.P) / rls.R, 0.0) * sigma2)
+    return dict(model=coef, theta=theta, theta_std=std, sigma2=sigma2, history=history,
+                recursive=recursive, k0=k0)
 
 
 def _fit_percent(y, yhat):
@@ -689,6 +739,8 @@ def _report(fit):
     lines = []
     method = ("batch least squares (QR)" if fit["method"] == "ls"
               else f"recursive least squares, batch start, lam = {fit['lam']:g}")
+    if fit["method"] == "rls" and fit.get("forgetting") not in (None, "exponential"):
+        method += f", {fit['forgetting']} forgetting"
     ins = ", ".join(fit["inputs"])
     lines.append(f"ARX model  na={fit['na']}  nb={_fmt_list(fit['nb'])}  "
                  f"nk={_fmt_list(fit['nk'])}   ({fit['source']})")

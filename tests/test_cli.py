@@ -149,6 +149,29 @@ def test_identify_rls_equals_ls_and_forgetting_changes_it(capsys, csv_file):
     assert np.max(np.abs(np.subtract(forget["theta"], ls["theta"]))) > 1e-4
 
 
+@pytest.mark.parametrize("mode", ["directional", "constant_trace", "efra", "variable"])
+def test_identify_forgetting_modes_match_the_filter(capsys, tmp_path, mode):
+    from rlsfilt import ARX, RecursiveLeastSquares
+    from rlsfilt.datasets import time_varying
+
+    ds = time_varying(n_samples=800, rng=1)
+    path = _write_csv(tmp_path / "tv.csv", ["u", "y"], zip(ds.u, ds.y))
+    code, out, err = _run(capsys, "identify", path, "-u", "u", "-y", "y", "--method", "rls",
+                          "--lam", "0.97", "--forgetting", mode, "--json")
+    assert code == 0, err
+    res = json.loads(out)
+    assert res["forgetting"] == mode
+    # oracle: the filter run directly on ARX's regressors with the same batch start
+    ref = ARX(2, 2, 1).fit(ds.u, ds.y, method="rls", lam=0.97)
+    Phi, z = ref.regressors(ds.u, ds.y)
+    rls = RecursiveLeastSquares(4, lam=0.97, forgetting=mode)
+    rls.initialize(z[:ref.k0_], Phi[:ref.k0_])
+    rls.batch_filter(z[ref.k0_:], Phi[ref.k0_:])
+    np.testing.assert_allclose(res["theta"], rls.x.ravel(), rtol=1e-12, atol=1e-14)
+    # every mode tracks the jump: close to the parameters in force at the end
+    np.testing.assert_allclose(res["theta"], ds.theta_true[-1], atol=0.12)
+
+
 def test_identify_text_report(capsys, csv_file):
     code, out, err = _run(capsys, *_ident_args(csv_file, "--time", "t"))
     assert code == 0 and err == ""
@@ -393,6 +416,16 @@ def test_error_same_column_twice(capsys, csv_file):
     _assert_one_line_error(*r, "column 'y' is given as both --input and --output")
     r = _run(capsys, "identify", csv_file, "-u", "u1", "-u", "u1", "-y", "y")
     _assert_one_line_error(*r, "column 'u1' is given twice as --input")
+
+
+def test_error_forgetting_options(capsys, csv_file):
+    r = _run(capsys, "identify", csv_file, "-u", "u1", "-y", "y", "--forgetting", "efra")
+    _assert_one_line_error(*r, "--forgetting efra needs --method rls")
+    r = _run(capsys, "identify", csv_file, "-u", "u1", "-y", "y", "--method", "rls",
+             "--forgetting", "constant_trace")
+    _assert_one_line_error(*r, "--forgetting constant_trace needs --lam < 1")
+    r = _run(capsys, "identify", csv_file, "-u", "u1", "-y", "y", "--forgetting", "fast")
+    _assert_one_line_error(*r, "argument --forgetting: invalid choice: 'fast'", 2)
 
 
 def test_error_orders_per_input_count(capsys, csv_file):
