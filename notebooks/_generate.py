@@ -296,8 +296,189 @@ each parameter move at its own rate, so the pole estimate stays quieter.
 - Several outputs share one regressor row (`dim_z > 1`) and one `P`."""),
 ]
 
+
+# ----------------------------------------------------------------------
+# 2. Tracking time-varying plants
+# ----------------------------------------------------------------------
+TRACKING = [
+    ("md", r"""# 2. Tracking time-varying plants
+
+Least squares on all data so far cannot follow a plant that changes: every old sample keeps its
+full weight. This notebook
+
+1. tracks a parameter jump with exponential forgetting and shows the memory/noise trade-off of the
+   forgetting factor $\lambda$;
+2. provokes **covariance windup** (the input stops exciting the plant, $P$ explodes) and compares
+   the anti-windup schemes of `RecursiveLeastSquares(forgetting=...)` and a Kalman random walk;
+3. replaces forgetting by an exact **sliding window** (`SlidingWindowRLS`)."""),
+    ("code", r"""import warnings
+
+import matplotlib.pyplot as plt
+import numpy as np
+
+from rlsfilt import ARX, RecursiveLeastSquares, SlidingWindowRLS
+from rlsfilt.datasets import prbs, time_varying
+from rlsfilt.plotting import plot_parameters, plot_trace, plot_tracking"""),
+    ("md", r"""## A parameter jump
+
+`rlsfilt.datasets.time_varying` simulates the ARX(2, 2, 1) plant
+$y(t) + a_1 y(t-1) + a_2 y(t-2) = b_1 u(t-1) + b_2 u(t-2) + e(t)$ whose parameters jump halfway
+through the record. `ds.theta_true` holds the true parameters at every sample."""),
+    ("code", r"""ds = time_varying(rng=0)
+print(ds)
+print("before:", ds.theta_true[0], " after:", ds.theta_true[-1])"""),
+    ("code", r"""fig, axes = plt.subplots(1, 2, figsize=(11, 3.8), sharey=True)
+for ax, lam in zip(axes, (1.0, 0.98)):
+    model = ARX(*ds.orders).fit(ds.u, ds.y, method="rls", lam=lam)
+    lag = model.max_lag
+    plot_parameters(model, t=ds.t[lag:], true_values=ds.theta_true[lag:], ax=ax)
+    ax.set_title(f"lam = {lam}")
+axes[0].set_ylim(-2, 1.5);"""),
+    ("md", r"""With $\lambda = 1$ (ordinary least squares) the estimate after the jump is a compromise between
+the two plants and converges to the new one only as fast as the old data are outweighed. With
+$\lambda = 0.98$ a sample $j$ steps old has weight $0.98^j$, a memory of about
+$1/(1-\lambda) = 50$ samples, and the estimate follows the jump.
+
+## The trade-off: memory against noise
+
+A short memory tracks fast but averages little noise. We measure both: the settling time after the
+jump (until every parameter is within 0.05 of the truth) and the RMS parameter error while the
+plant is constant."""),
+    ("code", r"""jump = ds.change_time
+print(f"{'lam':>6} {'memory':>7} {'settling [samples]':>19} {'RMS error, constant plant':>26}")
+for lam in (0.9, 0.95, 0.98, 0.99, 0.995):
+    model = ARX(*ds.orders).fit(ds.u, ds.y, method="rls", lam=lam)
+    lag = model.max_lag
+    err = np.abs(model.theta_history_ - ds.theta_true[lag:])
+    after = np.max(err[jump - lag:], axis=1)
+    settle = int(np.argmax(np.convolve(after < 0.05, np.ones(20), "valid") == 20))
+    rms = np.sqrt(np.nanmean(err[200:jump - lag] ** 2))
+    print(f"{lam:6.3f} {1 / (1 - lam):7.0f} {settle:19d} {rms:26.4f}")"""),
+    ("md", r"""## Covariance windup
+
+Exponential forgetting divides $P$ by $\lambda$ at every step, also in directions the data no longer
+excite. We hold the input constant for 2000 samples (only one regressor direction stays excited),
+then resume a rich input, and change the plant at that moment."""),
+    ("code", r"""rng = np.random.default_rng(2)
+N1, N2, N3 = 500, 2000, 700
+u = np.r_[prbs(N1, rng=1), np.ones(N2), prbs(N3, rng=2)]
+th_before, th_after = np.array([-1.5, 0.7, 1.0, 0.5]), np.array([-1.2, 0.5, 0.6, 0.9])
+y = np.zeros(N1 + N2 + N3)
+for t in range(2, len(y)):
+    a1, a2, b1, b2 = th_before if t < N1 + N2 else th_after
+    y[t] = -a1 * y[t - 1] - a2 * y[t - 2] + b1 * u[t - 1] + b2 * u[t - 2] \
+        + 0.05 * rng.standard_normal()
+
+Phi, z = ARX(2, 2, 1).regressors(u, y)          # rows phi(t) for t = 2 .. N-1
+truth = np.array([th_before if t < N1 + N2 else th_after for t in range(2, len(y))])
+k0 = 8                                          # batch start on the first 8 rows
+t_axis = np.arange(2 + k0, len(y))"""),
+    ("code", r"""filters = {
+    "exponential": RecursiveLeastSquares(4, lam=0.98),
+    "directional": RecursiveLeastSquares(4, lam=0.98, forgetting="directional"),
+    "constant_trace": RecursiveLeastSquares(4, lam=0.98, forgetting="constant_trace"),
+    "efra": RecursiveLeastSquares(4, lam=0.98, forgetting="efra"),
+    "variable": RecursiveLeastSquares(4, lam=0.98, forgetting="variable"),
+    "random walk Q": RecursiveLeastSquares(4, Q=1e-4, R=0.05 ** 2),
+}
+runs = {}
+for name, f in filters.items():
+    f.initialize(z[:k0], Phi[:k0])
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        means, covs, _, _ = f.batch_filter(z[k0:], Phi[k0:])
+    runs[name] = (means[:, :, 0], covs)
+    if caught:
+        print(f"{name}: {caught[0].category.__name__}: {str(caught[0].message)[:90]}...")"""),
+    ("code", r"""change = N1 + N2 - 2 - k0                       # row index of the change
+lo, hi = np.minimum(th_before, th_after), np.maximum(th_before, th_after)
+
+
+def settling(err, tol=0.05, hold=20):
+    ok = np.convolve(np.max(err, axis=1) < tol, np.ones(hold), "valid") == hold
+    return int(np.argmax(ok)) if ok.any() else None
+
+
+print(f"{'scheme':>15} {'max tr P (hold)':>16} {'overshoot':>10} {'settling':>9} "
+      f"{'RMS error, last 400':>20}")
+for name, (m, c) in runs.items():
+    tr = np.trace(c, axis1=1, axis2=2)
+    after = m[change:]
+    overshoot = np.max(np.maximum(after[:100] - hi, lo - after[:100]).clip(min=0))
+    err = np.abs(after - th_after)
+    st = settling(err)
+    print(f"{name:>15} {tr[:change].max():16.3g} {overshoot:10.3f} "
+          f"{st if st is not None else '-':>9} {np.sqrt(np.mean(err[-400:] ** 2)):20.4f}")
+
+assert np.trace(runs["exponential"][1][change - 1]) > 1e10      # windup
+for name in ("directional", "constant_trace", "efra", "random walk Q"):
+    assert np.trace(runs[name][1][:change], axis1=1, axis2=2).max() < 100"""),
+    ("md", r"""During the hold, $\mathrm{tr}\,P$ under exponential forgetting grows by many orders of magnitude
+(and `RecursiveLeastSquares` warns that $P$ became ill-conditioned). When excitation returns, the
+huge gain throws the estimate far outside the range of the old and new parameters ("overshoot").
+The anti-windup schemes keep $P$ bounded ("settling" counts the samples after the change until
+every parameter stays within 0.05 of the new plant):
+
+* **directional** forgetting forgets only in the excited direction (Kulhavý & Kárný 1984); it
+  re-tracks slowly after the change, because it has "forgotten" little;
+* **constant trace** rescales $P$ to a fixed trace (Goodwin & Sin 1984);
+* **EFRA** (Salgado, Goodwin & Middleton 1988) bounds $P$ between two limits;
+* **variable** forgetting (Fortescue et al. 1981) forgets only when the residuals are large;
+* a **random walk** $Q$ (the Kalman view) makes $P$ grow linearly, not exponentially; over a long
+  hold that is still enough covariance to overshoot, so $Q$ has to match how fast the plant really
+  drifts.
+
+No scheme wins everywhere: directional and variable forgetting barely move while the plant is
+constant, and for the same reason re-track a sudden change slowly."""),
+    ("code", r"""fig, axes = plt.subplots(2, 1, figsize=(10, 6.5), sharex=True)
+for name, (m, c) in runs.items():
+    axes[0].plot(t_axis, m[:, 2], lw=1, label=name)
+    axes[1].plot(t_axis, np.trace(c, axis1=1, axis2=2), lw=1, label=name)
+axes[0].plot(t_axis, truth[k0:, 2], "k:", label="true $b_1$")
+axes[0].set(ylabel="$b_1$ estimate", ylim=(-1, 3), title="held input from t = 500 to 2500")
+axes[1].set(yscale="log", ylabel=r"$\mathrm{tr}\,P$", xlabel="sample t")
+axes[0].legend(ncol=4, fontsize="small")
+for ax in axes:
+    ax.axvspan(N1, N1 + N2, color="0.9")"""),
+    ("md", r"""`rlsfilt.plotting.plot_tracking` draws the parameter trajectories with their $\pm 2\sigma$ bands
+and $\mathrm{tr}\,P$ in one figure, here for EFRA:"""),
+    ("code", r"""m, c = runs["efra"]
+fig = plot_tracking((m, c), t=t_axis, names=["a1", "a2", "b1", "b2"], true_values=truth[k0:])
+fig.set_size_inches(10, 6)"""),
+    ("md", r"""## A sliding window
+
+`SlidingWindowRLS` drops the oldest sample exactly (a downdate) instead of down-weighting it: its
+estimate is ordinary least squares on the last `window` samples, and nothing before. We check that
+against `numpy.linalg.lstsq` on the window, at the end of the jump record."""),
+    ("code", r"""Phi_j, z_j = ARX(*ds.orders).regressors(ds.u, ds.y)
+window = 100
+sw = SlidingWindowRLS(4, window=window)
+means_sw, _, _, _ = sw.batch_filter(z_j, Phi_j)
+
+exact = np.linalg.lstsq(Phi_j[-window:], z_j[-window:], rcond=None)[0]
+np.testing.assert_allclose(sw.x.ravel(), exact, rtol=1e-8, atol=1e-10)
+print("sliding window:", np.round(sw.x.ravel(), 4))
+print("lstsq, last 100:", np.round(exact, 4))"""),
+    ("code", r"""ewls = RecursiveLeastSquares(4, lam=1 - 2 / window)      # about the same memory
+ewls.initialize(z_j[:8], Phi_j[:8])
+means_ew, _, _, _ = ewls.batch_filter(z_j[8:], Phi_j[8:])
+
+fig, ax = plt.subplots(figsize=(10, 3.5))
+lag = 2
+ax.plot(ds.t[lag:], means_sw[:, 0, 0], label=f"sliding window, {window} samples")
+ax.plot(ds.t[lag + 8:], means_ew[:, 0, 0], label=f"exponential, lam = {1 - 2 / window:g}")
+ax.plot(ds.t, ds.theta_true[:, 0], "k:", label="true")
+ax.set(xlabel="time [s]", ylabel="$a_1$ estimate", ylim=(-1.8, -1.0),
+       xlim=(ds.change_time - 200, ds.change_time + 300))
+ax.legend();"""),
+    ("md", r"""After the jump the sliding window forgets the old plant completely once the window has passed
+it (100 samples later); exponential forgetting of similar memory reacts sooner but never forgets
+completely. Choose the window from how fast the plant can change, as you would choose $\lambda$."""),
+]
+
 NOTEBOOKS = {
     "01_quickstart.ipynb": QUICKSTART,
+    "02_tracking.ipynb": TRACKING,
     "05_beside_filterpy.ipynb": FILTERPY,
 }
 
