@@ -88,13 +88,26 @@ html_theme_options = {"navigation_depth": 3}
 # ----------------------------------------------------------------------
 # Fitted-attribute names such as ``n_samples_`` inside a numpydoc type
 # ("residuals_ : ndarray, shape (n_samples_,)") would be read by docutils as
-# hyperlink references. Escape their trailing underscore before numpydoc runs.
+# hyperlink references. Escape their trailing underscore before numpydoc runs,
+# and join parameter lines continued with a trailing backslash.
 # ----------------------------------------------------------------------
 _PARAM_LINE = re.compile(r"^(\s*[\w*, ]+ : )(.*)$")
 _TRAILING_UNDERSCORE = re.compile(r"(?<![`\w])([A-Za-z]\w*?)_(?=[\s,)\]]|$)")
 
 
 def _escape_fitted_names(app, what, name, obj, options, lines):
+    # a parameter line continued with a backslash (a long set of choices) is one line
+    i, joined = 0, False
+    while i < len(lines) - 1:
+        if lines[i].endswith("\\") and _PARAM_LINE.match(lines[i]):
+            lines[i] = lines[i][:-1] + lines.pop(i + 1).lstrip()
+            joined = True
+        else:
+            i += 1
+    if joined:  # the unindented continuation had spoiled the docstring's dedent
+        body = [ln for ln in lines[1:] if ln.strip()]
+        margin = min((len(ln) - len(ln.lstrip()) for ln in body), default=0)
+        lines[1:] = [ln[margin:] for ln in lines[1:]]
     for i, line in enumerate(lines):
         m = _PARAM_LINE.match(line)
         if m:

@@ -78,7 +78,8 @@ def test_api_reference_lists_every_public_name():
         except ModuleNotFoundError:
             continue
         for n in getattr(mod, "__all__", []):
-            if f"{sub}.{n}" not in documented and f"rlsfilt.{n}" not in documented:
+            if (f"{sub}.{n}" not in documented and f"rlsfilt.{n}" not in documented
+                    and f"rlsfilt.{n}" not in missing):
                 missing.append(f"{sub}.{n}")
     assert not missing, ("add these public names to an autosummary list in "
                          f"docs/api/index.rst: {', '.join(missing)}")
