@@ -163,9 +163,12 @@ def recursive_residuals(zs, Hs):
     Recursive least squares with ``R = 1`` is started by
     :meth:`~rlsfilt.RecursiveLeastSquares.initialize` on the first ``start``
     rows (so the recursion equals ordinary least squares on all rows so far),
-    and each later step gives :math:`w_t = y_t / \sqrt{S_t}` with ``y`` the
-    a-priori residual and :math:`S_t = 1 + h_t^T P_{t-1} h_t` (Brown, Durbin
-    & Evans 1975, eq. (2); Harvey 1990, sec. 2.6).
+    and its :meth:`~rlsfilt.RecursiveLeastSquares.batch_filter` over the
+    remaining rows gives the prior estimate and covariance of each step, so
+    :math:`w_t = y_t / \sqrt{S_t}` with ``y`` the a-priori residual
+    :math:`z_t - h_t^T x_{t-1}` and :math:`S_t = 1 + h_t^T P_{t-1} h_t`
+    (the filter's ``y`` and ``S``; Brown, Durbin & Evans 1975, eq. (2);
+    Harvey 1990, sec. 2.6).
 
     References
     ----------
@@ -180,11 +183,12 @@ def recursive_residuals(zs, Hs):
     start = _exact_start(H)
     rls = RecursiveLeastSquares(dim_x=k, R=1.0)
     rls.initialize(z[:start], H[:start])
-    w = np.empty(len(z) - start)
-    for i, t in enumerate(range(start, len(z))):
-        rls.update(z[t], H[t])
-        w[i] = rls.y[0, 0] / math.sqrt(rls.S[0, 0])
-    return w, start
+    Hr = H[start:]
+    # priors of each step: x_{t-1} and P_{t-1}; then y = z - h x, S = h P h^T + R
+    _, _, x_prior, P_prior = rls.batch_filter(z[start:], Hr)
+    y = z[start:] - np.einsum("ti,ti->t", Hr, x_prior[:, :, 0])
+    S = np.einsum("ti,tij,tj->t", Hr, P_prior, Hr) + rls.R
+    return y / np.sqrt(S), start
 
 
 def cusum(zs, Hs, alpha=0.05):
@@ -237,6 +241,11 @@ def cusum(zs, Hs, alpha=0.05):
     ``pvalue`` is the right-hand side evaluated at the smallest ``a`` whose
     lines the path touches.
 
+    The CUSUM test reacts to changes that move the mean of the recursive
+    residuals; it has little power against a change of a coefficient whose
+    regressor has mean zero (Kramer, Ploberger & Alt 1988), where
+    :func:`cusum_squares` (a change of the residual variance) helps.
+
     References
     ----------
     .. [1] R. L. Brown, J. Durbin and J. M. Evans, "Techniques for testing the
@@ -245,19 +254,22 @@ def cusum(zs, Hs, alpha=0.05):
     .. [2] A. Zeileis, F. Leisch, K. Hornik and C. Kleiber, "strucchange: an R
        package for testing for structural change in linear regression
        models", *J. Stat. Softw.* 7(2), 2002.
+    .. [3] W. Kramer, W. Ploberger and R. Alt, "Testing for structural change
+       in dynamic models", *Econometrica* 56(6), 1355-1369, 1988.
 
     Examples
     --------
-    A regression whose slope changes halfway is flagged:
+    A regression whose intercept shifts halfway is flagged:
 
     >>> import numpy as np
     >>> from rlsfilt.validation import cusum
     >>> rng = np.random.default_rng(0)
     >>> H = np.column_stack([np.ones(400), rng.standard_normal(400)])
-    >>> slope = np.where(np.arange(400) < 200, 1.0, 1.5)
-    >>> z = 0.5 + slope * H[:, 1] + 0.1 * rng.standard_normal(400)
-    >>> cusum(z, H).rejected
-    True
+    >>> level = np.where(np.arange(400) < 200, 0.5, 0.6)
+    >>> z = level + 1.0 * H[:, 1] + 0.1 * rng.standard_normal(400)
+    >>> result = cusum(z, H)
+    >>> result.rejected, int(result.crossings[0])
+    (True, 266)
     """
     alpha = _check_alpha(alpha)
     w, start = recursive_residuals(zs, Hs)
@@ -266,9 +278,9 @@ def cusum(zs, Hs, alpha=0.05):
         raise ValueError(f"`zs` must have at least 2 rows beyond the {start} used for the exact "
                          f"start; got {m}")
     sigma = np.std(w, ddof=1)
-    if sigma == 0.0:
-        raise ValueError("the recursive residuals are all equal (an exact fit); CUSUM is "
-                         "undefined")
+    if sigma <= 1e-10 * math.sqrt(np.mean(np.asarray(zs, dtype=float) ** 2)):
+        raise ValueError("the recursive residuals are all equal to round-off (an exact fit); "
+                         "CUSUM is undefined")
     W = np.cumsum(w) / sigma
     j = np.arange(1, m + 1)
     a = _bde_constant(alpha)
@@ -361,9 +373,9 @@ def cusum_squares(zs, Hs, alpha=0.05):
         raise ValueError(f"`zs` must have at least 4 rows beyond the {start} used for the exact "
                          f"start; got {m}")
     sq = np.cumsum(w * w)
-    if sq[-1] == 0.0:
-        raise ValueError("the recursive residuals are all zero (an exact fit); the CUSUM of "
-                         "squares is undefined")
+    if sq[-1] <= 1e-20 * m * np.mean(np.asarray(zs, dtype=float) ** 2):
+        raise ValueError("the recursive residuals are zero to round-off (an exact fit); the "
+                         "CUSUM of squares is undefined")
     S = sq / sq[-1]
     c1, c2, c3 = _EW_COEF[level]
     c0 = c1 / math.sqrt(n) + c2 / n + c3 / n**1.5

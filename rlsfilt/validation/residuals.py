@@ -115,8 +115,7 @@ class ResidualAnalysis:
         ax.set_xlabel("lag $k$ (samples)")
         ax.set_ylabel(r"$\hat\rho_\varepsilon(k)$")
         verdict = "white" if self.is_white else "not white"
-        ax.set_title(f"Residual autocorrelation: {verdict} (Ljung-Box p = "
-                     f"{self.pvalue_white:.3g})")
+        ax.set_title(f"Residual autocorrelation: {verdict} (p = {self.pvalue_white:.3g})")
         ax.legend(loc="upper right")
         return ax
 
@@ -142,8 +141,7 @@ class ResidualAnalysis:
         ax.set_xlabel(r"lag $\tau$ (samples; $\tau > 0$: past inputs)")
         ax.set_ylabel(r"$\hat\rho_{\varepsilon u}(\tau)$")
         verdict = "independent" if self.is_independent else "not independent"
-        ax.set_title(f"Residual-input cross-correlation: {verdict} (p = "
-                     f"{self.pvalue_independent:.3g})")
+        ax.set_title(f"Input cross-correlation: {verdict} (p = {self.pvalue_independent:.3g})")
         if nu > 1:
             ax.legend(loc="upper right")
         return ax

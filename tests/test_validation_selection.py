@@ -1,0 +1,150 @@
+"""select_order: exact against brute-force least squares, finds the true
+structure of simulated plants, and is fast (one factorization)."""
+
+import itertools
+import time
+
+import numpy as np
+import pytest
+from scipy.signal import lfilter
+
+from rlsfilt import ARX, datasets, select_order
+from rlsfilt.validation import OrderSelection, criteria_from_loss
+
+
+def _brute_force(u, y, cands, t_max):
+    """Per-candidate lstsq on the rows aligned to the largest lag."""
+    N = len(y)
+    t = np.arange(t_max, N)
+    out = []
+    for na, nb, nk in cands:
+        cols = [-y[t - k] for k in range(1, na + 1)] + [u[t - k] for k in range(nk, nk + nb)]
+        Phi = np.column_stack(cols)
+        theta = np.linalg.lstsq(Phi, y[t], rcond=None)[0]
+        r = y[t] - Phi @ theta
+        out.append((r @ r / len(t), theta))
+    return out
+
+
+def test_losses_match_brute_force_lstsq(rng):
+    u = rng.standard_normal(1500)
+    y = lfilter([0, 0, 1.0, -0.4], [1, -1.2, 0.5], u) + 0.2 * rng.standard_normal(1500)
+    na, nb, nk = range(0, 4), range(1, 4), range(0, 3)
+    sel = select_order(u, y, na=na, nb=nb, nk=nk)
+    cands = list(itertools.product(na, nb, nk))
+    assert [tuple(int(v) for v in r) for r in sel.table[["na", "nb", "nk"]]] == cands
+    t_max = max(3, 2 + 3 - 1)
+    assert sel.n_rows == 1500 - t_max
+    for row, theta, (loss, theta_bf) in zip(sel.table, sel.thetas,
+                                            _brute_force(u, y, cands, t_max)):
+        assert row["loss"] == pytest.approx(loss, rel=1e-9)
+        np.testing.assert_allclose(theta, theta_bf, rtol=1e-9, atol=1e-12)
+        ic = criteria_from_loss(loss, sel.n_rows, int(row["n_params"]))
+        assert row["bic"] == pytest.approx(ic.bic, rel=1e-12)
+        assert row["aic"] == pytest.approx(ic.aic, rel=1e-12)
+
+
+@pytest.mark.parametrize("make", [datasets.thermal_process, datasets.dc_motor,
+                                  datasets.mass_spring_damper, datasets.nonminimum_phase])
+def test_finds_true_structure_of_simulated_plants(make):
+    d = make()
+    sel = select_order(d.u, d.y, na=range(1, 5), nb=range(1, 5), nk=range(0, 6))
+    assert sel.best == (d.na, d.nb, d.nk)
+
+
+def test_validation_data_scores_on_fresh_record():
+    d = datasets.dc_motor(n_samples=3000)
+    u, y = d.u[:1500], d.y[:1500]
+    uv, yv = d.u[1500:], d.y[1500:]
+    sel = select_order(u, y, na=range(1, 4), nb=range(1, 4), nk=range(1, 3),
+                       validation=(uv, yv), criterion="loss")
+    assert not np.any(np.isnan(sel.table["val_loss"]))
+    np.testing.assert_array_equal(sel.values, sel.table["val_loss"])
+    # the true structure is as good as the best on fresh data; underfits are far worse
+    vals = {tuple(int(v) for v in r[["na", "nb", "nk"]]): r["val_loss"] for r in sel.table}
+    assert vals[(2, 2, 1)] <= 1.005 * sel.values.min()
+    assert vals[(1, 1, 1)] > 2 * vals[(2, 2, 1)]
+    # the validation loss of a candidate is the mean squared one-step error of
+    # its estimation-data parameters on the aligned validation rows
+    i = [k for k, r in enumerate(sel.table) if tuple(r[["na", "nb", "nk"]]) == (2, 2, 1)][0]
+    theta = sel.thetas[i]
+    t = np.arange(max(3, 2 + 3 - 1), 1500)
+    Phi = np.column_stack([-yv[t - 1], -yv[t - 2], uv[t - 1], uv[t - 2]])
+    assert sel.table["val_loss"][i] == pytest.approx(np.mean((yv[t] - Phi @ theta) ** 2),
+                                                     rel=1e-12)
+    sel_bic = select_order(u, y, na=range(1, 4), nb=range(1, 4), nk=range(1, 3),
+                           validation=(uv, yv))
+    assert sel_bic.best == (2, 2, 1)
+    assert sel_bic.n_val_rows == 1500 - 4
+
+
+def test_speed_4000_samples_60_candidates():
+    rng = np.random.default_rng(3)
+    u = rng.standard_normal(4000)
+    y = lfilter([0, 1.0, 0.5], [1, -1.5, 0.7], u) + 0.1 * rng.standard_normal(4000)
+    select_order(u, y, na=range(1, 6), nb=range(1, 5), nk=range(0, 3))  # warm-up
+    t0 = time.perf_counter()
+    sel = select_order(u, y, na=range(1, 6), nb=range(1, 5), nk=range(0, 3))
+    elapsed = time.perf_counter() - t0
+    assert len(sel.table) == 60
+    assert elapsed < 0.25, f"select_order took {elapsed:.3f} s"
+
+
+def test_several_inputs(rng):
+    U = rng.standard_normal((2000, 2))
+    y = lfilter([0, 1.0], [1, -0.6], U[:, 0]) + lfilter([0, 0, 0.8], [1, -0.6], U[:, 1])
+    y += lfilter([1.0], [1, -0.6], 0.05 * rng.standard_normal(2000))
+    # common nb, nk for both inputs: the model needs nk=1, nb=2 (b = [0, 0.8] for input 2)
+    sel = select_order(U, y, na=range(0, 3), nb=range(1, 4), nk=range(0, 3))
+    assert sel.best == (1, 2, 1)
+    theta = sel.thetas[sel.best_index]
+    np.testing.assert_allclose(theta, [-0.6, 1.0, 0.0, 0.0, 0.8], atol=0.02)
+
+
+def test_best_model_summary_dataframe_and_plot():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    d = datasets.thermal_process()
+    sel = select_order(d.u, d.y, na=range(1, 3), nb=range(1, 3), nk=range(3, 6), dt=d.dt)
+    assert isinstance(sel, OrderSelection)
+    model = sel.best_model()
+    assert isinstance(model, ARX) and (model.na, model.nb, model.nk) == sel.best
+    assert model.dt == d.dt
+    np.testing.assert_allclose(model.theta_,
+                               ARX(*sel.best).fit(d.u, d.y).theta_, rtol=1e-12)
+    text = sel.summary(top=3)
+    assert "<- best" in text and text.count("\n") == 4
+    df = sel.to_dataframe()
+    assert list(df.columns[:4]) == ["na", "nb", "nk", "n_params"] and len(df) == 12
+    ax = sel.plot()
+    assert ax.get_xlabel() == "number of parameters $d$"
+    assert "(1, 1, 4)" in ax.get_legend().get_texts()[-1].get_text()
+    assert "best (na, nb, nk) = (1, 1, 4)" in repr(sel)
+    plt.close("all")
+
+
+def test_select_order_errors(rng):
+    u, y = rng.standard_normal(200), rng.standard_normal(200)
+    with pytest.raises(ValueError, match="`criterion` must be one of aic, aicc, bic"):
+        select_order(u, y, criterion="hqic")
+    with pytest.raises(ValueError, match="`nb` must be >= 1; got 0"):
+        select_order(u, y, nb=range(0, 3))
+    with pytest.raises(ValueError, match="`na` must hold at least one order"):
+        select_order(u, y, na=[])
+    with pytest.raises(TypeError, match="`nk` must be an integer or an iterable"):
+        select_order(u, y, nk=1.5)
+    with pytest.raises(ValueError, match="`criterion`='loss' needs `validation` data"):
+        select_order(u, y, criterion="loss")
+    with pytest.raises(ValueError, match=r"`y` must have shape \(N,\) \(one output\)"):
+        select_order(u, np.zeros((200, 2)))
+    with pytest.raises(ValueError, match="`u` and `y` must have the same length; got 200 and"):
+        select_order(u, y[:150])
+    with pytest.raises(ValueError, match="`y` is too short for these orders"):
+        select_order(u[:12], y[:12])
+    with pytest.raises(TypeError, match="`validation` must be a pair"):
+        select_order(u, y, validation=u)
+    with pytest.raises(ValueError, match="exactly"):
+        select_order(u, lfilter([0, 1.0], [1, -0.5], u), na=1, nb=1, nk=1)
