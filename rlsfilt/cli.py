@@ -37,6 +37,7 @@ import numpy as np
 from . import __version__
 from .datasets import PLANTS
 from .models import ARX
+from .validation import fit_percent, select_order, validate
 
 __all__ = ["main"]
 
@@ -44,8 +45,6 @@ EXIT_OK = 0
 EXIT_ERROR = 1   # the command could not do its work (bad file, bad data)
 EXIT_USAGE = 2   # the command line itself is wrong (argparse's convention)
 
-_MAX_LAG = 20            # lags shown by the residual tests
-_CONFIDENCE_Z = 2.5758   # two-sided 99 % normal quantile, as MATLAB's resid
 _PROGRESS_AFTER = 2.0    # seconds before a progress line appears
 _FORGETTING_MODES = ("exponential", "directional", "constant_trace", "efra", "variable")
 _DEFAULT_PLANT = "dc_motor"
@@ -222,8 +221,9 @@ def _build_parser():
                        help="number of poles, A(q) order (default: 2)")
     ident.add_argument("--nb", type=_int_list(1), default=[2], metavar="NB[,NB...]",
                        help="number of B coefficients, one value or one per input (default: 2)")
-    ident.add_argument("--nk", type=_int_list(0), default=[1], metavar="NK[,NK...]",
-                       help="input delay in samples, one value or one per input (default: 1)")
+    ident.add_argument("--nk", type=_int_list(0), default=None, metavar="NK[,NK...]",
+                       help="input delay in samples, one value or one per input (default: 1; "
+                            "searched by --select-order unless given)")
     ident.add_argument("--method", choices=("ls", "rls"), default="ls",
                        help="batch least squares or recursive least squares (default: ls)")
     ident.add_argument("--lam", type=_lam, default=1.0,
@@ -236,7 +236,7 @@ def _build_parser():
     timing.add_argument("--time", metavar="COL", default=None,
                         help="time column; the sample time is its (uniform) step")
     ident.add_argument("--select-order", action="store_true",
-                       help="choose na and nb by BIC over 1..--max-order (nk as given)")
+                       help="choose na, nb (and nk unless given) by BIC, up to --max-order")
     ident.add_argument("--max-order", type=_positive_int, default=4, metavar="N",
                        help="largest na and nb tried by --select-order (default: 4)")
     ident.add_argument("--delimiter", default=None, metavar="CHAR",
@@ -268,6 +268,11 @@ def _run_identify(args):
     if len(set(args.inputs)) != len(args.inputs):
         dup = next(c for c in args.inputs if args.inputs.count(c) > 1)
         raise CLIError(f"column '{dup}' is given twice as --input")
+    if args.forgetting != "exponential" and args.method != "rls":
+        raise CLIError(f"--forgetting {args.forgetting} needs --method rls")
+    if args.forgetting == "constant_trace" and args.lam == 1.0:
+        raise CLIError("--forgetting constant_trace needs --lam < 1 (it holds trace(P) at "
+                       "n_params * (1 - lam))")
     data = read_csv(args.file, columns, delimiter=args.delimiter, progress=progress)
     progress.done()
     u = np.column_stack([data[c] for c in args.inputs])
@@ -277,40 +282,28 @@ def _run_identify(args):
         dt = _sample_time(data[args.time], args.time)
     n_in = u.shape[1]
     nb = _per_input(args.nb, n_in, "--nb")
-    nk = _per_input(args.nk, n_in, "--nk")
+    nk = _per_input(args.nk if args.nk is not None else [1], n_in, "--nk")
     na = args.na
     selection = None
     if args.select_order:
-        na, nb, selection = _select_order(y, u, nk, args.max_order, progress)
-        progress.done()
-    _check_rows(len(y), na, nb, nk, args.file)
-    if args.forgetting != "exponential" and args.method != "rls":
-        raise CLIError(f"--forgetting {args.forgetting} needs --method rls")
-    if args.forgetting == "constant_trace" and args.lam == 1.0:
-        raise CLIError("--forgetting constant_trace needs --lam < 1 (it holds trace(P) at "
-                       "n_params * (1 - lam))")
+        if args.nk is not None and len(set(nk)) > 1:
+            raise CLIError("--select-order uses one delay for all inputs; give one --nk value "
+                           "or none (then nk = 1 .. --max-order is searched too)")
+        with progress.task("order selection"):
+            selection = _select_order(y, u, None if args.nk is None else nk[0], args.max_order,
+                                      dt, args.file)
+        na, nb, nk = selection["na"], [selection["nb"]] * n_in, [selection["nk"]] * n_in
+    _check_rows(len(y), na, nb, nk, f"'{args.file}'")
     fit = _identify(y, u, na, nb, nk, method=args.method, lam=args.lam, dt=dt,
                     forgetting=args.forgetting, progress=progress)
     fit.update(inputs=list(args.inputs), output=args.output, source=args.file,
                forgetting=args.forgetting if args.method == "rls" else None,
                order_selection=selection)
-    result = _result_dict(fit)
-    if args.save_params:
-        _write_json(args.save_params, result)
-    if args.json:
-        print(json.dumps(result, indent=2))
-    else:
-        print(_report(fit))
-    if args.plot:
-        _plot(fit, args.plot)
-        if not args.json:
-            print(f"\nfigure saved to {args.plot}")
-    return EXIT_OK
+    _validate_fit(fit, progress=progress)
+    return _emit(fit, args)
 
 
 def _run_demo(args):
-    from .datasets import PLANTS
-
     kwargs = {"rng": args.seed}
     if args.samples is not None:
         kwargs["n_samples"] = args.samples
@@ -327,22 +320,28 @@ def _run_demo(args):
     batch = _identify(ds.y, u, na, nb, nk, method="ls", lam=1.0, dt=ds.dt, progress=progress)
     # a time-varying plant is compared with the plant in force at the end of the record
     theta_true = ds.theta_true[-1] if tracking else ds.theta
-    plant = ds.plant_after if tracking else ds.plant
     fit.update(inputs=["u"], output="y", source=f"demo plant '{ds.name}'",
                forgetting="exponential", order_selection=None,
                theta_true=np.asarray(theta_true, dtype=float), theta_batch=batch["theta"],
-               theta_true_history=ds.theta_true, truth_label="true at the end" if tracking
-               else "true")
-    fit["plant"] = _compare_with_plant(fit["model"], plant, ds.n_samples)
+               theta_true_history=ds.theta_true,
+               truth_label="true at the end" if tracking else "true",
+               preamble=[f"rlsfilt {__version__} demo: {ds.description}",
+                         f"  {ds.n_samples} samples, sample time {ds.dt:g} s, {ds.noise} noise "
+                         f"of std {ds.noise_std:g}, seed {args.seed}",
+                         "  identified recursively (batch start, then one RLS update per "
+                         "sample) and by batch least squares", ""])
+    _validate_fit(fit, plant=ds.plant_after if tracking else ds.plant, progress=progress)
+    return _emit(fit, args)
+
+
+def _emit(fit, args):
+    """Print the report or the JSON result, save the parameters and the figure."""
     result = _result_dict(fit)
+    if getattr(args, "save_params", None):
+        _write_json(args.save_params, result)
     if args.json:
         print(json.dumps(result, indent=2))
     else:
-        print(f"rlsfilt {__version__} demo: {ds.description}")
-        print(f"  {ds.n_samples} samples, sample time {ds.dt:g} s, {ds.noise} noise of std "
-              f"{ds.noise_std:g}, seed {args.seed}")
-        print("  identified recursively (batch start, then one RLS update per sample) and by "
-              "batch least squares\n")
         print(_report(fit))
     if args.plot:
         _plot(fit, args.plot)
@@ -470,26 +469,15 @@ def _fmt_list(v):
 
 
 # ----------------------------------------------------------------------
-# numerics (the ARX regression, fits and residual tests)
+# numerics: thin layers over ARX, RecursiveLeastSquares and rlsfilt.validation
 # ----------------------------------------------------------------------
 def _max_lag(na, nb, nk):
     return max([na] + [k + b - 1 for b, k in zip(nb, nk)])
 
 
-def _regressors(y, u, na, nb, nk, start=None):
-    """Rows ``[-y(t-1) .. -y(t-na), u_i(t-nk_i) .. u_i(t-nk_i-nb_i+1) ..]`` for t >= start."""
-    lag = _max_lag(na, nb, nk)
-    start = lag if start is None else start
-    t = np.arange(start, len(y))
-    cols = [-y[t - i] for i in range(1, na + 1)]
-    for j in range(u.shape[1]):
-        cols += [u[t - nk[j] - i, j] for i in range(nb[j])]
-    return np.column_stack(cols), y[t]
-
-
 def _identify(y, u, na, nb, nk, method="ls", lam=1.0, dt=1.0, forgetting="exponential",
               progress=None):
-    """Fit ``ARX(na, nb, nk)``; return a dict of everything the report shows."""
+    """Fit ``ARX(na, nb, nk)``; return a dict with the model and its estimates."""
     U = u if u.shape[1] > 1 else u[:, 0]
     model = ARX(na=na, nb=list(nb) if len(nb) > 1 else nb[0],
                 nk=list(nk) if len(nk) > 1 else nk[0], dt=dt)
@@ -498,61 +486,33 @@ def _identify(y, u, na, nb, nk, method="ls", lam=1.0, dt=1.0, forgetting="expone
             else f"least squares on {len(y)} samples")
     with (progress or _Progress(False)).task(task):
         model.fit(U, y, method=method, **kwargs)
-        Phi, target = model.regressors(U, y)
         if method == "rls" and forgetting != "exponential":
-            est = _refit_with_forgetting(model, Phi, target, lam, forgetting)
+            fit = _refit_with_forgetting(model, U, y, lam, forgetting)
         else:
-            est = dict(model=model, theta=np.asarray(model.theta_, dtype=float),
+            fit = dict(model=model, theta=np.asarray(model.theta_, dtype=float),
                        theta_std=np.asarray(model.std_errors_, dtype=float),
-                       sigma2=float(model.noise_variance_),
+                       noise_variance=float(model.noise_variance_),
                        history=getattr(model, "theta_history_", None),
-                       recursive=getattr(model, "recursive_residuals_", None),
                        k0=getattr(model, "k0_", None))
-    model = est["model"]
-    lag = len(y) - len(Phi)
-    a = np.atleast_1d(model.a_)
-    b = list(model.b_) if isinstance(model.b_, list) else [model.b_]
-    y_sim = np.asarray(model.simulate(U), dtype=float)
-    y_pred = np.full(len(y), np.nan)
-    theta_std, sigma2 = est["theta_std"], est["sigma2"]
-    if method == "rls" and (lam < 1.0 or forgetting != "exponential"):
-        # With forgetting the final estimate describes the end of the record only; judge
-        # it by the recursive one-step residuals y(t) - phi(t) theta(t-1), the errors RLS
-        # actually made, and scale the covariance by their variance.
-        rows = np.flatnonzero(~np.isnan(est["recursive"]))
-        resid = est["recursive"][rows]
-        y_pred[lag + rows] = y[lag + rows] - resid
-        old, sigma2 = sigma2, float(resid @ resid / len(resid))
-        theta_std = theta_std * math.sqrt(sigma2 / old) if old > 0 else theta_std
-        u_rows = u[lag + rows]
-        residual_kind = "recursive"
-    else:
-        y_pred[lag:] = Phi @ est["theta"]
-        resid = target - Phi @ est["theta"]
-        u_rows = u[lag:]
-        residual_kind = "final"
-    history, k0 = est["history"], est["k0"]
-    used = ~np.isnan(y_pred)
-    return dict(
-        model=model, na=na, nb=list(nb), nk=list(nk), method=method, lam=lam, dt=dt,
-        theta=est["theta"], theta_std=theta_std,
-        a=a, b=b, noise_variance=sigma2, n_samples=len(y),
-        n_used=len(Phi), y=y, u=u, y_sim=y_sim, y_pred=y_pred, residuals=resid,
-        residual_kind=residual_kind, fit_percent=_fit_percent(y, y_sim),
-        fit_percent_prediction=_fit_percent(y[used], y_pred[used]),
-        tests=_residual_tests(resid, u_rows), history=history, k0=k0)
+    a = np.atleast_1d(fit["model"].a_)
+    b = list(fit["model"].b_) if isinstance(fit["model"].b_, list) else [fit["model"].b_]
+    fit.update(na=na, nb=list(nb), nk=list(nk), a=a, b=b, method=method, lam=lam, dt=dt,
+               forgetting=forgetting, y=y, u=u, U=U, n_samples=len(y),
+               n_used=len(y) - _max_lag(na, nb, nk))
+    return fit
 
 
-def _refit_with_forgetting(model, Phi, target, lam, forgetting):
+def _refit_with_forgetting(model, U, y, lam, forgetting):
     """The recursive fit of `model` repeated with a forgetting mode other than exponential.
 
-    Same batch start (``model.k0_`` rows), then ``RecursiveLeastSquares`` with
-    ``forgetting=`` over the remaining rows. Returns the quantities
-    `_identify` reports, with a coefficient-only ``ARX`` for simulation and
-    transfer functions.
+    Same regressors and batch start (``model.k0_`` rows), then
+    ``RecursiveLeastSquares(forgetting=...)`` over the remaining rows. The
+    result carries a coefficient-only ``ARX`` (``ARX.from_polynomials``)
+    for simulation, validation and transfer functions.
     """
     from .filters import RecursiveLeastSquares
 
+    Phi, target = model.regressors(U, y)
     rows, n = Phi.shape
     k0 = model.k0_
     rls = RecursiveLeastSquares(n, lam=lam, forgetting=forgetting)
@@ -560,107 +520,94 @@ def _refit_with_forgetting(model, Phi, target, lam, forgetting):
     history = np.full((rows, n), np.nan)
     history[k0 - 1] = rls.x[:, 0]
     if k0 < rows:
-        means = rls.batch_filter(target[k0:], Phi[k0:], store_covariances=False)[0]
-        history[k0:] = means[:, :, 0]
+        history[k0:] = rls.batch_filter(target[k0:], Phi[k0:], store_covariances=False)[0][:, :, 0]
     theta = rls.x[:, 0].copy()
-    recursive = np.full(rows, np.nan)
-    recursive[k0:] = target[k0:] - np.einsum("ij,ij->i", Phi[k0:], history[k0 - 1:-1])
     resid = target - Phi @ theta
     sigma2 = float(resid @ resid / (rows - n)) if rows > n else float("nan")
-    na = model.structure_.na
-    nb = list(model.structure_.nb)
-    bs = np.split(theta[na:], np.cumsum(nb)[:-1])
-    nk = list(model.structure_.nk)
-    coef = ARX.from_polynomials(theta[:na], bs if len(bs) > 1 else bs[0],
-                                nk=nk if len(nk) > 1 else nk[0], dt=model.dt,
+    s = model.structure_
+    bs = np.split(theta[s.na:], np.cumsum(s.nb)[:-1])
+    coef = ARX.from_polynomials(theta[:s.na], bs if len(bs) > 1 else bs[0],
+                                nk=list(s.nk) if len(s.nk) > 1 else s.nk[0], dt=model.dt,
                                 noise_variance=sigma2)
     std = np.sqrt(np.maximum(np.diag(rls.P) / rls.R, 0.0) * sigma2)
-    return dict(model=coef, theta=theta, theta_std=std, sigma2=sigma2, history=history,
-                recursive=recursive, k0=k0)
+    return dict(model=coef, theta=theta, theta_std=std, noise_variance=sigma2,
+                history=history, k0=k0)
 
 
-def _fit_percent(y, yhat):
-    """NRMSE fit ``100 (1 - ||y - yhat|| / ||y - mean(y)||)``, MATLAB's ``compare``."""
-    ref = np.linalg.norm(y - np.mean(y))
-    if ref == 0.0 or not np.all(np.isfinite(yhat)):
-        return float("nan")
-    return float(100.0 * (1.0 - np.linalg.norm(y - yhat) / ref))
+def _validate_fit(fit, plant=None, progress=None):
+    """Validate the fitted model with :func:`rlsfilt.validation.validate`.
+
+    Without forgetting the whole record is used. With forgetting the final
+    estimate describes the end of the record only, so it is validated on the
+    last three memory lengths ``3 / (1 - lam)`` samples (at least 100 rows),
+    and the standard errors and noise variance are rescaled to the residual
+    variance there.
+    """
+    y, U = fit["y"], fit["U"]
+    N, lag, d = len(y), fit["n_samples"] - fit["n_used"], len(fit["theta"])
+    start = 0
+    if fit["method"] == "rls" and fit["lam"] < 1.0:
+        memory = 1.0 / (1.0 - fit["lam"])
+        length = max(int(round(3 * memory)), 100 + lag + d)
+        start = max(0, N - length)
+    rows = N - start - lag
+    max_lag = max(1, min(25, rows // 4))
+    # a coefficient-only model (forgetting modes) has no parameter covariance: its
+    # confidence intervals are 0 * inf, which validate() computes without errstate
+    errstate = (np.errstate(invalid="ignore") if fit["model"].method_ == "true"
+                else contextlib.nullcontext())
+    report, skipped = None, None
+    with (progress or _Progress(False)).task("validating the model"), errstate:
+        while True:  # the residual tests need enough rows for their lags: shorten if not
+            try:
+                report = validate(fit["model"], U[start:], y[start:], plant=plant,
+                                  max_lag=max_lag)
+                break
+            except ValueError as exc:
+                if "max_lag" not in str(exc):
+                    raise
+                if max_lag == 1:
+                    skipped = f"only {rows} residuals, too few for the residual tests"
+                    break
+                max_lag = max(1, max_lag // 2)
+    if report is None:
+        ys, Us = y[start:], U[start:]
+        y_sim = np.asarray(fit["model"].simulate(Us, y0=ys[:lag] if lag else None))
+        fit.update(report=None, segment_start=start, validation_skipped=skipped,
+                   simulation_fit=fit_percent(ys[lag:], y_sim[lag:]), y_simulated=y_sim)
+        return None
+    fit.update(report=report, segment_start=start, simulation_fit=report.simulation_fit,
+               y_simulated=report.y_simulated)
+    if start:
+        v = float(report.criteria.loss)
+        old = fit["noise_variance"]
+        if old > 0 and math.isfinite(old):
+            fit["theta_std"] = fit["theta_std"] * math.sqrt(v / old)
+        fit["noise_variance"] = v
+    return report
 
 
-def _xcorr(a, b, lags):
-    """Normalized cross-correlation ``r_ab(k) = sum a(t) b(t-k) / (N sd_a sd_b)``."""
-    a = a - a.mean()
-    b = b - b.mean()
-    scale = len(a) * a.std() * b.std()
-    if scale == 0.0:
-        return np.zeros(len(lags))
-    return np.array([(a[k:] @ b[:len(b) - k] if k >= 0 else a[:k] @ b[-k:]) / scale
-                     for k in lags])
+def _select_order(y, u, nk, max_order, dt, source):
+    """BIC order selection with :func:`rlsfilt.validation.select_order`."""
+    nks = range(1, max_order + 1) if nk is None else [nk]
+    need = max_order + max(nks) + max_order * (1 + u.shape[1]) + 2
+    if len(y) < need:
+        raise CLIError(f"too few rows for --select-order up to order {max_order}: need at "
+                       f"least {need}; {source} has {len(y)}")
+    U = u if u.shape[1] > 1 else u[:, 0]
+    sel = select_order(U, y, na=range(0, max_order + 1), nb=range(1, max_order + 1), nk=nks,
+                       criterion="bic", dt=dt)
+    na, nb, nk_best = (int(v) for v in sel.best)
+    names = sel.table.dtype.names
+    table = [{k: (int(r[k]) if k in ("na", "nb", "nk", "n_params") else _num(r[k]))
+              for k in names} for r in sel.table]
+    return dict(na=na, nb=nb, nk=nk_best, criterion="BIC", max_order=max_order,
+                searched_nk=list(nks), candidates=table, summary=sel.summary())
 
 
-def _residual_tests(e, u):
-    """Whiteness (autocorrelation, Ljung-Box) and input independence of the residuals."""
-    from scipy.stats import chi2
-
-    N = len(e)
-    L = max(1, min(_MAX_LAG, N // 4))
-    lags = np.arange(1, L + 1)
-    r = _xcorr(e, e, lags)
-    bound = _CONFIDENCE_Z / math.sqrt(N)
-    q = float(N * (N + 2) * np.sum(r**2 / (N - lags)))
-    xl = np.arange(0, L + 1)
-    cross = [_xcorr(e, u[:, j], xl) for j in range(u.shape[1])]
-    return dict(
-        lags=lags, autocorr=r, bound=bound, ljung_box=q, ljung_box_lags=int(L),
-        ljung_box_pvalue=float(chi2.sf(q, L)),
-        white=bool(np.all(np.abs(r) <= bound)),
-        cross_lags=xl, crosscorr=cross,
-        independent=bool(all(np.all(np.abs(c) <= bound) for c in cross)))
-
-
-def _select_order(y, u, nk, max_order, progress):
-    """Choose ``na`` and a common ``nb`` by BIC on one common estimation sample."""
-    n_in = u.shape[1]
-    start = max(max_order, max(k + max_order - 1 for k in nk))
-    if len(y) - start <= max_order * (1 + n_in) + 1:
-        raise CLIError(f"too few rows for --select-order up to order {max_order}: need more "
-                       f"than {start + max_order * (1 + n_in) + 1}; got {len(y)}")
-    rows = []
-    for na in range(0, max_order + 1):
-        for nb in range(1, max_order + 1):
-            Phi, z = _regressors(y, u, na, [nb] * n_in, nk, start=start)
-            theta = np.linalg.lstsq(Phi, z, rcond=None)[0]
-            N, d = Phi.shape
-            v = float(np.sum((z - Phi @ theta) ** 2) / N)
-            rows.append(dict(na=na, nb=nb, bic=N * math.log(v) + d * math.log(N), loss=v))
-            if progress is not None:
-                progress.show(f"order selection: na={na}, nb={nb}")
-    best = min(rows, key=lambda r: r["bic"])
-    return best["na"], [best["nb"]] * n_in, dict(criterion="BIC", max_order=max_order,
-                                                   candidates=rows)
-
-
-def _compare_with_plant(model, plant, n_samples):
-    """Poles, DC gain, frequency and step responses of the model beside the true plant."""
-    import control
-
-    dt = float(plant.dt)
-    est = model.to_tf()
-    w = np.logspace(math.log10(math.pi / dt) - 3, math.log10(math.pi / dt), 300)
-    g_true = np.ravel(plant(np.exp(1j * w * dt)))
-    g_model = np.ravel(est(np.exp(1j * w * dt)))
-    n = min(400, n_samples)
-    T = np.arange(n) * dt
-    step_true = np.ravel(control.step_response(plant, T).outputs)
-    step_model = np.ravel(control.step_response(est, T).outputs)
-    scale = max(float(np.max(np.abs(step_true))), np.finfo(float).tiny)
-    return dict(
-        poles_true=np.sort_complex(plant.poles()), poles_model=np.sort_complex(est.poles()),
-        dc_gain_true=float(np.real(plant.dcgain())), dc_gain_model=float(np.real(est.dcgain())),
-        freq=w, mag_true=np.abs(g_true), mag_model=np.abs(g_model),
-        max_mag_error_db=float(np.max(np.abs(20 * np.log10(np.abs(g_model) / np.abs(g_true))))),
-        T=T, step_true=step_true, step_model=step_model,
-        step_error=float(np.max(np.abs(step_model - step_true)) / scale))
+def _num(x):
+    x = float(x)
+    return x if math.isfinite(x) else None
 
 
 # ----------------------------------------------------------------------
@@ -675,40 +622,55 @@ def _param_names(fit):
 
 
 def _result_dict(fit):
-    """The JSON result (plain lists and floats)."""
-    tests = fit["tests"]
+    """The JSON result (plain lists, floats and None)."""
+    rep = fit["report"]
     out = dict(
         rlsfilt_version=__version__, source=fit["source"], inputs=fit["inputs"],
         output=fit["output"], dt=fit["dt"], method=fit["method"], lam=fit["lam"],
         forgetting=fit["forgetting"], na=fit["na"], nb=fit["nb"], nk=fit["nk"],
-        a=fit["a"].tolist(), b=[bj.tolist() for bj in fit["b"]],
+        a=fit["a"].tolist(), b=[np.asarray(bj).tolist() for bj in fit["b"]],
         theta_names=_param_names(fit), theta=fit["theta"].tolist(),
         theta_std=fit["theta_std"].tolist(), noise_variance=fit["noise_variance"],
-        fit_percent=fit["fit_percent"], fit_percent_prediction=fit["fit_percent_prediction"],
-        n_samples=fit["n_samples"], n_used=fit["n_used"],
-        residual_tests=dict(
-            autocorr_max=float(np.max(np.abs(tests["autocorr"]))),
-            crosscorr_max=[float(np.max(np.abs(c))) for c in tests["crosscorr"]],
-            bound_99=tests["bound"], white=tests["white"], independent=tests["independent"],
-            ljung_box=tests["ljung_box"], ljung_box_lags=tests["ljung_box_lags"],
-            ljung_box_pvalue=tests["ljung_box_pvalue"]),
+        fit_percent=_num(fit["simulation_fit"]),
+        fit_percent_prediction=None if rep is None else _num(rep.prediction_fit),
+        n_samples=fit["n_samples"], n_used=fit["n_used"], k0=fit["k0"],
+        validation_start=fit["segment_start"],
+        validation_skipped=fit.get("validation_skipped"),
         transfer_functions=[_tf_dict(fit["a"], bj, k, fit["dt"])
                             for bj, k in zip(fit["b"], fit["nk"])],
     )
-    if fit.get("order_selection"):
-        sel = fit["order_selection"]
-        out["order_selection"] = dict(criterion=sel["criterion"], max_order=sel["max_order"],
-                                      candidates=sel["candidates"])
+    sel = fit.get("order_selection")
+    if sel:
+        out["order_selection"] = {k: v for k, v in sel.items() if k != "summary"}
     if "theta_true" in fit:
         out["theta_true"] = fit["theta_true"].tolist()
         out["theta_batch"] = fit["theta_batch"].tolist()
-    if "plant" in fit:
-        p = fit["plant"]
+    if rep is None:
+        return out
+    res = rep.residuals[0]
+    crit = rep.criteria
+    out.update(
+        residual_tests=dict(
+            alpha=res.alpha, max_lag=int(res.max_lag),
+            ljung_box=_num(res.q_statistic), ljung_box_df=int(res.df_white),
+            ljung_box_pvalue=_num(res.pvalue_white), white=bool(res.is_white),
+            independence_f=_num(res.f_statistic), independence_df=int(res.df_independent),
+            independence_pvalue=_num(res.pvalue_independent),
+            independent=bool(res.is_independent),
+            autocorr_max=_num(np.max(np.abs(res.autocorrelation[1:]))),
+            autocorr_band=_num(res.autocorrelation_band)),
+        information_criteria={k: _num(v) if isinstance(v, float) else v
+                              for k, v in crit.as_dict().items()},
+    )
+    pc = rep.plant_comparison
+    if pc is not None:
         out["plant_comparison"] = dict(
-            poles_true=[[z.real, z.imag] for z in p["poles_true"]],
-            poles_model=[[z.real, z.imag] for z in p["poles_model"]],
-            dc_gain_true=p["dc_gain_true"], dc_gain_model=p["dc_gain_model"],
-            max_mag_error_db=p["max_mag_error_db"], step_error=p["step_error"])
+            poles_true=[[z.real, z.imag] for z in np.sort_complex(np.ravel(pc.poles_plant))],
+            poles_model=[[z.real, z.imag] for z in np.sort_complex(np.ravel(pc.poles_model))],
+            dc_gain_true=_num(np.real(np.ravel(pc.dc_gain_plant)[0])),
+            dc_gain_model=_num(np.real(np.ravel(pc.dc_gain_model)[0])),
+            dc_gain_error=_num(pc.dc_gain_error), frequency_error=_num(pc.frequency_error),
+            step_error=_num(pc.step_error), max_pole_distance=_num(pc.max_pole_distance))
     return out
 
 
@@ -717,8 +679,7 @@ def _tf_dict(a, b, nk, dt):
     den = np.concatenate([[1.0], a])
     n = max(len(num), len(den))
     return dict(num=np.pad(num, (0, n - len(num))).tolist(),
-                den=np.pad(den, (0, n - len(den))).tolist(), dt=dt,
-                variable="z")
+                den=np.pad(den, (0, n - len(den))).tolist(), dt=dt, variable="z")
 
 
 def _write_json(path, result):
@@ -730,37 +691,37 @@ def _write_json(path, result):
         raise CLIError(f"cannot write '{path}': {exc.strerror}") from None
 
 
-def _fmt(x, width=10):
-    return f"{x:{width}.4g}" if math.isfinite(x) else f"{'nan':>{width}}"
-
-
 def _report(fit):
-    """The text report: model, estimates with standard errors, fit, residual tests."""
-    lines = []
+    """The text report: model, estimates with standard errors, fit, residual tests, plant."""
+    rep = fit["report"]
+    lines = list(fit.get("preamble", []))
     method = ("batch least squares (QR)" if fit["method"] == "ls"
-              else f"recursive least squares, batch start, lam = {fit['lam']:g}")
+              else f"recursive least squares, lam = {fit['lam']:g}")
     if fit["method"] == "rls" and fit.get("forgetting") not in (None, "exponential"):
         method += f", {fit['forgetting']} forgetting"
-    ins = ", ".join(fit["inputs"])
     lines.append(f"ARX model  na={fit['na']}  nb={_fmt_list(fit['nb'])}  "
                  f"nk={_fmt_list(fit['nk'])}   ({fit['source']})")
-    lines.append(f"  output {fit['output']}, input {ins}, sample time {fit['dt']:g} s")
+    lines.append("  y(t) + a1 y(t-1) + ... + a_na y(t-na) = b1 u(t-nk) + ... + e(t)")
+    lines.append(f"  output {fit['output']}, input {', '.join(fit['inputs'])}, "
+                 f"sample time {fit['dt']:g} s")
     lines.append(f"  {method}; {fit['n_used']} of {fit['n_samples']} samples in the regression")
     if fit.get("k0"):
         lines.append(f"  batch start on the first {fit['k0']} regressor rows, then one update "
                      "per sample")
-    if fit.get("order_selection"):
-        sel = fit["order_selection"]
+    sel = fit.get("order_selection")
+    if sel:
+        nk_text = ("" if len(sel["searched_nk"]) == 1
+                   else f", nk in {sel['searched_nk'][0]}..{sel['searched_nk'][-1]}")
         lines.append(f"  orders chosen by {sel['criterion']} over na in 0..{sel['max_order']}, "
-                     f"nb in 1..{sel['max_order']}")
-    lines.append("  y(t) + a1 y(t-1) + ... = b1 u(t-nk) + ... + e(t)")
+                     f"nb in 1..{sel['max_order']}{nk_text}")
     lines.append("")
     names = _param_names(fit)
     has_true = "theta_true" in fit
+    label = fit.get("truth_label", "true")
+    width = max(11, len(label) + 2)
     head = f"  {'param':<10}{'estimate':>12}{'std err':>11}{'t':>9}"
     if has_true:
-        label = fit.get("truth_label", "true")
-        head += f"{label:>{max(11, len(label) + 2)}}{'batch LS':>12}"
+        head += f"{label:>{width}}{'batch LS':>12}"
     lines.append(head)
     lines.append("  " + "-" * (len(head) - 2))
     for i, name in enumerate(names):
@@ -768,48 +729,52 @@ def _report(fit):
         tval = est / sd if sd > 0 else float("inf")
         row = f"  {name:<10}{est:12.6g}{sd:11.2e}{tval:9.1f}"
         if has_true:
-            width = max(11, len(label) + 2)
             row += f"{fit['theta_true'][i]:{width}.5g}{fit['theta_batch'][i]:12.6g}"
         lines.append(row)
     lines.append("")
-    lines.append(f"  noise variance      {fit['noise_variance']:.4g}")
-    lines.append(f"  fit (simulation)    {fit['fit_percent']:.2f} %")
-    lines.append(f"  fit (1-step pred.)  {fit['fit_percent_prediction']:.2f} %")
-    t = fit["tests"]
-    lines.append("")
-    kind = ("recursive one-step residuals y(t) - phi(t) theta(t-1)"
-            if fit.get("residual_kind") == "recursive" else "residuals of the final model")
-    lines.append(f"  residual tests on the {kind}")
-    lines.append(f"    99 % bound {t['bound']:.3f}, lags 1..{t['lags'][-1]}")
-    ok = "pass" if t["white"] else "FAIL"
-    lines.append(f"    whiteness     max |r_ee(k)| = {np.max(np.abs(t['autocorr'])):.3f}   "
-                 f"Ljung-Box Q = {t['ljung_box']:.1f}, p = {t['ljung_box_pvalue']:.3f}   {ok}")
-    for col, c in zip(fit["inputs"], t["crosscorr"]):
-        ok = "pass" if np.all(np.abs(c) <= t["bound"]) else "FAIL"
-        lines.append(f"    independence  max |r_e{col}(k)| = {np.max(np.abs(c)):.3f} "
-                     f"(lags 0..{t['cross_lags'][-1]})   {ok}")
-    if "plant" in fit:
-        p = fit["plant"]
+    where = ""
+    if fit["segment_start"]:
+        where = (f" (on the last {fit['n_samples'] - fit['segment_start']} samples, three "
+                 f"memory lengths of lam = {fit['lam']:g})")
+    lines.append(f"  validation{where}")
+    lines.append(f"    noise variance      {fit['noise_variance']:.4g}")
+    lines.append(f"    fit (simulation)    {fit['simulation_fit']:.2f} %")
+    if rep is None:
+        lines.append(f"    (residual tests skipped: {fit['validation_skipped']})")
+        return "\n".join(lines)
+    lines.append(f"    fit (1-step pred.)  {rep.prediction_fit:.2f} %")
+    crit = rep.criteria
+    lines.append(f"    AIC {crit.aic:.6g}   BIC {crit.bic:.6g}   FPE {crit.fpe:.4g}")
+    res = rep.residuals[0]
+    lines.append(f"    residual tests at alpha = {res.alpha:g}, lags 1..{res.max_lag}:")
+    lines.append(f"      whiteness     Ljung-Box Q = {res.q_statistic:.2f} ({res.df_white} df), "
+                 f"p = {res.pvalue_white:.3g}   {'pass' if res.is_white else 'FAIL'}")
+    lines.append(f"      independence  F = {res.f_statistic:.3g} ({res.df_independent} df), "
+                 f"p = {res.pvalue_independent:.3g}   "
+                 f"{'pass' if res.is_independent else 'FAIL'}")
+    pc = rep.plant_comparison
+    if pc is not None:
         lines.append("")
         lines.append("  comparison with the true plant (python-control)")
-        lines.append(f"    poles true    {_fmt_poles(p['poles_true'])}")
-        lines.append(f"    poles model   {_fmt_poles(p['poles_model'])}")
-        lines.append(f"    DC gain       true {p['dc_gain_true']:.4g}   "
-                     f"model {p['dc_gain_model']:.4g}")
-        lines.append(f"    max Bode magnitude error {p['max_mag_error_db']:.2f} dB up to the "
-                     f"Nyquist frequency")
-        lines.append(f"    max step-response error {100 * p['step_error']:.2f} % of the peak")
+        lines.append(f"    poles true    {_fmt_poles(np.ravel(pc.poles_plant))}")
+        lines.append(f"    poles model   {_fmt_poles(np.ravel(pc.poles_model))}")
+        lines.append(f"    DC gain       true {np.real(np.ravel(pc.dc_gain_plant)[0]):.4g}   "
+                     f"model {np.real(np.ravel(pc.dc_gain_model)[0]):.4g}")
+        lines.append(f"    relative errors: frequency response {pc.frequency_error:.2%} (max "
+                     f"up to Nyquist), step response {pc.step_error:.2%}")
+    if has_true:
         gap = float(np.max(np.abs(fit["theta"] - fit["theta_batch"])))
         if fit["lam"] == 1.0:
-            lines.append(f"    max |RLS - batch LS| = {gap:.1e}  (recursive = batch, as the "
-                         "notes promise)")
+            lines.append(f"    max |RLS - batch LS| = {gap:.1e}  (after the batch start, "
+                         "recursive = batch)")
         else:
-            lines.append(f"    RLS with forgetting (lam = {fit['lam']:g}) tracks the plant at the "
-                         "end; batch LS averages over the whole record")
+            lines.append(f"    RLS with forgetting (lam = {fit['lam']:g}) tracks the plant at "
+                         "the end; batch LS averages over the whole record")
     return "\n".join(lines)
 
 
 def _fmt_poles(poles):
+    poles = np.sort_complex(np.asarray(poles, dtype=complex))
     at_origin = int(np.sum(np.abs(poles) < 1e-12))
     out = []
     for z in poles[np.abs(poles) >= 1e-12]:
@@ -830,47 +795,72 @@ def _plot(fit, path):
         matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    rep = fit["report"]
+    start = fit["segment_start"]
     dt = fit["dt"]
     t = np.arange(fit["n_samples"]) * dt
     fig, axes = plt.subplots(2, 2, figsize=(11, 7), layout="constrained")
     ax = axes[0, 0]
     ax.plot(t, fit["y"], lw=0.8, label=f"measured {fit['output']}")
-    ax.plot(t, fit["y_sim"], lw=0.8, label=f"simulated, fit {fit['fit_percent']:.1f} %")
+    ax.plot(t[start:], fit["y_simulated"], lw=0.8,
+            label=f"simulated, fit {fit['simulation_fit']:.1f} %")
     ax.set(xlabel="time t [s]", ylabel="y(t)", title="Output")
     ax.legend(loc="upper right", fontsize="small")
     ax = axes[0, 1]
-    tests = fit["tests"]
-    ax.stem(tests["lags"], tests["autocorr"], basefmt=" ")
-    ax.axhline(tests["bound"], color="r", ls="--", lw=0.8)
-    ax.axhline(-tests["bound"], color="r", ls="--", lw=0.8, label="99 % bound")
+    res = rep.residuals[0] if rep is not None else None
+    if res is None:
+        ax.text(0.5, 0.5, "residual tests skipped:\ntoo few samples", ha="center",
+                va="center", transform=ax.transAxes)
+    else:
+        _plot_autocorrelation(ax, res)
+    ax = axes[1, 0]
+    names = _param_names(fit)
+    _plot_parameters(ax, fit, t, names)
+    ax = axes[1, 1]
+    pc = rep.plant_comparison if rep is not None else None
+    _plot_response(ax, fit, pc, dt)
+    try:
+        fig.savefig(path, dpi=110)
+    except OSError as exc:
+        raise CLIError(f"cannot write '{path}': {exc.strerror}") from None
+    finally:
+        plt.close(fig)
+    return fig
+
+
+def _plot_autocorrelation(ax, res):
+    ax.stem(res.lags[1:], res.autocorrelation[1:], basefmt=" ")
+    band = res.autocorrelation_band
+    ax.axhline(band, color="r", ls="--", lw=0.8)
+    ax.axhline(-band, color="r", ls="--", lw=0.8, label=f"{1 - res.alpha:.0%} band")
     ax.set(xlabel="lag k", ylabel=r"$r_{ee}(k)$", title="Residual autocorrelation")
     ax.legend(loc="upper right", fontsize="small")
-    ax = axes[1, 0]
+
+
+def _plot_parameters(ax, fit, t, names):
     if fit["history"] is not None:
         t_rows = t[-fit["n_used"]:]
         truth = fit.get("theta_true_history")
-        for i, name in enumerate(_param_names(fit)):
+        for i, name in enumerate(names):
             line, = ax.plot(t_rows, fit["history"][:, i], lw=0.8, label=name)
             if truth is not None:
                 ax.plot(t, truth[:, i], color=line.get_color(), ls=":", lw=0.8)
             elif "theta_true" in fit:
                 ax.axhline(fit["theta_true"][i], color=line.get_color(), ls=":", lw=0.8)
-        ax.set(title="RLS parameter estimates" + (" (dotted: true)" if "theta_true" in fit
-                                                 else ""))
+        dotted = " (dotted: true)" if "theta_true" in fit else ""
+        ax.set(title="RLS parameter estimates" + dotted, xlabel="time t [s]")
+        ax.legend(loc="upper right", fontsize="small", ncol=2)
     else:
-        names = _param_names(fit)
         ax.errorbar(np.arange(len(names)), fit["theta"], yerr=2 * fit["theta_std"], fmt="o")
         ax.set_xticks(np.arange(len(names)), names)
-        ax.set(title="Estimates with 2 std errors")
-    ax.set(xlabel="time t [s]" if fit["history"] is not None else "parameter",
-           ylabel=r"$\hat\theta$")
-    if fit["history"] is not None:
-        ax.legend(loc="upper right", fontsize="small", ncol=2)
-    ax = axes[1, 1]
-    if "plant" in fit:
-        p = fit["plant"]
-        ax.loglog(p["freq"], p["mag_true"], label="true plant")
-        ax.loglog(p["freq"], p["mag_model"], "--", label="identified")
+        ax.set(title="Estimates with 2 std errors", xlabel="parameter")
+    ax.set(ylabel=r"$\hat\theta$")
+
+
+def _plot_response(ax, fit, pc, dt):
+    if pc is not None:
+        ax.loglog(pc.omega, np.abs(np.ravel(pc.response_plant)), label="true plant")
+        ax.loglog(pc.omega, np.abs(np.ravel(pc.response_model)), "--", label="identified")
         ax.set(xlabel=r"frequency $\omega$ [rad/s]", ylabel=r"$|G(e^{j\omega\,dt})|$",
                title="Bode magnitude")
     else:
@@ -883,13 +873,6 @@ def _plot(fit, path):
             ax.plot(T, y_step, label=f"from {col}")
         ax.set(xlabel="time t [s]", ylabel="y(t)", title="Step response of the model")
     ax.legend(loc="best", fontsize="small")
-    try:
-        fig.savefig(path, dpi=110)
-    except OSError as exc:
-        raise CLIError(f"cannot write '{path}': {exc.strerror}") from None
-    finally:
-        plt.close(fig)
-    return fig
 
 
 class _Progress:
