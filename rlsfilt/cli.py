@@ -10,9 +10,14 @@ Two commands:
     Identify an ARX model from a CSV file with a header row and print the
     same report, or a JSON result with ``--json``.
 
-Every failure the user can cause (a missing file, an unknown column, a
-non-numeric cell, too few rows for the orders, an invalid option) is one
-line on stderr and a non-zero exit status, never a traceback.
+The command line is a thin layer over the library: `rlsfilt.ARX` fits,
+`rlsfilt.validate` validates (fit, residual tests, information criteria,
+comparison with a true plant), `rlsfilt.select_order` chooses orders, and
+`rlsfilt.datasets` provides the demo plants. Every failure the user can
+cause (a missing file, an unknown column, a non-numeric cell, too few rows
+for the orders, an invalid option) is one line on stderr and a non-zero
+exit status, never a traceback. Work that takes more than a couple of
+seconds shows a progress line on a terminal.
 
 The ARX convention is MATLAB's ``[na nb nk]``::
 
@@ -273,7 +278,7 @@ def _run_identify(args):
     if args.forgetting == "constant_trace" and args.lam == 1.0:
         raise CLIError("--forgetting constant_trace needs --lam < 1 (it holds trace(P) at "
                        "n_params * (1 - lam))")
-    data = read_csv(args.file, columns, delimiter=args.delimiter, progress=progress)
+    data = _read_csv(args.file, columns, delimiter=args.delimiter, progress=progress)
     progress.done()
     u = np.column_stack([data[c] for c in args.inputs])
     y = data[args.output]
@@ -353,7 +358,7 @@ def _emit(fit, args):
 # ----------------------------------------------------------------------
 # reading data
 # ----------------------------------------------------------------------
-def read_csv(path, columns, delimiter=None, progress=None):
+def _read_csv(path, columns, delimiter=None, progress=None):
     """Read numeric `columns` of a CSV file with a header row.
 
     Returns a dict mapping each column name to a float array. Raises

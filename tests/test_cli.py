@@ -344,6 +344,24 @@ def test_no_command_prints_help(capsys):
     assert code == 0 and "demo" in out and "identify" in out
 
 
+def test_progress_line_on_a_terminal(monkeypatch, capsys):
+    import time
+
+    from rlsfilt import cli
+
+    monkeypatch.setattr(cli, "_PROGRESS_AFTER", 0.0)
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
+    progress = cli._Progress(enabled=True)
+    with progress.task("fitting"):
+        time.sleep(0.6)
+    err = capsys.readouterr().err
+    assert "rlsfilt: fitting ... 0 s" in err and err.endswith("\r\x1b[K")
+    # --quiet, or no terminal: nothing
+    with cli._Progress(enabled=False).task("fitting"):
+        time.sleep(0.3)
+    assert capsys.readouterr().err == ""
+
+
 def test_python_dash_m_entry_point():
     proc = subprocess.run([sys.executable, "-m", "rlsfilt", "--version"], capture_output=True,
                           text=True, timeout=60)
