@@ -129,6 +129,34 @@ def test_fit_equals_lstsq_on_documented_regressors(rng, a, b, nk):
     assert model.n_params == model.n_params_ == len(theta)
 
 
+@pytest.mark.parametrize("a, b, nk", STRUCTURES)
+def test_fit_matches_statsmodels_ardl(rng, a, b, nk):
+    """An independent implementation: statsmodels' ARDL (OLS) gives theta and standard errors."""
+    ardl = pytest.importorskip("statsmodels.tsa.ardl")
+    u, y = arx_data(rng, a, b, nk, n=300)
+    model = ARX(len(a), len(b), nk).fit(u, y)
+    res = ardl.ARDL(y, len(a), u[:, None], order={0: list(range(nk, nk + len(b)))},
+                    trend="n").fit()
+    sign = np.r_[-np.ones(len(a)), np.ones(len(b))]  # ARDL writes +phi y(t-i)
+    np.testing.assert_allclose(model.theta_, sign * res.params, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(model.std_errors_, res.bse, rtol=1e-8)
+    rows = len(res.resid)  # (ARDL's `nobs` counts from the AR lags only)
+    assert model.n_samples_ == rows
+    assert model.noise_variance_ == pytest.approx(res.ssr / (rows - len(res.params)), rel=1e-9)
+
+
+def test_miso_matches_statsmodels_ardl(rng):
+    ardl = pytest.importorskip("statsmodels.tsa.ardl")
+    u = rng.standard_normal((300, 2))
+    y = (signal.lfilter([0.5], [1, -0.8], u[:, 0]) + signal.lfilter([0, 0, 0, 1.0, -0.5],
+                                                                  [1, -0.8], u[:, 1])
+         + 0.1 * rng.standard_normal(300))
+    model = ARX(1, [1, 2], [0, 3]).fit(u, y)
+    res = ardl.ARDL(y, 1, u, order={0: [0], 1: [3, 4]}, trend="n").fit()
+    np.testing.assert_allclose(model.theta_, [-1, 1, 1, 1] * res.params, rtol=1e-9)
+    np.testing.assert_allclose(model.std_errors_, res.bse, rtol=1e-8)
+
+
 def test_fit_returns_self_and_init_only_stores():
     model = ARX(2, 2)
     assert vars(model) == {"na": 2, "nb": 2, "nk": 1, "dt": True}
@@ -198,6 +226,9 @@ def test_to_tf_poles_and_dc_gain(rng, a, b, nk):
     expected_poles = np.r_[np.roots(np.r_[1.0, a]), np.zeros(len(den) - 1 - len(a))]
     np.testing.assert_allclose(np.sort_complex(G.poles()), np.sort_complex(expected_poles),
                                atol=1e-9)
+    A, B = model.polynomials()  # MATLAB's form for one input and one output
+    np.testing.assert_array_equal(A, np.r_[1.0, a])
+    np.testing.assert_array_equal(B, np.r_[np.zeros(nk), b])
     dc = np.sum(b) / (1.0 + np.sum(a))
     assert complex(G.dcgain()).real == pytest.approx(dc, rel=1e-12)
     assert complex(G(1.0)).real == pytest.approx(dc, rel=1e-12)
@@ -351,6 +382,9 @@ def test_miso_per_input_orders_and_delays(rng):
         single = ARX.from_polynomials(a, bj, nk=kj)
         for z in (1.0, 0.3 + 0.8j, -0.9, 2.0j):
             assert complex(G(z)[0, j]) == pytest.approx(complex(single.to_tf()(z)), rel=1e-12)
+    back = ARX.from_tf(G)  # the transfer function keeps every order and delay
+    assert (back.na, back.nb, back.nk) == (2, [1, 3], [0, 3])
+    np.testing.assert_allclose(back.theta_, model.theta_, rtol=1e-10, atol=1e-12)
     names = model.param_names_
     assert names == ["a1", "a2", "b1[u1]", "b1[u2]", "b2[u2]", "b3[u2]"]
     # with noise: lstsq on the documented regressors
@@ -432,6 +466,57 @@ def test_mimo_simulate_and_transfer_matrix(rng):
     dl = model.to_dlti()
     _, yd, _ = signal.dlsim(dl, u)
     np.testing.assert_allclose(yd, y, atol=1e-9)
+
+
+@settings(max_examples=25, deadline=None)
+@given(ny=st.integers(1, 3), nu=st.integers(1, 2), na=st.integers(0, 2),
+       nb=st.lists(st.integers(1, 3), min_size=2, max_size=2),
+       nk=st.lists(st.integers(0, 2), min_size=2, max_size=2), seed=st.integers(0, 2 ** 32 - 1))
+def test_property_transfer_matrix_of_any_structure(ny, nu, na, nb, nk, seed):
+    """to_tf, to_ss and to_dlti are A(z)^-1 B(z) for any MIMO structure; simulate agrees."""
+    gen = np.random.default_rng(seed)
+    nb, nk = nb[:nu], nk[:nu]
+    N = 40 + 10 * ny * nu
+    u = gen.standard_normal((N, nu))
+    y = gen.standard_normal((N, ny))
+    model = ARX(na, nb, nk, dt=1.0).fit(u, y)
+    A, B = model.polynomials()  # (ny, ny, na + 1) and (ny, nu, max(nk + nb)): 2-D signals
+    G, sys = model.to_tf(), model.to_ss()
+    for z in (1.3, 0.5 + 0.9j, -1.1 + 0.2j):
+        Gz = np.linalg.solve(A @ z ** -np.arange(A.shape[2]), B @ z ** -np.arange(B.shape[2]))
+        np.testing.assert_allclose(np.reshape(G(z), (ny, nu)), Gz, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(np.reshape(sys(z), (ny, nu)), Gz, rtol=1e-9, atol=1e-12)
+    ys = model.simulate(u).reshape(N, ny)
+    dl = model.to_dlti() if ny == 1 and nu == 1 else signal.dlti(sys.A, sys.B, sys.C, sys.D,
+                                                                  dt=1.0)
+    _, yd = signal.dlsim(dl, u)[:2]
+    np.testing.assert_allclose(np.reshape(yd, (N, ny)), ys, rtol=1e-9,
+                               atol=1e-9 * (1 + np.abs(ys).max()))
+
+
+@settings(max_examples=20, deadline=None)
+@given(ny=st.integers(1, 2), na=st.integers(0, 2), nk=st.integers(0, 2),
+       horizon=st.integers(1, 4), seed=st.integers(0, 2 ** 32 - 1))
+def test_property_k_step_prediction_any_structure(ny, na, nk, horizon, seed):
+    """predict(horizon=k) runs the model k steps from the measured past (brute-force oracle)."""
+    gen = np.random.default_rng(seed)
+    N = 30
+    u, y = gen.standard_normal((N, 2)), gen.standard_normal((N, ny))
+    model = ARX(na, [2, 1], [nk, 1]).fit(u, y)
+    A, B = model.polynomials()
+    yhat = model.predict(u, y, horizon=horizon)
+
+    def out(ys, s):
+        return ys[s] if s >= 0 else np.zeros(ny)
+
+    for t in range(N):
+        ys = {s: out(y, s) for s in range(t - horizon - na, t - horizon + 1)}
+        for s in range(t - horizon + 1, t + 1):
+            acc = sum(B[:, :, k] @ (u[s - k] if s - k >= 0 else np.zeros(2))
+                      for k in range(B.shape[2]))
+            acc = acc - sum(A[:, :, k] @ ys.get(s - k, np.zeros(ny)) for k in range(1, na + 1))
+            ys[s] = acc
+        np.testing.assert_allclose(yhat[t], ys[t], rtol=1e-10, atol=1e-10)
 
 
 def test_mimo_predict_one_step(rng):
@@ -526,6 +611,22 @@ def test_rls_recursive_residuals_are_the_filter_innovations(rng):
     np.testing.assert_allclose(model.recursive_residuals_[4:], innov, rtol=1e-10, atol=1e-12)
     prior = ARX(2, 2, 1).fit(u, y, method="rls", k0=0, x0=np.ones(4))
     assert prior.recursive_residuals_[0] == pytest.approx(target[0] - Phi[0] @ np.ones(4))
+
+
+def test_rls_forwards_the_filter_s_other_options(rng, monkeypatch):
+    """Options ARX does not name (a forgetting mode, a gate, ...) reach the filter unchanged."""
+    seen = {}
+
+    class SpyRLS(RecursiveLeastSquares):
+        def __init__(self, dim_x, dim_z=1, lam=1.0, *, marker=None, **kwargs):
+            seen["marker"] = marker
+            super().__init__(dim_x, dim_z, lam, **kwargs)
+
+    monkeypatch.setattr("rlsfilt.models.arx.RecursiveLeastSquares", SpyRLS)
+    u, y = arx_data(rng, [-0.8], [0.5], 1, n=50)
+    model = ARX(1, 1, 1).fit(u, y, method="rls", marker=42, R=2.0)
+    assert seen == {"marker": 42} and isinstance(model.filter_, SpyRLS)
+    assert model.filter_.R == 2.0
 
 
 def test_rls_mimo_shares_one_covariance(rng):
@@ -624,4 +725,8 @@ def test_summary_repr_and_html(rng):
     assert latex.startswith("$$\\begin{aligned}y(t) - 1.5") and latex.endswith("\\end{aligned}$$")
     assert f"(\\pm {se[2]:.2g})\\, u(t-1)" in latex and "&= " in latex
     assert ARX(1, 1)._repr_latex_() is None
+    rec = ARX(2, 2, 1).fit(u, y, method="rls", lam=0.99)
+    assert "recursive least squares (lam=0.99, batch start on 4 rows)" in repr(rec)
+    true = ARX.from_polynomials([-0.5], [1.0])
+    assert "given coefficients (no fit)" in repr(true) and "(+/-0) u(t-1)" in repr(true)
     assert repr(model).startswith("ARX(na=2, nb=2, nk=1, dt=0.1):")

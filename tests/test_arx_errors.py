@@ -144,6 +144,11 @@ def test_bad_method_and_options(data):
         ARX(2, 2).fit(*data, method="rls", k0=4, P0=100.0)
     with pytest.raises(ValueError, match=r"`x0` only applies to a prior start"):
         ARX(2, 2).fit(*data, method="rls", k0=10, x0=np.zeros(4))
+    with pytest.raises(TypeError, match=r"`gate` only applies to method='rls'; got method='ls'"):
+        ARX(2, 2).fit(*data, gate=3.0)
+    with pytest.raises(TypeError, match=r"`lamda` is not an option of ARX.fit or "
+                                        r"RecursiveLeastSquares; the filter's other options"):
+        ARX(2, 2).fit(*data, method="rls", lamda=0.9)
     with pytest.raises(TypeError, match=r"`foo` is not a parameter of ARX"):
         ARX(2, 2).set_params(foo=1)
 

@@ -79,6 +79,7 @@ def test_validation_data_and_several_outputs(rng):
     Phi, T = m2.regressors(u, Y)
     E = T - Phi @ m2.theta_
     assert ic2.n_outputs == 2
+    assert ic2.n_params == 2 * 4                    # [a11 a12 b1 b2] per output (na=1, nb=2)
     assert ic2.loss == pytest.approx(np.linalg.det(E.T @ E / len(E)), rel=1e-10)
 
 

@@ -181,3 +181,22 @@ def test_cusum_errors(rng):
         cusum(H @ [1.0, 2.0, 3.0], H)
     with pytest.raises(ValueError, match="exact fit"):
         cusum_squares(H @ [1.0, 2.0, 3.0], H)
+
+
+def test_cusum_squares_critical_values_are_derived_and_hold_their_level():
+    """c1 is the Brownian-bridge crossing point; c0 gives the nominal size (Monte Carlo)."""
+    from rlsfilt.validation.cusum import _EW_COEF
+
+    for level, (c1, _, _) in _EW_COEF.items():
+        assert c1 == pytest.approx(math.sqrt(-math.log(level) / 2.0), abs=2e-6)
+    rng = np.random.default_rng(7)
+    m, n_paths = 1000, 3000
+    z, H = _regression(rng, n=m + 3)
+    for alpha in (0.1, 0.05):
+        c0 = cusum_squares(z, H, alpha=alpha).critical_value
+        w = rng.standard_normal((n_paths, m))      # recursive residuals under constancy
+        S = np.cumsum(w * w, axis=1)
+        S /= S[:, -1:]
+        rejected = np.sum(np.max(np.abs(S - np.arange(1, m + 1) / m), axis=1) > c0)
+        lo, hi = _level_band(alpha, n_paths)
+        assert lo <= rejected <= hi

@@ -2,6 +2,8 @@
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import rlsfilt
 from rlsfilt.validation import fit_percent
@@ -55,3 +57,14 @@ def test_fit_percent_errors():
         fit_percent(np.zeros((2, 2, 2)), np.zeros((2, 2, 2)))
     with pytest.raises(TypeError, match="`y` must be numeric array-like"):
         fit_percent(["a", "b"], [1.0, 2.0])
+
+
+@settings(max_examples=50, deadline=None)
+@given(scale=st.floats(1e-3, 1e3), shift=st.floats(-1e3, 1e3), seed=st.integers(0, 2**31))
+def test_fit_percent_is_affine_invariant(scale, shift, seed):
+    """Scaling and shifting both signals together leaves the fit unchanged."""
+    rng = np.random.default_rng(seed)
+    y = rng.standard_normal(64)
+    yhat = y + 0.5 * rng.standard_normal(64)
+    assert fit_percent(scale * y + shift, scale * yhat + shift) == pytest.approx(
+        fit_percent(y, yhat), rel=1e-9, abs=1e-9)

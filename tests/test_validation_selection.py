@@ -6,6 +6,8 @@ import time
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.signal import lfilter
 
 from rlsfilt import ARX, datasets, select_order
@@ -148,3 +150,26 @@ def test_select_order_errors(rng):
         select_order(u, y, validation=u)
     with pytest.raises(ValueError, match="exactly"):
         select_order(u, lfilter([0, 1.0], [1, -0.5], u), na=1, nb=1, nk=1)
+
+
+@settings(max_examples=25, deadline=None)
+@given(na_max=st.integers(0, 3), nb_max=st.integers(1, 3), nk_min=st.integers(0, 2),
+       nk_span=st.integers(0, 2), n_inputs=st.integers(1, 2), seed=st.integers(0, 2**31))
+def test_any_grid_matches_brute_force(na_max, nb_max, nk_min, nk_span, n_inputs, seed):
+    """Every candidate of any grid, with one or two inputs, equals its own lstsq."""
+    rng = np.random.default_rng(seed)
+    N = 120
+    U = rng.standard_normal((N, n_inputs))
+    y = lfilter([1.0], [1.0, -0.5], U.sum(axis=1) + 0.3 * rng.standard_normal(N))
+    na, nb, nk = range(0, na_max + 1), range(1, nb_max + 1), range(nk_min, nk_min + nk_span + 1)
+    sel = select_order(U if n_inputs > 1 else U[:, 0], y, na=na, nb=nb, nk=nk)
+    t_max = max(na_max, nk_min + nk_span + nb_max - 1)
+    t = np.arange(t_max, N)
+    for row, theta in zip(sel.table, sel.thetas):
+        a, b, k = int(row["na"]), int(row["nb"]), int(row["nk"])
+        cols = [-y[t - i] for i in range(1, a + 1)]
+        cols += [U[t - i, j] for j in range(n_inputs) for i in range(k, k + b)]
+        Phi = np.column_stack(cols)
+        ref = np.linalg.lstsq(Phi, y[t], rcond=None)[0]
+        np.testing.assert_allclose(theta, ref, rtol=1e-8, atol=1e-10)
+        assert row["loss"] == pytest.approx(np.mean((y[t] - Phi @ ref) ** 2), rel=1e-9)

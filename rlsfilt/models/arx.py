@@ -7,6 +7,7 @@ convention and the translation table to SIPPY and the lecture notes.
 """
 
 import html
+import inspect
 import numbers
 
 import numpy as np
@@ -16,7 +17,7 @@ from scipy.linalg import lapack, solve_triangular
 from .._validation import check_int
 from ..exceptions import NotFittedError
 from ..filters import RecursiveLeastSquares
-from .regressors import _build, arx_structure, as_io_data
+from .regressors import _as_signal, _build, arx_structure, as_io_data
 
 __all__ = ["ARX", "ARXSummary"]
 
@@ -215,7 +216,8 @@ class ARX:
     # ------------------------------------------------------------------
     # fitting
     # ------------------------------------------------------------------
-    def fit(self, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=None, x0=None):
+    def fit(self, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=None, x0=None,
+            **filter_options):
         r"""Estimate the parameters from an input/output record.
 
         Parameters
@@ -239,6 +241,10 @@ class ARX:
             ``"rls"`` only: passed to `RecursiveLeastSquares` (forgetting
             factor, initial covariance and estimate for a prior start with
             ``k0 = 0``, noise variance, random-walk covariance).
+        **filter_options
+            ``"rls"`` only: any other keyword argument of
+            `RecursiveLeastSquares` (for example its forgetting mode), passed
+            through unchanged.
 
         Returns
         -------
@@ -264,9 +270,11 @@ class ARX:
             raise ValueError(f"`method` must be 'ls' or 'rls'; got {method!r}")
         opts = {"k0": k0, "lam": lam, "P0": P0, "R": R, "Q": Q, "x0": x0}
         if method == "ls":
-            given = [k for k, v in opts.items() if v is not None]
+            given = [k for k, v in opts.items() if v is not None] + list(filter_options)
             if given:
                 raise TypeError(f"`{given[0]}` only applies to method='rls'; got method='ls'")
+        _check_filter_options(filter_options)
+        opts["extra"] = filter_options
         U, Y, info = as_io_data(u, y)
         s = self._structure(U.shape[1], Y.shape[1])
         N = len(U)
@@ -284,21 +292,21 @@ class ARX:
         if method == "ls":
             theta, cov_unscaled = _qr_least_squares(Phi, target)
         else:
-            theta, cov_unscaled, rls, history = self._fit_rls(Phi, target, s, opts)
+            theta, cov_unscaled, rls, history, x_start = self._fit_rls(Phi, target, s, opts)
             self.filter_ = rls
             self.theta_history_ = history[:, :, 0] if info["y_1d"] else history
             # a-priori (recursive) residuals y(t) - phi(t) theta(t-1) after the batch start
             prior = np.full_like(target, np.nan)
             k0 = self.k0_
             if k0 == 0 and rows:
-                prior[0] = target[0] - Phi[0] @ rls._x0
+                prior[0] = target[0] - Phi[0] @ x_start
                 k0 = 1
             prior[k0:] = target[k0:] - np.einsum("ij,ijk->ik", Phi[k0:], history[k0 - 1:-1])
             self.recursive_residuals_ = prior[:, 0] if info["y_1d"] else prior
         resid = target - Phi @ theta
         dof = rows - s.n_params
         sigma2 = np.sum(resid ** 2, axis=0) / dof if dof > 0 else np.full(s.n_outputs, np.nan)
-        self._store(theta, s, info, dt=self.dt)
+        self._store(theta, s, info)
         cov = sigma2[:, None, None] * cov_unscaled[None]
         self.theta_cov_ = cov[0] if info["y_1d"] else cov
         self.noise_variance_ = float(sigma2[0]) if info["y_1d"] else sigma2
@@ -327,8 +335,9 @@ class ARX:
                     f"k0={k0} rows sets both x0 and P0. Pass k0=0 to start from `{given[0]}`.")
         kw = {key: opts[key] for key in ("P0", "R", "Q", "x0") if opts[key] is not None}
         lam = 1.0 if opts["lam"] is None else opts["lam"]
-        rls = RecursiveLeastSquares(n, dim_z=s.n_outputs, lam=lam, **kw)
+        rls = RecursiveLeastSquares(n, dim_z=s.n_outputs, lam=lam, **kw, **opts["extra"])
         history = np.full((rows, n, s.n_outputs), np.nan)
+        x_start = rls.x.copy()
         if k0 > 0:
             rls.initialize(target[:k0], Phi[:k0])
             history[k0 - 1] = rls.x
@@ -336,9 +345,9 @@ class ARX:
             means = rls.batch_filter(target[k0:], Phi[k0:], store_covariances=False)[0]
             history[k0:] = means
         self.k0_ = k0
-        return rls.x.copy(), rls.P / rls.R, rls, history
+        return rls.x.copy(), rls.P / rls.R, rls, history, x_start
 
-    def _store(self, theta, s, info, dt):
+    def _store(self, theta, s, info):
         """Set every fitted attribute derived from ``theta`` (n_params, ny)."""
         self.structure_ = s
         self._info = dict(info)
@@ -413,11 +422,10 @@ class ARX:
     def _theta2(self):
         return self.theta_.reshape(self.n_params_, -1)
 
-    def _data(self, u, y=None, what="predict"):
+    def _data(self, u, y=None):
         """Validate data against the fitted signal counts."""
         s = self.structure_
         if y is None:
-            from .regressors import _as_signal
             U, _, _ = _as_signal(u, "u")
             Y = None
         else:
@@ -515,7 +523,6 @@ class ARX:
         L = 0
         Ysim = np.zeros((N, ny))
         if y0 is not None:
-            from .regressors import _as_signal
             Y0, _, _ = _as_signal(y0, "y0")
             if Y0.shape[1] != ny:
                 raise ValueError(f"`y0` must have {ny} output column(s); got {Y0.shape[1]}")
@@ -645,7 +652,8 @@ class ARX:
                 Am[blk, (i + 1) * ny:(i + 2) * ny] = np.eye(ny)
             Bm[blk] = Bk[i + 1] - Ak[i] @ D        # y(t) = x_1(t) + D u(t)
         Cm = np.zeros((ny, n * ny))
-        Cm[:, :ny] = np.eye(ny)
+        if n:  # a static gain (na = 0, nk = 0, nb = 1) has no state
+            Cm[:, :ny] = np.eye(ny)
         return Am, Bm, Cm, D.copy()
 
     def to_ss(self, noise=False):
@@ -728,11 +736,12 @@ class ARX:
 
         ``G`` is a discrete ``control.TransferFunction`` (or anything
         ``control.tf`` accepts, such as a ``StateSpace``). Each output's
-        entries are put over a common denominator ``A_i``; ``nk`` and ``nb``
-        per input are read off the numerators (leading zeros of ``B`` in
-        powers of ``z^-1`` are the delay). A SISO ``G = (b1 z^{n-nk} + ..) /
-        (z^n + a1 z^{n-1} + ..)`` gives exactly ``a_ = [a1, ..]``,
-        ``b_ = [b1, ..]`` and that ``nk``.
+        entries are put over a common denominator ``A_i``, the product of
+        the row's distinct denominators (minimal when they are equal or
+        coprime); ``nk`` and ``nb`` per input are read off the numerators
+        (leading zeros of ``B`` in powers of ``z^-1`` are the delay). A
+        SISO ``G = (b1 z^{n-nk} + ..) / (z^n + a1 z^{n-1} + ..)`` gives
+        exactly ``a_ = [a1, ..]``, ``b_ = [b1, ..]`` and that ``nk``.
         """
         import control
 
@@ -743,32 +752,33 @@ class ARX:
         ny, nu = G.noutputs, G.ninputs
         A_rows, B_rows = [], []
         for i in range(ny):
-            dens = [np.trim_zeros(np.asarray(G.den[i][j], float), "f") for j in range(nu)]
-            nums = [np.trim_zeros(np.asarray(G.num[i][j], float), "f") for j in range(nu)]
-            common = []
-            for d in dens:
-                d = d / d[0]
-                if not any(len(c) == len(d) and np.allclose(c, d, rtol=1e-12, atol=0)
-                           for c in common):
-                    common.append(d)
-            den = np.array([1.0])
-            for c in common:
-                den = np.polymul(den, c)
-            row = []
+            # each entry in powers of q^-1: den_q = [1, a1, ..] (trailing zeros, i.e. poles
+            # at z = 0, dropped), num_q = numerator shifted by the relative degree
+            ents = []
             for j in range(nu):
-                d0 = dens[j][0]
-                num = nums[j] / d0 if len(nums[j]) else np.zeros(1)
-                dj = dens[j] / d0
-                for c in common:
-                    if not (len(c) == len(dj) and np.allclose(c, dj, rtol=1e-12, atol=0)):
-                        num = np.polymul(num, c)
+                den = np.trim_zeros(np.asarray(G.den[i][j], float), "f")
+                num = np.trim_zeros(np.asarray(G.num[i][j], float), "f")
                 if len(num) > len(den):
                     raise ValueError(f"`G` must be proper (causal); entry ({i}, {j}) has a "
                                      f"numerator of degree {len(num) - 1} over a denominator "
                                      f"of degree {len(den) - 1}")
-                row.append(np.concatenate([np.zeros(len(den) - len(num)), num]))
+                num_q = np.concatenate([np.zeros(len(den) - len(num)), num]) / den[0]
+                ents.append((num_q if len(num) else np.zeros(1), _trim(den / den[0])))
+            common = []  # distinct denominators of the row; their product is A_i
+            for _, d in ents:
+                if not any(_same_poly(c, d) for c in common):
+                    common.append(d)
+            den = np.array([1.0])
+            for c in common:
+                den = np.convolve(den, c)
+            row = []
+            for num, d in ents:
+                for c in common:
+                    if not _same_poly(c, d):
+                        num = np.convolve(num, c)
+                row.append(_trim(num))
             A_rows.append(_trim(den))
-            B_rows.append([_trim(r) for r in row])
+            B_rows.append(row)
         na = max(len(a) for a in A_rows) - 1
         nk, nb = [], []
         for j in range(nu):
@@ -796,7 +806,7 @@ class ARX:
         return model
 
     def _set_truth(self, theta, s, info, noise_variance):
-        self._store(theta, s, info, dt=self.dt)
+        self._store(theta, s, info)
         ny = s.n_outputs
         nv = np.broadcast_to(np.asarray(noise_variance, float), (ny,)).copy()
         zero = np.zeros((ny, s.n_params, s.n_params))
@@ -849,6 +859,10 @@ class ARX:
         s = self.structure_
         how = {"ls": "batch least squares (QR)", "rls": "recursive least squares",
                "true": "given coefficients (no fit)"}[self.method_]
+        if self.method_ == "rls":
+            f = self.filter_
+            start = (f"batch start on {self.k0_} rows" if self.k0_ else "prior start")
+            how += f" (lam={f.lam:g}, {start})"
         out = [f"{self._orders_text()}: {s.n_inputs} input(s), {s.n_outputs} output(s), "
                f"{s.n_params} parameters per output",
                f"  estimated by {how} on {self.n_samples_} equations"]
@@ -961,6 +975,20 @@ class ARXSummary:
 # ----------------------------------------------------------------------
 # private helpers
 # ----------------------------------------------------------------------
+def _check_filter_options(options):
+    """Reject keywords that `RecursiveLeastSquares` does not take, naming the valid ones."""
+    if not options:
+        return
+    params = inspect.signature(RecursiveLeastSquares).parameters
+    valid = [name for name, p in params.items()
+             if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)
+             and name not in ("dim_x", "dim_z", "lam", "P0", "x0", "R", "Q")]
+    for name in options:
+        if name not in valid:
+            raise TypeError(f"`{name}` is not an option of ARX.fit or RecursiveLeastSquares; "
+                            f"the filter's other options are {valid}")
+
+
 def _check_dt(dt):
     if dt is True:
         return dt
@@ -1040,6 +1068,11 @@ def _full_rank_start(Phi):
         else:
             lo = mid
     return hi
+
+
+def _same_poly(p, q):
+    """Equal coefficient arrays to round-off (same length)."""
+    return len(p) == len(q) and np.allclose(p, q, rtol=1e-12, atol=0)
 
 
 def _trim(p):

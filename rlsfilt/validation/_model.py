@@ -53,4 +53,5 @@ def orders(model):
 
 
 def n_params(model):
-    return int(np.asarray(model.theta_).shape[0])
+    """Total number of estimated parameters (all outputs)."""
+    return int(np.asarray(model.theta_).size)

@@ -161,8 +161,9 @@ def information_criteria(model, u, y):
     -------
     InformationCriteria
         With :math:`V` the loss of the one-step residuals on the rows with a
-        complete regressor, :math:`N` their number and :math:`d` the length of
-        ``model.theta_``. See :func:`criteria_from_loss` for the formulas.
+        complete regressor, :math:`N` their number and :math:`d` the number
+        of entries of ``model.theta_`` (all outputs together). See
+        :func:`criteria_from_loss` for the formulas.
 
     Examples
     --------

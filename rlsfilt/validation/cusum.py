@@ -333,9 +333,10 @@ def cusum_squares(zs, Hs, alpha=0.05):
         c_0 = \frac{c_1}{\sqrt{n}} + \frac{c_2}{n} + \frac{c_3}{n^{3/2}},
 
     which fits Durbin's table closely for any ``n`` (statsmodels uses the
-    same approximation). Its leading coefficient :math:`c_1` is the
-    asymptotic Kolmogorov quantile, since :math:`\sqrt{n}(S_r - (r-k)/m)`
-    tends to a Brownian bridge.
+    same approximation). Its leading coefficient is the asymptotic value
+    :math:`c_1 = \sqrt{-\log(\alpha/2) / 2}`, the level-:math:`\alpha/2`
+    crossing point of a Brownian bridge :math:`B` (:math:`P(\sup B > c) =
+    e^{-2c^2}`), since :math:`\sqrt{n}\,(S_r - (r-k)/m)` tends to one.
 
     References
     ----------

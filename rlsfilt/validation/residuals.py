@@ -10,7 +10,7 @@ import numpy as np
 from scipy.stats import chi2, f, norm
 
 from .._validation import as_float_array, check_finite, check_int, check_scalar
-from ._model import one_step, orders
+from ._model import one_step
 
 __all__ = ["ResidualAnalysis", "residual_analysis"]
 
@@ -147,7 +147,7 @@ class ResidualAnalysis:
         return ax
 
 
-def residual_analysis(model, u, y, max_lag=25, alpha=0.01, *, output=0, model_df=None):
+def residual_analysis(model, u, y, max_lag=25, alpha=0.01, *, output=0, model_df=0):
     r"""Whiteness and input-independence tests of the one-step residuals.
 
     Parameters
@@ -166,11 +166,15 @@ def residual_analysis(model, u, y, max_lag=25, alpha=0.01, *, output=0, model_df
         99% band).
     output : int, default 0
         Which output's residual to analyse, for models with several outputs.
-    model_df : int, optional
-        Degrees of freedom subtracted from the Ljung-Box test: ``na`` of the
-        model by default (Box & Pierce 1970: the fitted autoregressive part
-        makes low-lag residual correlations small). ``0`` gives the plain
-        :math:`\chi^2(M)` of Ljung (1999).
+    model_df : int, default 0
+        Degrees of freedom subtracted from the Ljung-Box test. ``0`` is the
+        plain :math:`\chi^2(M)` of Ljung (1999) and MATLAB's ``resid``.
+        For a pure autoregression Box & Pierce (1970) subtract ``na``,
+        because the fitted AR part makes low-lag residual correlations
+        small; with an exogenous input that explains most of the output the
+        reduction vanishes, so ``na`` would make the test too liberal. The
+        default is therefore exact at high signal-to-noise ratio and
+        conservative (fewer false alarms) at low.
 
     Returns
     -------
@@ -187,10 +191,10 @@ def residual_analysis(model, u, y, max_lag=25, alpha=0.01, *, output=0, model_df
     .. math::
 
         Q = n (n + 2) \sum_{k=1}^{M} \frac{\hat\rho_\varepsilon(k)^2}{n - k}
-        \;\sim\; \chi^2(M - n_a)
+        \;\sim\; \chi^2(M - \text{model\_df})
 
     (Ljung & Box 1978), the same as ``statsmodels.stats.diagnostic.
-    acorr_ljungbox(e, lags=[M], model_df=na)``.
+    acorr_ljungbox(e, lags=[M], model_df=model_df)``.
 
     The cross-correlation with input :math:`u` (centered) is
     :math:`\hat\rho_{\varepsilon u}(\tau) = \hat R_{\varepsilon u}(\tau) /
@@ -261,8 +265,7 @@ def residual_analysis(model, u, y, max_lag=25, alpha=0.01, *, output=0, model_df
     output = check_int(output, "output", minimum=0)
     if output >= ny:
         raise ValueError(f"`output` must be < {ny} (the number of outputs); got {output}")
-    na, _, _ = orders(model)
-    model_df = 0 if model_df is None else check_int(model_df, "model_df", minimum=0)
+    model_df = check_int(model_df, "model_df", minimum=0)
     if model_df >= max_lag:
         raise ValueError(f"`max_lag` must exceed `model_df` = {model_df} (degrees of freedom "
                          f"left for the Ljung-Box test); got max_lag = {max_lag}")

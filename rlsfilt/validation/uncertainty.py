@@ -32,7 +32,8 @@ class ParameterIntervals:
     dof : int
         Degrees of freedom of the Student t quantile (rows minus parameters).
     quantile : float
-        The multiplier :math:`t_{(1+\\mathrm{level})/2}(\\mathrm{dof})`.
+        The multiplier :math:`t_{(1+\\mathrm{level})/2}(\\mathrm{dof})`
+        (infinite when there are no spare equations, ``dof <= 0``).
     """
 
     def __init__(self, names, estimate, std_error, level, dof):
@@ -42,10 +43,11 @@ class ParameterIntervals:
         self.level = level
         self.dof = dof
         self.quantile = float(student_t.ppf(0.5 + level / 2.0, dof)) if dof > 0 else math.inf
-        half = self.quantile * std_error
-        with np.errstate(invalid="ignore"):
-            self.lower = estimate - np.where(std_error == 0, 0.0, half)
-            self.upper = estimate + np.where(std_error == 0, 0.0, half)
+        # a zero standard error (a true model) gives a zero-width interval
+        safe = np.where(std_error == 0, 0.0, std_error)
+        half = np.where(std_error == 0, 0.0, self.quantile * np.where(safe == 0, 1.0, safe))
+        self.lower = estimate - half
+        self.upper = estimate + half
 
     def contains(self, theta):
         """Boolean array: which entries of `theta` lie inside their interval."""
@@ -80,14 +82,14 @@ class FrequencyBand:
     ----------
     omega : ndarray, shape (n_points,)
         Frequencies (rad per time unit; rad/sample when ``dt`` is unspecified).
-    response : ndarray of complex, shape (nu, n_points)
-        Nominal :math:`G(e^{j\\omega dt})` from each input.
-    magnitude_lower, magnitude_upper : ndarray, shape (nu, n_points)
+    response : ndarray of complex, shape (ny, nu, n_points)
+        Nominal :math:`G(e^{j\\omega dt})` from each input to each output.
+    magnitude_lower, magnitude_upper : ndarray, shape (ny, nu, n_points)
         Pointwise ``(1 - level)/2`` and ``(1 + level)/2`` quantiles of
         :math:`|G|` over the parameter draws.
-    phase_lower, phase_upper : ndarray, shape (nu, n_points)
+    phase_lower, phase_upper : ndarray, shape (ny, nu, n_points)
         The same for the phase in degrees.
-    magnitude_std : ndarray, shape (nu, n_points)
+    magnitude_std : ndarray, shape (ny, nu, n_points)
         Standard deviation of :math:`|G|` over the draws.
     level : float
         Pointwise coverage of the band.
@@ -107,7 +109,7 @@ class FrequencyBand:
                 f"level {self.level:g}>")
 
     def contains(self, response):
-        """Which points of a frequency response ``(nu, n_points)`` lie in the magnitude band."""
+        """Which points of a response ``(ny, nu, n_points)`` lie in the magnitude band."""
         mag = np.abs(np.asarray(response)).reshape(self.magnitude_lower.shape)
         return (self.magnitude_lower <= mag) & (mag <= self.magnitude_upper)
 
@@ -135,30 +137,33 @@ class FrequencyBand:
 
     def plot_bode(self, ax_mag, ax_phase, plant=None):
         """Draw the band into existing magnitude and phase axes; returns them."""
-        nu = self.response.shape[0]
+        ny, nu = self.response.shape[:2]
         pct = f"{100 * self.level:g}%"
-        for j in range(nu):
-            tag = f" (input {j})" if nu > 1 else ""
-            c = f"C{j}"
-            ax_mag.fill_between(self.omega, _db(self.magnitude_lower[j]),
-                                _db(self.magnitude_upper[j]), color=c, alpha=0.25,
+        for c, (i, j) in enumerate((i, j) for i in range(ny) for j in range(nu)):
+            tag = f" (u{j} to y{i})" if ny * nu > 1 else ""
+            color = f"C{c}"
+            ax_mag.fill_between(self.omega, _db(self.magnitude_lower[i, j]),
+                                _db(self.magnitude_upper[i, j]), color=color, alpha=0.25,
                                 label=f"{pct} band{tag}")
-            ax_mag.semilogx(self.omega, _db(np.abs(self.response[j])), color=c,
+            ax_mag.semilogx(self.omega, _db(np.abs(self.response[i, j])), color=color,
                             label=f"model{tag}")
-            ax_phase.fill_between(self.omega, self.phase_lower[j], self.phase_upper[j],
-                                  color=c, alpha=0.25)
-            ax_phase.semilogx(self.omega, np.degrees(np.unwrap(np.angle(self.response[j]))),
-                              color=c)
+            ax_phase.fill_between(self.omega, self.phase_lower[i, j], self.phase_upper[i, j],
+                                  color=color, alpha=0.25)
+            ax_phase.semilogx(self.omega,
+                              np.degrees(np.unwrap(np.angle(self.response[i, j]))), color=color)
         if plant is not None:
             import control
 
             z = np.exp(1j * self.omega * self.dt)
             G = np.asarray(control.tf(plant)(z, squeeze=False))
-            for j in range(min(nu, G.shape[1])):
-                ax_mag.semilogx(self.omega, _db(np.abs(G[0, j])), "k--", lw=1,
-                                label="plant" if j == 0 else None)
-                ax_phase.semilogx(self.omega, np.degrees(np.unwrap(np.angle(G[0, j]))),
-                                  "k--", lw=1)
+            first = True
+            for i in range(min(ny, G.shape[0])):
+                for j in range(min(nu, G.shape[1])):
+                    ax_mag.semilogx(self.omega, _db(np.abs(G[i, j])), "k--", lw=1,
+                                    label="plant" if first else None)
+                    ax_phase.semilogx(self.omega, np.degrees(np.unwrap(np.angle(G[i, j]))),
+                                      "k--", lw=1)
+                    first = False
         ax_mag.set_ylabel("$|G(e^{j\\omega T})|$ (dB)")
         ax_phase.set_ylabel("phase (deg)")
         unit = "rad/sample" if self.dt_unspecified else "rad/s"
@@ -226,7 +231,7 @@ def frequency_response_band(model, omega=None, level=0.95, n_draws=1000, rng=Non
     Parameters
     ----------
     model : ARX
-        A fitted model with one output.
+        A fitted model (any numbers of inputs and outputs).
     omega : array_like, optional
         Frequencies in rad per time unit; by default 300 points on a
         logarithmic grid from :math:`10^{-3}` times to the Nyquist frequency
@@ -241,6 +246,8 @@ def frequency_response_band(model, omega=None, level=0.95, n_draws=1000, rng=Non
     Returns
     -------
     FrequencyBand
+        Arrays of shape ``(ny, nu, n_points)``, as in
+        :class:`PlantComparison`.
 
     Notes
     -----
@@ -250,27 +257,39 @@ def frequency_response_band(model, omega=None, level=0.95, n_draws=1000, rng=Non
 
     .. math::
 
-        G(e^{j\omega T}) = \frac{e^{-j\omega T n_k}\, B(e^{-j\omega T})}
-                                {A(e^{-j\omega T})}
+        G(e^{j\omega T}) = A(e^{-j\omega T})^{-1}\, e^{-j\omega T n_k}\,
+                            B(e^{-j\omega T})
 
-    is evaluated; the band is the pointwise quantiles of its magnitude and
-    (unwrapped) phase. Sampling avoids the linearization of the Gauss
-    approximation formula (Ljung 1999, sec. 9.4), which fails near lightly damped
-    poles where :math:`G` is far from linear in :math:`\theta`.
+    is evaluated (a ratio of polynomials for one output); the band is the
+    pointwise quantiles of its magnitude and (unwrapped) phase. Sampling
+    avoids the linearization of the Gauss approximation formula (Ljung 1999,
+    sec. 9.4), which fails near lightly damped poles where :math:`G` is far
+    from linear in :math:`\theta`. With several outputs the columns of
+    ``theta_`` share the regressor, so ``vec(theta_)`` has covariance
+    :math:`\Sigma \otimes (\Phi^T\Phi)^{-1}` with :math:`\Sigma` the
+    model's ``noise_covariance_``; draws are
+    :math:`\hat\Theta + L_M Z L_\Sigma^T` with Cholesky-like factors of the
+    two matrices and a standard normal :math:`Z`.
 
     References
     ----------
     .. [1] L. Ljung, *System Identification: Theory for the User*, 2nd ed.,
        Prentice Hall, 1999, ch. 9.
+
+    Examples
+    --------
+    >>> from rlsfilt import ARX, datasets
+    >>> from rlsfilt.validation import frequency_response_band
+    >>> d = datasets.dc_motor()
+    >>> band = frequency_response_band(ARX(2, 2, 1, dt=d.dt).fit(d.u, d.y), rng=0)
+    >>> band.magnitude_upper.shape
+    (1, 1, 300)
     """
     check_fitted(model)
     level = _check_level(level)
     n_draws = check_int(n_draws, "n_draws", minimum=2)
     theta = np.asarray(model.theta_, dtype=float)
-    cov = np.asarray(model.theta_cov_, dtype=float)
-    if theta.ndim != 1 or cov.ndim != 2:
-        raise ValueError("`model` must have one output for frequency_response_band; got a "
-                         f"model with {theta.shape[1]} outputs")
+    Theta = theta.reshape(theta.shape[0], -1)                  # (p, ny)
     dt = 1.0 if model.dt is True else float(model.dt)
     if omega is None:
         nyq = math.pi / dt
@@ -280,13 +299,9 @@ def frequency_response_band(model, omega=None, level=0.95, n_draws=1000, rng=Non
         if omega.size == 0 or not np.all(np.isfinite(omega)) or np.any(omega < 0):
             raise ValueError("`omega` must hold finite non-negative frequencies")
     gen = np.random.default_rng(rng)
-    cov = 0.5 * (cov + cov.T)
-    # draws through an eigen-decomposition, which accepts a singular covariance
-    w, V = np.linalg.eigh(cov)
-    L = V * np.sqrt(np.clip(w, 0.0, None))
-    draws = theta + gen.standard_normal((n_draws, theta.size)) @ L.T
-    G_nom = _response(theta[None], model, omega, dt)[0]
-    G = _response(draws, model, omega, dt)            # (n_draws, nu, n_points)
+    draws = Theta + _parameter_noise(model, Theta.shape, n_draws, gen)   # (n, p, ny)
+    G_nom = _response(Theta[None], model, omega, dt)[0]
+    G = _response(draws, model, omega, dt)                     # (n, ny, nu, n_points)
     mag = np.abs(G)
     phase = np.degrees(np.unwrap(np.angle(G), axis=-1))
     # align each draw's unwrapped phase with the nominal one (remove 360 deg jumps)
@@ -301,21 +316,57 @@ def frequency_response_band(model, omega=None, level=0.95, n_draws=1000, rng=Non
         dt_unspecified=model.dt is True)
 
 
+def _factor(C):
+    """``L`` with ``L L^T = C`` for a symmetric PSD `C` (eigen-decomposition, so a
+    singular covariance is fine)."""
+    C = 0.5 * (C + C.T)
+    w, V = np.linalg.eigh(C)
+    return V * np.sqrt(np.clip(w, 0.0, None))
+
+
+def _parameter_noise(model, shape, n_draws, gen):
+    """Draws of ``Theta - hat Theta``, shape (n_draws, p, ny)."""
+    p, ny = shape
+    cov = np.asarray(model.theta_cov_, dtype=float)
+    Z = gen.standard_normal((n_draws, p, ny))
+    if ny == 1:
+        return _factor(cov.reshape(p, p)) @ Z
+    nv = np.atleast_1d(np.asarray(getattr(model, "noise_variance_", np.nan), dtype=float))
+    sigma = getattr(model, "noise_covariance_", None)
+    if sigma is not None and np.all(np.isfinite(sigma)) and nv.size and nv[0] > 0:
+        L_M = _factor(cov[0] / nv[0])                          # (Phi^T Phi)^-1
+        L_S = _factor(np.asarray(sigma, dtype=float))
+        return L_M @ Z @ L_S.T
+    # no cross-covariance known: outputs drawn independently from their own blocks
+    return np.stack([_factor(cov[i]) @ Z[:, :, i:i + 1] for i in range(ny)], axis=2)[..., 0]
+
+
 def _response(thetas, model, omega, dt):
-    """``G`` for each parameter row of `thetas`: shape (n, nu, len(omega))."""
+    """``G = A^-1 B`` for each parameter matrix in `thetas` (n, p, ny): (n, ny, nu, n_points)."""
     na, nb, nk = orders(model)
-    zinv = np.exp(-1j * omega * dt)                    # e^{-j w T}
-    A = np.ones((len(thetas), omega.size), dtype=complex)
-    for k in range(1, na + 1):
-        A += thetas[:, k - 1:k] * zinv ** k
-    out = np.empty((len(thetas), len(nb), omega.size), dtype=complex)
-    start = na
+    n, _, ny = thetas.shape
+    zinv = np.exp(-1j * omega * dt)                            # e^{-j w T}
+    P = omega.size
+    start = ny * na
+    Bz = np.empty((n, ny, len(nb), P), dtype=complex)
     for j, (b, k0) in enumerate(zip(nb, nk)):
-        powers = zinv[None, :] ** (k0 + np.arange(b))[:, None]   # (b, n_points)
-        out[:, j] = thetas[:, start:start + b] @ powers
+        powers = zinv[None, :] ** (k0 + np.arange(b))[:, None]   # (b, P)
+        # B_j for every equation i: sum_m theta[start + m, i] z^-(nk + m)
+        Bz[:, :, j] = np.einsum("nmi,mp->nip", thetas[:, start:start + b], powers)
         start += b
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return out / A[:, None, :]
+    if ny == 1:
+        A = np.ones((n, P), dtype=complex)
+        for k in range(1, na + 1):
+            A += thetas[:, k - 1, 0:1] * zinv ** k
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return Bz / A[:, None, None, :]
+    # A[i, j](z) = delta_ij + sum_k theta[j * na + k - 1, i] z^-k
+    Az = np.broadcast_to(np.eye(ny, dtype=complex)[None, :, :, None], (n, ny, ny, P)).copy()
+    for j in range(ny):
+        for k in range(1, na + 1):
+            Az[:, :, j, :] += thetas[:, j * na + k - 1, :, None] * zinv[None, None, :] ** k
+    G = np.linalg.solve(Az.transpose(0, 3, 1, 2), Bz.transpose(0, 3, 1, 2))
+    return G.transpose(0, 2, 3, 1)
 
 
 def _check_level(level):
