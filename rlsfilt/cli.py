@@ -243,7 +243,7 @@ def _build_parser():
     ident.add_argument("--select-order", action="store_true",
                        help="choose na, nb (and nk unless given) by BIC, up to --max-order")
     ident.add_argument("--max-order", type=_positive_int, default=4, metavar="N",
-                       help="largest na and nb tried by --select-order (default: 4)")
+                       help="largest na, nb and nk tried by --select-order (default: 4)")
     ident.add_argument("--delimiter", default=None, metavar="CHAR",
                        help="field separator (default: detected among , ; tab)")
     ident.add_argument("--save-params", metavar="FILE.json", default=None,
