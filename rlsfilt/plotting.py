@@ -201,7 +201,10 @@ def _time_axis(t, N):
 
 def _names(names, default, n):
     if names is None:
-        names = default if default is not None else [rf"$\theta_{{{i + 1}}}$" for i in range(n)]
+        if default is not None and len(default) == n:
+            names = default
+        else:   # e.g. a multi-output model whose names cover every output
+            names = [rf"$\theta_{{{i + 1}}}$" for i in range(n)]
     names = [str(s) for s in names]
     if len(names) != n:
         raise ValueError(f"`names` must have {n} entries (one per parameter); got {len(names)}")

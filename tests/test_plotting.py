@@ -67,6 +67,13 @@ def test_objects_with_theta_history(run):
     assert_allclose(ax2.get_lines()[0].get_ydata(), 4 * np.trace(covs, axis1=1, axis2=2))
     bare = SimpleNamespace(theta_history_=means[:, :, 0])
     assert len(plot_parameters(bare).collections) == 0
+    # a multi-output history (N, n, ny) with NaN rows before a batch start
+    hist = np.stack([means[:, :, 0], 2 * means[:, :, 0]], axis=2)
+    hist[:5] = np.nan
+    multi = SimpleNamespace(theta_history_=hist, param_names_=["a1[y1]"] * 8)
+    ax3 = plot_parameters(multi, output=1)
+    assert_allclose(ax3.get_lines()[0].get_ydata()[5:], 2 * means[5:, 0, 0])
+    assert ax3.get_legend().get_texts()[0].get_text() == r"$\theta_{1}$"
 
 
 def test_trace_and_tracking_figure(run):

@@ -143,7 +143,7 @@ def update_exponential(x, P, phi, z, g, s, r, lam, params):
     y = z - (phi @ x).T                    # y = z - H x          (m, 1)
     K = g / s                              # K = P H^T / S         (n, 1)
     x = x + K * y.T                        # x = x + K y^T         (n, m)
-    P = P - np.outer(g, g) / s             # P = P - g g^T / S     exactly symmetric
+    P = P - (g * g.T) / s                  # P = P - g g^T / S     exactly symmetric
     return x, P, y, K, lam
 
 
@@ -169,7 +169,7 @@ def update_directional(x, P, phi, z, g, s, r, lam, params):
     y = z - (phi @ x).T
     K = g / d
     x = x + K * y.T
-    P = P - (e / d) * np.outer(g, g)
+    P = P - (e / d) * (g * g.T)
     return x, P, y, K, e
 
 
@@ -212,7 +212,7 @@ def update_efra(x, P, phi, z, g, s, r, lam, params):
     y = z - (phi @ x).T
     K = (alpha / s) * g
     x = x + K * y.T
-    Pn = P / lam - (alpha / s) * np.outer(g, g) - (delta / r) * (P @ P)
+    Pn = P / lam - (alpha / s) * (g * g.T) - (delta / r) * (P @ P)
     Pn = 0.5 * (Pn + Pn.T)                 # P @ P is symmetric only to round-off
     Pn[np.diag_indices(n)] += beta * r
     return x, Pn, y, K, lam

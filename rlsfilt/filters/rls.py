@@ -492,6 +492,14 @@ class RecursiveLeastSquares(_FilterBase):
         ValueError
             If `zs`, `Hs` (and `Rs`) disagree in length; filterpy's
             ``KalmanFilter`` would silently truncate.
+
+        Notes
+        -----
+        Every forgetting mode, the gate and the constraints apply exactly as
+        in the step-by-step loop (the results are bitwise equal); gated
+        samples are added to ``n_gated``. The health check of ``P`` runs
+        every ``check_every`` steps inside the loop and once at the end, so
+        a failure is reported with its step in the record.
         """
         Z, Hm = self._as_batch(zs, Hs)
         Rv = self._as_batch_variances(Rs, len(Z))
@@ -835,6 +843,7 @@ def _batch_reference(x, P, Z, Hm, Rv, lam, Q, update_first, store_covariances, *
     K = np.zeros((n, 1))
     s = np.nan
     lam_t = lam
+    missing = np.isnan(Z).any(axis=1)
     for k in range(N):
         if not update_first:
             P = _predict_covariance(P, tlam, Q)
@@ -844,8 +853,7 @@ def _batch_reference(x, P, Z, Hm, Rv, lam, Q, update_first, store_covariances, *
             out.means_p[k] = x
             if store_covariances:
                 out.covariances_p[k] = P
-        z = Z[k]
-        zc = None if np.isnan(z).any() else z.reshape(m, 1)
+        zc = None if missing[k] else Z[k].reshape(m, 1)
         x, P, y, K, _, s, lam_t, gated = _measurement_step(
             mode, params, lam, x, P, Hm[k:k + 1], zc, Rv[k], gate, Pi)
         out.ss[k] = s
