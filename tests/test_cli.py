@@ -262,6 +262,22 @@ def test_identify_semicolon_and_comments(capsys, tmp_path, record):
     np.testing.assert_allclose(json.loads(out)["a"], A_TRUE, atol=1e-9)
 
 
+def test_identify_tab_separated_with_time_column(capsys, tmp_path, record):
+    y = lfilter([0, 1.0, 0.5], [1] + A_TRUE, record["u1"])
+    path = _write_csv(tmp_path / "tab.tsv", ["time", "volts", "speed"],
+                      zip(record["t"], record["u1"], y), sep="\t")
+    code, out, err = _run(capsys, "identify", path, "-u", "volts", "-y", "speed", "--time",
+                          "time", "--json")
+    assert code == 0, err
+    res = json.loads(out)
+    assert res["dt"] == pytest.approx(0.1, rel=1e-12) and res["inputs"] == ["volts"]
+    np.testing.assert_allclose(res["a"], A_TRUE, atol=1e-9)
+    assert res["transfer_functions"][0]["dt"] == res["dt"]
+    # an explicit delimiter that does not match: the header is one unknown column
+    r = _run(capsys, "identify", path, "-u", "volts", "-y", "speed", "--delimiter", ";")
+    _assert_one_line_error(*r, "column 'volts' not found")
+
+
 # ----------------------------------------------------------------------
 # demo
 # ----------------------------------------------------------------------
