@@ -486,57 +486,22 @@ def _identify(y, u, na, nb, nk, method="ls", lam=1.0, dt=1.0, forgetting="expone
     U = u if u.shape[1] > 1 else u[:, 0]
     model = ARX(na=na, nb=list(nb) if len(nb) > 1 else nb[0],
                 nk=list(nk) if len(nk) > 1 else nk[0], dt=dt)
-    kwargs = {"lam": lam} if method == "rls" else {}
+    kwargs = {"lam": lam, "forgetting": forgetting} if method == "rls" else {}
     task = (f"recursive least squares over {len(y)} samples" if method == "rls"
             else f"least squares on {len(y)} samples")
     with (progress or _Progress(False)).task(task):
         model.fit(U, y, method=method, **kwargs)
-        if method == "rls" and forgetting != "exponential":
-            fit = _refit_with_forgetting(model, U, y, lam, forgetting)
-        else:
-            fit = dict(model=model, theta=np.asarray(model.theta_, dtype=float),
-                       theta_std=np.asarray(model.std_errors_, dtype=float),
-                       noise_variance=float(model.noise_variance_),
-                       history=getattr(model, "theta_history_", None),
-                       k0=getattr(model, "k0_", None))
-    a = np.atleast_1d(fit["model"].a_)
-    b = list(fit["model"].b_) if isinstance(fit["model"].b_, list) else [fit["model"].b_]
+    fit = dict(model=model, theta=np.asarray(model.theta_, dtype=float),
+               theta_std=np.asarray(model.std_errors_, dtype=float),
+               noise_variance=float(model.noise_variance_),
+               history=getattr(model, "theta_history_", None),
+               k0=getattr(model, "k0_", None))
+    a = np.atleast_1d(model.a_)
+    b = list(model.b_) if isinstance(model.b_, list) else [model.b_]
     fit.update(na=na, nb=list(nb), nk=list(nk), a=a, b=b, method=method, lam=lam, dt=dt,
                forgetting=forgetting, y=y, u=u, U=U, n_samples=len(y),
                n_used=len(y) - _max_lag(na, nb, nk))
     return fit
-
-
-def _refit_with_forgetting(model, U, y, lam, forgetting):
-    """The recursive fit of `model` repeated with a forgetting mode other than exponential.
-
-    Same regressors and batch start (``model.k0_`` rows), then
-    ``RecursiveLeastSquares(forgetting=...)`` over the remaining rows. The
-    result carries a coefficient-only ``ARX`` (``ARX.from_polynomials``)
-    for simulation, validation and transfer functions.
-    """
-    from .filters import RecursiveLeastSquares
-
-    Phi, target = model.regressors(U, y)
-    rows, n = Phi.shape
-    k0 = model.k0_
-    rls = RecursiveLeastSquares(n, lam=lam, forgetting=forgetting)
-    rls.initialize(target[:k0], Phi[:k0])
-    history = np.full((rows, n), np.nan)
-    history[k0 - 1] = rls.x[:, 0]
-    if k0 < rows:
-        history[k0:] = rls.batch_filter(target[k0:], Phi[k0:], store_covariances=False)[0][:, :, 0]
-    theta = rls.x[:, 0].copy()
-    resid = target - Phi @ theta
-    sigma2 = float(resid @ resid / (rows - n)) if rows > n else float("nan")
-    s = model.structure_
-    bs = np.split(theta[s.na:], np.cumsum(s.nb)[:-1])
-    coef = ARX.from_polynomials(theta[:s.na], bs if len(bs) > 1 else bs[0],
-                                nk=list(s.nk) if len(s.nk) > 1 else s.nk[0], dt=model.dt,
-                                noise_variance=sigma2)
-    std = np.sqrt(np.maximum(np.diag(rls.P) / rls.R, 0.0) * sigma2)
-    return dict(model=coef, theta=theta, theta_std=std, noise_variance=sigma2,
-                history=history, k0=k0)
 
 
 def _validate_fit(fit, plant=None, progress=None):
@@ -557,12 +522,8 @@ def _validate_fit(fit, plant=None, progress=None):
         start = max(0, N - length)
     rows = N - start - lag
     max_lag = max(1, min(25, rows // 4))
-    # a coefficient-only model (forgetting modes) has no parameter covariance: its
-    # confidence intervals are 0 * inf, which validate() computes without errstate
-    errstate = (np.errstate(invalid="ignore") if fit["model"].method_ == "true"
-                else contextlib.nullcontext())
     report, skipped = None, None
-    with (progress or _Progress(False)).task("validating the model"), errstate:
+    with (progress or _Progress(False)).task("validating the model"):
         while True:  # the residual tests need enough rows for their lags: shorten if not
             try:
                 report = validate(fit["model"], U[start:], y[start:], plant=plant,

@@ -190,6 +190,10 @@ def test_identify_forgetting_modes_match_the_filter(capsys, tmp_path, mode):
     rls.initialize(z[:ref.k0_], Phi[:ref.k0_])
     rls.batch_filter(z[ref.k0_:], Phi[ref.k0_:])
     np.testing.assert_allclose(res["theta"], rls.x.ravel(), rtol=1e-12, atol=1e-14)
+    # the CLI is a thin layer: the same numbers as ARX.fit with the forgetting mode
+    model = ARX(2, 2, 1).fit(ds.u, ds.y, method="rls", lam=0.97, forgetting=mode)
+    np.testing.assert_allclose(res["theta"], model.theta_, rtol=1e-12, atol=1e-14)
+    assert res["k0"] == model.k0_
     # every mode tracks the jump: close to the parameters in force at the end
     np.testing.assert_allclose(res["theta"], ds.theta_true[-1], atol=0.12)
 
