@@ -144,3 +144,20 @@ def test_signal_counts_must_match_the_fitted_model():
             call(model, u2, d.y)
         with pytest.raises(ValueError, match=r"1 output column\(s\) .* `y` of shape \(1000, 2\)"):
             call(model, d.u, y2)
+
+
+def test_true_model_validates_without_any_warning():
+    """An exact model (zero covariance, no spare equations) emits no warning at all
+    and no floating-point error that is not handled on purpose."""
+    import warnings
+
+    d = datasets.dc_motor(n_samples=800)
+    true = ARX.from_polynomials(d.a, d.b, nk=d.nk, dt=d.dt)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        rep = validate(true, d.u, d.y, plant=d.plant)
+        text, page = rep.summary(), rep._repr_html_()
+    assert caught == [], [str(w.message) for w in caught]
+    assert rep.intervals.quantile == np.inf
+    np.testing.assert_array_equal(rep.intervals.lower, rep.intervals.upper)
+    assert "Validation of ARX" in text and "<" in page

@@ -67,6 +67,17 @@ def test_intervals_of_true_and_multi_output_models(rng):
     assert "(y2)" in ci2.summary()
 
 
+def test_zero_standard_error_with_no_spare_equations_is_a_point_interval():
+    """dof = 0 makes the quantile infinite; a zero standard error still gives a
+    zero-width interval, a positive one an infinite interval, and no inf * 0."""
+    with np.errstate(all="raise"):
+        ci = ParameterIntervals(["a1", "b1"], np.array([0.5, 1.0]), np.array([0.0, 0.1]),
+                                0.95, dof=0)
+    assert ci.quantile == np.inf
+    np.testing.assert_array_equal(ci.lower, [0.5, -np.inf])
+    np.testing.assert_array_equal(ci.upper, [0.5, np.inf])
+
+
 def test_band_nominal_response_and_shape():
     d = datasets.mass_spring_damper()
     model = ARX(d.na, d.nb, d.nk, dt=d.dt).fit(d.u, d.y)

@@ -45,9 +45,10 @@ class ParameterIntervals:
         self.dof = dof
         self.quantile = float(student_t.ppf(0.5 + level / 2.0, dof)) if dof > 0 else math.inf
         # a zero standard error (a true model) gives a zero-width interval, even when
-        # the quantile is infinite (no spare equations: inf * 0 is discarded here)
-        with np.errstate(invalid="ignore"):
-            half = np.where(std_error == 0, 0.0, self.quantile * std_error)
+        # the quantile is infinite (no spare equations): inf * 0 is never formed
+        std_error = np.asarray(std_error, dtype=float)
+        half = np.zeros_like(std_error)
+        np.multiply(self.quantile, std_error, out=half, where=std_error != 0)
         self.lower = estimate - half
         self.upper = estimate + half
 
