@@ -209,3 +209,25 @@ def test_selection_does_not_depend_on_units(su, sy):
     i = ref.best_index
     np.testing.assert_allclose(scaled.thetas[i], ref.thetas[i] * [1, 1, sy / su, sy / su],
                                rtol=1e-8)
+
+
+def test_best_model_names_signals_like_a_direct_fit():
+    """One 1-D input stays one signal `u` (not `u1`), pandas names are kept."""
+    d = datasets.dc_motor(n_samples=600)
+    sel = select_order(d.u, d.y, na=range(1, 4), nb=range(1, 3), nk=1, dt=d.dt)
+    direct = ARX(*sel.best, dt=d.dt).fit(d.u, d.y)
+    best = sel.best_model()
+    assert best.param_names_ == direct.param_names_ == ["a1", "a2", "b1", "b2"]
+    assert best.summary().as_text() == direct.summary().as_text()
+    assert "u1" not in best.summary().as_text()
+    np.testing.assert_array_equal(best.theta_, direct.theta_)
+    # several inputs keep their 2-D names; pandas names carry through
+    pd = pytest.importorskip("pandas")
+    df = pd.DataFrame({"volt": d.u, "speed": d.y})
+    sel_pd = select_order(df["volt"], df["speed"], na=2, nb=2, nk=1)
+    text = sel_pd.best_model().summary().as_text()
+    assert text == ARX(2, 2, 1).fit(df["volt"], df["speed"]).summary().as_text()
+    assert "volt(t-1)" in text and "speed(t)" in text
+    U2 = np.column_stack([d.u, np.roll(d.u, 3)])
+    two = select_order(U2, d.y, na=2, nb=2, nk=1).best_model()
+    assert two.param_names_ == ARX(2, 2, 1).fit(U2, d.y).param_names_

@@ -231,7 +231,7 @@ def select_order(u, y, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), criterion
     na_list = _order_list(na, "na", 0)
     nb_list = _order_list(nb, "nb", 1)
     nk_list = _order_list(nk, "nk", 0)
-    U, Y = _io(u, y, "u", "y")
+    U, Y, info = _io(u, y, "u", "y")
     kmin = min(nk_list)
     kmax = max(nk_list) + max(nb_list) - 1
     na_max = max(na_list)
@@ -259,7 +259,7 @@ def select_order(u, y, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), criterion
         except (TypeError, ValueError):
             raise TypeError("`validation` must be a pair (u_val, y_val); got "
                             f"{type(validation).__name__}") from None
-        Uv, Yv = _io(u_val, y_val, "validation[0]", "validation[1]")
+        Uv, Yv, _ = _io(u_val, y_val, "validation[0]", "validation[1]")
         if Uv.shape[1] != nu:
             raise ValueError(f"`validation` input must have {nu} column(s) like `u`; got "
                              f"{Uv.shape[1]}")
@@ -301,8 +301,11 @@ def select_order(u, y, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), criterion
     for name in ("aic", "aicc", "bic", "naic", "fpe", "mdl"):
         table[name] = crit[name]
     values = table["val_loss"] if criterion == "loss" else table[criterion]
+    # best_model() refits on the record as given: a 1-D input stays one signal `u`, and
+    # pandas names are kept, so its summary names the signals as a direct ARX fit does
+    data = (_as_given(U, info["u_1d"], info["u_names"]), _as_given(Y[:, 0], True, info["y_names"]))
     return OrderSelection(table, criterion, values, thetas, rows, N if use_val else None,
-                          (U, Y[:, 0]), dt)
+                          data, dt)
 
 
 # ----------------------------------------------------------------------
@@ -322,10 +325,23 @@ def _order_list(value, name, minimum):
 
 
 def _io(u, y, uname, yname):
-    U, Y, _ = as_io_data(u, y, names=(uname, yname))
+    U, Y, info = as_io_data(u, y, names=(uname, yname))
     if Y.shape[1] != 1:
         raise ValueError(f"`{yname}` must have shape (N,) (one output); got {Y.shape}")
-    return U, Y
+    return U, Y, info
+
+
+def _as_given(X, was_1d, names):
+    """The validated copy `X` in the form the caller gave: 1-D, or pandas with its names."""
+    if was_1d and X.ndim == 2:
+        X = X[:, 0]
+    if names is None:
+        return X
+    import pandas as pd  # names only come from pandas objects
+
+    if X.ndim == 1:
+        return pd.Series(X, name=names[0])
+    return pd.DataFrame(X, columns=names)
 
 
 def _full_regressor(U, Y, na_max, kmin, kmax, t_max):
