@@ -72,7 +72,7 @@ class ARX:
         2-D `y` only: unbiased covariance of the residuals of the outputs
         (its diagonal is ``noise_variance_``); the covariance of
         ``vec(theta_)`` is ``kron(noise_covariance_, (Phi^T Phi)^-1)``.
-    residuals_ : ndarray, shape (n_samples_,) or (n_samples_, ny)
+    residuals_ : ndarray, shape ``(n_samples_,)`` or ``(n_samples_, ny)``
         ``target - Phi @ theta_`` on the fitted rows.
     n_samples_ : int
         Number of equations (rows of ``Phi``) used: ``N - max_lag``.
@@ -82,10 +82,10 @@ class ARX:
         Number of input and output signals.
     method_ : str
         ``"ls"`` or ``"rls"``.
-    theta_history_ : ndarray, shape (n_samples_, n_params[, ny])
+    theta_history_ : ndarray, shape ``(n_samples_, n_params[, ny])``
         ``method="rls"`` only: the estimate after each row; rows before the
         batch start (``k0 - 1``) are NaN.
-    recursive_residuals_ : ndarray, shape (n_samples_,) or (n_samples_, ny)
+    recursive_residuals_ : ndarray, shape ``(n_samples_,)`` or ``(n_samples_, ny)``
         ``method="rls"`` only: the a-priori residuals
         :math:`y(t) - \varphi(t)\hat\theta(t-1)`, the errors the filter
         actually made (NaN for the rows of the batch start). Under forgetting
