@@ -27,6 +27,7 @@ from scipy.stats import norm
 from .._validation import as_float_array, check_finite, check_probability
 from ..filters import RecursiveLeastSquares
 from ..models.regressors import _column_rank, _full_rank_rows, _unit_columns
+from ..plotting import _axes
 
 __all__ = ["CusumResult", "cusum", "cusum_squares", "recursive_residuals"]
 
@@ -116,10 +117,7 @@ class CusumResult:
         -------
         matplotlib.axes.Axes
         """
-        if ax is None:
-            import matplotlib.pyplot as plt
-
-            _, ax = plt.subplots()
+        ax = _axes(ax)
         name = "CUSUM" if self.kind == "cusum" else "CUSUM of squares"
         ax.plot(self.index, self.statistic, label=name)
         ax.plot(self.index, self.bounds[0], "k--", lw=1,

@@ -13,6 +13,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from .._validation import as_float_array, check_int
+from ..plotting import _axes, _bode_axes, _figure
 
 __all__ = ["PlantComparison"]
 
@@ -198,10 +199,7 @@ class PlantComparison:
         -------
         matplotlib.figure.Figure
         """
-        if fig is None:
-            import matplotlib.pyplot as plt
-
-            fig = plt.figure(figsize=(10, 6), layout="constrained")
+        fig = _figure(fig, figsize=(10, 6), layout="constrained")
         gs = fig.add_gridspec(2, 2)
         ax_mag = fig.add_subplot(gs[0, 0])
         ax_phase = fig.add_subplot(gs[1, 0], sharex=ax_mag)
@@ -224,10 +222,7 @@ class PlantComparison:
         (matplotlib.axes.Axes, matplotlib.axes.Axes)
             The magnitude and phase axes.
         """
-        if ax_mag is None or ax_phase is None:
-            import matplotlib.pyplot as plt
-
-            _, (ax_mag, ax_phase) = plt.subplots(2, 1, sharex=True)
+        ax_mag, ax_phase = _bode_axes(ax_mag, ax_phase)
         unit = "rad/sample" if self.dt == 1.0 and self.model_tf.dt is True else "rad/s"
         for (i, j), label in _channels(self.response_plant.shape[:2]):
             for resp, name, style in ((self.response_plant, "plant", "k-"),
@@ -257,10 +252,7 @@ class PlantComparison:
         -------
         matplotlib.axes.Axes
         """
-        if ax is None:
-            import matplotlib.pyplot as plt
-
-            _, ax = plt.subplots()
+        ax = _axes(ax)
         for (i, j), label in _channels(self.step_plant.shape[:2]):
             ax.step(self.time, self.step_plant[i, j], "k-", where="post", label=f"plant{label}")
             ax.step(self.time, self.step_model[i, j], "C0--", where="post",

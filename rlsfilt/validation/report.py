@@ -4,6 +4,7 @@ import html
 
 import numpy as np
 
+from ..plotting import _axes, _figure
 from .criteria import information_criteria
 from .metrics import fit_percent
 from .plant import PlantComparison
@@ -130,10 +131,7 @@ class ValidationReport:
         matplotlib.figure.Figure
         """
         has_plant = self.plant_comparison is not None
-        if fig is None:
-            import matplotlib.pyplot as plt
-
-            fig = plt.figure(figsize=(11, 11 if has_plant else 7), layout="constrained")
+        fig = _figure(fig, figsize=(11, 11 if has_plant else 7), layout="constrained")
         gs = fig.add_gridspec(4 if has_plant else 2, 2)
         ax_cmp = fig.add_subplot(gs[0, :])
         self.plot_comparison(ax_cmp)
@@ -159,10 +157,7 @@ class ValidationReport:
         -------
         matplotlib.axes.Axes
         """
-        if ax is None:
-            import matplotlib.pyplot as plt
-
-            _, ax = plt.subplots()
+        ax = _axes(ax)
         y = self.y if self.y.ndim == 1 else self.y[:, 0]
         ys = self.y_simulated if self.y_simulated.ndim == 1 else self.y_simulated[:, 0]
         yp = self.y_predicted if self.y_predicted.ndim == 1 else self.y_predicted[:, 0]

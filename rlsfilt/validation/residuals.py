@@ -11,6 +11,7 @@ from scipy.stats import chi2, f, norm
 
 from .._validation import check_int, check_probability
 from ..models.regressors import _as_signal, _unit_columns
+from ..plotting import _axes, _figure
 from ._model import one_step
 
 __all__ = ["ResidualAnalysis", "residual_analysis"]
@@ -87,10 +88,7 @@ class ResidualAnalysis:
         -------
         matplotlib.figure.Figure
         """
-        if fig is None:
-            import matplotlib.pyplot as plt
-
-            fig = plt.figure(figsize=(8, 6), layout="constrained")
+        fig = _figure(fig, figsize=(8, 6), layout="constrained")
         ax1, ax2 = fig.subplots(2, 1)
         self.plot_autocorrelation(ax1)
         self.plot_cross_correlation(ax2)
@@ -108,10 +106,7 @@ class ResidualAnalysis:
         -------
         matplotlib.axes.Axes
         """
-        if ax is None:
-            import matplotlib.pyplot as plt
-
-            _, ax = plt.subplots()
+        ax = _axes(ax)
         ax.vlines(self.lags, 0.0, self.autocorrelation, color="C0")
         ax.plot(self.lags, self.autocorrelation, "o", color="C0", ms=3)
         band = self.autocorrelation_band
@@ -137,10 +132,7 @@ class ResidualAnalysis:
         -------
         matplotlib.axes.Axes
         """
-        if ax is None:
-            import matplotlib.pyplot as plt
-
-            _, ax = plt.subplots()
+        ax = _axes(ax)
         nu = self.cross_correlation.shape[0]
         for j in range(nu):
             label = f"input {j}" if nu > 1 else None

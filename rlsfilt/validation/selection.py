@@ -15,6 +15,7 @@ import numpy as np
 
 from .._validation import check_dt, check_int
 from ..models.regressors import as_io_data
+from ..plotting import _axes
 from .criteria import _criteria
 
 __all__ = ["OrderSelection", "select_order"]
@@ -135,10 +136,7 @@ class OrderSelection:
         -------
         matplotlib.axes.Axes
         """
-        if ax is None:
-            import matplotlib.pyplot as plt
-
-            _, ax = plt.subplots()
+        ax = _axes(ax)
         d = self.table["n_params"]
         v = self.values
         ax.plot(d, v, "o", color="C0", alpha=0.4, ms=4, label="candidates")

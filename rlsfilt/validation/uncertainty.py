@@ -12,6 +12,7 @@ import numpy as np
 from scipy.stats import t as student_t
 
 from .._validation import as_float_array, as_generator, check_int, check_probability
+from ..plotting import _bode_axes, _figure
 from ._model import check_fitted, orders
 from .plant import frequency_grid
 
@@ -158,10 +159,7 @@ class FrequencyBand:
         -------
         matplotlib.figure.Figure
         """
-        if fig is None:
-            import matplotlib.pyplot as plt
-
-            fig = plt.figure(figsize=(7, 6), layout="constrained")
+        fig = _figure(fig, figsize=(7, 6), layout="constrained")
         ax_mag, ax_ph = fig.subplots(2, 1, sharex=True)
         self.plot_bode(ax_mag, ax_ph, plant=plant)
         return fig
@@ -182,10 +180,7 @@ class FrequencyBand:
         (matplotlib.axes.Axes, matplotlib.axes.Axes)
             The magnitude and phase axes.
         """
-        if ax_mag is None or ax_phase is None:
-            import matplotlib.pyplot as plt
-
-            _, (ax_mag, ax_phase) = plt.subplots(2, 1, sharex=True)
+        ax_mag, ax_phase = _bode_axes(ax_mag, ax_phase)
         ny, nu = self.response.shape[:2]
         pct = f"{100 * self.level:g}%"
         for c, (i, j) in enumerate((i, j) for i in range(ny) for j in range(nu)):
