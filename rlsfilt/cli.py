@@ -119,20 +119,6 @@ class _Parser(argparse.ArgumentParser):
         raise SystemExit(EXIT_USAGE)
 
 
-def _positive_int(text):
-    value = _int(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be >= 1; got {value}")
-    return value
-
-
-def _nonnegative_int(text):
-    value = _int(text)
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be >= 0; got {value}")
-    return value
-
-
 def _int(text):
     try:
         return int(text)
@@ -140,45 +126,45 @@ def _int(text):
         raise argparse.ArgumentTypeError(f"must be an integer; got '{text}'") from None
 
 
-def _int_list(minimum):
-    def parse(text):
-        parts = [p.strip() for p in text.split(",")]
-        values = []
-        for p in parts:
-            v = _int(p)
-            if v < minimum:
-                raise argparse.ArgumentTypeError(f"must be >= {minimum}; got {v}")
-            values.append(v)
-        return values
-    return parse
-
-
-def _lam(text):
-    value = _float(text)
-    if not 0.0 < value <= 1.0:
-        raise argparse.ArgumentTypeError(f"must be in (0, 1]; got {text}")
-    return value
-
-
-def _positive_float(text):
-    value = _float(text)
-    if not (math.isfinite(value) and value > 0.0):
-        raise argparse.ArgumentTypeError(f"must be a positive number; got {text}")
-    return value
-
-
-def _nonnegative_float(text):
-    value = _float(text)
-    if not (math.isfinite(value) and value >= 0.0):
-        raise argparse.ArgumentTypeError(f"must be a non-negative number; got {text}")
-    return value
-
-
 def _float(text):
     try:
         return float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"must be a number; got '{text}'") from None
+
+
+def _int_at_least(minimum):
+    """An argparse type: an integer ``>= minimum``."""
+    def parse(text):
+        value = _int(text)
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"must be >= {minimum}; got {value}")
+        return value
+    return parse
+
+
+def _int_list(minimum):
+    """An argparse type: comma-separated integers, each ``>= minimum``."""
+    check = _int_at_least(minimum)
+    return lambda text: [check(part.strip()) for part in text.split(",")]
+
+
+def _float_where(accept, expected):
+    """An argparse type: a number for which ``accept(value)`` holds."""
+    def parse(text):
+        value = _float(text)
+        if not accept(value):
+            raise argparse.ArgumentTypeError(f"must be {expected}; got {text}")
+        return value
+    return parse
+
+
+_positive_int = _int_at_least(1)
+_nonnegative_int = _int_at_least(0)
+_lam = _float_where(lambda v: 0.0 < v <= 1.0, "in (0, 1]")
+_positive_float = _float_where(lambda v: math.isfinite(v) and v > 0.0, "a positive number")
+_nonnegative_float = _float_where(lambda v: math.isfinite(v) and v >= 0.0,
+                                  "a non-negative number")
 
 
 def _png(text):
