@@ -132,6 +132,21 @@ def test_tests_hold_their_level_under_constancy():
     assert lo <= rej_s <= _level_band(0.065, n_exp)[1]
 
 
+@pytest.mark.parametrize("plant", ["dc_motor", "nonminimum_phase"])
+def test_cusum_squares_holds_its_level_on_arx_regressors(plant):
+    """Lagged outputs make the BDE theory approximate, yet on the constant ARX plants
+    the CUSUM of squares rejects about alpha of the time over 200 seeds (measured with
+    1000 seeds at the default lengths: 5.6 % dc_motor, 5.3 % nonminimum_phase)."""
+    n_exp, alpha = 200, 0.05
+    rejected = 0
+    for seed in range(n_exp):
+        d = getattr(datasets, plant)(n_samples=500, rng=seed)
+        Phi, z = ARX(*d.orders).regressors(d.u, d.y)
+        rejected += cusum_squares(z, Phi, alpha=alpha).rejected
+    lo, hi = _level_band(alpha, n_exp)
+    assert lo <= rejected <= hi, rejected
+
+
 def test_cusum_result_plots(rng):
     import matplotlib
 
