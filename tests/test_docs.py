@@ -44,6 +44,18 @@ def test_code_blocks_run(page, tmp_path, monkeypatch, capsys):
     capsys.readouterr()
 
 
+def test_readme_code_runs(monkeypatch, capsys, tmp_path):
+    """The README's ```python blocks run, in order, in one namespace."""
+    monkeypatch.chdir(tmp_path)
+    namespace = {"__name__": "__readme__"}
+    blocks = _python_blocks(ROOT / "README.md")
+    assert blocks
+    for i, (code, _) in enumerate(blocks):
+        exec(compile(code, f"README.md block {i}", "exec"), namespace)
+    out = capsys.readouterr().out
+    assert "[0.8007" in out and "(2, 2, 1)" in out
+
+
 def _documented_names():
     """Fully qualified names listed in the autosummary tables of docs/api/index.rst."""
     names, module, in_table = set(), None, False
