@@ -5,10 +5,11 @@ A filterpy-style toolkit: `RecursiveLeastSquares` mirrors filterpy's
 ``P``, ``K``, ``y``, ``S``) so it drops in beside Kalman filters.
 """
 
-from . import datasets  # public subpackage: rlsfilt.datasets
+from . import datasets, validation  # public subpackages: rlsfilt.datasets, rlsfilt.validation
 from .exceptions import ForgettingSkippedWarning, NotFittedError, NumericalWarning
 from .filters import RecursiveLeastSquares, SlidingWindowRLS, SquareRootRLS
 from .models import ARX
+from .validation import fit_percent, select_order, validate
 
 __version__ = "0.1.0"
 
@@ -18,6 +19,10 @@ __all__ = [
     "SquareRootRLS",
     "ARX",
     "datasets",
+    "validation",
+    "validate",
+    "select_order",
+    "fit_percent",
     "NotFittedError",
     "NumericalWarning",
     "ForgettingSkippedWarning",

@@ -13,7 +13,12 @@ __all__ = []
 
 
 def check_int(value, name, minimum=None):
-    """Return `value` as an ``int``, rejecting floats, bools and small values."""
+    """Return `value` as an ``int``, rejecting floats, bools and small values.
+
+    A 0-d integer array (``np.array(2)``) counts as its integer.
+    """
+    if isinstance(value, np.ndarray) and value.ndim == 0:
+        value = value.item()
     if isinstance(value, bool) or not isinstance(value, numbers.Integral):
         raise TypeError(f"`{name}` must be an integer; got {value!r} ({type(value).__name__})")
     value = int(value)
@@ -35,6 +40,53 @@ def check_scalar(value, name):
     if arr.size != 1:
         raise ValueError(f"`{name}` must be a scalar; got an array of shape {arr.shape}")
     return float(arr.reshape(()))
+
+
+def check_real(value, name, minimum=None, strict=False):
+    """A finite real number, ``>= minimum`` (``> minimum`` when `strict`) if given."""
+    value = check_scalar(value, name)
+    if minimum is None:
+        ok, want = np.isfinite(value), "a finite number"
+    elif strict:
+        ok = np.isfinite(value) and value > minimum
+        want = "a positive finite number" if minimum == 0 else f"a finite number > {minimum}"
+    else:
+        ok, want = np.isfinite(value) and value >= minimum, f"a finite value >= {minimum}"
+    if not ok:
+        raise ValueError(f"`{name}` must be {want}; got {value}")
+    return value
+
+
+def check_probability(value, name):
+    """A significance or confidence level in the open interval (0, 1)."""
+    value = check_scalar(value, name)
+    if not 0.0 < value < 1.0:  # also rejects NaN
+        raise ValueError(f"`{name}` must be in (0, 1); got {value}")
+    return value
+
+
+def as_generator(rng, name="rng"):
+    """``np.random.default_rng(rng)`` with a message that names the argument."""
+    try:
+        return np.random.default_rng(rng)
+    except TypeError:
+        raise TypeError(f"`{name}` must be None, a non-negative integer seed or a "
+                        f"numpy.random.Generator; got {rng!r}") from None
+    except ValueError as exc:
+        raise ValueError(f"`{name}` must be None, a non-negative integer seed or a "
+                         f"numpy.random.Generator; got {rng!r} ({exc})") from None
+
+
+def check_dt(dt, name="dt"):
+    """A sampling period: ``True`` (unspecified, python-control's convention) or a
+    positive finite number."""
+    if dt is True:
+        return dt
+    ok = isinstance(dt, numbers.Real) and not isinstance(dt, bool) and np.isfinite(dt) and dt > 0
+    if not ok:
+        raise ValueError(f"`{name}` must be True (unspecified sampling period) or a positive "
+                         f"sampling period; got {dt!r}")
+    return dt
 
 
 def check_lam(lam, name="lam"):
@@ -108,10 +160,19 @@ def check_finite(arr, name):
 
 
 def as_float_array(value, name):
-    """``np.asarray(value, float)`` with a message that names the argument."""
+    """``np.asarray(value, float)`` with a message that names the argument.
+
+    Complex values are rejected instead of silently losing their imaginary part.
+    """
     try:
-        return np.asarray(value, dtype=float)
+        arr = np.asarray(value)
+        complex_values = np.iscomplexobj(arr)
+        if not complex_values:
+            arr = np.asarray(arr, dtype=float)
     except (TypeError, ValueError) as exc:
         raise TypeError(
             f"`{name}` must be numeric array-like; got {type(value).__name__}: {exc}"
         ) from None
+    if complex_values:
+        raise TypeError(f"`{name}` must be real; got complex values (dtype {arr.dtype})")
+    return arr

@@ -60,9 +60,7 @@ def plot_parameters(source, covariances=None, *, t=None, names=None, true_values
     N, n = theta.shape
     tt = _time_axis(t, N)
     names = _names(names, default_names, n)
-    if ax is None:
-        import matplotlib.pyplot as plt
-        _, ax = plt.subplots()
+    ax = _axes(ax)
     truth = None
     if true_values is not None:
         truth = as_float_array(true_values, "true_values")
@@ -112,9 +110,7 @@ def plot_trace(source, covariances=None, *, t=None, log=True, ax=None):
     _, covs, _ = _resolve(source, covariances, 0, need_covariances=True)
     tr = np.trace(covs, axis1=1, axis2=2)
     tt = _time_axis(t, len(tr))
-    if ax is None:
-        import matplotlib.pyplot as plt
-        _, ax = plt.subplots()
+    ax = _axes(ax)
     ax.plot(tt, tr, label=r"$\mathrm{tr}\,P$")
     if log and np.all(tr > 0):
         ax.set_yscale("log")
@@ -135,9 +131,7 @@ def plot_tracking(source, covariances=None, *, t=None, names=None, true_values=N
     -------
     matplotlib.figure.Figure
     """
-    if fig is None:
-        import matplotlib.pyplot as plt
-        fig = plt.figure(figsize=(7, 6))
+    fig = _figure(fig, figsize=(7, 6))
     ax1, ax2 = fig.subplots(2, 1, sharex=True)
     plot_parameters(source, covariances, t=t, names=names, true_values=true_values,
                     n_std=n_std, output=output, ax=ax1)
@@ -209,3 +203,30 @@ def _names(names, default, n):
     if len(names) != n:
         raise ValueError(f"`names` must have {n} entries (one per parameter); got {len(names)}")
     return names
+
+
+def _axes(ax=None):
+    """`ax`, or the axes of a new figure (matplotlib is imported only then)."""
+    if ax is None:
+        import matplotlib.pyplot as plt
+
+        _, ax = plt.subplots()
+    return ax
+
+
+def _figure(fig=None, **kwargs):
+    """`fig`, or a new ``plt.figure(**kwargs)`` (matplotlib is imported only then)."""
+    if fig is None:
+        import matplotlib.pyplot as plt
+
+        fig = plt.figure(**kwargs)
+    return fig
+
+
+def _bode_axes(ax_mag=None, ax_phase=None):
+    """``(ax_mag, ax_phase)``, or magnitude over phase in a new figure unless both are given."""
+    if ax_mag is None or ax_phase is None:
+        import matplotlib.pyplot as plt
+
+        _, (ax_mag, ax_phase) = plt.subplots(2, 1, sharex=True)
+    return ax_mag, ax_phase

@@ -730,3 +730,40 @@ def test_summary_repr_and_html(rng):
     true = ARX.from_polynomials([-0.5], [1.0])
     assert "given coefficients (no fit)" in repr(true) and "(+/-0) u(t-1)" in repr(true)
     assert repr(model).startswith("ARX(na=2, nb=2, nk=1, dt=0.1):")
+
+
+@settings(max_examples=30, deadline=None)
+@given(n=st.integers(1, 4), silent=st.lists(st.integers(0, 30), min_size=4, max_size=4),
+       rows=st.integers(1, 40), seed=st.integers(0, 2 ** 32 - 1))
+def test_exact_start_rows_match_a_linear_scan(n, silent, rows, seed):
+    """The batch start (ARX rls, CUSUM) is the first prefix of full column rank."""
+    from rlsfilt.models.regressors import _full_rank_rows
+
+    gen = np.random.default_rng(seed)
+    Phi = gen.standard_normal((rows, n))
+    for j in range(n):
+        Phi[:silent[j], j] = 0.0  # regressor j silent for its first rows
+    scan = next((k for k in range(n, rows + 1) if np.linalg.matrix_rank(Phi[:k]) == n), None)
+    assert _full_rank_rows(Phi) == scan
+
+
+def test_html_and_latex_escape_signal_names(rng):
+    """pandas names with markup characters render as text, not as HTML or broken LaTeX."""
+    pd = pytest.importorskip("pandas")
+    u, y = arx_data(rng, [-0.8], [0.5], 1, n=100)
+    model = ARX(1, 1).fit(pd.Series(u, name="P<in>"), pd.Series(y, name="T&out"))
+    html = model._repr_html_()
+    assert "P<in>" not in html and "P&lt;in&gt;(t-1)" in html and "T&amp;out(t)" in html
+    assert "&plusmn;" in html
+    assert "\\mathrm{T\\&out}(t)" in model._repr_latex_()
+    assert "T&out(t) - 0.79" in repr(model) and "P<in>(t-1)" in repr(model)  # plain text
+
+
+@pytest.mark.parametrize("su, sy", [(1e-8, 1e6), (1e-12, 1e10)])
+def test_rank_decision_does_not_depend_on_units(rng, su, sy):
+    """Signals in very different units (nA beside MPa) are not 'not persistently exciting'."""
+    u, y = arx_data(rng, [-1.5, 0.7], [1.0, 0.5], 1, n=500, noise_std=0.01)
+    ref = ARX(2, 2, 1).fit(u, y)
+    scaled = ARX(2, 2, 1).fit(su * u, sy * y)
+    np.testing.assert_allclose(scaled.a_, ref.a_, rtol=1e-8)
+    np.testing.assert_allclose(scaled.b_ * su / sy, ref.b_, rtol=1e-8)

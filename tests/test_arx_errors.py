@@ -105,6 +105,9 @@ def test_bad_orders(data, kwargs, exc, match):
     ([2, 0], 1, r"`nb\[1\]` must be >= 1; got 0"),
     (2, [1, -1], r"`nk\[1\]` must be >= 0; got -1"),
     ([2, 1.0], 1, r"`nb\[1\]` must be an integer; got 1.0"),
+    ({2, 3}, 1, r"`nb` must be an integer or a sequence of integers \(one per input, in input "
+                r"order\); got set"),
+    (2, {0: 1, 1: 1}, r"`nk` must be an integer or a sequence of integers .*; got dict"),
 ])
 def test_bad_per_input_orders(rng, nb, nk, match):
     u, y = rng.standard_normal((100, 2)), rng.standard_normal(100)
@@ -112,6 +115,14 @@ def test_bad_per_input_orders(rng, nb, nk, match):
         ARX(2, nb, nk).fit(u, y)
     with pytest.raises((ValueError, TypeError), match=match):
         arx_regressors(u, y, 2, nb, nk)
+
+
+def test_zero_dimensional_array_orders_are_scalars(rng):
+    u, y = rng.standard_normal(100), rng.standard_normal(100)
+    model = ARX(np.array(2), np.array(2), np.array(1)).fit(u, y)
+    np.testing.assert_array_equal(model.theta_, ARX(2, 2, 1).fit(u, y).theta_)
+    with pytest.raises(TypeError, match=r"`nb` must be an integer; got 2.0"):
+        ARX(2, np.array(2.0)).fit(u, y)
 
 
 def test_bad_shapes_and_types(data):
@@ -224,3 +235,65 @@ def test_bad_plants_for_from_tf_and_from_polynomials():
         ARX.from_polynomials([[-0.5]], [1.0])
     with pytest.raises(ValueError, match=r"`dt` must be True"):
         ARX.from_polynomials([-0.5], [1.0], dt=-0.1)
+
+
+def test_complex_data_is_rejected_not_truncated(data):
+    """Complex signals would lose their imaginary part silently; they are a TypeError."""
+    pd = pytest.importorskip("pandas")
+    u, y = data
+    with pytest.raises(TypeError, match=r"`u` must be real; got complex values"):
+        ARX(1, 1).fit(u + 1j, y)
+    with pytest.raises(TypeError, match=r"`y` must be real; got complex values"):
+        ARX(1, 1).fit(u, pd.Series(y + 0j))
+    with pytest.raises(TypeError, match=r"`u` must be real; got complex values"):
+        ARX(1, 1).fit(pd.DataFrame({"a": u, "b": u * 1j}), y)
+    model = ARX(1, 1).fit(u, y)
+    with pytest.raises(TypeError, match=r"`u` must be real"):
+        model.simulate(u.astype(complex))
+
+
+@pytest.mark.parametrize("call, exc, match", [
+    (lambda: ARX.from_polynomials([-0.5, np.nan], [1.0]), ValueError,
+     r"`a` must be finite; got nan at index 1"),
+    (lambda: ARX.from_polynomials([-0.5], [1.0, np.inf]), ValueError,
+     r"`b` must be finite; got inf at index 1"),
+    (lambda: ARX.from_polynomials([-0.5], [[1.0], [2.0, np.nan]], nk=[1, 1]), ValueError,
+     r"`b\[1\]` must be finite; got nan at index 1"),
+    (lambda: ARX.from_polynomials([-0.5], "ab"), TypeError, r"`b` must be numeric array-like"),
+    (lambda: ARX.from_polynomials(["x"], [1.0]), TypeError, r"`a` must be numeric array-like"),
+    (lambda: ARX.from_polynomials([-0.5], [1.0], noise_variance=-1.0), ValueError,
+     r"`noise_variance` must be a finite value >= 0; got -1.0"),
+    (lambda: ARX.from_polynomials([-0.5], [1.0], noise_variance=np.nan), ValueError,
+     r"`noise_variance` must be a finite value >= 0; got nan"),
+    (lambda: ARX.from_polynomials([-0.5], [1.0], noise_variance="x"), TypeError,
+     r"`noise_variance` must be a real number"),
+    (lambda: ARX.from_tf("z/(z - 0.5)"), TypeError,
+     r"`G` must be a discrete python-control LTI system \(control.tf, control.ss\); got str"),
+    (lambda: ARX.from_tf([1.0, 0.5]), TypeError, r"`G` must be a discrete python-control LTI"),
+])
+def test_bad_coefficients_for_true_models(call, exc, match):
+    with pytest.raises(exc, match=match):
+        call()
+
+
+@pytest.mark.parametrize("name", ["theta_", "a_", "b_", "theta_cov_", "noise_variance_",
+                                  "residuals_", "n_samples_", "param_names_"])
+def test_learned_attributes_before_fit_say_to_call_fit(name):
+    model = ARX(2, 2)
+    with pytest.raises(NotFittedError, match=rf"not fitted yet; call `fit\(u, y\)` before using "
+                                             rf"`{name}`"):
+        getattr(model, name)
+    assert not hasattr(model, name)  # NotFittedError is an AttributeError
+    with pytest.raises(AttributeError, match=r"'ARX' object has no attribute 'foo'"):
+        model.foo  # noqa: B018
+
+
+def test_attributes_of_other_fits_say_which_fit_sets_them(data):
+    model = ARX(1, 1).fit(*data)
+    with pytest.raises(AttributeError, match=r"`theta_history_` is only set by "
+                                             r"fit\(\.\.\., method='rls'\)"):
+        model.theta_history_  # noqa: B018
+    with pytest.raises(AttributeError, match=r"`noise_covariance_` is only set by a fit on 2-D"):
+        model.noise_covariance_  # noqa: B018
+    with pytest.raises(AttributeError, match=r"'ARX' object has no attribute 'foo_'"):
+        model.foo_  # noqa: B018

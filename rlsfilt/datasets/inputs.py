@@ -10,7 +10,7 @@ import math
 import numpy as np
 from scipy import signal
 
-from .._validation import check_int, check_scalar
+from .._validation import as_float_array, as_generator, check_finite, check_int, check_real
 
 __all__ = ["prbs", "white_noise", "multisine", "steps"]
 
@@ -58,8 +58,8 @@ def prbs(n_samples=1000, *, amplitude=1.0, hold=1, nbits=None, offset=0.0, rng=0
     """
     n_samples = check_int(n_samples, "n_samples", minimum=1)
     hold = check_int(hold, "hold", minimum=1)
-    amplitude = check_scalar(amplitude, "amplitude")
-    offset = check_scalar(offset, "offset")
+    amplitude = check_real(amplitude, "amplitude")
+    offset = check_real(offset, "offset")
     n_bits_needed = math.ceil(n_samples / hold)
     if nbits is None:
         nbits = max(3, math.ceil(math.log2(n_bits_needed + 1)))
@@ -68,7 +68,7 @@ def prbs(n_samples=1000, *, amplitude=1.0, hold=1, nbits=None, offset=0.0, rng=0
         nbits = check_int(nbits, "nbits", minimum=2)
         if nbits > 32:
             raise ValueError(f"`nbits` must be <= 32; got {nbits}")
-    gen = np.random.default_rng(rng)
+    gen = as_generator(rng)
     state = gen.integers(0, 2, nbits)
     if not state.any():
         state[gen.integers(nbits)] = 1
@@ -83,19 +83,29 @@ def white_noise(n_samples=1000, *, std=1.0, mean=0.0, rng=0):
     Parameters
     ----------
     n_samples : int, default 1000
+        Record length ``N``.
     std : float, default 1.0
+        Standard deviation.
     mean : float, default 0.0
+        Mean value.
     rng : int, Generator or None, default 0
+        Seed or generator; the default ``0`` gives the same signal on every
+        call, ``None`` fresh randomness.
 
     Returns
     -------
     u : ndarray, shape (n_samples,)
+
+    Examples
+    --------
+    >>> from rlsfilt.datasets import white_noise
+    >>> white_noise(5, std=2.0, rng=1).round(3)
+    array([ 0.691,  1.643,  0.661, -2.606,  1.811])
     """
     n_samples = check_int(n_samples, "n_samples", minimum=1)
-    std = check_scalar(std, "std")
-    if std < 0:
-        raise ValueError(f"`std` must be >= 0; got {std}")
-    return check_scalar(mean, "mean") + std * np.random.default_rng(rng).standard_normal(n_samples)
+    std = check_real(std, "std", minimum=0)
+    mean = check_real(mean, "mean")
+    return mean + std * as_generator(rng).standard_normal(n_samples)
 
 
 def multisine(n_samples=1000, *, n_components=None, band=(0.0, 1.0), rms=1.0,
@@ -118,6 +128,8 @@ def multisine(n_samples=1000, *, n_components=None, band=(0.0, 1.0), rms=1.0,
         Schroeder phases :math:`\phi_k = -\pi k (k-1) / K` give a low crest
         factor; ``"random"`` draws them uniformly from `rng`.
     rng : int, Generator or None, default 0
+        Seed or generator; the default ``0`` gives the same signal on every
+        call, ``None`` fresh randomness.
 
     Returns
     -------
@@ -128,9 +140,20 @@ def multisine(n_samples=1000, *, n_components=None, band=(0.0, 1.0), rms=1.0,
     Each component completes an integer number of periods in ``n_samples``
     samples, so the spectrum has no leakage. ``K`` components excite an ARX
     model with up to ``2 K`` input parameters.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from rlsfilt.datasets import multisine
+    >>> u = multisine(256, n_components=8, rms=2.0)
+    >>> round(float(np.sqrt(np.mean(u ** 2))), 6)                # the requested RMS
+    2.0
+    >>> int(np.count_nonzero(np.abs(np.fft.rfft(u)) > 1e-9))     # eight spectral lines
+    8
     """
     n_samples = check_int(n_samples, "n_samples", minimum=4)
-    rms = check_scalar(rms, "rms")
+    rms = check_real(rms, "rms", minimum=0)
+    gen = as_generator(rng)
     try:
         lo, hi = (float(b) for b in band)
     except (TypeError, ValueError):
@@ -156,7 +179,7 @@ def multisine(n_samples=1000, *, n_components=None, band=(0.0, 1.0), rms=1.0,
     if phases == "schroeder":
         ph = -np.pi * np.arange(1, K + 1) * np.arange(K) / K
     elif phases == "random":
-        ph = np.random.default_rng(rng).uniform(0, 2 * np.pi, K)
+        ph = gen.uniform(0, 2 * np.pi, K)
     else:
         raise ValueError(f"`phases` must be 'schroeder' or 'random'; got {phases!r}")
     t = np.arange(n_samples)
@@ -170,6 +193,7 @@ def steps(n_samples=1000, *, hold=100, amplitude=1.0, levels=None, rng=0):
     Parameters
     ----------
     n_samples : int, default 1000
+        Record length ``N``.
     hold : int, default 100
         Samples per level.
     amplitude : float, default 1.0
@@ -178,19 +202,28 @@ def steps(n_samples=1000, *, hold=100, amplitude=1.0, levels=None, rng=0):
         Explicit levels, repeated cyclically (for example ``[0, 1]`` for a
         square wave starting at 0); overrides the random levels.
     rng : int, Generator or None, default 0
+        Seed or generator; the default ``0`` gives the same signal on every
+        call, ``None`` fresh randomness.
 
     Returns
     -------
     u : ndarray, shape (n_samples,)
+
+    Examples
+    --------
+    >>> from rlsfilt.datasets import steps
+    >>> steps(6, hold=2, levels=[0, 1])
+    array([0., 0., 1., 1., 0., 0.])
     """
     n_samples = check_int(n_samples, "n_samples", minimum=1)
     hold = check_int(hold, "hold", minimum=1)
     n_levels = math.ceil(n_samples / hold)
+    gen = as_generator(rng)
     if levels is None:
-        amplitude = check_scalar(amplitude, "amplitude")
-        lv = np.random.default_rng(rng).uniform(-amplitude, amplitude, n_levels)
+        amplitude = check_real(amplitude, "amplitude", minimum=0)
+        lv = gen.uniform(-amplitude, amplitude, n_levels)
     else:
-        lv = np.asarray(levels, dtype=float).ravel()
+        lv = check_finite(as_float_array(levels, "levels").ravel(), "levels")
         if lv.size == 0:
             raise ValueError("`levels` must hold at least one value; got an empty sequence")
         lv = np.resize(lv, n_levels)

@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import signal
 
-from .._validation import as_float_array, check_finite, check_int, check_scalar
+from .._validation import as_float_array, as_generator, check_finite, check_int, check_real
 from .inputs import multisine, prbs, steps, white_noise
 
 __all__ = [
@@ -123,14 +123,30 @@ class Dataset:
         return self.noise_std ** 2
 
     def true_model(self):
-        """The true plant as a fitted-like `rlsfilt.ARX` (``ARX.from_polynomials``)."""
+        """The true plant as a fitted-like `rlsfilt.ARX` (``ARX.from_polynomials``).
+
+        Returns
+        -------
+        ARX
+            With the true coefficients, ``dt`` and ``noise_variance_ =
+            noise_std ** 2``, the variance of ``e``. That is the variance of
+            the ARX equation error only for ``noise="white"``; for the colored
+            and output-error noise models ``e`` is filtered before it enters
+            the equation (see the module notes).
+        """
         from ..models import ARX
 
         return ARX.from_polynomials(self.a, self.b, nk=self.nk, dt=self.dt,
                                     noise_variance=self.noise_variance)
 
     def to_frame(self):
-        """The record as a pandas DataFrame indexed by time (needs pandas)."""
+        """The record as a pandas DataFrame indexed by time (needs pandas).
+
+        Returns
+        -------
+        pandas.DataFrame
+            Columns ``u`` and ``y``, index ``t`` in seconds.
+        """
         import pandas as pd
 
         return pd.DataFrame({"u": self.u, "y": self.y}, index=pd.Index(self.t, name="t"))
@@ -163,10 +179,7 @@ def _make_input(spec, n_samples, rng, defaults):
 def _check_noise(noise, noise_std):
     if noise not in _NOISE_KINDS:
         raise ValueError(f"`noise` must be one of {list(_NOISE_KINDS)}; got {noise!r}")
-    noise_std = check_scalar(noise_std, "noise_std")
-    if not (np.isfinite(noise_std) and noise_std >= 0):
-        raise ValueError(f"`noise_std` must be a finite value >= 0; got {noise_std}")
-    return noise_std
+    return check_real(noise_std, "noise_std", minimum=0)
 
 
 def _add_noise(y_clean, A, noise, noise_std, gen):
@@ -200,13 +213,6 @@ def _zoh(num, den, dt):
     return control.sample_system(control.tf(num, den), dt, method="zoh")
 
 
-def _positive(value, name):
-    value = check_scalar(value, name)
-    if not (np.isfinite(value) and value > 0):
-        raise ValueError(f"`{name}` must be a positive finite number; got {value}")
-    return value
-
-
 # ----------------------------------------------------------------------
 # the plants
 # ----------------------------------------------------------------------
@@ -223,6 +229,7 @@ def thermal_process(n_samples=1000, *, gain=2.0, time_constant=20.0, delay=3, dt
     Parameters
     ----------
     n_samples : int, default 1000
+        Record length ``N``.
     gain : float, default 2.0
         Static gain ``K`` (kelvin per unit of heater power).
     time_constant : float, default 20.0
@@ -235,20 +242,40 @@ def thermal_process(n_samples=1000, *, gain=2.0, time_constant=20.0, delay=3, dt
         Excitation (PRBS held 5 samples per bit by default), or the input
         record itself.
     noise : {"white", "colored", "output"}, default "white"
+        Noise model (see the module notes): white equation error (the ARX assumption),
+        colored equation error, or white output noise.
     noise_std : float, default 0.05
+        Standard deviation of the white noise ``e``.
     rng : int, Generator or None, default 0
+        Seed or generator for the input and the noise; the default ``0`` gives the same
+        record on every call, ``None`` fresh randomness.
 
     Returns
     -------
     Dataset
+        The record, the true plant and its ARX orders and coefficients.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from rlsfilt import ARX
+    >>> from rlsfilt.datasets import thermal_process
+    >>> ds = thermal_process()
+    >>> ds.orders                                     # 3 samples of dead time + the hold
+    (1, 1, 4)
+    >>> model = ARX(*ds.orders, dt=ds.dt).fit(ds.u, ds.y)
+    >>> np.round(ds.theta, 4), np.round(model.theta_, 4)
+    (array([-0.9512,  0.0975]), array([-0.9485,  0.0991]))
     """
     n_samples = check_int(n_samples, "n_samples", minimum=1)
-    gain = check_scalar(gain, "gain")
-    tau = _positive(time_constant, "time_constant")
+    gain = check_real(gain, "gain")
+    if gain == 0.0:
+        raise ValueError("`gain` must be a finite nonzero number; got 0.0")
+    tau = check_real(time_constant, "time_constant", minimum=0, strict=True)
     delay = check_int(delay, "delay", minimum=0)
-    dt = _positive(dt, "dt")
+    dt = check_real(dt, "dt", minimum=0, strict=True)
     noise_std = _check_noise(noise, noise_std)
-    gen = np.random.default_rng(rng)
+    gen = as_generator(rng)
     import control
 
     plant = _zoh([gain], [tau, 1.0], dt)
@@ -274,6 +301,7 @@ def dc_motor(n_samples=2000, *, inertia=0.01, friction=0.1, motor_constant=0.01,
     Parameters
     ----------
     n_samples : int, default 2000
+        Record length ``N``.
     inertia, friction, motor_constant, resistance, inductance : float
         ``J`` (kg m^2), ``b`` (N m s), ``K`` (V s or N m/A), ``R`` (ohm),
         ``L`` (H).
@@ -284,24 +312,37 @@ def dc_motor(n_samples=2000, *, inertia=0.01, friction=0.1, motor_constant=0.01,
     input : str or array_like, default "prbs"
         PRBS held 2 samples per bit by default.
     noise : {"white", "colored", "output"}, default "white"
+        Noise model (see the module notes): white equation error (the ARX assumption),
+        colored equation error, or white output noise.
     noise_std : float, default 0.002
         In rad/s.
     rng : int, Generator or None, default 0
+        Seed or generator for the input and the noise; the default ``0`` gives the same
+        record on every call, ``None`` fresh randomness.
 
     Returns
     -------
     Dataset
+        The record, the true plant and its ARX orders and coefficients.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from rlsfilt.datasets import dc_motor
+    >>> ds = dc_motor()
+    >>> ds.orders, np.round(np.sort(np.abs(ds.plant.poles())), 4)
+    ((2, 2, 1), array([0.6066, 0.9047]))
     """
     n_samples = check_int(n_samples, "n_samples", minimum=1)
-    J = _positive(inertia, "inertia")
-    b = _positive(friction, "friction")
-    K = _positive(motor_constant, "motor_constant")
-    R = _positive(resistance, "resistance")
-    L = _positive(inductance, "inductance")
-    dt = _positive(dt, "dt")
-    amplitude = check_scalar(amplitude, "amplitude")
+    J = check_real(inertia, "inertia", minimum=0, strict=True)
+    b = check_real(friction, "friction", minimum=0, strict=True)
+    K = check_real(motor_constant, "motor_constant", minimum=0, strict=True)
+    R = check_real(resistance, "resistance", minimum=0, strict=True)
+    L = check_real(inductance, "inductance", minimum=0, strict=True)
+    dt = check_real(dt, "dt", minimum=0, strict=True)
+    amplitude = check_real(amplitude, "amplitude", minimum=0, strict=True)
     noise_std = _check_noise(noise, noise_std)
-    gen = np.random.default_rng(rng)
+    gen = as_generator(rng)
     plant = _zoh([K], [J * L, J * R + b * L, b * R + K * K], dt)
     u = _make_input(input, n_samples, gen, {
         "prbs": {"hold": 2, "amplitude": amplitude}, "white": {"std": amplitude},
@@ -325,29 +366,42 @@ def mass_spring_damper(n_samples=2000, *, mass=1.0, stiffness=4.0, damping=0.1, 
     Parameters
     ----------
     n_samples : int, default 2000
+        Record length ``N``.
     mass, stiffness, damping : float
         ``m`` (kg), ``k`` (N/m), ``c`` (N s/m).
     dt : float, default 0.1
+        Sampling period in seconds.
     input : str or array_like, default "multisine"
         A Schroeder-phased multisine (50 components, full band) by default.
     noise : {"white", "colored", "output"}, default "white"
+        Noise model (see the module notes): white equation error (the ARX assumption),
+        colored equation error, or white output noise.
     noise_std : float, default 0.002
         In metres.
     rng : int, Generator or None, default 0
+        Seed or generator for the input and the noise; the default ``0`` gives the same
+        record on every call, ``None`` fresh randomness.
 
     Returns
     -------
     Dataset
+        The record, the true plant and its ARX orders and coefficients.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from rlsfilt.datasets import mass_spring_damper
+    >>> ds = mass_spring_damper()
+    >>> np.round(np.abs(ds.plant.poles()), 4)        # close to the unit circle
+    array([0.995, 0.995])
     """
     n_samples = check_int(n_samples, "n_samples", minimum=1)
-    m = _positive(mass, "mass")
-    k = _positive(stiffness, "stiffness")
-    c = check_scalar(damping, "damping")
-    if not (np.isfinite(c) and c >= 0):
-        raise ValueError(f"`damping` must be a finite value >= 0; got {c}")
-    dt = _positive(dt, "dt")
+    m = check_real(mass, "mass", minimum=0, strict=True)
+    k = check_real(stiffness, "stiffness", minimum=0, strict=True)
+    c = check_real(damping, "damping", minimum=0)
+    dt = check_real(dt, "dt", minimum=0, strict=True)
     noise_std = _check_noise(noise, noise_std)
-    gen = np.random.default_rng(rng)
+    gen = as_generator(rng)
     plant = _zoh([1.0], [m, c, k], dt)
     u = _make_input(input, n_samples, gen, {"steps": {"hold": 50}})
     zeta = c / (2 * np.sqrt(k * m))
@@ -369,23 +423,41 @@ def nonminimum_phase(n_samples=1000, *, zero=0.5, dt=0.2, input="white", noise="
     Parameters
     ----------
     n_samples : int, default 1000
+        Record length ``N``.
     zero : float, default 0.5
         Right-half-plane zero ``z0`` in rad/s (> 0).
     dt : float, default 0.2
+        Sampling period in seconds.
     input : str or array_like, default "white"
+        Excitation: a signal name (``"prbs"``, ``"white"``, ``"multisine"``, ``"steps"``) or
+        the input record itself.
     noise : {"white", "colored", "output"}, default "white"
+        Noise model (see the module notes): white equation error (the ARX assumption),
+        colored equation error, or white output noise.
     noise_std : float, default 0.02
+        Standard deviation of the white noise ``e``.
     rng : int, Generator or None, default 0
+        Seed or generator for the input and the noise; the default ``0`` gives the same
+        record on every call, ``None`` fresh randomness.
 
     Returns
     -------
     Dataset
+        The record, the true plant and its ARX orders and coefficients.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from rlsfilt.datasets import nonminimum_phase
+    >>> ds = nonminimum_phase()
+    >>> np.round(np.abs(ds.plant.zeros()), 4)        # outside the unit circle
+    array([1.1066])
     """
     n_samples = check_int(n_samples, "n_samples", minimum=1)
-    z0 = _positive(zero, "zero")
-    dt = _positive(dt, "dt")
+    z0 = check_real(zero, "zero", minimum=0, strict=True)
+    dt = check_real(dt, "dt", minimum=0, strict=True)
     noise_std = _check_noise(noise, noise_std)
-    gen = np.random.default_rng(rng)
+    gen = as_generator(rng)
     plant = _zoh([-1.0 / z0, 1.0], [0.5, 1.5, 1.0], dt)
     u = _make_input(input, n_samples, gen, {"prbs": {"hold": 2}, "steps": {"hold": 50}})
     desc = (f"non-minimum-phase process (1 - s/{z0:g})/((s + 1)(0.5 s + 1)), ZOH at "
@@ -403,6 +475,7 @@ def time_varying(n_samples=2000, *, kind="jump", change_time=None, a_before=(-1.
     Parameters
     ----------
     n_samples : int, default 2000
+        Record length ``N``.
     kind : {"jump", "drift"}, default "jump"
         ``"jump"``: the parameters switch from the "before" to the "after"
         values at `change_time`. ``"drift"``: they move linearly from one to
@@ -416,24 +489,37 @@ def time_varying(n_samples=2000, *, kind="jump", change_time=None, a_before=(-1.
         moves the poles from 0.75 +- 0.37j to 0.6 +- 0.37j and changes the
         static gain from 7.5 to 5).
     dt : float, default 1.0
+        Sampling period in seconds.
     input : str or array_like, default "prbs"
+        Excitation: a signal name (``"prbs"``, ``"white"``, ``"multisine"``, ``"steps"``) or
+        the input record itself.
     noise_std : float, default 0.05
         Standard deviation of the white equation error.
     rng : int, Generator or None, default 0
+        Seed or generator for the input and the noise; the default ``0`` gives the same
+        record on every call, ``None`` fresh randomness.
 
     Returns
     -------
     Dataset
+        The record, the true plant and its ARX orders and coefficients.
         With ``theta_true`` (N, 4), the true ``[a1, a2, b1, b2]`` at each
         sample, ``change_time`` (``kind="jump"``) and ``plant_after``;
         ``a``, ``b`` and ``plant`` are the initial values.
+
+    Examples
+    --------
+    >>> from rlsfilt.datasets import time_varying
+    >>> ds = time_varying()
+    >>> ds.change_time, ds.theta_true[0].tolist(), ds.theta_true[-1].tolist()
+    (1000, [-1.5, 0.7, 1.0, 0.5], [-1.2, 0.5, 0.6, 0.9])
     """
     import control
 
     n_samples = check_int(n_samples, "n_samples", minimum=2)
     if kind not in ("jump", "drift"):
         raise ValueError(f"`kind` must be 'jump' or 'drift'; got {kind!r}")
-    dt = _positive(dt, "dt")
+    dt = check_real(dt, "dt", minimum=0, strict=True)
     noise_std = _check_noise("white", noise_std)
     vecs = {}
     for name, val in (("a_before", a_before), ("b_before", b_before), ("a_after", a_after),
@@ -461,7 +547,7 @@ def time_varying(n_samples=2000, *, kind="jump", change_time=None, a_before=(-1.
             raise ValueError("`change_time` only applies to kind='jump'; got kind='drift'")
         w = np.linspace(0.0, 1.0, n_samples)[:, None]
         theta_true = (1 - w) * th0 + w * th1
-    gen = np.random.default_rng(rng)
+    gen = as_generator(rng)
     u = _make_input(input, n_samples, gen, {"steps": {"hold": 50}})
     e = noise_std * gen.standard_normal(n_samples)
     y = np.zeros(n_samples)

@@ -14,15 +14,24 @@ import numpy as np
 from scipy import signal
 from scipy.linalg import lapack, solve_triangular
 
-from .._validation import check_int
+from .._validation import as_float_array, check_dt, check_finite, check_int, check_scalar
 from ..exceptions import NotFittedError
 from ..filters import RecursiveLeastSquares
-from .regressors import _as_signal, _build, arx_structure, as_io_data
+from .regressors import (
+    _as_signal,
+    _build,
+    _column_rank,
+    _full_rank_rows,
+    arx_structure,
+    as_io_data,
+)
 
 __all__ = ["ARX", "ARXSummary"]
 
-_RLS_OPTIONS = ("k0", "lam", "P0", "R", "Q", "x0")
-
+# learned attributes that only some fits set, and which ones
+_ONLY_SET_BY = {name: "fit(..., method='rls')" for name in
+                ("theta_history_", "recursive_residuals_", "k0_", "filter_")}
+_ONLY_SET_BY["noise_covariance_"] = "a fit on 2-D `y` (several outputs)"
 
 class ARX:
     r"""ARX model ``A(q) y(t) = B(q) u(t - nk) + e(t)`` fitted by batch or recursive least squares.
@@ -63,7 +72,7 @@ class ARX:
         2-D `y` only: unbiased covariance of the residuals of the outputs
         (its diagonal is ``noise_variance_``); the covariance of
         ``vec(theta_)`` is ``kron(noise_covariance_, (Phi^T Phi)^-1)``.
-    residuals_ : ndarray, shape (n_samples_,) or (n_samples_, ny)
+    residuals_ : ndarray, shape ``(n_samples_,)`` or ``(n_samples_, ny)``
         ``target - Phi @ theta_`` on the fitted rows.
     n_samples_ : int
         Number of equations (rows of ``Phi``) used: ``N - max_lag``.
@@ -73,10 +82,10 @@ class ARX:
         Number of input and output signals.
     method_ : str
         ``"ls"`` or ``"rls"``.
-    theta_history_ : ndarray, shape (n_samples_, n_params[, ny])
+    theta_history_ : ndarray, shape ``(n_samples_, n_params[, ny])``
         ``method="rls"`` only: the estimate after each row; rows before the
         batch start (``k0 - 1``) are NaN.
-    recursive_residuals_ : ndarray, shape (n_samples_,) or (n_samples_, ny)
+    recursive_residuals_ : ndarray, shape ``(n_samples_,)`` or ``(n_samples_, ny)``
         ``method="rls"`` only: the a-priori residuals
         :math:`y(t) - \varphi(t)\hat\theta(t-1)`, the errors the filter
         actually made (NaN for the rows of the batch start). Under forgetting
@@ -168,11 +177,39 @@ class ARX:
     # scikit-learn estimator protocol
     # ------------------------------------------------------------------
     def get_params(self, deep=True):
-        """Constructor parameters as a dict (scikit-learn protocol)."""
+        """Constructor parameters as a dict (scikit-learn protocol).
+
+        Parameters
+        ----------
+        deep : bool, default True
+            Accepted for scikit-learn compatibility; ARX has no nested
+            estimators.
+
+        Returns
+        -------
+        dict
+            ``{"na": .., "nb": .., "nk": .., "dt": ..}``.
+        """
         return {"na": self.na, "nb": self.nb, "nk": self.nk, "dt": self.dt}
 
     def set_params(self, **params):
-        """Set constructor parameters; returns ``self`` (scikit-learn protocol)."""
+        """Set constructor parameters (scikit-learn protocol).
+
+        Parameters
+        ----------
+        **params
+            New values of ``na``, ``nb``, ``nk`` or ``dt``; call :meth:`fit`
+            again afterwards.
+
+        Returns
+        -------
+        self : ARX
+
+        Raises
+        ------
+        TypeError
+            For a name that is not a constructor parameter.
+        """
         valid = self.get_params()
         for key, value in params.items():
             if key not in valid:
@@ -185,7 +222,7 @@ class ARX:
     # structure
     # ------------------------------------------------------------------
     def _structure(self, n_inputs, n_outputs):
-        _check_dt(self.dt)
+        check_dt(self.dt)
         return arx_structure(self.na, self.nb, self.nk, n_inputs, n_outputs)
 
     def regressors(self, u, y):
@@ -324,7 +361,9 @@ class ARX:
         if opts["k0"] is not None:
             k0 = check_int(opts["k0"], "k0", minimum=0)
         else:  # a given prior means a prior start (MATLAB rarx); else the notes' batch start
-            k0 = 0 if prior else _full_rank_start(Phi)
+            k0 = 0 if prior else _full_rank_rows(Phi)
+            if k0 is None:  # not even all rows determine theta
+                _qr_least_squares(Phi, target)  # raises with the rank in the message
         if k0 > rows:
             raise ValueError(f"`k0` must be <= the number of regressor rows ({rows}); got {k0}")
         if k0 > 0:
@@ -367,6 +406,17 @@ class ARX:
     # ------------------------------------------------------------------
     # fitted-model helpers
     # ------------------------------------------------------------------
+    def __getattr__(self, name):
+        # only reached when normal lookup fails (also when a property raised
+        # AttributeError): say *why* a learned attribute is missing
+        learned = name.endswith("_") or isinstance(getattr(type(self), name, None), property)
+        if learned and not name.startswith("_"):
+            if "theta_" not in self.__dict__:
+                self._check_fitted(name)
+            if name in _ONLY_SET_BY:
+                raise AttributeError(f"`{name}` is only set by {_ONLY_SET_BY[name]}")
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+
     def _check_fitted(self, what):
         if "theta_" not in self.__dict__:
             raise NotFittedError(
@@ -474,6 +524,21 @@ class ARX:
         Returns
         -------
         yhat : ndarray, shape (N,) or (N, ny)
+
+        Examples
+        --------
+        Two-step-ahead prediction of ``y(t) = 0.9 y(t-1) + u(t-1)``: from
+        ``y(t-2)`` the model first predicts ``y(t-1)``, then ``y(t)``.
+
+        >>> import numpy as np
+        >>> from rlsfilt import ARX
+        >>> model = ARX.from_polynomials([-0.9], [1.0])
+        >>> u = np.array([1.0, 0.0, 0.0, 0.0])
+        >>> y = np.array([0.0, 1.0, 1.0, 0.5])   # measured, with disturbances
+        >>> model.predict(u, y, horizon=1)
+        array([0. , 1. , 0.9, 0.9])
+        >>> model.predict(u, y, horizon=2)       # yhat(3) = 0.9 * 0.9 * y(1)
+        array([0.  , 1.  , 0.9 , 0.81])
         """
         self._check_fitted("predict")
         U, Y = self._data(u, y)
@@ -514,6 +579,16 @@ class ARX:
         Returns
         -------
         y_sim : ndarray, shape (N,) or (N, ny)
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from rlsfilt import ARX
+        >>> model = ARX.from_polynomials([-0.5], [1.0])   # y(t) = 0.5 y(t-1) + u(t-1)
+        >>> model.simulate(np.ones(4))
+        array([0.  , 1.  , 1.5 , 1.75])
+        >>> model.simulate(np.ones(4), y0=[4.0])          # continue from y(0) = 4
+        array([4.  , 3.  , 2.5 , 2.25])
         """
         self._check_fitted("simulate")
         U, _ = self._data(u)
@@ -554,9 +629,21 @@ class ARX:
     def polynomials(self):
         """``(A, B)`` in MATLAB's form, coefficients of ascending powers of ``q^-1``.
 
-        Single output and input: ``A = [1, a1, .., a_na]`` and
-        ``B = [0]*nk + [b1, .., b_nb]``. In general ``A`` has shape
-        ``(ny, ny, na + 1)`` and ``B`` shape ``(ny, nu, max(nk + nb))``.
+        Returns
+        -------
+        A : ndarray
+            Single output and input: ``[1, a1, .., a_na]``; otherwise shape
+            ``(ny, ny, na + 1)`` with ``A[:, :, 0]`` the identity.
+        B : ndarray
+            Single output and input: ``[0]*nk + [b1, .., b_nb]``; otherwise
+            shape ``(ny, nu, max(nk + nb))``.
+
+        Examples
+        --------
+        >>> from rlsfilt import ARX
+        >>> A, B = ARX.from_polynomials([-1.5, 0.7], [1.0, 0.5], nk=2).polynomials()
+        >>> A, B
+        (array([ 1. , -1.5,  0.7]), array([0. , 0. , 1. , 0.5]))
         """
         self._check_fitted("polynomials")
         Apoly, Bpoly = self._poly_matrices()
@@ -616,6 +703,24 @@ class ARX:
         noise : bool, default False
             Return the noise model ``H(z) = 1 / A(z^{-1})`` (matrix
             ``A^{-1}`` for several outputs) instead.
+
+        Returns
+        -------
+        control.TransferFunction
+            SISO, or ``ny`` x ``nu`` (``ny`` x ``ny`` for the noise model).
+
+        Examples
+        --------
+        The lecture notes' ``y[k] = 0.5 y[k-1] + 2 u[k] + u[k-1]`` keeps its
+        feed-through ``b0 = 2``; a delay of 3 samples gives ``z^3`` below:
+
+        >>> from rlsfilt import ARX
+        >>> G = ARX.from_polynomials([-0.5], [2.0, 1.0], nk=0, dt=0.1).to_tf()
+        >>> G.num[0][0], G.den[0][0]
+        (array([2., 1.]), array([ 1. , -0.5]))
+        >>> G = ARX.from_polynomials([-0.5], [2.0], nk=3, dt=0.1).to_tf()
+        >>> G.num[0][0], G.den[0][0]
+        (array([2.]), array([ 1. , -0.5,  0. ,  0. ]))
         """
         self._check_fitted("to_tf")
         import control
@@ -661,8 +766,17 @@ class ARX:
 
         States are ``x_1 = y(t) - D u(t)`` and the partial sums of the
         difference equation; the realization has ``ny * max(na, nk + nb - 1)``
-        states and ``D = b1`` when ``nk = 0``. ``noise=True`` realizes the
-        noise model ``A(q)^{-1}``.
+        states and ``D = b1`` when ``nk = 0``.
+
+        Parameters
+        ----------
+        noise : bool, default False
+            Realize the noise model ``A(q)^{-1}`` instead of the input model.
+
+        Returns
+        -------
+        control.StateSpace
+            With sampling time ``dt``.
         """
         self._check_fitted("to_ss")
         import control
@@ -672,9 +786,17 @@ class ARX:
     def to_dlti(self, noise=False):
         """The model as a ``scipy.signal.dlti``.
 
-        A ``TransferFunction`` (padded positive powers of ``z``) for one input
-        and one output, a ``StateSpace`` (the realization of :meth:`to_ss`)
-        otherwise.
+        Parameters
+        ----------
+        noise : bool, default False
+            Return the noise model ``A(q)^{-1}`` instead.
+
+        Returns
+        -------
+        scipy.signal.dlti
+            A ``TransferFunction`` (positive powers of ``z``) for one input
+            and one output, a ``StateSpace`` (the realization of
+            :meth:`to_ss`) otherwise.
         """
         self._check_fitted("to_dlti")
         if self.n_outputs_ == 1 and (self.n_inputs_ == 1 or noise):
@@ -712,16 +834,30 @@ class ARX:
         ARX
             A model usable as if fitted (``theta_cov_`` is zero and
             ``n_samples_`` is 0).
+
+        Examples
+        --------
+        >>> from rlsfilt import ARX
+        >>> true = ARX.from_polynomials([-1.5, 0.7], [1.0, 0.5], nk=1, dt=0.1)
+        >>> [round(float(abs(p)), 4) for p in true.to_tf().poles()]
+        [0.8367, 0.8367]
         """
-        a = np.atleast_1d(np.asarray(a, dtype=float))
+        a = np.atleast_1d(as_float_array(a, "a"))
         if a.ndim != 1:
             raise ValueError(f"`a` must be 1-D [a1, ..., a_na]; got shape {a.shape}")
+        check_finite(a, "a")
         multi = isinstance(b, (list, tuple)) and len(b) > 0 and np.ndim(b[0]) >= 1
-        bs = [np.atleast_1d(np.asarray(bj, dtype=float)) for bj in (b if multi else [b])]
-        for j, bj in enumerate(bs):
+        bs = []
+        for j, bj in enumerate(b if multi else [b]):
+            name = f"b[{j}]" if multi else "b"
+            bj = np.atleast_1d(as_float_array(bj, name))
             if bj.ndim != 1 or bj.size == 0:
                 raise ValueError(f"`b` must hold 1-D coefficient arrays with nb >= 1; got shape "
                                  f"{bj.shape}" + (f" for input {j}" if multi else ""))
+            bs.append(check_finite(bj, name))
+        noise_variance = check_scalar(noise_variance, "noise_variance")
+        if not (np.isfinite(noise_variance) and noise_variance >= 0.0):
+            raise ValueError(f"`noise_variance` must be a finite value >= 0; got {noise_variance}")
         nb = [len(bj) for bj in bs]
         model = cls(na=len(a), nb=nb if multi else nb[0], nk=nk, dt=dt)
         s = model._structure(len(bs), 1)
@@ -742,9 +878,40 @@ class ARX:
         (leading zeros of ``B`` in powers of ``z^-1`` are the delay). A
         SISO ``G = (b1 z^{n-nk} + ..) / (z^n + a1 z^{n-1} + ..)`` gives
         exactly ``a_ = [a1, ..]``, ``b_ = [b1, ..]`` and that ``nk``.
+
+        Parameters
+        ----------
+        G : control.TransferFunction or control.StateSpace
+            A proper discrete-time system (``dt`` True or a number).
+
+        Returns
+        -------
+        ARX
+            A model usable as if fitted, with ``dt = G.dt``.
+
+        Raises
+        ------
+        TypeError
+            If `G` is not a python-control LTI system.
+        ValueError
+            If `G` is continuous-time, improper, or has a zero input column.
+
+        Examples
+        --------
+        A continuous plant sampled with a zero-order hold is ``ARX(2, 2, 1)``:
+
+        >>> import control
+        >>> from rlsfilt import ARX
+        >>> Gd = control.sample_system(control.tf([1.0], [1.0, 3.0, 2.0]), 0.1)
+        >>> model = ARX.from_tf(Gd)
+        >>> model.na, model.nb, model.nk
+        (2, 2, 1)
         """
         import control
 
+        if not isinstance(G, control.LTI):
+            raise TypeError(f"`G` must be a discrete python-control LTI system (control.tf, "
+                            f"control.ss); got {type(G).__name__}")
         if not isinstance(G, control.TransferFunction):
             G = control.tf(G)
         if not G.isdtime(strict=True):
@@ -822,37 +989,40 @@ class ARX:
         return f"ARX(na={self.na!r}, nb={self.nb!r}, nk={self.nk!r}, dt={self.dt!r})"
 
     def summary(self):
-        """A printable and notebook-friendly summary: equations with +- one standard error."""
+        """A printable and notebook-friendly summary: equations with +- one standard error.
+
+        Returns
+        -------
+        ARXSummary
+            ``print`` it for text (with a parameter table), or display it in
+            a notebook for HTML.
+        """
         self._check_fitted("summary")
         return ARXSummary(self)
 
-    def _equation_lines(self, html_mode=False):
+    def _equation_lines(self, style="text"):
+        """The difference equation of each output with +- one standard error.
+
+        `style` is ``"text"``, ``"html"`` (names escaped, ``&plusmn;``) or
+        ``"latex"`` (an ``aligned`` row per output).
+        """
         s = self.structure_
         se = self.std_errors_.reshape(self.n_params_, -1)
         th = self._theta2()
-        pm = "&plusmn;" if html_mode else "+/-"
+        _, b_sls = s.param_slices()
+        fmt = _EQUATION_STYLES[style]
         lines = []
-        a_sl, b_sls = s.param_slices()
         for i in range(s.n_outputs):
-            lhs = [f"{self._y_name(i)}(t)"]
-            for j in range(s.n_outputs):
-                for k in range(1, s.na + 1):
-                    p = j * s.na + k - 1
-                    lhs.append(_term(th[p, i], se[p, i], f"{self._y_name(j)}(t-{k})", pm))
-            rhs = []
-            for j in range(s.n_inputs):
-                for m in range(s.nb[j]):
-                    p = b_sls[j].start + m
-                    lag = s.nk[j] + m
-                    arg = f"{self._u_name(j)}(t)" if lag == 0 else f"{self._u_name(j)}(t-{lag})"
-                    rhs.append(_term(th[p, i], se[p, i], arg, pm))
-            left = " ".join(lhs)
-            if rhs:  # the first term carries its sign without a separating space
-                first = rhs[0][2:] if rhs[0].startswith("+ ") else "-" + rhs[0][2:]
-                right = " ".join([first] + rhs[1:]) + " + e(t)"
-            else:
-                right = "e(t)"
-            lines.append(f"{left} = {right}")
+            lhs = [fmt["signal"](self._y_name(i), 0)]
+            lhs += [fmt["term"](th[p, i], se[p, i], fmt["signal"](self._y_name(j), k))
+                    for j in range(s.n_outputs) for k in range(1, s.na + 1)
+                    for p in [j * s.na + k - 1]]
+            rhs = [fmt["term"](th[p, i], se[p, i], fmt["signal"](self._u_name(j), s.nk[j] + m))
+                   for j in range(s.n_inputs) for m in range(s.nb[j])
+                   for p in [b_sls[j].start + m]]
+            # nb >= 1, so rhs is never empty; its first term carries its sign unspaced
+            first = rhs[0][2:] if rhs[0].startswith("+ ") else "-" + rhs[0][2:]
+            lines.append(" ".join(lhs) + fmt["equals"] + " ".join([first] + rhs[1:]) + " + e(t)")
         return lines
 
     def _summary_text(self):
@@ -881,35 +1051,8 @@ class ARX:
         """The difference equation(s) with one standard error, for notebooks."""
         if "theta_" not in self.__dict__:
             return None
-        return "$$\\begin{aligned}" + " \\\\ ".join(self._latex_lines()) + "\\end{aligned}$$"
-
-    def _latex_lines(self):
-        s = self.structure_
-        se = self.std_errors_.reshape(self.n_params_, -1)
-        th = self._theta2()
-        _, b_sls = s.param_slices()
-
-        def sig(name, lag):
-            base = _latex_name(name)
-            return f"{base}(t)" if lag == 0 else f"{base}(t-{lag})"
-
-        def term(value, err, arg):
-            sign = "-" if value < 0 else "+"
-            return f"{sign} {abs(value):.5g}\\,(\\pm {err:.2g})\\, {arg}"
-
-        lines = []
-        for i in range(s.n_outputs):
-            lhs = [sig(self._y_name(i), 0)]
-            for j in range(s.n_outputs):
-                for k in range(1, s.na + 1):
-                    p = j * s.na + k - 1
-                    lhs.append(term(th[p, i], se[p, i], sig(self._y_name(j), k)))
-            rhs = [term(th[b_sls[j].start + m, i], se[b_sls[j].start + m, i],
-                        sig(self._u_name(j), s.nk[j] + m))
-                   for j in range(s.n_inputs) for m in range(s.nb[j])]
-            first = rhs[0][2:] if rhs[0].startswith("+ ") else "-" + rhs[0][2:]
-            lines.append(" ".join(lhs) + " &= " + " ".join([first] + rhs[1:]) + " + e(t)")
-        return lines
+        lines = self._equation_lines("latex")
+        return "$$\\begin{aligned}" + " \\\\ ".join(lines) + "\\end{aligned}$$"
 
     def _repr_html_(self):
         if "theta_" not in self.__dict__:
@@ -960,7 +1103,7 @@ class ARXSummary:
         parts = [f"<p><b>{esc(m._orders_text())}</b>, {m.n_samples_} equations, noise "
                  "variance " + ", ".join(f"{v:.4g}" for v in np.atleast_1d(m.noise_variance_))
                  + "</p>"]
-        parts += [f"<p><code>{line}</code></p>" for line in m._equation_lines(html_mode=True)]
+        parts += [f"<p><code>{line}</code></p>" for line in m._equation_lines("html")]
         head = "".join(f"<th>{esc(m._y_name(i))} estimate</th><th>std err</th>"
                        for i in range(m.n_outputs_))
         rows = []
@@ -989,16 +1132,6 @@ def _check_filter_options(options):
                             f"the filter's other options are {valid}")
 
 
-def _check_dt(dt):
-    if dt is True:
-        return dt
-    ok = isinstance(dt, numbers.Real) and not isinstance(dt, bool) and np.isfinite(dt) and dt > 0
-    if not ok:
-        raise ValueError(f"`dt` must be True (unspecified sampling period) or a positive "
-                         f"sampling period; got {dt!r}")
-    return dt
-
-
 def _latex_name(name):
     """``y1`` -> ``y_{1}``; other names in \\mathrm."""
     if len(name) > 1 and name[0] in "uy" and name[1:].isdigit():
@@ -1015,15 +1148,28 @@ def _fmt(t):
     return t[0] if len(set(t)) == 1 and len(t) == 1 else list(t)
 
 
-def _term(value, se, arg, pm):
-    sign = "-" if value < 0 else "+"
-    return f"{sign} {abs(value):.5g} ({pm}{se:.2g}) {arg}"
+def _signal(name, lag):
+    return f"{name}(t)" if lag == 0 else f"{name}(t-{lag})"
+
+
+def _sign(value):
+    return "-" if value < 0 else "+"
+
+
+_EQUATION_STYLES = {
+    "text": {"signal": _signal, "equals": " = ",
+             "term": lambda v, e, arg: f"{_sign(v)} {abs(v):.5g} (+/-{e:.2g}) {arg}"},
+    "html": {"signal": lambda name, lag: _signal(html.escape(name), lag), "equals": " = ",
+             "term": lambda v, e, arg: f"{_sign(v)} {abs(v):.5g} (&plusmn;{e:.2g}) {arg}"},
+    "latex": {"signal": lambda name, lag: _signal(_latex_name(name), lag), "equals": " &= ",
+              "term": lambda v, e, arg: f"{_sign(v)} {abs(v):.5g}\\,(\\pm {e:.2g})\\, {arg}"},
+}
 
 
 def _qr_least_squares(Phi, target):
     """``theta`` (n, ny) and ``(Phi^T Phi)^-1`` from a QR factorization of ``Phi``."""
     n = Phi.shape[1]
-    rank = np.linalg.matrix_rank(Phi) if n else 0
+    rank = _column_rank(Phi)
     if rank < n:
         raise ValueError(
             f"the regressor matrix has rank {rank} < n_params = {n}: the input is not "
@@ -1038,36 +1184,6 @@ def _qr_least_squares(Phi, target):
     Rinv, info = lapack.dtrtri(Rf, lower=0)
     cov = Rinv @ Rinv.T
     return theta, 0.5 * (cov + cov.T)
-
-
-def _full_rank_start(Phi):
-    """Fewest leading rows (at least n_params) of `Phi` with full column rank.
-
-    The rank of a prefix grows with its length, so double until full rank,
-    then bisect. Raises the not-persistently-exciting error when even all
-    rows are rank-deficient.
-    """
-    rows, n = Phi.shape
-    if n == 0:
-        return 0
-
-    def full(k):
-        return np.linalg.matrix_rank(Phi[:k]) == n
-
-    if full(n):
-        return n
-    if not full(rows):
-        _qr_least_squares(Phi, np.zeros((rows, 1)))  # raises with the rank in the message
-    lo, hi = n, min(2 * n, rows)  # full(lo) is False
-    while not full(hi):
-        lo, hi = hi, min(2 * hi, rows)
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        if full(mid):
-            hi = mid
-        else:
-            lo = mid
-    return hi
 
 
 def _same_poly(p, q):

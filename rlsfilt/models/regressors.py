@@ -25,6 +25,7 @@ first, and every output is regressed on the same row.
 """
 
 import numbers
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -75,10 +76,15 @@ class ARXStructure:
 
 def _per_input(value, name, n_inputs, minimum):
     """A scalar order or one per input, as a tuple of validated ints."""
-    if isinstance(value, (numbers.Integral, np.integer)) and not isinstance(value, bool):
+    if isinstance(value, np.ndarray) and value.ndim == 0:
+        value = value.item()
+    if isinstance(value, numbers.Integral) and not isinstance(value, bool):
         return (check_int(value, name, minimum=minimum),) * n_inputs
     if isinstance(value, (str, bytes)) or not hasattr(value, "__len__"):
         check_int(value, name, minimum=minimum)  # raises the TypeError
+    if not isinstance(value, (Sequence, np.ndarray)):  # sets and dicts have no input order
+        raise TypeError(f"`{name}` must be an integer or a sequence of integers (one per "
+                        f"input, in input order); got {type(value).__name__}")
     values = list(value)
     if len(values) != n_inputs:
         raise ValueError(
@@ -126,6 +132,8 @@ def _as_signal(x, name):
     elif getattr(x, "name", None) is not None and hasattr(x, "index"):  # pandas Series
         names = [str(x.name)]
     if hasattr(x, "to_numpy"):
+        if np.iscomplexobj(x.to_numpy()):
+            raise TypeError(f"`{name}` must be real; got complex values")
         try:
             x = x.to_numpy(dtype=float)
         except (TypeError, ValueError) as exc:
@@ -144,17 +152,19 @@ def _as_signal(x, name):
     return arr.copy(), was_1d, names
 
 
-def as_io_data(u, y):
+def as_io_data(u, y, names=("u", "y")):
     """Validate an input/output record: ``U (N, nu)``, ``Y (N, ny)`` and metadata.
 
     Returns ``(U, Y, info)`` with ``info`` a dict holding ``u_1d``, ``y_1d``,
-    ``u_names`` and ``y_names`` (from pandas, or None).
+    ``u_names`` and ``y_names`` (from pandas, or None). `names` are the
+    argument names used in error messages.
     """
-    U, u_1d, u_names = _as_signal(u, "u")
-    Y, y_1d, y_names = _as_signal(y, "y")
+    uname, yname = names
+    U, u_1d, u_names = _as_signal(u, uname)
+    Y, y_1d, y_names = _as_signal(y, yname)
     if len(U) != len(Y):
-        raise ValueError(f"`u` and `y` must have the same length; got {len(U)} input samples "
-                         f"and {len(Y)} output samples")
+        raise ValueError(f"`{uname}` and `{yname}` must have the same length; got {len(U)} "
+                         f"input samples and {len(Y)} output samples")
     return U, Y, {"u_1d": u_1d, "y_1d": y_1d, "u_names": u_names, "y_names": y_names}
 
 
@@ -227,3 +237,57 @@ def arx_regressors(u, y, na, nb, nk=1, *, start=None):
     Phi = _build(U, Y, s, start)
     target = Y[start:, 0].copy() if info["y_1d"] else Y[start:].copy()
     return Phi, target
+
+
+def _full_rank_rows(Phi):
+    """Fewest leading rows of `Phi` (at least its column count) with full column rank.
+
+    This is where an exact least-squares start can be made (the lecture notes'
+    batch start of recursive least squares, and the start of the recursive
+    residuals of Brown, Durbin & Evans). The rank of a prefix grows with its
+    length, so the search doubles until full rank, then bisects: ``O(log N)``
+    rank computations.
+
+    Returns
+    -------
+    int or None
+        The number of rows, or None when even all rows are rank-deficient.
+    """
+    rows, n = Phi.shape
+    if n == 0:
+        return 0
+    Phi = _unit_columns(Phi)
+
+    def full(k):
+        return np.linalg.matrix_rank(Phi[:k]) == n
+
+    if rows < n or not full(rows):
+        return None
+    if full(n):
+        return n
+    lo, hi = n, min(2 * n, rows)  # full(lo) is False
+    while not full(hi):
+        lo, hi = hi, min(2 * hi, rows)
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if full(mid):
+            hi = mid
+        else:
+            lo = mid
+    return hi
+
+
+def _column_rank(Phi):
+    """Numerical rank of `Phi` after scaling its columns to unit norm.
+
+    The rank decision then does not depend on the units of the signals: a
+    regressor in nanoamperes beside one in megapascals is not mistaken for a
+    zero column (Householder QR, which solves the problem, is itself
+    insensitive to column scaling; Golub & Van Loan 2013, sec. 5.3.7).
+    """
+    return int(np.linalg.matrix_rank(_unit_columns(Phi))) if Phi.shape[1] else 0
+
+
+def _unit_columns(Phi):
+    norms = np.linalg.norm(Phi, axis=0)
+    return Phi / np.where(norms > 0, norms, 1.0)

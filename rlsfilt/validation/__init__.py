@@ -1,0 +1,47 @@
+"""Model validation: fit, residual tests, information criteria, order
+selection, CUSUM tests, uncertainty, and comparison against the true plant.
+
+Identification is only trusted after validation. This subpackage offers
+what MATLAB users know as ``compare``, ``resid``, ``aic``/``fpe`` and
+``arxstruc``/``selstruc``, the CUSUM tests of statsmodels' ``RecursiveLS``
+(usable on any regression, including an ARX model's regressors), and a
+comparison of the identified transfer function with the true plant through
+python-control. Results are objects with named fields, ``summary()`` and
+``plot()`` methods.
+"""
+
+from .criteria import InformationCriteria, criteria_from_loss, information_criteria
+from .cusum import CusumResult, cusum, cusum_squares, recursive_residuals
+from .metrics import fit_percent
+from .plant import PlantComparison
+from .report import ValidationReport, validate
+from .residuals import ResidualAnalysis, residual_analysis
+from .selection import OrderSelection, select_order
+from .uncertainty import (
+    FrequencyBand,
+    ParameterIntervals,
+    frequency_response_band,
+    parameter_intervals,
+)
+
+__all__ = [
+    "CusumResult",
+    "FrequencyBand",
+    "InformationCriteria",
+    "OrderSelection",
+    "ParameterIntervals",
+    "PlantComparison",
+    "ResidualAnalysis",
+    "ValidationReport",
+    "criteria_from_loss",
+    "cusum",
+    "cusum_squares",
+    "fit_percent",
+    "frequency_response_band",
+    "information_criteria",
+    "parameter_intervals",
+    "recursive_residuals",
+    "residual_analysis",
+    "select_order",
+    "validate",
+]

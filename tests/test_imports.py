@@ -1,0 +1,20 @@
+"""``import rlsfilt`` stays light: pandas, matplotlib and python-control are
+imported only when a function needs them (the issues ask for no pandas
+dependency at import time, and lazy matplotlib)."""
+
+import json
+import pathlib
+import subprocess
+import sys
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+
+
+def test_import_does_not_pull_optional_heavy_modules():
+    code = ("import json, sys, rlsfilt, rlsfilt.datasets, rlsfilt.validation, rlsfilt.models; "
+            "print(json.dumps({m: m in sys.modules for m in "
+            "('pandas', 'matplotlib', 'control', 'statsmodels')}))")
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True,
+                         check=True)
+    assert json.loads(out.stdout) == {"pandas": False, "matplotlib": False, "control": False,
+                                      "statsmodels": False}
