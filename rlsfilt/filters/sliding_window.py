@@ -10,6 +10,21 @@ from ._base import _FilterBase, _innovation, _tri_inv, _tri_solve
 
 __all__ = ["SlidingWindowRLS"]
 
+# Run update and batch_filter through the compiled kernels of `_kernels_window`
+# (numba). The tests switch this off to compare with the pure-NumPy reference
+# (the step in `update`, `_downdate` and `_window_lstsq` below).
+_COMPILED = True
+_kernels = None
+
+
+def _get_kernels():
+    """Import the numba kernels on first use, so ``import rlsfilt`` stays light."""
+    global _kernels
+    if _kernels is None:
+        from . import _kernels_window as k
+        _kernels = k
+    return _kernels
+
 
 class SlidingWindowRLS(_FilterBase):
     r"""Recursive least squares over the last `window` samples (update + downdate).
@@ -114,6 +129,9 @@ class SlidingWindowRLS(_FilterBase):
         self.R = R
         self._P0 = check_covariance(P0, self.dim_x, "P0", definite=True)
         self._x0 = self._as_state(np.zeros((self.dim_x, self.dim_z)) if x0 is None else x0, "x0")
+        # prior rows of the refit, L^T (x - x0) with L L^T = P0^-1 (as in _window_lstsq)
+        self._Lt = np.ascontiguousarray(np.linalg.cholesky(np.linalg.inv(self._P0)).T)
+        self._Ltx0 = self._Lt @ self._x0
         self.reset()
 
     @property
@@ -149,6 +167,9 @@ class SlidingWindowRLS(_FilterBase):
         x, P = self._checked_x(), self._checked_P()
         self._clear_lazy()
         self.H = phi
+        if _COMPILED:
+            self._update_compiled(zc, phi, r, x, P)
+            return
         g, s = _innovation(P, phi, r)
         self.S, self.SI = s * self._I_z, self._I_z / s
         if zc is None:
@@ -185,6 +206,34 @@ class SlidingWindowRLS(_FilterBase):
             x, P = self._refit()
         self.x, self.P = x, P
         self.x_post, self.P_post = x.copy(), P.copy()
+
+    def _update_compiled(self, zc, phi, r, x, P):
+        """:meth:`update` by the compiled step (the one `batch_filter` runs)."""
+        n, m = self.dim_x, self.dim_z
+        x = np.array(x, dtype=np.float64, order="C")
+        P = np.array(P, dtype=np.float64, order="C")
+        y, K = np.empty((m, 1)), np.empty((n, 1))
+        zrow = np.full(m, np.nan) if zc is None else zc[:, 0]
+        ist = self._int_state()
+        s = (_kernels or _get_kernels()).sw_update_kernel(
+            x, P, phi[0], zrow, r, self._wH, self._wZ, self._wR, ist, self.refresh,
+            self._Lt, self._Ltx0, y[:, 0], K[:, 0])
+        self._set_int_state(ist)
+        self.S, self.SI = s * self._I_z, self._I_z / s
+        self.z, self.y, self.K = zrow.reshape(m, 1), y, K
+        if zc is None:
+            self._log_likelihood, self._likelihood = 0.0, 1.0
+        self.x, self.P = x, P
+        self.x_post, self.P_post = x.copy(), P.copy()
+
+    def _int_state(self):
+        """The ring-buffer counters as the kernels' ``ist`` array."""
+        return np.array([self._head, self._nw, self._count, self._next_exact_try,
+                         int(self.exact)], dtype=np.int64)
+
+    def _set_int_state(self, ist):
+        self._head, self._nw, self._count, self._next_exact_try = (int(v) for v in ist[:4])
+        self.exact = bool(ist[4])
 
     def predict_update(self, z, H, R=None):
         """:meth:`predict` then :meth:`update`."""
@@ -233,7 +282,57 @@ class SlidingWindowRLS(_FilterBase):
         :meth:`RecursiveLeastSquares.batch_filter`."""
         Z, Hm = self._as_batch(zs, Hs)
         Rv = self._as_batch_variances(Rs, len(Z))
-        return self._batch_stepwise(Z, Hm, Rv, update_first, saver, store_covariances)
+        if saver is not None or not _COMPILED or len(Z) == 0:
+            return self._batch_stepwise(Z, Hm, Rv, update_first, saver, store_covariances)
+        return self._batch_compiled(Z, Hm, Rv, update_first, store_covariances)
+
+    def _batch_compiled(self, Z, Hm, Rv, update_first, store_covariances):
+        """`batch_filter` in one compiled call; leaves the filter as the
+        step-by-step loop would (the same compiled step, bit for bit)."""
+        N, n, m = len(Z), self.dim_x, self.dim_z
+        x_start = np.array(self._checked_x(), dtype=np.float64, order="C")
+        P_start = np.array(self._checked_P(), dtype=np.float64, order="C")
+        x, P = x_start.copy(), P_start.copy()
+        means = np.empty((N, n, m))
+        covs = np.empty((N, n, n)) if store_covariances else np.empty((0, n, n))
+        y, K, P_last = np.empty(m), np.empty(n), np.empty((n, n))
+        if Rv.strides[0] == 0:                 # one variance for every step
+            Rv = np.ascontiguousarray(Rv[:1], dtype=np.float64)
+        else:
+            Rv = np.ascontiguousarray(Rv, dtype=np.float64)
+        ist = self._int_state()
+        s = (_kernels or _get_kernels()).sw_batch_kernel(
+            x, P, np.ascontiguousarray(Z, dtype=np.float64),
+            np.ascontiguousarray(Hm, dtype=np.float64), Rv, self._wH, self._wZ, self._wR,
+            ist, self.refresh, self._Lt, self._Ltx0, means, covs, y, K, P_last)
+        self._set_int_state(ist)
+        # the window has no time update: the priors are the previous posteriors
+        if update_first:
+            means_p = means.copy()
+            covs_p = covs.copy() if store_covariances else None
+            self.x_prior, self.P_prior = x.copy(), P.copy()
+        else:
+            means_p = np.empty((N, n, m))
+            means_p[0] = x_start
+            means_p[1:] = means[:-1]
+            covs_p = None
+            if store_covariances:
+                covs_p = np.empty((N, n, n))
+                covs_p[0] = P_start
+                covs_p[1:] = covs[:-1]
+            self.x_prior = means_p[-1].copy()
+            self.P_prior = covs_p[-1].copy() if store_covariances else P_last
+        self._clear_lazy()
+        self.H = Hm[-1].reshape(1, n).copy()
+        self.S, self.SI = s * self._I_z, self._I_z / s
+        self.z = Z[-1].reshape(m, 1).copy()
+        self.y, self.K = y.reshape(m, 1), K.reshape(n, 1)
+        if np.isnan(self.z).any():
+            self.z[:] = np.nan
+            self._log_likelihood, self._likelihood = 0.0, 1.0
+        self.x, self.P = x, P
+        self.x_post, self.P_post = x.copy(), P.copy()
+        return means, (covs if store_covariances else None), means_p, covs_p
 
     # ------------------------------------------------------------------
     # helpers

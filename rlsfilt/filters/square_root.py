@@ -11,6 +11,21 @@ from ._base import _FilterBase, _tri_inv, _tri_solve
 
 __all__ = ["SquareRootRLS"]
 
+# Run update, batch_filter and the P property through the compiled kernels of
+# `_kernels_window` (numba). The tests switch this off to compare with the
+# pure-NumPy reference (the Householder QR step below).
+_COMPILED = True
+_kernels = None
+
+
+def _get_kernels():
+    """Import the numba kernels on first use, so ``import rlsfilt`` stays light."""
+    global _kernels
+    if _kernels is None:
+        from . import _kernels_window as k
+        _kernels = k
+    return _kernels
+
 
 class SquareRootRLS(_FilterBase):
     r"""QR recursive least squares: the information square root, updated by QR.
@@ -139,6 +154,10 @@ class SquareRootRLS(_FilterBase):
     @property
     def P(self):
         """Covariance ``U^-1 U^-T`` (a new array on every access)."""
+        if _COMPILED:
+            P = np.empty((self.dim_x, self.dim_x))
+            (_kernels or _get_kernels()).sr_covariance(self._U, P)
+            return P
         Ui = _tri_inv(self._U)
         P = Ui @ Ui.T
         return 0.5 * (P + P.T)
@@ -175,6 +194,9 @@ class SquareRootRLS(_FilterBase):
         zc = self._as_measurement(z, "z")
         self._clear_lazy()
         self.H = phi
+        if _COMPILED:
+            self._update_compiled(zc, phi, r)
+            return
         w = _tri_solve(self._U, phi.ravel(), trans=1)          # w = U^-T H^T
         s = float(w @ w) + r                                    # S = H P H^T + R
         self.S, self.SI = s * self._I_z, self._I_z / s
@@ -190,6 +212,23 @@ class SquareRootRLS(_FilterBase):
             self._U, self._d = _qr_update(self._U, self._d, phi, zc, r)
             self._x = _tri_solve(self._U, self._d)
         self.x_post = self._x.copy()
+        self.P_post = self.P
+
+    def _update_compiled(self, zc, phi, r):
+        """:meth:`update` by the compiled step (the one `batch_filter` runs)."""
+        n, m = self.dim_x, self.dim_z
+        U, d = self._U.copy(), self._d.copy()
+        x = self._x.copy()
+        y, K = np.empty((m, 1)), np.empty((n, 1))
+        zrow = np.full(m, np.nan) if zc is None else zc[:, 0]
+        s = (_kernels or _get_kernels()).sr_update_kernel(U, d, x, phi[0], zrow, r, y[:, 0],
+                                                          K[:, 0])
+        self.S, self.SI = s * self._I_z, self._I_z / s
+        self.z, self.y, self.K = zrow.reshape(m, 1), y, K
+        if zc is None:
+            self._log_likelihood, self._likelihood = 0.0, 1.0
+        self._U, self._d, self._x = U, d, x
+        self.x_post = x.copy()
         self.P_post = self.P
 
     def predict_update(self, z, H, R=None):
@@ -232,7 +271,55 @@ class SquareRootRLS(_FilterBase):
         :meth:`RecursiveLeastSquares.batch_filter`."""
         Z, Hm = self._as_batch(zs, Hs)
         Rv = self._as_batch_variances(Rs, len(Z))
-        return self._batch_stepwise(Z, Hm, Rv, update_first, saver, store_covariances)
+        if saver is not None or not _COMPILED or len(Z) == 0:
+            return self._batch_stepwise(Z, Hm, Rv, update_first, saver, store_covariances)
+        return self._batch_compiled(Z, Hm, Rv, update_first, store_covariances)
+
+    def _batch_compiled(self, Z, Hm, Rv, update_first, store_covariances):
+        """`batch_filter` in one compiled call; leaves the filter as the
+        step-by-step loop would (the same compiled step, bit for bit)."""
+        N, n, m = len(Z), self.dim_x, self.dim_z
+        U = np.array(self._U, dtype=np.float64, order="C")
+        d = np.array(self._d, dtype=np.float64, order="C")
+        x = np.array(self._x, dtype=np.float64, order="C")
+        x_start = self._x.copy()
+        means = np.empty((N, n, m))
+        if store_covariances:
+            covs, covs_p = np.empty((N, n, n)), np.empty((N, n, n))
+        else:
+            covs = covs_p = np.empty((0, n, n))
+        x_prior, P_prior, P_post = np.empty((n, m)), np.empty((n, n)), np.empty((n, n))
+        y, K = np.empty(m), np.empty(n)
+        if Rv.strides[0] == 0:                 # one variance for every step
+            Rv = np.ascontiguousarray(Rv[:1], dtype=np.float64)
+        else:
+            Rv = np.ascontiguousarray(Rv, dtype=np.float64)
+        c = math.sqrt(self._lam) if self._lam != 1.0 else 1.0
+        s = (_kernels or _get_kernels()).sr_batch_kernel(
+            U, d, x, np.ascontiguousarray(Z, dtype=np.float64),
+            np.ascontiguousarray(Hm, dtype=np.float64), Rv, c, bool(update_first),
+            means, covs, covs_p, x_prior, P_prior, P_post, y, K)
+        # the estimate is unchanged by a time update
+        if update_first:
+            means_p = means.copy()
+        else:
+            means_p = np.empty((N, n, m))
+            means_p[0] = x_start
+            means_p[1:] = means[:-1]
+        self._U, self._d, self._x = U, d, x
+        self._clear_lazy()
+        self.H = Hm[-1].reshape(1, n).copy()
+        self.S, self.SI = s * self._I_z, self._I_z / s
+        self.z = Z[-1].reshape(m, 1).copy()
+        self.y, self.K = y.reshape(m, 1), K.reshape(n, 1)
+        if np.isnan(self.z).any():
+            self.z[:] = np.nan
+            self._log_likelihood, self._likelihood = 0.0, 1.0
+        self.x_prior, self.P_prior = x_prior, P_prior
+        self.x_post, self.P_post = x.copy(), P_post
+        if not store_covariances:
+            covs = covs_p = None
+        return means, covs, means_p, covs_p
 
     # ------------------------------------------------------------------
     # helpers

@@ -1,0 +1,454 @@
+"""Compiled (numba) kernels of `SlidingWindowRLS` and `SquareRootRLS`.
+
+The pure-NumPy reference of each recursion is the class's own step
+(``update`` with the module flag ``_COMPILED = False`` in
+:mod:`rlsfilt.filters.sliding_window` and :mod:`rlsfilt.filters.square_root`);
+the tests hold the two paths equal to 1e-12 on well-conditioned data. As in
+:mod:`rlsfilt.filters._kernels`, every function is ``njit(cache=True)``, so
+the machine code is compiled once and loaded from the disk cache by later
+processes, and one step function serves both the batch kernel and the
+streaming ``update``: the two agree bit for bit.
+
+Sliding window, one step (Haykin 2002, sec. 9)::
+
+    g = P phi, s = phi . g + r               update with the new sample
+    x <- x + (g / s) (z - phi x)^T,  P <- P - g g^T / s
+    ring buffer: the new sample replaces the oldest one
+    g = P h, d = r_old - h . g               downdate with the leaving sample
+    x <- x - (g / d) (z_old - h x)^T,  P <- P + g g^T / d
+    refit by Householder QR of the stored window when d is not clearly
+    positive, when the window first fills, and every `refresh` steps
+
+Square root (QR, information form), one step::
+
+    U <- sqrt(lam) U, d <- sqrt(lam) d      predict
+    w = U^-T phi, s = w . w + r,  K = U^-1 w / s
+    [U d; phi/sqrt(r) z^T/sqrt(r)] -> [U' d'; 0 e]   by n Givens rotations
+    x = U'^-1 d'
+
+The Givens rotations keep the diagonal of ``U`` positive by construction
+(``U_ii <- hypot(U_ii, a_i)``), which is the unique factor the NumPy path
+reaches with a Householder QR and a sign flip.
+"""
+
+import math
+
+import numpy as np
+from numba import njit
+
+__all__ = []
+
+
+# ----------------------------------------------------------------------
+# shared small helpers
+# ----------------------------------------------------------------------
+@njit(cache=True, inline="always")
+def _any_nan(z):
+    for v in z:
+        if v != v:
+            return True
+    return False
+
+
+@njit(cache=True, inline="always")
+def _copy2(a, b):
+    """``b[:] = a`` for 2-D arrays."""
+    for i in range(a.shape[0]):
+        for j in range(a.shape[1]):
+            b[i, j] = a[i, j]
+
+
+@njit(cache=True)
+def _upper_inverse_gram(U, P):
+    """``P = U^-1 U^-T`` for an upper-triangular `U` with a nonzero diagonal.
+
+    ``V = U^-1`` (upper triangular) by back substitution, column by column;
+    then ``P_ij = sum_{k >= max(i, j)} V_ik V_jk`` for ``i <= j``, mirrored,
+    so ``P`` is exactly symmetric.
+    """
+    n = U.shape[0]
+    V = np.zeros((n, n))
+    for j in range(n):
+        V[j, j] = 1.0 / U[j, j]
+        for i in range(j - 1, -1, -1):
+            acc = 0.0
+            for k in range(i + 1, j + 1):
+                acc += U[i, k] * V[k, j]
+            V[i, j] = -acc / U[i, i]
+    for i in range(n):
+        for j in range(i, n):
+            acc = 0.0
+            for k in range(j, n):
+                acc += V[i, k] * V[j, k]
+            P[i, j] = acc
+            P[j, i] = acc
+
+
+@njit(cache=True)
+def _back_substitute(U, B, X):
+    """Solve ``U X = B`` (``U`` upper triangular); `X` may be `B`."""
+    n, m = B.shape
+    for c in range(m):
+        for i in range(n - 1, -1, -1):
+            acc = B[i, c]
+            for k in range(i + 1, n):
+                acc -= U[i, k] * X[k, c]
+            X[i, c] = acc / U[i, i]
+
+
+# ----------------------------------------------------------------------
+# SquareRootRLS
+# ----------------------------------------------------------------------
+@njit(cache=True)
+def sr_covariance(U, P):
+    """``P = U^-1 U^-T`` (the ``P`` property and the covariance histories)."""
+    _upper_inverse_gram(U, P)
+
+
+@njit(cache=True)
+def _sr_predict(U, d, c):
+    """``U <- c U``, ``d <- c d`` in place (``c = sqrt(lam)``)."""
+    n, m = d.shape
+    for i in range(n):
+        for j in range(n):
+            U[i, j] = U[i, j] * c
+        for j in range(m):
+            d[i, j] = d[i, j] * c
+
+
+@njit(cache=True)
+def _sr_step(U, d, x, phi, z, r, w, y, K):
+    """One measurement update of the information square root, in place.
+
+    Writes ``y`` (m,) and ``K`` (n,) (NaN and zero when `z` holds a NaN)
+    and returns ``s = H P H^T + R``. ``w`` (n,) is workspace.
+    """
+    n, m = d.shape
+    for i in range(n):                         # U^T w = phi (forward substitution)
+        acc = phi[i]
+        for k in range(i):
+            acc -= U[k, i] * w[k]
+        w[i] = acc / U[i, i]
+    s = r
+    for i in range(n):
+        s += w[i] * w[i]                       # s = |U^-T phi|^2 + r
+    if _any_nan(z):
+        for j in range(m):
+            y[j] = np.nan
+        for i in range(n):
+            K[i] = 0.0
+        return s
+    for i in range(n - 1, -1, -1):             # U v = w (back substitution); K = v / s
+        acc = w[i]
+        for k in range(i + 1, n):
+            acc -= U[i, k] * K[k]
+        K[i] = acc / U[i, i]
+    for i in range(n):
+        K[i] = K[i] / s
+    for j in range(m):                         # y = z - phi x
+        acc = 0.0
+        for i in range(n):
+            acc += phi[i] * x[i, j]
+        y[j] = z[j] - acc
+    # fold the row [phi, z^T] / sqrt(r) into [U, d] with Givens rotations
+    c0 = 1.0 / math.sqrt(r)
+    a = np.empty(n)
+    b = np.empty(m)
+    for i in range(n):
+        a[i] = phi[i] * c0
+    for j in range(m):
+        b[j] = z[j] * c0
+    for i in range(n):
+        ai = a[i]
+        if ai == 0.0:
+            continue
+        uii = U[i, i]
+        rho = math.hypot(uii, ai)
+        cs = uii / rho
+        sn = ai / rho
+        U[i, i] = rho
+        for j in range(i + 1, n):
+            t = U[i, j]
+            aj = a[j]
+            U[i, j] = cs * t + sn * aj
+            a[j] = cs * aj - sn * t
+        for j in range(m):
+            t = d[i, j]
+            bj = b[j]
+            d[i, j] = cs * t + sn * bj
+            b[j] = cs * bj - sn * t
+    _back_substitute(U, d, x)                  # x = U^-1 d
+    return s
+
+
+@njit(cache=True)
+def sr_update_kernel(U, d, x, phi, z, r, y, K):
+    """Streaming :meth:`SquareRootRLS.update`: `_sr_step` on the given arrays."""
+    w = np.empty(U.shape[0])
+    return _sr_step(U, d, x, phi, z, r, w, y, K)
+
+
+@njit(cache=True)
+def sr_batch_kernel(U, d, x, Z, Hm, Rv, c, update_first, means, covs, covs_p,
+                    x_prior, P_prior, P_post, y, K):
+    """Run `SquareRootRLS` over a record, in place on ``U``, ``d``, ``x``.
+
+    ``c = sqrt(lam)`` (1.0: no time update). ``Rv`` has length N or 1 (one
+    variance for all steps). ``covs``, ``covs_p`` (N, n, n) are written when
+    their length is N. Leaves the last predict's ``x_prior``, ``P_prior``
+    and the last update's ``P_post``, ``y`` and ``K`` (the last
+    non-missing gain is not kept: a missing last sample leaves ``K`` zero,
+    as the streaming step does). Returns the last ``s``.
+    """
+    N = Z.shape[0]
+    n, m = x.shape
+    store = covs.shape[0] == N and N > 0
+    r_each = Rv.shape[0] == N
+    w = np.empty(n)
+    s = np.nan
+    for k in range(N):
+        if not update_first:
+            if c != 1.0:
+                _sr_predict(U, d, c)
+            if store:
+                _upper_inverse_gram(U, covs_p[k])
+            if k == N - 1:
+                _copy2(x, x_prior)
+                if store:
+                    _copy2(covs_p[k], P_prior)
+                else:
+                    _upper_inverse_gram(U, P_prior)
+        s = _sr_step(U, d, x, Hm[k], Z[k], Rv[k if r_each else 0], w, y, K)
+        _copy2(x, means[k])
+        if store:
+            _upper_inverse_gram(U, covs[k])
+        if k == N - 1:
+            if store:
+                _copy2(covs[k], P_post)
+            else:
+                _upper_inverse_gram(U, P_post)
+        if update_first:
+            if c != 1.0:
+                _sr_predict(U, d, c)
+            if store:
+                _upper_inverse_gram(U, covs_p[k])
+            if k == N - 1:
+                _copy2(x, x_prior)
+                if store:
+                    _copy2(covs_p[k], P_prior)
+                else:
+                    _upper_inverse_gram(U, P_prior)
+    return s
+
+
+# ----------------------------------------------------------------------
+# SlidingWindowRLS
+# ----------------------------------------------------------------------
+# the integer state ``ist`` of the sliding window
+HEAD, NW, COUNT, NEXT_EXACT, EXACT = 0, 1, 2, 3, 4
+
+
+@njit(cache=True)
+def _window_lstsq(wH, wZ, wR, nw, Lt, Ltx0, use_prior, x, P):
+    """Weighted least squares on the first `nw` stored rows, by Householder QR.
+
+    With `use_prior` the rows ``[Lt, Lt x0]`` (``Lt^T Lt = P0^-1``) come
+    first (ridge regression towards ``x0``). Without it the solution exists
+    only when the rows have full column rank, decided as
+    ``numpy.linalg.matrix_rank`` decides it (singular values against
+    ``s_max max(rows, n) eps``, here those of the triangular factor).
+    Writes ``x`` and ``P`` and returns True, or returns False (nothing
+    written) when there is no solution.
+    """
+    n = wH.shape[1]
+    m = wZ.shape[1]
+    n_prior = n if use_prior else 0
+    rows = n_prior
+    for k in range(nw):
+        if not _any_nan(wZ[k]):
+            rows += 1
+    if rows < n:
+        return False
+    A = np.empty((rows, n + m))                    # [A | B], weighted
+    for i in range(n_prior):
+        for j in range(n):
+            A[i, j] = Lt[i, j]
+        for j in range(m):
+            A[i, n + j] = Ltx0[i, j]
+    i = n_prior
+    for k in range(nw):
+        if _any_nan(wZ[k]):
+            continue
+        wk = 1.0 / math.sqrt(wR[k])
+        for j in range(n):
+            A[i, j] = wH[k, j] * wk
+        for j in range(m):
+            A[i, n + j] = wZ[k, j] * wk
+        i += 1
+    # Householder QR of the first n columns, applied to all n + m columns
+    v = np.empty(rows)
+    for j in range(n):
+        norm2 = 0.0
+        for i in range(j, rows):
+            norm2 += A[i, j] * A[i, j]
+        norm = math.sqrt(norm2)
+        if norm == 0.0:
+            continue
+        alpha = -norm if A[j, j] >= 0.0 else norm
+        for i in range(j, rows):
+            v[i] = A[i, j]
+        v[j] -= alpha
+        vnorm2 = norm2 - A[j, j] * A[j, j] + v[j] * v[j]
+        A[j, j] = alpha
+        for i in range(j + 1, rows):
+            A[i, j] = 0.0
+        if vnorm2 == 0.0:
+            continue
+        for col in range(j + 1, n + m):
+            acc = 0.0
+            for i in range(j, rows):
+                acc += v[i] * A[i, col]
+            f = 2.0 * acc / vnorm2
+            for i in range(j, rows):
+                A[i, col] -= f * v[i]
+    Rf = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            Rf[i, j] = A[i, j] if j >= i else 0.0
+    if not use_prior:
+        sv = np.linalg.svd(Rf)[1]
+        tol = sv[0] * max(rows, n) * np.finfo(np.float64).eps
+        if sv[n - 1] <= tol:
+            return False
+    QtB = np.empty((n, m))
+    for i in range(n):
+        for j in range(m):
+            QtB[i, j] = A[i, n + j]
+    _back_substitute(Rf, QtB, x)
+    _upper_inverse_gram(Rf, P)
+    return True
+
+
+@njit(cache=True)
+def _sw_step(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, g, y, K):
+    """One `SlidingWindowRLS` update (add, slide the ring buffer, downdate,
+    refit when due), in place on ``x``, ``P``, the buffer and ``ist``.
+
+    Writes ``y`` (m,) and ``K`` (n,) (NaN and zero for a missing `z`) and
+    returns ``s``. ``g`` (n,) is workspace.
+    """
+    n, m = x.shape
+    window = wH.shape[0]
+    for i in range(n):                         # g = P phi^T
+        acc = 0.0
+        for j in range(n):
+            acc += P[i, j] * phi[j]
+        g[i] = acc
+    s = r
+    for i in range(n):
+        s += phi[i] * g[i]                     # s = phi P phi^T + r
+    missing = _any_nan(z)
+    if missing:
+        for j in range(m):
+            y[j] = np.nan
+        for i in range(n):
+            K[i] = 0.0
+    else:
+        for j in range(m):                     # y = z - phi x
+            acc = 0.0
+            for i in range(n):
+                acc += phi[i] * x[i, j]
+            y[j] = z[j] - acc
+        for i in range(n):
+            ki = g[i] / s                      # K = P phi^T / s
+            K[i] = ki
+            for j in range(m):
+                x[i, j] = x[i, j] + ki * y[j]
+        for i in range(n):                     # P = P - g g^T / s
+            gi = g[i]
+            for j in range(n):
+                P[i, j] = P[i, j] - (gi * g[j]) / s
+    # ring buffer: slot `head` holds the oldest sample once the window is full
+    h = ist[HEAD]
+    leaving = ist[NW] == window and not _any_nan(wZ[h])
+    refit = False
+    if leaving:                                # downdate with the leaving sample
+        hl = wH[h]
+        rl = wR[h]
+        for i in range(n):
+            acc = 0.0
+            for j in range(n):
+                acc += P[i, j] * hl[j]
+            g[i] = acc
+        dd = rl
+        for i in range(n):
+            dd -= hl[i] * g[i]                 # d = R - h P h^T
+        if dd > 1e-8 * rl:
+            for j in range(m):
+                acc = 0.0
+                for i in range(n):
+                    acc += hl[i] * x[i, j]
+                e = wZ[h, j] - acc             # residual of the leaving sample
+                for i in range(n):
+                    x[i, j] = x[i, j] - (g[i] / dd) * e
+            for i in range(n):                 # P = P + g g^T / d
+                gi = g[i]
+                for j in range(n):
+                    P[i, j] = P[i, j] + (gi * g[j]) / dd
+        else:
+            refit = True
+    for j in range(n):
+        wH[h, j] = phi[j]
+    for j in range(m):
+        wZ[h, j] = np.nan if missing else z[j]
+    wR[h] = r
+    ist[HEAD] = (h + 1) % window
+    ist[NW] = min(ist[NW] + 1, window)
+    ist[COUNT] += 1
+    if ist[NW] == window and not ist[EXACT]:
+        refit = refit or ist[COUNT] >= ist[NEXT_EXACT]
+    if refresh and ist[COUNT] % refresh == 0:
+        refit = True
+    if refit:
+        nw = ist[NW]
+        if _window_lstsq(wH, wZ, wR, nw, Lt, Ltx0, False, x, P):
+            ist[EXACT] = 1
+        else:
+            ist[EXACT] = 0
+            ist[NEXT_EXACT] = ist[COUNT] + window
+            _window_lstsq(wH, wZ, wR, nw, Lt, Ltx0, True, x, P)
+    return s
+
+
+@njit(cache=True)
+def sw_update_kernel(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, y, K):
+    """Streaming :meth:`SlidingWindowRLS.update`: `_sw_step` on the given arrays."""
+    g = np.empty(x.shape[0])
+    return _sw_step(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, g, y, K)
+
+
+@njit(cache=True)
+def sw_batch_kernel(x, P, Z, Hm, Rv, wH, wZ, wR, ist, refresh, Lt, Ltx0, means, covs, y, K,
+                    P_last):
+    """Run `SlidingWindowRLS` over a record, in place on the state.
+
+    ``Rv`` has length N or 1; ``covs`` (N, n, n) is written when its length
+    is N. ``y`` and ``K`` are the last step's, ``P_last`` is ``P`` before
+    the last step. Returns the last ``s``.
+    (The window has no time update: the caller builds the predicted
+    histories from these.)
+    """
+    N = Z.shape[0]
+    store = covs.shape[0] == N and N > 0
+    r_each = Rv.shape[0] == N
+    g = np.empty(x.shape[0])
+    s = np.nan
+    for k in range(N):
+        if k == N - 1:
+            _copy2(P, P_last)
+        s = _sw_step(x, P, Hm[k], Z[k], Rv[k if r_each else 0], wH, wZ, wR, ist, refresh,
+                     Lt, Ltx0, g, y, K)
+        _copy2(x, means[k])
+        if store:
+            _copy2(P, covs[k])
+    return s
