@@ -39,6 +39,18 @@ from numba import njit
 __all__ = []
 
 
+def c_array(a):
+    """`a` as a writable C-contiguous float64 array (copied only when needed).
+
+    The kernels are compiled for exactly this layout; a read-only or
+    strided input would otherwise compile (and cache) another version.
+    """
+    if (type(a) is np.ndarray and a.dtype == np.float64 and a.flags.c_contiguous
+            and a.flags.writeable):
+        return a
+    return np.array(a, dtype=np.float64, order="C")
+
+
 # ----------------------------------------------------------------------
 # shared small helpers
 # ----------------------------------------------------------------------
@@ -248,12 +260,63 @@ def sr_batch_kernel(U, d, x, Z, Hm, Rv, c, update_first, means, covs, covs_p,
 HEAD, NW, COUNT, NEXT_EXACT, EXACT = 0, 1, 2, 3, 4
 
 
+_EPS = float(np.finfo(np.float64).eps)
+
+
 @njit(cache=True)
-def _window_lstsq(wH, wZ, wR, nw, Lt, Ltx0, use_prior, x, P):
+def _singular_range(R):
+    """Smallest and largest singular value of the square `R` (one-sided Jacobi).
+
+    Hestenes' method: plane rotations orthogonalize the columns of a copy
+    of `R`; the column norms are then the singular values, to high relative
+    accuracy (Demmel & Veselic 1992). Cheap for the ``dim_x x dim_x``
+    factor, and compiled without LAPACK.
+    """
+    n = R.shape[0]
+    G = R.copy()
+    for _ in range(60):
+        rotated = False
+        for p in range(n - 1):
+            for q in range(p + 1, n):
+                alpha = 0.0
+                beta = 0.0
+                gamma = 0.0
+                for i in range(n):
+                    alpha += G[i, p] * G[i, p]
+                    beta += G[i, q] * G[i, q]
+                    gamma += G[i, p] * G[i, q]
+                if gamma == 0.0 or abs(gamma) <= _EPS * math.sqrt(alpha * beta):
+                    continue
+                rotated = True
+                zeta = (beta - alpha) / (2.0 * gamma)
+                t = (1.0 if zeta >= 0.0 else -1.0) / (abs(zeta) + math.sqrt(1.0 + zeta * zeta))
+                c = 1.0 / math.sqrt(1.0 + t * t)
+                s = c * t
+                for i in range(n):
+                    gp = G[i, p]
+                    gq = G[i, q]
+                    G[i, p] = c * gp - s * gq
+                    G[i, q] = s * gp + c * gq
+        if not rotated:
+            break
+    smin = np.inf
+    smax = 0.0
+    for j in range(n):
+        acc = 0.0
+        for i in range(n):
+            acc += G[i, j] * G[i, j]
+        v = math.sqrt(acc)
+        smin = min(smin, v)
+        smax = max(smax, v)
+    return smin, smax
+
+
+@njit(cache=True)
+def _window_lstsq(wH, wZ, wR, nw, Lt, Ltx0, n_prior, x, P):
     """Weighted least squares on the first `nw` stored rows, by Householder QR.
 
-    With `use_prior` the rows ``[Lt, Lt x0]`` (``Lt^T Lt = P0^-1``) come
-    first (ridge regression towards ``x0``). Without it the solution exists
+    With ``n_prior = dim_x`` the rows ``[Lt, Lt x0]`` (``Lt^T Lt = P0^-1``)
+    come first (ridge regression towards ``x0``); with 0 the solution exists
     only when the rows have full column rank, decided as
     ``numpy.linalg.matrix_rank`` decides it (singular values against
     ``s_max max(rows, n) eps``, here those of the triangular factor).
@@ -262,7 +325,6 @@ def _window_lstsq(wH, wZ, wR, nw, Lt, Ltx0, use_prior, x, P):
     """
     n = wH.shape[1]
     m = wZ.shape[1]
-    n_prior = n if use_prior else 0
     rows = n_prior
     for k in range(nw):
         if not _any_nan(wZ[k]):
@@ -315,10 +377,9 @@ def _window_lstsq(wH, wZ, wR, nw, Lt, Ltx0, use_prior, x, P):
     for i in range(n):
         for j in range(n):
             Rf[i, j] = A[i, j] if j >= i else 0.0
-    if not use_prior:
-        sv = np.linalg.svd(Rf)[1]
-        tol = sv[0] * max(rows, n) * np.finfo(np.float64).eps
-        if sv[n - 1] <= tol:
+    if n_prior == 0:
+        smin, smax = _singular_range(Rf)
+        if not smin > smax * max(rows, n) * _EPS:
             return False
     QtB = np.empty((n, m))
     for i in range(n):
@@ -411,12 +472,12 @@ def _sw_step(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, g, y, K):
         refit = True
     if refit:
         nw = ist[NW]
-        if _window_lstsq(wH, wZ, wR, nw, Lt, Ltx0, False, x, P):
+        if _window_lstsq(wH, wZ, wR, nw, Lt, Ltx0, n - n, x, P):   # (n - n: one typing)
             ist[EXACT] = 1
         else:
             ist[EXACT] = 0
             ist[NEXT_EXACT] = ist[COUNT] + window
-            _window_lstsq(wH, wZ, wR, nw, Lt, Ltx0, True, x, P)
+            _window_lstsq(wH, wZ, wR, nw, Lt, Ltx0, n, x, P)
     return s
 
 

@@ -296,14 +296,14 @@ class SlidingWindowRLS(_FilterBase):
         means = np.empty((N, n, m))
         covs = np.empty((N, n, n)) if store_covariances else np.empty((0, n, n))
         y, K, P_last = np.empty(m), np.empty(n), np.empty((n, n))
-        if Rv.strides[0] == 0:                 # one variance for every step
-            Rv = np.ascontiguousarray(Rv[:1], dtype=np.float64)
-        else:
-            Rv = np.ascontiguousarray(Rv, dtype=np.float64)
+        # one variance for every step: a length-1 array (copies: the kernels
+        # are compiled for writable C arrays only)
+        kern = _kernels or _get_kernels()
+        Rv = kern.c_array(Rv[:1] if Rv.strides[0] == 0 else Rv)
         ist = self._int_state()
-        s = (_kernels or _get_kernels()).sw_batch_kernel(
-            x, P, np.ascontiguousarray(Z, dtype=np.float64),
-            np.ascontiguousarray(Hm, dtype=np.float64), Rv, self._wH, self._wZ, self._wR,
+        s = kern.sw_batch_kernel(
+            x, P, kern.c_array(Z),
+            kern.c_array(Hm), Rv, self._wH, self._wZ, self._wR,
             ist, self.refresh, self._Lt, self._Ltx0, means, covs, y, K, P_last)
         self._set_int_state(ist)
         # the window has no time update: the priors are the previous posteriors

@@ -156,7 +156,8 @@ class SquareRootRLS(_FilterBase):
         """Covariance ``U^-1 U^-T`` (a new array on every access)."""
         if _COMPILED:
             P = np.empty((self.dim_x, self.dim_x))
-            (_kernels or _get_kernels()).sr_covariance(self._U, P)
+            kern = _kernels or _get_kernels()
+            kern.sr_covariance(kern.c_array(self._U), P)
             return P
         Ui = _tri_inv(self._U)
         P = Ui @ Ui.T
@@ -290,14 +291,14 @@ class SquareRootRLS(_FilterBase):
             covs = covs_p = np.empty((0, n, n))
         x_prior, P_prior, P_post = np.empty((n, m)), np.empty((n, n)), np.empty((n, n))
         y, K = np.empty(m), np.empty(n)
-        if Rv.strides[0] == 0:                 # one variance for every step
-            Rv = np.ascontiguousarray(Rv[:1], dtype=np.float64)
-        else:
-            Rv = np.ascontiguousarray(Rv, dtype=np.float64)
+        # one variance for every step: a length-1 array (copies: the kernels
+        # are compiled for writable C arrays only)
+        kern = _kernels or _get_kernels()
+        Rv = kern.c_array(Rv[:1] if Rv.strides[0] == 0 else Rv)
         c = math.sqrt(self._lam) if self._lam != 1.0 else 1.0
-        s = (_kernels or _get_kernels()).sr_batch_kernel(
-            U, d, x, np.ascontiguousarray(Z, dtype=np.float64),
-            np.ascontiguousarray(Hm, dtype=np.float64), Rv, c, bool(update_first),
+        s = kern.sr_batch_kernel(
+            U, d, x, kern.c_array(Z),
+            kern.c_array(Hm), Rv, c, bool(update_first),
             means, covs, covs_p, x_prior, P_prior, P_post, y, K)
         # the estimate is unchanged by a time update
         if update_first:
