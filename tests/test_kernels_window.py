@@ -322,3 +322,14 @@ def test_second_process_loads_window_kernels_from_disk(tmp_path):
     # nothing compiled: one signature per entry point, loaded from the cache
     assert all(hits == 1 and misses == 0 for hits, misses in second["stats"].values()), second
     assert second["elapsed"] < 2.0, second
+
+
+def test_variants_benchmark_runs_in_smoke_mode(tmp_path):
+    env = dict(os.environ)
+    env["PYTHONPATH"] = str(ROOT) + os.pathsep + env.get("PYTHONPATH", "")
+    proc = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_variants.py"),
+                           "--smoke"], env=env, cwd=str(tmp_path), capture_output=True,
+                          text=True, timeout=300, check=True)
+    out = proc.stdout
+    assert "speed-up" in out
+    assert "SlidingWindowRLS" in out and "SquareRootRLS" in out
