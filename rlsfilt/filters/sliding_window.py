@@ -94,7 +94,10 @@ class SlidingWindowRLS(_FilterBase):
     the window then does not determine every parameter, the prior is kept
     and the exact start is tried again one window later. Downdating is the
     numerically delicate half (Haykin 2002, sec. 9; Alexander, Pan &
-    Plemmons 1988), hence the periodic `refresh`.
+    Plemmons 1988), hence the periodic `refresh`. A step costs
+    :math:`O(n^2)` (:math:`O(\text{window}\, n^2)` for a refit);
+    :meth:`update` and :meth:`batch_filter` run compiled (numba) and give
+    the same numbers bit for bit.
 
     References
     ----------
