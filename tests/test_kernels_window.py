@@ -274,6 +274,21 @@ def test_square_root_compiled_keeps_the_factor_triangular(rng):
     _close(sq.P, np.linalg.inv(U.T @ U), "P", rtol=1e-10)
 
 
+@pytest.mark.parametrize("update_first", [False, True])
+def test_one_parameter_filters(rng, monkeypatch, update_first):
+    """dim_x = 1: the kernels' loops reduce to scalars (a gain tracked over time)."""
+    u = rng.standard_normal(300)
+    zs = np.where(np.arange(300) < 150, 2.0, -1.0) * u + 0.05 * rng.standard_normal(300)
+    zs[[40, 41]] = np.nan
+    Hs = u.reshape(-1, 1)
+    kwargs = {"update_first": update_first, "Rs": rng.uniform(0.5, 2.0, 300)}
+    for module, make in ((sw_module, lambda: SlidingWindowRLS(1, 5, refresh=13)),
+                         (sr_module, lambda: SquareRootRLS(1, lam=0.9))):
+        a, b, out_c, out_r = _run_both(monkeypatch, module, make, zs, Hs, **kwargs)
+        _compare(a, b, out_c, out_r)
+        assert a.x[0, 0] == pytest.approx(-1.0, abs=0.15)     # the second gain
+
+
 # ----------------------------------------------------------------------
 # the disk cache
 # ----------------------------------------------------------------------
