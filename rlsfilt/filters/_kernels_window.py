@@ -129,11 +129,13 @@ def _sr_predict(U, d, c):
 
 
 @njit(cache=True)
-def _sr_step(U, d, x, phi, z, r, w, y, K):
+def _sr_step(U, d, x, phi, z, r, w, y, K, gain):
     """One measurement update of the information square root, in place.
 
-    Writes ``y`` (m,) and ``K`` (n,) (NaN and zero when `z` holds a NaN)
-    and returns ``s = H P H^T + R``. ``w`` (n,) is workspace.
+    Writes ``y`` (m,) and, when `gain`, ``K`` (n,) (NaN and zero when `z`
+    holds a NaN) and returns ``s = H P H^T + R``. ``w`` (n,) is workspace.
+    The gain is not needed to update ``U`` and ``d``: the batch kernel forms
+    it for the last step only.
     """
     n, m = d.shape
     for i in range(n):                         # U^T w = phi (forward substitution)
@@ -150,13 +152,14 @@ def _sr_step(U, d, x, phi, z, r, w, y, K):
         for i in range(n):
             K[i] = 0.0
         return s
-    for i in range(n - 1, -1, -1):             # U v = w (back substitution); K = v / s
-        acc = w[i]
-        for k in range(i + 1, n):
-            acc -= U[i, k] * K[k]
-        K[i] = acc / U[i, i]
-    for i in range(n):
-        K[i] = K[i] / s
+    if gain:
+        for i in range(n - 1, -1, -1):         # U v = w (back substitution); K = v / s
+            acc = w[i]
+            for k in range(i + 1, n):
+                acc -= U[i, k] * K[k]
+            K[i] = acc / U[i, i]
+        for i in range(n):
+            K[i] = K[i] / s
     for j in range(m):                         # y = z - phi x
         acc = 0.0
         for i in range(n):
@@ -197,7 +200,7 @@ def _sr_step(U, d, x, phi, z, r, w, y, K):
 def sr_update_kernel(U, d, x, phi, z, r, y, K):
     """Streaming :meth:`SquareRootRLS.update`: `_sr_step` on the given arrays."""
     w = np.empty(U.shape[0])
-    return _sr_step(U, d, x, phi, z, r, w, y, K)
+    return _sr_step(U, d, x, phi, z, r, w, y, K, U.shape[0] > 0)
 
 
 @njit(cache=True)
@@ -230,7 +233,7 @@ def sr_batch_kernel(U, d, x, Z, Hm, Rv, c, update_first, means, covs, covs_p,
                     _copy2(covs_p[k], P_prior)
                 else:
                     _upper_inverse_gram(U, P_prior)
-        s = _sr_step(U, d, x, Hm[k], Z[k], Rv[k if r_each else 0], w, y, K)
+        s = _sr_step(U, d, x, Hm[k], Z[k], Rv[k if r_each else 0], w, y, K, k == N - 1)
         _copy2(x, means[k])
         if store:
             _upper_inverse_gram(U, covs[k])
