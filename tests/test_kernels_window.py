@@ -289,6 +289,27 @@ def test_one_parameter_filters(rng, monkeypatch, update_first):
         assert a.x[0, 0] == pytest.approx(-1.0, abs=0.15)     # the second gain
 
 
+@pytest.mark.parametrize("make", [lambda: SlidingWindowRLS(4, 10),
+                                  lambda: SquareRootRLS(4, lam=0.95)])
+def test_streaming_measurement_spellings(rng, make):
+    """float, numpy scalar, 0-d and (1, 1) arrays, lists and None give the same step."""
+    Hs, zs = _record(rng, 30)
+    filters = [make() for _ in range(5)]
+    for k in range(len(zs)):
+        z = zs[k]
+        spellings = [float(z), np.float64(z), np.array(z), np.array([[z]]), [z]]
+        if k % 7 == 3:
+            spellings = [np.nan, np.float64(np.nan), None, np.array(np.nan), [np.nan]]
+        for f, zk in zip(filters, spellings):
+            f.predict()
+            f.update(zk, Hs[k])
+    for f in filters[1:]:
+        for name in STATE:
+            assert_array_equal(getattr(f, name), getattr(filters[0], name), err_msg=name)
+    with pytest.raises(ValueError, match=r"`z` must be finite or NaN \(missing\)"):
+        filters[0].update(np.inf, Hs[0])
+
+
 # ----------------------------------------------------------------------
 # the disk cache
 # ----------------------------------------------------------------------

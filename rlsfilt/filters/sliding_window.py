@@ -15,6 +15,7 @@ __all__ = ["SlidingWindowRLS"]
 # (the step in `update`, `_downdate` and `_window_lstsq` below).
 _COMPILED = True
 _kernels = None
+_FLOATS = (float, np.float64)
 
 
 def _get_kernels():
@@ -166,7 +167,10 @@ class SlidingWindowRLS(_FilterBase):
         """
         phi = self._as_regressor(H, "H")
         r = self._R if R is None else check_variance(R, "R")
-        zc = self._as_measurement(z, "z")
+        if type(z) in _FLOATS and self.dim_z == 1 and z - z == 0.0:   # a finite float
+            zc = np.array([[z]], dtype=np.float64)
+        else:
+            zc = self._as_measurement(z, "z")
         x, P = self._checked_x(), self._checked_P()
         self._clear_lazy()
         self.H = phi
@@ -231,12 +235,12 @@ class SlidingWindowRLS(_FilterBase):
 
     def _int_state(self):
         """The ring-buffer counters as the kernels' ``ist`` array."""
-        return np.array([self._head, self._nw, self._count, self._next_exact_try,
-                         int(self.exact)], dtype=np.int64)
+        return np.array((self._head, self._nw, self._count, self._next_exact_try,
+                         1 if self.exact else 0), dtype=np.int64)
 
     def _set_int_state(self, ist):
-        self._head, self._nw, self._count, self._next_exact_try = (int(v) for v in ist[:4])
-        self.exact = bool(ist[4])
+        self._head, self._nw, self._count, self._next_exact_try, exact = ist.tolist()
+        self.exact = exact == 1
 
     def predict_update(self, z, H, R=None):
         """:meth:`predict` then :meth:`update`."""

@@ -16,6 +16,7 @@ __all__ = ["SquareRootRLS"]
 # pure-NumPy reference (the Householder QR step below).
 _COMPILED = True
 _kernels = None
+_FLOATS = (float, np.float64)
 
 
 def _get_kernels():
@@ -198,7 +199,10 @@ class SquareRootRLS(_FilterBase):
         :meth:`RecursiveLeastSquares.update`; missing `z` keeps the estimate)."""
         phi = self._as_regressor(H, "H")
         r = self._R if R is None else check_variance(R, "R")
-        zc = self._as_measurement(z, "z")
+        if type(z) in _FLOATS and self.dim_z == 1 and z - z == 0.0:   # a finite float
+            zc = np.array([[z]], dtype=np.float64)
+        else:
+            zc = self._as_measurement(z, "z")
         self._clear_lazy()
         self.H = phi
         if _COMPILED:
