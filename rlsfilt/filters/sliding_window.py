@@ -223,7 +223,7 @@ class SlidingWindowRLS(_FilterBase):
         zrow = np.full(m, np.nan) if zc is None else zc[:, 0]
         ist = self._int_state()
         s = (_kernels or _get_kernels()).sw_update_kernel(
-            x, P, phi[0], zrow, r, self._wH, self._wZ, self._wR, ist, self.refresh,
+            x, P, phi[0], zrow, r, self._wH, self._wZ, self._wR, ist, int(self.refresh or 0),
             self._Lt, self._Ltx0, y[:, 0], K[:, 0])
         self._set_int_state(ist)
         self.S, self.SI = s * self._I_z, self._I_z / s
@@ -311,7 +311,7 @@ class SlidingWindowRLS(_FilterBase):
         s = kern.sw_batch_kernel(
             x, P, kern.c_array(Z),
             kern.c_array(Hm), Rv, self._wH, self._wZ, self._wR,
-            ist, self.refresh, self._Lt, self._Ltx0, means, covs, y, K, P_last)
+            ist, int(self.refresh or 0), self._Lt, self._Ltx0, means, covs, y, K, P_last)
         self._set_int_state(ist)
         # the window has no time update: the priors are the previous posteriors
         if update_first:
