@@ -43,7 +43,8 @@ _getrefcount = getattr(sys, "getrefcount", lambda obj: -1)
 # tests switch this off to compare with the pure-NumPy `_batch_reference`.
 _COMPILED = True
 _kernels = None
-_EXPONENTIAL = _fg.EXPONENTIAL    # the mode the compiled paths run
+_EXPONENTIAL = _fg.EXPONENTIAL    # the mode of the fused fast paths
+_EMPTY2 = np.zeros((0, 0))        # stands for an absent Q or projector in kernel calls
 
 
 def _get_kernels():
@@ -309,7 +310,8 @@ class RecursiveLeastSquares(_FilterBase):
     # ``__dict__``, so that filterpy's Saver (which records every entry of
     # ``__dict__``) sees only the filter's state.
     # (_FilterBase has no __slots__, so instances keep their __dict__.)
-    __slots__ = ("_x_own", "_P_own", "_spare_prior", "_spare_update", "_row", "_row2")
+    __slots__ = ("_x_own", "_P_own", "_spare_prior", "_spare_update", "_row", "_row2",
+                 "_params_arr")
 
     def __init__(self, dim_x, dim_z=1, lam=1.0, *, P0=1e4, x0=None, R=1.0, Q=0.0,
                  forgetting="exponential", forgetting_params=None, gate=None,
@@ -347,6 +349,7 @@ class RecursiveLeastSquares(_FilterBase):
         params = _fg.mode_params(self._mode, self._forgetting_params_in, self.dim_x, lam,
                                  self._R)
         self._lam, self._params = lam, params
+        self._params_arr = np.array(params, dtype=np.float64)
 
     @property
     def forgetting(self):
@@ -400,12 +403,21 @@ class RecursiveLeastSquares(_FilterBase):
         else:
             Q = check_covariance(Q, self.dim_x, "Q")
             q_zero = not Q.any()
-        if self._mode != _EXPONENTIAL or self._Pi is not None:
+        if self._mode != _EXPONENTIAL or self._Pi is not None or not _COMPILED:
             P = self._checked_P()
             if self._efra_pending:
                 P = self._efra_start(P)
-            P = _predict_covariance(P, self._time_lam(), None if q_zero else Q)
-            self.P = P if self._Pi is None else _project(P, self._Pi)
+            if _COMPILED:        # the compiled step that batch_filter runs
+                P = np.array(P, dtype=np.float64, order="C")
+                Pi = self._Pi
+                n = self.dim_x
+                (_kernels or _get_kernels()).general_predict(
+                    P, 1.0 / self._time_lam(), Q, q_zero, Pi is not None,
+                    _EMPTY2 if Pi is None else Pi, np.empty((n, n)))
+                self.P = P
+            else:
+                P = _predict_covariance(P, self._time_lam(), None if q_zero else Q)
+                self.P = P if self._Pi is None else _project(P, self._Pi)
             self.x_prior = self.x.copy()
             self.P_prior = self.P.copy()
             self._updates_since_predict = 0
@@ -450,7 +462,8 @@ class RecursiveLeastSquares(_FilterBase):
         R : float, optional
             Measurement-noise variance for this call only.
         """
-        if self._mode != _EXPONENTIAL or self._gate is not None or self._Pi is not None:
+        if (self._mode != _EXPONENTIAL or self._gate is not None or self._Pi is not None
+                or not _COMPILED):
             self._update_general(z, H, R)
             return
         # The common case (a float64 row, a float measurement, the filter's
@@ -544,8 +557,21 @@ class RecursiveLeastSquares(_FilterBase):
         if self._efra_pending:
             P = self._efra_start(P)
         self.H = phi
-        x, P, y, K, g, s, lam_t, gated = _measurement_step(
-            self._mode, self._params, self._lam, x, P, phi, zc, r, self._gate, self._Pi)
+        if _COMPILED:     # the compiled step that batch_filter runs (bitwise equal)
+            n, m = self.dim_x, self.dim_z
+            x = np.array(x, dtype=np.float64, order="C")
+            P = np.array(P, dtype=np.float64, order="C")
+            y, K = np.empty(m), np.empty(n)
+            Pi, gate = self._Pi, self._gate
+            s, lam_t, gated = (_kernels or _get_kernels()).general_update_kernel(
+                x, P, phi[0], np.zeros(m) if zc is None else zc[:, 0], zc is None, r,
+                self._mode, self._params_arr, self._lam, gate is not None,
+                0.0 if gate is None else gate, Pi is not None, _EMPTY2 if Pi is None else Pi,
+                y, K)
+            y, K = y.reshape(m, 1), K.reshape(n, 1)
+        else:
+            x, P, y, K, g, s, lam_t, gated = _measurement_step(
+                self._mode, self._params, self._lam, x, P, phi, zc, r, self._gate, self._Pi)
         self.S = s * self._I_z
         self.SI = self._I_z / s
         self.gated = gated
@@ -683,12 +709,13 @@ class RecursiveLeastSquares(_FilterBase):
         P = self._checked_P()
         if self._efra_pending and len(Z):
             P = self._efra_start(P)
-        compiled = (_COMPILED and self._mode == _EXPONENTIAL and self._gate is None
-                    and self._Pi is None)
-        if compiled:      # the residual histories are not needed here: last step only
+        if not _COMPILED:
+            run = _batch_reference
+        elif self._mode == _EXPONENTIAL and self._gate is None and self._Pi is None:
+            # the fused fast path; the residual histories are not needed: last step only
             run = functools.partial(_get_kernels().batch_compiled, histories=False)
         else:
-            run = _batch_reference
+            run = _get_kernels().batch_general
         out = run(self._checked_x(), P, Z, Hm, Rv, self._lam,
                   None if self._Q_is_zero else self._Q, update_first,
                   store_covariances, mode=self._mode, params=self._params,
