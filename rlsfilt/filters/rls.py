@@ -602,9 +602,15 @@ class RecursiveLeastSquares(_FilterBase):
 
             x = (\Phi^T \Phi)^{-1} \Phi^T Z, \qquad P = R\,(\Phi^T \Phi)^{-1},
 
-        both computed from the QR factorization :math:`\Phi = Q_1 R_1`
-        (:math:`x = R_1^{-1} Q_1^T Z`, :math:`P = R\,R_1^{-1} R_1^{-T}`),
-        never from the normal equations, which square the condition number.
+        both computed from the QR factorization :math:`\Phi D^{-1} = Q_1 R_1`
+        of the regressors with their columns scaled to unit norm
+        (:math:`D` the diagonal of the column norms; :math:`x = D^{-1} R_1^{-1}
+        Q_1^T Z`, :math:`P = R\,D^{-1} R_1^{-1} R_1^{-T} D^{-1}`), never from the
+        normal equations, which square the condition number. The scaling
+        makes the rank decision independent of the units of the regressors
+        (a column in 1e-8 beside one in 1e6 is not mistaken for a zero
+        column), as in ``ARX.fit(method="ls")``; the result is the same exact
+        least-squares solution.
         After it, updates with ``lam = 1`` reproduce batch least squares on
         all data so far at every step. With ``lam < 1`` row ``i`` of
         ``k0`` is weighted by ``lam**(k0 - 1 - i)``, so later steps reproduce
@@ -629,16 +635,23 @@ class RecursiveLeastSquares(_FilterBase):
         keep = ~np.isnan(Z).any(axis=1)
         A = Hm[keep] * w[keep, None]
         B = Z[keep] * w[keep, None]
-        rank = np.linalg.matrix_rank(A) if len(A) else 0
+        # columns scaled to unit norm, so that neither the rank decision nor the
+        # QR depends on the units of the regressors (1e-8 beside 1e6 is not rank
+        # deficiency); the solution is scaled back exactly: x = D^-1 x_s,
+        # (A^T A)^-1 = D^-1 (A_s^T A_s)^-1 D^-1
+        norms = np.linalg.norm(A, axis=0) if len(A) else np.ones(self.dim_x)
+        d = np.where(norms > 0.0, norms, 1.0)
+        As = A / d
+        rank = int(np.linalg.matrix_rank(As)) if len(A) else 0
         if rank < self.dim_x:
             raise ValueError(
                 f"`Hs` is rank-deficient: found {rank} linearly independent rows in "
                 f"{len(A)} usable samples; need {self.dim_x} (one per parameter). Use more "
                 "samples or a more exciting input."
             )
-        Qf, Rf = np.linalg.qr(A)
-        self.x = solve_triangular(Rf, Qf.T @ B)
-        Rinv = solve_triangular(Rf, np.eye(self.dim_x))
+        Qf, Rf = np.linalg.qr(As)
+        self.x = solve_triangular(Rf, Qf.T @ B) / d[:, None]
+        Rinv = solve_triangular(Rf, np.eye(self.dim_x)) / d[:, None]   # D^-1 R_s^-1
         P = self._R * (Rinv @ Rinv.T)
         self.P = 0.5 * (P + P.T)
         self._efra_pending = self._mode == _fg.EFRA
