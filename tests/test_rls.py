@@ -299,9 +299,16 @@ def test_batch_filter_accepts_rs_and_list_rows(rng):
 # missing measurements
 # ----------------------------------------------------------------------
 @pytest.mark.parametrize("missing", [None, np.nan, [np.nan]])
-def test_missing_measurement_keeps_estimate(rng, missing):
+@pytest.mark.parametrize("path", ["fast", "general", "reference"])
+def test_missing_measurement_keeps_estimate(rng, monkeypatch, missing, path):
+    """The exponential fast path, the general compiled path (a gate that never fires) and
+    the NumPy reference all leave the documented diagnostics."""
+    from rlsfilt.filters import rls as rls_module
+
+    if path == "reference":
+        monkeypatch.setattr(rls_module, "_COMPILED", False)
     Hs, zs = arx_record(rng, n_samples=20)
-    rls = RecursiveLeastSquares(4, lam=0.9)
+    rls = RecursiveLeastSquares(4, lam=0.9, gate=1e300 if path == "general" else None)
     rls.batch_filter(zs[:10], Hs[:10])
     rls.predict()
     x, P = rls.x.copy(), rls.P.copy()
@@ -313,6 +320,23 @@ def test_missing_measurement_keeps_estimate(rng, missing):
     assert_array_equal(rls.K, 0.0)
     assert rls.S[0, 0] == pytest.approx(Hs[10] @ P @ Hs[10] + 1.0, rel=1e-12)
     assert rls.log_likelihood == 0.0 and rls.likelihood == 1.0
+    assert np.isnan(rls.mahalanobis)
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+@pytest.mark.parametrize("gate", [None, 1e300])
+def test_missing_last_sample_of_batch_diagnostics(rng, monkeypatch, compiled, gate):
+    from rlsfilt.filters import rls as rls_module
+
+    monkeypatch.setattr(rls_module, "_COMPILED", compiled)
+    Hs, zs = arx_record(rng, n_samples=20)
+    zs[-1] = np.nan
+    rls = RecursiveLeastSquares(4, lam=0.9, gate=gate)
+    rls.batch_filter(zs, Hs)
+    assert rls.log_likelihood == 0.0 and rls.likelihood == 1.0
+    assert np.isnan(rls.mahalanobis)
+    assert np.isnan(rls.y).all() and np.isnan(rls.z).all()
+    assert_array_equal(rls.K, 0.0)
 
 
 def test_missing_in_batch_equals_skipping_the_update(rng):

@@ -120,9 +120,9 @@ class RecursiveLeastSquares(_FilterBase):
     Q : float or array_like, default 0.0
         Covariance of the parameter random walk added in :meth:`predict`; a
         scalar means ``Q * I``.
-    forgetting : {"exponential", "directional", "constant_trace", "efra", \
-"variable"}, default "exponential"
-        How old data is forgotten (see Notes). ``"exponential"`` divides
+    forgetting : {"exponential", "directional", "constant_trace", "efra", "variable"}, optional
+        How old data is forgotten (see Notes); ``"exponential"`` by
+        default. ``"exponential"`` divides
         ``P`` by `lam` in :meth:`predict` (filterpy's fading memory); the
         others forget inside :meth:`update`, because they need the step's
         regressor or residual, and bound ``P`` when the input stops
@@ -257,8 +257,9 @@ class RecursiveLeastSquares(_FilterBase):
     Missing measurements (``z is None`` or any NaN in ``z``) keep the
     estimate (posterior = prior), as filterpy and statsmodels do. Then ``y``
     and ``z`` are NaN, ``K`` is zero, ``S`` is the predictive variance of the
-    missing measurement, and ``log_likelihood`` is 0 (a missing sample adds
-    nothing to the log-likelihood). Because the outputs share ``P``, one NaN
+    missing measurement, ``log_likelihood`` is 0 and ``likelihood`` 1 (a
+    missing sample adds nothing to the log-likelihood), and ``mahalanobis``
+    is NaN (there is no residual to measure). Because the outputs share ``P``, one NaN
     in a multi-output ``z`` makes the whole sample missing.
 
     References
@@ -519,7 +520,7 @@ class RecursiveLeastSquares(_FilterBase):
         else:
             self._updates_since_predict = 1
         if missing:
-            self._log_likelihood, self._likelihood, self._mahalanobis = 0.0, 1.0, None
+            self._log_likelihood, self._likelihood, self._mahalanobis = 0.0, 1.0, math.nan
         else:
             self._log_likelihood = self._likelihood = self._mahalanobis = None
         if not recycled:
@@ -581,7 +582,7 @@ class RecursiveLeastSquares(_FilterBase):
         if zc is None:
             self.z = np.full((self.dim_z, 1), np.nan)
             self.y = np.full((self.dim_z, 1), np.nan)
-            self._log_likelihood, self._likelihood = 0.0, 1.0
+            self._log_likelihood, self._likelihood, self._mahalanobis = 0.0, 1.0, math.nan
         else:
             self.z, self.y = zc, y
         self.x_post = self.x.copy()
@@ -753,7 +754,7 @@ class RecursiveLeastSquares(_FilterBase):
             self.z = np.full((self.dim_z, 1), np.nan)
             self.y = np.full((self.dim_z, 1), np.nan)
             self.K = np.zeros((self.dim_x, 1))
-            self._log_likelihood, self._likelihood = 0.0, 1.0
+            self._log_likelihood, self._likelihood, self._mahalanobis = 0.0, 1.0, math.nan
         else:
             self.z = Z[-1].reshape(-1, 1).copy()
             self.y = out.y_last.reshape(-1, 1)
