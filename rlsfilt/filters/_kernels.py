@@ -32,9 +32,16 @@ inner loop, so LLVM vectorizes it without any reassociation (no
 streaming methods, which run the same arithmetic in separate calls, agree
 with the batch kernel bit for bit.
 
-``mode`` selects the covariance update (only ``MODE_EXPONENTIAL`` so far:
-exponential forgetting plus an optional random walk ``Q``); ``params`` is a
-small float array reserved for the parameters of further modes.
+``batch_filter_kernel``, ``predict_kernel`` and ``update_kernel`` run this
+fused arithmetic for the default mode (exponential forgetting plus an
+optional random walk ``Q``, no gate, no constraints). Every other option
+(the anti-windup modes of :mod:`rlsfilt.filters.forgetting`, the outlier
+gate, the equality constraints) runs ``general_batch_kernel``, or
+``general_predict`` and ``general_update_kernel`` when streaming: one
+unfused step per sample that follows the NumPy reference operation by
+operation (``rls._measurement_step``, ``forgetting.update_<mode>``,
+``rls._project``), so that it agrees with it to round-off and the batch and
+streaming runs agree bit for bit.
 """
 
 import numpy as np
@@ -635,7 +642,7 @@ def batch_compiled(x, P, Z, Hm, Rv, lam, Q, update_first, store_covariances, *,
     """Compiled counterpart of ``rls._batch_reference`` (same arguments, same result).
 
     Exponential forgetting without gate or constraints only (a ValueError
-    otherwise). `x`, `P` are not modified. Returns a ``rls._BatchResult``;
+    otherwise; `batch_general` runs every option). `x`, `P` are not modified. Returns a ``rls._BatchResult``;
     with ``histories=False`` its ``ys`` and ``ss`` hold the last step only
     (``batch_filter`` needs no more), which saves ``N (dim_z + 1)`` numbers.
     """

@@ -708,7 +708,8 @@ class RecursiveLeastSquares(_FilterBase):
         :math:`6\,n^2` floating-point operations for ``n = dim_x`` and the
         record is processed at tens of nanoseconds per sample for small ``n``
         (see ``docs/performance.md``). The other modes, the gate and the
-        constraints run the NumPy loop.
+        constraints run a compiled loop of one step per sample, the same
+        compiled step that :meth:`predict` and :meth:`update` call.
 
         Every forgetting mode, the gate and the constraints apply exactly as
         in the step-by-step loop (the results are bitwise equal); gated
