@@ -181,15 +181,18 @@ def test_streaming_accepts_every_regressor_layout(rng):
     Hs = np.round(Hs * 4)                    # integers, exactly representable
     Hf = np.asfortranarray(Hs)               # rows are strided views
     Hi = Hs.astype(int)
+    Hr = Hs.copy()
+    Hr.setflags(write=False)                 # read-only rows
     ref = RecursiveLeastSquares(4, lam=0.97)
-    others = [RecursiveLeastSquares(4, lam=0.97) for _ in range(4)]
+    others = [RecursiveLeastSquares(4, lam=0.97) for _ in range(5)]
     for k in range(len(zs)):
         ref.predict_update(zs[k], Hs[k])
         others[0].predict_update(zs[k], Hf[k])
         others[1].predict_update(zs[k], list(Hs[k]))
         others[2].predict_update(np.array([[zs[k]]]), Hs[k].reshape(1, -1))
         others[3].predict_update(int(round(zs[k])) if k % 2 else zs[k], Hi[k])
-    for o in others[:3]:
+        others[4].predict_update(np.float64(zs[k]), Hr[k])
+    for o in others[:3] + others[4:]:
         assert_array_equal(o.x, ref.x)
         assert_array_equal(o.P, ref.P)
     assert_array_equal(others[3].P, ref.P)      # P does not depend on the measurements

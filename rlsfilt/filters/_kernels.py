@@ -642,9 +642,10 @@ def batch_compiled(x, P, Z, Hm, Rv, lam, Q, update_first, store_covariances, *,
     """Compiled counterpart of ``rls._batch_reference`` (same arguments, same result).
 
     Exponential forgetting without gate or constraints only (a ValueError
-    otherwise; `batch_general` runs every option). `x`, `P` are not modified. Returns a ``rls._BatchResult``;
-    with ``histories=False`` its ``ys`` and ``ss`` hold the last step only
-    (``batch_filter`` needs no more), which saves ``N (dim_z + 1)`` numbers.
+    otherwise; `batch_general` runs every option). `x`, `P` are not
+    modified. Returns a ``rls._BatchResult``; with ``histories=False`` its
+    ``ys`` and ``ss`` hold the last step only (``batch_filter`` needs no
+    more), which saves ``N (dim_z + 1)`` numbers.
     """
     from .rls import _BatchResult, _health_problem
 
