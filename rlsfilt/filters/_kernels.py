@@ -896,14 +896,53 @@ def general_update(x, P, phi, z, missing, r, mode, params, lam, has_gate, gate,
 
 
 @njit(cache=True)
-def general_update_kernel(x, P, phi, z, missing, r, mode, params, lam, has_gate, gate,
-                          constrained, Pi, y, K):
-    """`general_update` for the streaming :meth:`update` (allocates its work arrays)."""
-    n = P.shape[0]
+def general_update_kernel(x, P, phi, z, z0, zmode, r, mode, params, lam, has_gate, gate,
+                          constrained, Pi, y, K, S, SI, Hc, x_post, P_post):
+    """`general_update` for the streaming :meth:`update`, in place on ``x``, ``P``.
+
+    As `update_kernel`: ``zmode`` 1 writes the scalar ``z0`` into ``z``
+    (m,), 2 marks the measurement missing and fills ``z`` with NaN. Writes
+    ``y`` (m,), ``K`` (n,), ``S = s I``, ``SI = I / s`` (m, m), the copy
+    ``Hc`` (1, n) of ``phi`` and the copies ``x_post``, ``P_post``.
+
+    Returns
+    -------
+    code : int
+        0; 1 when ``phi`` holds NaN or inf (nothing is written then); 2 when
+        the diagonal of the new ``P`` is not finite and positive.
+    s, lam_t : float
+    gated : bool
+    """
+    n, m = x.shape
+    for i in range(n):
+        v = phi[i]
+        if v - v != 0.0:          # NaN or inf
+            return 1, np.nan, lam, False
+    missing = zmode == 2
+    if zmode == 1:
+        z[0] = z0
+    elif missing:
+        for j in range(m):
+            z[j] = np.nan
+    for i in range(n):
+        Hc[0, i] = phi[i]
     g = np.empty(n)
     T = np.empty((n, n))
-    return general_update(x, P, phi, z, missing, r, mode, params, lam, has_gate, gate,
-                          constrained, Pi, g, y, K, T)
+    s, lam_t, gated = general_update(x, P, phi, z, missing, r, mode, params, lam, has_gate,
+                                     gate, constrained, Pi, g, y, K, T)
+    c = 1.0 / s
+    for i in range(m):
+        for j in range(m):
+            S[i, j] = 0.0
+            SI[i, j] = 0.0
+        S[i, i] = s
+        SI[i, i] = c
+    _copy2(x, x_post)
+    _copy2(P, P_post)
+    for i in range(n):
+        if not P[i, i] > 0.0 or P[i, i] == np.inf:
+            return 2, s, lam_t, gated
+    return 0, s, lam_t, gated
 
 
 @njit(cache=True)

@@ -605,7 +605,64 @@ class RecursiveLeastSquares(_FilterBase):
 
     def _update_general(self, z, H, R):
         """:meth:`update` for the forgetting modes other than exponential, the gate
-        and the constraints (pure NumPy)."""
+        and the constraints: the compiled step that batch_filter runs (so the
+        two agree bit for bit), or the NumPy reference when ``_COMPILED`` is off."""
+        if not _COMPILED:
+            self._update_reference(z, H, R)
+            return
+        n, m = self.dim_x, self.dim_z
+        if type(H) is np.ndarray and H.dtype is _F8 and (H.shape == self._row
+                                                          or H.shape == self._row2):
+            phi = H.reshape(n)                 # finiteness: tested by the kernel
+        else:
+            phi = self._as_regressor(H, "H").reshape(n)
+        r = self._R if R is None else check_variance(R, "R")
+        zc = np.empty(m)
+        if isinstance(z, float) and m == 1:
+            zmode, z0 = (2, 0.0) if z != z else (1, z)
+            if zmode == 1 and z - z != 0.0:
+                self._as_measurement(z, "z")            # raises: z is inf
+        else:
+            zvalue = self._as_measurement(z, "z")
+            zmode, z0 = (2, 0.0) if zvalue is None else (0, 0.0)
+            if zvalue is not None:
+                zc[:] = zvalue[:, 0]
+        x, P = self._checked_x(), self._checked_P()
+        if self._efra_pending:
+            check_finite(phi, "H")                    # before the state changes
+            P = self._efra_start(P)
+        x = np.array(x, dtype=np.float64, order="C")
+        P = np.array(P, dtype=np.float64, order="C")
+        y, K = np.empty(m), np.empty(n)
+        S, SI, Hc = np.empty((m, m)), np.empty((m, m)), np.empty((1, n))
+        x_post, P_post = np.empty((n, m)), np.empty((n, n))
+        Pi, gate = self._Pi, self._gate
+        code, s, lam_t, gated = (_kernels or _get_kernels()).general_update_kernel(
+            x, P, phi, zc, float(z0), zmode, r, self._mode, self._params_arr, self._lam,
+            gate is not None, 0.0 if gate is None else gate, Pi is not None,
+            _EMPTY2 if Pi is None else Pi, y, K, S, SI, Hc, x_post, P_post)
+        if code == 1:
+            check_finite(phi, "H")                    # raises: H is not finite
+        self._note_update()
+        if zmode == 2:
+            self._log_likelihood, self._likelihood, self._mahalanobis = 0.0, 1.0, math.nan
+        else:
+            self._log_likelihood = self._likelihood = self._mahalanobis = None
+        self.H, self.S, self.SI = Hc, S, SI
+        self.z, self.y, self.K = zc.reshape(m, 1), y.reshape(m, 1), K.reshape(n, 1)
+        self.x, self.P = x, P
+        self.x_post, self.P_post = x_post, P_post
+        self.gated = gated
+        self.n_gated += gated
+        self.lam_t = lam_t
+        self.n_updates = nu = self.n_updates + 1
+        # the cheap health check: the kernel tested the diagonal (code 2)
+        every = self.check_every
+        if every and (code == 2 or not nu % every) and not self._warned_health:
+            self._check_health(cheap=False)
+
+    def _update_reference(self, z, H, R):
+        """:meth:`update` in NumPy (the reference path)."""
         phi = self._as_regressor(H, "H")
         r = self._R if R is None else check_variance(R, "R")
         zc = self._as_measurement(z, "z")
@@ -615,21 +672,8 @@ class RecursiveLeastSquares(_FilterBase):
         if self._efra_pending:
             P = self._efra_start(P)
         self.H = phi
-        if _COMPILED:     # the compiled step that batch_filter runs (bitwise equal)
-            n, m = self.dim_x, self.dim_z
-            x = np.array(x, dtype=np.float64, order="C")
-            P = np.array(P, dtype=np.float64, order="C")
-            y, K = np.empty(m), np.empty(n)
-            Pi, gate = self._Pi, self._gate
-            s, lam_t, gated = (_kernels or _get_kernels()).general_update_kernel(
-                x, P, phi[0], np.zeros(m) if zc is None else zc[:, 0], zc is None, r,
-                self._mode, self._params_arr, self._lam, gate is not None,
-                0.0 if gate is None else gate, Pi is not None, _EMPTY2 if Pi is None else Pi,
-                y, K)
-            y, K = y.reshape(m, 1), K.reshape(n, 1)
-        else:
-            x, P, y, K, g, s, lam_t, gated = _measurement_step(
-                self._mode, self._params, self._lam, x, P, phi, zc, r, self._gate, self._Pi)
+        x, P, y, K, g, s, lam_t, gated = _measurement_step(
+            self._mode, self._params, self._lam, x, P, phi, zc, r, self._gate, self._Pi)
         self.S = s * self._I_z
         self.SI = self._I_z / s
         self.gated = gated
