@@ -1,9 +1,11 @@
 """The compiled (numba) recursion against the pure-NumPy reference path.
 
-`batch_filter` runs the compiled kernel; ``rlsfilt.filters.rls._COMPILED =
-False`` switches it to ``_batch_reference``. The two must agree to 1e-12 on
-well-conditioned data for every option, and the streaming ``update`` must
-reproduce the batch run bit for bit (it runs the same compiled step).
+`batch_filter`, ``predict`` and ``update`` run compiled kernels;
+``rlsfilt.filters.rls._COMPILED = False`` switches them to the NumPy code
+(``_batch_reference``, ``_measurement_step``). The two must agree to 1e-12 on
+well-conditioned data for every option (every forgetting mode, the gate, the
+constraints), and the streaming ``predict``/``update`` must reproduce the
+batch run bit for bit (they run the same compiled step).
 """
 
 import functools
@@ -318,6 +320,28 @@ def test_streaming_recycles_only_arrays_nobody_else_holds(rng):
     ref.batch_filter(zs, Hs)
     assert_array_equal(rls.x, ref.x)
     assert_array_equal(rls.P, ref.P)
+
+
+def test_streaming_never_overwrites_a_replaced_attribute_the_caller_kept(rng):
+    """Replacing ``rls.y`` (or any diagnostic) while keeping the old array leaves the
+    reference count unchanged: the filter must still not recycle the kept array."""
+    Hs, zs = _record(rng, 12)
+    rls = RecursiveLeastSquares(4, lam=0.95)
+    ref = RecursiveLeastSquares(4, lam=0.95)
+    for k in range(3):
+        rls.predict_update(zs[k], Hs[k])
+        ref.predict_update(zs[k], Hs[k])
+    kept = {name: getattr(rls, name) for name in STATE[2:]}
+    snapshot = {name: v.copy() for name, v in kept.items()}
+    for name in STATE[2:]:
+        setattr(rls, name, np.zeros_like(kept[name]))
+    for k in range(3, len(zs)):
+        rls.predict_update(zs[k], Hs[k])
+        ref.predict_update(zs[k], Hs[k])
+        for name in STATE:
+            assert_array_equal(getattr(rls, name), getattr(ref, name), err_msg=name)
+    for name, value in kept.items():
+        assert_array_equal(value, snapshot[name], err_msg=name)
 
 
 # ----------------------------------------------------------------------

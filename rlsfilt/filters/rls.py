@@ -473,7 +473,8 @@ class RecursiveLeastSquares(_FilterBase):
         # Nobody else holds P or the last priors (the usual case, see
         # _free_refcount): P^- overwrites P, the priors are rewritten in place.
         recycled = (x is self._x_own and P is self._P_own and rc(P) == _FREE
-                    and rc(x_prior) == _FREE and rc(P_prior) == _FREE)
+                    and rc(x_prior) == _FREE and rc(P_prior) == _FREE
+                    and self.x_prior is x_prior and self.P_prior is P_prior)
         if recycled:
             ep = _predict_entry
             if ep is not None and Q is self._Q:
@@ -544,7 +545,12 @@ class RecursiveLeastSquares(_FilterBase):
                     and rc(x) == _FREE and rc(P) == _FREE and rc(y) == _FREE
                     and rc(K) == _FREE and rc(S) == _FREE and rc(SI) == _FREE
                     and rc(Hc) == _FREE and rc(zc) == _FREE and rc(x_post) == _FREE
-                    and rc(P_post) == _FREE)
+                    and rc(P_post) == _FREE
+                    # the attributes still are the spare arrays (an attribute the
+                    # user replaced while keeping the old array keeps the count)
+                    and self.y is y and self.K is K and self.S is S and self.SI is SI
+                    and self.H is Hc and self.z is zc and self.x_post is x_post
+                    and self.P_post is P_post)
         if recycled:
             xn, Pn = x, P
         else:
