@@ -551,3 +551,26 @@ def test_constrained_health_check_is_compiled_and_reports_the_same_step(monkeypa
         messages.append(str(record[0].message))
     assert "ill-conditioned" in messages[0]
     assert messages[0] == messages[1]
+
+
+@pytest.mark.parametrize("mode", MODES)
+@pytest.mark.parametrize("bad_H, bad_z, match", [
+    ([1.0, np.nan, 0.0, 0.0], 1.0, r"`H` must be finite; got nan at index 1"),
+    (np.array([1.0, 0.0, np.inf, 0.0]), 1.0, r"`H` must be finite; got inf at index 2"),
+    ([1.0, 0.0, 0.0, 0.0], np.inf, r"`z` must be finite or NaN"),
+])
+def test_general_streaming_rejects_bad_input_without_changing_state(mode, bad_H, bad_z, match):
+    """The compiled general step raises before anything changes, also before EFRA's
+    first step (whose start clipping is a state change)."""
+    rls = _make_filter(mode, True, True, 1e-4, 1)
+    before = {name: getattr(rls, name).copy() for name in STATE}
+    counters = (rls.n_updates, rls.n_gated, rls.lam_t)
+    for _ in range(2):
+        with pytest.raises(ValueError, match=match):
+            rls.update(bad_z, bad_H)
+        for name in STATE:
+            assert_array_equal(getattr(rls, name), before[name], err_msg=name)
+        assert (rls.n_updates, rls.n_gated, rls.lam_t) == counters
+        rls.predict_update(1.0, [1.0, 0.5, 0.0, 0.2])       # a good step, then again
+        before = {name: getattr(rls, name).copy() for name in STATE}
+        counters = (rls.n_updates, rls.n_gated, rls.lam_t)
