@@ -502,15 +502,18 @@ def test_every_mode_gate_and_constraint_compiled_equals_reference(rng, monkeypat
                         assert_allclose(A_C @ a.x, np.tile(B_C, (1, dim_z)), atol=1e-10)
 
 
+@pytest.mark.parametrize("robust", [False, True])
 @pytest.mark.parametrize("mode", MODES)
-def test_every_mode_streaming_compiled_equals_reference_and_batch(rng, monkeypatch, mode):
+def test_every_mode_streaming_compiled_equals_reference_and_batch(rng, monkeypatch, mode,
+                                                                  robust):
     """predict()/update() run the compiled step: equal to the NumPy step to 1e-12 and to
-    the compiled batch_filter bit for bit, with the gate, constraints, Q and missing samples."""
+    the compiled batch_filter bit for bit, with Q and missing samples, with and without the
+    gate and constraints (without them, the exponential mode runs the fused fast path)."""
     Hs, zs = _robust_record(rng, 2, (5, 70))
     runs = {}
     for compiled in (True, False):
         monkeypatch.setattr(rls_module, "_COMPILED", compiled)
-        rls = _make_filter(mode, True, True, 1e-4, 2)
+        rls = _make_filter(mode, robust, robust, 1e-4, 2)
         steps = []
         for k in range(len(zs)):
             rls.predict()
@@ -525,8 +528,8 @@ def test_every_mode_streaming_compiled_equals_reference_and_batch(rng, monkeypat
         assert lc == pytest.approx(lr, rel=1e-12) and gc == gr
     for name in STATE:
         _close(getattr(c, name), getattr(r, name), name)
-    assert c.n_gated == r.n_gated >= len(OUTLIERS)
-    batch = _make_filter(mode, True, True, 1e-4, 2)
+    assert c.n_gated == r.n_gated >= (len(OUTLIERS) if robust else 0)
+    batch = _make_filter(mode, robust, robust, 1e-4, 2)
     means, covs, _, _ = batch.batch_filter(zs, Hs)
     for k, (xc, Pc, _, _) in enumerate(steps_c):
         assert_array_equal(means[k], xc)
