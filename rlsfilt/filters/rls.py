@@ -39,8 +39,10 @@ _F8 = np.dtype(np.float64)
 # (without getrefcount, or with _FREE None, no array compares equal: no recycling)
 _getrefcount = getattr(sys, "getrefcount", lambda obj: -1)
 
-# Run batch_filter through the compiled kernels of `_kernels` (numba). The
-# tests switch this off to compare with the pure-NumPy `_batch_reference`.
+# Run batch_filter, predict and update through the compiled kernels of
+# `_kernels` (numba), for every mode and option. The tests switch this off to
+# compare with the pure-NumPy reference (`_batch_reference`,
+# `_measurement_step`, `forgetting.update_<mode>`).
 _COMPILED = True
 _kernels = None
 _EXPONENTIAL = _fg.EXPONENTIAL    # the mode of the fused fast paths
