@@ -8,7 +8,6 @@ notebook that changed.
 """
 
 import os
-import re
 import shutil
 import sys
 from pathlib import Path
@@ -83,32 +82,3 @@ html_theme = "sphinx_rtd_theme"
 html_title = f"rlsfilt {release}"
 html_static_path = []
 html_theme_options = {"navigation_depth": 3}
-
-
-# ----------------------------------------------------------------------
-# Temporary: `RecursiveLeastSquares` (rlsfilt/filters/rls.py) continues its
-# ``forgetting : {...}`` parameter line with a trailing backslash, which
-# numpydoc reads as two lines (and the unindented continuation spoils the
-# docstring's dedent). This hook joins such lines; it handles that one case
-# only. The lead fixes that docstring after merging the filters branch; then
-# delete this hook and `setup`. Every other docstring must build without help.
-# ----------------------------------------------------------------------
-_PARAM_LINE = re.compile(r"^(\s*[\w*, ]+ : )(.*)$")
-
-
-def _join_continued_parameter_lines(app, what, name, obj, options, lines):
-    i, joined = 0, False
-    while i < len(lines) - 1:
-        if lines[i].endswith("\\") and _PARAM_LINE.match(lines[i]):
-            lines[i] = lines[i][:-1] + lines.pop(i + 1).lstrip()
-            joined = True
-        else:
-            i += 1
-    if joined:  # the unindented continuation had spoiled the docstring's dedent
-        body = [ln for ln in lines[1:] if ln.strip()]
-        margin = min((len(ln) - len(ln.lstrip()) for ln in body), default=0)
-        lines[1:] = [ln[margin:] for ln in lines[1:]]
-
-
-def setup(app):
-    app.connect("autodoc-process-docstring", _join_continued_parameter_lines, priority=400)

@@ -4,7 +4,7 @@ Two fresh interpreters run the same small job with ``NUMBA_CACHE_DIR`` set to
 a temporary directory. The first compiles and writes the cache index files;
 the second must find every kernel there (numba's dispatcher statistics show
 cache hits and no misses) and, with a warm cache, import rlsfilt and run its
-first steps in well under 2 s.
+first steps (the default and a robust variant) in well under 2 s.
 """
 
 import json
@@ -29,11 +29,19 @@ rls.batch_filter(z, H, store_covariances=False)
 rls.batch_filter(z, H)
 rls.predict()
 rls.update(1.0, H[0])
+robust = rlsfilt.RecursiveLeastSquares(3, lam=0.99, forgetting="directional", gate=4.0)
+robust.constrain([1.0, 1.0, 0.0], -1.0)
+robust.batch_filter(z, H, store_covariances=False)
+robust.predict()
+robust.update(1.0, H[0])
 elapsed = time.perf_counter() - t0
 from rlsfilt.filters import _kernels as K
 stats = {name: (sum(d.stats.cache_hits.values()), sum(d.stats.cache_misses.values()))
          for name, d in [("batch_filter_kernel", K.batch_filter_kernel),
-                         ("_run_single", K._run_single), ("update_kernel", K.update_kernel)]}
+                         ("_run_single", K._run_single), ("update_kernel", K.update_kernel),
+                         ("general_batch_kernel", K.general_batch_kernel),
+                         ("general_predict", K.general_predict),
+                         ("general_update_kernel", K.general_update_kernel)]}
 print(json.dumps({"elapsed": elapsed, "stats": stats}))
 """
 
@@ -54,7 +62,8 @@ def test_second_process_loads_kernels_from_disk(tmp_path):
     # the first process compiled every kernel and wrote its index file
     assert all(hits == 0 and misses >= 1 for hits, misses in first["stats"].values()), first
     index = sorted(p.name for p in tmp_path.rglob("*.nbi"))
-    for name in ("batch_filter_kernel", "_run_single", "update_kernel"):
+    for name in ("batch_filter_kernel", "_run_single", "update_kernel", "general_batch_kernel",
+                 "general_predict", "general_update_kernel"):
         assert any(f"_kernels.{name}-" in f for f in index), (name, index)
     assert list(tmp_path.rglob("*.nbc"))
 
@@ -63,5 +72,7 @@ def test_second_process_loads_kernels_from_disk(tmp_path):
     assert all(misses == 0 for _, misses in second["stats"].values()), second
     assert second["stats"]["batch_filter_kernel"][0] >= 1, second
     assert second["stats"]["update_kernel"][0] >= 1, second
+    assert second["stats"]["general_batch_kernel"][0] >= 1, second
+    assert second["stats"]["general_update_kernel"][0] >= 1, second
     # import plus the first calls, warm cache (the budget is 2 s on a quiet machine)
     assert second["elapsed"] < 2.0, second

@@ -1,11 +1,14 @@
 """The compiled (numba) recursion against the pure-NumPy reference path.
 
-`batch_filter` runs the compiled kernel; ``rlsfilt.filters.rls._COMPILED =
-False`` switches it to ``_batch_reference``. The two must agree to 1e-12 on
-well-conditioned data for every option, and the streaming ``update`` must
-reproduce the batch run bit for bit (it runs the same compiled step).
+`batch_filter`, ``predict`` and ``update`` run compiled kernels;
+``rlsfilt.filters.rls._COMPILED = False`` switches them to the NumPy code
+(``_batch_reference``, ``_measurement_step``). The two must agree to 1e-12 on
+well-conditioned data for every option (every forgetting mode, the gate, the
+constraints), and the streaming ``predict``/``update`` must reproduce the
+batch run bit for bit (they run the same compiled step).
 """
 
+import functools
 import re
 
 import numpy as np
@@ -180,15 +183,18 @@ def test_streaming_accepts_every_regressor_layout(rng):
     Hs = np.round(Hs * 4)                    # integers, exactly representable
     Hf = np.asfortranarray(Hs)               # rows are strided views
     Hi = Hs.astype(int)
+    Hr = Hs.copy()
+    Hr.setflags(write=False)                 # read-only rows
     ref = RecursiveLeastSquares(4, lam=0.97)
-    others = [RecursiveLeastSquares(4, lam=0.97) for _ in range(4)]
+    others = [RecursiveLeastSquares(4, lam=0.97) for _ in range(5)]
     for k in range(len(zs)):
         ref.predict_update(zs[k], Hs[k])
         others[0].predict_update(zs[k], Hf[k])
         others[1].predict_update(zs[k], list(Hs[k]))
         others[2].predict_update(np.array([[zs[k]]]), Hs[k].reshape(1, -1))
         others[3].predict_update(int(round(zs[k])) if k % 2 else zs[k], Hi[k])
-    for o in others[:3]:
+        others[4].predict_update(np.float64(zs[k]), Hr[k])
+    for o in others[:3] + others[4:]:
         assert_array_equal(o.x, ref.x)
         assert_array_equal(o.P, ref.P)
     assert_array_equal(others[3].P, ref.P)      # P does not depend on the measurements
@@ -316,6 +322,28 @@ def test_streaming_recycles_only_arrays_nobody_else_holds(rng):
     assert_array_equal(rls.P, ref.P)
 
 
+def test_streaming_never_overwrites_a_replaced_attribute_the_caller_kept(rng):
+    """Replacing ``rls.y`` (or any diagnostic) while keeping the old array leaves the
+    reference count unchanged: the filter must still not recycle the kept array."""
+    Hs, zs = _record(rng, 12)
+    rls = RecursiveLeastSquares(4, lam=0.95)
+    ref = RecursiveLeastSquares(4, lam=0.95)
+    for k in range(3):
+        rls.predict_update(zs[k], Hs[k])
+        ref.predict_update(zs[k], Hs[k])
+    kept = {name: getattr(rls, name) for name in STATE[2:]}
+    snapshot = {name: v.copy() for name, v in kept.items()}
+    for name in STATE[2:]:
+        setattr(rls, name, np.zeros_like(kept[name]))
+    for k in range(3, len(zs)):
+        rls.predict_update(zs[k], Hs[k])
+        ref.predict_update(zs[k], Hs[k])
+        for name in STATE:
+            assert_array_equal(getattr(rls, name), getattr(ref, name), err_msg=name)
+    for name, value in kept.items():
+        assert_array_equal(value, snapshot[name], err_msg=name)
+
+
 # ----------------------------------------------------------------------
 # the compiled paths keep the health check and counters of the NumPy paths
 # ----------------------------------------------------------------------
@@ -408,3 +436,144 @@ def test_streaming_without_recycling_is_identical(rng, monkeypatch):
     assert len(ids) > 1                               # fresh arrays each step
     for name in STATE:
         assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+
+
+# ----------------------------------------------------------------------
+# every forgetting mode, the gate and the constraints
+# ----------------------------------------------------------------------
+MODES = ["exponential", "directional", "constant_trace", "efra", "variable"]
+A_C = np.array([[1.0, 1.0, 0.0, 0.0]])      # a1 + a2 = -0.8, true for arx_record's plant
+B_C = np.array([-0.8])
+OUTLIERS = (40, 90, 91)
+
+
+def _robust_record(rng, dim_z, missing):
+    Hs, zs = _record(rng, 120, dim_z, missing)
+    zs[list(OUTLIERS)] += 25.0                   # gross outliers for the gate
+    return Hs, zs
+
+
+def _make_filter(mode, gate, constrained, Q, dim_z):
+    rls = RecursiveLeastSquares(4, dim_z, lam=0.95, Q=Q, P0=100.0, R=0.5, forgetting=mode,
+                                gate=4.0 if gate else None, check_every=10)
+    if constrained:
+        rls.constrain(A_C, B_C)
+    return rls
+
+
+@pytest.mark.parametrize("Q", [0.0, 1e-4])
+@pytest.mark.parametrize("constrained", [False, True])
+@pytest.mark.parametrize("gate", [False, True])
+@pytest.mark.parametrize("mode", MODES)
+def test_every_mode_gate_and_constraint_compiled_equals_reference(rng, monkeypatch, mode,
+                                                                   gate, constrained, Q):
+    """batch_filter, compiled against NumPy, for every missing x update_first x
+    store_covariances x dim_z combination of one mode/gate/constraint/Q setting."""
+    for dim_z in (1, 2):
+        for missing in ((), (0, 7, 60, 119)):
+            Hs, zs = _robust_record(rng, dim_z, missing)
+            for update_first in (False, True):
+                for store in (False, True):
+                    kwargs = {"update_first": update_first, "store_covariances": store}
+                    if update_first:
+                        kwargs["Rs"] = rng.uniform(0.3, 0.8, len(zs))
+
+                    make = functools.partial(_make_filter, mode, gate, constrained, Q, dim_z)
+                    a, b, out_c, out_r = _run_both(monkeypatch, make, zs, Hs, **kwargs)
+                    tag = f"dim_z={dim_z} missing={missing} uf={update_first} store={store}"
+                    for name, c, r in zip(("means", "covariances", "means_p", "covariances_p"),
+                                          out_c, out_r):
+                        if r is None:
+                            assert c is None, name
+                        else:
+                            _close(c, r, f"{name} {tag}")
+                    for name in STATE:
+                        _close(getattr(a, name), getattr(b, name), f"{name} {tag}")
+                    assert a.n_gated == b.n_gated, tag
+                    assert a.n_updates == b.n_updates == len(zs)
+                    assert a.gated == b.gated
+                    assert a.lam_t == pytest.approx(b.lam_t, rel=1e-12), tag
+                    assert a.log_likelihood == pytest.approx(b.log_likelihood, rel=1e-12)
+                    assert a.mahalanobis == pytest.approx(b.mahalanobis, rel=1e-12,
+                                                          nan_ok=True)
+                    if gate and not missing:
+                        assert a.n_gated >= len(OUTLIERS), tag
+                    if constrained:
+                        assert_allclose(A_C @ a.x, np.tile(B_C, (1, dim_z)), atol=1e-10)
+
+
+@pytest.mark.parametrize("robust", [False, True])
+@pytest.mark.parametrize("mode", MODES)
+def test_every_mode_streaming_compiled_equals_reference_and_batch(rng, monkeypatch, mode,
+                                                                  robust):
+    """predict()/update() run the compiled step: equal to the NumPy step to 1e-12 and to
+    the compiled batch_filter bit for bit, with Q and missing samples, with and without the
+    gate and constraints (without them, the exponential mode runs the fused fast path)."""
+    Hs, zs = _robust_record(rng, 2, (5, 70))
+    runs = {}
+    for compiled in (True, False):
+        monkeypatch.setattr(rls_module, "_COMPILED", compiled)
+        rls = _make_filter(mode, robust, robust, 1e-4, 2)
+        steps = []
+        for k in range(len(zs)):
+            rls.predict()
+            rls.update(zs[k], Hs[k])
+            steps.append((rls.x.copy(), rls.P.copy(), rls.lam_t, rls.gated))
+        runs[compiled] = rls, steps
+    monkeypatch.setattr(rls_module, "_COMPILED", True)
+    (c, steps_c), (r, steps_r) = runs[True], runs[False]
+    for (xc, Pc, lc, gc), (xr, Pr, lr, gr) in zip(steps_c, steps_r, strict=True):
+        _close(xc, xr, "x")
+        _close(Pc, Pr, "P")
+        assert lc == pytest.approx(lr, rel=1e-12) and gc == gr
+    for name in STATE:
+        _close(getattr(c, name), getattr(r, name), name)
+    assert c.n_gated == r.n_gated >= (len(OUTLIERS) if robust else 0)
+    batch = _make_filter(mode, robust, robust, 1e-4, 2)
+    means, covs, _, _ = batch.batch_filter(zs, Hs)
+    for k, (xc, Pc, _, _) in enumerate(steps_c):
+        assert_array_equal(means[k], xc)
+        assert_array_equal(covs[k], Pc)
+    for name in STATE:
+        assert_array_equal(getattr(batch, name), getattr(c, name), err_msg=name)
+    assert batch.n_gated == c.n_gated and batch.lam_t == c.lam_t
+
+
+def test_constrained_health_check_is_compiled_and_reports_the_same_step(monkeypatch):
+    """Windup under a constraint: the compiled check (on the null space of A) names the
+    same step as the NumPy check."""
+    Hs = np.tile([1.0, 1.0, 0.0], (400, 1))
+    zs = np.ones(400)
+    messages = []
+    for compiled in (True, False):
+        monkeypatch.setattr(rls_module, "_COMPILED", compiled)
+        rls = RecursiveLeastSquares(3, lam=0.9, P0=1.0, check_every=10, gate=1e6)
+        rls.constrain([0.0, 0.0, 1.0], 0.0)
+        with pytest.warns(NumericalWarning) as record:
+            rls.batch_filter(zs, Hs)
+        messages.append(str(record[0].message))
+    assert "ill-conditioned" in messages[0]
+    assert messages[0] == messages[1]
+
+
+@pytest.mark.parametrize("mode", MODES)
+@pytest.mark.parametrize("bad_H, bad_z, match", [
+    ([1.0, np.nan, 0.0, 0.0], 1.0, r"`H` must be finite; got nan at index 1"),
+    (np.array([1.0, 0.0, np.inf, 0.0]), 1.0, r"`H` must be finite; got inf at index 2"),
+    ([1.0, 0.0, 0.0, 0.0], np.inf, r"`z` must be finite or NaN"),
+])
+def test_general_streaming_rejects_bad_input_without_changing_state(mode, bad_H, bad_z, match):
+    """The compiled general step raises before anything changes, also before EFRA's
+    first step (whose start clipping is a state change)."""
+    rls = _make_filter(mode, True, True, 1e-4, 1)
+    before = {name: getattr(rls, name).copy() for name in STATE}
+    counters = (rls.n_updates, rls.n_gated, rls.lam_t)
+    for _ in range(2):
+        with pytest.raises(ValueError, match=match):
+            rls.update(bad_z, bad_H)
+        for name in STATE:
+            assert_array_equal(getattr(rls, name), before[name], err_msg=name)
+        assert (rls.n_updates, rls.n_gated, rls.lam_t) == counters
+        rls.predict_update(1.0, [1.0, 0.5, 0.0, 0.2])       # a good step, then again
+        before = {name: getattr(rls, name).copy() for name in STATE}
+        counters = (rls.n_updates, rls.n_gated, rls.lam_t)

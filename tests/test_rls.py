@@ -96,6 +96,49 @@ def test_initialize_uses_qr_not_normal_equations():
     assert_allclose(rls.x[:, 0], theta, rtol=1e-6)
 
 
+def _badly_scaled_arx(n_samples=600):
+    """An ARX(2, 2) record with u ~ 1e-8 (say amperes of a nA sensor) and y ~ 1e6,
+    the transient dropped so that y is large from the first row on."""
+    rng = np.random.default_rng(7)
+    N = n_samples + 300
+    u = 1e-8 * rng.standard_normal(N)
+    y = np.zeros(N)
+    for t in range(2, N):
+        y[t] = (1.5 * y[t - 1] - 0.7 * y[t - 2] + 1e14 * (u[t - 1] + 0.5 * u[t - 2])
+                + 1e4 * rng.standard_normal())
+    return u[300:], y[300:]
+
+
+def test_initialize_rank_decision_ignores_column_units():
+    """Columns of 1e6 beside columns of 1e-8 are full rank; the start is exact LS."""
+    u, y = _badly_scaled_arx(40)
+    Hs = np.column_stack([-y[1:-1], -y[:-2], u[1:-1], u[:-2]])
+    zs = y[2:]
+    k0 = 30
+    assert np.linalg.matrix_rank(Hs[:k0]) < 4          # the unscaled decision is wrong
+    rls = RecursiveLeastSquares(4, R=2.0)
+    rls.initialize(zs[:k0], Hs[:k0])
+    d = np.linalg.norm(Hs[:k0], axis=0)
+    theta = np.linalg.lstsq(Hs[:k0] / d, zs[:k0], rcond=None)[0] / d
+    assert_allclose(rls.x[:, 0], theta, rtol=1e-10)
+    Ps = np.linalg.inv((Hs[:k0] / d).T @ (Hs[:k0] / d))
+    assert_allclose(rls.P * np.outer(d, d), 2.0 * Ps, rtol=1e-9)
+    assert_array_equal(rls.P, rls.P.T)
+
+
+def test_arx_rls_equals_ls_with_regressors_in_very_different_units():
+    from rlsfilt import ARX
+
+    u, y = _badly_scaled_arx()
+    ls = ARX(2, 2).fit(u, y, method="ls")
+    # P is ill-conditioned in these units (cond ~ 1e28) although the estimate is exact:
+    # the health check is switched off
+    rls = ARX(2, 2).fit(u, y, method="rls", check_every=0)
+    assert rls.k0_ == 4
+    assert_allclose(rls.theta_, ls.theta_, rtol=1e-9)
+    assert_allclose(ls.theta_, [-1.5, 0.7, 1e14, 0.5e14], rtol=0.05)
+
+
 def test_ridge_identity_for_diffuse_prior(rng):
     """lam = 1, P0 = d I, x0 = 0: x = (Phi'Phi + I/d)^-1 Phi'Y exactly."""
     Hs, zs = arx_record(rng, n_samples=100)
@@ -256,9 +299,16 @@ def test_batch_filter_accepts_rs_and_list_rows(rng):
 # missing measurements
 # ----------------------------------------------------------------------
 @pytest.mark.parametrize("missing", [None, np.nan, [np.nan]])
-def test_missing_measurement_keeps_estimate(rng, missing):
+@pytest.mark.parametrize("path", ["fast", "general", "reference"])
+def test_missing_measurement_keeps_estimate(rng, monkeypatch, missing, path):
+    """The exponential fast path, the general compiled path (a gate that never fires) and
+    the NumPy reference all leave the documented diagnostics."""
+    from rlsfilt.filters import rls as rls_module
+
+    if path == "reference":
+        monkeypatch.setattr(rls_module, "_COMPILED", False)
     Hs, zs = arx_record(rng, n_samples=20)
-    rls = RecursiveLeastSquares(4, lam=0.9)
+    rls = RecursiveLeastSquares(4, lam=0.9, gate=1e300 if path == "general" else None)
     rls.batch_filter(zs[:10], Hs[:10])
     rls.predict()
     x, P = rls.x.copy(), rls.P.copy()
@@ -270,6 +320,23 @@ def test_missing_measurement_keeps_estimate(rng, missing):
     assert_array_equal(rls.K, 0.0)
     assert rls.S[0, 0] == pytest.approx(Hs[10] @ P @ Hs[10] + 1.0, rel=1e-12)
     assert rls.log_likelihood == 0.0 and rls.likelihood == 1.0
+    assert np.isnan(rls.mahalanobis)
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+@pytest.mark.parametrize("gate", [None, 1e300])
+def test_missing_last_sample_of_batch_diagnostics(rng, monkeypatch, compiled, gate):
+    from rlsfilt.filters import rls as rls_module
+
+    monkeypatch.setattr(rls_module, "_COMPILED", compiled)
+    Hs, zs = arx_record(rng, n_samples=20)
+    zs[-1] = np.nan
+    rls = RecursiveLeastSquares(4, lam=0.9, gate=gate)
+    rls.batch_filter(zs, Hs)
+    assert rls.log_likelihood == 0.0 and rls.likelihood == 1.0
+    assert np.isnan(rls.mahalanobis)
+    assert np.isnan(rls.y).all() and np.isnan(rls.z).all()
+    assert_array_equal(rls.K, 0.0)
 
 
 def test_missing_in_batch_equals_skipping_the_update(rng):

@@ -32,9 +32,16 @@ inner loop, so LLVM vectorizes it without any reassociation (no
 streaming methods, which run the same arithmetic in separate calls, agree
 with the batch kernel bit for bit.
 
-``mode`` selects the covariance update (only ``MODE_EXPONENTIAL`` so far:
-exponential forgetting plus an optional random walk ``Q``); ``params`` is a
-small float array reserved for the parameters of further modes.
+``batch_filter_kernel``, ``predict_kernel`` and ``update_kernel`` run this
+fused arithmetic for the default mode (exponential forgetting plus an
+optional random walk ``Q``, no gate, no constraints). Every other option
+(the anti-windup modes of :mod:`rlsfilt.filters.forgetting`, the outlier
+gate, the equality constraints) runs ``general_batch_kernel``, or
+``general_predict`` and ``general_update_kernel`` when streaming: one
+unfused step per sample that follows the NumPy reference operation by
+operation (``rls._measurement_step``, ``forgetting.update_<mode>``,
+``rls._project``), so that it agrees with it to round-off and the batch and
+streaming runs agree bit for bit.
 """
 
 import numpy as np
@@ -635,9 +642,10 @@ def batch_compiled(x, P, Z, Hm, Rv, lam, Q, update_first, store_covariances, *,
     """Compiled counterpart of ``rls._batch_reference`` (same arguments, same result).
 
     Exponential forgetting without gate or constraints only (a ValueError
-    otherwise). `x`, `P` are not modified. Returns a ``rls._BatchResult``;
-    with ``histories=False`` its ``ys`` and ``ss`` hold the last step only
-    (``batch_filter`` needs no more), which saves ``N (dim_z + 1)`` numbers.
+    otherwise; `batch_general` runs every option). `x`, `P` are not
+    modified. Returns a ``rls._BatchResult``; with ``histories=False`` its
+    ``ys`` and ``ss`` hold the last step only (``batch_filter`` needs no
+    more), which saves ``N (dim_z + 1)`` numbers.
     """
     from .rls import _BatchResult, _health_problem
 
@@ -701,4 +709,395 @@ def batch_compiled(x, P, Z, Hm, Rv, lam, Q, update_first, store_covariances, *,
         if np.isnan(out.ys[-1]).any():     # the last sample was missing: no gain
             K[:] = 0.0
         out.y_last, out.K_last, out.s_last = out.ys[-1].copy(), K.reshape(n, 1), s
+    return out
+
+
+# ----------------------------------------------------------------------
+# Every other option: the anti-windup modes, the gate, the constraints.
+#
+# One step is `general_predict` then `general_update` (or the reverse with
+# `update_first`); the batch kernel `general_batch_kernel` and the streaming
+# `predict`/`update` call the same two functions, so they agree bit for bit.
+# The arithmetic follows `forgetting.update_<mode>` and `rls._project`
+# operation by operation (products summed in the natural order).
+# ----------------------------------------------------------------------
+MODE_DIRECTIONAL, MODE_CONSTANT_TRACE, MODE_EFRA, MODE_VARIABLE = 1, 2, 3, 4
+
+
+@njit(cache=True)
+def _project_inplace(P, Pi, T):
+    """``P <- Pi P Pi`` made exactly symmetric (``rls._project``); `T` is (n, n) work."""
+    n = P.shape[0]
+    for i in range(n):                       # T = Pi P
+        for j in range(n):
+            T[i, j] = 0.0
+        for k in range(n):
+            a = Pi[i, k]
+            for j in range(n):
+                T[i, j] += a * P[k, j]
+    for i in range(n):                       # P = T Pi
+        for j in range(n):
+            P[i, j] = 0.0
+        for k in range(n):
+            a = T[i, k]
+            for j in range(n):
+                P[i, j] += a * Pi[k, j]
+    for i in range(n):                       # P = (P + P^T) / 2
+        for j in range(i + 1, n):
+            v = 0.5 * (P[i, j] + P[j, i])
+            P[i, j] = v
+            P[j, i] = v
+
+
+@njit(cache=True)
+def general_predict(P, il, Q, q_zero, constrained, Pi, T):
+    """Time update of the general path, in place: ``P <- P il + Q``, then ``Pi P Pi``.
+
+    ``il`` is ``1 / lam`` in the exponential mode and 1 otherwise (the other
+    modes forget in the update).
+    """
+    n = P.shape[0]
+    if il != 1.0:
+        for i in range(n):
+            for j in range(n):
+                P[i, j] = P[i, j] * il
+    if not q_zero:
+        for i in range(n):
+            for j in range(n):
+                P[i, j] = P[i, j] + Q[i, j]
+    if constrained:
+        _project_inplace(P, Pi, T)
+
+
+@njit(cache=True)
+def general_update(x, P, phi, z, missing, r, mode, params, lam, has_gate, gate,
+                   constrained, Pi, g, y, K, T):
+    """One measurement update of any mode with the gate and the constraints, in place.
+
+    The compiled ``rls._measurement_step``: ``x`` (n, m) and ``P`` (n, n)
+    are updated in place (unchanged for a missing or gated sample); writes
+    ``g = P phi`` (n,), the residual ``y`` (m,; NaN when missing), the gain
+    ``K`` (n,; zero when missing or gated). ``T`` is (n, n) work.
+
+    Returns
+    -------
+    s : float
+        Innovation variance ``phi P phi^T + r``.
+    lam_t : float
+        Forgetting factor the step applied.
+    gated : bool
+        Whether the gate rejected the sample.
+    """
+    n, m = x.shape
+    for i in range(n):                       # g = P phi, as P @ phi.T
+        acc = 0.0
+        for j in range(n):
+            acc += P[i, j] * phi[j]
+        g[i] = acc
+    acc = 0.0
+    for i in range(n):
+        acc += phi[i] * g[i]
+    s = acc + r
+    lam_skip = lam if mode == MODE_EXPONENTIAL else 1.0
+    if missing:
+        for j in range(m):
+            y[j] = np.nan
+        for i in range(n):
+            K[i] = 0.0
+        return s, lam_skip, False
+    _residual(x, phi, z, y)
+    if has_gate:
+        yy = 0.0
+        for j in range(m):
+            yy += y[j] * y[j]
+        if yy > gate * gate * s:             # sqrt(y'y / S) > gate
+            for i in range(n):
+                K[i] = 0.0
+            return s, lam_skip, True
+    lam_t = lam
+    if mode == MODE_DIRECTIONAL:
+        eps = params[0]
+        rho = (s - r) / r                    # phi P phi^T / r
+        e = lam - (1.0 - lam) / rho if rho > eps else 1.0
+        d = r * (1.0 + e * rho)
+        for i in range(n):
+            K[i] = g[i] / d
+        ed = e / d
+        for i in range(n):
+            gi = g[i]
+            for j in range(n):
+                P[i, j] = P[i, j] - ed * (gi * g[j])
+        lam_t = e
+    elif mode == MODE_EFRA:
+        alpha, beta, delta = params[0], params[1], params[2]
+        a_s = alpha / s
+        d_r = delta / r
+        for i in range(n):
+            K[i] = a_s * g[i]
+        for i in range(n):                   # T = P @ P
+            for j in range(n):
+                T[i, j] = 0.0
+            for k in range(n):
+                a = P[i, k]
+                for j in range(n):
+                    T[i, j] += a * P[k, j]
+        for i in range(n):
+            gi = g[i]
+            for j in range(n):
+                T[i, j] = P[i, j] / lam - a_s * (gi * g[j]) - d_r * T[i, j]
+        br = beta * r
+        for i in range(n):
+            for j in range(n):
+                P[i, j] = 0.5 * (T[i, j] + T[j, i])
+            P[i, i] = P[i, i] + br
+    else:                                    # exponential, constant trace, variable
+        for i in range(n):
+            K[i] = g[i] / s
+        for i in range(n):
+            gi = g[i]
+            for j in range(n):
+                P[i, j] = P[i, j] - (gi * g[j]) / s
+        if mode == MODE_CONSTANT_TRACE:
+            trace, ratio = params[0], params[1]
+            c2 = trace / (ratio + n)
+            c1 = trace - n * c2
+            tb = 0.0
+            for i in range(n):
+                tb += P[i, i]
+            f = c1 / tb
+            for i in range(n):
+                for j in range(n):
+                    P[i, j] = f * P[i, j]
+                P[i, i] = P[i, i] + c2
+            lam_t = tb / c1
+        elif mode == MODE_VARIABLE:
+            lam_min, trace_max = params[0], params[1]
+            yy = 0.0
+            for j in range(m):
+                yy += y[j] * y[j]
+            lt = 1.0 - (1.0 - lam) * yy / (m * s)
+            lt = min(1.0, max(lam_min, lt))
+            tb = 0.0
+            for i in range(n):
+                tb += P[i, i]
+            lt = max(lt, min(1.0, tb / trace_max))
+            if lt != 1.0:
+                for i in range(n):
+                    for j in range(n):
+                        P[i, j] = P[i, j] / lt
+            lam_t = lt
+    for i in range(n):                       # x = x + K y^T
+        ki = K[i]
+        for j in range(m):
+            x[i, j] = x[i, j] + ki * y[j]
+    if constrained:                          # keep A P = 0
+        _project_inplace(P, Pi, T)
+    return s, lam_t, False
+
+
+@njit(cache=True)
+def general_update_kernel(x, P, phi, z, z0, zmode, r, mode, params, lam, has_gate, gate,
+                          constrained, Pi, y, K, S, SI, Hc, x_post, P_post):
+    """`general_update` for the streaming :meth:`update`, in place on ``x``, ``P``.
+
+    As `update_kernel`: ``zmode`` 1 writes the scalar ``z0`` into ``z``
+    (m,), 2 marks the measurement missing and fills ``z`` with NaN. Writes
+    ``y`` (m,), ``K`` (n,), ``S = s I``, ``SI = I / s`` (m, m), the copy
+    ``Hc`` (1, n) of ``phi`` and the copies ``x_post``, ``P_post``.
+
+    Returns
+    -------
+    code : int
+        0; 1 when ``phi`` holds NaN or inf (nothing is written then); 2 when
+        the diagonal of the new ``P`` is not finite and positive.
+    s, lam_t : float
+    gated : bool
+    """
+    n, m = x.shape
+    for i in range(n):
+        v = phi[i]
+        if v - v != 0.0:          # NaN or inf
+            return 1, np.nan, lam, False
+    missing = zmode == 2
+    if zmode == 1:
+        z[0] = z0
+    elif missing:
+        for j in range(m):
+            z[j] = np.nan
+    for i in range(n):
+        Hc[0, i] = phi[i]
+    g = np.empty(n)
+    T = np.empty((n, n))
+    s, lam_t, gated = general_update(x, P, phi, z, missing, r, mode, params, lam, has_gate,
+                                     gate, constrained, Pi, g, y, K, T)
+    c = 1.0 / s
+    for i in range(m):
+        for j in range(m):
+            S[i, j] = 0.0
+            SI[i, j] = 0.0
+        S[i, i] = s
+        SI[i, i] = c
+    _copy2(x, x_post)
+    _copy2(P, P_post)
+    for i in range(n):
+        if not P[i, i] > 0.0 or P[i, i] == np.inf:
+            return 2, s, lam_t, gated
+    return 0, s, lam_t, gated
+
+
+@njit(cache=True)
+def _unhealthy_on(P, constrained, basis, cond_max):
+    """`_unhealthy` of ``basis^T P basis`` when `constrained` (else of ``P``)."""
+    if not constrained:
+        return _unhealthy(P, cond_max)
+    n, p = basis.shape
+    for i in range(n):
+        for j in range(n):
+            v = P[i, j]
+            if v - v != 0.0:
+                return True
+    B = np.zeros((n, p))                     # P basis
+    for i in range(n):
+        for k in range(n):
+            a = P[i, k]
+            for j in range(p):
+                B[i, j] += a * basis[k, j]
+    R = np.zeros((p, p))                     # basis^T (P basis)
+    for k in range(n):
+        for i in range(p):
+            a = basis[k, i]
+            for j in range(p):
+                R[i, j] += a * B[k, j]
+    if p == 0:
+        return False
+    return _unhealthy(R, cond_max)
+
+
+@njit(cache=True)
+def general_batch_kernel(x, P, Z, Hm, Rv, il, Q, q_zero, update_first, mode, params, lam,
+                         has_gate, gate, constrained, Pi, basis,
+                         means, means_p, covs, covs_p, ys, ss, gated,
+                         x_prior, P_prior, x_post, P_post, K,
+                         check_every, step0, cond_max, P_fail):
+    """The recursion of every mode, gate and constraint over a record, in place.
+
+    Arguments as `batch_filter_kernel`, plus: `mode`, `params`, `lam` of
+    ``forgetting``; `has_gate`, `gate`; `constrained`, the projector `Pi`
+    and the null-space `basis` (for the health check); `means_p` (written
+    here); `gated` (N,) bool (written). ``ys`` and ``ss`` are written for
+    every step (``ys`` NaN when missing, the rejected residual when gated).
+
+    Returns
+    -------
+    s : float, k_fail : int, lam_t : float
+        Innovation variance and forgetting factor of the last step, and the
+        step of the first failed health check (or -1).
+    """
+    N = Z.shape[0]
+    n, m = x.shape
+    store = covs.shape[0] == N
+    r_each = Rv.shape[0] == N
+    g = np.empty(n)
+    y = np.empty(m)
+    T = np.empty((n, n))
+    s = np.nan
+    lam_t = lam
+    k_fail = -1
+    for k in range(N):
+        if not update_first:
+            general_predict(P, il, Q, q_zero, constrained, Pi, T)
+            _copy2(x, means_p[k])
+            if store:
+                _copy2(P, covs_p[k])
+            if k == N - 1:
+                _copy2(x, x_prior)
+                _copy2(P, P_prior)
+        z = Z[k]
+        s, lam_t, gk = general_update(x, P, Hm[k], z, _any_nan(z), Rv[k if r_each else 0],
+                                      mode, params, lam, has_gate, gate, constrained, Pi,
+                                      g, y, K, T)
+        ss[k] = s
+        gated[k] = gk
+        for j in range(m):
+            ys[k, j] = y[j]
+        _copy2(x, means[k])
+        if store:
+            _copy2(P, covs[k])
+        if k == N - 1:
+            _copy2(x, x_post)
+            _copy2(P, P_post)
+        if update_first:
+            general_predict(P, il, Q, q_zero, constrained, Pi, T)
+            _copy2(x, means_p[k])
+            if store:
+                _copy2(P, covs_p[k])
+            if k == N - 1:
+                _copy2(x, x_prior)
+                _copy2(P, P_prior)
+        if (check_every > 0 and k_fail < 0 and (step0 + k + 1) % check_every == 0
+                and _unhealthy_on(P, constrained, basis, cond_max)):
+            k_fail = k
+            _copy2(P, P_fail)
+    return s, k_fail, lam_t
+
+
+def batch_general(x, P, Z, Hm, Rv, lam, Q, update_first, store_covariances, *,
+                  mode=MODE_EXPONENTIAL, params=(), gate=None, Pi=None, check_every=0,
+                  basis=None, cond_max=np.inf, step0=0):
+    """Compiled counterpart of ``rls._batch_reference`` for every mode and option."""
+    from .rls import _BatchResult, _health_problem
+
+    N = len(Z)
+    n, m = x.shape
+    out = _BatchResult()
+    out.means = np.empty((N, n, m))
+    out.means_p = np.empty((N, n, m))
+    if store_covariances:
+        covs, covs_p = np.empty((N, n, n)), np.empty((N, n, n))
+        out.covariances, out.covariances_p = covs, covs_p
+    else:
+        covs = covs_p = np.empty((0, n, n))
+        out.covariances = out.covariances_p = None
+    out.ys = np.empty((N, m))
+    out.ss = np.empty(N)
+    out.gated = np.zeros(N, dtype=np.bool_)
+    Rv = np.asarray(Rv, dtype=np.float64)
+    if Rv.ndim == 1 and N > 1 and Rv.strides[0] == 0:      # a broadcast scalar
+        Rv = np.ascontiguousarray(Rv[:1])
+    else:
+        Rv = np.ascontiguousarray(Rv)
+    xw = np.array(x, dtype=np.float64, order="C")
+    Pw = np.array(P, dtype=np.float64, order="C")
+    q_zero = Q is None
+    Qa = np.zeros((0, 0)) if q_zero else np.ascontiguousarray(Q, dtype=np.float64)
+    constrained = Pi is not None
+    Pia = np.ascontiguousarray(Pi, dtype=np.float64) if constrained else np.zeros((0, 0))
+    Ba = (np.ascontiguousarray(basis, dtype=np.float64) if constrained and basis is not None
+          else np.zeros((n, 0)))
+    params = np.ascontiguousarray(np.asarray(params, dtype=np.float64).reshape(-1))
+    tlam = lam if mode == MODE_EXPONENTIAL else 1.0
+    x_prior, P_prior = np.empty((n, m)), np.empty((n, n))
+    x_post, P_post = np.empty((n, m)), np.empty((n, n))
+    K = np.zeros(n)
+    P_fail = np.empty((n, n))
+    s, k_fail, lam_t = general_batch_kernel(
+        xw, Pw, np.ascontiguousarray(Z, dtype=np.float64),
+        np.ascontiguousarray(Hm, dtype=np.float64), Rv,
+        1.0 / tlam, Qa, q_zero, bool(update_first), int(mode), params, float(lam),
+        gate is not None, 0.0 if gate is None else float(gate), constrained, Pia, Ba,
+        out.means, out.means_p, covs, covs_p, out.ys, out.ss, out.gated,
+        x_prior, P_prior, x_post, P_post, K,
+        int(check_every), int(step0), float(cond_max), P_fail)
+    out.problem = None
+    if k_fail >= 0:
+        problem = (_health_problem(P_fail, basis if constrained else None, cond_max)
+                   or "`P` failed the health check")
+        out.problem = (f"{problem} at step {k_fail} of batch_filter (update "
+                       f"{step0 + k_fail + 1} since reset)")
+    out.x, out.P = xw, Pw
+    if N:
+        out.x_prior, out.P_prior = x_prior, P_prior
+        out.x_post, out.P_post = x_post, P_post
+        out.y_last, out.K_last, out.s_last = out.ys[-1].copy(), K.reshape(n, 1), s
+        out.lam_t_last = lam_t
     return out

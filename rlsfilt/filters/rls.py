@@ -39,11 +39,14 @@ _F8 = np.dtype(np.float64)
 # (without getrefcount, or with _FREE None, no array compares equal: no recycling)
 _getrefcount = getattr(sys, "getrefcount", lambda obj: -1)
 
-# Run batch_filter through the compiled kernels of `_kernels` (numba). The
-# tests switch this off to compare with the pure-NumPy `_batch_reference`.
+# Run batch_filter, predict and update through the compiled kernels of
+# `_kernels` (numba), for every mode and option. The tests switch this off to
+# compare with the pure-NumPy reference (`_batch_reference`,
+# `_measurement_step`, `forgetting.update_<mode>`).
 _COMPILED = True
 _kernels = None
-_EXPONENTIAL = _fg.EXPONENTIAL    # the mode the compiled paths run
+_EXPONENTIAL = _fg.EXPONENTIAL    # the mode of the fused fast paths
+_EMPTY2 = np.zeros((0, 0))        # stands for an absent Q or projector in kernel calls
 
 
 def _get_kernels():
@@ -53,6 +56,33 @@ def _get_kernels():
         from . import _kernels as k
         _kernels = k
     return _kernels
+
+
+# Compiled entry points of `predict_kernel` and `update_kernel` for the
+# argument types of the recycling fast path (see `_entry_point`).
+_predict_entry = None
+_update_entry = None
+
+
+def _entry_point(dispatcher, args):
+    """The compiled function of `dispatcher` for exactly the types of `args`, or None.
+
+    Calling a numba dispatcher first types every argument to choose the
+    compiled overload, about 70 ns per argument: most of the cost of a
+    streaming step at small ``dim_x``. The streaming fast path calls the
+    overload's entry point directly instead, and only with arguments whose
+    types cannot differ from the ones it was resolved for: the filter's own
+    C-contiguous float64 arrays and a regressor checked with
+    ``flags.carray``. None (use the dispatcher) when numba does not expose
+    the overload.
+    """
+    try:
+        from numba import typeof
+
+        sig = tuple(typeof(a) for a in args)
+        return dispatcher.overloads[sig].entry_point
+    except Exception:       # pragma: no cover - numba internals changed
+        return None
 
 
 def _free_refcount():
@@ -89,6 +119,14 @@ def _free_refcount():
 _FREE = _free_refcount()
 
 
+def _set_entries(predict=None, update=None):
+    global _predict_entry, _update_entry
+    if predict is not None:
+        _predict_entry = predict
+    if update is not None:
+        _update_entry = update
+
+
 class RecursiveLeastSquares(_FilterBase):
     r"""Recursive least-squares estimator with a filterpy ``KalmanFilter`` API.
 
@@ -119,9 +157,9 @@ class RecursiveLeastSquares(_FilterBase):
     Q : float or array_like, default 0.0
         Covariance of the parameter random walk added in :meth:`predict`; a
         scalar means ``Q * I``.
-    forgetting : {"exponential", "directional", "constant_trace", "efra", \
-"variable"}, default "exponential"
-        How old data is forgotten (see Notes). ``"exponential"`` divides
+    forgetting : {"exponential", "directional", "constant_trace", "efra", "variable"}, optional
+        How old data is forgotten (see Notes); ``"exponential"`` by
+        default. ``"exponential"`` divides
         ``P`` by `lam` in :meth:`predict` (filterpy's fading memory); the
         others forget inside :meth:`update`, because they need the step's
         regressor or residual, and bound ``P`` when the input stops
@@ -256,8 +294,9 @@ class RecursiveLeastSquares(_FilterBase):
     Missing measurements (``z is None`` or any NaN in ``z``) keep the
     estimate (posterior = prior), as filterpy and statsmodels do. Then ``y``
     and ``z`` are NaN, ``K`` is zero, ``S`` is the predictive variance of the
-    missing measurement, and ``log_likelihood`` is 0 (a missing sample adds
-    nothing to the log-likelihood). Because the outputs share ``P``, one NaN
+    missing measurement, ``log_likelihood`` is 0 and ``likelihood`` 1 (a
+    missing sample adds nothing to the log-likelihood), and ``mahalanobis``
+    is NaN (there is no residual to measure). Because the outputs share ``P``, one NaN
     in a multi-output ``z`` makes the whole sample missing.
 
     References
@@ -309,7 +348,8 @@ class RecursiveLeastSquares(_FilterBase):
     # ``__dict__``, so that filterpy's Saver (which records every entry of
     # ``__dict__``) sees only the filter's state.
     # (_FilterBase has no __slots__, so instances keep their __dict__.)
-    __slots__ = ("_x_own", "_P_own", "_spare_prior", "_spare_update", "_row", "_row2")
+    __slots__ = ("_x_own", "_P_own", "_spare_prior", "_spare_update", "_row", "_row2",
+                 "_params_arr", "_general")
 
     def __init__(self, dim_x, dim_z=1, lam=1.0, *, P0=1e4, x0=None, R=1.0, Q=0.0,
                  forgetting="exponential", forgetting_params=None, gate=None,
@@ -330,6 +370,7 @@ class RecursiveLeastSquares(_FilterBase):
         self._row, self._row2 = (self.dim_x,), (1, self.dim_x)   # regressor shapes
         self.constraints = None
         self._Pi = None          # orthogonal projector onto null(A)
+        self._set_path()
         self._null_basis = None  # orthonormal basis of null(A), for the health check
         self.reset()
 
@@ -347,6 +388,7 @@ class RecursiveLeastSquares(_FilterBase):
         params = _fg.mode_params(self._mode, self._forgetting_params_in, self.dim_x, lam,
                                  self._R)
         self._lam, self._params = lam, params
+        self._params_arr = np.array(params, dtype=np.float64)
 
     @property
     def forgetting(self):
@@ -366,6 +408,12 @@ class RecursiveLeastSquares(_FilterBase):
     @gate.setter
     def gate(self, value):
         self._gate = None if value is None else _check_positive(value, "gate")
+        self._set_path()
+
+    def _set_path(self):
+        """Choose the streaming path: the fused fast path, or the general step."""
+        self._general = (self._mode != _EXPONENTIAL or self._gate is not None
+                         or getattr(self, "_Pi", None) is not None)
 
     @property
     def Q(self):
@@ -374,7 +422,9 @@ class RecursiveLeastSquares(_FilterBase):
 
     @Q.setter
     def Q(self, value):
-        self._Q = check_covariance(value, self.dim_x, "Q")
+        # C-contiguous float64: the streaming fast path passes it to compiled code
+        self._Q = np.ascontiguousarray(check_covariance(value, self.dim_x, "Q"),
+                                       dtype=np.float64)
         self._Q_is_zero = not self._Q.any()
 
     # ------------------------------------------------------------------
@@ -400,12 +450,21 @@ class RecursiveLeastSquares(_FilterBase):
         else:
             Q = check_covariance(Q, self.dim_x, "Q")
             q_zero = not Q.any()
-        if self._mode != _EXPONENTIAL or self._Pi is not None:
+        if self._general or not _COMPILED:
             P = self._checked_P()
             if self._efra_pending:
                 P = self._efra_start(P)
-            P = _predict_covariance(P, self._time_lam(), None if q_zero else Q)
-            self.P = P if self._Pi is None else _project(P, self._Pi)
+            if _COMPILED:        # the compiled step that batch_filter runs
+                P = np.array(P, dtype=np.float64, order="C")
+                Pi = self._Pi
+                n = self.dim_x
+                (_kernels or _get_kernels()).general_predict(
+                    P, 1.0 / self._time_lam(), Q, q_zero, Pi is not None,
+                    _EMPTY2 if Pi is None else Pi, np.empty((n, n)))
+                self.P = P
+            else:
+                P = _predict_covariance(P, self._time_lam(), None if q_zero else Q)
+                self.P = P if self._Pi is None else _project(P, self._Pi)
             self.x_prior = self.x.copy()
             self.P_prior = self.P.copy()
             self._updates_since_predict = 0
@@ -416,16 +475,24 @@ class RecursiveLeastSquares(_FilterBase):
         # Nobody else holds P or the last priors (the usual case, see
         # _free_refcount): P^- overwrites P, the priors are rewritten in place.
         recycled = (x is self._x_own and P is self._P_own and rc(P) == _FREE
-                    and rc(x_prior) == _FREE and rc(P_prior) == _FREE)
+                    and rc(x_prior) == _FREE and rc(P_prior) == _FREE
+                    and self.x_prior is x_prior and self.P_prior is P_prior)
         if recycled:
+            ep = _predict_entry
+            if ep is not None and Q is self._Q:
+                ep(x, P, 1.0 / self._lam, Q, q_zero, P, x_prior, P_prior)
+                self._updates_since_predict = 0
+                return
             Pn = P
         else:
             n = self.dim_x
             x = np.ascontiguousarray(self._checked_x(), dtype=float)
             P = np.ascontiguousarray(self._checked_P(), dtype=float)
             Pn, x_prior, P_prior = np.empty((n, n)), np.empty((n, self.dim_z)), np.empty((n, n))
-        (_kernels or _get_kernels()).predict_kernel(
-            x, P, 1.0 / self._lam, Q, q_zero, Pn, x_prior, P_prior)
+        args = (x, P, 1.0 / self._lam, Q, q_zero, Pn, x_prior, P_prior)
+        (_kernels or _get_kernels()).predict_kernel(*args)
+        if recycled and Q is self._Q:       # the types of the fast path: resolve its entry
+            _set_entries(predict=_entry_point(_kernels.predict_kernel, args))
         if not recycled:
             self.x = self._x_own = x
             self.P = self._P_own = Pn
@@ -450,7 +517,7 @@ class RecursiveLeastSquares(_FilterBase):
         R : float, optional
             Measurement-noise variance for this call only.
         """
-        if self._mode != _EXPONENTIAL or self._gate is not None or self._Pi is not None:
+        if self._general or not _COMPILED:
             self._update_general(z, H, R)
             return
         # The common case (a float64 row, a float measurement, the filter's
@@ -480,7 +547,12 @@ class RecursiveLeastSquares(_FilterBase):
                     and rc(x) == _FREE and rc(P) == _FREE and rc(y) == _FREE
                     and rc(K) == _FREE and rc(S) == _FREE and rc(SI) == _FREE
                     and rc(Hc) == _FREE and rc(zc) == _FREE and rc(x_post) == _FREE
-                    and rc(P_post) == _FREE)
+                    and rc(P_post) == _FREE
+                    # the attributes still are the spare arrays (an attribute the
+                    # user replaced while keeping the old array keeps the count)
+                    and self.y is y and self.K is K and self.S is S and self.SI is SI
+                    and self.H is Hc and self.z is zc and self.x_post is x_post
+                    and self.P_post is P_post)
         if recycled:
             xn, Pn = x, P
         else:
@@ -497,8 +569,15 @@ class RecursiveLeastSquares(_FilterBase):
             else:
                 zc = zvalue
         zmode, z0 = (2, 0.0) if missing else ((1, z) if zf else (0, 0.0))
-        code = (_kernels or _get_kernels()).update_kernel(
-            x, P, phi, zc, z0, zmode, r, xn, Pn, y, K, S, SI, Hc, x_post, P_post)
+        ep = _update_entry
+        if recycled and ep is not None and phi.flags.carray:
+            code = ep(x, P, phi, zc, z0, zmode, r, x, P, y, K, S, SI, Hc, x_post, P_post)
+        else:
+            args = (x, P, phi, zc, float(z0), zmode, float(r), xn, Pn, y, K, S, SI, Hc,
+                    x_post, P_post)
+            code = (_kernels or _get_kernels()).update_kernel(*args)
+            if recycled and ep is None and phi.flags.carray:   # resolve the fast entry
+                _set_entries(update=_entry_point(_kernels.update_kernel, args))
         if code == 1:
             check_finite(phi, "H")                   # raises: H is not finite
         if self._updates_since_predict:
@@ -506,7 +585,7 @@ class RecursiveLeastSquares(_FilterBase):
         else:
             self._updates_since_predict = 1
         if missing:
-            self._log_likelihood, self._likelihood, self._mahalanobis = 0.0, 1.0, None
+            self._log_likelihood, self._likelihood, self._mahalanobis = 0.0, 1.0, math.nan
         else:
             self._log_likelihood = self._likelihood = self._mahalanobis = None
         if not recycled:
@@ -534,7 +613,64 @@ class RecursiveLeastSquares(_FilterBase):
 
     def _update_general(self, z, H, R):
         """:meth:`update` for the forgetting modes other than exponential, the gate
-        and the constraints (pure NumPy)."""
+        and the constraints: the compiled step that batch_filter runs (so the
+        two agree bit for bit), or the NumPy reference when ``_COMPILED`` is off."""
+        if not _COMPILED:
+            self._update_reference(z, H, R)
+            return
+        n, m = self.dim_x, self.dim_z
+        if type(H) is np.ndarray and H.dtype is _F8 and (H.shape == self._row
+                                                          or H.shape == self._row2):
+            phi = H.reshape(n)                 # finiteness: tested by the kernel
+        else:
+            phi = self._as_regressor(H, "H").reshape(n)
+        r = self._R if R is None else check_variance(R, "R")
+        zc = np.empty(m)
+        if isinstance(z, float) and m == 1:
+            zmode, z0 = (2, 0.0) if z != z else (1, z)
+            if zmode == 1 and z - z != 0.0:
+                self._as_measurement(z, "z")            # raises: z is inf
+        else:
+            zvalue = self._as_measurement(z, "z")
+            zmode, z0 = (2, 0.0) if zvalue is None else (0, 0.0)
+            if zvalue is not None:
+                zc[:] = zvalue[:, 0]
+        x, P = self._checked_x(), self._checked_P()
+        if self._efra_pending:
+            check_finite(phi, "H")                    # before the state changes
+            P = self._efra_start(P)
+        x = np.array(x, dtype=np.float64, order="C")
+        P = np.array(P, dtype=np.float64, order="C")
+        y, K = np.empty(m), np.empty(n)
+        S, SI, Hc = np.empty((m, m)), np.empty((m, m)), np.empty((1, n))
+        x_post, P_post = np.empty((n, m)), np.empty((n, n))
+        Pi, gate = self._Pi, self._gate
+        code, s, lam_t, gated = (_kernels or _get_kernels()).general_update_kernel(
+            x, P, phi, zc, float(z0), zmode, r, self._mode, self._params_arr, self._lam,
+            gate is not None, 0.0 if gate is None else gate, Pi is not None,
+            _EMPTY2 if Pi is None else Pi, y, K, S, SI, Hc, x_post, P_post)
+        if code == 1:
+            check_finite(phi, "H")                    # raises: H is not finite
+        self._note_update()
+        if zmode == 2:
+            self._log_likelihood, self._likelihood, self._mahalanobis = 0.0, 1.0, math.nan
+        else:
+            self._log_likelihood = self._likelihood = self._mahalanobis = None
+        self.H, self.S, self.SI = Hc, S, SI
+        self.z, self.y, self.K = zc.reshape(m, 1), y.reshape(m, 1), K.reshape(n, 1)
+        self.x, self.P = x, P
+        self.x_post, self.P_post = x_post, P_post
+        self.gated = gated
+        self.n_gated += gated
+        self.lam_t = lam_t
+        self.n_updates = nu = self.n_updates + 1
+        # the cheap health check: the kernel tested the diagonal (code 2)
+        every = self.check_every
+        if every and (code == 2 or not nu % every) and not self._warned_health:
+            self._check_health(cheap=False)
+
+    def _update_reference(self, z, H, R):
+        """:meth:`update` in NumPy (the reference path)."""
         phi = self._as_regressor(H, "H")
         r = self._R if R is None else check_variance(R, "R")
         zc = self._as_measurement(z, "z")
@@ -555,7 +691,7 @@ class RecursiveLeastSquares(_FilterBase):
         if zc is None:
             self.z = np.full((self.dim_z, 1), np.nan)
             self.y = np.full((self.dim_z, 1), np.nan)
-            self._log_likelihood, self._likelihood = 0.0, 1.0
+            self._log_likelihood, self._likelihood, self._mahalanobis = 0.0, 1.0, math.nan
         else:
             self.z, self.y = zc, y
         self.x_post = self.x.copy()
@@ -576,9 +712,15 @@ class RecursiveLeastSquares(_FilterBase):
 
             x = (\Phi^T \Phi)^{-1} \Phi^T Z, \qquad P = R\,(\Phi^T \Phi)^{-1},
 
-        both computed from the QR factorization :math:`\Phi = Q_1 R_1`
-        (:math:`x = R_1^{-1} Q_1^T Z`, :math:`P = R\,R_1^{-1} R_1^{-T}`),
-        never from the normal equations, which square the condition number.
+        both computed from the QR factorization :math:`\Phi D^{-1} = Q_1 R_1`
+        of the regressors with their columns scaled to unit norm
+        (:math:`D` the diagonal of the column norms; :math:`x = D^{-1} R_1^{-1}
+        Q_1^T Z`, :math:`P = R\,D^{-1} R_1^{-1} R_1^{-T} D^{-1}`), never from the
+        normal equations, which square the condition number. The scaling
+        makes the rank decision independent of the units of the regressors
+        (a column in 1e-8 beside one in 1e6 is not mistaken for a zero
+        column), as in ``ARX.fit(method="ls")``; the result is the same exact
+        least-squares solution.
         After it, updates with ``lam = 1`` reproduce batch least squares on
         all data so far at every step. With ``lam < 1`` row ``i`` of
         ``k0`` is weighted by ``lam**(k0 - 1 - i)``, so later steps reproduce
@@ -603,16 +745,23 @@ class RecursiveLeastSquares(_FilterBase):
         keep = ~np.isnan(Z).any(axis=1)
         A = Hm[keep] * w[keep, None]
         B = Z[keep] * w[keep, None]
-        rank = np.linalg.matrix_rank(A) if len(A) else 0
+        # columns scaled to unit norm, so that neither the rank decision nor the
+        # QR depends on the units of the regressors (1e-8 beside 1e6 is not rank
+        # deficiency); the solution is scaled back exactly: x = D^-1 x_s,
+        # (A^T A)^-1 = D^-1 (A_s^T A_s)^-1 D^-1
+        norms = np.linalg.norm(A, axis=0) if len(A) else np.ones(self.dim_x)
+        d = np.where(norms > 0.0, norms, 1.0)
+        As = A / d
+        rank = int(np.linalg.matrix_rank(As)) if len(A) else 0
         if rank < self.dim_x:
             raise ValueError(
                 f"`Hs` is rank-deficient: found {rank} linearly independent rows in "
                 f"{len(A)} usable samples; need {self.dim_x} (one per parameter). Use more "
                 "samples or a more exciting input."
             )
-        Qf, Rf = np.linalg.qr(A)
-        self.x = solve_triangular(Rf, Qf.T @ B)
-        Rinv = solve_triangular(Rf, np.eye(self.dim_x))
+        Qf, Rf = np.linalg.qr(As)
+        self.x = solve_triangular(Rf, Qf.T @ B) / d[:, None]
+        Rinv = solve_triangular(Rf, np.eye(self.dim_x)) / d[:, None]   # D^-1 R_s^-1
         P = self._R * (Rinv @ Rinv.T)
         self.P = 0.5 * (P + P.T)
         self._efra_pending = self._mode == _fg.EFRA
@@ -668,7 +817,8 @@ class RecursiveLeastSquares(_FilterBase):
         :math:`6\,n^2` floating-point operations for ``n = dim_x`` and the
         record is processed at tens of nanoseconds per sample for small ``n``
         (see ``docs/performance.md``). The other modes, the gate and the
-        constraints run the NumPy loop.
+        constraints run a compiled loop of one step per sample, the same
+        compiled step that :meth:`predict` and :meth:`update` call.
 
         Every forgetting mode, the gate and the constraints apply exactly as
         in the step-by-step loop (the results are bitwise equal); gated
@@ -683,12 +833,13 @@ class RecursiveLeastSquares(_FilterBase):
         P = self._checked_P()
         if self._efra_pending and len(Z):
             P = self._efra_start(P)
-        compiled = (_COMPILED and self._mode == _EXPONENTIAL and self._gate is None
-                    and self._Pi is None)
-        if compiled:      # the residual histories are not needed here: last step only
+        if not _COMPILED:
+            run = _batch_reference
+        elif self._mode == _EXPONENTIAL and self._gate is None and self._Pi is None:
+            # the fused fast path; the residual histories are not needed: last step only
             run = functools.partial(_get_kernels().batch_compiled, histories=False)
         else:
-            run = _batch_reference
+            run = _get_kernels().batch_general
         out = run(self._checked_x(), P, Z, Hm, Rv, self._lam,
                   None if self._Q_is_zero else self._Q, update_first,
                   store_covariances, mode=self._mode, params=self._params,
@@ -713,7 +864,7 @@ class RecursiveLeastSquares(_FilterBase):
             self.z = np.full((self.dim_z, 1), np.nan)
             self.y = np.full((self.dim_z, 1), np.nan)
             self.K = np.zeros((self.dim_x, 1))
-            self._log_likelihood, self._likelihood = 0.0, 1.0
+            self._log_likelihood, self._likelihood, self._mahalanobis = 0.0, 1.0, math.nan
         else:
             self.z = Z[-1].reshape(-1, 1).copy()
             self.y = out.y_last.reshape(-1, 1)
@@ -789,6 +940,7 @@ class RecursiveLeastSquares(_FilterBase):
         P = P - W @ PA.T                               # P <- P - W A P
         basis = null_space(A)
         self._Pi = basis @ basis.T
+        self._set_path()
         self.P = _project(P, self._Pi)
         self._null_basis = basis
         self.constraints = (A.copy(), bb.copy())
