@@ -679,7 +679,9 @@ def _report(fit):
     for i, name in enumerate(names):
         est, sd = fit["theta"][i], fit["theta_std"][i]
         tval = est / sd if sd > 0 else float("inf")
-        row = f"  {name:<10}{est:12.6g}{sd:11.2e}{tval:9.1f}"
+        # a huge t (an exact fit, noise-free data) in exponent form keeps its column
+        ttext = f"{tval:.1f}" if abs(tval) < 1e5 else f"{tval:.1e}"
+        row = f"  {name:<10}{est:12.6g}{sd:11.2e}{ttext:>9}"
         if has_true:
             row += f"{fit['theta_true'][i]:{width}.5g}{fit['theta_batch'][i]:12.6g}"
         lines.append(row)

@@ -210,6 +210,27 @@ def test_identify_text_report(capsys, csv_file):
     assert "AIC" in out and "BIC" in out
 
 
+def test_identify_noise_free_data_keeps_the_table_columns(capsys, tmp_path):
+    """An exact fit has standard errors near round-off and t values near 1e15: every row of
+    the parameter table still splits into name, estimate, std err and t."""
+    rng = np.random.default_rng(3)
+    u = rng.standard_normal(400)
+    y = lfilter([0.0, 1.0], [1.0, -0.5], u)
+    csv = tmp_path / "exact.csv"
+    _write_csv(csv, ["u", "y"], np.column_stack([u, y]), fmt="{:.17g}")
+    code, out, err = _run(capsys, "identify", str(csv), "--input", "u", "--output", "y",
+                          "--na", "1", "--nb", "1")
+    assert code == 0 and err == ""
+    rows = {line.split()[0]: line.split() for line in out.splitlines()
+            if line.startswith(("  a1 ", "  b1 "))}
+    assert set(rows) == {"a1", "b1"}
+    for name, truth in (("a1", -0.5), ("b1", 1.0)):
+        assert len(rows[name]) == 4, rows[name]
+        est, sd, t = map(float, rows[name][1:])
+        assert est == pytest.approx(truth, abs=1e-12)
+        assert abs(t) > 1e9 and t == pytest.approx(est / sd, rel=0.06)
+
+
 def test_identify_single_input_defaults_and_save_params(capsys, tmp_path, record):
     path = _write_csv(tmp_path / "siso.csv", ["u", "y"],
                       zip(record["u1"], lfilter([0, 1.0, 0.5], [1] + A_TRUE, record["u1"])))
