@@ -36,6 +36,7 @@ import os
 import sys
 import threading
 import time
+import warnings
 
 import numpy as np
 
@@ -86,7 +87,11 @@ def main(argv=None):
         parser.print_help()
         return EXIT_OK
     try:
-        return args.run(args)
+        with warnings.catch_warnings():
+            warnings.showwarning = _show_warning
+            if not sys.warnoptions:     # `python -W ...` keeps its own filters
+                warnings.simplefilter("default")
+            return args.run(args)
     except CLIError as exc:
         _error(str(exc))
     except (ValueError, TypeError, np.linalg.LinAlgError) as exc:
@@ -106,6 +111,12 @@ def main(argv=None):
 
 def _error(message):
     print(f"rlsfilt: error: {message}", file=sys.stderr)
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    """A warning is one line on stderr, like an error (no source path, no code line)."""
+    text = str(message).splitlines()[0] if str(message) else category.__name__
+    print(f"rlsfilt: warning: {text}", file=sys.stderr if file is None else file)
 
 
 # ----------------------------------------------------------------------
@@ -516,6 +527,9 @@ def _validate_fit(fit, plant=None, progress=None):
                                   max_lag=max_lag)
                 break
             except ValueError as exc:
+                if "exact fit" in str(exc):   # noise-free data: nothing left to test
+                    skipped = "the residuals are zero or constant (an exact fit)"
+                    break
                 if "max_lag" not in str(exc):
                     raise
                 if max_lag == 1:

@@ -562,3 +562,37 @@ def test_error_unwritable_outputs(capsys, csv_file, tmp_path):
     target = tmp_path / "no" / "such" / "dir"
     r = _run(capsys, *_ident_args(csv_file, "--save-params", str(target / "p.json")))
     _assert_one_line_error(*r, "cannot write")
+
+
+def test_identify_rls_on_noise_free_data_skips_the_residual_tests(capsys, tmp_path):
+    """y(t) = u(t-1) exactly: recursive least squares fits it with zero residuals, so the
+    residual tests are undefined; the report says so instead of failing the command."""
+    u = np.sign(np.random.default_rng(4).standard_normal(300))
+    csv = _write_csv(tmp_path / "exact.csv", ["u", "y"], np.column_stack([u, np.r_[0.0, u[:-1]]]))
+    argv = ("identify", csv, "--input", "u", "--output", "y", "--na", "0", "--nb", "1",
+            "--method", "rls")
+    code, out, err = _run(capsys, *argv)
+    assert code == 0 and err == ""
+    assert "(residual tests skipped: the residuals are zero or constant (an exact fit))" in out
+    assert "fit (simulation)    100.00 %" in out
+    code, out, err = _run(capsys, *argv, "--json")
+    res = json.loads(out)
+    assert code == 0 and err == ""
+    assert res["theta"] == [1.0] and "exact fit" in res["validation_skipped"]
+
+
+def test_warnings_are_one_line_on_stderr(capsys, tmp_path):
+    """Covariance windup (input held constant, lam = 0.9) triggers the NumericalWarning of the
+    filter: the command prints it as one `rlsfilt: warning:` line and goes on."""
+    rng = np.random.default_rng(5)
+    u = np.r_[rng.standard_normal(200), np.ones(600), rng.standard_normal(400)]
+    y = lfilter([0.0, 1.0, 0.5], [1.0], u) + 0.01 * rng.standard_normal(len(u))  # FIR: while
+    # u is held, every regressor row is [1, 1] and P grows as 0.9**-k across it
+    csv = _write_csv(tmp_path / "windup.csv", ["u", "y"], np.column_stack([u, y]))
+    code, out, err = _run(capsys, "identify", csv, "--input", "u", "--output", "y",
+                          "--na", "0", "--nb", "2", "--method", "rls", "--lam", "0.9")
+    assert code == 0 and "fit (simulation)" in out
+    lines = err.splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith("rlsfilt: warning: `P` is ill-conditioned")
+    assert "at step" in lines[0]
