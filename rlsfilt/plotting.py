@@ -46,7 +46,10 @@ def plot_parameters(source, covariances=None, *, t=None, names=None, true_values
         for Gaussian estimates). The band is :math:`\hat\theta_i \pm
         n_{std} \sqrt{P_{ii}}`, so ``P`` must be a covariance in the units
         of the parameters (``RecursiveLeastSquares.P`` is when ``R`` is the
-        noise variance).
+        noise variance). The y-range covers the estimates, the true values
+        and the bands wherever a band is narrower than the spread of the
+        estimates; the broad prior of the first samples is drawn but does not
+        set the scale.
     output : int, default 0
         Which output's column of ``(N, n, m)`` estimates to plot.
     ax : matplotlib.axes.Axes, optional
@@ -69,14 +72,27 @@ def plot_parameters(source, covariances=None, *, t=None, names=None, true_values
         elif truth.shape != (N, n):
             raise ValueError(f"`true_values` must have shape ({n},) or ({N}, {n}); got "
                              f"{truth.shape}")
+    shown = [theta] if truth is None else [theta, truth]
+    lo = min(float(np.nanmin(a)) for a in shown) if np.isfinite(theta).any() else np.nan
+    hi = max(float(np.nanmax(a)) for a in shown) if np.isfinite(theta).any() else np.nan
+    span = hi - lo
     for i in range(n):
         (line,) = ax.plot(tt, theta[:, i], label=names[i])
         if covs is not None:
             sd = np.sqrt(np.clip(covs[:, i, i], 0.0, None))
             ax.fill_between(tt, theta[:, i] - n_std * sd, theta[:, i] + n_std * sd,
                             color=line.get_color(), alpha=0.2, linewidth=0)
+            # the y-range follows the bands only where they are informative: the broad prior
+            # of the first samples (P0 = 1e4 I: +-200) would flatten every trajectory
+            narrow = n_std * sd <= span
+            if span > 0 and narrow.any():
+                lo = min(lo, float(np.nanmin(theta[narrow, i] - n_std * sd[narrow])))
+                hi = max(hi, float(np.nanmax(theta[narrow, i] + n_std * sd[narrow])))
         if truth is not None:
             ax.plot(tt, truth[:, i], linestyle="--", color=line.get_color(), linewidth=1)
+    if covs is not None and span > 0:
+        pad = 0.05 * (hi - lo)
+        ax.set_ylim(lo - pad, hi + pad)
     ax.set_xlabel("time" if t is not None else "sample $k$")
     ax.set_ylabel(r"estimate $\hat\theta$")
     title = "parameter estimates"

@@ -101,3 +101,20 @@ def test_bad_inputs(run):
         plot_parameters(run, output=1)
     with pytest.raises(ValueError, match=r"`true_values` must have shape \(4,\) or \(200, 4\)"):
         plot_parameters(run, true_values=[1.0, 2.0])
+
+
+def test_y_range_not_flattened_by_the_broad_prior(run):
+    """The default P0 = 1e4 I makes the first bands +-200 wide; the y-range follows the
+    estimates, the true values and the informative bands, so the trajectories stay readable."""
+    means, covs, _, _ = run
+    assert 2 * np.sqrt(covs[0].diagonal()).max() > 100          # the prior band is huge
+    ax = plot_parameters(run, true_values=[-1.5, 0.7, 1.0, 0.5])
+    lo, hi = ax.get_ylim()
+    theta = means[:, :, 0]
+    sd = np.sqrt(np.einsum("kii->ki", covs))
+    narrow = 2 * sd <= theta.max() - theta.min()
+    assert narrow[-1].all()
+    assert lo <= min(theta.min(), (theta - 2 * sd)[narrow].min()) and \
+        hi >= max(theta.max(), (theta + 2 * sd)[narrow].max())
+    assert hi - lo < 1.2 * (theta.max() - theta.min()) + 4 * sd[narrow].max()
+    assert len(ax.collections) == 4                             # the bands are still drawn
