@@ -63,7 +63,7 @@ def test_recursive_residuals_are_brown_durbin_evans(rng):
         h = Hs[t]
         w = (zs[t] - h @ b) / np.sqrt(1.0 + h @ np.linalg.solve(X.T @ X, h))
         rls.predict_update(zs[t], Hs[t])
-        assert_allclose(rls.y[0, 0] / np.sqrt(rls.S[0, 0]), w, rtol=1e-7)
+        assert_allclose(rls.y[0, 0] / np.sqrt(rls.S[0, 0]), w, rtol=1e-8)
 
 
 # ----------------------------------------------------------------------
