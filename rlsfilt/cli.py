@@ -270,6 +270,8 @@ def _run_identify(args):
     if len(set(args.inputs)) != len(args.inputs):
         dup = next(c for c in args.inputs if args.inputs.count(c) > 1)
         raise CLIError(f"column '{dup}' is given twice as --input")
+    if args.lam != 1.0 and args.method != "rls":   # batch least squares has no forgetting
+        raise CLIError(f"--lam {args.lam:g} needs --method rls")
     if args.forgetting != "exponential" and args.method != "rls":
         raise CLIError(f"--forgetting {args.forgetting} needs --method rls")
     if args.forgetting == "constant_trace" and args.lam == 1.0:

@@ -519,6 +519,11 @@ def test_error_forgetting_options(capsys, csv_file):
     r = _run(capsys, "identify", csv_file, "-u", "u1", "-y", "y", "--method", "rls",
              "--forgetting", "constant_trace")
     _assert_one_line_error(*r, "--forgetting constant_trace needs --lam < 1")
+    # a forgetting factor without the recursive method was ignored (JSON: method ls, lam 0.9)
+    r = _run(capsys, "identify", csv_file, "-u", "u1", "-y", "y", "--lam", "0.9")
+    _assert_one_line_error(*r, "--lam 0.9 needs --method rls")
+    r = _run(capsys, "identify", csv_file, "-u", "u1", "-y", "y", "--method", "ls", "--lam", "1")
+    assert r[0] == 0 and r[2] == ""
     r = _run(capsys, "identify", csv_file, "-u", "u1", "-y", "y", "--forgetting", "fast")
     _assert_one_line_error(*r, "argument --forgetting: invalid choice: 'fast'", 2)
 
