@@ -105,3 +105,19 @@ def test_api_reference_entries_exist():
     for full in _documented_names():
         module, _, name = full.rpartition(".")
         assert hasattr(importlib.import_module(module), name), f"{full} does not exist"
+
+
+def test_readme_quick_start_is_two_commands_and_ci_runs_the_test_line():
+    """Issue contract: the Quick start's first fenced block holds exactly two command lines
+    (install + demo, install + tests), and .ci/run runs the test line verbatim."""
+    readme = (ROOT / "README.md").read_text()
+    section = readme.split("\n## Quick start\n", 1)[1].split("\n## ", 1)[0]
+    block = re.search(r"^```[a-z]*\n(.*?)^```$", section, re.M | re.S)
+    assert block, "no fenced block in the Quick start section"
+    lines = [ln for ln in block.group(1).splitlines() if ln.strip()]
+    assert len(lines) == 2, lines
+    install, tests = lines
+    assert "pip install" in install and install.rstrip().endswith("rlsfilt demo"), install
+    assert "pip install" in tests and "pytest" in tests, tests
+    ci = (ROOT / ".ci" / "run").read_text().splitlines()
+    assert tests in ci, f".ci/run does not run the README's test line verbatim: {tests!r}"
