@@ -42,6 +42,7 @@ import numpy as np
 
 from . import __version__
 from .datasets import PLANTS
+from .exceptions import ForgettingSkippedWarning, NumericalWarning
 from .models import ARX
 from .validation import fit_percent, select_order, validate
 
@@ -90,7 +91,10 @@ def main(argv=None):
         with warnings.catch_warnings():
             warnings.showwarning = _show_warning
             if not sys.warnoptions:     # `python -W ...` keeps its own filters
-                warnings.simplefilter("default")
+                # rlsfilt's own warnings are shown (once each); other libraries' warnings
+                # keep the interpreter's filters (DeprecationWarning stays hidden)
+                for category in (NumericalWarning, ForgettingSkippedWarning):
+                    warnings.simplefilter("default", category)
             return args.run(args)
     except CLIError as exc:
         _error(str(exc))
