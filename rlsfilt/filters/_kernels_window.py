@@ -198,14 +198,55 @@ def _sr_step(U, d, x, phi, z, r, w, y, K, gain):
 
 @njit(cache=True)
 def sr_update_kernel(U, d, x, phi, z, r, y, K):
-    """Streaming :meth:`SquareRootRLS.update`: `_sr_step` on the given arrays."""
+    """Streaming :meth:`SquareRootRLS.update`: `_sr_step` on the given arrays.
+
+    Returns ``s`` and whether the diagonal of the new ``U`` fails the cheap
+    health check (`_sr_diagonal_bad`).
+    """
     w = np.empty(U.shape[0])
-    return _sr_step(U, d, x, phi, z, r, w, y, K, U.shape[0] > 0)
+    s = _sr_step(U, d, x, phi, z, r, w, y, K, U.shape[0] > 0)
+    return s, _sr_diagonal_bad(U)
+
+
+@njit(cache=True, inline="always")
+def _sr_diagonal_bad(U):
+    """True when a diagonal entry of ``U`` is not positive and finite, i.e.
+    ``P = U^-1 U^-T`` is not (finitely) positive definite (the cheap check)."""
+    for i in range(U.shape[0]):
+        v = U[i, i]
+        if not (v > 0.0 and v < np.inf):
+            return True
+    return False
+
+
+@njit(cache=True)
+def sr_unhealthy(U, cond_max):
+    """True when ``P = U^-1 U^-T`` fails ``square_root._health_problem``:
+    non-finite ``U``, a diagonal entry that is not positive, or
+    ``cond(P) = cond(U)^2`` above `cond_max`.
+
+    The singular values of the triangular factor come from `_singular_range`
+    (one-sided Jacobi, high relative accuracy), so the condition number of
+    ``P`` is read off without forming ``P``: ``O(n^3)`` per check.
+    """
+    n = U.shape[0]
+    for i in range(n):
+        for j in range(n):
+            v = U[i, j]
+            if v - v != 0.0:                   # NaN or infinite
+                return True
+    if _sr_diagonal_bad(U):
+        return True
+    smin, smax = _singular_range(U)
+    if not smin > 0.0:
+        return True
+    ratio = smax / smin
+    return ratio * ratio > cond_max
 
 
 @njit(cache=True)
 def sr_batch_kernel(U, d, x, Z, Hm, Rv, c, update_first, means, covs, covs_p,
-                    x_prior, P_prior, P_post, y, K):
+                    x_prior, P_prior, P_post, y, K, check_every, step0, cond_max, U_fail):
     """Run `SquareRootRLS` over a record, in place on ``U``, ``d``, ``x``.
 
     ``c = sqrt(lam)`` (1.0: no time update). ``Rv`` has length N or 1 (one
@@ -213,7 +254,20 @@ def sr_batch_kernel(U, d, x, Z, Hm, Rv, c, update_first, means, covs, covs_p,
     their length is N. Leaves the last predict's ``x_prior``, ``P_prior``
     and the last update's ``P_post``, ``y`` and ``K`` (the last
     non-missing gain is not kept: a missing last sample leaves ``K`` zero,
-    as the streaming step does). Returns the last ``s``.
+    as the streaming step does).
+
+    The health check of ``P`` runs after every update as
+    :meth:`SquareRootRLS.update` runs it: the cheap diagonal test of ``U``
+    each step and `sr_unhealthy` when the update count ``step0 + k + 1`` is
+    a multiple of ``check_every`` (0 disables both). The first failing ``U``
+    is copied to ``U_fail`` and no further checks run.
+
+    Returns
+    -------
+    s : float
+        The last step's ``S``.
+    k_fail : int
+        Step of the first failed health check, or -1.
     """
     N = Z.shape[0]
     n, m = x.shape
@@ -221,6 +275,9 @@ def sr_batch_kernel(U, d, x, Z, Hm, Rv, c, update_first, means, covs, covs_p,
     r_each = Rv.shape[0] == N
     w = np.empty(n)
     s = np.nan
+    k_fail = -1
+    # steps to the next full health check (a countdown: no division per step)
+    countdown = check_every - step0 % check_every if check_every > 0 else -1
     for k in range(N):
         if not update_first:
             if c != 1.0:
@@ -234,6 +291,15 @@ def sr_batch_kernel(U, d, x, Z, Hm, Rv, c, update_first, means, covs, covs_p,
                 else:
                     _upper_inverse_gram(U, P_prior)
         s = _sr_step(U, d, x, Hm[k], Z[k], Rv[k if r_each else 0], w, y, K, k == N - 1)
+        if countdown > 0:
+            countdown -= 1
+            full = countdown == 0
+            if full:
+                countdown = check_every
+            if _sr_diagonal_bad(U) or (full and sr_unhealthy(U, cond_max)):
+                k_fail = k
+                countdown = -1
+                _copy2(U, U_fail)
         _copy2(x, means[k])
         if store:
             _upper_inverse_gram(U, covs[k])
@@ -253,7 +319,7 @@ def sr_batch_kernel(U, d, x, Z, Hm, Rv, c, update_first, means, covs, covs_p,
                     _copy2(covs_p[k], P_prior)
                 else:
                     _upper_inverse_gram(U, P_prior)
-    return s
+    return s, k_fail
 
 
 # ----------------------------------------------------------------------

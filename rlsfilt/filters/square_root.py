@@ -1,12 +1,14 @@
 """Square-root (QR, information form) recursive least squares."""
 
 import math
+import warnings
 
 import numpy as np
 from filterpy.common import pretty_str
 from scipy.linalg import cho_factor, cho_solve
 
-from .._validation import check_covariance, check_int, check_lam, check_variance
+from .._validation import check_covariance, check_int, check_lam, check_real, check_variance
+from ..exceptions import NumericalWarning
 from ._base import _FilterBase, _tri_inv, _tri_solve
 
 __all__ = ["SquareRootRLS"]
@@ -38,7 +40,9 @@ class SquareRootRLS(_FilterBase):
     each new row in with orthogonal (Givens) rotations. Its
     round-off grows with ``cond(U) = sqrt(cond(P))`` where the covariance
     form's grows with ``cond(P)``, and ``P`` is positive definite by
-    construction; on ill-conditioned regressions (NIST StRD Longley,
+    construction (it still loses accuracy, and the filter warns, when
+    forgetting without excitation winds ``cond(P)`` up: see
+    `check_every`); on ill-conditioned regressions (NIST StRD Longley,
     condition number 5e9) it keeps about as many digits as a batch QR
     solve. The interface is filterpy's: ``predict``/``update(z, H)``/
     ``initialize``/``batch_filter``, ``x``, ``P`` (computed on access),
@@ -60,6 +64,20 @@ class SquareRootRLS(_FilterBase):
         Initial estimate; zeros by default.
     R : float, default 1.0
         Measurement-noise variance.
+    check_every : int, default 100
+        Health check period (0 disables it), with the semantics of
+        :class:`~rlsfilt.RecursiveLeastSquares`: every `check_every`
+        updates, and at the end of :meth:`batch_filter`, the condition
+        number of ``P`` is computed from the triangular factor,
+        :math:`\operatorname{cond}(P) = \operatorname{cond}(U)^2` (its
+        singular values, O(dim_x^3), without forming ``P``); every update
+        also checks cheaply (O(dim_x)) that the diagonal of ``U`` is positive
+        and finite, which is what positive definiteness of ``P`` comes down
+        to in the square-root form. A failure issues one
+        :class:`~rlsfilt.NumericalWarning` naming the update (and, in
+        :meth:`batch_filter`, the step of the record).
+    cond_max : float, default 1e12
+        Condition number of ``P`` beyond which the health check warns.
 
     Attributes
     ----------
@@ -70,6 +88,9 @@ class SquareRootRLS(_FilterBase):
         refactors.
     U : ndarray, shape (dim_x, dim_x)
         Upper-triangular information square root (a copy).
+    n_updates : int
+        Measurement updates since the last :meth:`reset` (the count the
+        health warning names).
     x_prior, P_prior, x_post, P_post, H, z, y, K, S, SI
         As in :class:`~rlsfilt.RecursiveLeastSquares`.
 
@@ -127,11 +148,15 @@ class SquareRootRLS(_FilterBase):
     array([ 0.8, -0.5])
     """
 
-    def __init__(self, dim_x, dim_z=1, lam=1.0, *, P0=1e4, x0=None, R=1.0):
+    def __init__(self, dim_x, dim_z=1, lam=1.0, *, P0=1e4, x0=None, R=1.0,
+                 check_every=100, cond_max=1e12):
         self.dim_x = check_int(dim_x, "dim_x", minimum=1)
         self.dim_z = check_int(dim_z, "dim_z", minimum=1)
         self.lam = lam
         self.R = R
+        self.check_every = check_int(check_every, "check_every", minimum=0)
+        self.cond_max = check_real(cond_max, "cond_max", minimum=0, strict=True)
+        self._batch_start = None      # n_updates at the start of a stepwise batch_filter
         self._P0 = check_covariance(P0, self.dim_x, "P0", definite=True)
         self._x0 = self._as_state(np.zeros((self.dim_x, self.dim_z)) if x0 is None else x0, "x0")
         self.reset()
@@ -222,6 +247,14 @@ class SquareRootRLS(_FilterBase):
             self.K = _tri_solve(self._U, w).reshape(-1, 1) / s   # K = P H^T / S
             self._U, self._d = _qr_update(self._U, self._d, phi, zc, r)
             self._x = _tri_solve(self._U, self._d)
+        self.n_updates = nu = self.n_updates + 1
+        every = self.check_every
+        if every and not self._warned_health:
+            dg = np.diagonal(self._U)
+            if not nu % every or not (np.isfinite(dg).all() and (dg > 0.0).all()):
+                problem = _health_problem(self._U, self.cond_max)
+                if problem is not None:
+                    self._warn_health(problem + self._where(), self._user_level(3))
         self.x_post = self._x.copy()
         self.P_post = self.P
 
@@ -232,13 +265,21 @@ class SquareRootRLS(_FilterBase):
         x = self._x.copy()
         y, K = np.empty((m, 1)), np.empty((n, 1))
         zrow = np.full(m, np.nan) if zc is None else zc[:, 0]
-        s = (_kernels or _get_kernels()).sr_update_kernel(U, d, x, phi[0], zrow, r, y[:, 0],
-                                                          K[:, 0])
+        kern = _kernels or _get_kernels()
+        s, bad = kern.sr_update_kernel(U, d, x, phi[0], zrow, r, y[:, 0], K[:, 0])
         self.S, self.SI = s * self._I_z, self._I_z / s
         self.z, self.y, self.K = zrow.reshape(m, 1), y, K
         if zc is None:
             self._log_likelihood, self._likelihood = 0.0, 1.0
         self._U, self._d, self._x = U, d, x
+        # the health check: the kernel tested the diagonal (`bad`); the
+        # periodic full check runs compiled, the NumPy check only words it
+        self.n_updates = nu = self.n_updates + 1
+        every = self.check_every
+        if every and (bad or not nu % every) and not self._warned_health:
+            if bad or kern.sr_unhealthy(U, self.cond_max):
+                problem = _health_problem(U, self.cond_max) or "`P` failed the health check"
+                self._warn_health(problem + self._where(), self._user_level(4))
         self.x_post = x.copy()
         self.P_post = self.P
 
@@ -283,12 +324,20 @@ class SquareRootRLS(_FilterBase):
         Z, Hm = self._as_batch(zs, Hs)
         Rv = self._as_batch_variances(Rs, len(Z))
         if saver is not None or not _COMPILED or len(Z) == 0:
-            return self._batch_stepwise(Z, Hm, Rv, update_first, saver, store_covariances)
-        return self._batch_compiled(Z, Hm, Rv, update_first, store_covariances)
+            self._batch_start = self.n_updates
+            try:
+                out = self._batch_stepwise(Z, Hm, Rv, update_first, saver, store_covariances)
+            finally:
+                self._batch_start = None
+        else:
+            out = self._batch_compiled(Z, Hm, Rv, update_first, store_covariances)
+        self._check_health()
+        return out
 
     def _batch_compiled(self, Z, Hm, Rv, update_first, store_covariances):
         """`batch_filter` in one compiled call; leaves the filter as the
-        step-by-step loop would (the same compiled step, bit for bit)."""
+        step-by-step loop would (the same compiled step, bit for bit, and
+        the same health check, reported with its step)."""
         N, n, m = len(Z), self.dim_x, self.dim_z
         U = np.array(self._U, dtype=np.float64, order="C")
         d = np.array(self._d, dtype=np.float64, order="C")
@@ -306,10 +355,20 @@ class SquareRootRLS(_FilterBase):
         kern = _kernels or _get_kernels()
         Rv = kern.c_array(Rv[:1] if Rv.strides[0] == 0 else Rv)
         c = math.sqrt(self._lam) if self._lam != 1.0 else 1.0
-        s = kern.sr_batch_kernel(
+        step0 = self.n_updates
+        U_fail = np.empty((n, n))
+        s, k_fail = kern.sr_batch_kernel(
             U, d, x, kern.c_array(Z),
             kern.c_array(Hm), Rv, c, bool(update_first),
-            means, covs, covs_p, x_prior, P_prior, P_post, y, K)
+            means, covs, covs_p, x_prior, P_prior, P_post, y, K,
+            0 if self._warned_health else self.check_every, step0, float(self.cond_max),
+            U_fail)
+        self.n_updates = step0 + N
+        if k_fail >= 0:
+            problem = (_health_problem(U_fail, self.cond_max)
+                       or "`P` failed the health check")
+            self._warn_health(f"{problem} at step {k_fail} of batch_filter (update "
+                              f"{step0 + k_fail + 1} since reset)", 4)
         # the estimate is unchanged by a time update
         if update_first:
             means_p = means.copy()
@@ -339,9 +398,47 @@ class SquareRootRLS(_FilterBase):
         """Return ``(x, P)`` after a :meth:`predict`, without changing the filter."""
         return self._x.copy(), self.P / self._lam
 
+    # ------------------------------------------------------------------
+    # health of P
+    # ------------------------------------------------------------------
+    def _check_health(self):
+        """Warn once if ``P`` is not positive definite or too ill-conditioned
+        (the full check, on the factor ``U``)."""
+        if self._warned_health or not self.check_every:
+            return
+        problem = _health_problem(self._U, self.cond_max)
+        if problem is not None:
+            self._warn_health(problem + f" at update {self.n_updates} since reset", 4)
+
+    def _user_level(self, level):
+        """`stacklevel` of the caller of :meth:`update` (deeper inside a
+        stepwise :meth:`batch_filter`)."""
+        return level if self._batch_start is None else level + 2
+
+    def _where(self):
+        """Where the health check failed: the update, and the step of a
+        running `batch_filter`."""
+        nu = self.n_updates
+        if self._batch_start is None:
+            return f" at update {nu} since reset"
+        return (f" at step {nu - self._batch_start - 1} of batch_filter (update {nu} "
+                f"since reset)")
+
+    def _warn_health(self, message, stacklevel):
+        self._warned_health = True
+        warnings.warn(message + ". The estimate may be unreliable: the input has stopped "
+                      "exciting some direction of the parameters (covariance windup under "
+                      "forgetting); use more exciting input, lam closer to 1, or "
+                      "RecursiveLeastSquares with an anti-windup forgetting mode "
+                      "(forgetting='directional', 'efra', ...).", NumericalWarning,
+                      stacklevel=stacklevel)
+
     def reset(self):
-        """Return to ``x0``, ``P0``; ``lam`` and ``R`` are kept."""
+        """Return to ``x0``, ``P0``; ``lam`` and ``R`` are kept. Re-arms the
+        health warning."""
         n, m = self.dim_x, self.dim_z
+        self.n_updates = 0
+        self._warned_health = False
         self._x = self._x0.copy()
         self._U = np.eye(n)
         self.P = self._P0
@@ -372,6 +469,28 @@ class SquareRootRLS(_FilterBase):
             pretty_str("K", self.K),
             pretty_str("S", self.S),
         ])
+
+
+def _health_problem(U, cond_max):
+    """None if ``P = U^-1 U^-T`` is healthy, else a description (the wording
+    of ``rls._health_problem``).
+
+    ``P`` is positive definite exactly when the triangular ``U`` has a
+    positive, finite diagonal, and ``cond(P) = cond(U)^2`` (singular values
+    of ``U``), so ``P`` is never formed.
+    """
+    if not np.isfinite(U).all():
+        return "`P` has non-finite entries"
+    dmin = float(np.min(np.diagonal(U)))
+    if not dmin > 0.0:
+        return (f"`P` is not positive definite (smallest diagonal entry of its square root "
+                f"U is {dmin:.3g})")
+    sv = np.linalg.svd(U, compute_uv=False)
+    ratio = float(sv[0] / sv[-1]) if sv[-1] > 0.0 else math.inf
+    cond = ratio * ratio if ratio < 1e150 else math.inf
+    if cond > cond_max:
+        return f"`P` is ill-conditioned (condition number {cond:.3g} > {cond_max:.3g})"
+    return None
 
 
 def _qr_update(U, d, phi, z, r):
