@@ -550,6 +550,58 @@ def _sw_step(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, g, y, K):
     return s
 
 
+@njit(cache=True, inline="always")
+def _sw_diagonal_bad(P):
+    """True when a diagonal entry of ``P`` is not positive and finite (the
+    cheap health check: a positive definite ``P`` has a positive diagonal)."""
+    for i in range(P.shape[0]):
+        v = P[i, i]
+        if not (v > 0.0 and v < np.inf):
+            return True
+    return False
+
+
+@njit(cache=True)
+def sw_unhealthy(P, cond_max):
+    """True when the symmetric ``P`` fails ``rls._health_problem`` (no
+    constraints): non-finite, not symmetric to 1e-8, not positive definite
+    (a Cholesky pivot not positive) or ``cond(P) = cond(L)^2`` above
+    `cond_max`, with the singular values of the Cholesky factor ``L`` from
+    `_singular_range` (``O(n^3)``, compiled without LAPACK).
+    """
+    n = P.shape[0]
+    scale = 0.0
+    for i in range(n):
+        for j in range(n):
+            v = P[i, j]
+            if v - v != 0.0:                   # NaN or infinite
+                return True
+            scale = max(scale, abs(v))
+    for i in range(n):
+        for j in range(i + 1, n):
+            if abs(P[i, j] - P[j, i]) > 1e-8 * scale:
+                return True
+    L = np.zeros((n, n))
+    for j in range(n):                         # P = L L^T
+        acc = P[j, j]
+        for k in range(j):
+            acc -= L[j, k] * L[j, k]
+        if not acc > 0.0:
+            return True
+        ljj = math.sqrt(acc)
+        L[j, j] = ljj
+        for i in range(j + 1, n):
+            acc = P[i, j]
+            for k in range(j):
+                acc -= L[i, k] * L[j, k]
+            L[i, j] = acc / ljj
+    smin, smax = _singular_range(L)
+    if not smin > 0.0:
+        return True
+    ratio = smax / smin
+    return ratio * ratio > cond_max
+
+
 @njit(cache=True)
 def sw_update_kernel(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, y, K):
     """Streaming :meth:`SlidingWindowRLS.update`: `_sw_step` on the given arrays."""
@@ -559,26 +611,50 @@ def sw_update_kernel(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, y, K):
 
 @njit(cache=True)
 def sw_batch_kernel(x, P, Z, Hm, Rv, wH, wZ, wR, ist, refresh, Lt, Ltx0, means, covs, y, K,
-                    P_last):
+                    P_last, check_every, step0, cond_max, P_fail):
     """Run `SlidingWindowRLS` over a record, in place on the state.
 
     ``Rv`` has length N or 1; ``covs`` (N, n, n) is written when its length
     is N. ``y`` and ``K`` are the last step's, ``P_last`` is ``P`` before
-    the last step. Returns the last ``s``.
-    (The window has no time update: the caller builds the predicted
-    histories from these.)
+    the last step. (The window has no time update: the caller builds the
+    predicted histories from these.)
+
+    The health check runs after every update as
+    :meth:`SlidingWindowRLS.update` runs it: the cheap diagonal test each
+    step and `sw_unhealthy` when the update count ``step0 + k + 1`` is a
+    multiple of ``check_every`` (0 disables both). The first failing ``P``
+    is copied to ``P_fail`` and no further checks run.
+
+    Returns
+    -------
+    s : float
+        The last step's ``S``.
+    k_fail : int
+        Step of the first failed health check, or -1.
     """
     N = Z.shape[0]
     store = covs.shape[0] == N and N > 0
     r_each = Rv.shape[0] == N
     g = np.empty(x.shape[0])
     s = np.nan
+    k_fail = -1
+    # steps to the next full health check (a countdown: no division per step)
+    countdown = check_every - step0 % check_every if check_every > 0 else -1
     for k in range(N):
         if k == N - 1:
             _copy2(P, P_last)
         s = _sw_step(x, P, Hm[k], Z[k], Rv[k if r_each else 0], wH, wZ, wR, ist, refresh,
                      Lt, Ltx0, g, y, K)
+        if countdown > 0:
+            countdown -= 1
+            full = countdown == 0
+            if full:
+                countdown = check_every
+            if _sw_diagonal_bad(P) or (full and sw_unhealthy(P, cond_max)):
+                k_fail = k
+                countdown = -1
+                _copy2(P, P_fail)
         _copy2(x, means[k])
         if store:
             _copy2(P, covs[k])
-    return s
+    return s, k_fail

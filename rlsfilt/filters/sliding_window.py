@@ -1,12 +1,15 @@
 """Exact least squares over a sliding window of the most recent samples."""
 
 import math
+import warnings
 
 import numpy as np
 from filterpy.common import pretty_str
 
-from .._validation import check_covariance, check_int, check_variance
+from .._validation import check_covariance, check_int, check_real, check_variance
+from ..exceptions import NumericalWarning
 from ._base import _FilterBase, _innovation, _tri_inv, _tri_solve
+from .rls import _health_problem
 
 __all__ = ["SlidingWindowRLS"]
 
@@ -60,6 +63,20 @@ class SlidingWindowRLS(_FilterBase):
         Recompute the estimate from the stored window by QR every `refresh`
         updates, which removes the round-off that downdating accumulates;
         ``0`` never refreshes.
+    check_every : int, default 100
+        Health check period (0 disables it), with the semantics of
+        :class:`~rlsfilt.RecursiveLeastSquares`: every `check_every`
+        updates, and at the end of :meth:`batch_filter`, ``P`` is tested for
+        symmetry, positive definiteness and its condition number (O(dim_x^3));
+        every update also checks cheaply (O(dim_x)) that the diagonal of
+        ``P`` is positive and finite. ``P`` becomes ill-conditioned when the
+        rows in the window stop exciting some direction of the parameters
+        (nearly collinear regressors), and downdating can cost it its
+        definiteness. A failure issues one :class:`~rlsfilt.NumericalWarning`
+        naming the update (and, in :meth:`batch_filter`, the step of the
+        record).
+    cond_max : float, default 1e12
+        Condition number of ``P`` beyond which the health check warns.
 
     Attributes
     ----------
@@ -73,6 +90,9 @@ class SlidingWindowRLS(_FilterBase):
         been dropped).
     n_samples : int
         Number of samples currently in the window.
+    n_updates : int
+        Measurement updates since the last :meth:`reset` (the count the
+        health warning names).
 
     Notes
     -----
@@ -124,13 +144,17 @@ class SlidingWindowRLS(_FilterBase):
     array([ 2., -1.])
     """
 
-    def __init__(self, dim_x, window, dim_z=1, *, P0=1e4, x0=None, R=1.0, refresh=None):
+    def __init__(self, dim_x, window, dim_z=1, *, P0=1e4, x0=None, R=1.0, refresh=None,
+                 check_every=100, cond_max=1e12):
         self.dim_x = check_int(dim_x, "dim_x", minimum=1)
         self.dim_z = check_int(dim_z, "dim_z", minimum=1)
         self.window = check_int(window, "window", minimum=self.dim_x)
         self.refresh = (10 * self.window if refresh is None
                         else check_int(refresh, "refresh", minimum=0))
         self.R = R
+        self.check_every = check_int(check_every, "check_every", minimum=0)
+        self.cond_max = check_real(cond_max, "cond_max", minimum=0, strict=True)
+        self._batch_start = None      # n_updates at the start of a stepwise batch_filter
         self._P0 = check_covariance(P0, self.dim_x, "P0", definite=True)
         self._x0 = self._as_state(np.zeros((self.dim_x, self.dim_z)) if x0 is None else x0, "x0")
         # prior rows of the refit, L^T (x - x0) with L L^T = P0^-1 (as in _window_lstsq)
@@ -142,6 +166,11 @@ class SlidingWindowRLS(_FilterBase):
     def n_samples(self):
         """Number of samples currently in the window."""
         return self._nw
+
+    @property
+    def n_updates(self):
+        """Measurement updates since the last :meth:`reset`."""
+        return self._count
 
     # ------------------------------------------------------------------
     # the recursion
@@ -213,6 +242,7 @@ class SlidingWindowRLS(_FilterBase):
             x, P = self._refit()
         self.x, self.P = x, P
         self.x_post, self.P_post = x.copy(), P.copy()
+        self._health_after_update(P, None, 3)
 
     def _update_compiled(self, zc, phi, r, x, P):
         """:meth:`update` by the compiled step (the one `batch_filter` runs)."""
@@ -232,6 +262,7 @@ class SlidingWindowRLS(_FilterBase):
             self._log_likelihood, self._likelihood = 0.0, 1.0
         self.x, self.P = x, P
         self.x_post, self.P_post = x.copy(), P.copy()
+        self._health_after_update(P, _kernels, 4)
 
     def _int_state(self):
         """The ring-buffer counters as the kernels' ``ist`` array."""
@@ -290,8 +321,15 @@ class SlidingWindowRLS(_FilterBase):
         Z, Hm = self._as_batch(zs, Hs)
         Rv = self._as_batch_variances(Rs, len(Z))
         if saver is not None or not _COMPILED or len(Z) == 0:
-            return self._batch_stepwise(Z, Hm, Rv, update_first, saver, store_covariances)
-        return self._batch_compiled(Z, Hm, Rv, update_first, store_covariances)
+            self._batch_start = self._count
+            try:
+                out = self._batch_stepwise(Z, Hm, Rv, update_first, saver, store_covariances)
+            finally:
+                self._batch_start = None
+        else:
+            out = self._batch_compiled(Z, Hm, Rv, update_first, store_covariances)
+        self._check_health()
+        return out
 
     def _batch_compiled(self, Z, Hm, Rv, update_first, store_covariances):
         """`batch_filter` in one compiled call; leaves the filter as the
@@ -308,11 +346,19 @@ class SlidingWindowRLS(_FilterBase):
         kern = _kernels or _get_kernels()
         Rv = kern.c_array(Rv[:1] if Rv.strides[0] == 0 else Rv)
         ist = self._int_state()
-        s = kern.sw_batch_kernel(
+        step0 = self._count
+        P_fail = np.empty((n, n))
+        s, k_fail = kern.sw_batch_kernel(
             x, P, kern.c_array(Z),
             kern.c_array(Hm), Rv, self._wH, self._wZ, self._wR,
-            ist, int(self.refresh or 0), self._Lt, self._Ltx0, means, covs, y, K, P_last)
+            ist, int(self.refresh or 0), self._Lt, self._Ltx0, means, covs, y, K, P_last,
+            0 if self._warned_health else self.check_every, step0, float(self.cond_max),
+            P_fail)
         self._set_int_state(ist)
+        if k_fail >= 0:
+            problem = _health_problem(P_fail, None, self.cond_max) or "`P` failed the health check"
+            self._warn_health(f"{problem} at step {k_fail} of batch_filter (update "
+                              f"{step0 + k_fail + 1} since reset)", 4)
         # the window has no time update: the priors are the previous posteriors
         if update_first:
             means_p = means.copy()
@@ -348,8 +394,53 @@ class SlidingWindowRLS(_FilterBase):
         """Return ``(x, P)`` after a :meth:`predict` (unchanged: no time update)."""
         return self._checked_x().copy(), self._checked_P().copy()
 
+    # ------------------------------------------------------------------
+    # health of P
+    # ------------------------------------------------------------------
+    def _health_after_update(self, P, kern, level):
+        """The per-update health check: the cheap diagonal test, and the full
+        test every ``check_every`` updates (compiled when `kern` is given;
+        the NumPy check then only words the warning)."""
+        every = self.check_every
+        if not every or self._warned_health:
+            return
+        dg = np.diagonal(P)
+        bad = not (np.isfinite(dg).all() and (dg > 0.0).all())
+        if not (bad or self._count % every == 0):
+            return
+        if kern is not None and not (bad or kern.sw_unhealthy(P, self.cond_max)):
+            return
+        problem = _health_problem(P, None, self.cond_max)
+        if problem is None and kern is not None:
+            problem = "`P` failed the health check"
+        if problem is not None:
+            nu = self._count
+            if self._batch_start is None:
+                where = f" at update {nu} since reset"
+            else:
+                where = (f" at step {nu - self._batch_start - 1} of batch_filter (update {nu} "
+                         f"since reset)")
+                level += 2
+            self._warn_health(problem + where, level + 1)
+
+    def _check_health(self):
+        """Warn once if ``P`` is not positive definite or too ill-conditioned
+        (the full check)."""
+        if self._warned_health or not self.check_every:
+            return
+        problem = _health_problem(self._checked_P(), None, self.cond_max)
+        if problem is not None:
+            self._warn_health(problem + f" at update {self._count} since reset", 4)
+
+    def _warn_health(self, message, stacklevel):
+        self._warned_health = True
+        warnings.warn(message + ". The estimate may be unreliable: the samples in the window "
+                      "do not excite every direction of the parameters; use a longer window "
+                      "or more exciting input.", NumericalWarning, stacklevel=stacklevel)
+
     def reset(self):
-        """Empty the window and return to ``x0``, ``P0``."""
+        """Empty the window and return to ``x0``, ``P0``. Re-arms the health
+        warning."""
         n, m = self.dim_x, self.dim_z
         self.x = self._x0.copy()
         self.P = self._P0.copy()
@@ -364,6 +455,7 @@ class SlidingWindowRLS(_FilterBase):
         self.SI = np.zeros((m, m))
         self._clear_window()
         self._count = 0
+        self._warned_health = False
         self._next_exact_try = 0
         self.exact = False
         self._log_likelihood = math.log(np.finfo(float).tiny)
