@@ -1,5 +1,6 @@
-"""Health of P in SquareRootRLS: windup warns once, with the step, on the compiled
-and the NumPy reference paths alike; a benign run stays quiet."""
+"""Health of P in SquareRootRLS and SlidingWindowRLS: windup (or a window that stops
+exciting a direction) warns once, with the step, on the compiled and the NumPy reference
+paths alike; a benign run stays quiet."""
 
 import re
 import warnings
@@ -8,7 +9,8 @@ import numpy as np
 import pytest
 from conftest import arx_record
 
-from rlsfilt import NumericalWarning, SquareRootRLS
+from rlsfilt import NumericalWarning, SlidingWindowRLS, SquareRootRLS
+from rlsfilt.filters import sliding_window as sw_module
 from rlsfilt.filters import square_root as sr_module
 
 LAM, P0 = 0.98, 1e4
@@ -173,10 +175,136 @@ def test_corrupted_factor_is_caught_by_the_cheap_check(path):
         f.update(1.0, [1.0, 0.0])
 
 
-def test_bad_health_arguments():
+@pytest.mark.parametrize("make", [lambda **kw: SquareRootRLS(2, **kw),
+                                  lambda **kw: SlidingWindowRLS(2, 10, **kw)],
+                         ids=["square_root", "sliding_window"])
+def test_bad_health_arguments(make):
     with pytest.raises(ValueError, match=r"`check_every` must be >= 0; got -1"):
-        SquareRootRLS(2, check_every=-1)
+        make(check_every=-1)
     with pytest.raises(ValueError, match=r"`cond_max` must be a positive finite number; got -1.0"):
-        SquareRootRLS(2, cond_max=-1.0)
+        make(cond_max=-1.0)
     with pytest.raises(ValueError, match=r"`cond_max` must be a positive finite number; got inf"):
-        SquareRootRLS(2, cond_max=np.inf)
+        make(cond_max=np.inf)
+
+
+# ----------------------------------------------------------------------
+# SlidingWindowRLS: a window whose rows stop exciting a direction
+# ----------------------------------------------------------------------
+WINDOW, N_EXCITING = 50, 137
+
+
+@pytest.fixture(params=[True, False], ids=["compiled", "reference"])
+def sw_path(request, monkeypatch):
+    monkeypatch.setattr(sw_module, "_COMPILED", request.param)
+    return request.param
+
+
+def _collinear_record(n=400):
+    """Random rows, then rows [1, 1 + 1e-7 e]: nearly collinear once the
+    exciting rows have left the window."""
+    rng = np.random.default_rng(3)
+    Hs = np.tile([1.0, 1.0], (n, 1))
+    Hs[:N_EXCITING] = rng.standard_normal((N_EXCITING, 2))
+    Hs[N_EXCITING:, 1] += 1e-7 * rng.standard_normal(n - N_EXCITING)
+    zs = Hs @ [0.5, -0.3] + 0.01 * rng.standard_normal(n)
+    return zs, Hs
+
+
+def _first_ill_conditioned_window(Hs, cond_max=1e12):
+    """First update count at which the window's cond(P) = cond(H_window)^2
+    exceeds `cond_max` (SVD of the stored rows: the filter is exact by then)."""
+    for k in range(WINDOW - 1, len(Hs)):
+        if np.linalg.cond(Hs[k + 1 - WINDOW:k + 1]) ** 2 > cond_max:
+            return k + 1
+    raise AssertionError("no ill-conditioning")
+
+
+def test_sliding_window_oracle_step():
+    zs, Hs = _collinear_record()
+    assert _first_ill_conditioned_window(Hs) == N_EXCITING + WINDOW   # the last random row left
+
+
+def test_sliding_window_warns_once_with_the_update(sw_path):
+    zs, Hs = _collinear_record()
+    first = _first_ill_conditioned_window(Hs)
+    f = SlidingWindowRLS(2, WINDOW, check_every=1)
+    with pytest.warns(NumericalWarning) as record:
+        for k in range(len(zs)):
+            f.predict_update(zs[k], Hs[k])
+    assert len(record) == 1
+    msg = str(record[0].message)
+    assert "ill-conditioned" in msg and f"at update {first} since reset." in msg, msg
+    assert f.n_updates == len(zs)
+
+
+def test_sliding_window_batch_filter_names_the_step(sw_path):
+    zs, Hs = _collinear_record()
+    first = _first_ill_conditioned_window(Hs)
+    detected = -(-first // 100) * 100            # default check_every=100
+    k0 = 120
+    f = SlidingWindowRLS(2, WINDOW)
+    with pytest.warns(NumericalWarning) as record:
+        f.batch_filter(zs[:k0], Hs[:k0])
+        f.batch_filter(zs[k0:], Hs[k0:])
+        f.batch_filter(zs[k0:], Hs[k0:])         # warned already: silent
+    assert len(record) == 1
+    assert (f"at step {detected - k0 - 1} of batch_filter (update {detected} since reset)"
+            in str(record[0].message))
+    assert record[0].filename == __file__
+
+
+@pytest.mark.parametrize("how", ["batch", "saver", "streaming"])
+def test_sliding_window_compiled_and_reference_warn_identically(monkeypatch, how):
+    zs, Hs = _collinear_record()
+    messages = []
+    for compiled in (True, False):
+        monkeypatch.setattr(sw_module, "_COMPILED", compiled)
+        f = SlidingWindowRLS(2, WINDOW, check_every=9)
+        with pytest.warns(NumericalWarning) as record:
+            if how == "streaming":
+                for k in range(len(zs)):
+                    f.update(zs[k], Hs[k])
+            else:
+                f.batch_filter(zs, Hs, saver=_NullSaver() if how == "saver" else None)
+        assert len(record) == 1
+        # at cond(P) ~ 4e14 the printed condition number is only good to a few
+        # percent (eps cond(P)): the two paths agree on everything else
+        messages.append(re.sub(r"condition number \S+", "condition number ~",
+                               str(record[0].message)))
+    assert messages[0] == messages[1]
+    detected = -(-_first_ill_conditioned_window(Hs) // 9) * 9
+    assert f"update {detected} since reset" in messages[0]
+
+
+def test_sliding_window_benign_run_does_not_warn(sw_path):
+    rng = np.random.default_rng(8)
+    Hs, zs = arx_record(rng, n_samples=3002, noise_std=0.05)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        a = SlidingWindowRLS(4, 40, R=0.05**2, check_every=1)
+        a.batch_filter(zs, Hs)
+        b = SlidingWindowRLS(4, 40, R=0.05**2, check_every=1)
+        for k in range(500):
+            b.update(zs[k], Hs[k])
+    assert a.n_updates == 3000 and b.n_updates == 500
+
+
+def test_sliding_window_check_can_be_disabled_and_reset_rearms_it(sw_path):
+    zs, Hs = _collinear_record()
+    f = SlidingWindowRLS(2, WINDOW, check_every=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        f.batch_filter(zs, Hs)
+    f.check_every = 1
+    f.reset()
+    assert f.n_updates == 0
+    with pytest.warns(NumericalWarning, match=rf"update {N_EXCITING + WINDOW} since reset"):
+        f.batch_filter(zs, Hs)
+
+
+def test_sliding_window_indefinite_P_is_caught_by_the_cheap_check(sw_path):
+    f = SlidingWindowRLS(2, 10, check_every=1000)
+    f.P = np.array([[1.0, 0.0], [0.0, -1e-3]])      # e.g. a corrupted state
+    with pytest.warns(NumericalWarning, match=r"`P` is not positive definite \(smallest "
+                                              r"eigenvalue -0.001\) at update 1 since reset"):
+        f.update(1.0, [1.0, 0.0])

@@ -25,7 +25,8 @@ from rlsfilt.filters import sliding_window as sw_module
 from rlsfilt.filters import square_root as sr_module
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
-STATE = ("x", "P", "x_prior", "P_prior", "x_post", "P_post", "y", "K", "S", "SI", "z", "H")
+STATE = ("x", "P", "x_prior", "P_prior", "x_post", "P_post", "y", "K", "S", "SI", "z", "H",
+         "n_updates")
 
 
 def _record(rng, n_samples, dim_z=1, missing=(), white=False):
