@@ -604,9 +604,14 @@ def sw_unhealthy(P, cond_max):
 
 @njit(cache=True)
 def sw_update_kernel(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, y, K):
-    """Streaming :meth:`SlidingWindowRLS.update`: `_sw_step` on the given arrays."""
+    """Streaming :meth:`SlidingWindowRLS.update`: `_sw_step` on the given arrays.
+
+    Returns ``s`` and whether the diagonal of the new ``P`` fails the cheap
+    health check (`_sw_diagonal_bad`).
+    """
     g = np.empty(x.shape[0])
-    return _sw_step(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, g, y, K)
+    s = _sw_step(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, g, y, K)
+    return s, _sw_diagonal_bad(P)
 
 
 @njit(cache=True)

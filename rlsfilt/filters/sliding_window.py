@@ -242,7 +242,10 @@ class SlidingWindowRLS(_FilterBase):
             x, P = self._refit()
         self.x, self.P = x, P
         self.x_post, self.P_post = x.copy(), P.copy()
-        self._health_after_update(P, None, 3)
+        if self.check_every and not self._warned_health:
+            dg = np.diagonal(P)
+            bad = not (np.isfinite(dg).all() and (dg > 0.0).all())
+            self._health_after_update(P, None, bad, 3)
 
     def _update_compiled(self, zc, phi, r, x, P):
         """:meth:`update` by the compiled step (the one `batch_filter` runs)."""
@@ -252,7 +255,7 @@ class SlidingWindowRLS(_FilterBase):
         y, K = np.empty((m, 1)), np.empty((n, 1))
         zrow = np.full(m, np.nan) if zc is None else zc[:, 0]
         ist = self._int_state()
-        s = (_kernels or _get_kernels()).sw_update_kernel(
+        s, bad = (_kernels or _get_kernels()).sw_update_kernel(
             x, P, phi[0], zrow, r, self._wH, self._wZ, self._wR, ist, int(self.refresh or 0),
             self._Lt, self._Ltx0, y[:, 0], K[:, 0])
         self._set_int_state(ist)
@@ -262,7 +265,9 @@ class SlidingWindowRLS(_FilterBase):
             self._log_likelihood, self._likelihood = 0.0, 1.0
         self.x, self.P = x, P
         self.x_post, self.P_post = x.copy(), P.copy()
-        self._health_after_update(P, _kernels, 4)
+        every = self.check_every
+        if every and (bad or not self._count % every) and not self._warned_health:
+            self._health_after_update(P, _kernels, bad, 4)
 
     def _int_state(self):
         """The ring-buffer counters as the kernels' ``ist`` array."""
@@ -397,16 +402,11 @@ class SlidingWindowRLS(_FilterBase):
     # ------------------------------------------------------------------
     # health of P
     # ------------------------------------------------------------------
-    def _health_after_update(self, P, kern, level):
-        """The per-update health check: the cheap diagonal test, and the full
-        test every ``check_every`` updates (compiled when `kern` is given;
-        the NumPy check then only words the warning)."""
-        every = self.check_every
-        if not every or self._warned_health:
-            return
-        dg = np.diagonal(P)
-        bad = not (np.isfinite(dg).all() and (dg > 0.0).all())
-        if not (bad or self._count % every == 0):
+    def _health_after_update(self, P, kern, bad, level):
+        """The per-update health check: `bad` is the cheap diagonal test; the
+        full test runs every ``check_every`` updates (compiled when `kern` is
+        given; the NumPy check then only words the warning)."""
+        if not (bad or self._count % self.check_every == 0):
             return
         if kern is not None and not (bad or kern.sw_unhealthy(P, self.cond_max)):
             return
