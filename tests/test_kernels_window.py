@@ -321,17 +321,17 @@ import numpy as np
 import rlsfilt
 H = np.arange(60.0).reshape(20, 3) % 7 + np.eye(20, 3)
 z = H @ np.array([1.0, -2.0, 0.5])
-sw = rlsfilt.SlidingWindowRLS(3, 8)
+sw = rlsfilt.SlidingWindowRLS(3, 8, check_every=7)   # update 21: the periodic health check
 sw.batch_filter(z, H)
 sw.update(1.0, H[0])
-sq = rlsfilt.SquareRootRLS(3, lam=0.99)
+sq = rlsfilt.SquareRootRLS(3, lam=0.99, check_every=7)
 sq.batch_filter(z, H)
 sq.predict()
 sq.update(1.0, H[0])
 elapsed = time.perf_counter() - t0
 from rlsfilt.filters import _kernels_window as K
 names = ("sw_batch_kernel", "sw_update_kernel", "sr_batch_kernel", "sr_update_kernel",
-         "sr_covariance")
+         "sr_covariance", "sw_unhealthy", "sr_unhealthy")
 stats = {name: (sum(getattr(K, name).stats.cache_hits.values()),
                 sum(getattr(K, name).stats.cache_misses.values())) for name in names}
 print(json.dumps({"elapsed": elapsed, "stats": stats}))
