@@ -111,6 +111,41 @@ class _FilterBase:
                 saver.save()
         return means, covs, means_p, covs_p
 
+    def _batch_dispatch(self, zs, Hs, Rs, update_first, saver, store_covariances, compiled):
+        """`batch_filter` of the filters with a compiled record kernel.
+
+        Runs ``_batch_compiled`` in one call, or the step-by-step loop with a
+        `saver`, an empty record or the compiled path switched off
+        (`compiled` false: the NumPy reference), then the full health check.
+        """
+        Z, Hm = self._as_batch(zs, Hs)
+        Rv = self._as_batch_variances(Rs, len(Z))
+        if saver is not None or not compiled or len(Z) == 0:
+            self._batch_start = self.n_updates
+            try:
+                out = self._batch_stepwise(Z, Hm, Rv, update_first, saver, store_covariances)
+            finally:
+                self._batch_start = None
+        else:
+            out = self._batch_compiled(Z, Hm, Rv, update_first, store_covariances)
+        self._check_health()
+        return out
+
+    def _reset_diagnostics(self):
+        """The filterpy attributes of a filter that has seen no data yet."""
+        n, m = self.dim_x, self.dim_z
+        self.H = np.zeros((1, n))
+        self.z = np.zeros((m, 1))
+        self.y = np.zeros((m, 1))
+        self.K = np.zeros((n, 1))
+        self._I_z = np.eye(m)
+        self.S = np.zeros((m, m))
+        self.SI = np.zeros((m, m))
+        # before any update, as filterpy: nothing observed yet
+        self._log_likelihood = math.log(np.finfo(float).tiny)
+        self._likelihood = np.finfo(float).tiny
+        self._mahalanobis = 0.0
+
     def _clear_lazy(self):
         self._log_likelihood = None
         self._likelihood = None

@@ -1003,27 +1003,16 @@ class RecursiveLeastSquares(_FilterBase):
         diagnostics and counters are cleared. Constraints given to
         :meth:`constrain` are applied again to ``x0`` and ``P0``.
         """
-        n, m = self.dim_x, self.dim_z
         self.x = self._x_own = self._x0.copy()
         self.P = self._P_own = self._P0.copy()
         self.x_prior, self.P_prior = self.x.copy(), self.P.copy()
         self.x_post, self.P_post = self.x.copy(), self.P.copy()
-        self.H = np.zeros((1, n))
-        self.z = np.zeros((m, 1))
-        self.y = np.zeros((m, 1))
-        self.K = np.zeros((n, 1))
-        self._I_z = np.eye(m)
-        self.S = np.zeros((m, m))
-        self.SI = np.zeros((m, m))
+        self._reset_diagnostics()
         # arrays the streaming methods may overwrite when nobody else holds them
         self._spare_prior = (self.x_prior, self.P_prior)
         self._spare_update = (self.y, self.K, self.S, self.SI, self.H, self.z, self.x_post,
                               self.P_post)
         self._updates_since_predict = 0
-        # before any update, as filterpy: nothing observed yet
-        self._log_likelihood = math.log(np.finfo(float).tiny)
-        self._likelihood = np.finfo(float).tiny
-        self._mahalanobis = 0.0
         self.gated = False
         self.n_gated = 0
         self.n_updates = 0

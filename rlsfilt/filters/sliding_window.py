@@ -1,6 +1,5 @@
 """Exact least squares over a sliding window of the most recent samples."""
 
-import math
 import warnings
 
 import numpy as np
@@ -323,18 +322,8 @@ class SlidingWindowRLS(_FilterBase):
                      store_covariances=True):
         """Run the filter over a record; same arguments and returns as
         :meth:`RecursiveLeastSquares.batch_filter`."""
-        Z, Hm = self._as_batch(zs, Hs)
-        Rv = self._as_batch_variances(Rs, len(Z))
-        if saver is not None or not _COMPILED or len(Z) == 0:
-            self._batch_start = self._count
-            try:
-                out = self._batch_stepwise(Z, Hm, Rv, update_first, saver, store_covariances)
-            finally:
-                self._batch_start = None
-        else:
-            out = self._batch_compiled(Z, Hm, Rv, update_first, store_covariances)
-        self._check_health()
-        return out
+        return self._batch_dispatch(zs, Hs, Rs, update_first, saver, store_covariances,
+                                    _COMPILED)
 
     def _batch_compiled(self, Z, Hm, Rv, update_first, store_covariances):
         """`batch_filter` in one compiled call; leaves the filter as the
@@ -363,7 +352,7 @@ class SlidingWindowRLS(_FilterBase):
         if k_fail >= 0:
             problem = _health_problem(P_fail, None, self.cond_max) or "`P` failed the health check"
             self._warn_health(f"{problem} at step {k_fail} of batch_filter (update "
-                              f"{step0 + k_fail + 1} since reset)", 4)
+                              f"{step0 + k_fail + 1} since reset)", 5)
         # the window has no time update: the priors are the previous posteriors
         if update_first:
             means_p = means.copy()
@@ -420,17 +409,19 @@ class SlidingWindowRLS(_FilterBase):
             else:
                 where = (f" at step {nu - self._batch_start - 1} of batch_filter (update {nu} "
                          f"since reset)")
-                level += 2
+                level += 3                 # below _batch_dispatch and _batch_stepwise
             self._warn_health(problem + where, level + 1)
 
     def _check_health(self):
         """Warn once if ``P`` is not positive definite or too ill-conditioned
-        (the full check)."""
+        (the full check).
+        Called at the end of ``batch_filter`` (through ``_batch_dispatch``): the
+        warning points at the caller of ``batch_filter``."""
         if self._warned_health or not self.check_every:
             return
         problem = _health_problem(self._checked_P(), None, self.cond_max)
         if problem is not None:
-            self._warn_health(problem + f" at update {self._count} since reset", 4)
+            self._warn_health(problem + f" at update {self._count} since reset", 5)
 
     def _warn_health(self, message, stacklevel):
         self._warned_health = True
@@ -441,26 +432,16 @@ class SlidingWindowRLS(_FilterBase):
     def reset(self):
         """Empty the window and return to ``x0``, ``P0``. Re-arms the health
         warning."""
-        n, m = self.dim_x, self.dim_z
         self.x = self._x0.copy()
         self.P = self._P0.copy()
         self.x_prior, self.P_prior = self.x.copy(), self.P.copy()
         self.x_post, self.P_post = self.x.copy(), self.P.copy()
-        self.H = np.zeros((1, n))
-        self.z = np.zeros((m, 1))
-        self.y = np.zeros((m, 1))
-        self.K = np.zeros((n, 1))
-        self._I_z = np.eye(m)
-        self.S = np.zeros((m, m))
-        self.SI = np.zeros((m, m))
+        self._reset_diagnostics()
         self._clear_window()
         self._count = 0
         self._warned_health = False
         self._next_exact_try = 0
         self.exact = False
-        self._log_likelihood = math.log(np.finfo(float).tiny)
-        self._likelihood = np.finfo(float).tiny
-        self._mahalanobis = 0.0
 
     def _refit(self):
         """Recompute ``x``, ``P`` from the stored window (exact if it can be)."""

@@ -321,18 +321,8 @@ class SquareRootRLS(_FilterBase):
                      store_covariances=True):
         """Run the filter over a record; same arguments and returns as
         :meth:`RecursiveLeastSquares.batch_filter`."""
-        Z, Hm = self._as_batch(zs, Hs)
-        Rv = self._as_batch_variances(Rs, len(Z))
-        if saver is not None or not _COMPILED or len(Z) == 0:
-            self._batch_start = self.n_updates
-            try:
-                out = self._batch_stepwise(Z, Hm, Rv, update_first, saver, store_covariances)
-            finally:
-                self._batch_start = None
-        else:
-            out = self._batch_compiled(Z, Hm, Rv, update_first, store_covariances)
-        self._check_health()
-        return out
+        return self._batch_dispatch(zs, Hs, Rs, update_first, saver, store_covariances,
+                                    _COMPILED)
 
     def _batch_compiled(self, Z, Hm, Rv, update_first, store_covariances):
         """`batch_filter` in one compiled call; leaves the filter as the
@@ -368,7 +358,7 @@ class SquareRootRLS(_FilterBase):
             problem = (_health_problem(U_fail, self.cond_max)
                        or "`P` failed the health check")
             self._warn_health(f"{problem} at step {k_fail} of batch_filter (update "
-                              f"{step0 + k_fail + 1} since reset)", 4)
+                              f"{step0 + k_fail + 1} since reset)", 5)
         # the estimate is unchanged by a time update
         if update_first:
             means_p = means.copy()
@@ -403,17 +393,20 @@ class SquareRootRLS(_FilterBase):
     # ------------------------------------------------------------------
     def _check_health(self):
         """Warn once if ``P`` is not positive definite or too ill-conditioned
-        (the full check, on the factor ``U``)."""
+        (the full check, on the factor ``U``).
+        Called at the end of ``batch_filter`` (through ``_batch_dispatch``): the
+        warning points at the caller of ``batch_filter``."""
         if self._warned_health or not self.check_every:
             return
         problem = _health_problem(self._U, self.cond_max)
         if problem is not None:
-            self._warn_health(problem + f" at update {self.n_updates} since reset", 4)
+            self._warn_health(problem + f" at update {self.n_updates} since reset", 5)
 
     def _user_level(self, level):
         """`stacklevel` of the caller of :meth:`update` (deeper inside a
-        stepwise :meth:`batch_filter`)."""
-        return level if self._batch_start is None else level + 2
+        stepwise :meth:`batch_filter`, below ``_batch_dispatch`` and
+        ``_batch_stepwise``)."""
+        return level if self._batch_start is None else level + 3
 
     def _where(self):
         """Where the health check failed: the update, and the step of a
@@ -436,7 +429,7 @@ class SquareRootRLS(_FilterBase):
     def reset(self):
         """Return to ``x0``, ``P0``; ``lam`` and ``R`` are kept. Re-arms the
         health warning."""
-        n, m = self.dim_x, self.dim_z
+        n = self.dim_x
         self.n_updates = 0
         self._warned_health = False
         self._x = self._x0.copy()
@@ -444,16 +437,7 @@ class SquareRootRLS(_FilterBase):
         self.P = self._P0
         self.x_prior, self.x_post = self._x.copy(), self._x.copy()
         self.P_prior, self.P_post = self._P0.copy(), self._P0.copy()
-        self.H = np.zeros((1, n))
-        self.z = np.zeros((m, 1))
-        self.y = np.zeros((m, 1))
-        self.K = np.zeros((n, 1))
-        self._I_z = np.eye(m)
-        self.S = np.zeros((m, m))
-        self.SI = np.zeros((m, m))
-        self._log_likelihood = math.log(np.finfo(float).tiny)
-        self._likelihood = np.finfo(float).tiny
-        self._mahalanobis = 0.0
+        self._reset_diagnostics()
 
     def __repr__(self):
         return "\n".join([
