@@ -8,6 +8,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
+from numpy.testing import assert_array_equal  # noqa: E402
 
 
 @pytest.fixture
@@ -28,3 +29,18 @@ def arx_record(rng, n_samples=400, noise_std=0.1, a=(-1.5, 0.7), b=(1.0, 0.5)):
         y[t] = -a[0] * y[t - 1] - a[1] * y[t - 2] + b[0] * u[t - 1] + b[1] * u[t - 2] + e[t]
     Hs = np.column_stack([-y[1:-1], -y[:-2], u[1:-1], u[:-2]])
     return Hs, y[2:]
+
+
+def assert_close_steps(a, b, name, rtol=1e-12):
+    """Equal to `rtol` relative to the largest entry of each step's array.
+
+    For histories of shape (N, rows, cols) each step is scaled by its own
+    largest entry; NaN (missing samples) must sit at the same places.
+    """
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    assert a.shape == b.shape, name
+    assert_array_equal(np.isnan(a), np.isnan(b), err_msg=name)
+    mag = np.abs(np.nan_to_num(b))
+    scale = mag.max(axis=(1, 2), keepdims=True) if a.ndim == 3 else (mag.max() if b.size else 1.0)
+    err = np.abs(np.nan_to_num(a - b))
+    assert np.all(err <= rtol * np.maximum(scale, 1e-300)), (name, float(err.max()))

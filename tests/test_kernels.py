@@ -14,6 +14,7 @@ import re
 import numpy as np
 import pytest
 from conftest import arx_record
+from conftest import assert_close_steps as _close
 from numpy.testing import assert_allclose, assert_array_equal
 
 from rlsfilt import NumericalWarning, RecursiveLeastSquares
@@ -35,14 +36,6 @@ def _record(rng, n_samples, dim_z=1, missing=(), scale=1.0):
     return Hs, zs
 
 
-def _close(a, b, name, rtol=1e-12):
-    """Equal to `rtol` relative to the largest entry of each step's array."""
-    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
-    assert a.shape == b.shape, name
-    assert_array_equal(np.isnan(a), np.isnan(b), err_msg=name)
-    mag = np.abs(np.nan_to_num(b))
-    scale = mag.max(axis=(1, 2), keepdims=True) if a.ndim == 3 else (mag.max() if b.size else 1.0)
-    assert np.all(np.abs(np.nan_to_num(a - b)) <= rtol * np.maximum(scale, 1e-300)), name
 
 
 def _run_both(monkeypatch, make, zs, Hs, **kwargs):

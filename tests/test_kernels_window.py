@@ -18,6 +18,7 @@ import sys
 import numpy as np
 import pytest
 from conftest import arx_record
+from conftest import assert_close_steps as _close
 from numpy.testing import assert_array_equal
 
 from rlsfilt import SlidingWindowRLS, SquareRootRLS
@@ -46,15 +47,6 @@ def _record(rng, n_samples, dim_z=1, missing=(), white=False):
     return Hs, zs
 
 
-def _close(a, b, name, rtol=1e-12):
-    """Equal to `rtol` relative to the largest entry of each step's array."""
-    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
-    assert a.shape == b.shape, name
-    assert_array_equal(np.isnan(a), np.isnan(b), err_msg=name)
-    mag = np.abs(np.nan_to_num(b))
-    scale = mag.max(axis=(1, 2), keepdims=True) if a.ndim == 3 else (mag.max() if b.size else 1.0)
-    err = np.abs(np.nan_to_num(a - b))
-    assert np.all(err <= rtol * np.maximum(scale, 1e-300)), (name, float(err.max()))
 
 
 def _run_both(monkeypatch, module, make, zs, Hs, **kwargs):

@@ -18,6 +18,17 @@ from .._validation import as_float_array, check_finite, check_variance
 __all__ = []
 
 _LOG_2PI = math.log(2.0 * math.pi)
+_window_kernels_module = None
+
+
+def _window_kernels():
+    """The compiled kernels of `SlidingWindowRLS` and `SquareRootRLS`,
+    imported on first use so that ``import rlsfilt`` stays light."""
+    global _window_kernels_module
+    if _window_kernels_module is None:
+        from . import _kernels_window
+        _window_kernels_module = _kernels_window
+    return _window_kernels_module
 
 
 class _FilterBase:

@@ -7,7 +7,7 @@ from filterpy.common import pretty_str
 
 from .._validation import check_covariance, check_int, check_real, check_variance
 from ..exceptions import NumericalWarning
-from ._base import _FilterBase, _innovation, _tri_inv, _tri_solve
+from ._base import _FilterBase, _innovation, _tri_inv, _tri_solve, _window_kernels
 from .rls import _health_problem
 
 __all__ = ["SlidingWindowRLS"]
@@ -16,17 +16,7 @@ __all__ = ["SlidingWindowRLS"]
 # (numba). The tests switch this off to compare with the pure-NumPy reference
 # (the step in `update`, `_downdate` and `_window_lstsq` below).
 _COMPILED = True
-_kernels = None
 _FLOATS = (float, np.float64)
-
-
-def _get_kernels():
-    """Import the numba kernels on first use, so ``import rlsfilt`` stays light."""
-    global _kernels
-    if _kernels is None:
-        from . import _kernels_window as k
-        _kernels = k
-    return _kernels
 
 
 class SlidingWindowRLS(_FilterBase):
@@ -254,7 +244,7 @@ class SlidingWindowRLS(_FilterBase):
         y, K = np.empty((m, 1)), np.empty((n, 1))
         zrow = np.full(m, np.nan) if zc is None else zc[:, 0]
         ist = self._int_state()
-        s, bad = (_kernels or _get_kernels()).sw_update_kernel(
+        s, bad = _window_kernels().sw_update_kernel(
             x, P, phi[0], zrow, r, self._wH, self._wZ, self._wR, ist, int(self.refresh or 0),
             self._Lt, self._Ltx0, y[:, 0], K[:, 0])
         self._set_int_state(ist)
@@ -266,7 +256,7 @@ class SlidingWindowRLS(_FilterBase):
         self.x_post, self.P_post = x.copy(), P.copy()
         every = self.check_every
         if every and (bad or not self._count % every) and not self._warned_health:
-            self._health_after_update(P, _kernels, bad, 4)
+            self._health_after_update(P, _window_kernels(), bad, 4)
 
     def _int_state(self):
         """The ring-buffer counters as the kernels' ``ist`` array."""
@@ -337,7 +327,7 @@ class SlidingWindowRLS(_FilterBase):
         y, K, P_last = np.empty(m), np.empty(n), np.empty((n, n))
         # one variance for every step: a length-1 array (copies: the kernels
         # are compiled for writable C arrays only)
-        kern = _kernels or _get_kernels()
+        kern = _window_kernels()
         Rv = kern.c_array(Rv[:1] if Rv.strides[0] == 0 else Rv)
         ist = self._int_state()
         step0 = self._count

@@ -9,7 +9,7 @@ from scipy.linalg import cho_factor, cho_solve
 
 from .._validation import check_covariance, check_int, check_lam, check_real, check_variance
 from ..exceptions import NumericalWarning
-from ._base import _FilterBase, _tri_inv, _tri_solve
+from ._base import _FilterBase, _tri_inv, _tri_solve, _window_kernels
 
 __all__ = ["SquareRootRLS"]
 
@@ -17,17 +17,7 @@ __all__ = ["SquareRootRLS"]
 # `_kernels_window` (numba). The tests switch this off to compare with the
 # pure-NumPy reference (the Householder QR step below).
 _COMPILED = True
-_kernels = None
 _FLOATS = (float, np.float64)
-
-
-def _get_kernels():
-    """Import the numba kernels on first use, so ``import rlsfilt`` stays light."""
-    global _kernels
-    if _kernels is None:
-        from . import _kernels_window as k
-        _kernels = k
-    return _kernels
 
 
 class SquareRootRLS(_FilterBase):
@@ -188,7 +178,7 @@ class SquareRootRLS(_FilterBase):
         """Covariance ``U^-1 U^-T`` (a new array on every access)."""
         if _COMPILED:
             P = np.empty((self.dim_x, self.dim_x))
-            kern = _kernels or _get_kernels()
+            kern = _window_kernels()
             kern.sr_covariance(kern.c_array(self._U), P)
             return P
         Ui = _tri_inv(self._U)
@@ -265,7 +255,7 @@ class SquareRootRLS(_FilterBase):
         x = self._x.copy()
         y, K = np.empty((m, 1)), np.empty((n, 1))
         zrow = np.full(m, np.nan) if zc is None else zc[:, 0]
-        kern = _kernels or _get_kernels()
+        kern = _window_kernels()
         s, bad = kern.sr_update_kernel(U, d, x, phi[0], zrow, r, y[:, 0], K[:, 0])
         self.S, self.SI = s * self._I_z, self._I_z / s
         self.z, self.y, self.K = zrow.reshape(m, 1), y, K
@@ -342,7 +332,7 @@ class SquareRootRLS(_FilterBase):
         y, K = np.empty(m), np.empty(n)
         # one variance for every step: a length-1 array (copies: the kernels
         # are compiled for writable C arrays only)
-        kern = _kernels or _get_kernels()
+        kern = _window_kernels()
         Rv = kern.c_array(Rv[:1] if Rv.strides[0] == 0 else Rv)
         c = math.sqrt(self._lam) if self._lam != 1.0 else 1.0
         step0 = self.n_updates
