@@ -845,3 +845,21 @@ def _infer_dt(steps, dt, name):
     # the mean step carries the round-off of the time stamps (0.1 -> 0.09999999999999998):
     # twelve significant digits are far below the 0.1 % uniformity tolerance
     return float(f"{inferred:.12g}")
+
+
+def as_iodata(u, y=None, dt=None, *, u_name="u", y_name="y"):
+    """`u` if it is an `IOData` (then `y` must be omitted), else ``IOData(u, y, dt)``.
+
+    The one place where functions that take ``(u, y)`` or an `IOData` sort
+    out their first two arguments.
+    """
+    if isinstance(u, IOData):
+        if y is not None:
+            raise TypeError(f"`{y_name}` must be omitted when `{u_name}` is an IOData (it "
+                            f"holds the outputs); got {type(y).__name__}")
+        if dt is not None and not _same_dt(_check_dt(dt), u.dt):
+            raise ValueError(f"`dt`={dt!r} disagrees with the IOData's dt={u.dt!r}")
+        return u
+    if y is None:
+        raise TypeError(f"`{y_name}` is required unless `{u_name}` is an IOData")
+    return IOData(u, y, dt=True if dt is None else dt)
