@@ -30,7 +30,16 @@ realization.
 import numpy as np
 from scipy import signal
 
-from ._polynomials import equalize, evaluate, padd, poly_adj, poly_det, poly_product, trim
+from ._polynomials import (
+    equalize,
+    evaluate,
+    padd,
+    poly_adj,
+    poly_det,
+    poly_product,
+    same_poly,
+    trim,
+)
 
 __all__ = []
 
@@ -174,6 +183,64 @@ def frequency_response(polys, omega, dt, noise=False):
                 Az[i, j] = evaluate(A[i, j], zinv)
         G = np.linalg.solve(Az.transpose(2, 0, 1), num.transpose(2, 0, 1))
     return G.transpose(1, 2, 0)
+
+
+def from_tf(G):
+    """A discrete python-control system as one difference equation per output.
+
+    Each output's entries are put over a common denominator ``A_i``, the
+    product of the row's distinct denominators (minimal when they are equal
+    or coprime), in powers of ``q^-1``.
+
+    Parameters
+    ----------
+    G : control.LTI
+        A proper discrete-time system (converted with ``control.tf``).
+
+    Returns
+    -------
+    A_rows : list of ndarray
+        ``A_i = [1, a1, ..]`` per output (trailing zeros dropped).
+    B_rows : list of list of ndarray
+        ``B_rows[i][j]``, the numerator of entry (i, j) over ``A_i`` in
+        powers of ``q^-1`` (leading zeros are the delay).
+    """
+    import control
+
+    if not isinstance(G, control.LTI):
+        raise TypeError(f"`G` must be a discrete python-control LTI system (control.tf, "
+                        f"control.ss); got {type(G).__name__}")
+    if not isinstance(G, control.TransferFunction):
+        G = control.tf(G)
+    if not G.isdtime(strict=True):
+        raise ValueError(f"`G` must be a discrete-time transfer function; got dt={G.dt!r}")
+    A_rows, B_rows = [], []
+    for i in range(G.noutputs):
+        # each entry in powers of q^-1: den_q = [1, a1, ..] (trailing zeros, i.e. poles
+        # at z = 0, dropped), num_q = numerator shifted by the relative degree
+        ents = []
+        for j in range(G.ninputs):
+            den = np.trim_zeros(np.asarray(G.den[i][j], float), "f")
+            num = np.trim_zeros(np.asarray(G.num[i][j], float), "f")
+            if len(num) > len(den):
+                raise ValueError(f"`G` must be proper (causal); entry ({i}, {j}) has a "
+                                 f"numerator of degree {len(num) - 1} over a denominator "
+                                 f"of degree {len(den) - 1}")
+            num_q = np.concatenate([np.zeros(len(den) - len(num)), num]) / den[0]
+            ents.append((num_q if len(num) else np.zeros(1), trim(den / den[0])))
+        common = []  # distinct denominators of the row; their product is A_i
+        for _, d in ents:
+            if not any(same_poly(c, d) for c in common):
+                common.append(d)
+        row = []
+        for num, d in ents:
+            for c in common:
+                if not same_poly(c, d):
+                    num = np.convolve(num, c)
+            row.append(trim(num))
+        A_rows.append(trim(poly_product(common)))
+        B_rows.append(row)
+    return A_rows, B_rows
 
 
 def _stack(rows):

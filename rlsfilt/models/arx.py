@@ -1,4 +1,10 @@
-r"""ARX models: structure, batch and recursive fits, and the python-control bridge.
+r"""ARX models: the estimator (batch and recursive least squares) and its parameter layout.
+
+This is the one module that knows how ``theta_`` is laid out (``_split``,
+``param_names_``, the difference equation); everything generic comes from
+`IdentifiedModel`: conversion to python-control and scipy
+(:mod:`._conversion`, from :meth:`ARX.polydata`), the summary table
+(:mod:`._summary`) and polynomial algebra (:mod:`._polynomials`).
 
 `ARX` is an estimator in the scikit-learn manner (``__init__`` stores the
 orders, ``fit`` returns ``self``, learned quantities end in ``_``) for the
@@ -15,8 +21,8 @@ from scipy.linalg import lapack, solve_triangular
 
 from .._validation import as_float_array, check_finite, check_int, check_scalar
 from ..filters import RecursiveLeastSquares
+from . import _conversion
 from ._base import IdentifiedModel, Polynomials
-from ._polynomials import same_poly, trim
 from ._summary import EQUATION_STYLES, ModelSummary
 from .regressors import (
     _as_signal,
@@ -694,45 +700,8 @@ class ARX(IdentifiedModel):
         >>> model.na, model.nb, model.nk
         (2, 2, 1)
         """
-        import control
-
-        if not isinstance(G, control.LTI):
-            raise TypeError(f"`G` must be a discrete python-control LTI system (control.tf, "
-                            f"control.ss); got {type(G).__name__}")
-        if not isinstance(G, control.TransferFunction):
-            G = control.tf(G)
-        if not G.isdtime(strict=True):
-            raise ValueError(f"`G` must be a discrete-time transfer function; got dt={G.dt!r}")
-        ny, nu = G.noutputs, G.ninputs
-        A_rows, B_rows = [], []
-        for i in range(ny):
-            # each entry in powers of q^-1: den_q = [1, a1, ..] (trailing zeros, i.e. poles
-            # at z = 0, dropped), num_q = numerator shifted by the relative degree
-            ents = []
-            for j in range(nu):
-                den = np.trim_zeros(np.asarray(G.den[i][j], float), "f")
-                num = np.trim_zeros(np.asarray(G.num[i][j], float), "f")
-                if len(num) > len(den):
-                    raise ValueError(f"`G` must be proper (causal); entry ({i}, {j}) has a "
-                                     f"numerator of degree {len(num) - 1} over a denominator "
-                                     f"of degree {len(den) - 1}")
-                num_q = np.concatenate([np.zeros(len(den) - len(num)), num]) / den[0]
-                ents.append((num_q if len(num) else np.zeros(1), trim(den / den[0])))
-            common = []  # distinct denominators of the row; their product is A_i
-            for _, d in ents:
-                if not any(same_poly(c, d) for c in common):
-                    common.append(d)
-            den = np.array([1.0])
-            for c in common:
-                den = np.convolve(den, c)
-            row = []
-            for num, d in ents:
-                for c in common:
-                    if not same_poly(c, d):
-                        num = np.convolve(num, c)
-                row.append(trim(num))
-            A_rows.append(trim(den))
-            B_rows.append(row)
+        A_rows, B_rows = _conversion.from_tf(G)
+        ny, nu = len(B_rows), len(B_rows[0])
         na = max(len(a) for a in A_rows) - 1
         nk, nb = [], []
         for j in range(nu):
