@@ -104,7 +104,7 @@ def test_class_lookup(tmp_path):
     (tmp_path / "arx.json").write_text(json.dumps(doc))
     model = load_model(tmp_path / "arx.json")
     assert isinstance(model, ARX) and model.get_params() == {"na": 2, "nb": 2, "nk": 1,
-                                                             "dt": 0.5}
+                                                             "dt": 0.5, "offset": False}
     doc.update({"class": "Toy", "module": "tests.test_persistence"})
     (tmp_path / "toy.json").write_text(json.dumps(doc))
     with pytest.raises(ValueError, match="which is not an rlsfilt class; pass `cls=`"):

@@ -446,8 +446,21 @@ class IdentifiedModel(abc.ABC):
     # ------------------------------------------------------------------
     # display
     # ------------------------------------------------------------------
+    def _display_params(self):
+        """Constructor parameters worth showing: all up to ``dt``, later ones (options such
+        as ``offset``) only when they differ from their default."""
+        sig = inspect.signature(type(self).__init__).parameters
+        names = self._param_names()
+        cut = names.index("dt") + 1 if "dt" in names else len(names)
+        shown = {}
+        for i, (k, v) in enumerate(self.get_params().items()):
+            default = sig[k].default
+            if i < cut or default is inspect.Parameter.empty or not _same_value(v, default):
+                shown[k] = v
+        return shown
+
     def _orders_text(self):
-        args = ", ".join(f"{k}={v!r}" for k, v in self.get_params().items())
+        args = ", ".join(f"{k}={v!r}" for k, v in self._display_params().items())
         return f"{type(self).__name__}({args})"
 
     def _summary_lines(self, style="text"):
@@ -513,6 +526,27 @@ class IdentifiedModel(abc.ABC):
                              f"got {U.shape[1]}")
         return U, Y
 
+    def _each_experiment(self, fn, u, y, *args, outputs=True):
+        """``fn(u, y, *args)`` on one record, or on every experiment of an `IOData`.
+
+        With an `IOData` (`y` omitted) the result is one array for one
+        experiment and a list of arrays, one per experiment, otherwise.
+        `outputs` false: `fn` takes no `y` (``fn(u, *args)``, simulation).
+        """
+        from ..data.iodata import IOData
+
+        if not isinstance(u, IOData):
+            if not outputs:
+                return fn(u, *args)
+            if y is None:
+                raise TypeError("`y` is required unless `u` is an IOData")
+            return fn(u, y, *args)
+        if y is not None:
+            raise TypeError(f"`y` must be omitted when `u` is an IOData (it holds the outputs); "
+                            f"got {type(y).__name__}")
+        outs = [fn(U, Y, *args) if outputs else fn(U, *args) for U, Y in u.arrays()]
+        return outs[0] if len(outs) == 1 else outs
+
     def _shape_out(self, Yh):
         """An (N, ny) array in the shape `y` had in ``fit``."""
         return Yh[:, 0] if self._info["y_1d"] else Yh
@@ -521,3 +555,11 @@ class IdentifiedModel(abc.ABC):
     def _horizon_is_inf(horizon):
         return (isinstance(horizon, numbers.Real) and not isinstance(horizon, numbers.Integral)
                 and horizon == np.inf)
+
+
+def _same_value(a, b):
+    """``a == b`` for parameter values, without numpy's elementwise comparison."""
+    try:
+        return type(a) is type(b) and bool(a == b)
+    except (TypeError, ValueError):
+        return False
