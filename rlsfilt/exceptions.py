@@ -4,7 +4,8 @@ They subclass the builtins a caller would expect, so ``except ValueError``
 keeps working, while ``except NotFittedError`` lets a caller be precise.
 """
 
-__all__ = ["NotFittedError", "NumericalWarning", "ForgettingSkippedWarning"]
+__all__ = ["NotFittedError", "NumericalWarning", "ForgettingSkippedWarning",
+           "OperatingPointWarning", "OrderSelectionWarning"]
 
 
 class NotFittedError(ValueError, AttributeError):
@@ -20,3 +21,15 @@ class ForgettingSkippedWarning(UserWarning):
     """``update`` ran twice without ``predict`` in between while forgetting
     (``lam < 1``) or a parameter random walk (``Q > 0``) was configured, so
     the time update of the covariance was skipped."""
+
+
+class OperatingPointWarning(UserWarning):
+    """A record sits far from zero (its mean is large against its variation)
+    and no offset handling was chosen: a linear model without an intercept
+    then mostly fits the operating point (detrend the data, or fit with
+    ``offset=True``)."""
+
+
+class OrderSelectionWarning(UserWarning):
+    """The best structure (or delay) found lies at the edge of the range that
+    was searched; the message names the bound to widen."""

@@ -339,6 +339,27 @@ def retrend(data, trend):
 # ----------------------------------------------------------------------
 # private helpers
 # ----------------------------------------------------------------------
+def _offset_messages(records, names, ratio=3.0):
+    """Messages for signals whose mean is large against their variation.
+
+    `records` is ``[(U, Y), ...]`` (2-D arrays per experiment), `names` the
+    ``(input_names, output_names)``. A signal is flagged when ``|mean| >
+    ratio * std`` over all its samples (a record centred by `detrend` never
+    is).
+    """
+    out = []
+    for k, (kind, label) in enumerate((("input", "u"), ("output", "y"))):
+        X = np.vstack([r[k] for r in records])
+        mean, std = X.mean(axis=0), X.std(axis=0)
+        for j in range(X.shape[1]):
+            if abs(mean[j]) > ratio * std[j]:
+                default = label if X.shape[1] == 1 else f"{label}{j + 1}"
+                name = names[k][j] if names and names[k] else default
+                out.append(f"{kind} {name!r} has mean {mean[j]:.4g} against a standard "
+                           f"deviation of {std[j]:.3g}")
+    return out
+
+
 def _as_columns(data, name):
     if hasattr(data, "to_numpy"):
         data = data.to_numpy()

@@ -22,6 +22,7 @@ from scipy import stats
 
 from .._validation import check_int
 from ..data.iodata import as_iodata
+from ..exceptions import OrderSelectionWarning
 
 __all__ = ["delayest", "DelayEstimate"]
 
@@ -85,7 +86,7 @@ def delayest(u, y=None, na=2, nb=2, nk_min=0, nk_max=None, *, full_output=False)
 
     Warns
     -----
-    UserWarning
+    OrderSelectionWarning
         When an estimated delay is at ``nk_max`` (or at ``nk_min > 0``):
         the true delay may lie outside the range, so widen that bound.
 
@@ -202,8 +203,8 @@ def delayest(u, y=None, na=2, nb=2, nk_min=0, nk_max=None, *, full_output=False)
                                    ("nk_min", nk_min[j], nk_min[j] > 0)):
             if edge and delays[j] == value and nk_max[j] > nk_min[j]:
                 warnings.warn(f"the estimated delay of input {names[j]!r} is {bound}={value}, "
-                              f"the edge of the range tried; widen `{bound}`", UserWarning,
-                              stacklevel=2)
+                              f"the edge of the range tried; widen `{bound}`",
+                              OrderSelectionWarning, stacklevel=2)
     nk = delays[0] if nu == 1 else tuple(delays[j] for j in range(nu))
     if full_output:
         return DelayEstimate(nk, curves, [range(nk_min[j], nk_max[j] + 1) for j in range(nu)],

@@ -1,11 +1,16 @@
 """One call that validates a model: fit, residual tests, criteria, plant comparison."""
 
 import html
+import warnings
 
 import numpy as np
 
 from .._validation import check_int, check_probability
+from ..data.trend import _offset_messages
+from ..exceptions import OperatingPointWarning
+from ..models.regressors import as_records
 from ..plotting import _axes, _figure
+from ..models._base import check_is_fitted
 from ._model import model_name, n_params, one_step
 from .criteria import _from_residuals
 from .metrics import fit_percent
@@ -37,7 +42,18 @@ class ValidationReport:
         ``max_lag``: the first sample the fits are computed on.
     simulation_fit, prediction_fit : float or ndarray of shape (ny,)
         :func:`fit_percent` of the simulation and of the one-step prediction
-        on samples ``start .. N-1``.
+        on samples ``start .. N-1`` (of every experiment). NaN for the
+        simulation of an unstable model, whose simulation diverges.
+    stability : str
+        ``"stable (largest pole magnitude 0.93)"``, or ``"unstable model,
+        largest pole magnitude 1.02, simulation diverges"``.
+    is_unstable : bool
+        True when a pole lies outside the unit circle.
+    max_pole_magnitude : float
+        Largest pole magnitude of the input model.
+    experiment_lengths : tuple of int
+        Samples per experiment (`y`, `y_simulated`, `y_predicted` and `time`
+        hold the experiments one after the other).
     residuals : tuple of ResidualAnalysis
         One analysis per output.
     criteria : InformationCriteria
@@ -63,9 +79,11 @@ class ValidationReport:
     def summary(self):
         """The report as plain text."""
         r0 = self.residuals[0]
-        lines = [f"Validation of {self._model_name()} on {len(self.y)} samples",
+        lines = [f"Validation of {self._model_name()} on {len(self.y)} samples"
+                 + self._experiments_text(),
                  "=" * 64,
-                 f"Simulation fit      : {_fmt_fit(self.simulation_fit)}",
+                 f"Model               : {self.stability}",
+                 f"Simulation fit      : {self._simulation_text()}",
                  f"1-step prediction fit: {_fmt_fit(self.prediction_fit)}",
                  "",
                  f"Residual tests (alpha = {r0.alpha:g}, max lag {r0.max_lag}):"]
@@ -94,7 +112,8 @@ class ValidationReport:
                    f"<td style='text-align:left'>{html.escape(value)}</td></tr>"
 
         c = self.criteria
-        rows = [row("simulation fit", _fmt_fit(self.simulation_fit)),
+        rows = [row("model", self.stability),
+                row("simulation fit", self._simulation_text()),
                 row("1-step prediction fit", _fmt_fit(self.prediction_fit))]
         for i, r in enumerate(self.residuals):
             tag = f" (output {i})" if len(self.residuals) > 1 else ""
@@ -114,7 +133,7 @@ class ValidationReport:
         verdict = "passed" if self.passed else "FAILED"
         color = "#2a7" if self.passed else "#c33"
         return (f"<div><h4>Validation of {html.escape(self._model_name())} on {len(self.y)} "
-                f"samples: <span style='color:{color}'>residual tests {verdict}</span></h4>"
+                f"samples{html.escape(self._experiments_text())}: <span style='color:{color}'>residual tests {verdict}</span></h4>"
                 f"<table>{''.join(rows)}</table>"
                 f"<details><summary>parameters</summary><pre>"
                 f"{html.escape(self.intervals.summary())}</pre></details></div>")
@@ -166,7 +185,10 @@ class ValidationReport:
         sf = np.atleast_1d(self.simulation_fit)[0]
         pf = np.atleast_1d(self.prediction_fit)[0]
         ax.plot(self.time, y, "k-", lw=1, label="measured $y$")
-        ax.plot(self.time, ys, "C0-", lw=1, label=f"simulated (fit {sf:.1f}%)")
+        if self.is_unstable:  # a diverging curve would set the scale: say it instead
+            ax.plot([], [], "C0-", lw=1, label=f"simulated: {self.stability}")
+        else:
+            ax.plot(self.time, ys, "C0-", lw=1, label=f"simulated (fit {sf:.1f}%)")
         ax.plot(self.time, yp, "C1--", lw=0.8, label=f"1-step predicted (fit {pf:.1f}%)")
         ax.set_xlabel("sample" if self.model.dt is True else "time (s)")
         ax.set_ylabel("output $y$")
@@ -177,17 +199,27 @@ class ValidationReport:
     def _model_name(self):
         return model_name(self.model)
 
+    def _simulation_text(self):
+        if self.is_unstable:
+            return self.stability
+        return _fmt_fit(self.simulation_fit)
 
-def validate(model, u, y, plant=None, *, max_lag=25, alpha=0.01):
+    def _experiments_text(self):
+        n = len(self.experiment_lengths)
+        return f" ({n} experiments)" if n > 1 else ""
+
+
+def validate(model, u, y=None, plant=None, *, max_lag=25, alpha=0.01):
     """Validate a fitted model on a record (and against the true plant if known).
 
     Parameters
     ----------
-    model : ARX
-        A fitted model.
-    u : array_like, shape (N,) or (N, nu)
-        Input record; validation data not used for the fit is the honest
-        choice, the estimation data show the fit itself.
+    model : IdentifiedModel
+        A fitted model (`ARX`, ...).
+    u : array_like, shape (N,) or (N, nu), or IOData
+        Input record, or an `IOData` holding inputs and outputs (then `y` is
+        omitted; pass `plant` by keyword); validation data not used for the
+        fit is the honest choice, the estimation data show the fit itself.
     y : array_like, shape (N,) or (N, ny)
         Output record.
     plant : control.LTI, optional
@@ -204,13 +236,28 @@ def validate(model, u, y, plant=None, *, max_lag=25, alpha=0.01):
         ``.summary()`` (text), ``_repr_html_()`` (notebooks), ``.plot()``
         (one figure) and every number as an attribute.
 
+    Warns
+    -----
+    OperatingPointWarning
+        When a signal's mean is large against its variation (more than 3
+        standard deviations) and the model has no offset handling (its
+        ``offset`` is False or it has none): detrend the data or fit with
+        ``offset=True``.
+
     Notes
     -----
     The simulation starts from the measured outputs ``y[:max_lag]`` of the
     model's largest lag and the fits are computed from there on; the
     one-step prediction uses the measured past (:meth:`ARX.predict`), so on
     the same rows it equals ``Phi @ theta_`` (MATLAB's ``compare`` with
-    prediction horizon 1).
+    prediction horizon 1). An unstable model is reported as such ("unstable
+    model, largest pole magnitude 1.02, simulation diverges") and its
+    simulation fit is NaN instead of a meaningless huge negative number.
+
+    With several experiments every experiment is simulated and predicted
+    from its own start, the fits cover the rows of all of them, and the
+    residual tests run on the residuals of all experiments one after the
+    other (correlations at lag ``k`` pair ``k`` samples across each seam).
 
     Examples
     --------
@@ -224,26 +271,78 @@ def validate(model, u, y, plant=None, *, max_lag=25, alpha=0.01):
     """
     max_lag = check_int(max_lag, "max_lag", minimum=1)
     alpha = check_probability(alpha, "alpha")
-    Phi, _, E = one_step(model, u, y, "validate")      # the regressors, built once
-    residuals = tuple(_residual_analysis(Phi, E, u, max_lag, alpha, output=i)
+    check_is_fitted(model, "validate")
+    records, info = as_records(u, y)
+    if len(records) == 1 and info.get("n_experiments") == 1 and y is not None:
+        parts = [(u, y)]                                  # as given (1-D stays 1-D)
+    else:
+        parts = [(U if U.shape[1] > 1 else U[:, 0], Y if Y.shape[1] > 1 else Y[:, 0])
+                 for U, Y in records]
+    if _offset_mode(model) == "none":
+        names = (info.get("u_names"), info.get("y_names"))
+        msgs = _offset_messages(records, names)
+        if msgs:
+            warnings.warn("; ".join(msgs) + ", and the model has no offset handling: the "
+                          "fit mostly describes the operating point. Detrend the data "
+                          "(rlsfilt.detrend) or fit with offset=True", OperatingPointWarning,
+                          stacklevel=2)
+    Phis, Es, Ys, sims, preds, glued_u, starts = [], [], [], [], [], [], []
+    for k, (uk, yk) in enumerate(parts):
+        Phi, _, E = one_step(model, uk, yk, "validate")   # the regressors, built once
+        Yk = np.asarray(yk, dtype=float)
+        start = len(Yk) - len(E)  # max_lag of the model
+        y_sim = np.asarray(model.simulate(uk, y0=Yk[:start] if start else None), dtype=float)
+        Phis.append(Phi)
+        Es.append(E)
+        Ys.append(Yk)
+        sims.append(y_sim)
+        preds.append(np.asarray(model.predict(uk, yk, horizon=1), dtype=float))
+        Uk = np.asarray(records[k][0], dtype=float)
+        glued_u.append(Uk if k == 0 else Uk[start:])     # aligns residual rows across seams
+        starts.append(start)
+    Phi, E = np.vstack(Phis), np.vstack(Es)
+    u_all = np.vstack(glued_u) if len(parts) > 1 else parts[0][0]
+    residuals = tuple(_residual_analysis(Phi, E, u_all, max_lag, alpha, output=i)
                       for i in range(E.shape[1]))
-    resid0 = residuals[0]
-    Y = np.asarray(y, dtype=float)
-    start = len(Y) - len(resid0.residuals)  # max_lag of the model
-    y0 = Y[:start]
-    y_sim = np.asarray(model.simulate(u, y0=y0 if start else None), dtype=float)
-    y_pred = np.asarray(model.predict(u, y, horizon=1), dtype=float)
+    Y, y_sim, y_pred = (np.concatenate(x) for x in (Ys, sims, preds))
+    rows = np.concatenate([off + np.arange(s, len(Yk))
+                           for off, s, Yk in zip(np.cumsum([0] + [len(v) for v in Ys])[:-1],
+                                                 starts, Ys)])
     dt = 1.0 if model.dt is True else float(model.dt)
+    tstarts = [0.0] * len(Ys)
+    if len(records) > 1 or info.get("n_experiments", 1) > 1:
+        from ..data.iodata import IOData
+
+        if isinstance(u, IOData):
+            tstarts = list(u.tstart)
+    time = np.concatenate([t0 + dt * np.arange(len(Yk)) for t0, Yk in zip(tstarts, Ys)])
+    stability = model.stability_text()
+    p = model.poles()
+    r_max = float(np.max(np.abs(p))) if len(p) else 0.0
+    unstable = r_max >= 1.0 + 1e-9
+    sim_fit = fit_percent(Y[rows], y_sim[rows])
+    if unstable:
+        sim_fit = np.full_like(np.asarray(sim_fit, dtype=float), np.nan)
+        sim_fit = float(sim_fit) if sim_fit.ndim == 0 else sim_fit
     return ValidationReport(
-        model=model, time=np.arange(len(Y)) * dt, y=Y, y_simulated=y_sim, y_predicted=y_pred,
-        start=start,
-        simulation_fit=fit_percent(Y[start:], y_sim[start:]),
-        prediction_fit=fit_percent(Y[start:], y_pred[start:]),
+        model=model, time=time, y=Y, y_simulated=y_sim, y_predicted=y_pred,
+        start=starts[0], experiment_lengths=tuple(len(v) for v in Ys),
+        simulation_fit=sim_fit,
+        prediction_fit=fit_percent(Y[rows], y_pred[rows]),
         residuals=residuals,
         criteria=_from_residuals(E, n_params(model)),
         intervals=parameter_intervals(model),
         plant_comparison=None if plant is None else PlantComparison(model, plant),
+        stability=stability, is_unstable=unstable, max_pole_magnitude=r_max,
     )
+
+
+def _offset_mode(model):
+    """``"none"`` unless the model handles an operating point (an ``offset`` parameter)."""
+    offset = model.get_params().get("offset", False)
+    if isinstance(offset, str):
+        return offset
+    return "intercept" if offset else "none"
 
 
 def _fmt_fit(fit):
