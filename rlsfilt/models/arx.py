@@ -51,6 +51,14 @@ class ARX(IdentifiedModel):
     dt : True or float, default True
         Sampling period, passed to python-control and scipy (``True``:
         discrete time with an unspecified period).
+    offset : {False, True, "mean"}, default False
+        Operating point handling. ``True`` estimates an intercept ``c``
+        (``A(q) y = B(q) u + c + e``, the last entry ``"c"`` of ``theta_``,
+        batch and recursive); ``"mean"`` removes the means of the estimation
+        record before the fit. Either way the model keeps its operating point
+        (``input_offset_``, ``output_offset_``) and predicts and simulates in
+        the units of the data; ``False`` means the data are already centred
+        (see :func:`rlsfilt.detrend`).
 
     Attributes
     ----------
@@ -83,6 +91,19 @@ class ARX(IdentifiedModel):
         Number of parameters per output, ``ny * na + sum(nb)``.
     n_inputs_, n_outputs_ : int
         Number of input and output signals.
+    n_experiments_ : int
+        Number of experiments of the record (regressor rows never straddle
+        two of them).
+    input_offset_, output_offset_ : ndarray, shapes (nu,) and (ny,)
+        The operating point the model's dynamics are about: zero without
+        `offset`; the estimation means for ``"mean"``; for ``True`` the mean
+        input and the equilibrium output there,
+        :math:`A(1)^{-1}(c + B(1)\bar u)`.
+    intercept_ : float or ndarray of shape (ny,)
+        ``offset=True`` only: the estimated ``c``.
+    input_names_, output_names_, input_units_, output_units_ : tuple of str
+        Signal names (from pandas or an `IOData`, else ``u``, ``y``, ...)
+        and units (``""`` when unknown).
     method_ : str
         ``"ls"`` or ``"rls"``.
     theta_history_ : ndarray, shape ``(n_samples_, n_params[, ny])``
@@ -95,6 +116,8 @@ class ARX(IdentifiedModel):
         these, not ``residuals_``, show how well the model tracked.
     k0_ : int
         ``method="rls"`` only: number of rows of the batch start.
+    lam_ : float
+        ``method="rls"`` only: the forgetting factor used.
     filter_ : RecursiveLeastSquares
         ``method="rls"`` only: the filter after the last sample, ready for
         more ``predict``/``update`` calls.
@@ -172,7 +195,8 @@ class ARX(IdentifiedModel):
 
     # learned attributes that only some fits set, and which ones
     _ONLY_SET_BY = {**{name: "fit(..., method='rls')" for name in
-                       ("theta_history_", "recursive_residuals_", "k0_", "filter_")},
+                       ("theta_history_", "recursive_residuals_", "k0_", "lam_",
+                        "filter_")},
                     "noise_covariance_": "a fit on 2-D `y` (several outputs)"}
 
     def __init__(self, na, nb, nk=1, dt=True, offset=False):
@@ -318,8 +342,8 @@ class ARX(IdentifiedModel):
                 f"nk={_fmt(s.nk)}); got {N}")
         op = _means(records) if _offset_mode(self.offset) == "mean" else None
         Phi, target = self._design(records, s, op)
-        for name in ("theta_history_", "filter_", "k0_", "recursive_residuals_",
-                     "noise_covariance_"):
+        for name in ("theta_history_", "filter_", "k0_", "lam_", "recursive_residuals_",
+                     "noise_covariance_", "intercept_"):
             self.__dict__.pop(name, None)
         if method == "ls":
             theta, cov_unscaled = _qr_least_squares(Phi, target)
@@ -381,6 +405,7 @@ class ARX(IdentifiedModel):
             means = rls.batch_filter(target[k0:], Phi[k0:], store_covariances=False)[0]
             history[k0:] = means
         self.k0_ = k0
+        self.lam_ = float(rls.lam)
         return rls.x.copy(), rls.P / rls.R, rls, history, x_start
 
     def _store(self, theta, s, info):
@@ -399,10 +424,30 @@ class ARX(IdentifiedModel):
         self.b_ = Bs[0] if u_1d else Bs
         self.input_names_ = tuple(self._u_name(j) for j in range(s.n_inputs))
         self.output_names_ = tuple(self._y_name(i) for i in range(s.n_outputs))
+        self.input_units_ = tuple(info.get("u_units") or ("",) * s.n_inputs)
+        self.output_units_ = tuple(info.get("y_units") or ("",) * s.n_outputs)
         if theta.shape[0] > s.n_params:  # offset=True: the intercept is the last row
             self.intercept_ = float(theta[-1, 0]) if y_1d else theta[-1].copy()
         else:
             self.__dict__.pop("intercept_", None)
+
+    def _restore_fitted(self, fitted):
+        """Rebuild a saved model (:func:`rlsfilt.load_model`): attributes and derived caches."""
+        theta = np.asarray(fitted["theta_"], dtype=float)
+        s = fitted["structure_"]
+        y_1d, u_1d = theta.ndim == 1, not isinstance(fitted["b_"], list)
+        names = {}
+        for key, attr, n, one in (("u", "input", s.n_inputs, u_1d),
+                                  ("y", "output", s.n_outputs, y_1d)):
+            given = list(fitted[f"{attr}_names_"])
+            default = [key] if one else [f"{key}{i + 1}" for i in range(n)]
+            names[f"{key}_names"] = None if given == default else given  # None: not named
+            names[f"{key}_units"] = list(fitted.get(f"{attr}_units_", [""] * n))
+        info = {"u_1d": u_1d, "y_1d": y_1d, **names}
+        self._store(theta.reshape(len(theta), -1), s, info)
+        for key, value in fitted.items():
+            if key not in ("theta_", "a_", "b_", "structure_"):
+                setattr(self, key, value)
 
     def _set_operating_point(self, records, op):
         r"""``input_offset_``, ``output_offset_``: the point the model's deviations are about.
@@ -888,10 +933,8 @@ class ARX(IdentifiedModel):
         how = {"ls": "batch least squares (QR)", "rls": "recursive least squares",
                "true": "given coefficients (no fit)"}[self.method_]
         if self.method_ == "rls":
-            f = self.__dict__.get("filter_")  # not kept by a saved and loaded model
-            start = (f"batch start on {self.k0_} rows" if self.__dict__.get("k0_")
-                     else "prior start")
-            how += f" (lam={f.lam:g}, {start})" if f is not None else ""
+            start = (f"batch start on {self.k0_} rows" if self.k0_ else "prior start")
+            how += f" (lam={self.lam_:g}, {start})"
         n_exp = self.__dict__.get("n_experiments_", 1)
         exps = f" of {n_exp} experiments" if n_exp > 1 else ""
         out = [f"{self._orders_text()}: {s.n_inputs} input(s), {s.n_outputs} output(s), "
