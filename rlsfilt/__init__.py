@@ -5,11 +5,20 @@ A filterpy-style toolkit: `RecursiveLeastSquares` mirrors filterpy's
 ``P``, ``K``, ``y``, ``S``) so it drops in beside Kalman filters.
 """
 
-from . import datasets, validation  # public subpackages: rlsfilt.datasets, rlsfilt.validation
-from .exceptions import ForgettingSkippedWarning, NotFittedError, NumericalWarning
+from . import data, datasets, validation  # public subpackages
+from .continuous import d2c
+from .data import IOData, Trend, detrend, retrend
+from .exceptions import (
+    ForgettingSkippedWarning,
+    NotFittedError,
+    NumericalWarning,
+    OperatingPointWarning,
+    OrderSelectionWarning,
+)
 from .filters import RecursiveLeastSquares, SlidingWindowRLS, SquareRootRLS
 from .models import ARX
-from .validation import fit_percent, select_order, validate
+from .persistence import load_model, save_model
+from .validation import delayest, fit_percent, select_order, validate
 
 __version__ = "0.1.0"
 
@@ -18,6 +27,15 @@ __all__ = [
     "SlidingWindowRLS",
     "SquareRootRLS",
     "ARX",
+    "IOData",
+    "Trend",
+    "detrend",
+    "retrend",
+    "delayest",
+    "d2c",
+    "save_model",
+    "load_model",
+    "data",
     "datasets",
     "validation",
     "validate",
@@ -26,5 +44,7 @@ __all__ = [
     "NotFittedError",
     "NumericalWarning",
     "ForgettingSkippedWarning",
+    "OperatingPointWarning",
+    "OrderSelectionWarning",
     "__version__",
 ]
