@@ -19,7 +19,9 @@ import numpy as np
 from scipy import signal
 from scipy.linalg import lapack, solve_triangular
 
+from .._serialize import jsonable
 from .._validation import as_float_array, check_finite, check_int, check_scalar
+from ..exceptions import InsufficientDataError
 from ..filters import RecursiveLeastSquares
 from . import _conversion
 from ._base import IdentifiedModel, Polynomials
@@ -279,7 +281,7 @@ class ARX(IdentifiedModel):
         s = self._structure(U.shape[1], Y.shape[1])
         N = len(U)
         if N - s.max_lag < s.n_params:
-            raise ValueError(
+            raise InsufficientDataError(
                 f"`y` must have at least max_lag + n_params = {s.max_lag} + {s.n_params} = "
                 f"{s.max_lag + s.n_params} samples for ARX(na={s.na}, nb={_fmt(s.nb)}, "
                 f"nk={_fmt(s.nk)}); got {N}")
@@ -437,6 +439,26 @@ class ARX(IdentifiedModel):
             Bpoly[:, j, s.nk[j]:s.nk[j] + s.nb[j]] = B[j]
         return Polynomials(A=Apoly, B=Bpoly, C=np.ones((ny, 1)), D=np.ones((ny, 1)),
                            F=np.ones((ny, nu, 1)))
+
+    def to_dict(self):
+        """The fitted model as a JSON-ready dict (see `IdentifiedModel.to_dict`).
+
+        Adds ARX's own fields: ``na``, ``nb``, ``nk`` (lists, one entry per
+        input), ``a`` (``a_``), ``b`` (a list of ``b_`` arrays, one per input),
+        ``method``, ``lam`` (1 for batch least squares), ``forgetting``
+        (the filter's mode, None for ``"ls"``) and ``k0`` (rows of the batch
+        start, None for ``"ls"``).
+        """
+        out = super().to_dict()
+        s = self.structure_
+        rls = self.method_ == "rls"
+        out.update(jsonable({
+            "na": s.na, "nb": s.nb, "nk": s.nk, "a": self.a_,
+            "b": self.b_ if isinstance(self.b_, list) else [self.b_],
+            "method": self.method_, "lam": self.filter_.lam if rls else 1.0,
+            "forgetting": self.filter_.forgetting if rls else None,
+            "k0": self.k0_ if rls else None}))
+        return out
 
     def _theta2(self):
         return self.theta_.reshape(self.n_params_, -1)

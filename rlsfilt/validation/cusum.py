@@ -25,6 +25,7 @@ from scipy.optimize import brentq
 from scipy.stats import norm
 
 from .._validation import as_float_array, check_finite, check_probability
+from ..exceptions import ExactFitError
 from ..filters import RecursiveLeastSquares
 from ..models.regressors import _column_rank, _full_rank_rows, _unit_columns
 from ..plotting import _axes
@@ -296,7 +297,7 @@ def cusum(zs, Hs, alpha=0.05):
                          f"start; got {m}")
     sigma = np.std(w, ddof=1)
     if sigma <= 1e-10 * math.sqrt(np.mean(np.asarray(zs, dtype=float) ** 2)):
-        raise ValueError("the recursive residuals are all equal to round-off (an exact fit); "
+        raise ExactFitError("the recursive residuals are all equal to round-off (an exact fit); "
                          "CUSUM is undefined")
     W = np.cumsum(w) / sigma
     j = np.arange(1, m + 1)
@@ -411,7 +412,7 @@ def cusum_squares(zs, Hs, alpha=0.05):
                          f"start; got {m}")
     sq = np.cumsum(w * w)
     if sq[-1] <= 1e-20 * m * np.mean(np.asarray(zs, dtype=float) ** 2):
-        raise ValueError("the recursive residuals are zero to round-off (an exact fit); the "
+        raise ExactFitError("the recursive residuals are zero to round-off (an exact fit); the "
                          "CUSUM of squares is undefined")
     S = sq / sq[-1]
     c1, c2, c3 = _EW_COEF[level]

@@ -10,6 +10,7 @@ import numpy as np
 from scipy.stats import chi2, f, norm
 
 from .._validation import check_int, check_probability
+from ..exceptions import ExactFitError, InsufficientDataError
 from ..models.regressors import _as_signal, _unit_columns
 from ..plotting import _axes, _figure
 from ._model import one_step
@@ -281,14 +282,14 @@ def _residual_analysis(Phi, E, u, max_lag, alpha, output=0, model_df=0):
     N = len(U)
     t0 = N - n  # first row with a complete regressor
     if n <= 2 * max_lag + 2:
-        raise ValueError(f"`max_lag` must be small against the {n} residuals (need n > "
+        raise InsufficientDataError(f"`max_lag` must be small against the {n} residuals (need n > "
                          f"2 max_lag + 2); got max_lag = {max_lag}")
 
     # autocorrelation and Ljung-Box
     ec = e - e.mean()
     r0 = float(ec @ ec) / n
     if r0 == 0.0:
-        raise ValueError("the residuals are constant (an exact fit); their correlations are "
+        raise ExactFitError("the residuals are constant (an exact fit); their correlations are "
                          "undefined")
     lags = np.arange(max_lag + 1)
     acf = np.array([ec[k:] @ ec[:n - k] for k in lags]) / (n * r0)
@@ -356,7 +357,7 @@ def _input_lag_test(e, Phi, U, t0, M):
     if q == 0:  # every lagged input is already a regressor: nothing left to test
         return 0.0, 0, 1.0
     if dfd <= 0:
-        raise ValueError(f"`max_lag` = {M} leaves too few rows ({len(tr)}) for the "
+        raise InsufficientDataError(f"`max_lag` = {M} leaves too few rows ({len(tr)}) for the "
                          f"independence test with {Q0.shape[1] + q} regressors; use a "
                          "smaller max_lag or more data")
     if rss1 <= 0.0:

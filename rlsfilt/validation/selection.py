@@ -14,6 +14,7 @@ import numbers
 import numpy as np
 
 from .._validation import check_dt, check_int
+from ..exceptions import ExactFitError, InsufficientDataError
 from ..models.regressors import _build, arx_structure, as_io_data
 from ..plotting import _axes
 from .criteria import _criteria
@@ -241,9 +242,9 @@ def select_order(u, y, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), criterion
     Psi, target = _full_regressor(U, Y, na_max, kmin, kmax, t_max)
     rows = len(target)
     if rows <= n_cols:
-        raise ValueError(f"`y` is too short for these orders: {len(Y)} samples leave {rows} "
-                         f"aligned rows for up to {n_cols} regressors; use more data or "
-                         "smaller orders")
+        raise InsufficientDataError(
+            f"`y` is too short for these orders: {len(Y)} samples leave {rows} aligned rows "
+            f"for up to {n_cols} regressors; use more data or smaller orders")
     # unit columns: the least-squares cut-off of rank-deficient candidates and the
     # conditioning no longer depend on the signals' units (losses are unchanged)
     scale = np.linalg.norm(Psi, axis=0)
@@ -263,8 +264,8 @@ def select_order(u, y, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), criterion
                              f"{Uv.shape[1]}")
         Psi_v, target_v = _full_regressor(Uv, Yv, na_max, kmin, kmax, t_max)
         if len(target_v) == 0:
-            raise ValueError(f"`validation` record is too short: {len(Yv)} samples for a "
-                             f"largest lag of {t_max}")
+            raise InsufficientDataError(f"`validation` record is too short: {len(Yv)} samples "
+                                        f"for a largest lag of {t_max}")
     elif criterion == "loss":
         raise ValueError("`criterion`='loss' needs `validation` data (on the estimation data "
                          "the largest model always has the smallest loss)")
@@ -293,7 +294,7 @@ def select_order(u, y, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), criterion
     V = table["val_loss"] if use_val else table["loss"]
     N = len(target_v) if use_val else rows
     if np.any(V <= 1e-24 * float(np.mean(target ** 2))):
-        raise ValueError("a candidate fits the data exactly (zero loss); information criteria "
+        raise ExactFitError("a candidate fits the data exactly (zero loss); information criteria "
                          "are undefined for noise-free data")
     crit = _criteria(V, N, table["n_params"])
     for name in ("aic", "aicc", "bic", "naic", "fpe", "mdl"):
