@@ -13,6 +13,7 @@ import numbers
 
 import numpy as np
 
+from .._serialize import jsonable
 from .._validation import check_dt, check_int
 from ..exceptions import ExactFitError, InsufficientDataError
 from ..models.regressors import _build, arx_structure, as_io_data
@@ -86,6 +87,22 @@ class OrderSelection:
         na, nb, nk = self.best
         u, y = self._data
         return ARX(na, nb, nk, dt=self._dt).fit(u, y)
+
+    def to_dict(self):
+        """The selection as a JSON-ready dict.
+
+        Returns
+        -------
+        dict
+            ``best`` (``[na, nb, nk]``), ``criterion``, ``n_rows``,
+            ``n_val_rows`` and ``candidates``: one dict per row of
+            :attr:`table` (non-finite numbers as None, as in
+            :meth:`ValidationReport.to_dict`).
+        """
+        names = self.table.dtype.names
+        return jsonable({"best": self.best, "criterion": self.criterion, "n_rows": self.n_rows,
+                         "n_val_rows": self.n_val_rows,
+                         "candidates": [{k: row[k] for k in names} for row in self.table]})
 
     def to_dataframe(self):
         """The table as a ``pandas.DataFrame`` (pandas must be installed)."""
