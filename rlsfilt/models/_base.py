@@ -149,6 +149,11 @@ class IdentifiedModel(abc.ABC):
         Number of parameters per output.
     n_inputs_, n_outputs_ : int
         Number of input and output signals seen by ``fit``.
+    noise_covariance_ : ndarray, shape (ny, ny), optional
+        Several outputs only, when known: the covariance of the innovations
+        of the outputs; frequency-response bands then draw correlated
+        parameters (``vec(theta_)`` with covariance
+        ``kron(noise_covariance_, theta_cov_[0] / noise_variance_[0])``).
 
     Notes
     -----

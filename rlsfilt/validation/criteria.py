@@ -149,8 +149,8 @@ def information_criteria(model, u, y):
 
     Parameters
     ----------
-    model : ARX
-        A fitted model.
+    model : IdentifiedModel
+        A fitted model (`ARX` or any other `IdentifiedModel`).
     u : array_like, shape (N,) or (N, nu)
         Input record.
     y : array_like, shape (N,) or (N, ny)

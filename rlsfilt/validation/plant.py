@@ -24,7 +24,7 @@ class PlantComparison:
 
     Parameters
     ----------
-    model : ARX or control.LTI
+    model : IdentifiedModel or control.LTI
         A fitted model (its ``to_tf()`` is used) or a discrete-time
         python-control system.
     plant : control.LTI

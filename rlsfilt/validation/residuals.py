@@ -156,8 +156,8 @@ def residual_analysis(model, u, y, max_lag=25, alpha=0.01, *, output=0, model_df
 
     Parameters
     ----------
-    model : ARX
-        A fitted model.
+    model : IdentifiedModel
+        A fitted model (`ARX` or any other `IdentifiedModel`).
     u : array_like, shape (N,) or (N, nu)
         Input record (estimation or validation data).
     y : array_like, shape (N,) or (N, ny)

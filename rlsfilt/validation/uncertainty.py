@@ -220,8 +220,8 @@ def parameter_intervals(model, level=0.95):
 
     Parameters
     ----------
-    model : ARX
-        A fitted model.
+    model : IdentifiedModel
+        A fitted model (`ARX` or any other `IdentifiedModel`).
     level : float, default 0.95
         Confidence level in (0, 1).
 
@@ -270,7 +270,7 @@ def frequency_response_band(model, omega=None, level=0.95, n_draws=1000, rng=Non
 
     Parameters
     ----------
-    model : ARX
+    model : IdentifiedModel
         A fitted model (any numbers of inputs and outputs).
     omega : array_like, optional
         Frequencies in rad per time unit; by default 300 points on a
