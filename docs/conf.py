@@ -15,12 +15,15 @@ from pathlib import Path
 DOCS = Path(__file__).resolve().parent
 ROOT = DOCS.parent
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(DOCS))  # _gallery.py: the gallery's scraper and matplotlib reset
 # the notebook kernels are subprocesses: let them import this checkout too
 os.environ["PYTHONPATH"] = os.pathsep.join(
     [str(ROOT)] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p])
 # figures in the executed notebooks: the inline backend, even when the caller
 # (CI) exported MPLBACKEND=Agg for the test suite
 os.environ["MPLBACKEND"] = "module://matplotlib_inline.backend_inline"
+# ... at 150 dpi (docs/_static/matplotlibrc; the inline backend keeps the rc file's dpi)
+os.environ["MATPLOTLIBRC"] = str(DOCS / "_static" / "matplotlibrc")
 
 import rlsfilt  # noqa: E402
 
@@ -51,13 +54,19 @@ extensions = [
     "sphinx.ext.autodoc",
     "sphinx.ext.autosummary",
     "sphinx.ext.mathjax",
+    # MathJax 3 shipped in the package and copied into _static/mathjax: the pages render
+    # their math with no network (it sets mathjax_path to the local tex-chtml.js)
+    "sphinx-mathjax-offline",
     "sphinx.ext.viewcode",
     "numpydoc",
     "myst_nb",
+    "sphinx_gallery.gen_gallery",
 ]
 
 source_suffix = {".rst": "restructuredtext", ".md": "myst-nb", ".ipynb": "myst-nb"}
-exclude_patterns = ["_build", "**.ipynb_checkpoints", "Thumbs.db", ".DS_Store"]
+# the gallery writes a notebook beside each example for download: not a page to build
+exclude_patterns = ["_build", "**.ipynb_checkpoints", "Thumbs.db", ".DS_Store",
+                    "auto_examples/*.ipynb", "auto_examples/**/*.ipynb"]
 templates_path = ["_templates"]
 
 # API reference: one generated page per public name (see docs/api/index.rst)
@@ -80,5 +89,38 @@ nb_merge_streams = True
 
 html_theme = "sphinx_rtd_theme"
 html_title = f"rlsfilt {release}"
-html_static_path = []
+html_static_path = ["_static"]
+html_css_files = ["rlsfilt.css"]   # wide tables scroll in their own box, figures fit the column
 html_theme_options = {"navigation_depth": 3}
+
+# a "download / open in Binder" line on top of every rendered notebook (plain links, nothing
+# is fetched at build time)
+REPO_URL = "https://github.com/rlsfilt/rlsfilt"
+BINDER_URL = "https://mybinder.org/v2/gh/rlsfilt/rlsfilt/main"
+nb_render_markdown_format = "myst"
+
+# ----------------------------------------------------------------------
+# the gallery: examples/plot_*.py run at build time (sphinx-gallery), one page and a
+# thumbnail each; the API pages of the functions they call list them (minigallery)
+# ----------------------------------------------------------------------
+sphinx_gallery_conf = {
+    "examples_dirs": str(ROOT / "examples"),
+    "gallery_dirs": "auto_examples",
+    "filename_pattern": r"plot_",
+    "doc_module": ("rlsfilt",),
+    "backreferences_dir": "api/generated/backreferences",
+    "reset_modules": ("matplotlib", "_gallery.reset_matplotlib"),
+    "image_scrapers": ("_gallery.scraper",),
+    "abort_on_example_error": True,
+    "download_all_examples": False,
+    "write_computation_times": False,
+    "remove_config_comments": True,
+    "thumbnail_size": (400, 280),
+    "within_subsection_order": "FileNameSortKey",
+    "matplotlib_animations": False,
+}
+
+# matplotlib's plot directive (figures inside docstrings and pages) at the same resolution
+plot_formats = [("png", 150)]
+plot_html_show_formats = False
+plot_html_show_source_link = False

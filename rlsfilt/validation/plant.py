@@ -13,7 +13,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from .._validation import as_float_array, check_int
-from ..plotting import _axes, _bode_axes, _figure
+from ..plotting import plot_bode, plot_plant_comparison, plot_step
 
 __all__ = ["PlantComparison"]
 
@@ -188,7 +188,8 @@ class PlantComparison:
         return "\n".join(lines)
 
     def plot(self, fig=None):
-        """Bode diagram and step responses, model over plant.
+        """Bode diagram and step responses, model over plant
+        (:func:`rlsfilt.plotting.plot_plant_comparison`).
 
         Parameters
         ----------
@@ -199,14 +200,7 @@ class PlantComparison:
         -------
         matplotlib.figure.Figure
         """
-        fig = _figure(fig, figsize=(10, 6), layout="constrained")
-        gs = fig.add_gridspec(2, 2)
-        ax_mag = fig.add_subplot(gs[0, 0])
-        ax_phase = fig.add_subplot(gs[1, 0], sharex=ax_mag)
-        ax_step = fig.add_subplot(gs[:, 1])
-        self.plot_bode(ax_mag, ax_phase)
-        self.plot_step(ax_step)
-        return fig
+        return plot_plant_comparison(self, fig)
 
     def plot_bode(self, ax_mag=None, ax_phase=None):
         """Bode magnitude (dB) and phase (deg) of model and plant.
@@ -222,23 +216,7 @@ class PlantComparison:
         (matplotlib.axes.Axes, matplotlib.axes.Axes)
             The magnitude and phase axes.
         """
-        ax_mag, ax_phase = _bode_axes(ax_mag, ax_phase)
-        unit = "rad/sample" if self.dt == 1.0 and self.model_tf.dt is True else "rad/s"
-        for (i, j), label in _channels(self.response_plant.shape[:2]):
-            for resp, name, style in ((self.response_plant, "plant", "k-"),
-                                      (self.response_model, "model", "C0--")):
-                g = resp[i, j]
-                ax_mag.semilogx(self.omega, 20 * np.log10(np.abs(g)), style,
-                                label=f"{name}{label}")
-                ax_phase.semilogx(self.omega, np.degrees(np.unwrap(np.angle(g))), style)
-        ax_mag.set_ylabel("$|G(e^{j\\omega T})|$ (dB)")
-        ax_phase.set_ylabel("phase (deg)")
-        ax_phase.set_xlabel(f"$\\omega$ ({unit})")
-        ax_mag.set_title(f"Bode: max relative error {self.frequency_error:.3g}")
-        ax_mag.legend(loc="best")
-        for ax in (ax_mag, ax_phase):
-            ax.grid(True, which="both", alpha=0.3)
-        return ax_mag, ax_phase
+        return plot_bode(self, ax_mag, ax_phase)
 
     def plot_step(self, ax=None):
         """Unit-step responses of model and plant.
@@ -252,17 +230,7 @@ class PlantComparison:
         -------
         matplotlib.axes.Axes
         """
-        ax = _axes(ax)
-        for (i, j), label in _channels(self.step_plant.shape[:2]):
-            ax.step(self.time, self.step_plant[i, j], "k-", where="post", label=f"plant{label}")
-            ax.step(self.time, self.step_model[i, j], "C0--", where="post",
-                    label=f"model{label}")
-        ax.set_xlabel("time" if self.model_tf.dt is True else "time (s)")
-        ax.set_ylabel("step response $y(t)$")
-        ax.set_title(f"Step: relative error {self.step_error:.3g}")
-        ax.grid(True, alpha=0.3)
-        ax.legend(loc="best")
-        return ax
+        return plot_step(self, ax)
 
 
 # ----------------------------------------------------------------------
