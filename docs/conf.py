@@ -28,8 +28,31 @@ os.environ["MATPLOTLIBRC"] = str(DOCS / "_static" / "matplotlibrc")
 import rlsfilt  # noqa: E402
 
 
+# The "download / open in Binder" line of each rendered notebook: plain links, nothing is
+# fetched at build time. RLSFILT_REPO (owner/name on GitHub) and RLSFILT_BRANCH name the public
+# repository Binder starts from.
+REPO = os.environ.get("RLSFILT_REPO", "rlsfilt/rlsfilt")
+BRANCH = os.environ.get("RLSFILT_BRANCH", "main")
+
+
+def _with_links(raw, name):
+    """The notebook `raw` (JSON text) with a markdown cell of links after its title cell."""
+    import json
+
+    nb = json.loads(raw)
+    binder = f"https://mybinder.org/v2/gh/{REPO}/{BRANCH}?labpath=notebooks%2F{name}"
+    links = (f"{{download}}`Download this notebook <../../notebooks/{name}>` (`{name}`, no "
+             f"outputs) · [open it in Binder]({binder}) · run it locally with "
+             f"`python -m pip install -e \".[notebooks]\" && jupyter lab notebooks/{name}`")
+    cell = {"cell_type": "markdown", "id": "rlsfilt-links", "metadata": {},
+            "source": ["```{container} rlsfilt-nb-links\n", links + "\n", "```"]}
+    nb["cells"].insert(1 if nb["cells"] else 0, cell)
+    return json.dumps(nb, indent=1, ensure_ascii=False) + "\n"
+
+
 def _copy_notebooks():
-    """Mirror ``notebooks/*.ipynb`` into ``docs/notebooks/`` (git-ignored)."""
+    """Mirror ``notebooks/*.ipynb`` into ``docs/notebooks/`` (git-ignored), each with its
+    download and Binder links; outputs are added when myst-nb executes them."""
     src, dst = ROOT / "notebooks", DOCS / "notebooks"
     dst.mkdir(exist_ok=True)
     wanted = {p.name for p in src.glob("*.ipynb")}
@@ -38,8 +61,9 @@ def _copy_notebooks():
             old.unlink()
     for nb in src.glob("*.ipynb"):
         target = dst / nb.name
-        if not target.exists() or target.read_bytes() != nb.read_bytes():
-            shutil.copyfile(nb, target)
+        text = _with_links(nb.read_text(encoding="utf-8"), nb.name)
+        if not target.exists() or target.read_text(encoding="utf-8") != text:
+            target.write_text(text, encoding="utf-8")
 
 
 _copy_notebooks()
@@ -92,12 +116,6 @@ html_title = f"rlsfilt {release}"
 html_static_path = ["_static"]
 html_css_files = ["rlsfilt.css"]   # wide tables scroll in their own box, figures fit the column
 html_theme_options = {"navigation_depth": 3}
-
-# a "download / open in Binder" line on top of every rendered notebook (plain links, nothing
-# is fetched at build time)
-REPO_URL = "https://github.com/rlsfilt/rlsfilt"
-BINDER_URL = "https://mybinder.org/v2/gh/rlsfilt/rlsfilt/main"
-nb_render_markdown_format = "myst"
 
 # ----------------------------------------------------------------------
 # the gallery: examples/plot_*.py run at build time (sphinx-gallery), one page and a
