@@ -110,6 +110,9 @@ nb_execution_timeout = 180
 nb_execution_raise_on_error = True
 nb_execution_show_tb = True
 nb_merge_streams = True
+# no widget JavaScript from a CDN: the slider cell of the tracking notebook hides its output in
+# the docs (tag remove-output) and the static figure before it stands in
+nb_ipywidgets_js = {}
 
 html_theme = "sphinx_rtd_theme"
 html_title = f"rlsfilt {release}"
