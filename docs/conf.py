@@ -8,7 +8,6 @@ notebook that changed.
 """
 
 import os
-import shutil
 import sys
 from pathlib import Path
 
@@ -26,7 +25,6 @@ os.environ["MPLBACKEND"] = "module://matplotlib_inline.backend_inline"
 os.environ["MATPLOTLIBRC"] = str(DOCS / "_static" / "matplotlibrc")
 
 import rlsfilt  # noqa: E402
-
 
 # The "download / open in Binder" line of each rendered notebook: plain links, nothing is
 # fetched at build time. RLSFILT_REPO (owner/name on GitHub) and RLSFILT_BRANCH name the public
