@@ -81,6 +81,7 @@ extensions = [
     "sphinx-mathjax-offline",
     "sphinx.ext.viewcode",
     "numpydoc",
+    "matplotlib.sphinxext.plot_directive",
     "myst_nb",
     "sphinx_gallery.gen_gallery",
 ]
@@ -98,6 +99,9 @@ autodoc_default_options = {"members": True, "inherited-members": False}
 numpydoc_show_class_members = False
 numpydoc_class_members_toctree = False
 numpydoc_xref_param_type = False
+# an Examples section that imports matplotlib runs through the plot directive: the API pages of
+# the plotting functions show the figure their example draws
+numpydoc_use_plots = True
 
 # MyST and the notebooks
 myst_enable_extensions = ["dollarmath", "amsmath", "colon_fence", "deflist"]
@@ -141,5 +145,6 @@ sphinx_gallery_conf = {
 
 # matplotlib's plot directive (figures inside docstrings and pages) at the same resolution
 plot_formats = [("png", 150)]
+plot_include_source = True
 plot_html_show_formats = False
 plot_html_show_source_link = False

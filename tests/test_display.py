@@ -80,3 +80,21 @@ def test_health_verdicts():
     assert health(np.diag([1.0, -1e-3]))[0] == "not positive definite"
     verdict, details = health(np.diag([1.0, 1e-9]), cond_max=1e6)
     assert verdict == "ill-conditioned" and "condition number 1e+09" in details
+
+
+def test_report_shows_percent_and_the_verdict_in_words():
+    from rlsfilt import ARX, validate
+    from rlsfilt.datasets import dc_motor, mass_spring_damper
+
+    d = dc_motor()
+    rep = validate(ARX(*d.orders, dt=d.dt).fit(d.u, d.y), d.u, d.y, plant=d.plant)
+    pc = rep.plant_comparison
+    for text in (rep.summary(), rep._repr_html_()):
+        assert f"{100 * pc.frequency_error:.4g}%" in text
+        assert f"{100 * pc.dc_gain_error:.4g}%" in text
+        assert f"{100 * pc.step_error:.4g}%" in text
+    html_text = rep._repr_html_()
+    assert "PASS: residual tests passed" in html_text and "&#10004;" in html_text
+    d2 = mass_spring_damper()
+    bad = validate(ARX(1, 1, 1, dt=d2.dt).fit(d2.u, d2.y), d2.u, d2.y)._repr_html_()
+    assert "FAIL: residual tests FAILED" in bad and "&#10008;" in bad and "NOT white" in bad

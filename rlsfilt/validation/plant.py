@@ -172,10 +172,10 @@ class PlantComparison:
         """A short text table of the comparison."""
         lines = [
             "Comparison with the true plant (python-control)",
-            f"  max relative frequency-response error : {self.frequency_error:.4g}"
+            f"  max relative frequency-response error : {_pct(self.frequency_error)}"
             f"  (up to Nyquist, {self.omega[-1]:.4g} rad/time unit)",
-            f"  relative DC-gain error                : {self.dc_gain_error:.4g}",
-            f"  relative step-response error          : {self.step_error:.4g}",
+            f"  relative DC-gain error                : {_pct(self.dc_gain_error)}",
+            f"  relative step-response error          : {_pct(self.step_error)}",
             f"  largest matched pole distance         : {self.max_pole_distance:.4g}",
         ]
         for p, q, dist in zip(self.poles_model, self.poles_plant, self.pole_distances):
@@ -236,6 +236,11 @@ class PlantComparison:
 # ----------------------------------------------------------------------
 # private helpers
 # ----------------------------------------------------------------------
+def _pct(fraction):
+    """A relative error as a percentage with 4 significant digits (``0.01439 -> 1.439%``)."""
+    return f"{100 * fraction:.4g}%"
+
+
 def frequency_grid(omega, dt, n_points):
     r"""Validated frequencies in rad per time unit, or the default grid.
 

@@ -106,13 +106,18 @@ class ValidationReport:
                  row("AIC / AICc / BIC", f"{c.aic:.6g} / {c.aicc:.6g} / {c.bic:.6g}")]
         if self.plant_comparison is not None:
             p = self.plant_comparison
-            rows += [row("max rel. frequency error vs plant", f"{p.frequency_error:.4g}"),
-                     row("rel. DC-gain error vs plant", f"{p.dc_gain_error:.4g}"),
+            rows += [row("max rel. frequency error vs plant", f"{100 * p.frequency_error:.4g}%"),
+                     row("rel. DC-gain error vs plant", f"{100 * p.dc_gain_error:.4g}%"),
+                     row("rel. step-response error vs plant", f"{100 * p.step_error:.4g}%"),
                      row("largest pole distance", f"{p.max_pole_distance:.4g}")]
-        verdict = "passed" if self.passed else "FAILED"
-        color = "#2a7" if self.passed else "#c33"
+        # the verdict in words (and a mark), the colour only repeats it
+        verdict = "PASS: residual tests passed" if self.passed else "FAIL: residual tests FAILED"
+        color = "#009E73" if self.passed else "#D55E00"
+        mark = "&#10004;" if self.passed else "&#10008;"
+        rows.append(row("verdict", verdict + ("" if self.passed
+                                              else " (consider other orders)")))
         return (f"<div><h4>Validation of {html.escape(self._model_name())} on {len(self.y)} "
-                f"samples: <span style='color:{color}'>residual tests {verdict}</span></h4>"
+                f"samples: <span style='color:{color}'>{mark} {verdict}</span></h4>"
                 f"<table>{''.join(rows)}</table>"
                 f"<details><summary>parameters</summary><pre>"
                 f"{html.escape(self.intervals.summary())}</pre></details></div>")
