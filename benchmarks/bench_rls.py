@@ -33,7 +33,8 @@ Usage::
     python benchmarks/bench_rls.py                  # the full table, minutes
     python benchmarks/bench_rls.py --plot bench.png --markdown
     # the figure of the docs, redrawn from its saved times without measuring again:
-    python benchmarks/bench_rls.py --replot docs/images/bench_rls.json --plot docs/images/bench_rls.png
+    python benchmarks/bench_rls.py --replot docs/images/bench_rls.json \
+        --plot docs/images/bench_rls.png
 
 Install the peers with ``pip install rlsfilt[bench]``; a peer that is not
 installed is skipped.
