@@ -919,17 +919,12 @@ def plot_report(report, fig=None, *, window=None, output_name="y", output_unit=N
 # helpers
 # ----------------------------------------------------------------------
 def _report_band(report):
-    """The 95 % band of the report's model (computed once per report, seed 0)."""
-    band = getattr(report, "_frequency_band", None)
-    if band is None:
-        from .validation.uncertainty import frequency_response_band
+    """The 95 % band of the report's model (seed 0: the same figure on every call), on the
+    plant comparison's frequencies when there is one."""
+    from .validation.uncertainty import frequency_response_band
 
-        omega = None
-        if report.plant_comparison is not None:
-            omega = report.plant_comparison.omega
-        band = frequency_response_band(report.model, omega=omega, rng=0)
-        report._frequency_band = band
-    return band
+    omega = None if report.plant_comparison is None else report.plant_comparison.omega
+    return frequency_response_band(report.model, omega=omega, rng=0)
 
 
 def _draw_band(ax_mag, ax_phase, band, model_line=True):
