@@ -8,7 +8,7 @@ from .. import __version__
 from .._serialize import jsonable
 from .._validation import check_int, check_probability
 from ..exceptions import ExactFitError, InsufficientDataError
-from ..plotting import _axes, _figure
+from ..plotting import plot_comparison, plot_report
 from ._model import model_name, n_params, one_step
 from .criteria import _from_residuals
 from .metrics import fit_percent
@@ -188,77 +188,62 @@ class ValidationReport:
                      row("AIC / AICc / BIC", f"{c.aic:.6g} / {c.aicc:.6g} / {c.bic:.6g}")]
         if self.plant_comparison is not None:
             p = self.plant_comparison
-            rows += [row("max rel. frequency error vs plant", f"{p.frequency_error:.4g}"),
-                     row("rel. DC-gain error vs plant", f"{p.dc_gain_error:.4g}"),
+            rows += [row("max rel. frequency error vs plant", f"{100 * p.frequency_error:.4g}%"),
+                     row("rel. DC-gain error vs plant", f"{100 * p.dc_gain_error:.4g}%"),
+                     row("rel. step-response error vs plant", f"{100 * p.step_error:.4g}%"),
                      row("largest pole distance", f"{p.max_pole_distance:.4g}")]
-        verdict = ("skipped" if not self.residuals else "passed" if self.passed else "FAILED")
-        color = "#2a7" if self.passed else "#c33"
+        # the verdict in words (and a mark), the colour only repeats it
+        if not self.residuals:
+            verdict = "SKIPPED: residual tests skipped"
+        elif self.passed:
+            verdict = "PASS: residual tests passed"
+        else:
+            verdict = "FAIL: residual tests FAILED"
+        color = "#009E73" if self.passed else "#D55E00"
+        mark = "&#10004;" if self.passed else "&#10008;"
+        rows.append(row("verdict", verdict + ("" if self.passed or not self.residuals
+                                              else " (consider other orders)")))
         return (f"<div><h4>Validation of {html.escape(self._model_name())} on {len(self.y)} "
-                f"samples: <span style='color:{color}'>residual tests {verdict}</span></h4>"
+                f"samples: <span style='color:{color}'>{mark} {verdict}</span></h4>"
                 f"<table>{''.join(rows)}</table>"
                 f"<details><summary>parameters</summary><pre>"
                 f"{html.escape(self.intervals.summary())}</pre></details></div>")
 
-    def plot(self, fig=None):
+    def plot(self, fig=None, window=None):
         """One figure: measured vs simulated and predicted output, residual
-        correlations, and (with a plant) Bode and step against the plant.
+        correlations, Bode with its uncertainty band and (with a plant) the
+        plant's Bode and step (:func:`rlsfilt.plotting.plot_report`).
 
         Parameters
         ----------
         fig : matplotlib.figure.Figure, optional
             Figure to draw in (empty); a new one if omitted.
+        window : (int, int), optional
+            Samples shown in the output panel (by default the last 400 of a
+            longer record, with an overview of the whole record).
 
         Returns
         -------
         matplotlib.figure.Figure
         """
-        has_plant = self.plant_comparison is not None
-        fig = _figure(fig, figsize=(11, 11 if has_plant else 7), layout="constrained")
-        gs = fig.add_gridspec(4 if has_plant else 2, 2)
-        ax_cmp = fig.add_subplot(gs[0, :])
-        self.plot_comparison(ax_cmp)
-        if self.residuals:
-            r = self.residuals[0]
-            r.plot_autocorrelation(fig.add_subplot(gs[1, 0]))
-            r.plot_cross_correlation(fig.add_subplot(gs[1, 1]))
-        else:
-            ax = fig.add_subplot(gs[1, :])
-            ax.text(0.5, 0.5, f"residual tests skipped:\n{self.skipped}", ha="center",
-                    va="center", transform=ax.transAxes)
-            ax.set_axis_off()
-        if has_plant:
-            ax_mag = fig.add_subplot(gs[2, 0])
-            ax_ph = fig.add_subplot(gs[3, 0], sharex=ax_mag)
-            self.plant_comparison.plot_bode(ax_mag, ax_ph)
-            self.plant_comparison.plot_step(fig.add_subplot(gs[2:, 1]))
-        return fig
+        return plot_report(self, fig, window=window)
 
-    def plot_comparison(self, ax=None):
-        """Measured, simulated and one-step predicted output (MATLAB ``compare``).
+    def plot_comparison(self, ax=None, window=None):
+        """Measured, simulated and one-step predicted output (MATLAB ``compare``;
+        :func:`rlsfilt.plotting.plot_comparison`).
 
         Parameters
         ----------
         ax : matplotlib.axes.Axes, optional
-            Axes to draw in; a new figure is made if omitted.
+            Axes to draw in; a new figure (window and overview) if omitted.
+        window : (int, int), optional
+            Samples shown (by default the last 400 of a longer record).
 
         Returns
         -------
         matplotlib.axes.Axes
         """
-        ax = _axes(ax)
-        y = self.y if self.y.ndim == 1 else self.y[:, 0]
-        ys = self.y_simulated if self.y_simulated.ndim == 1 else self.y_simulated[:, 0]
-        yp = self.y_predicted if self.y_predicted.ndim == 1 else self.y_predicted[:, 0]
-        sf = np.atleast_1d(self.simulation_fit)[0]
-        pf = np.atleast_1d(self.prediction_fit)[0]
-        ax.plot(self.time, y, "k-", lw=1, label="measured $y$")
-        ax.plot(self.time, ys, "C0-", lw=1, label=f"simulated (fit {sf:.1f}%)")
-        ax.plot(self.time, yp, "C1--", lw=0.8, label=f"1-step predicted (fit {pf:.1f}%)")
-        ax.set_xlabel("sample" if self.model.dt is True else "time (s)")
-        ax.set_ylabel("output $y$")
-        ax.set_title("Model output against the data")
-        ax.legend(loc="best")
-        return ax
+        return plot_comparison(self, ax, window=window)
 
     def _model_name(self):
         return model_name(self.model)

@@ -17,7 +17,7 @@ from .._serialize import jsonable
 from .._validation import check_dt, check_int
 from ..exceptions import ExactFitError, InsufficientDataError
 from ..models.regressors import _build, arx_structure, as_io_data
-from ..plotting import _axes
+from ..plotting import plot_order_selection
 from .criteria import _criteria
 
 __all__ = ["OrderSelection", "select_order"]
@@ -154,21 +154,7 @@ class OrderSelection:
         -------
         matplotlib.axes.Axes
         """
-        ax = _axes(ax)
-        d = self.table["n_params"]
-        v = self.values
-        ax.plot(d, v, "o", color="C0", alpha=0.4, ms=4, label="candidates")
-        sizes = np.unique(d)
-        best_per = [np.nanmin(v[d == s]) for s in sizes]
-        ax.plot(sizes, best_per, "-", color="C0", lw=1, label="best of each size")
-        i = self.best_index
-        ax.plot(d[i], v[i], "*", color="C3", ms=14,
-                label=f"selected (na, nb, nk) = {self.best}")
-        ax.set_xlabel("number of parameters $d$")
-        ax.set_ylabel(self.criterion.upper() if self.criterion != "loss" else "loss $V$")
-        ax.set_title("ARX order selection")
-        ax.legend(loc="best")
-        return ax
+        return plot_order_selection(self, ax)
 
 
 def select_order(u, y, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), criterion="bic",
