@@ -5,8 +5,13 @@ A filterpy-style toolkit: `RecursiveLeastSquares` mirrors filterpy's
 ``P``, ``K``, ``y``, ``S``) so it drops in beside Kalman filters.
 """
 
-from . import datasets, validation  # public subpackages: rlsfilt.datasets, rlsfilt.validation
-from .exceptions import ForgettingSkippedWarning, NotFittedError, NumericalWarning
+from . import adaptive, datasets, validation  # public subpackages: rlsfilt.adaptive, .datasets, ..
+from .exceptions import (
+    ExcitationWarning,
+    ForgettingSkippedWarning,
+    NotFittedError,
+    NumericalWarning,
+)
 from .filters import RecursiveLeastSquares, SlidingWindowRLS, SquareRootRLS
 from .models import ARX
 from .validation import fit_percent, select_order, validate
@@ -18,6 +23,7 @@ __all__ = [
     "SlidingWindowRLS",
     "SquareRootRLS",
     "ARX",
+    "adaptive",
     "datasets",
     "validation",
     "validate",
@@ -26,5 +32,6 @@ __all__ = [
     "NotFittedError",
     "NumericalWarning",
     "ForgettingSkippedWarning",
+    "ExcitationWarning",
     "__version__",
 ]
