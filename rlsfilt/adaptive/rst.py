@@ -407,11 +407,10 @@ def _plant(A, B):
 
 
 def _check_coprime(A, B, A1, integral, tol):
-    if integral and abs(B.sum()) <= tol * np.linalg.norm(B):
-        raise ValueError(
-            f"`B` has B(1) = {B.sum():.3g}: the plant has a zero at z = 1, which cancels the "
-            "integrator of integral=True (A (1 - q^-1) and B are not coprime); use "
-            "integral=False")
+    if abs(B.sum()) <= tol * np.linalg.norm(B):
+        why = ("which cancels the integrator of integral=True (A (1 - q^-1) and B are not "
+               "coprime)" if integral else "so no T gives a unit static gain from r to y")
+        raise ValueError(f"`B` has B(1) = {B.sum():.3g}: the plant has a zero at z = 1, {why}")
     sigma = coprimeness(A1, B)
     if sigma < tol:
         pair = closest_roots(A1, B)
