@@ -376,19 +376,21 @@ class SelfTuningRegulator:
 
     def _install(self, ctrl, what):
         """Store a controller's polynomials in the fixed-size rows of ``_ctrl``."""
-        rows = []
-        for name in ("R", "S", "T"):
+        rows = np.zeros((3, self._L))
+        for i, name in enumerate(("R", "S", "T")):
             p = getattr(ctrl, name, None)
             if p is None:
                 raise TypeError(f"the {what} must be an RSTController (with R, S, T); got "
                                 f"{type(ctrl).__name__}")
-            p = np.trim_zeros(np.asarray(p, dtype=float).reshape(-1), "b")
+            p = np.asarray(p, dtype=float).reshape(-1)
+            nz = np.flatnonzero(p)
+            p = p[:nz[-1] + 1] if len(nz) else p[:1]
             if len(p) > self._L:
                 raise ValueError(f"the {what} has deg {name} = {len(p) - 1} > max_order = "
                                  f"{self.max_order}; pass a larger max_order")
             if not np.all(np.isfinite(p)):
                 raise ValueError(f"the {what} has non-finite coefficients in {name}")
-            rows.append(np.pad(p, (0, self._L - len(p))))
+            rows[i, :len(p)] = p
         if rows[0][0] == 0.0:
             raise ValueError(f"the {what} has R[0] = 0 (not a causal controller)")
         self._ctrl[:] = rows
@@ -400,7 +402,7 @@ class SelfTuningRegulator:
     @property
     def history(self):
         """An `STRHistory` of every :meth:`step` so far."""
-        return STRHistory(self._records, self.na + self.nb, self._L, self.dt)
+        return STRHistory(self._records, self.na, self.nb, self._L, self.dt)
 
     # ------------------------------------------------------------------
     # the state as one vector, and python-control
@@ -520,6 +522,10 @@ class STRHistory:
 
     Attributes
     ----------
+    na, nb : int
+        Orders of the estimated model.
+    dt : True or float
+        Sampling period of the regulator.
     t : ndarray, shape (N,)
         Time: step index times ``dt`` (the index when ``dt`` is True).
     y, r, u : ndarray, shape (N,)
@@ -541,7 +547,9 @@ class STRHistory:
         end of each monitor block, NaN elsewhere.
     """
 
-    def __init__(self, records, n, L, dt):
+    def __init__(self, records, na, nb, L, dt):
+        self.na, self.nb, self.dt = na, nb, dt
+        n = na + nb
         N = len(records)
         cols = list(zip(*records)) if N else [()] * 11
         self.t = np.arange(N) * (1.0 if dt is True else float(dt))
