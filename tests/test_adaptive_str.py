@@ -192,14 +192,31 @@ def test_a_well_excited_loop_does_not_warn():
 def test_windup_warning_under_forgetting_without_excitation():
     stre = SelfTuningRegulator(RecursiveLeastSquares(4, lam=0.9, P0=1.0), DESIGN, na=2, nb=2,
                                monitor_every=0)
-    with pytest.warns(ExcitationWarning, match=r"at step 66 is more than windup_ratio = 1000 "
-                                                r"times .* winding up"):
+    with pytest.warns(ExcitationWarning, match=r"at step 65 is more than windup_ratio = 1000 "
+                                                r"times its value 4 .* winding up"):
         _run(stre, 100, noise=0.0, dither=0.0, r=np.zeros(100))
-    # phi = 0: P / lam each step, trace(P) after step k is 4 / 0.9^(k+1); its smallest value is
-    # that of step 0, exceeded 1e3-fold first at k = ceil(log(1e3) / log(1/0.9)) = 66
+    # phi = 0: P / lam each step, trace(P) after step k is 4 / 0.9^(k+1); no block was excited,
+    # so the reference is trace(P0) = 4, exceeded 1e3-fold first at k + 1 = 66
     h = stre.history
     assert_allclose(h.trace_P, 4.0 / 0.9 ** np.arange(1, 101), rtol=1e-13)
-    assert int(np.argmax(h.trace_P > 1e3 * h.trace_P.min())) == 66
+    assert int(np.argmax(h.trace_P > 4e3)) == 65
+
+
+def test_windup_is_measured_from_the_last_well_excited_block():
+    """A tight prior does not count as windup: the reference is the excited data's level."""
+    stre = SelfTuningRegulator(RecursiveLeastSquares(4, lam=0.98, P0=1e-6, x0=THETA), DESIGN,
+                               na=2, nb=2, monitor_every=100)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        _run(stre, 400, noise=0.01)
+    h = stre.history
+    assert h.trace_P[-1] > 1e3 * h.trace_P[0]          # far above the prior, and no warning
+    # then the excitation stops: both warnings come
+    with pytest.warns(ExcitationWarning) as caught:
+        _run(stre, 800, noise=0.0, dither=0.0, r=np.zeros(800))
+    messages = [str(w.message) for w in caught]
+    assert any("winding up" in m for m in messages)
+    assert any("do not excite every parameter" in m for m in messages)
 
 
 def test_a_failing_step_leaves_the_regulator_as_it_was():

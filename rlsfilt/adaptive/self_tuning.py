@@ -33,7 +33,7 @@ from .rst import RSTController, rst_design
 __all__ = ["SelfTuningRegulator", "STRHistory"]
 
 # names of the scalar bookkeeping entries of the state vector, in order
-_SCALARS = ("have_controller", "step", "trace_min", "warned_excitation", "warned_windup",
+_SCALARS = ("have_controller", "step", "trace_ref", "warned_excitation", "warned_windup",
             "n_rejected")
 
 
@@ -90,8 +90,10 @@ class SelfTuningRegulator:
         fraction of the largest: the data carry no information in some
         direction of the parameters.
     windup_ratio : float, default 1e3
-        Warn when ``trace(P)`` exceeds this multiple of its smallest value
-        so far (covariance windup under forgetting).
+        Warn when ``trace(P)`` exceeds this multiple of its reference value:
+        ``trace(P)`` at the end of the last monitor block that was well
+        excited, or at construction before any (covariance windup under
+        forgetting: without excitation ``P`` grows like ``lam**-k``).
     max_order : int, optional
         Largest degree of ``R``, ``S`` and ``T`` the designs may return
         (sets the size of the controller's memory); ``na + nk + nb`` by
@@ -210,7 +212,7 @@ class SelfTuningRegulator:
         self._ctrl = np.zeros((3, L))      # rows R, S, T, zero-padded
         self._info = np.zeros((n, n))      # sum of phi phi^T over the monitor block
         self._scalars = np.zeros(len(_SCALARS))
-        self._scalars[2] = np.inf          # smallest trace(P) so far
+        self._scalars[2] = float(np.trace(estimator.P))   # reference trace(P)
         self._records = []
         if initial is not None:
             self._install(initial, "initial")
@@ -330,16 +332,16 @@ class SelfTuningRegulator:
         # excitation monitor and windup check
         self._info += np.outer(phi, phi)
         trace = float(np.trace(est.P))
-        self._scalars[2] = min(self._scalars[2], trace)
         if trace > self.windup_ratio * self._scalars[2]:
             if not self._scalars[4]:
                 self._scalars[4] = 1.0
                 messages.append((
                     f"SelfTuningRegulator: trace(P) = {trace:.3g} at step {k} is more than "
-                    f"windup_ratio = {self.windup_ratio:g} times its smallest value "
-                    f"{self._scalars[2]:.3g}: the covariance is winding up (forgetting without "
-                    "excitation); add excitation or use a forgetting mode that bounds P "
-                    "(RecursiveLeastSquares(forgetting='directional'), ...)", ExcitationWarning))
+                    f"windup_ratio = {self.windup_ratio:g} times its value {self._scalars[2]:.3g} "
+                    "when the data last excited every parameter: the covariance is winding up "
+                    "(forgetting without excitation); add excitation or use a forgetting mode "
+                    "that bounds P (RecursiveLeastSquares(forgetting='directional'), ...)",
+                    ExcitationWarning))
         else:
             self._scalars[4] = 0.0
         excitation = np.nan
@@ -358,6 +360,7 @@ class SelfTuningRegulator:
                         ExcitationWarning))
             else:
                 self._scalars[3] = 0.0
+                self._scalars[2] = trace        # a well-excited block: the new reference
             self._info[:] = 0.0
         self._scalars[1] = k + 1
         record = (y, r, u, e, theta.copy(), trace, updated, redesigned, rejected,
