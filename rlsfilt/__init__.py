@@ -8,9 +8,10 @@ A filterpy-style toolkit: `RecursiveLeastSquares` mirrors filterpy's
 # first, so that the subpackages can read it (the JSON results carry it)
 __version__ = "0.1.0"
 
-from . import datasets, validation  # public subpackages: rlsfilt.datasets, rlsfilt.validation
+from . import adaptive, datasets, validation  # public subpackages
 from .exceptions import (
     ExactFitError,
+    ExcitationWarning,
     ForgettingSkippedWarning,
     InsufficientDataError,
     NotFittedError,
@@ -25,6 +26,7 @@ __all__ = [
     "SlidingWindowRLS",
     "SquareRootRLS",
     "ARX",
+    "adaptive",
     "datasets",
     "validation",
     "validate",
@@ -35,5 +37,6 @@ __all__ = [
     "ExactFitError",
     "NumericalWarning",
     "ForgettingSkippedWarning",
+    "ExcitationWarning",
     "__version__",
 ]
