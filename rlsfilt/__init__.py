@@ -5,11 +5,17 @@ A filterpy-style toolkit: `RecursiveLeastSquares` mirrors filterpy's
 ``P``, ``K``, ``y``, ``S``) so it drops in beside Kalman filters.
 """
 
-from . import data, datasets, validation  # public subpackages
+# first, so that the subpackages can read it (the JSON results carry it)
+__version__ = "0.1.0"
+
+from . import adaptive, data, datasets, validation  # public subpackages
 from .continuous import d2c
 from .data import IOData, Trend, detrend, retrend
 from .exceptions import (
+    ExactFitError,
+    ExcitationWarning,
     ForgettingSkippedWarning,
+    InsufficientDataError,
     NotFittedError,
     NumericalWarning,
     OperatingPointWarning,
@@ -19,8 +25,6 @@ from .filters import RecursiveLeastSquares, SlidingWindowRLS, SquareRootRLS
 from .models import ARX
 from .persistence import load_model, save_model
 from .validation import delayest, fit_percent, select_order, validate
-
-__version__ = "0.1.0"
 
 __all__ = [
     "RecursiveLeastSquares",
@@ -35,6 +39,7 @@ __all__ = [
     "d2c",
     "save_model",
     "load_model",
+    "adaptive",
     "data",
     "datasets",
     "validation",
@@ -42,8 +47,11 @@ __all__ = [
     "select_order",
     "fit_percent",
     "NotFittedError",
+    "InsufficientDataError",
+    "ExactFitError",
     "NumericalWarning",
     "ForgettingSkippedWarning",
+    "ExcitationWarning",
     "OperatingPointWarning",
     "OrderSelectionWarning",
     "__version__",

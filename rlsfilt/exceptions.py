@@ -4,12 +4,24 @@ They subclass the builtins a caller would expect, so ``except ValueError``
 keeps working, while ``except NotFittedError`` lets a caller be precise.
 """
 
-__all__ = ["NotFittedError", "NumericalWarning", "ForgettingSkippedWarning",
-           "OperatingPointWarning", "OrderSelectionWarning"]
+__all__ = ["NotFittedError", "InsufficientDataError", "ExactFitError", "NumericalWarning",
+           "ForgettingSkippedWarning", "ExcitationWarning", "OperatingPointWarning",
+           "OrderSelectionWarning"]
 
 
 class NotFittedError(ValueError, AttributeError):
     """A model was used before ``fit`` was called."""
+
+
+class InsufficientDataError(ValueError):
+    """A record is too short for what was asked: too few samples for the model's
+    orders, or too few residuals for the lags of a residual test."""
+
+
+class ExactFitError(ValueError):
+    """The residuals are zero or constant (noise-free data fitted exactly), so
+    statistics that divide by their variance (residual tests, information
+    criteria, CUSUM tests) are undefined."""
 
 
 class NumericalWarning(UserWarning):
@@ -21,6 +33,12 @@ class ForgettingSkippedWarning(UserWarning):
     """``update`` ran twice without ``predict`` in between while forgetting
     (``lam < 1``) or a parameter random walk (``Q > 0``) was configured, so
     the time update of the covariance was skipped."""
+
+
+class ExcitationWarning(UserWarning):
+    """An online estimator stopped learning: its regressors no longer excite
+    every parameter direction, or its covariance is winding up (see
+    `rlsfilt.adaptive.SelfTuningRegulator`)."""
 
 
 class OperatingPointWarning(UserWarning):

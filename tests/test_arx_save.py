@@ -71,7 +71,7 @@ def test_recursive_and_multi_signal_models(rng, tmp_path):
     back = _check_round_trip(rls, U, Y[:, 0], tmp_path / "rls.json")
     assert "recursive least squares" in str(back.summary())
     with pytest.raises(AttributeError, match="`theta_history_` is only set by"):
-        back.theta_history_
+        _ = back.theta_history_
     rls.save(tmp_path / "full.json", include_data=True)
     _same(ARX.load(tmp_path / "full.json").theta_history_, rls.theta_history_)
 

@@ -356,7 +356,7 @@ def test_heat_exchanger_truth_per_experiment():
     assert ds.input_units == ("%",) and ds.output_units == ("degC",)
     assert ds.experiment_names == ("run1", "run2") and ds.noise == "colored"
     with pytest.raises(ValueError, match="`y_clean` is defined for a record of one experiment"):
-        ds.y_clean
+        _ = ds.y_clean
     # the clean output is y0 + the plant's forced response to u - u0, run by run
     for i in range(2):
         run = ds.getexp(i)

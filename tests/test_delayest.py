@@ -121,7 +121,8 @@ def test_edge_of_the_range_warns(rng):
 def test_errors(rng):
     u, y = _plant(rng, 2, n=300)
     with pytest.raises(ValueError, match=r"too short for delays up to nk_max=500: 300 samples "
-                                         r"leave 0 aligned rows for 504 regressor columns \(the largest lag is 501\); "
+                                         r"leave 0 aligned rows for 504 regressor columns "
+                                         r"\(the largest lag is 501\); "
                                          r"lower `nk_max` \(at most nk_max=147 fits\)"):
         delayest(u, y, nk_max=500)
     with pytest.raises(ValueError, match="`nk_max` must be >= `nk_min`; got nk_max=2 < "

@@ -139,4 +139,4 @@ def test_errors(rng):
         io_trend.add(IOData([X[:, 0]] * 3, [X[:, 1]] * 3))
     with pytest.raises(ValueError, match="`input_offset` is defined for the trend of an "
                                          "IOData"):
-        trend.input_offset
+        _ = trend.input_offset

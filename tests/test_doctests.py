@@ -14,7 +14,8 @@ import pytest
 
 matplotlib.use("Agg")
 
-PACKAGES = ["rlsfilt.models", "rlsfilt.validation", "rlsfilt.datasets", "rlsfilt.data"]
+PACKAGES = ["rlsfilt.models", "rlsfilt.validation", "rlsfilt.datasets", "rlsfilt.adaptive",
+            "rlsfilt.data"]
 # single-module parts of the package with Examples sections
 TOP_MODULES = ["rlsfilt.continuous", "rlsfilt.persistence"]
 

@@ -57,9 +57,9 @@ def test_several_experiments_from_lists(rng):
     assert data.experiment_names == ("exp1", "exp2") and data.tstart == (0.0, 100.0)
     with pytest.raises(ValueError, match=r"`u` is defined for a record of one experiment; "
                                          r"this one holds 2 \(exp1, exp2\): use `getexp\(i\)"):
-        data.u
+        _ = data.u
     with pytest.raises(ValueError, match="`t` is defined"):
-        data.t
+        _ = data.t
     e2 = data.getexp(1)
     np.testing.assert_array_equal(e2.y, y2)
     np.testing.assert_allclose(e2.t, 100.0 + 0.1 * np.arange(300))

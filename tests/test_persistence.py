@@ -98,13 +98,17 @@ def test_class_lookup(tmp_path):
     """Without `cls`, only rlsfilt classes are built (found in their module or in rlsfilt)."""
     from rlsfilt import ARX
 
-    doc = {"format": "rlsfilt.model", "format_version": 1, "class": "ARX",
-           "module": "rlsfilt.somewhere.moved", "params": {"na": 2, "nb": 2, "nk": 1,
-                                                          "dt": 0.5}, "fitted": {}}
+    ARX.from_polynomials([-0.5, 0.1], [1.0, 0.5], dt=0.5).save(tmp_path / "arx.json")
+    doc = json.loads((tmp_path / "arx.json").read_text())
+    doc["module"] = "rlsfilt.somewhere.moved"   # a class that moved is still found
     (tmp_path / "arx.json").write_text(json.dumps(doc))
     model = load_model(tmp_path / "arx.json")
     assert isinstance(model, ARX) and model.get_params() == {"na": 2, "nb": 2, "nk": 1,
                                                              "dt": 0.5, "offset": False}
+    doc["fitted"] = {}
+    (tmp_path / "empty.json").write_text(json.dumps(doc))
+    with pytest.raises(ValueError, match="lacks its learned attributes"):
+        load_model(tmp_path / "empty.json")
     doc.update({"class": "Toy", "module": "tests.test_persistence"})
     (tmp_path / "toy.json").write_text(json.dumps(doc))
     with pytest.raises(ValueError, match="which is not an rlsfilt class; pass `cls=`"):

@@ -95,8 +95,9 @@ def test_validate_warns_about_an_ignored_operating_point(rng):
     u = 40.0 + rng.standard_normal(300)
     y = 97.0 + lfilter([0, 0.5], [1, -0.9], u - 40.0) + 0.05 * rng.standard_normal(300)
     raw = ARX(1, 1).fit(u, y)
-    with pytest.warns(OperatingPointWarning, match=r"input 'u' has mean 39.9.*output 'y' has mean 96.6.* and the model "
-                                                   r"has no offset handling.*offset=True"):
+    with pytest.warns(OperatingPointWarning, match=r"input 'u' has mean 39.9.*output 'y' has "
+                                                   r"mean 96.6.* and the model has no offset "
+                                                   r"handling.*offset=True"):
         validate(raw, u, y, max_lag=10)
     import warnings
 

@@ -5,7 +5,7 @@ period and the names and units of the signals (MATLAB's ``iddata``);
 `detrend` and `retrend` remove and restore the operating point.
 """
 
-from .trend import Trend, detrend, retrend
 from .iodata import IOData
+from .trend import Trend, detrend, retrend
 
 __all__ = ["IOData", "Trend", "detrend", "retrend"]

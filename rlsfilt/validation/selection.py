@@ -14,10 +14,11 @@ import warnings
 
 import numpy as np
 
+from .._serialize import jsonable
 from .._validation import check_dt, check_int
-from ..exceptions import OrderSelectionWarning
-from ..models.regressors import _build, arx_structure, as_io_data, as_records
-from ..plotting import _axes
+from ..exceptions import ExactFitError, InsufficientDataError, OrderSelectionWarning
+from ..models.regressors import _build, arx_structure, as_records
+from ..plotting import plot_order_selection
 from .criteria import _criteria
 
 __all__ = ["OrderSelection", "select_order"]
@@ -92,6 +93,22 @@ class OrderSelection:
         na, nb, nk = self.best
         return ARX(na, nb, nk, dt=self._dt, offset=self._offset).fit(*self._data)
 
+    def to_dict(self):
+        """The selection as a JSON-ready dict.
+
+        Returns
+        -------
+        dict
+            ``best`` (``[na, nb, nk]``), ``criterion``, ``n_rows``,
+            ``n_val_rows`` and ``candidates``: one dict per row of
+            :attr:`table` (non-finite numbers as None, as in
+            :meth:`ValidationReport.to_dict`).
+        """
+        names = self.table.dtype.names
+        return jsonable({"best": self.best, "criterion": self.criterion, "n_rows": self.n_rows,
+                         "n_val_rows": self.n_val_rows,
+                         "candidates": [{k: row[k] for k in names} for row in self.table]})
+
     def to_dataframe(self):
         """The table as a ``pandas.DataFrame`` (pandas must be installed)."""
         import pandas as pd
@@ -143,21 +160,7 @@ class OrderSelection:
         -------
         matplotlib.axes.Axes
         """
-        ax = _axes(ax)
-        d = self.table["n_params"]
-        v = self.values
-        ax.plot(d, v, "o", color="C0", alpha=0.4, ms=4, label="candidates")
-        sizes = np.unique(d)
-        best_per = [np.nanmin(v[d == s]) for s in sizes]
-        ax.plot(sizes, best_per, "-", color="C0", lw=1, label="best of each size")
-        i = self.best_index
-        ax.plot(d[i], v[i], "*", color="C3", ms=14,
-                label=f"selected (na, nb, nk) = {self.best}")
-        ax.set_xlabel("number of parameters $d$")
-        ax.set_ylabel(self.criterion.upper() if self.criterion != "loss" else "loss $V$")
-        ax.set_title("ARX order selection")
-        ax.legend(loc="best")
-        return ax
+        return plot_order_selection(self, ax)
 
 
 def select_order(u, y=None, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), criterion="bic",
@@ -283,9 +286,9 @@ def select_order(u, y=None, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), crit
     rows = len(target)
     if rows <= n_cols:
         n = sum(len(U) for U, _ in records)
-        raise ValueError(f"`y` is too short for these orders: {n} samples leave {rows} "
-                         f"aligned rows for up to {n_cols} regressors; use more data or "
-                         "smaller orders")
+        raise InsufficientDataError(
+            f"`y` is too short for these orders: {n} samples leave {rows} aligned rows "
+            f"for up to {n_cols} regressors; use more data or smaller orders")
     # unit columns: the least-squares cut-off of rank-deficient candidates and the
     # conditioning no longer depend on the signals' units (losses are unchanged)
     scale = np.linalg.norm(Psi, axis=0)
@@ -310,9 +313,9 @@ def select_order(u, y=None, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), crit
                              f"{val_records[0][0].shape[1]}")
         Psi_v, target_v = _stacked_regressor(val_records, na_max, kmin, kmax, t_max, op, mode)
         if len(target_v) == 0:
-            raise ValueError(f"`validation` record is too short: "
-                             f"{sum(len(U) for U, _ in val_records)} samples for a largest "
-                             f"lag of {t_max}")
+            raise InsufficientDataError(
+                f"`validation` record is too short: {sum(len(U) for U, _ in val_records)} "
+                f"samples for a largest lag of {t_max}")
     elif criterion == "loss":
         raise ValueError("`criterion`='loss' needs `validation` data (on the estimation data "
                          "the largest model always has the smallest loss)")
@@ -345,8 +348,8 @@ def select_order(u, y=None, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), crit
     V = table["val_loss"] if use_val else table["loss"]
     N = len(target_v) if use_val else rows
     if np.any(V <= 1e-24 * float(np.mean(target ** 2))):
-        raise ValueError("a candidate fits the data exactly (zero loss); information criteria "
-                         "are undefined for noise-free data")
+        raise ExactFitError("a candidate fits the data exactly (zero loss); information "
+                            "criteria are undefined for noise-free data")
     crit = _criteria(V, N, table["n_params"])
     for name in ("aic", "aicc", "bic", "naic", "fpe", "mdl"):
         table[name] = crit[name]
@@ -440,13 +443,6 @@ def _warn_edges(best, ranges):
         text = "; and at ".join(edges)
         warnings.warn(f"the best structure (na, nb, nk) = {best} is at {text} (the best may "
                       "lie outside the grid)", OrderSelectionWarning, stacklevel=3)
-
-
-def _io(u, y, uname, yname):
-    U, Y, info = as_io_data(u, y, names=(uname, yname))
-    if Y.shape[1] != 1:
-        raise ValueError(f"`{yname}` must have shape (N,) (one output); got {Y.shape}")
-    return U, Y, info
 
 
 def _as_given(X, was_1d, names):
