@@ -105,3 +105,22 @@ def test_validate_warns_about_an_ignored_operating_point(rng):
         warnings.simplefilter("error")
         validate(ARX(1, 1, offset=True).fit(u, y), u, y, max_lag=10)
         validate(ARX(1, 1).fit(u - 40, y - 97), u - 40, y - 97, max_lag=10)
+
+
+def test_json_says_unstable_and_carries_the_operating_point(rng):
+    import json
+
+    u = rng.standard_normal(400)
+    y = lfilter([0, 1.0], [1, -0.9], u) + 0.05 * rng.standard_normal(400)
+    out = validate(ARX.from_polynomials([-2.04, 1.0404], [1.0], dt=1.0), u, y,
+                   max_lag=10).to_dict()
+    assert out["fit_percent"] is None and out["unstable"] is True
+    assert out["stability"] == "unstable model, largest pole magnitude 1.02, simulation diverges"
+    assert out["max_pole_magnitude"] == pytest.approx(1.02, rel=1e-6)
+    assert json.loads(json.dumps(out, allow_nan=False)) == out
+    model = ARX(1, 1, offset=True).fit(40 + u, 97 + y)
+    d = model.to_dict()
+    assert d["offset"] is True and d["stable"] is True and len(d["poles"]) == 1
+    assert d["input_offset"] == [pytest.approx(40 + u.mean())]
+    assert d["intercept"] == pytest.approx(model.intercept_)
+    assert d["dc_gain"] == pytest.approx(model.dc_gain())

@@ -620,7 +620,9 @@ class IdentifiedModel(abc.ABC):
             ``polynomials`` (``A`` .. ``F`` of :meth:`polydata`) and
             ``transfer_functions`` (one dict per output and input with
             ``num``, ``den`` in positive powers of ``z`` as in
-            :meth:`to_tf`, ``dt`` and ``variable``). Arrays are lists;
+            :meth:`to_tf`, ``dt`` and ``variable``), ``poles`` (``[real,
+            imag]`` pairs), ``stable``, ``stability`` (the sentence of
+            :meth:`stability_text`) and ``dc_gain``. Arrays are lists;
             non-finite numbers are ``None``, so ``json.dumps(d,
             allow_nan=False)`` works. Subclasses add their own fields.
 
@@ -649,7 +651,9 @@ class IdentifiedModel(abc.ABC):
             "theta_std": self.std_errors_, "noise_variance": self.noise_variance_,
             "n_equations": self.n_samples_,
             "polynomials": {name: getattr(p, name) for name in p._fields},
-            "transfer_functions": tfs})
+            "transfer_functions": tfs,
+            "poles": self.poles(), "stable": self.is_stable,
+            "stability": self.stability_text(), "dc_gain": self.dc_gain()})
 
     # ------------------------------------------------------------------
     # display

@@ -532,18 +532,25 @@ class ARX(IdentifiedModel):
         Adds ARX's own fields: ``na``, ``nb``, ``nk`` (lists, one entry per
         input), ``a`` (``a_``), ``b`` (a list of ``b_`` arrays, one per input),
         ``method``, ``lam`` (1 for batch least squares), ``forgetting``
-        (the filter's mode, None for ``"ls"``) and ``k0`` (rows of the batch
-        start, None for ``"ls"``).
+        (the filter's mode, None for ``"ls"`` and for a loaded model),
+        ``k0`` (rows of the batch start, None for ``"ls"``), ``offset``,
+        ``input_offset``, ``output_offset`` (the operating point),
+        ``intercept`` (None without ``offset=True``) and ``n_experiments``.
         """
         out = super().to_dict()
         s = self.structure_
         rls = self.method_ == "rls"
+        filt = self.__dict__.get("filter_")
         out.update(jsonable({
             "na": s.na, "nb": s.nb, "nk": s.nk, "a": self.a_,
             "b": self.b_ if isinstance(self.b_, list) else [self.b_],
-            "method": self.method_, "lam": self.filter_.lam if rls else 1.0,
-            "forgetting": self.filter_.forgetting if rls else None,
-            "k0": self.k0_ if rls else None}))
+            "method": self.method_, "lam": self.lam_ if rls else 1.0,
+            "forgetting": filt.forgetting if filt is not None else None,
+            "k0": self.k0_ if rls else None,
+            "offset": self.offset, "input_offset": self.input_offset_,
+            "output_offset": self.output_offset_,
+            "intercept": self.__dict__.get("intercept_"),
+            "n_experiments": self.__dict__.get("n_experiments_", 1)}))
         return out
 
     def _theta2(self):
