@@ -14,6 +14,7 @@ convention and the translation table to SIPPY and the lecture notes.
 
 import html
 import inspect
+import warnings
 
 import numpy as np
 from scipy import signal
@@ -22,7 +23,8 @@ from scipy.linalg import lapack, solve_triangular
 from .._serialize import jsonable
 from .._validation import as_float_array, check_finite, check_int, check_scalar
 from ..exceptions import InsufficientDataError
-from ..filters import RecursiveLeastSquares
+from ..exceptions import NumericalWarning
+from ..filters import RecursiveLeastSquares, SquareRootRLS
 from . import _conversion
 from ._base import IdentifiedModel, Polynomials
 from ._summary import EQUATION_STYLES, ModelSummary
@@ -120,9 +122,12 @@ class ARX(IdentifiedModel):
         ``method="rls"`` only: number of rows of the batch start.
     lam_ : float
         ``method="rls"`` only: the forgetting factor used.
-    filter_ : RecursiveLeastSquares
+    form_ : str
+        ``method="rls"`` only: ``"covariance"`` or ``"square_root"``, the
+        recursion that ran (see `form` of :meth:`fit`).
+    filter_ : RecursiveLeastSquares or SquareRootRLS
         ``method="rls"`` only: the filter after the last sample, ready for
-        more ``predict``/``update`` calls.
+        more ``predict``/``update`` calls (not kept by a saved model).
 
     Notes
     -----
@@ -197,7 +202,7 @@ class ARX(IdentifiedModel):
 
     # learned attributes that only some fits set, and which ones
     _ONLY_SET_BY = {**{name: "fit(..., method='rls')" for name in
-                       ("theta_history_", "recursive_residuals_", "k0_", "lam_",
+                       ("theta_history_", "recursive_residuals_", "k0_", "lam_", "form_",
                         "filter_")},
                     "noise_covariance_": "a fit on 2-D `y` (several outputs)"}
 
@@ -271,7 +276,7 @@ class ARX(IdentifiedModel):
     # fitting
     # ------------------------------------------------------------------
     def fit(self, u, y=None, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=None,
-            x0=None, **filter_options):
+            x0=None, form=None, **filter_options):
         r"""Estimate the parameters from an input/output record.
 
         Parameters
@@ -297,6 +302,18 @@ class ARX(IdentifiedModel):
             ``"rls"`` only: passed to `RecursiveLeastSquares` (forgetting
             factor, initial covariance and estimate for a prior start with
             ``k0 = 0``, noise variance, random-walk covariance).
+        form : {"auto", "covariance", "square_root"}, optional
+            ``"rls"`` only: the recursion. ``"covariance"`` is
+            `RecursiveLeastSquares` (updates ``P``); ``"square_root"`` is
+            `SquareRootRLS` (updates a triangular square root of the
+            information matrix by orthogonal rotations: its round-off grows
+            with the condition number of the regressors, not its square).
+            ``"auto"`` (the default) takes the square-root form when the
+            regressors (columns scaled to unit norm) have a condition number
+            above 1e4 and the options allow it (no `Q`, no other forgetting
+            mode), so that the recursive fit stays within about 1e-8
+            (relative) of batch least squares up to condition numbers of
+            1e8.
         **filter_options
             ``"rls"`` only: any other keyword argument of
             `RecursiveLeastSquares` (for example its forgetting mode), passed
@@ -313,6 +330,14 @@ class ARX(IdentifiedModel):
             lengths, bad orders, too few samples, or a regressor matrix
             without full column rank (input not persistently exciting).
 
+        Warns
+        -----
+        NumericalWarning
+            ``"rls"`` on ill-conditioned regressors when the accuracy of the
+            recursion cannot be guaranteed: the covariance form (asked for,
+            or forced by `Q` or a forgetting mode) above a condition number
+            of 1e6, or any form above 1e10.
+
         Notes
         -----
         With ``method="rls"``, ``theta_`` is the filter's last estimate and
@@ -324,7 +349,7 @@ class ARX(IdentifiedModel):
         """
         if method not in ("ls", "rls"):
             raise ValueError(f"`method` must be 'ls' or 'rls'; got {method!r}")
-        opts = {"k0": k0, "lam": lam, "P0": P0, "R": R, "Q": Q, "x0": x0}
+        opts = {"k0": k0, "lam": lam, "P0": P0, "R": R, "Q": Q, "x0": x0, "form": form}
         if method == "ls":
             given = [k for k, v in opts.items() if v is not None] + list(filter_options)
             if given:
@@ -351,6 +376,8 @@ class ARX(IdentifiedModel):
         else:
             theta, cov_unscaled, rls, history, x_start, k0 = _fit_rls(Phi, target, s, opts)
             recursive = {"filter_": rls, "k0_": k0, "lam_": float(rls.lam),
+                         "form_": "square_root" if isinstance(rls, SquareRootRLS)
+                         else "covariance",
                          "theta_history_": history[:, :, 0] if info["y_1d"] else history}
             # a-priori (recursive) residuals y(t) - phi(t) theta(t-1) after the batch start
             prior = np.full_like(target, np.nan)
@@ -359,7 +386,7 @@ class ARX(IdentifiedModel):
                 k0 = 1
             prior[k0:] = target[k0:] - np.einsum("ij,ijk->ik", Phi[k0:], history[k0 - 1:-1])
             recursive["recursive_residuals_"] = prior[:, 0] if info["y_1d"] else prior
-        for name in ("theta_history_", "filter_", "k0_", "lam_", "recursive_residuals_",
+        for name in ("theta_history_", "filter_", "k0_", "lam_", "form_", "recursive_residuals_",
                      "noise_covariance_", "intercept_"):
             self.__dict__.pop(name, None)
         self.__dict__.update(recursive)
@@ -545,7 +572,9 @@ class ARX(IdentifiedModel):
             "na": s.na, "nb": s.nb, "nk": s.nk, "a": self.a_,
             "b": self.b_ if isinstance(self.b_, list) else [self.b_],
             "method": self.method_, "lam": self.lam_ if rls else 1.0,
-            "forgetting": filt.forgetting if filt is not None else None,
+            "forgetting": getattr(filt, "forgetting", "exponential") if filt is not None
+            else None,
+            "form": self.__dict__.get("form_"),
             "k0": self.k0_ if rls else None,
             "offset": self.offset, "input_offset": self.input_offset_,
             "output_offset": self.output_offset_,
@@ -1024,7 +1053,13 @@ def _fit_rls(Phi, target, s, opts):
                 f"k0={k0} rows sets both x0 and P0. Pass k0=0 to start from `{given[0]}`.")
     kw = {key: opts[key] for key in ("P0", "R", "Q", "x0") if opts[key] is not None}
     lam = 1.0 if opts["lam"] is None else opts["lam"]
-    rls = RecursiveLeastSquares(n, dim_z=s.n_outputs, lam=lam, **kw, **opts["extra"])
+    form, cond_raw = _choose_form(Phi, opts)
+    extra = dict(opts["extra"])
+    # cond(P) = cond(Phi)^2 (in the signals' units) is what the data give (and more on the
+    # first rows), and _choose_form has said so: the health check watches for windup beyond
+    extra.setdefault("cond_max", max(1e12, 1e4 * cond_raw ** 2))
+    cls = SquareRootRLS if form == "square_root" else RecursiveLeastSquares
+    rls = cls(n, dim_z=s.n_outputs, lam=lam, **kw, **extra)
     history = np.full((rows, n, s.n_outputs), np.nan)
     x_start = rls.x.copy()
     if k0 > 0:
@@ -1034,6 +1069,54 @@ def _fit_rls(Phi, target, s, opts):
         means = rls.batch_filter(target[k0:], Phi[k0:], store_covariances=False)[0]
         history[k0:] = means
     return rls.x.copy(), rls.P / rls.R, rls, history, x_start, k0
+
+
+_FORMS = ("auto", "covariance", "square_root")
+_SQRT_OPTIONS = {"check_every", "cond_max"}   # what SquareRootRLS takes beyond lam, P0, x0, R
+_COND_AUTO = 1e4        # "auto" takes the square-root form above this condition number
+_COND_COVARIANCE = 1e6  # the covariance form warns above this
+_COND_ANY = 1e10        # any recursion warns above this
+
+
+def _choose_form(Phi, opts):
+    """``(form, cond_raw)``: the recursion to run, and the condition number of the rows in the
+    signals' units (the choice itself uses the rows scaled to unit columns).
+
+    The covariance update's round-off grows with cond(P) = cond(Phi)^2, the square-root
+    (QR) update's with cond(Phi) (NUMERICS.md; Haykin 2002, ch. 14).
+    """
+    form = "auto" if opts["form"] is None else opts["form"]
+    if not isinstance(form, str) or form not in _FORMS:
+        raise ValueError(f"`form` must be 'auto', 'covariance' or 'square_root'; got {form!r}")
+    blocked = ["Q"] if opts["Q"] is not None else []
+    blocked += [k for k in opts["extra"] if k not in _SQRT_OPTIONS]
+    if form == "square_root" and blocked:
+        raise TypeError(f"form='square_root' (SquareRootRLS) takes lam, P0, x0, R, check_every "
+                        f"and cond_max only; got `{blocked[0]}`")
+    norms = np.linalg.norm(Phi, axis=0)
+    R = np.linalg.qr(Phi / np.where(norms > 0, norms, 1.0), mode="r")
+    cond, cond_raw = (_cond(M) for M in (R, R * norms))  # R D is the factor of Phi itself
+    if form == "auto":
+        form = "square_root" if cond > _COND_AUTO and not blocked else "covariance"
+    if form == "covariance" and cond > _COND_COVARIANCE:
+        why = (f"`{blocked[0]}` rules out the square-root form" if blocked
+               else "form='covariance' was asked for")
+        warnings.warn(f"the regressors are ill-conditioned (condition number {cond:.3g}): the "
+                      "covariance-form recursion may drift from batch least squares (its "
+                      f"round-off grows with {cond:.3g}^2) and {why}; use form='square_root' or "
+                      "method='ls'", NumericalWarning, stacklevel=4)
+    elif cond > _COND_ANY:
+        warnings.warn(f"the regressors are ill-conditioned (condition number {cond:.3g}): even "
+                      "the square-root recursion keeps only about "
+                      f"{max(0, int(-np.log10(np.finfo(float).eps * cond)))} digits; scale the "
+                      "signals, lower the orders or use a richer input", NumericalWarning,
+                      stacklevel=4)
+    return form, cond_raw
+
+
+def _cond(R):
+    sv = np.linalg.svd(R, compute_uv=False)
+    return float(sv[0] / sv[-1]) if len(sv) and sv[-1] > 0 else np.inf
 
 
 def _qr_least_squares(Phi, target):
