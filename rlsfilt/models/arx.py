@@ -22,8 +22,7 @@ from scipy.linalg import lapack, solve_triangular
 
 from .._serialize import jsonable
 from .._validation import as_float_array, check_finite, check_int, check_scalar
-from ..exceptions import InsufficientDataError
-from ..exceptions import NumericalWarning
+from ..exceptions import InsufficientDataError, NumericalWarning
 from ..filters import RecursiveLeastSquares, SquareRootRLS
 from . import _conversion
 from ._base import IdentifiedModel, Polynomials
