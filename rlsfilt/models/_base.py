@@ -497,7 +497,7 @@ class IdentifiedModel(abc.ABC):
         p = self.poles()
         r = float(np.max(np.abs(p))) if len(p) else 0.0
         if r >= 1.0 + 1e-9:
-            return f"unstable model, largest pole magnitude {r:.3g}, simulation diverges"
+            return f"unstable model, largest pole magnitude {r:.4g}, simulation diverges"
         if r > 1.0 - 1e-9:
             return "marginally stable model (a pole on the unit circle), simulation may drift"
         return f"stable (largest pole magnitude {r:.3g})"
