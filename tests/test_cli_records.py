@@ -87,7 +87,7 @@ def test_whole_workflow_split_select_save(capsys, hx, hx_csv, tmp_path):
     assert out.startswith(f"data: '{hx_csv}', 2000 samples in 2 experiments (run1: 1200, "
                           "run2: 800), sample time 1 s\ndetrend: constant (means removed: "
                           "flow = 40.")
-    assert "(2 experiments)" in out and "operating point: flow = " in out
+    assert "samples of 2 experiments" in out and "operating point: flow = " in out
     assert out.rstrip().endswith(f"model saved to {saved}")
 
 

@@ -77,7 +77,7 @@ def test_validate_takes_iodata_of_several_experiments(rng):
     model = ARX(2, 2, 1, dt=0.5).fit(data)
     report = validate(model, data, max_lag=10)
     assert report.experiment_lengths == (300, 200) and len(report.y) == 500
-    assert "(2 experiments)" in report.summary()
+    assert "on 500 samples of 2 experiments" in report.summary()
     # each experiment is simulated from its own start, and the fit covers both
     single = [validate(model, u, y, max_lag=10) for u, y in runs]
     np.testing.assert_array_equal(report.y_simulated[300:], single[1].y_simulated)

@@ -284,7 +284,7 @@ class ValidationReport:
 
     def _experiments_text(self):
         n = len(self.experiment_lengths)
-        return f" ({n} experiments)" if n > 1 else ""
+        return f" of {n} experiments" if n > 1 else ""
 
 
 def validate(model, u, y=None, plant=None, *, max_lag=25, alpha=0.01, skip_undefined=False,
