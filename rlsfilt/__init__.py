@@ -5,18 +5,21 @@ A filterpy-style toolkit: `RecursiveLeastSquares` mirrors filterpy's
 ``P``, ``K``, ``y``, ``S``) so it drops in beside Kalman filters.
 """
 
+# first, so that the subpackages can read it (the JSON results carry it)
+__version__ = "0.1.0"
+
 from . import adaptive, datasets, validation  # public subpackages: rlsfilt.adaptive, .datasets, ..
 from .exceptions import (
+    ExactFitError,
     ExcitationWarning,
     ForgettingSkippedWarning,
+    InsufficientDataError,
     NotFittedError,
     NumericalWarning,
 )
 from .filters import RecursiveLeastSquares, SlidingWindowRLS, SquareRootRLS
 from .models import ARX
 from .validation import fit_percent, select_order, validate
-
-__version__ = "0.1.0"
 
 __all__ = [
     "RecursiveLeastSquares",
@@ -30,6 +33,8 @@ __all__ = [
     "select_order",
     "fit_percent",
     "NotFittedError",
+    "InsufficientDataError",
+    "ExactFitError",
     "NumericalWarning",
     "ForgettingSkippedWarning",
     "ExcitationWarning",

@@ -13,6 +13,7 @@ import math
 import numpy as np
 from scipy.linalg.lapack import dtrtri, dtrtrs
 
+from .._display import filter_html
 from .._validation import as_float_array, check_finite, check_variance
 
 __all__ = []
@@ -36,6 +37,9 @@ class _FilterBase:
 
     Subclasses set ``dim_x``, ``dim_z``, ``_R`` and provide ``x`` and ``P``.
     """
+
+    def _repr_html_(self):
+        return filter_html(self)   # Jupyter: dimensions, settings, estimate +- std dev, health
 
     @property
     def R(self):
@@ -95,6 +99,11 @@ class _FilterBase:
     def copy(self):
         """Return an independent deep copy of the filter."""
         return copy.deepcopy(self)
+
+    def as_iosystem(self, regressor, dt=True):
+        """This filter as a python-control system: `rlsfilt.adaptive.estimator_iosystem`."""
+        from ..adaptive.estimator_io import estimator_iosystem
+        return estimator_iosystem(self, regressor, dt)
 
     def _batch_stepwise(self, Z, Hm, Rv, update_first, saver, store_covariances):
         """Run ``predict``/``update`` over a validated record (the generic batch loop)."""

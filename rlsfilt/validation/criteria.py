@@ -18,6 +18,7 @@ import math
 import numpy as np
 
 from .._validation import check_int, check_scalar
+from ..exceptions import ExactFitError
 from ._model import n_params, one_step
 
 __all__ = ["InformationCriteria", "criteria_from_loss", "information_criteria"]
@@ -148,8 +149,8 @@ def information_criteria(model, u, y):
 
     Parameters
     ----------
-    model : ARX
-        A fitted model.
+    model : IdentifiedModel
+        A fitted model (`ARX` or any other `IdentifiedModel`).
     u : array_like, shape (N,) or (N, nu)
         Input record.
     y : array_like, shape (N,) or (N, ny)
@@ -180,14 +181,19 @@ def information_criteria(model, u, y):
     >>> ic.n_samples, ic.n_params
     (499, 2)
     """
-    _, _, e = one_step(model, u, y)
+    _, _, e = one_step(model, u, y, "information_criteria")
+    return _from_residuals(e, n_params(model))
+
+
+def _from_residuals(e, d):
+    """`information_criteria` from the one-step residuals `e` (N, ny) and `d` parameters."""
     N, ny = e.shape
     cov = (e.T @ e) / N
     V = float(np.linalg.det(cov)) if ny > 1 else float(cov[0, 0])
     if not V > 0.0:
-        raise ValueError("the residuals are zero (an exact fit); information criteria are "
+        raise ExactFitError("the residuals are zero (an exact fit); information criteria are "
                          "undefined")
-    return _criteria(V, N, n_params(model), ny)
+    return _criteria(V, N, d, ny)
 
 
 def _criteria(V, N, d, ny=1):

@@ -6,14 +6,12 @@ covariance of the least-squares estimate under white equation error
 (Ljung 1999, sec. 9.2).
 """
 
-import math
-
 import numpy as np
-from scipy.stats import t as student_t
 
 from .._validation import as_float_array, as_generator, check_int, check_probability
-from ..plotting import _bode_axes, _figure
-from ._model import check_fitted, orders
+from ..models._base import check_is_fitted
+from ..models._summary import coefficient_statistics
+from ..plotting import plot_bode, plot_frequency_band
 from .plant import frequency_grid
 
 __all__ = ["FrequencyBand", "ParameterIntervals", "frequency_response_band",
@@ -44,14 +42,12 @@ class ParameterIntervals:
         self.std_error = std_error
         self.level = level
         self.dof = dof
-        self.quantile = float(student_t.ppf(0.5 + level / 2.0, dof)) if dof > 0 else math.inf
         # a zero standard error (a true model) gives a zero-width interval, even when
-        # the quantile is infinite (no spare equations): inf * 0 is never formed
-        std_error = np.asarray(std_error, dtype=float)
-        half = np.zeros_like(std_error)
-        np.multiply(self.quantile, std_error, out=half, where=std_error != 0)
-        self.lower = estimate - half
-        self.upper = estimate + half
+        # the quantile is infinite (no spare equations)
+        stats = coefficient_statistics(estimate, std_error, dof, level)
+        self.quantile = stats["quantile"]
+        self.lower = stats["lower"]
+        self.upper = stats["upper"]
 
     def contains(self, theta):
         """Which entries of `theta` lie inside their interval.
@@ -159,10 +155,7 @@ class FrequencyBand:
         -------
         matplotlib.figure.Figure
         """
-        fig = _figure(fig, figsize=(7, 6), layout="constrained")
-        ax_mag, ax_ph = fig.subplots(2, 1, sharex=True)
-        self.plot_bode(ax_mag, ax_ph, plant=plant)
-        return fig
+        return plot_frequency_band(self, fig, plant=plant)
 
     def plot_bode(self, ax_mag=None, ax_phase=None, plant=None):
         """Draw the band into magnitude and phase axes.
@@ -180,43 +173,7 @@ class FrequencyBand:
         (matplotlib.axes.Axes, matplotlib.axes.Axes)
             The magnitude and phase axes.
         """
-        ax_mag, ax_phase = _bode_axes(ax_mag, ax_phase)
-        ny, nu = self.response.shape[:2]
-        pct = f"{100 * self.level:g}%"
-        for c, (i, j) in enumerate((i, j) for i in range(ny) for j in range(nu)):
-            tag = f" (u{j} to y{i})" if ny * nu > 1 else ""
-            color = f"C{c}"
-            ax_mag.fill_between(self.omega, _db(self.magnitude_lower[i, j]),
-                                _db(self.magnitude_upper[i, j]), color=color, alpha=0.25,
-                                label=f"{pct} band{tag}")
-            ax_mag.semilogx(self.omega, _db(np.abs(self.response[i, j])), color=color,
-                            label=f"model{tag}")
-            ax_phase.fill_between(self.omega, self.phase_lower[i, j], self.phase_upper[i, j],
-                                  color=color, alpha=0.25)
-            ax_phase.semilogx(self.omega,
-                              np.degrees(np.unwrap(np.angle(self.response[i, j]))), color=color)
-        if plant is not None:
-            import control
-
-            z = np.exp(1j * self.omega * self.dt)
-            G = np.asarray(control.tf(plant)(z, squeeze=False))
-            first = True
-            for i in range(min(ny, G.shape[0])):
-                for j in range(min(nu, G.shape[1])):
-                    ax_mag.semilogx(self.omega, _db(np.abs(G[i, j])), "k--", lw=1,
-                                    label="plant" if first else None)
-                    ax_phase.semilogx(self.omega, np.degrees(np.unwrap(np.angle(G[i, j]))),
-                                      "k--", lw=1)
-                    first = False
-        ax_mag.set_ylabel("$|G(e^{j\\omega T})|$ (dB)")
-        ax_phase.set_ylabel("phase (deg)")
-        unit = "rad/sample" if self.dt_unspecified else "rad/s"
-        ax_phase.set_xlabel(f"$\\omega$ ({unit})")
-        ax_mag.set_title("Frequency response with parameter uncertainty")
-        ax_mag.legend(loc="best")
-        for ax in (ax_mag, ax_phase):
-            ax.grid(True, which="both", alpha=0.3)
-        return ax_mag, ax_phase
+        return plot_bode(self, ax_mag, ax_phase, plant=plant)
 
 
 def parameter_intervals(model, level=0.95):
@@ -224,8 +181,8 @@ def parameter_intervals(model, level=0.95):
 
     Parameters
     ----------
-    model : ARX
-        A fitted model.
+    model : IdentifiedModel
+        A fitted model (`ARX` or any other `IdentifiedModel`).
     level : float, default 0.95
         Confidence level in (0, 1).
 
@@ -256,7 +213,7 @@ def parameter_intervals(model, level=0.95):
     >>> bool(ci.contains([-0.8, 0.5]).all())
     True
     """
-    check_fitted(model)
+    check_is_fitted(model, "parameter_intervals")
     level = check_probability(level, "level")
     theta = np.asarray(model.theta_, dtype=float)
     cov = np.asarray(model.theta_cov_, dtype=float)
@@ -264,8 +221,8 @@ def parameter_intervals(model, level=0.95):
         se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     else:  # (ny, p, p): one covariance per output
         se = np.sqrt(np.clip(np.diagonal(cov, axis1=1, axis2=2), 0.0, None)).T
-    names = list(getattr(model, "param_names_", [f"theta{i}" for i in range(theta.shape[0])]))
-    dof = int(getattr(model, "n_samples_", 0)) - theta.shape[0]
+    names = list(model.param_names_)
+    dof = int(model.n_samples_) - theta.shape[0]
     return ParameterIntervals(names, theta.copy(), se.reshape(theta.shape), level, dof)
 
 
@@ -274,7 +231,7 @@ def frequency_response_band(model, omega=None, level=0.95, n_draws=1000, rng=Non
 
     Parameters
     ----------
-    model : ARX
+    model : IdentifiedModel
         A fitted model (any numbers of inputs and outputs).
     omega : array_like, optional
         Frequencies in rad per time unit; by default 300 points on a
@@ -301,10 +258,11 @@ def frequency_response_band(model, omega=None, level=0.95, n_draws=1000, rng=Non
 
     .. math::
 
-        G(e^{j\omega T}) = A(e^{-j\omega T})^{-1}\, e^{-j\omega T n_k}\,
-                            B(e^{-j\omega T})
+        G(e^{j\omega T}) = A(e^{-j\omega T})^{-1}\, B(e^{-j\omega T}) /
+                            F(e^{-j\omega T})
 
-    is evaluated (a ratio of polynomials for one output); the band is the
+    is evaluated from the model's polynomials (``model.frequency_response``,
+    a ratio of polynomials for one output); the band is the
     pointwise quantiles of its magnitude and (unwrapped) phase. Sampling
     avoids the linearization of the Gauss approximation formula (Ljung 1999,
     sec. 9.4), which fails near lightly damped poles where :math:`G` is far
@@ -329,7 +287,7 @@ def frequency_response_band(model, omega=None, level=0.95, n_draws=1000, rng=Non
     >>> band.magnitude_upper.shape
     (1, 1, 300)
     """
-    check_fitted(model)
+    check_is_fitted(model, "frequency_response_band")
     level = check_probability(level, "level")
     n_draws = check_int(n_draws, "n_draws", minimum=2)
     theta = np.asarray(model.theta_, dtype=float)
@@ -338,8 +296,9 @@ def frequency_response_band(model, omega=None, level=0.95, n_draws=1000, rng=Non
     omega = frequency_grid(omega, dt, 300)
     gen = as_generator(rng)
     draws = Theta + _parameter_noise(model, Theta.shape, n_draws, gen)   # (n, p, ny)
-    G_nom = _response(Theta[None], model, omega, dt)[0]
-    G = _response(draws, model, omega, dt)                     # (n, ny, nu, n_points)
+    G_nom = model.frequency_response(omega)
+    G = np.stack([model.frequency_response(omega, theta=th.reshape(theta.shape))
+                  for th in draws])                            # (n, ny, nu, n_points)
     mag = np.abs(G)
     phase = np.degrees(np.unwrap(np.angle(G), axis=-1))
     # align each draw's unwrapped phase with the nominal one (remove 360 deg jumps)
@@ -377,34 +336,6 @@ def _parameter_noise(model, shape, n_draws, gen):
         return L_M @ Z @ L_S.T
     # no cross-covariance known: outputs drawn independently from their own blocks
     return np.stack([_factor(cov[i]) @ Z[:, :, i:i + 1] for i in range(ny)], axis=2)[..., 0]
-
-
-def _response(thetas, model, omega, dt):
-    """``G = A^-1 B`` for each parameter matrix in `thetas` (n, p, ny): (n, ny, nu, n_points)."""
-    na, nb, nk = orders(model)
-    n, _, ny = thetas.shape
-    zinv = np.exp(-1j * omega * dt)                            # e^{-j w T}
-    P = omega.size
-    start = ny * na
-    Bz = np.empty((n, ny, len(nb), P), dtype=complex)
-    for j, (b, k0) in enumerate(zip(nb, nk)):
-        powers = zinv[None, :] ** (k0 + np.arange(b))[:, None]   # (b, P)
-        # B_j for every equation i: sum_m theta[start + m, i] z^-(nk + m)
-        Bz[:, :, j] = np.einsum("nmi,mp->nip", thetas[:, start:start + b], powers)
-        start += b
-    if ny == 1:
-        A = np.ones((n, P), dtype=complex)
-        for k in range(1, na + 1):
-            A += thetas[:, k - 1, 0:1] * zinv ** k
-        with np.errstate(divide="ignore", invalid="ignore"):
-            return Bz / A[:, None, None, :]
-    # A[i, j](z) = delta_ij + sum_k theta[j * na + k - 1, i] z^-k
-    Az = np.broadcast_to(np.eye(ny, dtype=complex)[None, :, :, None], (n, ny, ny, P)).copy()
-    for j in range(ny):
-        for k in range(1, na + 1):
-            Az[:, :, j, :] += thetas[:, j * na + k - 1, :, None] * zinv[None, None, :] ** k
-    G = np.linalg.solve(Az.transpose(0, 3, 1, 2), Bz.transpose(0, 3, 1, 2))
-    return G.transpose(0, 2, 3, 1)
 
 
 def _db(x):
