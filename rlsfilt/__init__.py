@@ -8,7 +8,7 @@ A filterpy-style toolkit: `RecursiveLeastSquares` mirrors filterpy's
 # first, so that the subpackages can read it (the JSON results carry it)
 __version__ = "0.1.0"
 
-from . import adaptive, datasets, validation  # public subpackages: rlsfilt.adaptive, .datasets, ..
+from . import adaptive, datasets, validation  # public subpackages
 from .exceptions import (
     ExactFitError,
     ExcitationWarning,
