@@ -100,6 +100,11 @@ class _FilterBase:
         """Return an independent deep copy of the filter."""
         return copy.deepcopy(self)
 
+    def as_iosystem(self, regressor, dt=True):
+        """This filter as a python-control system: `rlsfilt.adaptive.estimator_iosystem`."""
+        from ..adaptive.estimator_io import estimator_iosystem
+        return estimator_iosystem(self, regressor, dt)
+
     def _batch_stepwise(self, Z, Hm, Rv, update_first, saver, store_covariances):
         """Run ``predict``/``update`` over a validated record (the generic batch loop)."""
         N = len(Z)
