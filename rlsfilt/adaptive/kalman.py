@@ -14,6 +14,8 @@ innovation. `to_kalman` hands this to `filterpy.kalman.KalmanFilter`;
 ``(F, H, G, K, D)`` to the polynomials.
 """
 
+import functools
+
 import numpy as np
 
 from .._validation import as_float_array, check_dt, check_finite, check_real
@@ -31,11 +33,12 @@ def to_kalman(model, noise_variance=None):
 
     Parameters
     ----------
-    model : ARX or model with ``polynomials()``
-        A fitted `~rlsfilt.ARX` (any numbers of inputs and outputs), or any
-        object whose ``polynomials()`` gives ``(A, B)`` or ``(A, B, C)``
-        (ARMAX) in ascending powers of :math:`q^{-1}`, such as an
-        `InnovationsModel`.
+    model : ARX, another rlsfilt model, or an object with ``polynomials()``
+        A fitted `~rlsfilt.ARX` (any numbers of inputs and outputs) or any
+        rlsfilt model through ``polydata()``: ARMAX, and for one output OE
+        and BJ too (over the common denominator ``A D F``); or an object
+        whose ``polynomials()`` gives ``(A, B)`` or ``(A, B, C)`` in
+        ascending powers of :math:`q^{-1}`, such as an `InnovationsModel`.
     noise_variance : float or array_like, optional
         Covariance :math:`\Sigma` of the innovations; the model's
         ``noise_covariance_`` or ``noise_variance_``, or 1 (it only scales
@@ -293,26 +296,61 @@ def from_kalman(kf=None, *, F=None, H=None, G=None, K=None, D=None, noise_varian
 # private helpers
 # ----------------------------------------------------------------------
 def _matrix_polynomials(model):
-    """``A (ny, ny, *)``, ``B (ny, nu, *)``, ``C (ny, ny, *)`` from ``model.polynomials()``."""
+    r"""``A (ny, ny, *)``, ``B (ny, nu, *)``, ``C (ny, ny, *)`` of the model's ARMAX form.
+
+    From ``polydata()`` (every rlsfilt model): one output over the common
+    denominator, :math:`A D \prod_j F_j\, y = \sum_j B_j D \prod_{k \ne j} F_k\,
+    u_j + C \prod_j F_j\, e`; several outputs need ``D = F = 1``. Otherwise
+    from ``polynomials()``: ``(A, B)`` or ``(A, B, C)``.
+    """
+    if hasattr(model, "polydata"):
+        p = model.polydata()
+        A, B = np.asarray(p.A, dtype=float), np.asarray(p.B, dtype=float)
+        C, D, F = (np.asarray(x, dtype=float) for x in (p.C, p.D, p.F))
+        ny, nu = A.shape[0], B.shape[1]
+        if ny == 1:
+            Fs = [trim(F[0, j]) for j in range(nu)]
+            prodF = functools.reduce(np.convolve, Fs, np.ones(1))
+            d = trim(D[0])
+            Anew = np.convolve(np.convolve(trim(A[0, 0]), d), prodF)
+            Bs = [np.convolve(np.convolve(trim(B[0, j]), d),
+                              functools.reduce(np.convolve, Fs[:j] + Fs[j + 1:], np.ones(1)))
+                  for j in range(nu)]
+            L = max(len(b) for b in Bs)
+            A = Anew.reshape(1, 1, -1)
+            B = np.array([[np.pad(b, (0, L - len(b))) for b in Bs]])
+            C = np.convolve(trim(C[0]), prodF).reshape(1, 1, -1)
+        else:
+            if np.any(D[:, 1:]) or np.any(F[:, :, 1:]):
+                raise ValueError("`model` with several outputs must have D = F = 1 (ARX or "
+                                 "ARMAX) to become a Kalman filter")
+            Cm = np.zeros((ny, ny, C.shape[1]))
+            for i in range(ny):
+                Cm[i, i] = C[i]
+            C = Cm
+        return _check_monic(A, B, C)
     if not hasattr(model, "polynomials"):
-        raise TypeError(f"`model` must have polynomials() (a fitted ARX, an InnovationsModel); "
-                        f"got {type(model).__name__}")
+        raise TypeError(f"`model` must have polydata() or polynomials() (a fitted ARX, an "
+                        f"InnovationsModel); got {type(model).__name__}")
     polys = model.polynomials()
     if isinstance(polys, dict):
         polys = tuple(polys.get(k, polys.get(k.upper())) for k in "abc")
     A, B = (np.asarray(p, dtype=float) for p in polys[:2])
     C = np.asarray(polys[2], dtype=float) if len(polys) > 2 and polys[2] is not None else None
     if A.ndim == 1:
-        ny = 1
         A = A.reshape(1, 1, -1)
         B = B.reshape(-1, B.shape[-1])[None] if B.ndim <= 2 else B
         C = np.ones((1, 1, 1)) if C is None else C.reshape(1, 1, -1)
     else:
-        ny = A.shape[0]
-        C = np.eye(ny)[:, :, None] if C is None else C
-    if not np.allclose(A[:, :, 0], np.eye(ny), rtol=0, atol=0):
+        C = np.eye(A.shape[0])[:, :, None] if C is None else C
+    return _check_monic(A, B, C)
+
+
+def _check_monic(A, B, C):
+    ny = A.shape[0]
+    if not np.array_equal(A[:, :, 0], np.eye(ny)):
         raise ValueError("`model`: A(0) must be the identity (a monic A)")
-    if not np.allclose(C[:, :, 0], np.eye(ny), rtol=0, atol=0):
+    if not np.array_equal(C[:, :, 0], np.eye(ny)):
         raise ValueError("`model`: C(0) must be the identity (a monic C)")
     return A, B, C
 

@@ -581,6 +581,11 @@ class IdentifiedModel(abc.ABC):
         self._check_fitted("to_dlti")
         return _conversion.to_dlti(self.polydata(), self.dt, noise)
 
+    def to_kalman(self):
+        """The model as a filterpy ``KalmanFilter``: `rlsfilt.adaptive.to_kalman`."""
+        from ..adaptive.kalman import to_kalman
+        return to_kalman(self)
+
     def frequency_response(self, omega, theta=None, noise=False):
         r"""Frequency response :math:`G(e^{j\omega\,dt})` of every channel.
 
