@@ -44,7 +44,7 @@ import warnings
 
 import numpy as np
 
-from . import __version__
+from ._version import __version__
 from .datasets import PLANTS
 from .exceptions import ForgettingSkippedWarning, NumericalWarning
 from .models import ARX, arx_structure
