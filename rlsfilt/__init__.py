@@ -5,10 +5,8 @@ A filterpy-style toolkit: `RecursiveLeastSquares` mirrors filterpy's
 ``P``, ``K``, ``y``, ``S``) so it drops in beside Kalman filters.
 """
 
-# first, so that the subpackages can read it (the JSON results carry it)
-__version__ = "0.1.0"
-
 from . import adaptive, data, datasets, validation  # public subpackages
+from ._version import __version__
 from .continuous import d2c
 from .data import IOData, Trend, detrend, retrend
 from .exceptions import (

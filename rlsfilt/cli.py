@@ -51,7 +51,7 @@ import warnings
 
 import numpy as np
 
-from . import __version__
+from ._version import __version__
 from .data import IOData, detrend
 from .datasets import PLANTS
 from .exceptions import (

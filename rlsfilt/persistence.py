@@ -145,7 +145,7 @@ def _document(model, *, include_data=False):
     if not fitted:
         raise ValueError(f"`model` has no learned attributes to save; call fit() on the "
                          f"{type(model).__name__} first")
-    from . import __version__
+    from ._version import __version__
 
     return {"format": FORMAT, "format_version": FORMAT_VERSION, "rlsfilt_version": __version__,
             "class": type(model).__name__, "module": type(model).__module__,

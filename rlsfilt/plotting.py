@@ -931,11 +931,9 @@ def plot_report(report, fig=None, *, window=None, output_name="y", output_unit=N
 # ----------------------------------------------------------------------
 def _report_band(report):
     """The 95 % band of the report's model (seed 0: the same figure on every call), on the
-    plant comparison's frequencies when there is one."""
-    from .validation.uncertainty import frequency_response_band
-
-    omega = None if report.plant_comparison is None else report.plant_comparison.omega
-    return frequency_response_band(report.model, omega=omega, rng=0)
+    plant comparison's frequencies when there is one (`ValidationReport.frequency_band`;
+    plotting imports nothing from rlsfilt.validation)."""
+    return report.frequency_band()
 
 
 def _draw_band(ax_mag, ax_phase, band, model_line=True):

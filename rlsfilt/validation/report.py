@@ -5,9 +5,9 @@ import warnings
 
 import numpy as np
 
-from .. import __version__
 from .._serialize import jsonable
 from .._validation import check_int, check_probability
+from .._version import __version__
 from ..data.trend import _offset_messages
 from ..exceptions import ExactFitError, InsufficientDataError, OperatingPointWarning
 from ..models._base import check_is_fitted
@@ -18,7 +18,7 @@ from .criteria import _from_residuals
 from .metrics import fit_percent
 from .plant import PlantComparison
 from .residuals import _residual_analysis
-from .uncertainty import parameter_intervals
+from .uncertainty import frequency_response_band, parameter_intervals
 
 __all__ = ["ValidationReport", "validate"]
 
@@ -256,6 +256,28 @@ class ValidationReport:
         matplotlib.figure.Figure
         """
         return plot_report(self, fig, window=window)
+
+    def frequency_band(self, level=0.95, n_draws=1000, rng=0):
+        """The model's frequency response with its uncertainty band, on the plant
+        comparison's frequencies when there is one (what `plot` draws).
+
+        Parameters
+        ----------
+        level : float, default 0.95
+            Pointwise coverage of the band.
+        n_draws : int, default 1000
+            Parameter draws from ``theta_cov_``.
+        rng : int or numpy.random.Generator, default 0
+            Seed of the draws (0: the same band on every call).
+
+        Returns
+        -------
+        FrequencyBand
+            :func:`~rlsfilt.validation.frequency_response_band` of the model.
+        """
+        omega = None if self.plant_comparison is None else self.plant_comparison.omega
+        return frequency_response_band(self.model, omega=omega, level=level, n_draws=n_draws,
+                                       rng=rng)
 
     def plot_comparison(self, ax=None, window=None):
         """Measured, simulated and one-step predicted output (MATLAB ``compare``;
