@@ -195,6 +195,7 @@ class IOData:
         Returns
         -------
         IOData
+            A plain `IOData`, also when called on a subclass such as `Dataset`.
 
         Raises
         ------
@@ -261,11 +262,11 @@ class IOData:
             dt = _infer_dt(steps, dt, time)
         elif dt is None:
             dt = True
-        return cls(us if exp_names else us[0], ys if exp_names else ys[0], dt,
-                   input_names=in_cols, output_names=out_cols,
-                   input_units=[units.get(c, "") for c in in_cols],
-                   output_units=[units.get(c, "") for c in out_cols],
-                   experiment_names=exp_names, tstart=tstart or None)
+        return IOData(us if exp_names else us[0], ys if exp_names else ys[0], dt,
+                      input_names=in_cols, output_names=out_cols,
+                      input_units=[units.get(c, "") for c in in_cols],
+                      output_units=[units.get(c, "") for c in out_cols],
+                      experiment_names=exp_names, tstart=tstart or None)
 
     # ------------------------------------------------------------------
     # read-only views
