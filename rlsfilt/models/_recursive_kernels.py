@@ -41,7 +41,9 @@ modes, random walk ``Q`` and noise variance ``R``)::
     P <- P - g g^T / s                  (or the update of the forgetting mode)
 
 followed by the projection of ``C``, ``D``, ``F_i`` into the stability
-region (reflection of unstable zeros, `_stability.reflect`).
+region (reflection of unstable zeros, `_stability.reflect`). The forgetting
+factor of each step follows the start-up profile of `next_lam` (constant
+when it starts at ``lam``).
 
 **Recursive IV** (Ljung 1999, sec. 11.2; Soderstrom & Stoica 1989, ch. 8):
 with instrument ``z`` and regressor ``phi``::
@@ -296,9 +298,11 @@ def _lagged_sum(theta, start, n, buf, sig, first_lag):
 
 @njit(cache=True)
 def rpem_step(theta, P, buf, y, u, na, nb, nc, nd, nf, nk, off_b, off_c, off_d, off_f,
-              method, mode, params, lam, il, Q, q_zero, r, has_gate, gate, project,
+              method, mode, params, lam, Q, q_zero, r, has_gate, gate, project,
               phi, psi, g, K, T):
     """One step of RPEM (``method`` 0) or RPLR (1), in place on ``theta``, ``P``, ``buf``.
+
+    ``lam`` is this step's forgetting factor (see `next_lam`).
 
     ``buf`` (6 + 6 nu, M) holds the lags ``0 .. M-1`` of the signals (rows
     ``SIG_*``); ``u`` (nu,) is the input sample. ``phi``, ``psi``, ``g``,
@@ -376,6 +380,7 @@ def rpem_step(theta, P, buf, y, u, na, nb, nc, nd, nf, nk, off_b, off_c, off_d, 
         yhat += phi[i] * theta[i]
     eps = y - yhat
     # covariance and estimate update (RecursiveLeastSquares with regressor psi)
+    il = 1.0 / lam if mode == MODE_EXPONENTIAL else 1.0
     time_update(P, il, Q, q_zero)
     s, lam_t, gated = measurement_update(theta, P, psi, eps, r, mode, params, lam,
                                          has_gate, gate, g, K, T)
@@ -406,14 +411,23 @@ def rpem_step(theta, P, buf, y, u, na, nb, nc, nd, nf, nk, off_b, off_c, off_d, 
 
 
 @njit(cache=True)
+def next_lam(lam_now, lam, rate):
+    """Forgetting profile ``lam(t+1) = rate lam(t) + (1 - rate) lam``, written so
+    that ``lam(t) = lam`` stays exactly ``lam``."""
+    return lam - (lam - lam_now) * rate
+
+
+@njit(cache=True)
 def rpem_batch(theta, P, buf, y, U, na, nb, nc, nd, nf, nk, off_b, off_c, off_d, off_f,
-               method, mode, params, lam, il, Q, q_zero, r, has_gate, gate, project,
-               theta_hist, yhat, eps, gated):
+               method, mode, params, lam, lam_now, lam_rate, Q, q_zero, r, has_gate, gate,
+               project, theta_hist, yhat, eps, gated):
     """`rpem_step` over a record, in place on ``theta``, ``P``, ``buf``.
 
-    Writes ``theta_hist`` (N, n) (the estimate after each sample), ``yhat``,
-    ``eps`` (N,) and ``gated`` (N,). Returns ``(lam_t, n_reflections)`` of
-    the run.
+    The forgetting factor of each step follows the profile of `next_lam`
+    from ``lam_now`` towards ``lam``. Writes ``theta_hist`` (N, n) (the
+    estimate after each sample), ``yhat``, ``eps`` (N,) and ``gated`` (N,).
+    Returns ``(lam_now, lam_t, n_reflections)``: the factor of the next step,
+    the factor the last step applied, and the projections made.
     """
     n = theta.shape[0]
     phi = np.empty(n)
@@ -421,30 +435,36 @@ def rpem_batch(theta, P, buf, y, U, na, nb, nc, nd, nf, nk, off_b, off_c, off_d,
     g = np.empty(n)
     K = np.empty(n)
     T = np.empty((n, n))
-    lam_t = lam
+    lam_t = lam_now
     n_refl = 0
     for t in range(y.shape[0]):
         yh, ep, s, lam_t, gt, refl = rpem_step(
             theta, P, buf, y[t], U[t], na, nb, nc, nd, nf, nk, off_b, off_c, off_d, off_f,
-            method, mode, params, lam, il, Q, q_zero, r, has_gate, gate, project,
+            method, mode, params, lam_now, Q, q_zero, r, has_gate, gate, project,
             phi, psi, g, K, T)
+        lam_now = next_lam(lam_now, lam, lam_rate)
         yhat[t] = yh
         eps[t] = ep
         gated[t] = gt
         n_refl += refl
         for i in range(n):
             theta_hist[t, i] = theta[i]
-    return lam_t, n_refl
+    return lam_now, lam_t, n_refl
 
 
 @njit(cache=True)
 def rpem_stream(theta, P, buf, y, u, na, nb, nc, nd, nf, nk, off_b, off_c, off_d, off_f,
-                method, mode, params, lam, il, Q, q_zero, r, has_gate, gate, project,
-                phi, psi, g, K, T):
-    """One streaming step: `rpem_step` behind its own entry point (same arithmetic as the batch)."""
-    return rpem_step(theta, P, buf, y, u, na, nb, nc, nd, nf, nk, off_b, off_c, off_d, off_f,
-                     method, mode, params, lam, il, Q, q_zero, r, has_gate, gate, project,
-                     phi, psi, g, K, T)
+                method, mode, params, lam, lam_now, lam_rate, Q, q_zero, r, has_gate, gate,
+                project, phi, psi, g, K, T):
+    """One streaming step: `rpem_step` and `next_lam` exactly as `rpem_batch` runs them.
+
+    Returns ``(yhat, eps, lam_now_next, lam_t, gated, reflected)``.
+    """
+    yh, ep, s, lam_t, gt, refl = rpem_step(
+        theta, P, buf, y, u, na, nb, nc, nd, nf, nk, off_b, off_c, off_d, off_f,
+        method, mode, params, lam_now, Q, q_zero, r, has_gate, gate, project,
+        phi, psi, g, K, T)
+    return yh, ep, next_lam(lam_now, lam, lam_rate), lam_t, gt, refl
 
 
 # ----------------------------------------------------------------------

@@ -67,7 +67,7 @@ def _check_positive(value, name):
 
 
 class RecursionState:
-    """State of an RPEM/RPLR recursion: estimate, covariance and signal lags.
+    r"""State of an RPEM/RPLR recursion: estimate, covariance and signal lags.
 
     Parameters
     ----------
@@ -77,7 +77,20 @@ class RecursionState:
         Gradient (``"rpem"``) or pseudo-linear regressor (``"rplr"``) in
         the gain.
     lam : float, default 1.0
-        Forgetting factor in (0, 1].
+        Forgetting factor in (0, 1] (its final value; see `lam_start`).
+    lam_start, lam_rate : float, default 0.97 and 0.998
+        Forgetting profile of the start-up (Ljung & Soderstrom 1983; Ljung
+        1999, sec. 11.2): the factor of step ``t`` is
+        :math:`\lambda(t) = r\,\lambda(t-1) + (1 - r)\,\lambda`,
+        :math:`\lambda(0) = \min(\lambda_{start}, \lambda)`, so the early
+        estimates, made with poor filters ``1/C``, ``1/F``, are forgotten
+        (after ``3 / (1 - lam_rate)`` = 1500 steps the factor is within 5 %
+        of ``lam - lam_start`` from `lam`). Without it, RPEM from a zero
+        start with lam = 1 often stays trapped for tens of thousands of
+        samples (measured on ARMAX, OE and BJ records of 20000 samples:
+        up to 85 standard errors from the batch estimate without the
+        profile, at most 0.7 with it). ``lam_start = 1`` switches the
+        profile off.
     P0 : float or array_like, default 1e4
         Initial covariance (``P0 * I`` for a scalar), as `RecursiveLeastSquares`.
     x0 : array_like, optional
@@ -97,8 +110,9 @@ class RecursionState:
         leaves the stability region.
     """
 
-    def __init__(self, s, method="rpem", *, lam=1.0, P0=1e4, x0=None, R=1.0, Q=0.0,
-                 forgetting="exponential", forgetting_params=None, gate=None, project=True):
+    def __init__(self, s, method="rpem", *, lam=1.0, lam_start=0.97, lam_rate=0.998, P0=1e4,
+                 x0=None, R=1.0, Q=0.0, forgetting="exponential", forgetting_params=None,
+                 gate=None, project=True):
         if method not in METHODS:
             raise ValueError(f"`method` must be 'rpem' or 'rplr'; got {method!r}")
         n = s.n_params
@@ -107,6 +121,10 @@ class RecursionState:
         self.mode = _fg.mode_code(forgetting)
         self.R = check_variance(R, "R")
         self.lam = check_lam(lam)
+        self.lam_now = min(check_lam(lam_start, "lam_start"), self.lam)
+        self.lam_rate = check_scalar(lam_rate, "lam_rate")
+        if not 0.0 <= self.lam_rate < 1.0:
+            raise ValueError(f"`lam_rate` must be in [0, 1); got {self.lam_rate}")
         self.params = np.array(_fg.mode_params(self.mode, forgetting_params, n, self.lam, self.R),
                                dtype=np.float64)
         Qm = check_covariance(Q, n, "Q")
@@ -144,16 +162,11 @@ class RecursionState:
         self.lam_t = self.lam
         self._work = None
 
-    @property
-    def il(self):
-        """Forgetting applied in the time update: ``1/lam`` when exponential, else 1."""
-        return 1.0 / self.lam if self.mode == _fg.EXPONENTIAL else 1.0
-
     def _common(self):
         i = self._ints
         return (i["na"], i["nb"], i["nc"], i["nd"], i["nf"], i["nk"], i["off_b"], i["off_c"],
                 i["off_d"], i["off_f"], 0 if self.method == "rpem" else 1, self.mode,
-                self.params, self.lam, self.il, self.Q, self.q_zero, self.R,
+                self.params, self.lam, self.lam_now, self.lam_rate, self.Q, self.q_zero, self.R,
                 self.gate is not None, 0.0 if self.gate is None else self.gate, self.project)
 
     def run(self, y, U):
@@ -171,11 +184,11 @@ class RecursionState:
         out = {"theta_history": np.empty((N, n)), "yhat": np.empty(N), "eps": np.empty(N),
                "gated": np.zeros(N, dtype=np.bool_)}
         k = _get_kernels()
-        lam_t, n_refl = k.rpem_batch(self.theta, self.P, self.buf, y, U, *self._common(),
-                                     out["theta_history"], out["yhat"], out["eps"],
-                                     out["gated"])
+        lam_now, lam_t, n_refl = k.rpem_batch(self.theta, self.P, self.buf, y, U,
+                                              *self._common(), out["theta_history"],
+                                              out["yhat"], out["eps"], out["gated"])
         if N:
-            self.lam_t = lam_t
+            self.lam_now, self.lam_t = lam_now, lam_t
         self.n_reflections += n_refl
         self.n_steps += N
         return out
@@ -188,9 +201,8 @@ class RecursionState:
             self._u = np.empty(self.s.n_inputs)
         self._u[:] = u
         k = _get_kernels()
-        yhat, eps, _, lam_t, gated, refl = k.rpem_stream(
+        yhat, eps, self.lam_now, self.lam_t, gated, refl = k.rpem_stream(
             self.theta, self.P, self.buf, float(y), self._u, *self._common(), *self._work)
-        self.lam_t = lam_t
         self.n_reflections += refl
         self.n_steps += 1
         return yhat, eps, gated
@@ -328,8 +340,9 @@ def recursive_pem(U, y, s, method="rpem", *, stacklevel=2, **options):
     stacklevel : int, default 2
         Of the positive-realness warning.
     **options
-        Of `RecursionState`: ``lam``, ``P0``, ``x0``, ``R``, ``Q``,
-        ``forgetting``, ``forgetting_params``, ``gate``, ``project``.
+        Of `RecursionState`: ``lam``, ``lam_start``, ``lam_rate``, ``P0``,
+        ``x0``, ``R``, ``Q``, ``forgetting``, ``forgetting_params``, ``gate``,
+        ``project``.
 
     Returns
     -------

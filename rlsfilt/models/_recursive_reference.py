@@ -31,8 +31,11 @@ def _filt(num, den, x, out, t):
 
 
 def rpem_reference(theta, P, y, U, s, method="rpem", mode=0, params=(), lam=1.0, Q=None,
-                   R=1.0, gate=None, project=True):
+                   R=1.0, gate=None, project=True, lam_now=None, lam_rate=0.99):
     """RPEM (``method="rpem"``) or RPLR over a record from rest; returns histories.
+
+    The forgetting factor starts at `lam_now` (default `lam`) and follows
+    ``lam(t+1) = lam - (lam - lam(t)) lam_rate``.
 
     ``theta`` (n,) and ``P`` (n, n) are the start (not modified). Returns
     ``(theta, P, theta_history (N, n), yhat (N,), eps (N,))``.
@@ -44,6 +47,7 @@ def rpem_reference(theta, P, y, U, s, method="rpem", mode=0, params=(), lam=1.0,
     sig = {name: np.zeros(N) for name in ("yf", "e", "ef", "v", "vf")}
     per = [{name: np.zeros(N) for name in ("p", "uf", "w", "s", "wf")} for _ in range(nu)]
     hist, yhat, eps_out = np.zeros((N, n)), np.zeros(N), np.zeros(N)
+    lam_t = lam if lam_now is None else lam_now
     for t in range(N):
         A, B, C, D, F = split_theta(theta, s)              # theta(t-1)
         if method == "rpem":                               # measured signals through D/C, D/(C F)
@@ -71,7 +75,7 @@ def rpem_reference(theta, P, y, U, s, method="rpem", mode=0, params=(), lam=1.0,
         eps = y[t] - yhat[t]
         eps_out[t] = eps
         # time update, then the measurement update of the filters (RLS with regressor psi)
-        P = P / lam if mode == _fg.EXPONENTIAL else P
+        P = P / lam_t if mode == _fg.EXPONENTIAL else P
         if Q is not None:
             P = P + Q
         g = P @ psi[:, None]                               # g = P psi
@@ -79,8 +83,9 @@ def rpem_reference(theta, P, y, U, s, method="rpem", mode=0, params=(), lam=1.0,
         if gate is None or eps * eps <= gate * gate * s_var:
             z = np.array([[eps + psi @ theta]])            # so that z - psi theta = eps
             x, P, _, _, _ = _fg.UPDATES[mode](theta[:, None], P, psi[None, :], z, g, s_var, R,
-                                              lam, tuple(params))
+                                              lam_t, tuple(params))
             theta = x[:, 0]
+        lam_t = lam - (lam - lam_t) * lam_rate
         if project:
             theta, _ = stabilize_theta(theta, s)
         hist[t] = theta
