@@ -50,9 +50,12 @@ References
    Springer, 2011, ch. 6-7 (refined and simplified refined IV).
 """
 
+import warnings
+
 import numpy as np
 from scipy.signal import lfilter
 
+from ..exceptions import NumericalWarning
 from ._long_ar import levinson_ar
 from ._stability import reflect
 from .regressors import _build
@@ -333,7 +336,7 @@ def fit_iv(U, Y, s, instruments="model", *, prefilter=True, n_iter=10, tol=1e-10
 # ----------------------------------------------------------------------
 def recursive_iv(U, Y, s, instruments="model", *, lam=1.0, Q=None, R=1.0, P0=None, x0=None,
                  k0=None, refresh=None, prefilter=False, theta_aux=None, tol=1e-10,
-                 compiled=True):
+                 cond_max=1e12, compiled=True, stacklevel=2):
     r"""Recursive instrumental variables over an ARX record.
 
     Parameters
@@ -366,9 +369,14 @@ def recursive_iv(U, Y, s, instruments="model", *, lam=1.0, Q=None, R=1.0, P0=Non
         the first ``max(k0, 2 n_params)`` rows).
     tol : float, default 1e-10
         Conditioning check: a step whose denominator satisfies
-        ``|R + phi^T P z| <= tol (R + |phi| |P z|)`` is reported.
+        ``|R + phi^T P z| <= tol (R + |phi| |P z|)`` is skipped (no update)
+        and reported.
+    cond_max : float, default 1e12
+        Largest condition number of the final ``P`` that passes silently.
     compiled : bool, default True
         ``False`` runs the NumPy reference (tests).
+    stacklevel : int, default 2
+        Of the warnings.
 
     Returns
     -------
@@ -376,6 +384,14 @@ def recursive_iv(U, Y, s, instruments="model", *, lam=1.0, Q=None, R=1.0, P0=Non
         With ``theta_history`` (rows, n[, ny]) (NaN before the exact
         start), ``eps`` (a-priori residuals), ``P`` and ``bad_step``
         (first row failing the conditioning check, or None).
+
+    Warns
+    -----
+    NumericalWarning
+        When the conditioning check fails (instruments nearly uncorrelated
+        with the regressors: the gain denominator nearly vanished), or the
+        final ``P`` is not finite or has a condition number above
+        `cond_max`.
     """
     n, ny = s.n_params, Y.shape[1]
     rows = len(U) - s.max_lag
@@ -411,6 +427,7 @@ def recursive_iv(U, Y, s, instruments="model", *, lam=1.0, Q=None, R=1.0, P0=Non
         eps = np.empty((rows, 1))
         Phi = np.empty((rows, n))
         Z = np.empty((rows, n))
+        target = np.empty(rows)
         if compiled:
             k = _get_kernels()
             bad, singular = k.riv_model(
@@ -418,17 +435,16 @@ def recursive_iv(U, Y, s, instruments="model", *, lam=1.0, Q=None, R=1.0, P0=Non
                 np.ascontiguousarray(Y[:, 0], dtype=float), s.na,
                 np.array(s.nb, dtype=np.int64), np.array(s.nk, dtype=np.int64), s.max_lag, k0,
                 alpha, beta, refresh, bool(prefilter), il, Qa, q_zero, float(R), tol,
-                hist, eps, Phi, Z)
+                hist, eps, Phi, Z, target)
         else:
             from ._recursive_reference import riv_model_reference
             bad, singular = riv_model_reference(
                 theta, P, U, Y[:, 0], s, k0, alpha, beta, refresh, prefilter, lam,
-                None if q_zero else Qa, R, tol, hist, eps, Phi, Z)
+                None if q_zero else Qa, R, tol, hist, eps, Phi, Z, target)
         if singular:
             raise ValueError(f"the exact start on the first k0 = {k0} rows is singular "
                              "(Z0^T Phi0 not invertible): use a larger `k0`")
-        target = (lfilter([1.0], np.concatenate([[1.0], alpha]), Y[:, 0])
-                  if prefilter else Y[:, 0])[s.max_lag:, None]
+        target = target[:, None]
     else:
         Phi = _build(U, Y, s, s.max_lag)
         target = Y[s.max_lag:]
@@ -468,6 +484,20 @@ def recursive_iv(U, Y, s, instruments="model", *, lam=1.0, Q=None, R=1.0, P0=Non
             bad = riv_rows_reference(theta, P, Phi[k0:], Z[k0:], target[k0:], lam,
                                      None if q_zero else Qa, R, tol, hist[k0:], eps[k0:])
         bad = bad + k0 if bad >= 0 else bad
+    if bad >= 0:
+        warnings.warn(f"recursive IV: the gain denominator R + phi^T P z nearly vanished at row "
+                      f"{bad} (instruments nearly uncorrelated with the regressors); that "
+                      "update was skipped: use richer instruments or a larger k0",
+                      NumericalWarning, stacklevel=stacklevel)
+    elif not np.isfinite(P).all():
+        warnings.warn("recursive IV: P is not finite at the end of the record",
+                      NumericalWarning, stacklevel=stacklevel)
+    else:
+        cond = np.linalg.cond(P)
+        if not cond <= cond_max:
+            warnings.warn(f"recursive IV: P is ill-conditioned at the end of the record "
+                          f"(condition number {cond:.3g} > {cond_max:.3g}): the instruments "
+                          "hardly excite some direction", NumericalWarning, stacklevel=stacklevel)
     resid = target - Phi @ theta
     return IVFit(theta=theta, P=P, theta_history=hist, eps=eps, Phi=Phi, Z=Z, target=target,
                  residuals=resid, bad_step=None if bad < 0 else int(bad), cov=None,

@@ -55,7 +55,8 @@ with instrument ``z`` and regressor ``phi``::
 
 ``P`` is :math:`(\sum \lambda^{t-k} z \varphi^T)^{-1}`; a denominator ``d``
 near zero relative to ``R + |phi| |g|`` means instruments almost
-uncorrelated with the regressors (the conditioning check).
+uncorrelated with the regressors (the conditioning check): that update is
+skipped and reported.
 """
 
 import numpy as np
@@ -471,12 +472,14 @@ def rpem_stream(theta, P, buf, y, u, na, nb, nc, nd, nf, nk, off_b, off_c, off_d
 # recursive instrumental variables
 # ----------------------------------------------------------------------
 @njit(cache=True)
-def riv_update(theta, P, phi, z, y, r, g, h, K, eps):
+def riv_update(theta, P, phi, z, y, r, tol, g, h, K, eps):
     """One RIV measurement update in place on ``theta`` (n, m) and ``P`` (n, n).
 
     Writes ``g = P z``, ``h = P^T phi``, ``K = g / d`` and the a-priori
-    residuals ``eps`` (m,). Returns ``(d, scale)`` with ``d = r + phi^T P z``
-    and ``scale = r + |phi| |P z|`` for the conditioning check.
+    residuals ``eps`` (m,), with ``d = r + phi^T P z``. When ``|d| <= tol
+    (r + |phi| |P z|)`` (instruments nearly uncorrelated with the regressor
+    in the metric of ``P``) the update is skipped: ``K = 0``, ``theta`` and
+    ``P`` unchanged. Returns whether it was skipped.
     """
     n, m = theta.shape
     for i in range(n):
@@ -502,6 +505,10 @@ def riv_update(theta, P, phi, z, y, r, g, h, K, eps):
         for i in range(n):
             pred += phi[i] * theta[i, c]
         eps[c] = y[c] - pred
+    if not abs(d) > tol * (r + np.sqrt(nphi * ng)):
+        for i in range(n):
+            K[i] = 0.0
+        return True
     for i in range(n):
         K[i] = g[i] / d
     for i in range(n):
@@ -512,7 +519,7 @@ def riv_update(theta, P, phi, z, y, r, g, h, K, eps):
         ki = K[i]
         for j in range(n):
             P[i, j] = P[i, j] - ki * h[j]
-    return d, r + np.sqrt(nphi * ng)
+    return False
 
 
 @njit(cache=True)
@@ -520,8 +527,7 @@ def riv_rows(theta, P, Phi, Z, Y, il, Q, q_zero, r, tol, theta_hist, eps_hist):
     """Recursive IV over given regressor rows ``Phi``, instruments ``Z`` and targets ``Y``.
 
     Writes ``theta_hist`` (N, n, m) and ``eps_hist`` (N, m). Returns the
-    first row whose denominator failed the conditioning check
-    (``|d| <= tol * scale``), or -1.
+    first row whose update `riv_update` skipped (conditioning check), or -1.
     """
     n, m = theta.shape
     g = np.empty(n)
@@ -531,8 +537,8 @@ def riv_rows(theta, P, Phi, Z, Y, il, Q, q_zero, r, tol, theta_hist, eps_hist):
     bad = -1
     for t in range(Phi.shape[0]):
         time_update(P, il, Q, q_zero)
-        d, scale = riv_update(theta, P, Phi[t], Z[t], Y[t], r, g, h, K, eps)
-        if bad < 0 and not abs(d) > tol * scale:
+        skipped = riv_update(theta, P, Phi[t], Z[t], Y[t], r, tol, g, h, K, eps)
+        if bad < 0 and skipped:
             bad = t
         for i in range(n):
             for c in range(m):
@@ -544,7 +550,7 @@ def riv_rows(theta, P, Phi, Z, Y, il, Q, q_zero, r, tol, theta_hist, eps_hist):
 
 @njit(cache=True)
 def riv_model(theta, P, U, y, na, nb, nk, t0, k0, alpha, beta, refresh, prefilter,
-              il, Q, q_zero, r, tol, theta_hist, eps_hist, Phi_out, Z_out):
+              il, Q, q_zero, r, tol, theta_hist, eps_hist, Phi_out, Z_out, Y_out):
     """Recursive IV with instruments from an auxiliary model refreshed every `refresh` rows.
 
     The auxiliary model :math:`\\hat A x = \\sum_i \\hat B_i u_i` (``alpha``
@@ -559,8 +565,8 @@ def riv_model(theta, P, U, y, na, nb, nk, t0, k0, alpha, beta, refresh, prefilte
     ``P`` are the prior.
 
     Writes ``theta_hist`` (rows, n, 1) (NaN before the start), ``eps_hist``
-    (rows, 1), and the rows actually used, ``Phi_out`` and ``Z_out``
-    (rows, n). Returns ``(bad, singular)``: the first row failing the
+    (rows, 1), and the rows actually used, ``Phi_out``, ``Z_out`` (rows, n)
+    and the (prefiltered) targets ``Y_out`` (rows,). Returns ``(bad, singular)``: the first row failing the
     conditioning check (or -1), and whether the exact start was singular.
     """
     N = y.shape[0]
@@ -626,6 +632,7 @@ def riv_model(theta, P, U, y, na, nb, nk, t0, k0, alpha, beta, refresh, prefilte
                 z[j] = uf[t - nk[i] - k, i]
                 j += 1
         yv[0] = yf[t]
+        Y_out[row] = yf[t]
         if row < k0:
             eps_hist[row, 0] = np.nan
             for i in range(n):
@@ -654,8 +661,8 @@ def riv_model(theta, P, U, y, na, nb, nk, t0, k0, alpha, beta, refresh, prefilte
                     theta_hist[row, i, 0] = theta[i, 0]
         else:
             time_update(P, il, Q, q_zero)
-            d, scale = riv_update(theta, P, phi, z, yv, r, g, h, K, eps)
-            if bad < 0 and not abs(d) > tol * scale:
+            skipped = riv_update(theta, P, phi, z, yv, r, tol, g, h, K, eps)
+            if bad < 0 and skipped:
                 bad = row
             eps_hist[row, 0] = eps[0]
             for i in range(n):

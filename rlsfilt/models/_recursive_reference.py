@@ -105,8 +105,12 @@ def rpem_reference(theta, P, y, U, s, method="rpem", mode=0, params=(), lam=1.0,
     return theta, P, hist, yhat, eps_out
 
 
-def _riv_step(theta, P, phi, z, y, lam, Q, R):
-    """One RIV step: ``P <- P/lam + Q``; ``K = P z / (R + phi^T P z)``; ``P <- P - K phi^T P``."""
+def _riv_step(theta, P, phi, z, y, lam, Q, R, tol):
+    """One RIV step: ``P <- P/lam + Q``; ``K = P z / (R + phi^T P z)``; ``P <- P - K phi^T P``.
+
+    Skipped (``theta``, ``P`` after the time update kept) when the
+    denominator fails the conditioning check. Returns ``(theta, P, eps, skipped)``.
+    """
     P = P / lam
     if Q is not None:
         P = P + Q
@@ -114,10 +118,12 @@ def _riv_step(theta, P, phi, z, y, lam, Q, R):
     h = phi @ P                                 # phi^T P
     d = R + phi @ g
     eps = y - phi @ theta
+    if not abs(d) > tol * (R + np.linalg.norm(phi) * np.linalg.norm(g)):
+        return theta, P, eps, True
     K = g / d
     theta = theta + np.outer(K, eps)
     P = P - np.outer(K, h)
-    return theta, P, eps, d, R + np.linalg.norm(phi) * np.linalg.norm(g)
+    return theta, P, eps, False
 
 
 def riv_rows_reference(theta, P, Phi, Z, Y, lam, Q, R, tol, hist, eps_hist):
@@ -125,8 +131,8 @@ def riv_rows_reference(theta, P, Phi, Z, Y, lam, Q, R, tol, hist, eps_hist):
     bad = -1
     th, Pm = theta.copy(), P.copy()
     for t in range(len(Phi)):
-        th, Pm, eps, d, scale = _riv_step(th, Pm, Phi[t], Z[t], Y[t], lam, Q, R)
-        if bad < 0 and not abs(d) > tol * scale:
+        th, Pm, eps, skipped = _riv_step(th, Pm, Phi[t], Z[t], Y[t], lam, Q, R, tol)
+        if bad < 0 and skipped:
             bad = t
         hist[t] = th
         eps_hist[t] = eps
@@ -136,7 +142,7 @@ def riv_rows_reference(theta, P, Phi, Z, Y, lam, Q, R, tol, hist, eps_hist):
 
 
 def riv_model_reference(theta, P, U, y, s, k0, alpha, beta, refresh, prefilter, lam, Q, R,
-                        tol, hist, eps_hist, Phi_out, Z_out):
+                        tol, hist, eps_hist, Phi_out, Z_out, Y_out):
     """`_recursive_kernels.riv_model` in NumPy (same arguments, in place)."""
     N, nu = U.shape
     na = s.na
@@ -164,7 +170,7 @@ def riv_model_reference(theta, P, U, y, s, k0, alpha, beta, refresh, prefilter, 
                        + [uf[t - s.nk[i] - k, i] for i in range(nu) for k in range(s.nb[i])])
         z = np.array([-xf[t - k] for k in range(1, na + 1)]
                      + [uf[t - s.nk[i] - k, i] for i in range(nu) for k in range(s.nb[i])])
-        Phi_out[row], Z_out[row] = phi, z
+        Phi_out[row], Z_out[row], Y_out[row] = phi, z, yf[t]
         if row < k0:
             hist[row] = np.nan
             eps_hist[row] = np.nan
@@ -176,8 +182,8 @@ def riv_model_reference(theta, P, U, y, s, k0, alpha, beta, refresh, prefilter, 
                 th = (Pm @ (Z_out[:k0].T @ yf[t0:t0 + k0]))[:, None]
                 hist[row] = th
         else:
-            th, Pm, eps, d, scale = _riv_step(th, Pm, phi, z, np.array([yf[t]]), lam, Q, R)
-            if bad < 0 and not abs(d) > tol * scale:
+            th, Pm, eps, skipped = _riv_step(th, Pm, phi, z, np.array([yf[t]]), lam, Q, R, tol)
+            if bad < 0 and skipped:
                 bad = row
             hist[row] = th
             eps_hist[row] = eps
