@@ -1,4 +1,10 @@
-r"""ARX models: structure, batch and recursive fits, and the python-control bridge.
+r"""ARX models: the estimator (batch and recursive least squares) and its parameter layout.
+
+This is the one module that knows how ``theta_`` is laid out (``_split``,
+``param_names_``, the difference equation); everything generic comes from
+`IdentifiedModel`: conversion to python-control and scipy
+(:mod:`._conversion`, from :meth:`ARX.polydata`), the summary table
+(:mod:`._summary`) and polynomial algebra (:mod:`._polynomials`).
 
 `ARX` is an estimator in the scikit-learn manner (``__init__`` stores the
 orders, ``fit`` returns ``self``, learned quantities end in ``_``) for the
@@ -8,15 +14,16 @@ convention and the translation table to SIPPY and the lecture notes.
 
 import html
 import inspect
-import numbers
 
 import numpy as np
 from scipy import signal
 from scipy.linalg import lapack, solve_triangular
 
-from .._validation import as_float_array, check_dt, check_finite, check_int, check_scalar
-from ..exceptions import NotFittedError
+from .._validation import as_float_array, check_finite, check_int, check_scalar
 from ..filters import RecursiveLeastSquares
+from . import _conversion
+from ._base import IdentifiedModel, Polynomials
+from ._summary import EQUATION_STYLES, ModelSummary
 from .regressors import (
     _as_signal,
     _build,
@@ -28,12 +35,8 @@ from .regressors import (
 
 __all__ = ["ARX", "ARXSummary"]
 
-# learned attributes that only some fits set, and which ones
-_ONLY_SET_BY = {name: "fit(..., method='rls')" for name in
-                ("theta_history_", "recursive_residuals_", "k0_", "filter_")}
-_ONLY_SET_BY["noise_covariance_"] = "a fit on 2-D `y` (several outputs)"
 
-class ARX:
+class ARX(IdentifiedModel):
     r"""ARX model ``A(q) y(t) = B(q) u(t - nk) + e(t)`` fitted by batch or recursive least squares.
 
     Parameters
@@ -167,6 +170,11 @@ class ARX:
     (array([-1.5,  0.7]), array([1. , 0.5]))
     """
 
+    # learned attributes that only some fits set, and which ones
+    _ONLY_SET_BY = {**{name: "fit(..., method='rls')" for name in
+                       ("theta_history_", "recursive_residuals_", "k0_", "filter_")},
+                    "noise_covariance_": "a fit on 2-D `y` (several outputs)"}
+
     def __init__(self, na, nb, nk=1, dt=True):
         self.na = na
         self.nb = nb
@@ -174,55 +182,10 @@ class ARX:
         self.dt = dt
 
     # ------------------------------------------------------------------
-    # scikit-learn estimator protocol
-    # ------------------------------------------------------------------
-    def get_params(self, deep=True):
-        """Constructor parameters as a dict (scikit-learn protocol).
-
-        Parameters
-        ----------
-        deep : bool, default True
-            Accepted for scikit-learn compatibility; ARX has no nested
-            estimators.
-
-        Returns
-        -------
-        dict
-            ``{"na": .., "nb": .., "nk": .., "dt": ..}``.
-        """
-        return {"na": self.na, "nb": self.nb, "nk": self.nk, "dt": self.dt}
-
-    def set_params(self, **params):
-        """Set constructor parameters (scikit-learn protocol).
-
-        Parameters
-        ----------
-        **params
-            New values of ``na``, ``nb``, ``nk`` or ``dt``; call :meth:`fit`
-            again afterwards.
-
-        Returns
-        -------
-        self : ARX
-
-        Raises
-        ------
-        TypeError
-            For a name that is not a constructor parameter.
-        """
-        valid = self.get_params()
-        for key, value in params.items():
-            if key not in valid:
-                raise TypeError(f"`{key}` is not a parameter of ARX; valid parameters are "
-                                f"{sorted(valid)}")
-            setattr(self, key, value)
-        return self
-
-    # ------------------------------------------------------------------
     # structure
     # ------------------------------------------------------------------
     def _structure(self, n_inputs, n_outputs):
-        check_dt(self.dt)
+        self._check_dt()
         return arx_structure(self.na, self.nb, self.nk, n_inputs, n_outputs)
 
     def regressors(self, u, y):
@@ -395,53 +358,20 @@ class ARX:
         self.n_outputs_ = s.n_outputs
         y_1d, u_1d = info["y_1d"], info["u_1d"]
         self.theta_ = theta[:, 0].copy() if y_1d else theta.copy()
-        a_sl, b_sls = s.param_slices()
-        A = theta[a_sl].reshape(s.n_outputs, s.na, s.n_outputs).transpose(2, 0, 1)
-        self._A = A                                       # (ny, ny, na)
-        self._B = [theta[sl].T.copy() for sl in b_sls]    # list of (ny, nb_j)
+        A, self._B = _split(theta, s)
+        self._A = A
         self.a_ = A[0, 0].copy() if y_1d else A.copy()
         Bs = [b[0].copy() if y_1d else b.copy() for b in self._B]
         self.b_ = Bs[0] if u_1d else Bs
 
     # ------------------------------------------------------------------
-    # fitted-model helpers
+    # the IdentifiedModel interface: structure, names, polynomials
     # ------------------------------------------------------------------
-    def __getattr__(self, name):
-        # only reached when normal lookup fails (also when a property raised
-        # AttributeError): say *why* a learned attribute is missing
-        learned = name.endswith("_") or isinstance(getattr(type(self), name, None), property)
-        if learned and not name.startswith("_"):
-            if "theta_" not in self.__dict__:
-                self._check_fitted(name)
-            if name in _ONLY_SET_BY:
-                raise AttributeError(f"`{name}` is only set by {_ONLY_SET_BY[name]}")
-        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
-
-    def _check_fitted(self, what):
-        if "theta_" not in self.__dict__:
-            raise NotFittedError(
-                f"This ARX instance is not fitted yet; call `fit(u, y)` before using `{what}`.")
-
-    @property
-    def n_params(self):
-        """Number of parameters per output (``ny * na + sum(nb)``); needs a fit."""
-        self._check_fitted("n_params")
-        return self.n_params_
-
     @property
     def max_lag(self):
         """``max(na, nk + nb - 1)``: samples lost at the start of a record; needs a fit."""
         self._check_fitted("max_lag")
         return self.structure_.max_lag
-
-    @property
-    def std_errors_(self):
-        """One standard error per parameter, the shape of ``theta_``."""
-        self._check_fitted("std_errors_")
-        cov = self.theta_cov_
-        if cov.ndim == 2:
-            return np.sqrt(np.diag(cov))
-        return np.sqrt(np.diagonal(cov, axis1=1, axis2=2)).T
 
     @property
     def param_names_(self):
@@ -457,39 +387,59 @@ class ARX:
             names += [f"b{k}{tag}" for k in range(1, s.nb[j] + 1)]
         return names
 
-    def _y_name(self, i):
-        names = self._info.get("y_names")
-        if names:
-            return names[i]
-        return "y" if self._info["y_1d"] else f"y{i + 1}"
+    @property
+    def orders_(self):
+        """The fitted orders ``{"na": int, "nb": tuple, "nk": tuple}`` (one ``nb``, ``nk`` per
+        input), which ``set_params`` after the fit does not change."""
+        self._check_fitted("orders_")
+        s = self.structure_
+        return {"na": s.na, "nb": tuple(s.nb), "nk": tuple(s.nk)}
 
-    def _u_name(self, j):
-        names = self._info.get("u_names")
-        if names:
-            return names[j]
-        return "u" if self._info["u_1d"] else f"u{j + 1}"
+    def polydata(self, theta=None):
+        """The model as MATLAB's polynomials ``A, B, C, D, F`` (``C = D = F = 1``).
+
+        Parameters
+        ----------
+        theta : array_like, shape of ``theta_``, optional
+            Parameters in ``theta_`` order (``theta_`` by default).
+
+        Returns
+        -------
+        Polynomials
+            ``A`` of shape ``(ny, ny, na + 1)``, ``B`` of shape
+            ``(ny, nu, max(nk + nb))`` with ``nk`` leading zeros per input,
+            and ``C``, ``D``, ``F`` equal to one.
+
+        Examples
+        --------
+        >>> from rlsfilt import ARX
+        >>> p = ARX.from_polynomials([-1.5, 0.7], [1.0, 0.5], nk=2).polydata()
+        >>> p.A[0, 0], p.B[0, 0], p.F[0, 0]
+        (array([ 1. , -1.5,  0.7]), array([0. , 0. , 1. , 0.5]), array([1.]))
+        """
+        self._check_fitted("polydata")
+        s = self.structure_
+        if theta is None:
+            A, B = self._A, self._B
+        else:
+            theta = np.asarray(theta, dtype=float)
+            if theta.size != s.n_params * s.n_outputs:
+                raise ValueError(f"`theta` must have the shape of `theta_` "
+                                 f"{np.shape(self.theta_)}; got {theta.shape}")
+            A, B = _split(theta.reshape(s.n_params, s.n_outputs), s)
+        ny, nu = s.n_outputs, s.n_inputs
+        Apoly = np.zeros((ny, ny, s.na + 1))
+        Apoly[:, :, 0] = np.eye(ny)
+        Apoly[:, :, 1:] = A
+        lb = max(k + b for k, b in zip(s.nk, s.nb))
+        Bpoly = np.zeros((ny, nu, lb))
+        for j in range(nu):
+            Bpoly[:, j, s.nk[j]:s.nk[j] + s.nb[j]] = B[j]
+        return Polynomials(A=Apoly, B=Bpoly, C=np.ones((ny, 1)), D=np.ones((ny, 1)),
+                           F=np.ones((ny, nu, 1)))
 
     def _theta2(self):
         return self.theta_.reshape(self.n_params_, -1)
-
-    def _data(self, u, y=None):
-        """Validate data against the fitted signal counts."""
-        s = self.structure_
-        if y is None:
-            U, _, _ = _as_signal(u, "u")
-            Y = None
-        else:
-            U, Y, _ = as_io_data(u, y)
-            if Y.shape[1] != s.n_outputs:
-                raise ValueError(f"`y` must have {s.n_outputs} output column(s) as in `fit`; "
-                                 f"got {Y.shape[1]}")
-        if U.shape[1] != s.n_inputs:
-            raise ValueError(f"`u` must have {s.n_inputs} input column(s) as in `fit`; "
-                             f"got {U.shape[1]}")
-        return U, Y
-
-    def _shape_out(self, Yh):
-        return Yh[:, 0] if self._info["y_1d"] else Yh
 
     def _input_part(self, U):
         """``sum_j B_j(q) u_j(t)`` with zero inputs before t = 0, shape (N, ny)."""
@@ -543,8 +493,7 @@ class ARX:
         self._check_fitted("predict")
         U, Y = self._data(u, y)
         N = len(U)
-        if isinstance(horizon, numbers.Real) and not isinstance(horizon, numbers.Integral) \
-                and horizon == np.inf:
+        if self._horizon_is_inf(horizon):
             horizon = N
         horizon = check_int(horizon, "horizon", minimum=1)
         if horizon >= N:
@@ -646,166 +595,10 @@ class ARX:
         (array([ 1. , -1.5,  0.7]), array([0. , 0. , 1. , 0.5]))
         """
         self._check_fitted("polynomials")
-        Apoly, Bpoly = self._poly_matrices()
+        p = self.polydata()
         if self._info["y_1d"] and self._info["u_1d"]:
-            return Apoly[0, 0], Bpoly[0, 0]
-        return Apoly, Bpoly
-
-    def _poly_matrices(self):
-        s = self.structure_
-        ny, nu = s.n_outputs, s.n_inputs
-        Apoly = np.zeros((ny, ny, s.na + 1))
-        Apoly[:, :, 0] = np.eye(ny)
-        Apoly[:, :, 1:] = self._A
-        lb = max(k + b for k, b in zip(s.nk, s.nb))
-        Bpoly = np.zeros((ny, nu, lb))
-        for j in range(nu):
-            Bpoly[:, j, s.nk[j]:s.nk[j] + s.nb[j]] = self._B[j]
-        return Apoly, Bpoly
-
-    def _tf_data(self, noise):
-        """Numerators and denominators ``[i][j]`` in powers of ``q^-1``, padded."""
-        Apoly, Bpoly = self._poly_matrices()
-        ny = Apoly.shape[0]
-        Am = [[_trim(Apoly[i, j]) for j in range(ny)] for i in range(ny)]
-        det = _trim(_poly_det(Am))
-        adj = _poly_adj(Am)
-        if noise:
-            cols = [[np.array([1.0 if i == j else 0.0]) for j in range(ny)] for i in range(ny)]
-        else:
-            cols = [[Bpoly[i, j] for j in range(Bpoly.shape[1])] for i in range(ny)]
-        nums, dens = [], []
-        for i in range(ny):
-            row_n, row_d = [], []
-            for j in range(len(cols[0])):
-                num = np.zeros(1)
-                for k in range(ny):
-                    num = _padd(num, np.convolve(adj[i][k], cols[k][j]))
-                num, den = _equalize(num, det)
-                row_n.append(num)
-                row_d.append(den)
-            nums.append(row_n)
-            dens.append(row_d)
-        return nums, dens
-
-    def to_tf(self, noise=False):
-        r"""The model as a ``control.TransferFunction`` with sampling time ``dt``.
-
-        ``G(z) = z^{-nk} B(z^{-1}) / A(z^{-1})`` with numerator and
-        denominator in positive powers of ``z``, zero-padded to equal length
-        so that a feed-through ``b1`` (``nk = 0``) and every delay are exact.
-        Several inputs or outputs give the matrix transfer function
-        ``A(q)^{-1} B(q)`` (entries over the common denominator
-        ``det A``).
-
-        Parameters
-        ----------
-        noise : bool, default False
-            Return the noise model ``H(z) = 1 / A(z^{-1})`` (matrix
-            ``A^{-1}`` for several outputs) instead.
-
-        Returns
-        -------
-        control.TransferFunction
-            SISO, or ``ny`` x ``nu`` (``ny`` x ``ny`` for the noise model).
-
-        Examples
-        --------
-        The lecture notes' ``y[k] = 0.5 y[k-1] + 2 u[k] + u[k-1]`` keeps its
-        feed-through ``b0 = 2``; a delay of 3 samples gives ``z^3`` below:
-
-        >>> from rlsfilt import ARX
-        >>> G = ARX.from_polynomials([-0.5], [2.0, 1.0], nk=0, dt=0.1).to_tf()
-        >>> G.num[0][0], G.den[0][0]
-        (array([2., 1.]), array([ 1. , -0.5]))
-        >>> G = ARX.from_polynomials([-0.5], [2.0], nk=3, dt=0.1).to_tf()
-        >>> G.num[0][0], G.den[0][0]
-        (array([2.]), array([ 1. , -0.5,  0. ,  0. ]))
-        """
-        self._check_fitted("to_tf")
-        import control
-
-        nums, dens = self._tf_data(noise)
-        if len(nums) == 1 and len(nums[0]) == 1:
-            return control.tf(nums[0][0], dens[0][0], self.dt)
-        return control.tf(nums, dens, self.dt)
-
-    def _ss_matrices(self, noise=False):
-        """Observer-form realization ``(A, B, C, D)`` of the difference equation."""
-        s = self.structure_
-        ny = s.n_outputs
-        if noise:
-            nu = ny
-            lb = 1
-            Bt = np.zeros((1, ny, nu))
-            Bt[0] = np.eye(ny)
-        else:
-            nu = s.n_inputs
-            _, Bpoly = self._poly_matrices()
-            lb = Bpoly.shape[2]
-            Bt = Bpoly.transpose(2, 0, 1)  # Bt[k] multiplies u(t-k), (ny, nu)
-        n = max(s.na, lb - 1)
-        Ak = [self._A[:, :, k - 1] if k <= s.na else np.zeros((ny, ny)) for k in range(1, n + 1)]
-        Bk = [Bt[k] if k < lb else np.zeros((ny, nu)) for k in range(n + 1)]
-        D = Bk[0]
-        Am = np.zeros((n * ny, n * ny))
-        Bm = np.zeros((n * ny, nu))
-        for i in range(n):
-            blk = slice(i * ny, (i + 1) * ny)
-            Am[blk, 0:ny] = -Ak[i]                 # x_i(t+1) = x_{i+1}(t) - A_i y(t) + B_i u(t)
-            if i + 1 < n:
-                Am[blk, (i + 1) * ny:(i + 2) * ny] = np.eye(ny)
-            Bm[blk] = Bk[i + 1] - Ak[i] @ D        # y(t) = x_1(t) + D u(t)
-        Cm = np.zeros((ny, n * ny))
-        if n:  # a static gain (na = 0, nk = 0, nb = 1) has no state
-            Cm[:, :ny] = np.eye(ny)
-        return Am, Bm, Cm, D.copy()
-
-    def to_ss(self, noise=False):
-        r"""The model as a ``control.StateSpace`` (observer canonical form).
-
-        States are ``x_1 = y(t) - D u(t)`` and the partial sums of the
-        difference equation; the realization has ``ny * max(na, nk + nb - 1)``
-        states and ``D = b1`` when ``nk = 0``.
-
-        Parameters
-        ----------
-        noise : bool, default False
-            Realize the noise model ``A(q)^{-1}`` instead of the input model.
-
-        Returns
-        -------
-        control.StateSpace
-            With sampling time ``dt``.
-        """
-        self._check_fitted("to_ss")
-        import control
-
-        return control.ss(*self._ss_matrices(noise), self.dt)
-
-    def to_dlti(self, noise=False):
-        """The model as a ``scipy.signal.dlti``.
-
-        Parameters
-        ----------
-        noise : bool, default False
-            Return the noise model ``A(q)^{-1}`` instead.
-
-        Returns
-        -------
-        scipy.signal.dlti
-            A ``TransferFunction`` (positive powers of ``z``) for one input
-            and one output, a ``StateSpace`` (the realization of
-            :meth:`to_ss`) otherwise.
-        """
-        self._check_fitted("to_dlti")
-        if self.n_outputs_ == 1 and (self.n_inputs_ == 1 or noise):
-            nums, dens = self._tf_data(noise)
-            num = nums[0][0]
-            lead = np.flatnonzero(num)
-            num = num[lead[0]:] if len(lead) else np.zeros(1)  # exact: z^k factors, den kept
-            return signal.dlti(num, dens[0][0], dt=self.dt)
-        return signal.dlti(*self._ss_matrices(noise), dt=self.dt)
+            return p.A[0, 0], p.B[0, 0]
+        return p.A, p.B
 
     # ------------------------------------------------------------------
     # construction from a true plant
@@ -907,45 +700,8 @@ class ARX:
         >>> model.na, model.nb, model.nk
         (2, 2, 1)
         """
-        import control
-
-        if not isinstance(G, control.LTI):
-            raise TypeError(f"`G` must be a discrete python-control LTI system (control.tf, "
-                            f"control.ss); got {type(G).__name__}")
-        if not isinstance(G, control.TransferFunction):
-            G = control.tf(G)
-        if not G.isdtime(strict=True):
-            raise ValueError(f"`G` must be a discrete-time transfer function; got dt={G.dt!r}")
-        ny, nu = G.noutputs, G.ninputs
-        A_rows, B_rows = [], []
-        for i in range(ny):
-            # each entry in powers of q^-1: den_q = [1, a1, ..] (trailing zeros, i.e. poles
-            # at z = 0, dropped), num_q = numerator shifted by the relative degree
-            ents = []
-            for j in range(nu):
-                den = np.trim_zeros(np.asarray(G.den[i][j], float), "f")
-                num = np.trim_zeros(np.asarray(G.num[i][j], float), "f")
-                if len(num) > len(den):
-                    raise ValueError(f"`G` must be proper (causal); entry ({i}, {j}) has a "
-                                     f"numerator of degree {len(num) - 1} over a denominator "
-                                     f"of degree {len(den) - 1}")
-                num_q = np.concatenate([np.zeros(len(den) - len(num)), num]) / den[0]
-                ents.append((num_q if len(num) else np.zeros(1), _trim(den / den[0])))
-            common = []  # distinct denominators of the row; their product is A_i
-            for _, d in ents:
-                if not any(_same_poly(c, d) for c in common):
-                    common.append(d)
-            den = np.array([1.0])
-            for c in common:
-                den = np.convolve(den, c)
-            row = []
-            for num, d in ents:
-                for c in common:
-                    if not _same_poly(c, d):
-                        num = np.convolve(num, c)
-                row.append(_trim(num))
-            A_rows.append(_trim(den))
-            B_rows.append(row)
+        A_rows, B_rows = _conversion.from_tf(G)
+        ny, nu = len(B_rows), len(B_rows[0])
         na = max(len(a) for a in A_rows) - 1
         nk, nb = [], []
         for j in range(nu):
@@ -985,21 +741,6 @@ class ARX:
     # ------------------------------------------------------------------
     # display
     # ------------------------------------------------------------------
-    def _orders_text(self):
-        return f"ARX(na={self.na!r}, nb={self.nb!r}, nk={self.nk!r}, dt={self.dt!r})"
-
-    def summary(self):
-        """A printable and notebook-friendly summary: equations with +- one standard error.
-
-        Returns
-        -------
-        ARXSummary
-            ``print`` it for text (with a parameter table), or display it in
-            a notebook for HTML.
-        """
-        self._check_fitted("summary")
-        return ARXSummary(self)
-
     def _equation_lines(self, style="text"):
         """The difference equation of each output with +- one standard error.
 
@@ -1010,7 +751,7 @@ class ARX:
         se = self.std_errors_.reshape(self.n_params_, -1)
         th = self._theta2()
         _, b_sls = s.param_slices()
-        fmt = _EQUATION_STYLES[style]
+        fmt = EQUATION_STYLES[style]
         lines = []
         for i in range(s.n_outputs):
             lhs = [fmt["signal"](self._y_name(i), 0)]
@@ -1025,8 +766,15 @@ class ARX:
             lines.append(" ".join(lhs) + fmt["equals"] + " ".join([first] + rhs[1:]) + " + e(t)")
         return lines
 
-    def _summary_text(self):
+    def _summary_lines(self, style="text"):
+        """Orders, method, noise variance and the difference equation(s) (text or HTML)."""
         s = self.structure_
+        nv = ", ".join(f"{v:.4g}" for v in np.atleast_1d(self.noise_variance_))
+        if style == "html":
+            esc = html.escape
+            return ([f"<p><b>{esc(self._orders_text())}</b>, {self.n_samples_} equations, "
+                     f"noise variance {nv}</p>"]
+                    + [f"<p><code>{line}</code></p>" for line in self._equation_lines("html")])
         how = {"ls": "batch least squares (QR)", "rls": "recursive least squares",
                "true": "given coefficients (no fit)"}[self.method_]
         if self.method_ == "rls":
@@ -1035,17 +783,24 @@ class ARX:
             how += f" (lam={f.lam:g}, {start})"
         out = [f"{self._orders_text()}: {s.n_inputs} input(s), {s.n_outputs} output(s), "
                f"{s.n_params} parameters per output",
-               f"  estimated by {how} on {self.n_samples_} equations"]
-        nv = np.atleast_1d(self.noise_variance_)
-        out.append("  noise variance (unbiased): " + ", ".join(f"{v:.4g}" for v in nv))
-        out.append("  difference equation (estimate +/- 1 standard error):")
+               f"  estimated by {how} on {self.n_samples_} equations",
+               f"  noise variance (unbiased): {nv}",
+               "  difference equation (estimate +/- 1 standard error):"]
         out += ["    " + line for line in self._equation_lines()]
-        return "\n".join(out)
+        return out
 
-    def __repr__(self):
-        if "theta_" not in self.__dict__:
-            return self._orders_text()
-        return self._summary_text()
+    def summary(self):
+        """A printable and notebook-friendly summary: equations and a coefficient table.
+
+        Returns
+        -------
+        ARXSummary
+            ``print`` it for text, or display it in a notebook for HTML;
+            the table has statsmodels' columns (``coef``, ``std err``,
+            ``t``, ``P>|t|`` and the 95 % interval).
+        """
+        self._check_fitted("summary")
+        return ARXSummary(self)
 
     def _repr_latex_(self):
         """The difference equation(s) with one standard error, for notebooks."""
@@ -1054,65 +809,20 @@ class ARX:
         lines = self._equation_lines("latex")
         return "$$\\begin{aligned}" + " \\\\ ".join(lines) + "\\end{aligned}$$"
 
-    def _repr_html_(self):
-        if "theta_" not in self.__dict__:
-            return f"<pre>{html.escape(self._orders_text())}</pre>"
-        return ARXSummary(self)._repr_html_()
 
-
-class ARXSummary:
+class ARXSummary(ModelSummary):
     """Summary of a fitted `ARX`: ``print`` it, or display it in a notebook.
+
+    The difference equation with one standard error per coefficient, then
+    the coefficient table of :class:`~rlsfilt.models.ModelSummary`.
 
     Attributes
     ----------
     model : ARX
         The summarized model.
+    table : dict
+        The coefficient table (see :class:`~rlsfilt.models.ModelSummary`).
     """
-
-    def __init__(self, model):
-        self.model = model
-
-    def as_text(self):
-        """The summary as plain text, with a parameter table."""
-        m = self.model
-        names = m.param_names_
-        th = m._theta2()
-        se = m.std_errors_.reshape(m.n_params_, -1)
-        lines = [m._summary_text(), ""]
-        for i in range(m.n_outputs_):
-            if m.n_outputs_ > 1:
-                lines.append(f"  output {m._y_name(i)}")
-            lines.append(f"  {'param':>12} {'estimate':>13} {'std err':>11} {'t':>9}")
-            for p, name in enumerate(names):
-                tval = th[p, i] / se[p, i] if se[p, i] > 0 else np.nan
-                lines.append(f"  {name:>12} {th[p, i]:13.6g} {se[p, i]:11.4g} {tval:9.3g}")
-        return "\n".join(lines)
-
-    def __str__(self):
-        return self.as_text()
-
-    def __repr__(self):
-        return self.as_text()
-
-    def _repr_html_(self):
-        m = self.model
-        names = m.param_names_
-        th = m._theta2()
-        se = m.std_errors_.reshape(m.n_params_, -1)
-        esc = html.escape
-        parts = [f"<p><b>{esc(m._orders_text())}</b>, {m.n_samples_} equations, noise "
-                 "variance " + ", ".join(f"{v:.4g}" for v in np.atleast_1d(m.noise_variance_))
-                 + "</p>"]
-        parts += [f"<p><code>{line}</code></p>" for line in m._equation_lines("html")]
-        head = "".join(f"<th>{esc(m._y_name(i))} estimate</th><th>std err</th>"
-                       for i in range(m.n_outputs_))
-        rows = []
-        for p, name in enumerate(names):
-            cells = "".join(f"<td>{th[p, i]:.6g}</td><td>{se[p, i]:.4g}</td>"
-                            for i in range(m.n_outputs_))
-            rows.append(f"<tr><td>{esc(name)}</td>{cells}</tr>")
-        parts.append(f"<table><tr><th>param</th>{head}</tr>{''.join(rows)}</table>")
-        return "".join(parts)
 
 
 # ----------------------------------------------------------------------
@@ -1130,40 +840,6 @@ def _check_filter_options(options):
         if name not in valid:
             raise TypeError(f"`{name}` is not an option of ARX.fit or RecursiveLeastSquares; "
                             f"the filter's other options are {valid}")
-
-
-def _latex_name(name):
-    """``y1`` -> ``y_{1}``; other names in \\mathrm."""
-    if len(name) > 1 and name[0] in "uy" and name[1:].isdigit():
-        return f"{name[0]}_{{{name[1:]}}}"
-    if len(name) == 1:
-        return name
-    special = {c: "\\" + c for c in "&%$#_{}"}
-    special.update({"~": "\\textasciitilde{}", "^": "\\textasciicircum{}",
-                    "\\": "\\textbackslash{}"})
-    return "\\mathrm{" + "".join(special.get(c, c) for c in name) + "}"
-
-
-def _fmt(t):
-    return t[0] if len(set(t)) == 1 and len(t) == 1 else list(t)
-
-
-def _signal(name, lag):
-    return f"{name}(t)" if lag == 0 else f"{name}(t-{lag})"
-
-
-def _sign(value):
-    return "-" if value < 0 else "+"
-
-
-_EQUATION_STYLES = {
-    "text": {"signal": _signal, "equals": " = ",
-             "term": lambda v, e, arg: f"{_sign(v)} {abs(v):.5g} (+/-{e:.2g}) {arg}"},
-    "html": {"signal": lambda name, lag: _signal(html.escape(name), lag), "equals": " = ",
-             "term": lambda v, e, arg: f"{_sign(v)} {abs(v):.5g} (&plusmn;{e:.2g}) {arg}"},
-    "latex": {"signal": lambda name, lag: _signal(_latex_name(name), lag), "equals": " &= ",
-              "term": lambda v, e, arg: f"{_sign(v)} {abs(v):.5g}\\,(\\pm {e:.2g})\\, {arg}"},
-}
 
 
 def _qr_least_squares(Phi, target):
@@ -1186,62 +862,19 @@ def _qr_least_squares(Phi, target):
     return theta, 0.5 * (cov + cov.T)
 
 
-def _same_poly(p, q):
-    """Equal coefficient arrays to round-off (same length)."""
-    return len(p) == len(q) and np.allclose(p, q, rtol=1e-12, atol=0)
 
 
-def _trim(p):
-    """Drop trailing zeros of a polynomial in ``q^-1`` (keep at least one coefficient)."""
-    p = np.asarray(p, dtype=float)
-    nz = np.flatnonzero(p)
-    return p[:nz[-1] + 1].copy() if len(nz) else np.zeros(1)
+def _split(theta, s):
+    """The ARX parameter layout, in one place: ``theta`` (n_params, ny) -> ``(A, [B_j])``.
 
-
-def _padd(p, q):
-    n = max(len(p), len(q))
-    out = np.zeros(n)
-    out[:len(p)] += p
-    out[:len(q)] += q
-    return out
-
-
-def _equalize(num, den):
-    """Zero-pad two ``q^-1`` polynomials to equal length, then cancel common ``q^-1`` factors.
-
-    Equal length makes the coefficient arrays valid in positive powers of
-    ``z`` as they stand (both are multiplied by the same ``z^L``).
+    ``A`` has shape (ny, ny, na) with ``A[i, j, k-1]`` the coefficient of
+    ``y_j(t-k)`` in the equation of output ``i``; ``B_j`` has shape
+    (ny, nb_j) with ``B_j[i, m]`` multiplying ``u_j(t - nk_j - m)``.
     """
-    n = max(len(num), len(den))
-    num = np.concatenate([num, np.zeros(n - len(num))])
-    den = np.concatenate([den, np.zeros(n - len(den))])
-    while n > 1 and num[-1] == 0.0 and den[-1] == 0.0:
-        num, den, n = num[:-1], den[:-1], n - 1
-    return num, den
+    a_sl, b_sls = s.param_slices()
+    A = theta[a_sl].reshape(s.n_outputs, s.na, s.n_outputs).transpose(2, 0, 1)
+    return A, [theta[sl].T.copy() for sl in b_sls]
 
 
-def _poly_det(M):
-    """Determinant of a square matrix of ``q^-1`` polynomials (cofactor expansion)."""
-    n = len(M)
-    if n == 1:
-        return M[0][0]
-    det = np.zeros(1)
-    for j in range(n):
-        minor = [row[:j] + row[j + 1:] for row in M[1:]]
-        term = np.convolve(M[0][j], _poly_det(minor))
-        det = _padd(det, term if j % 2 == 0 else -term)
-    return det
-
-
-def _poly_adj(M):
-    """Adjugate of a square matrix of polynomials: ``adj(M) M = det(M) I``."""
-    n = len(M)
-    if n == 1:
-        return [[np.array([1.0])]]
-    adj = [[None] * n for _ in range(n)]
-    for i in range(n):
-        for j in range(n):
-            minor = [row[:j] + row[j + 1:] for k, row in enumerate(M) if k != i]
-            c = _poly_det(minor)
-            adj[j][i] = c if (i + j) % 2 == 0 else -c
-    return adj
+def _fmt(t):
+    return t[0] if len(set(t)) == 1 and len(t) == 1 else list(t)

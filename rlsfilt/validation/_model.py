@@ -1,35 +1,26 @@
-"""What the validation functions need from a fitted model.
+"""What the validation functions take from a fitted model.
 
-Everything goes through the public ARX interface (``regressors``,
-``theta_``, ``na``/``nb``/``nk``, ``to_tf``), so any model with that
-interface can be validated.
+Only the declared interface, :class:`rlsfilt.models.IdentifiedModel`:
+``regressors`` and ``theta_`` (the one-step predictor in regression form),
+``param_names_``, ``theta_cov_``, ``n_samples_``, ``simulate``, ``predict``,
+``polydata``/``frequency_response``/``to_tf`` and ``dt``. A new model class
+is validated with no change here.
 """
 
 import numpy as np
 
-from ..exceptions import NotFittedError
+from ..models._base import check_is_fitted
 
 __all__ = []
 
 
-def check_fitted(model, name="model"):
-    """Raise `NotFittedError` (or `TypeError`) unless `model` is a fitted ARX-like model."""
-    for attr in ("regressors", "to_tf"):
-        if not callable(getattr(model, attr, None)):
-            raise TypeError(f"`{name}` must be a fitted ARX model (with `regressors` and "
-                            f"`to_tf`); got {type(model).__name__}")
-    if getattr(model, "theta_", None) is None:
-        raise NotFittedError(f"this {type(model).__name__} is not fitted yet; call "
-                             "`fit(u, y)` before validating it")
-
-
-def one_step(model, u, y):
+def one_step(model, u, y, what="validate"):
     """Regressors, targets and one-step residuals of `model` on ``(u, y)``.
 
-    Returns ``(Phi, target, residuals)`` with rows ``t = t0 .. N-1``;
+    Returns ``(Phi, target, residuals)`` with rows ``t = max_lag .. N-1``;
     `target` and `residuals` are 2-D ``(n, ny)``.
     """
-    check_fitted(model)
+    check_is_fitted(model, what)
     Phi, target = model.regressors(u, y)
     target = np.asarray(target, dtype=float)
     if target.ndim == 1:
@@ -38,29 +29,18 @@ def one_step(model, u, y):
     if theta.ndim == 1:
         theta = theta[:, None]
     if Phi.shape[1] != theta.shape[0] or target.shape[1] != theta.shape[1]:
-        nu, ny = getattr(model, "n_inputs_", "?"), getattr(model, "n_outputs_", theta.shape[1])
-        raise ValueError(f"`u` and `y` must have the {nu} input and {ny} output column(s) the "
-                         f"model was fitted with; got `u` of shape {np.shape(u)} and `y` of "
-                         f"shape {np.shape(y)}")
+        raise ValueError(f"`u` and `y` must have the {model.n_inputs_} input and "
+                         f"{model.n_outputs_} output column(s) the model was fitted with; got "
+                         f"`u` of shape {np.shape(u)} and `y` of shape {np.shape(y)}")
     return Phi, target, target - Phi @ theta
-
-
-def orders(model):
-    """``(na, nb tuple, nk tuple)`` of `model`: the fitted structure when known
-    (constructor parameters may have been changed by ``set_params`` since)."""
-    s = getattr(model, "structure_", None)
-    if s is not None:
-        return s.na, tuple(s.nb), tuple(s.nk)
-    na = int(model.na)
-    nb = np.atleast_1d(np.asarray(model.nb, dtype=int))
-    nk = np.atleast_1d(np.asarray(model.nk, dtype=int))
-    if nk.size == 1 and nb.size > 1:
-        nk = np.repeat(nk, nb.size)
-    if nb.size == 1 and nk.size > 1:
-        nb = np.repeat(nb, nk.size)
-    return na, tuple(int(b) for b in nb), tuple(int(k) for k in nk)
 
 
 def n_params(model):
     """Total number of estimated parameters (all outputs)."""
     return int(np.asarray(model.theta_).size)
+
+
+def model_name(model):
+    """``ARX(na=2, nb=2, nk=1)``: the class and its constructor parameters but ``dt``."""
+    args = ", ".join(f"{k}={v!r}" for k, v in model.get_params().items() if k != "dt")
+    return f"{type(model).__name__}({args})"

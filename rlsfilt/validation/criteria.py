@@ -180,14 +180,19 @@ def information_criteria(model, u, y):
     >>> ic.n_samples, ic.n_params
     (499, 2)
     """
-    _, _, e = one_step(model, u, y)
+    _, _, e = one_step(model, u, y, "information_criteria")
+    return _from_residuals(e, n_params(model))
+
+
+def _from_residuals(e, d):
+    """`information_criteria` from the one-step residuals `e` (N, ny) and `d` parameters."""
     N, ny = e.shape
     cov = (e.T @ e) / N
     V = float(np.linalg.det(cov)) if ny > 1 else float(cov[0, 0])
     if not V > 0.0:
         raise ValueError("the residuals are zero (an exact fit); information criteria are "
                          "undefined")
-    return _criteria(V, N, n_params(model), ny)
+    return _criteria(V, N, d, ny)
 
 
 def _criteria(V, N, d, ny=1):

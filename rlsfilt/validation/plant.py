@@ -13,6 +13,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from .._validation import as_float_array, check_int
+from ..models._base import IdentifiedModel, check_is_fitted
 from ..plotting import _axes, _bode_axes, _figure
 
 __all__ = ["PlantComparison"]
@@ -292,16 +293,12 @@ def _model_tf(model):
 
     if isinstance(model, control.LTI):
         sys = model
-    elif callable(getattr(model, "to_tf", None)):
-        if getattr(model, "theta_", None) is None:
-            from ..exceptions import NotFittedError
-
-            raise NotFittedError(f"this {type(model).__name__} is not fitted yet; call "
-                                 "`fit(u, y)` before comparing it with a plant")
+    elif isinstance(model, IdentifiedModel):
+        check_is_fitted(model, "PlantComparison")
         sys = model.to_tf()
     else:
-        raise TypeError("`model` must be a fitted ARX model or a python-control LTI system; "
-                        f"got {type(model).__name__}")
+        raise TypeError("`model` must be a fitted ARX model or a python-control LTI system "
+                        f"(or another rlsfilt IdentifiedModel); got {type(model).__name__}")
     if not sys.isdtime():
         raise ValueError("`model` must be a discrete-time system (an identified model); got a "
                          "continuous-time one")

@@ -4,11 +4,13 @@ import html
 
 import numpy as np
 
+from .._validation import check_int, check_probability
 from ..plotting import _axes, _figure
-from .criteria import information_criteria
+from ._model import model_name, n_params, one_step
+from .criteria import _from_residuals
 from .metrics import fit_percent
 from .plant import PlantComparison
-from .residuals import residual_analysis
+from .residuals import _residual_analysis
 from .uncertainty import parameter_intervals
 
 __all__ = ["ValidationReport", "validate"]
@@ -173,8 +175,7 @@ class ValidationReport:
         return ax
 
     def _model_name(self):
-        m = self.model
-        return f"{type(m).__name__}(na={m.na!r}, nb={m.nb!r}, nk={m.nk!r})"
+        return model_name(self.model)
 
 
 def validate(model, u, y, plant=None, *, max_lag=25, alpha=0.01):
@@ -221,12 +222,13 @@ def validate(model, u, y, plant=None, *, max_lag=25, alpha=0.01):
     >>> report.passed, bool(report.plant_comparison.frequency_error < 0.1)
     (True, True)
     """
-    resid0 = residual_analysis(model, u, y, max_lag=max_lag, alpha=alpha)
+    max_lag = check_int(max_lag, "max_lag", minimum=1)
+    alpha = check_probability(alpha, "alpha")
+    Phi, _, E = one_step(model, u, y, "validate")      # the regressors, built once
+    residuals = tuple(_residual_analysis(Phi, E, u, max_lag, alpha, output=i)
+                      for i in range(E.shape[1]))
+    resid0 = residuals[0]
     Y = np.asarray(y, dtype=float)
-    ny = 1 if Y.ndim == 1 else Y.shape[1]
-    residuals = (resid0,) + tuple(
-        residual_analysis(model, u, y, max_lag=max_lag, alpha=alpha, output=i)
-        for i in range(1, ny))
     start = len(Y) - len(resid0.residuals)  # max_lag of the model
     y0 = Y[:start]
     y_sim = np.asarray(model.simulate(u, y0=y0 if start else None), dtype=float)
@@ -238,7 +240,7 @@ def validate(model, u, y, plant=None, *, max_lag=25, alpha=0.01):
         simulation_fit=fit_percent(Y[start:], y_sim[start:]),
         prediction_fit=fit_percent(Y[start:], y_pred[start:]),
         residuals=residuals,
-        criteria=information_criteria(model, u, y),
+        criteria=_from_residuals(E, n_params(model)),
         intervals=parameter_intervals(model),
         plant_comparison=None if plant is None else PlantComparison(model, plant),
     )

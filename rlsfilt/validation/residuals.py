@@ -261,7 +261,12 @@ def residual_analysis(model, u, y, max_lag=25, alpha=0.01, *, output=0, model_df
     """
     max_lag = check_int(max_lag, "max_lag", minimum=1)
     alpha = check_probability(alpha, "alpha")
-    Phi, _, E = one_step(model, u, y)
+    Phi, _, E = one_step(model, u, y, "residual_analysis")
+    return _residual_analysis(Phi, E, u, max_lag, alpha, output, model_df)
+
+
+def _residual_analysis(Phi, E, u, max_lag, alpha, output=0, model_df=0):
+    """`residual_analysis` on the regressors `Phi` and residuals `E` (n, ny) of a model."""
     ny = E.shape[1]
     output = check_int(output, "output", minimum=0)
     if output >= ny:

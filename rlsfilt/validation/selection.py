@@ -14,7 +14,7 @@ import numbers
 import numpy as np
 
 from .._validation import check_dt, check_int
-from ..models.regressors import as_io_data
+from ..models.regressors import _build, arx_structure, as_io_data
 from ..plotting import _axes
 from .criteria import _criteria
 
@@ -343,11 +343,7 @@ def _as_given(X, was_1d, names):
 
 
 def _full_regressor(U, Y, na_max, kmin, kmax, t_max):
-    """Columns ``-y(t-1..na_max)`` then per input ``u(t-kmin..kmax)``, rows t_max..N-1."""
-    N = len(Y)
-    t = np.arange(t_max, N)
-    cols = [-Y[t - k, 0] for k in range(1, na_max + 1)]
-    for j in range(U.shape[1]):
-        cols += [U[t - k, j] for k in range(kmin, kmax + 1)]
-    Psi = np.column_stack(cols) if cols else np.zeros((len(t), 0))
-    return Psi, Y[t, 0]
+    """The regressors of ``ARX(na_max, kmax - kmin + 1, kmin)``, rows t_max..N-1: columns
+    ``-y(t-1..na_max)`` then per input ``u(t-kmin..kmax)``, every candidate a column subset."""
+    s = arx_structure(na_max, kmax - kmin + 1, kmin, U.shape[1], 1)
+    return _build(U, Y, s, t_max), Y[t_max:, 0]

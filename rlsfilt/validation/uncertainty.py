@@ -6,14 +6,12 @@ covariance of the least-squares estimate under white equation error
 (Ljung 1999, sec. 9.2).
 """
 
-import math
-
 import numpy as np
-from scipy.stats import t as student_t
 
 from .._validation import as_float_array, as_generator, check_int, check_probability
+from ..models._base import check_is_fitted
+from ..models._summary import coefficient_statistics
 from ..plotting import _bode_axes, _figure
-from ._model import check_fitted, orders
 from .plant import frequency_grid
 
 __all__ = ["FrequencyBand", "ParameterIntervals", "frequency_response_band",
@@ -44,14 +42,12 @@ class ParameterIntervals:
         self.std_error = std_error
         self.level = level
         self.dof = dof
-        self.quantile = float(student_t.ppf(0.5 + level / 2.0, dof)) if dof > 0 else math.inf
         # a zero standard error (a true model) gives a zero-width interval, even when
-        # the quantile is infinite (no spare equations): inf * 0 is never formed
-        std_error = np.asarray(std_error, dtype=float)
-        half = np.zeros_like(std_error)
-        np.multiply(self.quantile, std_error, out=half, where=std_error != 0)
-        self.lower = estimate - half
-        self.upper = estimate + half
+        # the quantile is infinite (no spare equations)
+        stats = coefficient_statistics(estimate, std_error, dof, level)
+        self.quantile = stats["quantile"]
+        self.lower = stats["lower"]
+        self.upper = stats["upper"]
 
     def contains(self, theta):
         """Which entries of `theta` lie inside their interval.
@@ -256,7 +252,7 @@ def parameter_intervals(model, level=0.95):
     >>> bool(ci.contains([-0.8, 0.5]).all())
     True
     """
-    check_fitted(model)
+    check_is_fitted(model, "parameter_intervals")
     level = check_probability(level, "level")
     theta = np.asarray(model.theta_, dtype=float)
     cov = np.asarray(model.theta_cov_, dtype=float)
@@ -264,8 +260,8 @@ def parameter_intervals(model, level=0.95):
         se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     else:  # (ny, p, p): one covariance per output
         se = np.sqrt(np.clip(np.diagonal(cov, axis1=1, axis2=2), 0.0, None)).T
-    names = list(getattr(model, "param_names_", [f"theta{i}" for i in range(theta.shape[0])]))
-    dof = int(getattr(model, "n_samples_", 0)) - theta.shape[0]
+    names = list(model.param_names_)
+    dof = int(model.n_samples_) - theta.shape[0]
     return ParameterIntervals(names, theta.copy(), se.reshape(theta.shape), level, dof)
 
 
@@ -301,10 +297,11 @@ def frequency_response_band(model, omega=None, level=0.95, n_draws=1000, rng=Non
 
     .. math::
 
-        G(e^{j\omega T}) = A(e^{-j\omega T})^{-1}\, e^{-j\omega T n_k}\,
-                            B(e^{-j\omega T})
+        G(e^{j\omega T}) = A(e^{-j\omega T})^{-1}\, B(e^{-j\omega T}) /
+                            F(e^{-j\omega T})
 
-    is evaluated (a ratio of polynomials for one output); the band is the
+    is evaluated from the model's polynomials (``model.frequency_response``,
+    a ratio of polynomials for one output); the band is the
     pointwise quantiles of its magnitude and (unwrapped) phase. Sampling
     avoids the linearization of the Gauss approximation formula (Ljung 1999,
     sec. 9.4), which fails near lightly damped poles where :math:`G` is far
@@ -329,7 +326,7 @@ def frequency_response_band(model, omega=None, level=0.95, n_draws=1000, rng=Non
     >>> band.magnitude_upper.shape
     (1, 1, 300)
     """
-    check_fitted(model)
+    check_is_fitted(model, "frequency_response_band")
     level = check_probability(level, "level")
     n_draws = check_int(n_draws, "n_draws", minimum=2)
     theta = np.asarray(model.theta_, dtype=float)
@@ -338,8 +335,9 @@ def frequency_response_band(model, omega=None, level=0.95, n_draws=1000, rng=Non
     omega = frequency_grid(omega, dt, 300)
     gen = as_generator(rng)
     draws = Theta + _parameter_noise(model, Theta.shape, n_draws, gen)   # (n, p, ny)
-    G_nom = _response(Theta[None], model, omega, dt)[0]
-    G = _response(draws, model, omega, dt)                     # (n, ny, nu, n_points)
+    G_nom = model.frequency_response(omega)
+    G = np.stack([model.frequency_response(omega, theta=th.reshape(theta.shape))
+                  for th in draws])                            # (n, ny, nu, n_points)
     mag = np.abs(G)
     phase = np.degrees(np.unwrap(np.angle(G), axis=-1))
     # align each draw's unwrapped phase with the nominal one (remove 360 deg jumps)
@@ -377,34 +375,6 @@ def _parameter_noise(model, shape, n_draws, gen):
         return L_M @ Z @ L_S.T
     # no cross-covariance known: outputs drawn independently from their own blocks
     return np.stack([_factor(cov[i]) @ Z[:, :, i:i + 1] for i in range(ny)], axis=2)[..., 0]
-
-
-def _response(thetas, model, omega, dt):
-    """``G = A^-1 B`` for each parameter matrix in `thetas` (n, p, ny): (n, ny, nu, n_points)."""
-    na, nb, nk = orders(model)
-    n, _, ny = thetas.shape
-    zinv = np.exp(-1j * omega * dt)                            # e^{-j w T}
-    P = omega.size
-    start = ny * na
-    Bz = np.empty((n, ny, len(nb), P), dtype=complex)
-    for j, (b, k0) in enumerate(zip(nb, nk)):
-        powers = zinv[None, :] ** (k0 + np.arange(b))[:, None]   # (b, P)
-        # B_j for every equation i: sum_m theta[start + m, i] z^-(nk + m)
-        Bz[:, :, j] = np.einsum("nmi,mp->nip", thetas[:, start:start + b], powers)
-        start += b
-    if ny == 1:
-        A = np.ones((n, P), dtype=complex)
-        for k in range(1, na + 1):
-            A += thetas[:, k - 1, 0:1] * zinv ** k
-        with np.errstate(divide="ignore", invalid="ignore"):
-            return Bz / A[:, None, None, :]
-    # A[i, j](z) = delta_ij + sum_k theta[j * na + k - 1, i] z^-k
-    Az = np.broadcast_to(np.eye(ny, dtype=complex)[None, :, :, None], (n, ny, ny, P)).copy()
-    for j in range(ny):
-        for k in range(1, na + 1):
-            Az[:, :, j, :] += thetas[:, j * na + k - 1, :, None] * zinv[None, None, :] ** k
-    G = np.linalg.solve(Az.transpose(0, 3, 1, 2), Bz.transpose(0, 3, 1, 2))
-    return G.transpose(0, 2, 3, 1)
 
 
 def _db(x):
