@@ -8,7 +8,20 @@ A filterpy-style toolkit: `RecursiveLeastSquares` mirrors filterpy's
 from . import datasets, validation  # public subpackages: rlsfilt.datasets, rlsfilt.validation
 from .exceptions import ForgettingSkippedWarning, NotFittedError, NumericalWarning
 from .filters import RecursiveLeastSquares, SlidingWindowRLS, SquareRootRLS
-from .models import ARX
+from .models import (
+    AR,
+    ARMA,
+    ARMAX,
+    ARX,
+    BJ,
+    OE,
+    RecursiveAR,
+    RecursiveARMA,
+    RecursiveARMAX,
+    RecursiveARX,
+    RecursiveBJ,
+    RecursiveOE,
+)
 from .validation import fit_percent, select_order, validate
 
 __version__ = "0.1.0"
@@ -18,6 +31,17 @@ __all__ = [
     "SlidingWindowRLS",
     "SquareRootRLS",
     "ARX",
+    "ARMAX",
+    "OE",
+    "BJ",
+    "AR",
+    "ARMA",
+    "RecursiveARMAX",
+    "RecursiveOE",
+    "RecursiveBJ",
+    "RecursiveARX",
+    "RecursiveAR",
+    "RecursiveARMA",
     "datasets",
     "validation",
     "validate",
