@@ -38,6 +38,7 @@ from scipy.signal import lfilter
 
 from rlsfilt import RecursiveLeastSquares
 
+plt.rcParams.update({"figure.dpi": 150, "savefig.dpi": 150})   # sharp figures
 rng = np.random.default_rng(11)"""),
     ("md", r"""## A simulated plant in the notes' form
 
@@ -199,6 +200,7 @@ from filterpy.kalman import KalmanFilter
 
 from rlsfilt import RecursiveLeastSquares
 
+plt.rcParams.update({"figure.dpi": 150, "savefig.dpi": 150})   # sharp figures
 rng = np.random.default_rng(5)"""),
     ("md", r"""## A plant whose gain drifts
 
@@ -318,7 +320,9 @@ import numpy as np
 
 from rlsfilt import ARX, RecursiveLeastSquares, SlidingWindowRLS
 from rlsfilt.datasets import prbs, time_varying
-from rlsfilt.plotting import plot_parameters, plot_trace, plot_tracking"""),
+from rlsfilt.plotting import plot_parameters, plot_trace, plot_tracking
+
+plt.rcParams.update({"figure.dpi": 150, "savefig.dpi": 150})   # sharp figures"""),
     ("md", r"""## A parameter jump
 
 `rlsfilt.datasets.time_varying` simulates the ARX(2, 2, 1) plant
@@ -354,6 +358,36 @@ for lam in (0.9, 0.95, 0.98, 0.99, 0.995):
     settle = int(np.argmax(np.convolve(after < 0.05, np.ones(20), "valid") == 20))
     rms = np.sqrt(np.nanmean(err[200:jump - lag] ** 2))
     print(f"{lam:6.3f} {1 / (1 - lam):7.0f} {settle:19d} {rms:26.4f}")"""),
+    ("md", r"""### Try it: a forgetting-factor slider
+
+`show(lam)` fits the model recursively with forgetting factor `lam` and draws the estimates over the
+filter's one-step errors (`plot_tracking` of an `ARX` fitted with `method="rls"`). Here it is for
+$\lambda = 0.95$; in a live Jupyter session with `ipywidgets` installed, the cell after it gives a
+slider (the rendered documentation shows only this static figure)."""),
+    ("code", r"""from IPython.display import display
+
+
+def show(lam=0.98):
+    model = ARX(*ds.orders, dt=ds.dt).fit(ds.u, ds.y, method="rls", lam=lam)
+    lag = model.max_lag
+    fig = plot_tracking(model, t=ds.t[lag:], true_values=ds.theta_true[lag:],
+                        xlabel="time (s)")
+    fig.axes[0].set_ylim(-2, 1.5)
+    fig.suptitle(f"lam = {lam:.3f}: memory about {1 / (1 - lam):.0f} samples"
+                 if lam < 1 else "lam = 1: no forgetting")
+    display(fig)
+    plt.close(fig)
+
+
+show(0.95)"""),
+    ("code", r"""try:
+    import ipywidgets as widgets
+except ImportError:  # no widgets: the static figure above is the whole story
+    widgets = None
+if widgets is not None:
+    widgets.interact(show, lam=widgets.FloatSlider(
+        value=0.98, min=0.90, max=1.0, step=0.005, readout_format=".3f",
+        continuous_update=False, description="lam"))""", {"tags": ["remove-output"]}),
     ("md", r"""## Covariance windup
 
 Exponential forgetting divides $P$ by $\lambda$ at every step, also in directions the data no longer
@@ -373,13 +407,18 @@ Phi, z = ARX(2, 2, 1).regressors(u, y)          # rows phi(t) for t = 2 .. N-1
 truth = np.array([th_before if t < N1 + N2 else th_after for t in range(2, len(y))])
 k0 = 8                                          # batch start on the first 8 rows
 t_axis = np.arange(2 + k0, len(y))"""),
-    ("code", r"""filters = {
-    "exponential": RecursiveLeastSquares(4, lam=0.98),
-    "directional": RecursiveLeastSquares(4, lam=0.98, forgetting="directional"),
-    "constant_trace": RecursiveLeastSquares(4, lam=0.98, forgetting="constant_trace"),
-    "efra": RecursiveLeastSquares(4, lam=0.98, forgetting="efra"),
-    "variable": RecursiveLeastSquares(4, lam=0.98, forgetting="variable"),
-    "random walk Q": RecursiveLeastSquares(4, Q=1e-4, R=0.05 ** 2),
+    ("md", r"""Every filter gets `R` = the noise variance ($0.05^2$): then $P$ is the covariance of the estimate
+in the units of the parameters, and the $\pm 2\sigma$ bands drawn below have the right width. (The
+estimates of exponential, directional, constant-trace and EFRA forgetting do not depend on `R`;
+variable forgetting uses it to judge which residuals are large.)"""),
+    ("code", r"""R = 0.05 ** 2                                   # the noise variance
+filters = {
+    "exponential": RecursiveLeastSquares(4, lam=0.98, R=R),
+    "directional": RecursiveLeastSquares(4, lam=0.98, R=R, forgetting="directional"),
+    "constant_trace": RecursiveLeastSquares(4, lam=0.98, R=R, forgetting="constant_trace"),
+    "efra": RecursiveLeastSquares(4, lam=0.98, R=R, forgetting="efra"),
+    "variable": RecursiveLeastSquares(4, lam=0.98, R=R, forgetting="variable"),
+    "random walk Q": RecursiveLeastSquares(4, Q=1e-4, R=R),
 }
 runs = {}
 for name, f in filters.items():
@@ -423,23 +462,24 @@ every parameter stays within 0.05 of the new plant):
   re-tracks slowly after the change, because it has "forgotten" little;
 * **constant trace** rescales $P$ to a fixed trace (Goodwin & Sin 1984);
 * **EFRA** (Salgado, Goodwin & Middleton 1988) bounds $P$ between two limits;
-* **variable** forgetting (Fortescue et al. 1981) forgets only when the residuals are large;
+* **variable** forgetting (Fortescue et al. 1981) forgets only when the residuals are large
+  compared with the noise level `R`, so it needs `R` to be the noise variance;
 * a **random walk** $Q$ (the Kalman view) makes $P$ grow linearly, not exponentially; over a long
   hold that is still enough covariance to overshoot, so $Q$ has to match how fast the plant really
   drifts.
 
-No scheme wins everywhere: directional and variable forgetting barely move while the plant is
-constant, and for the same reason re-track a sudden change slowly."""),
-    ("code", r"""fig, axes = plt.subplots(2, 1, figsize=(10, 6.5), sharex=True)
+No scheme wins everywhere: directional forgetting barely moves while the plant is constant and for
+the same reason re-tracks a sudden change slowly; constant trace settles late; EFRA and variable
+forgetting overshoot a little but settle fast."""),
+    ("code", r"""fig, axes = plt.subplots(2, 1, figsize=(10, 6.5), sharex=True, layout="constrained")
 for name, (m, c) in runs.items():
-    axes[0].plot(t_axis, m[:, 2], lw=1, label=name)
-    axes[1].plot(t_axis, np.trace(c, axis1=1, axis2=2), lw=1, label=name)
+    plot_trace((m, c), t=t_axis, label=name, ax=axes[1], xlabel="sample $t$")
+    axes[0].plot(t_axis, m[:, 2], lw=1, label=name, color=axes[1].get_lines()[-1].get_color())
 axes[0].plot(t_axis, truth[k0:, 2], "k:", label="true $b_1$")
 axes[0].set(ylabel="$b_1$ estimate", ylim=(-1, 3), title="held input from t = 500 to 2500")
-axes[1].set(yscale="log", ylabel=r"$\mathrm{tr}\,P$", xlabel="sample t")
-axes[0].legend(ncol=4, fontsize="small")
+axes[0].legend(loc="upper left", bbox_to_anchor=(1.01, 1), frameon=False, fontsize="small")
 for ax in axes:
-    ax.axvspan(N1, N1 + N2, color="0.9")"""),
+    ax.axvspan(N1, N1 + N2, color="0.92", zorder=0)"""),
     ("md", r"""`rlsfilt.plotting.plot_tracking` draws the parameter trajectories with their $\pm 2\sigma$ bands
 and $\mathrm{tr}\,P$ in one figure, here for EFRA:"""),
     ("code", r"""m, c = runs["efra"]
@@ -497,7 +537,10 @@ import numpy as np
 
 from rlsfilt import ARX, select_order, validate
 from rlsfilt.datasets import nonminimum_phase, time_varying
-from rlsfilt.validation import cusum, cusum_squares"""),
+from rlsfilt.plotting import plot_plant_comparison
+from rlsfilt.validation import cusum, cusum_squares, frequency_response_band
+
+plt.rcParams.update({"figure.dpi": 150, "savefig.dpi": 150})   # sharp figures"""),
     ("md", r"""## Estimation and validation data
 
 The plant is a non-minimum-phase process, $G(s) = (1 - s/0.5)/((s+1)(0.5 s+1))$, sampled with a
@@ -537,18 +580,14 @@ print("zeros  true:", np.round(G_true.zeros().real, 4), " model:", np.round(G_mo
 print(f"DC gain true: {G_true.dcgain():.4f}  model: {G_model.dcgain():.4f}")
 np.testing.assert_allclose(np.sort(G_model.poles().real), np.sort(G_true.poles().real), atol=0.01)
 np.testing.assert_allclose(G_model.zeros().real, G_true.zeros().real, rtol=0.01)"""),
-    ("code", r"""omega = np.logspace(-2, np.log10(np.pi / est.dt), 300)
-fig, axes = plt.subplots(1, 3, figsize=(13, 3.8), layout="constrained")
-for G, name, style in ((G_true, "true plant", "-"), (G_model, "ARX(2, 2, 1)", "--")):
-    resp = G.frequency_response(omega)
-    axes[0].loglog(omega, np.ravel(resp.magnitude), style, label=name)
-    axes[1].semilogx(omega, np.degrees(np.unwrap(np.ravel(resp.phase))), style, label=name)
-    step = control.step_response(G, T=np.arange(60) * est.dt)
-    axes[2].plot(step.time, np.ravel(step.outputs), style, label=name)
-axes[0].set(title="Bode magnitude", xlabel=r"$\omega$ [rad/s]", ylabel="|G|")
-axes[1].set(title="Bode phase", xlabel=r"$\omega$ [rad/s]", ylabel="phase [deg]")
-axes[2].set(title="Step response", xlabel="t [s]", ylabel="y")
-axes[2].legend();"""),
+    ("md", r"""`report.plant_comparison` holds the comparison behind those numbers; with the model's 95 %
+uncertainty band (`frequency_response_band`, parameter draws from the estimate's covariance) the
+true plant lies inside the band over the whole frequency range:"""),
+    ("code", r"""comparison = report.plant_comparison
+band = frequency_response_band(model, omega=comparison.omega, rng=0)
+print(f"plant inside the band at {band.contains(comparison.response_plant).mean():.0%} "
+      "of the frequencies")
+fig = plot_plant_comparison(comparison, band=band)"""),
     ("code", r"""fig, ax = plt.subplots(figsize=(4.5, 4.5))
 theta = np.linspace(0, 2 * np.pi, 200)
 ax.plot(np.cos(theta), np.sin(theta), "k", lw=0.5)
@@ -585,15 +624,29 @@ assert not r.passed"""),
 residuals of RLS (the one-step errors of the notes' algorithm, normalized): if the parameters are
 constant their cumulative sums stay within the lines (except in a fraction `alpha` = 5 % of
 experiments: a false alarm); a parameter change drives them out."""),
-    ("code", r"""fig, axes = plt.subplots(1, 2, figsize=(11, 3.5), layout="constrained")
+    ("md", r"""The tests run on the rows of the regression `Phi, z = model.regressors(u, y)`; row `r` is
+sample `r + max_lag` of the record. Passing the sample of each row as `t` puts the marks on the
+record's own time axis."""),
+    ("code", r"""fig, axes = plt.subplots(1, 2, figsize=(13, 3.8), layout="constrained")
 for ax, ds, title in ((axes[0], val, "constant plant"),
                       (axes[1], time_varying(rng=0), "parameter jump at t = 1000")):
     Phi, z = ARX(*ds.orders).regressors(ds.u, ds.y)
+    t = np.arange(len(ds.y) - len(z), len(ds.y))          # the sample of each row
     result = cusum_squares(z, Phi)
-    result.plot(ax=ax)
-    ax.set_title(f"{title}: constancy rejected = {result.rejected}")
-    print(f"{title:28s} CUSUM rejected: {cusum(z, Phi).rejected}, "
-          f"CUSUM of squares rejected: {result.rejected}")"""),
+    result.plot(ax=ax, t=t)
+    ax.set_title(f"{title}\n" + ax.get_title())
+    line = (f"{title:28s} CUSUM rejected: {cusum(z, Phi).rejected}, "
+            f"CUSUM of squares rejected: {result.rejected}")
+    if result.rejected:
+        m = len(result.index)                              # the diagonal (r - k) / m
+        k = np.argmax(np.abs(result.statistic - np.arange(1, m + 1) / m))
+        departure = t[result.index[k]]
+        line += (f" (first crossing at sample {t[result.crossings[0]]}, "
+                 f"largest departure at sample {departure})")
+    print(line)"""),
+    ("md", r"""After the jump the residuals are larger, so the normalized sum of squares $S_t$ grows slowly
+at first and leaves the band early (the first crossing, long before the change); the place where it
+departs furthest from the diagonal, sample 999, dates the change at t = 1000."""),
 ]
 
 # ----------------------------------------------------------------------
@@ -802,9 +855,9 @@ def build(cells):
     nb.metadata["kernelspec"] = {"name": "python3", "display_name": "Python 3",
                                  "language": "python"}
     nb.metadata["language_info"] = {"name": "python"}
-    for kind, src in cells:
+    for kind, src, *meta in cells:   # an optional third item is the cell's metadata (tags)
         make = nbformat.v4.new_markdown_cell if kind == "md" else nbformat.v4.new_code_cell
-        nb.cells.append(make(src.strip("\n")))
+        nb.cells.append(make(src.strip("\n"), metadata=meta[0] if meta else {}))
     for i, cell in enumerate(nb.cells):   # stable ids keep diffs small
         cell["id"] = f"cell-{i:02d}"
     return nb

@@ -5,8 +5,17 @@ A filterpy-style toolkit: `RecursiveLeastSquares` mirrors filterpy's
 ``P``, ``K``, ``y``, ``S``) so it drops in beside Kalman filters.
 """
 
+# first, so that the subpackages can read it (the JSON results carry it)
+__version__ = "0.1.0"
+
 from . import datasets, validation  # public subpackages: rlsfilt.datasets, rlsfilt.validation
-from .exceptions import ForgettingSkippedWarning, NotFittedError, NumericalWarning
+from .exceptions import (
+    ExactFitError,
+    ForgettingSkippedWarning,
+    InsufficientDataError,
+    NotFittedError,
+    NumericalWarning,
+)
 from .filters import RecursiveLeastSquares, SlidingWindowRLS, SquareRootRLS
 from .models import (
     AR,
@@ -23,8 +32,6 @@ from .models import (
     RecursiveOE,
 )
 from .validation import fit_percent, select_order, validate
-
-__version__ = "0.1.0"
 
 __all__ = [
     "RecursiveLeastSquares",
@@ -48,6 +55,8 @@ __all__ = [
     "select_order",
     "fit_percent",
     "NotFittedError",
+    "InsufficientDataError",
+    "ExactFitError",
     "NumericalWarning",
     "ForgettingSkippedWarning",
     "__version__",

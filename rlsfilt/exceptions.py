@@ -4,11 +4,23 @@ They subclass the builtins a caller would expect, so ``except ValueError``
 keeps working, while ``except NotFittedError`` lets a caller be precise.
 """
 
-__all__ = ["NotFittedError", "NumericalWarning", "ForgettingSkippedWarning"]
+__all__ = ["NotFittedError", "InsufficientDataError", "ExactFitError", "NumericalWarning",
+           "ForgettingSkippedWarning"]
 
 
 class NotFittedError(ValueError, AttributeError):
     """A model was used before ``fit`` was called."""
+
+
+class InsufficientDataError(ValueError):
+    """A record is too short for what was asked: too few samples for the model's
+    orders, or too few residuals for the lags of a residual test."""
+
+
+class ExactFitError(ValueError):
+    """The residuals are zero or constant (noise-free data fitted exactly), so
+    statistics that divide by their variance (residual tests, information
+    criteria, CUSUM tests) are undefined."""
 
 
 class NumericalWarning(UserWarning):

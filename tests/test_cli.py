@@ -95,6 +95,28 @@ def test_identify_json_matches_least_squares(capsys, csv_file, record):
     assert res["n_samples"] == 500 and res["n_used"] == 498
 
 
+def test_identify_json_is_the_report_dict(capsys, csv_file, record, tmp_path):
+    """The CLI is a thin layer: --json prints exactly json.dumps(report.to_dict()) of the same
+    fit made with the library; the text is report.summary(), the figure report.plot()."""
+    from rlsfilt import ARX, validate
+
+    code, out, err = _run(capsys, *_ident_args(csv_file, "--json", "--dt", "0.1"))
+    assert code == 0, err
+    # the same numbers as the CLI read them (the CSV holds 12 significant digits)
+    table = np.genfromtxt(csv_file, delimiter=",", names=True)
+    u = {"u1": table["u1"], "u2": table["u2"]}
+    model = ARX(2, [2, 1], [1, 2], dt=0.1).fit(u, table["y"])
+    report = validate(model, u, table["y"], max_lag="auto", skip_undefined=True,
+                      metadata={"source": csv_file, "inputs": ["u1", "u2"], "output": "y",
+                                "validation_start": 0})
+    assert out == json.dumps(report.to_dict()) + "\n"
+    code, text, _ = _run(capsys, *_ident_args(csv_file, "--dt", "0.1"))
+    assert text == report.summary() + "\n"
+    png = tmp_path / "fig.png"
+    _run(capsys, *_ident_args(csv_file, "--dt", "0.1", "--plot", str(png)))
+    assert len(report.plot().axes) == 3 and png.stat().st_size > 0
+
+
 def test_identify_fit_percent_against_a_plain_simulation(capsys, csv_file, record):
     code, out, _ = _run(capsys, *_ident_args(csv_file, "--json"))
     res = json.loads(out)
@@ -201,18 +223,19 @@ def test_identify_forgetting_modes_match_the_filter(capsys, tmp_path, mode):
 def test_identify_text_report(capsys, csv_file):
     code, out, err = _run(capsys, *_ident_args(csv_file, "--time", "t"))
     assert code == 0 and err == ""
-    assert "ARX model  na=2  nb=2,1  nk=1,2" in out
-    assert "sample time 0.1 s" in out
+    # the text is the library's ValidationReport.summary()
+    assert "Validation of ARX(na=2, nb=[2, 1], nk=[1, 2]) on 500 samples" in out
+    assert "sample time 0.1" in out
     for name in ("a1", "a2", "b1[u1]", "b2[u1]", "b1[u2]"):
         assert f"\n  {name} " in out
-    assert "std err" in out and "fit (simulation)" in out
-    assert "whiteness     Ljung-Box Q =" in out and "independence  F =" in out
+    assert "std err" in out and "Simulation fit" in out and "P>|t|" in out
+    assert "whiteness (Ljung-Box" in out and "independence of inputs (F" in out
     assert "AIC" in out and "BIC" in out
 
 
 def test_identify_noise_free_data_keeps_the_table_columns(capsys, tmp_path):
     """An exact fit has standard errors near round-off and t values near 1e15: every row of
-    the parameter table still splits into name, estimate, std err and t."""
+    the coefficient table still splits into name, coef, std err, t, P>|t| and the interval."""
     rng = np.random.default_rng(3)
     u = rng.standard_normal(400)
     y = lfilter([0.0, 1.0], [1.0, -0.5], u)
@@ -225,8 +248,8 @@ def test_identify_noise_free_data_keeps_the_table_columns(capsys, tmp_path):
             if line.startswith(("  a1 ", "  b1 "))}
     assert set(rows) == {"a1", "b1"}
     for name, truth in (("a1", -0.5), ("b1", 1.0)):
-        assert len(rows[name]) == 4, rows[name]
-        est, sd, t = map(float, rows[name][1:])
+        assert len(rows[name]) == 7, rows[name]
+        est, sd, t = map(float, rows[name][1:4])
         assert est == pytest.approx(truth, abs=1e-12)
         assert abs(t) > 1e9 and t == pytest.approx(est / sd, rel=0.06)
 
@@ -256,16 +279,17 @@ def test_identify_select_order_finds_the_true_orders(capsys, tmp_path, record):
     assert code == 0, err
     res = json.loads(out)
     assert (res["na"], res["nb"], res["nk"]) == (2, [2], [1])
-    sel = res["order_selection"]
+    sel = res["metadata"]["order_selection"]
     # na in 0..4, nb in 1..4, nk in 1..4
-    assert sel["criterion"] == "BIC" and len(sel["candidates"]) == 5 * 4 * 4
+    assert sel["criterion"] == "bic" and len(sel["candidates"]) == 5 * 4 * 4
+    assert sel["best"] == [2, 2, 1]
     best = min(sel["candidates"], key=lambda c: c["bic"])
     assert (best["na"], best["nb"], best["nk"]) == (2, 2, 1)
     # with --nk given only na and nb are searched
     code, out, err = _run(capsys, "identify", path, "-u", "u", "-y", "y", "--select-order",
                           "--nk", "1", "--max-order", "3", "--json")
     assert code == 0, err
-    assert len(json.loads(out)["order_selection"]["candidates"]) == 4 * 3
+    assert len(json.loads(out)["metadata"]["order_selection"]["candidates"]) == 4 * 3
 
 
 def test_identify_plot(capsys, csv_file, tmp_path):
@@ -295,7 +319,7 @@ def test_identify_tab_separated_with_time_column(capsys, tmp_path, record):
                           "time", "--json")
     assert code == 0, err
     res = json.loads(out)
-    assert res["dt"] == pytest.approx(0.1, rel=1e-12) and res["inputs"] == ["volts"]
+    assert res["dt"] == pytest.approx(0.1, rel=1e-12) and res["metadata"]["inputs"] == ["volts"]
     np.testing.assert_allclose(res["a"], A_TRUE, atol=1e-9)
     assert res["transfer_functions"][0]["dt"] == res["dt"]
     # an explicit delimiter that does not match: the header is one unknown column
@@ -309,8 +333,8 @@ def test_identify_tab_separated_with_time_column(capsys, tmp_path, record):
 def test_demo_report(capsys):
     code, out, err = _run(capsys, "demo")
     assert code == 0 and err == ""
-    for text in ("estimate", "std err", "true", "batch LS", "fit (simulation)",
-                 "whiteness", "comparison with the true plant", "poles true", "DC gain"):
+    for text in ("estimate", "std err", "true", "batch LS", "Simulation fit",
+                 "whiteness", "Comparison with the true plant", "vs plant", "DC-gain"):
         assert text in out
 
 
@@ -322,14 +346,16 @@ def test_demo_json_against_truth_and_batch(capsys):
     res = json.loads(out)
     ds = dc_motor(n_samples=800, rng=3)
     assert (res["na"], res["nb"], res["nk"]) == (ds.na, [ds.nb], [ds.nk])
-    np.testing.assert_array_equal(res["theta_true"], ds.theta)
+    np.testing.assert_array_equal(res["metadata"]["theta_true"], ds.theta)
     # RLS with the batch start equals batch least squares on all data
-    np.testing.assert_allclose(res["theta"], res["theta_batch"], rtol=1e-9, atol=1e-15)
+    np.testing.assert_allclose(res["theta"], res["metadata"]["theta_batch"], rtol=1e-9,
+                               atol=1e-15)
     Phi = np.column_stack([-ds.y[1:-1], -ds.y[:-2], ds.u[1:-1], ds.u[:-2]])
     np.testing.assert_allclose(res["theta"], np.linalg.lstsq(Phi, ds.y[2:], rcond=None)[0],
                                rtol=1e-8, atol=1e-14)
     # and the truth lies within 4 standard errors
-    err = np.abs(np.subtract(res["theta"], res["theta_true"])) / np.asarray(res["theta_std"])
+    err = (np.abs(np.subtract(res["theta"], res["metadata"]["theta_true"]))
+           / np.asarray(res["theta_std"]))
     assert np.all(err < 4)
     pc = res["plant_comparison"]
     np.testing.assert_allclose(pc["dc_gain_true"], float(np.real(ds.plant.dcgain())),
@@ -352,7 +378,8 @@ def test_demo_every_plant(capsys):
         res = json.loads(out)
         # every plant is recovered to within 5 standard errors (for the time-varying plant:
         # the parameters in force at the end, tracked with forgetting)
-        err = np.abs(np.subtract(res["theta"], res["theta_true"])) / np.asarray(res["theta_std"])
+        err = (np.abs(np.subtract(res["theta"], res["metadata"]["theta_true"]))
+               / np.asarray(res["theta_std"]))
         assert np.all(err < 5), (name, err)
 
 
@@ -363,14 +390,14 @@ def test_demo_time_varying_tracks_with_forgetting(capsys):
     assert code == 0
     assert "true at the end" in out and "lam = 0.98" in out
     assert "validation (on the last 150 samples, three memory lengths of lam = 0.98)" in out
-    assert "whiteness     Ljung-Box" in out
+    assert "whiteness (Ljung-Box" in out
     code, out, _ = _run(capsys, "demo", "--plant", "time_varying", "--json")
     res = json.loads(out)
     ds = time_varying(rng=0)
-    np.testing.assert_array_equal(res["theta_true"], ds.theta_true[-1])
+    np.testing.assert_array_equal(res["metadata"]["theta_true"], ds.theta_true[-1])
     np.testing.assert_allclose(res["theta"], ds.theta_true[-1], atol=0.02)
     # batch least squares averages both halves and misses the end by far more
-    assert np.max(np.abs(np.subtract(res["theta_batch"], ds.theta_true[-1]))) > 0.1
+    assert np.max(np.abs(np.subtract(res["metadata"]["theta_batch"], ds.theta_true[-1]))) > 0.1
 
 
 def test_demo_plot(capsys, tmp_path):
@@ -485,7 +512,7 @@ def test_error_too_few_rows(capsys, tmp_path, rng):
     assert len(res["theta"]) == 3 and "residual_tests" not in res
     assert res["validation_skipped"] == "only 4 residuals, too few for the residual tests"
     code, out, err = _run(capsys, "identify", path, "-u", "u", "-y", "y", "--na", "1")
-    assert code == 0 and "(residual tests skipped: only 4 residuals" in out
+    assert code == 0 and "Residual tests skipped: only 4 residuals" in out
 
 
 def test_error_rank_deficient_input(capsys, tmp_path):
@@ -578,8 +605,8 @@ def test_identify_rls_on_noise_free_data_skips_the_residual_tests(capsys, tmp_pa
             "--method", "rls")
     code, out, err = _run(capsys, *argv)
     assert code == 0 and err == ""
-    assert "(residual tests skipped: the residuals are zero or constant (an exact fit))" in out
-    assert "fit (simulation)    100.00 %" in out
+    assert "Residual tests skipped: the residuals are zero or constant (an exact fit)" in out
+    assert "Simulation fit      : 100.00%" in out
     code, out, err = _run(capsys, *argv, "--json")
     res = json.loads(out)
     assert code == 0 and err == ""
@@ -596,7 +623,7 @@ def test_warnings_are_one_line_on_stderr(capsys, tmp_path):
     csv = _write_csv(tmp_path / "windup.csv", ["u", "y"], np.column_stack([u, y]))
     code, out, err = _run(capsys, "identify", csv, "--input", "u", "--output", "y",
                           "--na", "0", "--nb", "2", "--method", "rls", "--lam", "0.9")
-    assert code == 0 and "fit (simulation)" in out
+    assert code == 0 and "Simulation fit" in out
     lines = err.splitlines()
     assert len(lines) == 1, err
     assert lines[0].startswith("rlsfilt: warning: `P` is ill-conditioned")

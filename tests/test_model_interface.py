@@ -4,6 +4,8 @@ the plant comparison and plotting take any `IdentifiedModel`, not only ARX.
 `FirstOrderOE` (tests/_toy_models.py) is written against the interface alone and
 has a non-ARX predictor (the simulated output)."""
 
+import json
+
 import control
 import matplotlib.pyplot as plt
 import numpy as np
@@ -86,9 +88,11 @@ def test_validate_report_and_plot_accept_a_non_arx_model(oe_record):
     fig = rep.plot()
     assert len(fig.axes) == 6
     plt.close("all")
-    d = rep.to_dict() if hasattr(rep, "to_dict") else None
-    if d is not None:
-        assert d["model"]["name"] == "FirstOrderOE"
+    d = json.loads(json.dumps(rep.to_dict(), allow_nan=False))
+    assert d["model"] == "FirstOrderOE" and d["orders"] == {"nb": 1, "nf": 1, "nk": 1}
+    assert d["theta_names"] == ["f1", "b1"] and d["theta"] == model.theta_.tolist()
+    assert d["polynomials"]["F"] == [[[1.0, model.theta_[0]]]]
+    assert d["residual_tests"]["white"] is True
 
 
 def test_criteria_compare_model_classes(oe_record):

@@ -13,6 +13,7 @@ import math
 import numpy as np
 from scipy.linalg.lapack import dtrtri, dtrtrs
 
+from .._display import filter_html
 from .._validation import as_float_array, check_finite, check_variance
 
 __all__ = []
@@ -36,6 +37,9 @@ class _FilterBase:
 
     Subclasses set ``dim_x``, ``dim_z``, ``_R`` and provide ``x`` and ``P``.
     """
+
+    def _repr_html_(self):
+        return filter_html(self)   # Jupyter: dimensions, settings, estimate +- std dev, health
 
     @property
     def R(self):

@@ -29,6 +29,7 @@ from collections import namedtuple
 
 import numpy as np
 
+from .._serialize import jsonable
 from .._validation import check_dt
 from ..exceptions import NotFittedError
 from . import _conversion
@@ -148,6 +149,11 @@ class IdentifiedModel(abc.ABC):
         Number of parameters per output.
     n_inputs_, n_outputs_ : int
         Number of input and output signals seen by ``fit``.
+    noise_covariance_ : ndarray, shape (ny, ny), optional
+        Several outputs only, when known: the covariance of the innovations
+        of the outputs; frequency-response bands then draw correlated
+        parameters (``vec(theta_)`` with covariance
+        ``kron(noise_covariance_, theta_cov_[0] / noise_variance_[0])``).
 
     Notes
     -----
@@ -442,6 +448,53 @@ class IdentifiedModel(abc.ABC):
         self._check_fitted("frequency_response")
         dt = 1.0 if self.dt is True else float(self.dt)
         return _conversion.frequency_response(self.polydata(theta), omega, dt, noise)
+
+    # ------------------------------------------------------------------
+    # results as data
+    # ------------------------------------------------------------------
+    def to_dict(self):
+        """The fitted model as a JSON-ready dict.
+
+        Returns
+        -------
+        dict
+            ``model`` (class name), ``params`` (constructor parameters),
+            ``orders`` (:attr:`orders_`), ``dt``, ``input_names``,
+            ``output_names``, ``theta_names``, ``theta``, ``theta_std``,
+            ``noise_variance``, ``n_equations`` (``n_samples_``),
+            ``polynomials`` (``A`` .. ``F`` of :meth:`polydata`) and
+            ``transfer_functions`` (one dict per output and input with
+            ``num``, ``den`` in positive powers of ``z`` as in
+            :meth:`to_tf`, ``dt`` and ``variable``). Arrays are lists;
+            non-finite numbers are ``None``, so ``json.dumps(d,
+            allow_nan=False)`` works. Subclasses add their own fields.
+
+        Examples
+        --------
+        >>> import json
+        >>> from rlsfilt import ARX
+        >>> d = ARX.from_polynomials([-0.5], [1.0]).to_dict()
+        >>> d["model"], d["theta_names"], d["theta"]
+        ('ARX', ['a1', 'b1'], [-0.5, 1.0])
+        >>> json.loads(json.dumps(d, allow_nan=False)) == d
+        True
+        """
+        self._check_fitted("to_dict")
+        p = self.polydata()
+        G = self.to_tf()
+        tfs = [{"output": i, "input": j, "num": G.num[i][j], "den": G.den[i][j],
+                "dt": self.dt, "variable": "z"}
+               for i in range(self.n_outputs_) for j in range(self.n_inputs_)]
+        return jsonable({
+            "model": type(self).__name__, "params": self.get_params(), "orders": self.orders_,
+            "dt": self.dt,
+            "input_names": [self._u_name(j) for j in range(self.n_inputs_)],
+            "output_names": [self._y_name(i) for i in range(self.n_outputs_)],
+            "theta_names": self.param_names_, "theta": self.theta_,
+            "theta_std": self.std_errors_, "noise_variance": self.noise_variance_,
+            "n_equations": self.n_samples_,
+            "polynomials": {name: getattr(p, name) for name in p._fields},
+            "transfer_functions": tfs})
 
     # ------------------------------------------------------------------
     # display

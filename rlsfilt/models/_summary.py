@@ -98,7 +98,7 @@ class ModelSummary:
         lines = list(m._summary_lines("text"))
         if lines:
             lines.append("")
-        head = (f"  {'':>12} {'coef':>12} {'std err':>10} {'t':>9} {'P>|t|':>7} "
+        head = (f"  {'':<12} {'coef':>12} {'std err':>10} {'t':>9} {'P>|t|':>7} "
                 f"{'[0.025':>12} {'0.975]':>12}")
         for i in range(tab["coef"].shape[1]):
             if tab["coef"].shape[1] > 1:
@@ -106,7 +106,7 @@ class ModelSummary:
             lines.append(head)
             lines.append("  " + "-" * (len(head) - 2))
             for p, name in enumerate(tab["names"]):
-                lines.append(f"  {name:>12} {tab['coef'][p, i]:12.6g} "
+                lines.append(f"  {name:<12} {tab['coef'][p, i]:12.6g} "
                              f"{tab['std_err'][p, i]:10.4g} {_fmt_t(tab['t'][p, i]):>9} "
                              f"{_fmt_p(tab['pvalue'][p, i]):>7} {tab['lower'][p, i]:12.6g} "
                              f"{tab['upper'][p, i]:12.6g}")

@@ -19,7 +19,9 @@ import numpy as np
 from scipy import signal
 from scipy.linalg import lapack, solve_triangular
 
+from .._serialize import jsonable
 from .._validation import as_float_array, check_finite, check_int, check_scalar
+from ..exceptions import InsufficientDataError
 from ..filters import RecursiveLeastSquares
 from . import _conversion
 from ._base import IdentifiedModel, Polynomials
@@ -279,30 +281,32 @@ class ARX(IdentifiedModel):
         s = self._structure(U.shape[1], Y.shape[1])
         N = len(U)
         if N - s.max_lag < s.n_params:
-            raise ValueError(
+            raise InsufficientDataError(
                 f"`y` must have at least max_lag + n_params = {s.max_lag} + {s.n_params} = "
                 f"{s.max_lag + s.n_params} samples for ARX(na={s.na}, nb={_fmt(s.nb)}, "
                 f"nk={_fmt(s.nk)}); got {N}")
         Phi = _build(U, Y, s, s.max_lag)
         target = Y[s.max_lag:]
         rows = len(Phi)
-        for name in ("theta_history_", "filter_", "k0_", "recursive_residuals_",
-                     "noise_covariance_"):
-            self.__dict__.pop(name, None)
+        # compute everything first: a fit that raises leaves the model as it was
+        recursive = {}
         if method == "ls":
             theta, cov_unscaled = _qr_least_squares(Phi, target)
         else:
-            theta, cov_unscaled, rls, history, x_start = self._fit_rls(Phi, target, s, opts)
-            self.filter_ = rls
-            self.theta_history_ = history[:, :, 0] if info["y_1d"] else history
+            theta, cov_unscaled, rls, history, x_start, k0 = _fit_rls(Phi, target, s, opts)
+            recursive = {"filter_": rls, "k0_": k0,
+                         "theta_history_": history[:, :, 0] if info["y_1d"] else history}
             # a-priori (recursive) residuals y(t) - phi(t) theta(t-1) after the batch start
             prior = np.full_like(target, np.nan)
-            k0 = self.k0_
             if k0 == 0 and rows:
                 prior[0] = target[0] - Phi[0] @ x_start
                 k0 = 1
             prior[k0:] = target[k0:] - np.einsum("ij,ijk->ik", Phi[k0:], history[k0 - 1:-1])
-            self.recursive_residuals_ = prior[:, 0] if info["y_1d"] else prior
+            recursive["recursive_residuals_"] = prior[:, 0] if info["y_1d"] else prior
+        for name in ("theta_history_", "filter_", "k0_", "recursive_residuals_",
+                     "noise_covariance_"):
+            self.__dict__.pop(name, None)
+        self.__dict__.update(recursive)
         resid = target - Phi @ theta
         dof = rows - s.n_params
         sigma2 = np.sum(resid ** 2, axis=0) / dof if dof > 0 else np.full(s.n_outputs, np.nan)
@@ -317,37 +321,6 @@ class ARX(IdentifiedModel):
         self.n_samples_ = rows
         self.method_ = method
         return self
-
-    def _fit_rls(self, Phi, target, s, opts):
-        n, rows = s.n_params, len(Phi)
-        prior = opts["P0"] is not None or opts["x0"] is not None
-        if opts["k0"] is not None:
-            k0 = check_int(opts["k0"], "k0", minimum=0)
-        else:  # a given prior means a prior start (MATLAB rarx); else the notes' batch start
-            k0 = 0 if prior else _full_rank_rows(Phi)
-            if k0 is None:  # not even all rows determine theta
-                _qr_least_squares(Phi, target)  # raises with the rank in the message
-        if k0 > rows:
-            raise ValueError(f"`k0` must be <= the number of regressor rows ({rows}); got {k0}")
-        if k0 > 0:
-            given = [key for key in ("P0", "x0") if opts[key] is not None]
-            if given:
-                raise ValueError(
-                    f"`{given[0]}` only applies to a prior start (k0=0); the batch start on "
-                    f"k0={k0} rows sets both x0 and P0. Pass k0=0 to start from `{given[0]}`.")
-        kw = {key: opts[key] for key in ("P0", "R", "Q", "x0") if opts[key] is not None}
-        lam = 1.0 if opts["lam"] is None else opts["lam"]
-        rls = RecursiveLeastSquares(n, dim_z=s.n_outputs, lam=lam, **kw, **opts["extra"])
-        history = np.full((rows, n, s.n_outputs), np.nan)
-        x_start = rls.x.copy()
-        if k0 > 0:
-            rls.initialize(target[:k0], Phi[:k0])
-            history[k0 - 1] = rls.x
-        if k0 < rows:
-            means = rls.batch_filter(target[k0:], Phi[k0:], store_covariances=False)[0]
-            history[k0:] = means
-        self.k0_ = k0
-        return rls.x.copy(), rls.P / rls.R, rls, history, x_start
 
     def _store(self, theta, s, info):
         """Set every fitted attribute derived from ``theta`` (n_params, ny)."""
@@ -437,6 +410,26 @@ class ARX(IdentifiedModel):
             Bpoly[:, j, s.nk[j]:s.nk[j] + s.nb[j]] = B[j]
         return Polynomials(A=Apoly, B=Bpoly, C=np.ones((ny, 1)), D=np.ones((ny, 1)),
                            F=np.ones((ny, nu, 1)))
+
+    def to_dict(self):
+        """The fitted model as a JSON-ready dict (see `IdentifiedModel.to_dict`).
+
+        Adds ARX's own fields: ``na``, ``nb``, ``nk`` (lists, one entry per
+        input), ``a`` (``a_``), ``b`` (a list of ``b_`` arrays, one per input),
+        ``method``, ``lam`` (1 for batch least squares), ``forgetting``
+        (the filter's mode, None for ``"ls"``) and ``k0`` (rows of the batch
+        start, None for ``"ls"``).
+        """
+        out = super().to_dict()
+        s = self.structure_
+        rls = self.method_ == "rls"
+        out.update(jsonable({
+            "na": s.na, "nb": s.nb, "nk": s.nk, "a": self.a_,
+            "b": self.b_ if isinstance(self.b_, list) else [self.b_],
+            "method": self.method_, "lam": self.filter_.lam if rls else 1.0,
+            "forgetting": self.filter_.forgetting if rls else None,
+            "k0": self.k0_ if rls else None}))
+        return out
 
     def _theta2(self):
         return self.theta_.reshape(self.n_params_, -1)
@@ -840,6 +833,38 @@ def _check_filter_options(options):
         if name not in valid:
             raise TypeError(f"`{name}` is not an option of ARX.fit or RecursiveLeastSquares; "
                             f"the filter's other options are {valid}")
+
+
+def _fit_rls(Phi, target, s, opts):
+    """Recursive least squares over the rows: ``(theta, P / R, filter, history, x_start, k0)``."""
+    n, rows = s.n_params, len(Phi)
+    prior = opts["P0"] is not None or opts["x0"] is not None
+    if opts["k0"] is not None:
+        k0 = check_int(opts["k0"], "k0", minimum=0)
+    else:  # a given prior means a prior start (MATLAB rarx); else the notes' batch start
+        k0 = 0 if prior else _full_rank_rows(Phi)
+        if k0 is None:  # not even all rows determine theta
+            _qr_least_squares(Phi, target)  # raises with the rank in the message
+    if k0 > rows:
+        raise ValueError(f"`k0` must be <= the number of regressor rows ({rows}); got {k0}")
+    if k0 > 0:
+        given = [key for key in ("P0", "x0") if opts[key] is not None]
+        if given:
+            raise ValueError(
+                f"`{given[0]}` only applies to a prior start (k0=0); the batch start on "
+                f"k0={k0} rows sets both x0 and P0. Pass k0=0 to start from `{given[0]}`.")
+    kw = {key: opts[key] for key in ("P0", "R", "Q", "x0") if opts[key] is not None}
+    lam = 1.0 if opts["lam"] is None else opts["lam"]
+    rls = RecursiveLeastSquares(n, dim_z=s.n_outputs, lam=lam, **kw, **opts["extra"])
+    history = np.full((rows, n, s.n_outputs), np.nan)
+    x_start = rls.x.copy()
+    if k0 > 0:
+        rls.initialize(target[:k0], Phi[:k0])
+        history[k0 - 1] = rls.x
+    if k0 < rows:
+        means = rls.batch_filter(target[k0:], Phi[k0:], store_covariances=False)[0]
+        history[k0:] = means
+    return rls.x.copy(), rls.P / rls.R, rls, history, x_start, k0
 
 
 def _qr_least_squares(Phi, target):

@@ -25,7 +25,7 @@ first, and every output is regressed on the same row.
 """
 
 import numbers
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
@@ -124,8 +124,22 @@ def arx_structure(na, nb, nk=1, n_inputs=1, n_outputs=1):
 
 
 def _as_signal(x, name):
-    """Return ``(array of shape (N, n), was_1d, names)`` from array-like or pandas."""
+    """Return ``(array of shape (N, n), was_1d, names)`` from array-like or pandas.
+
+    A mapping of names to 1-D signals (``{"volts": v, "amps": i}``) is read
+    like a DataFrame: one column per entry, named by its key.
+    """
     names = None
+    if isinstance(x, Mapping):
+        if not x:
+            raise ValueError(f"`{name}` must have at least one column; got an empty mapping")
+        names = [str(k) for k in x]
+        cols = [as_float_array(v, f"{name}[{k!r}]") for k, v in x.items()]
+        for k, c in zip(x, cols):
+            if c.ndim != 1 or len(c) != len(cols[0]):
+                raise ValueError(f"`{name}` must map names to 1-D signals of one length; "
+                                 f"`{name}[{k!r}]` has shape {c.shape}")
+        x = np.column_stack(cols)
     cols = getattr(x, "columns", None)
     if cols is not None:  # pandas DataFrame
         names = [str(c) for c in cols]

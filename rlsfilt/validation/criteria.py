@@ -18,6 +18,7 @@ import math
 import numpy as np
 
 from .._validation import check_int, check_scalar
+from ..exceptions import ExactFitError
 from ._model import n_params, one_step
 
 __all__ = ["InformationCriteria", "criteria_from_loss", "information_criteria"]
@@ -148,8 +149,8 @@ def information_criteria(model, u, y):
 
     Parameters
     ----------
-    model : ARX
-        A fitted model.
+    model : IdentifiedModel
+        A fitted model (`ARX` or any other `IdentifiedModel`).
     u : array_like, shape (N,) or (N, nu)
         Input record.
     y : array_like, shape (N,) or (N, ny)
@@ -190,7 +191,7 @@ def _from_residuals(e, d):
     cov = (e.T @ e) / N
     V = float(np.linalg.det(cov)) if ny > 1 else float(cov[0, 0])
     if not V > 0.0:
-        raise ValueError("the residuals are zero (an exact fit); information criteria are "
+        raise ExactFitError("the residuals are zero (an exact fit); information criteria are "
                          "undefined")
     return _criteria(V, N, d, ny)
 

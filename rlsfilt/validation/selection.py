@@ -13,9 +13,11 @@ import numbers
 
 import numpy as np
 
+from .._serialize import jsonable
 from .._validation import check_dt, check_int
+from ..exceptions import ExactFitError, InsufficientDataError
 from ..models.regressors import _build, arx_structure, as_io_data
-from ..plotting import _axes
+from ..plotting import plot_order_selection
 from .criteria import _criteria
 
 __all__ = ["OrderSelection", "select_order"]
@@ -86,6 +88,22 @@ class OrderSelection:
         u, y = self._data
         return ARX(na, nb, nk, dt=self._dt).fit(u, y)
 
+    def to_dict(self):
+        """The selection as a JSON-ready dict.
+
+        Returns
+        -------
+        dict
+            ``best`` (``[na, nb, nk]``), ``criterion``, ``n_rows``,
+            ``n_val_rows`` and ``candidates``: one dict per row of
+            :attr:`table` (non-finite numbers as None, as in
+            :meth:`ValidationReport.to_dict`).
+        """
+        names = self.table.dtype.names
+        return jsonable({"best": self.best, "criterion": self.criterion, "n_rows": self.n_rows,
+                         "n_val_rows": self.n_val_rows,
+                         "candidates": [{k: row[k] for k in names} for row in self.table]})
+
     def to_dataframe(self):
         """The table as a ``pandas.DataFrame`` (pandas must be installed)."""
         import pandas as pd
@@ -136,21 +154,7 @@ class OrderSelection:
         -------
         matplotlib.axes.Axes
         """
-        ax = _axes(ax)
-        d = self.table["n_params"]
-        v = self.values
-        ax.plot(d, v, "o", color="C0", alpha=0.4, ms=4, label="candidates")
-        sizes = np.unique(d)
-        best_per = [np.nanmin(v[d == s]) for s in sizes]
-        ax.plot(sizes, best_per, "-", color="C0", lw=1, label="best of each size")
-        i = self.best_index
-        ax.plot(d[i], v[i], "*", color="C3", ms=14,
-                label=f"selected (na, nb, nk) = {self.best}")
-        ax.set_xlabel("number of parameters $d$")
-        ax.set_ylabel(self.criterion.upper() if self.criterion != "loss" else "loss $V$")
-        ax.set_title("ARX order selection")
-        ax.legend(loc="best")
-        return ax
+        return plot_order_selection(self, ax)
 
 
 def select_order(u, y, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), criterion="bic",
@@ -241,9 +245,9 @@ def select_order(u, y, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), criterion
     Psi, target = _full_regressor(U, Y, na_max, kmin, kmax, t_max)
     rows = len(target)
     if rows <= n_cols:
-        raise ValueError(f"`y` is too short for these orders: {len(Y)} samples leave {rows} "
-                         f"aligned rows for up to {n_cols} regressors; use more data or "
-                         "smaller orders")
+        raise InsufficientDataError(
+            f"`y` is too short for these orders: {len(Y)} samples leave {rows} aligned rows "
+            f"for up to {n_cols} regressors; use more data or smaller orders")
     # unit columns: the least-squares cut-off of rank-deficient candidates and the
     # conditioning no longer depend on the signals' units (losses are unchanged)
     scale = np.linalg.norm(Psi, axis=0)
@@ -263,8 +267,8 @@ def select_order(u, y, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), criterion
                              f"{Uv.shape[1]}")
         Psi_v, target_v = _full_regressor(Uv, Yv, na_max, kmin, kmax, t_max)
         if len(target_v) == 0:
-            raise ValueError(f"`validation` record is too short: {len(Yv)} samples for a "
-                             f"largest lag of {t_max}")
+            raise InsufficientDataError(f"`validation` record is too short: {len(Yv)} samples "
+                                        f"for a largest lag of {t_max}")
     elif criterion == "loss":
         raise ValueError("`criterion`='loss' needs `validation` data (on the estimation data "
                          "the largest model always has the smallest loss)")
@@ -293,7 +297,7 @@ def select_order(u, y, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), criterion
     V = table["val_loss"] if use_val else table["loss"]
     N = len(target_v) if use_val else rows
     if np.any(V <= 1e-24 * float(np.mean(target ** 2))):
-        raise ValueError("a candidate fits the data exactly (zero loss); information criteria "
+        raise ExactFitError("a candidate fits the data exactly (zero loss); information criteria "
                          "are undefined for noise-free data")
     crit = _criteria(V, N, table["n_params"])
     for name in ("aic", "aicc", "bic", "naic", "fpe", "mdl"):
