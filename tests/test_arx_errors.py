@@ -291,7 +291,7 @@ def test_learned_attributes_before_fit_say_to_call_fit(name):
 def test_attributes_of_other_fits_say_which_fit_sets_them(data):
     model = ARX(1, 1).fit(*data)
     with pytest.raises(AttributeError, match=r"`theta_history_` is only set by "
-                                             r"fit\(\.\.\., method='rls'\)"):
+                                             r"fit\(\.\.\., method='rls' or 'riv'\)"):
         model.theta_history_  # noqa: B018
     with pytest.raises(AttributeError, match=r"`noise_covariance_` is only set by a fit on 2-D"):
         model.noise_covariance_  # noqa: B018

@@ -75,6 +75,11 @@ MODELS = [
     ModelCase("ARX-rls", lambda: ARX(2, 2, 1), _siso, {"method": "rls"}),
     ModelCase("ARX-fir", lambda: ARX(0, 3, 1), _siso),
     ModelCase("FirstOrderOE", lambda: FirstOrderOE(dt=0.2), _oe, least_squares=False),
+    ModelCase("ARX-iv", lambda: ARX(2, 2, 1), _siso, {"method": "iv"}, least_squares=False),
+    ModelCase("ARX-riv-delayed", lambda: ARX(2, 2, 1), _siso,
+              {"method": "riv", "instruments": "delayed"}, least_squares=False),
+    ModelCase("ARX-iv-2-outputs", lambda: ARX(1, 2, 1, dt=0.5), _mimo,
+              {"method": "iv", "instruments": "delayed"}, least_squares=False),
     # the prediction-error family (time-series AR/ARMA: tests/test_model_family.py)
     ModelCase("ARMAX-pem", lambda: ARMAX(2, 2, 1, 1, dt=0.1), _siso, least_squares=False),
     ModelCase("ARMAX-nc0-is-least-squares", lambda: ARMAX(2, 2, 0, 1), _siso),

@@ -226,8 +226,8 @@ class IVFit:
 
     Attributes
     ----------
-    theta : ndarray, shape (n,) or (n, ny)
-    cov : ndarray, shape (n, n) (single output) or None
+    theta : ndarray, shape (n, ny)
+    cov : ndarray, shape (n, n) (one output) or (ny, n, n)
     residuals : ndarray
         Equation residuals ``target - Phi theta`` on the rows used.
     Phi, Z, target : ndarray
@@ -324,11 +324,25 @@ def fit_iv(U, Y, s, instruments="model", *, prefilter=True, n_iter=10, tol=1e-10
         Phi, tgt = rows_phi, target
         theta, G, M = iv_solve(Z, Phi, tgt)
     resid = tgt - Phi @ theta
-    cov = a_w = None
-    if theta.shape[1] == 1 and len(resid) > 2 * s.n_params:
-        cov, a_w, _ = iv_covariance(G, Z, resid[:, 0])
+    cov, a_w = covariance_per_output(G, Z, resid, s.n_params)
     return IVFit(theta=theta, cov=cov, residuals=resid, Phi=Phi, Z=Z, target=tgt,
                  n_iter=n_iter_done, noise_ar=a_w)
+
+
+def covariance_per_output(G, Z, resid, n_params):
+    """`iv_covariance` of each output column: ``(n, n)`` for one output, else
+    ``(ny, n, n)``; NaN when there are too few rows for the noise model.
+    Returns ``(cov, a_w)`` with ``a_w`` the AR noise model of the first output."""
+    ny = resid.shape[1]
+    covs, a_first = [], None
+    for j in range(ny):
+        if len(resid) > 2 * n_params and np.isfinite(G).all():
+            c, a_w, _ = iv_covariance(G, Z, resid[:, j])
+            a_first = a_w if j == 0 else a_first
+        else:
+            c = np.full((G.shape[0], G.shape[0]), np.nan)
+        covs.append(c)
+    return (covs[0] if ny == 1 else np.array(covs)), a_first
 
 
 # ----------------------------------------------------------------------

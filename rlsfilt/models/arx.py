@@ -24,6 +24,8 @@ from .._validation import as_float_array, check_finite, check_int, check_scalar
 from ..exceptions import InsufficientDataError
 from ..filters import RecursiveLeastSquares
 from . import _conversion
+from ._arx_iv import check_options as check_iv_options
+from ._arx_iv import fit_arx_iv
 from ._base import IdentifiedModel, Polynomials
 from ._summary import EQUATION_STYLES, ModelSummary
 from .regressors import (
@@ -69,7 +71,9 @@ class ARX(IdentifiedModel):
         one per input, when `u` was 2-D.
     theta_cov_ : ndarray, shape (n_params, n_params) or (ny, n_params, n_params)
         Parameter covariance :math:`\hat\sigma^2 (\Phi^T\Phi)^{-1}`, one per
-        output (the outputs share :math:`\Phi`).
+        output (the outputs share :math:`\Phi`); for ``"iv"``/``"riv"`` the
+        IV covariance under coloured equation error (a long-AR model of the
+        residuals; see :doc:`/guide/model-family`).
     noise_variance_ : float or ndarray of shape (ny,)
         Unbiased residual variance :math:`\hat\sigma^2 = \|y - \Phi\hat\theta\|^2
         / (N_{rows} - n_{params})` (NaN when there are no spare equations).
@@ -86,10 +90,13 @@ class ARX(IdentifiedModel):
     n_inputs_, n_outputs_ : int
         Number of input and output signals.
     method_ : str
-        ``"ls"`` or ``"rls"``.
+        ``"ls"``, ``"rls"``, ``"iv"`` or ``"riv"``.
     theta_history_ : ndarray, shape ``(n_samples_, n_params[, ny])``
-        ``method="rls"`` only: the estimate after each row; rows before the
-        batch start (``k0 - 1``) are NaN.
+        ``method="rls"`` or ``"riv"`` only: the estimate after each row; rows
+        before the batch start (``k0 - 1``) are NaN.
+    instruments_ : ndarray, shape ``(n_samples_, n_z)``
+        ``method="iv"`` or ``"riv"`` only: the instrument rows used (for
+        ``"model"`` instruments with the prefilter, prefiltered).
     recursive_residuals_ : ndarray, shape ``(n_samples_,)`` or ``(n_samples_, ny)``
         ``method="rls"`` only: the a-priori residuals
         :math:`y(t) - \varphi(t)\hat\theta(t-1)`, the errors the filter
@@ -173,8 +180,10 @@ class ARX(IdentifiedModel):
     """
 
     # learned attributes that only some fits set, and which ones
-    _ONLY_SET_BY = {**{name: "fit(..., method='rls')" for name in
-                       ("theta_history_", "recursive_residuals_", "k0_", "filter_")},
+    _ONLY_SET_BY = {"filter_": "fit(..., method='rls')",
+                    **{name: "fit(..., method='rls' or 'riv')" for name in
+                       ("theta_history_", "recursive_residuals_", "k0_")},
+                    "instruments_": "fit(..., method='iv' or 'riv')",
                     "noise_covariance_": "a fit on 2-D `y` (several outputs)"}
 
     def __init__(self, na, nb, nk=1, dt=True):
@@ -228,10 +237,17 @@ class ARX(IdentifiedModel):
             Input record; pandas Series/DataFrame work too.
         y : array_like, shape (N,) or (N, ny)
             Output record, same length.
-        method : {"ls", "rls"}, default "ls"
+        method : {"ls", "rls", "iv", "riv"}, default "ls"
             ``"ls"``: batch least squares through QR. ``"rls"``:
             `RecursiveLeastSquares` over the rows, started by batch least
-            squares on the first `k0` rows.
+            squares on the first `k0` rows. ``"iv"``, ``"riv"``: batch and
+            recursive instrumental variables, unbiased under coloured
+            equation error (options ``instruments`` = ``"model"`` (refined
+            IV with an auxiliary model, the default for one output),
+            ``"delayed"`` or an ``(N, n_z)`` array of instrument rows;
+            ``prefilter``; ``n_iter`` for ``"iv"``; ``k0``, ``lam``, ``P0``,
+            ``R``, ``Q``, ``x0``, ``refresh`` for ``"riv"``; see
+            :doc:`/guide/model-family`).
         k0 : int, optional
             ``"rls"`` only: number of rows of the batch start. By default
             ``n_params`` (the lecture notes' choice), or, when those first
@@ -268,14 +284,18 @@ class ARX(IdentifiedModel):
         end of the record, while ``noise_variance_`` (residuals of the final
         estimate over all rows) overstates the noise if the plant changed.
         """
-        if method not in ("ls", "rls"):
-            raise ValueError(f"`method` must be 'ls' or 'rls'; got {method!r}")
+        if method not in ("ls", "rls", "iv", "riv"):
+            raise ValueError(f"`method` must be 'ls', 'rls', 'iv' or 'riv'; got {method!r}")
         opts = {"k0": k0, "lam": lam, "P0": P0, "R": R, "Q": Q, "x0": x0}
         if method == "ls":
             given = [k for k, v in opts.items() if v is not None] + list(filter_options)
             if given:
                 raise TypeError(f"`{given[0]}` only applies to method='rls'; got method='ls'")
-        _check_filter_options(filter_options)
+        iv_options = {k: v for k, v in opts.items() if v is not None} | filter_options
+        if method in ("iv", "riv"):
+            check_iv_options(method, iv_options)
+        else:
+            _check_filter_options(filter_options)
         opts["extra"] = filter_options
         U, Y, info = as_io_data(u, y)
         s = self._structure(U.shape[1], Y.shape[1])
@@ -289,9 +309,11 @@ class ARX(IdentifiedModel):
         target = Y[s.max_lag:]
         rows = len(Phi)
         # compute everything first: a fit that raises leaves the model as it was
-        recursive = {}
+        recursive, cov_iv = {}, None
         if method == "ls":
             theta, cov_unscaled = _qr_least_squares(Phi, target)
+        elif method in ("iv", "riv"):
+            theta, cov_iv, recursive = fit_arx_iv(U, Y, s, method, iv_options, info["y_1d"])
         else:
             theta, cov_unscaled, rls, history, x_start, k0 = _fit_rls(Phi, target, s, opts)
             recursive = {"filter_": rls, "k0_": k0,
@@ -304,14 +326,14 @@ class ARX(IdentifiedModel):
             prior[k0:] = target[k0:] - np.einsum("ij,ijk->ik", Phi[k0:], history[k0 - 1:-1])
             recursive["recursive_residuals_"] = prior[:, 0] if info["y_1d"] else prior
         for name in ("theta_history_", "filter_", "k0_", "recursive_residuals_",
-                     "noise_covariance_"):
+                     "noise_covariance_", "instruments_"):
             self.__dict__.pop(name, None)
         self.__dict__.update(recursive)
         resid = target - Phi @ theta
         dof = rows - s.n_params
         sigma2 = np.sum(resid ** 2, axis=0) / dof if dof > 0 else np.full(s.n_outputs, np.nan)
         self._store(theta, s, info)
-        cov = sigma2[:, None, None] * cov_unscaled[None]
+        cov = sigma2[:, None, None] * cov_unscaled[None] if cov_iv is None else cov_iv
         self.theta_cov_ = cov[0] if info["y_1d"] else cov
         self.noise_variance_ = float(sigma2[0]) if info["y_1d"] else sigma2
         if not info["y_1d"]:
@@ -769,6 +791,7 @@ class ARX(IdentifiedModel):
                      f"noise variance {nv}</p>"]
                     + [f"<p><code>{line}</code></p>" for line in self._equation_lines("html")])
         how = {"ls": "batch least squares (QR)", "rls": "recursive least squares",
+               "iv": "instrumental variables", "riv": "recursive instrumental variables",
                "true": "given coefficients (no fit)"}[self.method_]
         if self.method_ == "rls":
             f = self.filter_
