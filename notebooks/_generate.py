@@ -655,20 +655,25 @@ departs furthest from the diagonal, sample 999, dates the change at t = 1000."""
 CONTROL = [
     ("md", r"""# 4. From identification to a controller
 
-Identification is rarely the goal; control is. This notebook
+Identification is rarely the goal; control is. This notebook goes from data to a controller with
+`rlsfilt.adaptive`:
 
-1. identifies a DC motor (voltage to speed) as an ARX model;
-2. designs a pole-placement controller with integral action on the **identified** transfer
-   function, and checks it with python-control;
-3. verifies the closed loop on the **true** plant;
-4. closes an adaptive loop: a self-tuning regulator that runs recursive least squares inside the
-   control loop and redesigns the controller at every sample, and keeps control when the plant
-   gain changes five-fold, where the fixed controller goes unstable."""),
+1. identify a DC motor (voltage to speed) as an ARX model;
+2. design a pole-placement controller with integral action on the **identified** model with
+   `rst_design`;
+3. simulate the closed loop against the **true** plant with python-control, with a load
+   disturbance;
+4. close an adaptive loop: a self-tuning regulator, identification and redesign at every sample,
+   inside `control.interconnect`, on a motor whose gain changes five-fold, where the fixed
+   controller goes unstable.
+
+The guide page *From identification to control* is the reference for every function used here."""),
     ("code", r"""import control
 import matplotlib.pyplot as plt
 import numpy as np
 
 from rlsfilt import ARX, RecursiveLeastSquares, validate
+from rlsfilt.adaptive import SelfTuningRegulator, rst_design
 from rlsfilt.datasets import dc_motor"""),
     ("md", r"""## 1. Identify the plant"""),
     ("code", r"""ds = dc_motor(rng=0)
@@ -677,168 +682,170 @@ report = validate(model, ds.u, ds.y, plant=ds.plant)
 print(ds.description)
 print(model.summary())
 print(f"simulation fit {report.simulation_fit:.1f} %, residual tests passed: {report.passed}")
-G_model = model.to_tf()      # python-control, sampling time ds.dt
-G_true = ds.plant
 dt = ds.dt"""),
-    ("md", r"""## 2. Pole placement with integral action (an RST controller)
+    ("md", r"""## 2. Pole placement with integral action
 
-With $A(z) = z^2 + a_1 z + a_2$ and $B(z) = b_1 z + b_2$ from the model, the two-degree-of-freedom
-controller $R(z)\,u = T(z)\,r - S(z)\,y$ gives the closed loop
-$y = \frac{B T}{A R + B S}\, r$ (Åström & Wittenmark, *Computer-Controlled Systems*, ch. 5). We
-choose
+The two-degree-of-freedom controller $R(q^{-1})\,u(t) = T(q^{-1})\,r(t) - S(q^{-1})\,y(t)$ around
+$A(q^{-1})\,y = B(q^{-1})\,u$ gives $y = \frac{B T}{A R + B S}\, r$ (Åström & Wittenmark,
+*Computer-Controlled Systems*, ch. 5). `rst_design` solves the Diophantine equation
+$A R + B S = A_m A_o$ through the Sylvester matrix, with
 
-- $R(z) = (z - 1)(z + r_1)$: the factor $z - 1$ is an integrator, so constant disturbances and
-  model errors in the gain leave no steady-state error;
-- $S(z) = s_0 z^2 + s_1 z + s_2$;
-- the closed-loop polynomial $A R + B S = A_m A_o$: $A_m$ from a continuous-time prototype
-  ($\omega_n = 8$ rad/s, $\zeta = 0.8$), $A_o = (z - 0.3)^2$ observer poles;
-- $T = t_0 A_o$ with $t_0 = A_m(1)/B(1)$, unit DC gain from $r$ to $y$.
+- $R = (1 - q^{-1}) R'$: an integrator, so constant disturbances and gain errors of the model
+  leave no steady-state error;
+- $A_m$ from a continuous-time prototype ($\omega_n = 8$ rad/s, $\zeta = 0.8$, poles
+  $z = e^{s\,dt}$) and the observer polynomial $A_o$ with poles at 0.3 and 0.35;
+- $T = t_0 A_o$, $t_0 = A_m(1)/B(1)$: the observer poles cancel from the reference, unit static
+  gain.
 
-Matching the coefficients of $z^3 \dots z^0$ in the *Diophantine equation* $A R + B S = A_m A_o$ is
-a 4 x 4 linear system in $(r_1, s_0, s_1, s_2)$."""),
-    ("code", r"""def rst_design(a, b, poles_cl, poles_obs):
-    # pole placement with integral action for B(z)/A(z), A = z^2 + a1 z + a2, B = b1 z + b2
-    A = np.r_[1.0, a]
-    B = np.asarray(b, dtype=float)
-    A1 = np.polymul(A, [1.0, -1.0])                   # A(z) (z - 1), degree 3
-    P = np.real(np.poly(np.r_[poles_cl, poles_obs]))  # A_m A_o, degree 4, monic
-    # A1 (z + r1) + B (s0 z^2 + s1 z + s2) = P: coefficients of z^3 .. z^0
-    M = np.zeros((4, 4))
-    M[:, 0] = A1                                      # r1 * A1
-    for j in range(3):                                # s_j * B * z^(2 - j)
-        M[j:j + 2, 1 + j] = B
-    r1, *S = np.linalg.solve(M, P[1:] - np.r_[A1[1:], 0.0])
-    R = np.polymul([1.0, -1.0], [1.0, r1])
-    Am, Ao = np.real(np.poly(poles_cl)), np.real(np.poly(poles_obs))
-    T = np.polyval(Am, 1.0) / np.polyval(B, 1.0) * Ao
-    return R, np.array(S), T
+Polynomials are arrays of coefficients of ascending powers of $q^{-1}$, as `model.polynomials()`
+returns them; `np.poly(poles)` makes a monic polynomial with given zeros in the z-plane."""),
+    ("code", r"""wn, zeta = 8.0, 0.8
+Am = np.real(np.poly(np.exp(np.roots([1.0, 2 * zeta * wn, wn ** 2]) * dt)))
+Ao = np.poly([0.3, 0.35])
+ctrl = rst_design(model, Am=Am, Ao=Ao)          # = rst_design(*model.polynomials(), Am, Ao)
+print(ctrl)
+designed = ctrl.closed_loop(model)
+print(designed)
+np.testing.assert_allclose(np.sort_complex(designed.poles),
+                           np.sort_complex(np.roots(np.convolve(Am, Ao))), rtol=0, atol=1e-9)"""),
+    ("md", r"""## 3. The closed loop on the true plant, in python-control
 
-
-wn, zeta = 8.0, 0.8
-poles_cl = np.exp(np.roots([1.0, 2 * zeta * wn, wn ** 2]) * dt)   # z = exp(s dt)
-poles_obs = np.array([0.3, 0.3])
-R, S, T = rst_design(model.a_, model.b_, poles_cl, poles_obs)
-print("R =", np.round(R, 4), " S =", np.round(S, 2), " T =", np.round(T, 2))
-
-# the design equation holds on the model
-A, B = np.r_[1.0, model.a_], model.b_
-char = np.polyadd(np.polymul(A, R), np.polymul(B, S))
-np.testing.assert_allclose(np.sort_complex(np.roots(char)),
-                           np.sort_complex(np.r_[poles_cl, poles_obs]), atol=1e-6)"""),
-    ("md", r"""In python-control the RST loop is the feedback of $C = S/R$ around the plant, preceded by the
-filter $T/S$. From the reference the observer poles cancel against $T = t_0 A_o$ (they govern the
-response to disturbances only), so on the model `minreal` leaves the two poles of $A_m$; on the
-true plant they no longer cancel exactly and all four appear, close to the designed ones."""),
-    ("code", r"""C = control.tf(S, R, dt)
-F = control.tf(T, S, dt)
+`ctrl.to_ss()` is the controller as a python-control system with inputs `[r, y]` and output
+`u`. Interconnected with the plant and a summing junction for a load disturbance $v$ at the
+plant input, it gives the loop on the identified model (the design) and on the true plant. A
+load step of -2 V at $t = 3$ s is rejected without offset: the integrator at work."""),
+    ("code", r"""def closed_loop(G, ctrl):
+    # the plant with a load disturbance v at its input, the RST controller around it
+    plant = control.ss(G, inputs="w", outputs="y", name="plant")
+    load = control.summing_junction(["u", "v"], "w", name="load")
+    K = control.ss(ctrl.to_ss(), inputs=["r", "y"], outputs="u", name="rst")
+    return control.interconnect([plant, load, K], inputs=["r", "v"], outputs=["y", "u"])
 
 
-def closed_loop(G):
-    return control.minreal(F * control.feedback(G * C, 1), verbose=False)
-
-
-cl_model, cl_true = closed_loop(G_model), closed_loop(G_true)
-print("designed poles      :", np.round(np.sort_complex(np.r_[poles_cl, poles_obs]), 4))
-print("closed loop, model  :", np.round(np.sort_complex(cl_model.poles()), 4))
-print("closed loop, TRUE   :", np.round(np.sort_complex(cl_true.poles()), 4))
-gm, pm, wcg, wcp = control.margin(G_true * C)
-print(f"on the true plant: gain margin {gm:.2f}, phase margin {pm:.1f} deg, DC gain "
-      f"{cl_true.dcgain():.6f}")
-assert np.all(np.abs(cl_true.poles()) < 1) and abs(cl_true.dcgain() - 1) < 1e-9"""),
-    ("md", r"""## 3. Verify on the true plant
-
-The controller was designed on the identified model only. Its step response on the true plant
-(and the control effort it needs) is practically the designed one."""),
-    ("code", r"""t = np.arange(50) * dt
-y_model = control.step_response(cl_model, t).outputs
-y_true = control.step_response(cl_true, t).outputs
-u_true = control.step_response(control.minreal(F * control.feedback(C, G_true), verbose=False),
-                               t).outputs
-print(f"largest difference of the step responses: {np.max(np.abs(y_true - y_model)):.2e}")
-assert np.max(np.abs(y_true - y_model)) < 0.01
+t = np.arange(120) * dt
+r = np.ones_like(t)
+v = np.where(t >= 3.0, -2.0, 0.0)
+on_model = control.forced_response(closed_loop(model.to_tf(), ctrl), t, [r, v])
+on_true = control.forced_response(closed_loop(ds.plant, ctrl), t, [r, v])
+diff = np.max(np.abs(on_true.outputs[0] - on_model.outputs[0]))
+print(f"largest difference of the responses on the model and on the true plant: {diff:.2e}")
+print(f"output at the end on the true plant: {on_true.outputs[0, -1]:.6f}")
+true_loop = ctrl.closed_loop(ds.true_model())
+print("closed-loop poles on the true plant:", np.round(np.sort_complex(true_loop.poles), 4))
+gm, pm, wcg, wcp = control.margin(ds.plant * -ctrl.to_tf()[0, 1])
+print(f"loop on the true plant: gain margin {gm:.2f}, phase margin {pm:.1f} deg")
+assert diff < 0.01 and abs(on_true.outputs[0, -1] - 1.0) < 1e-6 and true_loop.stable
 
 fig, axes = plt.subplots(1, 2, figsize=(11, 3.5), layout="constrained")
-axes[0].step(t, y_model, where="post", label="closed loop on the model (design)")
-axes[0].step(t, y_true, "--", where="post", label="closed loop on the true plant")
-axes[0].set(xlabel="t [s]", ylabel="speed y", title="Step response")
+axes[0].step(t, on_model.outputs[0], where="post", label="on the model (design)")
+axes[0].step(t, on_true.outputs[0], "--", where="post", label="on the true plant")
+axes[0].axvline(3.0, color="0.6", lw=0.8)
+axes[0].set(xlabel="t [s]", ylabel="speed y", title="Reference step, load step at t = 3 s")
 axes[0].legend()
-axes[1].step(t, u_true, where="post")
-axes[1].set(xlabel="t [s]", ylabel="voltage u", title="Control effort on the true plant");"""),
-    ("md", r"""## 4. A self-tuning regulator
+axes[1].step(t, on_true.outputs[1], where="post")
+axes[1].set(xlabel="t [s]", ylabel="voltage u", title="Control on the true plant");"""),
+    ("md", r"""## 4. A self-tuning regulator on a plant that changes
 
-Now the motor's gain changes during operation: at $t = 45$ s a load change multiplies $B$ by 5,
-more than the gain margin of the fixed design allows. A **self-tuning regulator** (Åström &
-Wittenmark, *Adaptive Control*, ch. 3) closes the loop around the identification:
+At $t = 45$ s a load change multiplies the motor's gain by 5, more than the gain margin of the
+fixed design (4.3) allows. A **self-tuning regulator** (Åström & Wittenmark, *Adaptive Control*,
+ch. 3) closes the loop around the identification; at every sample it
 
-1. measure $y(t)$ and update the RLS estimate with the regressor
-   $\phi(t) = [-y(t-1), -y(t-2), u(t-1), u(t-2)]$ (forgetting factor 0.98);
-2. redesign $R, S, T$ from the current estimate with `rst_design`;
-3. compute $u(t)$ from $R u = T r - S y$; a small binary dither keeps the loop exciting.
+1. updates the recursive least-squares estimate of $A, B$ with the regressor
+   $\varphi(t) = [-y(t-1), -y(t-2), u(t-1), u(t-2)]$ (forgetting factor 0.98);
+2. redesigns $R, S, T$ with `rst_design` and the same $A_m$, $A_o$ (keeping the last controller
+   if the estimated $A$ and $B$ nearly share a factor), with the estimated $b_i$ kept
+   non-negative by projection;
+3. computes $u(t)$ from $R u = T r - S y$; a small binary dither keeps the loop exciting.
 
-The estimator starts from the identified model. The same loop without step 2 is the fixed
-controller."""),
-    ("code", r"""N, t_change = 1600, 900
-ref = np.where((np.arange(N) // 200) % 2 == 0, 1.0, -1.0)      # square wave, period 20 s
-dither = 0.2 * np.sign(np.random.default_rng(7).standard_normal(N))
-a_true, b_true = np.asarray(ds.a), np.asarray(ds.b)
-
-
-def run(adaptive, seed=4):
-    rng = np.random.default_rng(seed)
-    y, u = np.zeros(N), np.zeros(N)
-    est = RecursiveLeastSquares(4, lam=0.98, x0=model.theta_,
-                                P0=np.diag([1e-2, 1e-2, 1e-6, 1e-6]))
-    Rc, Sc, Tc = R, S, T
-    history = np.full((N, 4), np.nan)
-    for k in range(2, N):
-        b_now = b_true if k < t_change else 5.0 * b_true          # the load change
-        y[k] = (-a_true[0] * y[k - 1] - a_true[1] * y[k - 2] + b_now[0] * u[k - 1]
-                + b_now[1] * u[k - 2] + 0.002 * rng.standard_normal())
-        if abs(y[k]) > 100:                                        # the loop has gone unstable
-            y[k:] = np.nan
-            break
-        if adaptive:
-            est.predict_update(y[k], H=[-y[k - 1], -y[k - 2], u[k - 1], u[k - 2]])
-            Rc, Sc, Tc = rst_design(est.x[:2, 0], est.x[2:, 0], poles_cl, poles_obs)
-            history[k] = est.x[:, 0]
-        u[k] = (-Rc[1] * u[k - 1] - Rc[2] * u[k - 2] + Tc @ ref[k - 2:k + 1][::-1]
-                - Sc @ y[k - 2:k + 1][::-1] + dither[k])
-    return y, u, history
+The estimator starts from the identified model and the regulator from the design above. The motor
+with its gain change is a python-control `nlsys`; the regulator goes into `control.interconnect`
+through `as_iosystem()`, and the fixed controller through `to_ss()`."""),
+    ("code", r"""N, t_change = 1600, 45.0
+Fp, Gp, Hp, _ = (np.asarray(m) for m in control.ssdata(control.ss(ds.plant)))
 
 
-y_str, u_str, theta_str = run(adaptive=True)
-y_fix, u_fix, _ = run(adaptive=False)
+def motor_update(t, x, u, params):
+    gain = 5.0 if t >= t_change else 1.0                    # the load change
+    return Fp @ x + Gp[:, 0] * gain * u[0]
 
-radius = np.abs(closed_loop(5 * G_true).poles()).max()
-print(f"fixed controller on the changed plant: largest closed-loop |pole| = {radius:.3f}")
+
+def motor_output(t, x, u, params):
+    return Hp @ x + u[1]                                    # measurement noise
+
+
+motor = control.nlsys(motor_update, motor_output, inputs=["u", "noise"], outputs=["y"],
+                      states=Fp.shape[0], dt=dt, name="motor")
+estimator = RecursiveLeastSquares(4, lam=0.98, x0=model.theta_,
+                                  P0=np.diag([1e-2, 1e-2, 1e-6, 1e-6]))
+stre = SelfTuningRegulator(estimator, design=dict(Am=Am, Ao=Ao), na=2, nb=2, nk=1,
+                           initial=ctrl, bounds=([-np.inf, -np.inf, 0.0, 0.0], np.inf), dt=dt)
+print(stre)
+
+str_loop = control.interconnect(
+    [motor, stre.as_iosystem(name="str", extra_outputs=True)], inputs=["r", "dither", "noise"],
+    outputs=["y", "u", "e", "theta[0]", "theta[1]", "theta[2]", "theta[3]"])
+fixed_loop = control.interconnect(
+    [motor, control.ss(ctrl.to_ss(), inputs=["r", "y"], outputs="u", name="fixed")],
+    inputs=["r", "noise"], outputs=["y", "u"])
+
+time = np.arange(N) * dt
+ref = np.where((np.arange(N) // 200) % 2 == 0, 1.0, -1.0)   # square wave, period 20 s
+dither = 0.2 * np.random.default_rng(7).choice([-1.0, 1.0], N)
+noise = 0.002 * np.random.default_rng(4).standard_normal(N)
+res_str = control.input_output_response(str_loop, time, [ref, dither, noise])
+res_fix = control.input_output_response(fixed_loop, time, [ref, noise])
+y_str, u_str, theta_str = res_str.outputs[0], res_str.outputs[1], res_str.outputs[3:].T
+y_fix = res_fix.outputs[0]
+
+A_true, B_true = ds.true_model().polynomials()
+changed = ctrl.closed_loop(A_true, 5.0 * B_true)
+print(f"fixed controller on the changed plant: largest |pole| = {np.abs(changed.poles).max():.3f}")
 rms_before = np.sqrt(np.mean((y_str[700:900] - ref[700:900]) ** 2))
 rms_end = np.sqrt(np.mean((y_str[-200:] - ref[-200:]) ** 2))
 print(f"STR: RMS tracking error {rms_before:.3f} before the change, {rms_end:.3f} at the end")
-print("STR estimate of b at the end:", np.round(theta_str[-1, 2:], 5), " true:",
-      np.round(5 * b_true, 5))
-assert radius > 1 and np.isnan(y_fix[-1]) and np.all(np.isfinite(y_str))
-np.testing.assert_allclose(theta_str[-1, 2:].sum(), 5 * b_true.sum(), rtol=0.05)"""),
-    ("code", r"""time = np.arange(N) * dt
-fig, axes = plt.subplots(3, 1, figsize=(11, 8), sharex=True, layout="constrained")
+gain_est = theta_str[-1, 2:].sum() / (1 + theta_str[-1, :2].sum())   # B(1) / A(1)
+gain_true = 5 * B_true.sum() / A_true.sum()
+print(f"static gain at the end: estimated {gain_est:.4f}, true {gain_true:.4f}")
+assert not changed.stable and np.abs(y_fix[-1]) > 1e3 and np.all(np.isfinite(y_str))
+np.testing.assert_allclose(gain_est, gain_true, rtol=0.02)"""),
+    ("md", r"""The same regulator driven by hand, one `step(y, r)` per sample, gives the same numbers (one
+sample of the python-control system *is* one step), and keeps a history for plotting."""),
+    ("code", r"""x = np.zeros(motor.nstates)
+y_step = np.zeros(N)
+for i in range(N):
+    y_step[i] = motor.output(time[i], x, [0.0, noise[i]])[0]
+    u = stre.step(y_step[i], ref[i], dither=dither[i])
+    x = motor.dynamics(time[i], x, [u, noise[i]])
+print(f"largest difference step loop - interconnect: {np.max(np.abs(y_step - y_str)):.1e}")
+assert np.max(np.abs(y_step - y_str)) < 1e-9
+print(stre.history)
+b_true = np.where(time[:, None] >= t_change, 5.0, 1.0) * np.asarray(ds.b)
+truth = np.column_stack([np.broadcast_to(ds.a, (N, 2)), b_true])
+stre.history.plot(true_theta=truth);"""),
+    ("code", r"""fig, axes = plt.subplots(3, 1, figsize=(11, 8), sharex=True, layout="constrained")
 axes[0].plot(time, ref, "k:", lw=1, label="reference")
 axes[0].plot(time, y_fix, lw=1, label="fixed controller")
 axes[0].plot(time, y_str, lw=1, label="self-tuning regulator")
-axes[0].set(ylabel="speed y", ylim=(-2, 2), title="Plant gain x5 at t = 45 s")
+axes[0].set(ylabel="speed y", ylim=(-2, 2), title="Motor gain x5 at t = 45 s")
 axes[0].legend(ncol=3, loc="lower left")
 axes[1].plot(time, u_str, lw=0.8, color="C2")
 axes[1].set(ylabel="voltage u (STR)")
-axes[2].plot(time, theta_str[:, 2] / b_true[0], label=r"$\hat b_1 / b_1^{before}$")
-axes[2].plot(time, theta_str[:, 3] / b_true[1], label=r"$\hat b_2 / b_2^{before}$")
+axes[2].plot(time, theta_str[:, 2] / ds.b[0], label=r"$\hat b_1 / b_1^{before}$")
+axes[2].plot(time, theta_str[:, 3] / ds.b[1], label=r"$\hat b_2 / b_2^{before}$")
 axes[2].axhline(5, color="k", ls=":", lw=1)
 axes[2].set(xlabel="t [s]", ylabel="estimate / initial", ylim=(0, 7))
 axes[2].legend(loc="upper left")
 for ax in axes:
-    ax.axvline(t_change * dt, color="0.6", lw=0.8)"""),
+    ax.axvline(t_change, color="0.6", lw=0.8)"""),
     ("md", r"""The fixed controller, tuned for the old gain, loses stability when the gain grows five-fold;
 the self-tuning regulator re-identifies the gain within a few reference steps and keeps the
-designed closed-loop behaviour. Two practical points visible here: the loop needs excitation to
-identify (the dither, and the reference steps), and the forgetting factor sets how fast the
-estimate, and with it the controller, can follow the plant (notebook 2)."""),
+designed closed-loop behaviour. Three practical points are visible: the loop needs excitation
+to identify (the dither and the reference steps; the regulator's excitation monitor warns when
+they are missing); the forgetting factor sets how fast the estimate, and with it the
+controller, can follow the plant (notebook 2); and with measurement noise (not the equation
+error the ARX model assumes) the individual coefficients are biased, while the static gain, which
+the control relies on most, is estimated well (notebook 3 shows how the residual tests reveal
+such coloured noise)."""),
 ]
 
 NOTEBOOKS = {

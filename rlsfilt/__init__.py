@@ -8,9 +8,10 @@ A filterpy-style toolkit: `RecursiveLeastSquares` mirrors filterpy's
 # first, so that the subpackages can read it (the JSON results carry it)
 __version__ = "0.1.0"
 
-from . import datasets, validation  # public subpackages: rlsfilt.datasets, rlsfilt.validation
+from . import adaptive, datasets, validation  # public subpackages
 from .exceptions import (
     ExactFitError,
+    ExcitationWarning,
     ForgettingSkippedWarning,
     InsufficientDataError,
     NotFittedError,
@@ -49,6 +50,7 @@ __all__ = [
     "RecursiveARX",
     "RecursiveAR",
     "RecursiveARMA",
+    "adaptive",
     "datasets",
     "validation",
     "validate",
@@ -59,5 +61,6 @@ __all__ = [
     "ExactFitError",
     "NumericalWarning",
     "ForgettingSkippedWarning",
+    "ExcitationWarning",
     "__version__",
 ]

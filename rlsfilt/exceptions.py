@@ -5,7 +5,7 @@ keeps working, while ``except NotFittedError`` lets a caller be precise.
 """
 
 __all__ = ["NotFittedError", "InsufficientDataError", "ExactFitError", "NumericalWarning",
-           "ForgettingSkippedWarning"]
+           "ForgettingSkippedWarning", "ExcitationWarning"]
 
 
 class NotFittedError(ValueError, AttributeError):
@@ -32,3 +32,9 @@ class ForgettingSkippedWarning(UserWarning):
     """``update`` ran twice without ``predict`` in between while forgetting
     (``lam < 1``) or a parameter random walk (``Q > 0``) was configured, so
     the time update of the covariance was skipped."""
+
+
+class ExcitationWarning(UserWarning):
+    """An online estimator stopped learning: its regressors no longer excite
+    every parameter direction, or its covariance is winding up (see
+    `rlsfilt.adaptive.SelfTuningRegulator`)."""

@@ -14,7 +14,7 @@ import pytest
 
 matplotlib.use("Agg")
 
-PACKAGES = ["rlsfilt.models", "rlsfilt.validation", "rlsfilt.datasets"]
+PACKAGES = ["rlsfilt.models", "rlsfilt.validation", "rlsfilt.datasets", "rlsfilt.adaptive"]
 
 
 def _modules():
