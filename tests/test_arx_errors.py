@@ -137,7 +137,7 @@ def test_bad_shapes_and_types(data):
 
 
 def test_bad_method_and_options(data):
-    with pytest.raises(ValueError, match=r"`method` must be 'ls' or 'rls'; got 'qr'"):
+    with pytest.raises(ValueError, match=r"`method` must be 'ls', 'rls', 'iv' or 'riv'; got 'qr'"):
         ARX(2, 2).fit(*data, method="qr")
     with pytest.raises(TypeError, match=r"`lam` only applies to method='rls'; got method='ls'"):
         ARX(2, 2).fit(*data, lam=0.99)
