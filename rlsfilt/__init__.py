@@ -32,7 +32,7 @@ from .models import (
     RecursiveBJ,
     RecursiveOE,
 )
-from .validation import fit_percent, select_order, validate
+from .validation import fit_percent, select_order, select_structure, validate
 
 __all__ = [
     "RecursiveLeastSquares",
@@ -55,6 +55,7 @@ __all__ = [
     "validation",
     "validate",
     "select_order",
+    "select_structure",
     "fit_percent",
     "NotFittedError",
     "InsufficientDataError",
