@@ -30,6 +30,7 @@ from .models import (
     RecursiveARMAX,
     RecursiveARX,
     RecursiveBJ,
+    RecursiveIV,
     RecursiveOE,
 )
 from .validation import fit_percent, select_order, select_structure, validate
@@ -50,6 +51,7 @@ __all__ = [
     "RecursiveARX",
     "RecursiveAR",
     "RecursiveARMA",
+    "RecursiveIV",
     "adaptive",
     "datasets",
     "validation",

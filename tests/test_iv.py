@@ -223,3 +223,68 @@ def test_arx_iv_options_are_checked(rng):
         ARX(1, 1).fit(u, np.column_stack([y, y]), method="iv", instruments="model")
     with pytest.raises(ValueError, match="`lam` must be in \\(0, 1\\]; got 0.0"):
         ARX(2, 2).fit(u, y, method="riv", lam=0.0)
+
+
+# ----------------------------------------------------------------------
+# the streaming form
+# ----------------------------------------------------------------------
+@pytest.mark.parametrize("kw", [dict(k0=0), dict(k0=4, prefilter=True, refresh=37)])
+def test_streaming_riv_equals_the_batch_recursion_bit_for_bit(kw, rng):
+    from rlsfilt import RecursiveIV
+
+    u, y = armax_record(rng, 1500)
+    aux = np.array([-1.0, 0.3, 1.0, 0.0])
+    est = RecursiveIV(2, 2, 1, theta_aux=aux, **kw)
+    thetas = np.array([est.step(y[t], u[t])[1] for t in range(len(y))])
+    kw_batch = dict(kw, refresh=est.refresh)
+    fit = recursive_iv(u[:, None], y[:, None], arx_structure(2, 2, 1), "model", theta_aux=aux,
+                       P0=1e4, **kw_batch)
+    hist = fit.theta_history[:, :, 0]
+    start = max(kw["k0"] - 1, 0)
+    np.testing.assert_array_equal(thetas[2 + start:], hist[start:])
+
+
+def test_streaming_riv_with_given_instruments_is_batch_iv(rng):
+    """Instruments supplied per sample (a reference signal's lags), exact start on 4 rows:
+    every estimate is the batch IV solution of the rows so far."""
+    from rlsfilt import RecursiveIV
+
+    u, y = armax_record(rng, 400)
+    r = u + 0.2 * rng.standard_normal(400)
+    Zfull = np.column_stack([shifted(r, k) for k in (1, 2, 3, 4)])
+    est = RecursiveIV(2, 2, 1, instruments="given", k0=4)
+    preds, thetas = [], []
+    for t in range(400):
+        yhat, theta = est.step(y[t], u[t], z=Zfull[t])
+        preds.append(yhat)
+        thetas.append(theta)
+    Phi, target = arx_regressors(u, y, 2, 2, 1)
+    Z = Zfull[2:]
+    for t in range(4, len(Phi) + 1, 9):
+        np.testing.assert_allclose(thetas[t + 1], np.linalg.solve(Z[:t].T @ Phi[:t],
+                                                                  Z[:t].T @ target[:t]),
+                                   rtol=1e-10)
+    assert np.isnan(preds[2:5]).all() and np.isfinite(preds[6])
+    np.testing.assert_allclose(preds[10], Phi[8] @ thetas[9], rtol=1e-13)
+
+
+def test_streaming_riv_errors(rng):
+    from rlsfilt import RecursiveIV
+
+    est = RecursiveIV(1, 1, 1, instruments="given")
+    with pytest.raises(ValueError, match="`z` must be given: instruments='given'"):
+        est.step(1.0, 0.0)
+    with pytest.raises(ValueError, match="`z` must have n_params = 2 entries; got 3"):
+        est.step(1.0, 0.0, z=[1, 2, 3])
+    with pytest.raises(ValueError, match="`z` only applies to instruments='given'"):
+        RecursiveIV(1, 1).step(1.0, 0.0, z=[1, 2])
+    with pytest.raises(ValueError, match="`instruments` must be 'model' or 'given'"):
+        RecursiveIV(1, 1, instruments="delayed")
+    with pytest.raises(ValueError, match="`u` must have 1 entries"):
+        RecursiveIV(1, 1).step(1.0, [0.0, 1.0])
+    assert est.n_steps == 0
+    zero = RecursiveIV(1, 1, 1, instruments="given", k0=2)
+    zero.step(1.0, 1.0, z=[0.0, 0.0])
+    zero.step(1.0, 1.0, z=[0.0, 0.0])
+    with pytest.raises(ValueError, match="exact start on the first k0 = 2 rows is singular"):
+        zero.step(1.0, 1.0, z=[0.0, 0.0])

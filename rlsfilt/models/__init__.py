@@ -18,10 +18,11 @@ from .recursive import (
     RecursiveBJ,
     RecursiveOE,
 )
+from .recursive_iv import RecursiveIV
 from .regressors import ARXStructure, arx_regressors, arx_structure
 
 __all__ = ["ARX", "ARXSummary", "ARXStructure", "IdentifiedModel", "ModelSummary",
            "Polynomials", "arx_regressors", "arx_structure", "check_is_fitted",
            "ARMAX", "OE", "BJ", "AR", "ARMA",
            "RecursiveARMAX", "RecursiveOE", "RecursiveBJ", "RecursiveARX", "RecursiveAR",
-           "RecursiveARMA"]
+           "RecursiveARMA", "RecursiveIV"]

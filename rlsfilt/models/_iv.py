@@ -444,10 +444,11 @@ def recursive_iv(U, Y, s, instruments="model", *, lam=1.0, Q=None, R=1.0, P0=Non
         target = np.empty(rows)
         if compiled:
             k = _get_kernels()
+            buf = np.zeros((4 + 2 * s.n_inputs, s.max_lag + 1))
             bad, singular = k.riv_model(
-                theta, P, np.ascontiguousarray(U, dtype=float),
-                np.ascontiguousarray(Y[:, 0], dtype=float), s.na,
-                np.array(s.nb, dtype=np.int64), np.array(s.nk, dtype=np.int64), s.max_lag, k0,
+                theta, P, buf, np.ascontiguousarray(U, dtype=float),
+                np.ascontiguousarray(Y[:, 0], dtype=float), s.max_lag, s.na,
+                np.array(s.nb, dtype=np.int64), np.array(s.nk, dtype=np.int64), k0,
                 alpha, beta, refresh, bool(prefilter), il, Qa, q_zero, float(R), tol,
                 hist, eps, Phi, Z, target)
         else:

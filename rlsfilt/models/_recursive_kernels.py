@@ -548,133 +548,224 @@ def riv_rows(theta, P, Phi, Z, Y, il, Q, q_zero, r, tol, theta_hist, eps_hist):
     return bad
 
 
-@njit(cache=True)
-def riv_model(theta, P, U, y, na, nb, nk, t0, k0, alpha, beta, refresh, prefilter,
-              il, Q, q_zero, r, tol, theta_hist, eps_hist, Phi_out, Z_out, Y_out):
-    """Recursive IV with instruments from an auxiliary model refreshed every `refresh` rows.
+# rows of the RIV signal buffer: y, prefiltered y, auxiliary output x, prefiltered x,
+# then per input i: u_i (row 4 + 2 i) and prefiltered u_i (row 5 + 2 i)
+RIV_Y, RIV_YF, RIV_X, RIV_XF = 0, 1, 2, 3
 
-    The auxiliary model :math:`\\hat A x = \\sum_i \\hat B_i u_i` (``alpha``
+
+@njit(cache=True)
+def riv_signals(buf, y, u, na, nb, nk, alpha, beta, prefilter, phi, z):
+    r"""Take one sample into the RIV signal buffer; build the regressor and instrument rows.
+
+    Shifts ``buf`` (4 + 2 nu, M) one lag, stores ``y``, ``u``, the
+    prefiltered signals (through :math:`1/\hat A`, ``alpha``, when
+    `prefilter`) and the auxiliary output :math:`\hat A x = \sum_i \hat
+    B_i u_i` (``beta`` the ``b`` blocks), then writes ``phi`` = ``[-yf(t-k),
+    uf_i(t - nk_i - k)]`` and ``z`` = ``[-xf(t-k), uf_i(t - nk_i - k)]``
+    (signals before the record are zero). Returns the (prefiltered) target
+    ``yf(t)``.
+    """
+    n_sig, M = buf.shape
+    nu = nb.shape[0]
+    for sg in range(n_sig):
+        for k in range(M - 1, 0, -1):
+            buf[sg, k] = buf[sg, k - 1]
+        buf[sg, 0] = 0.0
+    buf[RIV_Y, 0] = y
+    yf = y
+    if prefilter:
+        for k in range(1, na + 1):
+            yf -= alpha[k - 1] * buf[RIV_YF, k]
+    buf[RIV_YF, 0] = yf
+    x = 0.0
+    off = 0
+    for i in range(nu):
+        ru = 4 + 2 * i
+        buf[ru, 0] = u[i]
+        uf = u[i]
+        if prefilter:
+            for k in range(1, na + 1):
+                uf -= alpha[k - 1] * buf[ru + 1, k]
+        buf[ru + 1, 0] = uf
+        for k in range(nb[i]):
+            x += beta[off + k] * buf[ru, nk[i] + k]
+        off += nb[i]
+    for k in range(1, na + 1):
+        x -= alpha[k - 1] * buf[RIV_X, k]
+    buf[RIV_X, 0] = x
+    xf = x
+    if prefilter:
+        for k in range(1, na + 1):
+            xf -= alpha[k - 1] * buf[RIV_XF, k]
+    buf[RIV_XF, 0] = xf
+    j = 0
+    for k in range(1, na + 1):
+        phi[j] = -buf[RIV_YF, k]
+        z[j] = -buf[RIV_XF, k]
+        j += 1
+    for i in range(nu):
+        ru = 4 + 2 * i
+        for k in range(nb[i]):
+            v = buf[ru + 1, nk[i] + k]
+            phi[j] = v
+            z[j] = v
+            j += 1
+    return yf
+
+
+@njit(cache=True)
+def riv_exact_start(Z0, Phi0, Y0, theta, P):
+    """``P = (Z0^T Phi0)^-1``, ``theta = P Z0^T Y0`` in place; False when singular."""
+    k0, n = Phi0.shape
+    M = np.zeros((n, n))
+    rhs = np.zeros(n)
+    for q in range(k0):
+        for a in range(n):
+            za = Z0[q, a]
+            rhs[a] += za * Y0[q]
+            for b in range(n):
+                M[a, b] += za * Phi0[q, b]
+    if not np.linalg.cond(M) < 1e15:       # also NaN: no exact start possible
+        return False
+    Pm = np.linalg.inv(M)
+    for a in range(n):
+        acc = 0.0
+        for b in range(n):
+            P[a, b] = Pm[a, b]
+            acc += Pm[a, b] * rhs[b]
+        theta[a, 0] = acc
+    return True
+
+
+@njit(cache=True)
+def riv_refresh(theta, na, alpha, beta):
+    """The auxiliary model takes the current estimate (``A`` reflected into the unit circle)."""
+    n = theta.shape[0]
+    a = np.empty(na + 1)
+    a[0] = 1.0
+    for k in range(na):
+        a[k + 1] = theta[k, 0]
+    a = reflect(a)
+    for k in range(na):
+        alpha[k] = a[k + 1]
+    for k in range(n - na):
+        beta[k] = theta[na + k, 0]
+
+
+@njit(cache=True)
+def riv_model_step(theta, P, buf, y, u, z_given, use_given, row, na, nb, nk, k0, alpha, beta,
+                   refresh, prefilter, il, Q, q_zero, r, tol, Phi0, Z0, Y0, phi, z, g, h, K,
+                   eps):
+    """One sample of recursive IV with auxiliary-model instruments (batch and streaming).
+
+    `row` is the index of this sample's regressor row (negative before the
+    first complete row: the signals are only recorded). Rows ``0 .. k0-1``
+    are stored in ``Phi0``, ``Z0``, ``Y0`` and make the exact start at row
+    ``k0 - 1``; later rows update ``theta`` and ``P``. Every `refresh` rows
+    the auxiliary model takes the estimate. With `use_given` the instrument
+    row is ``z_given`` instead (instruments supplied sample by sample).
+    ``phi``, ``z`` hold the rows on return.
+
+    Returns
+    -------
+    status : int
+        -1 before the first row, 0 a start row, 1 an update, 2 a skipped
+        update (conditioning check), 3 a singular exact start.
+    target : float
+        The (prefiltered) output ``yf(t)``.
+    """
+    target = riv_signals(buf, y, u, na, nb, nk, alpha, beta, prefilter, phi, z)
+    n = phi.shape[0]
+    if use_given:
+        for j in range(n):
+            z[j] = z_given[j]
+    if row < 0:
+        return -1, target
+    status = 1
+    if row < k0:
+        for j in range(n):
+            Phi0[row, j] = phi[j]
+            Z0[row, j] = z[j]
+        Y0[row] = target
+        eps[0] = np.nan
+        status = 0
+        if row == k0 - 1 and not riv_exact_start(Z0, Phi0, Y0, theta, P):
+            return 3, target
+    else:
+        time_update(P, il, Q, q_zero)
+        yv = np.empty(1)
+        yv[0] = target
+        if riv_update(theta, P, phi, z, yv, r, tol, g, h, K, eps):
+            status = 2
+    if refresh > 0 and (row + 1) % refresh == 0 and row + 1 >= k0:
+        riv_refresh(theta, na, alpha, beta)
+    return status, target
+
+
+@njit(cache=True)
+def riv_model(theta, P, buf, U, y, t0, na, nb, nk, k0, alpha, beta, refresh, prefilter,
+              il, Q, q_zero, r, tol, theta_hist, eps_hist, Phi_out, Z_out, Y_out):
+    r"""Recursive IV with instruments from an auxiliary model refreshed every `refresh` rows.
+
+    The auxiliary model :math:`\hat A x = \sum_i \hat B_i u_i` (``alpha``
     = its ``a`` coefficients, ``beta`` its ``b`` blocks) simulates the
     noise-free output ``x``; the instrument row is the ARX regressor with
     ``-y`` replaced by ``-x``. With `prefilter`, ``y``, ``u`` and ``x`` pass
-    through :math:`1/\\hat A` first (Young's simplified refined IV). Every
+    through :math:`1/\hat A` first (Young's simplified refined IV). Every
     `refresh` rows the auxiliary model takes the current estimate (its
     ``A`` reflected into the unit circle). The first `k0` rows (``k0 > 0``)
-    make an exact start, :math:`P = (Z_0^T\\Phi_0)^{-1}`,
-    :math:`\\theta = P Z_0^T y_0`; with ``k0 = 0`` the given ``theta``,
-    ``P`` are the prior.
+    make an exact start, :math:`P = (Z_0^T\Phi_0)^{-1}`,
+    :math:`\theta = P Z_0^T y_0`; with ``k0 = 0`` the given ``theta``,
+    ``P`` are the prior. Each sample is one `riv_model_step` (the step the
+    streaming estimator runs), on the signal buffer ``buf``.
 
     Writes ``theta_hist`` (rows, n, 1) (NaN before the start), ``eps_hist``
     (rows, 1), and the rows actually used, ``Phi_out``, ``Z_out`` (rows, n)
-    and the (prefiltered) targets ``Y_out`` (rows,). Returns ``(bad, singular)``: the first row failing the
-    conditioning check (or -1), and whether the exact start was singular.
+    and the (prefiltered) targets ``Y_out`` (rows,). Returns ``(bad,
+    singular)``: the first row whose update the conditioning check skipped
+    (or -1), and whether the exact start was singular.
     """
     N = y.shape[0]
-    nu = nb.shape[0]
     n = theta.shape[0]
-    yf = np.zeros(N)
-    uf = np.zeros((N, nu))
-    x = np.zeros(N)
-    xf = np.zeros(N)
+    phi = np.empty(n)
+    z = np.empty(n)
     g = np.empty(n)
     h = np.empty(n)
     K = np.empty(n)
     eps = np.empty(1)
-    yv = np.empty(1)
-    off_b = np.empty(nu, dtype=np.int64)
-    o = na
-    for i in range(nu):
-        off_b[i] = o
-        o += nb[i]
+    Phi0 = np.empty((max(k0, 1), n))
+    Z0 = np.empty((max(k0, 1), n))
+    Y0 = np.empty(max(k0, 1))
     bad = -1
-    singular = False
     for t in range(N):
-        # prefilter 1/A_aux (or identity) and the auxiliary simulation x = B/A u
-        acc_y = y[t]
-        acc_x = 0.0
-        for i in range(nu):
-            acc_u = U[t, i]
-            if prefilter:
-                for k in range(1, na + 1):
-                    if t - k >= 0:
-                        acc_u -= alpha[k - 1] * uf[t - k, i]
-            uf[t, i] = acc_u
-            for k in range(nb[i]):
-                lag = nk[i] + k
-                if t - lag >= 0:
-                    acc_x += beta[off_b[i] - na + k] * U[t - lag, i]
-        for k in range(1, na + 1):
-            if t - k >= 0:
-                acc_x -= alpha[k - 1] * x[t - k]
-                if prefilter:
-                    acc_y -= alpha[k - 1] * yf[t - k]
-        x[t] = acc_x
-        yf[t] = acc_y
-        acc_xf = acc_x
-        if prefilter:
-            for k in range(1, na + 1):
-                if t - k >= 0:
-                    acc_xf -= alpha[k - 1] * xf[t - k]
-        xf[t] = acc_xf
-        if t < t0:
-            continue
         row = t - t0
-        phi = Phi_out[row]
-        z = Z_out[row]
-        j = 0
-        for k in range(1, na + 1):
-            phi[j] = -yf[t - k]
-            z[j] = -xf[t - k]
-            j += 1
-        for i in range(nu):
-            for k in range(nb[i]):
-                phi[j] = uf[t - nk[i] - k, i]
-                z[j] = uf[t - nk[i] - k, i]
-                j += 1
-        yv[0] = yf[t]
-        Y_out[row] = yf[t]
-        if row < k0:
-            eps_hist[row, 0] = np.nan
+        status, target = riv_model_step(theta, P, buf, y[t], U[t], z, False, row, na, nb, nk,
+                                        k0, alpha, beta, refresh, prefilter, il, Q, q_zero, r,
+                                        tol, Phi0, Z0, Y0, phi, z, g, h, K, eps)
+        if status < 0:
+            continue
+        if status == 3:
+            return bad, True
+        for j in range(n):
+            Phi_out[row, j] = phi[j]
+            Z_out[row, j] = z[j]
+        Y_out[row] = target
+        if status == 2 and bad < 0:
+            bad = row
+        eps_hist[row, 0] = eps[0]
+        if status == 0 and row < k0 - 1:
             for i in range(n):
                 theta_hist[row, i, 0] = np.nan
-            if row == k0 - 1:                 # exact start on the first k0 rows
-                M = np.zeros((n, n))
-                rhs = np.zeros(n)
-                for q in range(k0):
-                    tq = t0 + q
-                    for a in range(n):
-                        za = Z_out[q, a]
-                        rhs[a] += za * yf[tq]
-                        for b in range(n):
-                            M[a, b] += za * Phi_out[q, b]
-                if not np.linalg.cond(M) < 1e15:    # also NaN: no exact start possible
-                    singular = True
-                    return bad, singular
-                Pm = np.linalg.inv(M)
-                for a in range(n):
-                    acc = 0.0
-                    for b in range(n):
-                        P[a, b] = Pm[a, b]
-                        acc += Pm[a, b] * rhs[b]
-                    theta[a, 0] = acc
-                for i in range(n):
-                    theta_hist[row, i, 0] = theta[i, 0]
         else:
-            time_update(P, il, Q, q_zero)
-            skipped = riv_update(theta, P, phi, z, yv, r, tol, g, h, K, eps)
-            if bad < 0 and skipped:
-                bad = row
-            eps_hist[row, 0] = eps[0]
             for i in range(n):
                 theta_hist[row, i, 0] = theta[i, 0]
-        if refresh > 0 and (row + 1) % refresh == 0 and row + 1 >= k0:
-            a = np.empty(na + 1)
-            a[0] = 1.0
-            for k in range(na):
-                a[k + 1] = theta[k, 0]
-            a = reflect(a)
-            for k in range(na):
-                alpha[k] = a[k + 1]
-            for k in range(n - na):
-                beta[k] = theta[na + k, 0]
-    return bad, singular
+    return bad, False
+
+
+@njit(cache=True)
+def riv_stream(theta, P, buf, y, u, z_given, use_given, row, na, nb, nk, k0, alpha, beta,
+               refresh, prefilter, il, Q, q_zero, r, tol, Phi0, Z0, Y0, phi, z, g, h, K, eps):
+    """One streaming sample: `riv_model_step` behind its own entry point (the batch arithmetic)."""
+    return riv_model_step(theta, P, buf, y, u, z_given, use_given, row, na, nb, nk, k0, alpha,
+                          beta, refresh, prefilter, il, Q, q_zero, r, tol, Phi0, Z0, Y0, phi, z,
+                          g, h, K, eps)
