@@ -350,3 +350,14 @@ def test_summary_shows_the_polynomials(rng):
     assert re.search(r"F\(q\) = 1 - 1\.\d+ q\^-1 \+ 0\.\d+ q\^-2", text)
     assert "coef" in text and "d1" in text
     assert "<table>" in m._repr_html_()
+
+
+def test_unexciting_data_does_not_break_the_recursion():
+    """Constant input and output: the estimate is not determined, but the recursion (and its
+    projection of C into the stability region) runs without error and stays finite."""
+    est = RecursiveARMAX(1, 1, 1, 1)
+    for _ in range(3000):
+        est.step(0.1, 0.2)
+    assert np.isfinite(est.theta).all() and np.isfinite(est.P).all()
+    m = ARMAX(1, 1, 1).fit(np.full(500, 0.2), np.full(500, 0.1), method="rpem")
+    assert np.isfinite(m.theta_).all()

@@ -103,6 +103,9 @@ def reflect(p):
     n = p.shape[0] - 1
     if n < 1 or is_stable(p):
         return p.copy()
+    for j in range(n + 1):
+        if not np.isfinite(p[j]):                      # a diverged estimate: leave it to the
+            return p.copy()                            # caller's finiteness check
     comp = np.zeros((n, n), dtype=np.complex128)      # companion matrix
     for j in range(n):
         comp[0, j] = -p[j + 1]
@@ -139,6 +142,8 @@ def _stabilize_block(theta, start, n):
     if is_stable(p):
         return False
     q = reflect(p)
+    if not is_stable(q):                     # non-finite: nothing to project
+        return False
     for k in range(n):
         theta[start + k] = q[k + 1]
     return True

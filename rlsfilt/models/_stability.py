@@ -74,7 +74,7 @@ def reflect(p):
     array([ 1.  , -1.  ,  0.25])
     """
     p = np.array(p, dtype=float)
-    if len(p) <= 1 or is_stable(p):
+    if len(p) <= 1 or is_stable(p) or not np.isfinite(p).all():
         return p
     roots = np.roots(p)
     r = np.abs(roots)
