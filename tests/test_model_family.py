@@ -361,3 +361,42 @@ def test_unexciting_data_does_not_break_the_recursion():
     assert np.isfinite(est.theta).all() and np.isfinite(est.P).all()
     m = ARMAX(1, 1, 1).fit(np.full(500, 0.2), np.full(500, 0.1), method="rpem")
     assert np.isfinite(m.theta_).all()
+
+
+@pytest.mark.parametrize("make", [lambda: AR(2, dt=0.5), lambda: ARMA(1, 1),
+                                  lambda: ARMA(2, 1)], ids=["AR", "ARMA11", "ARMA21"])
+def test_time_series_contract(make, rng):
+    """The checks of tests/test_contract_models.py that apply to a time series (no input)."""
+    import copy
+
+    y = lfilter([1, 0.4], [1, -1.1, 0.3], rng.standard_normal(800))
+    model = make().fit(y)
+    assert model.n_params == len(model.param_names_) == len(model.theta_)
+    Phi, target = model.regressors(None, y)
+    assert len(Phi) == len(y) - model.max_lag
+    np.testing.assert_allclose(model.predict(None, y)[model.max_lag:], Phi @ model.theta_,
+                               rtol=1e-10, atol=1e-12)
+    for other in (copy.deepcopy(model), pickle.loads(pickle.dumps(model))):
+        np.testing.assert_array_equal(other.predict(None, y, horizon=2),
+                                      model.predict(None, y, horizon=2))
+    clone = type(model)(**model.get_params()).fit(y)
+    np.testing.assert_array_equal(clone.theta_, model.theta_)
+    before = pickle.dumps(model.__dict__)
+    bad = y.copy()
+    bad[5] = np.nan
+    with pytest.raises(ValueError, match="`y`"):
+        model.fit(bad)
+    with pytest.raises(TypeError, match="is not a parameter of"):
+        model.set_params(bogus=1)
+    assert pickle.dumps(model.__dict__) == before
+    # the noise model H = C/A: its impulse response is lfilter's
+    H = model.to_tf(noise=True)
+    A, C = model.polydata().A[0, 0], model.polydata().C[0]
+    imp = np.zeros(30)
+    imp[0] = 1.0
+    num, den = np.asarray(H.num[0][0]).ravel(), np.asarray(H.den[0][0]).ravel()
+    num = np.r_[np.zeros(len(den) - len(num)), num]
+    np.testing.assert_allclose(lfilter(num, den, imp), lfilter(C, A, imp), rtol=1e-12,
+                               atol=1e-14)
+    import json
+    json.dumps(model.to_dict(), allow_nan=False)
