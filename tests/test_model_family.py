@@ -186,10 +186,10 @@ def test_recursive_fits_keep_their_history(method, rng):
         assert m.margins_["1/C"][0] > 0
     else:
         with pytest.raises(AttributeError, match="only set by fit\\(..., method='rplr'\\)"):
-            m.margins_
+            m.margins_  # noqa: B018
     batch = ARMAX(2, 2, 2).fit(u, y)
     with pytest.raises(AttributeError, match="only set by fit\\(..., method='rpem' or 'rplr'"):
-        batch.theta_history_
+        batch.theta_history_  # noqa: B018
     assert batch.fit_info_["n_fev"] >= 1
 
 
@@ -338,7 +338,7 @@ def test_not_fitted_wording():
         with pytest.raises(NotFittedError, match=f"^This {name} instance is not fitted yet"):
             model.to_tf(noise=True)
         with pytest.raises(NotFittedError, match="before using `theta_`"):
-            model.theta_
+            model.theta_  # noqa: B018
 
 
 def test_summary_shows_the_polynomials(rng):

@@ -13,8 +13,8 @@ import pytest
 from scipy.signal import lfilter
 
 from rlsfilt import NumericalWarning, RecursiveLeastSquares
-from rlsfilt.models import arx_regressors
 from rlsfilt.models import _recursive_kernels as K
+from rlsfilt.models import arx_regressors
 from rlsfilt.models._family import family_structure, split_theta
 from rlsfilt.models._pem import pem
 from rlsfilt.models._recursive_pem import (
@@ -64,7 +64,8 @@ def _reference(state, y, U):
 
 @pytest.mark.parametrize("name", list(STRUCTURES))
 @pytest.mark.parametrize("method", ["rpem", "rplr"])
-@pytest.mark.parametrize("opts", FORGETTING, ids=lambda o: "-".join(map(str, o.values())) or "plain")
+@pytest.mark.parametrize("opts", FORGETTING, ids=lambda o: "-".join(map(str, o.values()))
+                         or "plain")
 def test_compiled_recursion_equals_the_numpy_reference(name, method, opts, rng):
     kw, theta = STRUCTURES[name]
     s = family_structure(**kw)
@@ -77,7 +78,8 @@ def test_compiled_recursion_equals_the_numpy_reference(name, method, opts, rng):
     np.testing.assert_allclose(state.P, P_r, rtol=1e-8, atol=1e-9)
 
 
-@pytest.mark.parametrize("opts", FORGETTING, ids=lambda o: "-".join(map(str, o.values())) or "plain")
+@pytest.mark.parametrize("opts", FORGETTING, ids=lambda o: "-".join(map(str, o.values()))
+                         or "plain")
 def test_rplr_of_an_arx_structure_is_recursive_least_squares(opts, rng):
     """With no C, D, F the pseudo-linear regressor is the ARX regressor and the
     recursion is RecursiveLeastSquares with the same options."""

@@ -2,8 +2,7 @@ r"""Consistent starting values for the prediction-error search.
 
 The criterion of the model family has local minima; a start that is already
 consistent (close to the truth for long records) puts the search in the
-right basin. The recipe (Ljung 1999, sec. 10.4; MATLAB's ``polyest``
-initialization follows the same multistep idea):
+right basin. The recipe is a multistep method (Ljung 1999, ch. 10):
 
 1. **Deterministic part.** With no ``F`` polynomials (ARX, ARMAX, AR, ARMA,
    ``A y = B u + C/D e``): the Hannan-Rissanen regression. A long ARX model
@@ -22,7 +21,7 @@ initialization follows the same multistep idea):
 References
 ----------
 .. [1] L. Ljung, *System Identification: Theory for the User*, 2nd ed.,
-   Prentice Hall, 1999, sec. 10.4.
+   Prentice Hall, 1999, ch. 10.
 .. [2] E. J. Hannan and J. Rissanen, "Recursive estimation of mixed
    autoregressive-moving average order", *Biometrika* 69(1), 81-94, 1982.
 .. [3] P. C. Young, *Recursive Estimation and Time-Series Analysis*, 2nd ed.,

@@ -16,7 +16,7 @@ signal (closed loop). The instruments offered here:
 
 * ``"delayed"``: the ``-y`` block of the regressor replaced by further
   delayed inputs, ``u_1(t - nk_1 - nb_1 - k + 1)``, ``k = 1 .. na`` (Ljung
-  1999, sec. 7.6);
+  1999, ch. 7);
 * ``"model"``: the ``-y`` block replaced by the output ``x = \hat B/\hat A
   u`` of an auxiliary model, the ARX estimate itself, iterated; with
   ``prefilter=True`` every signal also passes through :math:`1/\hat A` (the
@@ -33,7 +33,7 @@ every ``refresh`` rows.
 The covariance accounts for the coloured equation error: with ``w`` modelled
 by a long AR fit :math:`w = e / A_w(q)` (order by AIC) and
 :math:`\tilde z(t) = \sum_{i \ge 0} h_i z(t + i)`, :math:`h` the impulse
-response of :math:`1/A_w` (Ljung 1999, eq. 9.34 with :math:`K = 1/A_w`),
+response of :math:`1/A_w` (Ljung 1999, ch. 9, with the noise filter :math:`K = 1/A_w`),
 
 .. math::
 
@@ -43,7 +43,7 @@ response of :math:`1/A_w` (Ljung 1999, eq. 9.34 with :math:`K = 1/A_w`),
 References
 ----------
 .. [1] L. Ljung, *System Identification: Theory for the User*, 2nd ed.,
-   Prentice Hall, 1999, sec. 7.6, 9.5, 11.2 and 15.3.
+   Prentice Hall, 1999, ch. 7, 9, 11 and 15.
 .. [2] T. Soderstrom and P. Stoica, *Instrumental Variable Methods for
    System Identification*, Springer, 1983.
 .. [3] P. C. Young, *Recursive Estimation and Time-Series Analysis*, 2nd ed.,

@@ -13,7 +13,7 @@ Two estimators that approximate a coloured disturbance by a long AR model:
 References
 ----------
 .. [1] L. Ljung, *System Identification: Theory for the User*, 2nd ed.,
-   Prentice Hall, 1999, sec. 10.4 (multistep methods).
+   Prentice Hall, 1999, ch. 10 (multistep methods).
 .. [2] E. J. Hannan and J. Rissanen, "Recursive estimation of mixed
    autoregressive-moving average order", *Biometrika* 69(1), 81-94, 1982.
 .. [3] P. J. Brockwell and R. A. Davis, *Introduction to Time Series and

@@ -39,7 +39,7 @@ start is reflected into the unit circle, and a trial step that leaves the
 stability region gets non-finite residuals, which makes the trust region
 shrink, so every iterate has a stable predictor. The covariance is
 :math:`\hat\sigma^2 (J^T J)^{-1}` at the minimum, with
-:math:`\hat\sigma^2 = 2V / (N - t_0 - n_\theta)` (Ljung 1999, eq. 9.18).
+:math:`\hat\sigma^2 = 2V / (N - t_0 - n_\theta)` (Ljung 1999, ch. 9).
 
 References
 ----------

@@ -22,8 +22,8 @@ from scipy.signal import lfilter, lfiltic
 from .._validation import check_int
 from ._base import IdentifiedModel, Polynomials
 from ._family import param_names, split_theta
-from ._pem import _shift, pem, predictor_gradient, prediction_error_parts
 from ._initial import initial_estimate
+from ._pem import _shift, pem, prediction_error_parts, predictor_gradient
 from ._recursive_pem import recursive_pem
 from ._stability import stabilize_theta
 from .regressors import _as_signal, _column_rank, as_io_data
@@ -155,7 +155,8 @@ class PolynomialModel(IdentifiedModel):
 
     @property
     def orders_(self):
-        """The fitted orders (``na``, ``nb``, ``nc``, ``nd``, ``nf``, ``nk`` as the model has them)."""
+        """The fitted orders (those of ``na``, ``nb``, ``nc``, ``nd``, ``nf``, ``nk`` the model
+        has)."""
         self._check_fitted("orders_")
         s = self.structure_
         return {k: getattr(s, k) for k in self._ORDERS}
@@ -240,7 +241,7 @@ class PolynomialModel(IdentifiedModel):
 
         With :math:`G = B/(A F)`, :math:`H = C/(A D)` and the one-step
         prediction errors :math:`\varepsilon = H^{-1}(y - G u)`, the
-        ``k``-step predictor is (Ljung 1999, sec. 3.2)
+        ``k``-step predictor is (Ljung 1999, ch. 3)
 
         .. math::
 
@@ -345,8 +346,8 @@ class PolynomialModel(IdentifiedModel):
             if c == 0.0 and k > 0:
                 continue
             power = k + lag0
-            q = "" if power == 0 else (" q^-%d" % power if style == "text"
-                                        else " q<sup>-%d</sup>" % power)
+            q = "" if power == 0 else (f" q^-{power}" if style == "text"
+                                        else f" q<sup>-{power}</sup>")
             mag = f"{abs(c):.5g}"
             sign = "-" if c < 0 else "+"
             terms.append((sign, mag + q))

@@ -6,7 +6,7 @@ arithmetic is :mod:`rlsfilt.models._recursive_reference`; the tests hold the
 two equal to round-off, and hold the covariance update equal to
 `RecursiveLeastSquares` for every forgetting mode.
 
-**One step of RPEM / RPLR** (Ljung 1999, sec. 11.3-11.4; Ljung & Soderstrom
+**One step of RPEM / RPLR** (Ljung 1999, ch. 11; Ljung & Soderstrom
 1983), for the general model :math:`A y = \sum_i B_i/F_i\, u_i + C/D\, e`
 written in pseudo-linear form :math:`\hat y(t) = \varphi(t)^T\theta` with
 
@@ -45,7 +45,7 @@ region (reflection of unstable zeros, `_stability.reflect`). The forgetting
 factor of each step follows the start-up profile of `next_lam` (constant
 when it starts at ``lam``).
 
-**Recursive IV** (Ljung 1999, sec. 11.2; Soderstrom & Stoica 1989, ch. 8):
+**Recursive IV** (Ljung 1999, ch. 11; Soderstrom & Stoica 1983):
 with instrument ``z`` and regressor ``phi``::
 
     P <- P / lam + Q

@@ -25,7 +25,7 @@ on a frequency grid at the final estimate, and `recursive_pem` warns with
 References
 ----------
 .. [1] L. Ljung, *System Identification: Theory for the User*, 2nd ed.,
-   Prentice Hall, 1999, sec. 11.3-11.4 and 11.7.
+   Prentice Hall, 1999, ch. 11.
 .. [2] L. Ljung and T. Soderstrom, *Theory and Practice of Recursive
    Identification*, MIT Press, 1983.
 .. [3] L. Ljung, "On positive real transfer functions and the convergence of
@@ -80,7 +80,7 @@ class RecursionState:
         Forgetting factor in (0, 1] (its final value; see `lam_start`).
     lam_start, lam_rate : float, default 0.97 and 0.998
         Forgetting profile of the start-up (Ljung & Soderstrom 1983; Ljung
-        1999, sec. 11.2): the factor of step ``t`` is
+        1999, ch. 11): the factor of step ``t`` is
         :math:`\lambda(t) = r\,\lambda(t-1) + (1 - r)\,\lambda`,
         :math:`\lambda(0) = \min(\lambda_{start}, \lambda)`, so the early
         estimates, made with poor filters ``1/C``, ``1/F``, are forgotten

@@ -43,7 +43,6 @@ def rpem_reference(theta, P, y, U, s, method="rpem", mode=0, params=(), lam=1.0,
     theta = np.array(theta, dtype=float)
     P = np.array(P, dtype=float)
     N, n, nu = len(y), s.n_params, s.n_inputs
-    sl = s.slices()
     sig = {name: np.zeros(N) for name in ("yf", "e", "ef", "v", "vf")}
     per = [{name: np.zeros(N) for name in ("p", "uf", "w", "s", "wf")} for _ in range(nu)]
     hist, yhat, eps_out = np.zeros((N, n)), np.zeros(N), np.zeros(N)

@@ -4,12 +4,13 @@ The predictors of the model family filter data through :math:`1/C` and
 :math:`1/F_i` (and their gradients through :math:`D/(C F_i)`), so these
 polynomials must have every zero strictly inside the unit circle; ``D`` must
 too, for the noise model :math:`C/D` to describe a stationary disturbance
-(and to be the unique, minimum-phase spectral factor). A polynomial that has left the stability region is
-brought back by *reflecting* its zeros outside the circle to
+(and to be the unique, minimum-phase spectral factor). A polynomial that has
+left the stability region is brought back by *reflecting* its zeros outside
+the circle to
 :math:`1/\bar z`: this keeps the magnitude of its frequency response up to a
-constant (the spectrum of the noise model is unchanged in shape), and it is
-what MATLAB's ``polyest`` and Ljung's RPEM (1999, sec. 11.7, "projection into
-the stability region") do.
+constant (the spectrum of the noise model is unchanged in shape); it is the
+usual projection into the stability region of prediction-error methods
+(Ljung 1999, ch. 10-11).
 
 A compiled copy of `is_stable` and `reflect` lives in
 :mod:`rlsfilt.models._recursive_kernels` for the recursions; the tests hold
@@ -18,9 +19,9 @@ the two equal.
 References
 ----------
 .. [1] L. Ljung, *System Identification: Theory for the User*, 2nd ed.,
-   Prentice Hall, 1999, sec. 10.2 and 11.7.
+   Prentice Hall, 1999, ch. 10 and 11.
 .. [2] K. J. Astrom and B. Wittenmark, *Computer-Controlled Systems*, 3rd
-   ed., Prentice Hall, 1997, sec. 3.2 (the Schur-Cohn-Jury test).
+   ed., Prentice Hall, 1997, ch. 3 (the Schur-Cohn-Jury test).
 """
 
 import numpy as np

@@ -12,7 +12,7 @@ class OE(PolynomialModel):
     The disturbance is white noise on the output, so the one-step predictor
     is the simulated output :math:`\hat y = B/F\,u`: whatever the colour of
     the real disturbance, the prediction-error estimate of ``B/F`` is
-    consistent in open loop (Ljung 1999, sec. 8.5).
+    consistent in open loop (Ljung 1999, ch. 8).
 
     Parameters
     ----------

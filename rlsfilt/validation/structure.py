@@ -16,8 +16,8 @@ import numpy as np
 
 from .._serialize import jsonable
 from .._validation import check_int
-from .criteria import _criteria, information_criteria
 from ._model import one_step
+from .criteria import _criteria, information_criteria
 
 __all__ = ["StructureSelection", "select_structure"]
 
