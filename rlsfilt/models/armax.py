@@ -42,7 +42,7 @@ class ARMAX(PolynomialModel):
     a_, b_, c_ : ndarray
         Coefficients without the leading 1 (``b_`` without the ``nk``
         zeros; a list per input when ``u`` was 2-D).
-    residuals_ : ndarray, shape (n_samples_,)
+    residuals_ : ndarray, shape ``(n_samples_,)``
         Prediction errors :math:`\varepsilon(t, \hat\theta)`, ``t >= t0``.
     n_samples_ : int
         Number of prediction errors of the criterion, ``N - max_lag``.
