@@ -57,6 +57,7 @@ from handwritten import rls_handwritten  # noqa: E402
 
 import rlsfilt  # noqa: E402
 from rlsfilt.filters import _kernels  # noqa: E402
+from rlsfilt.filters.forgetting import EXPONENTIAL, kernel_config  # noqa: E402
 
 LAM = 0.99
 P0 = 1e4
@@ -148,8 +149,9 @@ def run_write_floor(Hs, zs):
 
 def run_kernel(Hs, zs):
     n = Hs.shape[1]
-    out = _kernels.batch_compiled(np.zeros((n, 1)), P0 * np.eye(n), zs.reshape(-1, 1), Hs,
-                                  np.ones(1), LAM, None, False, False)
+    out = _kernels.run_batch(np.zeros((n, 1)), P0 * np.eye(n), zs.reshape(-1, 1), Hs,
+                             np.ones(1), kernel_config(EXPONENTIAL, LAM, ()), None, None, False,
+                             False, 0, 0, np.inf)
     return out.x.ravel()
 
 

@@ -5,10 +5,10 @@ A filterpy-style toolkit: `RecursiveLeastSquares` mirrors filterpy's
 ``P``, ``K``, ``y``, ``S``) so it drops in beside Kalman filters.
 """
 
-# first, so that the subpackages can read it (the JSON results carry it)
-__version__ = "0.1.0"
-
-from . import adaptive, datasets, validation  # public subpackages
+from . import adaptive, data, datasets, validation  # public subpackages
+from ._version import __version__
+from .continuous import d2c
+from .data import IOData, Trend, detrend, retrend
 from .exceptions import (
     ExactFitError,
     ExcitationWarning,
@@ -16,6 +16,8 @@ from .exceptions import (
     InsufficientDataError,
     NotFittedError,
     NumericalWarning,
+    OperatingPointWarning,
+    OrderSelectionWarning,
 )
 from .filters import RecursiveLeastSquares, SlidingWindowRLS, SquareRootRLS
 from .models import (
@@ -33,7 +35,8 @@ from .models import (
     RecursiveIV,
     RecursiveOE,
 )
-from .validation import fit_percent, select_order, select_structure, validate
+from .persistence import load_model, save_model
+from .validation import delayest, fit_percent, select_order, select_structure, validate
 
 __all__ = [
     "RecursiveLeastSquares",
@@ -52,7 +55,16 @@ __all__ = [
     "RecursiveAR",
     "RecursiveARMA",
     "RecursiveIV",
+    "IOData",
+    "Trend",
+    "detrend",
+    "retrend",
+    "delayest",
+    "d2c",
+    "save_model",
+    "load_model",
     "adaptive",
+    "data",
     "datasets",
     "validation",
     "validate",
@@ -65,5 +77,7 @@ __all__ = [
     "NumericalWarning",
     "ForgettingSkippedWarning",
     "ExcitationWarning",
+    "OperatingPointWarning",
+    "OrderSelectionWarning",
     "__version__",
 ]

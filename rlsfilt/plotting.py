@@ -368,8 +368,12 @@ def plot_comparison(report, ax=None, *, window=None, ax_overview=None, output=0,
     ylabel = output_name + (f" ({output_unit})" if output_unit else "")
     sl = slice(a, b)
     ax.plot(*_decimate(t[sl], y[sl]), color=_BLACK, lw=1.6, label=f"measured {output_name}")
-    ax.plot(*_decimate(t[sl], ys[sl]), color=COLORS[0], lw=1.2,
-            label=f"simulated (fit {sf:.1f}%)")
+    if getattr(report, "is_unstable", False):
+        # a diverging simulation would set the scale and its "fit" means nothing: say so
+        ax.plot([], [], color=COLORS[0], lw=1.2, label=f"simulated: {report.stability}")
+    else:
+        ax.plot(*_decimate(t[sl], ys[sl]), color=COLORS[0], lw=1.2,
+                label=f"simulated (fit {sf:.1f}%)")
     ax.plot(*_decimate(t[sl], yp[sl]), color=COLORS[1], lw=1.0, linestyle="--",
             label=f"1-step predicted (fit {pf:.1f}%)")
     ax.set_xlabel(time_label)
@@ -380,8 +384,9 @@ def plot_comparison(report, ax=None, *, window=None, ax_overview=None, output=0,
     if ax_overview is not None:
         # per-bin extremes: a long record reads as its envelope, a single outlier stays visible
         ax_overview.plot(*_decimate(t, y), color=_GREY, lw=0.7, label=f"measured {output_name}")
-        ax_overview.plot(*_decimate(t, y - ys), color=COLORS[1], lw=0.7,
-                         label=f"error {output_name} - simulated")
+        if not getattr(report, "is_unstable", False):
+            ax_overview.plot(*_decimate(t, y - ys), color=COLORS[1], lw=0.7,
+                             label=f"error {output_name} - simulated")
         span = f"whole record ({N} samples)"
         if windowed:
             # the window stays visible however long the record: at least 0.5 % of the width
@@ -926,11 +931,9 @@ def plot_report(report, fig=None, *, window=None, output_name="y", output_unit=N
 # ----------------------------------------------------------------------
 def _report_band(report):
     """The 95 % band of the report's model (seed 0: the same figure on every call), on the
-    plant comparison's frequencies when there is one."""
-    from .validation.uncertainty import frequency_response_band
-
-    omega = None if report.plant_comparison is None else report.plant_comparison.omega
-    return frequency_response_band(report.model, omega=omega, rng=0)
+    plant comparison's frequencies when there is one (`ValidationReport.frequency_band`;
+    plotting imports nothing from rlsfilt.validation)."""
+    return report.frequency_band()
 
 
 def _draw_band(ax_mag, ax_phase, band, model_line=True):

@@ -118,7 +118,7 @@ def test_arx_estimator_beside_a_plant_is_ridge_regression():
     """lam = 1, P0 = d I, x0 = 0: the estimate is (Phi'Phi + I/d)^-1 Phi'Y on zero-padded rows."""
     N, d = 300, 100.0
     plant = control.tf(B, A, True, inputs="u", outputs="y")
-    est = estimator_iosystem(RecursiveLeastSquares(4, P0=d), (2, 2, 1))
+    est = RecursiveLeastSquares(4, P0=d).as_iosystem((2, 2, 1))      # the filter's method
     sys = control.interconnect([plant, est], inputs="u",
                                outputs=["y", "theta[0]", "theta[1]", "theta[2]", "theta[3]", "e"])
     u = np.random.default_rng(2).standard_normal(N)
@@ -167,3 +167,11 @@ def test_estimator_system_errors(kwargs, exc, match):
     args.update(kwargs)
     with pytest.raises(exc, match=match):
         estimator_iosystem(**args)
+
+
+@pytest.mark.parametrize("name", FILTERS)
+def test_every_filter_has_as_iosystem(name):
+    f = FILTERS[name](3)
+    sys = f.as_iosystem("direct", dt=0.5)
+    assert sys.dt == 0.5 and sys.nstates == len(_filter_state.get_state(f))
+    assert sys.output_labels[-1] == "e"

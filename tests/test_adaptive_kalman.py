@@ -215,7 +215,7 @@ def test_to_kalman_uses_the_noise_variance_and_copies():
 
 
 def test_errors_name_the_argument():
-    with pytest.raises(TypeError, match=r"`model` must have polynomials\(\)"):
+    with pytest.raises(TypeError, match=r"`model` must have polydata\(\) or polynomials\(\)"):
         to_kalman(object())
     with pytest.raises(TypeError, match=r"give either `kf` or the innovations form"):
         from_kalman(_generic_kalman_filter(), F=np.eye(2))
@@ -232,3 +232,16 @@ def test_errors_name_the_argument():
 
     with pytest.raises(ValueError, match=r"A\(0\) must be the identity"):
         to_kalman(Bad())
+
+
+def test_the_model_method_is_the_function():
+    from rlsfilt import NotFittedError
+
+    u, y = _siso_data()
+    model = ARX(2, 2, 1, dt=0.1).fit(u, y)
+    a, b = model.to_kalman(), to_kalman(model)
+    for name in ("F", "B", "H", "Q", "R", "x", "P", "D"):
+        assert_array_equal(getattr(a, name), getattr(b, name))
+    assert a.dt == 0.1
+    with pytest.raises(NotFittedError, match=r"not fitted yet"):
+        ARX(2, 2, 1).to_kalman()

@@ -299,7 +299,8 @@ def test_plot_tracking_of_an_arx_fitted_recursively():
     lag = model.max_lag
     fig = plot_tracking(model, t=ds.t[lag:], true_values=ds.theta_true[lag:])
     top, bottom = fig.axes
-    assert [t.get_text() for t in top.get_legend().get_texts()] == model.param_names_ + ["true"]
+    labels = [t.get_text() for t in top.get_legend().get_texts()]
+    assert labels == list(model.param_names_) + ["true"]
     assert_allclose(bottom.get_lines()[0].get_ydata(), model.recursive_residuals_)
     assert bottom.get_ylabel() == r"a-priori error $\varepsilon(t)$"
     with pytest.raises(ValueError, match="plot_tracking needs covariances"):

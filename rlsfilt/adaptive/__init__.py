@@ -26,7 +26,8 @@ rlsfilt`` stays light.
 """
 
 from .estimator_io import estimator_iosystem
-from .kalman import InnovationsModel, from_kalman, to_kalman
+from .innovations import InnovationsModel, from_kalman
+from .kalman import to_kalman
 from .minimum_variance import (
     MinimumVarianceController,
     generalized_minimum_variance,

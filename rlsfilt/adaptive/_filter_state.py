@@ -13,8 +13,6 @@ names it.
 
 import numpy as np
 
-from ..filters import RecursiveLeastSquares, SlidingWindowRLS, SquareRootRLS
-
 __all__ = []
 
 
@@ -67,19 +65,20 @@ def _sw_set(f, parts):
     f._set_int_state(ist.astype(np.int64))
 
 
-# most specific class first
-_ADAPTERS = [
-    (SlidingWindowRLS, _sw_fields, _sw_get, _sw_set),
-    (SquareRootRLS, _sr_fields, _sr_get, _sr_set),
-    (RecursiveLeastSquares, _rls_fields, _rls_get, _rls_set),
-]
+# keyed by class name, looked up along the MRO (subclasses included): the filters
+# call into this module (``as_iosystem``), so it must not import them
+_ADAPTERS = {
+    "SlidingWindowRLS": (_sw_fields, _sw_get, _sw_set),
+    "SquareRootRLS": (_sr_fields, _sr_get, _sr_set),
+    "RecursiveLeastSquares": (_rls_fields, _rls_get, _rls_set),
+}
 
 
 def _adapter(f, name="estimator"):
-    for cls, fields, get, put in _ADAPTERS:
-        if isinstance(f, cls):
-            return fields, get, put
-    known = ", ".join(cls.__name__ for cls, *_ in _ADAPTERS)
+    for cls in type(f).__mro__:
+        if cls.__module__.startswith("rlsfilt.filters") and cls.__name__ in _ADAPTERS:
+            return _ADAPTERS[cls.__name__]
+    known = ", ".join(_ADAPTERS)
     raise TypeError(f"`{name}` must be an rlsfilt filter ({known}) to run as a python-control "
                     f"system; got {type(f).__name__}")
 

@@ -189,12 +189,36 @@ def observer_form(A, B):
 
 
 def model_polynomials(obj, name, want):
-    """``(A, B)`` or ``(A, B, C)`` from a tuple, a mapping, or an object with ``polynomials()``.
+    r"""``(A, B)`` (the plant) or ``(A, B, C)`` (ARMAX) of a one-input, one-output model.
 
-    `want` is 2 or 3. ``polynomials()`` may return a tuple, a mapping with
-    keys ``a, b, c`` (either case) or an object with such attributes; a
-    missing ``C`` is 1 (an ARX model). Returns the raw values.
+    Reads the model interface's ``polydata()`` (``A, B, C, D, F`` of
+    :class:`rlsfilt.models.Polynomials`, so ARX, ARMAX, OE and BJ models all
+    work) and brings it to the ARMAX form over a common denominator:
+
+    .. math::
+
+        A F D\, y = B D\, u + C F\, e
+        \quad\text{from}\quad
+        A y = \frac{B}{F} u + \frac{C}{D} e ,
+
+    where the plant alone is ``(A F, B)`` (`want` = 2). Without
+    ``polydata()``, ``polynomials()`` may return a tuple ``(A, B[, C])``, a
+    mapping with keys ``a, b, c`` (either case) or an object with such
+    attributes; a missing ``C`` is 1. Returns 1-D arrays (raw values for
+    ``polynomials()``, checked by the caller).
     """
+    if hasattr(obj, "polydata"):
+        p = obj.polydata()
+        A, B = np.asarray(p.A, dtype=float), np.asarray(p.B, dtype=float)
+        if A.shape[0] != 1 or B.shape[1] != 1:
+            raise ValueError(f"`{name}` must be a model with one input and one output; got "
+                             f"{A.shape[0]} output(s) and {B.shape[1]} input(s)")
+        a, b = trim(A[0, 0]), trim(B[0, 0])
+        c, d = trim(np.asarray(p.C, float)[0]), trim(np.asarray(p.D, float)[0])
+        f = trim(np.asarray(p.F, float)[0, 0])
+        if want == 2:
+            return np.convolve(a, f), b
+        return np.convolve(np.convolve(a, f), d), np.convolve(b, d), np.convolve(c, f)
     src = obj.polynomials() if hasattr(obj, "polynomials") else obj
     if isinstance(src, dict):
         lower = {str(k).lower(): v for k, v in src.items()}
@@ -204,8 +228,8 @@ def model_polynomials(obj, name, want):
     elif any(hasattr(src, k) or hasattr(src, k.upper()) for k in "abc"):
         vals = [getattr(src, k.upper(), getattr(src, k, None)) for k in "abc"[:want]]
     else:
-        raise TypeError(f"`{name}` must be a model with polynomials() (such as a fitted ARX), "
-                        f"or a tuple of polynomials; got {type(obj).__name__}")
+        raise TypeError(f"`{name}` must be a model with polydata() or polynomials() (such as a "
+                        f"fitted ARX), or a tuple of polynomials; got {type(obj).__name__}")
     if vals[0] is None or vals[1] is None:
         raise ValueError(f"`{name}`: polynomials() must give at least A and B; got "
                          f"{type(src).__name__}")

@@ -83,8 +83,10 @@ def minimum_variance(A, B=None, C=None, d=None, *, dt=None):
     Parameters
     ----------
     A : array_like or model
-        ``[1, a1, ..]`` (monic), or a model whose ``polynomials()`` gives
-        ``A, B`` and optionally ``C`` (then omit `B` and `C`).
+        ``[1, a1, ..]`` (monic), or a model (then omit `B` and `C`): any
+        rlsfilt model through ``polydata()`` (ARX, ARMAX, and OE or BJ over
+        the common denominator ``A F D``), or an object whose
+        ``polynomials()`` gives ``A, B`` and optionally ``C``.
     B : array_like
         ``q^-d B'``: ``d`` leading zeros, then ``B'`` with ``B'(0) != 0``.
         ``B'`` must be stable (minimum phase): the design cancels it.
@@ -260,7 +262,7 @@ def _gmv(A, Bp, C, d, P, Q, dt):
 def _armax(A, B, C, dt, who):
     model = None
     if B is None:
-        if not hasattr(A, "polynomials"):
+        if not (hasattr(A, "polydata") or hasattr(A, "polynomials")):
             raise TypeError(f"{who}: `B` is required unless `A` is a model with polynomials(); "
                             f"got A of type {type(A).__name__}")
         model = A

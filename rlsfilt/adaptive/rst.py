@@ -152,8 +152,9 @@ class RSTController:
         Parameters
         ----------
         A : array_like or model
-            ``A(q^-1)`` (monic), or a model with ``polynomials()`` (then
-            omit `B`).
+            ``A(q^-1)`` (monic), or a model (then omit `B`): any rlsfilt
+            model through ``polydata()`` (the plant ``B / (A F)``), or an
+            object with ``polynomials()``.
         B : array_like, optional
             ``B(q^-1)`` including the delay's leading zeros.
 
@@ -272,8 +273,10 @@ def rst_design(A, B=None, Am=None, Ao=None, *, integral=True, dt=None, coprime_t
     ----------
     A : array_like or model
         Plant denominator ``[1, a1, .., a_na]`` (monic, ascending powers of
-        :math:`q^{-1}`), or a model with ``polynomials()`` (such as a fitted
-        `~rlsfilt.ARX`); then leave `B` out and give `Am` by keyword.
+        :math:`q^{-1}`), or a model, then leave `B` out and give `Am` by
+        keyword: a fitted `~rlsfilt.ARX` or any rlsfilt model (its plant
+        ``B / (A F)`` from ``polydata()``), or an object with
+        ``polynomials()`` returning ``(A, B)``.
     B : array_like
         Plant numerator ``[0]*nk + [b1, .., b_nb]`` including the delay's
         leading zeros (``ARX.polynomials()`` returns exactly this). Its
@@ -389,10 +392,10 @@ def rst_design(A, B=None, Am=None, Ao=None, *, integral=True, dt=None, coprime_t
 
 
 def _plant(A, B):
-    """``(A, B, model)`` from polynomials or from a model with ``polynomials()``."""
+    """``(A, B, model)`` from polynomials or from a model (``polydata()``/``polynomials()``)."""
     model = None
     if B is None:
-        if not hasattr(A, "polynomials"):
+        if not (hasattr(A, "polydata") or hasattr(A, "polynomials")):
             raise TypeError("`B` is required unless `A` is a model with polynomials() (such "
                             f"as a fitted ARX); got A of type {type(A).__name__}")
         model = A

@@ -227,7 +227,7 @@ class SelfTuningRegulator:
     # ------------------------------------------------------------------
     @property
     def theta(self):
-        """The current estimate ``[a1 .. a_na, b1 .. b_nb]`` (a copy)."""
+        """The current estimate: the ``a`` coefficients, then the ``b`` (a copy)."""
         return np.array(self.estimator.x, dtype=float).reshape(-1).copy()
 
     @property

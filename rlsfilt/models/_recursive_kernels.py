@@ -187,7 +187,7 @@ def time_update(P, il, Q, q_zero):
 def measurement_update(theta, P, psi, eps, r, mode, params, lam, has_gate, gate, g, K, T):
     """One measurement update of any forgetting mode, with the residual `eps` given.
 
-    The arithmetic of ``RecursiveLeastSquares`` (``forgetting.update_<mode>``)
+    The arithmetic of ``RecursiveLeastSquares`` (``filters._reference.update_<mode>``)
     for one output, with the regressor ``psi`` and the residual ``eps``
     (for RLS, ``eps = z - psi . theta``). ``theta`` (n,) and ``P`` are
     updated in place; ``g = P psi`` and ``K`` (n,) are written; ``T`` is

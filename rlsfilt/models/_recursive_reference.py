@@ -2,15 +2,15 @@ r"""Readable NumPy reference of the recursions of :mod:`._recursive_kernels` (fo
 
 Written for the reader, not for speed: every signal is a full-length array,
 every filter is its difference equation, and the covariance update is the
-filters' own NumPy reference, :data:`rlsfilt.filters.forgetting.UPDATES`
-(called with the measurement ``z = eps + psi theta``, so that its residual
-``z - psi theta`` is the prediction error). The compiled kernels must agree
+filters' own textbook recursion, :data:`rlsfilt.filters._reference.UPDATES`,
+called with the prediction error as the residual. The compiled kernels must agree
 with these functions to round-off; production code never calls them, except
 ``compiled=False`` paths that exist for the tests.
 """
 
 import numpy as np
 
+from ..filters import _reference as _rls_reference
 from ..filters import forgetting as _fg
 from ._family import split_theta
 from ._stability import reflect, stabilize_theta
@@ -80,9 +80,8 @@ def rpem_reference(theta, P, y, U, s, method="rpem", mode=0, params=(), lam=1.0,
         g = P @ psi[:, None]                               # g = P psi
         s_var = float(psi @ g[:, 0]) + R                   # s = psi^T P psi + R
         if gate is None or eps * eps <= gate * gate * s_var:
-            z = np.array([[eps + psi @ theta]])            # so that z - psi theta = eps
-            x, P, _, _, _ = _fg.UPDATES[mode](theta[:, None], P, psi[None, :], z, g, s_var, R,
-                                              lam_t, tuple(params))
+            x, P, _, _ = _rls_reference.UPDATES[mode](theta[:, None], P, np.array([[eps]]), g,
+                                                      s_var, R, lam_t, tuple(params))
             theta = x[:, 0]
         lam_t = lam - (lam - lam_t) * lam_rate
         if project:
