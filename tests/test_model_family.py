@@ -400,3 +400,29 @@ def test_time_series_contract(make, rng):
                                atol=1e-14)
     import json
     json.dumps(model.to_dict(), allow_nan=False)
+
+
+def test_save_load_and_iodata(rng, tmp_path):
+    """A saved model predicts bit for bit as the original; an IOData record fits as arrays."""
+    from rlsfilt import IOData, load_model
+
+    U, y = miso_data(rng, 1500)
+    oe = OE([1, 2], [1, 1], [0, 2]).fit(U, y)
+    armax = ARMAX(1, 1, 1).fit(U[:, 0], y, method="rpem")
+    arma = ARMA(1, 1).fit(y)
+    for model, u in ((oe, U), (armax, U[:, 0]), (arma, None)):
+        path = tmp_path / f"{type(model).__name__}.json"
+        model.save(path)
+        back = load_model(path)
+        assert type(back) is type(model) and back.param_names_ == model.param_names_
+        np.testing.assert_array_equal(back.predict(u, y, horizon=3),
+                                      model.predict(u, y, horizon=3))
+        np.testing.assert_array_equal(back.theta_cov_, model.theta_cov_)
+        assert back.stability_text() == model.stability_text()
+    io = IOData(u=U, y=y, input_names=["flow", "valve"], output_names=["T"])
+    named = OE([1, 2], [1, 1], [0, 2]).fit(io)
+    np.testing.assert_array_equal(named.theta_, oe.theta_)
+    assert named.param_names_[0] == "b1[flow]"
+    np.testing.assert_array_equal(named.predict(io), oe.predict(U, y))
+    with pytest.raises(ValueError, match="must hold one experiment"):
+        OE(1, 1).fit(IOData(u=[U[:700, 0], U[700:, 0]], y=[y[:700], y[700:]]))

@@ -102,6 +102,19 @@ class FamilyStructure:
         """Whether the structure is ARX (or AR, FIR): linear in its parameters."""
         return self.nc == 0 and self.nd == 0 and not any(self.nf)
 
+    def to_dict(self):
+        """Plain ints and lists (for saving a model); :meth:`from_dict` rebuilds it."""
+        return {"na": self.na, "nb": list(self.nb), "nc": self.nc, "nd": self.nd,
+                "nf": list(self.nf), "nk": list(self.nk), "n_inputs": self.n_inputs}
+
+    @classmethod
+    def from_dict(cls, d):
+        """The structure saved by :meth:`to_dict` (validated again)."""
+        n = d["n_inputs"]
+        return family_structure(na=d["na"], nb=list(d["nb"]) if n else 0, nc=d["nc"],
+                                nd=d["nd"], nf=list(d["nf"]) if n else 0,
+                                nk=list(d["nk"]) if n else 1, n_inputs=n)
+
     def __eq__(self, other):
         return isinstance(other, FamilyStructure) and all(
             getattr(self, k) == getattr(other, k) for k in ("na", "nb", "nc", "nd", "nf", "nk"))

@@ -26,7 +26,7 @@ from ._initial import initial_estimate
 from ._pem import _shift, pem, prediction_error_parts, predictor_gradient
 from ._recursive_pem import recursive_pem
 from ._stability import stabilize_theta
-from .regressors import _as_signal, _column_rank, as_io_data
+from .regressors import _as_signal, _column_rank, as_records
 
 __all__ = []
 
@@ -119,12 +119,41 @@ class PolynomialModel(IdentifiedModel):
         learned.update(theta_=theta.copy(), theta_cov_=cov, noise_variance_=float(sigma2),
                        residuals_=eps, n_samples_=N - s.t0, n_params_=s.n_params,
                        n_inputs_=s.n_inputs, n_outputs_=1, structure_=s, _info=dict(info))
+        u_names = info.get("u_names") or ([("u" if info.get("u_1d", True) else f"u{j + 1}")
+                                           for j in range(s.n_inputs)])
+        learned.update(input_names_=tuple(u_names[:s.n_inputs]),
+                       output_names_=tuple(info.get("y_names") or ("y",)),
+                       input_units_=tuple(info.get("u_units") or ("",) * s.n_inputs),
+                       output_units_=tuple(info.get("y_units") or ("",)))
         for name in ("theta_history_", "recursive_residuals_", "state_", "margins_",
                      "fit_info_"):
             self.__dict__.pop(name, None)
         self.__dict__.update(learned)
         self._set_polynomials()
         return self
+
+    def _restore_fitted(self, fitted):
+        """Rebuild a saved model (:func:`rlsfilt.load_model`): attributes and derived state."""
+        missing = [k for k in ("theta_", "structure_", "input_names_", "output_names_")
+                   if k not in fitted]
+        if missing:
+            raise ValueError(f"the saved {type(self).__name__} model lacks its learned "
+                             f"attributes {missing}; was it written by save()?")
+        s = fitted["structure_"]
+        n = s.n_inputs
+        u_1d = n == 0 or (n == 1 and not isinstance(fitted.get("b_"), list))
+        u_names, y_names = list(fitted["input_names_"]), list(fitted["output_names_"])
+        default_u = ["u"] if u_1d else [f"u{j + 1}" for j in range(n)]
+        info = {"u_1d": u_1d, "y_1d": True,
+                "u_names": None if u_names in (default_u, []) else u_names,
+                "y_names": None if y_names == ["y"] else y_names,
+                "u_units": list(fitted.get("input_units_", [""] * n)),
+                "y_units": list(fitted.get("output_units_", [""]))}
+        for key, value in fitted.items():
+            setattr(self, key, value)
+        self.theta_ = np.asarray(fitted["theta_"], dtype=float)
+        self._info = info
+        self._set_polynomials()
 
     def _set_polynomials(self):
         A, B, C, D, F = split_theta(self.theta_, self.structure_)
@@ -199,7 +228,7 @@ class PolynomialModel(IdentifiedModel):
         U, Y = self._data(u, y)
         return U, Y[:, 0]
 
-    def regressors(self, u, y):
+    def regressors(self, u, y=None):
         r"""The pseudo-linear regressors of the one-step predictor, computed with ``theta_``.
 
         .. math::
@@ -214,7 +243,9 @@ class PolynomialModel(IdentifiedModel):
 
         Parameters
         ----------
-        u : array_like, shape (N,) or (N, nu)
+        u : array_like, shape (N,) or (N, nu), or IOData
+            Input record, or an `IOData` (then `y` is omitted; several
+            experiments give their rows one after the other).
         y : array_like, shape (N,)
 
         Returns
@@ -223,6 +254,12 @@ class PolynomialModel(IdentifiedModel):
         target : ndarray, shape (N - max_lag,)
         """
         self._check_fitted("regressors")
+        out = self._each_experiment(self._regressors, u, y)
+        if isinstance(out, list):
+            return np.vstack([o[0] for o in out]), np.concatenate([o[1] for o in out])
+        return out
+
+    def _regressors(self, u, y):
         U, y = self._signals(u, y)
         s = self.structure_
         eps, v, w = prediction_error_parts(self.theta_, s, U, y)
@@ -236,7 +273,7 @@ class PolynomialModel(IdentifiedModel):
         Phi = np.column_stack(cols)[s.t0:]
         return Phi, y[s.t0:].copy()
 
-    def predict(self, u, y, horizon=1):
+    def predict(self, u, y=None, horizon=1):
         r"""``horizon``-step-ahead prediction (MATLAB ``predict``).
 
         With :math:`G = B/(A F)`, :math:`H = C/(A D)` and the one-step
@@ -263,6 +300,9 @@ class PolynomialModel(IdentifiedModel):
         yhat : ndarray, shape (N,)
         """
         self._check_fitted("predict")
+        return self._each_experiment(self._predict, u, y, horizon)
+
+    def _predict(self, u, y, horizon):
         U, yv = self._signals(u, y)
         N = len(yv)
         if self._horizon_is_inf(horizon):
@@ -300,8 +340,8 @@ class PolynomialModel(IdentifiedModel):
         y_sim : ndarray, shape (N,)
         """
         self._check_fitted("simulate")
-        U, _ = self._data(u)
-        return self._simulate(U, y0)
+        return self._each_experiment(lambda uu, y0_: self._simulate(self._data(uu)[0], y0_), u,
+                                     None, y0, outputs=False)
 
     def _simulate(self, U, y0):
         N = len(U)
@@ -455,12 +495,23 @@ class TimeSeriesModel(PolynomialModel):
             raise ValueError(f"{type(self).__name__} is a time-series model: it has no input "
                              f"model; use {what}(noise=True) for the noise model C/(A D)")
 
-    def to_tf(self, noise=True):
+    def to_tf(self, noise=True, **options):
         """The noise model ``C/(A D)`` as a ``control.TransferFunction`` (see
         :meth:`IdentifiedModel.to_tf`); ``noise`` must be True."""
         self._check_fitted("to_tf")
         self._no_input_model(noise, "to_tf")
-        return super().to_tf(noise=True)
+        return super().to_tf(noise=True, **options)
+
+    def poles(self, noise=True):
+        """Poles of the noise model (the zeros of ``A D``); ``noise`` must be True."""
+        self._check_fitted("poles")
+        self._no_input_model(noise, "poles")
+        return super().poles(noise=True)
+
+    def dc_gain(self):
+        """NaN: a time series has no input model (the static gain is undefined)."""
+        self._check_fitted("dc_gain")
+        return float("nan")
 
     def to_ss(self, noise=True):
         """The noise model as a ``control.StateSpace``; ``noise`` must be True."""
@@ -482,8 +533,13 @@ class TimeSeriesModel(PolynomialModel):
 
 
 def fit_io(model, u, y, method, options):
-    """``fit(u, y)`` of an input/output model of the family (single output)."""
-    U, Y, info = as_io_data(u, y)
+    """``fit(u, y)`` of an input/output model of the family (single output, one experiment;
+    `u` may be an `IOData` with `y` omitted)."""
+    records, info = as_records(u, y)
+    if len(records) != 1:
+        raise ValueError(f"`u` must hold one experiment for {type(model).__name__}.fit; got "
+                         f"{len(records)} (fit each experiment, or merge them first)")
+    U, Y = records[0]
     if Y.shape[1] != 1:
         raise ValueError(f"`y` must have shape (N,) (one output; {type(model).__name__} is a "
                          f"single-output model, use ARX for several outputs); got {Y.shape}")

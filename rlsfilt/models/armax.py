@@ -107,13 +107,14 @@ class ARMAX(PolynomialModel):
         return family_structure(na=self.na, nb=self.nb, nc=self.nc, nk=self.nk,
                                 n_inputs=n_inputs)
 
-    def fit(self, u, y, method="pem", **options):
+    def fit(self, u, y=None, method="pem", **options):
         """Estimate the parameters from an input/output record.
 
         Parameters
         ----------
-        u : array_like, shape (N,) or (N, nu)
-            Input record (pandas works too).
+        u : array_like, shape (N,) or (N, nu), or IOData
+            Input record (pandas works too), or an `IOData` of one
+            experiment (then `y` is omitted).
         y : array_like, shape (N,)
             Output record.
         method : {"pem", "rpem", "rplr"}, default "pem"

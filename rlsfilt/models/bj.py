@@ -72,7 +72,7 @@ class BJ(PolynomialModel):
         return family_structure(nb=self.nb, nc=self.nc, nd=self.nd, nf=self.nf, nk=self.nk,
                                 n_inputs=n_inputs)
 
-    def fit(self, u, y, method="pem", **options):
+    def fit(self, u, y=None, method="pem", **options):
         """Estimate the parameters from an input/output record.
 
         Parameters and options as :meth:`ARMAX.fit`.

@@ -71,7 +71,7 @@ class OE(PolynomialModel):
     def _family(self, n_inputs):
         return family_structure(nb=self.nb, nf=self.nf, nk=self.nk, n_inputs=n_inputs)
 
-    def fit(self, u, y, method="pem", **options):
+    def fit(self, u, y=None, method="pem", **options):
         """Estimate the parameters from an input/output record.
 
         Parameters and options as :meth:`ARMAX.fit`; ``"rplr"`` warns when
