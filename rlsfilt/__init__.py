@@ -20,15 +20,41 @@ from .exceptions import (
     OrderSelectionWarning,
 )
 from .filters import RecursiveLeastSquares, SlidingWindowRLS, SquareRootRLS
-from .models import ARX
+from .models import (
+    AR,
+    ARMA,
+    ARMAX,
+    ARX,
+    BJ,
+    OE,
+    RecursiveAR,
+    RecursiveARMA,
+    RecursiveARMAX,
+    RecursiveARX,
+    RecursiveBJ,
+    RecursiveIV,
+    RecursiveOE,
+)
 from .persistence import load_model, save_model
-from .validation import delayest, fit_percent, select_order, validate
+from .validation import delayest, fit_percent, select_order, select_structure, validate
 
 __all__ = [
     "RecursiveLeastSquares",
     "SlidingWindowRLS",
     "SquareRootRLS",
     "ARX",
+    "ARMAX",
+    "OE",
+    "BJ",
+    "AR",
+    "ARMA",
+    "RecursiveARMAX",
+    "RecursiveOE",
+    "RecursiveBJ",
+    "RecursiveARX",
+    "RecursiveAR",
+    "RecursiveARMA",
+    "RecursiveIV",
     "IOData",
     "Trend",
     "detrend",
@@ -43,6 +69,7 @@ __all__ = [
     "validation",
     "validate",
     "select_order",
+    "select_structure",
     "fit_percent",
     "NotFittedError",
     "InsufficientDataError",

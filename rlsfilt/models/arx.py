@@ -25,6 +25,8 @@ from .._validation import as_float_array, check_finite, check_int, check_scalar
 from ..exceptions import InsufficientDataError, NumericalWarning
 from ..filters import RecursiveLeastSquares, SquareRootRLS
 from . import _conversion
+from ._arx_iv import check_options as check_iv_options
+from ._arx_iv import fit_arx_iv
 from ._base import IdentifiedModel, Polynomials
 from ._summary import EQUATION_STYLES, ModelSummary
 from .regressors import (
@@ -78,7 +80,9 @@ class ARX(IdentifiedModel):
         one per input, when `u` was 2-D.
     theta_cov_ : ndarray, shape (n_params, n_params) or (ny, n_params, n_params)
         Parameter covariance :math:`\hat\sigma^2 (\Phi^T\Phi)^{-1}`, one per
-        output (the outputs share :math:`\Phi`).
+        output (the outputs share :math:`\Phi`); for ``"iv"``/``"riv"`` the
+        IV covariance under coloured equation error (a long-AR model of the
+        residuals; see :doc:`/guide/model-family`).
     noise_variance_ : float or ndarray of shape (ny,)
         Unbiased residual variance :math:`\hat\sigma^2 = \|y - \Phi\hat\theta\|^2
         / (N_{rows} - n_{params})` (NaN when there are no spare equations).
@@ -108,10 +112,13 @@ class ARX(IdentifiedModel):
         Signal names (from pandas or an `IOData`, else ``u``, ``y``, ...)
         and units (``""`` when unknown).
     method_ : str
-        ``"ls"`` or ``"rls"``.
+        ``"ls"``, ``"rls"``, ``"iv"`` or ``"riv"``.
     theta_history_ : ndarray, shape ``(n_samples_, n_params[, ny])``
-        ``method="rls"`` only: the estimate after each row; rows before the
-        batch start (``k0 - 1``) are NaN.
+        ``method="rls"`` or ``"riv"`` only: the estimate after each row; rows
+        before the batch start (``k0 - 1``) are NaN.
+    instruments_ : ndarray, shape ``(n_samples_, n_z)``
+        ``method="iv"`` or ``"riv"`` only: the instrument rows used (for
+        ``"model"`` instruments with the prefilter, prefiltered).
     recursive_residuals_ : ndarray, shape ``(n_samples_,)`` or ``(n_samples_, ny)``
         ``method="rls"`` only: the a-priori residuals
         :math:`y(t) - \varphi(t)\hat\theta(t-1)`, the errors the filter
@@ -201,8 +208,10 @@ class ARX(IdentifiedModel):
 
     # learned attributes that only some fits set, and which ones
     _ONLY_SET_BY = {**{name: "fit(..., method='rls')" for name in
-                       ("theta_history_", "recursive_residuals_", "k0_", "lam_", "form_",
-                        "filter_")},
+                       ("lam_", "form_", "filter_")},
+                    **{name: "fit(..., method='rls' or 'riv')" for name in
+                       ("theta_history_", "recursive_residuals_", "k0_")},
+                    "instruments_": "fit(..., method='iv' or 'riv')",
                     "noise_covariance_": "a fit on 2-D `y` (several outputs)"}
 
     def __init__(self, na, nb, nk=1, dt=True, offset=False):
@@ -286,10 +295,17 @@ class ARX(IdentifiedModel):
             experiment.
         y : array_like, shape (N,) or (N, ny), or a list of them
             Output record, same length (a list: one per experiment).
-        method : {"ls", "rls"}, default "ls"
+        method : {"ls", "rls", "iv", "riv"}, default "ls"
             ``"ls"``: batch least squares through QR. ``"rls"``:
             `RecursiveLeastSquares` over the rows, started by batch least
-            squares on the first `k0` rows.
+            squares on the first `k0` rows. ``"iv"``, ``"riv"``: batch and
+            recursive instrumental variables, unbiased under coloured
+            equation error (options ``instruments`` = ``"model"`` (refined
+            IV with an auxiliary model, the default for one output),
+            ``"delayed"`` or an ``(N, n_z)`` array of instrument rows;
+            ``prefilter``; ``n_iter`` for ``"iv"``; ``k0``, ``lam``, ``P0``,
+            ``R``, ``Q``, ``x0``, ``refresh`` for ``"riv"``; see
+            :doc:`/guide/model-family`).
         k0 : int, optional
             ``"rls"`` only: number of rows of the batch start. By default
             ``n_params`` (the lecture notes' choice), or, when those first
@@ -346,14 +362,18 @@ class ARX(IdentifiedModel):
         end of the record, while ``noise_variance_`` (residuals of the final
         estimate over all rows) overstates the noise if the plant changed.
         """
-        if method not in ("ls", "rls"):
-            raise ValueError(f"`method` must be 'ls' or 'rls'; got {method!r}")
+        if method not in ("ls", "rls", "iv", "riv"):
+            raise ValueError(f"`method` must be 'ls', 'rls', 'iv' or 'riv'; got {method!r}")
         opts = {"k0": k0, "lam": lam, "P0": P0, "R": R, "Q": Q, "x0": x0, "form": form}
         if method == "ls":
             given = [k for k, v in opts.items() if v is not None] + list(filter_options)
             if given:
                 raise TypeError(f"`{given[0]}` only applies to method='rls'; got method='ls'")
-        _check_filter_options(filter_options)
+        iv_options = {k: v for k, v in opts.items() if v is not None} | filter_options
+        if method in ("iv", "riv"):
+            check_iv_options(method, iv_options)
+        else:
+            _check_filter_options(filter_options)
         opts["extra"] = filter_options
         records, info = as_records(u, y)
         s = self._structure(records[0][0].shape[1], records[0][1].shape[1])
@@ -369,9 +389,16 @@ class ARX(IdentifiedModel):
         op = _means(records) if _offset_mode(self.offset) == "mean" else None
         Phi, target = self._design(records, s, op)
         # compute everything first: a fit that raises leaves the model as it was
-        recursive = {}
+        recursive, cov_iv = {}, None
         if method == "ls":
             theta, cov_unscaled = _qr_least_squares(Phi, target)
+        elif method in ("iv", "riv"):
+            if len(records) > 1 or _offset_mode(self.offset) == "intercept":
+                raise ValueError(
+                    f"method={method!r} takes one experiment and offset=False or 'mean'; got "
+                    f"{len(records)} experiment(s) and offset={self.offset!r}")
+            U, Y = records[0] if op is None else (records[0][0] - op[0], records[0][1] - op[1])
+            theta, cov_iv, recursive = fit_arx_iv(U, Y, s, method, iv_options, info["y_1d"])
         else:
             theta, cov_unscaled, rls, history, x_start, k0 = _fit_rls(Phi, target, s, opts)
             recursive = {"filter_": rls, "k0_": k0, "lam_": float(rls.lam),
@@ -386,7 +413,7 @@ class ARX(IdentifiedModel):
             prior[k0:] = target[k0:] - np.einsum("ij,ijk->ik", Phi[k0:], history[k0 - 1:-1])
             recursive["recursive_residuals_"] = prior[:, 0] if info["y_1d"] else prior
         for name in ("theta_history_", "filter_", "k0_", "lam_", "form_", "recursive_residuals_",
-                     "noise_covariance_", "intercept_"):
+                     "noise_covariance_", "intercept_", "instruments_"):
             self.__dict__.pop(name, None)
         self.__dict__.update(recursive)
         resid = target - Phi @ theta
@@ -394,7 +421,7 @@ class ARX(IdentifiedModel):
         sigma2 = np.sum(resid ** 2, axis=0) / dof if dof > 0 else np.full(s.n_outputs, np.nan)
         self._store(theta, s, info)
         self._set_operating_point(records, op)
-        cov = sigma2[:, None, None] * cov_unscaled[None]
+        cov = sigma2[:, None, None] * cov_unscaled[None] if cov_iv is None else cov_iv
         self.theta_cov_ = cov[0] if info["y_1d"] else cov
         self.noise_variance_ = float(sigma2[0]) if info["y_1d"] else sigma2
         if not info["y_1d"]:
@@ -963,6 +990,7 @@ class ARX(IdentifiedModel):
                     + ([f"<p>operating point: {esc(op)}</p>"] if op else [])
                     + [f"<p><code>{line}</code></p>" for line in self._equation_lines("html")])
         how = {"ls": "batch least squares (QR)", "rls": "recursive least squares",
+               "iv": "instrumental variables", "riv": "recursive instrumental variables",
                "true": "given coefficients (no fit)"}[self.method_]
         if self.method_ == "rls":
             start = (f"batch start on {self.k0_} rows" if self.k0_ else "prior start")

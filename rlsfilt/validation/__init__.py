@@ -19,6 +19,7 @@ from .plant import PlantComparison
 from .report import ValidationReport, validate
 from .residuals import ResidualAnalysis, residual_analysis
 from .selection import OrderSelection, select_order
+from .structure import StructureSelection, select_structure
 from .uncertainty import (
     FrequencyBand,
     ParameterIntervals,
@@ -35,6 +36,7 @@ __all__ = [
     "ParameterIntervals",
     "PlantComparison",
     "ResidualAnalysis",
+    "StructureSelection",
     "ValidationReport",
     "criteria_from_loss",
     "cusum",
@@ -47,5 +49,6 @@ __all__ = [
     "recursive_residuals",
     "residual_analysis",
     "select_order",
+    "select_structure",
     "validate",
 ]
