@@ -85,6 +85,20 @@ class _FilterBase:
         """Return an independent deep copy of the filter."""
         return copy.deepcopy(self)
 
+    def predict_update(self, z, H, R=None):
+        """One textbook step: :meth:`predict` then :meth:`update`.
+
+        If :meth:`update` rejects its input (or its warning is turned into an
+        error), the :meth:`predict` is undone too: the filter is left as it was.
+        """
+        before = self._shallow_state()
+        self.predict()
+        try:
+            self.update(z, H, R)
+        except BaseException:
+            self._restore(before)
+            raise
+
     def _batch(self, zs, Hs, Rs, update_first, saver, store_covariances):
         """`batch_filter` of every filter: validate the record, then run the
         compiled loop (``_batch_compiled``) or, with a `saver` or an empty
@@ -95,7 +109,7 @@ class _FilterBase:
         Rv = self._as_batch_variances(Rs, len(Z))
         if saver is None and len(Z):
             return self._batch_compiled(Z, Hm, Rv, update_first, store_covariances)
-        before = copy.deepcopy(self)
+        before = copy.deepcopy(self)._shallow_state()
         self._batch_start = self.n_updates
         try:
             out = self._batch_stepwise(Z, Hm, Rv, update_first, saver, store_covariances)
@@ -148,12 +162,23 @@ class _FilterBase:
             _health.warn(problem, self._HEALTH_ADVICE)
             self._warned_health = True
 
-    def _restore(self, before):
-        """Put back the state of `before`, a deep copy of this filter."""
-        self.__dict__.update(before.__dict__)
+    def _shallow_state(self):
+        """The attributes (``__dict__`` and slots) as a new dict. The steps never
+        write into an array they leave behind, so this is enough to undo one."""
+        state = self.__dict__.copy()
         for cls in type(self).__mro__:
             for name in getattr(cls, "__slots__", ()):
-                setattr(self, name, getattr(before, name))
+                state[name] = getattr(self, name)
+        return state
+
+    def _restore(self, state):
+        """Put back `state` (from `_shallow_state`, of this filter or of a deep copy)."""
+        slots = _slots(type(self))
+        for name, value in state.items():
+            if name in slots:
+                setattr(self, name, value)
+            else:
+                self.__dict__[name] = value
 
     def _reset_diagnostics(self):
         """The filterpy attributes of a filter that has seen no data yet."""
@@ -278,6 +303,11 @@ class _FilterBase:
             i = int(np.argmax(bad))
             raise ValueError(f"`Rs` must hold positive finite variances; got {arr[i]} at index {i}")
         return arr.copy()
+
+
+def _slots(cls):
+    """The slot names of `cls` and its bases."""
+    return {name for c in cls.__mro__ for name in getattr(c, "__slots__", ())}
 
 
 def _innovation(P, phi, r):

@@ -452,11 +452,6 @@ class RecursiveLeastSquares(_FilterBase):
         if self._recheck:
             self._recheck = self._efra_pending = False
 
-    def predict_update(self, z, H, R=None):
-        """One textbook RLS step: :meth:`predict` then :meth:`update`."""
-        self.predict()
-        self.update(z, H, R)
-
     # ------------------------------------------------------------------
     # batch start and batch runs
     # ------------------------------------------------------------------

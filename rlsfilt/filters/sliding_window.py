@@ -234,11 +234,6 @@ class SlidingWindowRLS(_FilterBase):
         self._head, self._nw, self._count, self._next_exact_try, exact = ist.tolist()
         self.exact = exact == 1
 
-    def predict_update(self, z, H, R=None):
-        """:meth:`predict` then :meth:`update`."""
-        self.predict()
-        self.update(z, H, R)
-
     def initialize(self, zs, Hs, Rs=None):
         """Start from exact least squares on the given samples.
 

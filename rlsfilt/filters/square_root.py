@@ -241,11 +241,6 @@ class SquareRootRLS(_FilterBase):
         self.x_post = x.copy()
         self.P_post = self.P
 
-    def predict_update(self, z, H, R=None):
-        """:meth:`predict` then :meth:`update`."""
-        self.predict()
-        self.update(z, H, R)
-
     def initialize(self, zs, Hs):
         """Start from batch least squares on the first samples (QR of the rows).
 
