@@ -687,6 +687,7 @@ class RecursiveLeastSquares(_FilterBase):
         self._P = self._projected(P - W @ PA.T)        # P <- P - W A P, then Pi P Pi
         self._null_basis = basis
         self._recheck = True
+        self._efra_pending = False                     # P above has EFRA's start
         self.constraints = (A.copy(), bb.copy())
         self.x_post, self.P_post = self._x.copy(), self._P.copy()
         return self
