@@ -73,8 +73,8 @@ def test_update_writes_the_textbook_step_into_a_new_block(rng, z):
     phi = rng.standard_normal(n)
     zc = None if z == "missing" else rng.standard_normal((m, 1))
     cfg = kernel_config(DIRECTIONAL, 0.95, (1e-12,))
-    code, s, lam_t, gated, out = _streaming.update(x, P, phi, zc, 0.5, cfg, None)
-    _, xn, Pn, y, K, S, SI, H, zb, x_post, P_post = out
+    code, s, lam_t, gated, arrays = _streaming.update(x, P, phi, zc, 0.5, cfg, None)
+    (xn, Pn), (_, y, K, S, SI, H, zb, x_post, P_post) = arrays
     rx, rP, ry, rK, rs, rlam, rgated = ref.rls_update(x, P, phi.reshape(1, -1), zc, 0.5,
                                                       DIRECTIONAL, (1e-12,), 0.95)
     assert code == 0 and not gated and not rgated
@@ -99,8 +99,8 @@ def test_update_writes_the_textbook_step_into_a_new_block(rng, z):
 def test_update_of_a_scalar_measurement_and_a_bad_row(rng):
     x, P = rng.standard_normal((n, 1)), np.eye(n)
     cfg = kernel_config(EXPONENTIAL, 1.0, ())
-    code, s, _, _, out = _streaming.update(x, P, np.ones(n), 2.5, 1.0, cfg, None)
-    assert code == 0 and out[8][0, 0] == 2.5 and s == pytest.approx(n + 1.0)
+    code, s, _, _, arrays = _streaming.update(x, P, np.ones(n), 2.5, 1.0, cfg, None)
+    assert code == 0 and arrays[1][6][0, 0] == 2.5 and s == pytest.approx(n + 1.0)
     phi = np.ones(n)
     phi[2] = np.nan
     code, *_ = _streaming.update(x, P, phi, 2.5, 1.0, cfg, None)
@@ -118,9 +118,12 @@ def test_entry_points_give_the_dispatchers_results(rng):
     phi = rng.standard_normal(n)
     a = _streaming._block(_streaming.update_shapes(n, m), n + n * n)
     b = _streaming._block(_streaming.update_shapes(n, m), n + n * n)
-    ra = _streaming._update_kernel(x, P, phi, 0.0, 2, 1.0, cfg, a[0])
-    rb = _streaming.kernels().update_kernel(x, P, phi, 0.0, 2, 1.0, cfg, b[0])
+    xa, Pa, xb, Pb = np.empty((n, m)), np.empty((n, n)), np.empty((n, m)), np.empty((n, n))
+    ra = _streaming._update_kernel(x, P, phi, 0.0, 2, 1.0, cfg, xa, Pa, a[0])
+    rb = _streaming.kernels().update_kernel(x, P, phi, 0.0, 2, 1.0, cfg, xb, Pb, b[0])
     assert ra == rb or (np.isnan(ra[2]) and np.isnan(rb[2]))
+    assert_array_equal(xa, xb)
+    assert_array_equal(Pa, Pb)
     for va, vb in zip(a[1:], b[1:], strict=True):   # the arrays (not the work space)
         assert_array_equal(va, vb)
 
@@ -148,6 +151,8 @@ def test_c_array_copies_only_when_needed():
 def test_free_sums_match_the_blocks():
     if _streaming._FREE_UPDATE < 0:
         pytest.skip("reference counts not trusted here")
-    for length, free in ((4, _streaming._FREE_PREDICT), (11, _streaming._FREE_UPDATE)):
+    for length, free in ((4, _streaming._FREE_PREDICT), (9, _streaming._FREE_UPDATE)):
         block = _streaming._block(((1, 1),) * (length - 1))
         assert sum(map(sys.getrefcount, block)) == free
+    state = (np.empty(1), np.empty(1))
+    assert sum(map(sys.getrefcount, state)) == _streaming._FREE_STATE

@@ -18,6 +18,10 @@ from . import _health
 __all__ = []
 
 _LOG_2PI = math.log(2.0 * math.pi)
+_TINY = float(np.finfo(float).tiny)
+#: The diagnostics of a missing measurement: it adds nothing to the log-likelihood,
+#: and there is no residual to measure.
+MISSING_DIAGNOSTICS = (0.0, 1.0, math.nan)
 
 
 class _FilterBase:
@@ -41,23 +45,26 @@ class _FilterBase:
     @property
     def log_likelihood(self):
         """Log-likelihood of the last measurement, ``log N(y; 0, S)``."""
-        if self._log_likelihood is None:
-            self._log_likelihood = _gaussian_logpdf(self.y, self.S[0, 0])
-        return self._log_likelihood
+        return self._diagnostics()[0]
 
     @property
     def likelihood(self):
         """``exp(log_likelihood)``, floored at the smallest positive float."""
-        if self._likelihood is None:
-            self._likelihood = max(math.exp(self.log_likelihood), np.finfo(float).tiny)
-        return self._likelihood
+        return self._diagnostics()[1]
 
     @property
     def mahalanobis(self):
         """Mahalanobis distance ``sqrt(y^T S^-1 y)`` of the last residual."""
-        if self._mahalanobis is None:
-            self._mahalanobis = math.sqrt(float(np.vdot(self.y, self.y)) / self.S[0, 0])
-        return self._mahalanobis
+        return self._diagnostics()[2]
+
+    def _diagnostics(self):
+        """``(log_likelihood, likelihood, mahalanobis)``, computed on first use after
+        an update (``_lazy`` is None until then)."""
+        if self._lazy is None:
+            ll = _gaussian_logpdf(self.y, self.S[0, 0])
+            self._lazy = (ll, max(math.exp(ll), _TINY),
+                          math.sqrt(float(np.vdot(self.y, self.y)) / self.S[0, 0]))
+        return self._lazy
 
     def residual_of(self, z, H):
         """A-priori residual ``z - H x`` for `z` and regressor `H`, shape ``(dim_z, 1)``."""
@@ -191,14 +198,10 @@ class _FilterBase:
         self.S = np.zeros((m, m))
         self.SI = np.zeros((m, m))
         # before any update, as filterpy: nothing observed yet
-        self._log_likelihood = math.log(np.finfo(float).tiny)
-        self._likelihood = np.finfo(float).tiny
-        self._mahalanobis = 0.0
+        self._lazy = (math.log(_TINY), _TINY, 0.0)
 
     def _clear_lazy(self):
-        self._log_likelihood = None
-        self._likelihood = None
-        self._mahalanobis = None
+        self._lazy = None
 
 
     def _as_regressor(self, H, name):

@@ -83,9 +83,10 @@ def c_array(a):
 # blocks and their reuse
 # ----------------------------------------------------------------------
 def update_shapes(n, m):
-    """Shapes of the arrays an update writes, in the order of its block (the
-    layout ``_kernels.update_kernel`` writes; then its work space)."""
-    return ((n, m), (n, n), (m, 1), (n, 1), (m, m), (m, m), (1, n), (m, 1), (n, m), (n, n))
+    """Shapes of the diagnostics an update writes, in the order of its block (the
+    layout ``_kernels.update_kernel`` writes; then its work space): ``y, K, S,
+    SI, H, z, x_post, P_post``. The new ``x`` and ``P`` are arrays of their own."""
+    return ((m, 1), (n, 1), (m, m), (m, m), (1, n), (m, 1), (n, m), (n, n))
 
 
 def predict_shapes(n, m):
@@ -107,12 +108,13 @@ def _block(shapes, work=0):
 
 def _free_sum(length):
     """What ``sum(map(sys.getrefcount, block))`` gives for a block of `length`
-    arrays that nobody but the tuple ``block`` holds (every count is then at its
-    least, so the sum tests them all); -1 where counts cannot be trusted (no
-    ``sys.getrefcount``, free-threaded builds): reuse is then off."""
+    arrays (buffer and views) that nobody but the tuple ``block`` holds, or,
+    with `length` 0, for a pair of separate arrays held by a tuple (every count
+    is then at its least, so the sum tests them all); -1 where counts cannot be
+    trusted (no ``sys.getrefcount``, free-threaded builds): reuse is then off."""
     if not hasattr(sys, "getrefcount") or sysconfig.get_config_var("Py_GIL_DISABLED"):
         return -1
-    block = _block(((1, 1),) * (length - 1))
+    block = _block(((1, 1),) * (length - 1)) if length else (np.empty(1), np.empty(1))
     return sum(map(sys.getrefcount, block))
 
 
@@ -122,7 +124,8 @@ _getrefcount = getattr(sys, "getrefcount", lambda a: 0)
 # ----------------------------------------------------------------------
 # the steps
 # ----------------------------------------------------------------------
-_FREE_PREDICT, _FREE_UPDATE = _free_sum(4), _free_sum(11)
+_FREE_PREDICT, _FREE_UPDATE = _free_sum(4), _free_sum(9)
+_FREE_STATE = _free_sum(0)
 
 
 def predict(x, P, il, Q, cfg, spare):
@@ -141,28 +144,32 @@ def predict(x, P, il, Q, cfg, spare):
 
 
 def update(x, P, phi, z, r, cfg, spare):
-    """One measurement update into a new block (`spare` if it is free).
+    """One measurement update into new arrays (those of `spare` where they are free).
 
     `phi` is the regressor row, a writable C-contiguous float64 array (n,)
     (the kernel checks that it is finite), `z` a float, a validated column
-    (m, 1) or None (missing). Returns ``code, s, lam_t, gated, block``: the
-    buffer (ending with ``n + n^2`` numbers of work space) and its views ``x,
-    P, y, K, S, SI, H, z, x_post, P_post``;
-    ``code`` as ``update_kernel``'s.
+    (m, 1) or None (missing). `spare` is None or what an earlier call
+    returned as ``arrays``. Returns ``code, s, lam_t, gated, arrays``:
+    ``arrays = ((x, P), block)``, the new estimate and covariance (arrays of
+    their own, as a caller most often keeps them) and the block (buffer and
+    views ``y, K, S, SI, H, z, x_post, P_post``; the buffer ends with
+    ``n + n^2`` numbers of work space); ``code`` as ``update_kernel``'s.
     """
-    if spare is not None and sum(map(_getrefcount, spare)) == _FREE_UPDATE:
-        out = spare                                   # nobody else holds it: reuse
-    else:
+    state, out = (None, None) if spare is None else spare
+    if state is None or sum(map(_getrefcount, state)) != _FREE_STATE:
+        state = (np.empty(x.shape), np.empty(P.shape))
+    if out is None or sum(map(_getrefcount, out)) != _FREE_UPDATE:
         out = _block(update_shapes(*x.shape), len(P) + P.size)
     if z is None:
         z0, zmode = 0.0, 2
     elif type(z) is np.ndarray:
-        out[8][:] = z                                  # the block's z
+        out[6][:] = z                                  # the block's z
         z0, zmode = 0.0, 0
     else:
         z0, zmode = z, 1
-    code, s, lam_t, gated = _update_kernel(x, P, phi, z0, zmode, r, cfg, out[0])
-    return code, s, lam_t, gated, out
+    code, s, lam_t, gated = _update_kernel(x, P, phi, z0, zmode, r, cfg, state[0], state[1],
+                                           out[0])
+    return code, s, lam_t, gated, (state, out)
 
 
 def _entry_point(dispatcher, args):
@@ -183,10 +190,10 @@ def _predict_kernel(*args):
     _predict_kernel = _entry_point(_kernels.predict_kernel, args)
 
 
-def _update_kernel(x, P, phi, z0, zmode, r, cfg, out):
+def _update_kernel(x, P, phi, z0, zmode, r, cfg, xn, Pn, out):
     """The first call: run ``update_kernel``, then call its entry point directly."""
     global _update_kernel
-    args = (x, P, phi, float(z0), zmode, float(r), cfg, out)
+    args = (x, P, phi, float(z0), zmode, float(r), cfg, xn, Pn, out)
     result = kernels().update_kernel(*args)
     _update_kernel = _entry_point(_kernels.update_kernel, args)
     return result
