@@ -54,3 +54,18 @@ def test_contenders_compute_the_same_estimate():
         if name in ("statsmodels", "write 2 N n^2") or not bench._available(module):
             continue                  # statsmodels has no forgetting: a different estimate
         assert_allclose(fn(Hs, zs), ref, rtol=1e-6, atol=1e-8, err_msg=name)
+
+
+def test_streaming_ablation_runs_and_restores_the_machinery():
+    """The ablation behind the numbers in ``_streaming``'s docstring runs, and leaves
+    reuse and the entry points as they were."""
+    from rlsfilt.filters import _streaming
+
+    bench = _load_script()
+    before = (_streaming._FREE_UPDATE, _streaming._FREE_PREDICT, _streaming._FREE_EACH)
+    results = bench.streaming_ablation([2], n_samples=60, rounds=1, log=lambda *a: None)
+    assert set(results[2]) == {"as shipped", "no reuse", "dispatcher"}
+    assert all(v > 0 for v in results[2].values())
+    assert (_streaming._FREE_UPDATE, _streaming._FREE_PREDICT, _streaming._FREE_EACH) == before
+    assert _streaming._update_kernel is not _streaming.kernels().update_kernel
+

@@ -39,15 +39,16 @@ def test_blocks_are_contiguous_views_of_one_buffer():
 
 @pytest.mark.skipif(_streaming._FREE_UPDATE < 0, reason="reference counts not trusted here")
 def test_a_block_is_free_only_when_nobody_else_holds_it():
-    block = _streaming._block(_streaming.update_shapes(n, m))
+    block = (np.empty((n, m)), np.empty((n, n))) + _streaming._block(_streaming.update_shapes(n, m))
     free = _streaming._FREE_UPDATE
 
     def is_free():
         return sum(map(_streaming._getrefcount, block)) == free
 
     assert is_free()
-    for held in (lambda: block[1], lambda: block[2][0], lambda: block[0], lambda: [block[5]]):
-        keep = held()                             # a view, a row of a view, the buffer, a list
+    for held in (lambda: block[0], lambda: block[1][0], lambda: block[3], lambda: block[4][0],
+                 lambda: block[2], lambda: [block[5]]):
+        keep = held()             # x, a row of P, a view, a row of a view, the buffer, a list
         assert not is_free()
         del keep
         assert is_free()
@@ -74,7 +75,7 @@ def test_update_writes_the_textbook_step_into_a_new_block(rng, z):
     zc = None if z == "missing" else rng.standard_normal((m, 1))
     cfg = kernel_config(DIRECTIONAL, 0.95, (1e-12,))
     code, s, lam_t, gated, arrays = _streaming.update(x, P, phi, zc, 0.5, cfg, None)
-    (xn, Pn), (_, y, K, S, SI, H, zb, x_post, P_post) = arrays
+    xn, Pn, _, y, K, S, SI, H, zb, x_post, P_post = arrays
     rx, rP, ry, rK, rs, rlam, rgated = ref.rls_update(x, P, phi.reshape(1, -1), zc, 0.5,
                                                       DIRECTIONAL, (1e-12,), 0.95)
     assert code == 0 and not gated and not rgated
@@ -100,7 +101,7 @@ def test_update_of_a_scalar_measurement_and_a_bad_row(rng):
     x, P = rng.standard_normal((n, 1)), np.eye(n)
     cfg = kernel_config(EXPONENTIAL, 1.0, ())
     code, s, _, _, arrays = _streaming.update(x, P, np.ones(n), 2.5, 1.0, cfg, None)
-    assert code == 0 and arrays[1][6][0, 0] == 2.5 and s == pytest.approx(n + 1.0)
+    assert code == 0 and arrays[8][0, 0] == 2.5 and s == pytest.approx(n + 1.0)
     phi = np.ones(n)
     phi[2] = np.nan
     code, *_ = _streaming.update(x, P, phi, 2.5, 1.0, cfg, None)
@@ -151,8 +152,24 @@ def test_c_array_copies_only_when_needed():
 def test_free_sums_match_the_blocks():
     if _streaming._FREE_UPDATE < 0:
         pytest.skip("reference counts not trusted here")
-    for length, free in ((4, _streaming._FREE_PREDICT), (9, _streaming._FREE_UPDATE)):
-        block = _streaming._block(((1, 1),) * (length - 1))
-        assert sum(map(sys.getrefcount, block)) == free
-    state = (np.empty(1), np.empty(1))
-    assert sum(map(sys.getrefcount, state)) == _streaming._FREE_STATE
+    predict = _streaming._block(_streaming.predict_shapes(n, m))
+    assert sum(map(sys.getrefcount, predict)) == _streaming._FREE_PREDICT
+    update = ((np.empty((n, m)), np.empty((n, n)))
+              + _streaming._block(_streaming.update_shapes(n, m)))
+    assert sum(map(sys.getrefcount, update)) == _streaming._FREE_UPDATE
+
+
+@pytest.mark.skipif(_streaming._FREE_UPDATE < 0, reason="reference counts not trusted here")
+def test_renew_keeps_what_is_free(rng):
+    """A held estimate makes a new x, P pair but keeps the block, and the reverse."""
+    x, P = _state(rng)
+    cfg = kernel_config(EXPONENTIAL, 0.9, ())
+    *_, spare = _streaming.update(x, P, np.ones(n), None, 1.0, cfg, None)
+    held = spare[0]                                # a caller keeps the estimate
+    *_, again = _streaming.update(x, P, np.ones(n), None, 1.0, cfg, spare)
+    assert again[0] is not held and again[2:] == spare[2:]
+    del spare, held
+    row = again[3][0]                              # a caller keeps a row of y: the buffer
+    *_, third = _streaming.update(x, P, np.ones(n), None, 1.0, cfg, again)
+    assert third[:2] == again[:2] and third[2] is not again[2]
+    del row

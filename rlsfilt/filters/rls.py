@@ -434,11 +434,11 @@ class RecursiveLeastSquares(_FilterBase):
         every = self.check_every
         checked = every and (code or not n_updates % every) and not self._warned_health
         if skipped or checked:                        # warn before the state changes
-            self._warn(skipped, self._health_problem(arrays[0][1], n_updates, code == 2)
+            self._warn(skipped, self._health_problem(arrays[1], n_updates, code == 2)
                        if checked else None)
         self._spare_update, self._last_update = self._last_update, arrays
-        (self._x, self._P), (_, self.y, self.K, self.S, self.SI, self.H, self.z, self.x_post,
-                             self.P_post) = arrays
+        (self._x, self._P, _, self.y, self.K, self.S, self.SI, self.H, self.z, self.x_post,
+         self.P_post) = arrays
         self._lazy = None if z is not None else MISSING_DIAGNOSTICS
         self.gated = gated
         if gated:
