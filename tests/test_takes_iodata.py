@@ -1,4 +1,4 @@
-"""residual_analysis and information_criteria take an IOData (one or several experiments)."""
+"""Everything that takes (u, y) also takes an IOData: residual tests, criteria, regressors."""
 
 import numpy as np
 import pytest
@@ -6,6 +6,7 @@ from numpy.testing import assert_allclose, assert_array_equal
 
 from rlsfilt import ARX, IOData, validate
 from rlsfilt.datasets import dc_motor, heat_exchanger
+from rlsfilt.models import arx_regressors
 from rlsfilt.validation import criteria_from_loss, information_criteria, residual_analysis
 
 
@@ -68,3 +69,21 @@ def test_arrays_without_y_are_refused(exchanger):
         residual_analysis(model, np.asarray(ds.getexp(0).u))
     with pytest.raises(TypeError, match="`y` is required unless `u` is an IOData"):
         information_criteria(model, np.asarray(ds.getexp(0).u))
+
+
+def test_arx_regressors_of_several_experiments_are_stacked_per_experiment(exchanger):
+    ds, model = exchanger
+    parts = [arx_regressors(ds.getexp(k).u, ds.getexp(k).y, 2, 2, 8) for k in (0, 1)]
+    Phi, target = arx_regressors(ds, na=2, nb=2, nk=8)
+    assert_array_equal(Phi, np.vstack([p[0] for p in parts]))
+    assert_array_equal(target, np.concatenate([p[1] for p in parts]))
+    # the model's own regressors are the same rows (plus its intercept column)
+    Phi_m, target_m = model.regressors(ds)
+    assert_array_equal(Phi_m[:, :-1], Phi) and assert_array_equal(target_m, target)
+    # start applies to each experiment
+    Phi0, _ = arx_regressors(ds, na=2, nb=2, nk=8, start=0)
+    assert Phi0.shape == (2000, 4)
+    with pytest.raises(TypeError, match="`na` is required"):
+        arx_regressors(ds, nb=2)
+    with pytest.raises(ValueError, match=r"`start` must be <= N = 800; got 900"):
+        arx_regressors(ds, na=2, nb=2, start=900)
