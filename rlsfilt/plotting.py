@@ -369,6 +369,13 @@ def plot_comparison(report, ax=None, *, window=None, ax_overview=None, output=0,
     output_name, output_unit = _signal_label(report, "output", output, output_name,
                                              output_unit)
     t, seams, exp_names = _record_time(report)
+    # the first `start` (max_lag) predictions of each experiment come from an assumed past,
+    # not from the measurements: the fits leave them out, and so does the figure
+    start = int(getattr(report, "start", 0) or 0)
+    if start:
+        yp = yp.copy()
+        for k in (0, *seams):
+            yp[k:k + start] = np.nan
     N = len(y)
     a, b = _window(window, N)
     windowed = (a, b) != (0, N)
@@ -386,13 +393,15 @@ def plot_comparison(report, ax=None, *, window=None, ax_overview=None, output=0,
         time_label += ", experiments one after the other"
     ylabel = output_name + (f" ({output_unit})" if output_unit else "")
     inside = [k for k in seams if a < k < b]
-    ax.plot(*_broken(t, y, a, b, inside), color=_BLACK, lw=1.6,
-            label=f"measured {output_name}")
+    # the measured output is a wide black line under the thinner model lines: where the
+    # model is good it shows on both sides of them instead of disappearing underneath
+    ax.plot(*_broken(t, y, a, b, inside), color=_BLACK, lw=3.2, alpha=0.8,
+            solid_capstyle="butt", label=f"measured {output_name}")
     if getattr(report, "is_unstable", False):
         # a diverging simulation would set the scale and its "fit" means nothing: say so
         ax.plot([], [], color=COLORS[0], lw=1.2, label=f"simulated: {report.stability}")
     else:
-        ax.plot(*_broken(t, ys, a, b, inside), color=COLORS[0], lw=1.2,
+        ax.plot(*_broken(t, ys, a, b, inside), color=COLORS[0], lw=1.1,
                 label=f"simulated (fit {sf:.1f}%)")
     ax.plot(*_broken(t, yp, a, b, inside), color=COLORS[1], lw=1.0,
             linestyle="--", label=f"1-step predicted (fit {pf:.1f}%)")
@@ -634,10 +643,15 @@ def plot_bode(source, ax_mag=None, ax_phase=None, *, band=None, plant=None):
         if plant is not None:
             _draw_plant_bode(ax_mag, ax_phase, source, plant)
         unit = "rad/sample" if source.dt_unspecified else "rad/s"
-        ax_mag.set_title("Frequency response with parameter uncertainty")
+        ax_mag.set_title("Frequency response")
     else:
         raise TypeError("`source` must be a PlantComparison or a FrequencyBand; got "
                         f"{type(source).__name__}")
+    drawn = band if band is not None else (source if hasattr(source, "magnitude_lower")
+                                           else None)
+    if drawn is not None:   # a band narrower than the line is there: say how wide it is
+        ax_mag.set_title(ax_mag.get_title() + "\n" + _band_width_text(drawn),
+                         fontsize="medium")
     ax_mag.set_ylabel("$|G(e^{j\\omega T})|$ (dB)")
     ax_phase.set_ylabel("phase (deg)")
     ax_phase.set_xlabel(f"$\\omega$ ({unit})")
@@ -702,7 +716,7 @@ def _step_label(tf, input_unit, output_unit):
     if tf.ninputs != 1 or tf.noutputs != 1:
         return "step response $y(t)$"
     u_name, y_name = _tf_label(tf, "input"), _tf_label(tf, "output")
-    if u_name is None and y_name is None and not input_unit and not output_unit:
+    if u_name in (None, "u") and y_name in (None, "y") and not input_unit and not output_unit:
         return "step response $y(t)$"
     y_text = (y_name or "y") + (f" ({output_unit})" if output_unit else "")
     u_text = f"1 {input_unit} of " if input_unit else "a unit step of "
@@ -996,6 +1010,7 @@ def plot_report(report, fig=None, *, window=None, output_name=None, output_unit=
         ax_mag = fig.add_subplot(gs[row + 1:, 0])
         ax_phase = fig.add_subplot(gs[row + 1:, 1])
         plot_bode(band, ax_mag, ax_phase)
+        ax_mag.set_xlabel(ax_phase.get_xlabel())   # side by side: both need the frequency
         ax_phase.set_title("phase")
     _label_gain(report, ax_mag)
     return fig
@@ -1012,7 +1027,8 @@ def _label_gain(report, ax_mag):
         ratio = f"{y_unit or '1'}/{u_unit or '1'}"
         ax_mag.set_ylabel(f"$|G(e^{{j\\omega T}})|$ (dB re 1 {ratio})")
     if (u_name, y_name) != ("u", "y"):
-        ax_mag.set_title(f"{ax_mag.get_title()} ({u_name} to {y_name})")
+        first, *rest = ax_mag.get_title().split("\n")
+        ax_mag.set_title("\n".join([f"{first} ({u_name} to {y_name})", *rest]))
 
 
 # ----------------------------------------------------------------------
@@ -1041,6 +1057,18 @@ def _draw_band(ax_mag, ax_phase, band, model_line=True):
                         label=f"model{tag}")
             ax_phase.plot(band.omega, np.degrees(np.unwrap(np.angle(band.response[i, j]))),
                           color=color, lw=1.4)
+
+
+def _band_width_text(band):
+    """``"95% band (parameters): 0.04 to 0.76 dB wide"``: the band's width in words, for when it is
+    thinner than the line drawn over it."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        width = _db(band.magnitude_upper) - _db(band.magnitude_lower)
+    width = width[np.isfinite(width)]
+    if not width.size:
+        return f"{100 * band.level:g}% band"
+    return (f"{100 * band.level:g}% band (parameters): {np.min(width):.2g} to "
+            f"{np.max(width):.2g} dB wide")
 
 
 def _draw_comparison_bode(ax_mag, ax_phase, comparison):

@@ -44,7 +44,7 @@ def test_heat_exchanger_report_figure_is_labelled_from_the_data(exchanger):
     assert legend[0] == "measured T_out"
     assert step_ax.get_ylabel() == "T_out (degC) per 1 % of flow"
     assert mag_ax.get_ylabel() == r"$|G(e^{j\omega T})|$ (dB re 1 degC/%)"
-    assert mag_ax.get_title().endswith("(flow to T_out)")
+    assert mag_ax.get_title().split("\n")[0].endswith("(flow to T_out)")
     assert "run1 (1200), run2 (800)" in over_ax.get_title(loc="left")
     fig.savefig(io.BytesIO(), format="png")
 
@@ -105,3 +105,29 @@ def test_overview_error_is_drawn_around_an_operating_point(exchanger):
     assert_allclose(e, expected, rtol=0, atol=1e-12)
     assert "(+ 96.85, the mean)" in error.get_label()
     assert rep.y.min() < e[finite].min() and e[finite].max() < rep.y.max()
+
+
+def test_predictions_from_an_assumed_past_are_not_drawn(exchanger):
+    ds, model, rep = exchanger
+    assert rep.start == 9                                        # max_lag of ARX(2, 2, 8)
+    ax = plot_comparison(rep, window=(1100, 1300))
+    predicted = ax.get_lines()[2].get_ydata()                   # NaN at the seam, then 9
+    gap = int(np.flatnonzero(np.isnan(ax.get_lines()[0].get_ydata()))[0])
+    assert np.all(np.isnan(predicted[gap:gap + 1 + 9])) and np.isfinite(predicted[gap + 10])
+    assert np.isfinite(predicted[:gap]).all()
+    ax = plot_comparison(rep, window=(0, 100))
+    assert np.isnan(ax.get_lines()[2].get_ydata()[:9]).all()
+    assert_allclose(ax.get_lines()[2].get_ydata()[9:], rep.y_predicted[9:100])
+
+
+def test_bode_says_how_wide_its_band_is_and_labels_both_frequency_axes(exchanger):
+    ds, model, _ = exchanger
+    rep = validate(model, ds)                                    # no plant: band only
+    fig = rep.plot()
+    mag_ax, phase_ax = fig.axes[-2:]
+    band = rep.frequency_band()
+    width = 20 * np.log10(band.magnitude_upper / band.magnitude_lower)
+    assert mag_ax.get_title().split("\n") == [
+        "Frequency response (flow to T_out)",
+        f"95% band (parameters): {width.min():.2g} to {width.max():.2g} dB wide"]
+    assert mag_ax.get_xlabel() == phase_ax.get_xlabel() == r"$\omega$ (rad/s)"
