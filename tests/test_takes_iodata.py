@@ -87,3 +87,27 @@ def test_arx_regressors_of_several_experiments_are_stacked_per_experiment(exchan
         arx_regressors(ds, nb=2)
     with pytest.raises(ValueError, match=r"`start` must be <= N = 800; got 900"):
         arx_regressors(ds, na=2, nb=2, start=900)
+
+
+def test_signal_names_become_python_control_labels_of_tf_and_ss(exchanger):
+    import control
+    import pandas as pd
+
+    ds, model = exchanger
+    for sys in (model.to_tf(), model.to_ss()):
+        assert list(sys.input_labels) == ["flow"] and list(sys.output_labels) == ["T_out"]
+    # pandas column names, two inputs: the state-space realization keeps them and
+    # simulates as the model does
+    rng = np.random.default_rng(3)
+    df = pd.DataFrame(rng.standard_normal((400, 2)), columns=["valve", "pump"])
+    df["level"] = 0.5 * df["valve"].shift(1, fill_value=0) - 0.2 * df["pump"].shift(2,
+                                                                              fill_value=0)
+    m = ARX(1, [1, 1], [1, 2]).fit(df[["valve", "pump"]], df["level"])
+    ss = m.to_ss()
+    assert list(ss.input_labels) == ["valve", "pump"] and list(ss.output_labels) == ["level"]
+    T = np.arange(30)
+    U = rng.standard_normal((2, 30))
+    assert_allclose(control.forced_response(ss, T, U).y[0], m.simulate(U.T), rtol=1e-10,
+                    atol=1e-12)
+    noise = m.to_ss(noise=True)
+    assert list(noise.input_labels) == ["e[level]"]
