@@ -2,8 +2,8 @@
 
 The result objects' ``plot`` methods (``ValidationReport.plot``,
 ``ResidualAnalysis.plot``, ``PlantComparison.plot``, ``FrequencyBand.plot``,
-``OrderSelection.plot``, ``CusumResult.plot``) are one-line calls into the
-functions of this module, so the report, the notebooks, the documentation and
+``OrderSelection.plot``, ``CusumResult.plot``, ``STRHistory.plot``) are
+one-line calls into the functions of this module, so the report, the notebooks, the documentation and
 the command line draw the same figures.
 
 The tracking functions accept what the filters and models produce:
@@ -59,6 +59,7 @@ __all__ = [
     "plot_order_selection",
     "plot_cusum",
     "plot_report",
+    "plot_str_history",
 ]
 
 #: Okabe-Ito colours in the order lines are drawn (blue, vermillion, bluish green,
@@ -1029,6 +1030,86 @@ def _label_gain(report, ax_mag):
     if (u_name, y_name) != ("u", "y"):
         first, *rest = ax_mag.get_title().split("\n")
         ax_mag.set_title("\n".join([f"{first} ({u_name} to {y_name})", *rest]))
+
+
+# ----------------------------------------------------------------------
+# adaptive control
+# ----------------------------------------------------------------------
+def plot_str_history(history, fig=None, *, true_theta=None):
+    r"""A self-tuning regulator's run: reference and output, control, estimates, :math:`\mathrm{tr}\,P`.
+
+    Four stacked axes sharing the time axis. Steps where a due redesign
+    was rejected (the last controller kept) are marked on the control.
+
+    Parameters
+    ----------
+    history : STRHistory
+        ``SelfTuningRegulator.history`` (anything with its attributes ``t``,
+        ``y``, ``r``, ``u``, ``theta``, ``trace_P``, ``rejected``, ``na``
+        and ``dt``).
+    fig : matplotlib.figure.Figure, optional
+        Figure to draw in (cleared); a new one if omitted.
+    true_theta : array_like, shape (na + nb,) or (N, na + nb), optional
+        True parameters ``[a1 .. a_na, b1 .. b_nb]``, drawn dashed.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> import matplotlib.pyplot as plt
+    >>> from rlsfilt import RecursiveLeastSquares
+    >>> from rlsfilt.adaptive import SelfTuningRegulator
+    >>> from rlsfilt.plotting import plot_str_history
+    >>> stre = SelfTuningRegulator(RecursiveLeastSquares(2, P0=100.0),
+    ...                            dict(Am=[1, -0.5], Ao=[1.0]), na=1, nb=1, dt=0.1)
+    >>> y = 0.0
+    >>> for t in range(100):
+    ...     u = stre.step(y, r=1.0 if (t // 25) % 2 else -1.0)
+    ...     y = 0.8 * y + 0.5 * u
+    >>> fig = plot_str_history(stre.history, true_theta=[-0.8, 0.5])
+    >>> [ax.get_ylabel() for ax in fig.axes]
+    ['$y$, $r$', 'control $u$', 'estimate $\\hat\\theta$', '$\\mathrm{tr}\\,P$']
+    >>> fig.axes[-1].get_xlabel()
+    'time (s)'
+    """
+    if fig is None:
+        fig = _figure(None, figsize=(9, 9), layout="constrained")
+    else:
+        fig.clf()
+    axes = fig.subplots(4, 1, sharex=True)
+    t = np.asarray(history.t, dtype=float)
+    ax = axes[0]
+    ax.plot(*_decimate(t, history.r), color=_BLACK, linestyle=":", lw=1.2, label="reference $r$")
+    ax.plot(*_decimate(t, history.y), color=COLORS[0], lw=1.1, label="output $y$")
+    ax.set_ylabel("$y$, $r$")
+    ax.set_title("Self-tuning regulator")
+    _legend_outside(ax)
+    ax = axes[1]
+    ax.plot(*_decimate(t, history.u), color=COLORS[2], lw=0.9, label="control $u$")
+    rejected = np.flatnonzero(np.asarray(history.rejected, dtype=bool))
+    if len(rejected):
+        ax.plot(t[rejected], np.asarray(history.u)[rejected], "x", color=COLORS[1], ms=4,
+                label="design kept\n(rejected estimate)")
+    ax.set_ylabel("control $u$")
+    _legend_outside(ax)
+    theta = np.asarray(history.theta, dtype=float)
+    names = ([rf"$\hat a_{{{i + 1}}}$" for i in range(history.na)]
+             + [rf"$\hat b_{{{i + 1}}}$" for i in range(theta.shape[1] - history.na)])
+    plot_parameters(theta, t=t, names=names, true_values=true_theta, ax=axes[2])
+    ax = axes[3]
+    trace = np.asarray(history.trace_P, dtype=float)
+    ax.plot(*_decimate(t, trace), color=COLORS[3], lw=1.1)
+    if trace.size and np.all(trace > 0):
+        ax.set_yscale("log")
+    ax.set_ylabel(r"$\mathrm{tr}\,P$")
+    for a in axes:
+        a.set_xlabel("")
+        a.grid(True, alpha=0.3)
+    axes[-1].set_xlabel("sample" if history.dt is True else "time (s)")
+    fig.align_ylabels(axes)
+    return fig
 
 
 # ----------------------------------------------------------------------
