@@ -240,3 +240,27 @@ def test_printed_numbers_match_their_comments(page, monkeypatch, tmp_path):
                 checked += _check_statement(stmt, comment, namespace, out.getvalue(),
                                             f"{page} block {i} line {stmt.lineno}")
     assert checked >= 4, f"{page}: only {checked} comments were compared with the output"
+
+
+def test_notebook_mentions_link_to_the_notebooks():
+    """"Notebook N" in a documentation page or a notebook's text is a link to that notebook
+    ({doc}`Notebook N </notebooks/0N_...>` in the pages, [Notebook N](0N_....ipynb) in the
+    notebooks); the changelog, which records history, is left as written."""
+    import json
+
+    names = {p.name[:2]: p.stem for p in (ROOT / "notebooks").glob("0*.ipynb")}
+    mention = re.compile(r"(?P<pre>\[|`)?[Nn]otebook (?P<n>\d)\b(?P<post>\]\((?P<target>[^)]+)\)"
+                         r"| </notebooks/(?P<doc>[^>]+)>`)?")
+    texts = [(str(p.relative_to(ROOT)), p.read_text()) for p in PAGES if p.name != "changelog.md"]
+    for nb in sorted((ROOT / "notebooks").glob("*.ipynb")):
+        cells = json.loads(nb.read_text())["cells"]
+        texts += [(f"{nb.name} cell {i}", "".join(c["source"])) for i, c in enumerate(cells)
+                  if c["cell_type"] == "markdown"]
+    bad = []
+    for where, text in texts:
+        for m in mention.finditer(text):
+            stem = names.get(f"0{m.group('n')}")
+            target = m.group("target") or m.group("doc") or ""
+            if not m.group("post") or stem is None or not target.startswith(stem):
+                bad.append(f"{where}: {text[max(0, m.start() - 20):m.end() + 20]!r}")
+    assert not bad, "unlinked notebook mentions:\n" + "\n".join(bad)
