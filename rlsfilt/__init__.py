@@ -7,7 +7,7 @@ A filterpy-style toolkit: `RecursiveLeastSquares` mirrors filterpy's
 
 from . import datasets, validation  # public subpackages: rlsfilt.datasets, rlsfilt.validation
 from .exceptions import ForgettingSkippedWarning, NotFittedError, NumericalWarning
-from .filters import RecursiveLeastSquares, SlidingWindowRLS, SquareRootRLS
+from .filters import RecursiveLeastSquares, RLSBank, SlidingWindowRLS, SquareRootRLS
 from .models import ARX
 from .validation import fit_percent, select_order, validate
 
@@ -17,6 +17,7 @@ __all__ = [
     "RecursiveLeastSquares",
     "SlidingWindowRLS",
     "SquareRootRLS",
+    "RLSBank",
     "ARX",
     "datasets",
     "validation",
