@@ -8,7 +8,7 @@ A filterpy-style toolkit: `RecursiveLeastSquares` mirrors filterpy's
 from . import datasets, validation  # public subpackages: rlsfilt.datasets, rlsfilt.validation
 from .exceptions import ForgettingSkippedWarning, NotFittedError, NumericalWarning
 from .filters import RecursiveLeastSquares, RLSBank, SlidingWindowRLS, SquareRootRLS
-from .models import ARX
+from .models import ARX, ARXBank, fit_many
 from .validation import fit_percent, select_order, validate
 
 __version__ = "0.1.0"
@@ -19,6 +19,8 @@ __all__ = [
     "SquareRootRLS",
     "RLSBank",
     "ARX",
+    "ARXBank",
+    "fit_many",
     "datasets",
     "validation",
     "validate",

@@ -720,13 +720,27 @@ class RLSBank:
             raise ValueError(f"`{name}` must be a scalar or have shape ({C},), ({n}, {n}) or "
                              f"({C}, {n}, {n}) (n_channels = {C}, dim_x = {n}); got shape "
                              f"{arr.shape}")
-        out = np.empty((C, n, n))
-        for c in range(C):
-            try:
-                out[c] = check_covariance(arr[c], n, name, definite=definite)
-            except ValueError as exc:
-                raise ValueError(f"{exc} (channel {c})") from None
-        return out
+        # the checks of `check_covariance`, for every channel at once
+        arr = np.array(arr, dtype=np.float64)
+        finite = np.isfinite(arr).all(axis=(1, 2))
+        if not finite.all():
+            raise ValueError(f"`{name}` must be finite; got NaN or inf entries (channel "
+                             f"{int(np.argmin(finite))})")
+        scale = np.maximum(np.abs(arr).max(axis=(1, 2)), np.finfo(float).tiny)
+        asym = np.abs(arr - arr.transpose(0, 2, 1)).max(axis=(1, 2))
+        if (asym > 1e-10 * scale).any():
+            c = int(np.argmax(asym > 1e-10 * scale))
+            raise ValueError(f"`{name}` must be symmetric; got max |{name} - {name}^T| = "
+                             f"{asym[c]:.3g} (channel {c})")
+        arr = 0.5 * (arr + arr.transpose(0, 2, 1))
+        eig_min = np.linalg.eigvalsh(arr)[:, 0]
+        bad = eig_min <= 0.0 if definite else eig_min < -n * np.finfo(float).eps * scale
+        if bad.any():
+            c = int(np.argmax(bad))
+            kind = "definite" if definite else "semidefinite"
+            raise ValueError(f"`{name}` must be positive {kind}; got smallest eigenvalue "
+                             f"{eig_min[c]:.3g} (channel {c})")
+        return arr
 
     def _estimates(self, value, name):
         C, n = self.n_channels, self.dim_x

@@ -1059,6 +1059,12 @@ class ARX:
             return f"<pre>{html.escape(self._orders_text())}</pre>"
         return ARXSummary(self)._repr_html_()
 
+    def fit_many(self, u, y, method="ls", **options):
+        """Fit these orders to every channel of a fleet: :func:`rlsfilt.models.fit_many`."""
+        from .fleet import fit_many
+
+        return fit_many(self, u, y, method, **options)
+
 
 class ARXSummary:
     """Summary of a fitted `ARX`: ``print`` it, or display it in a notebook.

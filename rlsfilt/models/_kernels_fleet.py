@@ -1,0 +1,78 @@
+"""Compiled (numba) helpers of `fit_many`: statistics of many fitted ARX models."""
+
+import numpy as np
+from numba import njit
+
+__all__ = []
+
+
+@njit(cache=True)
+def fleet_statistics(Phi, target, theta, na, Y, resid, sigma2, pred_fit, sim_fit):
+    r"""Residuals, noise variances and fit percentages of many fitted ARX models.
+
+    For each channel ``c`` (one output), with the regressors ``Phi`` (rows,
+    C, n) of the rows ``t = start .. N - 1`` (``start = N - rows``), the
+    targets ``target`` (rows, C), the parameters ``theta`` (C, n) (the first
+    `na` the coefficients of :math:`A(q)` after its leading 1) and the
+    record ``Y`` (N, C):
+
+    * ``resid[t, c] = target - Phi theta`` (rows, C) and ``sigma2[c] =
+      sum resid^2 / (rows - n)`` (NaN without spare rows);
+    * ``pred_fit[c]``: `fit_percent` of the one-step prediction ``Phi theta``;
+    * ``sim_fit[c]``: `fit_percent` of the free-run simulation started from
+      the measured ``Y[:start]`` (the simulation of ``validate``):
+      :math:`y_s(t) = B(q) u(t) - \sum_k a_k y_s(t - k)`, where the input
+      part :math:`B(q) u(t)` is the ``u`` block of ``Phi`` times its
+      parameters;
+
+    (NaN fits for a constant target). Every sum runs over time in order,
+    channel by channel, with the channels in the inner loop: a channel's
+    numbers do not depend on the other channels.
+    """
+    rows, C, n = Phi.shape
+    N = Y.shape[0]
+    start = N - rows
+    ysim = np.empty((N, C))
+    mean = np.zeros(C)
+    ss_pred = np.zeros(C)
+    ss_sim = np.zeros(C)
+    ss_dev = np.zeros(C)
+    for t in range(start):
+        for c in range(C):
+            ysim[t, c] = Y[t, c]
+    for k in range(rows):
+        t = start + k
+        for c in range(C):
+            ar = 0.0
+            for p in range(na):
+                ar += Phi[k, c, p] * theta[c, p]
+            bu = 0.0
+            for p in range(na, n):
+                bu += Phi[k, c, p] * theta[c, p]
+            yk = target[k, c]
+            r = yk - (ar + bu)                        # y - Phi theta
+            resid[k, c] = r
+            ss_pred[c] += r * r
+            ys = bu
+            for p in range(1, na + 1):
+                ys -= theta[c, p - 1] * ysim[t - p, c]
+            ysim[t, c] = ys
+            e = yk - ys
+            ss_sim[c] += e * e
+            mean[c] += yk
+    for c in range(C):
+        mean[c] /= rows
+    for k in range(rows):
+        for c in range(C):
+            d = target[k, c] - mean[c]
+            ss_dev[c] += d * d
+    dof = rows - n
+    for c in range(C):
+        sigma2[c] = ss_pred[c] / dof if dof > 0 else np.nan
+        den = np.sqrt(ss_dev[c])
+        if den > 0.0:
+            pred_fit[c] = 100.0 * (1.0 - np.sqrt(ss_pred[c]) / den)
+            sim_fit[c] = 100.0 * (1.0 - np.sqrt(ss_sim[c]) / den)
+        else:
+            pred_fit[c] = np.nan
+            sim_fit[c] = np.nan
