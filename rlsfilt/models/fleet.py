@@ -409,6 +409,85 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
 
 
 # ----------------------------------------------------------------------
+# records in long format (one row per sample, a channel column)
+# ----------------------------------------------------------------------
+def _summary_long(model, frame, channel, inputs, output, method="ls", **options):
+    """`ARXBank.summary` of the channels of a long-format pandas DataFrame.
+
+    `frame` holds one row per sample: the channel label in column
+    `channel`, the inputs in the columns `inputs`, the output in `output`;
+    each channel's rows are in time order (other channels' rows may be
+    interleaved). Channels of equal length are fitted together by
+    `fit_many`; the rows of the result follow the first appearance of the
+    channels, and the ``error`` column is always present (None where the
+    channel was fitted). Used by the command line and :mod:`rlsfilt.dask`.
+    """
+    import pandas as pd
+
+    inputs = [inputs] if isinstance(inputs, str) else list(inputs)
+    for col in [channel, *inputs, output]:
+        if col not in frame.columns:
+            raise ValueError(f"column {col!r} is not in the data; the columns are "
+                             f"{list(frame.columns)}")
+    codes, labels = pd.factorize(frame[channel], sort=False)
+    order = np.argsort(codes, kind="stable")                # each channel's rows, in order
+    counts = np.bincount(codes, minlength=len(labels))
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    Yall = frame[output].to_numpy(dtype=float)
+    Uall = frame[inputs].to_numpy(dtype=float)
+    on_error = options.get("on_error", "raise")
+    parts = []
+    for L in np.unique(counts):
+        group = np.flatnonzero(counts == L)
+        rows = order[starts[group][None, :] + np.arange(L)[:, None]]      # (L, Cg)
+        names = list(labels[group])
+        U = Uall[rows]                                                      # (L, Cg, nu)
+        try:
+            table = fit_many(model, U, Yall[rows], method, channels=names, **options).summary()
+        except ValueError as exc:
+            if on_error == "raise":
+                raise ValueError(f"channel(s) {names[:10]} with {L} samples: {exc}") from None
+            table = _failed_rows(model, len(inputs), method, options, names, str(exc))
+        if "error" not in table:
+            table["error"] = None
+        parts.append(table)
+    out = pd.concat(parts)
+    return out.loc[list(labels)] if len(parts) > 1 else out
+
+
+def _summary_schema(model, n_inputs, method, options):
+    """``{column: dtype}`` of `ARXBank.summary` (with the ``error`` column)."""
+    params = model.get_params()
+    s = arx_structure(params["na"], params["nb"], params["nk"], n_inputs, 1)
+    names = _param_names(s)
+    schema = {"n_samples": "int64"}
+    schema.update({name: "float64" for name in names})
+    schema.update({"se_" + name: "float64" for name in names})
+    schema.update(dict.fromkeys(("noise_variance", "simulation_fit", "prediction_fit"),
+                                "float64"))
+    if options.get("residual_tests", True):
+        schema.update(dict.fromkeys(("q_statistic", "pvalue_white", "f_statistic",
+                                     "pvalue_independent"), "float64"))
+        schema.update({"is_white": "bool", "is_independent": "bool"})
+    if method == "rls":
+        schema.update({"k0": "int64", "healthy": "bool"})
+    schema["error"] = "object"
+    return schema
+
+
+def _failed_rows(model, n_inputs, method, options, names, message):
+    """Summary rows of channels that could not be fitted at all."""
+    import pandas as pd
+
+    schema = _summary_schema(model, n_inputs, method, options)
+    data = {}
+    for col, dtype in schema.items():
+        fill = {"float64": np.nan, "int64": 0, "bool": False, "object": message}[dtype]
+        data[col] = np.full(len(names), fill, dtype=dtype)
+    return pd.DataFrame(data, index=pd.Index(names, name="channel"))
+
+
+# ----------------------------------------------------------------------
 # one chunk of channels
 # ----------------------------------------------------------------------
 class _Results:
