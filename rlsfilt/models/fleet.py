@@ -446,6 +446,8 @@ def _summary_long(model, frame, channel, inputs, output, method="ls", **options)
             table = fit_many(model, U, Yall[rows], method, channels=names, **options).summary()
         except ValueError as exc:
             if on_error == "raise":
+                if "channel" in str(exc):        # the message names the channel already
+                    raise
                 raise ValueError(f"channel(s) {names[:10]} with {L} samples: {exc}") from None
             table = _failed_rows(model, len(inputs), method, options, names, str(exc))
         if "error" not in table:
