@@ -55,7 +55,6 @@ from handwritten_bank import rls_bank_handwritten  # noqa: E402
 
 import rlsfilt  # noqa: E402
 from rlsfilt import ARX, RecursiveLeastSquares, RLSBank, fit_many  # noqa: E402
-from rlsfilt.filters import _kernels_bank  # noqa: E402
 from rlsfilt.models import fleet  # noqa: E402
 
 LAM = 0.99
@@ -118,21 +117,14 @@ def run_loop(Hs, zs):
 def run_parallel(Hs, zs, threads):
     import numba
 
-    C, n = zs.shape[1], Hs.shape[2]
-    bank = RLSBank(C, n, lam=LAM, P0=P0)
-    x, P = bank.x.copy(), bank.P.copy()
     previous = numba.get_num_threads()
     numba.set_num_threads(threads)
     try:
-        _kernels_bank.bank_batch_parallel(
-            x, P, zs, Hs, bank.R.reshape(1, C), 1.0 / bank.lam, bank.lam, bank.Q, True, 0,
-            np.zeros((C, 2)), False, np.empty((0, C, n)), np.empty((0, C, n, n)),
-            np.empty((0, C, n, n)), np.empty(zs.shape), np.empty(zs.shape), np.empty((C, n)),
-            np.empty((C, n, n)), np.empty((C, n)), np.empty((C, n, n)), np.empty((C, n)),
-            np.empty(C), 100, 0, 1e12, np.full(C, -1), _kernels_bank.block_size(n, C))
+        bank = RLSBank(zs.shape[1], Hs.shape[2], lam=LAM, P0=P0, parallel=True)
+        bank.batch_filter(zs, Hs, store_covariances=False, store_means=False)
     finally:
         numba.set_num_threads(previous)
-    return x
+    return bank.x
 
 
 def streaming(C, n, steps, rounds, rng):

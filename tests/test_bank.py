@@ -147,21 +147,17 @@ def test_histories_off_and_streaming_give_the_same_bits(rng, mode):
     assert stream.n_updates == full.n_updates == N
 
 
-def test_parallel_kernel_equals_serial_kernel(rng):
+def test_parallel_kernel_gives_the_same_bits(rng):
     Z, H = _record(rng, N=60, C=70, n=3)
     N, C, n = H.shape
-    bank = RLSBank(C, n, lam=0.97)
-    args = lambda: [bank.x.copy(), bank.P.copy(), Z, H, bank.R.reshape(1, C),  # noqa: E731
-                    1.0 / bank.lam, bank.lam, bank.Q, True, 0, np.zeros((C, 2)), False,
-                    np.empty((N, C, n)), np.empty((0, C, n, n)), np.empty((0, C, n, n)),
-                    np.empty((N, C)), np.empty((N, C)), np.empty((C, n)), np.empty((C, n, n)),
-                    np.empty((C, n)), np.empty((C, n, n)), np.empty((C, n)), np.empty(C),
-                    100, 0, 1e12, np.full(C, -1), 16]
-    a, b = args(), args()
-    _kernels_bank.bank_batch(*a)
-    _kernels_bank.bank_batch_parallel(*b)
-    for u, v in zip(a, b):
+    serial, parallel = RLSBank(C, n, lam=0.97), RLSBank(C, n, lam=0.97, parallel=True)
+    a = serial.batch_filter(Z, H)
+    b = parallel.batch_filter(Z, H)
+    for u, v in zip([*a, a.residuals], [*b, b.residuals]):
         assert_array_equal(u, v)
+    assert_array_equal(serial.P, parallel.P)
+    with pytest.raises(TypeError, match="`parallel` must be True or False; got 1"):
+        RLSBank(2, 2, parallel=1)
 
 
 def test_per_step_noise_variances(rng):
@@ -398,6 +394,16 @@ def test_shape_errors_name_the_argument_and_the_channel_count(rng):
         bad_H = H[0].copy()
         bad_H[2, 1] = np.inf
         bank.update(Z[0], bad_H)
+    H_inf, Z_inf = H.copy(), Z.copy()
+    H_inf[7, 3, 2] = -np.inf
+    H_inf[9, 0, 0] = np.inf
+    Z_inf[8, 1] = np.inf
+    with pytest.raises(ValueError, match=r"`Hs` must be finite or NaN \(missing\); got -inf at "
+                                         r"index \(7, 3, 2\)"):
+        bank.batch_filter(Z_inf, H_inf)
+    with pytest.raises(ValueError, match=r"`zs` must be finite or NaN \(missing\); got inf at "
+                                         r"index \(8, 1\)"):
+        bank.batch_filter(Z_inf, H)
     bank.x = np.zeros((3, 3))
     with pytest.raises(ValueError, match=r"`x` must be an array of shape \(4, 3\)"):
         bank.predict()
@@ -414,6 +420,7 @@ def test_failed_calls_leave_the_state_unchanged(rng):
              lambda: bank.update(Z[10], H[10], R=[1.0, 0.0, 1.0, 1.0]),
              lambda: bank.batch_filter(Z[10:], H[10:19]),
              lambda: bank.batch_filter(Z[10:], H[10:], Rs=-1.0),
+             lambda: bank.batch_filter(Z[10:], np.where(np.arange(3) == 2, np.inf, H[10:])),
              lambda: bank.initialize(Z[:2], H[:2])]
     for call in calls:
         with pytest.raises(ValueError):

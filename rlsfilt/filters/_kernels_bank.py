@@ -158,6 +158,24 @@ def _predict(Pb, ilb, Qb, q_zero, nb):
 
 
 @njit(inline="always", **_JIT)
+def _infinite(h, zb, flag, nb):
+    """Whether a regressor or measurement of the block is infinite (``flag[b]``
+    marks the channels); NaN (missing) is not."""
+    n = h.shape[0]
+    for b in range(nb):
+        v = zb[b]
+        flag[b] = v == v and v - v != 0.0
+    for j in range(n):
+        for b in range(nb):
+            v = h[j, b]
+            flag[b] = flag[b] or (v == v and v - v != 0.0)
+    found = False
+    for b in range(nb):
+        found = found or flag[b]
+    return found
+
+
+@njit(inline="always", **_JIT)
 def _measure(xb, Pb, h, zb, rb, hok, ok, g, sb, yb, acc, nb, tri):
     """Validity, ``g = P h``, ``s = h . g + r`` and ``y = z - h . x``.
 
@@ -293,7 +311,7 @@ def _update(xb, Pb, g, Kb, sb, yb, rb, ok, lamb, p0, p1, mode, lt, w, d, nb, iu,
 @njit(**_JIT)
 def _run_block(c0, nb, B, x, P, Z, H, Rv, il, lam, Q, q_zero, mode, params, update_first,
                means, covs, covs_p, ys, ss, x_prior, P_prior, x_post, P_post, K, lam_t,
-               check_every, step0, cond_max, k_fail):
+               check_every, step0, cond_max, k_fail, k_inf):
     """Run the record on channels ``c0 .. c0 + nb - 1``, ``nb <= B`` (see `bank_batch`)."""
     N = Z.shape[0]
     n = x.shape[1]
@@ -348,6 +366,11 @@ def _run_block(c0, nb, B, x, P, Z, H, Rv, il, lam, Q, q_zero, mode, params, upda
             rb[b] = Rv[k if r_each else 0, c0 + b]
             for j in range(n):
                 h[j, b] = H[k, c0 + b, j]
+        if _infinite(h, zb, hok, nb):            # an error: stop the block, report where
+            for b in range(nb):
+                if hok[b]:
+                    k_inf[c0 + b] = k
+            return
         _measure(xb, Pb, h, zb, rb, hok, ok, g, sb, yb, w, nb, tri)
         check = check_every > 0 and (step0 + k + 1) % check_every == 0
         # fuse the next time update into this sweep when nothing looks at P in between
@@ -393,7 +416,7 @@ def _run_block(c0, nb, B, x, P, Z, H, Rv, il, lam, Q, q_zero, mode, params, upda
 @njit(**_JIT)
 def bank_batch(x, P, Z, H, Rv, il, lam, Q, q_zero, mode, params, update_first,
                means, covs, covs_p, ys, ss, x_prior, P_prior, x_post, P_post, K, lam_t,
-               check_every, step0, cond_max, k_fail, block):
+               check_every, step0, cond_max, k_fail, k_inf, block):
     """Run the recursion of every channel over a record, one block after another.
 
     Parameters
@@ -402,7 +425,7 @@ def bank_batch(x, P, Z, H, Rv, il, lam, Q, q_zero, mode, params, update_first,
         Working state, overwritten with the final state.
     Z : (N, C), H : (N, C, n)
         Measurements and regressors (NaN marks a missing sample of a
-        channel; no infinities).
+        channel).
     Rv : (N, C) or (1, C)
         Noise variances per step, or one per channel for every step.
     il, lam : (C,)
@@ -429,6 +452,10 @@ def bank_batch(x, P, Z, H, Rv, il, lam, Q, q_zero, mode, params, update_first,
         The health check of each channel's P after step ``k`` when
         ``(step0 + k + 1) % check_every == 0``; the first failing step of
         channel ``c`` is written to ``k_fail[c]`` if that is still -1.
+    k_inf : (C,) int64
+        Set to the step at which channel ``c`` has an infinite regressor or
+        measurement (an error: the block of that channel stops there, and
+        the caller discards the results).
     block : int
         Channels per block (`block_size`).
     """
@@ -437,20 +464,20 @@ def bank_batch(x, P, Z, H, Rv, il, lam, Q, q_zero, mode, params, update_first,
         c0 = blk * block
         _run_block(c0, min(block, C - c0), block, x, P, Z, H, Rv, il, lam, Q, q_zero, mode, params,
                    update_first, means, covs, covs_p, ys, ss, x_prior, P_prior, x_post,
-                   P_post, K, lam_t, check_every, step0, cond_max, k_fail)
+                   P_post, K, lam_t, check_every, step0, cond_max, k_fail, k_inf)
 
 
 @njit(parallel=True, **_JIT)
 def bank_batch_parallel(x, P, Z, H, Rv, il, lam, Q, q_zero, mode, params, update_first,
                         means, covs, covs_p, ys, ss, x_prior, P_prior, x_post, P_post, K,
-                        lam_t, check_every, step0, cond_max, k_fail, block):
+                        lam_t, check_every, step0, cond_max, k_fail, k_inf, block):
     """`bank_batch` with the blocks distributed over numba's threads (``prange``)."""
     C = x.shape[0]
     for blk in prange((C + block - 1) // block):
         c0 = blk * block
         _run_block(c0, min(block, C - c0), block, x, P, Z, H, Rv, il, lam, Q, q_zero, mode, params,
                    update_first, means, covs, covs_p, ys, ss, x_prior, P_prior, x_post,
-                   P_post, K, lam_t, check_every, step0, cond_max, k_fail)
+                   P_post, K, lam_t, check_every, step0, cond_max, k_fail, k_inf)
 
 
 # ----------------------------------------------------------------------

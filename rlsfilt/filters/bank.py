@@ -132,6 +132,12 @@ class RLSBank:
         ``failed_channels``.
     cond_max : float, default 1e12
         Condition number of ``P`` beyond which the health check fails.
+    parallel : bool, default False
+        Run :meth:`batch_filter`'s blocks of channels on numba's threads
+        (``numba.set_num_threads``). Off by default: on the shared 2-core
+        machine of ``docs/performance.md`` two threads gained little, and
+        under Dask or a process pool the cores are already busy. The
+        results are the same bits either way.
 
     Attributes
     ----------
@@ -212,7 +218,7 @@ class RLSBank:
 
     def __init__(self, n_channels, dim_x, lam=1.0, *, Q=0.0, R=1.0, P0=1e4, x0=None,
                  forgetting="exponential", forgetting_params=None, check_every=100,
-                 cond_max=1e12):
+                 cond_max=1e12, parallel=False):
         self.n_channels = check_int(n_channels, "n_channels", minimum=1)
         self.dim_x = check_int(dim_x, "dim_x", minimum=1)
         if not isinstance(forgetting, str) or forgetting not in _MODES:
@@ -232,6 +238,9 @@ class RLSBank:
         if not (math.isfinite(cond_max) and cond_max > 0.0):
             raise ValueError(f"`cond_max` must be a positive finite number; got {cond_max}")
         self.cond_max = cond_max
+        if not isinstance(parallel, (bool, np.bool_)):
+            raise TypeError(f"`parallel` must be True or False; got {parallel!r}")
+        self.parallel = bool(parallel)
         self._P0 = self._covariances(P0, "P0", definite=True)
         self._x0 = self._estimates(np.zeros(self.dim_x) if x0 is None else x0, "x0")
         self.reset()
@@ -398,14 +407,15 @@ class RLSBank:
         every `check_every` steps inside the loop and once at the end.
         """
         C, n = self.n_channels, self.dim_x
-        Z = self._measurements(zs, "zs", None, f"(N, {C}) (one column per channel)", ndim=2)
+        Z = self._measurements(zs, "zs", None, f"(N, {C}) (one column per channel)", ndim=2,
+                               finite=False)
         if Z.shape[1] != C:
             raise ValueError(f"`zs` must have shape (N, {C}) (one column per channel, "
                              f"n_channels = {C}); got {Z.shape}")
         N = Z.shape[0]
         Hm = self._measurements(Hs, "Hs", (N, C, n),
                                 f"({N}, {C}, {n}) (N = len(zs) steps, n_channels = {C}, "
-                                f"dim_x = {n})")
+                                f"dim_x = {n})", finite=False)
         Rv = self._batch_variances(Rs, N)
         x = np.array(self._checked_x(), dtype=np.float64, order="C")
         P = np.array(self._checked_P(), dtype=np.float64, order="C")
@@ -417,13 +427,15 @@ class RLSBank:
         x_post, P_post = np.empty((C, n)), np.empty((C, n, n))
         K, lam_t = np.zeros((C, n)), self._lam.copy()
         k_fail = np.full(C, -1, dtype=np.int64)
+        k_inf = np.full(C, -1, dtype=np.int64)
         kern = _get_kernels()
         if N:
-            kern.bank_batch(x, P, Z, Hm, Rv, self._time_il(), self._lam, self._Q,
-                            self._Q_is_zero, self._mode, self._params, bool(update_first),
-                            means, covs, covs_p, ys, ss, x_prior, P_prior, x_post, P_post, K,
-                            lam_t, self.check_every, self.n_updates, self.cond_max, k_fail,
-                            kern.block_size(n, C))
+            run = kern.bank_batch_parallel if self.parallel else kern.bank_batch
+            run(x, P, Z, Hm, Rv, self._time_il(), self._lam, self._Q, self._Q_is_zero,
+                self._mode, self._params, bool(update_first), means, covs, covs_p, ys, ss,
+                x_prior, P_prior, x_post, P_post, K, lam_t, self.check_every, self.n_updates,
+                self.cond_max, k_fail, k_inf, kern.block_size(n, C))
+            _raise_infinite(k_inf, Z, Hm)          # (checked in the kernel: no extra pass)
         means_p = None
         if store_means:            # the estimate is unchanged by a time update
             means_p = means.copy() if update_first else np.concatenate(
@@ -756,17 +768,18 @@ class RLSBank:
                              f"{tuple(int(v) for v in bad)}")
         return np.array(arr, dtype=np.float64, order="C")
 
-    def _measurements(self, value, name, shape, expected, ndim=None):
-        """A float64 C-contiguous array of `shape` (or `ndim`): NaN allowed, inf not.
+    def _measurements(self, value, name, shape, expected, ndim=None, finite=True):
+        """A float64 C-contiguous array of `shape` (or `ndim`): NaN allowed, inf not
+        (not checked here with ``finite=False``: the record kernel checks it).
 
-        Never a view the kernels could write through: the kernels only read it.
+        The kernels only read it, so the caller's array is passed without a copy.
         """
         arr = value if (type(value) is np.ndarray and value.dtype == np.float64) \
             else as_float_array(value, name)
         if (shape is not None and arr.shape != shape) or (ndim is not None and arr.ndim != ndim):
             raise ValueError(f"`{name}` must have shape {expected}; got {arr.shape}")
         arr = np.ascontiguousarray(arr)
-        if not np.isfinite(arr.sum()) and np.isinf(arr).any():
+        if finite and not np.isfinite(arr.sum()) and np.isinf(arr).any():
             idx = tuple(int(v) for v in np.argwhere(np.isinf(arr))[0])
             raise ValueError(f"`{name}` must be finite or NaN (missing); got {arr[idx]} at "
                              f"index {idx}")
@@ -804,6 +817,21 @@ class RLSBank:
             raise ValueError(f"`P` must be an array of shape ({C}, {n}, {n}); got "
                              f"{getattr(P, 'shape', type(P).__name__)}")
         return np.ascontiguousarray(P, dtype=np.float64)
+
+
+def _raise_infinite(k_inf, Z, H):
+    """Name the first infinite measurement or regressor entry the kernel found."""
+    bad = np.flatnonzero(k_inf >= 0)
+    if not bad.size:
+        return
+    k = int(k_inf[bad].min())
+    c = int(bad[k_inf[bad] == k][0])
+    if np.isinf(Z[k, c]):
+        raise ValueError(f"`zs` must be finite or NaN (missing); got {Z[k, c]} at index "
+                         f"({k}, {c})")
+    j = int(np.argmax(np.isinf(H[k, c])))
+    raise ValueError(f"`Hs` must be finite or NaN (missing); got {H[k, c, j]} at index "
+                     f"({k}, {c}, {j})")
 
 
 def _list(channels, most=10):

@@ -76,3 +76,20 @@ def fleet_statistics(Phi, target, theta, na, Y, resid, sigma2, pred_fit, sim_fit
         else:
             pred_fit[c] = np.nan
             sim_fit[c] = np.nan
+
+
+@njit(cache=True)
+def record_sums(Y, U, out):
+    """``out[0, c] = sum_t Y[t, c]``, ``out[1, c] = sum_t sum_j U[t, c, j]``, summed in
+    time order (so a channel's sums do not depend on the other channels)."""
+    N, C = Y.shape
+    for c in range(C):
+        out[0, c] = 0.0
+        out[1, c] = 0.0
+    for t in range(N):
+        for c in range(C):
+            out[0, c] += Y[t, c]
+            acc = 0.0
+            for j in range(U.shape[2]):
+                acc += U[t, c, j]
+            out[1, c] += acc

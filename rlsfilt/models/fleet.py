@@ -124,7 +124,10 @@ class ARXBank:
         The model is fitted by ``ARX.fit`` on the channel's record with the
         channel's options, so it has every attribute of a fit (for
         ``method="rls"`` also ``theta_history_`` and ``filter_``); its
-        numbers equal row `i` of this bank's arrays (to round-off).
+        numbers equal row `i` of this bank's arrays (to round-off). The bank
+        refers to the arrays given to :func:`fit_many` without copying them
+        (a fleet's record can be large); if the channel's record was
+        modified since, this raises instead of fitting other data.
 
         Parameters
         ----------
@@ -140,6 +143,11 @@ class ARXBank:
         if self.errors_[c] is not None:
             raise ValueError(f"channel {self.channels_[c]!r} was not fitted: {self.errors_[c]}")
         U, Y = self._data
+        if not np.array_equal(_fingerprint(U[:, c:c + 1], Y[:, c:c + 1]),
+                              self._fingerprint[:, c:c + 1], equal_nan=True):
+            raise ValueError(f"the record of channel {self.channels_[c]!r} was modified after "
+                             "fit_many (the bank refers to the arrays it was given, without a "
+                             "copy); fit it with ARX.fit on the record you mean")
         u = U[:, c, 0] if U.shape[2] == 1 else U[:, c]
         model = type(self.template)(**self.template.get_params())
         return model.fit(u, Y[:, c], self.method_, **self._channel_options(c))
@@ -405,7 +413,7 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
         k0_=out.k0, recursive_residuals_=out.rec,
         healthy_=out.healthy, errors_=list(errors), n_samples_=rows, n_params_=n,
         param_names_=names, method_=method, max_lag=max_lag, alpha=alpha,
-        _data=(U, Y), _options=kept)
+        _data=(U, Y), _fingerprint=_fingerprint(U, Y), _options=kept)
 
 
 # ----------------------------------------------------------------------
@@ -548,16 +556,17 @@ def _fit_chunk(cs, U, Y, s, method, per_channel, k0, max_lag, tests, on_error, l
     sigma2, pred_fit, sim_fit = np.empty(c), np.empty(c), np.empty(c)
     fleet_statistics(Phi, np.ascontiguousarray(target), theta, s.na, np.ascontiguousarray(Y),
                      resid, sigma2, pred_fit, sim_fit)
-    out.theta[cs], out.sigma2[cs], out.resid[:, cs] = theta, sigma2, resid
-    out.cov[cs] = sigma2[:, None, None] * cov
-    out.pred_fit[cs], out.sim_fit[cs] = pred_fit, sim_fit
+    cs, sel = _as_slice(cs)
+    out.theta[sel], out.sigma2[sel], out.resid[:, sel] = theta, sigma2, resid
+    out.cov[sel] = sigma2[:, None, None] * cov
+    out.pred_fit[sel], out.sim_fit[sel] = pred_fit, sim_fit
     if tests:
         from ..validation._many import input_lag_test_many, ljung_box_many
 
         start = s.max_lag
         resid = np.ascontiguousarray(resid.T)                  # one row per channel
         Q, _, p_white = ljung_box_many(resid, max_lag)
-        out.Q[cs], out.p_white[cs] = Q, p_white
+        out.Q[sel], out.p_white[sel] = Q, p_white
         nu = U.shape[2]
         width = 8 * rows * (nu * (2 * max_lag + 1) + n + 2)
         step = max(1, _TEST_BYTES // width)
@@ -629,10 +638,11 @@ def _recursive(cs, Phi, target, opts, k0, labels, on_error, out):
         g, bank, residuals = group
         theta[g] = bank.x
         cov[g] = bank.P / bank.R[:, None, None]
-        out.k0[cs[g]] = kv
-        out.rec[:kv, cs[g]] = np.nan                     # the rows of the batch start
-        out.rec[kv:, cs[g]] = residuals
-        out.healthy[cs[g]] = ~np.isin(np.arange(len(g)), bank.failed_channels)
+        _, sel = _as_slice(cs[g])
+        out.k0[sel] = kv
+        out.rec[:kv, sel] = np.nan                       # the rows of the batch start
+        out.rec[kv:, sel] = residuals
+        out.healthy[sel] = ~np.isin(np.arange(len(g)), bank.failed_channels)
         ok[np.setdiff1d(np.flatnonzero(k0s == kv), g)] = False
     return ok, theta, cov
 
@@ -722,7 +732,7 @@ def _regressors(U, Y, s):
 
 
 def _fleet_data(u, y, channels):
-    """``U (N, C, nu)``, ``Y (N, C)`` as new float arrays, and the channel labels."""
+    """``U (N, C, nu)``, ``Y (N, C)`` as float64 C-ordered arrays, and the channel labels."""
     names = None
     if hasattr(y, "columns") and hasattr(y, "to_numpy"):
         names = list(y.columns)
@@ -751,8 +761,18 @@ def _fleet_data(u, y, channels):
         names = list(range(C))
     if len(set(map(repr, names))) != len(names):
         raise ValueError("`channels` must be distinct labels")
-    return np.array(U, dtype=np.float64, order="C"), np.array(Y, dtype=np.float64, order="C"), \
-        names
+    # read only below: the caller's arrays when they are float64 and C-ordered (no copy)
+    return np.ascontiguousarray(U), np.ascontiguousarray(Y), names
+
+
+def _fingerprint(U, Y):
+    """Per-channel sums of the record (2, C): `ARXBank.model` refits from the
+    caller's arrays and checks with them that the record is still the one fitted."""
+    from ._kernels_fleet import record_sums
+
+    out = np.empty((2, Y.shape[1]))
+    record_sums(np.ascontiguousarray(Y), np.ascontiguousarray(U), out)
+    return out
 
 
 def _data_errors(U, Y, labels, on_error):
