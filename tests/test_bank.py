@@ -160,6 +160,20 @@ def test_parallel_kernel_gives_the_same_bits(rng):
         RLSBank(2, 2, parallel=1)
 
 
+def test_regressors_stored_channel_last_give_the_same_bits(rng):
+    """An (N, dim_x, C) array passed as its transposed view (as fit_many does) is
+    read in place and gives the bits of the (N, C, dim_x) copy."""
+    Z, H = _record(rng, N=50, C=37, n=3)
+    Ht = np.ascontiguousarray(H.transpose(0, 2, 1))          # (N, n, C)
+    a, b = RLSBank(37, 3, lam=0.98), RLSBank(37, 3, lam=0.98)
+    ha = a.batch_filter(Z, H)
+    hb = b.batch_filter(Z, Ht.transpose(0, 2, 1))
+    assert_array_equal(a.x, b.x)
+    assert_array_equal(ha.residuals, hb.residuals)
+    assert_array_equal(ha.covariances, hb.covariances)
+    assert_array_equal(a.H, b.H)
+
+
 def test_per_step_noise_variances(rng):
     Z, H = _record(rng, C=7, missing=0.0, bad_rows=0.0)
     N, C, n = H.shape
@@ -510,3 +524,20 @@ def test_kernels_are_cached_on_disk():
     for name in ("bank_batch", "bank_batch_parallel", "bank_predict", "bank_update",
                  "bank_unhealthy"):
         assert getattr(_kernels_bank, name)._cache.__class__.__name__ == "FunctionCache", name
+
+
+def test_benchmark_script_runs_in_smoke_mode(tmp_path):
+    """benchmarks/bench_bank.py runs end to end (tiny sizes; timings are not tested)."""
+    import os
+    import pathlib
+    import subprocess
+    import sys
+
+    root = pathlib.Path(__file__).resolve().parents[1]
+    env = dict(os.environ, PYTHONPATH=str(root) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    proc = subprocess.run([sys.executable, str(root / "benchmarks" / "bench_bank.py"),
+                           "--smoke"], env=env, cwd=str(tmp_path), capture_output=True,
+                          text=True, timeout=600, check=True)
+    for row in ("batch (bank)", "handwritten", "loop batch_filter", "prange 2 threads",
+                "fit_many rls", "update (bank)", "loop predict+update"):
+        assert row in proc.stdout, row

@@ -309,7 +309,7 @@ def _update(xb, Pb, g, Kb, sb, yb, rb, ok, lamb, p0, p1, mode, lt, w, d, nb, iu,
 # record kernels (batch_filter)
 # ----------------------------------------------------------------------
 @njit(**_JIT)
-def _run_block(c0, nb, B, x, P, Z, H, Rv, il, lam, Q, q_zero, mode, params, update_first,
+def _run_block(c0, nb, B, x, P, Z, H, h_last, Rv, il, lam, Q, q_zero, mode, params, update_first,
                means, covs, covs_p, ys, ss, x_prior, P_prior, x_post, P_post, K, lam_t,
                check_every, step0, cond_max, k_fail, k_inf):
     """Run the record on channels ``c0 .. c0 + nb - 1``, ``nb <= B`` (see `bank_batch`)."""
@@ -364,8 +364,14 @@ def _run_block(c0, nb, B, x, P, Z, H, Rv, il, lam, Q, q_zero, mode, params, upda
         for b in range(nb):
             zb[b] = Z[k, c0 + b]
             rb[b] = Rv[k if r_each else 0, c0 + b]
+        if h_last:                           # H is (N, n, C): contiguous loads
             for j in range(n):
-                h[j, b] = H[k, c0 + b, j]
+                for b in range(nb):
+                    h[j, b] = H[k, j, c0 + b]
+        else:
+            for j in range(n):
+                for b in range(nb):
+                    h[j, b] = H[k, c0 + b, j]
         if _infinite(h, zb, hok, nb):            # an error: stop the block, report where
             for b in range(nb):
                 if hok[b]:
@@ -414,7 +420,7 @@ def _run_block(c0, nb, B, x, P, Z, H, Rv, il, lam, Q, q_zero, mode, params, upda
 
 
 @njit(**_JIT)
-def bank_batch(x, P, Z, H, Rv, il, lam, Q, q_zero, mode, params, update_first,
+def bank_batch(x, P, Z, H, h_last, Rv, il, lam, Q, q_zero, mode, params, update_first,
                means, covs, covs_p, ys, ss, x_prior, P_prior, x_post, P_post, K, lam_t,
                check_every, step0, cond_max, k_fail, k_inf, block):
     """Run the recursion of every channel over a record, one block after another.
@@ -423,9 +429,11 @@ def bank_batch(x, P, Z, H, Rv, il, lam, Q, q_zero, mode, params, update_first,
     ----------
     x : (C, n), P : (C, n, n)
         Working state, overwritten with the final state.
-    Z : (N, C), H : (N, C, n)
+    Z : (N, C), H : (N, C, n), or (N, n, C) with `h_last`
         Measurements and regressors (NaN marks a missing sample of a
-        channel).
+        channel). With `h_last` the channel index of ``H`` is last, so that
+        the loads of a block's regressors are contiguous (`fit_many` builds
+        its regressors that way).
     Rv : (N, C) or (1, C)
         Noise variances per step, or one per channel for every step.
     il, lam : (C,)
@@ -462,22 +470,22 @@ def bank_batch(x, P, Z, H, Rv, il, lam, Q, q_zero, mode, params, update_first,
     C = x.shape[0]
     for blk in range((C + block - 1) // block):
         c0 = blk * block
-        _run_block(c0, min(block, C - c0), block, x, P, Z, H, Rv, il, lam, Q, q_zero, mode, params,
-                   update_first, means, covs, covs_p, ys, ss, x_prior, P_prior, x_post,
-                   P_post, K, lam_t, check_every, step0, cond_max, k_fail, k_inf)
+        _run_block(c0, min(block, C - c0), block, x, P, Z, H, h_last, Rv, il, lam, Q, q_zero,
+                   mode, params, update_first, means, covs, covs_p, ys, ss, x_prior, P_prior,
+                   x_post, P_post, K, lam_t, check_every, step0, cond_max, k_fail, k_inf)
 
 
 @njit(parallel=True, **_JIT)
-def bank_batch_parallel(x, P, Z, H, Rv, il, lam, Q, q_zero, mode, params, update_first,
-                        means, covs, covs_p, ys, ss, x_prior, P_prior, x_post, P_post, K,
-                        lam_t, check_every, step0, cond_max, k_fail, k_inf, block):
+def bank_batch_parallel(x, P, Z, H, h_last, Rv, il, lam, Q, q_zero, mode, params,
+                        update_first, means, covs, covs_p, ys, ss, x_prior, P_prior, x_post,
+                        P_post, K, lam_t, check_every, step0, cond_max, k_fail, k_inf, block):
     """`bank_batch` with the blocks distributed over numba's threads (``prange``)."""
     C = x.shape[0]
     for blk in prange((C + block - 1) // block):
         c0 = blk * block
-        _run_block(c0, min(block, C - c0), block, x, P, Z, H, Rv, il, lam, Q, q_zero, mode, params,
-                   update_first, means, covs, covs_p, ys, ss, x_prior, P_prior, x_post,
-                   P_post, K, lam_t, check_every, step0, cond_max, k_fail, k_inf)
+        _run_block(c0, min(block, C - c0), block, x, P, Z, H, h_last, Rv, il, lam, Q, q_zero,
+                   mode, params, update_first, means, covs, covs_p, ys, ss, x_prior, P_prior,
+                   x_post, P_post, K, lam_t, check_every, step0, cond_max, k_fail, k_inf)
 
 
 # ----------------------------------------------------------------------

@@ -415,7 +415,12 @@ class RLSBank:
         N = Z.shape[0]
         Hm = self._measurements(Hs, "Hs", (N, C, n),
                                 f"({N}, {C}, {n}) (N = len(zs) steps, n_channels = {C}, "
-                                f"dim_x = {n})", finite=False)
+                                f"dim_x = {n})", finite=False, strided=True)
+        # regressors stored with the channel index last (a transposed view of an
+        # (N, dim_x, C) array, as fit_many builds them) are read in place
+        Ht = Hm.transpose(0, 2, 1)
+        h_last = Ht.flags.c_contiguous and not Hm.flags.c_contiguous
+        Hk = Ht if h_last else np.ascontiguousarray(Hm)
         Rv = self._batch_variances(Rs, N)
         x = np.array(self._checked_x(), dtype=np.float64, order="C")
         P = np.array(self._checked_P(), dtype=np.float64, order="C")
@@ -431,7 +436,7 @@ class RLSBank:
         kern = _get_kernels()
         if N:
             run = kern.bank_batch_parallel if self.parallel else kern.bank_batch
-            run(x, P, Z, Hm, Rv, self._time_il(), self._lam, self._Q, self._Q_is_zero,
+            run(x, P, Z, Hk, h_last, Rv, self._time_il(), self._lam, self._Q, self._Q_is_zero,
                 self._mode, self._params, bool(update_first), means, covs, covs_p, ys, ss,
                 x_prior, P_prior, x_post, P_post, K, lam_t, self.check_every, self.n_updates,
                 self.cond_max, k_fail, k_inf, kern.block_size(n, C))
@@ -768,17 +773,21 @@ class RLSBank:
                              f"{tuple(int(v) for v in bad)}")
         return np.array(arr, dtype=np.float64, order="C")
 
-    def _measurements(self, value, name, shape, expected, ndim=None, finite=True):
-        """A float64 C-contiguous array of `shape` (or `ndim`): NaN allowed, inf not
-        (not checked here with ``finite=False``: the record kernel checks it).
+    def _measurements(self, value, name, shape, expected, ndim=None, finite=True,
+                      strided=False):
+        """A float64 array of `shape` (or `ndim`): NaN allowed, inf not (not
+        checked here with ``finite=False``: the record kernel checks it).
 
-        The kernels only read it, so the caller's array is passed without a copy.
+        C-contiguous, or with ``strided=True`` in the caller's layout (the
+        caller decides). The kernels only read it, so the caller's array is
+        passed without a copy.
         """
         arr = value if (type(value) is np.ndarray and value.dtype == np.float64) \
             else as_float_array(value, name)
         if (shape is not None and arr.shape != shape) or (ndim is not None and arr.ndim != ndim):
             raise ValueError(f"`{name}` must have shape {expected}; got {arr.shape}")
-        arr = np.ascontiguousarray(arr)
+        if not strided:
+            arr = np.ascontiguousarray(arr)
         if finite and not np.isfinite(arr.sum()) and np.isinf(arr).any():
             idx = tuple(int(v) for v in np.argwhere(np.isinf(arr))[0])
             raise ValueError(f"`{name}` must be finite or NaN (missing); got {arr[idx]} at "

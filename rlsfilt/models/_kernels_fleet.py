@@ -11,7 +11,8 @@ def fleet_statistics(Phi, target, theta, na, Y, resid, sigma2, pred_fit, sim_fit
     r"""Residuals, noise variances and fit percentages of many fitted ARX models.
 
     For each channel ``c`` (one output), with the regressors ``Phi`` (rows,
-    C, n) of the rows ``t = start .. N - 1`` (``start = N - rows``), the
+    n, C: the channel index last) of the rows ``t = start .. N - 1``
+    (``start = N - rows``), the
     targets ``target`` (rows, C), the parameters ``theta`` (C, n) (the first
     `na` the coefficients of :math:`A(q)` after its leading 1) and the
     record ``Y`` (N, C):
@@ -29,7 +30,7 @@ def fleet_statistics(Phi, target, theta, na, Y, resid, sigma2, pred_fit, sim_fit
     channel by channel, with the channels in the inner loop: a channel's
     numbers do not depend on the other channels.
     """
-    rows, C, n = Phi.shape
+    rows, n, C = Phi.shape
     N = Y.shape[0]
     start = N - rows
     ysim = np.empty((N, C))
@@ -45,10 +46,10 @@ def fleet_statistics(Phi, target, theta, na, Y, resid, sigma2, pred_fit, sim_fit
         for c in range(C):
             ar = 0.0
             for p in range(na):
-                ar += Phi[k, c, p] * theta[c, p]
+                ar += Phi[k, p, c] * theta[c, p]
             bu = 0.0
             for p in range(na, n):
-                bu += Phi[k, c, p] * theta[c, p]
+                bu += Phi[k, p, c] * theta[c, p]
             yk = target[k, c]
             r = yk - (ar + bu)                        # y - Phi theta
             resid[k, c] = r
@@ -93,3 +94,21 @@ def record_sums(Y, U, out):
             for j in range(U.shape[2]):
                 acc += U[t, c, j]
             out[1, c] += acc
+
+
+@njit(cache=True)
+def column_norms(Phi, out):
+    """``out[c, p] = sqrt(sum_t Phi[t, p, c]^2)`` (``Phi`` is (rows, n, C)), summed in
+    time order."""
+    rows, n, C = Phi.shape
+    for c in range(C):
+        for p in range(n):
+            out[c, p] = 0.0
+    for t in range(rows):
+        for p in range(n):
+            for c in range(C):
+                v = Phi[t, p, c]
+                out[c, p] += v * v
+    for c in range(C):
+        for p in range(n):
+            out[c, p] = np.sqrt(out[c, p])

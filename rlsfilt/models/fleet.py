@@ -554,8 +554,8 @@ def _fit_chunk(cs, U, Y, s, method, per_channel, k0, max_lag, tests, on_error, l
 
     resid = np.empty((rows, c))
     sigma2, pred_fit, sim_fit = np.empty(c), np.empty(c), np.empty(c)
-    fleet_statistics(Phi, np.ascontiguousarray(target), theta, s.na, np.ascontiguousarray(Y),
-                     resid, sigma2, pred_fit, sim_fit)
+    fleet_statistics(_channels_last(Phi), target, theta, s.na, Y, resid, sigma2, pred_fit,
+                     sim_fit)
     cs, sel = _as_slice(cs)
     out.theta[sel], out.sigma2[sel], out.resid[:, sel] = theta, sigma2, resid
     out.cov[sel] = sigma2[:, None, None] * cov
@@ -595,7 +595,7 @@ def _least_squares(Phi, target):
     A[:, :, n] = target.T
     R = np.linalg.qr(A, mode="r")
     R1, qty = R[:, :n, :n], R[:, :n, n]
-    norms = np.linalg.norm(Phi, axis=0)                        # (c, n)
+    norms = _column_norms(Phi)                                 # (c, n)
     d = np.where(norms > 0.0, norms, 1.0)
     sv = np.linalg.svd(R1 / d[:, None, :], compute_uv=False)
     tol = sv[:, :1] * max(rows, n) * np.finfo(float).eps
@@ -687,6 +687,22 @@ def _run_group(cs, g, k0, Phi, target, opts, labels, on_error, out):
     return g, bank, residuals
 
 
+def _column_norms(Phi):
+    """Norms of the regressor columns of each channel, (c, n), summed in time
+    order as ``regressors._unit_columns`` sums them."""
+    from ._kernels_fleet import column_norms
+
+    out = np.empty(Phi.shape[1:])
+    column_norms(_channels_last(Phi), out)
+    return out
+
+
+def _channels_last(Phi):
+    """``Phi`` (rows, c, n) as a C-ordered (rows, n, c) array: the buffer
+    `_regressors` built, without a copy, unless channels were dropped since."""
+    return np.ascontiguousarray(Phi.transpose(0, 2, 1))
+
+
 def _as_slice(cs):
     """``(cs, selector)``: a slice when the positions `cs` are consecutive."""
     if cs.size and cs[-1] - cs[0] + 1 == cs.size:
@@ -699,7 +715,7 @@ def _batch_start_rows(Phi):
     fewest leading rows with full column rank (``regressors._full_rank_rows``),
     -1 when all rows together are rank-deficient."""
     rows, c, n = Phi.shape
-    norms = np.linalg.norm(Phi, axis=0)                        # (c, n), as _unit_columns
+    norms = _column_norms(Phi)                                 # (c, n), as _unit_columns
     Ps = Phi[:n].transpose(1, 0, 2) / np.where(norms > 0, norms, 1.0)[:, None, :]
     k0s = np.full(c, n)
     for j in np.flatnonzero(np.linalg.matrix_rank(Ps) < n):
@@ -715,20 +731,22 @@ def _regressors(U, Y, s):
     ``t = max_lag .. N-1``, blocks ``-y`` then ``u`` by increasing lag) with a
     channel axis: each column of the regressor is one shifted slice of the
     record for all channels at once. The tests hold it equal to
-    ``ARX.regressors`` channel by channel.
+    ``ARX.regressors`` channel by channel. The regressors are stored as
+    ``(rows, n, C)`` (each column a contiguous copy) and returned as the
+    transposed view, which `RLSBank.batch_filter` reads without a copy.
     """
     N, C, nu = U.shape
     t0 = s.max_lag
-    Phi = np.empty((N - t0, C, s.n_params))
+    Phi = np.empty((N - t0, s.n_params, C))
     col = 0
     for k in range(1, s.na + 1):                               # -y(t-1) .. -y(t-na)
-        np.negative(Y[t0 - k:N - k], out=Phi[:, :, col])
+        np.negative(Y[t0 - k:N - k], out=Phi[:, col])
         col += 1
     for j in range(nu):                                        # u_j(t-nk) .. u_j(t-nk-nb+1)
         for k in range(s.nk[j], s.nk[j] + s.nb[j]):
-            Phi[:, :, col] = U[t0 - k:N - k, :, j]
+            Phi[:, col] = U[t0 - k:N - k, :, j]
             col += 1
-    return Phi, Y[t0:]
+    return Phi.transpose(0, 2, 1), Y[t0:]
 
 
 def _fleet_data(u, y, channels):
