@@ -109,14 +109,22 @@ def input_lag_test_many(E, Phi, U, t0, max_lag):
     common = np.flatnonzero(same)
     if common.size:
         k = keep[0]
-        Q1 = _orthonormal_bases(L0[common][:, :, k]) if k.any() else np.zeros((common.size, m, 0))
-        if Q1 is None:                              # rank-deficient lagged inputs
-            return _each(E, Phi, U, t0, M, range(C), F, q, p)
-        qq = Q1.shape[2]
+        qq = int(k.sum())
         ec = e0[common]
         rss0 = (ec * ec).sum(axis=1)
-        proj = (Q1.transpose(0, 2, 1) @ ec[:, :, None])[:, :, 0]
-        gain = (proj * proj).sum(axis=1)
+        if qq:
+            # one QR of [L0, e0]: its R holds the R of L0 (whose diagonal decides the
+            # rank, as _orthonormal_basis does) and Q1^T e0, whose squares are the gain
+            R = np.linalg.qr(np.concatenate([L0[common][:, :, k], ec[:, :, None]], axis=2),
+                             mode="r")
+            d = np.abs(np.diagonal(R, axis1=1, axis2=2))[:, :qq]
+            tol = max(m, qq) * np.finfo(float).eps * np.maximum(d.max(axis=1),
+                                                                np.finfo(float).tiny)
+            if not (d > tol[:, None]).all():        # rank-deficient lagged inputs
+                return _each(E, Phi, U, t0, M, range(C), F, q, p)
+            gain = (R[:, :qq, qq] ** 2).sum(axis=1)
+        else:
+            gain = np.zeros(common.size)
         rss1 = rss0 - gain
         dfd = m - Q0.shape[2] - qq
         if qq == 0:
