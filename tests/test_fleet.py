@@ -180,6 +180,13 @@ def test_model_returns_an_ordinary_fitted_arx(rng):
     assert_allclose(m.theta_, bank.theta_[3], rtol=1e-10)
     assert m.theta_history_.shape == (len(y) - 2, 4)
     assert_allclose(bank.model("loop3").theta_, m.theta_, rtol=0)
+    directional = fit_many(ARX(2, 2, 1), u, y, "rls", lam=0.97, forgetting="directional",
+                           k0=0, P0=np.linspace(10.0, 50.0, 5), residual_tests=False)
+    m1 = directional.model(1)
+    assert m1.filter_.forgetting == "directional" and m1.k0_ == 0
+    assert_allclose(m1.theta_, directional.theta_[1], rtol=1e-10)
+    m1.filter_.reset()                      # back to the channel's own prior
+    assert_allclose(m1.filter_.P, 20.0 * np.eye(4))
     assert_allclose(bank.model(-2).theta_, m.theta_, rtol=0)
     with pytest.raises(IndexError, match=r"`i` must be a channel position in \[-5, 5\)"):
         bank.model(5)

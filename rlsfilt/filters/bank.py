@@ -561,19 +561,18 @@ class RLSBank:
             Q=self._Q[i], forgetting=self.forgetting,
             forgetting_params=self._forgetting_params_in, check_every=self.check_every,
             cond_max=self.cond_max)
-        col = np.reshape
-        f.x = col(self._checked_x()[i], (n, 1)).copy()
+        f.x = self._checked_x()[i].reshape(n, 1).copy()
         f.P = self._checked_P()[i].copy()
-        f.x_prior, f.P_prior = col(self.x_prior[i], (n, 1)).copy(), self.P_prior[i].copy()
-        f.x_post, f.P_post = col(self.x_post[i], (n, 1)).copy(), self.P_post[i].copy()
+        f.x_prior, f.P_prior = self.x_prior[i].reshape(n, 1).copy(), self.P_prior[i].copy()
+        f.x_post, f.P_post = self.x_post[i].reshape(n, 1).copy(), self.P_post[i].copy()
         f.n_updates = self.n_updates
         f._updates_since_predict = self._updates_since_predict
         f._warned_health = bool(np.isin(i, self.failed_channels))
         if not self._fresh:
-            f.H = col(self.H[i], (1, n)).copy()
+            f.H = self.H[i].reshape(1, n).copy()
             f.z = np.full((1, 1), self.z[i])
             f.y = np.full((1, 1), self.y[i])
-            f.K = col(self.K[i], (n, 1)).copy()
+            f.K = self.K[i].reshape(n, 1).copy()
             f.S, f.SI = np.full((1, 1), self.S[i]), np.full((1, 1), self.SI[i])
             f.lam_t = float(self.lam_t[i])
             f._clear_lazy()

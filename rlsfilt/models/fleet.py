@@ -406,6 +406,7 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
                       stacklevel=2)
     names = _param_names(s)
     kept = {key: value for key, value in per_channel.items() if key in given}
+    kept.update(filter_options)
     if "k0" in given:
         kept["k0"] = k0
     return ARXBank(
