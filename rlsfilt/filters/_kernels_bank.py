@@ -5,14 +5,14 @@ The readable NumPy version of the same recursion is
 1e-12, and every channel equal (bit for bit, in practice) to its own
 `RecursiveLeastSquares`.
 
-Layout. The kernels process the channels in blocks of ``BLOCK`` channels.
+Layout. The kernels process the channels in blocks (`block_size`).
 A block's state is copied into local arrays with the channel index last,
 ``x[i, b]`` and the upper triangle of ``P`` packed row by row,
 ``P[t, b]`` with ``t`` running over ``(i, j), i <= j`` (``P`` is exactly
 symmetric, so the other triangle carries no information). The record
 kernel runs the whole record on one block before the next block starts:
-the block's state (``dim_x (dim_x + 3) / 2 * BLOCK`` numbers, 3.5 KB at
-``dim_x = 4``) stays in the first-level cache for the whole record, and
+the block's state (``dim_x (dim_x + 3) / 2`` numbers per channel) stays in
+cache for the whole record, and
 every inner loop runs over the channels of the block with no dependency
 between them, so LLVM vectorizes it without reordering any sum (no
 ``fastmath``). The arithmetic of each channel is therefore exactly that of
@@ -54,7 +54,6 @@ from ._kernels import _unhealthy
 
 __all__ = []
 
-BLOCK = 32                      # channels per block of the streaming update
 EXPONENTIAL, DIRECTIONAL, CONSTANT_TRACE = 0, 1, 2
 
 _JIT = {"cache": True, "error_model": "numpy"}
@@ -103,43 +102,53 @@ def _load(x, P, Q, q_zero, c0, nb, xb, Pb, Qb, iu, ju):
     """Copy channels ``c0 .. c0 + nb - 1`` into the block arrays.
 
     ``P`` is read as ``(P + P^T) / 2``, which is ``P`` itself, bit for bit,
-    when ``P`` is exactly symmetric.
+    when ``P`` is exactly symmetric. The loops run over the channels
+    innermost (measured: a third faster than channel by channel).
     """
     n = x.shape[1]
-    for b in range(nb):
-        c = c0 + b
-        for i in range(n):
-            xb[i, b] = x[c, i]
-        for t in range(iu.shape[0]):
-            i, j = iu[t], ju[t]
-            Pb[t, b] = 0.5 * (P[c, i, j] + P[c, j, i])
+    for i in range(n):
+        for b in range(nb):
+            xb[i, b] = x[c0 + b, i]
+    t = 0
+    for i in range(n):
+        for j in range(i, n):
+            for b in range(nb):
+                Pb[t, b] = 0.5 * (P[c0 + b, i, j] + P[c0 + b, j, i])
             if not q_zero:
-                Qb[t, b] = Q[c, i, j]
+                for b in range(nb):
+                    Qb[t, b] = Q[c0 + b, i, j]
+            t += 1
 
 
 @njit(inline="always", **_JIT)
 def _store(xb, Pb, x_out, P_out, c0, nb, iu, ju):
     """``x_out[c], P_out[c]`` (both triangles) from the block."""
     n = xb.shape[0]
-    for b in range(nb):
-        c = c0 + b
-        for i in range(n):
-            x_out[c, i] = xb[i, b]
-        for t in range(iu.shape[0]):
-            v = Pb[t, b]
-            P_out[c, iu[t], ju[t]] = v
-            P_out[c, ju[t], iu[t]] = v
+    for i in range(n):
+        for b in range(nb):
+            x_out[c0 + b, i] = xb[i, b]
+    t = 0
+    for i in range(n):
+        for j in range(i, n):
+            for b in range(nb):
+                v = Pb[t, b]
+                P_out[c0 + b, i, j] = v
+                P_out[c0 + b, j, i] = v
+            t += 1
 
 
 @njit(inline="always", **_JIT)
 def _store_P(Pb, out, k, c0, nb, iu, ju):
     """``out[k, c] = P`` of each channel of the block."""
-    for b in range(nb):
-        c = c0 + b
-        for t in range(iu.shape[0]):
-            v = Pb[t, b]
-            out[k, c, iu[t], ju[t]] = v
-            out[k, c, ju[t], iu[t]] = v
+    n = out.shape[2]
+    t = 0
+    for i in range(n):
+        for j in range(i, n):
+            for b in range(nb):
+                v = Pb[t, b]
+                out[k, c0 + b, i, j] = v
+                out[k, c0 + b, j, i] = v
+            t += 1
 
 
 # ----------------------------------------------------------------------
@@ -225,7 +234,7 @@ def _update(xb, Pb, g, Kb, sb, yb, rb, ok, lamb, p0, p1, mode, lt, w, d, nb, iu,
     forgetting factor ``lt`` the step applied (``lam`` in the exponential
     mode, whose forgetting is the time update; 1 where not `ok` in the
     others). With `fuse` (exponential mode only) the sweep over ``P`` also
-    applies the next time update. ``w``, ``d`` are (BLOCK,) work arrays.
+    applies the next time update. ``w``, ``d`` are work arrays (one entry per channel).
     """
     n = xb.shape[0]
     nt = Pb.shape[0]
@@ -506,13 +515,14 @@ def bank_predict(P, il, Q, q_zero, Pn):
 
 
 @njit(**_JIT)
-def bank_update(x, P, z, H, r, lam, mode, params, xn, Pn, y, S, K, lam_t):
+def bank_update(x, P, z, H, r, lam, mode, params, xn, Pn, y, S, K, lam_t, block):
     """One measurement update of every channel: the arithmetic of `bank_batch`.
 
     Reads ``x`` (C, n), ``P`` (C, n, n), ``z`` (C,), ``H`` (C, n), ``r``
     (C,); writes the new state ``xn``, ``Pn``, the residuals ``y`` (NaN
     where skipped), ``S`` (NaN where the regressor holds NaN), the gains
-    ``K`` (zero where skipped) and ``lam_t``.
+    ``K`` (zero where skipped) and ``lam_t``; ``block`` channels at a time
+    (`block_size`).
 
     Returns
     -------
@@ -521,7 +531,7 @@ def bank_update(x, P, z, H, r, lam, mode, params, xn, Pn, y, S, K, lam_t):
         not positive and finite (the cheap health check).
     """
     C, n = x.shape
-    B = BLOCK
+    B = block
     iu, ju, tri = _triangle(n)
     nt = iu.shape[0]
     xb = np.empty((n, B))
@@ -564,13 +574,18 @@ def bank_update(x, P, z, H, r, lam, mode, params, xn, Pn, y, S, K, lam_t):
             y[c] = yb[b] if ok[b] else np.nan
             S[c] = sb[b] if hok[b] else np.nan
             lam_t[c] = lt[b]
-            for i in range(n):
-                K[c, i] = Kb[i, b]
-            for i in range(n):
-                v = Pb[(i * (2 * n - i + 1)) // 2, b]
-                if not (v > 0.0 and v != np.inf):
-                    bad += 1
-                    break
+            hok[b] = False
+        for i in range(n):
+            for b in range(nb):
+                K[c0 + b, i] = Kb[i, b]
+        for i in range(n):                   # the cheap health check: the diagonal
+            t = (i * (2 * n - i + 1)) // 2
+            for b in range(nb):
+                v = Pb[t, b]
+                hok[b] = hok[b] or not (v > 0.0 and v != np.inf)
+        for b in range(nb):
+            if hok[b]:
+                bad += 1
     return bad
 
 

@@ -352,8 +352,9 @@ class RLSBank:
         x, P = self._checked_x(), self._checked_P()
         xn, Pn = np.empty((C, n)), np.empty((C, n, n))
         y, S, K, lam_t = np.empty(C), np.empty(C), np.empty((C, n)), np.empty(C)
-        bad = _get_kernels().bank_update(x, P, zz, Hm, r, self._lam, self._mode, self._params,
-                                         xn, Pn, y, S, K, lam_t)
+        kern = _get_kernels()
+        bad = kern.bank_update(x, P, zz, Hm, r, self._lam, self._mode, self._params, xn, Pn, y,
+                               S, K, lam_t, kern.block_size(n, C))
         self._note_update()
         self.x, self.P = xn, Pn
         self.x_post, self.P_post = xn.copy(), Pn.copy()
