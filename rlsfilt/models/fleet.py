@@ -379,7 +379,8 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
         raise ValueError(f"`{name}` only applies to a prior start (k0=0); the batch start on "
                          f"k0={k0} rows sets both x0 and P0. Pass k0=0 to start from `{name}`.")
     out = _Results(C, rows, n, method, residual_tests)
-    errors = _data_errors(U, Y, labels, on_error)
+    sums = _fingerprint(U, Y)
+    errors = _data_errors(U, Y, sums, labels, on_error)
     out.errors = errors
     good = np.array([e is None for e in errors])
     bar = _progress_bar(progress, C)
@@ -422,7 +423,7 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
         k0_=out.k0, recursive_residuals_=out.rec,
         healthy_=out.healthy, errors_=list(errors), n_samples_=rows, n_params_=n,
         param_names_=names, method_=method, max_lag=max_lag, alpha=alpha,
-        _data=(U, Y), _fingerprint=_fingerprint(U, Y), _options=kept)
+        _data=(U, Y), _fingerprint=sums, _options=kept)
 
 
 # ----------------------------------------------------------------------
@@ -802,23 +803,28 @@ def _fingerprint(U, Y):
     return out
 
 
-def _data_errors(U, Y, labels, on_error):
-    """One entry per channel: None, or why its data cannot be fitted."""
+def _data_errors(U, Y, sums, labels, on_error):
+    """One entry per channel: None, or why its data cannot be fitted.
+
+    Only the channels whose `sums` (the record fingerprint) are not finite
+    are searched: a finite sum means finite samples.
+    """
     errors = [None] * Y.shape[1]
-    for name, arr in (("y", Y), ("u", U)):
-        bad = ~np.isfinite(arr)
-        if not bad.any():
-            continue
-        flat = bad.reshape(arr.shape[0], arr.shape[1], -1)
-        for c in np.flatnonzero(flat.any(axis=(0, 2))):
-            t, j = np.argwhere(flat[:, c])[0]
-            where = (int(t), int(c)) if arr.ndim == 2 else (int(t), int(c), int(j))
-            msg = (f"`{name}` must be finite; got {arr[where]} at index {where} (channel "
+    for c in np.flatnonzero(~np.isfinite(sums).all(axis=0)):
+        for name, arr in (("y", Y[:, c]), ("u", U[:, c])):
+            bad = ~np.isfinite(arr)
+            if not bad.any():
+                continue
+            where = np.argwhere(bad)[0]
+            index = (int(where[0]), int(c)) if arr.ndim == 1 or U.shape[2] == 1 else (
+                int(where[0]), int(c), int(where[1]))
+            value = arr[tuple(where)]
+            msg = (f"`{name}` must be finite; got {value} at index {index} (channel "
                    f"{labels[c]!r})")
             if on_error == "raise":
                 raise ValueError(msg)
-            if errors[c] is None:
-                errors[c] = msg
+            errors[c] = msg
+            break
     return errors
 
 
