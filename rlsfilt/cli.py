@@ -314,6 +314,8 @@ def _build_parser():
                        help="also write the JSON result to this file")
     _add_output_options(ident)
     ident.set_defaults(run=_run_identify)
+    from . import _cli_fleet  # identify-many: one ARX model per channel
+    _cli_fleet.add_parser(sub)
     return parser
 
 

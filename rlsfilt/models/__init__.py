@@ -18,6 +18,7 @@ from .recursive import (
     RecursiveBJ,
     RecursiveOE,
 )
+from .fleet import ARXBank, fit_many
 from .recursive_iv import RecursiveIV
 from .regressors import ARXStructure, arx_regressors, arx_structure
 
@@ -25,4 +26,4 @@ __all__ = ["ARX", "ARXSummary", "ARXStructure", "IdentifiedModel", "ModelSummary
            "Polynomials", "arx_regressors", "arx_structure", "check_is_fitted",
            "ARMAX", "OE", "BJ", "AR", "ARMA",
            "RecursiveARMAX", "RecursiveOE", "RecursiveBJ", "RecursiveARX", "RecursiveAR",
-           "RecursiveARMA", "RecursiveIV"]
+           "RecursiveARMA", "RecursiveIV", "ARXBank", "fit_many"]

@@ -1027,6 +1027,12 @@ class ARX(IdentifiedModel):
         lines = self._equation_lines("latex")
         return "$$\\begin{aligned}" + " \\\\ ".join(lines) + "\\end{aligned}$$"
 
+    def fit_many(self, u, y, method="ls", **options):
+        """Fit these orders to every channel of a fleet: :func:`rlsfilt.models.fit_many`."""
+        from .fleet import fit_many
+
+        return fit_many(self, u, y, method, **options)
+
 
 class ARXSummary(ModelSummary):
     """Summary of a fitted `ARX`: ``print`` it, or display it in a notebook.
