@@ -9,6 +9,7 @@ from .arma import ARMA
 from .armax import ARMAX
 from .arx import ARX, ARXSummary
 from .bj import BJ
+from .fleet import ARXBank, fit_many
 from .oe import OE
 from .recursive import (
     RecursiveAR,
@@ -18,7 +19,6 @@ from .recursive import (
     RecursiveBJ,
     RecursiveOE,
 )
-from .fleet import ARXBank, fit_many
 from .recursive_iv import RecursiveIV
 from .regressors import ARXStructure, arx_regressors, arx_structure
 
