@@ -62,7 +62,7 @@ class ARXBank:
         Standard errors (square roots of the diagonals of ``theta_cov_``).
     noise_variance_ : ndarray, shape (C,)
         Unbiased residual variances.
-    residuals_ : ndarray, shape (n_samples_, C)
+    residuals_ : ndarray, shape ``(n_samples_, C)``
         ``target - Phi @ theta`` on the fitted rows, one column per channel.
     simulation_fit_, prediction_fit_ : ndarray, shape (C,)
         :func:`~rlsfilt.validation.fit_percent` of the free-run simulation
@@ -80,7 +80,7 @@ class ARXBank:
         ``pvalue > alpha``.
     k0_ : ndarray of int, shape (C,)
         ``method="rls"`` only: rows of each channel's batch start.
-    recursive_residuals_ : ndarray, shape (n_samples_, C)
+    recursive_residuals_ : ndarray, shape ``(n_samples_, C)``
         ``method="rls"`` only: the a-priori residuals of the filter (NaN on
         the rows of the batch start), as ``ARX.recursive_residuals_``.
     healthy_ : ndarray of bool, shape (C,)
