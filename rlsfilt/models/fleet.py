@@ -27,7 +27,7 @@ import numpy as np
 
 from .._validation import as_float_array, check_dt, check_int, check_probability
 from ..exceptions import NumericalWarning
-from ..filters.bank import RLSBank
+from ..filters.bank import RLSBank, _warn_at_caller
 from .regressors import _full_rank_rows, _unit_columns, arx_structure
 
 __all__ = ["ARXBank", "fit_many"]
@@ -401,10 +401,10 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
     out.finish()
     unhealthy = [labels[c] for c in np.flatnonzero(~out.healthy & good)]
     if unhealthy:
-        warnings.warn(f"the covariance of {len(unhealthy)} channel(s) failed the health check "
-                      f"of RLSBank: {unhealthy[:10]}{' ...' if len(unhealthy) > 10 else ''}; "
-                      "their estimates may be unreliable (see `healthy_`)", NumericalWarning,
-                      stacklevel=2)
+        _warn_at_caller(f"the covariance of {len(unhealthy)} channel(s) failed the health "
+                        f"check of RLSBank: {unhealthy[:10]}"
+                        f"{' ...' if len(unhealthy) > 10 else ''}; their estimates may be "
+                        "unreliable (see `healthy_`)", NumericalWarning)
     names = _param_names(s)
     kept = {key: value for key, value in per_channel.items() if key in given}
     kept.update(filter_options)
