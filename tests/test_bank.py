@@ -341,6 +341,22 @@ def test_health_check_names_the_failing_channels_when_streaming():
     assert_array_equal(bank.failed_channels, [2])
 
 
+def test_warnings_point_at_the_callers_line():
+    Z, H = _windup_record()
+    for call in (lambda b: b.batch_filter(Z, H),
+                 lambda b: [b.predict_update(Z[k], H[k]) for k in range(len(Z))],
+                 lambda b: [(b.predict(), b.update(Z[k], H[k])) for k in range(len(Z))]):
+        bank = RLSBank(4, 2, lam=[1.0, 1.0, 0.7, 1.0], check_every=10)
+        with pytest.warns(NumericalWarning) as record:
+            call(bank)
+        assert record[0].filename == __file__
+    bank = RLSBank(3, 2, lam=0.9)
+    bank.update(np.ones(3), np.ones((3, 2)))
+    with pytest.warns(ForgettingSkippedWarning) as record:
+        bank.update(np.ones(3), np.ones((3, 2)))
+    assert record[0].filename == __file__
+
+
 def test_directional_forgetting_keeps_the_bank_healthy():
     Z, H = _windup_record()
     bank = RLSBank(4, 2, lam=[1.0, 1.0, 0.7, 1.0], forgetting="directional")

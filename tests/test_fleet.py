@@ -222,9 +222,13 @@ def test_progress_bar(rng, capsys):
 def test_unhealthy_channels_are_named_in_one_warning(rng):
     u, y = _fleet(rng, C=4, N=600)
     u[300:, 1] = 0.0                       # channel 1: no excitation for 300 samples
-    with pytest.warns(NumericalWarning, match=r"failed the health check of RLSBank: \[1\]"):
+    with pytest.warns(NumericalWarning, match=r"failed the health check of RLSBank: \[1\]") as rec:
         bank = fit_many(ARX(2, 2, 1), u, y, "rls", lam=0.9, residual_tests=False)
+    assert rec[0].filename == __file__      # the caller's line
     assert_array_equal(bank.healthy_, [True, False, True, True])
+    with pytest.warns(NumericalWarning) as rec:
+        ARX(2, 2, 1).fit_many(u, y, "rls", lam=0.9, residual_tests=False)
+    assert rec[0].filename == __file__
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         fit_many(ARX(2, 2, 1), u, y, "rls", lam=0.9, forgetting="directional",

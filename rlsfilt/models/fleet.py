@@ -27,7 +27,7 @@ import numpy as np
 
 from .._validation import as_float_array, check_dt, check_int, check_probability
 from ..exceptions import NumericalWarning
-from ..filters.bank import RLSBank
+from ..filters.bank import RLSBank, _warn_at_caller
 from .regressors import _full_rank_rows, _unit_columns, arx_structure
 
 __all__ = ["ARXBank", "fit_many"]
@@ -62,7 +62,7 @@ class ARXBank:
         Standard errors (square roots of the diagonals of ``theta_cov_``).
     noise_variance_ : ndarray, shape (C,)
         Unbiased residual variances.
-    residuals_ : ndarray, shape (n_samples_, C)
+    residuals_ : ndarray, shape ``(n_samples_, C)``
         ``target - Phi @ theta`` on the fitted rows, one column per channel.
     simulation_fit_, prediction_fit_ : ndarray, shape (C,)
         :func:`~rlsfilt.validation.fit_percent` of the free-run simulation
@@ -80,7 +80,7 @@ class ARXBank:
         ``pvalue > alpha``.
     k0_ : ndarray of int, shape (C,)
         ``method="rls"`` only: rows of each channel's batch start.
-    recursive_residuals_ : ndarray, shape (n_samples_, C)
+    recursive_residuals_ : ndarray, shape ``(n_samples_, C)``
         ``method="rls"`` only: the a-priori residuals of the filter (NaN on
         the rows of the batch start), as ``ARX.recursive_residuals_``.
     healthy_ : ndarray of bool, shape (C,)
@@ -401,10 +401,10 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
     out.finish()
     unhealthy = [labels[c] for c in np.flatnonzero(~out.healthy & good)]
     if unhealthy:
-        warnings.warn(f"the covariance of {len(unhealthy)} channel(s) failed the health check "
-                      f"of RLSBank: {unhealthy[:10]}{' ...' if len(unhealthy) > 10 else ''}; "
-                      "their estimates may be unreliable (see `healthy_`)", NumericalWarning,
-                      stacklevel=2)
+        _warn_at_caller(f"the covariance of {len(unhealthy)} channel(s) failed the health "
+                        f"check of RLSBank: {unhealthy[:10]}"
+                        f"{' ...' if len(unhealthy) > 10 else ''}; their estimates may be "
+                        "unreliable (see `healthy_`)", NumericalWarning)
     names = _param_names(s)
     kept = {key: value for key, value in per_channel.items() if key in given}
     kept.update(filter_options)
