@@ -3,8 +3,8 @@
 The result objects' ``plot`` methods (``ValidationReport.plot``,
 ``ResidualAnalysis.plot``, ``PlantComparison.plot``, ``FrequencyBand.plot``,
 ``OrderSelection.plot``, ``CusumResult.plot``, ``STRHistory.plot``) are
-one-line calls into the functions of this module, so the report, the notebooks, the documentation and
-the command line draw the same figures.
+one-line calls into the functions of this module, so the report, the notebooks,
+the documentation and the command line draw the same figures.
 
 The tracking functions accept what the filters and models produce:
 
@@ -1036,7 +1036,7 @@ def _label_gain(report, ax_mag):
 # adaptive control
 # ----------------------------------------------------------------------
 def plot_str_history(history, fig=None, *, true_theta=None):
-    r"""A self-tuning regulator's run: reference and output, control, estimates, :math:`\mathrm{tr}\,P`.
+    r"""A self-tuning regulator's run: output and reference, control, estimates, trace of P.
 
     Four stacked axes sharing the time axis. Steps where a due redesign
     was rejected (the last controller kept) are marked on the control.
