@@ -1036,7 +1036,7 @@ def _label_gain(report, ax_mag):
 # adaptive control
 # ----------------------------------------------------------------------
 def plot_str_history(history, fig=None, *, true_theta=None):
-    r"""A self-tuning regulator's run: reference, output, control, estimates, trace of P.
+    r"""A self-tuning regulator's run: output and reference, control, estimates, trace of P.
 
     Four stacked axes sharing the time axis. Steps where a due redesign
     was rejected (the last controller kept) are marked on the control.
