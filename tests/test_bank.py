@@ -95,9 +95,12 @@ def test_batch_filter_equals_separate_filters(rng, mode, update_first):
         assert_allclose(bank.P[c], f.P, rtol=1e-12, atol=1e-12 * np.abs(f.P).max())
         if not np.isnan(H[-1, c]).any():     # (a NaN regressor: the filter made no update)
             assert_allclose(bank.lam_t[c], f.lam_t, rtol=1e-12)
-    # the arithmetic is the same operation by operation: in fact bitwise equal
-    assert_array_equal(bank.x, np.array([f.x[:, 0] for f in filters]))
-    assert_array_equal(bank.P, np.array([f.P for f in filters]))
+    # the arithmetic is the same operation by operation: in fact bitwise equal (the
+    # constant-trace rescaling is ordered differently in RecursiveLeastSquares' kernel:
+    # round-off there, held to 1e-12 above)
+    if mode != "constant_trace":
+        assert_array_equal(bank.x, np.array([f.x[:, 0] for f in filters]))
+        assert_array_equal(bank.P, np.array([f.P for f in filters]))
 
 
 @pytest.mark.parametrize("update_first", [False, True])
@@ -249,9 +252,11 @@ def test_channel_continues_exactly_like_the_bank(rng, mode):
             f.predict()
             if not np.isnan(H[k, i]).any():
                 f.update(Z[k, i], H[k, i])
+    same = (assert_array_equal if mode != "constant_trace"     # see the batch test above
+            else lambda a, b: assert_allclose(a, b, rtol=1e-12, atol=1e-15))
     for i, f in enumerate(channels):
-        assert_array_equal(f.x[:, 0], bank.x[i])
-        assert_array_equal(f.P, bank.P[i])
+        same(f.x[:, 0], bank.x[i])
+        same(f.P, bank.P[i])
     # its reset returns to the channel's own x0 and P0
     f = bank.channel(-1)
     f.reset()

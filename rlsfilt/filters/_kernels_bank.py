@@ -50,7 +50,7 @@ Every function is ``njit(cache=True)`` with ``error_model="numpy"``
 import numpy as np
 from numba import njit, prange
 
-from ._kernels import _unhealthy
+from ._kernels_shared import unhealthy as _unhealthy
 
 __all__ = []
 
@@ -592,6 +592,6 @@ def bank_update(x, P, z, H, r, lam, mode, params, xn, Pn, y, S, K, lam_t, block)
 @njit(**_JIT)
 def bank_unhealthy(P, cond_max, bad):
     """``bad[c]``: channel ``c``'s ``P`` fails the health check of
-    `RecursiveLeastSquares` (``_kernels._unhealthy``)."""
+    `RecursiveLeastSquares` (``_kernels_shared.unhealthy``)."""
     for c in range(P.shape[0]):
         bad[c] = _unhealthy(P[c], cond_max)

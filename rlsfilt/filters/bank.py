@@ -11,15 +11,13 @@ so ``bank.channel(i)`` is an ordinary filter that continues where channel
 
 import copy
 import math
-import os
-import sys
-import warnings
 
 import numpy as np
 from filterpy.common import pretty_str
 
 from .._validation import as_float_array, check_covariance, check_int, check_scalar
 from ..exceptions import ForgettingSkippedWarning, NumericalWarning
+from . import _health
 from . import forgetting as _fg
 
 __all__ = ["RLSBank", "BankHistory"]
@@ -668,11 +666,10 @@ class RLSBank:
         if not new.size:
             return
         self.failed_channels = np.union1d(self.failed_channels, new)
-        from .rls import _health_problem
-
         c = int(new[0])
-        problem = _health_problem(self.P[c], None, self.cond_max) or "`P` failed the health check"
-        _warn_at_caller(
+        problem = (_health.symmetric_problem(self.P[c], self.cond_max)
+                   or "`P` failed the health check")
+        _health.warn_at_caller(
             f"`P` failed the health check in {new.size} of {self.n_channels} channel(s) "
             f"{_list(new)} {where}; channel {c}: {problem}. The estimates of these channels "
             "may be unreliable: use forgetting='directional' or 'constant_trace', or more "
@@ -691,7 +688,7 @@ class RLSBank:
         if (self._updates_since_predict and not self._warned_skip
                 and ((self._mode == 0 and (self._lam < 1.0).any()) or not self._Q_is_zero)):
             self._warned_skip = True
-            _warn_at_caller(
+            _health.warn_at_caller(
                 "update() was called twice without predict() in between, so the forgetting "
                 "(lam < 1) or random walk (Q > 0) of this step was skipped; call predict() "
                 "before each update() or use predict_update().", ForgettingSkippedWarning)
@@ -828,15 +825,6 @@ class RLSBank:
                              f"{getattr(P, 'shape', type(P).__name__)}")
         return np.ascontiguousarray(P, dtype=np.float64)
 
-
-def _warn_at_caller(message, category):
-    """``warnings.warn`` attributed to the first frame outside the rlsfilt package
-    (the caller's line, whichever public method or function led here)."""
-    package = os.path.dirname(os.path.dirname(os.path.abspath(__file__))) + os.sep
-    frame, level = sys._getframe(0), 1
-    while frame is not None and frame.f_code.co_filename.startswith(package):
-        frame, level = frame.f_back, level + 1
-    warnings.warn(message, category, stacklevel=level)
 
 
 def _raise_infinite(k_inf, Z, H):

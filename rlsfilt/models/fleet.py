@@ -27,7 +27,8 @@ import numpy as np
 
 from .._validation import as_float_array, check_dt, check_int, check_probability
 from ..exceptions import NumericalWarning
-from ..filters.bank import RLSBank, _warn_at_caller
+from ..filters._health import warn_at_caller as _warn_at_caller
+from ..filters.bank import RLSBank
 from .regressors import _full_rank_rows, _unit_columns, arx_structure
 
 __all__ = ["ARXBank", "fit_many"]
