@@ -368,7 +368,10 @@ def plot_comparison(report, ax=None, *, window=None, ax_overview=None, output=0,
     ylabel = output_name + (f" ({output_unit})" if output_unit else "")
     sl = slice(a, b)
     ax.plot(*_decimate(t[sl], y[sl]), color=_BLACK, lw=1.6, label=f"measured {output_name}")
-    if getattr(report, "is_unstable", False):
+    time_series = getattr(report, "is_time_series", False)
+    if time_series:     # AR, ARMA: no input, nothing to simulate
+        ax.plot([], [], color=COLORS[0], lw=1.2, label="no simulation (time series: no input)")
+    elif getattr(report, "is_unstable", False):
         # a diverging simulation would set the scale and its "fit" means nothing: say so
         ax.plot([], [], color=COLORS[0], lw=1.2, label=f"simulated: {report.stability}")
     else:
@@ -384,7 +387,7 @@ def plot_comparison(report, ax=None, *, window=None, ax_overview=None, output=0,
     if ax_overview is not None:
         # per-bin extremes: a long record reads as its envelope, a single outlier stays visible
         ax_overview.plot(*_decimate(t, y), color=_GREY, lw=0.7, label=f"measured {output_name}")
-        if not getattr(report, "is_unstable", False):
+        if not (getattr(report, "is_unstable", False) or time_series):
             ax_overview.plot(*_decimate(t, y - ys), color=COLORS[1], lw=0.7,
                              label=f"error {output_name} - simulated")
         span = f"whole record ({N} samples)"
@@ -489,6 +492,12 @@ def plot_cross_correlation(analysis, ax=None):
     ax = _axes(ax)
     xc = np.asarray(analysis.cross_correlation, dtype=float)
     nu = xc.shape[0]
+    if nu == 0:         # a time series (AR, ARMA): no input to correlate with
+        ax.text(0.5, 0.5, "no input (time series):\nno cross-correlation, no independence test",
+                ha="center", va="center", transform=ax.transAxes)
+        ax.set_title("Input cross-correlation: not applicable", fontsize="medium")
+        ax.set_axis_off()
+        return ax
     pct = f"{100 * (1 - analysis.alpha):g}%"
     bands = np.atleast_1d(analysis.cross_correlation_band)
     for j in range(nu):
@@ -923,6 +932,8 @@ def plot_report(report, fig=None, *, window=None, output_name="y", output_unit=N
         ax_phase = fig.add_subplot(gs[row + 1:, 1])
         plot_bode(band, ax_mag, ax_phase)
         ax_phase.set_title("phase")
+        if getattr(report, "is_time_series", False):     # the Bode of H = C/(A D)
+            ax_mag.set_title("noise model C/(A D) (time series: no input)")
     return fig
 
 
