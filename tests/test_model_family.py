@@ -424,5 +424,7 @@ def test_save_load_and_iodata(rng, tmp_path):
     np.testing.assert_array_equal(named.theta_, oe.theta_)
     assert named.param_names_[0] == "b1[flow]"
     np.testing.assert_array_equal(named.predict(io), oe.predict(U, y))
-    with pytest.raises(ValueError, match="must hold one experiment"):
-        OE(1, 1).fit(IOData(u=[U[:700, 0], U[700:, 0]], y=[y[:700], y[700:]]))
+    # several experiments: one criterion summed over them (tests/test_family_experiments.py)
+    two_io = IOData(u=[U[:700, 0], U[700:, 0]], y=[y[:700], y[700:]])
+    two = OE(1, 1).fit(two_io)
+    assert two.n_experiments_ == 2 and len(two.predict(two_io)) == 2

@@ -193,6 +193,11 @@ class RecursionState:
         self.n_steps += N
         return out
 
+    def restart(self):
+        """A new experiment: the signal lags start from rest again (zero), while the
+        estimate, ``P`` and the forgetting profile carry on."""
+        self.buf[:] = 0.0
+
     def step(self, y, u):
         """One sample through the compiled step; returns ``(yhat, eps, gated)``."""
         if self._work is None:
@@ -371,9 +376,36 @@ def recursive_pem(U, y, s, method="rpem", *, stacklevel=2, **options):
     >>> np.round(fit.theta, 1)
     array([-0.7,  1. ,  0.4])
     """
+    return recursive_pem_records([(U, y)], s, method, stacklevel=stacklevel + 1, **options)
+
+
+def recursive_pem_records(records, s, method="rpem", *, stacklevel=2, **options):
+    """`recursive_pem` over several experiments, one after the other.
+
+    At each experiment boundary the recursion restarts its regressor and
+    filter signals from rest (`RecursionState.restart`), so no regressor
+    pairs samples of two experiments, while the estimate, ``P`` and the
+    forgetting profile carry on. The histories hold every experiment's
+    samples one after the other.
+
+    Parameters
+    ----------
+    records : list of (ndarray (N_i, nu), ndarray (N_i,))
+    s, method, stacklevel, **options
+        As `recursive_pem`.
+
+    Returns
+    -------
+    RecursiveFit
+    """
     state = RecursionState(s, method, **options)
-    out = state.run(y, U)
-    N = len(y)
+    runs = []
+    for i, (U, y) in enumerate(records):
+        if i:
+            state.restart()
+        runs.append(state.run(y, U))
+    out = {k: np.concatenate([r[k] for r in runs]) for k in runs[0]}
+    N = len(out["eps"])
     tail = out["eps"][N // 2:]
     fit = RecursiveFit(theta=state.theta.copy(), P=state.P.copy(),
                        theta_history=out["theta_history"], yhat=out["yhat"], eps=out["eps"],

@@ -109,6 +109,12 @@ class _RecursiveModel:
             self.last_error = float(out["eps"][-1])
         return out["yhat"], out["theta_history"]
 
+    def restart(self):
+        """Start a new experiment: the regressor and filter signals restart from rest
+        (zero past), while the estimate, ``P`` and the forgetting profile carry on (as
+        ``fit`` does at each experiment boundary of an `IOData`)."""
+        self._state.restart()
+
     def reset(self):
         """Return to the initial estimate and covariance."""
         self._state = self._initial.copy()
