@@ -45,11 +45,15 @@ class RecursiveIV:
     ----------
     na, nb, nk
         ARX orders (``nb``, ``nk`` per input), as :class:`~rlsfilt.ARX`.
-    instruments : {"model", "given"}, default "model"
+    instruments : {"model", "delayed", "given"}, default "model"
         ``"model"``: the ``-y`` block of the regressor replaced by the output
         of an auxiliary model :math:`\hat B/\hat A\,u`, refreshed from the
         running estimate every `refresh` samples (Young's refined IV; with
         `prefilter` every signal also passes through :math:`1/\hat A`).
+        ``"delayed"``: the ``-y`` block replaced by further delayed samples
+        of the first input, :math:`u_1(t - n_{k,1} - n_{b,1} - k + 1)`,
+        ``k = 1 .. na`` (as ``ARX.fit(method="riv", instruments="delayed")``;
+        open loop, no auxiliary model).
         ``"given"``: :meth:`step` takes the instrument row ``z`` (for example
         lags of a reference signal in closed loop).
     k0 : int, default 0
@@ -92,8 +96,9 @@ class RecursiveIV:
         nu = 1 if isinstance(nb, numbers.Integral) or not hasattr(nb, "__len__") else len(nb)
         s = arx_structure(na, nb, nk, nu, 1)
         n = s.n_params
-        if instruments not in ("model", "given"):
-            raise ValueError(f"`instruments` must be 'model' or 'given'; got {instruments!r}")
+        if instruments not in ("model", "delayed", "given"):
+            raise ValueError(f"`instruments` must be 'model', 'delayed' or 'given'; got "
+                             f"{instruments!r}")
         self._orders = {"na": na, "nb": nb, "nk": nk}
         self._s = s
         self.instruments = instruments
@@ -136,6 +141,9 @@ class RecursiveIV:
         self._work = tuple(np.empty(n) for _ in range(5)) + (np.empty(1),)
         self._z = np.zeros(n)
         self._u = np.empty(s.n_inputs)
+        # "delayed": the last samples of every input, lag 0 first (zero before the record)
+        self._ulags = np.zeros((s.n_inputs, max(s.nk[0] + s.nb[0] + s.na,
+                                                max(k + b for k, b in zip(s.nk, s.nb)))))
         self.n_steps = 0
         self.n_skipped = 0
         self.last_error = np.nan
@@ -187,8 +195,12 @@ class RecursiveIV:
             raise ValueError(f"`u` must have {s.n_inputs} entries (one per input); got "
                              f"{uv.size}")
         self._u[:] = uv
-        given = self.instruments == "given"
-        if given:
+        given = self.instruments != "model"
+        if self.instruments == "delayed":
+            if z is not None:
+                raise ValueError("`z` only applies to instruments='given'")
+            self._delayed_row(uv)
+        elif self.instruments == "given":
             if z is None:
                 raise ValueError("`z` must be given: instruments='given'")
             zv = check_finite(as_float_array(z, "z").reshape(-1), "z")
@@ -223,6 +235,20 @@ class RecursiveIV:
         return yhat, self._theta[:, 0].copy()
 
     __call__ = step
+
+    def _delayed_row(self, u):
+        """Shift the input lags and write the delayed-input instrument row into ``_z``:
+        ``[u_1(t - nk_1 - nb_1 - k + 1)]_{k=1..na}``, then the input block of the regressor."""
+        L = self._ulags
+        L[:, 1:] = L[:, :-1]
+        L[:, 0] = u
+        s, z = self._s, self._z
+        first = s.nk[0] + s.nb[0]
+        z[:s.na] = L[0, first:first + s.na]
+        j = s.na
+        for i in range(s.n_inputs):
+            z[j:j + s.nb[i]] = L[i, s.nk[i]:s.nk[i] + s.nb[i]]
+            j += s.nb[i]
 
     def __repr__(self):
         args = ", ".join(f"{k}={v!r}" for k, v in self._orders.items())
