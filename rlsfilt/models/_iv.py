@@ -316,7 +316,7 @@ def fit_iv_records(records, s, instruments="model", *, prefilter=True, n_iter=10
     >>> import numpy as np
     >>> from scipy.signal import lfilter
     >>> from rlsfilt.models import arx_structure
-    >>> from rlsfilt.models._iv import fit_iv
+    >>> from rlsfilt.models._iv import fit_iv_records
     >>> rng = np.random.default_rng(2)
     >>> u, e = rng.standard_normal(50000), rng.standard_normal(50000)
     >>> y = lfilter([0, 1, 0.5], [1, -1.5, 0.7], u) + lfilter([1, -1, 0.2], [1, -1.5, 0.7], e)

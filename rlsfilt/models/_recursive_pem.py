@@ -116,6 +116,9 @@ class RecursionState:
         if method not in METHODS:
             raise ValueError(f"`method` must be 'rpem' or 'rplr'; got {method!r}")
         n = s.n_params
+        k = _get_kernels()
+        # the scalars the compiled step reads and writes (lam_now, lam_t: properties)
+        self._fpar = np.zeros(k.F_SIZE)
         self.s = s
         self.method = method
         self.mode = _fg.mode_code(forgetting)
@@ -161,6 +164,34 @@ class RecursionState:
         self.n_steps = 0
         self.lam_t = self.lam
         self._work = None
+        # the packed arguments of the streaming step (see _recursive_kernels.rpem_stream)
+        i = self._ints
+        self._spec = np.array(
+            [s.na, s.nc, s.nd, i["off_c"], i["off_d"], 0 if method == "rpem" else 1, self.mode,
+             self.q_zero, self.gate is not None, self.project, nu]
+            + [int(v) for key in ("nb", "nf", "nk", "off_b", "off_f") for v in i[key]],
+            dtype=np.int64)
+        f = self._fpar
+        f[k.F_LAM], f[k.F_LAM_RATE], f[k.F_R] = self.lam, self.lam_rate, self.R
+        f[k.F_GATE] = 0.0 if self.gate is None else self.gate
+
+    @property
+    def lam_now(self):
+        """Forgetting factor of the next step (the start-up profile)."""
+        return float(self._fpar[_get_kernels().F_LAM_NOW])
+
+    @lam_now.setter
+    def lam_now(self, value):
+        self._fpar[_get_kernels().F_LAM_NOW] = value
+
+    @property
+    def lam_t(self):
+        """Forgetting factor the last step applied."""
+        return float(self._fpar[_get_kernels().F_LAM_T])
+
+    @lam_t.setter
+    def lam_t(self, value):
+        self._fpar[_get_kernels().F_LAM_T] = value
 
     def _common(self):
         i = self._ints
@@ -199,23 +230,29 @@ class RecursionState:
         self.buf[:] = 0.0
 
     def step(self, y, u):
-        """One sample through the compiled step; returns ``(yhat, eps, gated)``."""
+        """One sample through the compiled step; returns ``(yhat, eps, gated)``.
+
+        `y` is a float and `u` a float64 array of shape (nu,) (validated by
+        the caller): the work arrays are allocated on the first call, then
+        every call is one compiled call on preallocated arrays.
+        """
         if self._work is None:
             n = self.s.n_params
-            self._work = (np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty((n, n)))
-            self._u = np.empty(self.s.n_inputs)
-        self._u[:] = u
-        k = _get_kernels()
-        yhat, eps, self.lam_now, self.lam_t, gated, refl = k.rpem_stream(
-            self.theta, self.P, self.buf, float(y), self._u, *self._common(), *self._work)
-        self.n_reflections += refl
+            self._work = (np.empty((4, n)), np.empty((n, n)))
+            k = _get_kernels()
+            self._kernel, self._out = k.rpem_stream, (k.F_GATED, k.F_REFL)
+        f = self._fpar
+        yhat, eps = self._kernel(self.theta, self.P, self.buf, y, u, self._spec, f,
+                                 self.params, self.Q, *self._work)
+        gated, refl = self._out
+        self.n_reflections += int(f[refl])
         self.n_steps += 1
-        return yhat, eps, gated
+        return yhat, eps, f[gated] != 0.0
 
     @property
     def phi(self):
         """Regressor of the last step (after :meth:`step`)."""
-        return None if self._work is None else self._work[0].copy()
+        return None if self._work is None else self._work[0][0].copy()
 
     def copy(self):
         """An independent copy."""

@@ -125,7 +125,13 @@ class RecursiveIV:
         self._P0 = np.ascontiguousarray(P)
         self._alpha0 = reflect(np.concatenate([[1.0], aux[:s.na]]))[1:].copy()
         self._beta0 = aux[s.na:].copy()
-        self._ints = (s.na, np.array(s.nb, dtype=np.int64), np.array(s.nk, dtype=np.int64))
+        given = instruments != "model"
+        # the packed arguments of the compiled step (_recursive_kernels.riv_stream)
+        self._spec = np.array([s.na, self.k0, 0 if given else self.refresh,
+                               self.prefilter and not given, given, self._q_zero, s.n_inputs]
+                              + list(s.nb) + list(s.nk), dtype=np.int64)
+        self._fpar = np.array([1.0 / self.lam, self.R, self.tol])
+        self._nu = s.n_inputs
         self.reset()
 
     def reset(self):
@@ -137,8 +143,8 @@ class RecursiveIV:
         self._beta = self._beta0.copy()
         self._buf = np.zeros((4 + 2 * s.n_inputs, s.max_lag + 1))
         m = max(self.k0, 1)
-        self._start = (np.empty((m, n)), np.empty((m, n)), np.empty(m))
-        self._work = tuple(np.empty(n) for _ in range(5)) + (np.empty(1),)
+        self._start = (np.empty((2, m, n)), np.empty(m))      # Phi0, Z0 and Y0
+        self._work = np.zeros((7, n))     # phi, z, g, h, K, theta before the step, eps
         self._z = np.zeros(n)
         self._u = np.empty(s.n_inputs)
         # "delayed": the last samples of every input, lag 0 first (zero before the record)
@@ -169,6 +175,14 @@ class RecursiveIV:
         """The instrument row of the last sample (a copy)."""
         return self._work[1].copy()
 
+    def _input(self, u):
+        """`u` as a finite float array of shape (nu,) (the full validation)."""
+        uv = check_finite(as_float_array(u, "u").reshape(-1), "u")
+        if uv.size != self._nu:
+            raise ValueError(f"`u` must have {self._nu} entries (one per input); got "
+                             f"{uv.size}")
+        return uv
+
     def step(self, y, u, z=None):
         """Take one sample: return the prediction made before it and the new estimate.
 
@@ -188,14 +202,17 @@ class RecursiveIV:
         theta : ndarray, shape (n_params,)
             The updated estimate.
         """
-        yv = _scalar(y, "y")
+        # fast path: float samples need only a finiteness check (x - x is NaN for NaN, inf)
+        if isinstance(y, float) and y - y == 0.0:
+            yv = y
+        else:
+            yv = _scalar(y, "y")
+        if self._nu == 1 and isinstance(u, float) and u - u == 0.0:
+            self._u[0] = u
+        else:
+            self._u[:] = self._input(u)
+        uv = self._u
         s, n = self._s, self._s.n_params
-        uv = check_finite(as_float_array(u, "u").reshape(-1), "u")
-        if uv.size != s.n_inputs:
-            raise ValueError(f"`u` must have {s.n_inputs} entries (one per input); got "
-                             f"{uv.size}")
-        self._u[:] = uv
-        given = self.instruments != "model"
         if self.instruments == "delayed":
             if z is not None:
                 raise ValueError("`z` only applies to instruments='given'")
@@ -210,14 +227,9 @@ class RecursiveIV:
         elif z is not None:
             raise ValueError("`z` only applies to instruments='given'")
         row = self.n_steps - s.max_lag
-        pred_theta = self._theta[:, 0].copy()
-        na, nb, nk = self._ints
-        phi, zw, g, h, K, eps = self._work
-        status, _ = _get_kernels().riv_stream(
-            self._theta, self._P, self._buf, yv, self._u, self._z, given, row, na, nb, nk,
-            self.k0, self._alpha, self._beta, self.refresh if not given else 0,
-            self.prefilter and not given, 1.0 / self.lam, self._Q, self._q_zero, self.R,
-            self.tol, *self._start, phi, zw, g, h, K, eps)
+        status, yhat = _get_kernels().riv_stream(
+            self._theta, self._P, self._buf, yv, uv, self._z, row, self._spec, self._fpar,
+            self._alpha, self._beta, self._Q, *self._start, self._work)
         self.n_steps += 1
         if status == 3:
             self.n_steps -= 1
@@ -230,7 +242,6 @@ class RecursiveIV:
                 warnings.warn(f"RecursiveIV: the gain denominator R + phi^T P z nearly vanished "
                               f"at sample {self.n_steps - 1}; that update was skipped",
                               NumericalWarning, stacklevel=2)
-        yhat = float(phi @ pred_theta) if status in (1, 2) or row < 0 else np.nan
         self.last_error = yv - yhat
         return yhat, self._theta[:, 0].copy()
 
