@@ -16,6 +16,7 @@ from rlsfilt import AR, ARMA, ARMAX, BJ, OE, IOData, RecursiveARMAX, RecursiveLe
 from rlsfilt.models import arx_regressors
 from rlsfilt.models._family import split_theta
 from rlsfilt.models._recursive_reference import rpem_reference
+from rlsfilt.validation import select_structure
 
 
 def _records(rng, n=(250, 350), burn=(0, 400)):
@@ -78,6 +79,17 @@ def test_time_series_on_two_experiments(rng):
     ref = minimize(_summed_criterion, model.theta_ + 0.02, args=(model.structure_, recs),
                    method="Nelder-Mead", options=dict(xatol=1e-10, fatol=1e-13))
     np.testing.assert_allclose(model.theta_, ref.x, atol=5e-7)
+    # the interface takes the list too: one result per experiment
+    Phi, target = model.regressors(None, ys)
+    preds = model.predict(None, ys)
+    assert len(preds) == 2 and len(Phi) == model.n_samples_ == sum(len(y) - 1 for y in ys)
+    np.testing.assert_allclose(Phi @ model.theta_, np.concatenate([p[1:] for p in preds]),
+                               rtol=1e-12, atol=1e-13)
+    np.testing.assert_allclose(target - Phi @ model.theta_, model.residuals_, atol=1e-12)
+    sel = select_structure(ARMA, None, ys, {"na": [1, 2], "nc": [0, 1]})
+    for cand, fitted in zip(sel.candidates, sel.models):   # losses of the summed criterion
+        assert cand["loss"] == pytest.approx(np.mean(fitted.residuals_ ** 2), rel=1e-12)
+        assert fitted.n_experiments_ == 2
     ar = AR(2).fit(ys)           # an ARX structure: least squares on the per-experiment rows
     rows = [np.column_stack([-np.r_[0.0, y[:-1]], -np.r_[0.0, 0.0, y[:-2]]])[2:] for y in ys]
     theta = np.linalg.lstsq(np.vstack(rows), np.concatenate([y[2:] for y in ys]),

@@ -34,7 +34,7 @@ from ._pem import (
 )
 from ._recursive_pem import recursive_pem_records
 from ._stability import stabilize_theta
-from .regressors import _as_signal, _column_rank, as_records
+from .regressors import _as_signal, _column_rank, as_records, is_listed
 
 __all__ = []
 
@@ -482,8 +482,7 @@ class TimeSeriesModel(PolynomialModel):
         -------
         self
         """
-        listed = isinstance(y, (list, tuple)) and y and any(
-            isinstance(v, np.ndarray) or hasattr(v, "to_numpy") for v in y)
+        listed = is_listed(y)
         records, y_names = [], None
         for i, yi in enumerate(y if listed else [y]):
             label = f"y[{i}]" if listed else "y"
@@ -495,6 +494,17 @@ class TimeSeriesModel(PolynomialModel):
             y_names = y_names or names
         info = {"u_1d": True, "y_1d": True, "u_names": None, "y_names": y_names}
         return self._fit(records, info, method, options, stacklevel=3)
+
+    def _each_experiment(self, fn, u, y, *args, outputs=True):
+        """As `IdentifiedModel._each_experiment`, and a list of series `y` (one per
+        experiment; `u` None) gives one result per experiment."""
+        if outputs and is_listed(y):
+            if u is not None:
+                raise ValueError(f"`u` must be None for the time-series model "
+                                 f"{type(self).__name__}; got {type(u).__name__}")
+            outs = [fn(None, yi, *args) for yi in y]
+            return outs[0] if len(outs) == 1 else outs
+        return super()._each_experiment(fn, u, y, *args, outputs=outputs)
 
     def _data(self, u, y=None):
         if y is not None:

@@ -11,7 +11,7 @@ from .._version import __version__
 from ..data.trend import _offset_messages
 from ..exceptions import ExactFitError, InsufficientDataError, OperatingPointWarning
 from ..models._base import check_is_fitted
-from ..models.regressors import _as_signal, as_records
+from ..models.regressors import _as_signal, as_records, is_listed
 from ..plotting import plot_comparison, plot_report
 from ._model import model_name, n_params, one_step
 from .criteria import _from_residuals
@@ -520,8 +520,7 @@ def _time_series_records(model, u, y):
     if y is None:
         raise TypeError(f"`y` is required: validate(model, None, y) for the time-series "
                         f"model {name}")
-    listed = isinstance(y, (list, tuple)) and y and any(
-        isinstance(v, np.ndarray) or hasattr(v, "to_numpy") for v in y)
+    listed = is_listed(y)
     records = []
     for i, yi in enumerate(y if listed else [y]):
         label = f"y[{i}]" if listed else "y"
