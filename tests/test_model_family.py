@@ -354,13 +354,22 @@ def test_summary_shows_the_polynomials(rng):
 
 def test_unexciting_data_does_not_break_the_recursion():
     """Constant input and output: the estimate is not determined, but the recursion (and its
-    projection of C into the stability region) runs without error and stays finite."""
+    projection of C into the stability region) runs without error and stays finite; the
+    health check (as RecursiveLeastSquares') says once that P lost its conditioning."""
     est = RecursiveARMAX(1, 1, 1, 1)
-    for _ in range(3000):
-        est.step(0.1, 0.2)
+    with pytest.warns(NumericalWarning, match=r"rpem: `P` is ill-conditioned \(condition "
+                                              r"number .* > 1e\+12\) after sample \d+00\. "
+                                              r"Lower P0"):
+        for _ in range(3000):
+            est.step(0.1, 0.2)
     assert np.isfinite(est.theta).all() and np.isfinite(est.P).all()
-    m = ARMAX(1, 1, 1).fit(np.full(500, 0.2), np.full(500, 0.1), method="rpem")
+    m = ARMAX(1, 1, 1).fit(np.full(500, 0.2), np.full(500, 0.1), method="rpem",
+                           check_every=0)      # the check off
     assert np.isfinite(m.theta_).all()
+    with pytest.warns(NumericalWarning, match="ill-conditioned"):
+        ARMAX(1, 1, 1).fit(np.full(500, 0.2), np.full(500, 0.1), method="rpem", cond_max=10.0)
+    with pytest.raises(ValueError, match="`check_every` must be"):
+        RecursiveARMAX(1, 1, 1, check_every=-1)
 
 
 @pytest.mark.parametrize("make", [lambda: AR(2, dt=0.5), lambda: ARMA(1, 1),

@@ -41,7 +41,7 @@ __all__ = []
 #: Options of the batch and recursive fits (anything else is a TypeError).
 PEM_OPTIONS = ("theta0", "ftol", "xtol", "gtol", "max_nfev")
 RECURSIVE_OPTIONS = ("lam", "lam_start", "lam_rate", "P0", "x0", "R", "Q", "forgetting",
-                     "forgetting_params", "gate", "project")
+                     "forgetting_params", "gate", "project", "check_every", "cond_max")
 METHODS = ("pem", "rpem", "rplr")
 _RECURSIVE_ONLY = "fit(..., method='rpem' or 'rplr')"
 

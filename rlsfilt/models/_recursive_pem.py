@@ -38,8 +38,9 @@ import warnings
 
 import numpy as np
 
-from .._validation import check_covariance, check_lam, check_scalar, check_variance
+from .._validation import check_covariance, check_int, check_lam, check_scalar, check_variance
 from ..exceptions import NumericalWarning
+from ..filters import _health
 from ..filters import forgetting as _fg
 from ._family import split_theta
 from ._stability import stabilize_theta
@@ -108,11 +109,18 @@ class RecursionState:
     project : bool, default True
         Reflect ``C``, ``D``, ``F_i`` into the unit circle whenever an update
         leaves the stability region.
+    check_every : int, default 100
+        Health check period, as `RecursiveLeastSquares` (0 disables it):
+        every `check_every` streaming steps, and at the end of :meth:`run`,
+        ``P`` is tested for positive definiteness and its condition number;
+        a failure issues one :class:`~rlsfilt.NumericalWarning`.
+    cond_max : float, default 1e12
+        Condition number of ``P`` beyond which the health check warns.
     """
 
     def __init__(self, s, method="rpem", *, lam=1.0, lam_start=0.97, lam_rate=0.998, P0=1e4,
                  x0=None, R=1.0, Q=0.0, forgetting="exponential", forgetting_params=None,
-                 gate=None, project=True):
+                 gate=None, project=True, check_every=100, cond_max=1e12):
         if method not in METHODS:
             raise ValueError(f"`method` must be 'rpem' or 'rplr'; got {method!r}")
         n = s.n_params
@@ -135,6 +143,10 @@ class RecursionState:
         self.Q = np.ascontiguousarray(Qm) if not self.q_zero else np.zeros((0, 0))
         self.gate = None if gate is None else _check_positive(gate, "gate")
         self.project = bool(project)
+        self.check_every = check_int(check_every, "check_every", minimum=0)
+        self.cond_max = _check_positive(cond_max, "cond_max")
+        self._since_check = 0
+        self._warned_health = False
         P = check_covariance(P0, n, "P0", definite=True)
         if x0 is None:
             theta = np.zeros(n)
@@ -222,7 +234,22 @@ class RecursionState:
             self.lam_now, self.lam_t = lam_now, lam_t
         self.n_reflections += n_refl
         self.n_steps += N
+        if N and self.check_every and np.isfinite(self.P).all():   # (non-finite: the caller)
+            self._check_health()
         return out
+
+    def _check_health(self):
+        """One warning when ``P`` stops being a healthy covariance (see `check_every`)."""
+        self._since_check = 0
+        if self._warned_health:
+            return
+        problem = _health.symmetric_problem(self.P, self.cond_max)
+        if problem is not None:
+            self._warned_health = True
+            _health.warn(f"{self.method}: {problem} after sample {self.n_steps}",
+                         "Lower P0, use forgetting that bounds P (directional, constant_trace, "
+                         "efra) or a random walk Q, or check the scaling and excitation of "
+                         "the data")
 
     def restart(self):
         """A new experiment: the signal lags start from rest again (zero), while the
@@ -247,6 +274,9 @@ class RecursionState:
         gated, refl = self._out
         self.n_reflections += int(f[refl])
         self.n_steps += 1
+        self._since_check += 1
+        if self._since_check == self.check_every:
+            self._check_health()
         return yhat, eps, f[gated] != 0.0
 
     @property
@@ -384,7 +414,7 @@ def recursive_pem(U, y, s, method="rpem", *, stacklevel=2, **options):
     **options
         Of `RecursionState`: ``lam``, ``lam_start``, ``lam_rate``, ``P0``,
         ``x0``, ``R``, ``Q``, ``forgetting``, ``forgetting_params``, ``gate``,
-        ``project``.
+        ``project``, ``check_every``, ``cond_max``.
 
     Returns
     -------

@@ -130,7 +130,8 @@ class ARMAX(PolynomialModel):
             default), ``ftol``, ``xtol``, ``gtol``, ``max_nfev`` of
             ``scipy.optimize.least_squares``. ``"rpem"``/``"rplr"``: the
             options of `RecursiveLeastSquares` (``lam``, ``P0``, ``x0``,
-            ``R``, ``Q``, ``forgetting``, ``forgetting_params``, ``gate``),
+            ``R``, ``Q``, ``forgetting``, ``forgetting_params``, ``gate``,
+            ``check_every``, ``cond_max``),
             the start-up forgetting profile ``lam_start``, ``lam_rate`` and
             ``project`` (keep ``C`` stable).
 
