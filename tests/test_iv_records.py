@@ -144,3 +144,19 @@ def test_streaming_riv_with_delayed_instruments_is_batch_iv(rng):
     np.testing.assert_allclose(est.theta, fit.theta_, rtol=1e-10)
     with pytest.raises(ValueError, match="`z` only applies to instruments='given'"):
         est.step(y[0], u[0], z=np.ones(4))
+
+
+def test_recursive_refined_iv_on_two_experiments_is_batch_iv_on_its_rows(rng):
+    """"model" instruments, refreshed every 50 rows: every estimate after the exact start is
+    the IV solution of the rows used so far, and the rows of each experiment are its own
+    (the input block of the instruments is the per-experiment regressor's)."""
+    recs = [_record(rng, 400), _record(rng, 300)]
+    model = ARX(2, 2, 1).fit([r[0] for r in recs], [r[1] for r in recs], method="riv",
+                             refresh=50)
+    Phi, _, target = _stacked(recs)
+    Z = model.instruments_
+    np.testing.assert_array_equal(Z[:, 2:], Phi[:, 2:])
+    for t in range(4, len(target) + 1, 9):
+        batch = np.linalg.solve(Z[:t].T @ Phi[:t], Z[:t].T @ target[:t])
+        np.testing.assert_allclose(model.theta_history_[t - 1], batch, rtol=1e-9,
+                                   atol=1e-10 * np.max(np.abs(batch)), err_msg=f"row {t}")
