@@ -19,6 +19,7 @@ import numpy as np
 from scipy import signal
 from scipy.linalg import lapack, solve_triangular
 
+from .._scale import pow2_scale
 from .._serialize import jsonable
 from .._validation import as_float_array, check_finite, check_int, check_scalar
 from ..exceptions import InsufficientDataError
@@ -291,9 +292,10 @@ class ARX(IdentifiedModel):
         # compute everything first: a fit that raises leaves the model as it was
         recursive = {}
         if method == "ls":
-            theta, cov_unscaled = _qr_least_squares(Phi, target)
+            theta, inv_scaled, col_scale = _qr_least_squares(Phi, target)
         else:
-            theta, cov_unscaled, rls, history, x_start, k0 = _fit_rls(Phi, target, s, opts)
+            theta, inv_scaled, rls, history, x_start, k0 = _fit_rls(Phi, target, s, opts)
+            col_scale = np.ones(s.n_params)
             recursive = {"filter_": rls, "k0_": k0,
                          "theta_history_": history[:, :, 0] if info["y_1d"] else history}
             # a-priori (recursive) residuals y(t) - phi(t) theta(t-1) after the batch start
@@ -309,14 +311,12 @@ class ARX(IdentifiedModel):
         self.__dict__.update(recursive)
         resid = target - Phi @ theta
         dof = rows - s.n_params
-        sigma2 = np.sum(resid ** 2, axis=0) / dof if dof > 0 else np.full(s.n_outputs, np.nan)
+        sigma2, cov, noise_cov = _noise_and_covariance(resid, dof, inv_scaled, col_scale)
         self._store(theta, s, info)
-        cov = sigma2[:, None, None] * cov_unscaled[None]
         self.theta_cov_ = cov[0] if info["y_1d"] else cov
         self.noise_variance_ = float(sigma2[0]) if info["y_1d"] else sigma2
         if not info["y_1d"]:
-            self.noise_covariance_ = (resid.T @ resid / dof if dof > 0
-                                      else np.full((s.n_outputs, s.n_outputs), np.nan))
+            self.noise_covariance_ = noise_cov
         self.residuals_ = resid[:, 0] if info["y_1d"] else resid
         self.n_samples_ = rows
         self.method_ = method
@@ -868,7 +868,16 @@ def _fit_rls(Phi, target, s, opts):
 
 
 def _qr_least_squares(Phi, target):
-    """``theta`` (n, ny) and ``(Phi^T Phi)^-1`` from a QR factorization of ``Phi``."""
+    r"""Least squares through QR, safe over the whole double range.
+
+    Returns ``(theta, C, c)``: ``theta`` (n, ny) and :math:`(\Phi^T\Phi)^{-1}
+    = C / (c c^T)`, with ``c`` the powers of two that scaled the columns.
+
+    The columns of ``Phi`` (by ``c``) and of the target (by ``t``) are
+    divided by powers of two near their largest entries, which is exact, so
+    the factorization never squares a number around 1e160 or 1e-160; then
+    :math:`\hat\theta_i = t_i \hat\theta^{s}_i / c`.
+    """
     n = Phi.shape[1]
     rank = _column_rank(Phi)
     if rank < n:
@@ -876,17 +885,43 @@ def _qr_least_squares(Phi, target):
             f"the regressor matrix has rank {rank} < n_params = {n}: the input is not "
             "persistently exciting for these orders (or the orders are too high); use a richer "
             "input, more data or lower orders")
-    Qf, Rf = np.linalg.qr(Phi)
-    c = Qf.T @ target
+    c = pow2_scale(Phi, axis=0)
+    t = pow2_scale(target, axis=0)
+    Qf, Rf = np.linalg.qr(Phi / c)
+    rhs = Qf.T @ (target / t)
     # back substitution one column at a time, and the triangular inverse from
     # LAPACK's trtri: multi-column triangular solves hit a slow threaded BLAS
     # path for tiny matrices on loaded machines (measured: 2-10 ms per call)
-    theta = np.column_stack([solve_triangular(Rf, c[:, i]) for i in range(c.shape[1])])
+    theta = np.column_stack([solve_triangular(Rf, rhs[:, i]) * (t[i] / c)
+                             for i in range(rhs.shape[1])])
     Rinv, info = lapack.dtrtri(Rf, lower=0)
     cov = Rinv @ Rinv.T
-    return theta, 0.5 * (cov + cov.T)
+    return theta, 0.5 * (cov + cov.T), c
 
 
+def _noise_and_covariance(resid, dof, inv_scaled, c):
+    r"""Noise variances, parameter covariances and (several outputs) the noise covariance.
+
+    With :math:`(\Phi^T\Phi)^{-1} = C / (c c^T)` and each residual column
+    divided by a power of two :math:`t_i` first, :math:`\hat\sigma_i^2 =
+    t_i^2 \hat\sigma_{s,i}^2` and ``cov[i] = sigma_s2[i] C (t_i / c)(t_i / c)^T``:
+    no intermediate overflows or underflows, so a record in any units gives
+    the covariance of its parameters wherever that is representable.
+    """
+    ny, n = resid.shape[1], len(c)
+    if dof <= 0:
+        nan = np.full(ny, np.nan)
+        return nan, np.full((ny, n, n), np.nan), np.full((ny, ny), np.nan)
+    t = pow2_scale(resid, axis=0)
+    rs = resid / t
+    noise_s = rs.T @ rs / dof
+    sigma2_s = np.diag(noise_s).copy()
+    g = t[:, None] / c[None, :]                          # (ny, n)
+    with np.errstate(over="ignore"):
+        sigma2 = sigma2_s * t * t
+        cov = (sigma2_s[:, None, None] * inv_scaled[None]) * g[:, :, None] * g[:, None, :]
+        noise_cov = noise_s * np.outer(t, t)
+    return sigma2, cov, noise_cov
 
 
 def _split(theta, s):

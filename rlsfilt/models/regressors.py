@@ -29,6 +29,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from .._scale import unit_columns
 from .._validation import as_float_array, check_finite, check_int
 
 __all__ = ["arx_regressors", "arx_structure", "ARXStructure"]
@@ -270,7 +271,7 @@ def _full_rank_rows(Phi):
     rows, n = Phi.shape
     if n == 0:
         return 0
-    Phi = _unit_columns(Phi)
+    Phi = unit_columns(Phi)
 
     def full(k):
         return np.linalg.matrix_rank(Phi[:k]) == n
@@ -297,11 +298,7 @@ def _column_rank(Phi):
     The rank decision then does not depend on the units of the signals: a
     regressor in nanoamperes beside one in megapascals is not mistaken for a
     zero column (Householder QR, which solves the problem, is itself
-    insensitive to column scaling; Golub & Van Loan 2013, sec. 5.3.7).
+    insensitive to column scaling; Golub & Van Loan 2013, sec. 5.3.7), nor
+    whether the entries are around 1e-160 or 1e160 (`rlsfilt._scale`).
     """
-    return int(np.linalg.matrix_rank(_unit_columns(Phi))) if Phi.shape[1] else 0
-
-
-def _unit_columns(Phi):
-    norms = np.linalg.norm(Phi, axis=0)
-    return Phi / np.where(norms > 0, norms, 1.0)
+    return int(np.linalg.matrix_rank(unit_columns(Phi))) if Phi.shape[1] else 0

@@ -13,6 +13,7 @@ import numbers
 
 import numpy as np
 
+from .._scale import pow2_scale, safe_norm
 from .._serialize import jsonable
 from .._validation import check_dt, check_int
 from ..exceptions import ExactFitError, InsufficientDataError
@@ -56,11 +57,15 @@ class OrderSelection:
         order ``[a1..a_na, b1..b_nb]``, on the aligned rows).
     """
 
-    def __init__(self, table, criterion, values, thetas, n_rows, n_val_rows, data, dt):
+    def __init__(self, table, criterion, values, thetas, n_rows, n_val_rows, data, dt,
+                 rank_key=None):
         self.table = table
         self.criterion = criterion
         self.values = np.asarray(values, dtype=float)
-        i = int(np.nanargmin(self.values))
+        # the order of `values` (a monotone transform of them that stays finite for
+        # records in any units, see select_order)
+        self._rank_key = self.values if rank_key is None else np.asarray(rank_key, float)
+        i = int(np.nanargmin(self._rank_key))
         self.best = (int(table["na"][i]), int(table["nb"][i]), int(table["nk"][i]))
         self.best_index = i
         self.thetas = thetas
@@ -123,7 +128,7 @@ class OrderSelection:
         str
         """
         top = check_int(top, "top", minimum=1)
-        order = np.argsort(self.values, kind="stable")[:top]
+        order = np.argsort(self._rank_key, kind="stable")[:top]
         val = not np.all(np.isnan(self.table["val_loss"]))
         head = f"{'na':>3} {'nb':>3} {'nk':>3} {'d':>3} {'loss':>11}"
         head += f" {'val_loss':>11}" if val else ""
@@ -263,10 +268,13 @@ def select_order(u, y, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), criterion
             f"`y` is too short for these orders: {len(Y)} samples leave {rows} aligned rows "
             f"for up to {n_cols} regressors; use more data or smaller orders")
     # unit columns: the least-squares cut-off of rank-deficient candidates and the
-    # conditioning no longer depend on the signals' units (losses are unchanged)
-    scale = np.linalg.norm(Psi, axis=0)
+    # conditioning no longer depend on the signals' units (losses are unchanged); the
+    # target divided by a power of two near its largest entry (exact), so that losses are
+    # computed as ty^2 * loss_s without squaring a number around 1e160 or 1e-160
+    scale = safe_norm(Psi, axis=0)
     scale = np.where(scale > 0, scale, 1.0)
-    R = np.linalg.qr(np.column_stack([Psi / scale, target]), mode="r")
+    ty = pow2_scale(target)
+    R = np.linalg.qr(np.column_stack([Psi / scale, target / ty]), mode="r")
     r_y = R[:, -1]
 
     if validation is not None:
@@ -290,38 +298,49 @@ def select_order(u, y, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), criterion
     cands = list(itertools.product(na_list, nb_list, nk_list))
     table = np.zeros(len(cands), dtype=_FIELDS)
     thetas = []
+    loss_s = np.empty(len(cands))        # the losses in units of ty^2
     for i, (a, b, k) in enumerate(cands):
         S = list(range(a)) + [na_max + j * n_lags + (k - kmin) + m
                               for j in range(nu) for m in range(b)]
         M = R[:, S]
         theta = np.linalg.lstsq(M, r_y, rcond=None)[0] if S else np.zeros(0)
         res = r_y - M @ theta
-        theta = theta / scale[S]
+        theta = theta * (ty / scale[S])
         table[i]["na"], table[i]["nb"], table[i]["nk"] = a, b, k
         table[i]["n_params"] = len(S)
-        table[i]["loss"] = float(res @ res) / rows
         if validation is not None:
-            ev = target_v - Psi_v[:, S] @ theta
-            table[i]["val_loss"] = float(ev @ ev) / len(ev)
+            ev = (target_v - Psi_v[:, S] @ theta) / ty
+            loss_s[i] = float(ev @ ev) / len(ev)
         else:
-            table[i]["val_loss"] = np.nan
+            loss_s[i] = float(res @ res) / rows
+        with np.errstate(over="ignore", under="ignore"):
+            table[i]["loss"] = float(res @ res) / rows * ty * ty
+            table[i]["val_loss"] = loss_s[i] * ty * ty if validation is not None else np.nan
         thetas.append(theta)
 
     use_val = validation is not None
-    V = table["val_loss"] if use_val else table["loss"]
     N = len(target_v) if use_val else rows
-    if np.any(V <= 1e-24 * float(np.mean(target ** 2))):
+    if np.any(loss_s <= 1e-24 * float(np.mean((target / ty) ** 2))):
         raise ExactFitError("a candidate fits the data exactly (zero loss); information criteria "
                          "are undefined for noise-free data")
-    crit = _criteria(V, N, table["n_params"])
+    V = table["val_loss"] if use_val else table["loss"]
+    log_V = np.log(loss_s) + 2.0 * np.log(ty)
+    crit = _criteria(V, N, table["n_params"], log_loss=log_V)
     for name in ("aic", "aicc", "bic", "naic", "fpe", "mdl"):
         table[name] = crit[name]
     values = table["val_loss"] if criterion == "loss" else table[criterion]
+    # the ranking uses logarithms where a criterion is proportional to V, so that it
+    # does not depend on the units even where V itself is out of range
+    d = table["n_params"].astype(float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rank_key = {"loss": log_V,
+                    "fpe": np.where(N - d > 0, log_V + np.log((1 + d / N) / (1 - d / N)), np.inf),
+                    "mdl": log_V + np.log1p(d * np.log(N) / N)}.get(criterion, values)
     # best_model() refits on the record as given: a 1-D input stays one signal `u`, and
     # pandas names are kept, so its summary names the signals as a direct ARX fit does
     data = (_as_given(U, info["u_1d"], info["u_names"]), _as_given(Y[:, 0], True, info["y_names"]))
     return OrderSelection(table, criterion, values, thetas, rows, N if use_val else None,
-                          data, dt)
+                          data, dt, rank_key=rank_key)
 
 
 # ----------------------------------------------------------------------
