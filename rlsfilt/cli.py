@@ -32,12 +32,15 @@ with one ``nb``, ``nk`` per input.
 """
 
 import argparse
+import atexit
 import contextlib
 import csv
 import json
 import math
 import os
+import shutil
 import sys
+import tempfile
 import threading
 import time
 import warnings
@@ -91,6 +94,7 @@ def main(argv=None):
     if args.command is None:
         parser.print_help()
         return EXIT_OK
+    _writable_matplotlib_config()
     try:
         with warnings.catch_warnings():
             warnings.showwarning = _show_warning
@@ -115,6 +119,31 @@ def main(argv=None):
         _error("interrupted")
         return 130
     return EXIT_ERROR
+
+
+def _writable_matplotlib_config():
+    """Give matplotlib a temporary configuration directory when its own is not writable.
+
+    With an unwritable ``HOME`` matplotlib (imported by python-control) does
+    the same itself, after two lines of log on stderr; a command's stderr is
+    for one-line errors and warnings.
+    """
+    if "MPLCONFIGDIR" in os.environ or "matplotlib" in sys.modules:
+        return
+    base = os.environ.get("XDG_CONFIG_HOME") or os.path.join(os.path.expanduser("~"), ".config")
+    path = os.path.join(base, "matplotlib")
+    try:
+        os.makedirs(path, exist_ok=True)
+        if os.access(path, os.W_OK):
+            return
+    except OSError:
+        pass
+    try:
+        tmp = tempfile.mkdtemp(prefix="rlsfilt-matplotlib-")
+    except OSError:  # no writable temporary directory either: matplotlib will say so
+        return
+    atexit.register(shutil.rmtree, tmp, ignore_errors=True)
+    os.environ["MPLCONFIGDIR"] = tmp
 
 
 def _error(message):

@@ -45,7 +45,8 @@ streaming runs agree bit for bit.
 """
 
 import numpy as np
-from numba import njit
+
+from .._numba import njit  # numba.njit, uncached where no cache directory is writable
 
 __all__ = []
 

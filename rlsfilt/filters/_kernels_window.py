@@ -34,7 +34,8 @@ reaches with a Householder QR and a sign flip.
 import math
 
 import numpy as np
-from numba import njit
+
+from .._numba import njit  # numba.njit, uncached where no cache directory is writable
 
 __all__ = []
 
