@@ -79,14 +79,16 @@ def as_generator(rng, name="rng"):
 
 def check_dt(dt, name="dt"):
     """A sampling period: ``True`` (unspecified, python-control's convention) or a
-    positive finite number."""
+    positive finite number, returned as a Python ``float`` (numpy scalars such as
+    ``np.float32(0.1)`` included, which python-control itself rejects)."""
     if dt is True:
         return dt
-    ok = isinstance(dt, numbers.Real) and not isinstance(dt, bool) and np.isfinite(dt) and dt > 0
+    ok = (isinstance(dt, numbers.Real) and not isinstance(dt, (bool, np.bool_))
+          and np.isfinite(dt) and dt > 0)
     if not ok:
         raise ValueError(f"`{name}` must be True (unspecified sampling period) or a positive "
                          f"sampling period; got {dt!r}")
-    return dt
+    return float(dt)
 
 
 def check_lam(lam, name="lam"):

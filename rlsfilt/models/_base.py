@@ -385,7 +385,7 @@ class IdentifiedModel(abc.ABC):
         control.TransferFunction
         """
         self._check_fitted("to_tf")
-        return _conversion.to_tf(self.polydata(), self.dt, noise)
+        return _conversion.to_tf(self.polydata(), self._check_dt(), noise)
 
     def to_ss(self, noise=False):
         """The model as a ``control.StateSpace`` (observer canonical form).
@@ -406,7 +406,7 @@ class IdentifiedModel(abc.ABC):
             With sampling time ``dt``.
         """
         self._check_fitted("to_ss")
-        return _conversion.to_ss(self.polydata(), self.dt, noise)
+        return _conversion.to_ss(self.polydata(), self._check_dt(), noise)
 
     def to_dlti(self, noise=False):
         """The model as a ``scipy.signal.dlti``.
@@ -424,7 +424,7 @@ class IdentifiedModel(abc.ABC):
             :meth:`to_ss`) otherwise.
         """
         self._check_fitted("to_dlti")
-        return _conversion.to_dlti(self.polydata(), self.dt, noise)
+        return _conversion.to_dlti(self.polydata(), self._check_dt(), noise)
 
     def frequency_response(self, omega, theta=None, noise=False):
         r"""Frequency response :math:`G(e^{j\omega\,dt})` of every channel.
@@ -446,7 +446,8 @@ class IdentifiedModel(abc.ABC):
             (``(ny, ny, n_points)`` for the noise model.)
         """
         self._check_fitted("frequency_response")
-        dt = 1.0 if self.dt is True else float(self.dt)
+        dt = self._check_dt()
+        dt = 1.0 if dt is True else dt
         return _conversion.frequency_response(self.polydata(theta), omega, dt, noise)
 
     # ------------------------------------------------------------------
@@ -483,11 +484,11 @@ class IdentifiedModel(abc.ABC):
         p = self.polydata()
         G = self.to_tf()
         tfs = [{"output": i, "input": j, "num": G.num[i][j], "den": G.den[i][j],
-                "dt": self.dt, "variable": "z"}
+                "dt": self._check_dt(), "variable": "z"}
                for i in range(self.n_outputs_) for j in range(self.n_inputs_)]
         return jsonable({
             "model": type(self).__name__, "params": self.get_params(), "orders": self.orders_,
-            "dt": self.dt,
+            "dt": self._check_dt(),
             "input_names": [self._u_name(j) for j in range(self.n_inputs_)],
             "output_names": [self._y_name(i) for i in range(self.n_outputs_)],
             "theta_names": self.param_names_, "theta": self.theta_,
@@ -537,7 +538,8 @@ class IdentifiedModel(abc.ABC):
     # helpers for subclasses: data against the fitted signals
     # ------------------------------------------------------------------
     def _check_dt(self):
-        check_dt(self.dt)
+        """``dt`` validated: True or a Python float (what python-control accepts)."""
+        return check_dt(self.dt)
 
     def _y_name(self, i):
         names = self._info.get("y_names")

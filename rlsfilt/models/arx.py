@@ -19,6 +19,7 @@ import numpy as np
 from scipy import signal
 from scipy.linalg import lapack, solve_triangular
 
+from .._resources import check_memory
 from .._scale import pow2_scale
 from .._serialize import jsonable
 from .._validation import as_float_array, check_finite, check_int, check_scalar
@@ -259,6 +260,9 @@ class ARX(IdentifiedModel):
             NaN/inf in the data (the first bad index is named), mismatched
             lengths, bad orders, too few samples, or a regressor matrix
             without full column rank (input not persistently exciting).
+        MemoryError
+            When the regressor matrix and the factorization would need more
+            memory than the process can get (checked before they are built).
 
         Notes
         -----
@@ -286,6 +290,9 @@ class ARX(IdentifiedModel):
                 f"`y` must have at least max_lag + n_params = {s.max_lag} + {s.n_params} = "
                 f"{s.max_lag + s.n_params} samples for ARX(na={s.na}, nb={_fmt(s.nb)}, "
                 f"nk={_fmt(s.nk)}); got {N}")
+        check_memory(_fit_bytes(N - s.max_lag, s, method),
+                     f"ARX.fit(method={method!r}) with {s.n_params} parameters on `u`, `y` of "
+                     f"{N} samples")
         Phi = _build(U, Y, s, s.max_lag)
         target = Y[s.max_lag:]
         rows = len(Phi)
@@ -833,6 +840,18 @@ def _check_filter_options(options):
         if name not in valid:
             raise TypeError(f"`{name}` is not an option of ARX.fit or RecursiveLeastSquares; "
                             f"the filter's other options are {valid}")
+
+
+def _fit_bytes(rows, s, method):
+    r"""Peak working memory of a fit on `rows` equations (measured with tracemalloc, rounded up).
+
+    Batch least squares holds :math:`\Phi`, its scaled copy and the
+    orthogonal factor (three ``rows x n`` arrays); the recursive fit adds the
+    estimate after every row and the filter's history of means.
+    """
+    n, ny, nu = s.n_params, s.n_outputs, s.n_inputs
+    per_row = 3 * n + 4 * ny + nu if method == "ls" else 4 * n + 3 * n * ny + 6 * ny + nu
+    return 8 * rows * per_row
 
 
 def _fit_rls(Phi, target, s, opts):

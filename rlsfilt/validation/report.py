@@ -5,6 +5,7 @@ import html
 import numpy as np
 
 from .. import __version__
+from .._resources import check_memory
 from .._serialize import jsonable
 from .._validation import check_int, check_probability
 from ..exceptions import ExactFitError, InsufficientDataError
@@ -311,9 +312,21 @@ def validate(model, u, y, plant=None, *, max_lag=25, alpha=0.01, skip_undefined=
         `skip_undefined`).
     ExactFitError
         Zero or constant residuals (unless `skip_undefined`).
+    MemoryError
+        Before anything large is allocated, when the estimated working
+        memory exceeds what the process can get (see Notes).
 
     Notes
     -----
+    **Memory.** The work is :math:`O(N)` in memory with small constants:
+    the regressors, residuals, simulation and prediction, and the residual
+    tests' regression accumulated over blocks of rows (tall-skinny QR), never
+    a dense matrix of lagged inputs. For ``ARX(2, 2, 1)`` with one input and
+    one output the peak is about 150 bytes per sample (measured with
+    tracemalloc on 2e5 samples; the test suite holds it below 250), about
+    ``8 (2 n_params + 12)`` bytes per sample in general.
+
+
     The simulation starts from the measured outputs ``y[:max_lag]`` of the
     model's largest lag and the fits are computed from there on; the
     one-step prediction uses the measured past (:meth:`ARX.predict`), so on
@@ -337,6 +350,10 @@ def validate(model, u, y, plant=None, *, max_lag=25, alpha=0.01, skip_undefined=
         raise TypeError(f"`metadata` must be a dict; got {type(metadata).__name__}")
     Phi, _, E = one_step(model, u, y, "validate")      # the regressors, built once
     n = E.shape[0]
+    # what is still to come: simulation and prediction (their regressors, inputs and
+    # outputs) and the record's copies in the report (the residual tests check their own)
+    n_par, ny, nu = Phi.shape[1], E.shape[1], model.n_inputs_
+    check_memory(8 * n * (n_par + 8 + 2 * nu + 4 * ny), f"validate on {n} rows of `u`, `y`")
     if auto:
         lag = max(1, min(25, n // 4))
     residuals, criteria, skipped = (), None, None

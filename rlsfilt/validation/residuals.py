@@ -9,6 +9,7 @@ MATLAB's ``resid`` and Ljung (1999, sec. 16.6).
 import numpy as np
 from scipy.stats import chi2, f, norm
 
+from .._resources import check_memory
 from .._scale import pow2_scale
 from .._validation import check_int, check_probability
 from ..exceptions import ExactFitError, InsufficientDataError
@@ -359,13 +360,18 @@ def _input_lag_test(e, Phi, U, t0, M, block=8192):
     p = Phi.shape[1]
     n_x0 = 1 + p
     n_l = nu * (2 * M + 1)
+    K = n_x0 + n_l + 1
+    block = max(block, K)
+    # R stacked on a block, and LAPACK's copy of it
+    check_memory(16 * (block + K) * K, f"the independence test with `max_lag` = {M} "
+                 f"({K} columns: {nu} input(s) at {2 * M + 1} lags and {n_x0} regressors)")
     # powers of two per column keep the squares of any record in range (exact)
     phi_scale = pow2_scale(Phi[lo:hi], axis=0) if n_rows else np.ones(p)
-    R = np.zeros((0, n_x0 + n_l + 1))
+    R = np.zeros((0, K))
     for b0 in range(lo, hi, block):
         b1 = min(b0 + block, hi)
         t = t0 + np.arange(b0, b1)
-        A = np.empty((b1 - b0, n_x0 + n_l + 1))
+        A = np.empty((b1 - b0, K))
         A[:, 0] = 1.0
         A[:, 1:n_x0] = Phi[b0:b1] / phi_scale
         col = n_x0

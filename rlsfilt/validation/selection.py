@@ -13,6 +13,7 @@ import numbers
 
 import numpy as np
 
+from .._resources import check_memory
 from .._scale import pow2_scale, safe_norm
 from .._serialize import jsonable
 from .._validation import check_dt, check_int
@@ -23,6 +24,10 @@ from .criteria import _criteria
 
 __all__ = ["OrderSelection", "select_order"]
 
+# largest number of floating-point operations select_order agrees to spend on its
+# candidates (a few minutes on one core); a realistic grid (na, nb, nk up to 10 with
+# one input: 1210 candidates) needs about 1e7
+_MAX_WORK = 1e11
 _CRITERIA = ("aic", "aicc", "bic", "naic", "fpe", "mdl", "loss")
 _FIELDS = [("na", int), ("nb", int), ("nk", int), ("n_params", int), ("loss", float),
            ("val_loss", float), ("aic", float), ("aicc", float), ("bic", float),
@@ -207,6 +212,18 @@ def select_order(u, y, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), criterion
         ``.best``, ``.table`` of every candidate, ``.plot()``,
         ``.best_model()``.
 
+    Raises
+    ------
+    InsufficientDataError
+        When the largest orders leave no more aligned rows than regressors
+        (checked first, so ``na=10**9`` fails at once).
+    ValueError
+        When the grid would need more than about 1e11 floating-point
+        operations (minutes of computation): narrow it or search it in parts.
+    MemoryError
+        When the regressor matrix and the table would need more memory than
+        the process can get (checked before they are built).
+
     Notes
     -----
     As in MATLAB's ``arxstruc``, all candidates are fitted on the same rows
@@ -253,20 +270,39 @@ def select_order(u, y, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), criterion
     nb_list = _order_list(nb, "nb", 1)
     nk_list = _order_list(nk, "nk", 0)
     U, Y, info = _io(u, y, "u", "y")
-    kmin = min(nk_list)
-    kmax = max(nk_list) + max(nb_list) - 1
-    na_max = max(na_list)
+    # the lists are sorted (ranges ascending): first and last are the extremes
+    kmin = nk_list[0]
+    kmax = nk_list[-1] + nb_list[-1] - 1
+    na_max = na_list[-1]
     t_max = max(na_max, kmax)
     nu = U.shape[1]
     n_lags = kmax - kmin + 1
     n_cols = na_max + nu * n_lags
 
-    Psi, target = _full_regressor(U, Y, na_max, kmin, kmax, t_max)
-    rows = len(target)
+    # limits first, before anything of the size of the orders is allocated
+    rows = len(Y) - t_max
     if rows <= n_cols:
         raise InsufficientDataError(
-            f"`y` is too short for these orders: {len(Y)} samples leave {rows} aligned rows "
-            f"for up to {n_cols} regressors; use more data or smaller orders")
+            f"`y` is too short for these orders: {len(Y)} samples leave {max(rows, 0)} aligned "
+            f"rows for up to {n_cols} regressors (largest na = {na_max}, nb = {nb_list[-1]}, "
+            f"nk = {nk_list[-1]}); use more data or smaller orders")
+    n_cand = len(na_list) * len(nb_list) * len(nk_list)
+    # each candidate is a least-squares problem with n_cols + 1 rows and up to
+    # na + nu nb columns: refuse a grid that would take hours rather than run it
+    work = n_cand * (n_cols + 1) * (na_max + nu * nb_list[-1]) ** 2
+    if work > _MAX_WORK:
+        raise ValueError(
+            f"`na`, `nb`, `nk` span {n_cand} candidate structures with up to "
+            f"{na_max + nu * nb_list[-1]} parameters: about {work:.1e} floating-point "
+            f"operations, more than select_order's limit of {_MAX_WORK:.0e} (minutes of "
+            "computation); narrow the grid or search it in parts")
+    # the regressor matrix, its scaled copy and the QR work array; per candidate a table
+    # row, its parameters and their array
+    check_memory(8 * 3 * rows * (n_cols + 1) + n_cand * (200 + 8 * (na_max + nu * nb_list[-1])),
+                 f"select_order with {n_cand} candidates (`na`, `nb`, `nk`) and up to {n_cols} "
+                 f"regressors on {len(Y)} samples")
+
+    Psi, target = _full_regressor(U, Y, na_max, kmin, kmax, t_max)
     # unit columns: the least-squares cut-off of rank-deficient candidates and the
     # conditioning no longer depend on the signals' units (losses are unchanged); the
     # target divided by a power of two near its largest entry (exact), so that losses are
@@ -347,13 +383,21 @@ def select_order(u, y, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), criterion
 # private helpers
 # ----------------------------------------------------------------------
 def _order_list(value, name, minimum):
+    """Sorted distinct orders: a list, or an ascending ``range`` (never materialized here,
+    so that ``range(10**12)`` is refused by the limits, not by a frozen loop)."""
     if isinstance(value, numbers.Integral) and not isinstance(value, bool):
-        values = [value]
-    elif isinstance(value, (str, bytes)) or not hasattr(value, "__iter__"):
+        return [check_int(value, name, minimum=minimum)]
+    if isinstance(value, range):
+        if not value:
+            raise ValueError(f"`{name}` must hold at least one order; got an empty range")
+        if value.step < 0:
+            value = value[::-1]
+        check_int(value[0], name, minimum=minimum)
+        return value
+    if isinstance(value, (str, bytes)) or not hasattr(value, "__iter__"):
         raise TypeError(f"`{name}` must be an integer or an iterable of integers; got "
                         f"{type(value).__name__}")
-    else:
-        values = list(value)
+    values = list(value)
     if not values:
         raise ValueError(f"`{name}` must hold at least one order; got an empty range")
     return sorted({check_int(v, name, minimum=minimum) for v in values})
