@@ -32,6 +32,9 @@ Usage::
     python benchmarks/bench_rls.py --smoke          # a few seconds (CI)
     python benchmarks/bench_rls.py                  # the full table, minutes
     python benchmarks/bench_rls.py --plot bench.png --markdown
+    # the figure of the docs, redrawn from its saved times without measuring again:
+    python benchmarks/bench_rls.py --replot docs/images/bench_rls.json \
+        --plot docs/images/bench_rls.png
 
 Install the peers with ``pip install rlsfilt[bench]``; a peer that is not
 installed is skipped.
@@ -54,12 +57,29 @@ from handwritten import rls_handwritten  # noqa: E402
 
 import rlsfilt  # noqa: E402
 from rlsfilt.filters import _kernels  # noqa: E402
+from rlsfilt.filters.forgetting import EXPONENTIAL, kernel_config  # noqa: E402
 
 LAM = 0.99
 P0 = 1e4
 FULL_DIMS = (2, 5, 10, 20, 50)
 COLUMNS = ("batch_filter", "batch_filter+P", "write 2 N n^2", "kernel", "ARX.fit",
            "predict+update", "handwritten", "numpy loop", "filterpy", "padasip", "statsmodels")
+# one distinct colour, marker and line style per contender in the plot: rlsfilt's own paths solid
+# (Okabe-Ito colours), the reference loops dashed, the peer libraries dotted (the colours are
+# colour-blind-safe; marker and line style tell the families apart without colour)
+STYLES = {
+    "batch_filter": ("#0072B2", "o", "-"),
+    "batch_filter+P": ("#56B4E9", "s", "-"),
+    "kernel": ("#009E73", "^", "-"),
+    "ARX.fit": ("#CC79A7", "D", "-"),
+    "predict+update": ("#E69F00", "v", "-"),
+    "write 2 N n^2": ("#7F7F7F", "", "--"),
+    "handwritten": ("#000000", "x", "--"),
+    "numpy loop": ("#882255", "P", "--"),
+    "filterpy": ("#D55E00", "o", ":"),
+    "padasip": ("#332288", "s", ":"),
+    "statsmodels": ("#999933", "*", ":"),
+}
 
 
 # ----------------------------------------------------------------------
@@ -129,8 +149,9 @@ def run_write_floor(Hs, zs):
 
 def run_kernel(Hs, zs):
     n = Hs.shape[1]
-    out = _kernels.batch_compiled(np.zeros((n, 1)), P0 * np.eye(n), zs.reshape(-1, 1), Hs,
-                                  np.ones(1), LAM, None, False, False)
+    out = _kernels.run_batch(np.zeros((n, 1)), P0 * np.eye(n), zs.reshape(-1, 1), Hs,
+                             np.ones(1), kernel_config(EXPONENTIAL, LAM, ()), None, None, False,
+                             False, 0, 0, np.inf)
     return out.x.ravel()
 
 
@@ -294,7 +315,9 @@ def plot(results, path=None, ax=None):
     for c in COLUMNS:
         ys = [results[n].get(c, np.nan) * 1e9 for n in dims]
         if not np.all(np.isnan(ys)):
-            ax.loglog(dims, ys, "o-", label=c)
+            color, marker, style = STYLES[c]
+            ax.loglog(dims, ys, color=color, marker=marker, linestyle=style, lw=1.4, ms=5,
+                      label=c)
     ax.set_xticks(dims)
     ax.set_xticklabels([str(n) for n in dims])
     ax.xaxis.set_minor_formatter(NullFormatter())
@@ -304,7 +327,7 @@ def plot(results, path=None, ax=None):
     ax.grid(True, which="major", alpha=0.3)
     ax.legend(fontsize=8, loc="center left", bbox_to_anchor=(1.01, 0.5))
     if path:
-        ax.figure.savefig(path, dpi=120, bbox_inches="tight")
+        ax.figure.savefig(path, dpi=150, bbox_inches="tight")
     return ax
 
 
@@ -323,7 +346,16 @@ def main(argv=None):
     parser.add_argument("--markdown", action="store_true", help="print the table as Markdown")
     parser.add_argument("--json", metavar="PATH",
                         help="also save the times (seconds per sample) as JSON")
+    parser.add_argument("--replot", metavar="JSON",
+                        help="do not measure: plot the times saved by --json (with --plot)")
     args = parser.parse_args(argv)
+    if args.replot:
+        with open(args.replot) as f:
+            results = {int(n): r for n, r in json.load(f).items()}
+        if args.plot:
+            plot(results, args.plot)
+            print(f"plot saved to {args.plot}")
+        return results
     if args.smoke:
         dims = args.dims or [2, 5]
         n_samples, peer_samples, rounds = 2000, 100, 1

@@ -8,25 +8,49 @@ notebook that changed.
 """
 
 import os
-import shutil
 import sys
 from pathlib import Path
 
 DOCS = Path(__file__).resolve().parent
 ROOT = DOCS.parent
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(DOCS))  # _gallery.py: the gallery's scraper and matplotlib reset
 # the notebook kernels are subprocesses: let them import this checkout too
 os.environ["PYTHONPATH"] = os.pathsep.join(
     [str(ROOT)] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p])
 # figures in the executed notebooks: the inline backend, even when the caller
 # (CI) exported MPLBACKEND=Agg for the test suite
 os.environ["MPLBACKEND"] = "module://matplotlib_inline.backend_inline"
+# ... at 150 dpi (docs/_static/matplotlibrc; the inline backend keeps the rc file's dpi)
+os.environ["MATPLOTLIBRC"] = str(DOCS / "_static" / "matplotlibrc")
 
 import rlsfilt  # noqa: E402
 
+# The "download / open in Binder" line of each rendered notebook: plain links, nothing is
+# fetched at build time. RLSFILT_REPO (owner/name on GitHub) and RLSFILT_BRANCH name the public
+# repository Binder starts from.
+REPO = os.environ.get("RLSFILT_REPO", "rlsfilt/rlsfilt")
+BRANCH = os.environ.get("RLSFILT_BRANCH", "main")
+
+
+def _with_links(raw, name):
+    """The notebook `raw` (JSON text) with a markdown cell of links after its title cell."""
+    import json
+
+    nb = json.loads(raw)
+    binder = f"https://mybinder.org/v2/gh/{REPO}/{BRANCH}?labpath=notebooks%2F{name}"
+    links = (f"{{download}}`Download this notebook <../../notebooks/{name}>` (`{name}`, no "
+             f"outputs) · [open it in Binder]({binder}) · run it locally with "
+             f"`python -m pip install -e \".[notebooks]\" && jupyter lab notebooks/{name}`")
+    cell = {"cell_type": "markdown", "id": "rlsfilt-links", "metadata": {},
+            "source": ["```{container} rlsfilt-nb-links\n", links + "\n", "```"]}
+    nb["cells"].insert(1 if nb["cells"] else 0, cell)
+    return json.dumps(nb, indent=1, ensure_ascii=False) + "\n"
+
 
 def _copy_notebooks():
-    """Mirror ``notebooks/*.ipynb`` into ``docs/notebooks/`` (git-ignored)."""
+    """Mirror ``notebooks/*.ipynb`` into ``docs/notebooks/`` (git-ignored), each with its
+    download and Binder links; outputs are added when myst-nb executes them."""
     src, dst = ROOT / "notebooks", DOCS / "notebooks"
     dst.mkdir(exist_ok=True)
     wanted = {p.name for p in src.glob("*.ipynb")}
@@ -35,8 +59,9 @@ def _copy_notebooks():
             old.unlink()
     for nb in src.glob("*.ipynb"):
         target = dst / nb.name
-        if not target.exists() or target.read_bytes() != nb.read_bytes():
-            shutil.copyfile(nb, target)
+        text = _with_links(nb.read_text(encoding="utf-8"), nb.name)
+        if not target.exists() or target.read_text(encoding="utf-8") != text:
+            target.write_text(text, encoding="utf-8")
 
 
 _copy_notebooks()
@@ -51,13 +76,20 @@ extensions = [
     "sphinx.ext.autodoc",
     "sphinx.ext.autosummary",
     "sphinx.ext.mathjax",
+    # MathJax 3 shipped in the package and copied into _static/mathjax: the pages render
+    # their math with no network (it sets mathjax_path to the local tex-chtml.js)
+    "sphinx-mathjax-offline",
     "sphinx.ext.viewcode",
     "numpydoc",
+    "matplotlib.sphinxext.plot_directive",
     "myst_nb",
+    "sphinx_gallery.gen_gallery",
 ]
 
 source_suffix = {".rst": "restructuredtext", ".md": "myst-nb", ".ipynb": "myst-nb"}
-exclude_patterns = ["_build", "**.ipynb_checkpoints", "Thumbs.db", ".DS_Store"]
+# the gallery writes a notebook beside each example for download: not a page to build
+exclude_patterns = ["_build", "**.ipynb_checkpoints", "Thumbs.db", ".DS_Store",
+                    "auto_examples/*.ipynb", "auto_examples/**/*.ipynb"]
 templates_path = ["_templates"]
 
 # API reference: one generated page per public name (see docs/api/index.rst)
@@ -67,6 +99,9 @@ autodoc_default_options = {"members": True, "inherited-members": False}
 numpydoc_show_class_members = False
 numpydoc_class_members_toctree = False
 numpydoc_xref_param_type = False
+# an Examples section that imports matplotlib runs through the plot directive: the API pages of
+# the plotting functions show the figure their example draws
+numpydoc_use_plots = True
 
 # MyST and the notebooks
 myst_enable_extensions = ["dollarmath", "amsmath", "colon_fence", "deflist"]
@@ -77,8 +112,39 @@ nb_execution_timeout = 180
 nb_execution_raise_on_error = True
 nb_execution_show_tb = True
 nb_merge_streams = True
+# no widget JavaScript from a CDN: the slider cell of the tracking notebook hides its output in
+# the docs (tag remove-output) and the static figure before it stands in
+nb_ipywidgets_js = {}
 
 html_theme = "sphinx_rtd_theme"
 html_title = f"rlsfilt {release}"
-html_static_path = []
+html_static_path = ["_static"]
+html_css_files = ["rlsfilt.css"]   # wide tables scroll in their own box, figures fit the column
 html_theme_options = {"navigation_depth": 3}
+
+# ----------------------------------------------------------------------
+# the gallery: examples/plot_*.py run at build time (sphinx-gallery), one page and a
+# thumbnail each; the API pages of the functions they call list them (minigallery)
+# ----------------------------------------------------------------------
+sphinx_gallery_conf = {
+    "examples_dirs": str(ROOT / "examples"),
+    "gallery_dirs": "auto_examples",
+    "filename_pattern": r"plot_",
+    "doc_module": ("rlsfilt",),
+    "backreferences_dir": "api/generated/backreferences",
+    "reset_modules": ("matplotlib", "_gallery.reset_matplotlib"),
+    "image_scrapers": ("_gallery.scraper",),
+    "abort_on_example_error": True,
+    "download_all_examples": False,
+    "write_computation_times": False,
+    "remove_config_comments": True,
+    "thumbnail_size": (400, 280),
+    "within_subsection_order": "FileNameSortKey",
+    "matplotlib_animations": False,
+}
+
+# matplotlib's plot directive (figures inside docstrings and pages) at the same resolution
+plot_formats = [("png", 150)]
+plot_include_source = True
+plot_html_show_formats = False
+plot_html_show_source_link = False

@@ -5,35 +5,79 @@ A filterpy-style toolkit: `RecursiveLeastSquares` mirrors filterpy's
 ``P``, ``K``, ``y``, ``S``) so it drops in beside Kalman filters.
 """
 
-# first, so that the subpackages can read it (the JSON results carry it)
-__version__ = "0.1.0"
-
-from . import datasets, validation  # public subpackages: rlsfilt.datasets, rlsfilt.validation
+from . import adaptive, data, datasets, validation  # public subpackages
+from ._version import __version__
+from .continuous import d2c
+from .data import IOData, Trend, detrend, retrend
 from .exceptions import (
     ExactFitError,
+    ExcitationWarning,
     ForgettingSkippedWarning,
     InsufficientDataError,
     NotFittedError,
     NumericalWarning,
+    OperatingPointWarning,
+    OrderSelectionWarning,
 )
 from .filters import RecursiveLeastSquares, SlidingWindowRLS, SquareRootRLS
-from .models import ARX
-from .validation import fit_percent, select_order, validate
+from .models import (
+    AR,
+    ARMA,
+    ARMAX,
+    ARX,
+    BJ,
+    OE,
+    RecursiveAR,
+    RecursiveARMA,
+    RecursiveARMAX,
+    RecursiveARX,
+    RecursiveBJ,
+    RecursiveIV,
+    RecursiveOE,
+)
+from .persistence import load_model, save_model
+from .validation import delayest, fit_percent, select_order, select_structure, validate
 
 __all__ = [
     "RecursiveLeastSquares",
     "SlidingWindowRLS",
     "SquareRootRLS",
     "ARX",
+    "ARMAX",
+    "OE",
+    "BJ",
+    "AR",
+    "ARMA",
+    "RecursiveARMAX",
+    "RecursiveOE",
+    "RecursiveBJ",
+    "RecursiveARX",
+    "RecursiveAR",
+    "RecursiveARMA",
+    "RecursiveIV",
+    "IOData",
+    "Trend",
+    "detrend",
+    "retrend",
+    "delayest",
+    "d2c",
+    "save_model",
+    "load_model",
+    "adaptive",
+    "data",
     "datasets",
     "validation",
     "validate",
     "select_order",
+    "select_structure",
     "fit_percent",
     "NotFittedError",
     "InsufficientDataError",
     "ExactFitError",
     "NumericalWarning",
     "ForgettingSkippedWarning",
+    "ExcitationWarning",
+    "OperatingPointWarning",
+    "OrderSelectionWarning",
     "__version__",
 ]

@@ -8,7 +8,14 @@ Two commands:
     and compare it with the true plant through python-control.
 ``rlsfilt identify FILE.csv --input U --output Y``
     Identify an ARX model from a CSV file with a header row and print the
-    same report, or a JSON result with ``--json``.
+    same report, or a JSON result with ``--json``. Measured records are
+    handled as such: the means are removed by default (``--detrend``) and
+    the model predicts in the units of the data, several experiments can
+    share a file (``--experiment-column``), the model can be validated on
+    fresh data (``--validation FILE`` or ``--split 0.7``), the delay range
+    of ``--select-order`` is its own (``--delay-range``, or around the
+    delay ``rlsfilt.delayest`` finds) and the model can be saved
+    (``--save-model``).
 
 The command line is a thin layer over the library: it parses the options,
 reads the CSV file and shows progress; `rlsfilt.ARX` fits,
@@ -53,12 +60,18 @@ import warnings
 
 import numpy as np
 
-from . import __version__
 from ._resources import check_memory
+from ._version import __version__
+from .data import IOData, detrend
 from .datasets import PLANTS
-from .exceptions import ForgettingSkippedWarning, NumericalWarning
+from .exceptions import (
+    ForgettingSkippedWarning,
+    NumericalWarning,
+    OperatingPointWarning,
+    OrderSelectionWarning,
+)
 from .models import ARX, arx_structure
-from .validation import select_order, validate
+from .validation import delayest, select_order, validate
 
 __all__ = ["main"]
 
@@ -70,7 +83,9 @@ _PROGRESS_AFTER = 2.0    # seconds before a progress line appears
 _FORGETTING_MODES = ("exponential", "directional", "constant_trace", "efra", "variable")
 _DEFAULT_PLANT = "dc_motor"
 _TRACKING_LAM = 0.98     # demo forgetting factor for the time-varying plant
-_DEMO_BYTES_PER_SAMPLE = 700
+_DEMO_BYTES_PER_SAMPLE = 700   # the demo's peak per sample (measured about 500 at 2e5 samples)
+_DETREND = {"constant": "mean", "linear": False, "none": False}   # -> ARX(offset=...)
+_DELAY_SEARCH = 20       # largest delay delayest tries for --select-order without a range
 
 
 class CLIError(Exception):
@@ -109,7 +124,8 @@ def main(argv=None):
             if not sys.warnoptions:     # `python -W ...` keeps its own filters
                 # rlsfilt's own warnings are shown (once each); other libraries' warnings
                 # keep the interpreter's filters (DeprecationWarning stays hidden)
-                for category in (NumericalWarning, ForgettingSkippedWarning):
+                for category in (NumericalWarning, ForgettingSkippedWarning,
+                                 OperatingPointWarning, OrderSelectionWarning):
                     warnings.simplefilter("default", category)
             return args.run(args)
     except CLIError as exc:
@@ -228,6 +244,24 @@ _nonnegative_float = _float_where(lambda v: math.isfinite(v) and v >= 0.0,
                                   "a non-negative number")
 
 
+def _fraction(text):
+    value = _float(text)
+    if not 0.0 < value < 1.0:
+        raise argparse.ArgumentTypeError(f"must be in (0, 1); got {text}")
+    return value
+
+
+def _delay_range(text):
+    """An argparse type: ``LO:HI`` (or ``LO,HI``, or one delay ``K``), integers ``>= 0``."""
+    parts = text.replace(",", ":").split(":")
+    if len(parts) > 2:
+        raise argparse.ArgumentTypeError(f"must be LO:HI or one delay; got '{text}'")
+    lo, hi = (_nonnegative_int(p.strip()) for p in (parts if len(parts) == 2 else parts * 2))
+    if hi < lo:
+        raise argparse.ArgumentTypeError(f"must have LO <= HI; got '{text}'")
+    return range(lo, hi + 1)
+
+
 def _png(text):
     if not text.lower().endswith((".png", ".pdf", ".svg")):
         raise argparse.ArgumentTypeError(f"must be a .png, .pdf or .svg file name; got '{text}'")
@@ -287,10 +321,29 @@ def _build_parser():
                         help="sample time in seconds (default: 1, or from --time)")
     timing.add_argument("--time", metavar="COL", default=None,
                         help="time column; the sample time is its (uniform) step")
+    ident.add_argument("--experiment-column", metavar="COL", default=None,
+                       help="column labelling the experiment of each row: the rows of each "
+                            "label are one experiment (no regressor spans two)")
+    ident.add_argument("--detrend", choices=("constant", "linear", "none"), default="constant",
+                       help="operating point: remove the means (the model keeps them and "
+                            "predicts in the data's units), a line per record, or nothing "
+                            "(default: constant)")
+    fresh = ident.add_mutually_exclusive_group()
+    fresh.add_argument("--validation", metavar="FILE.csv", default=None,
+                       help="validate (and with --select-order, choose the orders) on this "
+                            "record, with the same columns")
+    fresh.add_argument("--split", type=_fraction, default=None, metavar="FRACTION",
+                       help="estimate on the first FRACTION of each experiment, validate on "
+                            "the rest (e.g. 0.7)")
     ident.add_argument("--select-order", action="store_true",
                        help="choose na, nb (and nk unless given) by BIC, up to --max-order")
     ident.add_argument("--max-order", type=_positive_int, default=4, metavar="N",
-                       help="largest na, nb and nk tried by --select-order (default: 4)")
+                       help="largest na and nb tried by --select-order (default: 4)")
+    ident.add_argument("--delay-range", type=_delay_range, default=None, metavar="LO:HI",
+                       help="delays tried by --select-order (default: around the delay "
+                            "estimated by delayest)")
+    ident.add_argument("--save-model", metavar="FILE.json", default=None,
+                       help="save the fitted model (ARX.load reads it back)")
     ident.add_argument("--delimiter", default=None, metavar="CHAR",
                        help="field separator (default: detected among , ; tab)")
     ident.add_argument("--save-params", metavar="FILE.json", default=None,
@@ -313,13 +366,85 @@ def _add_output_options(p):
 # ----------------------------------------------------------------------
 def _run_identify(args):
     progress = _Progress(enabled=not args.quiet)
-    columns = list(args.inputs) + [args.output] + ([args.time] if args.time else [])
+    _check_identify_options(args)
+    data = _load(args.file, args, progress)
+    if args.validation:
+        val = _load(args.validation, args, progress)
+        if val.dt != data.dt:
+            raise CLIError(f"'{args.validation}' has sample time {val.dt:g}; '{args.file}' has "
+                           f"{data.dt:g}")
+        est, where = data, f"the record in '{args.validation}'"
+    elif args.split:
+        try:
+            est, val = data.split(args.split)
+        except ValueError as exc:
+            raise CLIError(f"--split {args.split:g}: {str(exc).split('; ')[-1]}") from None
+        where = f"the last {100 * (1 - args.split):.3g} % of each experiment"
+    else:
+        est, val, where = data, None, "the estimation data"
+    progress.done()
+    n_in = len(args.inputs)
+    na = args.na
+    nb = _per_input(args.nb, n_in, "--nb")
+    nk = _per_input(args.nk if args.nk is not None else [1], n_in, "--nk")
+    offset = _DETREND[args.detrend]
+    lines = [_describe(args.file, data), _detrend_line(args.detrend, est)]
+    if args.detrend == "linear":   # each record about its own line; the model about zero
+        est = detrend(est, "linear")[0]
+        val = None if val is None else detrend(val, "linear")[0]
+    metadata = {"source": args.file, "inputs": list(args.inputs), "output": args.output,
+                "detrend": args.detrend, "experiments": list(data.experiment_names),
+                "experiment_lengths": list(data.lengths), "validated_on": where}
+    if args.select_order:
+        if args.delay_range is not None:
+            nks = args.delay_range
+        elif args.nk is not None:
+            nks = [nk[0]]
+        else:
+            nks, found = _delay_search(est, args, progress)
+            metadata["delay_estimate"] = found
+            lines.append(f"delay: delayest finds nk = {_fmt_list(list(np.atleast_1d(found)))};"
+                         f" orders searched with nk in {nks.start}..{nks.stop - 1}")
+        with progress.task("order selection"):
+            selection = select_order(est, na=range(0, args.max_order + 1),
+                                     nb=range(1, args.max_order + 1), nk=nks,
+                                     criterion="bic", validation=val, dt=est.dt,
+                                     offset=offset)
+        na, nb_best, nk_best = selection.best
+        nb, nk = [nb_best] * n_in, [nk_best] * n_in
+        metadata["order_selection"] = selection.to_dict()
+        lines += ["", selection.summary()]
+    _check_rows(max(est.lengths), na, nb, nk, f"'{args.file}'")
+    model = ARX(na, nb[0] if n_in == 1 else nb, nk[0] if n_in == 1 else nk, dt=est.dt,
+                offset=offset)
+    options = {"lam": args.lam, "forgetting": args.forgetting} if args.method == "rls" else {}
+    task = (f"recursive least squares over {est.n_samples} samples" if args.method == "rls"
+            else f"least squares on {est.n_samples} samples")
+    with progress.task(task):
+        model.fit(est, method=args.method, **options)
+    if args.save_model:
+        try:
+            model.save(args.save_model)
+        except OSError as exc:
+            raise CLIError(f"cannot write '{args.save_model}': {exc.strerror}") from None
+        metadata["model_file"] = args.save_model
+    report = _validate(model, val if val is not None else est, None,
+                       args.lam if args.method == "rls" else 1.0, metadata, progress)
+    after = [f"\nmodel saved to {args.save_model}"] if args.save_model else []
+    return _emit(report, args, lines + [""], after)
+
+
+def _check_identify_options(args):
     for col in args.inputs:
         if col == args.output:
             raise CLIError(f"column '{col}' is given as both --input and --output")
     if len(set(args.inputs)) != len(args.inputs):
         dup = next(c for c in args.inputs if args.inputs.count(c) > 1)
         raise CLIError(f"column '{dup}' is given twice as --input")
+    if args.experiment_column is not None and \
+            args.experiment_column in list(args.inputs) + [args.output, args.time]:
+        raise CLIError(f"column '{args.experiment_column}' is given as --experiment-column "
+                       "and as a signal")
     if args.lam != 1.0 and args.method != "rls":   # batch least squares has no forgetting
         raise CLIError(f"--lam {args.lam:g} needs --method rls")
     if args.forgetting != "exponential" and args.method != "rls":
@@ -328,40 +453,91 @@ def _run_identify(args):
         raise CLIError("--forgetting constant_trace needs --lam < 1 (it holds trace(P) at "
                        "n_params * (1 - lam))")
     if args.select_order and args.nk is not None and len(set(args.nk)) > 1:
-        raise CLIError("--select-order uses one delay for all inputs; give one --nk value "
-                       "or none (then nk = 1 .. --max-order is searched too)")
-    data = _read_csv(args.file, columns, delimiter=args.delimiter, progress=progress)
-    progress.done()
-    # several inputs keep their column names (parameters b1[volts], ...); one is 1-D
-    u = data[args.inputs[0]] if len(args.inputs) == 1 else {c: data[c] for c in args.inputs}
-    y = data[args.output]
-    dt = _sample_time(data[args.time], args.time) if args.time else (args.dt or 1.0)
-    n_in = len(args.inputs)
-    na = args.na
-    nb = _per_input(args.nb, n_in, "--nb")
-    nk = _per_input(args.nk if args.nk is not None else [1], n_in, "--nk")
-    metadata = {"source": args.file, "inputs": list(args.inputs), "output": args.output}
-    lines = []
-    if args.select_order:
-        nks = range(1, args.max_order + 1) if args.nk is None else [nk[0]]
-        with progress.task("order selection"):
-            selection = select_order(u, y, na=range(0, args.max_order + 1),
-                                     nb=range(1, args.max_order + 1), nk=nks,
-                                     criterion="bic", dt=dt)
-        na, nb_best, nk_best = selection.best
-        nb, nk = [nb_best] * n_in, [nk_best] * n_in
-        metadata["order_selection"] = selection.to_dict()
-        lines += [selection.summary(), ""]
-    _check_rows(len(y), na, nb, nk, f"'{args.file}'")
-    model = ARX(na, nb[0] if n_in == 1 else nb, nk[0] if n_in == 1 else nk, dt=dt)
-    options = {"lam": args.lam, "forgetting": args.forgetting} if args.method == "rls" else {}
-    task = (f"recursive least squares over {len(y)} samples" if args.method == "rls"
-            else f"least squares on {len(y)} samples")
-    with progress.task(task):
-        model.fit(u, y, method=args.method, **options)
-    report = _validate(model, u, y, args.lam if args.method == "rls" else 1.0, metadata,
-                       progress)
-    return _emit(report, args, lines)
+        raise CLIError("--select-order uses one delay for all inputs; give one --nk value, "
+                       "a --delay-range, or neither (then delayest centres the range)")
+    if args.delay_range is not None and not args.select_order:
+        raise CLIError("--delay-range needs --select-order (give the delay itself with --nk)")
+
+
+def _load(path, args, progress):
+    """The numeric columns of a CSV file as an `IOData` (one experiment per label)."""
+    exp_col = args.experiment_column
+    columns = list(args.inputs) + [args.output] + ([args.time] if args.time else [])
+    columns += [exp_col] if exp_col else []
+    table = _read_csv(path, columns, delimiter=args.delimiter, progress=progress,
+                      text_columns=(exp_col,) if exp_col else ())
+    n = len(table[args.output])
+    if exp_col:
+        labels = table[exp_col]
+        names = list(dict.fromkeys(labels.tolist()))
+        groups = [np.flatnonzero(labels == name) for name in names]
+    else:
+        names, groups = None, [np.arange(n)]
+    dts, t0 = [], []
+    for name, rows in zip(names or [None], groups):
+        if args.time:
+            where = f" (experiment '{name}')" if name is not None else ""
+            t = table[args.time][rows]
+            dts.append(_sample_time(t, args.time, where) if len(t) > 1 else None)
+            t0.append(float(t[0]))
+    if args.time:
+        known = [d for d in dts if d is not None]
+        if not known:
+            raise CLIError(f"time column '{args.time}' needs at least 2 rows in an experiment "
+                           "to give a sample time")
+        if max(known) - min(known) > 1e-6 * max(known):
+            raise CLIError(f"the experiments of '{path}' have different sample times "
+                           f"({min(known):g} to {max(known):g}); resample them to one rate")
+        dt = float(np.mean(known))
+    else:
+        dt = args.dt or 1.0
+    us = [np.column_stack([table[c][rows] for c in args.inputs]) for rows in groups]
+    ys = [table[args.output][rows] for rows in groups]
+    return IOData(us if exp_col else us[0], ys if exp_col else ys[0], dt,
+                  input_names=list(args.inputs), output_names=[args.output],
+                  experiment_names=names, tstart=t0 or None)
+
+
+def _describe(path, data):
+    dt = "unspecified" if data.dt is True else f"{data.dt:g} s"
+    exps = ""
+    if data.n_experiments > 1:
+        exps = (f" in {data.n_experiments} experiments ("
+                + ", ".join(f"{n}: {k}" for n, k in zip(data.experiment_names, data.lengths))
+                + ")")
+    return f"data: '{path}', {data.n_samples} samples{exps}, sample time {dt}"
+
+
+def _detrend_line(mode, data):
+    if mode == "none":
+        return "detrend: none (the data are used as they are)"
+    if mode == "linear":
+        return ("detrend: linear (a least-squares line removed from every signal of every "
+                "record; the model describes the deviations)")
+    records = data.arrays()
+    means = np.vstack([np.hstack(r) for r in records]).mean(axis=0)
+    names = list(data.input_names) + list(data.output_names)
+    shown = ", ".join(f"{n} = {m:.6g}" for n, m in zip(names, means))
+    return (f"detrend: constant (means removed: {shown}; the model keeps them and predicts in "
+            "the units of the data)")
+
+
+def _delay_search(data, args, progress):
+    """``(range of delays, delayest's answer)`` for --select-order without a delay range."""
+    nu = data.n_inputs
+    nk_max = _DELAY_SEARCH
+    while nk_max > 1:   # the largest delay the record can test with ARX(2, 2) models
+        t_max = nk_max + 1
+        if sum(max(n - t_max, 0) for n in data.lengths) > 2 + nu * (nk_max + 2) + 1:
+            break
+        nk_max -= 1
+    test = detrend(data)[0] if args.detrend == "constant" else data
+    with progress.task("delay estimation"):
+        with warnings.catch_warnings():   # the edge of this search is not the user's range
+            warnings.simplefilter("ignore", OrderSelectionWarning)
+            found = delayest(test, nk_max=nk_max)
+    ks = np.atleast_1d(found)
+    return range(max(0, int(ks.min()) - 2), int(ks.max()) + 3), found
 
 
 def _run_demo(args):
@@ -405,7 +581,9 @@ def _validate(model, u, y, lam, metadata, progress, plant=None):
     so it is validated on the last three memory lengths ``3 / (1 - lam)``
     samples (at least 100 rows with a complete regressor).
     """
-    N = len(y)
+    if isinstance(u, IOData) and lam < 1.0 and u.n_experiments > 1:
+        u = u.getexp(-1)  # the estimate describes the end of the last experiment
+    N = u.n_samples if isinstance(u, IOData) else len(y)
     start = 0
     if lam < 1.0:
         length = max(int(round(3.0 / (1.0 - lam))), 100 + model.max_lag + model.n_params)
@@ -414,8 +592,11 @@ def _validate(model, u, y, lam, metadata, progress, plant=None):
     if start:
         metadata["validation_note"] = (f"validation (on the last {N - start} samples, three "
                                        f"memory lengths of lam = {lam:g})")
-        u = {k: v[start:] for k, v in u.items()} if isinstance(u, dict) else u[start:]
-        y = y[start:]
+        if isinstance(u, IOData):
+            u = u[start:]
+        else:
+            u = {k: v[start:] for k, v in u.items()} if isinstance(u, dict) else u[start:]
+            y = y[start:]
     with progress.task("validating the model"):
         return validate(model, u, y, plant=plant, max_lag="auto", skip_undefined=True,
                         metadata=metadata)
@@ -461,13 +642,14 @@ def _emit(report, args, before=(), after=()):
 # ----------------------------------------------------------------------
 # reading data
 # ----------------------------------------------------------------------
-def _read_csv(path, columns, delimiter=None, progress=None):
-    """Read numeric `columns` of a CSV file with a header row.
+def _read_csv(path, columns, delimiter=None, progress=None, text_columns=()):
+    """Read numeric `columns` (and the labels in `text_columns`) of a CSV file with a header row.
 
-    Returns a dict mapping each column name to a float array. Raises
-    `CLIError` with a one-line message naming the file, row and column for
-    every problem a user can cause. The file is read line by line into
-    arrays of doubles (8 bytes per value), never held as text.
+    Returns a dict mapping each column name to a float array (an array of
+    strings for the text columns). Raises `CLIError` with a one-line message
+    naming the file, row and column for every problem a user can cause. The
+    file is read line by line, the numbers into arrays of doubles (8 bytes
+    per value), never held as text.
     """
     if not os.path.exists(path):
         raise CLIError(f"file '{path}' not found")
@@ -475,12 +657,12 @@ def _read_csv(path, columns, delimiter=None, progress=None):
         raise CLIError(f"'{path}' is a directory; expected a CSV file")
     try:
         with open(path, newline="", encoding="utf-8-sig") as fh:
-            return _parse_csv(fh, path, columns, delimiter, progress)
+            return _parse_csv(fh, path, columns, delimiter, progress, text_columns)
     except UnicodeDecodeError:
         raise CLIError(f"'{path}' is not a UTF-8 text file") from None
 
 
-def _parse_csv(fh, path, columns, delimiter, progress):
+def _parse_csv(fh, path, columns, delimiter, progress, text_columns):
     first = 0           # lines before the header (blank lines and comments)
     for header_line in fh:
         if header_line.strip() and not header_line.startswith("#"):
@@ -504,7 +686,7 @@ def _parse_csv(fh, path, columns, delimiter, progress):
             raise CLIError(f"column '{c}' appears {header.count(c)} times in the header of "
                            f"'{path}'; rename the duplicates")
     idx = [where[c] for c in columns]
-    values = [array.array("d") for _ in columns]
+    values = [[] if c in text_columns else array.array("d") for c in columns]
     row = 0
     for fields in reader:
         line = first + reader.line_num
@@ -518,6 +700,9 @@ def _parse_csv(fh, path, columns, delimiter, progress):
                            f"the header has {len(header)}")
         for k, (c, j) in enumerate(zip(columns, idx)):
             cell = fields[j].strip()
+            if c in text_columns:
+                values[k].append(cell)
+                continue
             try:
                 v = float(cell)
             except ValueError:
@@ -532,7 +717,8 @@ def _parse_csv(fh, path, columns, delimiter, progress):
             progress.show(f"reading '{path}': {row} rows")
     if row == 0:
         raise CLIError(f"'{path}' has a header but no data rows")
-    return {c: np.frombuffer(v, dtype=float) for c, v in zip(columns, values)}
+    return {c: np.array(v, dtype=object) if c in text_columns else np.frombuffer(v, dtype=float)
+            for c, v in zip(columns, values)}
 
 
 def _detect_delimiter(header_line):
@@ -543,18 +729,19 @@ def _detect_delimiter(header_line):
     return "," if " " not in header_line.strip() else " "
 
 
-def _sample_time(t, name):
+def _sample_time(t, name, where=""):
     if len(t) < 2:
-        raise CLIError(f"time column '{name}' needs at least 2 rows to give a sample time")
+        raise CLIError(f"time column '{name}'{where} needs at least 2 rows to give a sample "
+                       "time")
     steps = np.diff(t)
     if np.any(steps <= 0):
         i = int(np.argmax(steps <= 0))
-        raise CLIError(f"time column '{name}' must be strictly increasing; row {i + 2} has "
-                       f"{t[i + 1]:g} after {t[i]:g}")
+        raise CLIError(f"time column '{name}'{where} must be strictly increasing; row {i + 2} "
+                       f"has {t[i + 1]:g} after {t[i]:g}")
     dt = float(np.median(steps))
     if np.max(np.abs(steps - dt)) > 1e-6 * max(dt, abs(t[-1])):
-        raise CLIError(f"time column '{name}' is not uniformly sampled: steps range from "
-                       f"{steps.min():g} to {steps.max():g}; resample the data first")
+        raise CLIError(f"time column '{name}'{where} is not uniformly sampled: steps range "
+                       f"from {steps.min():g} to {steps.max():g}; resample the data first")
     return float((t[-1] - t[0]) / (len(t) - 1))
 
 

@@ -1,6 +1,12 @@
-"""Plots for tracking: parameter trajectories with confidence bands and trace(P).
+"""Every figure rlsfilt draws: tracking, validation, frequency responses, order selection.
 
-The functions accept what the filters and models produce:
+The result objects' ``plot`` methods (``ValidationReport.plot``,
+``ResidualAnalysis.plot``, ``PlantComparison.plot``, ``FrequencyBand.plot``,
+``OrderSelection.plot``, ``CusumResult.plot``) are one-line calls into the
+functions of this module, so the report, the notebooks, the documentation and
+the command line draw the same figures.
+
+The tracking functions accept what the filters and models produce:
 
 * the tuple returned by ``batch_filter`` (``means`` of shape ``(N, n, m)``
   and ``covariances`` of shape ``(N, n, n)``, or just its first two items);
@@ -9,19 +15,70 @@ The functions accept what the filters and models produce:
   ``theta_cov_history_`` or, failing that, ``P_history_`` attribute;
 * a plain array of estimates, with `covariances` given separately.
 
+Conventions of every figure:
+
+* colours from the colour-blind-safe palette of Okabe & Ito (2008), set per
+  call (``COLORS``; matplotlib's global style is left alone); measured data
+  and true systems are black;
+* axes labelled with symbols and units (seconds when the model has a sample
+  time, samples otherwise; rad/s or rad/sample; dB; degrees);
+* legends outside the data area;
+* long records drawn as a readable window plus an overview of the whole
+  record; no line carries more than ``MAX_POINTS`` points (longer ones are
+  reduced to their per-bin minima and maxima, which keeps every peak);
+* new figures use matplotlib's constrained layout, so labels survive
+  ``savefig`` without ``bbox_inches="tight"``.
+
 matplotlib is imported only when a function is called, so ``import
 rlsfilt`` stays light.
+
+References
+----------
+.. [1] M. Okabe and K. Ito, "Color Universal Design (CUD): how to make
+   figures and presentations that are friendly to colorblind people", 2008.
 """
 
 import numpy as np
 
 from ._validation import as_float_array, check_int
 
-__all__ = ["plot_parameters", "plot_trace", "plot_tracking"]
+__all__ = [
+    "COLORS",
+    "MAX_POINTS",
+    "plot_parameters",
+    "plot_trace",
+    "plot_tracking",
+    "plot_comparison",
+    "plot_autocorrelation",
+    "plot_cross_correlation",
+    "plot_residuals",
+    "plot_bode",
+    "plot_step",
+    "plot_plant_comparison",
+    "plot_frequency_band",
+    "plot_order_selection",
+    "plot_cusum",
+    "plot_report",
+]
+
+#: Okabe-Ito colours in the order lines are drawn (blue, vermillion, bluish green,
+#: reddish purple, orange, sky blue, yellow); black is kept for data and true systems.
+COLORS = ("#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#F0E442")
+_BLACK = "#000000"
+_GREY = "#7F7F7F"
+
+#: Largest number of points of one drawn line; longer lines keep their per-bin extremes.
+MAX_POINTS = 4000
+
+#: Samples shown in the window of :func:`plot_comparison` when the record is longer.
+_WINDOW = 400
 
 
+# ----------------------------------------------------------------------
+# tracking
+# ----------------------------------------------------------------------
 def plot_parameters(source, covariances=None, *, t=None, names=None, true_values=None,
-                    n_std=2.0, output=0, ax=None):
+                    n_std=2.0, output=0, xlabel=None, ax=None):
     r"""Plot parameter estimates over time with :math:`\pm` `n_std` standard-deviation bands.
 
     Parameters
@@ -52,12 +109,29 @@ def plot_parameters(source, covariances=None, *, t=None, names=None, true_values
         set the scale.
     output : int, default 0
         Which output's column of ``(N, n, m)`` estimates to plot.
+    xlabel : str, optional
+        Label of the time axis (default ``"sample $k$"``, or ``"time"``
+        when `t` is given).
     ax : matplotlib.axes.Axes, optional
         Axes to draw in; a new figure is made if omitted.
 
     Returns
     -------
     matplotlib.axes.Axes
+
+    Examples
+    --------
+    >>> import matplotlib.pyplot as plt
+    >>> import numpy as np
+    >>> from rlsfilt import RecursiveLeastSquares
+    >>> from rlsfilt.plotting import plot_parameters
+    >>> rng = np.random.default_rng(0)
+    >>> H = rng.standard_normal((300, 2))
+    >>> z = H @ [0.8, -0.3] + 0.1 * rng.standard_normal(300)
+    >>> run = RecursiveLeastSquares(2, R=0.1 ** 2).batch_filter(z, H)
+    >>> ax = plot_parameters(run, names=["a", "b"], true_values=[0.8, -0.3])
+    >>> ax.get_ylabel()
+    'estimate $\\hat\\theta$'
     """
     theta, covs, default_names = _resolve(source, covariances, output)
     N, n = theta.shape
@@ -77,11 +151,12 @@ def plot_parameters(source, covariances=None, *, t=None, names=None, true_values
     hi = max(float(np.nanmax(a)) for a in shown) if np.isfinite(theta).any() else np.nan
     span = hi - lo
     for i in range(n):
-        (line,) = ax.plot(tt, theta[:, i], label=names[i])
+        color = _color(i)
+        ax.plot(*_decimate(tt, theta[:, i]), color=color, lw=1.2, label=names[i])
         if covs is not None:
             sd = np.sqrt(np.clip(covs[:, i, i], 0.0, None))
-            ax.fill_between(tt, theta[:, i] - n_std * sd, theta[:, i] + n_std * sd,
-                            color=line.get_color(), alpha=0.2, linewidth=0)
+            ax.fill_between(*_envelope(tt, theta[:, i] - n_std * sd, theta[:, i] + n_std * sd),
+                            color=color, alpha=0.2, linewidth=0)
             # the y-range follows the bands only where they are informative: the broad prior
             # of the first samples (P0 = 1e4 I: +-200) would flatten every trajectory
             narrow = n_std * sd <= span
@@ -89,21 +164,25 @@ def plot_parameters(source, covariances=None, *, t=None, names=None, true_values
                 lo = min(lo, float(np.nanmin(theta[narrow, i] - n_std * sd[narrow])))
                 hi = max(hi, float(np.nanmax(theta[narrow, i] + n_std * sd[narrow])))
         if truth is not None:
-            ax.plot(tt, truth[:, i], linestyle="--", color=line.get_color(), linewidth=1)
+            ax.plot(*_decimate(tt, truth[:, i]), linestyle="--", color=_BLACK, lw=0.9)
     if covs is not None and span > 0:
         pad = 0.05 * (hi - lo)
         ax.set_ylim(lo - pad, hi + pad)
-    ax.set_xlabel("time" if t is not None else "sample $k$")
+    ax.set_xlabel(xlabel if xlabel is not None else ("time" if t is not None else "sample $k$"))
     ax.set_ylabel(r"estimate $\hat\theta$")
     title = "parameter estimates"
     if covs is not None:
-        title += rf" ($\pm{n_std:g}\sigma$)"
+        title += rf" ($\pm{n_std:g}\sigma$ bands)"
     ax.set_title(title)
-    ax.legend(loc="best")
+    extra = []
+    if truth is not None:
+        extra.append(_proxy(color=_BLACK, linestyle="--", lw=0.9, label="true"))
+    _legend_outside(ax, extra=extra)
     return ax
 
 
-def plot_trace(source, covariances=None, *, t=None, log=True, ax=None):
+def plot_trace(source, covariances=None, *, t=None, log=True, xlabel=None, label=None,
+               ax=None):
     r"""Plot :math:`\operatorname{tr} P` over time (covariance windup shows as growth).
 
     Parameters
@@ -116,49 +195,793 @@ def plot_trace(source, covariances=None, *, t=None, log=True, ax=None):
         Time axis (sample index by default).
     log : bool, default True
         Logarithmic y axis (windup spans many decades).
+    xlabel : str, optional
+        Label of the time axis (as in :func:`plot_parameters`).
+    label : str, optional
+        Legend entry of the line, to compare several runs in one axes
+        (the next colour of the palette is used for each further line).
     ax : matplotlib.axes.Axes, optional
         Axes to draw in; a new figure is made if omitted.
 
     Returns
     -------
     matplotlib.axes.Axes
+
+    Examples
+    --------
+    >>> import matplotlib.pyplot as plt
+    >>> import numpy as np
+    >>> from rlsfilt import RecursiveLeastSquares
+    >>> from rlsfilt.plotting import plot_trace
+    >>> H = np.column_stack([np.ones(200), np.r_[np.ones(100), np.zeros(100)]])
+    >>> run = RecursiveLeastSquares(2, lam=0.95).batch_filter(H.sum(axis=1), H)
+    >>> ax = plot_trace(run)          # tr P grows once the second regressor stops
+    >>> ax.get_yscale()
+    'log'
     """
     _, covs, _ = _resolve(source, covariances, 0, need_covariances=True)
     tr = np.trace(covs, axis1=1, axis2=2)
     tt = _time_axis(t, len(tr))
     ax = _axes(ax)
-    ax.plot(tt, tr, label=r"$\mathrm{tr}\,P$")
+    color = _color(sum(1 for ln in ax.get_lines() if ln.get_label()[:1] != "_"))
+    ax.plot(*_decimate(tt, tr), color=color, lw=1.2,
+            label=label if label is not None else r"$\mathrm{tr}\,P$")
     if log and np.all(tr > 0):
         ax.set_yscale("log")
-    ax.set_xlabel("time" if t is not None else "sample $k$")
+    ax.set_xlabel(xlabel if xlabel is not None else ("time" if t is not None else "sample $k$"))
     ax.set_ylabel(r"$\mathrm{tr}\,P$")
     ax.set_title("trace of the covariance")
+    if label is not None:
+        _legend_outside(ax)
     return ax
 
 
 def plot_tracking(source, covariances=None, *, t=None, names=None, true_values=None,
-                  n_std=2.0, output=0, log=True, fig=None):
-    """Parameter trajectories (top) and ``trace(P)`` (bottom) on a shared time axis.
+                  n_std=2.0, output=0, log=True, xlabel=None, fig=None):
+    r"""Parameter trajectories (top) and :math:`\mathrm{tr}\,P` or the a-priori errors (bottom).
 
     Parameters are those of :func:`plot_parameters` and :func:`plot_trace`;
     `fig` is a matplotlib Figure to draw in (a new one if omitted).
 
+    The bottom panel shows :math:`\mathrm{tr}\,P` when covariances are
+    available (``batch_filter`` output, `covariances`, or an object's
+    ``theta_cov_history_`` / ``P_history_``). Otherwise it shows the
+    a-priori residuals :math:`y(t) - \varphi(t)^T\hat\theta(t-1)` of an
+    object that has ``recursive_residuals_`` (an ``ARX`` fitted with
+    ``method="rls"``, which keeps no covariance history): the errors the
+    filter made, which jump when the plant changes. Without either, a
+    ``ValueError`` says what to pass.
+
     Returns
     -------
     matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> import matplotlib.pyplot as plt
+    >>> from rlsfilt import ARX
+    >>> from rlsfilt.datasets import time_varying
+    >>> from rlsfilt.plotting import plot_tracking
+    >>> ds = time_varying(rng=0)
+    >>> model = ARX(*ds.orders).fit(ds.u, ds.y, method="rls", lam=0.98)
+    >>> fig = plot_tracking(model, true_values=ds.theta_true[model.max_lag:])
+    >>> fig.axes[1].get_ylabel()
+    'a-priori error $\\varepsilon(t)$'
     """
-    fig = _figure(fig, figsize=(7, 6))
-    ax1, ax2 = fig.subplots(2, 1, sharex=True)
+    _, covs, _ = _resolve(source, covariances, output)
+    errors = None
+    if covs is None:
+        errors = getattr(source, "recursive_residuals_", None)
+        if errors is None:
+            raise ValueError(
+                "plot_tracking needs covariances (batch_filter's (means, covariances), "
+                "`covariances=`, or an object with theta_cov_history_ or P_history_) or an "
+                "object with recursive_residuals_ (an ARX fitted with method='rls'); use "
+                "plot_parameters for estimates alone")
+    fig = _figure(fig, figsize=(8, 6), layout="constrained")
+    ax1, ax2 = fig.subplots(2, 1, sharex=True, height_ratios=[2, 1])
     plot_parameters(source, covariances, t=t, names=names, true_values=true_values,
-                    n_std=n_std, output=output, ax=ax1)
-    plot_trace(source, covariances, t=t, log=log, ax=ax2)
+                    n_std=n_std, output=output, xlabel=xlabel, ax=ax1)
+    if covs is not None:
+        plot_trace(source, covariances, t=t, log=log, xlabel=xlabel, ax=ax2)
+    else:
+        e = as_float_array(errors, "recursive_residuals_")
+        e = e if e.ndim == 1 else e[:, output]
+        tt = _time_axis(t, len(e))
+        ax2.plot(*_decimate(tt, e), color=_color(0), lw=0.8)
+        ax2.axhline(0.0, color=_BLACK, lw=0.6)
+        ax2.set_ylabel(r"a-priori error $\varepsilon(t)$")
+        ax2.set_title(r"one-step errors of the filter, $y(t) - \varphi(t)^T\hat\theta(t-1)$")
+        ax2.set_xlabel(xlabel if xlabel is not None
+                       else ("time" if t is not None else "sample $k$"))
     ax1.set_xlabel("")
+    return fig
+
+
+# ----------------------------------------------------------------------
+# model output against the data
+# ----------------------------------------------------------------------
+def plot_comparison(report, ax=None, *, window=None, ax_overview=None, output=0,
+                    output_name="y", output_unit=None):
+    """Measured, simulated and one-step predicted output (MATLAB ``compare``).
+
+    A record longer than the window is drawn as a readable window (`ax`)
+    plus, in `ax_overview`, the whole record with the window marked.
+
+    Parameters
+    ----------
+    report : ValidationReport
+        What :func:`~rlsfilt.validation.validate` returned.
+    ax : matplotlib.axes.Axes, optional
+        Axes for the window. If omitted, a new figure is made with the
+        window on top and, for a record longer than the window, an overview
+        below.
+    window : (int, int), optional
+        First and last-plus-one sample of the window. By default the last
+        400 samples (the whole record when it is shorter than 600 samples).
+        A window longer than ``MAX_POINTS`` samples is drawn through its
+        per-bin extremes.
+    ax_overview : matplotlib.axes.Axes, optional
+        Axes for the overview of the whole record (none is drawn when `ax`
+        is given without `ax_overview`).
+    output : int, default 0
+        Which output to show (for several outputs).
+    output_name : str, default "y"
+        Name of the output signal, for the labels.
+    output_unit : str, optional
+        Unit of the output, for the y label (e.g. ``"K"``).
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+        The window's axes.
+
+    Examples
+    --------
+    >>> import matplotlib.pyplot as plt
+    >>> from rlsfilt import ARX, validate
+    >>> from rlsfilt.datasets import dc_motor
+    >>> from rlsfilt.plotting import plot_comparison
+    >>> d = dc_motor()
+    >>> report = validate(ARX(*d.orders, dt=d.dt).fit(d.u, d.y), d.u, d.y)
+    >>> ax = plot_comparison(report, output_name="speed", output_unit="rad/s")
+    >>> ax.get_ylabel(), len(ax.figure.axes)          # window + overview of 2000 samples
+    ('speed (rad/s)', 2)
+    """
+    y = _column(report.y, output)
+    ys = _column(report.y_simulated, output)
+    yp = _column(report.y_predicted, output)
+    t = np.asarray(report.time, dtype=float)
+    N = len(y)
+    a, b = _window(window, N)
+    windowed = (a, b) != (0, N)
+    if ax is None:
+        if windowed:
+            fig = _figure(None, figsize=(10, 5), layout="constrained")
+            ax, ax_overview = fig.subplots(2, 1, height_ratios=[3, 1])
+        else:
+            fig = _figure(None, figsize=(10, 4), layout="constrained")
+            ax = fig.subplots()
+    sf = np.atleast_1d(report.simulation_fit)[output]
+    pf = np.atleast_1d(report.prediction_fit)[output]
+    time_label = "sample" if report.model.dt is True else "time (s)"
+    ylabel = output_name + (f" ({output_unit})" if output_unit else "")
+    sl = slice(a, b)
+    ax.plot(*_decimate(t[sl], y[sl]), color=_BLACK, lw=1.6, label=f"measured {output_name}")
+    if getattr(report, "is_unstable", False):
+        # a diverging simulation would set the scale and its "fit" means nothing: say so
+        ax.plot([], [], color=COLORS[0], lw=1.2, label=f"simulated: {report.stability}")
+    else:
+        ax.plot(*_decimate(t[sl], ys[sl]), color=COLORS[0], lw=1.2,
+                label=f"simulated (fit {sf:.1f}%)")
+    ax.plot(*_decimate(t[sl], yp[sl]), color=COLORS[1], lw=1.0, linestyle="--",
+            label=f"1-step predicted (fit {pf:.1f}%)")
+    ax.set_xlabel(time_label)
+    ax.set_ylabel(ylabel)
+    ax.set_title("Model output against the data")
+    ax.set_xlim(t[a], t[b - 1])
+    _legend_outside(ax)
+    if ax_overview is not None:
+        # per-bin extremes: a long record reads as its envelope, a single outlier stays visible
+        ax_overview.plot(*_decimate(t, y), color=_GREY, lw=0.7, label=f"measured {output_name}")
+        if not getattr(report, "is_unstable", False):
+            ax_overview.plot(*_decimate(t, y - ys), color=COLORS[1], lw=0.7,
+                             label=f"error {output_name} - simulated")
+        span = f"whole record ({N} samples)"
+        if windowed:
+            # the window stays visible however long the record: at least 0.5 % of the width
+            lo, hi = t[a], t[b - 1]
+            grow = max(0.0, 0.005 * (t[-1] - t[0]) - (hi - lo))
+            ax_overview.axvspan(lo - grow, hi, color=COLORS[4], alpha=0.35, linewidth=0,
+                                zorder=0, label="window shown above")
+            first, last = (a, b - 1) if report.model.dt is True else (t[a], t[b - 1])
+            span += f"; window {first:g} .. {last:g} shaded"
+        ax_overview.set_xlim(t[0], t[-1])
+        ax_overview.set_xlabel(time_label)
+        ax_overview.set_ylabel(output_name)
+        ax_overview.set_title(span, fontsize="medium", loc="left")
+        _legend_outside(ax_overview)
+    return ax
+
+
+# ----------------------------------------------------------------------
+# residual tests
+# ----------------------------------------------------------------------
+def plot_autocorrelation(analysis, ax=None):
+    r"""Stem plot of the residual autocorrelation :math:`\hat\rho_\varepsilon(k)`, lags 1 .. max.
+
+    Lag 0 (always 1) is left out, so the ``1 - alpha`` band under whiteness
+    sets the scale.
+
+    Parameters
+    ----------
+    analysis : ResidualAnalysis
+        What :func:`~rlsfilt.validation.residual_analysis` returned.
+    ax : matplotlib.axes.Axes, optional
+        Axes to draw in; a new figure is made if omitted.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+
+    Examples
+    --------
+    >>> import matplotlib.pyplot as plt
+    >>> from rlsfilt import ARX
+    >>> from rlsfilt.datasets import dc_motor
+    >>> from rlsfilt.validation import residual_analysis
+    >>> from rlsfilt.plotting import plot_autocorrelation
+    >>> d = dc_motor()
+    >>> ax = plot_autocorrelation(residual_analysis(ARX(2, 2, 1).fit(d.u, d.y), d.u, d.y))
+    >>> float(ax.get_xlim()[0]) > 0                   # lag 0 is not drawn
+    True
+    """
+    ax = _axes(ax)
+    lags = np.asarray(analysis.lags)
+    rho = np.asarray(analysis.autocorrelation, dtype=float)
+    keep = lags > 0
+    lags, rho = lags[keep], rho[keep]
+    band = float(analysis.autocorrelation_band)
+    pct = f"{100 * (1 - analysis.alpha):g}%"
+    ax.axhspan(-band, band, color=COLORS[5], alpha=0.35, linewidth=0)
+    ax.vlines(lags, 0.0, rho, color=COLORS[0], lw=1.2)
+    outside = np.abs(rho) > band
+    ax.plot(lags[~outside], rho[~outside], "o", color=COLORS[0], ms=3.5)
+    ax.plot(lags[outside], rho[outside], "o", color=COLORS[1], ms=4.5)
+    ax.axhline(0.0, color=_BLACK, lw=0.6)
+    top = 1.15 * max(band, float(np.max(np.abs(rho))) if rho.size else band)
+    ax.set_ylim(-top, top)
+    ax.set_xlim(0.4, lags.max() + 0.6 if lags.size else 1.6)
+    ax.set_xlabel("lag $k$ (samples)")
+    ax.set_ylabel(r"$\hat\rho_\varepsilon(k)$")
+    verdict = "white" if analysis.is_white else "NOT white"
+    ax.set_title(f"Residual autocorrelation: {verdict} (p = {analysis.pvalue_white:.3g})\n"
+                 f"shaded: {pct} band under whiteness", fontsize="medium")
+    return ax
+
+
+def plot_cross_correlation(analysis, ax=None):
+    r"""Cross-correlation :math:`\hat\rho_{\varepsilon u}(\tau)` of the residuals with each input.
+
+    Parameters
+    ----------
+    analysis : ResidualAnalysis
+        What :func:`~rlsfilt.validation.residual_analysis` returned.
+    ax : matplotlib.axes.Axes, optional
+        Axes to draw in; a new figure is made if omitted.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+
+    Examples
+    --------
+    >>> import matplotlib.pyplot as plt
+    >>> from rlsfilt import ARX
+    >>> from rlsfilt.datasets import dc_motor
+    >>> from rlsfilt.validation import residual_analysis
+    >>> from rlsfilt.plotting import plot_cross_correlation
+    >>> d = dc_motor()
+    >>> ax = plot_cross_correlation(residual_analysis(ARX(2, 2, 1).fit(d.u, d.y), d.u, d.y))
+    >>> ax.get_xlabel()
+    'lag $\\tau$ (samples; $\\tau > 0$: past inputs)'
+    """
+    ax = _axes(ax)
+    xc = np.asarray(analysis.cross_correlation, dtype=float)
+    nu = xc.shape[0]
+    pct = f"{100 * (1 - analysis.alpha):g}%"
+    bands = np.atleast_1d(analysis.cross_correlation_band)
+    for j in range(nu):
+        color = _color(j)
+        ax.fill_between(analysis.cross_lags, -bands[j], bands[j], color=color, alpha=0.2,
+                        linewidth=0)
+        ax.plot(analysis.cross_lags, xc[j], "o-", ms=3, lw=1.0, color=color,
+                label=f"input {j}" if nu > 1 else None)
+    ax.axhline(0.0, color=_BLACK, lw=0.6)
+    top = 1.15 * max(float(np.max(bands)), float(np.max(np.abs(xc))))
+    ax.set_ylim(-top, top)
+    ax.set_xlabel(r"lag $\tau$ (samples; $\tau > 0$: past inputs)")
+    ax.set_ylabel(r"$\hat\rho_{\varepsilon u}(\tau)$")
+    verdict = "independent" if analysis.is_independent else "NOT independent"
+    ax.set_title(f"Input cross-correlation: {verdict} (p = {analysis.pvalue_independent:.3g})"
+                 f"\nshaded: {pct} band under independence", fontsize="medium")
+    if nu > 1:
+        _legend_outside(ax)
+    return ax
+
+
+def plot_residuals(analysis, fig=None):
+    """Autocorrelation and input cross-correlations with their bands (MATLAB ``resid``).
+
+    Parameters
+    ----------
+    analysis : ResidualAnalysis
+        What :func:`~rlsfilt.validation.residual_analysis` returned.
+    fig : matplotlib.figure.Figure, optional
+        Figure to draw in (it should be empty); a new one if omitted.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> import matplotlib.pyplot as plt
+    >>> from rlsfilt import ARX
+    >>> from rlsfilt.datasets import mass_spring_damper
+    >>> from rlsfilt.validation import residual_analysis
+    >>> from rlsfilt.plotting import plot_residuals
+    >>> d = mass_spring_damper()
+    >>> fig = plot_residuals(residual_analysis(ARX(1, 1, 1).fit(d.u, d.y), d.u, d.y))
+    >>> "NOT white" in fig.axes[0].get_title()         # a first-order model is too simple
+    True
+    """
+    fig = _figure(fig, figsize=(8, 6), layout="constrained")
+    ax1, ax2 = fig.subplots(2, 1)
+    plot_autocorrelation(analysis, ax1)
+    plot_cross_correlation(analysis, ax2)
+    return fig
+
+
+# ----------------------------------------------------------------------
+# frequency and step responses
+# ----------------------------------------------------------------------
+def plot_bode(source, ax_mag=None, ax_phase=None, *, band=None, plant=None):
+    r"""Bode magnitude (dB) and phase (deg) on a logarithmic frequency axis.
+
+    Parameters
+    ----------
+    source : PlantComparison or FrequencyBand
+        A comparison with the true plant (model dashed over the plant) or a
+        model's frequency response with its uncertainty band.
+    ax_mag, ax_phase : matplotlib.axes.Axes, optional
+        Axes for magnitude and phase; a new figure with both is made unless
+        both are given.
+    band : FrequencyBand, optional
+        With a `PlantComparison`: the model's uncertainty band, drawn under
+        the two responses (its frequencies may differ from the comparison's).
+    plant : control.LTI, optional
+        With a `FrequencyBand`: a discrete system with the model's sample
+        time to overlay (black, dashed).
+
+    Returns
+    -------
+    (matplotlib.axes.Axes, matplotlib.axes.Axes)
+        The magnitude and phase axes.
+
+    Examples
+    --------
+    >>> import matplotlib.pyplot as plt
+    >>> from rlsfilt import ARX
+    >>> from rlsfilt.datasets import dc_motor
+    >>> from rlsfilt.validation import frequency_response_band
+    >>> from rlsfilt.plotting import plot_bode
+    >>> d = dc_motor()
+    >>> band = frequency_response_band(ARX(*d.orders, dt=d.dt).fit(d.u, d.y), rng=0)
+    >>> ax_mag, ax_phase = plot_bode(band, plant=d.plant)
+    >>> ax_mag.get_xscale(), ax_mag.get_ylabel()
+    ('log', '$|G(e^{j\\omega T})|$ (dB)')
+    """
+    ax_mag, ax_phase = _bode_axes(ax_mag, ax_phase)
+    if hasattr(source, "response_plant"):
+        if band is not None:
+            _draw_band(ax_mag, ax_phase, band, model_line=False)
+        _draw_comparison_bode(ax_mag, ax_phase, source)
+        unit = "rad/sample" if source.dt == 1.0 and source.model_tf.dt is True else "rad/s"
+        ax_mag.set_title(f"Bode: max relative error {100 * source.frequency_error:.3g}%")
+    elif hasattr(source, "magnitude_lower"):
+        _draw_band(ax_mag, ax_phase, source)
+        if plant is not None:
+            _draw_plant_bode(ax_mag, ax_phase, source, plant)
+        unit = "rad/sample" if source.dt_unspecified else "rad/s"
+        ax_mag.set_title("Frequency response with parameter uncertainty")
+    else:
+        raise TypeError("`source` must be a PlantComparison or a FrequencyBand; got "
+                        f"{type(source).__name__}")
+    ax_mag.set_ylabel("$|G(e^{j\\omega T})|$ (dB)")
+    ax_phase.set_ylabel("phase (deg)")
+    ax_phase.set_xlabel(f"$\\omega$ ({unit})")
+    for ax in (ax_mag, ax_phase):
+        ax.set_xscale("log")
+        ax.grid(True, which="both", alpha=0.3)
+    _legend_outside(ax_mag)
+    return ax_mag, ax_phase
+
+
+def plot_step(comparison, ax=None):
+    """Unit-step responses of model (dashed) and true plant (black).
+
+    Parameters
+    ----------
+    comparison : PlantComparison
+        A comparison of a model with its true plant.
+    ax : matplotlib.axes.Axes, optional
+        Axes to draw in; a new figure is made if omitted.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+
+    Examples
+    --------
+    >>> import matplotlib.pyplot as plt
+    >>> from rlsfilt import ARX
+    >>> from rlsfilt.datasets import thermal_process
+    >>> from rlsfilt.validation import PlantComparison
+    >>> from rlsfilt.plotting import plot_step
+    >>> d = thermal_process()
+    >>> ax = plot_step(PlantComparison(ARX(*d.orders, dt=d.dt).fit(d.u, d.y), d.plant))
+    >>> ax.get_xlabel()
+    'time (s)'
+    """
+    ax = _axes(ax)
+    for c, ((i, j), label) in enumerate(_channels(comparison.step_plant.shape[:2])):
+        ax.step(comparison.time, comparison.step_plant[i, j], color=_BLACK, lw=1.6,
+                where="post", label=f"plant{label}")
+        ax.step(comparison.time, comparison.step_model[i, j], color=_color(c), lw=1.4,
+                linestyle="--", where="post", label=f"model{label}")
+    ax.set_xlabel("time" if comparison.model_tf.dt is True else "time (s)")
+    ax.set_ylabel("step response $y(t)$")
+    ax.set_title(f"Step: relative error {100 * comparison.step_error:.3g}%")
+    ax.grid(True, alpha=0.3)
+    _legend_outside(ax)
+    return ax
+
+
+def plot_plant_comparison(comparison, fig=None, *, band=None):
+    """Bode diagram and step responses of a model over its true plant.
+
+    Parameters
+    ----------
+    comparison : PlantComparison
+        A comparison of a model with its true plant.
+    fig : matplotlib.figure.Figure, optional
+        Figure to draw in (it should be empty); a new one if omitted.
+    band : FrequencyBand, optional
+        The model's uncertainty band, drawn in the Bode diagram.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> import matplotlib.pyplot as plt
+    >>> from rlsfilt import ARX
+    >>> from rlsfilt.datasets import dc_motor
+    >>> from rlsfilt.validation import PlantComparison
+    >>> from rlsfilt.plotting import plot_plant_comparison
+    >>> d = dc_motor()
+    >>> fig = plot_plant_comparison(PlantComparison(ARX(2, 2, 1, dt=d.dt).fit(d.u, d.y),
+    ...                                             d.plant))
+    >>> len(fig.axes)
+    3
+    """
+    fig = _figure(fig, figsize=(11, 6), layout="constrained")
+    gs = fig.add_gridspec(2, 2)
+    ax_mag = fig.add_subplot(gs[0, 0])
+    ax_phase = fig.add_subplot(gs[1, 0], sharex=ax_mag)
+    ax_step = fig.add_subplot(gs[:, 1])
+    plot_bode(comparison, ax_mag, ax_phase, band=band)
+    plot_step(comparison, ax_step)
+    return fig
+
+
+def plot_frequency_band(band, fig=None, *, plant=None):
+    """Bode diagram of a model with its uncertainty band; optionally the true plant on top.
+
+    Parameters
+    ----------
+    band : FrequencyBand
+        What :func:`~rlsfilt.validation.frequency_response_band` returned.
+    fig : matplotlib.figure.Figure, optional
+        Figure to draw in (empty); a new one if omitted.
+    plant : control.LTI, optional
+        A discrete system with the model's sample time to overlay.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> import matplotlib.pyplot as plt
+    >>> from rlsfilt import ARX
+    >>> from rlsfilt.datasets import dc_motor
+    >>> from rlsfilt.validation import frequency_response_band
+    >>> from rlsfilt.plotting import plot_frequency_band
+    >>> d = dc_motor(n_samples=300)
+    >>> band = frequency_response_band(ARX(*d.orders, dt=d.dt).fit(d.u, d.y), rng=0)
+    >>> [t.get_text() for t in plot_frequency_band(band, plant=d.plant).axes[0]
+    ...  .get_legend().get_texts()]
+    ['95% band', 'model', 'plant']
+    """
+    fig = _figure(fig, figsize=(8, 6), layout="constrained")
+    ax_mag, ax_phase = fig.subplots(2, 1, sharex=True)
+    plot_bode(band, ax_mag, ax_phase, plant=plant)
+    return fig
+
+
+# ----------------------------------------------------------------------
+# order selection and structural change
+# ----------------------------------------------------------------------
+def plot_order_selection(selection, ax=None):
+    """Criterion against the number of parameters (as MATLAB's ``selstruc``).
+
+    Every candidate is a dot; the line joins the best candidate of each
+    size, and the selected structure is marked.
+
+    Parameters
+    ----------
+    selection : OrderSelection
+        What :func:`~rlsfilt.validation.select_order` returned.
+    ax : matplotlib.axes.Axes, optional
+        Axes to draw in; a new figure is made if omitted.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+
+    Examples
+    --------
+    >>> import matplotlib.pyplot as plt
+    >>> from rlsfilt import select_order
+    >>> from rlsfilt.datasets import dc_motor
+    >>> from rlsfilt.plotting import plot_order_selection
+    >>> d = dc_motor()
+    >>> ax = plot_order_selection(select_order(d.u, d.y, na=range(1, 4), nb=range(1, 4)))
+    >>> ax.get_ylabel()
+    'BIC'
+    """
+    ax = _axes(ax)
+    d = selection.table["n_params"]
+    v = selection.values
+    ax.plot(d, v, "o", color=COLORS[0], alpha=0.45, ms=4.5, label="candidates")
+    sizes = np.unique(d)
+    best_per = [np.nanmin(v[d == s]) for s in sizes]
+    ax.plot(sizes, best_per, "-", color=COLORS[0], lw=1.2, label="best of each size")
+    i = selection.best_index
+    ax.plot(d[i], v[i], "*", color=COLORS[1], ms=15, mec=_BLACK, mew=0.6,
+            label=f"selected (na, nb, nk) = {selection.best}")
+    ax.set_xlabel("number of parameters $d$")
+    crit = selection.criterion
+    ax.set_ylabel(crit.upper() if crit != "loss" else "loss $V$")
+    ax.set_title("ARX order selection")
+    ax.grid(True, alpha=0.3)
+    _legend_outside(ax)
+    return ax
+
+
+def plot_cusum(result, ax=None, *, t=None, xlabel=None):
+    r"""CUSUM or CUSUM-of-squares path with its significance lines.
+
+    The sample where the path departs furthest from its expected course
+    (zero for the CUSUM, the diagonal for the CUSUM of squares) is marked:
+    it estimates when the parameters changed. The first crossing of the
+    lines, when there is one, is marked too.
+
+    Parameters
+    ----------
+    result : CusumResult
+        What :func:`~rlsfilt.validation.cusum` or
+        :func:`~rlsfilt.validation.cusum_squares` returned.
+    ax : matplotlib.axes.Axes, optional
+        Axes to draw in; a new figure is made if omitted.
+    t : array_like, shape (N,), optional
+        Time (or sample number) of each regression row ``zs[r]``, so the
+        marks are read in the record's own samples. For an ARX regression
+        ``model.regressors(u, y)`` row ``r`` is sample ``r + max_lag``:
+        pass ``t=np.arange(max_lag, N)`` (or ``ds.t[max_lag:]``). By
+        default the row index is used.
+    xlabel : str, optional
+        Label of the time axis (default ``"sample $t$"``).
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+
+    Examples
+    --------
+    >>> import matplotlib.pyplot as plt
+    >>> import numpy as np
+    >>> from rlsfilt import ARX
+    >>> from rlsfilt.datasets import time_varying
+    >>> from rlsfilt.validation import cusum_squares
+    >>> from rlsfilt.plotting import plot_cusum
+    >>> ds = time_varying(rng=0)                      # the parameters jump at t = 1000
+    >>> Phi, z = ARX(*ds.orders).regressors(ds.u, ds.y)
+    >>> ax = plot_cusum(cusum_squares(z, Phi), t=np.arange(2, len(ds.y)))
+    >>> ax.get_legend().get_texts()[-1].get_text()
+    'largest departure at $t$ = 999'
+    """
+    ax = _axes(ax)
+    index = np.asarray(result.index)
+    if t is None:
+        x = index.astype(float)
+    else:
+        tt = as_float_array(t, "t")
+        if tt.ndim != 1 or tt.shape[0] <= index.max():
+            raise ValueError(f"`t` must have shape (N,) with one time per regression row "
+                             f"(at least {index.max() + 1}); got {tt.shape}")
+        x = tt[index]
+    name = "CUSUM" if result.kind == "cusum" else "CUSUM of squares"
+    stat = np.asarray(result.statistic, dtype=float)
+    lower, upper = (np.asarray(b, dtype=float) for b in result.bounds)
+    if result.kind == "cusum":
+        centre = np.zeros_like(stat)
+    else:
+        m = len(index)
+        centre = np.arange(1, m + 1) / m
+    ax.fill_between(*_envelope(x, lower, upper), color=COLORS[5], alpha=0.25, linewidth=0,
+                    label=f"{100 * (1 - result.alpha):g}% region under constancy")
+    ax.plot(*_decimate(x, centre), color=_GREY, lw=0.8)
+    ax.plot(*_decimate(x, lower), color=_BLACK, lw=1.0, linestyle="--")
+    ax.plot(*_decimate(x, upper), color=_BLACK, lw=1.0, linestyle="--")
+    ax.plot(*_decimate(x, stat), color=COLORS[0], lw=1.4, label=name)
+    if result.crossings.size:
+        k = int(np.searchsorted(index, result.crossings[0]))
+        ax.plot(x[k], stat[k], "o", color=COLORS[1], ms=6,
+                label=f"first crossing at $t$ = {x[k]:g}")
+    k = int(np.argmax(np.abs(stat - centre)))
+    ax.axvline(x[k], color=COLORS[1], lw=1.2, alpha=0.8,
+               label=f"largest departure at $t$ = {x[k]:g}")
+    ax.set_xlabel(xlabel if xlabel is not None else "sample $t$")
+    ax.set_ylabel("$W_t$" if result.kind == "cusum" else "$S_t$")
+    ax.set_title(f"{name}: constancy " + ("REJECTED" if result.rejected else "not rejected")
+                 + f" at {100 * result.alpha:g}%")
+    _legend_outside(ax)
+    return ax
+
+
+# ----------------------------------------------------------------------
+# the validation report
+# ----------------------------------------------------------------------
+def plot_report(report, fig=None, *, window=None, output_name="y", output_unit=None):
+    """One figure of a validation: output fit, residual tests, Bode with uncertainty, step.
+
+    Rows: the model's output against the data (a window, and an overview of
+    the whole record when it is longer); residual autocorrelation and input
+    cross-correlation; the Bode diagram of the model with its 95 %
+    uncertainty band (:func:`~rlsfilt.validation.frequency_response_band`,
+    1000 draws, seed 0) and, when the report has a plant, the plant's
+    response and both step responses. Only the first output is drawn.
+
+    Parameters
+    ----------
+    report : ValidationReport
+        What :func:`~rlsfilt.validation.validate` returned.
+    fig : matplotlib.figure.Figure, optional
+        Figure to draw in (empty); a new one if omitted.
+    window, output_name, output_unit
+        As in :func:`plot_comparison`.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> import matplotlib.pyplot as plt
+    >>> from rlsfilt import ARX, validate
+    >>> from rlsfilt.datasets import dc_motor
+    >>> from rlsfilt.plotting import plot_report
+    >>> d = dc_motor()
+    >>> report = validate(ARX(*d.orders, dt=d.dt).fit(d.u, d.y), d.u, d.y, plant=d.plant)
+    >>> fig = plot_report(report)
+    >>> [ax.get_ylabel() for ax in fig.axes][:2]
+    ['y', 'y']
+    """
+    has_plant = report.plant_comparison is not None
+    n = len(report.y)
+    windowed = _window(window, n) != (0, n)
+    fig = _figure(fig, figsize=(11, 13 if has_plant else 11), layout="constrained")
+    heights = [3, 1.2] if windowed else [3]
+    heights += [2.6, 2, 2]
+    gs = fig.add_gridspec(len(heights), 2, height_ratios=heights)
+    ax_cmp = fig.add_subplot(gs[0, :])
+    ax_over = fig.add_subplot(gs[1, :]) if windowed else None
+    plot_comparison(report, ax_cmp, window=window, ax_overview=ax_over,
+                    output_name=output_name, output_unit=output_unit)
+    row = 2 if windowed else 1
+    if report.residuals:
+        r = report.residuals[0]
+        plot_autocorrelation(r, fig.add_subplot(gs[row, 0]))
+        plot_cross_correlation(r, fig.add_subplot(gs[row, 1]))
+    else:   # validate(..., skip_undefined=True) recorded why the tests were skipped
+        ax = fig.add_subplot(gs[row, :])
+        ax.text(0.5, 0.5, f"residual tests skipped:\n{report.skipped}", ha="center",
+                va="center", transform=ax.transAxes)
+        ax.set_axis_off()
+    band = _report_band(report)
+    if has_plant:
+        ax_mag = fig.add_subplot(gs[row + 1, 0])
+        ax_phase = fig.add_subplot(gs[row + 2, 0], sharex=ax_mag)
+        plot_bode(report.plant_comparison, ax_mag, ax_phase, band=band)
+        plot_step(report.plant_comparison, fig.add_subplot(gs[row + 1:, 1]))
+    else:
+        ax_mag = fig.add_subplot(gs[row + 1:, 0])
+        ax_phase = fig.add_subplot(gs[row + 1:, 1])
+        plot_bode(band, ax_mag, ax_phase)
+        ax_phase.set_title("phase")
     return fig
 
 
 # ----------------------------------------------------------------------
 # helpers
 # ----------------------------------------------------------------------
+def _report_band(report):
+    """The 95 % band of the report's model (seed 0: the same figure on every call), on the
+    plant comparison's frequencies when there is one (`ValidationReport.frequency_band`;
+    plotting imports nothing from rlsfilt.validation)."""
+    return report.frequency_band()
+
+
+def _draw_band(ax_mag, ax_phase, band, model_line=True):
+    ny, nu = band.response.shape[:2]
+    pct = f"{100 * band.level:g}%"
+    for c, (i, j) in enumerate((i, j) for i in range(ny) for j in range(nu)):
+        tag = f" (u{j} to y{i})" if ny * nu > 1 else ""
+        color = _color(c)
+        ax_mag.fill_between(band.omega, _db(band.magnitude_lower[i, j]),
+                            _db(band.magnitude_upper[i, j]), color=color, alpha=0.25,
+                            linewidth=0, label=f"{pct} band{tag}")
+        ax_phase.fill_between(band.omega, band.phase_lower[i, j], band.phase_upper[i, j],
+                              color=color, alpha=0.25, linewidth=0)
+        if model_line:   # a PlantComparison draws the model itself
+            ax_mag.plot(band.omega, _db(np.abs(band.response[i, j])), color=color, lw=1.4,
+                        label=f"model{tag}")
+            ax_phase.plot(band.omega, np.degrees(np.unwrap(np.angle(band.response[i, j]))),
+                          color=color, lw=1.4)
+
+
+def _draw_comparison_bode(ax_mag, ax_phase, comparison):
+    for c, ((i, j), label) in enumerate(_channels(comparison.response_plant.shape[:2])):
+        for resp, name, color, style, lw in (
+                (comparison.response_plant, "plant", _BLACK, "-", 1.6),
+                (comparison.response_model, "model", _color(c), "--", 1.4)):
+            g = resp[i, j]
+            ax_mag.plot(comparison.omega, _db(np.abs(g)), color=color, linestyle=style, lw=lw,
+                        label=f"{name}{label}")
+            ax_phase.plot(comparison.omega, np.degrees(np.unwrap(np.angle(g))), color=color,
+                          linestyle=style, lw=lw)
+
+
+def _draw_plant_bode(ax_mag, ax_phase, band, plant):
+    import control
+
+    z = np.exp(1j * band.omega * band.dt)
+    G = np.asarray(control.tf(plant)(z, squeeze=False))
+    ny, nu = band.response.shape[:2]
+    first = True
+    for i in range(min(ny, G.shape[0])):
+        for j in range(min(nu, G.shape[1])):
+            ax_mag.plot(band.omega, _db(np.abs(G[i, j])), color=_BLACK, linestyle="--", lw=1.2,
+                        label="plant" if first else None)
+            ax_phase.plot(band.omega, np.degrees(np.unwrap(np.angle(G[i, j]))), color=_BLACK,
+                          linestyle="--", lw=1.2)
+            first = False
+
+
 def _resolve(source, covariances, output, need_covariances=False):
     """Return ``theta (N, n)``, ``covs (N, n, n) or None`` and default names."""
     names = None
@@ -221,12 +1044,109 @@ def _names(names, default, n):
     return names
 
 
+def _column(a, output):
+    a = np.asarray(a, dtype=float)
+    return a if a.ndim == 1 else a[:, output]
+
+
+def _window(window, N):
+    """``(start, stop)`` of the comparison window, validated."""
+    if window is None:
+        return (0, N) if N < 1.5 * _WINDOW else (N - _WINDOW, N)
+    try:
+        a, b = (int(w) for w in window)
+    except (TypeError, ValueError):
+        raise TypeError(f"`window` must be a pair (start, stop) of sample indices; got "
+                        f"{window!r}") from None
+    if not 0 <= a < b <= N or b - a < 2:
+        raise ValueError(f"`window` must satisfy 0 <= start < stop <= {N} with at least 2 "
+                         f"samples; got {window!r}")
+    return a, b
+
+
+def _color(i):
+    return COLORS[i % len(COLORS)]
+
+
+def _db(mag):
+    return 20.0 * np.log10(np.maximum(mag, np.finfo(float).tiny))
+
+
+def _decimate(x, y, max_points=MAX_POINTS):
+    """``(x, y)``, or their per-bin minima and maxima in time order when longer than
+    `max_points` (the line then looks the same at any screen resolution)."""
+    x = np.asarray(x)
+    y = np.asarray(y, dtype=float)
+    n = len(y)
+    if n <= max_points:
+        return x, y
+    bins = max_points // 2
+    edges = np.linspace(0, n, bins + 1).astype(int)
+    size = int(np.max(np.diff(edges)))
+    # pad each bin to the same length with NaN, then take the extremes of each row
+    idx = edges[:-1, None] + np.arange(size)[None, :]
+    valid = idx < edges[1:, None]
+    idx = np.where(valid, idx, edges[1:, None] - 1)
+    block = np.where(valid, y[idx], np.nan)
+    finite = np.isfinite(block)
+    lo = np.argmin(np.where(finite, block, np.inf), axis=1)
+    hi = np.argmax(np.where(finite, block, -np.inf), axis=1)
+    rows = np.arange(bins)
+    pick = np.sort(np.stack([idx[rows, lo], idx[rows, hi]], axis=1), axis=1).ravel()
+    return x[pick], y[pick]
+
+
+def _envelope(x, lower, upper, max_points=MAX_POINTS):
+    """``(x, lower, upper)`` for ``fill_between``, reduced to per-bin extremes if long."""
+    x = np.asarray(x)
+    lower = np.asarray(lower, dtype=float)
+    upper = np.asarray(upper, dtype=float)
+    n = len(x)
+    if n <= max_points:
+        return x, lower, upper
+    bins = max_points // 2
+    edges = np.linspace(0, n, bins + 1).astype(int)
+    with np.errstate(invalid="ignore"):
+        lo = np.fmin.reduceat(lower, edges[:-1])
+        hi = np.fmax.reduceat(upper, edges[:-1])
+    xs = x[edges[:-1]]
+    return xs, lo, hi
+
+
+def _legend_outside(ax, extra=()):
+    """A legend to the right of the axes, off the data (nothing when there is nothing to
+    label)."""
+    handles, labels = ax.get_legend_handles_labels()
+    for h in extra:
+        handles.append(h)
+        labels.append(h.get_label())
+    if not handles:
+        return None
+    return ax.legend(handles, labels, loc="upper left", bbox_to_anchor=(1.01, 1.0),
+                     borderaxespad=0.0, fontsize="small", frameon=False)
+
+
+def _proxy(**kwargs):
+    """A legend entry that is not drawn in the axes."""
+    from matplotlib.lines import Line2D
+
+    return Line2D([], [], **kwargs)
+
+
+def _channels(shape):
+    ny, nu = shape
+    for i in range(ny):
+        for j in range(nu):
+            yield (i, j), (f" (u{j} to y{i})" if ny * nu > 1 else "")
+
+
 def _axes(ax=None):
-    """`ax`, or the axes of a new figure (matplotlib is imported only then)."""
+    """`ax`, or the axes of a new figure with constrained layout (matplotlib is imported
+    only then), so labels are kept inside the figure when it is saved."""
     if ax is None:
         import matplotlib.pyplot as plt
 
-        _, ax = plt.subplots()
+        _, ax = plt.subplots(figsize=(7, 4), layout="constrained")
     return ax
 
 
@@ -244,5 +1164,6 @@ def _bode_axes(ax_mag=None, ax_phase=None):
     if ax_mag is None or ax_phase is None:
         import matplotlib.pyplot as plt
 
-        _, (ax_mag, ax_phase) = plt.subplots(2, 1, sharex=True)
+        _, (ax_mag, ax_phase) = plt.subplots(2, 1, sharex=True, figsize=(8, 6),
+                                             layout="constrained")
     return ax_mag, ax_phase

@@ -54,3 +54,24 @@ def test_contenders_compute_the_same_estimate():
         if name in ("statsmodels", "write 2 N n^2") or not bench._available(module):
             continue                  # statsmodels has no forgetting: a different estimate
         assert_allclose(fn(Hs, zs), ref, rtol=1e-6, atol=1e-8, err_msg=name)
+
+
+def test_plot_gives_every_contender_its_own_colour(tmp_path):
+    """The docs figure is redrawn from its saved times (--replot): one distinct colour per line."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.colors import to_hex
+
+    bench = _load_script()
+    saved = ROOT / "docs" / "images" / "bench_rls.json"
+    results = bench.main(["--replot", str(saved), "--plot", str(tmp_path / "b.png")])
+    assert (tmp_path / "b.png").stat().st_size > 1000
+    ax = bench.plot(results)
+    lines = ax.get_lines()
+    assert len(lines) == len(bench.COLUMNS)
+    colours = [to_hex(ln.get_color()) for ln in lines]
+    assert len(set(colours)) == len(colours), colours
+    assert set(bench.STYLES) == set(bench.COLUMNS)
+    plt.close("all")

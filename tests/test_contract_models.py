@@ -16,7 +16,7 @@ import pytest
 from _toy_models import FirstOrderOE
 from scipy.signal import lfilter
 
-from rlsfilt import ARX, NotFittedError, validate
+from rlsfilt import ARMAX, ARX, BJ, OE, NotFittedError, validate
 from rlsfilt.models import IdentifiedModel
 
 
@@ -75,6 +75,23 @@ MODELS = [
     ModelCase("ARX-rls", lambda: ARX(2, 2, 1), _siso, {"method": "rls"}),
     ModelCase("ARX-fir", lambda: ARX(0, 3, 1), _siso),
     ModelCase("FirstOrderOE", lambda: FirstOrderOE(dt=0.2), _oe, least_squares=False),
+    ModelCase("ARX-iv", lambda: ARX(2, 2, 1), _siso, {"method": "iv"}, least_squares=False),
+    ModelCase("ARX-riv-delayed", lambda: ARX(2, 2, 1), _siso,
+              {"method": "riv", "instruments": "delayed"}, least_squares=False),
+    ModelCase("ARX-iv-2-outputs", lambda: ARX(1, 2, 1, dt=0.5), _mimo,
+              {"method": "iv", "instruments": "delayed"}, least_squares=False),
+    # the prediction-error family (time-series AR/ARMA: tests/test_model_family.py)
+    ModelCase("ARMAX-pem", lambda: ARMAX(2, 2, 1, 1, dt=0.1), _siso, least_squares=False),
+    ModelCase("ARMAX-nc0-is-least-squares", lambda: ARMAX(2, 2, 0, 1), _siso),
+    ModelCase("ARMAX-rpem-2-inputs", lambda: ARMAX(1, [2, 1], 1, [0, 1]), _miso,
+              {"method": "rpem"}, least_squares=False),
+    ModelCase("ARMAX-rplr", lambda: ARMAX(2, 2, 1, 1), _siso, {"method": "rplr", "lam": 0.999},
+              least_squares=False),
+    ModelCase("OE-pem", lambda: OE(1, 1, 1, dt=0.2), _oe, least_squares=False),
+    ModelCase("OE-feedthrough-2-inputs", lambda: OE([2, 2], [1, 1], [0, 1]), _miso,
+              least_squares=False),
+    ModelCase("OE-rpem", lambda: OE(1, 1, 1), _oe, {"method": "rpem"}, least_squares=False),
+    ModelCase("BJ-pem", lambda: BJ(2, 1, 1, 2, 1), _siso, least_squares=False),
 ]
 
 cases = pytest.mark.parametrize("case", MODELS, ids=[c.name for c in MODELS])
@@ -234,8 +251,14 @@ def test_get_params_set_params_round_trip(case):
     assert refit is clone
     np.testing.assert_array_equal(refit.theta_, model.theta_)
     assert clone.set_params(**params) is clone and clone.get_params() == params
+    # the repr shows every parameter up to dt, and later options (offset, ...) when set
+    shown = case.make()._display_params()
+    params = case.make().get_params()
+    names = list(params)
+    cut = names.index("dt") + 1 if "dt" in names else len(names)
+    assert set(names[:cut]) <= set(shown) and set(shown) <= set(names)
     assert repr(case.make()) == f"{type(model).__name__}(" + ", ".join(
-        f"{k}={v!r}" for k, v in case.make().get_params().items()) + ")"
+        f"{k}={v!r}" for k, v in shown.items()) + ")"
 
 
 @cases

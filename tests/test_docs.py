@@ -18,6 +18,7 @@ PAGES = sorted(p for p in DOCS.rglob("*.md")
 # public modules whose __all__ the API reference must cover (the command line's `main` and the
 # exceptions too: a name dropped from any of their lists in docs/api/index.rst must fail the test)
 SUBPACKAGES = ["rlsfilt.filters", "rlsfilt.models", "rlsfilt.datasets", "rlsfilt.validation",
+               "rlsfilt.adaptive", "rlsfilt.data",
                "rlsfilt.plotting", "rlsfilt.exceptions", "rlsfilt.cli"]
 _FENCE = re.compile(r"^(?P<skip>% skip-test\n)?```python\n(?P<code>.*?)^```$", re.M | re.S)
 

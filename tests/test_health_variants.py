@@ -1,6 +1,6 @@
 """Health of P in SquareRootRLS and SlidingWindowRLS: windup (or a window that stops
-exciting a direction) warns once, with the step, on the compiled and the NumPy reference
-paths alike; a benign run stays quiet."""
+exciting a direction) warns once, with the step, in batch_filter, with a Saver and when
+streaming alike; a benign run stays quiet."""
 
 import re
 import warnings
@@ -10,17 +10,8 @@ import pytest
 from conftest import arx_record
 
 from rlsfilt import NumericalWarning, SlidingWindowRLS, SquareRootRLS
-from rlsfilt.filters import sliding_window as sw_module
-from rlsfilt.filters import square_root as sr_module
 
 LAM, P0 = 0.98, 1e4
-
-
-@pytest.fixture(params=[True, False], ids=["compiled", "reference"])
-def path(request, monkeypatch):
-    """Run the test on the compiled kernels and on the NumPy reference."""
-    monkeypatch.setattr(sr_module, "_COMPILED", request.param)
-    return request.param
 
 
 def _windup(n):
@@ -54,7 +45,7 @@ def test_closed_form_condition_number_matches_the_filter():
     assert _first_ill_conditioned_update() == 684
 
 
-def test_windup_warns_once_with_the_update(path):
+def test_windup_warns_once_with_the_update():
     zs, Hs = _windup(2000)
     first = _first_ill_conditioned_update()
     f = SquareRootRLS(2, lam=LAM, P0=P0, check_every=1)
@@ -69,7 +60,7 @@ def test_windup_warns_once_with_the_update(path):
     assert np.trace(f.P) > 1e20                  # the windup went on (the filter only warns)
 
 
-def test_windup_batch_filter_names_the_step(path):
+def test_windup_batch_filter_names_the_step():
     zs, Hs = _windup(2000)
     first = _first_ill_conditioned_update()
     detected = -(-first // 100) * 100            # the next multiple of check_every=100
@@ -87,22 +78,19 @@ def test_windup_batch_filter_names_the_step(path):
 
 @pytest.mark.parametrize("update_first", [False, True])
 @pytest.mark.parametrize("how", ["batch", "saver", "streaming"])
-def test_compiled_and_reference_warn_identically(monkeypatch, how, update_first):
+def test_every_path_names_the_oracle_update(how, update_first):
     zs, Hs = _windup(1000)
     messages = []
-    for compiled in (True, False):
-        monkeypatch.setattr(sr_module, "_COMPILED", compiled)
-        f = SquareRootRLS(2, lam=LAM, P0=P0, check_every=7)
-        with pytest.warns(NumericalWarning) as record:
-            if how == "streaming":
-                for k in range(len(zs)):
-                    f.predict_update(zs[k], Hs[k])
-            else:
-                saver = _NullSaver() if how == "saver" else None
-                f.batch_filter(zs, Hs, update_first=update_first, saver=saver)
-        assert len(record) == 1
-        messages.append(str(record[0].message))
-    assert messages[0] == messages[1]
+    f = SquareRootRLS(2, lam=LAM, P0=P0, check_every=7)
+    with pytest.warns(NumericalWarning) as record:
+        if how == "streaming":
+            for k in range(len(zs)):
+                f.predict_update(zs[k], Hs[k])
+        else:
+            saver = _NullSaver() if how == "saver" else None
+            f.batch_filter(zs, Hs, update_first=update_first, saver=saver)
+    assert len(record) == 1
+    messages.append(str(record[0].message))
     first = _first_ill_conditioned_update()
     detected = -(-first // 7) * 7
     where = (f"at update {detected} since reset" if how == "streaming"
@@ -115,7 +103,7 @@ class _NullSaver:
         pass
 
 
-def test_benign_run_does_not_warn(path):
+def test_benign_run_does_not_warn():
     rng = np.random.default_rng(7)
     Hs, zs = arx_record(rng, n_samples=20_002, noise_std=0.05)
     with warnings.catch_warnings():
@@ -131,7 +119,7 @@ def test_benign_run_does_not_warn(path):
     np.testing.assert_allclose(a.x[:, 0], [-1.5, 0.7, 1.0, 0.5], atol=0.02)
 
 
-def test_lower_threshold_warns_earlier(path):
+def test_lower_threshold_warns_earlier():
     zs, Hs = _windup(1000)
     first = _first_ill_conditioned_update(cond_max=1e8)
     f = SquareRootRLS(2, lam=LAM, P0=P0, check_every=1, cond_max=1e8)
@@ -139,7 +127,7 @@ def test_lower_threshold_warns_earlier(path):
         f.batch_filter(zs, Hs)
 
 
-def test_check_can_be_disabled_and_reset_rearms_it(path):
+def test_check_can_be_disabled_and_reset_rearms_it():
     zs, Hs = _windup(2000)
     f = SquareRootRLS(2, lam=LAM, P0=P0, check_every=0)
     with warnings.catch_warnings():
@@ -159,14 +147,14 @@ def test_check_can_be_disabled_and_reset_rearms_it(path):
             f.predict_update(zs[k], Hs[k])
 
 
-def test_end_of_batch_check_catches_a_windup_between_periodic_checks(path):
+def test_end_of_batch_check_catches_a_windup_between_periodic_checks():
     zs, Hs = _windup(750)
     f = SquareRootRLS(2, lam=LAM, P0=P0, check_every=1000)
     with pytest.warns(NumericalWarning, match=r"ill-conditioned .* at update 750 since reset"):
         f.batch_filter(zs, Hs)
 
 
-def test_corrupted_factor_is_caught_by_the_cheap_check(path):
+def test_corrupted_factor_is_caught_by_the_cheap_check():
     # e.g. a state corrupted by hand: a NaN on the diagonal of the factor
     f = SquareRootRLS(2, check_every=1000)
     f._U[1, 1] = np.nan
@@ -191,12 +179,6 @@ def test_bad_health_arguments(make):
 # SlidingWindowRLS: a window whose rows stop exciting a direction
 # ----------------------------------------------------------------------
 WINDOW, N_EXCITING = 50, 137
-
-
-@pytest.fixture(params=[True, False], ids=["compiled", "reference"])
-def sw_path(request, monkeypatch):
-    monkeypatch.setattr(sw_module, "_COMPILED", request.param)
-    return request.param
 
 
 def _collinear_record(n=400):
@@ -224,7 +206,7 @@ def test_sliding_window_oracle_step():
     assert _first_ill_conditioned_window(Hs) == N_EXCITING + WINDOW   # the last random row left
 
 
-def test_sliding_window_warns_once_with_the_update(sw_path):
+def test_sliding_window_warns_once_with_the_update():
     zs, Hs = _collinear_record()
     first = _first_ill_conditioned_window(Hs)
     f = SlidingWindowRLS(2, WINDOW, check_every=1)
@@ -237,7 +219,7 @@ def test_sliding_window_warns_once_with_the_update(sw_path):
     assert f.n_updates == len(zs)
 
 
-def test_sliding_window_batch_filter_names_the_step(sw_path):
+def test_sliding_window_batch_filter_names_the_step():
     zs, Hs = _collinear_record()
     first = _first_ill_conditioned_window(Hs)
     detected = -(-first // 100) * 100            # default check_every=100
@@ -254,29 +236,24 @@ def test_sliding_window_batch_filter_names_the_step(sw_path):
 
 
 @pytest.mark.parametrize("how", ["batch", "saver", "streaming"])
-def test_sliding_window_compiled_and_reference_warn_identically(monkeypatch, how):
+def test_sliding_window_every_path_names_the_oracle_update(how):
     zs, Hs = _collinear_record()
     messages = []
-    for compiled in (True, False):
-        monkeypatch.setattr(sw_module, "_COMPILED", compiled)
-        f = SlidingWindowRLS(2, WINDOW, check_every=9)
-        with pytest.warns(NumericalWarning) as record:
-            if how == "streaming":
-                for k in range(len(zs)):
-                    f.update(zs[k], Hs[k])
-            else:
-                f.batch_filter(zs, Hs, saver=_NullSaver() if how == "saver" else None)
-        assert len(record) == 1
-        # at cond(P) ~ 4e14 the printed condition number is only good to a few
-        # percent (eps cond(P)): the two paths agree on everything else
-        messages.append(re.sub(r"condition number \S+", "condition number ~",
-                               str(record[0].message)))
-    assert messages[0] == messages[1]
+    f = SlidingWindowRLS(2, WINDOW, check_every=9)
+    with pytest.warns(NumericalWarning) as record:
+        if how == "streaming":
+            for k in range(len(zs)):
+                f.update(zs[k], Hs[k])
+        else:
+            f.batch_filter(zs, Hs, saver=_NullSaver() if how == "saver" else None)
+    assert len(record) == 1
+    messages.append(str(record[0].message))
+    assert "ill-conditioned" in messages[0]
     detected = -(-_first_ill_conditioned_window(Hs) // 9) * 9
     assert f"update {detected} since reset" in messages[0]
 
 
-def test_sliding_window_benign_run_does_not_warn(sw_path):
+def test_sliding_window_benign_run_does_not_warn():
     rng = np.random.default_rng(8)
     Hs, zs = arx_record(rng, n_samples=3002, noise_std=0.05)
     with warnings.catch_warnings():
@@ -289,7 +266,7 @@ def test_sliding_window_benign_run_does_not_warn(sw_path):
     assert a.n_updates == 3000 and b.n_updates == 500
 
 
-def test_sliding_window_check_can_be_disabled_and_reset_rearms_it(sw_path):
+def test_sliding_window_check_can_be_disabled_and_reset_rearms_it():
     zs, Hs = _collinear_record()
     f = SlidingWindowRLS(2, WINDOW, check_every=0)
     with warnings.catch_warnings():
@@ -302,7 +279,7 @@ def test_sliding_window_check_can_be_disabled_and_reset_rearms_it(sw_path):
         f.batch_filter(zs, Hs)
 
 
-def test_sliding_window_indefinite_P_is_caught_by_the_cheap_check(sw_path):
+def test_sliding_window_indefinite_P_is_caught_by_the_cheap_check():
     f = SlidingWindowRLS(2, 10, check_every=1000)
     f.P = np.array([[1.0, 0.0], [0.0, -1e-3]])      # e.g. a corrupted state
     with pytest.warns(NumericalWarning, match=r"`P` is not positive definite \(smallest "

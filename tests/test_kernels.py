@@ -1,14 +1,16 @@
-"""The compiled (numba) recursion against the pure-NumPy reference path.
+"""The compiled kernels of `RecursiveLeastSquares` against the textbook reference.
 
-`batch_filter`, ``predict`` and ``update`` run compiled kernels;
-``rlsfilt.filters.rls._COMPILED = False`` switches them to the NumPy code
-(``_batch_reference``, ``_measurement_step``). The two must agree to 1e-12 on
-well-conditioned data for every option (every forgetting mode, the gate, the
-constraints), and the streaming ``predict``/``update`` must reproduce the
-batch run bit for bit (they run the same compiled step).
+Every public method runs the compiled kernels (``rlsfilt.filters._kernels``);
+the readable recursion is ``rlsfilt.filters._reference``. The two must agree
+to 1e-12 (relative to each step's largest entry), step by step, on
+well-conditioned data for every forgetting mode with and without the gate,
+the constraints, a random walk ``Q``, per-sample ``Rs``, missing samples,
+``update_first``, several outputs and covariance histories on or off; the
+streaming ``predict``/``update`` must reproduce ``batch_filter`` bit for bit
+(they run the same compiled step; the fused default loop gives the same
+bits).
 """
 
-import functools
 import re
 
 import numpy as np
@@ -16,12 +18,16 @@ import pytest
 from conftest import arx_record
 from conftest import assert_close_steps as _close
 from numpy.testing import assert_allclose, assert_array_equal
+from reference_runs import rls_run
 
 from rlsfilt import NumericalWarning, RecursiveLeastSquares
-from rlsfilt.filters import _kernels
-from rlsfilt.filters import rls as rls_module
+from rlsfilt.filters import _health, _kernels_shared, _streaming
 
 STATE = ("x", "P", "x_prior", "P_prior", "x_post", "P_post", "y", "K", "S", "SI", "z", "H")
+MODES = ["exponential", "directional", "constant_trace", "efra", "variable"]
+A_C = np.array([[1.0, 1.0, 0.0, 0.0]])      # a1 + a2 = -0.8, true for arx_record's plant
+B_C = np.array([-0.8])
+OUTLIERS = (40, 90, 91)
 
 
 def _record(rng, n_samples, dim_z=1, missing=(), scale=1.0):
@@ -36,22 +42,39 @@ def _record(rng, n_samples, dim_z=1, missing=(), scale=1.0):
     return Hs, zs
 
 
+def _compare_with_reference(f, out, ref, name=""):
+    """`batch_filter`'s histories and the filter's last step against the reference run."""
+    for label, c, r in zip(("means", "covariances", "means_p", "covariances_p"), out,
+                           (ref.means, ref.covs, ref.means_p, ref.covs_p)):
+        if c is not None and len(c):
+            _close(c, r, f"{label} {name}")
+    if len(ref.means):
+        _close(f.x, ref.means[-1], f"x {name}")
+        _close(f.P, (ref.covs_p if len(ref.covs_p) and _last_predicted(f) else ref.covs)[-1],
+               f"P {name}")
+        _close(f.x_post, ref.means[-1], f"x_post {name}")
+        _close(f.P_post, ref.covs[-1], f"P_post {name}")
+        _close(f.y, ref.ys[-1].reshape(-1, 1), f"y {name}")
+        _close(f.K, ref.K, f"K {name}")
+        assert f.S[0, 0] == pytest.approx(ref.ss[-1], rel=1e-12), name
+        assert f.gated == ref.gated[-1] and f.n_gated == ref.gated.sum(), name
+        assert f.lam_t == pytest.approx(ref.lam_t[-1], rel=1e-12), name
 
 
-def _run_both(monkeypatch, make, zs, Hs, **kwargs):
-    a, b = make(), make()
-    out_c = a.batch_filter(zs, Hs, **kwargs)
-    monkeypatch.setattr(rls_module, "_COMPILED", False)
-    out_r = b.batch_filter(zs, Hs, **kwargs)
-    monkeypatch.setattr(rls_module, "_COMPILED", True)
-    return a, b, out_c, out_r
+def _last_predicted(f):
+    return f._updates_since_predict == 0
 
 
+# ----------------------------------------------------------------------
+# kernels == reference, step by step
+# ----------------------------------------------------------------------
 OPTIONS = [
     # lam, Q, use_Rs, update_first, store_covariances, dim_z, missing
     (1.0, 0.0, False, False, True, 1, ()),
     (0.95, 0.0, False, False, True, 1, ()),
+    (0.95, 0.0, False, False, False, 1, ()),            # the fused default loop
     (0.95, 0.0, False, True, True, 1, ()),
+    (0.95, 0.0, False, True, False, 1, (0, 7, 150, 299)),
     (0.97, 1e-4, False, False, True, 1, ()),
     (0.97, "matrix", True, True, True, 1, ()),
     (0.9, 0.0, True, False, False, 1, (0, 7, 150, 299)),
@@ -63,71 +86,117 @@ OPTIONS = [
 
 
 @pytest.mark.parametrize("lam, Q, use_Rs, update_first, store, dim_z, missing", OPTIONS)
-def test_compiled_equals_reference(rng, monkeypatch, lam, Q, use_Rs, update_first, store,
-                                   dim_z, missing):
+def test_batch_equals_reference(rng, lam, Q, use_Rs, update_first, store, dim_z, missing):
     Hs, zs = _record(rng, 300, dim_z, missing)
     if isinstance(Q, str):
         A = rng.standard_normal((4, 4))
         Q = 1e-4 * (A @ A.T) / 4
-    kwargs = {"update_first": update_first, "store_covariances": store}
-    if use_Rs:
-        kwargs["Rs"] = rng.uniform(0.5, 2.0, len(zs))
-
-    def make():
-        return RecursiveLeastSquares(4, dim_z, lam=lam, Q=Q, P0=100.0, R=0.7)
-
-    a, b, out_c, out_r = _run_both(monkeypatch, make, zs, Hs, **kwargs)
-    for name, c, r in zip(("means", "covariances", "means_p", "covariances_p"), out_c, out_r):
-        if r is None:
-            assert c is None, name
-        else:
-            _close(c, r, name)
-    for name in STATE:
-        _close(getattr(a, name), getattr(b, name), name)
-    assert a.log_likelihood == pytest.approx(b.log_likelihood, rel=1e-12)
-    assert a.mahalanobis == pytest.approx(b.mahalanobis, rel=1e-12, abs=1e-300, nan_ok=True)
+    Rs = rng.uniform(0.5, 2.0, len(zs)) if use_Rs else None
+    f = RecursiveLeastSquares(4, dim_z, lam=lam, Q=Q, P0=100.0, R=0.7)
+    ref = rls_run(f, zs, Hs, Rs, update_first)
+    out = f.batch_filter(zs, Hs, Rs=Rs, update_first=update_first, store_covariances=store)
+    assert (out[1] is None) == (not store) and (out[3] is None) == (not store)
+    _compare_with_reference(f, out, ref)
 
 
 @pytest.mark.parametrize("update_first", [False, True])
 @pytest.mark.parametrize("n_samples", [0, 1, 2])
-def test_compiled_equals_reference_on_tiny_records(rng, monkeypatch, update_first, n_samples):
+def test_batch_equals_reference_on_tiny_records(rng, update_first, n_samples):
     Hs, zs = _record(rng, 5)
     Hs, zs = Hs[:n_samples], zs[:n_samples]
+    for store in (False, True):
+        f = RecursiveLeastSquares(4, lam=0.9, Q=1e-3)
+        ref = rls_run(f, zs, Hs, None, update_first)
+        out = f.batch_filter(zs, Hs, update_first=update_first, store_covariances=store)
+        assert out[0].shape == (n_samples, 4, 1) and out[2].shape == (n_samples, 4, 1)
+        _compare_with_reference(f, out, ref)
+        assert f.n_updates == n_samples
 
-    def make():
-        return RecursiveLeastSquares(4, lam=0.9, Q=1e-3)
 
-    a, b, out_c, out_r = _run_both(monkeypatch, make, zs, Hs, update_first=update_first)
-    for c, r in zip(out_c, out_r):
-        assert c.shape == r.shape
-        assert_allclose(c, r, rtol=1e-12, atol=1e-12)
+def _robust_record(rng, dim_z, missing):
+    Hs, zs = _record(rng, 120, dim_z, missing)
+    zs[list(OUTLIERS)] += 25.0                   # gross outliers for the gate
+    return Hs, zs
+
+
+def _make_filter(mode, gate, constrained, Q, dim_z):
+    rls = RecursiveLeastSquares(4, dim_z, lam=0.95, Q=Q, P0=100.0, R=0.5, forgetting=mode,
+                                gate=4.0 if gate else None, check_every=10)
+    if constrained:
+        rls.constrain(A_C, B_C)
+    return rls
+
+
+@pytest.mark.parametrize("Q", [0.0, 1e-4])
+@pytest.mark.parametrize("constrained", [False, True])
+@pytest.mark.parametrize("gate", [False, True])
+@pytest.mark.parametrize("mode", MODES)
+def test_every_mode_gate_and_constraint_batch_equals_reference(rng, mode, gate, constrained, Q):
+    """batch_filter against the reference for every missing x update_first x
+    store_covariances x dim_z combination of one mode/gate/constraint/Q setting."""
+    for dim_z in (1, 2):
+        for missing in ((), (0, 7, 60, 119)):
+            Hs, zs = _robust_record(rng, dim_z, missing)
+            for update_first in (False, True):
+                for store in (False, True):
+                    Rs = rng.uniform(0.3, 0.8, len(zs)) if update_first else None
+                    f = _make_filter(mode, gate, constrained, Q, dim_z)
+                    ref = rls_run(f, zs, Hs, Rs, update_first)
+                    out = f.batch_filter(zs, Hs, Rs=Rs, update_first=update_first,
+                                         store_covariances=store)
+                    tag = f"dim_z={dim_z} missing={missing} uf={update_first} store={store}"
+                    _compare_with_reference(f, out, ref, tag)
+                    assert f.n_updates == len(zs)
+                    if gate and not missing:
+                        assert f.n_gated >= len(OUTLIERS), tag
+                    if constrained:
+                        assert_allclose(A_C @ f.x, np.tile(B_C, (1, dim_z)), atol=1e-10)
+
+
+@pytest.mark.parametrize("robust", [False, True])
+@pytest.mark.parametrize("mode", MODES)
+def test_every_mode_streaming_equals_reference_and_batch(rng, mode, robust):
+    """predict()/update() run the compiled step: equal to the reference step by step to
+    1e-12 and to batch_filter bit for bit, with Q and missing samples, with and without
+    the gate and the constraints."""
+    Hs, zs = _robust_record(rng, 2, (5, 70))
+    f = _make_filter(mode, robust, robust, 1e-4, 2)
+    ref = rls_run(f, zs, Hs)
+    steps = []
+    for k in range(len(zs)):
+        f.predict()
+        _close(f.P, ref.covs_p[k], f"P_prior {k}")
+        f.update(zs[k], Hs[k])
+        _close(f.x, ref.means[k], f"x {k}")
+        _close(f.P, ref.covs[k], f"P {k}")
+        assert f.lam_t == pytest.approx(ref.lam_t[k], rel=1e-12) and f.gated == ref.gated[k]
+        steps.append((f.x, f.P))
+    assert f.n_gated == ref.gated.sum() >= (len(OUTLIERS) if robust else 0)
+    batch = _make_filter(mode, robust, robust, 1e-4, 2)
+    means, covs, _, _ = batch.batch_filter(zs, Hs)
+    for k, (x, P) in enumerate(steps):
+        assert_array_equal(means[k], x)
+        assert_array_equal(covs[k], P)
     for name in STATE:
-        assert_allclose(getattr(a, name), getattr(b, name), rtol=1e-12, atol=1e-12,
-                        err_msg=name)
+        assert_array_equal(getattr(batch, name), getattr(f, name), err_msg=name)
+    assert batch.n_gated == f.n_gated and batch.lam_t == f.lam_t
 
 
 @pytest.mark.parametrize("update_first", [False, True])
 @pytest.mark.parametrize("store", [False, True])
-def test_residual_and_variance_histories(rng, update_first, store):
-    """The kernel's residuals ``ys`` and innovation variances ``ss`` match the reference."""
-    Hs, zs = _record(rng, 200, dim_z=2, missing=(5, 100, 199))
-    Z = zs.reshape(len(zs), -1)
-    x0, P0 = np.zeros((4, 2)), 50.0 * np.eye(4)
-    Q = 1e-4 * np.eye(4)
-    Rv = rng.uniform(0.5, 2.0, len(Z))
-    args = (x0, P0, Z, Hs, Rv, 0.95, Q, update_first, store)
-    ref = rls_module._batch_reference(*args)
-    out = _kernels.batch_compiled(*args)
-    _close(out.ys, ref.ys, "ys")
-    _close(out.ss, ref.ss, "ss")
-    assert np.isnan(out.ys[[5, 100, 199]]).all() and not np.isnan(np.delete(out.ys, [5, 100, 199],
-                                                                         axis=0)).any()
-    for name in ("x", "P", "x_prior", "P_prior", "x_post", "P_post", "K_last"):
-        _close(getattr(out, name), getattr(ref, name), name)
-    assert out.s_last == pytest.approx(ref.s_last, rel=1e-12)
-    # the caller's arrays are untouched
-    assert_array_equal(x0, 0.0)
-    assert_array_equal(P0, 50.0 * np.eye(4))
+def test_fused_loop_equals_step_loop_bit_for_bit(rng, update_first, store):
+    """The fused default loop (one output, no histories of P) and the step loop (a gate
+    that never fires) give the same bits, also with Q and missing samples."""
+    Hs, zs = _record(rng, 500, missing=(0, 3, 250, 499))
+    for Q in (0.0, 1e-5):
+        a = RecursiveLeastSquares(4, lam=0.97, Q=Q)
+        b = RecursiveLeastSquares(4, lam=0.97, Q=Q, gate=1e300)
+        ma, _, mpa, _ = a.batch_filter(zs, Hs, update_first=update_first, store_covariances=store)
+        mb, _, mpb, _ = b.batch_filter(zs, Hs, update_first=update_first)
+        assert_array_equal(ma, mb)
+        assert_array_equal(mpa, mpb)
+        for name in STATE:
+            assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
 
 
 def test_compiled_covariance_is_exactly_symmetric(rng):
@@ -257,64 +326,6 @@ def test_streaming_rejects_non_finite_regressor_without_changing_state(bad):
         assert_array_equal(getattr(rls, name), before[name], err_msg=name)
 
 
-def test_import_does_not_load_numba():
-    """``import rlsfilt`` stays light: numba loads on the first compiled call."""
-    import subprocess
-    import sys
-
-    code = ("import sys, rlsfilt; assert 'numba' not in sys.modules, 'numba imported'; "
-            "r = rlsfilt.RecursiveLeastSquares(2); r.update(1.0, [1.0, 2.0]); "
-            "assert 'numba' in sys.modules")
-    subprocess.run([sys.executable, "-c", code], check=True, cwd=_root(), env=_env())
-
-
-def _root():
-    import pathlib
-
-    return str(pathlib.Path(__file__).resolve().parents[1])
-
-
-def _env(**extra):
-    import os
-
-    env = dict(os.environ)
-    env["PYTHONPATH"] = _root() + os.pathsep + env.get("PYTHONPATH", "")
-    env.update(extra)
-    return env
-
-
-def test_streaming_recycles_only_arrays_nobody_else_holds(rng):
-    """Arrays held by the caller (directly, in a list, as a view) are never overwritten."""
-    Hs, zs = _record(rng, 40)
-    rls = RecursiveLeastSquares(4, lam=0.95, Q=1e-4)
-    rls.predict_update(zs[0], Hs[0])
-    if rls_module._FREE is not None:          # recycling is on: the same objects are reused
-        ids = {name: id(getattr(rls, name)) for name in STATE}
-        rls.predict_update(zs[1], Hs[1])
-        assert ids == {name: id(getattr(rls, name)) for name in STATE}
-    held = {"x": rls.x, "P_post": rls.P_post, "K": rls.K, "y": rls.y, "P_prior": rls.P_prior}
-    snapshot = {k: v.copy() for k, v in held.items()}
-    row_view = rls.P[0]
-    row = row_view.copy()
-    history = []
-    for k in range(2, len(zs)):
-        rls.predict()
-        rls.update(zs[k], Hs[k])
-        history.append(rls.x)
-        if k == 20:
-            first = rls.x.copy()
-    for name, value in held.items():
-        assert_array_equal(value, snapshot[name], err_msg=name)
-    assert_array_equal(row_view, row)
-    assert_array_equal(history[18], first)
-    assert len({id(h) for h in history}) == len(history)
-    # the filter itself followed the recursion exactly
-    ref = RecursiveLeastSquares(4, lam=0.95, Q=1e-4)
-    ref.batch_filter(zs, Hs)
-    assert_array_equal(rls.x, ref.x)
-    assert_array_equal(rls.P, ref.P)
-
-
 def test_streaming_never_overwrites_a_replaced_attribute_the_caller_kept(rng):
     """Replacing ``rls.y`` (or any diagnostic) while keeping the old array leaves the
     reference count unchanged: the filter must still not recycle the kept array."""
@@ -337,35 +348,8 @@ def test_streaming_never_overwrites_a_replaced_attribute_the_caller_kept(rng):
         assert_array_equal(value, snapshot[name], err_msg=name)
 
 
-# ----------------------------------------------------------------------
-# the compiled paths keep the health check and counters of the NumPy paths
-# ----------------------------------------------------------------------
-@pytest.mark.parametrize("update_first", [False, True])
-@pytest.mark.parametrize("store", [False, True])
-@pytest.mark.parametrize("step0", [0, 37])
-def test_compiled_health_check_reports_the_same_step(monkeypatch, update_first, store, step0):
-    """Windup (constant regressor, lam = 0.9) makes P ill-conditioned: both paths name one step."""
-    Hs = np.tile([1.0, 1.0], (400, 1))
-    zs = np.ones(400)
-    messages = []
-    for compiled in (True, False):
-        monkeypatch.setattr(rls_module, "_COMPILED", compiled)
-        rls = RecursiveLeastSquares(2, lam=0.9, P0=1.0, check_every=10)
-        if step0:
-            rls.batch_filter(zs[:step0], Hs[:step0])     # healthy so far
-        with pytest.warns(NumericalWarning) as record:
-            rls.batch_filter(zs[step0:], Hs[step0:], update_first=update_first,
-                             store_covariances=store)
-        messages.append(str(record[0].message))
-        assert rls.n_updates == 400
-    assert "ill-conditioned" in messages[0]
-    assert re.search(r"at step \d+ of batch_filter \(update \d+ since reset\)", messages[0])
-    step = lambda msg: re.search(r"at step (\d+)", msg).group(1)   # noqa: E731
-    assert step(messages[0]) == step(messages[1])
-
-
-def test_streaming_fast_path_keeps_counters_and_health_check(rng):
-    """The exponential fast path and the general path (a gate that never fires) agree."""
+def test_streaming_keeps_counters_and_health_check_with_and_without_gate(rng):
+    """Without a gate and with one that never fires: the same counters and warning."""
     Hs, zs = _record(rng, 300, missing=(50, 51))
     fast = RecursiveLeastSquares(4, lam=0.95, Q=1e-6, check_every=7)
     general = RecursiveLeastSquares(4, lam=0.95, Q=1e-6, check_every=7, gate=1e300)
@@ -392,6 +376,113 @@ def test_streaming_fast_path_keeps_counters_and_health_check(rng):
     assert caught[0] == caught[1]
 
 
+def test_streaming_reuses_only_arrays_nobody_else_holds(rng):
+    """Arrays held by the caller (directly, in a list, as a view) are never overwritten;
+    the arrays of the step before last are reused when nobody holds them."""
+    Hs, zs = _record(rng, 40)
+    rls = RecursiveLeastSquares(4, lam=0.95, Q=1e-4)
+    for k in range(2):
+        rls.predict_update(zs[k], Hs[k])
+    if _streaming._FREE_UPDATE > 0:          # reuse is on: step k + 2 writes step k's arrays
+        ids = {name: id(getattr(rls, name)) for name in STATE}
+        rls.predict_update(zs[2], Hs[2])
+        rls.predict_update(zs[3], Hs[3])
+        assert ids == {name: id(getattr(rls, name)) for name in STATE}
+    held = {"x": rls.x, "P_post": rls.P_post, "K": rls.K, "y": rls.y, "P_prior": rls.P_prior}
+    snapshot = {k: v.copy() for k, v in held.items()}
+    row_view = rls.P[0]
+    row = row_view.copy()
+    history = []
+    for k in range(4, len(zs)):
+        rls.predict()
+        rls.update(zs[k], Hs[k])
+        history.append(rls.x)
+        if k == 20:
+            first = rls.x.copy()
+    for name, value in held.items():
+        assert_array_equal(value, snapshot[name], err_msg=name)
+    assert_array_equal(row_view, row)
+    assert_array_equal(history[16], first)
+    assert len({id(h) for h in history}) == len(history)
+    # the filter itself followed the recursion exactly
+    ref = RecursiveLeastSquares(4, lam=0.95, Q=1e-4)
+    ref.batch_filter(zs, Hs)
+    assert_array_equal(rls.x, ref.x)
+    assert_array_equal(rls.P, ref.P)
+
+
+def test_streaming_without_reuse_is_identical(rng, monkeypatch):
+    """With reuse off (as where reference counts cannot be trusted) nothing changes."""
+    Hs, zs = _record(rng, 60, missing=(7,))
+    a = RecursiveLeastSquares(4, lam=0.95)
+    for k in range(len(zs)):
+        a.predict_update(zs[k], Hs[k])
+    monkeypatch.setattr(_streaming, "_FREE_UPDATE", -1)
+    monkeypatch.setattr(_streaming, "_FREE_PREDICT", -1)
+    made = []
+    block = _streaming._block
+    monkeypatch.setattr(_streaming, "_block", lambda *a: made.append(1) or block(*a))
+    b = RecursiveLeastSquares(4, lam=0.95)
+    for k in range(len(zs)):
+        b.predict_update(zs[k], Hs[k])
+    assert len(made) == 2 * len(zs)                   # fresh arrays every step
+    for name in STATE:
+        assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+
+
+def test_assigned_state_is_copied_never_written(rng):
+    """Assigning x or P copies (#18): the caller's arrays, even views, never change."""
+    Hs, zs = _record(rng, 30)
+    x0 = np.zeros(4)
+    P0 = 100.0 * np.eye(4)
+    rls = RecursiveLeastSquares(4, lam=0.95)
+    rls.x = x0.reshape(-1, 1)              # a view of the caller's array
+    rls.P = P0
+    for k in range(len(zs)):
+        rls.predict_update(zs[k], Hs[k])
+    assert_array_equal(x0, 0.0)
+    assert_array_equal(P0, 100.0 * np.eye(4))
+    assert not np.shares_memory(rls.x, x0) and not np.shares_memory(rls.P, P0)
+    ref = RecursiveLeastSquares(4, lam=0.95, P0=100.0)
+    ref.batch_filter(zs, Hs)
+    assert_array_equal(rls.x, ref.x)
+
+
+# ----------------------------------------------------------------------
+# the health check
+# ----------------------------------------------------------------------
+@pytest.mark.parametrize("update_first", [False, True])
+@pytest.mark.parametrize("store", [False, True])
+@pytest.mark.parametrize("step0", [0, 37])
+def test_health_check_reports_the_same_step_in_every_path(update_first, store, step0):
+    """Windup (constant regressor, lam = 0.9) makes P ill-conditioned: the fused loop, the
+    step loop (a gate that never fires) and the streaming steps name one update."""
+    Hs = np.tile([1.0, 1.0], (400, 1))
+    zs = np.ones(400)
+    messages = []
+    for gate in (None, 1e300):
+        rls = RecursiveLeastSquares(2, lam=0.9, P0=1.0, check_every=10, gate=gate)
+        if step0:
+            rls.batch_filter(zs[:step0], Hs[:step0])     # healthy so far
+        with pytest.warns(NumericalWarning) as record:
+            rls.batch_filter(zs[step0:], Hs[step0:], update_first=update_first,
+                             store_covariances=store)
+        messages.append(str(record[0].message))
+        assert len(record) == 1 and rls.n_updates == 400
+    assert "ill-conditioned" in messages[0]
+    assert re.search(r"at step \d+ of batch_filter \(update \d+ since reset\)", messages[0])
+    update = lambda msg: re.search(r"\(update (\d+)", msg).group(1)   # noqa: E731
+    assert update(messages[0]) == update(messages[1])
+    stream = RecursiveLeastSquares(2, lam=0.9, P0=1.0, check_every=10)
+    with pytest.warns(NumericalWarning, match=rf"at update {update(messages[0])} since reset"):
+        for k in range(400):
+            if update_first:
+                stream.update(zs[k], Hs[k])
+                stream.predict()
+            else:
+                stream.predict_update(zs[k], Hs[k])
+
+
 def test_compiled_health_decision_equals_health_problem():
     """The kernel's shortcut (Cholesky, trace bound) decides as ``eigvalsh`` does."""
     rng = np.random.default_rng(5)
@@ -407,146 +498,49 @@ def test_compiled_health_decision_equals_health_problem():
         if rng.random() < 0.05:
             A[0, -1] += 1e-3 * np.abs(A).max()          # not symmetric
         cond_max = 10.0 ** rng.uniform(2, 13) if rng.random() < 0.9 else np.inf
-        expected = rls_module._health_problem(A, None, cond_max) is not None
-        assert _kernels._unhealthy(A, cond_max) == expected
+        expected = _health.symmetric_problem(A, cond_max) is not None
+        assert _kernels_shared.unhealthy(A, cond_max) == expected
         decided[expected] += 1
     assert min(decided.values()) > 200
-    assert _kernels._unhealthy(np.array([[1.0, np.nan], [np.nan, 1.0]]), 1e12)
+    assert _kernels_shared.unhealthy(np.array([[1.0, np.nan], [np.nan, 1.0]]), 1e12)
 
 
-def test_streaming_without_recycling_is_identical(rng, monkeypatch):
-    """With recycling off (as where reference counts cannot be trusted) nothing changes."""
-    Hs, zs = _record(rng, 60, missing=(7,))
-    a = RecursiveLeastSquares(4, lam=0.95)
-    for k in range(len(zs)):
-        a.predict_update(zs[k], Hs[k])
-    monkeypatch.setattr(rls_module, "_FREE", None)
-    b = RecursiveLeastSquares(4, lam=0.95)
-    ids = set()
-    for k in range(len(zs)):
-        b.predict_update(zs[k], Hs[k])
-        ids.add(id(b.x))
-    assert len(ids) > 1                               # fresh arrays each step
-    for name in STATE:
-        assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+def test_compiled_health_decision_on_a_subspace():
+    """Under constraints P is judged on the null space of A, as the NumPy check does."""
+    rng = np.random.default_rng(6)
+    for _ in range(300):
+        n = int(rng.integers(2, 6))
+        A = rng.standard_normal((int(rng.integers(1, n)), n))
+        from scipy.linalg import null_space
+
+        basis = null_space(A)
+        Qo, _ = np.linalg.qr(rng.standard_normal((n, n)))
+        P = (Qo * 10.0 ** rng.uniform(-13, 2, n)) @ Qo.T
+        P = basis @ basis.T @ P @ basis @ basis.T
+        P = 0.5 * (P + P.T)
+        cond_max = 10.0 ** rng.uniform(2, 12)
+        expected = _health.symmetric_problem(P, cond_max, basis) is not None
+        assert _kernels_shared.unhealthy_on(P, basis, cond_max) == expected
 
 
-# ----------------------------------------------------------------------
-# every forgetting mode, the gate and the constraints
-# ----------------------------------------------------------------------
-MODES = ["exponential", "directional", "constant_trace", "efra", "variable"]
-A_C = np.array([[1.0, 1.0, 0.0, 0.0]])      # a1 + a2 = -0.8, true for arx_record's plant
-B_C = np.array([-0.8])
-OUTLIERS = (40, 90, 91)
-
-
-def _robust_record(rng, dim_z, missing):
-    Hs, zs = _record(rng, 120, dim_z, missing)
-    zs[list(OUTLIERS)] += 25.0                   # gross outliers for the gate
-    return Hs, zs
-
-
-def _make_filter(mode, gate, constrained, Q, dim_z):
-    rls = RecursiveLeastSquares(4, dim_z, lam=0.95, Q=Q, P0=100.0, R=0.5, forgetting=mode,
-                                gate=4.0 if gate else None, check_every=10)
-    if constrained:
-        rls.constrain(A_C, B_C)
-    return rls
-
-
-@pytest.mark.parametrize("Q", [0.0, 1e-4])
-@pytest.mark.parametrize("constrained", [False, True])
-@pytest.mark.parametrize("gate", [False, True])
-@pytest.mark.parametrize("mode", MODES)
-def test_every_mode_gate_and_constraint_compiled_equals_reference(rng, monkeypatch, mode,
-                                                                   gate, constrained, Q):
-    """batch_filter, compiled against NumPy, for every missing x update_first x
-    store_covariances x dim_z combination of one mode/gate/constraint/Q setting."""
-    for dim_z in (1, 2):
-        for missing in ((), (0, 7, 60, 119)):
-            Hs, zs = _robust_record(rng, dim_z, missing)
-            for update_first in (False, True):
-                for store in (False, True):
-                    kwargs = {"update_first": update_first, "store_covariances": store}
-                    if update_first:
-                        kwargs["Rs"] = rng.uniform(0.3, 0.8, len(zs))
-
-                    make = functools.partial(_make_filter, mode, gate, constrained, Q, dim_z)
-                    a, b, out_c, out_r = _run_both(monkeypatch, make, zs, Hs, **kwargs)
-                    tag = f"dim_z={dim_z} missing={missing} uf={update_first} store={store}"
-                    for name, c, r in zip(("means", "covariances", "means_p", "covariances_p"),
-                                          out_c, out_r):
-                        if r is None:
-                            assert c is None, name
-                        else:
-                            _close(c, r, f"{name} {tag}")
-                    for name in STATE:
-                        _close(getattr(a, name), getattr(b, name), f"{name} {tag}")
-                    assert a.n_gated == b.n_gated, tag
-                    assert a.n_updates == b.n_updates == len(zs)
-                    assert a.gated == b.gated
-                    assert a.lam_t == pytest.approx(b.lam_t, rel=1e-12), tag
-                    assert a.log_likelihood == pytest.approx(b.log_likelihood, rel=1e-12)
-                    assert a.mahalanobis == pytest.approx(b.mahalanobis, rel=1e-12,
-                                                          nan_ok=True)
-                    if gate and not missing:
-                        assert a.n_gated >= len(OUTLIERS), tag
-                    if constrained:
-                        assert_allclose(A_C @ a.x, np.tile(B_C, (1, dim_z)), atol=1e-10)
-
-
-@pytest.mark.parametrize("robust", [False, True])
-@pytest.mark.parametrize("mode", MODES)
-def test_every_mode_streaming_compiled_equals_reference_and_batch(rng, monkeypatch, mode,
-                                                                  robust):
-    """predict()/update() run the compiled step: equal to the NumPy step to 1e-12 and to
-    the compiled batch_filter bit for bit, with Q and missing samples, with and without the
-    gate and constraints (without them, the exponential mode runs the fused fast path)."""
-    Hs, zs = _robust_record(rng, 2, (5, 70))
-    runs = {}
-    for compiled in (True, False):
-        monkeypatch.setattr(rls_module, "_COMPILED", compiled)
-        rls = _make_filter(mode, robust, robust, 1e-4, 2)
-        steps = []
-        for k in range(len(zs)):
-            rls.predict()
-            rls.update(zs[k], Hs[k])
-            steps.append((rls.x.copy(), rls.P.copy(), rls.lam_t, rls.gated))
-        runs[compiled] = rls, steps
-    monkeypatch.setattr(rls_module, "_COMPILED", True)
-    (c, steps_c), (r, steps_r) = runs[True], runs[False]
-    for (xc, Pc, lc, gc), (xr, Pr, lr, gr) in zip(steps_c, steps_r, strict=True):
-        _close(xc, xr, "x")
-        _close(Pc, Pr, "P")
-        assert lc == pytest.approx(lr, rel=1e-12) and gc == gr
-    for name in STATE:
-        _close(getattr(c, name), getattr(r, name), name)
-    assert c.n_gated == r.n_gated >= (len(OUTLIERS) if robust else 0)
-    batch = _make_filter(mode, robust, robust, 1e-4, 2)
-    means, covs, _, _ = batch.batch_filter(zs, Hs)
-    for k, (xc, Pc, _, _) in enumerate(steps_c):
-        assert_array_equal(means[k], xc)
-        assert_array_equal(covs[k], Pc)
-    for name in STATE:
-        assert_array_equal(getattr(batch, name), getattr(c, name), err_msg=name)
-    assert batch.n_gated == c.n_gated and batch.lam_t == c.lam_t
-
-
-def test_constrained_health_check_is_compiled_and_reports_the_same_step(monkeypatch):
-    """Windup under a constraint: the compiled check (on the null space of A) names the
-    same step as the NumPy check."""
+def test_constrained_health_check_names_the_same_step_in_every_path():
+    """Windup under a constraint: the batch loop and the streaming steps agree."""
     Hs = np.tile([1.0, 1.0, 0.0], (400, 1))
     zs = np.ones(400)
     messages = []
-    for compiled in (True, False):
-        monkeypatch.setattr(rls_module, "_COMPILED", compiled)
+    for stream in (False, True):
         rls = RecursiveLeastSquares(3, lam=0.9, P0=1.0, check_every=10, gate=1e6)
         rls.constrain([0.0, 0.0, 1.0], 0.0)
         with pytest.warns(NumericalWarning) as record:
-            rls.batch_filter(zs, Hs)
+            if stream:
+                for k in range(len(zs)):
+                    rls.predict_update(zs[k], Hs[k])
+            else:
+                rls.batch_filter(zs, Hs)
         messages.append(str(record[0].message))
     assert "ill-conditioned" in messages[0]
-    assert messages[0] == messages[1]
+    update = lambda msg: re.search(r"update (\d+) since reset", msg).group(1)   # noqa: E731
+    assert update(messages[0]) == update(messages[1])
 
 
 @pytest.mark.parametrize("mode", MODES)
@@ -570,3 +564,29 @@ def test_general_streaming_rejects_bad_input_without_changing_state(mode, bad_H,
         rls.predict_update(1.0, [1.0, 0.5, 0.0, 0.2])       # a good step, then again
         before = {name: getattr(rls, name).copy() for name in STATE}
         counters = (rls.n_updates, rls.n_gated, rls.lam_t)
+
+
+def test_import_does_not_load_numba():
+    """``import rlsfilt`` stays light: numba loads on the first compiled call."""
+    import subprocess
+    import sys
+
+    code = ("import sys, rlsfilt; assert 'numba' not in sys.modules, 'numba imported'; "
+            "r = rlsfilt.RecursiveLeastSquares(2); r.update(1.0, [1.0, 2.0]); "
+            "assert 'numba' in sys.modules")
+    subprocess.run([sys.executable, "-c", code], check=True, cwd=_root(), env=_env())
+
+
+def _root():
+    import pathlib
+
+    return str(pathlib.Path(__file__).resolve().parents[1])
+
+
+def _env(**extra):
+    import os
+
+    env = dict(os.environ)
+    env["PYTHONPATH"] = _root() + os.pathsep + env.get("PYTHONPATH", "")
+    env.update(extra)
+    return env

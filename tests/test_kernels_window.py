@@ -1,31 +1,24 @@
-"""Compiled kernels of SlidingWindowRLS and SquareRootRLS against their NumPy references.
+"""Compiled kernels of SlidingWindowRLS and SquareRootRLS against the textbook reference.
 
-``batch_filter`` and the streaming ``update`` run the numba kernels of
-``rlsfilt.filters._kernels_window``; the module flags
-``sliding_window._COMPILED`` and ``square_root._COMPILED`` switch both back
-to the pure-NumPy reference (``update`` step by step). The two paths must
-agree to 1e-12 on well-conditioned data for every option, and the
-streaming ``update`` must reproduce ``batch_filter`` bit for bit (both run
-the same compiled step).
+``predict``, ``update``, ``initialize`` and ``batch_filter`` run the numba
+kernels of ``rlsfilt.filters._kernels_window``; the readable recursions are
+in ``rlsfilt.filters._reference`` (the sliding window's update, downdate and
+refit; the square root's Givens rotations, the same algorithm as its
+kernel). The two must agree to 1e-12 step by step on well-conditioned data
+for every option, and the streaming ``update`` must reproduce
+``batch_filter`` bit for bit (both run the same compiled step).
 """
-
-import json
-import os
-import pathlib
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 from conftest import arx_record
 from conftest import assert_close_steps as _close
 from numpy.testing import assert_array_equal
+from reference_runs import sliding_window_run, square_root_run
 
 from rlsfilt import SlidingWindowRLS, SquareRootRLS
-from rlsfilt.filters import sliding_window as sw_module
-from rlsfilt.filters import square_root as sr_module
+from rlsfilt.filters import _reference
 
-ROOT = pathlib.Path(__file__).resolve().parents[1]
 STATE = ("x", "P", "x_prior", "P_prior", "x_post", "P_post", "y", "K", "S", "SI", "z", "H",
          "n_updates")
 
@@ -49,25 +42,25 @@ def _record(rng, n_samples, dim_z=1, missing=(), white=False):
 
 
 
-def _run_both(monkeypatch, module, make, zs, Hs, **kwargs):
-    """`batch_filter` on two fresh filters: compiled, then the NumPy reference."""
-    a, b = make(), make()
-    out_c = a.batch_filter(zs, Hs, **kwargs)
-    monkeypatch.setattr(module, "_COMPILED", False)
-    out_r = b.batch_filter(zs, Hs, **kwargs)
-    monkeypatch.setattr(module, "_COMPILED", True)
-    return a, b, out_c, out_r
+def _run_both(make, zs, Hs, run, **kwargs):
+    """`batch_filter` on a fresh filter and the reference run from the same start."""
+    f = make()
+    ref = run(f, zs, Hs, kwargs.get("Rs"), kwargs.get("update_first", False))
+    return f, ref, f.batch_filter(zs, Hs, **kwargs)
 
 
-def _compare(a, b, out_c, out_r):
-    for name, c, r in zip(("means", "covariances", "means_p", "covariances_p"), out_c, out_r):
-        if r is None:
-            assert c is None, name
-        else:
-            _close(c, r, name)
-    for name in STATE:
-        _close(getattr(a, name), getattr(b, name), name)
-    assert a.log_likelihood == pytest.approx(b.log_likelihood, rel=1e-12)
+def _compare(f, ref, out):
+    for label, c, r in zip(("means", "covariances", "means_p", "covariances_p"), out,
+                           (ref.means, ref.covs, ref.means_p, ref.covs_p)):
+        if c is not None and len(c):
+            _close(c, r, label)
+    if len(ref.means):
+        _close(f.x, ref.means[-1], "x")
+        _close(f.x_post, ref.means[-1], "x_post")
+        _close(f.P_post, ref.covs[-1], "P_post")
+        _close(f.y, ref.ys[-1].reshape(-1, 1), "y")
+        _close(f.K, ref.K, "K")
+        assert f.S[0, 0] == pytest.approx(ref.ss[-1], rel=1e-12)
 
 
 # ----------------------------------------------------------------------
@@ -87,7 +80,7 @@ SW_OPTIONS = [
 
 @pytest.mark.parametrize("window, refresh, dim_z, use_Rs, update_first, store, missing",
                          SW_OPTIONS)
-def test_sliding_window_compiled_equals_reference(rng, monkeypatch, window, refresh, dim_z,
+def test_sliding_window_compiled_equals_reference(rng, window, refresh, dim_z,
                                                   use_Rs, update_first, store, missing):
     # downdating amplifies round-off by about cond(window)^2: short windows
     # of the resonant ARX record are not well conditioned, white rows are
@@ -99,46 +92,49 @@ def test_sliding_window_compiled_equals_reference(rng, monkeypatch, window, refr
     def make():
         return SlidingWindowRLS(4, window, dim_z, refresh=refresh, P0=100.0, R=0.7)
 
-    a, b, out_c, out_r = _run_both(monkeypatch, sw_module, make, zs, Hs, **kwargs)
-    _compare(a, b, out_c, out_r)
-    assert (a.exact, a.n_samples, a._head, a._count) == (b.exact, b.n_samples, b._head, b._count)
-    assert_array_equal(a._wH, b._wH)
-    assert_array_equal(a._wZ, b._wZ)
-    assert_array_equal(a._wR, b._wR)
+    f, ref, out = _run_both(make, zs, Hs, sliding_window_run, **kwargs)
+    _compare(f, ref, out)
+    w = ref.window
+    assert (f.exact, f.n_samples, f._head, f._count) == (w.exact, w.nw, w.head, w.count)
+    assert_array_equal(f._wH, w.wH)
+    assert_array_equal(f._wZ, w.wZ)
+    assert_array_equal(f._wR, w.wR)
 
 
-def test_sliding_window_unexciting_stretch_and_initialize(rng, monkeypatch):
+def test_sliding_window_unexciting_stretch_and_initialize(rng):
     """Failed downdates, the prior fallback and the exact restart take the same turns."""
     N, window = 400, 20
     u = rng.standard_normal(N)
     u[100:200] = 1.0                                  # regressors [u(t), u(t-1)] = [1, 1]
     Hs = np.column_stack([u[1:], u[:-1]])
     zs = Hs @ [2.0, -1.0] + 0.01 * rng.standard_normal(N - 1)
-    a, b, out_c, out_r = _run_both(monkeypatch, sw_module, lambda: SlidingWindowRLS(2, window),
-                                   zs, Hs)
+    f, ref, out = _run_both(lambda: SlidingWindowRLS(2, window), zs, Hs, sliding_window_run)
     # inside the stretch the prior carries the unidentifiable direction (P ~ P0)
-    _compare(a, b, out_c, out_r)
+    _compare(f, ref, out)
+    assert f.exact == ref.window.exact
 
     def make():
         f = SlidingWindowRLS(2, window, x0=[0.5, 0.5], P0=[[4.0, 1.0], [1.0, 2.0]])
         f.initialize(zs[:30], Hs[:30])
         return f
 
-    a, b, out_c, out_r = _run_both(monkeypatch, sw_module, make, zs[30:], Hs[30:],
-                                   update_first=True)
-    _compare(a, b, out_c, out_r)
+    f, ref, out = _run_both(make, zs[30:], Hs[30:], sliding_window_run, update_first=True)
+    _compare(f, ref, out)
+    # initialize is the compiled refit: exact least squares on the last `window` rows
+    g = make()
+    x, P = _reference.window_lstsq(Hs[10:30], zs[10:30].reshape(-1, 1), np.ones(20))
+    _close(g.x, x, "x of initialize")
+    _close(g.P, P, "P of initialize")
 
 
 @pytest.mark.parametrize("update_first", [False, True])
 @pytest.mark.parametrize("n_samples", [0, 1, 2])
-def test_sliding_window_tiny_records(rng, monkeypatch, update_first, n_samples):
+def test_sliding_window_tiny_records(rng, update_first, n_samples):
     Hs, zs = _record(rng, 5)
-    a, b, out_c, out_r = _run_both(monkeypatch, sw_module, lambda: SlidingWindowRLS(4, 5),
-                                   zs[:n_samples], Hs[:n_samples], update_first=update_first)
-    for c, r in zip(out_c, out_r):
-        assert c.shape == r.shape
-    if n_samples:
-        _compare(a, b, out_c, out_r)
+    f, ref, out = _run_both(lambda: SlidingWindowRLS(4, 5), zs[:n_samples], Hs[:n_samples],
+                            sliding_window_run, update_first=update_first)
+    assert [c.shape for c in out] == [(n_samples, 4, 1), (n_samples, 4, 4)] * 2
+    _compare(f, ref, out)
 
 
 @pytest.mark.parametrize("dim_z", [1, 2])
@@ -159,18 +155,20 @@ def test_sliding_window_streaming_equals_batch_bit_for_bit(rng, dim_z):
         assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
 
 
-def test_sliding_window_streaming_compiled_equals_reference(rng, monkeypatch):
+def test_sliding_window_streaming_compiled_equals_reference(rng):
     Hs, zs = _record(rng, 200, dim_z=2, missing=(5, 60), white=True)
     a = SlidingWindowRLS(4, 15, 2, refresh=40)
-    b = a.copy()
+    ref = sliding_window_run(a, zs, Hs)
+    w = _reference.SlidingWindow(a.x, a.P, a.window, a.refresh, a._x0, a._P0)
     for k in range(len(zs)):
         a.predict_update(zs[k], Hs[k])
-        monkeypatch.setattr(sw_module, "_COMPILED", False)
-        b.predict_update(zs[k], Hs[k])
-        monkeypatch.setattr(sw_module, "_COMPILED", True)
-        for name in STATE:
-            _close(getattr(a, name), getattr(b, name), name)
-        assert a.exact == b.exact
+        z = None if np.isnan(zs[k]).any() else zs[k].reshape(-1, 1)
+        y, K, s = w.update(Hs[k:k + 1], z, 1.0)
+        _close(a.x, w.x, "x")
+        _close(a.P, w.P, "P")
+        _close(a.K, K, "K")
+        assert a.exact == w.exact
+        _close(a.x, ref.means[k], "x of the run")
 
 
 # ----------------------------------------------------------------------
@@ -188,8 +186,8 @@ SR_OPTIONS = [
 
 
 @pytest.mark.parametrize("lam, dim_z, use_Rs, update_first, store, missing", SR_OPTIONS)
-def test_square_root_compiled_equals_reference(rng, monkeypatch, lam, dim_z, use_Rs,
-                                               update_first, store, missing):
+def test_square_root_compiled_equals_reference(rng, lam, dim_z, use_Rs, update_first, store,
+                                               missing):
     Hs, zs = _record(rng, 300, dim_z, missing)
     kwargs = {"update_first": update_first, "store_covariances": store}
     if use_Rs:
@@ -200,14 +198,14 @@ def test_square_root_compiled_equals_reference(rng, monkeypatch, lam, dim_z, use
                                                     [0, 0, 30.0, 2.0], [0, 0, 2.0, 20.0]],
                              R=0.7)
 
-    a, b, out_c, out_r = _run_both(monkeypatch, sr_module, make, zs, Hs, **kwargs)
-    _compare(a, b, out_c, out_r)
-    _close(a.U, b.U, "U")
+    f, ref, out = _run_both(make, zs, Hs, square_root_run, **kwargs)
+    _compare(f, ref, out)
+    _close(f.U, ref.U, "U")
 
 
 @pytest.mark.parametrize("update_first", [False, True])
 @pytest.mark.parametrize("n_samples", [0, 1, 2])
-def test_square_root_tiny_records_and_initialize(rng, monkeypatch, update_first, n_samples):
+def test_square_root_tiny_records_and_initialize(rng, update_first, n_samples):
     Hs, zs = _record(rng, 20)
 
     def make():
@@ -215,12 +213,10 @@ def test_square_root_tiny_records_and_initialize(rng, monkeypatch, update_first,
         f.initialize(zs[:8], Hs[:8])
         return f
 
-    a, b, out_c, out_r = _run_both(monkeypatch, sr_module, make, zs[8:8 + n_samples],
-                                   Hs[8:8 + n_samples], update_first=update_first)
-    for c, r in zip(out_c, out_r):
-        assert c.shape == r.shape
-    if n_samples:
-        _compare(a, b, out_c, out_r)
+    f, ref, out = _run_both(make, zs[8:8 + n_samples], Hs[8:8 + n_samples], square_root_run,
+                            update_first=update_first)
+    assert [c.shape for c in out] == [(n_samples, 4, 1), (n_samples, 4, 4)] * 2
+    _compare(f, ref, out)
 
 
 @pytest.mark.parametrize("dim_z", [1, 2])
@@ -241,18 +237,25 @@ def test_square_root_streaming_equals_batch_bit_for_bit(rng, dim_z):
     assert_array_equal(a.U, b.U)
 
 
-def test_square_root_streaming_compiled_equals_reference(rng, monkeypatch):
+def test_square_root_streaming_compiled_equals_reference(rng):
+    """Each predict and update against the Givens reference, step by step."""
     Hs, zs = _record(rng, 200, dim_z=2, missing=(5, 60))
     a = SquareRootRLS(4, 2, lam=0.98, R=0.4)
-    b = a.copy()
+    U, d = a.U, a._d.copy()
     for k in range(len(zs)):
-        a.predict_update(zs[k], Hs[k])
-        monkeypatch.setattr(sr_module, "_COMPILED", False)
-        b.predict_update(zs[k], Hs[k])
-        for name in STATE:       # b's P is computed by the NumPy path here
-            _close(getattr(a, name), getattr(b, name), name)
-        monkeypatch.setattr(sr_module, "_COMPILED", True)
-    _close(a.U, b.U, "U")
+        a.predict()
+        U, d = _reference.square_root_predict(U, d, a.lam)
+        _close(a.U, U, "U after predict")
+        _close(a.P, _reference.square_root_covariance(U), "P_prior")
+        a.update(zs[k], Hs[k])
+        z = None if np.isnan(zs[k]).any() else zs[k].reshape(-1, 1)
+        U, d, x, y, K, s = _reference.square_root_update(U, d, Hs[k:k + 1], z, 0.4)
+        _close(a.U, U, "U")
+        _close(a.x, x, "x")
+        _close(a.K, K, "K")
+        assert a.S[0, 0] == pytest.approx(s, rel=1e-12)
+        if y is not None:
+            _close(a.y, y, "y")
 
 
 def test_square_root_compiled_keeps_the_factor_triangular(rng):
@@ -268,18 +271,18 @@ def test_square_root_compiled_keeps_the_factor_triangular(rng):
 
 
 @pytest.mark.parametrize("update_first", [False, True])
-def test_one_parameter_filters(rng, monkeypatch, update_first):
+def test_one_parameter_filters(rng, update_first):
     """dim_x = 1: the kernels' loops reduce to scalars (a gain tracked over time)."""
     u = rng.standard_normal(300)
     zs = np.where(np.arange(300) < 150, 2.0, -1.0) * u + 0.05 * rng.standard_normal(300)
     zs[[40, 41]] = np.nan
     Hs = u.reshape(-1, 1)
     kwargs = {"update_first": update_first, "Rs": rng.uniform(0.5, 2.0, 300)}
-    for module, make in ((sw_module, lambda: SlidingWindowRLS(1, 5, refresh=13)),
-                         (sr_module, lambda: SquareRootRLS(1, lam=0.9))):
-        a, b, out_c, out_r = _run_both(monkeypatch, module, make, zs, Hs, **kwargs)
-        _compare(a, b, out_c, out_r)
-        assert a.x[0, 0] == pytest.approx(-1.0, abs=0.15)     # the second gain
+    for run, make in ((sliding_window_run, lambda: SlidingWindowRLS(1, 5, refresh=13)),
+                      (square_root_run, lambda: SquareRootRLS(1, lam=0.9))):
+        f, ref, out = _run_both(make, zs, Hs, run, **kwargs)
+        _compare(f, ref, out)
+        assert f.x[0, 0] == pytest.approx(-1.0, abs=0.15)     # the second gain
 
 
 @pytest.mark.parametrize("make", [lambda: SlidingWindowRLS(4, 10),
@@ -303,62 +306,13 @@ def test_streaming_measurement_spellings(rng, make):
         filters[0].update(np.inf, Hs[0])
 
 
-# ----------------------------------------------------------------------
-# the disk cache
-# ----------------------------------------------------------------------
-JOB = r"""
-import json, time
-t0 = time.perf_counter()
-import numpy as np
-import rlsfilt
-H = np.arange(60.0).reshape(20, 3) % 7 + np.eye(20, 3)
-z = H @ np.array([1.0, -2.0, 0.5])
-sw = rlsfilt.SlidingWindowRLS(3, 8, check_every=7)   # update 21: the periodic health check
-sw.batch_filter(z, H)
-sw.update(1.0, H[0])
-sq = rlsfilt.SquareRootRLS(3, lam=0.99, check_every=7)
-sq.batch_filter(z, H)
-sq.predict()
-sq.update(1.0, H[0])
-elapsed = time.perf_counter() - t0
-from rlsfilt.filters import _kernels_window as K
-names = ("sw_batch_kernel", "sw_update_kernel", "sr_batch_kernel", "sr_update_kernel",
-         "sr_covariance", "sw_unhealthy", "sr_unhealthy")
-stats = {name: (sum(getattr(K, name).stats.cache_hits.values()),
-                sum(getattr(K, name).stats.cache_misses.values())) for name in names}
-print(json.dumps({"elapsed": elapsed, "stats": stats}))
-"""
-
-
-def _run(cache_dir):
-    env = dict(os.environ)
-    env["NUMBA_CACHE_DIR"] = str(cache_dir)
-    env["PYTHONPATH"] = str(ROOT) + os.pathsep + env.get("PYTHONPATH", "")
-    env.pop("NUMBA_DISABLE_JIT", None)
-    proc = subprocess.run([sys.executable, "-c", JOB], env=env, cwd=str(ROOT), check=True,
-                          capture_output=True, text=True)
-    return json.loads(proc.stdout.strip().splitlines()[-1])
-
-
-@pytest.mark.slow
-def test_second_process_loads_window_kernels_from_disk(tmp_path):
-    first = _run(tmp_path)
-    assert all(hits == 0 and misses == 1 for hits, misses in first["stats"].values()), first
-    index = sorted(p.name for p in tmp_path.rglob("*.nbi"))
-    for name in first["stats"]:
-        assert any(f"_kernels_window.{name}-" in f for f in index), (name, index)
-    second = _run(tmp_path)
-    # nothing compiled: one signature per entry point, loaded from the cache
-    assert all(hits == 1 and misses == 0 for hits, misses in second["stats"].values()), second
-    # import plus the first calls, warm cache: the budget is 2 s. Other load on the
-    # machine can only add time, so the fastest of up to three warm starts is the measure.
-    elapsed = [second["elapsed"]]
-    while min(elapsed) >= 2.0 and len(elapsed) < 3:
-        elapsed.append(_run(tmp_path)["elapsed"])
-    assert min(elapsed) < 2.0, elapsed
-
-
 def test_variants_benchmark_runs_in_smoke_mode(tmp_path):
+    import os
+    import pathlib
+    import subprocess
+    import sys
+
+    ROOT = pathlib.Path(__file__).resolve().parents[1]
     env = dict(os.environ)
     env["PYTHONPATH"] = str(ROOT) + os.pathsep + env.get("PYTHONPATH", "")
     proc = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_variants.py"),

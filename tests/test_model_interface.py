@@ -86,7 +86,7 @@ def test_validate_report_and_plot_accept_a_non_arx_model(oe_record):
     assert "f1" in text and "b1" in text
     assert "FirstOrderOE" in rep._repr_html_()
     fig = rep.plot()
-    assert len(fig.axes) == 6
+    assert len(fig.axes) == 7   # output (window + overview), 2 residual tests, Bode (2), step
     plt.close("all")
     d = json.loads(json.dumps(rep.to_dict(), allow_nan=False))
     assert d["model"] == "FirstOrderOE" and d["orders"] == {"nb": 1, "nf": 1, "nk": 1}

@@ -82,7 +82,9 @@ def test_exact_fit_is_a_named_error_or_a_skipped_test():
     assert rep.skipped == "the residuals are zero or constant (an exact fit)"
     assert rep.residuals == () and rep.criteria is None and rep.simulation_fit == 100.0
     assert "Verdict: residual tests skipped" in rep.summary() and "skipped" in rep._repr_html_()
-    assert len(rep.plot().axes) == 2
+    fig = rep.plot()   # output, the note on the skipped tests, Bode (2)
+    assert len(fig.axes) == 4
+    assert any("residual tests skipped" in t.get_text() for ax in fig.axes for t in ax.texts)
     with pytest.raises(ExactFitError, match="fits the data exactly"):
         select_order(u, y, na=[0], nb=[1, 2], nk=[1])
 

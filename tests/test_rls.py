@@ -299,16 +299,11 @@ def test_batch_filter_accepts_rs_and_list_rows(rng):
 # missing measurements
 # ----------------------------------------------------------------------
 @pytest.mark.parametrize("missing", [None, np.nan, [np.nan]])
-@pytest.mark.parametrize("path", ["fast", "general", "reference"])
-def test_missing_measurement_keeps_estimate(rng, monkeypatch, missing, path):
-    """The exponential fast path, the general compiled path (a gate that never fires) and
-    the NumPy reference all leave the documented diagnostics."""
-    from rlsfilt.filters import rls as rls_module
-
-    if path == "reference":
-        monkeypatch.setattr(rls_module, "_COMPILED", False)
+@pytest.mark.parametrize("gate", [None, 1e300])
+def test_missing_measurement_keeps_estimate(rng, missing, gate):
+    """Without and with a gate (that never fires) the documented diagnostics are left."""
     Hs, zs = arx_record(rng, n_samples=20)
-    rls = RecursiveLeastSquares(4, lam=0.9, gate=1e300 if path == "general" else None)
+    rls = RecursiveLeastSquares(4, lam=0.9, gate=gate)
     rls.batch_filter(zs[:10], Hs[:10])
     rls.predict()
     x, P = rls.x.copy(), rls.P.copy()
@@ -323,16 +318,14 @@ def test_missing_measurement_keeps_estimate(rng, monkeypatch, missing, path):
     assert np.isnan(rls.mahalanobis)
 
 
-@pytest.mark.parametrize("compiled", [True, False])
+@pytest.mark.parametrize("store", [True, False])
 @pytest.mark.parametrize("gate", [None, 1e300])
-def test_missing_last_sample_of_batch_diagnostics(rng, monkeypatch, compiled, gate):
-    from rlsfilt.filters import rls as rls_module
-
-    monkeypatch.setattr(rls_module, "_COMPILED", compiled)
+def test_missing_last_sample_of_batch_diagnostics(rng, store, gate):
+    """The fused loop (no gate, no covariance histories) and the step loop alike."""
     Hs, zs = arx_record(rng, n_samples=20)
     zs[-1] = np.nan
     rls = RecursiveLeastSquares(4, lam=0.9, gate=gate)
-    rls.batch_filter(zs, Hs)
+    rls.batch_filter(zs, Hs, store_covariances=store)
     assert rls.log_likelihood == 0.0 and rls.likelihood == 1.0
     assert np.isnan(rls.mahalanobis)
     assert np.isnan(rls.y).all() and np.isnan(rls.z).all()

@@ -6,8 +6,8 @@ function ...`` at import of the kernels, and ``rlsfilt demo`` printed a
 39-line traceback. The package is copied to a temporary directory and every
 place numba could write is made unwritable: ``NUMBA_CACHE_DIR`` and ``HOME``
 point below a regular file (``mkdir`` fails with ``NotADirectoryError``,
-for root too, which ``chmod`` would not stop) and the ``__pycache__`` of
-the kernels is a regular file.
+for root too, which ``chmod`` would not stop) and every ``__pycache__`` of
+the package is a regular file.
 """
 
 import json
@@ -45,7 +45,8 @@ def _unwritable_copy(tmp_path):
     root = tmp_path / "site"
     shutil.copytree(ROOT / "rlsfilt", root / "rlsfilt",
                     ignore=shutil.ignore_patterns("__pycache__"))
-    (root / "rlsfilt" / "filters" / "__pycache__").write_text("not a directory")
+    for package in (root / "rlsfilt").rglob("__init__.py"):
+        (package.parent / "__pycache__").write_text("not a directory")
     blocker = tmp_path / "blocker"
     blocker.write_text("a file, so nothing can be created below it")
     env = {k: v for k, v in os.environ.items()

@@ -65,7 +65,8 @@ def test_report_renders_text_html_and_figure(motor):
     assert "max rel. frequency error vs plant" in html
     fig = rep.plot()
     assert isinstance(fig, Figure)
-    assert len(fig.axes) == 6            # comparison, 2 residual panels, Bode (2), step
+    # output window and overview, 2 residual panels, Bode (2) with the band, step
+    assert len(fig.axes) == 7
     titles = [ax.get_title() for ax in fig.axes]
     assert titles[0] == "Model output against the data"
     assert any(t.startswith("Bode") for t in titles) and any(t.startswith("Step") for t in titles)
@@ -84,7 +85,7 @@ def test_report_without_plant_and_for_an_underfit():
     assert "FAILED" in rep._repr_html_()
     fig = plt.figure()
     assert rep.plot(fig=fig) is fig
-    assert len(fig.axes) == 3
+    assert len(fig.axes) == 6            # window, overview, 2 residual panels, Bode (2)
     assert fig.axes[0].get_xlabel() == "time (s)"
     plt.close("all")
 
@@ -99,7 +100,7 @@ def test_report_several_outputs(rng):
     assert rep.simulation_fit.shape == (2,)
     assert rep.residuals[1].output == 1 and rep.residuals[0].max_lag == 10
     assert "output 1:" in rep.summary()
-    assert len(rep.plot().axes) == 3
+    assert len(rep.plot().axes) == 6
     assert rep.plot().axes[0].get_xlabel() == "sample"
     plt.close("all")
 

@@ -143,7 +143,7 @@ def test_plot_and_text(rng):
     assert isinstance(r, ResidualAnalysis)
     fig = r.plot()
     assert len(fig.axes) == 2
-    assert "not white" in fig.axes[0].get_title()
+    assert "NOT white" in fig.axes[0].get_title()
     assert "NOT white" in r.summary()
     assert "white=False" in repr(r)
     plt.close("all")

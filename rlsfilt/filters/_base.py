@@ -11,24 +11,14 @@ import copy
 import math
 
 import numpy as np
-from scipy.linalg.lapack import dtrtri, dtrtrs
 
+from .._display import filter_html
 from .._validation import as_float_array, check_finite, check_variance
+from . import _health
 
 __all__ = []
 
 _LOG_2PI = math.log(2.0 * math.pi)
-_window_kernels_module = None
-
-
-def _window_kernels():
-    """The compiled kernels of `SlidingWindowRLS` and `SquareRootRLS`,
-    imported on first use so that ``import rlsfilt`` stays light."""
-    global _window_kernels_module
-    if _window_kernels_module is None:
-        from . import _kernels_window
-        _window_kernels_module = _kernels_window
-    return _window_kernels_module
 
 
 class _FilterBase:
@@ -36,6 +26,9 @@ class _FilterBase:
 
     Subclasses set ``dim_x``, ``dim_z``, ``_R`` and provide ``x`` and ``P``.
     """
+
+    def _repr_html_(self):
+        return filter_html(self)   # Jupyter: dimensions, settings, estimate +- std dev, health
 
     @property
     def R(self):
@@ -96,6 +89,32 @@ class _FilterBase:
         """Return an independent deep copy of the filter."""
         return copy.deepcopy(self)
 
+    def as_iosystem(self, regressor, dt=True):
+        """This filter as a python-control system: `rlsfilt.adaptive.estimator_iosystem`."""
+        from ..adaptive.estimator_io import estimator_iosystem
+        return estimator_iosystem(self, regressor, dt)
+
+    def _batch(self, zs, Hs, Rs, update_first, saver, store_covariances):
+        """`batch_filter` of every filter: validate the record, then run the
+        compiled loop (``_batch_compiled``) or, with a `saver` or an empty
+        record, ``predict``/``update`` step by step. Either way a call that
+        raises (or whose warning is turned into an error) leaves the filter
+        as it was."""
+        Z, Hm = self._as_batch(zs, Hs)
+        Rv = self._as_batch_variances(Rs, len(Z))
+        if saver is None and len(Z):
+            return self._batch_compiled(Z, Hm, Rv, update_first, store_covariances)
+        before = copy.deepcopy(self)
+        self._batch_start = self.n_updates
+        try:
+            out = self._batch_stepwise(Z, Hm, Rv, update_first, saver, store_covariances)
+            self._batch_start = None
+            self._final_health_check()
+        except BaseException:
+            self._restore(before)
+            raise
+        return out
+
     def _batch_stepwise(self, Z, Hm, Rv, update_first, saver, store_covariances):
         """Run ``predict``/``update`` over a validated record (the generic batch loop)."""
         N = len(Z)
@@ -122,25 +141,28 @@ class _FilterBase:
                 saver.save()
         return means, covs, means_p, covs_p
 
-    def _batch_dispatch(self, zs, Hs, Rs, update_first, saver, store_covariances, compiled):
-        """`batch_filter` of the filters with a compiled record kernel.
+    def _health_due(self, n_updates, cheap_failed):
+        """Whether the full health check runs after update `n_updates`: every
+        ``check_every`` updates, or when the cheap check failed; not again after
+        the warning (until :meth:`reset`)."""
+        every = self.check_every
+        return (bool(every) and not self._warned_health
+                and (cheap_failed or n_updates % every == 0))
 
-        Runs ``_batch_compiled`` in one call, or the step-by-step loop with a
-        `saver`, an empty record or the compiled path switched off
-        (`compiled` false: the NumPy reference), then the full health check.
-        """
-        Z, Hm = self._as_batch(zs, Hs)
-        Rv = self._as_batch_variances(Rs, len(Z))
-        if saver is not None or not compiled or len(Z) == 0:
-            self._batch_start = self.n_updates
-            try:
-                out = self._batch_stepwise(Z, Hm, Rv, update_first, saver, store_covariances)
-            finally:
-                self._batch_start = None
-        else:
-            out = self._batch_compiled(Z, Hm, Rv, update_first, store_covariances)
-        self._check_health()
-        return out
+    def _warn_health(self, problem):
+        """Issue the health warning for `problem` (None: nothing). Called before
+        a step changes the state, so a warning turned into an error leaves the
+        filter as it was."""
+        if problem is not None:
+            _health.warn(problem, self._HEALTH_ADVICE)
+            self._warned_health = True
+
+    def _restore(self, before):
+        """Put back the state of `before`, a deep copy of this filter."""
+        self.__dict__.update(before.__dict__)
+        for cls in type(self).__mro__:
+            for name in getattr(cls, "__slots__", ()):
+                setattr(self, name, getattr(before, name))
 
     def _reset_diagnostics(self):
         """The filterpy attributes of a filter that has seen no data yet."""
@@ -267,8 +289,6 @@ class _FilterBase:
         return arr.copy()
 
 
-
-
 def _innovation(P, phi, r):
     """``g = P phi^T`` (dim_x, 1) and the scalar ``s = phi P phi^T + r``."""
     g = P @ phi.T
@@ -279,23 +299,3 @@ def _gaussian_logpdf(y, s):
     """``log N(y; 0, s I)`` for a residual column `y` and scalar variance `s`."""
     m = y.size
     return -0.5 * (m * (_LOG_2PI + math.log(s)) + float(np.vdot(y, y)) / s)
-
-
-def _tri_solve(U, B, trans=0):
-    """Solve ``U X = B`` (``U^T X = B`` with `trans` = 1), `U` upper triangular.
-
-    One LAPACK ``trtrs`` call per column: for the small matrices of RLS this
-    is far faster than a matrix right-hand side, which goes through a
-    (multithreaded) BLAS-3 ``trsm``.
-    """
-    if B.ndim == 1:
-        return dtrtrs(U, B, trans=trans)[0]
-    out = np.empty(B.shape)
-    for j in range(B.shape[1]):
-        out[:, j] = dtrtrs(U, B[:, j], trans=trans)[0]
-    return out
-
-
-def _tri_inv(U):
-    """Inverse of the upper-triangular `U` (LAPACK ``trtri``)."""
-    return dtrtri(U, lower=0)[0]

@@ -1,13 +1,13 @@
-"""Compiled (numba) kernels of `SlidingWindowRLS` and `SquareRootRLS`.
+"""Compiled (numba) kernels of `SlidingWindowRLS` and `SquareRootRLS`: their one
+production path.
 
-The pure-NumPy reference of each recursion is the class's own step
-(``update`` with the module flag ``_COMPILED = False`` in
-:mod:`rlsfilt.filters.sliding_window` and :mod:`rlsfilt.filters.square_root`);
-the tests hold the two paths equal to 1e-12 on well-conditioned data. As in
-:mod:`rlsfilt.filters._kernels`, every function is ``njit(cache=True)``, so
-the machine code is compiled once and loaded from the disk cache by later
-processes, and one step function serves both the batch kernel and the
-streaming ``update``: the two agree bit for bit.
+Every public method of the two filters that runs the recursion calls these.
+The same recursions in readable NumPy are in :mod:`rlsfilt.filters._reference`
+(``SlidingWindow``, ``square_root_update``: the same Givens rotations);
+``tests/test_kernels_window.py`` holds the two equal step by step to 1e-12.
+As in :mod:`rlsfilt.filters._kernels`, every function is ``njit(cache=True)``
+and one step function serves both the batch kernel and the streaming
+``update``, so the two agree bit for bit.
 
 Sliding window, one step (Haykin 2002, sec. 9)::
 
@@ -27,8 +27,7 @@ Square root (QR, information form), one step::
     x = U'^-1 d'
 
 The Givens rotations keep the diagonal of ``U`` positive by construction
-(``U_ii <- hypot(U_ii, a_i)``), which is the unique factor the NumPy path
-reaches with a Householder QR and a sign flip.
+(``U_ii <- hypot(U_ii, a_i)``).
 """
 
 import math
@@ -36,90 +35,23 @@ import math
 import numpy as np
 
 from .._numba import njit  # numba.njit, uncached where no cache directory is writable
+from ._kernels_shared import (
+    _EPS,
+    any_nan,
+    back_substitute,
+    copy2,
+    diagonal_bad,
+    factor_unhealthy,
+    singular_range,
+    unhealthy,
+    upper_inverse_gram,
+)
 
 __all__ = []
 
 
-def c_array(a):
-    """`a` as a writable C-contiguous float64 array (copied only when needed).
-
-    The kernels are compiled for exactly this layout; a read-only or
-    strided input would otherwise compile (and cache) another version.
-    """
-    if (type(a) is np.ndarray and a.dtype == np.float64 and a.flags.c_contiguous
-            and a.flags.writeable):
-        return a
-    return np.array(a, dtype=np.float64, order="C")
-
-
-# ----------------------------------------------------------------------
-# shared small helpers
-# ----------------------------------------------------------------------
-@njit(cache=True, inline="always")
-def _any_nan(z):
-    for v in z:
-        if v != v:
-            return True
-    return False
-
-
-@njit(cache=True, inline="always")
-def _copy2(a, b):
-    """``b[:] = a`` for 2-D arrays."""
-    for i in range(a.shape[0]):
-        for j in range(a.shape[1]):
-            b[i, j] = a[i, j]
-
-
 @njit(cache=True)
-def _upper_inverse_gram(U, P):
-    """``P = U^-1 U^-T`` for an upper-triangular `U` with a nonzero diagonal.
-
-    ``V = U^-1`` (upper triangular) by back substitution, column by column;
-    then ``P_ij = sum_{k >= max(i, j)} V_ik V_jk`` for ``i <= j``, mirrored,
-    so ``P`` is exactly symmetric.
-    """
-    n = U.shape[0]
-    V = np.zeros((n, n))
-    for j in range(n):
-        V[j, j] = 1.0 / U[j, j]
-        for i in range(j - 1, -1, -1):
-            acc = 0.0
-            for k in range(i + 1, j + 1):
-                acc += U[i, k] * V[k, j]
-            V[i, j] = -acc / U[i, i]
-    for i in range(n):
-        for j in range(i, n):
-            acc = 0.0
-            for k in range(j, n):
-                acc += V[i, k] * V[j, k]
-            P[i, j] = acc
-            P[j, i] = acc
-
-
-@njit(cache=True)
-def _back_substitute(U, B, X):
-    """Solve ``U X = B`` (``U`` upper triangular); `X` may be `B`."""
-    n, m = B.shape
-    for c in range(m):
-        for i in range(n - 1, -1, -1):
-            acc = B[i, c]
-            for k in range(i + 1, n):
-                acc -= U[i, k] * X[k, c]
-            X[i, c] = acc / U[i, i]
-
-
-# ----------------------------------------------------------------------
-# SquareRootRLS
-# ----------------------------------------------------------------------
-@njit(cache=True)
-def sr_covariance(U, P):
-    """``P = U^-1 U^-T`` (the ``P`` property and the covariance histories)."""
-    _upper_inverse_gram(U, P)
-
-
-@njit(cache=True)
-def _sr_predict(U, d, c):
+def sr_predict(U, d, c):
     """``U <- c U``, ``d <- c d`` in place (``c = sqrt(lam)``)."""
     n, m = d.shape
     for i in range(n):
@@ -147,7 +79,7 @@ def _sr_step(U, d, x, phi, z, r, w, y, K, gain):
     s = r
     for i in range(n):
         s += w[i] * w[i]                       # s = |U^-T phi|^2 + r
-    if _any_nan(z):
+    if any_nan(z):
         for j in range(m):
             y[j] = np.nan
         for i in range(n):
@@ -193,7 +125,7 @@ def _sr_step(U, d, x, phi, z, r, w, y, K, gain):
             bj = b[j]
             d[i, j] = cs * t + sn * bj
             b[j] = cs * bj - sn * t
-    _back_substitute(U, d, x)                  # x = U^-1 d
+    back_substitute(U, d, x)                  # x = U^-1 d
     return s
 
 
@@ -202,47 +134,11 @@ def sr_update_kernel(U, d, x, phi, z, r, y, K):
     """Streaming :meth:`SquareRootRLS.update`: `_sr_step` on the given arrays.
 
     Returns ``s`` and whether the diagonal of the new ``U`` fails the cheap
-    health check (`_sr_diagonal_bad`).
+    health check (``diagonal_bad``).
     """
     w = np.empty(U.shape[0])
     s = _sr_step(U, d, x, phi, z, r, w, y, K, U.shape[0] > 0)
-    return s, _sr_diagonal_bad(U)
-
-
-@njit(cache=True, inline="always")
-def _sr_diagonal_bad(U):
-    """True when a diagonal entry of ``U`` is not positive and finite, i.e.
-    ``P = U^-1 U^-T`` is not (finitely) positive definite (the cheap check)."""
-    for i in range(U.shape[0]):
-        v = U[i, i]
-        if not (v > 0.0 and v < np.inf):
-            return True
-    return False
-
-
-@njit(cache=True)
-def sr_unhealthy(U, cond_max):
-    """True when ``P = U^-1 U^-T`` fails ``square_root._health_problem``:
-    non-finite ``U``, a diagonal entry that is not positive, or
-    ``cond(P) = cond(U)^2`` above `cond_max`.
-
-    The singular values of the triangular factor come from `_singular_range`
-    (one-sided Jacobi, high relative accuracy), so the condition number of
-    ``P`` is read off without forming ``P``: ``O(n^3)`` per check.
-    """
-    n = U.shape[0]
-    for i in range(n):
-        for j in range(n):
-            v = U[i, j]
-            if v - v != 0.0:                   # NaN or infinite
-                return True
-    if _sr_diagonal_bad(U):
-        return True
-    smin, smax = _singular_range(U)
-    if not smin > 0.0:
-        return True
-    ratio = smax / smin
-    return ratio * ratio > cond_max
+    return s, diagonal_bad(U)
 
 
 @njit(cache=True)
@@ -259,7 +155,7 @@ def sr_batch_kernel(U, d, x, Z, Hm, Rv, c, update_first, means, covs, covs_p,
 
     The health check of ``P`` runs after every update as
     :meth:`SquareRootRLS.update` runs it: the cheap diagonal test of ``U``
-    each step and `sr_unhealthy` when the update count ``step0 + k + 1`` is
+    each step and ``factor_unhealthy`` when the update count ``step0 + k + 1`` is
     a multiple of ``check_every`` (0 disables both). The first failing ``U``
     is copied to ``U_fail`` and no further checks run.
 
@@ -282,44 +178,44 @@ def sr_batch_kernel(U, d, x, Z, Hm, Rv, c, update_first, means, covs, covs_p,
     for k in range(N):
         if not update_first:
             if c != 1.0:
-                _sr_predict(U, d, c)
+                sr_predict(U, d, c)
             if store:
-                _upper_inverse_gram(U, covs_p[k])
+                upper_inverse_gram(U, covs_p[k])
             if k == N - 1:
-                _copy2(x, x_prior)
+                copy2(x, x_prior)
                 if store:
-                    _copy2(covs_p[k], P_prior)
+                    copy2(covs_p[k], P_prior)
                 else:
-                    _upper_inverse_gram(U, P_prior)
+                    upper_inverse_gram(U, P_prior)
         s = _sr_step(U, d, x, Hm[k], Z[k], Rv[k if r_each else 0], w, y, K, k == N - 1)
         if countdown > 0:
             countdown -= 1
             full = countdown == 0
             if full:
                 countdown = check_every
-            if _sr_diagonal_bad(U) or (full and sr_unhealthy(U, cond_max)):
+            if diagonal_bad(U) or (full and factor_unhealthy(U, cond_max)):
                 k_fail = k
                 countdown = -1
-                _copy2(U, U_fail)
-        _copy2(x, means[k])
+                copy2(U, U_fail)
+        copy2(x, means[k])
         if store:
-            _upper_inverse_gram(U, covs[k])
+            upper_inverse_gram(U, covs[k])
         if k == N - 1:
             if store:
-                _copy2(covs[k], P_post)
+                copy2(covs[k], P_post)
             else:
-                _upper_inverse_gram(U, P_post)
+                upper_inverse_gram(U, P_post)
         if update_first:
             if c != 1.0:
-                _sr_predict(U, d, c)
+                sr_predict(U, d, c)
             if store:
-                _upper_inverse_gram(U, covs_p[k])
+                upper_inverse_gram(U, covs_p[k])
             if k == N - 1:
-                _copy2(x, x_prior)
+                copy2(x, x_prior)
                 if store:
-                    _copy2(covs_p[k], P_prior)
+                    copy2(covs_p[k], P_prior)
                 else:
-                    _upper_inverse_gram(U, P_prior)
+                    upper_inverse_gram(U, P_prior)
     return s, k_fail
 
 
@@ -330,59 +226,8 @@ def sr_batch_kernel(U, d, x, Z, Hm, Rv, c, update_first, means, covs, covs_p,
 HEAD, NW, COUNT, NEXT_EXACT, EXACT = 0, 1, 2, 3, 4
 
 
-_EPS = float(np.finfo(np.float64).eps)
-
-
 @njit(cache=True)
-def _singular_range(R):
-    """Smallest and largest singular value of the square `R` (one-sided Jacobi).
-
-    Hestenes' method: plane rotations orthogonalize the columns of a copy
-    of `R`; the column norms are then the singular values, to high relative
-    accuracy (Demmel & Veselic 1992). Cheap for the ``dim_x x dim_x``
-    factor, and compiled without LAPACK.
-    """
-    n = R.shape[0]
-    G = R.copy()
-    for _ in range(60):
-        rotated = False
-        for p in range(n - 1):
-            for q in range(p + 1, n):
-                alpha = 0.0
-                beta = 0.0
-                gamma = 0.0
-                for i in range(n):
-                    alpha += G[i, p] * G[i, p]
-                    beta += G[i, q] * G[i, q]
-                    gamma += G[i, p] * G[i, q]
-                if gamma == 0.0 or abs(gamma) <= _EPS * math.sqrt(alpha * beta):
-                    continue
-                rotated = True
-                zeta = (beta - alpha) / (2.0 * gamma)
-                t = (1.0 if zeta >= 0.0 else -1.0) / (abs(zeta) + math.sqrt(1.0 + zeta * zeta))
-                c = 1.0 / math.sqrt(1.0 + t * t)
-                s = c * t
-                for i in range(n):
-                    gp = G[i, p]
-                    gq = G[i, q]
-                    G[i, p] = c * gp - s * gq
-                    G[i, q] = s * gp + c * gq
-        if not rotated:
-            break
-    smin = np.inf
-    smax = 0.0
-    for j in range(n):
-        acc = 0.0
-        for i in range(n):
-            acc += G[i, j] * G[i, j]
-        v = math.sqrt(acc)
-        smin = min(smin, v)
-        smax = max(smax, v)
-    return smin, smax
-
-
-@njit(cache=True)
-def _window_lstsq(wH, wZ, wR, nw, Lt, Ltx0, n_prior, x, P):
+def window_lstsq(wH, wZ, wR, nw, Lt, Ltx0, n_prior, x, P):
     """Weighted least squares on the first `nw` stored rows, by Householder QR.
 
     With ``n_prior = dim_x`` the rows ``[Lt, Lt x0]`` (``Lt^T Lt = P0^-1``)
@@ -397,7 +242,7 @@ def _window_lstsq(wH, wZ, wR, nw, Lt, Ltx0, n_prior, x, P):
     m = wZ.shape[1]
     rows = n_prior
     for k in range(nw):
-        if not _any_nan(wZ[k]):
+        if not any_nan(wZ[k]):
             rows += 1
     if rows < n:
         return False
@@ -409,7 +254,7 @@ def _window_lstsq(wH, wZ, wR, nw, Lt, Ltx0, n_prior, x, P):
             A[i, n + j] = Ltx0[i, j]
     i = n_prior
     for k in range(nw):
-        if _any_nan(wZ[k]):
+        if any_nan(wZ[k]):
             continue
         wk = 1.0 / math.sqrt(wR[k])
         for j in range(n):
@@ -448,15 +293,15 @@ def _window_lstsq(wH, wZ, wR, nw, Lt, Ltx0, n_prior, x, P):
         for j in range(n):
             Rf[i, j] = A[i, j] if j >= i else 0.0
     if n_prior == 0:
-        smin, smax = _singular_range(Rf)
+        smin, smax = singular_range(Rf)
         if not smin > smax * max(rows, n) * _EPS:
             return False
     QtB = np.empty((n, m))
     for i in range(n):
         for j in range(m):
             QtB[i, j] = A[i, n + j]
-    _back_substitute(Rf, QtB, x)
-    _upper_inverse_gram(Rf, P)
+    back_substitute(Rf, QtB, x)
+    upper_inverse_gram(Rf, P)
     return True
 
 
@@ -478,7 +323,7 @@ def _sw_step(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, g, y, K):
     s = r
     for i in range(n):
         s += phi[i] * g[i]                     # s = phi P phi^T + r
-    missing = _any_nan(z)
+    missing = any_nan(z)
     if missing:
         for j in range(m):
             y[j] = np.nan
@@ -501,7 +346,7 @@ def _sw_step(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, g, y, K):
                 P[i, j] = P[i, j] - (gi * g[j]) / s
     # ring buffer: slot `head` holds the oldest sample once the window is full
     h = ist[HEAD]
-    leaving = ist[NW] == window and not _any_nan(wZ[h])
+    leaving = ist[NW] == window and not any_nan(wZ[h])
     refit = False
     if leaving:                                # downdate with the leaving sample
         hl = wH[h]
@@ -542,65 +387,13 @@ def _sw_step(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, g, y, K):
         refit = True
     if refit:
         nw = ist[NW]
-        if _window_lstsq(wH, wZ, wR, nw, Lt, Ltx0, n - n, x, P):   # (n - n: one typing)
+        if window_lstsq(wH, wZ, wR, nw, Lt, Ltx0, n - n, x, P):   # (n - n: one typing)
             ist[EXACT] = 1
         else:
             ist[EXACT] = 0
             ist[NEXT_EXACT] = ist[COUNT] + window
-            _window_lstsq(wH, wZ, wR, nw, Lt, Ltx0, n, x, P)
+            window_lstsq(wH, wZ, wR, nw, Lt, Ltx0, n, x, P)
     return s
-
-
-@njit(cache=True, inline="always")
-def _sw_diagonal_bad(P):
-    """True when a diagonal entry of ``P`` is not positive and finite (the
-    cheap health check: a positive definite ``P`` has a positive diagonal)."""
-    for i in range(P.shape[0]):
-        v = P[i, i]
-        if not (v > 0.0 and v < np.inf):
-            return True
-    return False
-
-
-@njit(cache=True)
-def sw_unhealthy(P, cond_max):
-    """True when the symmetric ``P`` fails ``rls._health_problem`` (no
-    constraints): non-finite, not symmetric to 1e-8, not positive definite
-    (a Cholesky pivot not positive) or ``cond(P) = cond(L)^2`` above
-    `cond_max`, with the singular values of the Cholesky factor ``L`` from
-    `_singular_range` (``O(n^3)``, compiled without LAPACK).
-    """
-    n = P.shape[0]
-    scale = 0.0
-    for i in range(n):
-        for j in range(n):
-            v = P[i, j]
-            if v - v != 0.0:                   # NaN or infinite
-                return True
-            scale = max(scale, abs(v))
-    for i in range(n):
-        for j in range(i + 1, n):
-            if abs(P[i, j] - P[j, i]) > 1e-8 * scale:
-                return True
-    L = np.zeros((n, n))
-    for j in range(n):                         # P = L L^T
-        acc = P[j, j]
-        for k in range(j):
-            acc -= L[j, k] * L[j, k]
-        if not acc > 0.0:
-            return True
-        ljj = math.sqrt(acc)
-        L[j, j] = ljj
-        for i in range(j + 1, n):
-            acc = P[i, j]
-            for k in range(j):
-                acc -= L[i, k] * L[j, k]
-            L[i, j] = acc / ljj
-    smin, smax = _singular_range(L)
-    if not smin > 0.0:
-        return True
-    ratio = smax / smin
-    return ratio * ratio > cond_max
 
 
 @njit(cache=True)
@@ -608,11 +401,11 @@ def sw_update_kernel(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, y, K):
     """Streaming :meth:`SlidingWindowRLS.update`: `_sw_step` on the given arrays.
 
     Returns ``s`` and whether the diagonal of the new ``P`` fails the cheap
-    health check (`_sw_diagonal_bad`).
+    health check (``diagonal_bad``).
     """
     g = np.empty(x.shape[0])
     s = _sw_step(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, g, y, K)
-    return s, _sw_diagonal_bad(P)
+    return s, diagonal_bad(P)
 
 
 @njit(cache=True)
@@ -627,7 +420,7 @@ def sw_batch_kernel(x, P, Z, Hm, Rv, wH, wZ, wR, ist, refresh, Lt, Ltx0, means, 
 
     The health check runs after every update as
     :meth:`SlidingWindowRLS.update` runs it: the cheap diagonal test each
-    step and `sw_unhealthy` when the update count ``step0 + k + 1`` is a
+    step and ``unhealthy`` when the update count ``step0 + k + 1`` is a
     multiple of ``check_every`` (0 disables both). The first failing ``P``
     is copied to ``P_fail`` and no further checks run.
 
@@ -648,7 +441,7 @@ def sw_batch_kernel(x, P, Z, Hm, Rv, wH, wZ, wR, ist, refresh, Lt, Ltx0, means, 
     countdown = check_every - step0 % check_every if check_every > 0 else -1
     for k in range(N):
         if k == N - 1:
-            _copy2(P, P_last)
+            copy2(P, P_last)
         s = _sw_step(x, P, Hm[k], Z[k], Rv[k if r_each else 0], wH, wZ, wR, ist, refresh,
                      Lt, Ltx0, g, y, K)
         if countdown > 0:
@@ -656,11 +449,11 @@ def sw_batch_kernel(x, P, Z, Hm, Rv, wH, wZ, wR, ist, refresh, Lt, Ltx0, means, 
             full = countdown == 0
             if full:
                 countdown = check_every
-            if _sw_diagonal_bad(P) or (full and sw_unhealthy(P, cond_max)):
+            if diagonal_bad(P) or (full and unhealthy(P, cond_max)):
                 k_fail = k
                 countdown = -1
-                _copy2(P, P_fail)
-        _copy2(x, means[k])
+                copy2(P, P_fail)
+        copy2(x, means[k])
         if store:
-            _copy2(P, covs[k])
+            copy2(P, covs[k])
     return s, k_fail

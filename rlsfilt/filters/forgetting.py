@@ -1,21 +1,21 @@
-r"""Forgetting schemes for recursive least squares, one small function per mode.
+r"""Forgetting modes of recursive least squares: names, codes and constants.
 
 Plain exponential forgetting (``P <- P / lam`` in every step) winds up: when
 the regressor stops exciting some direction, nothing ever shrinks ``P`` in
 that direction again and it grows like ``lam**-k`` (covariance windup). The
-schemes here bound ``P`` by forgetting only what new data replaces. Each
-function performs the *measurement update including the forgetting* of one
-step, because all of them need the step's regressor or residual; they share
-one signature so that the step loop (and the compiled kernels that mirror
-it) can dispatch on an integer code::
+other modes bound ``P`` by forgetting only what new data replaces; they
+forget inside the measurement update, because they need the step's
+regressor or residual.
 
-    x, P, y, K, lam_t = update_<mode>(x, P, phi, z, g, s, r, params)
-
-with ``x`` (n, m) the prior estimate, ``P`` (n, n) the prior covariance,
-``phi`` (1, n) the regressor row, ``z`` (m, 1) the measurement, ``g = P
-phi^T``, ``s = phi P phi^T + r`` and ``r`` the noise variance. ``lam_t`` is
-the forgetting factor that the step effectively applied (reported as
-``RecursiveLeastSquares.lam_t``).
+This module is the one home of the modes' configuration: their names
+(:data:`MODES`), the integer codes the compiled kernels dispatch on, the
+validation and defaults of ``forgetting_params``, EFRA's invariant interval,
+and the layout of the configuration array the kernels receive
+(:func:`kernel_config`). The arithmetic of each mode is written once as
+NumPy in :mod:`rlsfilt.filters._reference` (``update_<mode>``, the
+textbook) and once compiled in :mod:`rlsfilt.filters._kernels`
+(``measurement_update``, the production path); the tests hold the two equal
+step by step.
 
 References
 ----------
@@ -131,120 +131,21 @@ def mode_params(code, params, dim_x, lam, R=1.0):
     return tuple(p[name] for name in names)
 
 
-# ----------------------------------------------------------------------
-# per-mode measurement updates (the reference arithmetic)
-# ----------------------------------------------------------------------
-def update_exponential(x, P, phi, z, g, s, r, lam, params):
-    r"""Standard update; the forgetting ``P / lam`` already happened in ``predict``.
+# The configuration array of the kernels: [mode, lam, gate, params (3), projector].
+CFG_MODE, CFG_LAM, CFG_GATE, CFG_PARAMS, CFG_PI = 0, 1, 2, 3, 6
 
-    .. math:: K = P\phi^T / s,\quad x \leftarrow x + K y^T,\quad
-              P \leftarrow P - g g^T / s
+
+def kernel_config(code, lam, params, gate=None, Pi=None):
+    """The float64 array the compiled kernels take as their configuration.
+
+    ``[mode, lam, gate, p1, p2, p3, Pi...]``: the mode's code, the forgetting
+    factor, the gate (``inf`` without one: no residual exceeds it), the mode's
+    parameters padded to three and, with constraints, the projector ``Pi``
+    onto the null space of ``A`` (flattened; absent without constraints).
     """
-    y = z - (phi @ x).T                    # y = z - H x          (m, 1)
-    K = g / s                              # K = P H^T / S         (n, 1)
-    x = x + K * y.T                        # x = x + K y^T         (n, m)
-    P = P - (g * g.T) / s                  # P = P - g g^T / S     exactly symmetric
-    return x, P, y, K, lam
-
-
-def update_directional(x, P, phi, z, g, s, r, lam, params):
-    r"""Directional forgetting (Kulhavy & Karny 1984; Bittanti et al. 1990).
-
-    With :math:`\rho = \phi P \phi^T / r` the information along the
-    regressor, :math:`\varepsilon = \lambda - (1 - \lambda)/\rho` when
-    :math:`\rho >` ``eps`` (else 1) and the information update
-    :math:`P^{-1} \leftarrow P^{-1} + \varepsilon \phi^T\phi / r`:
-
-    .. math:: P \leftarrow P - \frac{\varepsilon\, g g^T}{r (1 + \varepsilon\rho)},\quad
-              K = \frac{g}{r (1 + \varepsilon\rho)},\quad x \leftarrow x + K y^T
-
-    Only the excited direction is forgotten; ``phi P phi^T`` settles at
-    ``r (1 - lam) / lam`` along a constant regressor and the other
-    directions are untouched, so ``P`` cannot wind up.
-    """
-    (eps,) = params
-    rho = (s - r) / r                      # phi P phi^T / r
-    e = lam - (1.0 - lam) / rho if rho > eps else 1.0
-    d = r * (1.0 + e * rho)                # = r lam (1 + rho) when forgetting
-    y = z - (phi @ x).T
-    K = g / d
-    x = x + K * y.T
-    P = P - (e / d) * (g * g.T)
-    return x, P, y, K, e
-
-
-def update_constant_trace(x, P, phi, z, g, s, r, lam, params):
-    r"""Constant-trace algorithm (Goodwin & Sin 1984; Astrom & Wittenmark 1995).
-
-    .. math:: \bar P = P - g g^T / s,\qquad
-              P \leftarrow c_1 \bar P / \operatorname{tr}\bar P + c_2 I
-
-    with :math:`c_1 + n c_2 =` ``trace`` and :math:`c_1 / c_2 =` ``ratio``,
-    so ``trace(P)`` is constant and ``cond(P)`` is at most about ``ratio``.
-    The normalization is the forgetting (``lam_t = tr(P_bar) / tr(P)``
-    before the ``c_2`` term), so `lam` enters only through the default ``trace``.
-    """
-    trace, ratio = params
-    n = P.shape[0]
-    c2 = trace / (ratio + n)
-    c1 = trace - n * c2
-    x, Pb, y, K, _ = update_exponential(x, P, phi, z, g, s, r, lam, ())
-    tb = np.trace(Pb)
-    P = (c1 / tb) * Pb
-    P[np.diag_indices(n)] += c2
-    return x, P, y, K, tb / c1
-
-
-def update_efra(x, P, phi, z, g, s, r, lam, params):
-    r"""Exponential forgetting and resetting (Salgado, Goodwin & Middleton 1988).
-
-    .. math:: K = \alpha g / s,\quad x \leftarrow x + K y^T,\quad
-              P \leftarrow P / \lambda - \alpha g g^T / s + \beta r I - (\delta / r) P^2
-
-    This is the paper's recursion (written for unit noise variance) applied
-    to ``P / r``, so the constants do not depend on the units of the data.
-    ``P / r`` stays between :func:`efra_bounds` ``(sigma_min, sigma_max)``
-    once it starts there (the filter clips the eigenvalues of ``P`` once
-    before the first EFRA step).
-    """
-    alpha, beta, delta = params
-    n = P.shape[0]
-    y = z - (phi @ x).T
-    K = (alpha / s) * g
-    x = x + K * y.T
-    Pn = P / lam - (alpha / s) * (g * g.T) - (delta / r) * (P @ P)
-    Pn = 0.5 * (Pn + Pn.T)                 # P @ P is symmetric only to round-off
-    Pn[np.diag_indices(n)] += beta * r
-    return x, Pn, y, K, lam
-
-
-def update_variable(x, P, phi, z, g, s, r, lam, params):
-    r"""Variable forgetting factor (Fortescue, Kershenbaum & Ydstie 1981).
-
-    The information lost per step equals the information a typical residual
-    brings: with the nominal memory :math:`N_0 = 1/(1 - \lambda)`,
-
-    .. math:: \lambda_t = 1 - (1 - \lambda)\, \frac{y^T y}{m\, s},\qquad
-              \bar P = P - g g^T / s,\qquad P \leftarrow \bar P / \lambda_t
-
-    (the paper's :math:`1 - (1 - \phi K) e^2 / \Sigma_0` with
-    :math:`\Sigma_0 = r N_0`), clipped to ``[lam_min, 1]``; and, because
-    noise alone keeps :math:`\lambda_t < 1` while the input is not exciting,
-    :math:`\lambda_t` is raised so that ``trace(P)`` does not pass
-    ``trace_max`` (Fortescue et al.'s bound on ``P``).
-    """
-    lam_min, trace_max = params
-    x, Pb, y, K, _ = update_exponential(x, P, phi, z, g, s, r, lam, ())
-    m = y.shape[0]
-    lt = 1.0 - (1.0 - lam) * float(np.vdot(y, y)) / (m * s)
-    lt = min(1.0, max(lam_min, lt))
-    lt = max(lt, min(1.0, np.trace(Pb) / trace_max))
-    return x, Pb / lt if lt != 1.0 else Pb, y, K, lt
-
-
-#: Dispatch table indexed by mode code.
-UPDATES = (update_exponential, update_directional, update_constant_trace, update_efra,
-           update_variable)
+    pad = (0.0,) * (CFG_PI - CFG_PARAMS - len(params))
+    head = [code, lam, math.inf if gate is None else gate, *params, *pad]
+    return np.concatenate([head, np.zeros(0) if Pi is None else np.ravel(Pi)])
 
 
 # ----------------------------------------------------------------------

@@ -8,13 +8,13 @@ for :class:`filterpy.kalman.KalmanFilter` runs on it unchanged where the
 meaning is the same: ``predict()`` / ``update(z, H)`` / ``batch_filter``,
 state ``x`` and ``P``, diagnostics ``y``, ``K``, ``S``, ``SI`` and the lazy
 ``log_likelihood``, ``likelihood`` and ``mahalanobis``.
+
+Every step runs compiled (:mod:`rlsfilt.filters._kernels`; the streaming
+calls through :mod:`rlsfilt.filters._streaming`); the same recursion in
+textbook NumPy is :mod:`rlsfilt.filters._reference`.
 """
 
-import functools
 import math
-import sys
-import sysconfig
-import warnings
 
 import numpy as np
 from filterpy.common import pretty_str
@@ -29,102 +29,18 @@ from .._validation import (
     check_scalar,
     check_variance,
 )
-from ..exceptions import ForgettingSkippedWarning, NumericalWarning
+from ..exceptions import ForgettingSkippedWarning
+from . import _health, _streaming
 from . import forgetting as _fg
-from ._base import _FilterBase, _innovation
+from ._base import _FilterBase
 
 __all__ = ["RecursiveLeastSquares"]
 
+_EMPTY = np.zeros((0, 0))          # an absent Q or projector, as the kernels take it
 _F8 = np.dtype(np.float64)
-# (without getrefcount, or with _FREE None, no array compares equal: no recycling)
-_getrefcount = getattr(sys, "getrefcount", lambda obj: -1)
-
-# Run batch_filter, predict and update through the compiled kernels of
-# `_kernels` (numba), for every mode and option. The tests switch this off to
-# compare with the pure-NumPy reference (`_batch_reference`,
-# `_measurement_step`, `forgetting.update_<mode>`).
-_COMPILED = True
-_kernels = None
-_EXPONENTIAL = _fg.EXPONENTIAL    # the mode of the fused fast paths
-_EMPTY2 = np.zeros((0, 0))        # stands for an absent Q or projector in kernel calls
-
-
-def _get_kernels():
-    """Import the numba kernels on first use, so ``import rlsfilt`` stays light."""
-    global _kernels
-    if _kernels is None:
-        from . import _kernels as k
-        _kernels = k
-    return _kernels
-
-
-# Compiled entry points of `predict_kernel` and `update_kernel` for the
-# argument types of the recycling fast path (see `_entry_point`).
-_predict_entry = None
-_update_entry = None
-
-
-def _entry_point(dispatcher, args):
-    """The compiled function of `dispatcher` for exactly the types of `args`, or None.
-
-    Calling a numba dispatcher first types every argument to choose the
-    compiled overload, about 70 ns per argument: most of the cost of a
-    streaming step at small ``dim_x``. The streaming fast path calls the
-    overload's entry point directly instead, and only with arguments whose
-    types cannot differ from the ones it was resolved for: the filter's own
-    C-contiguous float64 arrays and a regressor checked with
-    ``flags.carray``. None (use the dispatcher) when numba does not expose
-    the overload.
-    """
-    try:
-        from numba import typeof
-
-        sig = tuple(typeof(a) for a in args)
-        return dispatcher.overloads[sig].entry_point
-    except Exception:       # pragma: no cover - numba internals changed
-        return None
-
-
-def _free_refcount():
-    """What ``sys.getrefcount`` reports for an array nobody else can see.
-
-    The streaming methods recycle the arrays of the previous step (``y``,
-    ``K``, ``S``, ``x_prior``, ...) instead of allocating new ones, but only
-    when the filter holds the sole references: one attribute, one private
-    reference (a tuple or a second attribute) and the local variable. Any
-    reference held elsewhere (a list of past estimates, a view, a Saver)
-    raises the count and a fresh array is made, so no array a user can see
-    ever changes. The count is measured here rather than assumed; recycling
-    is off where it cannot be measured reliably (no ``getrefcount``, or a
-    free-threaded build).
-    """
-    if not hasattr(sys, "getrefcount") or sysconfig.get_config_var("Py_GIL_DISABLED"):
-        return None
-
-    class _Holder:
-        pass
-
-    h = _Holder()
-    h.y = np.empty(1)
-    h.spare = (h.y,)
-    (y,) = h.spare
-    via_tuple = sys.getrefcount(y)
-    h.P = np.empty(1)
-    h.P_own = h.P
-    P = h.P
-    via_attribute = sys.getrefcount(P)
-    return via_tuple if via_tuple == via_attribute else None
-
-
-_FREE = _free_refcount()
-
-
-def _set_entries(predict=None, update=None):
-    global _predict_entry, _update_entry
-    if predict is not None:
-        _predict_entry = predict
-    if update is not None:
-        _update_entry = update
+_SKIPPED = ("update() was called twice without predict() in between, so the forgetting "
+            "(lam < 1) or random walk (Q > 0) of this step was skipped; call predict() "
+            "before each update() or use predict_update().")
 
 
 class RecursiveLeastSquares(_FilterBase):
@@ -260,7 +176,7 @@ class RecursiveLeastSquares(_FilterBase):
     **Forgetting modes.** Plain exponential forgetting winds up: while the
     input does not excite a direction, ``P`` grows like ``lam**-k`` in it
     and the next disturbance throws the estimate away. The other modes
-    (functions in :mod:`rlsfilt.filters.forgetting`) replace the last two
+    (constants in :mod:`rlsfilt.filters.forgetting`) replace the last two
     lines above; for them :meth:`predict` adds ``Q`` and records the priors
     only, and the forgetting happens in :meth:`update` (so ``update`` alone
     is a complete step; :meth:`predict_update` is the one-call textbook
@@ -344,20 +260,26 @@ class RecursiveLeastSquares(_FilterBase):
     array([0.8, 0.5])
     """
 
-    # Bookkeeping of the streaming fast path lives in slots, outside
-    # ``__dict__``, so that filterpy's Saver (which records every entry of
-    # ``__dict__``) sees only the filter's state.
-    # (_FilterBase has no __slots__, so instances keep their __dict__.)
-    __slots__ = ("_x_own", "_P_own", "_spare_prior", "_spare_update", "_row", "_row2",
-                 "_params_arr", "_general")
+    # The filter's own x and P and the arrays the streaming steps reuse live
+    # in slots, outside ``__dict__``: filterpy's Saver deep-copies
+    # ``__dict__`` and reads ``x`` and ``P`` through their properties.
+    __slots__ = ("_x", "_P", "_cfg", "_last_predict", "_spare_predict", "_last_update",
+                 "_spare_update")
+
+    _HEALTH_ADVICE = ("The estimate may be unreliable: use a forgetting mode that bounds P "
+                      "(forgetting='directional', 'efra', ...), SquareRootRLS, or more "
+                      "exciting input.")
 
     def __init__(self, dim_x, dim_z=1, lam=1.0, *, P0=1e4, x0=None, R=1.0, Q=0.0,
                  forgetting="exponential", forgetting_params=None, gate=None,
                  check_every=100, cond_max=1e12):
         self.dim_x = check_int(dim_x, "dim_x", minimum=1)
         self.dim_z = check_int(dim_z, "dim_z", minimum=1)
+        self._row_shape = (self.dim_x,)
         self._mode = _fg.mode_code(forgetting)
         self._forgetting_params_in = forgetting_params
+        self._gate = None
+        self._Pi = _EMPTY            # orthogonal projector onto null(A); empty: no constraints
         self.R = R
         self.lam = lam
         self.Q = Q
@@ -367,16 +289,36 @@ class RecursiveLeastSquares(_FilterBase):
         self._P0 = check_covariance(P0, self.dim_x, "P0", definite=True)
         self._x0 = self._as_state(np.zeros((self.dim_x, self.dim_z)) if x0 is None else x0, "x0")
         self._warned_skip = False
-        self._row, self._row2 = (self.dim_x,), (1, self.dim_x)   # regressor shapes
+        self._batch_start = None     # n_updates when a step-by-step batch_filter started
         self.constraints = None
-        self._Pi = None          # orthogonal projector onto null(A)
-        self._set_path()
-        self._null_basis = None  # orthonormal basis of null(A), for the health check
+        self._null_basis = None      # orthonormal basis of null(A), for the health check
+        self._last_predict = self._spare_predict = None
+        self._last_update = self._spare_update = None
         self.reset()
 
     # ------------------------------------------------------------------
-    # configuration, validated once on assignment
+    # state and configuration (assignments copy and validate)
     # ------------------------------------------------------------------
+    @property
+    def x(self):
+        """Parameter estimate, ``(dim_x, dim_z)``; assigning copies the value."""
+        return self._x
+
+    @x.setter
+    def x(self, value):
+        self._x = _own(value, "x")
+        self._recheck = True
+
+    @property
+    def P(self):
+        """Covariance of the estimate, ``(dim_x, dim_x)``; assigning copies the value."""
+        return self._P
+
+    @P.setter
+    def P(self, value):
+        self._P = _own(value, "P")
+        self._recheck = True
+
     @property
     def lam(self):
         """Forgetting factor in (0, 1]."""
@@ -388,7 +330,8 @@ class RecursiveLeastSquares(_FilterBase):
         params = _fg.mode_params(self._mode, self._forgetting_params_in, self.dim_x, lam,
                                  self._R)
         self._lam, self._params = lam, params
-        self._params_arr = np.array(params, dtype=np.float64)
+        self._il = 1.0 / lam if self._mode == _fg.EXPONENTIAL else 1.0   # predict: P / lam
+        self._configure()
 
     @property
     def forgetting(self):
@@ -408,12 +351,7 @@ class RecursiveLeastSquares(_FilterBase):
     @gate.setter
     def gate(self, value):
         self._gate = None if value is None else _check_positive(value, "gate")
-        self._set_path()
-
-    def _set_path(self):
-        """Choose the streaming path: the fused fast path, or the general step."""
-        self._general = (self._mode != _EXPONENTIAL or self._gate is not None
-                         or getattr(self, "_Pi", None) is not None)
+        self._configure()
 
     @property
     def Q(self):
@@ -422,10 +360,8 @@ class RecursiveLeastSquares(_FilterBase):
 
     @Q.setter
     def Q(self, value):
-        # C-contiguous float64: the streaming fast path passes it to compiled code
-        self._Q = np.ascontiguousarray(check_covariance(value, self.dim_x, "Q"),
-                                       dtype=np.float64)
-        self._Q_is_zero = not self._Q.any()
+        self._Q = check_covariance(value, self.dim_x, "Q")
+        self._Q_kernel = self._Q if self._Q.any() else _EMPTY
 
     # ------------------------------------------------------------------
     # the recursion
@@ -445,59 +381,17 @@ class RecursiveLeastSquares(_FilterBase):
         Q : float or array_like, optional
             Random-walk covariance for this call only; ``self.Q`` if omitted.
         """
-        if Q is None:
-            Q, q_zero = self._Q, self._Q_is_zero
-        else:
-            Q = check_covariance(Q, self.dim_x, "Q")
-            q_zero = not Q.any()
-        if self._general or not _COMPILED:
-            P = self._checked_P()
-            if self._efra_pending:
-                P = self._efra_start(P)
-            if _COMPILED:        # the compiled step that batch_filter runs
-                P = np.array(P, dtype=np.float64, order="C")
-                Pi = self._Pi
-                n = self.dim_x
-                (_kernels or _get_kernels()).general_predict(
-                    P, 1.0 / self._time_lam(), Q, q_zero, Pi is not None,
-                    _EMPTY2 if Pi is None else Pi, np.empty((n, n)))
-                self.P = P
-            else:
-                P = _predict_covariance(P, self._time_lam(), None if q_zero else Q)
-                self.P = P if self._Pi is None else _project(P, self._Pi)
-            self.x_prior = self.x.copy()
-            self.P_prior = self.P.copy()
-            self._updates_since_predict = 0
-            return
-        x, P = self.x, self.P
-        rc = _getrefcount
-        x_prior, P_prior = self._spare_prior
-        # Nobody else holds P or the last priors (the usual case, see
-        # _free_refcount): P^- overwrites P, the priors are rewritten in place.
-        recycled = (x is self._x_own and P is self._P_own and rc(P) == _FREE
-                    and rc(x_prior) == _FREE and rc(P_prior) == _FREE
-                    and self.x_prior is x_prior and self.P_prior is P_prior)
-        if recycled:
-            ep = _predict_entry
-            if ep is not None and Q is self._Q:
-                ep(x, P, 1.0 / self._lam, Q, q_zero, P, x_prior, P_prior)
-                self._updates_since_predict = 0
-                return
-            Pn = P
-        else:
-            n = self.dim_x
-            x = np.ascontiguousarray(self._checked_x(), dtype=float)
-            P = np.ascontiguousarray(self._checked_P(), dtype=float)
-            Pn, x_prior, P_prior = np.empty((n, n)), np.empty((n, self.dim_z)), np.empty((n, n))
-        args = (x, P, 1.0 / self._lam, Q, q_zero, Pn, x_prior, P_prior)
-        (_kernels or _get_kernels()).predict_kernel(*args)
-        if recycled and Q is self._Q:       # the types of the fast path: resolve its entry
-            _set_entries(predict=_entry_point(_kernels.predict_kernel, args))
-        if not recycled:
-            self.x = self._x_own = x
-            self.P = self._P_own = Pn
-            self.x_prior, self.P_prior = self._spare_prior = x_prior, P_prior
+        Q = self._Q_kernel if Q is None else self._random_walk(Q)
+        x, P = (self._x, self._P) if not self._recheck else self._state()
+        # P^- = P / lam + Q      (exponential mode: filterpy's fading memory)
+        # P^- <- Pi P^- Pi       (constraints: keep A P = 0)
+        # x^- = x                (constant, or random-walk, parameters)
+        out = _streaming.predict(x, P, self._il, Q, self._cfg, self._spare_predict)
+        self._spare_predict, self._last_predict = self._last_predict, out
+        _, self._P, self.x_prior, self.P_prior = out
         self._updates_since_predict = 0
+        if self._recheck:
+            self._recheck = self._efra_pending = False
 
     def update(self, z, H, R=None):
         r"""Measurement update with regressor row `H`.
@@ -517,187 +411,51 @@ class RecursiveLeastSquares(_FilterBase):
         R : float, optional
             Measurement-noise variance for this call only.
         """
-        if self._general or not _COMPILED:
-            self._update_general(z, H, R)
-            return
-        # The common case (a float64 row, a float measurement, the filter's
-        # own x and P) skips the conversions; the arithmetic is the compiled
-        # step that batch_filter runs, so both agree bit for bit.
-        if type(H) is np.ndarray and H.dtype is _F8 and H.shape == self._row:
-            phi = H
-        elif type(H) is np.ndarray and H.dtype is _F8 and H.shape == self._row2:
-            phi = H.reshape(self.dim_x)
-        else:
-            phi = self._as_regressor(H, "H").reshape(self.dim_x)
+        if not (type(H) is np.ndarray and H.dtype is _F8 and H.shape == self._row_shape
+                and H.flags.carray):
+            H = self._row(H)                          # the row as a C-contiguous float64 copy
         r = self._R if R is None else check_variance(R, "R")
-        zf = isinstance(z, float) and self.dim_z == 1
-        if zf:
-            missing = z != z
-            if not missing and z - z != 0.0:
-                self._as_measurement(z, "z")            # raises: z is inf
-        else:
-            zvalue = self._as_measurement(z, "z")
-            missing = zvalue is None
-        x, P = self.x, self.P
-        rc = _getrefcount
-        y, K, S, SI, Hc, zc, x_post, P_post = self._spare_update
-        # Nobody else holds x, P or the last step's diagnostics (the usual
-        # case, see _free_refcount): update them in place, no allocations.
-        recycled = (x is self._x_own and P is self._P_own and (zf or missing)
-                    and rc(x) == _FREE and rc(P) == _FREE and rc(y) == _FREE
-                    and rc(K) == _FREE and rc(S) == _FREE and rc(SI) == _FREE
-                    and rc(Hc) == _FREE and rc(zc) == _FREE and rc(x_post) == _FREE
-                    and rc(P_post) == _FREE
-                    # the attributes still are the spare arrays (an attribute the
-                    # user replaced while keeping the old array keeps the count)
-                    and self.y is y and self.K is K and self.S is S and self.SI is SI
-                    and self.H is Hc and self.z is zc and self.x_post is x_post
-                    and self.P_post is P_post)
-        if recycled:
-            xn, Pn = x, P
-        else:
-            n, m = self.dim_x, self.dim_z
-            if x is not self._x_own:
-                x = np.ascontiguousarray(self._checked_x(), dtype=float)
-            if P is not self._P_own:
-                P = np.ascontiguousarray(self._checked_P(), dtype=float)
-            xn, Pn = np.empty((n, m)), np.empty((n, n))
-            y, K, S, SI = np.empty((m, 1)), np.empty((n, 1)), np.empty((m, m)), np.empty((m, m))
-            Hc, x_post, P_post = np.empty((1, n)), np.empty((n, m)), np.empty((n, n))
-            if zf or missing:                # the kernel writes z (or NaN) into zc
-                zc = np.empty((m, 1))
-            else:
-                zc = zvalue
-        zmode, z0 = (2, 0.0) if missing else ((1, z) if zf else (0, 0.0))
-        ep = _update_entry
-        if recycled and ep is not None and phi.flags.carray:
-            code = ep(x, P, phi, zc, z0, zmode, r, x, P, y, K, S, SI, Hc, x_post, P_post)
-        else:
-            args = (x, P, phi, zc, float(z0), zmode, float(r), xn, Pn, y, K, S, SI, Hc,
-                    x_post, P_post)
-            code = (_kernels or _get_kernels()).update_kernel(*args)
-            if recycled and ep is None and phi.flags.carray:   # resolve the fast entry
-                _set_entries(update=_entry_point(_kernels.update_kernel, args))
+        if not (isinstance(z, float) and self.dim_z == 1 and z - z == 0.0):   # a finite float
+            z = self._as_measurement(z, "z")          # a new column, or None when missing
+        x, P = (self._x, self._P) if not self._recheck else self._state()
+        # one compiled step, into new arrays:
+        #   y = z - H x^-            a-priori residual
+        #   S = H P^- H^T + R        innovation variance
+        #   K = P^- H^T / S          gain
+        #   x = x^- + K y^T          (missing or gated: x = x^-, K = 0)
+        #   P = P^- - K S K^T        (the other forgetting modes: their update)
+        #   P <- Pi P Pi             (constraints)
+        code, s, lam_t, gated, out = _streaming.update(x, P, H, z, r, self._cfg,
+                                                       self._spare_update)
         if code == 1:
-            check_finite(phi, "H")                   # raises: H is not finite
-        if self._updates_since_predict:
-            self._note_update()
-        else:
-            self._updates_since_predict = 1
-        if missing:
+            check_finite(H, "H")                      # raises; nothing has changed
+        n_updates = self.n_updates + 1
+        skipped = self._updates_since_predict and not self._warned_skip and self._forgets
+        every = self.check_every
+        checked = every and (code == 2 or not n_updates % every) and not self._warned_health
+        if skipped or checked:                        # warn before the state changes
+            self._warn(skipped, self._health_problem(out[2], n_updates, code == 2)
+                       if checked else None)
+        self._spare_update, self._last_update = self._last_update, out
+        (_, self._x, self._P, self.y, self.K, self.S, self.SI, self.H, self.z, self.x_post,
+         self.P_post) = out
+        if z is None:
             self._log_likelihood, self._likelihood, self._mahalanobis = 0.0, 1.0, math.nan
         else:
             self._log_likelihood = self._likelihood = self._mahalanobis = None
-        if not recycled:
-            self._spare_update = (y, K, S, SI, Hc, zc, x_post, P_post)
-            self.H, self.z, self.S, self.SI, self.y, self.K = Hc, zc, S, SI, y, K
-            self.x = self._x_own = xn
-            self.P = self._P_own = Pn
-            self.x_post, self.P_post = x_post, P_post
-        if self.gated:
-            self.gated = False
-        self.lam_t = self._lam
-        self.n_updates = nu = self.n_updates + 1
-        # the cheap health check of _check_health: the kernel tested the
-        # diagonal (code 2); the periodic full check runs compiled, and the
-        # NumPy check only words the warning
-        every = self.check_every
-        if every and (code == 2 or not nu % every) and not self._warned_health:
-            if code == 2 or _kernels._unhealthy(self.P, self.cond_max):
-                self._check_health(cheap=False)
+        self.gated = gated
+        if gated:
+            self.n_gated += 1
+        self.lam_t = lam_t
+        self.n_updates = n_updates
+        self._updates_since_predict += 1
+        if self._recheck:
+            self._recheck = self._efra_pending = False
 
     def predict_update(self, z, H, R=None):
         """One textbook RLS step: :meth:`predict` then :meth:`update`."""
         self.predict()
         self.update(z, H, R)
-
-    def _update_general(self, z, H, R):
-        """:meth:`update` for the forgetting modes other than exponential, the gate
-        and the constraints: the compiled step that batch_filter runs (so the
-        two agree bit for bit), or the NumPy reference when ``_COMPILED`` is off."""
-        if not _COMPILED:
-            self._update_reference(z, H, R)
-            return
-        n, m = self.dim_x, self.dim_z
-        if type(H) is np.ndarray and H.dtype is _F8 and (H.shape == self._row
-                                                          or H.shape == self._row2):
-            phi = H.reshape(n)                 # finiteness: tested by the kernel
-        else:
-            phi = self._as_regressor(H, "H").reshape(n)
-        r = self._R if R is None else check_variance(R, "R")
-        zc = np.empty(m)
-        if isinstance(z, float) and m == 1:
-            zmode, z0 = (2, 0.0) if z != z else (1, z)
-            if zmode == 1 and z - z != 0.0:
-                self._as_measurement(z, "z")            # raises: z is inf
-        else:
-            zvalue = self._as_measurement(z, "z")
-            zmode, z0 = (2, 0.0) if zvalue is None else (0, 0.0)
-            if zvalue is not None:
-                zc[:] = zvalue[:, 0]
-        x, P = self._checked_x(), self._checked_P()
-        if self._efra_pending:
-            check_finite(phi, "H")                    # before the state changes
-            P = self._efra_start(P)
-        x = np.array(x, dtype=np.float64, order="C")
-        P = np.array(P, dtype=np.float64, order="C")
-        y, K = np.empty(m), np.empty(n)
-        S, SI, Hc = np.empty((m, m)), np.empty((m, m)), np.empty((1, n))
-        x_post, P_post = np.empty((n, m)), np.empty((n, n))
-        Pi, gate = self._Pi, self._gate
-        code, s, lam_t, gated = (_kernels or _get_kernels()).general_update_kernel(
-            x, P, phi, zc, float(z0), zmode, r, self._mode, self._params_arr, self._lam,
-            gate is not None, 0.0 if gate is None else gate, Pi is not None,
-            _EMPTY2 if Pi is None else Pi, y, K, S, SI, Hc, x_post, P_post)
-        if code == 1:
-            check_finite(phi, "H")                    # raises: H is not finite
-        self._note_update()
-        if zmode == 2:
-            self._log_likelihood, self._likelihood, self._mahalanobis = 0.0, 1.0, math.nan
-        else:
-            self._log_likelihood = self._likelihood = self._mahalanobis = None
-        self.H, self.S, self.SI = Hc, S, SI
-        self.z, self.y, self.K = zc.reshape(m, 1), y.reshape(m, 1), K.reshape(n, 1)
-        self.x, self.P = x, P
-        self.x_post, self.P_post = x_post, P_post
-        self.gated = gated
-        self.n_gated += gated
-        self.lam_t = lam_t
-        self.n_updates = nu = self.n_updates + 1
-        # the cheap health check: the kernel tested the diagonal (code 2)
-        every = self.check_every
-        if every and (code == 2 or not nu % every) and not self._warned_health:
-            self._check_health(cheap=False)
-
-    def _update_reference(self, z, H, R):
-        """:meth:`update` in NumPy (the reference path)."""
-        phi = self._as_regressor(H, "H")
-        r = self._R if R is None else check_variance(R, "R")
-        zc = self._as_measurement(z, "z")
-        x, P = self._checked_x(), self._checked_P()
-        self._note_update()
-        self._clear_lazy()
-        if self._efra_pending:
-            P = self._efra_start(P)
-        self.H = phi
-        x, P, y, K, g, s, lam_t, gated = _measurement_step(
-            self._mode, self._params, self._lam, x, P, phi, zc, r, self._gate, self._Pi)
-        self.S = s * self._I_z
-        self.SI = self._I_z / s
-        self.gated = gated
-        self.n_gated += gated
-        self.lam_t = lam_t
-        self.x, self.P, self.K = x, P, K
-        if zc is None:
-            self.z = np.full((self.dim_z, 1), np.nan)
-            self.y = np.full((self.dim_z, 1), np.nan)
-            self._log_likelihood, self._likelihood, self._mahalanobis = 0.0, 1.0, math.nan
-        else:
-            self.z, self.y = zc, y
-        self.x_post = self.x.copy()
-        self.P_post = self.P.copy()
-        self.n_updates += 1
-        self._check_health(cheap=True)
 
     # ------------------------------------------------------------------
     # batch start and batch runs
@@ -760,15 +518,16 @@ class RecursiveLeastSquares(_FilterBase):
                 "samples or a more exciting input."
             )
         Qf, Rf = np.linalg.qr(As)
-        self.x = solve_triangular(Rf, Qf.T @ B) / d[:, None]
+        self._x = solve_triangular(Rf, Qf.T @ B) / d[:, None]
         Rinv = solve_triangular(Rf, np.eye(self.dim_x)) / d[:, None]   # D^-1 R_s^-1
         P = self._R * (Rinv @ Rinv.T)
-        self.P = 0.5 * (P + P.T)
+        self._P = 0.5 * (P + P.T)
         self._efra_pending = self._mode == _fg.EFRA
+        self._recheck = True
         if self.constraints is not None:   # keep the constraints given earlier
             self.constrain(*self.constraints)
-        self.x_prior = self.x_post = self.x.copy()
-        self.P_prior = self.P_post = self.P.copy()
+        self.x_prior, self.x_post = self._x.copy(), self._x.copy()
+        self.P_prior, self.P_post = self._P.copy(), self._P.copy()
         self._updates_since_predict = 0
 
     def batch_filter(self, zs, Hs, Rs=None, update_first=False, saver=None,
@@ -810,15 +569,15 @@ class RecursiveLeastSquares(_FilterBase):
 
         Notes
         -----
-        With exponential forgetting (the default) and no gate or constraints
-        the loop runs in compiled code (numba, cached on disk after the first
-        call): one sweep over ``P`` per step applies the update, the next
-        forgetting step and the next gain together, so a step costs about
-        :math:`6\,n^2` floating-point operations for ``n = dim_x`` and the
-        record is processed at tens of nanoseconds per sample for small ``n``
-        (see ``docs/performance.md``). The other modes, the gate and the
-        constraints run a compiled loop of one step per sample, the same
-        compiled step that :meth:`predict` and :meth:`update` call.
+        The loop runs in compiled code (numba, cached on disk after the first
+        call): the compiled steps that :meth:`predict` and :meth:`update` call,
+        one pair per sample. With exponential forgetting (the default), one
+        output, no gate or constraints and ``store_covariances=False``, one
+        sweep over ``P`` per step applies the update, the next forgetting step
+        and the next gain together (the same numbers, bit for bit), so a step
+        costs about :math:`6\,n^2` floating-point operations for
+        ``n = dim_x`` and the record is processed at tens of nanoseconds per
+        sample for small ``n`` (see ``docs/performance.md``).
 
         Every forgetting mode, the gate and the constraints apply exactly as
         in the step-by-step loop (the results are bitwise equal); gated
@@ -826,60 +585,50 @@ class RecursiveLeastSquares(_FilterBase):
         every ``check_every`` steps inside the loop and once at the end, so
         a failure is reported with its step in the record.
         """
-        Z, Hm = self._as_batch(zs, Hs)
-        Rv = self._as_batch_variances(Rs, len(Z))
-        if saver is not None:
-            return self._batch_stepwise(Z, Hm, Rv, update_first, saver, store_covariances)
-        P = self._checked_P()
-        if self._efra_pending and len(Z):
-            P = self._efra_start(P)
-        if not _COMPILED:
-            run = _batch_reference
-        elif self._mode == _EXPONENTIAL and self._gate is None and self._Pi is None:
-            # the fused fast path; the residual histories are not needed: last step only
-            run = functools.partial(_get_kernels().batch_compiled, histories=False)
-        else:
-            run = _get_kernels().batch_general
-        out = run(self._checked_x(), P, Z, Hm, Rv, self._lam,
-                  None if self._Q_is_zero else self._Q, update_first,
-                  store_covariances, mode=self._mode, params=self._params,
-                  gate=self._gate, Pi=self._Pi, check_every=self.check_every,
-                  basis=self._null_basis, cond_max=self.cond_max, step0=self.n_updates)
-        self._adopt_last_step(out, Hm, Z, Rv, update_first)
-        if out.problem is not None and not self._warned_health:
-            self._warn_health(out.problem)
-        self._check_health(cheap=False)
-        return out.means, out.covariances, out.means_p, out.covariances_p
+        return self._batch(zs, Hs, Rs, update_first, saver, store_covariances)
 
-    def _adopt_last_step(self, out, Hm, Z, Rv, update_first):
-        """Leave the filter as the step-by-step loop would have left it."""
-        self.x, self.P = self._x_own, self._P_own = out.x, out.P
-        if len(Z) == 0:
-            return
+    def _batch_compiled(self, Z, Hm, Rv, update_first, store_covariances):
+        """`batch_filter` in one compiled call (`_kernels.run_batch`); leaves the
+        filter as the step-by-step loop would, and changes nothing if it raises."""
+        P = self._checked_P()
+        if self._efra_pending:
+            P = self._efra_start(P)
+        out = _streaming.kernels().run_batch(
+            self._checked_x(), P, Z, Hm, Rv, self._cfg,
+            None if self._Q_kernel is _EMPTY else self._Q, self._null_basis, update_first,
+            store_covariances, 0 if self._warned_health else self.check_every, self.n_updates,
+            self.cond_max)
+        N, problem = len(Z), None
+        if out.k_fail >= 0:
+            problem = ((_health.symmetric_problem(out.P_fail, self.cond_max, self._null_basis)
+                        or "`P` failed the health check")
+                       + _health.at_step(out.k_fail, self.n_updates + out.k_fail + 1))
+        elif not self._warned_health and self.check_every:      # the end-of-batch check
+            problem = _health.symmetric_problem(out.P, self.cond_max, self._null_basis)
+            if problem is not None:
+                problem += _health.at_update(self.n_updates + N)
+        self._warn(False, problem)                    # before the state changes
+        self._x, self._P = out.x, out.P
+        self.x_prior, self.P_prior, self.x_post, self.P_post = (out.x_prior, out.P_prior,
+                                                                out.x_post, out.P_post)
         self._clear_lazy()
         self.H = Hm[-1].reshape(1, -1).copy()
-        s = out.s_last
-        self.S, self.SI = s * self._I_z, self._I_z / s
+        self.S, self.SI = out.s_last * self._I_z, self._I_z / out.s_last
+        self.K = out.K_last
         if np.isnan(Z[-1]).any():
             self.z = np.full((self.dim_z, 1), np.nan)
             self.y = np.full((self.dim_z, 1), np.nan)
-            self.K = np.zeros((self.dim_x, 1))
             self._log_likelihood, self._likelihood, self._mahalanobis = 0.0, 1.0, math.nan
         else:
             self.z = Z[-1].reshape(-1, 1).copy()
-            self.y = out.y_last.reshape(-1, 1)
-            self.K = out.K_last.reshape(-1, 1)
-        self.x_post = out.x_post
-        self.P_post = out.P_post
-        self.x_prior = out.x_prior
-        self.P_prior = out.P_prior
+            self.y = out.ys[-1].reshape(-1, 1).copy()
         self._updates_since_predict = 0 if update_first else 1
-        self.n_updates += len(Z)
+        self.n_updates += N
         self.n_gated += int(out.gated.sum())
         self.gated = bool(out.gated[-1])
         self.lam_t = out.lam_t_last
-        if self.gated:
-            self.K = np.zeros((self.dim_x, 1))
+        self._recheck = self._efra_pending = False
+        return out.means, out.covariances, out.means_p, out.covariances_p
 
     # ------------------------------------------------------------------
     # equality constraints
@@ -936,65 +685,28 @@ class RecursiveLeastSquares(_FilterBase):
             P = self._efra_start(P)
         PA = P @ A.T
         W = np.linalg.solve(A @ PA, PA.T).T            # W = P A^T (A P A^T)^-1
-        self.x = x + W @ (bb - A @ x)                  # x <- x + W (b - A x)
-        P = P - W @ PA.T                               # P <- P - W A P
         basis = null_space(A)
-        self._Pi = basis @ basis.T
-        self._set_path()
-        self.P = _project(P, self._Pi)
+        self._x = x + W @ (bb - A @ x)                 # x <- x + W (b - A x)
+        self._Pi = np.ascontiguousarray(basis @ basis.T)
+        self._configure()
+        self._P = self._projected(P - W @ PA.T)        # P <- P - W A P, then Pi P Pi
         self._null_basis = basis
+        self._recheck = True
         self.constraints = (A.copy(), bb.copy())
-        self.x_post, self.P_post = self.x.copy(), self.P.copy()
+        self.x_post, self.P_post = self._x.copy(), self._P.copy()
         return self
-
-    # ------------------------------------------------------------------
-    # health of P
-    # ------------------------------------------------------------------
-    def _check_health(self, cheap):
-        """Warn once if ``P`` is not positive definite or too ill-conditioned.
-
-        With `cheap`, only the diagonal is looked at (O(dim_x)) unless this
-        update is a multiple of ``check_every``; a suspicious diagonal
-        triggers the full check (``eigvalsh`` on ``P`` restricted to the
-        null space of the constraints, if any).
-        """
-        if self._warned_health or not self.check_every:
-            return
-        P = self.P
-        if cheap:
-            d = np.diagonal(P)
-            if (self.n_updates % self.check_every and np.isfinite(d).all()
-                    and (d > 0).all()):
-                return
-        problem = _health_problem(P, self._null_basis, self.cond_max)
-        if problem is not None:
-            self._warn_health(problem + f" at update {self.n_updates} since reset")
-
-    def _warn_health(self, message):
-        self._warned_health = True
-        warnings.warn(message + ". The estimate may be unreliable: use a forgetting mode that "
-                      "bounds P (forgetting='directional', 'efra', ...), SquareRootRLS, or more "
-                      "exciting input.", NumericalWarning, stacklevel=3)
-
-    def _efra_start(self, P):
-        """Clip ``P`` into EFRA's invariant interval before its first step."""
-        self._efra_pending = False
-        lo, hi = _fg.efra_bounds(self._lam, *self._params)
-        P = _fg.clip_eigenvalues(P, lo * self._R, hi * self._R)
-        return P if self._Pi is None else _project(P, self._Pi)
-
-    def _time_lam(self):
-        """Forgetting applied by predict(): `lam` only in the exponential mode."""
-        return self._lam if self._mode == _fg.EXPONENTIAL else 1.0
 
     # ------------------------------------------------------------------
     # filterpy helpers
     # ------------------------------------------------------------------
     def get_prediction(self):
         """Return ``(x, P)`` after a :meth:`predict`, without changing the filter."""
-        P = _predict_covariance(self._checked_P(), self._time_lam(),
-                                None if self._Q_is_zero else self._Q)
-        return self._checked_x().copy(), P.copy()
+        P = self._checked_P()
+        if self._efra_pending:
+            P = self._efra_start(P)
+        _, _, x, P = _streaming.predict(self._checked_x(), P, self._il, self._Q_kernel,
+                                        self._cfg, None)
+        return x, P
 
     def reset(self):
         """Return to the state given at construction (``x0``, ``P0``).
@@ -1003,15 +715,10 @@ class RecursiveLeastSquares(_FilterBase):
         diagnostics and counters are cleared. Constraints given to
         :meth:`constrain` are applied again to ``x0`` and ``P0``.
         """
-        self.x = self._x_own = self._x0.copy()
-        self.P = self._P_own = self._P0.copy()
-        self.x_prior, self.P_prior = self.x.copy(), self.P.copy()
-        self.x_post, self.P_post = self.x.copy(), self.P.copy()
+        self._x, self._P = self._x0.copy(), self._P0.copy()
+        self.x_prior, self.P_prior = self._x0.copy(), self._P0.copy()
+        self.x_post, self.P_post = self._x0.copy(), self._P0.copy()
         self._reset_diagnostics()
-        # arrays the streaming methods may overwrite when nobody else holds them
-        self._spare_prior = (self.x_prior, self.P_prior)
-        self._spare_update = (self.y, self.K, self.S, self.SI, self.H, self.z, self.x_post,
-                              self.P_post)
         self._updates_since_predict = 0
         self.gated = False
         self.n_gated = 0
@@ -1019,8 +726,17 @@ class RecursiveLeastSquares(_FilterBase):
         self.lam_t = self._lam
         self._warned_health = False
         self._efra_pending = self._mode == _fg.EFRA
+        self._recheck = True          # check the state (and start EFRA) at the next step
         if self.constraints is not None:
             self.constrain(*self.constraints)
+
+    def __getstate__(self):
+        """The state for pickle and copy: ``__dict__`` and the slots, without the
+        blocks the streaming steps reuse (a copy makes its own)."""
+        slots = {name: getattr(self, name) for name in self.__slots__}
+        slots.update(_last_predict=None, _spare_predict=None, _last_update=None,
+                     _spare_update=None)
+        return self.__dict__.copy(), slots
 
     def __repr__(self):
         return "\n".join([
@@ -1031,8 +747,8 @@ class RecursiveLeastSquares(_FilterBase):
             pretty_str("forgetting", self.forgetting),
             pretty_str("gate", self._gate),
             pretty_str("n_gated", self.n_gated),
-            pretty_str("x", self.x),
-            pretty_str("P", self.P),
+            pretty_str("x", self._x),
+            pretty_str("P", self._P),
             pretty_str("x_prior", self.x_prior),
             pretty_str("P_prior", self.P_prior),
             pretty_str("x_post", self.x_post),
@@ -1052,76 +768,84 @@ class RecursiveLeastSquares(_FilterBase):
     # ------------------------------------------------------------------
     # private helpers
     # ------------------------------------------------------------------
-    def _note_update(self):
-        """Warn once when forgetting is skipped by two updates in a row."""
-        if (self._updates_since_predict and not self._warned_skip
-                and (self._time_lam() < 1.0 or not self._Q_is_zero)):
+    def _row(self, H):
+        """`H` as the regressor row the kernels take: a writable C-contiguous float64
+        ``(dim_x,)`` (the caller's array when it is one: the kernel only reads it)."""
+        if type(H) is np.ndarray and H.dtype == _F8 and H.flags.carray:
+            if H.shape == self._row_shape:
+                return H
+            if H.shape == (1, self.dim_x):
+                return H[0]
+        return self._as_regressor(H, "H")[0]
+
+    def _state(self):
+        """``(x, P)`` after an assignment or a (re)start: checked for their shapes,
+        ``P`` clipped for EFRA's first step (a new array)."""
+        x, P = self._checked_x(), self._checked_P()
+        return x, (self._efra_start(P) if self._efra_pending else P)
+
+    def _configure(self):
+        """The configuration array the kernels take (mode, lam, gate, constants, Pi)."""
+        self._cfg = _fg.kernel_config(self._mode, self._lam, self._params, self._gate,
+                                      self._Pi if self._Pi.size else None)
+
+    def _random_walk(self, Q):
+        """`Q` of one predict, as the kernels take it ((0, 0) when zero)."""
+        Q = check_covariance(Q, self.dim_x, "Q")
+        return Q if Q.any() else _EMPTY
+
+    @property
+    def _forgets(self):
+        """Whether the time update changes ``P`` (forgetting in predict, or ``Q``)."""
+        return self._il != 1.0 or self._Q_kernel is not _EMPTY
+
+    def _health_problem(self, P, n_updates, diagonal_bad):
+        """The health problem of ``P`` after update `n_updates` (the check is due;
+        `diagonal_bad`: the kernel's cheap check failed), or None."""
+        kern = _streaming.kernels()
+        basis = np.zeros((self.dim_x, 0)) if self._null_basis is None else self._null_basis
+        if not (diagonal_bad or kern.unhealthy_on(P, basis, self.cond_max)):
+            return None
+        problem = _health.symmetric_problem(P, self.cond_max, self._null_basis)
+        return None if problem is None else problem + _health.at_update(n_updates,
+                                                                        self._batch_start)
+
+    def _final_health_check(self):
+        """The full check at the end of a step-by-step `batch_filter`."""
+        if self._warned_health or not self.check_every:
+            return
+        problem = _health.symmetric_problem(self._checked_P(), self.cond_max, self._null_basis)
+        if problem is not None:
+            self._warn(False, problem + _health.at_update(self.n_updates))
+
+    def _warn(self, skipped, problem):
+        """Issue the warnings of a step, before it changes the state (a warning turned
+        into an error then leaves the filter as it was)."""
+        if skipped:
+            _health.warn_at_caller(_SKIPPED, ForgettingSkippedWarning)
             self._warned_skip = True
-            warnings.warn(
-                "update() was called twice without predict() in between, so the forgetting "
-                "(lam < 1) or random walk (Q > 0) of this step was skipped; call predict() "
-                "before each update() or use predict_update().",
-                ForgettingSkippedWarning, stacklevel=3)
-        self._updates_since_predict += 1
+        self._warn_health(problem)
 
-# ----------------------------------------------------------------------
-# The arithmetic of one step, shared by the methods and the batch loop so
-# that the two cannot drift apart.
-# ----------------------------------------------------------------------
-def _predict_covariance(P, lam, Q):
-    """``P / lam + Q`` as a new array (Q None means zero)."""
-    P = P * (1.0 / lam) if lam != 1.0 else P.copy()
-    if Q is not None:
-        P += Q
-    return P
+    def _efra_start(self, P):
+        """``P`` clipped into EFRA's invariant interval before its first step (a new array)."""
+        lo, hi = _fg.efra_bounds(self._lam, *self._params)
+        return self._projected(_fg.clip_eigenvalues(P, lo * self._R, hi * self._R))
+
+    def _projected(self, P):
+        """``Pi P Pi`` (a new array; ``P`` itself without constraints)."""
+        P = np.array(P, dtype=np.float64, order="C")
+        if self._Pi.size:
+            _streaming.kernels().project(P, self._Pi, np.empty(P.shape))
+        return P
 
 
-def _project(P, Pi):
-    """``Pi P Pi`` made exactly symmetric (projection onto null(A))."""
-    P = Pi @ P @ Pi
-    return 0.5 * (P + P.T)
+def _own(value, name):
+    """`value` as the filter's own C-contiguous float64 array (always a copy).
 
-
-def _measurement_step(mode, params, lam, x, P, phi, z, r, gate, Pi):
-    """One measurement update of any mode, with the gate and the constraints.
-
-    `z` is a ``(dim_z, 1)`` column or None (missing). Returns ``x, P, y, K,
-    g, s, lam_t, gated``; for a missing or gated sample ``x`` and ``P`` are
-    the inputs, ``K`` is zero and ``lam_t`` is 1 (nothing is forgotten),
-    or `lam` in the exponential mode (its predict forgot anyway).
+    Shapes are checked where the array is used, so that the error names the
+    method that cannot use it.
     """
-    g, s = _innovation(P, phi, r)          # g = P H^T, S = H P H^T + R
-    lam_skip = lam if mode == _fg.EXPONENTIAL else 1.0
-    if z is None:
-        return x, P, None, np.zeros_like(g), g, s, lam_skip, False
-    if gate is not None:
-        y = z - (phi @ x).T
-        if float(np.vdot(y, y)) > gate * gate * s:   # sqrt(y'y / S) > gate
-            return x, P, y, np.zeros_like(g), g, s, lam_skip, True
-    x, P, y, K, lam_t = _fg.UPDATES[mode](x, P, phi, z, g, s, r, lam, params)
-    if Pi is not None:   # keep A P = 0 against round-off (and the I terms of some modes)
-        P = _project(P, Pi)
-    return x, P, y, K, g, s, lam_t, False
-
-
-def _health_problem(P, basis, cond_max):
-    """None if ``P`` (on the null space `basis` of the constraints) is healthy,
-    else a description."""
-    if not np.isfinite(P).all():
-        return "`P` has non-finite entries"
-    Pr = P if basis is None else basis.T @ P @ basis
-    if Pr.size == 0:
-        return None
-    asym = float(np.max(np.abs(Pr - Pr.T)))
-    scale = float(np.max(np.abs(Pr)))
-    w = np.linalg.eigvalsh(0.5 * (Pr + Pr.T))
-    if w[0] <= 0.0:
-        return f"`P` is not positive definite (smallest eigenvalue {w[0]:.3g})"
-    if asym > 1e-8 * scale:
-        return f"`P` is not symmetric (max |P - P^T| = {asym:.3g})"
-    if w[-1] > cond_max * w[0]:
-        return f"`P` is ill-conditioned (condition number {w[-1] / w[0]:.3g} > {cond_max:.3g})"
-    return None
+    return np.array(as_float_array(value, name), dtype=np.float64, order="C")
 
 
 def _check_positive(value, name):
@@ -1129,83 +853,3 @@ def _check_positive(value, name):
     if not (math.isfinite(value) and value > 0.0):
         raise ValueError(f"`{name}` must be a positive finite number; got {value}")
     return value
-
-
-class _BatchResult:
-    __slots__ = ("means", "covariances", "means_p", "covariances_p", "ys", "ss",
-                 "x", "P", "x_prior", "P_prior", "x_post", "P_post", "y_last", "K_last",
-                 "s_last", "gated", "lam_t_last", "problem")
-
-
-def _batch_reference(x, P, Z, Hm, Rv, lam, Q, update_first, store_covariances, *,
-                     mode=_fg.EXPONENTIAL, params=(), gate=None, Pi=None, check_every=0,
-                     basis=None, cond_max=np.inf, step0=0):
-    """Pure-NumPy batch recursion (the reference path for compiled kernels).
-
-    Returns a `_BatchResult` with the histories, the recursive residuals
-    ``ys`` (N, dim_z; NaN where missing, the rejected residual where gated),
-    innovation variances ``ss`` (N,), the gate decisions ``gated`` (N,),
-    the last step's state and ``problem``: None, or the first health
-    failure found by a full check every `check_every` steps (message with
-    the update number ``step0 + k + 1``). The cheap per-step diagonal check
-    of the streaming path is not done here; the caller checks once more at
-    the end.
-    """
-    N = len(Z)
-    n, m = x.shape
-    out = _BatchResult()
-    out.means = np.empty((N, n, m))
-    out.means_p = np.empty((N, n, m))
-    out.covariances = np.empty((N, n, n)) if store_covariances else None
-    out.covariances_p = np.empty((N, n, n)) if store_covariances else None
-    out.ys = np.full((N, m), np.nan)
-    out.ss = np.empty(N)
-    out.gated = np.zeros(N, dtype=bool)
-    out.problem = None
-    tlam = lam if mode == _fg.EXPONENTIAL else 1.0
-    constrained = Pi is not None
-    x_prior, P_prior = x, P
-    K = np.zeros((n, 1))
-    s = np.nan
-    lam_t = lam
-    missing = np.isnan(Z).any(axis=1)
-    for k in range(N):
-        if not update_first:
-            P = _predict_covariance(P, tlam, Q)
-            if constrained:
-                P = _project(P, Pi)
-            x_prior, P_prior = x, P
-            out.means_p[k] = x
-            if store_covariances:
-                out.covariances_p[k] = P
-        zc = None if missing[k] else Z[k].reshape(m, 1)
-        x, P, y, K, _, s, lam_t, gated = _measurement_step(
-            mode, params, lam, x, P, Hm[k:k + 1], zc, Rv[k], gate, Pi)
-        out.ss[k] = s
-        out.gated[k] = gated
-        if y is not None:
-            out.ys[k] = y[:, 0]
-        x_post, P_post = x, P
-        out.means[k] = x
-        if store_covariances:
-            out.covariances[k] = P
-        if update_first:
-            P = _predict_covariance(P, tlam, Q)
-            if constrained:
-                P = _project(P, Pi)
-            x_prior, P_prior = x, P
-            out.means_p[k] = x
-            if store_covariances:
-                out.covariances_p[k] = P
-        if check_every and out.problem is None and (step0 + k + 1) % check_every == 0:
-            problem = _health_problem(P, basis, cond_max)
-            if problem is not None:
-                out.problem = (f"{problem} at step {k} of batch_filter (update "
-                               f"{step0 + k + 1} since reset)")
-    out.x, out.P = x.copy(), P.copy()
-    if N:
-        out.x_prior, out.P_prior = x_prior.copy(), P_prior.copy()
-        out.x_post, out.P_post = x_post.copy(), P_post.copy()
-        out.y_last, out.K_last, out.s_last = out.ys[-1].copy(), K.copy(), s
-        out.lam_t_last = lam_t
-    return out

@@ -1,21 +1,15 @@
 """Exact least squares over a sliding window of the most recent samples."""
 
-import warnings
-
 import numpy as np
 from filterpy.common import pretty_str
 
 from .._validation import check_covariance, check_int, check_real, check_variance
-from ..exceptions import NumericalWarning
-from ._base import _FilterBase, _innovation, _tri_inv, _tri_solve, _window_kernels
-from .rls import _health_problem
+from . import _health, _streaming
+from ._base import _FilterBase
+from ._streaming import c_array
 
 __all__ = ["SlidingWindowRLS"]
 
-# Run update and batch_filter through the compiled kernels of `_kernels_window`
-# (numba). The tests switch this off to compare with the pure-NumPy reference
-# (the step in `update`, `_downdate` and `_window_lstsq` below).
-_COMPILED = True
 _FLOATS = (float, np.float64)
 
 
@@ -106,8 +100,8 @@ class SlidingWindowRLS(_FilterBase):
     numerically delicate half (Haykin 2002, sec. 9; Alexander, Pan &
     Plemmons 1988), hence the periodic `refresh`. A step costs
     :math:`O(n^2)` (:math:`O(\text{window}\, n^2)` for a refit);
-    :meth:`update` and :meth:`batch_filter` run compiled (numba) and give
-    the same numbers bit for bit.
+    :meth:`update`, :meth:`initialize` and :meth:`batch_filter` run
+    compiled (numba) and give the same numbers bit for bit.
 
     References
     ----------
@@ -133,6 +127,10 @@ class SlidingWindowRLS(_FilterBase):
     array([ 2., -1.])
     """
 
+    _HEALTH_ADVICE = ("The estimate may be unreliable: the samples in the window do not "
+                      "excite every direction of the parameters; use a longer window or more "
+                      "exciting input.")
+
     def __init__(self, dim_x, window, dim_z=1, *, P0=1e4, x0=None, R=1.0, refresh=None,
                  check_every=100, cond_max=1e12):
         self.dim_x = check_int(dim_x, "dim_x", minimum=1)
@@ -146,7 +144,7 @@ class SlidingWindowRLS(_FilterBase):
         self._batch_start = None      # n_updates at the start of a stepwise batch_filter
         self._P0 = check_covariance(P0, self.dim_x, "P0", definite=True)
         self._x0 = self._as_state(np.zeros((self.dim_x, self.dim_z)) if x0 is None else x0, "x0")
-        # prior rows of the refit, L^T (x - x0) with L L^T = P0^-1 (as in _window_lstsq)
+        # the prior rows of the refit (window_lstsq): L^T (x - x0) with L L^T = P0^-1
         self._Lt = np.ascontiguousarray(np.linalg.cholesky(np.linalg.inv(self._P0)).T)
         self._Ltx0 = self._Lt @ self._x0
         self.reset()
@@ -189,74 +187,43 @@ class SlidingWindowRLS(_FilterBase):
             zc = np.array([[z]], dtype=np.float64)
         else:
             zc = self._as_measurement(z, "z")
-        x, P = self._checked_x(), self._checked_P()
-        self._clear_lazy()
-        self.H = phi
-        if _COMPILED:
-            self._update_compiled(zc, phi, r, x, P)
-            return
-        g, s = _innovation(P, phi, r)
-        self.S, self.SI = s * self._I_z, self._I_z / s
-        if zc is None:
-            self.z = np.full((self.dim_z, 1), np.nan)
-            self.y = np.full((self.dim_z, 1), np.nan)
-            self.K = np.zeros((self.dim_x, 1))
-            self._log_likelihood, self._likelihood = 0.0, 1.0
-        else:
-            self.z = zc
-            self.y = zc - (phi @ x).T               # y = z - H x
-            self.K = g / s                          # K = P H^T / S
-            x = x + self.K * self.y.T               # x = x + K y^T
-            P = P - np.outer(g, g) / s              # P = P - g g^T / S
-        # ring buffer: slot `_head` holds the oldest sample once the window is full
-        h = self._head
-        leaving = None
-        if self._nw == self.window and not np.isnan(self._wZ[h]).any():
-            leaving = (self._wH[h:h + 1].copy(), self._wZ[h].reshape(-1, 1).copy(), self._wR[h])
-        self._wH[h] = phi[0]
-        self._wZ[h] = np.nan if zc is None else zc[:, 0]
-        self._wR[h] = r
-        self._head = (h + 1) % self.window
-        self._nw = min(self._nw + 1, self.window)
-        self._count += 1
-        refit = False
-        if leaving is not None:
-            ok, x, P = _downdate(x, P, *leaving)
-            refit = not ok
-        if self._nw == self.window and not self.exact:
-            refit = refit or self._count >= self._next_exact_try
-        if self.refresh and self._count % self.refresh == 0:
-            refit = True
-        if refit:
-            x, P = self._refit()
-        self.x, self.P = x, P
-        self.x_post, self.P_post = x.copy(), P.copy()
-        if self.check_every and not self._warned_health:
-            dg = np.diagonal(P)
-            bad = not (np.isfinite(dg).all() and (dg > 0.0).all())
-            self._health_after_update(P, None, bad, 3)
-
-    def _update_compiled(self, zc, phi, r, x, P):
-        """:meth:`update` by the compiled step (the one `batch_filter` runs)."""
         n, m = self.dim_x, self.dim_z
-        x = np.array(x, dtype=np.float64, order="C")
-        P = np.array(P, dtype=np.float64, order="C")
+        x = np.array(self._checked_x(), dtype=np.float64, order="C")
+        P = np.array(self._checked_P(), dtype=np.float64, order="C")
         y, K = np.empty((m, 1)), np.empty((n, 1))
         zrow = np.full(m, np.nan) if zc is None else zc[:, 0]
+        h = self._head                    # the slot the new sample overwrites
+        leaving = (self._wH[h].copy(), self._wZ[h].copy(), self._wR[h])
         ist = self._int_state()
-        s, bad = _window_kernels().sw_update_kernel(
-            x, P, phi[0], zrow, r, self._wH, self._wZ, self._wR, ist, int(self.refresh or 0),
-            self._Lt, self._Ltx0, y[:, 0], K[:, 0])
+        # one compiled step (sw_update_kernel), on copies of x and P:
+        #   y = z - H x,  S = H P H^T + R,  K = P H^T / S      update with the new sample
+        #   x = x + K y^T,  P = P - K S K^T
+        #   g = P H_old^T,  d = R_old - H_old g                 downdate with the leaving one
+        #   x = x - g (z_old - H_old x)^T / d,  P = P + g g^T / d
+        #   refit by QR of the window: d not clearly positive, window first full, `refresh`
+        kern = _streaming.window_kernels()
+        s, bad = kern.sw_update_kernel(x, P, phi[0], zrow, r, self._wH, self._wZ, self._wR, ist,
+                                       int(self.refresh or 0), self._Lt, self._Ltx0,
+                                       y[:, 0], K[:, 0])
+        n_updates = int(ist[kern.COUNT])
+        problem = None
+        if self._health_due(n_updates, bad) and (bad or kern.unhealthy(P, self.cond_max)):
+            problem = ((_health.symmetric_problem(P, self.cond_max) or "`P` failed the health "
+                        "check") + _health.at_update(n_updates, self._batch_start))
+        try:
+            self._warn_health(problem)                # before the state changes
+        except BaseException:
+            self._wH[h], self._wZ[h], self._wR[h] = leaving   # the ring buffer as it was
+            raise
         self._set_int_state(ist)
+        self._clear_lazy()
+        self.H = phi
         self.S, self.SI = s * self._I_z, self._I_z / s
         self.z, self.y, self.K = zrow.reshape(m, 1), y, K
         if zc is None:
             self._log_likelihood, self._likelihood = 0.0, 1.0
         self.x, self.P = x, P
         self.x_post, self.P_post = x.copy(), P.copy()
-        every = self.check_every
-        if every and (bad or not self._count % every) and not self._warned_health:
-            self._health_after_update(P, _window_kernels(), bad, 4)
 
     def _int_state(self):
         """The ring-buffer counters as the kernels' ``ist`` array."""
@@ -295,54 +262,63 @@ class SlidingWindowRLS(_FilterBase):
         Rv = self._as_batch_variances(Rs, len(Z))
         keep = slice(max(0, len(Z) - self.window), len(Z))
         k = len(Z[keep])
-        self._clear_window()
-        self._wH[:k], self._wZ[:k], self._wR[:k] = Hm[keep], Z[keep], Rv[keep]
-        self._nw, self._head = k, k % self.window
-        sol = self._window_lstsq(None, None)
-        if sol is None:
+        n, m, w = self.dim_x, self.dim_z, self.window
+        wH, wZ, wR = np.zeros((w, n)), np.full((w, m), np.nan), np.ones(w)
+        wH[:k], wZ[:k], wR[:k] = Hm[keep], Z[keep], Rv[keep]
+        x, P = np.empty((n, m)), np.empty((n, n))
+        # exact least squares on the window by QR (the compiled refit of update)
+        if not _streaming.window_kernels().window_lstsq(wH, wZ, wR, k, self._Lt, self._Ltx0, 0,
+                                                        x, P):
             rank = np.linalg.matrix_rank(Hm[keep][~np.isnan(Z[keep]).any(axis=1)])
             raise ValueError(f"`Hs` is rank-deficient: the last {k} samples have "
                              f"rank {rank}; need {self.dim_x} (one per parameter)")
-        self.x, self.P = sol
+        self._wH, self._wZ, self._wR = wH, wZ, wR
+        self._nw, self._head = k, k % w
+        self.x, self.P = x, P
         self.exact = True
-        self.x_prior = self.x_post = self.x.copy()
-        self.P_prior = self.P_post = self.P.copy()
+        self.x_prior, self.x_post = x.copy(), x.copy()
+        self.P_prior, self.P_post = P.copy(), P.copy()
 
     def batch_filter(self, zs, Hs, Rs=None, update_first=False, saver=None,
                      store_covariances=True):
         """Run the filter over a record; same arguments and returns as
         :meth:`RecursiveLeastSquares.batch_filter`."""
-        return self._batch_dispatch(zs, Hs, Rs, update_first, saver, store_covariances,
-                                    _COMPILED)
+        return self._batch(zs, Hs, Rs, update_first, saver, store_covariances)
 
     def _batch_compiled(self, Z, Hm, Rv, update_first, store_covariances):
-        """`batch_filter` in one compiled call; leaves the filter as the
-        step-by-step loop would (the same compiled step, bit for bit)."""
+        """`batch_filter` in one compiled call, on copies of the state; leaves the
+        filter as the step-by-step loop would (the same compiled step, bit for
+        bit), and changes nothing if it raises."""
         N, n, m = len(Z), self.dim_x, self.dim_z
         x_start = np.array(self._checked_x(), dtype=np.float64, order="C")
         P_start = np.array(self._checked_P(), dtype=np.float64, order="C")
         x, P = x_start.copy(), P_start.copy()
+        wH, wZ, wR = self._wH.copy(), self._wZ.copy(), self._wR.copy()
         means = np.empty((N, n, m))
         covs = np.empty((N, n, n)) if store_covariances else np.empty((0, n, n))
         y, K, P_last = np.empty(m), np.empty(n), np.empty((n, n))
-        # one variance for every step: a length-1 array (copies: the kernels
-        # are compiled for writable C arrays only)
-        kern = _window_kernels()
-        Rv = kern.c_array(Rv[:1] if Rv.strides[0] == 0 else Rv)
+        kern = _streaming.window_kernels()
+        Rv = c_array(Rv[:1] if Rv.strides[0] == 0 else Rv)   # one variance: a length-1 array
         ist = self._int_state()
         step0 = self._count
         P_fail = np.empty((n, n))
         s, k_fail = kern.sw_batch_kernel(
-            x, P, kern.c_array(Z),
-            kern.c_array(Hm), Rv, self._wH, self._wZ, self._wR,
+            x, P, c_array(Z), c_array(Hm), Rv, wH, wZ, wR,
             ist, int(self.refresh or 0), self._Lt, self._Ltx0, means, covs, y, K, P_last,
             0 if self._warned_health else self.check_every, step0, float(self.cond_max),
             P_fail)
-        self._set_int_state(ist)
+        problem = None
         if k_fail >= 0:
-            problem = _health_problem(P_fail, None, self.cond_max) or "`P` failed the health check"
-            self._warn_health(f"{problem} at step {k_fail} of batch_filter (update "
-                              f"{step0 + k_fail + 1} since reset)", 5)
+            problem = ((_health.symmetric_problem(P_fail, self.cond_max)
+                        or "`P` failed the health check")
+                       + _health.at_step(k_fail, step0 + k_fail + 1))
+        elif not self._warned_health and self.check_every:    # the end-of-batch check
+            problem = _health.symmetric_problem(P, self.cond_max)
+            if problem is not None:
+                problem += _health.at_update(step0 + N)
+        self._warn_health(problem)                    # before the state changes
+        self._wH, self._wZ, self._wR = wH, wZ, wR
+        self._set_int_state(ist)
         # the window has no time update: the priors are the previous posteriors
         if update_first:
             means_p = means.copy()
@@ -381,43 +357,13 @@ class SlidingWindowRLS(_FilterBase):
     # ------------------------------------------------------------------
     # health of P
     # ------------------------------------------------------------------
-    def _health_after_update(self, P, kern, bad, level):
-        """The per-update health check: `bad` is the cheap diagonal test; the
-        full test runs every ``check_every`` updates (compiled when `kern` is
-        given; the NumPy check then only words the warning)."""
-        if not (bad or self._count % self.check_every == 0):
-            return
-        if kern is not None and not (bad or kern.sw_unhealthy(P, self.cond_max)):
-            return
-        problem = _health_problem(P, None, self.cond_max)
-        if problem is None and kern is not None:
-            problem = "`P` failed the health check"
-        if problem is not None:
-            nu = self._count
-            if self._batch_start is None:
-                where = f" at update {nu} since reset"
-            else:
-                where = (f" at step {nu - self._batch_start - 1} of batch_filter (update {nu} "
-                         f"since reset)")
-                level += 3                 # below _batch_dispatch and _batch_stepwise
-            self._warn_health(problem + where, level + 1)
-
-    def _check_health(self):
-        """Warn once if ``P`` is not positive definite or too ill-conditioned
-        (the full check).
-        Called at the end of ``batch_filter`` (through ``_batch_dispatch``): the
-        warning points at the caller of ``batch_filter``."""
+    def _final_health_check(self):
+        """The full check at the end of a step-by-step `batch_filter`."""
         if self._warned_health or not self.check_every:
             return
-        problem = _health_problem(self._checked_P(), None, self.cond_max)
+        problem = _health.symmetric_problem(self._checked_P(), self.cond_max)
         if problem is not None:
-            self._warn_health(problem + f" at update {self._count} since reset", 5)
-
-    def _warn_health(self, message, stacklevel):
-        self._warned_health = True
-        warnings.warn(message + ". The estimate may be unreliable: the samples in the window "
-                      "do not excite every direction of the parameters; use a longer window "
-                      "or more exciting input.", NumericalWarning, stacklevel=stacklevel)
+            self._warn_health(problem + _health.at_update(self._count))
 
     def reset(self):
         """Empty the window and return to ``x0``, ``P0``. Re-arms the health
@@ -432,20 +378,6 @@ class SlidingWindowRLS(_FilterBase):
         self._warned_health = False
         self._next_exact_try = 0
         self.exact = False
-
-    def _refit(self):
-        """Recompute ``x``, ``P`` from the stored window (exact if it can be)."""
-        sol = self._window_lstsq(None, None)
-        if sol is not None:
-            self.exact = True
-            return sol
-        self.exact = False
-        self._next_exact_try = self._count + self.window
-        return self._window_lstsq(self._x0, self._P0)
-
-    def _window_lstsq(self, x0, P0):
-        k = self._nw
-        return _window_lstsq(self._wH[:k], self._wZ[:k], self._wR[:k], x0, P0)
 
     def _clear_window(self):
         """Empty ring buffer: rows ``_wH``, measurements ``_wZ`` (NaN = missing), ``_wR``."""
@@ -470,39 +402,3 @@ class SlidingWindowRLS(_FilterBase):
             pretty_str("K", self.K),
             pretty_str("S", self.S),
         ])
-
-
-def _downdate(x, P, phi, z, r):
-    """Remove sample ``(phi, z, r)``; returns ``ok, x, P`` (not ok: do not trust d)."""
-    g = P @ phi.T                          # g = P H^T
-    d = r - (phi @ g).item()               # d = R - H P H^T  (> 0 if still determined)
-    if not d > 1e-8 * r:
-        return False, x, P
-    e = z - (phi @ x).T                    # residual of the leaving sample
-    x = x - (g / d) * e.T                  # x = x - g e^T / d
-    P = P + np.outer(g, g) / d             # P = P + g g^T / d
-    return True, x, P
-
-
-def _window_lstsq(Hw, Zw, Rw, x0, P0):
-    """Weighted least squares on the window rows by QR; with a prior when `P0` is given.
-
-    Returns ``(x, P)``, or None when the rows do not determine every
-    parameter (and no prior is given).
-    """
-    n = Hw.shape[1]
-    keep = ~np.isnan(Zw).any(axis=1)
-    w = 1.0 / np.sqrt(Rw[keep])
-    A = Hw[keep] * w[:, None]
-    B = Zw[keep] * w[:, None]
-    if P0 is not None:   # prior rows: L^T (x - x0) with L L^T = P0^-1
-        Lt = np.linalg.cholesky(np.linalg.inv(P0)).T
-        A = np.concatenate([Lt, A])
-        B = np.concatenate([Lt @ x0, B])
-    if len(A) < n or (P0 is None and np.linalg.matrix_rank(A) < n):
-        return None
-    Qf, Rf = np.linalg.qr(A)
-    x = _tri_solve(Rf, Qf.T @ B)
-    Rinv = _tri_inv(Rf)
-    P = Rinv @ Rinv.T
-    return x, 0.5 * (P + P.T)

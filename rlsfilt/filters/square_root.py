@@ -1,22 +1,18 @@
 """Square-root (QR, information form) recursive least squares."""
 
 import math
-import warnings
 
 import numpy as np
 from filterpy.common import pretty_str
-from scipy.linalg import cho_factor, cho_solve
+from scipy.linalg import cho_factor, cho_solve, solve_triangular
 
 from .._validation import check_covariance, check_int, check_lam, check_real, check_variance
-from ..exceptions import NumericalWarning
-from ._base import _FilterBase, _tri_inv, _tri_solve, _window_kernels
+from . import _health, _streaming
+from ._base import _FilterBase
+from ._streaming import c_array
 
 __all__ = ["SquareRootRLS"]
 
-# Run update, batch_filter and the P property through the compiled kernels of
-# `_kernels_window` (numba). The tests switch this off to compare with the
-# pure-NumPy reference (the Householder QR step below).
-_COMPILED = True
 _FLOATS = (float, np.float64)
 
 
@@ -104,11 +100,9 @@ class SquareRootRLS(_FilterBase):
     for it. The cost per step is ``dim_x`` Givens rotations (one per row
     of ``U``, each keeping its diagonal entry positive) and three triangular
     solves, :math:`O(n^2)`; ``P`` costs :math:`O(n^3)` and is formed only
-    when it is read or stored. :meth:`update` and :meth:`batch_filter` run
-    compiled (numba) and give the same numbers bit for bit; the pure-NumPy
-    reference path (one Householder QR of the stacked
-    ``(dim_x + 1, dim_x + dim_z)`` matrix per step) agrees with them to
-    round-off.
+    when it is read or stored. :meth:`predict`, :meth:`update` and
+    :meth:`batch_filter` run compiled (numba) and give the same numbers bit
+    for bit.
 
     References
     ----------
@@ -138,6 +132,11 @@ class SquareRootRLS(_FilterBase):
     array([ 0.8, -0.5])
     """
 
+    _HEALTH_ADVICE = ("The estimate may be unreliable: the input has stopped exciting some "
+                      "direction of the parameters (covariance windup under forgetting); use "
+                      "more exciting input, lam closer to 1, or RecursiveLeastSquares with an "
+                      "anti-windup forgetting mode (forgetting='directional', 'efra', ...).")
+
     def __init__(self, dim_x, dim_z=1, lam=1.0, *, P0=1e4, x0=None, R=1.0,
                  check_every=100, cond_max=1e12):
         self.dim_x = check_int(dim_x, "dim_x", minimum=1)
@@ -146,7 +145,7 @@ class SquareRootRLS(_FilterBase):
         self.R = R
         self.check_every = check_int(check_every, "check_every", minimum=0)
         self.cond_max = check_real(cond_max, "cond_max", minimum=0, strict=True)
-        self._batch_start = None      # n_updates at the start of a stepwise batch_filter
+        self._batch_start = None      # n_updates when a step-by-step batch_filter started
         self._P0 = check_covariance(P0, self.dim_x, "P0", definite=True)
         self._x0 = self._as_state(np.zeros((self.dim_x, self.dim_z)) if x0 is None else x0, "x0")
         self.reset()
@@ -176,14 +175,9 @@ class SquareRootRLS(_FilterBase):
     @property
     def P(self):
         """Covariance ``U^-1 U^-T`` (a new array on every access)."""
-        if _COMPILED:
-            P = np.empty((self.dim_x, self.dim_x))
-            kern = _window_kernels()
-            kern.sr_covariance(kern.c_array(self._U), P)
-            return P
-        Ui = _tri_inv(self._U)
-        P = Ui @ Ui.T
-        return 0.5 * (P + P.T)
+        P = np.empty((self.dim_x, self.dim_x))
+        _streaming.window_kernels().upper_inverse_gram(c_array(self._U), P)
+        return P
 
     @P.setter
     def P(self, value):
@@ -202,10 +196,11 @@ class SquareRootRLS(_FilterBase):
     # ------------------------------------------------------------------
     def predict(self):
         r"""Time update :math:`U \leftarrow \sqrt{\lambda} U` (:math:`P \leftarrow P/\lambda`)."""
+        U, d = np.array(self._U, order="C"), np.array(self._d, order="C")
         if self._lam != 1.0:
-            c = math.sqrt(self._lam)
-            self._U = c * self._U
-            self._d = c * self._d
+            # U <- sqrt(lam) U,  d <- sqrt(lam) d     (P <- P / lam, x unchanged)
+            _streaming.window_kernels().sr_predict(U, d, math.sqrt(self._lam))
+        self._U, self._d = U, d
         self.x_prior = self._x.copy()
         self.P_prior = self.P
 
@@ -218,58 +213,31 @@ class SquareRootRLS(_FilterBase):
             zc = np.array([[z]], dtype=np.float64)
         else:
             zc = self._as_measurement(z, "z")
-        self._clear_lazy()
-        self.H = phi
-        if _COMPILED:
-            self._update_compiled(zc, phi, r)
-            return
-        w = _tri_solve(self._U, phi.ravel(), trans=1)          # w = U^-T H^T
-        s = float(w @ w) + r                                    # S = H P H^T + R
-        self.S, self.SI = s * self._I_z, self._I_z / s
-        if zc is None:
-            self.z = np.full((self.dim_z, 1), np.nan)
-            self.y = np.full((self.dim_z, 1), np.nan)
-            self.K = np.zeros((self.dim_x, 1))
-            self._log_likelihood, self._likelihood = 0.0, 1.0
-        else:
-            self.z = zc
-            self.y = zc - (phi @ self._x).T                     # y = z - H x
-            self.K = _tri_solve(self._U, w).reshape(-1, 1) / s   # K = P H^T / S
-            self._U, self._d = _qr_update(self._U, self._d, phi, zc, r)
-            self._x = _tri_solve(self._U, self._d)
-        self.n_updates = nu = self.n_updates + 1
-        every = self.check_every
-        if every and not self._warned_health:
-            dg = np.diagonal(self._U)
-            if not nu % every or not (np.isfinite(dg).all() and (dg > 0.0).all()):
-                problem = _health_problem(self._U, self.cond_max)
-                if problem is not None:
-                    self._warn_health(problem + self._where(), self._user_level(3))
-        self.x_post = self._x.copy()
-        self.P_post = self.P
-
-    def _update_compiled(self, zc, phi, r):
-        """:meth:`update` by the compiled step (the one `batch_filter` runs)."""
         n, m = self.dim_x, self.dim_z
-        U, d = self._U.copy(), self._d.copy()
-        x = self._x.copy()
+        U, d, x = c_array(self._U.copy()), c_array(self._d.copy()), c_array(self._x.copy())
         y, K = np.empty((m, 1)), np.empty((n, 1))
         zrow = np.full(m, np.nan) if zc is None else zc[:, 0]
-        kern = _window_kernels()
+        # one compiled step (sr_update_kernel), on copies of the state:
+        #   w = U^-T H^T,  S = w^T w + R,  K = U^-1 w / S     (K = P H^T / S)
+        #   y = z - H x
+        #   [U d; H/sqrt(R) z^T/sqrt(R)] -> [U' d'; 0 e]      Givens rotations, one per row
+        #   x = U'^-1 d'
+        kern = _streaming.window_kernels()
         s, bad = kern.sr_update_kernel(U, d, x, phi[0], zrow, r, y[:, 0], K[:, 0])
+        n_updates = self.n_updates + 1
+        problem = None
+        if self._health_due(n_updates, bad) and (bad or kern.factor_unhealthy(U, self.cond_max)):
+            problem = ((_health.factor_problem(U, self.cond_max) or "`P` failed the health check")
+                       + _health.at_update(n_updates, self._batch_start))
+        self._warn_health(problem)                           # before the state changes
+        self._clear_lazy()
+        self.H = phi
         self.S, self.SI = s * self._I_z, self._I_z / s
         self.z, self.y, self.K = zrow.reshape(m, 1), y, K
         if zc is None:
             self._log_likelihood, self._likelihood = 0.0, 1.0
         self._U, self._d, self._x = U, d, x
-        # the health check: the kernel tested the diagonal (`bad`); the
-        # periodic full check runs compiled, the NumPy check only words it
-        self.n_updates = nu = self.n_updates + 1
-        every = self.check_every
-        if every and (bad or not nu % every) and not self._warned_health:
-            if bad or kern.sr_unhealthy(U, self.cond_max):
-                problem = _health_problem(U, self.cond_max) or "`P` failed the health check"
-                self._warn_health(problem + self._where(), self._user_level(4))
+        self.n_updates = n_updates
         self.x_post = x.copy()
         self.P_post = self.P
 
@@ -303,7 +271,7 @@ class SquareRootRLS(_FilterBase):
         Rf = np.linalg.qr(np.hstack([A, B]), mode="r")
         self._U, self._d = _positive_diagonal(Rf[:self.dim_x, :self.dim_x],
                                               Rf[:self.dim_x, self.dim_x:])
-        self._x = _tri_solve(self._U, self._d)
+        self._x = solve_triangular(self._U, self._d)
         self.x_prior, self.x_post = self._x.copy(), self._x.copy()
         self.P_prior = self.P_post = self.P
 
@@ -311,18 +279,17 @@ class SquareRootRLS(_FilterBase):
                      store_covariances=True):
         """Run the filter over a record; same arguments and returns as
         :meth:`RecursiveLeastSquares.batch_filter`."""
-        return self._batch_dispatch(zs, Hs, Rs, update_first, saver, store_covariances,
-                                    _COMPILED)
+        return self._batch(zs, Hs, Rs, update_first, saver, store_covariances)
 
     def _batch_compiled(self, Z, Hm, Rv, update_first, store_covariances):
         """`batch_filter` in one compiled call; leaves the filter as the
         step-by-step loop would (the same compiled step, bit for bit, and
-        the same health check, reported with its step)."""
+        the same health check, reported with its step), and changes nothing
+        if it raises."""
         N, n, m = len(Z), self.dim_x, self.dim_z
         U = np.array(self._U, dtype=np.float64, order="C")
         d = np.array(self._d, dtype=np.float64, order="C")
         x = np.array(self._x, dtype=np.float64, order="C")
-        x_start = self._x.copy()
         means = np.empty((N, n, m))
         if store_covariances:
             covs, covs_p = np.empty((N, n, n)), np.empty((N, n, n))
@@ -330,32 +297,33 @@ class SquareRootRLS(_FilterBase):
             covs = covs_p = np.empty((0, n, n))
         x_prior, P_prior, P_post = np.empty((n, m)), np.empty((n, n)), np.empty((n, n))
         y, K = np.empty(m), np.empty(n)
-        # one variance for every step: a length-1 array (copies: the kernels
-        # are compiled for writable C arrays only)
-        kern = _window_kernels()
-        Rv = kern.c_array(Rv[:1] if Rv.strides[0] == 0 else Rv)
-        c = math.sqrt(self._lam) if self._lam != 1.0 else 1.0
+        kern = _streaming.window_kernels()
+        Rv = c_array(Rv[:1] if Rv.strides[0] == 0 else Rv)   # one variance: a length-1 array
         step0 = self.n_updates
         U_fail = np.empty((n, n))
         s, k_fail = kern.sr_batch_kernel(
-            U, d, x, kern.c_array(Z),
-            kern.c_array(Hm), Rv, c, bool(update_first),
+            U, d, x, c_array(Z), c_array(Hm), Rv, math.sqrt(self._lam), bool(update_first),
             means, covs, covs_p, x_prior, P_prior, P_post, y, K,
             0 if self._warned_health else self.check_every, step0, float(self.cond_max),
             U_fail)
-        self.n_updates = step0 + N
+        problem = None
         if k_fail >= 0:
-            problem = (_health_problem(U_fail, self.cond_max)
-                       or "`P` failed the health check")
-            self._warn_health(f"{problem} at step {k_fail} of batch_filter (update "
-                              f"{step0 + k_fail + 1} since reset)", 5)
+            problem = ((_health.factor_problem(U_fail, self.cond_max)
+                        or "`P` failed the health check")
+                       + _health.at_step(k_fail, step0 + k_fail + 1))
+        elif not self._warned_health and self.check_every:    # the end-of-batch check
+            problem = _health.factor_problem(U, self.cond_max)
+            if problem is not None:
+                problem += _health.at_update(step0 + N)
+        self._warn_health(problem)                           # before the state changes
         # the estimate is unchanged by a time update
         if update_first:
             means_p = means.copy()
         else:
             means_p = np.empty((N, n, m))
-            means_p[0] = x_start
+            means_p[0] = self._x
             means_p[1:] = means[:-1]
+        self.n_updates = step0 + N
         self._U, self._d, self._x = U, d, x
         self._clear_lazy()
         self.H = Hm[-1].reshape(1, n).copy()
@@ -381,40 +349,13 @@ class SquareRootRLS(_FilterBase):
     # ------------------------------------------------------------------
     # health of P
     # ------------------------------------------------------------------
-    def _check_health(self):
-        """Warn once if ``P`` is not positive definite or too ill-conditioned
-        (the full check, on the factor ``U``).
-        Called at the end of ``batch_filter`` (through ``_batch_dispatch``): the
-        warning points at the caller of ``batch_filter``."""
+    def _final_health_check(self):
+        """The full check at the end of a step-by-step `batch_filter`."""
         if self._warned_health or not self.check_every:
             return
-        problem = _health_problem(self._U, self.cond_max)
+        problem = _health.factor_problem(self._U, self.cond_max)
         if problem is not None:
-            self._warn_health(problem + f" at update {self.n_updates} since reset", 5)
-
-    def _user_level(self, level):
-        """`stacklevel` of the caller of :meth:`update` (deeper inside a
-        stepwise :meth:`batch_filter`, below ``_batch_dispatch`` and
-        ``_batch_stepwise``)."""
-        return level if self._batch_start is None else level + 3
-
-    def _where(self):
-        """Where the health check failed: the update, and the step of a
-        running `batch_filter`."""
-        nu = self.n_updates
-        if self._batch_start is None:
-            return f" at update {nu} since reset"
-        return (f" at step {nu - self._batch_start - 1} of batch_filter (update {nu} "
-                f"since reset)")
-
-    def _warn_health(self, message, stacklevel):
-        self._warned_health = True
-        warnings.warn(message + ". The estimate may be unreliable: the input has stopped "
-                      "exciting some direction of the parameters (covariance windup under "
-                      "forgetting); use more exciting input, lam closer to 1, or "
-                      "RecursiveLeastSquares with an anti-windup forgetting mode "
-                      "(forgetting='directional', 'efra', ...).", NumericalWarning,
-                      stacklevel=stacklevel)
+            self._warn_health(problem + _health.at_update(self.n_updates))
 
     def reset(self):
         """Return to ``x0``, ``P0``; ``lam`` and ``R`` are kept. Re-arms the
@@ -443,37 +384,6 @@ class SquareRootRLS(_FilterBase):
             pretty_str("K", self.K),
             pretty_str("S", self.S),
         ])
-
-
-def _health_problem(U, cond_max):
-    """None if ``P = U^-1 U^-T`` is healthy, else a description (the wording
-    of ``rls._health_problem``).
-
-    ``P`` is positive definite exactly when the triangular ``U`` has a
-    positive, finite diagonal, and ``cond(P) = cond(U)^2`` (singular values
-    of ``U``), so ``P`` is never formed.
-    """
-    if not np.isfinite(U).all():
-        return "`P` has non-finite entries"
-    dmin = float(np.min(np.diagonal(U)))
-    if not dmin > 0.0:
-        return (f"`P` is not positive definite (smallest diagonal entry of its square root "
-                f"U is {dmin:.3g})")
-    sv = np.linalg.svd(U, compute_uv=False)
-    ratio = float(sv[0] / sv[-1]) if sv[-1] > 0.0 else math.inf
-    cond = ratio * ratio if ratio < 1e150 else math.inf
-    if cond > cond_max:
-        return f"`P` is ill-conditioned (condition number {cond:.3g} > {cond_max:.3g})"
-    return None
-
-
-def _qr_update(U, d, phi, z, r):
-    """Fold the row ``[phi, z^T] / sqrt(r)`` into ``[U, d]`` by one QR."""
-    n = U.shape[0]
-    c = 1.0 / math.sqrt(r)
-    M = np.vstack([np.hstack([U, d]), np.hstack([phi * c, z.T * c])])
-    Rf = np.linalg.qr(M, mode="r")
-    return _positive_diagonal(Rf[:n, :n], Rf[:n, n:])
 
 
 def _positive_diagonal(U, d):

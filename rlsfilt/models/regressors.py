@@ -74,6 +74,17 @@ class ARXStructure:
         return (f"ARXStructure(na={self.na}, nb={self.nb}, nk={self.nk}, "
                 f"n_inputs={self.n_inputs}, n_outputs={self.n_outputs})")
 
+    def to_dict(self):
+        """Plain ints and lists (for saving a model); :meth:`from_dict` rebuilds it."""
+        return {"na": self.na, "nb": list(self.nb), "nk": list(self.nk),
+                "n_inputs": self.n_inputs, "n_outputs": self.n_outputs}
+
+    @classmethod
+    def from_dict(cls, d):
+        """The structure saved by :meth:`to_dict` (validated again)."""
+        return arx_structure(d["na"], list(d["nb"]), list(d["nk"]), d["n_inputs"],
+                             d["n_outputs"])
+
 
 def _per_input(value, name, n_inputs, minimum):
     """A scalar order or one per input, as a tuple of validated ints."""
@@ -181,6 +192,35 @@ def as_io_data(u, y, names=("u", "y")):
         raise ValueError(f"`{uname}` and `{yname}` must have the same length; got {len(U)} "
                          f"input samples and {len(Y)} output samples")
     return U, Y, {"u_1d": u_1d, "y_1d": y_1d, "u_names": u_names, "y_names": y_names}
+
+
+def as_records(u, y=None, names=("u", "y")):
+    """Validate one or several experiments: ``([(U, Y), ...], info)``.
+
+    `u` may be an :class:`~rlsfilt.data.IOData` (then `y` is omitted), lists
+    of arrays (one per experiment, as `IOData` takes them), or one record as
+    :func:`as_io_data` takes it. ``U`` is ``(N_i, nu)`` and ``Y`` is
+    ``(N_i, ny)`` per experiment; ``info`` is the dict of :func:`as_io_data`
+    (for an `IOData`: its signal names and units, one signal counting as
+    1-D) with ``"n_experiments"`` added.
+    """
+    from ..data.iodata import IOData, as_iodata
+
+    listed = any(isinstance(x, (list, tuple)) and x
+                 and any(isinstance(v, np.ndarray) or hasattr(v, "to_numpy") for v in x)
+                 for x in (u, y))
+    if isinstance(u, IOData) or listed:
+        data = as_iodata(u, y, u_name=names[0], y_name=names[1])
+        info = {"u_1d": data.n_inputs == 1, "y_1d": data.n_outputs == 1,
+                "u_names": list(data.input_names), "y_names": list(data.output_names),
+                "u_units": list(data.input_units), "y_units": list(data.output_units),
+                "n_experiments": data.n_experiments}
+        return data.arrays(), info
+    if y is None:
+        raise TypeError(f"`{names[1]}` is required unless `{names[0]}` is an IOData")
+    U, Y, info = as_io_data(u, y, names=names)
+    info["n_experiments"] = 1
+    return [(U, Y)], info
 
 
 def _build(U, Y, s, start):

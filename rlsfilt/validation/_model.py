@@ -42,5 +42,5 @@ def n_params(model):
 
 def model_name(model):
     """``ARX(na=2, nb=2, nk=1)``: the class and its constructor parameters but ``dt``."""
-    args = ", ".join(f"{k}={v!r}" for k, v in model.get_params().items() if k != "dt")
+    args = ", ".join(f"{k}={v!r}" for k, v in model._display_params().items() if k != "dt")
     return f"{type(model).__name__}({args})"

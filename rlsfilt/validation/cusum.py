@@ -29,7 +29,7 @@ from .._validation import as_float_array, check_finite, check_probability
 from ..exceptions import ExactFitError
 from ..filters import RecursiveLeastSquares
 from ..models.regressors import _column_rank, _full_rank_rows
-from ..plotting import _axes
+from ..plotting import plot_cusum
 
 __all__ = ["CusumResult", "cusum", "cusum_squares", "recursive_residuals"]
 
@@ -107,37 +107,23 @@ class CusumResult:
         return (f"<CusumResult {name}: rejected={self.rejected} at alpha={self.alpha:g}"
                 f"{p}, {len(self.statistic)} recursive residuals>")
 
-    def plot(self, ax=None):
-        """Plot the path and its significance band.
+    def plot(self, ax=None, t=None):
+        """Plot the path and its significance band (:func:`rlsfilt.plotting.plot_cusum`).
 
         Parameters
         ----------
         ax : matplotlib.axes.Axes, optional
             Axes to draw in; a new figure is made if omitted.
+        t : array_like, shape (N,), optional
+            Time or sample number of each regression row, so the marks read
+            in the record's samples (for ARX regressors row ``r`` is sample
+            ``r + max_lag``); the row index by default.
 
         Returns
         -------
         matplotlib.axes.Axes
         """
-        ax = _axes(ax)
-        name = "CUSUM" if self.kind == "cusum" else "CUSUM of squares"
-        ax.plot(self.index, self.statistic, label=name)
-        ax.plot(self.index, self.bounds[0], "k--", lw=1,
-                label=f"{100 * self.alpha:g}% significance")
-        ax.plot(self.index, self.bounds[1], "k--", lw=1)
-        if self.kind == "cusum":
-            ax.axhline(0.0, color="k", alpha=0.3, lw=0.8)
-        else:
-            m = len(self.index)
-            ax.plot(self.index, np.arange(1, m + 1) / m, color="k", alpha=0.3, lw=0.8)
-        if self.crossings.size:
-            ax.axvline(self.crossings[0], color="C3", alpha=0.5, lw=1,
-                       label=f"first crossing (row {self.crossings[0]})")
-        ax.set_xlabel("sample $t$")
-        ax.set_ylabel("$W_t$" if self.kind == "cusum" else "$S_t$")
-        ax.set_title(f"{name}: " + ("constancy rejected" if self.rejected else "not rejected"))
-        ax.legend(loc="best")
-        return ax
+        return plot_cusum(self, ax, t=t)
 
 
 def recursive_residuals(zs, Hs):

@@ -14,7 +14,7 @@ from scipy.optimize import linear_sum_assignment
 
 from .._validation import as_float_array, check_int
 from ..models._base import IdentifiedModel, check_is_fitted
-from ..plotting import _axes, _bode_axes, _figure
+from ..plotting import plot_bode, plot_plant_comparison, plot_step
 
 __all__ = ["PlantComparison"]
 
@@ -173,10 +173,10 @@ class PlantComparison:
         """A short text table of the comparison."""
         lines = [
             "Comparison with the true plant (python-control)",
-            f"  max relative frequency-response error : {self.frequency_error:.4g}"
+            f"  max relative frequency-response error : {_pct(self.frequency_error)}"
             f"  (up to Nyquist, {self.omega[-1]:.4g} rad/time unit)",
-            f"  relative DC-gain error                : {self.dc_gain_error:.4g}",
-            f"  relative step-response error          : {self.step_error:.4g}",
+            f"  relative DC-gain error                : {_pct(self.dc_gain_error)}",
+            f"  relative step-response error          : {_pct(self.step_error)}",
             f"  largest matched pole distance         : {self.max_pole_distance:.4g}",
         ]
         for p, q, dist in zip(self.poles_model, self.poles_plant, self.pole_distances):
@@ -189,7 +189,8 @@ class PlantComparison:
         return "\n".join(lines)
 
     def plot(self, fig=None):
-        """Bode diagram and step responses, model over plant.
+        """Bode diagram and step responses, model over plant
+        (:func:`rlsfilt.plotting.plot_plant_comparison`).
 
         Parameters
         ----------
@@ -200,14 +201,7 @@ class PlantComparison:
         -------
         matplotlib.figure.Figure
         """
-        fig = _figure(fig, figsize=(10, 6), layout="constrained")
-        gs = fig.add_gridspec(2, 2)
-        ax_mag = fig.add_subplot(gs[0, 0])
-        ax_phase = fig.add_subplot(gs[1, 0], sharex=ax_mag)
-        ax_step = fig.add_subplot(gs[:, 1])
-        self.plot_bode(ax_mag, ax_phase)
-        self.plot_step(ax_step)
-        return fig
+        return plot_plant_comparison(self, fig)
 
     def plot_bode(self, ax_mag=None, ax_phase=None):
         """Bode magnitude (dB) and phase (deg) of model and plant.
@@ -223,23 +217,7 @@ class PlantComparison:
         (matplotlib.axes.Axes, matplotlib.axes.Axes)
             The magnitude and phase axes.
         """
-        ax_mag, ax_phase = _bode_axes(ax_mag, ax_phase)
-        unit = "rad/sample" if self.dt == 1.0 and self.model_tf.dt is True else "rad/s"
-        for (i, j), label in _channels(self.response_plant.shape[:2]):
-            for resp, name, style in ((self.response_plant, "plant", "k-"),
-                                      (self.response_model, "model", "C0--")):
-                g = resp[i, j]
-                ax_mag.semilogx(self.omega, 20 * np.log10(np.abs(g)), style,
-                                label=f"{name}{label}")
-                ax_phase.semilogx(self.omega, np.degrees(np.unwrap(np.angle(g))), style)
-        ax_mag.set_ylabel("$|G(e^{j\\omega T})|$ (dB)")
-        ax_phase.set_ylabel("phase (deg)")
-        ax_phase.set_xlabel(f"$\\omega$ ({unit})")
-        ax_mag.set_title(f"Bode: max relative error {self.frequency_error:.3g}")
-        ax_mag.legend(loc="best")
-        for ax in (ax_mag, ax_phase):
-            ax.grid(True, which="both", alpha=0.3)
-        return ax_mag, ax_phase
+        return plot_bode(self, ax_mag, ax_phase)
 
     def plot_step(self, ax=None):
         """Unit-step responses of model and plant.
@@ -253,22 +231,17 @@ class PlantComparison:
         -------
         matplotlib.axes.Axes
         """
-        ax = _axes(ax)
-        for (i, j), label in _channels(self.step_plant.shape[:2]):
-            ax.step(self.time, self.step_plant[i, j], "k-", where="post", label=f"plant{label}")
-            ax.step(self.time, self.step_model[i, j], "C0--", where="post",
-                    label=f"model{label}")
-        ax.set_xlabel("time" if self.model_tf.dt is True else "time (s)")
-        ax.set_ylabel("step response $y(t)$")
-        ax.set_title(f"Step: relative error {self.step_error:.3g}")
-        ax.grid(True, alpha=0.3)
-        ax.legend(loc="best")
-        return ax
+        return plot_step(self, ax)
 
 
 # ----------------------------------------------------------------------
 # private helpers
 # ----------------------------------------------------------------------
+def _pct(fraction):
+    """A relative error as a percentage with 4 significant digits (``0.01439 -> 1.439%``)."""
+    return f"{100 * fraction:.4g}%"
+
+
 def frequency_grid(omega, dt, n_points):
     r"""Validated frequencies in rad per time unit, or the default grid.
 

@@ -1,21 +1,25 @@
 """One call that validates a model: fit, residual tests, criteria, plant comparison."""
 
 import html
+import warnings
 
 import numpy as np
 
-from .. import __version__
 from .._resources import check_memory
 from .._serialize import jsonable
 from .._validation import check_int, check_probability
-from ..exceptions import ExactFitError, InsufficientDataError
-from ..plotting import _axes, _figure
+from .._version import __version__
+from ..data.trend import _offset_messages
+from ..exceptions import ExactFitError, InsufficientDataError, OperatingPointWarning
+from ..models._base import check_is_fitted
+from ..models.regressors import as_records
+from ..plotting import plot_comparison, plot_report
 from ._model import model_name, n_params, one_step
 from .criteria import _from_residuals
 from .metrics import fit_percent
 from .plant import PlantComparison
 from .residuals import _residual_analysis
-from .uncertainty import parameter_intervals
+from .uncertainty import frequency_response_band, parameter_intervals
 
 __all__ = ["ValidationReport", "validate"]
 
@@ -41,7 +45,18 @@ class ValidationReport:
         ``max_lag``: the first sample the fits are computed on.
     simulation_fit, prediction_fit : float or ndarray of shape (ny,)
         :func:`fit_percent` of the simulation and of the one-step prediction
-        on samples ``start .. N-1``.
+        on samples ``start .. N-1`` (of every experiment). NaN for the
+        simulation of an unstable model, whose simulation diverges.
+    stability : str
+        ``"stable (largest pole magnitude 0.93)"``, or ``"unstable model,
+        largest pole magnitude 1.02, simulation diverges"``.
+    is_unstable : bool
+        True when a pole of the input model lies outside the unit circle.
+    max_pole_magnitude : float
+        Largest pole magnitude of the input model.
+    experiment_lengths : tuple of int
+        Samples per experiment (`y`, `y_simulated`, `y_predicted` and `time`
+        hold the experiments one after the other).
     residuals : tuple of ResidualAnalysis
         One analysis per output (empty when the tests were skipped).
     criteria : InformationCriteria or None
@@ -60,6 +75,10 @@ class ValidationReport:
     def __init__(self, **fields):
         self.skipped = None
         self.metadata = {}
+        self.stability = ""
+        self.is_unstable = False
+        self.max_pole_magnitude = float("nan")
+        self.experiment_lengths = ()
         for key, value in fields.items():
             setattr(self, key, value)
 
@@ -77,9 +96,11 @@ class ValidationReport:
     def summary(self):
         """The report as plain text, with the model's coefficient table."""
         dt = "" if self.model.dt is True else f" (sample time {float(self.model.dt):g})"
-        lines = [f"Validation of {self._model_name()} on {len(self.y)} samples{dt}",
+        lines = [f"Validation of {self._model_name()} on {len(self.y)} samples"
+                 f"{self._experiments_text()}{dt}",
                  "=" * 64,
-                 f"Simulation fit      : {_fmt_fit(self.simulation_fit)}",
+                 f"Model               : {self.stability}",
+                 f"Simulation fit      : {self._simulation_text()}",
                  f"1-step prediction fit: {_fmt_fit(self.prediction_fit)}",
                  ""]
         if self.residuals:
@@ -123,7 +144,10 @@ class ValidationReport:
             ``transfer_functions``, ...); ``theta_lower``, ``theta_upper``
             and ``confidence_level`` (:attr:`intervals`); ``n_samples`` (the
             record), ``n_used`` (rows with a complete predictor);
-            ``fit_percent`` (simulation) and ``fit_percent_prediction``;
+            ``fit_percent`` (simulation; None for an unstable model) and
+            ``fit_percent_prediction``; ``stability`` (the sentence of
+            :attr:`stability`), ``unstable`` and ``max_pole_magnitude``;
+            ``experiment_lengths``;
             ``validation_skipped`` (None or the reason); when the tests ran,
             ``residual_tests`` (a dict; a list of dicts, one per output, for
             several outputs) and ``information_criteria``; with a plant,
@@ -155,6 +179,9 @@ class ValidationReport:
             theta_lower=ci.lower, theta_upper=ci.upper, confidence_level=ci.level,
             n_samples=len(self.y), n_used=len(self.y) - self.start,
             fit_percent=self.simulation_fit, fit_percent_prediction=self.prediction_fit,
+            stability=self.stability, unstable=self.is_unstable,
+            max_pole_magnitude=self.max_pole_magnitude,
+            experiment_lengths=list(self.experiment_lengths),
             validation_skipped=self.skipped)
         if self.residuals:
             tests = [_residual_dict(r) for r in self.residuals]
@@ -172,7 +199,8 @@ class ValidationReport:
                    f"<td style='text-align:left'>{html.escape(value)}</td></tr>"
 
         c = self.criteria
-        rows = [row("simulation fit", _fmt_fit(self.simulation_fit)),
+        rows = [row("model", self.stability),
+                row("simulation fit", self._simulation_text()),
                 row("1-step prediction fit", _fmt_fit(self.prediction_fit))]
         if not self.residuals:
             rows.append(row("residual tests", f"skipped: {self.skipped}"))
@@ -189,83 +217,100 @@ class ValidationReport:
                      row("AIC / AICc / BIC", f"{c.aic:.6g} / {c.aicc:.6g} / {c.bic:.6g}")]
         if self.plant_comparison is not None:
             p = self.plant_comparison
-            rows += [row("max rel. frequency error vs plant", f"{p.frequency_error:.4g}"),
-                     row("rel. DC-gain error vs plant", f"{p.dc_gain_error:.4g}"),
+            rows += [row("max rel. frequency error vs plant", f"{100 * p.frequency_error:.4g}%"),
+                     row("rel. DC-gain error vs plant", f"{100 * p.dc_gain_error:.4g}%"),
+                     row("rel. step-response error vs plant", f"{100 * p.step_error:.4g}%"),
                      row("largest pole distance", f"{p.max_pole_distance:.4g}")]
-        verdict = ("skipped" if not self.residuals else "passed" if self.passed else "FAILED")
-        color = "#2a7" if self.passed else "#c33"
+        # the verdict in words (and a mark), the colour only repeats it
+        if not self.residuals:
+            verdict = "SKIPPED: residual tests skipped"
+        elif self.passed:
+            verdict = "PASS: residual tests passed"
+        else:
+            verdict = "FAIL: residual tests FAILED"
+        color = "#009E73" if self.passed else "#D55E00"
+        mark = "&#10004;" if self.passed else "&#10008;"
+        rows.append(row("verdict", verdict + ("" if self.passed or not self.residuals
+                                              else " (consider other orders)")))
         return (f"<div><h4>Validation of {html.escape(self._model_name())} on {len(self.y)} "
-                f"samples: <span style='color:{color}'>residual tests {verdict}</span></h4>"
+                f"samples{html.escape(self._experiments_text())}: "
+                f"<span style='color:{color}'>{mark} {verdict}</span></h4>"
                 f"<table>{''.join(rows)}</table>"
                 f"<details><summary>parameters</summary><pre>"
                 f"{html.escape(self.intervals.summary())}</pre></details></div>")
 
-    def plot(self, fig=None):
+    def plot(self, fig=None, window=None):
         """One figure: measured vs simulated and predicted output, residual
-        correlations, and (with a plant) Bode and step against the plant.
+        correlations, Bode with its uncertainty band and (with a plant) the
+        plant's Bode and step (:func:`rlsfilt.plotting.plot_report`).
 
         Parameters
         ----------
         fig : matplotlib.figure.Figure, optional
             Figure to draw in (empty); a new one if omitted.
+        window : (int, int), optional
+            Samples shown in the output panel (by default the last 400 of a
+            longer record, with an overview of the whole record).
 
         Returns
         -------
         matplotlib.figure.Figure
         """
-        has_plant = self.plant_comparison is not None
-        fig = _figure(fig, figsize=(11, 11 if has_plant else 7), layout="constrained")
-        gs = fig.add_gridspec(4 if has_plant else 2, 2)
-        ax_cmp = fig.add_subplot(gs[0, :])
-        self.plot_comparison(ax_cmp)
-        if self.residuals:
-            r = self.residuals[0]
-            r.plot_autocorrelation(fig.add_subplot(gs[1, 0]))
-            r.plot_cross_correlation(fig.add_subplot(gs[1, 1]))
-        else:
-            ax = fig.add_subplot(gs[1, :])
-            ax.text(0.5, 0.5, f"residual tests skipped:\n{self.skipped}", ha="center",
-                    va="center", transform=ax.transAxes)
-            ax.set_axis_off()
-        if has_plant:
-            ax_mag = fig.add_subplot(gs[2, 0])
-            ax_ph = fig.add_subplot(gs[3, 0], sharex=ax_mag)
-            self.plant_comparison.plot_bode(ax_mag, ax_ph)
-            self.plant_comparison.plot_step(fig.add_subplot(gs[2:, 1]))
-        return fig
+        return plot_report(self, fig, window=window)
 
-    def plot_comparison(self, ax=None):
-        """Measured, simulated and one-step predicted output (MATLAB ``compare``).
+    def frequency_band(self, level=0.95, n_draws=1000, rng=0):
+        """The model's frequency response with its uncertainty band, on the plant
+        comparison's frequencies when there is one (what `plot` draws).
+
+        Parameters
+        ----------
+        level : float, default 0.95
+            Pointwise coverage of the band.
+        n_draws : int, default 1000
+            Parameter draws from ``theta_cov_``.
+        rng : int or numpy.random.Generator, default 0
+            Seed of the draws (0: the same band on every call).
+
+        Returns
+        -------
+        FrequencyBand
+            :func:`~rlsfilt.validation.frequency_response_band` of the model.
+        """
+        omega = None if self.plant_comparison is None else self.plant_comparison.omega
+        return frequency_response_band(self.model, omega=omega, level=level, n_draws=n_draws,
+                                       rng=rng)
+
+    def plot_comparison(self, ax=None, window=None):
+        """Measured, simulated and one-step predicted output (MATLAB ``compare``;
+        :func:`rlsfilt.plotting.plot_comparison`).
 
         Parameters
         ----------
         ax : matplotlib.axes.Axes, optional
-            Axes to draw in; a new figure is made if omitted.
+            Axes to draw in; a new figure (window and overview) if omitted.
+        window : (int, int), optional
+            Samples shown (by default the last 400 of a longer record).
 
         Returns
         -------
         matplotlib.axes.Axes
         """
-        ax = _axes(ax)
-        y = self.y if self.y.ndim == 1 else self.y[:, 0]
-        ys = self.y_simulated if self.y_simulated.ndim == 1 else self.y_simulated[:, 0]
-        yp = self.y_predicted if self.y_predicted.ndim == 1 else self.y_predicted[:, 0]
-        sf = np.atleast_1d(self.simulation_fit)[0]
-        pf = np.atleast_1d(self.prediction_fit)[0]
-        ax.plot(self.time, y, "k-", lw=1, label="measured $y$")
-        ax.plot(self.time, ys, "C0-", lw=1, label=f"simulated (fit {sf:.1f}%)")
-        ax.plot(self.time, yp, "C1--", lw=0.8, label=f"1-step predicted (fit {pf:.1f}%)")
-        ax.set_xlabel("sample" if self.model.dt is True else "time (s)")
-        ax.set_ylabel("output $y$")
-        ax.set_title("Model output against the data")
-        ax.legend(loc="best")
-        return ax
+        return plot_comparison(self, ax, window=window)
 
     def _model_name(self):
         return model_name(self.model)
 
+    def _simulation_text(self):
+        if self.is_unstable:
+            return self.stability
+        return _fmt_fit(self.simulation_fit)
 
-def validate(model, u, y, plant=None, *, max_lag=25, alpha=0.01, skip_undefined=False,
+    def _experiments_text(self):
+        n = len(self.experiment_lengths)
+        return f" of {n} experiments" if n > 1 else ""
+
+
+def validate(model, u, y=None, plant=None, *, max_lag=25, alpha=0.01, skip_undefined=False,
              metadata=None):
     """Validate a fitted model on a record (and against the true plant if known).
 
@@ -273,9 +318,10 @@ def validate(model, u, y, plant=None, *, max_lag=25, alpha=0.01, skip_undefined=
     ----------
     model : IdentifiedModel
         A fitted model (`ARX` or any other model class of rlsfilt).
-    u : array_like, shape (N,) or (N, nu)
-        Input record; validation data not used for the fit is the honest
-        choice, the estimation data show the fit itself.
+    u : array_like, shape (N,) or (N, nu), or IOData
+        Input record, or an `IOData` holding inputs and outputs (then `y` is
+        omitted; pass `plant` by keyword); validation data not used for the
+        fit is the honest choice, the estimation data show the fit itself.
     y : array_like, shape (N,) or (N, ny)
         Output record.
     plant : control.LTI, optional
@@ -305,6 +351,14 @@ def validate(model, u, y, plant=None, *, max_lag=25, alpha=0.01, skip_undefined=
         (one figure), ``.to_dict()`` (JSON-ready) and every number as an
         attribute.
 
+    Warns
+    -----
+    OperatingPointWarning
+        When a signal's mean is large against its variation (more than 3
+        standard deviations) and the model has no offset handling (its
+        ``offset`` is False or it has none): detrend the data or fit with
+        ``offset=True``.
+
     Raises
     ------
     InsufficientDataError
@@ -331,7 +385,14 @@ def validate(model, u, y, plant=None, *, max_lag=25, alpha=0.01, skip_undefined=
     model's largest lag and the fits are computed from there on; the
     one-step prediction uses the measured past (:meth:`ARX.predict`), so on
     the same rows it equals ``Phi @ theta_`` (MATLAB's ``compare`` with
-    prediction horizon 1).
+    prediction horizon 1). An unstable model is reported as such ("unstable
+    model, largest pole magnitude 1.02, simulation diverges") and its
+    simulation fit is NaN instead of a meaningless huge negative number.
+
+    With several experiments every experiment is simulated and predicted
+    from its own start, the fits cover the rows of all of them, and the
+    residual tests run on the residuals of all experiments one after the
+    other (correlations at lag ``k`` pair ``k`` samples across each seam).
 
     Examples
     --------
@@ -348,12 +409,47 @@ def validate(model, u, y, plant=None, *, max_lag=25, alpha=0.01, skip_undefined=
     alpha = check_probability(alpha, "alpha")
     if metadata is not None and not isinstance(metadata, dict):
         raise TypeError(f"`metadata` must be a dict; got {type(metadata).__name__}")
-    Phi, _, E = one_step(model, u, y, "validate")      # the regressors, built once
-    n = E.shape[0]
-    # what is still to come: simulation and prediction (their regressors, inputs and
+    check_is_fitted(model, "validate")
+    from ..data.iodata import IOData
+
+    u_arg = u
+    records, info = as_records(u, y)
+    # the regressors, residuals, simulation and prediction (their regressors, inputs and
     # outputs) and the record's copies in the report (the residual tests check their own)
-    n_par, ny, nu = Phi.shape[1], E.shape[1], model.n_inputs_
-    check_memory(8 * n * (n_par + 8 + 2 * nu + 4 * ny), f"validate on {n} rows of `u`, `y`")
+    n_total = sum(len(U) for U, _ in records)
+    n_par = np.asarray(model.theta_).shape[0]
+    nu, ny = records[0][0].shape[1], records[0][1].shape[1]
+    check_memory(8 * n_total * (2 * n_par + 8 + 2 * nu + 4 * ny),
+                 f"validate on `u`, `y` of {n_total} samples")
+    if info["n_experiments"] == 1 and y is not None:
+        parts = [(u, y)]                                  # as given (1-D stays 1-D)
+    else:
+        parts = [(U if U.shape[1] > 1 else U[:, 0], Y if Y.shape[1] > 1 else Y[:, 0])
+                 for U, Y in records]
+    if _offset_mode(model) == "none":
+        msgs = _offset_messages(records, (info.get("u_names"), info.get("y_names")))
+        if msgs:
+            warnings.warn("; ".join(msgs) + ", and the model has no offset handling: the "
+                          "fit mostly describes the operating point. Detrend the data "
+                          "(rlsfilt.detrend) or fit with offset=True", OperatingPointWarning,
+                          stacklevel=2)
+    Phis, Es, Ys, sims, preds, glued_u, starts = [], [], [], [], [], [], []
+    for k, (uk, yk) in enumerate(parts):
+        Phi_k, _, E_k = one_step(model, uk, yk, "validate")   # the regressors, built once
+        Yk = np.asarray(yk, dtype=float)
+        start_k = len(Yk) - len(E_k)  # max_lag of the model
+        sims.append(np.asarray(model.simulate(uk, y0=Yk[:start_k] if start_k else None),
+                               dtype=float))
+        preds.append(np.asarray(model.predict(uk, yk, horizon=1), dtype=float))
+        Phis.append(Phi_k)
+        Es.append(E_k)
+        Ys.append(Yk)
+        Uk = np.asarray(records[k][0], dtype=float)
+        glued_u.append(Uk if k == 0 else Uk[start_k:])    # aligns residual rows across seams
+        starts.append(start_k)
+    Phi, E = np.vstack(Phis), np.vstack(Es)
+    u = np.vstack(glued_u) if len(parts) > 1 else parts[0][0]
+    n = E.shape[0]
     if auto:
         lag = max(1, min(25, n // 4))
     residuals, criteria, skipped = (), None, None
@@ -379,23 +475,41 @@ def validate(model, u, y, plant=None, *, max_lag=25, alpha=0.01, skip_undefined=
             skipped = "the residuals are zero or constant (an exact fit)"
             residuals = ()
             break
-    Y = np.asarray(y, dtype=float)
-    start = len(Y) - n  # max_lag of the model
-    y0 = Y[:start]
-    y_sim = np.asarray(model.simulate(u, y0=y0 if start else None), dtype=float)
-    y_pred = np.asarray(model.predict(u, y, horizon=1), dtype=float)
+    Y, y_sim, y_pred = (np.concatenate(x) for x in (Ys, sims, preds))
+    offsets = np.cumsum([0] + [len(v) for v in Ys])[:-1]
+    rows = np.concatenate([off + np.arange(s0, len(Yk))
+                           for off, s0, Yk in zip(offsets, starts, Ys)])
     dt = 1.0 if model.dt is True else float(model.dt)
+    tstarts = list(u_arg.tstart) if isinstance(u_arg, IOData) else [0.0] * len(Ys)
+    time = np.concatenate([t0 + dt * np.arange(len(Yk)) for t0, Yk in zip(tstarts, Ys)])
+    stability = model.stability_text()
+    poles = model.poles()
+    r_max = float(np.max(np.abs(poles))) if len(poles) else 0.0
+    unstable = r_max >= 1.0 + 1e-9
+    sim_fit = fit_percent(Y[rows], y_sim[rows])
+    if unstable:  # a diverging simulation has no meaningful fit
+        sim_fit = np.full(np.shape(sim_fit), np.nan)
+        sim_fit = float(sim_fit) if sim_fit.ndim == 0 else sim_fit
     return ValidationReport(
-        model=model, time=np.arange(len(Y)) * dt, y=Y, y_simulated=y_sim, y_predicted=y_pred,
-        start=start,
-        simulation_fit=fit_percent(Y[start:], y_sim[start:]),
-        prediction_fit=fit_percent(Y[start:], y_pred[start:]),
+        model=model, time=time, y=Y, y_simulated=y_sim, y_predicted=y_pred,
+        start=starts[0], experiment_lengths=tuple(len(v) for v in Ys),
+        stability=stability, is_unstable=unstable, max_pole_magnitude=r_max,
+        simulation_fit=sim_fit,
+        prediction_fit=fit_percent(Y[rows], y_pred[rows]),
         residuals=residuals,
         criteria=criteria,
         intervals=parameter_intervals(model),
         plant_comparison=None if plant is None else PlantComparison(model, plant),
         skipped=skipped, metadata=dict(metadata or {}),
     )
+
+
+def _offset_mode(model):
+    """``"none"`` unless the model handles an operating point (an ``offset`` parameter)."""
+    offset = model.get_params().get("offset", False)
+    if isinstance(offset, str):
+        return offset
+    return "intercept" if offset else "none"
 
 
 def _residual_dict(r):

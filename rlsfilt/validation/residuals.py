@@ -14,7 +14,7 @@ from .._scale import pow2_scale
 from .._validation import check_int, check_probability
 from ..exceptions import ExactFitError, InsufficientDataError
 from ..models.regressors import _as_signal
-from ..plotting import _axes, _figure
+from ..plotting import plot_autocorrelation, plot_cross_correlation, plot_residuals
 from ._model import one_step
 
 __all__ = ["ResidualAnalysis", "residual_analysis"]
@@ -91,11 +91,7 @@ class ResidualAnalysis:
         -------
         matplotlib.figure.Figure
         """
-        fig = _figure(fig, figsize=(8, 6), layout="constrained")
-        ax1, ax2 = fig.subplots(2, 1)
-        self.plot_autocorrelation(ax1)
-        self.plot_cross_correlation(ax2)
-        return fig
+        return plot_residuals(self, fig)
 
     def plot_autocorrelation(self, ax=None):
         """Stem plot of :math:`\\hat\\rho_\\varepsilon(k)` with its band.
@@ -109,19 +105,7 @@ class ResidualAnalysis:
         -------
         matplotlib.axes.Axes
         """
-        ax = _axes(ax)
-        ax.vlines(self.lags, 0.0, self.autocorrelation, color="C0")
-        ax.plot(self.lags, self.autocorrelation, "o", color="C0", ms=3)
-        band = self.autocorrelation_band
-        ax.axhspan(-band, band, color="C1", alpha=0.2,
-                   label=f"{100 * (1 - self.alpha):g}% band")
-        ax.axhline(0.0, color="k", lw=0.6)
-        ax.set_xlabel("lag $k$ (samples)")
-        ax.set_ylabel(r"$\hat\rho_\varepsilon(k)$")
-        verdict = "white" if self.is_white else "not white"
-        ax.set_title(f"Residual autocorrelation: {verdict} (p = {self.pvalue_white:.3g})")
-        ax.legend(loc="upper right")
-        return ax
+        return plot_autocorrelation(self, ax)
 
     def plot_cross_correlation(self, ax=None):
         """Cross-correlation :math:`\\hat\\rho_{\\varepsilon u}(\\tau)` with each input.
@@ -135,22 +119,7 @@ class ResidualAnalysis:
         -------
         matplotlib.axes.Axes
         """
-        ax = _axes(ax)
-        nu = self.cross_correlation.shape[0]
-        for j in range(nu):
-            label = f"input {j}" if nu > 1 else None
-            ax.plot(self.cross_lags, self.cross_correlation[j], "o-", ms=3, lw=0.8,
-                    color=f"C{j}", label=label)
-            band = self.cross_correlation_band[j]
-            ax.fill_between(self.cross_lags, -band, band, color=f"C{j}", alpha=0.12)
-        ax.axhline(0.0, color="k", lw=0.6)
-        ax.set_xlabel(r"lag $\tau$ (samples; $\tau > 0$: past inputs)")
-        ax.set_ylabel(r"$\hat\rho_{\varepsilon u}(\tau)$")
-        verdict = "independent" if self.is_independent else "not independent"
-        ax.set_title(f"Input cross-correlation: {verdict} (p = {self.pvalue_independent:.3g})")
-        if nu > 1:
-            ax.legend(loc="upper right")
-        return ax
+        return plot_cross_correlation(self, ax)
 
 
 def residual_analysis(model, u, y, max_lag=25, alpha=0.01, *, output=0, model_df=0):

@@ -11,7 +11,7 @@ import numpy as np
 from .._validation import as_float_array, as_generator, check_int, check_probability
 from ..models._base import check_is_fitted
 from ..models._summary import coefficient_statistics
-from ..plotting import _bode_axes, _figure
+from ..plotting import plot_bode, plot_frequency_band
 from .plant import frequency_grid
 
 __all__ = ["FrequencyBand", "ParameterIntervals", "frequency_response_band",
@@ -155,10 +155,7 @@ class FrequencyBand:
         -------
         matplotlib.figure.Figure
         """
-        fig = _figure(fig, figsize=(7, 6), layout="constrained")
-        ax_mag, ax_ph = fig.subplots(2, 1, sharex=True)
-        self.plot_bode(ax_mag, ax_ph, plant=plant)
-        return fig
+        return plot_frequency_band(self, fig, plant=plant)
 
     def plot_bode(self, ax_mag=None, ax_phase=None, plant=None):
         """Draw the band into magnitude and phase axes.
@@ -176,43 +173,7 @@ class FrequencyBand:
         (matplotlib.axes.Axes, matplotlib.axes.Axes)
             The magnitude and phase axes.
         """
-        ax_mag, ax_phase = _bode_axes(ax_mag, ax_phase)
-        ny, nu = self.response.shape[:2]
-        pct = f"{100 * self.level:g}%"
-        for c, (i, j) in enumerate((i, j) for i in range(ny) for j in range(nu)):
-            tag = f" (u{j} to y{i})" if ny * nu > 1 else ""
-            color = f"C{c}"
-            ax_mag.fill_between(self.omega, _db(self.magnitude_lower[i, j]),
-                                _db(self.magnitude_upper[i, j]), color=color, alpha=0.25,
-                                label=f"{pct} band{tag}")
-            ax_mag.semilogx(self.omega, _db(np.abs(self.response[i, j])), color=color,
-                            label=f"model{tag}")
-            ax_phase.fill_between(self.omega, self.phase_lower[i, j], self.phase_upper[i, j],
-                                  color=color, alpha=0.25)
-            ax_phase.semilogx(self.omega,
-                              np.degrees(np.unwrap(np.angle(self.response[i, j]))), color=color)
-        if plant is not None:
-            import control
-
-            z = np.exp(1j * self.omega * self.dt)
-            G = np.asarray(control.tf(plant)(z, squeeze=False))
-            first = True
-            for i in range(min(ny, G.shape[0])):
-                for j in range(min(nu, G.shape[1])):
-                    ax_mag.semilogx(self.omega, _db(np.abs(G[i, j])), "k--", lw=1,
-                                    label="plant" if first else None)
-                    ax_phase.semilogx(self.omega, np.degrees(np.unwrap(np.angle(G[i, j]))),
-                                      "k--", lw=1)
-                    first = False
-        ax_mag.set_ylabel("$|G(e^{j\\omega T})|$ (dB)")
-        ax_phase.set_ylabel("phase (deg)")
-        unit = "rad/sample" if self.dt_unspecified else "rad/s"
-        ax_phase.set_xlabel(f"$\\omega$ ({unit})")
-        ax_mag.set_title("Frequency response with parameter uncertainty")
-        ax_mag.legend(loc="best")
-        for ax in (ax_mag, ax_phase):
-            ax.grid(True, which="both", alpha=0.3)
-        return ax_mag, ax_phase
+        return plot_bode(self, ax_mag, ax_phase, plant=plant)
 
 
 def parameter_intervals(model, level=0.95):

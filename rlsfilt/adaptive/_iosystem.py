@@ -1,0 +1,87 @@
+"""A stepping object as a discrete-time python-control `NonlinearIOSystem`.
+
+python-control evaluates a discrete system through two pure functions of
+``(t, x, u)``: the output ``y[k] = h(x[k], u[k])`` and the next state
+``x[k+1] = f(x[k], u[k])``. Inside `control.interconnect` the output function
+is called several times per sample (to settle feed-through), sometimes with
+inputs that are not yet final. So the object's state must be entirely in the
+vector ``x``: each evaluation restores a private working copy from ``x``,
+takes one step and reads the new state back. The step is computed once per
+distinct ``(x, u)``; the output and update functions share it, and warnings
+are issued only by the update (the committed step), once per message.
+
+The object provides ``_get_state()``, ``_set_state(vector)`` and
+``_io_step(inputs) -> (outputs, messages)``.
+"""
+
+import copy
+import warnings
+
+import numpy as np
+
+__all__ = []
+
+_CACHE_SIZE = 8
+
+
+def make_iosystem(template, *, inputs, outputs, states, dt, name=None):
+    """A `control.NonlinearIOSystem` that steps a copy of `template`.
+
+    An all-zero state vector (python-control's default initial state) stands
+    for the state of `template` now; any other vector is restored as is.
+    """
+    import control
+
+    work = copy.deepcopy(template)
+    x_start = np.array(template._get_state(), dtype=float)
+    if len(states) != len(x_start):
+        raise RuntimeError("internal error: state labels and state size differ")
+    cache = {}
+    emitted = set()
+
+    def evaluate(x, w):
+        x = np.ascontiguousarray(x, dtype=float)
+        w = np.ascontiguousarray(w, dtype=float)
+        key = (x.tobytes(), w.tobytes())
+        hit = cache.get(key)
+        if hit is None:
+            work._set_state(x if x.any() else x_start)
+            out, messages = work._io_step(w)
+            hit = (np.array(out, dtype=float), work._get_state(), messages)
+            if len(cache) >= _CACHE_SIZE:
+                cache.clear()
+            cache[key] = hit
+        return hit
+
+    def updfcn(t, x, u, params):
+        _, new, messages = evaluate(x, u)
+        for message, category in messages:
+            if message not in emitted:
+                emitted.add(message)
+                warnings.warn(message, category, stacklevel=2)
+        return new.copy()
+
+    def outfcn(t, x, u, params):
+        return evaluate(x, u)[0].copy()
+
+    return control.nlsys(updfcn, outfcn, inputs=list(inputs), outputs=list(outputs),
+                         states=list(states), dt=dt, name=name)
+
+
+def call_capturing(fn, *args):
+    """``fn(*args)`` with the warnings it issues returned, not shown: ``(result, messages)``.
+
+    `messages` is a list of ``(text, category)`` for the caller to issue
+    when (and if) the step is committed.
+    """
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        out = fn(*args)
+    return out, [(str(w.message), w.category) for w in caught]
+
+
+def push(buf, value):
+    """Shift a newest-first memory of past samples by one and store `value` in front."""
+    if len(buf):
+        buf[1:] = buf[:-1].copy()
+        buf[0] = value

@@ -1,0 +1,636 @@
+r"""The indirect self-tuning regulator: identify ``A, B`` online, redesign, control.
+
+At every sample the regulator (Astrom & Wittenmark, *Adaptive Control*,
+ch. 3)
+
+1. updates the estimate of the ARX model :math:`A(q^{-1}) y(t) = B(q^{-1})
+   u(t) + e(t)` with any rlsfilt filter and the regressor
+   :math:`\varphi(t) = [-y(t-1), \dots, -y(t-n_a), u(t-n_k), \dots,
+   u(t-n_k-n_b+1)]`;
+2. redesigns the controller from the estimated ``A, B`` (every sample, or
+   every ``k`` samples) with a design function such as `rst_design`;
+3. computes :math:`u(t)` from :math:`R u = T r - S y`.
+
+Safeguards keep the loop sane when the data are poor: a dead zone on the
+prediction error, projection of the estimate onto a box, keeping the last
+good controller when the estimated ``A`` and ``B`` (nearly) share a factor,
+and an excitation monitor that warns when the regressors stop exciting the
+parameters or the covariance winds up.
+"""
+
+import functools
+import warnings
+
+import numpy as np
+
+from .._validation import check_dt, check_int, check_real, check_scalar
+from ..exceptions import ExcitationWarning
+from . import _filter_state
+from ._iosystem import call_capturing, make_iosystem, push
+from ._polynomials import coprimeness
+from .rst import RSTController, rst_design
+
+__all__ = ["SelfTuningRegulator", "STRHistory"]
+
+# names of the scalar bookkeeping entries of the state vector, in order
+_SCALARS = ("have_controller", "step", "trace_ref", "warned_excitation", "warned_windup",
+            "n_rejected")
+
+
+class SelfTuningRegulator:
+    r"""Indirect self-tuning regulator: online ARX identification plus controller redesign.
+
+    Parameters
+    ----------
+    estimator : RecursiveLeastSquares, SquareRootRLS or SlidingWindowRLS
+        The filter that estimates :math:`\theta = [a_1 .. a_{n_a}, b_1 ..
+        b_{n_b}]` (``dim_x = na + nb``, ``dim_z = 1``); its forgetting
+        factor, window and prior are the tuning of the estimation. The
+        regulator updates it in place.
+    design : callable or dict
+        ``design(A, B) -> RSTController`` from the estimated polynomials
+        (ascending powers of :math:`q^{-1}`, ``B`` with ``nk`` leading
+        zeros), for example ``functools.partial(rst_design, Am=Am,
+        Ao=Ao)``; a dict is shorthand for that: the keyword arguments of
+        `rst_design`. A design that raises `ValueError` is skipped (the last
+        controller is kept).
+    na, nb : int
+        Orders of the estimated model (``na >= 0``, ``nb >= 1``).
+    nk : int, default 1
+        Delay of the model, ``>= 1`` (``u(t)`` is computed after ``y(t)``
+        is measured, so it cannot enter the estimate of ``y(t)``).
+    redesign_every : int, default 1
+        Redesign at samples ``0, k, 2k, ..``.
+    initial : RSTController, optional
+        Controller used until the first accepted design. By default the
+        design of the estimator's initial estimate, if it is acceptable;
+        otherwise ``u = 0`` (plus `dither`) until one is.
+    dead_zone : float, default 0.0
+        Skip the estimator update when the a-priori prediction error
+        :math:`|e(t)| \le` `dead_zone` (robustness to bounded disturbances
+        and unmodelled dynamics; Egardt 1979).
+    bounds : (lower, upper), optional
+        Box for the estimate (scalars or arrays of ``na + nb`` entries,
+        ``-inf``/``inf`` allowed): after each update the estimate is
+        projected (clipped) onto it, and the projected value replaces the
+        estimator's ``x``. Typically used to keep the sign of ``b1``.
+    coprime_tol : float, default 1e-4
+        Keep the last controller when the estimated ``A`` and ``B`` nearly
+        share a factor: the smallest singular value of their Sylvester
+        matrix (coefficients scaled to unit norm) is below this.
+    u_limits : (float, float), optional
+        Saturation of the applied control; the saturated value enters the
+        regressor (and the controller's memory), the usual anti-windup of
+        RST controllers.
+    monitor_every : int, default 200
+        Length of the excitation monitor's blocks; ``0`` switches it off.
+    excitation_tol : float, default 1e-8
+        Warn (`~rlsfilt.ExcitationWarning`) when, over a block, the smallest
+        eigenvalue of :math:`\sum \varphi\varphi^T` falls below this
+        fraction of the largest: the data carry no information in some
+        direction of the parameters.
+    windup_ratio : float, default 1e3
+        Warn when ``trace(P)`` exceeds this multiple of its reference value:
+        ``trace(P)`` at the end of the last monitor block that was well
+        excited, or at construction before any (covariance windup under
+        forgetting: without excitation ``P`` grows like ``lam**-k``).
+    max_order : int, optional
+        Largest degree of ``R``, ``S`` and ``T`` the designs may return
+        (sets the size of the controller's memory); ``na + nk + nb`` by
+        default, enough for `rst_design` with integral action.
+    dt : True or float, default True
+        Sampling period (python-control's ``dt``).
+
+    Attributes
+    ----------
+    estimator : filter
+        The estimator (updated in place).
+    history : STRHistory
+        Everything the regulator saw and did, one row per :meth:`step`.
+    controller : RSTController or None
+        The controller in use.
+    theta : ndarray, shape (na + nb,)
+        The current estimate (after projection).
+    state : ndarray
+        The complete internal state as one vector (the state of
+        :meth:`as_iosystem`).
+
+    Notes
+    -----
+    One call of :meth:`step` with measurement :math:`y(t)` and reference
+    :math:`r(t)`:
+
+    .. math::
+
+        e(t) &= y(t) - \varphi(t)^T \hat\theta(t-1)
+            \qquad \text{(skip the update if } |e| \le \text{dead zone)} \\
+        \hat\theta(t) &= \Pi_{box}\big(\text{estimator update with }
+            (y(t), \varphi(t))\big) \\
+        (R, S, T) &= \text{design}(\hat A, \hat B)
+            \qquad \text{(every } k \text{ samples; kept if } \hat A, \hat B
+            \text{ nearly share a factor)} \\
+        u(t) &= \operatorname{sat}\Big(\big(T r - S y
+            - (R - r_0) u\big)(t) / r_0 + \text{dither}(t)\Big)
+
+    With ``lam = 1``, white equation error and enough excitation the
+    estimate converges to the true ``A, B`` and the controller to the
+    design on the true plant (the certainty-equivalence principle; Astrom &
+    Wittenmark 1995, ch. 3 and 6).
+
+    References
+    ----------
+    .. [1] K. J. Astrom and B. Wittenmark, *Adaptive Control*, 2nd ed.,
+       Addison-Wesley, 1995, ch. 3 and 11.
+    .. [2] B. Egardt, *Stability of Adaptive Controllers*, Springer, 1979.
+    .. [3] G. C. Goodwin and K. S. Sin, *Adaptive Filtering, Prediction and
+       Control*, Prentice Hall, 1984 (parameter projection).
+
+    Examples
+    --------
+    Regulate ``y(t) - 1.5 y(t-1) + 0.7 y(t-2) = u(t-1) + 0.5 u(t-2) + e(t)``
+    without knowing it, tracking a square wave:
+
+    >>> import numpy as np
+    >>> from rlsfilt import RecursiveLeastSquares
+    >>> from rlsfilt.adaptive import SelfTuningRegulator
+    >>> stre = SelfTuningRegulator(RecursiveLeastSquares(4, P0=100.0),
+    ...                            design=dict(Am=np.poly([0.5, 0.5]), Ao=np.poly([0.2])),
+    ...                            na=2, nb=2, nk=1)
+    >>> rng = np.random.default_rng(0)
+    >>> y, u = np.zeros(600), np.zeros(600)   # y[-1], u[-1], .. are zero: the plant at rest
+    >>> r = np.where(np.arange(600) % 100 < 50, 1.0, -1.0)
+    >>> for t in range(600):
+    ...     y[t] = (1.5 * y[t - 1] - 0.7 * y[t - 2] + u[t - 1] + 0.5 * u[t - 2]
+    ...             + 0.01 * rng.standard_normal())
+    ...     u[t] = stre.step(y[t], r[t], dither=0.01 * rng.choice([-1.0, 1.0]))
+    >>> np.round(stre.theta, 2)
+    array([-1.5,  0.7,  1. ,  0.5])
+    >>> bool(np.sqrt(np.mean((y[-40:] - r[-40:]) ** 2)) < 0.05)     # RMS tracking error
+    True
+    """
+
+    def __init__(self, estimator, design, *, na, nb, nk=1, redesign_every=1, initial=None,
+                 dead_zone=0.0, bounds=None, coprime_tol=1e-4, u_limits=None,
+                 monitor_every=200, excitation_tol=1e-8, windup_ratio=1e3, max_order=None,
+                 dt=True):
+        self.na = check_int(na, "na", minimum=0)
+        self.nb = check_int(nb, "nb", minimum=1)
+        self.nk = check_int(nk, "nk", minimum=1)
+        n = self.na + self.nb
+        for attr in ("predict", "update", "x", "P"):
+            if not hasattr(estimator, attr):
+                raise TypeError(f"`estimator` must be an rlsfilt filter (predict, update, x, P); "
+                                f"got {type(estimator).__name__} without `{attr}`")
+        if getattr(estimator, "dim_x", None) != n or getattr(estimator, "dim_z", 1) != 1:
+            raise ValueError(f"`estimator` must have dim_x = na + nb = {n} and dim_z = 1; got "
+                             f"dim_x = {getattr(estimator, 'dim_x', None)}, dim_z = "
+                             f"{getattr(estimator, 'dim_z', None)}")
+        self.estimator = estimator
+        if isinstance(design, dict):
+            design = functools.partial(rst_design, **design)
+        if not callable(design):
+            raise TypeError(f"`design` must be a callable design(A, B) -> RSTController or a "
+                            f"dict of rst_design keywords; got {type(design).__name__}")
+        self.design = design
+        self.redesign_every = check_int(redesign_every, "redesign_every", minimum=1)
+        self.dead_zone = check_real(dead_zone, "dead_zone", minimum=0)
+        self.bounds = None if bounds is None else _check_bounds(bounds, n)
+        self.coprime_tol = check_real(coprime_tol, "coprime_tol", minimum=0)
+        self.u_limits = None if u_limits is None else _check_limits(u_limits)
+        self.monitor_every = check_int(monitor_every, "monitor_every", minimum=0)
+        self.excitation_tol = check_real(excitation_tol, "excitation_tol", minimum=0)
+        self.windup_ratio = check_real(windup_ratio, "windup_ratio", minimum=1, strict=True)
+        self.max_order = (self.na + self.nk + self.nb if max_order is None
+                          else check_int(max_order, "max_order", minimum=0))
+        self.dt = check_dt(dt)
+        L = self.max_order + 1
+        self._L = L
+        # memories, newest first: y(t-1), .., u(t-1), .., r(t-1), ..
+        self._ypast = np.zeros(max(self.na, L - 1))
+        self._upast = np.zeros(max(self.nk + self.nb - 1, L - 1))
+        self._rpast = np.zeros(L - 1)
+        self._ctrl = np.zeros((3, L))      # rows R, S, T, zero-padded
+        self._info = np.zeros((n, n))      # sum of phi phi^T over the monitor block
+        self._scalars = np.zeros(len(_SCALARS))
+        self._scalars[2] = float(np.trace(estimator.P))   # reference trace(P)
+        self._records = []
+        if initial is not None:
+            self._install(initial, "initial")
+        else:
+            A, B = self._polynomials(self.theta)
+            ok, ctrl, _ = self._try_design(A, B)
+            if ok:
+                self._install(ctrl, "design")
+
+    # ------------------------------------------------------------------
+    # the current estimate and controller
+    # ------------------------------------------------------------------
+    @property
+    def theta(self):
+        """The current estimate: the ``a`` coefficients, then the ``b`` (a copy)."""
+        return np.array(self.estimator.x, dtype=float).reshape(-1).copy()
+
+    @property
+    def controller(self):
+        """The controller in use, or None before the first accepted design."""
+        if not self._scalars[0]:
+            return None
+        R, S, T = self._ctrl
+        return RSTController(R, S, T, self.dt)
+
+    def polynomials(self):
+        """``(A, B)`` of the current estimate, ascending powers of ``q^-1``."""
+        return self._polynomials(self.theta)
+
+    def _polynomials(self, theta):
+        A = np.concatenate([[1.0], theta[:self.na]])
+        B = np.concatenate([np.zeros(self.nk), theta[self.na:]])
+        return A, B
+
+    # ------------------------------------------------------------------
+    # one sample
+    # ------------------------------------------------------------------
+    def step(self, y, r=0.0, dither=0.0):
+        """Measure ``y(t)``, update the estimate and the controller, return ``u(t)``.
+
+        Parameters
+        ----------
+        y : float
+            Measured output ``y(t)``.
+        r : float, default 0.0
+            Reference ``r(t)``.
+        dither : float, default 0.0
+            Added to the control (probing excitation); the applied value
+            enters the regressor.
+
+        Returns
+        -------
+        float
+            The control ``u(t)`` to apply (saturated to `u_limits`).
+        """
+        y, r, v = (_finite(y, "y"), _finite(r, "r"), _finite(dither, "dither"))
+        u, record, messages = self._advance(y, r, v)
+        self._records.append(record)
+        for message, category in messages:
+            warnings.warn(message, category, stacklevel=2)
+        return u
+
+    def _advance(self, y, r, v):
+        """One sample: returns ``(u, record, messages)``; a failure restores the state."""
+        snapshot = self._get_state()
+        try:
+            return self._advance_unsafe(y, r, v)
+        except BaseException:
+            self._set_state(snapshot)
+            raise
+
+    def _advance_unsafe(self, y, r, v):
+        na, nb, nk = self.na, self.nb, self.nk
+        est = self.estimator
+        messages = []
+        # regressor phi(t) = [-y(t-1) .. -y(t-na), u(t-nk) .. u(t-nk-nb+1)]
+        phi = np.concatenate([-self._ypast[:na], self._upast[nk - 1:nk - 1 + nb]])
+        theta = self.theta
+        e = y - phi @ theta                       # a-priori prediction error
+        updated = self.dead_zone == 0.0 or abs(e) > self.dead_zone
+        if updated:
+            _, caught = call_capturing(est.predict_update, y, phi)
+            messages += caught
+            theta = self.theta
+        if self.bounds is not None:               # projection onto the box
+            clipped = np.clip(theta, *self.bounds)
+            if np.any(clipped != theta):
+                est.x = clipped.reshape(-1, 1)
+                theta = clipped
+        k = int(self._scalars[1])
+        redesigned = k % self.redesign_every == 0
+        rejected = False
+        if redesigned:
+            A, B = self._polynomials(theta)
+            ok, ctrl, caught = self._try_design(A, B)
+            messages += caught
+            if ok:
+                self._install(ctrl, "design")
+            else:
+                rejected = True
+                self._scalars[5] += 1
+        # control law R u = T r - S y, with the past from the memories
+        L = self._L
+        if self._scalars[0]:
+            R, S, T = self._ctrl
+            u = (T[0] * r + T[1:] @ self._rpast[:L - 1] - S[0] * y - S[1:] @ self._ypast[:L - 1]
+                 - R[1:] @ self._upast[:L - 1]) / R[0]
+        else:
+            u = 0.0
+        u = u + v
+        if self.u_limits is not None:
+            u = min(max(u, self.u_limits[0]), self.u_limits[1])
+        u = float(u)
+        push(self._ypast, y)
+        push(self._upast, u)
+        push(self._rpast, r)
+        # excitation monitor and windup check
+        self._info += np.outer(phi, phi)
+        trace = float(np.trace(est.P))
+        if trace > self.windup_ratio * self._scalars[2]:
+            if not self._scalars[4]:
+                self._scalars[4] = 1.0
+                messages.append((
+                    f"SelfTuningRegulator: trace(P) = {trace:.3g} at step {k} is more than "
+                    f"windup_ratio = {self.windup_ratio:g} times its value {self._scalars[2]:.3g} "
+                    "when the data last excited every parameter: the covariance is winding up "
+                    "(forgetting without excitation); add excitation or use a forgetting mode "
+                    "that bounds P (RecursiveLeastSquares(forgetting='directional'), ...)",
+                    ExcitationWarning))
+        else:
+            self._scalars[4] = 0.0
+        excitation = np.nan
+        if self.monitor_every and (k + 1) % self.monitor_every == 0:
+            ev = np.linalg.eigvalsh(self._info)
+            excitation = float(ev[0] / ev[-1]) if ev[-1] > 0 else 0.0
+            if excitation < self.excitation_tol:
+                if not self._scalars[3]:
+                    self._scalars[3] = 1.0
+                    messages.append((
+                        f"SelfTuningRegulator: the regressors of steps {k + 1 - self.monitor_every}"
+                        f"..{k} do not excite every parameter (smallest / largest eigenvalue of "
+                        f"sum phi phi^T = {excitation:.3g} < excitation_tol = "
+                        f"{self.excitation_tol:.3g}); the estimate, and the controller designed "
+                        "from it, stop improving: add excitation (reference changes or dither)",
+                        ExcitationWarning))
+            else:
+                self._scalars[3] = 0.0
+                self._scalars[2] = trace        # a well-excited block: the new reference
+            self._info[:] = 0.0
+        self._scalars[1] = k + 1
+        record = (y, r, u, e, theta.copy(), trace, updated, redesigned, rejected,
+                  self._ctrl.copy(), excitation)
+        return u, record, messages
+
+    def _try_design(self, A, B):
+        """``(ok, controller, messages)`` for the estimate ``A, B``."""
+        if coprimeness(A, B) < self.coprime_tol:
+            return False, None, []
+        try:
+            ctrl, caught = call_capturing(self.design, A, B)
+        except (ValueError, np.linalg.LinAlgError):
+            return False, None, []
+        return True, ctrl, caught
+
+    def _install(self, ctrl, what):
+        """Store a controller's polynomials in the fixed-size rows of ``_ctrl``."""
+        rows = np.zeros((3, self._L))
+        for i, name in enumerate(("R", "S", "T")):
+            p = getattr(ctrl, name, None)
+            if p is None:
+                raise TypeError(f"the {what} must be an RSTController (with R, S, T); got "
+                                f"{type(ctrl).__name__}")
+            p = np.asarray(p, dtype=float).reshape(-1)
+            nz = np.flatnonzero(p)
+            p = p[:nz[-1] + 1] if len(nz) else p[:1]
+            if len(p) > self._L:
+                raise ValueError(f"the {what} has deg {name} = {len(p) - 1} > max_order = "
+                                 f"{self.max_order}; pass a larger max_order")
+            if not np.all(np.isfinite(p)):
+                raise ValueError(f"the {what} has non-finite coefficients in {name}")
+            rows[i, :len(p)] = p
+        if rows[0][0] == 0.0:
+            raise ValueError(f"the {what} has R[0] = 0 (not a causal controller)")
+        self._ctrl[:] = rows
+        self._scalars[0] = 1.0
+
+    # ------------------------------------------------------------------
+    # history
+    # ------------------------------------------------------------------
+    @property
+    def history(self):
+        """An `STRHistory` of every :meth:`step` so far."""
+        return STRHistory(self._records, self.na, self.nb, self._L, self.dt)
+
+    # ------------------------------------------------------------------
+    # the state as one vector, and python-control
+    # ------------------------------------------------------------------
+    def _parts(self):
+        return [self._ypast, self._upast, self._rpast, self._ctrl, self._scalars, self._info]
+
+    def _get_state(self):
+        own = [np.asarray(p, dtype=float).reshape(-1) for p in self._parts()]
+        return np.concatenate([_filter_state.get_state(self.estimator)] + own)
+
+    def _set_state(self, vec):
+        vec = np.asarray(vec, dtype=float)
+        nf = len(_filter_state.get_state(self.estimator))
+        _filter_state.set_state(self.estimator, vec[:nf])
+        i = nf
+        for part in self._parts():
+            part.reshape(-1)[:] = vec[i:i + part.size]
+            i += part.size
+
+    @property
+    def state(self):
+        """The complete internal state (the estimator's, the memories, the controller)."""
+        return self._get_state()
+
+    def _state_labels(self):
+        labels = _filter_state.state_labels(self.estimator, "est.")
+        labels += [f"y[t-{i + 1}]" for i in range(len(self._ypast))]
+        labels += [f"u[t-{i + 1}]" for i in range(len(self._upast))]
+        labels += [f"r[t-{i + 1}]" for i in range(len(self._rpast))]
+        labels += [f"{p}[{i}]" for p in "RST" for i in range(self._L)]
+        labels += list(_SCALARS)
+        n = self.na + self.nb
+        labels += [f"info[{i},{j}]" for i in range(n) for j in range(n)]
+        return labels
+
+    def _io_step(self, w):
+        y, r, v = (float(x) for x in w)
+        u, record, messages = self._advance(y, r, v)
+        if self._io_extra:
+            return np.concatenate([[u, record[3]], record[4]]), messages
+        return np.array([u]), messages
+
+    def as_iosystem(self, dt=None, name="str", extra_outputs=False):
+        r"""The regulator as a discrete-time python-control `NonlinearIOSystem`.
+
+        Parameters
+        ----------
+        dt : True or float, optional
+            Sampling period; the regulator's `dt` by default.
+        name : str, default "str"
+            Name of the system in `control.interconnect`.
+        extra_outputs : bool, default False
+            Also output the a-priori prediction error ``e`` and the
+            estimate ``theta[0] ..``.
+
+        Returns
+        -------
+        control.NonlinearIOSystem
+            Inputs ``['y', 'r', 'dither']``; outputs ``['u']`` (with
+            `extra_outputs`: ``['u', 'e', 'theta[0]', ..]``); states:
+            :attr:`state`, labelled.
+
+        Notes
+        -----
+        The system steps a private copy of the regulator as it is now;
+        the regulator itself is not changed by simulations. Its state
+        vector is :attr:`state`; python-control's default initial state,
+        all zeros, stands for the regulator's state at this call (a valid
+        state is never all zeros: ``P`` is positive definite), so
+        ``input_output_response(loop, T, U)`` starts from it. One sample of
+        the system is one :meth:`step`, so simulations equal the
+        :meth:`step` loop to round-off.
+
+        Examples
+        --------
+        >>> import control
+        >>> import numpy as np
+        >>> from rlsfilt import RecursiveLeastSquares
+        >>> from rlsfilt.adaptive import SelfTuningRegulator
+        >>> stre = SelfTuningRegulator(RecursiveLeastSquares(4, P0=100.0),
+        ...                            design=dict(Am=np.poly([0.5, 0.5]), Ao=np.poly([0.2])),
+        ...                            na=2, nb=2)
+        >>> plant = control.tf([0, 1, 0.5], [1, -1.5, 0.7], True, inputs="u", outputs="y")
+        >>> loop = control.interconnect([plant, stre.as_iosystem()], inputs=["r", "dither"],
+        ...                             outputs=["y", "u"])
+        >>> T = np.arange(300)
+        >>> r = np.where(T % 100 < 50, 1.0, -1.0)
+        >>> dither = 0.01 * np.random.default_rng(0).choice([-1.0, 1.0], 300)
+        >>> resp = control.input_output_response(loop, T, [r, dither])
+        >>> y = resp.outputs[0]
+        >>> bool(np.sqrt(np.mean((y[-40:] - r[-40:]) ** 2)) < 0.05)     # RMS tracking error
+        True
+        """
+        n = self.na + self.nb
+        outputs = ["u"] + (["e"] + [f"theta[{i}]" for i in range(n)] if extra_outputs else [])
+        template = self.__class__.__new__(self.__class__)
+        template.__dict__.update(self.__dict__)
+        template._io_extra = bool(extra_outputs)
+        template._records = []
+        return make_iosystem(template, inputs=["y", "r", "dither"], outputs=outputs,
+                             states=self._state_labels(),
+                             dt=self.dt if dt is None else check_dt(dt), name=name)
+
+    def __repr__(self):
+        ctrl = self.controller
+        law = ctrl.control_law() if ctrl is not None else "no controller yet (u = dither)"
+        return (f"SelfTuningRegulator(na={self.na}, nb={self.nb}, nk={self.nk}, "
+                f"estimator={type(self.estimator).__name__}, redesign_every="
+                f"{self.redesign_every}, dt={self.dt!r})\n"
+                f"  steps: {int(self._scalars[1])}, designs rejected: {int(self._scalars[5])}\n"
+                f"  theta = {np.array2string(self.theta, precision=5)}\n"
+                f"  {law}")
+
+
+class STRHistory:
+    """What a `SelfTuningRegulator` saw and did, one row per step.
+
+    Attributes
+    ----------
+    na, nb : int
+        Orders of the estimated model.
+    dt : True or float
+        Sampling period of the regulator.
+    t : ndarray, shape (N,)
+        Time: step index times ``dt`` (the index when ``dt`` is True).
+    y, r, u : ndarray, shape (N,)
+        Measured output, reference and applied control.
+    e : ndarray, shape (N,)
+        A-priori prediction error :math:`y(t) - \\varphi(t)^T\\hat\\theta(t-1)`.
+    theta : ndarray, shape (N, na + nb)
+        Estimate after the step (after projection).
+    trace_P : ndarray, shape (N,)
+        ``trace(P)`` of the estimator after the step.
+    updated, redesigned, rejected : ndarray of bool, shape (N,)
+        Whether the estimator was updated (outside the dead zone), a
+        redesign was due, and the due redesign was rejected (the last
+        controller kept).
+    R, S, T : ndarray, shape (N, max_order + 1)
+        Controller in use at each step (zero-padded).
+    excitation : ndarray, shape (N,)
+        Smallest/largest eigenvalue of :math:`\\sum\\varphi\\varphi^T` at the
+        end of each monitor block, NaN elsewhere.
+    """
+
+    def __init__(self, records, na, nb, L, dt):
+        self.na, self.nb, self.dt = na, nb, dt
+        n = na + nb
+        N = len(records)
+        cols = list(zip(*records)) if N else [()] * 11
+        self.t = np.arange(N) * (1.0 if dt is True else float(dt))
+        self.y, self.r, self.u, self.e = (np.array(c, dtype=float) for c in cols[:4])
+        self.theta = np.array(cols[4], dtype=float).reshape(N, n)
+        self.trace_P = np.array(cols[5], dtype=float)
+        self.updated, self.redesigned, self.rejected = (np.array(c, dtype=bool)
+                                                        for c in cols[6:9])
+        ctrl = np.array(cols[9], dtype=float).reshape(N, 3, L)
+        self.R, self.S, self.T = ctrl[:, 0], ctrl[:, 1], ctrl[:, 2]
+        self.excitation = np.array(cols[10], dtype=float)
+
+    def __len__(self):
+        return len(self.t)
+
+    def plot(self, fig=None, true_theta=None):
+        """Reference and output, control, estimates and ``trace(P)`` over time.
+
+        Calls :func:`rlsfilt.adaptive._plotting.plot_str_history`.
+
+        Parameters
+        ----------
+        fig : matplotlib.figure.Figure, optional
+            Figure to draw in (new if omitted).
+        true_theta : array_like, shape (na + nb,) or (N, na + nb), optional
+            True parameters, drawn dashed.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+        """
+        from ._plotting import plot_str_history
+
+        return plot_str_history(self, fig=fig, true_theta=true_theta)
+
+    def __repr__(self):
+        return (f"STRHistory: {len(self)} steps, {int(self.updated.sum())} estimator updates, "
+                f"{int(self.rejected.sum())} designs rejected")
+
+
+
+def _finite(value, name):
+    v = check_scalar(value, name)
+    if not np.isfinite(v):
+        raise ValueError(f"`{name}` must be finite; got {v}")
+    return v
+
+
+def _check_bounds(bounds, n):
+    try:
+        lo, hi = bounds
+    except (TypeError, ValueError):
+        raise TypeError(f"`bounds` must be a pair (lower, upper); got {bounds!r}") from None
+    out = []
+    for name, b in (("lower", lo), ("upper", hi)):
+        arr = np.broadcast_to(np.asarray(b, dtype=float), (n,)).copy() \
+            if np.ndim(b) == 0 or np.shape(b) == (n,) else None
+        if arr is None:
+            raise ValueError(f"`bounds` {name} must be a scalar or have shape ({n},); got shape "
+                             f"{np.shape(b)}")
+        if np.isnan(arr).any():
+            raise ValueError(f"`bounds` {name} must not contain NaN")
+        out.append(arr)
+    if np.any(out[0] > out[1]):
+        i = int(np.argmax(out[0] > out[1]))
+        raise ValueError(f"`bounds` must have lower <= upper; got {out[0][i]} > {out[1][i]} "
+                         f"for parameter {i}")
+    return tuple(out)
+
+
+def _check_limits(limits):
+    try:
+        lo, hi = limits
+    except (TypeError, ValueError):
+        raise TypeError(f"`u_limits` must be a pair (u_min, u_max); got {limits!r}") from None
+    lo, hi = check_scalar(lo, "u_limits"), check_scalar(hi, "u_limits")
+    if not lo < hi or np.isnan(lo) or np.isnan(hi):
+        raise ValueError(f"`u_limits` must have u_min < u_max; got ({lo}, {hi})")
+    return (lo, hi)
+

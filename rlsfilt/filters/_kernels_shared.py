@@ -1,0 +1,245 @@
+"""Compiled (numba) helpers shared by the kernels of every filter.
+
+Small array loops, triangular solves and the health decisions of
+:mod:`rlsfilt.filters._health` (which defines them in NumPy and words the
+warnings). Every function is ``njit(cache=True)``: compiled once, then
+loaded from the disk cache by later processes.
+"""
+
+import math
+
+import numpy as np
+
+from .._numba import njit  # numba.njit, uncached where no cache directory is writable
+
+__all__ = []
+
+_EPS = float(np.finfo(np.float64).eps)
+
+
+@njit(cache=True, inline="always")
+def copy2(a, b):
+    """``b[:] = a`` for 2-D arrays."""
+    for i in range(a.shape[0]):
+        for j in range(a.shape[1]):
+            b[i, j] = a[i, j]
+
+
+@njit(cache=True, inline="always")
+def any_nan(z):
+    for v in z:
+        if v != v:
+            return True
+    return False
+
+
+@njit(cache=True, inline="always")
+def diagonal_bad(A):
+    """True when a diagonal entry of ``A`` is not positive and finite (the cheap
+    check: a positive definite ``P``, or the factor ``U`` of one, has a positive
+    diagonal)."""
+    for i in range(A.shape[0]):
+        v = A[i, i]
+        if not (v > 0.0 and v < np.inf):
+            return True
+    return False
+
+
+@njit(cache=True)
+def back_substitute(U, B, X):
+    """Solve ``U X = B`` (``U`` upper triangular); `X` may be `B`."""
+    n, m = B.shape
+    for c in range(m):
+        for i in range(n - 1, -1, -1):
+            acc = B[i, c]
+            for k in range(i + 1, n):
+                acc -= U[i, k] * X[k, c]
+            X[i, c] = acc / U[i, i]
+
+
+@njit(cache=True)
+def upper_inverse_gram(U, P):
+    """``P = U^-1 U^-T`` for an upper-triangular `U` with a nonzero diagonal.
+
+    ``V = U^-1`` by back substitution, column by column; then ``P_ij =
+    sum_{k >= max(i, j)} V_ik V_jk`` for ``i <= j``, mirrored, so ``P`` is
+    exactly symmetric.
+    """
+    n = U.shape[0]
+    V = np.zeros((n, n))
+    for j in range(n):
+        V[j, j] = 1.0 / U[j, j]
+        for i in range(j - 1, -1, -1):
+            acc = 0.0
+            for k in range(i + 1, j + 1):
+                acc += U[i, k] * V[k, j]
+            V[i, j] = -acc / U[i, i]
+    for i in range(n):
+        for j in range(i, n):
+            acc = 0.0
+            for k in range(j, n):
+                acc += V[i, k] * V[j, k]
+            P[i, j] = acc
+            P[j, i] = acc
+
+
+@njit(cache=True)
+def singular_range(R):
+    """Smallest and largest singular value of the square `R` (one-sided Jacobi).
+
+    Hestenes' method: plane rotations orthogonalize the columns of a copy of
+    `R`; the column norms are then the singular values, to high relative
+    accuracy (Demmel & Veselic 1992), without LAPACK.
+    """
+    n = R.shape[0]
+    G = R.copy()
+    for _ in range(60):
+        rotated = False
+        for p in range(n - 1):
+            for q in range(p + 1, n):
+                alpha = 0.0
+                beta = 0.0
+                gamma = 0.0
+                for i in range(n):
+                    alpha += G[i, p] * G[i, p]
+                    beta += G[i, q] * G[i, q]
+                    gamma += G[i, p] * G[i, q]
+                if gamma == 0.0 or abs(gamma) <= _EPS * math.sqrt(alpha * beta):
+                    continue
+                rotated = True
+                zeta = (beta - alpha) / (2.0 * gamma)
+                t = (1.0 if zeta >= 0.0 else -1.0) / (abs(zeta) + math.sqrt(1.0 + zeta * zeta))
+                c = 1.0 / math.sqrt(1.0 + t * t)
+                s = c * t
+                for i in range(n):
+                    gp = G[i, p]
+                    gq = G[i, q]
+                    G[i, p] = c * gp - s * gq
+                    G[i, q] = s * gp + c * gq
+        if not rotated:
+            break
+    smin = np.inf
+    smax = 0.0
+    for j in range(n):
+        acc = 0.0
+        for i in range(n):
+            acc += G[i, j] * G[i, j]
+        v = math.sqrt(acc)
+        smin = min(smin, v)
+        smax = max(smax, v)
+    return smin, smax
+
+
+# ----------------------------------------------------------------------
+# health decisions (the NumPy definitions are in _health)
+# ----------------------------------------------------------------------
+@njit(cache=True)
+def unhealthy(P, cond_max):
+    """True when ``_health.symmetric_problem(P, cond_max)`` finds a problem:
+    non-finite, not symmetric to 1e-8, not positive definite, or condition
+    number above `cond_max`.
+
+    The decision is the one ``eigvalsh`` gives, but a Cholesky factor
+    ``A = L L^T`` settles the usual healthy case in about ``n^3 / 3``
+    operations: ``cond(A) <= trace(A) trace(A^-1) = trace(A) ||L^-1||_F^2``,
+    and a bound well inside `cond_max` (and below 1e12, where the computed
+    eigenvalues are safely positive) means healthy. Otherwise the
+    eigenvalues decide.
+    """
+    n = P.shape[0]
+    A = np.empty((n, n))
+    asym = 0.0
+    scale = 0.0
+    for i in range(n):
+        for j in range(n):
+            v = P[i, j]
+            if v - v != 0.0:
+                return True
+            A[i, j] = 0.5 * (v + P[j, i])
+            asym = max(asym, abs(v - P[j, i]))
+            scale = max(scale, abs(v))
+    if asym > 1e-8 * scale:
+        return True
+    L = np.zeros((n, n))
+    chol = True
+    for j in range(n):
+        d = A[j, j]
+        for k in range(j):
+            d -= L[j, k] * L[j, k]
+        if not d > 0.0:
+            chol = False
+            break
+        ljj = np.sqrt(d)
+        L[j, j] = ljj
+        for i in range(j + 1, n):
+            t = A[i, j]
+            for k in range(j):
+                t -= L[i, k] * L[j, k]
+            L[i, j] = t / ljj
+    if chol:
+        trace = 0.0
+        for i in range(n):
+            trace += A[i, i]
+        inv_norm2 = 0.0                      # ||L^-1||_F^2, column by column
+        col = np.empty(n)
+        for j in range(n):
+            for i in range(n):
+                t = 1.0 if i == j else 0.0
+                for k in range(j, i):
+                    t -= L[i, k] * col[k]
+                col[i] = t / L[i, i] if i >= j else 0.0
+                if i >= j:
+                    inv_norm2 += col[i] * col[i]
+        if trace * inv_norm2 < min(0.5 * cond_max, 1e12):
+            return False
+    w = np.linalg.eigvalsh(A)
+    return w[0] <= 0.0 or w[n - 1] > cond_max * w[0]
+
+
+@njit(cache=True)
+def unhealthy_on(P, basis, cond_max):
+    """`unhealthy` of ``basis^T P basis`` (``P`` under constraints; `basis` an
+    orthonormal basis of the null space of ``A``), or of ``P`` when `basis`
+    has no columns (no constraints)."""
+    n, p = basis.shape
+    if p == 0:
+        return unhealthy(P, cond_max)
+    for i in range(n):
+        for j in range(n):
+            v = P[i, j]
+            if v - v != 0.0:
+                return True
+    B = np.zeros((n, p))                     # P basis
+    for i in range(n):
+        for k in range(n):
+            a = P[i, k]
+            for j in range(p):
+                B[i, j] += a * basis[k, j]
+    R = np.zeros((p, p))                     # basis^T (P basis)
+    for k in range(n):
+        for i in range(p):
+            a = basis[k, i]
+            for j in range(p):
+                R[i, j] += a * B[k, j]
+    return unhealthy(R, cond_max)
+
+
+@njit(cache=True)
+def factor_unhealthy(U, cond_max):
+    """True when ``_health.factor_problem(U, cond_max)`` finds a problem with
+    ``P = U^-1 U^-T``: non-finite ``U``, a diagonal entry that is not
+    positive, or ``cond(P) = cond(U)^2`` above `cond_max` (singular values
+    from `singular_range`, ``O(n^3)``, without forming ``P``)."""
+    n = U.shape[0]
+    for i in range(n):
+        for j in range(n):
+            v = U[i, j]
+            if v - v != 0.0:
+                return True
+    if diagonal_bad(U):
+        return True
+    smin, smax = singular_range(U)
+    if not smin > 0.0:
+        return True
+    ratio = smax / smin
+    return ratio * ratio > cond_max

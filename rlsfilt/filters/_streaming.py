@@ -1,0 +1,192 @@
+"""The streaming ``predict()``/``update()`` of `RecursiveLeastSquares`: argument
+packing and array reuse around its compiled steps.
+
+A streaming step is one Python call, so at small ``dim_x`` its cost is the
+call overhead, not the arithmetic: validating the inputs, handing arrays to
+the compiled ``predict_kernel`` / ``update_kernel``
+(:mod:`rlsfilt.filters._kernels`) and allocating the arrays a step produces
+(``x, P, y, K, S, SI, H, z, x_post, P_post`` for an update, ``P, x_prior,
+P_prior`` for a predict). Three things keep that small:
+
+**Blocks.** The arrays of one step are views of one buffer (a *block*,
+made by `_block`), so the kernel takes the buffer as one argument, not ten.
+
+**Reuse.** Every step writes a block that nobody can see yet and then makes
+its views the filter's attributes, so a step never changes an array a
+caller holds (``history.append(rls.x)`` works as with filterpy), and a step
+that raises, or whose warning is turned into an error, leaves the filter as
+it was. The block a step replaced becomes the spare of the step after next;
+when nobody else holds any of its arrays (``sys.getrefcount`` shows only the
+filter's references) that step writes into it instead of allocating. Any
+outside reference (a list of past estimates, a view, a filterpy ``Saver``)
+raises a count and a fresh block is made, so no visible array ever changes.
+Reuse is off where counts cannot be trusted (no ``sys.getrefcount``,
+free-threaded builds).
+
+**Entry points.** Calling a numba dispatcher first types every argument to
+choose the compiled version (tens of nanoseconds per argument). The steps
+here always pass the same types (C-contiguous float64 arrays, floats,
+ints), so after the first call they call the compiled version's entry point
+directly (numba's ``overloads[signature].entry_point``; the dispatcher is
+used if numba does not expose it).
+
+Measured with ``benchmarks/bench_rls.py`` (one ``predict()`` + ``update()``
+per sample, ``dim_x = 5``): fresh blocks instead of reuse cost about 1.5 us
+per sample more, the dispatcher instead of the entry points about 0.5 us
+more, of about 3 us in all (see ``docs/performance.md``).
+"""
+
+import sys
+import sysconfig
+
+import numpy as np
+
+__all__ = []
+
+_kernels = None
+_window_kernels = None
+
+
+def kernels():
+    """The compiled kernels of `RecursiveLeastSquares`, imported on first use
+    (``import rlsfilt`` does not load numba)."""
+    global _kernels
+    if _kernels is None:
+        from . import _kernels as k
+        _kernels = k
+    return _kernels
+
+
+def window_kernels():
+    """The compiled kernels of `SlidingWindowRLS` and `SquareRootRLS`, imported on
+    first use."""
+    global _window_kernels
+    if _window_kernels is None:
+        from . import _kernels_window as k
+        _window_kernels = k
+    return _window_kernels
+
+
+def c_array(a):
+    """`a` as a writable C-contiguous float64 array (copied only when needed).
+
+    The kernels are compiled for exactly this layout; a read-only or strided
+    input would otherwise compile (and cache) another version.
+    """
+    if (type(a) is np.ndarray and a.dtype == np.float64 and a.flags.c_contiguous
+            and a.flags.writeable):
+        return a
+    return np.array(a, dtype=np.float64, order="C")
+
+
+# ----------------------------------------------------------------------
+# blocks and their reuse
+# ----------------------------------------------------------------------
+def update_shapes(n, m):
+    """Shapes of the arrays an update writes, in the order of its block (the
+    layout ``_kernels.update_kernel`` writes; then its work space)."""
+    return ((n, m), (n, n), (m, 1), (n, 1), (m, m), (m, m), (1, n), (m, 1), (n, m), (n, n))
+
+
+def predict_shapes(n, m):
+    """Shapes of the arrays a predict writes: ``P^-``, ``x_prior``, ``P_prior``
+    (then its work space)."""
+    return ((n, n), (n, m), (n, n))
+
+
+def _block(shapes, work=0):
+    """A new block: a buffer, then one C-contiguous view of it per shape; the
+    buffer ends with `work` numbers of work space for the kernel."""
+    buf = np.empty(sum(r * c for r, c in shapes) + work)
+    views, o = [buf], 0
+    for r, c in shapes:
+        views.append(buf[o:o + r * c].reshape(r, c))
+        o += r * c
+    return tuple(views)
+
+
+def _free_sum(length):
+    """What ``sum(map(sys.getrefcount, block))`` gives for a block of `length`
+    arrays that nobody but the tuple ``block`` holds (every count is then at its
+    least, so the sum tests them all); -1 where counts cannot be trusted (no
+    ``sys.getrefcount``, free-threaded builds): reuse is then off."""
+    if not hasattr(sys, "getrefcount") or sysconfig.get_config_var("Py_GIL_DISABLED"):
+        return -1
+    block = _block(((1, 1),) * (length - 1))
+    return sum(map(sys.getrefcount, block))
+
+
+_getrefcount = getattr(sys, "getrefcount", lambda a: 0)
+
+
+# ----------------------------------------------------------------------
+# the steps
+# ----------------------------------------------------------------------
+_FREE_PREDICT, _FREE_UPDATE = _free_sum(4), _free_sum(11)
+
+
+def predict(x, P, il, Q, cfg, spare):
+    """The block ``(buffer, P^-, x_prior, P_prior)`` of a time update (`spare` if free;
+    the buffer ends with ``n^2`` numbers of work space).
+
+    ``P^- = P il + Q`` (`Q` (0, 0) when absent) then ``Pi P^- Pi`` with the
+    projector of the configuration `cfg` (``forgetting.kernel_config``).
+    """
+    if spare is not None and sum(map(_getrefcount, spare)) == _FREE_PREDICT:
+        out = spare                                   # nobody else holds it: reuse
+    else:
+        out = _block(predict_shapes(*x.shape), P.size)
+    _predict_kernel(x, P, il, Q, cfg, out[0])
+    return out
+
+
+def update(x, P, phi, z, r, cfg, spare):
+    """One measurement update into a new block (`spare` if it is free).
+
+    `phi` is the regressor row, a writable C-contiguous float64 array (n,)
+    (the kernel checks that it is finite), `z` a float, a validated column
+    (m, 1) or None (missing). Returns ``code, s, lam_t, gated, block``: the
+    buffer (ending with ``n + n^2`` numbers of work space) and its views ``x,
+    P, y, K, S, SI, H, z, x_post, P_post``;
+    ``code`` as ``update_kernel``'s.
+    """
+    if spare is not None and sum(map(_getrefcount, spare)) == _FREE_UPDATE:
+        out = spare                                   # nobody else holds it: reuse
+    else:
+        out = _block(update_shapes(*x.shape), len(P) + P.size)
+    if z is None:
+        z0, zmode = 0.0, 2
+    elif type(z) is np.ndarray:
+        out[8][:] = z                                  # the block's z
+        z0, zmode = 0.0, 0
+    else:
+        z0, zmode = z, 1
+    code, s, lam_t, gated = _update_kernel(x, P, phi, z0, zmode, r, cfg, out[0])
+    return code, s, lam_t, gated, out
+
+
+def _entry_point(dispatcher, args):
+    """The compiled function of `dispatcher` for exactly the types of `args` (the
+    dispatcher itself if numba does not expose it)."""
+    try:
+        from numba import typeof
+
+        return dispatcher.overloads[tuple(typeof(a) for a in args)].entry_point
+    except Exception:       # pragma: no cover - numba internals changed
+        return dispatcher
+
+
+def _predict_kernel(*args):
+    """The first call: run ``predict_kernel``, then call its entry point directly."""
+    global _predict_kernel
+    kernels().predict_kernel(*args)
+    _predict_kernel = _entry_point(_kernels.predict_kernel, args)
+
+
+def _update_kernel(x, P, phi, z0, zmode, r, cfg, out):
+    """The first call: run ``update_kernel``, then call its entry point directly."""
+    global _update_kernel
+    args = (x, P, phi, float(z0), zmode, float(r), cfg, out)
+    result = kernels().update_kernel(*args)
+    _update_kernel = _entry_point(_kernels.update_kernel, args)
+    return result

@@ -1,0 +1,177 @@
+"""The STR and the filters as python-control systems: interconnect == the step loop."""
+
+import copy
+
+import control
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose, assert_array_equal
+
+from rlsfilt import RecursiveLeastSquares, SlidingWindowRLS, SquareRootRLS
+from rlsfilt.adaptive import SelfTuningRegulator, _filter_state, estimator_iosystem
+
+A = np.array([1.0, -1.5, 0.7])
+B = np.array([0.0, 1.0, 0.5])
+DESIGN = dict(Am=np.poly([0.5, 0.6]), Ao=np.poly([0.2, 0.3]))
+FILTERS = {
+    "RecursiveLeastSquares": lambda n: RecursiveLeastSquares(n, lam=0.98, P0=100.0),
+    "SquareRootRLS": lambda n: SquareRootRLS(n, lam=0.98, P0=100.0),
+    "SlidingWindowRLS": lambda n: SlidingWindowRLS(n, window=60, P0=100.0),
+}
+
+
+def _signals(N, seed=0):
+    rng = np.random.default_rng(seed)
+    r = np.where(np.arange(N) % 80 < 40, 1.0, -1.0)
+    return r, 0.1 * rng.choice([-1.0, 1.0], N)
+
+
+@pytest.mark.parametrize("name", FILTERS)
+def test_str_inside_interconnect_equals_its_own_step_loop(name):
+    N = 200
+    stre = SelfTuningRegulator(FILTERS[name](4), DESIGN, na=2, nb=2, monitor_every=50)
+    plant = control.ss(control.tf(B, A, True), inputs="u", outputs="y", name="plant")
+    r, d = _signals(N)
+    # the step loop, with the plant stepped by python-control's own functions
+    ref = copy.deepcopy(stre)
+    x = np.zeros(plant.nstates)
+    y_ref, u_ref = np.zeros(N), np.zeros(N)
+    for k in range(N):
+        y_ref[k] = plant.output(k, x, [0.0])[0]
+        u_ref[k] = ref.step(y_ref[k], r[k], d[k])
+        x = plant.dynamics(k, x, [u_ref[k]])
+    before = stre.state
+    loop = control.interconnect([plant, stre.as_iosystem(extra_outputs=True)],
+                                inputs=["r", "dither"], outputs=["y", "u", "e", "theta[0]",
+                                                                 "theta[1]", "theta[2]",
+                                                                 "theta[3]"])
+    resp = control.input_output_response(loop, np.arange(N), [r, d], return_states=True)
+    assert_allclose(resp.outputs[0], y_ref, rtol=0, atol=1e-12)
+    assert_allclose(resp.outputs[1], u_ref, rtol=0, atol=1e-12)
+    h = ref.history
+    assert_allclose(resp.outputs[2], h.e, rtol=0, atol=1e-12)
+    assert_allclose(resp.outputs[3:].T, h.theta, rtol=0, atol=1e-12)
+    # the state after the last sample is the regulator's state after its last step
+    last = control.input_output_response(loop, np.arange(N + 1), [np.r_[r, 0.0], np.r_[d, 0.0]],
+                                         return_states=True).states[plant.nstates:, -1]
+    assert_allclose(last, ref.state, rtol=1e-12, atol=1e-12)
+    # an explicit initial state gives the same run; the regulator itself is untouched
+    again = control.input_output_response(loop, np.arange(N), [r, d],
+                                          X0=[np.zeros(plant.nstates), before])
+    assert_array_equal(again.outputs, resp.outputs)
+    assert_array_equal(stre.state, before)
+    assert len(stre.history) == 0
+
+
+def test_str_system_signals_and_states():
+    stre = SelfTuningRegulator(RecursiveLeastSquares(4), DESIGN, na=2, nb=2, dt=0.1)
+    sys = stre.as_iosystem()
+    assert sys.input_labels == ["y", "r", "dither"] and sys.output_labels == ["u"]
+    assert sys.dt == 0.1 and sys.nstates == len(stre.state)
+    assert sys.state_labels[:2] == ["est.x[0,0]", "est.x[1,0]"]
+    assert "info[3,3]" in sys.state_labels
+
+
+def test_a_filter_restored_from_its_state_continues_bit_for_bit():
+    rng = np.random.default_rng(4)
+    for make in FILTERS.values():
+        f = make(3)
+        Hs, zs = rng.standard_normal((90, 3)), rng.standard_normal(90)
+        for k in range(70):
+            f.predict_update(zs[k], Hs[k])
+        g = make(3)
+        _filter_state.set_state(g, _filter_state.get_state(f))
+        for k in range(70, 90):
+            f.predict_update(zs[k], Hs[k])
+            g.predict_update(zs[k], Hs[k])
+        assert_array_equal(g.x, f.x)
+        assert_array_equal(g.P, f.P)
+        assert_array_equal(_filter_state.get_state(g), _filter_state.get_state(f))
+
+
+@pytest.mark.parametrize("name", FILTERS)
+def test_estimator_system_equals_batch_filter(name):
+    rng = np.random.default_rng(1)
+    N, n = 150, 3
+    Hs, zs = rng.standard_normal((N, n)), rng.standard_normal(N)
+    f = FILTERS[name](n)
+    saved = _filter_state.get_state(f)
+    sys = estimator_iosystem(f)
+    assert sys.input_labels == ["z", "phi[0]", "phi[1]", "phi[2]"]
+    assert sys.output_labels == ["theta[0]", "theta[1]", "theta[2]", "e"]
+    resp = control.input_output_response(sys, np.arange(N), np.vstack([zs, Hs.T]))
+    ref = FILTERS[name](n)
+    means = np.empty((N, n))
+    errors = np.empty(N)
+    for k in range(N):
+        errors[k] = zs[k] - Hs[k] @ ref.x[:, 0]
+        ref.predict_update(zs[k], Hs[k])
+        means[k] = ref.x[:, 0]
+    assert_allclose(resp.outputs[:n].T, means, rtol=0, atol=1e-12)
+    assert_allclose(resp.outputs[n], errors, rtol=0, atol=1e-12)
+    batch = FILTERS[name](n).batch_filter(zs, Hs)[0][:, :, 0]
+    assert_allclose(resp.outputs[:n].T, batch, rtol=0, atol=1e-10)
+    assert_array_equal(_filter_state.get_state(f), saved)      # the filter is untouched
+
+
+def test_arx_estimator_beside_a_plant_is_ridge_regression():
+    """lam = 1, P0 = d I, x0 = 0: the estimate is (Phi'Phi + I/d)^-1 Phi'Y on zero-padded rows."""
+    N, d = 300, 100.0
+    plant = control.tf(B, A, True, inputs="u", outputs="y")
+    est = RecursiveLeastSquares(4, P0=d).as_iosystem((2, 2, 1))      # the filter's method
+    sys = control.interconnect([plant, est], inputs="u",
+                               outputs=["y", "theta[0]", "theta[1]", "theta[2]", "theta[3]", "e"])
+    u = np.random.default_rng(2).standard_normal(N)
+    resp = control.input_output_response(sys, np.arange(N), u)
+    y = resp.outputs[0]
+    yp, up = np.r_[0.0, 0.0, y], np.r_[0.0, 0.0, u]
+    Phi = np.column_stack([-yp[1:-1], -yp[:-2], up[1:-1], up[:-2]])
+    ridge = np.linalg.solve(Phi.T @ Phi + np.eye(4) / d, Phi.T @ y)
+    assert_allclose(resp.outputs[1:5, -1], ridge, rtol=1e-9)
+    assert_allclose(resp.outputs[1:5, -1], [-1.5, 0.7, 1.0, 0.5], atol=1e-4)  # prior bias
+
+
+def test_estimator_with_two_outputs_and_a_callable_regressor():
+    rng = np.random.default_rng(3)
+    N = 80
+    Hs, Zs = rng.standard_normal((N, 2)), rng.standard_normal((N, 2))
+    sys = estimator_iosystem(RecursiveLeastSquares(2, dim_z=2))
+    assert sys.input_labels[:2] == ["z[0]", "z[1]"]
+    assert sys.output_labels == ["theta[0,0]", "theta[0,1]", "theta[1,0]", "theta[1,1]", "e[0]",
+                                 "e[1]"]
+    resp = control.input_output_response(sys, np.arange(N), np.vstack([Zs.T, Hs.T]))
+    ref = RecursiveLeastSquares(2, dim_z=2)
+    ref.batch_filter(Zs, Hs)
+    assert_allclose(resp.outputs[:4, -1], ref.x.reshape(-1), rtol=0, atol=1e-12)
+    # a callable regressor: z = w0, H = [w1, w1 * w2]
+    call = estimator_iosystem(RecursiveLeastSquares(2),
+                              regressor=lambda w: (w[0], [w[1], w[1] * w[2]]), inputs=3)
+    W = rng.standard_normal((3, N))
+    out = control.input_output_response(call, np.arange(N), W).outputs
+    ref2 = RecursiveLeastSquares(2)
+    ref2.batch_filter(W[0], np.column_stack([W[1], W[1] * W[2]]))
+    assert_allclose(out[:2, -1], ref2.x[:, 0], rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("kwargs, exc, match", [
+    (dict(filter=object()), TypeError, r"`filter` must be an rlsfilt filter"),
+    (dict(regressor="arx"), ValueError, r"`regressor` must be 'direct', \(na, nb, nk\)"),
+    (dict(regressor=(1, 1)), TypeError, r"`regressor` must be 'direct'"),
+    (dict(regressor=(2, 2, 1)), ValueError, r"`filter` must have dim_x = na \+ nb = 4"),
+    (dict(regressor=lambda w: (w[0], w[1:])), TypeError, r"`inputs` .* is required"),
+    (dict(inputs=2), TypeError, r"`inputs` only applies to a callable"),
+    (dict(dt=0), ValueError, r"`dt` must be True"),
+])
+def test_estimator_system_errors(kwargs, exc, match):
+    args = dict(filter=RecursiveLeastSquares(3))
+    args.update(kwargs)
+    with pytest.raises(exc, match=match):
+        estimator_iosystem(**args)
+
+
+@pytest.mark.parametrize("name", FILTERS)
+def test_every_filter_has_as_iosystem(name):
+    f = FILTERS[name](3)
+    sys = f.as_iosystem("direct", dt=0.5)
+    assert sys.dt == 0.5 and sys.nstates == len(_filter_state.get_state(f))
+    assert sys.output_labels[-1] == "e"
