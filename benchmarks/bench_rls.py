@@ -304,6 +304,47 @@ def streaming_vs_filterpy(results):
             if "filterpy" in r and "predict+update" in r}
 
 
+def streaming_ablation(dims, n_samples=5000, rounds=7, rng=0, log=print):
+    """Time the streaming pair with each trick of ``rlsfilt.filters._streaming`` off.
+
+    ``as shipped``; ``no reuse``: a fresh block of arrays every step (what a
+    caller who keeps every array would cost); ``dispatcher``: numba's
+    dispatcher instead of the compiled entry points. CPU time per sample
+    (``time.process_time``: steadier than wall time on a busy machine);
+    returns ``{dim_x: {variant: seconds}}``.
+    """
+    from rlsfilt.filters import _streaming as S
+
+    S.kernels()
+    run_stream(*arx_data(5, 50, np.random.default_rng(0)))      # resolve the entry points
+    shipped = {name: getattr(S, name) for name in ("_predict_kernel", "_update_kernel",
+                                                   "_FREE_PREDICT", "_FREE_UPDATE", "_FREE_EACH")}
+    changes = {"as shipped": {},
+               "no reuse": {"_FREE_PREDICT": -1, "_FREE_UPDATE": -1, "_FREE_EACH": None},
+               "dispatcher": {"_predict_kernel": S._kernels.predict_kernel,
+                              "_update_kernel": S._kernels.update_kernel}}
+    rng = np.random.default_rng(rng)
+    results = {}
+    try:
+        for n in dims:
+            Hs, zs = arx_data(n, n_samples, rng)
+            best = dict.fromkeys(changes, np.inf)
+            for _ in range(rounds):
+                for name, change in changes.items():
+                    for attr, value in {**shipped, **change}.items():
+                        setattr(S, attr, value)
+                    t0 = time.process_time()
+                    run_stream(Hs, zs)
+                    best[name] = min(best[name], (time.process_time() - t0) / n_samples)
+            results[n] = best
+            log(f"dim_x = {n:3d}, predict+update: " + ", ".join(
+                f"{k} {v * 1e6:.2f} us" for k, v in best.items()))
+    finally:
+        for attr, value in shipped.items():
+            setattr(S, attr, value)
+    return results
+
+
 def plot(results, path=None, ax=None):
     """Time per sample against dim_x, one line per contender; returns the axes."""
     import matplotlib.pyplot as plt
@@ -344,6 +385,8 @@ def main(argv=None):
     parser.add_argument("--rounds", type=int, default=5, help="interleaved rounds (default 5)")
     parser.add_argument("--plot", metavar="PATH", help="save a plot of the times")
     parser.add_argument("--markdown", action="store_true", help="print the table as Markdown")
+    parser.add_argument("--streaming-ablation", action="store_true",
+                        help="only time predict+update with array reuse and entry points off")
     parser.add_argument("--json", metavar="PATH",
                         help="also save the times (seconds per sample) as JSON")
     parser.add_argument("--replot", metavar="JSON",
@@ -356,6 +399,8 @@ def main(argv=None):
             plot(results, args.plot)
             print(f"plot saved to {args.plot}")
         return results
+    if args.streaming_ablation:
+        return streaming_ablation(args.dims or [5, 20], rounds=1 if args.smoke else args.rounds)
     if args.smoke:
         dims = args.dims or [2, 5]
         n_samples, peer_samples, rounds = 2000, 100, 1

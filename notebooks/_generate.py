@@ -173,10 +173,15 @@ print(G)
 print("poles:", np.round(G.poles(), 4), "  true:", np.round(np.roots(np.r_[1.0, a_true]), 4))"""),
     ("md", r"""## Where next
 
-- Notebook 2 tracks plants whose parameters change (forgetting, windup and its remedies).
-- Notebook 3 validates a model and selects its order against the true plant.
-- Notebook 4 designs a controller on the identified model.
-- Notebook 5 puts `RecursiveLeastSquares` beside filterpy's `KalmanFilter`."""),
+- [Notebook 2](02_tracking.ipynb) tracks plants whose parameters change (forgetting, windup and
+  its remedies).
+- [Notebook 3](03_validation.ipynb) validates a model and selects its order against the true
+  plant.
+- [Notebook 4](04_control.ipynb) designs a controller on the identified model.
+- [Notebook 5](05_beside_filterpy.ipynb) puts `RecursiveLeastSquares` beside filterpy's
+  `KalmanFilter`.
+- [Notebook 6](06_real_records.ipynb) takes a measured-like record through the whole workflow
+  (operating point, delay, orders on fresh data, saved model)."""),
 ]
 
 # ----------------------------------------------------------------------
@@ -842,9 +847,9 @@ the self-tuning regulator re-identifies the gain within a few reference steps an
 designed closed-loop behaviour. Three practical points are visible: the loop needs excitation
 to identify (the dither and the reference steps; the regulator's excitation monitor warns when
 they are missing); the forgetting factor sets how fast the estimate, and with it the
-controller, can follow the plant (notebook 2); and with measurement noise (not the equation
+controller, can follow the plant ([notebook 2](02_tracking.ipynb)); and with measurement noise (not the equation
 error the ARX model assumes) the individual coefficients are biased, while the static gain, which
-the control relies on most, is estimated well (notebook 3 shows how the residual tests reveal
+the control relies on most, is estimated well ([notebook 3](03_validation.ipynb) shows how the residual tests reveal
 such coloured noise)."""),
 ]
 

@@ -63,7 +63,7 @@ import numpy as np
 from ._resources import check_memory
 from ._version import __version__
 from .data import IOData, detrend
-from .datasets import PLANTS
+from .datasets import PLANTS, heat_exchanger
 from .exceptions import (
     ForgettingSkippedWarning,
     NumericalWarning,
@@ -86,6 +86,9 @@ _TRACKING_LAM = 0.98     # demo forgetting factor for the time-varying plant
 _DEMO_BYTES_PER_SAMPLE = 700   # the demo's peak per sample (measured about 500 at 2e5 samples)
 _DETREND = {"constant": "mean", "linear": False, "none": False}   # -> ARX(offset=...)
 _DELAY_SEARCH = 20       # largest delay delayest tries for --select-order without a range
+#: the demo's records: the textbook plants and a measured-like record (operating point,
+#: dead time, colored disturbance, two runs)
+_DEMO_PLANTS = {**PLANTS, "heat_exchanger": heat_exchanger}
 
 
 class CLIError(Exception):
@@ -280,11 +283,14 @@ def _build_parser():
         "demo", help="identify a simulated plant and compare it with the truth",
         description="Simulate a known plant, identify it recursively and in batch, validate "
                     "the model and compare it with the true plant.")
-    demo.add_argument("--plant", default=_DEFAULT_PLANT, choices=sorted(PLANTS),
-                      help="the simulated plant, from rlsfilt.datasets "
-                           f"(default: {_DEFAULT_PLANT})")
+    demo.add_argument("--plant", default=_DEFAULT_PLANT, choices=sorted(_DEMO_PLANTS),
+                      help="the simulated plant, from rlsfilt.datasets (default: "
+                           f"{_DEFAULT_PLANT}); heat_exchanger is a record of two runs "
+                           "around an operating point: the model removes the means, is "
+                           "estimated on the first run and validated on the second")
     demo.add_argument("--samples", type=_positive_int, default=None, metavar="N",
-                      help="record length (default: the dataset's)")
+                      help="record length (default: the dataset's; for heat_exchanger, "
+                           "the length of each of its two runs)")
     demo.add_argument("--noise", type=_nonnegative_float, default=None, metavar="STD",
                       help="noise standard deviation (default: the dataset's)")
     demo.add_argument("--lam", type=_lam, default=None,
@@ -548,29 +554,45 @@ def _run_demo(args):
                      f"the demo with --samples {args.samples}")
     kwargs = {"rng": args.seed}
     if args.samples is not None:
-        kwargs["n_samples"] = args.samples
+        kwargs["n_samples"] = (args.samples if args.plant != "heat_exchanger"
+                               else (args.samples, args.samples))
     if args.noise is not None:
         kwargs["noise_std"] = args.noise
-    ds = PLANTS[args.plant](**kwargs)
+    ds = _DEMO_PLANTS[args.plant](**kwargs)
     tracking = ds.theta_true is not None
     lam = args.lam if args.lam is not None else (_TRACKING_LAM if tracking else 1.0)
-    _check_rows(len(ds.y), ds.na, [ds.nb], [ds.nk], "the simulated record")
+    # a record of several runs: estimate on all but the last, validate on the last (fresh data)
+    if ds.n_experiments > 1:
+        est, val = ds.getexp(list(range(ds.n_experiments - 1))), ds.getexp(-1)
+    else:
+        est, val = ds, None
+    _check_rows(min(est.lengths), ds.na, [ds.nb], [ds.nk], "the simulated record")
+    offset = "mean" if (ds.u0, ds.y0) != (0.0, 0.0) else False
     progress = _Progress(enabled=not args.quiet)
-    with progress.task(f"recursive least squares over {len(ds.y)} samples"):
-        model = ARX(ds.na, ds.nb, ds.nk, dt=ds.dt).fit(ds.u, ds.y, method="rls", lam=lam)
-        batch = ARX(ds.na, ds.nb, ds.nk, dt=ds.dt).fit(ds.u, ds.y)
+    with progress.task(f"recursive least squares over {est.n_samples} samples"):
+        model = ARX(ds.na, ds.nb, ds.nk, dt=ds.dt, offset=offset).fit(est, method="rls",
+                                                                       lam=lam)
+        batch = ARX(ds.na, ds.nb, ds.nk, dt=ds.dt, offset=offset).fit(est)
     # a time-varying plant is compared with the plant in force at the end of the record
     theta_true = ds.theta_true[-1] if tracking else ds.theta
     label = "true at the end" if tracking else "true"
-    metadata = {"source": f"demo plant '{ds.name}'", "inputs": ["u"], "output": "y",
-                "seed": args.seed, "theta_true": theta_true, "theta_batch": batch.theta_}
-    report = _validate(model, ds.u, ds.y, lam, metadata, progress,
-                       plant=ds.plant_after if tracking else ds.plant)
+    metadata = {"source": f"demo plant '{ds.name}'", "inputs": list(ds.input_names),
+                "output": ds.output_names[0], "seed": args.seed, "theta_true": theta_true,
+                "theta_batch": batch.theta_}
     lines = [f"rlsfilt {__version__} demo: {ds.description}",
              f"  {ds.n_samples} samples, sample time {ds.dt:g} s, {ds.noise} noise of std "
-             f"{ds.noise_std:g}, seed {args.seed}",
-             "  identified recursively (batch start, then one RLS update per sample) and by "
-             "batch least squares", ""]
+             f"{ds.noise_std:g}, seed {args.seed}"]
+    if offset:
+        lines.append("  operating point: " + _detrend_line("constant", est).split(": ", 1)[1])
+    if val is not None:
+        metadata["validated_on"] = f"experiment {val.experiment_names[0]}"
+        lines.append(f"  estimated on {', '.join(est.experiment_names)} ({est.n_samples} "
+                     f"samples), validated on {val.experiment_names[0]} ({val.n_samples} "
+                     "samples, fresh data)")
+    lines += ["  identified recursively (batch start, then one RLS update per sample) and by "
+              "batch least squares", ""]
+    report = _validate(model, val if val is not None else est, None, lam, metadata, progress,
+                       plant=ds.plant_after if tracking else ds.plant)
     return _emit(report, args, lines, _truth_table(model, theta_true, batch, label, lam))
 
 

@@ -419,6 +419,7 @@ def test_streaming_without_reuse_is_identical(rng, monkeypatch):
         a.predict_update(zs[k], Hs[k])
     monkeypatch.setattr(_streaming, "_FREE_UPDATE", -1)
     monkeypatch.setattr(_streaming, "_FREE_PREDICT", -1)
+    monkeypatch.setattr(_streaming, "_FREE_EACH", None)
     made = []
     block = _streaming._block
     monkeypatch.setattr(_streaming, "_block", lambda *a: made.append(1) or block(*a))

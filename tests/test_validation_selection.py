@@ -2,7 +2,6 @@
 structure of simulated plants, and is fast (one factorization)."""
 
 import itertools
-import time
 
 import numpy as np
 import pytest
@@ -83,16 +82,13 @@ def test_validation_data_scores_on_fresh_record():
 
 
 @pytest.mark.filterwarnings("ignore::rlsfilt.exceptions.OrderSelectionWarning")  # small grids
-def test_speed_4000_samples_60_candidates():
+def test_4000_samples_60_candidates():
+    """The workload of benchmarks/bench_select_order.py (its time is measured there)."""
     rng = np.random.default_rng(3)
     u = rng.standard_normal(4000)
     y = lfilter([0, 1.0, 0.5], [1, -1.5, 0.7], u) + 0.1 * rng.standard_normal(4000)
-    select_order(u, y, na=range(1, 6), nb=range(1, 5), nk=range(0, 3))  # warm-up
-    t0 = time.perf_counter()
     sel = select_order(u, y, na=range(1, 6), nb=range(1, 5), nk=range(0, 3))
-    elapsed = time.perf_counter() - t0
     assert len(sel.table) == 60
-    assert elapsed < 0.25, f"select_order took {elapsed:.3f} s"
 
 
 def test_several_inputs(rng):

@@ -88,30 +88,32 @@ def project(P, Pi, T):
 
 
 @njit(cache=True, inline="always")
-def time_update(P, il, Q, Pi, T):
-    """``P <- P il + Q`` then ``P <- Pi P Pi``, in place (`Q`, `Pi` empty when absent)."""
+def time_update(P, il, Q, Pi, T, Pn):
+    """``Pn = P il + Q`` then ``Pn <- Pi Pn Pi`` (`Q`, `Pi` empty when absent; `Pn`
+    may be `P`: the batch loops update in place)."""
     n = P.shape[0]
     if Q.shape[0]:
         for i in range(n):
             for j in range(n):
-                P[i, j] = P[i, j] * il + Q[i, j]
-    elif il != 1.0:
+                Pn[i, j] = P[i, j] * il + Q[i, j]
+    else:
         for i in range(n):
             for j in range(n):
-                P[i, j] = P[i, j] * il
+                Pn[i, j] = P[i, j] * il
     if Pi.shape[0]:
-        project(P, Pi, T)
+        project(Pn, Pi, T)
 
 
 @njit(cache=True, inline="always")
-def measurement_update(x, P, phi, z, missing, r, cfg, Pi, g, y, K, T):
-    """One measurement update of any mode with the gate and the constraints, in place.
+def measurement_update(x, P, phi, z, missing, r, cfg, Pi, g, y, K, T, xn, Pn):
+    """One measurement update of any mode with the gate and the constraints.
 
-    ``x`` (n, m) and ``P`` (n, n) are updated (unchanged for a missing or
-    gated sample); writes ``g = P phi`` (n,), the residual ``y`` (m,; NaN
-    when missing) and the gain ``K`` (n,; zero when missing or gated).
-    `cfg` is ``forgetting.kernel_config``, `Pi` its projector; `T` is (n, n)
-    work.
+    Reads ``x`` (n, m) and ``P`` (n, n) and writes the new ones into ``xn``,
+    ``Pn`` (which may be ``x`` and ``P`` themselves: the batch loops update
+    in place); a missing or gated sample leaves them. Writes ``g = P phi``
+    (n,), the residual ``y`` (m,; NaN when missing) and the gain ``K`` (n,;
+    zero when missing or gated). `cfg` is ``forgetting.kernel_config``,
+    `Pi` its projector; `T` is (n, n) work.
 
     Returns
     -------
@@ -136,24 +138,24 @@ def measurement_update(x, P, phi, z, missing, r, cfg, Pi, g, y, K, T):
         s += phi[i] * g[i]
     s = s + r                                # S = H P H^T + R
     lam_skip = lam if mode == EXPONENTIAL else 1.0
-    if missing:
-        for j in range(m):
-            y[j] = np.nan
-        for i in range(n):
-            K[i] = 0.0
-        return s, lam_skip, False
     yy = 0.0
-    for j in range(m):                       # y = z - H x
-        acc = 0.0
-        for i in range(n):
-            acc += phi[i] * x[i, j]
-        y[j] = z[j] - acc
-        yy += y[j] * y[j]
+    if not missing:
+        for j in range(m):                   # y = z - H x
+            acc = 0.0
+            for i in range(n):
+                acc += phi[i] * x[i, j]
+            y[j] = z[j] - acc
+            yy += y[j] * y[j]
     gate = cfg[CFG_GATE]
-    if yy > gate * gate * s:                 # sqrt(y'y / S) > gate
+    if missing or yy > gate * gate * s:      # missing, or sqrt(y'y / S) > gate: no update
+        for j in range(m):
+            if missing:
+                y[j] = np.nan
         for i in range(n):
             K[i] = 0.0
-        return s, lam_skip, True
+        copy2(x, xn)
+        copy2(P, Pn)
+        return s, lam_skip, not missing
     lam_t = lam
     if mode == DIRECTIONAL:
         eps = cfg[CFG_PARAMS]
@@ -166,7 +168,7 @@ def measurement_update(x, P, phi, z, missing, r, cfg, Pi, g, y, K, T):
         for i in range(n):
             gi = g[i]
             for j in range(n):
-                P[i, j] = P[i, j] - ed * (gi * g[j])
+                Pn[i, j] = P[i, j] - ed * (gi * g[j])
         lam_t = e
     elif mode == EFRA:
         alpha, beta, delta = cfg[CFG_PARAMS], cfg[CFG_PARAMS + 1], cfg[CFG_PARAMS + 2]
@@ -188,8 +190,8 @@ def measurement_update(x, P, phi, z, missing, r, cfg, Pi, g, y, K, T):
         br = beta * r
         for i in range(n):
             for j in range(n):
-                P[i, j] = 0.5 * (T[i, j] + T[j, i])
-            P[i, i] = P[i, i] + br
+                Pn[i, j] = 0.5 * (T[i, j] + T[j, i])
+            Pn[i, i] = Pn[i, i] + br
     else:                                    # exponential, constant trace, variable
         c = 1.0 / s
         for i in range(n):
@@ -197,19 +199,19 @@ def measurement_update(x, P, phi, z, missing, r, cfg, Pi, g, y, K, T):
         for i in range(n):
             gi = g[i]
             for j in range(n):
-                P[i, j] = P[i, j] - (gi * g[j]) * c    # P = P - g g^T / S
+                Pn[i, j] = P[i, j] - (gi * g[j]) * c   # P = P - g g^T / S
         if mode == CONSTANT_TRACE:
             trace, ratio = cfg[CFG_PARAMS], cfg[CFG_PARAMS + 1]
             c2 = trace / (ratio + n)
             c1 = trace - n * c2
             tb = 0.0
             for i in range(n):
-                tb += P[i, i]
+                tb += Pn[i, i]
             f = c1 / tb
             for i in range(n):
                 for j in range(n):
-                    P[i, j] = f * P[i, j]
-                P[i, i] = P[i, i] + c2
+                    Pn[i, j] = f * Pn[i, j]
+                Pn[i, i] = Pn[i, i] + c2
             lam_t = tb / c1
         elif mode == VARIABLE:
             lam_min, trace_max = cfg[CFG_PARAMS], cfg[CFG_PARAMS + 1]
@@ -217,31 +219,25 @@ def measurement_update(x, P, phi, z, missing, r, cfg, Pi, g, y, K, T):
             lt = min(1.0, max(lam_min, lt))
             tb = 0.0
             for i in range(n):
-                tb += P[i, i]
+                tb += Pn[i, i]
             lt = max(lt, min(1.0, tb / trace_max))
             if lt != 1.0:
                 for i in range(n):
                     for j in range(n):
-                        P[i, j] = P[i, j] / lt
+                        Pn[i, j] = Pn[i, j] / lt
             lam_t = lt
     for i in range(n):                       # x = x + K y^T
         ki = K[i]
         for j in range(m):
-            x[i, j] = x[i, j] + ki * y[j]
+            xn[i, j] = x[i, j] + ki * y[j]
     if Pi.shape[0]:                          # keep A P = 0
-        project(P, Pi, T)
+        project(Pn, Pi, T)
     return s, lam_t, False
 
 
 # ----------------------------------------------------------------------
 # the streaming steps (arguments packed by _streaming)
 # ----------------------------------------------------------------------
-@njit(cache=True, inline="always")
-def _view(out, o, r, c):
-    """The (r, c) array at offset `o` of the flat block `out`, and the next offset."""
-    return out[o:o + r * c].reshape((r, c)), o + r * c
-
-
 @njit(cache=True, inline="always")
 def Pi_or_efra(cfg):
     """Whether a step needs the (n, n) work space: constraints or EFRA."""
@@ -254,27 +250,29 @@ def predict_kernel(x, P, il, Q, cfg, out):
     ``n^2`` of work space): ``P^-`` = `time_update` of ``P``, and the copies
     ``x_prior = x``, ``P_prior = P^-``."""
     n, m = x.shape
-    Pn, o = _view(out, 0, n, n)
-    x_prior, o = _view(out, o, n, m)
-    P_prior, o = _view(out, o, n, n)
-    T, o = _view(out, o, n, n)               # work space
-    copy2(P, Pn)
-    time_update(Pn, il, Q, projector(cfg, n), T)
-    copy2(Pn, P_prior)
-    copy2(x, x_prior)
+    nP, nx = n * n, n * m                    # the block: P^- x_prior P_prior | T
+    k = n if cfg.shape[0] > CFG_PI else 0    # T: work space of the projection
+    o = nP + nx + nP
+    time_update(P, il, Q, projector(cfg, n), out[o:o + k * k].reshape((k, k)),
+                out[:nP].reshape((n, n)))
+    for i in range(n):
+        for j in range(m):
+            out[nP + i * m + j] = x[i, j]    # x_prior
+    for i in range(nP):
+        out[nP + nx + i] = out[i]            # P_prior
 
 
 @njit(cache=True)
-def update_kernel(x, P, phi, z0, zmode, r, cfg, out):
-    """Streaming ``update``: `measurement_update` of ``x``, ``P`` into the block `out`.
+def update_kernel(x, P, phi, z0, zmode, r, cfg, xn, Pn, out):
+    """Streaming ``update``: `measurement_update` of ``x``, ``P`` into new arrays.
 
-    The block (``_streaming.update_shapes``, then ``n + n^2`` of work
-    space) receives the new ``x``, ``P``,
-    ``y`` (m, 1), ``K`` (n, 1), ``S = s I`` and ``SI = I / s`` (m, m), the
-    copy ``H`` (1, n) of the regressor ``phi`` (n,), the measurement ``z``
-    (m, 1; NaN when missing) and the copies ``x_post``, ``P_post``. With
-    ``zmode`` 0 the caller has written the measurement into the block's
-    ``z``; with 1 it is the scalar ``z0``; with 2 it is missing.
+    Writes the new estimate ``xn`` (n, m) and covariance ``Pn`` (n, n), and
+    into the block `out` (``_streaming.update_shapes``, then ``n + n^2`` of
+    work space) ``y`` (m, 1), ``K`` (n, 1), ``S = s I`` and ``SI = I / s``
+    (m, m), the copy ``H`` (1, n) of the regressor ``phi`` (n,), the
+    measurement ``z`` (m, 1; NaN when missing) and the copies ``x_post``,
+    ``P_post``. With ``zmode`` 0 the caller has written the measurement into
+    the block's ``z``; with 1 it is the scalar ``z0``; with 2 it is missing.
 
     Returns
     -------
@@ -290,12 +288,8 @@ def update_kernel(x, P, phi, z0, zmode, r, cfg, out):
         v = phi[i]
         if v - v != 0.0:                     # NaN or inf
             return 1, np.nan, np.nan, False
-    nx, nP = n * m, n * n                    # the block: x P y K S SI H z x_post P_post | g T
-    xn = out[:nx].reshape((n, m))
-    Pn = out[nx:nx + nP].reshape((n, n))
-    o = nx + nP
-    y, K = out[o:o + m], out[o + m:o + m + n]
-    o += m + n
+    y, K = out[:m], out[m:m + n]             # the block: y K S SI H z x_post P_post | g T
+    o = m + n
     S, SI, Hz = out[o:o + m * m], out[o + m * m:o + 2 * m * m], out[o + 2 * m * m:]
     for i in range(n):
         Hz[i] = phi[i]                       # H
@@ -303,21 +297,23 @@ def update_kernel(x, P, phi, z0, zmode, r, cfg, out):
         if zmode != 0:
             Hz[n + j] = z0 if zmode == 1 else np.nan     # z
     o += 2 * m * m + n + m                   # x_post, P_post, then the work space
+    nx, nP = n * m, n * n
     g = out[o + nx + nP:o + nx + nP + n]
     k = n if Pi_or_efra(cfg) else 0
     T = out[o + nx + nP + n:o + nx + nP + n + k * k].reshape((k, k))
-    copy2(x, xn)
-    copy2(P, Pn)
-    s, lam_t, gated = measurement_update(xn, Pn, phi, Hz[n:n + m], zmode == 2, r, cfg,
-                                         projector(cfg, n), g, y, K, T)
+    s, lam_t, gated = measurement_update(x, P, phi, Hz[n:n + m], zmode == 2, r, cfg,
+                                         projector(cfg, n), g, y, K, T, xn, Pn)
     for i in range(m * m):
         S[i] = 0.0
         SI[i] = 0.0
     for i in range(m):
         S[i * m + i] = s
         SI[i * m + i] = 1.0 / s
-    for i in range(nx + nP):
-        out[o + i] = out[i]                  # x_post, P_post
+    xf, Pf = xn.reshape(nx), Pn.reshape(nP)
+    for i in range(nx):
+        out[o + i] = xf[i]                   # x_post
+    for i in range(nP):
+        out[o + nx + i] = Pf[i]              # P_post
     # the cheap check (without constraints: under them P is singular by design)
     return (2 if cfg.shape[0] == CFG_PI and diagonal_bad(Pn) else 0), s, lam_t, gated
 
@@ -328,7 +324,8 @@ def update_kernel(x, P, phi, z0, zmode, r, cfg, out):
 @njit(cache=True, inline="always")
 def _predict_step(x, P, il, Q, Pi, T, k, means_p, covs_p, x_prior, P_prior):
     """`time_update` in `step_batch`, with its histories (and the last prior)."""
-    time_update(P, il, Q, Pi, T)
+    if il != 1.0 or Q.shape[0] or Pi.shape[0]:
+        time_update(P, il, Q, Pi, T, P)
     copy2(x, means_p[k])
     if covs_p.shape[0]:
         copy2(P, covs_p[k])
@@ -377,7 +374,7 @@ def step_batch(x, P, Z, Hm, Rv, il, Q, update_first, cfg, basis,
             _predict_step(x, P, il, Q, Pi, T, k, means_p, covs_p, x_prior, P_prior)
         z = Z[k]
         s, lam_t, gk = measurement_update(x, P, Hm[k], z, any_nan(z), Rv[k if r_each else 0],
-                                          cfg, Pi, g, y, K, T)
+                                          cfg, Pi, g, y, K, T, x, P)
         ss[k] = s
         gated[k] = gk
         for j in range(m):

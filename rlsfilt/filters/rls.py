@@ -32,7 +32,7 @@ from .._validation import (
 from ..exceptions import ForgettingSkippedWarning
 from . import _health, _streaming
 from . import forgetting as _fg
-from ._base import _FilterBase
+from ._base import MISSING_DIAGNOSTICS, _FilterBase
 
 __all__ = ["RecursiveLeastSquares"]
 
@@ -425,24 +425,21 @@ class RecursiveLeastSquares(_FilterBase):
         #   x = x^- + K y^T          (missing or gated: x = x^-, K = 0)
         #   P = P^- - K S K^T        (the other forgetting modes: their update)
         #   P <- Pi P Pi             (constraints)
-        code, s, lam_t, gated, out = _streaming.update(x, P, H, z, r, self._cfg,
-                                                       self._spare_update)
+        code, s, lam_t, gated, arrays = _streaming.update(x, P, H, z, r, self._cfg,
+                                                          self._spare_update)
         if code == 1:
             check_finite(H, "H")                      # raises; nothing has changed
         n_updates = self.n_updates + 1
         skipped = self._updates_since_predict and not self._warned_skip and self._forgets
         every = self.check_every
-        checked = every and (code == 2 or not n_updates % every) and not self._warned_health
+        checked = every and (code or not n_updates % every) and not self._warned_health
         if skipped or checked:                        # warn before the state changes
-            self._warn(skipped, self._health_problem(out[2], n_updates, code == 2)
+            self._warn(skipped, self._health_problem(arrays[1], n_updates, code == 2)
                        if checked else None)
-        self._spare_update, self._last_update = self._last_update, out
-        (_, self._x, self._P, self.y, self.K, self.S, self.SI, self.H, self.z, self.x_post,
-         self.P_post) = out
-        if z is None:
-            self._log_likelihood, self._likelihood, self._mahalanobis = 0.0, 1.0, math.nan
-        else:
-            self._log_likelihood = self._likelihood = self._mahalanobis = None
+        self._spare_update, self._last_update = self._last_update, arrays
+        (self._x, self._P, _, self.y, self.K, self.S, self.SI, self.H, self.z, self.x_post,
+         self.P_post) = arrays
+        self._lazy = None if z is not None else MISSING_DIAGNOSTICS
         self.gated = gated
         if gated:
             self.n_gated += 1
@@ -451,11 +448,6 @@ class RecursiveLeastSquares(_FilterBase):
         self._updates_since_predict += 1
         if self._recheck:
             self._recheck = self._efra_pending = False
-
-    def predict_update(self, z, H, R=None):
-        """One textbook RLS step: :meth:`predict` then :meth:`update`."""
-        self.predict()
-        self.update(z, H, R)
 
     # ------------------------------------------------------------------
     # batch start and batch runs
@@ -618,7 +610,7 @@ class RecursiveLeastSquares(_FilterBase):
         if np.isnan(Z[-1]).any():
             self.z = np.full((self.dim_z, 1), np.nan)
             self.y = np.full((self.dim_z, 1), np.nan)
-            self._log_likelihood, self._likelihood, self._mahalanobis = 0.0, 1.0, math.nan
+            self._lazy = MISSING_DIAGNOSTICS
         else:
             self.z = Z[-1].reshape(-1, 1).copy()
             self.y = out.ys[-1].reshape(-1, 1).copy()
@@ -692,6 +684,7 @@ class RecursiveLeastSquares(_FilterBase):
         self._P = self._projected(P - W @ PA.T)        # P <- P - W A P, then Pi P Pi
         self._null_basis = basis
         self._recheck = True
+        self._efra_pending = False                     # P above has EFRA's start
         self.constraints = (A.copy(), bb.copy())
         self.x_post, self.P_post = self._x.copy(), self._P.copy()
         return self

@@ -8,7 +8,7 @@ from scipy.linalg import cho_factor, cho_solve, solve_triangular
 
 from .._validation import check_covariance, check_int, check_lam, check_real, check_variance
 from . import _health, _streaming
-from ._base import _FilterBase
+from ._base import MISSING_DIAGNOSTICS, _FilterBase
 from ._streaming import c_array
 
 __all__ = ["SquareRootRLS"]
@@ -235,16 +235,11 @@ class SquareRootRLS(_FilterBase):
         self.S, self.SI = s * self._I_z, self._I_z / s
         self.z, self.y, self.K = zrow.reshape(m, 1), y, K
         if zc is None:
-            self._log_likelihood, self._likelihood = 0.0, 1.0
+            self._lazy = MISSING_DIAGNOSTICS
         self._U, self._d, self._x = U, d, x
         self.n_updates = n_updates
         self.x_post = x.copy()
         self.P_post = self.P
-
-    def predict_update(self, z, H, R=None):
-        """:meth:`predict` then :meth:`update`."""
-        self.predict()
-        self.update(z, H, R)
 
     def initialize(self, zs, Hs):
         """Start from batch least squares on the first samples (QR of the rows).
@@ -332,7 +327,7 @@ class SquareRootRLS(_FilterBase):
         self.y, self.K = y.reshape(m, 1), K.reshape(n, 1)
         if np.isnan(self.z).any():
             self.z[:] = np.nan
-            self._log_likelihood, self._likelihood = 0.0, 1.0
+            self._lazy = MISSING_DIAGNOSTICS
         self.x_prior, self.P_prior = x_prior, P_prior
         self.x_post, self.P_post = x.copy(), P_post
         if not store_covariances:

@@ -558,10 +558,12 @@ class IdentifiedModel(abc.ABC):
         Returns
         -------
         control.StateSpace
-            With sampling time ``dt``.
+            With sampling time ``dt`` and, like :meth:`to_tf`, the data's
+            signal names as its input and output labels.
         """
         self._check_fitted("to_ss")
-        return _conversion.to_ss(self.polydata(), self._check_dt(), noise)
+        return _labelled(_conversion.to_ss(self.polydata(), self._check_dt(), noise),
+                         self._signal_labels(noise))
 
     def to_dlti(self, noise=False):
         """The model as a ``scipy.signal.dlti``.
@@ -798,6 +800,8 @@ def _labelled(G, labels):
         kw["outputs"] = outs
     if not kw:
         return G
+    if isinstance(G, control.StateSpace):
+        return control.ss(G.A, G.B, G.C, G.D, G.dt, **kw)
     if G.issiso():
         return control.tf(G.num[0][0], G.den[0][0], G.dt, **kw)
     return control.tf(G.num, G.den, G.dt, **kw)

@@ -257,21 +257,25 @@ def _build(U, Y, s, start):
     return Phi
 
 
-def arx_regressors(u, y, na, nb, nk=1, *, start=None):
+def arx_regressors(u, y=None, na=None, nb=None, nk=1, *, start=None):
     r"""Regressor matrix and target of an ARX model.
 
     Parameters
     ----------
-    u : array_like, shape (N,) or (N, nu)
-        Input record (time on axis 0); pandas objects work too.
+    u : array_like, shape (N,) or (N, nu), or IOData
+        Input record (time on axis 0); pandas objects work too. Or an
+        `IOData` (or lists of arrays, one per experiment) holding inputs
+        and outputs: then `y` is omitted (pass the orders by keyword) and
+        the rows of every experiment come one after the other, none
+        straddling two experiments.
     y : array_like, shape (N,) or (N, ny)
         Output record.
     na, nb, nk
-        Orders as in :func:`arx_structure`.
+        Orders as in :func:`arx_structure` (`na` and `nb` are required).
     start : int, optional
-        First row. Defaults to ``max_lag``, the first sample whose regressor
-        is complete; a smaller ``start`` (``0`` gives one row per sample)
-        takes inputs and outputs before ``t = 0`` as zero.
+        First row (of each experiment). Defaults to ``max_lag``, the first
+        sample whose regressor is complete; a smaller ``start`` (``0`` gives
+        one row per sample) takes inputs and outputs before ``t = 0`` as zero.
 
     Returns
     -------
@@ -295,15 +299,26 @@ def arx_regressors(u, y, na, nb, nk=1, *, start=None):
            [-30.,   3.,   2.]])
     >>> target
     array([20., 30., 40.])
+
+    Two experiments: no row mixes the end of one with the start of the other.
+
+    >>> from rlsfilt import IOData
+    >>> Phi, target = arx_regressors(IOData([u, u], [y, y]), na=1, nb=2)
+    >>> Phi.shape, target
+    ((6, 3), array([20., 30., 40., 20., 30., 40.]))
     """
-    U, Y, info = as_io_data(u, y)
-    s = arx_structure(na, nb, nk, U.shape[1], Y.shape[1])
+    for value, name in ((na, "na"), (nb, "nb")):
+        if value is None:
+            raise TypeError(f"`{name}` is required (the orders of the model)")
+    records, info = as_records(u, y)
+    s = arx_structure(na, nb, nk, records[0][0].shape[1], records[0][1].shape[1])
     start = s.max_lag if start is None else check_int(start, "start", minimum=0)
-    if start > len(U):
-        raise ValueError(f"`start` must be <= N = {len(U)}; got {start}")
-    Phi = _build(U, Y, s, start)
-    target = Y[start:, 0].copy() if info["y_1d"] else Y[start:].copy()
-    return Phi, target
+    shortest = min(len(U) for U, _ in records)
+    if start > shortest:
+        raise ValueError(f"`start` must be <= N = {shortest}; got {start}")
+    Phi = np.vstack([_build(U, Y, s, start) for U, Y in records])
+    target = np.vstack([Y[start:] for _, Y in records])
+    return Phi, (target[:, 0] if info["y_1d"] else target).copy()
 
 
 def _full_rank_rows(Phi):

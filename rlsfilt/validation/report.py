@@ -70,6 +70,12 @@ class ValidationReport:
         skip_undefined=True)`` on too short a record or on an exact fit).
     metadata : dict
         What the caller passed as ``validate(..., metadata=...)``.
+    input_names, output_names, input_units, output_units : tuple of str
+        The signals' names and units, for the labels of :meth:`plot`: those
+        of the validation record (an `IOData` or named pandas columns), else
+        those the model was fitted on (units ``""`` when unknown).
+    experiment_names : tuple of str
+        The experiments' names (``"exp1"``, ... unless the `IOData` names them).
     """
 
     def __init__(self, **fields):
@@ -79,6 +85,8 @@ class ValidationReport:
         self.is_unstable = False
         self.max_pole_magnitude = float("nan")
         self.experiment_lengths = ()
+        self.experiment_names = ()
+        self.input_names = self.output_names = self.input_units = self.output_units = ()
         for key, value in fields.items():
             setattr(self, key, value)
 
@@ -501,7 +509,28 @@ def validate(model, u, y=None, plant=None, *, max_lag=25, alpha=0.01, skip_undef
         intervals=parameter_intervals(model),
         plant_comparison=None if plant is None else PlantComparison(model, plant),
         skipped=skipped, metadata=dict(metadata or {}),
+        experiment_names=(tuple(u_arg.experiment_names) if isinstance(u_arg, IOData)
+                          else tuple(f"exp{k + 1}" for k in range(len(Ys)))),
+        **_signal_labels(model, info),
     )
+
+
+def _signal_labels(model, info):
+    """Names and units of the signals for the figures: the record's when it names them
+    (an IOData, pandas columns), else the fitted model's, else ``u``/``y`` and no unit."""
+    out = {}
+    for kind, key, n in (("input", "u", model.n_inputs_), ("output", "y", model.n_outputs_)):
+        names = info.get(f"{key}_names") or getattr(model, f"{kind}_names_", None)
+        if not names or len(names) != n:
+            names = [key] if n == 1 else [f"{key}{i + 1}" for i in range(n)]
+        units = info.get(f"{key}_units")
+        if not units or not any(units):
+            units = getattr(model, f"{kind}_units_", None)
+        if not units or len(units) != n:
+            units = [""] * n
+        out[f"{kind}_names"] = tuple(str(v) for v in names)
+        out[f"{kind}_units"] = tuple(str(v) for v in units)
+    return out
 
 
 def _offset_mode(model):

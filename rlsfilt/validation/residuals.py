@@ -15,7 +15,7 @@ from .._validation import check_int, check_probability
 from ..exceptions import ExactFitError, InsufficientDataError
 from ..models.regressors import _as_signal
 from ..plotting import plot_autocorrelation, plot_cross_correlation, plot_residuals
-from ._model import one_step
+from ._model import one_step_records
 
 __all__ = ["ResidualAnalysis", "residual_analysis"]
 
@@ -122,15 +122,19 @@ class ResidualAnalysis:
         return plot_cross_correlation(self, ax)
 
 
-def residual_analysis(model, u, y, max_lag=25, alpha=0.01, *, output=0, model_df=0):
+def residual_analysis(model, u, y=None, max_lag=25, alpha=0.01, *, output=0, model_df=0):
     r"""Whiteness and input-independence tests of the one-step residuals.
 
     Parameters
     ----------
     model : IdentifiedModel
         A fitted model (`ARX` or any other `IdentifiedModel`).
-    u : array_like, shape (N,) or (N, nu)
-        Input record (estimation or validation data).
+    u : array_like, shape (N,) or (N, nu), or IOData
+        Input record (estimation or validation data), or an `IOData` with
+        inputs and outputs (then `y` is omitted: pass `max_lag` and `alpha`
+        by keyword). Several experiments (an `IOData` or lists of arrays)
+        are analysed as :func:`validate` does: the residuals of every
+        experiment one after the other, each from its own start.
     y : array_like, shape (N,) or (N, ny)
         Output record.
     max_lag : int, default 25
@@ -233,8 +237,8 @@ def residual_analysis(model, u, y, max_lag=25, alpha=0.01, *, output=0, model_df
     """
     max_lag = check_int(max_lag, "max_lag", minimum=1)
     alpha = check_probability(alpha, "alpha")
-    Phi, _, E = one_step(model, u, y, "residual_analysis")
-    return _residual_analysis(Phi, E, u, max_lag, alpha, output, model_df)
+    Phi, E, U = one_step_records(model, u, y, "residual_analysis")
+    return _residual_analysis(Phi, E, U, max_lag, alpha, output, model_df)
 
 
 def _residual_analysis(Phi, E, u, max_lag, alpha, output=0, model_df=0):
