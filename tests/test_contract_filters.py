@@ -340,9 +340,6 @@ CHECKS = [
 ]
 
 EXPECTED_FAILURES = {
-    # (a window of 1000 never downdates in this record, so its copies agree by luck)
-    ("SlidingWindowRLS-window40", "check_copy_resumes_bit_for_bit"):
-        "#18 item 8: copy.copy(SlidingWindowRLS) copies share their window",
     ("RecursiveLeastSquares-gate-constrained", "check_saver_round_trip"):
         "#18: Saver.to_array() cannot convert the (A, b) tuple `constraints` of a "
         "constrained filter",

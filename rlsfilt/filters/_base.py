@@ -325,6 +325,16 @@ class _FilterBase:
         return arr.copy()
 
 
+def own_array(value, name):
+    """`value` as the filter's own C-contiguous float64 array (always a copy).
+
+    What assigning ``x`` or ``P`` stores: the caller's array is never kept,
+    so neither can later change the other. Shapes are checked where the
+    array is used, so that the error names the method that cannot use it.
+    """
+    return np.array(as_float_array(value, name), dtype=np.float64, order="C")
+
+
 def _has_none(values):
     """Whether a sequence of measurements marks a missing one by None (a scalar: no)."""
     try:

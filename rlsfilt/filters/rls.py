@@ -32,7 +32,7 @@ from .._validation import (
 from ..exceptions import ForgettingSkippedWarning
 from . import _health, _streaming
 from . import forgetting as _fg
-from ._base import MISSING_DIAGNOSTICS, _FilterBase
+from ._base import MISSING_DIAGNOSTICS, _FilterBase, own_array
 
 __all__ = ["RecursiveLeastSquares"]
 
@@ -306,7 +306,7 @@ class RecursiveLeastSquares(_FilterBase):
 
     @x.setter
     def x(self, value):
-        self._x = _own(value, "x")
+        self._x = own_array(value, "x")
         self._recheck = True
 
     @property
@@ -316,7 +316,7 @@ class RecursiveLeastSquares(_FilterBase):
 
     @P.setter
     def P(self, value):
-        self._P = _own(value, "P")
+        self._P = own_array(value, "P")
         self._recheck = True
 
     @property
@@ -830,15 +830,6 @@ class RecursiveLeastSquares(_FilterBase):
         if self._Pi.size:
             _streaming.kernels().project(P, self._Pi, np.empty(P.shape))
         return P
-
-
-def _own(value, name):
-    """`value` as the filter's own C-contiguous float64 array (always a copy).
-
-    Shapes are checked where the array is used, so that the error names the
-    method that cannot use it.
-    """
-    return np.array(as_float_array(value, name), dtype=np.float64, order="C")
 
 
 def _check_positive(value, name):
