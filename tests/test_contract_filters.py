@@ -339,11 +339,7 @@ CHECKS = [
     check_health_warning_points_at_the_caller,
 ]
 
-EXPECTED_FAILURES = {
-    ("RecursiveLeastSquares-gate-constrained", "check_saver_round_trip"):
-        "#18: Saver.to_array() cannot convert the (A, b) tuple `constraints` of a "
-        "constrained filter",
-}
+EXPECTED_FAILURES = {}
 
 
 @parametrize_with_checks(FILTERS, CHECKS, EXPECTED_FAILURES)
