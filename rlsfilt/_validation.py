@@ -9,6 +9,8 @@ import numbers
 
 import numpy as np
 
+from ._resources import check_memory
+
 __all__ = []
 
 
@@ -25,6 +27,26 @@ def check_int(value, name, minimum=None):
     if minimum is not None and value < minimum:
         raise ValueError(f"`{name}` must be >= {minimum}; got {value}")
     return value
+
+
+def check_length(value, name, minimum=1, bytes_per_item=64):
+    """A number of samples (or slots): an ``int >= minimum`` whose arrays fit in memory.
+
+    `bytes_per_item` is what the caller allocates per unit (for example eight
+    arrays of doubles: 64); beyond the available memory a `MemoryError`
+    names the argument before anything is allocated.
+    """
+    n = check_int(value, name, minimum=minimum)
+    check_memory(bytes_per_item * n, f"`{name}` = {n}")
+    return n
+
+
+def check_dimension(value, name, minimum=1):
+    """A matrix dimension ``n``: an ``int >= minimum`` whose ``(n, n)`` matrices fit in memory
+    (a filter keeps about a dozen of them)."""
+    n = check_int(value, name, minimum=minimum)
+    check_memory(16 * 8 * n * n, f"`{name}` = {n} ({n} x {n} covariance matrices)")
+    return n
 
 
 def check_scalar(value, name):
@@ -99,8 +121,14 @@ def check_lam(lam, name="lam"):
     return lam
 
 
+#: Range of the measurement-noise variances the filters take: their updates
+#: multiply and divide by them, and the results must stay in the double range.
+VARIANCE_RANGE = (1e-150, 1e150)
+
+
 def check_variance(R, name="R"):
-    """Measurement-noise variance: a positive finite scalar or a (1, 1) array."""
+    """Measurement-noise variance: a positive finite scalar or a (1, 1) array, within
+    `VARIANCE_RANGE`."""
     if isinstance(R, (bool, np.bool_)):
         raise TypeError(f"`{name}` must be a positive scalar variance; got {R!r}")
     if not isinstance(R, numbers.Real):
@@ -112,6 +140,10 @@ def check_variance(R, name="R"):
     R = float(R)
     if not (np.isfinite(R) and R > 0.0):
         raise ValueError(f"`{name}` must be a positive finite variance; got {R}")
+    lo, hi = VARIANCE_RANGE
+    if not lo <= R <= hi:
+        raise ValueError(f"`{name}` must be a variance in [{lo:.0e}, {hi:.0e}] (the update "
+                         f"multiplies and divides by it); got {R:.3g}")
     return R
 
 

@@ -13,7 +13,13 @@ import math
 import numpy as np
 
 from .._display import filter_html
-from .._validation import as_float_array, check_bool, check_finite, check_variance
+from .._validation import (
+    VARIANCE_RANGE,
+    as_float_array,
+    check_bool,
+    check_finite,
+    check_variance,
+)
 from . import _health
 
 __all__ = []
@@ -322,6 +328,12 @@ class _FilterBase:
         if bad.any():
             i = int(np.argmax(bad))
             raise ValueError(f"`Rs` must hold positive finite variances; got {arr[i]} at index {i}")
+        lo, hi = VARIANCE_RANGE
+        bad = (arr < lo) | (arr > hi)
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise ValueError(f"`Rs` must hold variances in [{lo:.0e}, {hi:.0e}] (the update "
+                             f"multiplies and divides by them); got {arr[i]:.3g} at index {i}")
         return arr.copy()
 
 

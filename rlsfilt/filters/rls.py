@@ -20,9 +20,11 @@ import numpy as np
 from filterpy.common import pretty_str
 from scipy.linalg import null_space, solve_triangular
 
+from .._scale import safe_norm
 from .._validation import (
     as_float_array,
     check_covariance,
+    check_dimension,
     check_finite,
     check_int,
     check_lam,
@@ -276,7 +278,7 @@ class RecursiveLeastSquares(_FilterBase):
     def __init__(self, dim_x, dim_z=1, lam=1.0, *, P0=1e4, x0=None, R=1.0, Q=0.0,
                  forgetting="exponential", forgetting_params=None, gate=None,
                  check_every=100, cond_max=1e12):
-        self.dim_x = check_int(dim_x, "dim_x", minimum=1)
+        self.dim_x = check_dimension(dim_x, "dim_x")
         self.dim_z = check_int(dim_z, "dim_z", minimum=1)
         self._row_shape = (self.dim_x,)
         self._mode = _fg.mode_code(forgetting)
@@ -502,7 +504,7 @@ class RecursiveLeastSquares(_FilterBase):
         # QR depends on the units of the regressors (1e-8 beside 1e6 is not rank
         # deficiency); the solution is scaled back exactly: x = D^-1 x_s,
         # (A^T A)^-1 = D^-1 (A_s^T A_s)^-1 D^-1
-        norms = np.linalg.norm(A, axis=0) if len(A) else np.ones(self.dim_x)
+        norms = safe_norm(A, axis=0) if len(A) else np.ones(self.dim_x)
         d = np.where(norms > 0.0, norms, 1.0)
         As = A / d
         rank = int(np.linalg.matrix_rank(As)) if len(A) else 0
@@ -513,9 +515,15 @@ class RecursiveLeastSquares(_FilterBase):
                 "samples or a more exciting input."
             )
         Qf, Rf = np.linalg.qr(As)
-        self._x = solve_triangular(Rf, Qf.T @ B) / d[:, None]
+        x = solve_triangular(Rf, Qf.T @ B) / d[:, None]
         Rinv = solve_triangular(Rf, np.eye(self.dim_x)) / d[:, None]   # D^-1 R_s^-1
-        P = self._R * (Rinv @ Rinv.T)
+        with np.errstate(over="ignore", under="ignore"):
+            P = self._R * (Rinv @ Rinv.T)
+        if not (np.isfinite(P).all() and np.isfinite(x).all() and (np.diag(P) > 0).all()):
+            raise ValueError(
+                f"`Hs` (largest entry {np.abs(Hm).max():.3g}) gives a covariance "
+                "R (Hs^T Hs)^-1 outside the range of double precision; scale the regressors")
+        self._x = x
         self._P = 0.5 * (P + P.T)
         self._efra_pending = self._mode == _fg.EFRA
         self._recheck = True
@@ -702,7 +710,9 @@ class RecursiveLeastSquares(_FilterBase):
                     f"before: {A_all.shape[0]} constraints would fix all dim_x = {n} "
                     "parameters; at most dim_x - 1 can be imposed")
             if _row_rank(A_all) < A_all.shape[0]:
-                x_ls = np.linalg.lstsq(A_all, b_all, rcond=None)[0]
+                c = _row_norms(A_all)
+                x_ls = np.linalg.lstsq(A_all / c[:, None], b_all / c[:, None], rcond=None)[0]
+                A_all, b_all = A_all / c[:, None], b_all / c[:, None]
                 gap = np.abs(A_all @ x_ls - b_all).max()
                 size = np.abs(b_all).max() + np.abs(A_all).max() * np.abs(x_ls).max()
                 if gap <= 1e-9 * max(size, np.finfo(float).tiny):
@@ -722,6 +732,10 @@ class RecursiveLeastSquares(_FilterBase):
         projector onto the null space of all constraints ``A_all``. `fresh`: ``x``
         and ``P`` are new (reset, initialize) and ``A`` is all of them. Computes
         everything first: a failure leaves the filter as it was."""
+        # each row scaled to unit norm with its right-hand side (the same constraint), so
+        # that A P A^T neither overflows nor underflows for rows in any units
+        c = _row_norms(A)
+        A, bb = A / c[:, None], bb / c[:, None]
         x, P = self._checked_x(), self._checked_P()
         if self._efra_pending:    # EFRA's start; projected only onto the constraints kept
             lo, hi = _fg.efra_bounds(self._lam, *self._params)
@@ -737,7 +751,7 @@ class RecursiveLeastSquares(_FilterBase):
                              "constrained directions (A P A^T is singular), so the estimate "
                              "cannot be moved onto the constraint; reset() or initialize() "
                              "first") from None
-        basis = null_space(A_all)
+        basis = null_space(A_all / _row_norms(A_all)[:, None])
         Pi = np.ascontiguousarray(basis @ basis.T)
         x_new = x + W @ (bb - A @ x)                   # x <- x + W (b - A x)
         P_new = self._projected(P - W @ PA.T, Pi)      # P <- P - W A P, then Pi P Pi
@@ -921,11 +935,16 @@ class EqualityConstraints:
         return f"EqualityConstraints(A={self.A.tolist()}, b={self.b.tolist()})"
 
 
+def _row_norms(A):
+    """2-norms of the rows of `A`, without overflow or underflow (1 for a zero row)."""
+    norms = safe_norm(A.T, axis=0)
+    return np.where(norms > 0, norms, 1.0)
+
+
 def _row_rank(A):
     """Numerical rank of the rows of `A` after scaling each to unit norm (a constraint's
     units do not decide whether it is independent)."""
-    norms = np.linalg.norm(A, axis=1, keepdims=True)
-    Au = A / np.where(norms > 0, norms, 1.0)
+    Au = A / _row_norms(A)[:, None]
     sv = np.linalg.svd(Au, compute_uv=False)
     return int(np.sum(sv > 1e-10 * max(sv[0], np.finfo(float).tiny))) if len(sv) else 0
 

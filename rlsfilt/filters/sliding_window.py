@@ -3,7 +3,14 @@
 import numpy as np
 from filterpy.common import pretty_str
 
-from .._validation import check_covariance, check_int, check_real, check_variance
+from .._validation import (
+    check_covariance,
+    check_dimension,
+    check_int,
+    check_length,
+    check_real,
+    check_variance,
+)
 from . import _health, _streaming
 from ._base import MISSING_DIAGNOSTICS, _FilterBase, own_array
 from ._streaming import c_array
@@ -133,9 +140,11 @@ class SlidingWindowRLS(_FilterBase):
 
     def __init__(self, dim_x, window, dim_z=1, *, P0=1e4, x0=None, R=1.0, refresh=None,
                  check_every=100, cond_max=1e12):
-        self.dim_x = check_int(dim_x, "dim_x", minimum=1)
+        self.dim_x = check_dimension(dim_x, "dim_x")
         self.dim_z = check_int(dim_z, "dim_z", minimum=1)
-        self.window = check_int(window, "window", minimum=self.dim_x)
+        # the ring buffer: rows, measurements and variances, and the batch's copies of them
+        self.window = check_length(window, "window", minimum=self.dim_x,
+                                   bytes_per_item=16 * (self.dim_x + self.dim_z + 1))
         self.refresh = (10 * self.window if refresh is None
                         else check_int(refresh, "refresh", minimum=0))
         self.R = R

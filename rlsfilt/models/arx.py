@@ -390,7 +390,8 @@ class ARX(IdentifiedModel):
             raise InsufficientDataError(
                 f"`y` must have at least max_lag + n_params = {s.max_lag} + {n_params} = "
                 f"{s.max_lag + n_params} samples{per} for ARX(na={s.na}, nb={_fmt(s.nb)}, "
-                f"nk={_fmt(s.nk)}); got {N}")
+                f"nk={_fmt(s.nk)}); got {N} (use a longer record or smaller `na`, `nb`, "
+                "`nk`)")
         check_memory(_fit_bytes(rows, n_params, s, method),
                      f"ARX.fit(method={method!r}) with {n_params} parameters on `u`, `y` of "
                      f"{sum(len(U) for U, _ in records)} samples")

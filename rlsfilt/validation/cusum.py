@@ -463,7 +463,8 @@ def _as_regression(zs, Hs):
                          f"measurement); got {H.shape}")
     if H.shape[1] == 0:
         raise ValueError("`Hs` must have at least one column; got 0")
-    return z, H
+    # one memory layout (a pandas frame is Fortran-ordered): the same numbers bit for bit
+    return np.ascontiguousarray(z), np.ascontiguousarray(H)
 
 
 def _exact_start(H):

@@ -304,8 +304,8 @@ def select_order(u, y=None, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), crit
     if rows <= n_cols:
         raise InsufficientDataError(
             f"`y` is too short for these orders: {n} samples leave {rows} aligned rows "
-            f"for up to {n_cols} regressors (largest na = {na_max}, nb = {nb_list[-1]}, "
-            f"nk = {nk_list[-1]}); use more data or smaller orders")
+            f"for up to {n_cols} regressors (largest `na` = {na_max}, `nb` = {nb_list[-1]}, "
+            f"`nk` = {nk_list[-1]}); use more data or smaller orders")
     n_cand = len(na_list) * len(nb_list) * len(nk_list)
     n_par = na_max + nu * nb_list[-1] + (mode == "intercept")
     # each candidate is a least-squares problem with n_cols + 1 rows and up to n_par
@@ -426,6 +426,8 @@ def select_order(u, y=None, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), crit
 def _order_list(value, name, minimum):
     """Sorted distinct orders: a list, or an ascending ``range`` (never materialized here,
     so that ``range(10**12)`` is refused by the limits, not by a frozen loop)."""
+    if isinstance(value, np.ndarray) and value.ndim == 0:
+        value = value.item()
     if isinstance(value, numbers.Integral) and not isinstance(value, bool):
         return [check_int(value, name, minimum=minimum)]
     if isinstance(value, range):
