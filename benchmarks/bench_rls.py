@@ -25,7 +25,10 @@ its ratio to a careful hand-written compiled loop
 The slow contenders (pure Python per sample) run on the first
 ``--peer-samples`` samples only; all times are per sample. Every contender
 runs once per round, rounds are interleaved and the best round counts, which
-keeps the ratios meaningful on a busy machine (absolute times are not).
+keeps the ratios meaningful on a busy machine (absolute times are not). On a
+machine that other jobs load heavily, ``--clock cpu`` times each contender
+by the process's CPU time instead of wall time (run with
+``OPENBLAS_NUM_THREADS=1``, so that every contender computes in one thread).
 
 Usage::
 
@@ -245,7 +248,7 @@ def _available(module):
 # timing
 # ----------------------------------------------------------------------
 def bench(dims, n_samples, peer_samples, rounds, max_cov_numbers=2e7, max_numbers=2e7,
-          rng=0, log=print):
+          rng=0, log=print, clock=time.perf_counter):
     """Time every contender; returns ``{dim_x: {name: seconds per sample}}``.
 
     The compiled contenders run on ``min(n_samples, max_numbers / dim_x)``
@@ -267,9 +270,9 @@ def bench(dims, n_samples, peer_samples, rounds, max_cov_numbers=2e7, max_number
         best = {name: np.inf for name in todo}
         for _ in range(rounds):
             for name, (fn, size) in todo.items():
-                t0 = time.perf_counter()
+                t0 = clock()
                 fn(Hs[:size], zs[:size])
-                best[name] = min(best[name], (time.perf_counter() - t0) / size)
+                best[name] = min(best[name], (clock() - t0) / size)
         results[n] = best
         log(f"dim_x = {n:3d}: N = {N}, " + ", ".join(
             f"{k} {v * 1e9:.0f} ns" for k, v in best.items()))
@@ -385,6 +388,9 @@ def main(argv=None):
     parser.add_argument("--rounds", type=int, default=5, help="interleaved rounds (default 5)")
     parser.add_argument("--plot", metavar="PATH", help="save a plot of the times")
     parser.add_argument("--markdown", action="store_true", help="print the table as Markdown")
+    parser.add_argument("--clock", choices=("wall", "cpu"), default="wall",
+                        help="wall: time.perf_counter (default); cpu: time.process_time, the "
+                             "process's CPU time, steadier on a machine other jobs load")
     parser.add_argument("--streaming-ablation", action="store_true",
                         help="only time predict+update with array reuse and entry points off")
     parser.add_argument("--json", metavar="PATH",
@@ -407,7 +413,8 @@ def main(argv=None):
     else:
         dims = args.dims or list(FULL_DIMS)
         n_samples, peer_samples, rounds = int(args.samples), args.peer_samples, args.rounds
-    results = bench(dims, n_samples, peer_samples, rounds)
+    clock = time.process_time if args.clock == "cpu" else time.perf_counter
+    results = bench(dims, n_samples, peer_samples, rounds, clock=clock)
     print()
     print("time per sample as a ratio to the hand-written compiled loop (< 1: faster);")
     print("the second column is the loop's own time per sample")

@@ -847,10 +847,10 @@ the self-tuning regulator re-identifies the gain within a few reference steps an
 designed closed-loop behaviour. Three practical points are visible: the loop needs excitation
 to identify (the dither and the reference steps; the regulator's excitation monitor warns when
 they are missing); the forgetting factor sets how fast the estimate, and with it the
-controller, can follow the plant ([notebook 2](02_tracking.ipynb)); and with measurement noise (not the equation
-error the ARX model assumes) the individual coefficients are biased, while the static gain, which
-the control relies on most, is estimated well ([notebook 3](03_validation.ipynb) shows how the residual tests reveal
-such coloured noise)."""),
+controller, can follow the plant ([notebook 2](02_tracking.ipynb)); and with measurement noise
+(not the equation error the ARX model assumes) the individual coefficients are biased, while the
+static gain, which the control relies on most, is estimated well ([notebook 3](03_validation.ipynb)
+shows how the residual tests reveal such coloured noise)."""),
 ]
 
 # ----------------------------------------------------------------------

@@ -19,7 +19,7 @@ from .exceptions import (
     OperatingPointWarning,
     OrderSelectionWarning,
 )
-from .filters import RecursiveLeastSquares, SlidingWindowRLS, SquareRootRLS
+from .filters import RecursiveLeastSquares, RLSBank, SlidingWindowRLS, SquareRootRLS
 from .models import (
     AR,
     ARMA,
@@ -27,6 +27,7 @@ from .models import (
     ARX,
     BJ,
     OE,
+    ARXBank,
     RecursiveAR,
     RecursiveARMA,
     RecursiveARMAX,
@@ -34,6 +35,7 @@ from .models import (
     RecursiveBJ,
     RecursiveIV,
     RecursiveOE,
+    fit_many,
 )
 from .persistence import load_model, save_model
 from .validation import delayest, fit_percent, select_order, select_structure, validate
@@ -42,6 +44,7 @@ __all__ = [
     "RecursiveLeastSquares",
     "SlidingWindowRLS",
     "SquareRootRLS",
+    "RLSBank",
     "ARX",
     "ARMAX",
     "OE",
@@ -65,6 +68,8 @@ __all__ = [
     "load_model",
     "adaptive",
     "data",
+    "ARXBank",
+    "fit_many",
     "datasets",
     "validation",
     "validate",

@@ -7,8 +7,9 @@ Two commands:
     batch start followed by RLS updates) and in batch, validate the model
     and compare it with the true plant through python-control.
 ``rlsfilt identify FILE.csv --input U --output Y``
-    Identify an ARX model from a CSV file with a header row and print the
-    same report, or a JSON result with ``--json``. Measured records are
+    Identify an ARX model (or with ``--model armax|oe|bj`` a model of the
+    prediction-error family) from a CSV file with a header row and print
+    the same report, or a JSON result with ``--json``. Measured records are
     handled as such: the means are removed by default (``--detrend``) and
     the model predicts in the units of the data, several experiments can
     share a file (``--experiment-column``), the model can be validated on
@@ -70,7 +71,8 @@ from .exceptions import (
     OperatingPointWarning,
     OrderSelectionWarning,
 )
-from .models import ARX, arx_structure
+from .models import ARMAX, ARX, BJ, OE, arx_structure
+from .models._family import family_structure
 from .validation import delayest, select_order, validate
 
 __all__ = ["main"]
@@ -89,6 +91,14 @@ _DELAY_SEARCH = 20       # largest delay delayest tries for --select-order witho
 #: the demo's records: the textbook plants and a measured-like record (operating point,
 #: dead time, colored disturbance, two runs)
 _DEMO_PLANTS = {**PLANTS, "heat_exchanger": heat_exchanger}
+#: the methods of each --model (the first is the default), and the orders each one takes
+_METHODS = {"arx": ("ls", "rls", "iv", "riv"), "armax": ("pem", "rpem", "rplr"),
+            "oe": ("pem", "rpem", "rplr"), "bj": ("pem", "rpem", "rplr")}
+_ORDERS = {"arx": ("na",), "armax": ("na", "nc"), "oe": ("nf",), "bj": ("nc", "nd", "nf")}
+_FAMILY = {"armax": ARMAX, "oe": OE, "bj": BJ}
+#: methods that take --lam (a forgetting factor) and --forgetting (a forgetting scheme)
+_LAM_METHODS = ("rls", "riv", "rpem", "rplr")
+_FORGETTING_METHODS = ("rls", "rpem", "rplr")
 
 
 class CLIError(Exception):
@@ -301,27 +311,45 @@ def _build_parser():
     demo.set_defaults(run=_run_demo)
 
     ident = sub.add_parser(
-        "identify", help="identify an ARX model from a CSV file",
+        "identify", help="identify an ARX (or ARMAX, OE, BJ) model from a CSV file",
         description="Identify the ARX model y(t) + a1 y(t-1) + ... + a_na y(t-na) = "
                     "b1 u(t-nk) + ... + b_nb u(t-nk-nb+1) + e(t) (MATLAB's [na nb nk]) "
-                    "from a CSV file with a header row.")
+                    "from a CSV file with a header row; --model armax, oe or bj fits "
+                    "A y = B u + C e, y = B/F u + e or y = B/F u + C/D e by prediction error "
+                    "(MATLAB's armax, oe, bj).")
     ident.add_argument("file", metavar="FILE.csv", help="CSV file with a header row")
     ident.add_argument("--input", "-u", action="append", required=True, metavar="COL",
                        dest="inputs", help="input column (repeat for several inputs)")
     ident.add_argument("--output", "-y", required=True, metavar="COL", help="output column")
-    ident.add_argument("--na", type=_nonnegative_int, default=2,
-                       help="number of poles, A(q) order (default: 2)")
+    ident.add_argument("--model", choices=tuple(_METHODS), default="arx",
+                       help="model structure: arx (least squares), armax, oe or bj (prediction "
+                            "error; the orders --nc, --nd, --nf) (default: arx)")
+    ident.add_argument("--na", type=_nonnegative_int, default=None,
+                       help="number of poles, A(q) order, for arx and armax (default: 2)")
+    ident.add_argument("--nc", type=_nonnegative_int, default=None,
+                       help="C(q) order, noise numerator, for armax and bj (default: 1)")
+    ident.add_argument("--nd", type=_nonnegative_int, default=None,
+                       help="D(q) order, noise denominator, for bj (default: 1)")
+    ident.add_argument("--nf", type=_int_list(0), default=None, metavar="NF[,NF...]",
+                       help="F(q) order, one value or one per input, for oe and bj "
+                            "(default: 2)")
     ident.add_argument("--nb", type=_int_list(1), default=[2], metavar="NB[,NB...]",
                        help="number of B coefficients, one value or one per input (default: 2)")
     ident.add_argument("--nk", type=_int_list(0), default=None, metavar="NK[,NK...]",
                        help="input delay in samples, one value or one per input (default: 1; "
                             "searched by --select-order unless given)")
-    ident.add_argument("--method", choices=("ls", "rls"), default="ls",
-                       help="batch least squares or recursive least squares (default: ls)")
+    ident.add_argument("--method", choices=("ls", "rls", "iv", "riv", "pem", "rpem", "rplr"),
+                       default=None,
+                       help="arx: batch or recursive least squares (ls, rls) or instrumental "
+                            "variables (iv, riv); armax, oe, bj: batch or recursive prediction "
+                            "error (pem, rpem) or pseudo-linear regression (rplr) (default: ls "
+                            "for arx, pem for the others)")
     ident.add_argument("--lam", type=_lam, default=1.0,
-                       help="forgetting factor in (0, 1] for --method rls (default: 1)")
+                       help="forgetting factor in (0, 1] for --method rls, riv, rpem or rplr "
+                            "(default: 1)")
     ident.add_argument("--forgetting", choices=_FORGETTING_MODES, default="exponential",
-                       help="forgetting scheme for --method rls (default: exponential)")
+                       help="forgetting scheme for --method rls, rpem or rplr (default: "
+                            "exponential)")
     timing = ident.add_mutually_exclusive_group()
     timing.add_argument("--dt", type=_positive_float, default=None,
                         help="sample time in seconds (default: 1, or from --time)")
@@ -342,7 +370,8 @@ def _build_parser():
                        help="estimate on the first FRACTION of each experiment, validate on "
                             "the rest (e.g. 0.7)")
     ident.add_argument("--select-order", action="store_true",
-                       help="choose na, nb (and nk unless given) by BIC, up to --max-order")
+                       help="choose na, nb (and nk unless given) by BIC, up to --max-order "
+                            "(--model arx)")
     ident.add_argument("--max-order", type=_positive_int, default=4, metavar="N",
                        help="largest na and nb tried by --select-order (default: 4)")
     ident.add_argument("--delay-range", type=_delay_range, default=None, metavar="LO:HI",
@@ -356,6 +385,8 @@ def _build_parser():
                        help="also write the JSON result to this file")
     _add_output_options(ident)
     ident.set_defaults(run=_run_identify)
+    from . import _cli_fleet  # identify-many: one ARX model per channel
+    _cli_fleet.add_parser(sub)
     return parser
 
 
@@ -390,14 +421,21 @@ def _run_identify(args):
         est, val, where = data, None, "the estimation data"
     progress.done()
     n_in = len(args.inputs)
-    na = args.na
+    na = 2 if args.na is None else args.na
     nb = _per_input(args.nb, n_in, "--nb")
     nk = _per_input(args.nk if args.nk is not None else [1], n_in, "--nk")
     offset = _DETREND[args.detrend]
-    lines = [_describe(args.file, data), _detrend_line(args.detrend, est)]
+    family = args.model != "arx"
+    lines = [_describe(args.file, data), _detrend_line(args.detrend, est, family)]
     if args.detrend == "linear":   # each record about its own line; the model about zero
         est = detrend(est, "linear")[0]
         val = None if val is None else detrend(val, "linear")[0]
+    elif family and args.detrend == "constant":
+        # the family has no operating-point option: the estimation means are removed
+        # from both records, and the model describes the deviations
+        u_op, y_op = (np.vstack(x).mean(axis=0) for x in zip(*est.arrays()))
+        est = _minus(est, u_op, y_op)
+        val = None if val is None else _minus(val, u_op, y_op)
     metadata = {"source": args.file, "inputs": list(args.inputs), "output": args.output,
                 "detrend": args.detrend, "experiments": list(data.experiment_names),
                 "experiment_lengths": list(data.lengths), "validated_on": where}
@@ -420,14 +458,29 @@ def _run_identify(args):
         nb, nk = [nb_best] * n_in, [nk_best] * n_in
         metadata["order_selection"] = selection.to_dict()
         lines += ["", selection.summary()]
-    _check_rows(max(est.lengths), na, nb, nk, f"'{args.file}'")
-    model = ARX(na, nb[0] if n_in == 1 else nb, nk[0] if n_in == 1 else nk, dt=est.dt,
-                offset=offset)
-    options = {"lam": args.lam, "forgetting": args.forgetting} if args.method == "rls" else {}
-    task = (f"recursive least squares over {est.n_samples} samples" if args.method == "rls"
-            else f"least squares on {est.n_samples} samples")
-    with progress.task(task):
-        model.fit(est, method=args.method, **options)
+    if family:
+        model, orders = _family_model(args, na, nb, nk, n_in, est.dt)
+        s = family_structure(n_inputs=n_in, **orders)
+        _check_rows(max(est.lengths), s, orders, f"'{args.file}'")
+    else:
+        _check_rows(max(est.lengths), arx_structure(na, nb, nk, n_in, 1),
+                    {"na": na, "nb": nb, "nk": nk}, f"'{args.file}'")
+        model = ARX(na, nb[0] if n_in == 1 else nb, nk[0] if n_in == 1 else nk, dt=est.dt,
+                    offset=offset)
+    options = {}
+    if args.method in _LAM_METHODS:
+        options["lam"] = args.lam
+    if args.method in _FORGETTING_METHODS:
+        options["forgetting"] = args.forgetting
+    task = {"ls": "least squares", "rls": "recursive least squares",
+            "iv": "instrumental variables", "riv": "recursive instrumental variables",
+            "pem": "prediction-error minimization", "rpem": "recursive prediction error",
+            "rplr": "recursive pseudo-linear regression"}[args.method]
+    with progress.task(f"{task} on {est.n_samples} samples"):
+        try:
+            model.fit(est, method=args.method, **options)
+        except ValueError as exc:    # e.g. an input that is not exciting for these orders
+            raise CLIError(f"{type(model).__name__}: {exc}") from None
     if args.save_model:
         try:
             model.save(args.save_model)
@@ -435,12 +488,23 @@ def _run_identify(args):
             raise CLIError(f"cannot write '{args.save_model}': {exc.strerror}") from None
         metadata["model_file"] = args.save_model
     report = _validate(model, val if val is not None else est, None,
-                       args.lam if args.method == "rls" else 1.0, metadata, progress)
+                       args.lam if args.method in _LAM_METHODS else 1.0, metadata, progress)
     after = [f"\nmodel saved to {args.save_model}"] if args.save_model else []
     return _emit(report, args, lines + [""], after)
 
 
 def _check_identify_options(args):
+    methods = _METHODS[args.model]
+    if args.method is None:
+        args.method = methods[0]
+    elif args.method not in methods:
+        raise CLIError(f"--method {args.method} does not apply to --model {args.model}; its "
+                       f"methods are {', '.join(methods)}")
+    for name in ("na", "nc", "nd", "nf"):
+        if getattr(args, name) is not None and name not in _ORDERS[args.model]:
+            takes = [m for m, orders in _ORDERS.items() if name in orders]
+            raise CLIError(f"--{name} does not apply to --model {args.model} (it is an order "
+                           f"of --model {' and '.join(takes)})")
     for col in args.inputs:
         if col == args.output:
             raise CLIError(f"column '{col}' is given as both --input and --output")
@@ -451,10 +515,16 @@ def _check_identify_options(args):
             args.experiment_column in list(args.inputs) + [args.output, args.time]:
         raise CLIError(f"column '{args.experiment_column}' is given as --experiment-column "
                        "and as a signal")
-    if args.lam != 1.0 and args.method != "rls":   # batch least squares has no forgetting
-        raise CLIError(f"--lam {args.lam:g} needs --method rls")
-    if args.forgetting != "exponential" and args.method != "rls":
-        raise CLIError(f"--forgetting {args.forgetting} needs --method rls")
+    recursive = [m for m in methods if m in _LAM_METHODS]
+    if args.lam != 1.0 and args.method not in _LAM_METHODS:   # batch fits have no forgetting
+        raise CLIError(f"--lam {args.lam:g} needs --method {' or '.join(recursive)}")
+    if args.forgetting != "exponential" and args.method not in _FORGETTING_METHODS:
+        with_scheme = [m for m in methods if m in _FORGETTING_METHODS]
+        raise CLIError(f"--forgetting {args.forgetting} needs --method "
+                       f"{' or '.join(with_scheme)}")
+    if args.select_order and args.model != "arx":
+        raise CLIError(f"--select-order searches ARX orders; give the orders of --model "
+                       f"{args.model} (or rank structures with rlsfilt.select_structure)")
     if args.forgetting == "constant_trace" and args.lam == 1.0:
         raise CLIError("--forgetting constant_trace needs --lam < 1 (it holds trace(P) at "
                        "n_params * (1 - lam))")
@@ -514,7 +584,7 @@ def _describe(path, data):
     return f"data: '{path}', {data.n_samples} samples{exps}, sample time {dt}"
 
 
-def _detrend_line(mode, data):
+def _detrend_line(mode, data, family=False):
     if mode == "none":
         return "detrend: none (the data are used as they are)"
     if mode == "linear":
@@ -524,8 +594,33 @@ def _detrend_line(mode, data):
     means = np.vstack([np.hstack(r) for r in records]).mean(axis=0)
     names = list(data.input_names) + list(data.output_names)
     shown = ", ".join(f"{n} = {m:.6g}" for n, m in zip(names, means))
+    if family:
+        return (f"detrend: constant (means removed: {shown}, from the validation data too; "
+                "the model describes the deviations)")
     return (f"detrend: constant (means removed: {shown}; the model keeps them and predicts in "
             "the units of the data)")
+
+
+def _minus(data, u_op, y_op):
+    """`data` (IOData) with the operating point ``(u_op, y_op)`` subtracted."""
+    U, Y = zip(*data.arrays())
+    return IOData([X - u_op for X in U], [X - y_op for X in Y], data.dt,
+                  input_names=data.input_names, output_names=data.output_names,
+                  input_units=data.input_units, output_units=data.output_units,
+                  experiment_names=data.experiment_names, tstart=data.tstart)
+
+
+def _family_model(args, na, nb, nk, n_in, dt):
+    """The ARMAX/OE/BJ model of the options and its orders (``nb``, ``nf``, ``nk`` per input)."""
+    nf = _per_input(args.nf if args.nf is not None else [2], n_in, "--nf")
+    nc = 1 if args.nc is None else args.nc
+    nd = 1 if args.nd is None else args.nd
+    one = n_in == 1
+    orders = {"armax": {"na": na, "nb": nb, "nc": nc, "nk": nk},
+              "oe": {"nb": nb, "nf": nf, "nk": nk},
+              "bj": {"nb": nb, "nc": nc, "nd": nd, "nf": nf, "nk": nk}}[args.model]
+    given = {k: (v[0] if one and isinstance(v, list) else v) for k, v in orders.items()}
+    return _FAMILY[args.model](**given, dt=dt), orders
 
 
 def _delay_search(data, args, progress):
@@ -566,7 +661,8 @@ def _run_demo(args):
         est, val = ds.getexp(list(range(ds.n_experiments - 1))), ds.getexp(-1)
     else:
         est, val = ds, None
-    _check_rows(min(est.lengths), ds.na, [ds.nb], [ds.nk], "the simulated record")
+    _check_rows(min(est.lengths), arx_structure(ds.na, [ds.nb], [ds.nk]),
+                {"na": ds.na, "nb": [ds.nb], "nk": [ds.nk]}, "the simulated record")
     offset = "mean" if (ds.u0, ds.y0) != (0.0, 0.0) else False
     progress = _Progress(enabled=not args.quiet)
     with progress.task(f"recursive least squares over {est.n_samples} samples"):
@@ -776,14 +872,15 @@ def _per_input(values, n_in, option):
     return list(values)
 
 
-def _check_rows(n_rows, na, nb, nk, source):
-    """At least one equation more than parameters, so that the noise variance exists."""
-    s = arx_structure(na, nb, nk, len(nb), 1)
+def _check_rows(n_rows, s, orders, source):
+    """At least one equation more than parameters, so that the noise variance exists
+    (`s` the structure, with ``n_params`` and ``max_lag``; `orders` as given)."""
     d, lag = s.n_params, s.max_lag
     need = lag + d + 1
     if n_rows < need:
-        orders = f"na={na}, nb={_fmt_list(nb)}, nk={_fmt_list(nk)}"
-        raise CLIError(f"too few rows for the orders {orders} ({d} parameters, largest lag "
+        text = ", ".join(f"{k}={_fmt_list(v) if isinstance(v, list) else v}"
+                         for k, v in orders.items())
+        raise CLIError(f"too few rows for the orders {text} ({d} parameters, largest lag "
                        f"{lag}): need at least {need} data rows; {source} has {n_rows}")
 
 

@@ -3,8 +3,8 @@
 The result objects' ``plot`` methods (``ValidationReport.plot``,
 ``ResidualAnalysis.plot``, ``PlantComparison.plot``, ``FrequencyBand.plot``,
 ``OrderSelection.plot``, ``CusumResult.plot``, ``STRHistory.plot``) are
-one-line calls into the functions of this module, so the report, the notebooks, the documentation and
-the command line draw the same figures.
+one-line calls into the functions of this module, so the report, the notebooks,
+the documentation and the command line draw the same figures.
 
 The tracking functions accept what the filters and models produce:
 
@@ -398,7 +398,10 @@ def plot_comparison(report, ax=None, *, window=None, ax_overview=None, output=0,
     # model is good it shows on both sides of them instead of disappearing underneath
     ax.plot(*_broken(t, y, a, b, inside), color=_BLACK, lw=3.2, alpha=0.8,
             solid_capstyle="butt", label=f"measured {output_name}")
-    if getattr(report, "is_unstable", False):
+    time_series = getattr(report, "is_time_series", False)
+    if time_series:     # AR, ARMA: no input, nothing to simulate
+        ax.plot([], [], color=COLORS[0], lw=1.2, label="no simulation (time series: no input)")
+    elif getattr(report, "is_unstable", False):
         # a diverging simulation would set the scale and its "fit" means nothing: say so
         ax.plot([], [], color=COLORS[0], lw=1.2, label=f"simulated: {report.stability}")
     else:
@@ -422,7 +425,7 @@ def plot_comparison(report, ax=None, *, window=None, ax_overview=None, output=0,
         # per-bin extremes: a long record reads as its envelope, a single outlier stays visible
         ax_overview.plot(*_broken(t, y, 0, N, seams), color=_GREY, lw=0.7,
                          label=f"measured {output_name}")
-        if not getattr(report, "is_unstable", False):
+        if not (getattr(report, "is_unstable", False) or time_series):
             # around an operating point the error (near 0) and the output (near its mean)
             # would squash each other to two flat lines: draw the error around the mean
             level, spread = float(np.mean(y)), float(np.std(y))
@@ -539,6 +542,12 @@ def plot_cross_correlation(analysis, ax=None):
     ax = _axes(ax)
     xc = np.asarray(analysis.cross_correlation, dtype=float)
     nu = xc.shape[0]
+    if nu == 0:         # a time series (AR, ARMA): no input to correlate with
+        ax.text(0.5, 0.5, "no input (time series):\nno cross-correlation, no independence test",
+                ha="center", va="center", transform=ax.transAxes)
+        ax.set_title("Input cross-correlation: not applicable", fontsize="medium")
+        ax.set_axis_off()
+        return ax
     pct = f"{100 * (1 - analysis.alpha):g}%"
     bands = np.atleast_1d(analysis.cross_correlation_band)
     for j in range(nu):
@@ -1013,6 +1022,8 @@ def plot_report(report, fig=None, *, window=None, output_name=None, output_unit=
         plot_bode(band, ax_mag, ax_phase)
         ax_mag.set_xlabel(ax_phase.get_xlabel())   # side by side: both need the frequency
         ax_phase.set_title("phase")
+        if getattr(report, "is_time_series", False):     # the Bode of H = C/(A D)
+            ax_mag.set_title("noise model C/(A D) (time series: no input)")
     _label_gain(report, ax_mag)
     return fig
 
@@ -1036,7 +1047,7 @@ def _label_gain(report, ax_mag):
 # adaptive control
 # ----------------------------------------------------------------------
 def plot_str_history(history, fig=None, *, true_theta=None):
-    r"""A self-tuning regulator's run: reference and output, control, estimates, :math:`\mathrm{tr}\,P`.
+    r"""A self-tuning regulator's run: output and reference, control, estimates, trace of P.
 
     Four stacked axes sharing the time axis. Steps where a due redesign
     was rejected (the last controller kept) are marked on the control.

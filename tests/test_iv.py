@@ -278,8 +278,9 @@ def test_streaming_riv_errors(rng):
         est.step(1.0, 0.0, z=[1, 2, 3])
     with pytest.raises(ValueError, match="`z` only applies to instruments='given'"):
         RecursiveIV(1, 1).step(1.0, 0.0, z=[1, 2])
-    with pytest.raises(ValueError, match="`instruments` must be 'model' or 'given'"):
-        RecursiveIV(1, 1, instruments="delayed")
+    with pytest.raises(ValueError, match="`instruments` must be 'model', 'delayed' or 'given'; "
+                                         "got 'lagged'"):
+        RecursiveIV(1, 1, instruments="lagged")
     with pytest.raises(ValueError, match="`u` must have 1 entries"):
         RecursiveIV(1, 1).step(1.0, [0.0, 1.0])
     assert est.n_steps == 0

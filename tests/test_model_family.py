@@ -354,13 +354,22 @@ def test_summary_shows_the_polynomials(rng):
 
 def test_unexciting_data_does_not_break_the_recursion():
     """Constant input and output: the estimate is not determined, but the recursion (and its
-    projection of C into the stability region) runs without error and stays finite."""
+    projection of C into the stability region) runs without error and stays finite; the
+    health check (as RecursiveLeastSquares') says once that P lost its conditioning."""
     est = RecursiveARMAX(1, 1, 1, 1)
-    for _ in range(3000):
-        est.step(0.1, 0.2)
+    with pytest.warns(NumericalWarning, match=r"rpem: `P` is ill-conditioned \(condition "
+                                              r"number .* > 1e\+12\) after sample \d+00\. "
+                                              r"Lower P0"):
+        for _ in range(3000):
+            est.step(0.1, 0.2)
     assert np.isfinite(est.theta).all() and np.isfinite(est.P).all()
-    m = ARMAX(1, 1, 1).fit(np.full(500, 0.2), np.full(500, 0.1), method="rpem")
+    m = ARMAX(1, 1, 1).fit(np.full(500, 0.2), np.full(500, 0.1), method="rpem",
+                           check_every=0)      # the check off
     assert np.isfinite(m.theta_).all()
+    with pytest.warns(NumericalWarning, match="ill-conditioned"):
+        ARMAX(1, 1, 1).fit(np.full(500, 0.2), np.full(500, 0.1), method="rpem", cond_max=10.0)
+    with pytest.raises(ValueError, match="`check_every` must be"):
+        RecursiveARMAX(1, 1, 1, check_every=-1)
 
 
 @pytest.mark.parametrize("make", [lambda: AR(2, dt=0.5), lambda: ARMA(1, 1),
@@ -424,5 +433,7 @@ def test_save_load_and_iodata(rng, tmp_path):
     np.testing.assert_array_equal(named.theta_, oe.theta_)
     assert named.param_names_[0] == "b1[flow]"
     np.testing.assert_array_equal(named.predict(io), oe.predict(U, y))
-    with pytest.raises(ValueError, match="must hold one experiment"):
-        OE(1, 1).fit(IOData(u=[U[:700, 0], U[700:, 0]], y=[y[:700], y[700:]]))
+    # several experiments: one criterion summed over them (tests/test_family_experiments.py)
+    two_io = IOData(u=[U[:700, 0], U[700:, 0]], y=[y[:700], y[700:]])
+    two = OE(1, 1).fit(two_io)
+    assert two.n_experiments_ == 2 and len(two.predict(two_io)) == 2

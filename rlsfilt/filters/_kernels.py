@@ -23,8 +23,8 @@ One step, for every forgetting mode (the codes of
 ``batch_filter`` runs ``time_update`` and ``measurement_update`` once per
 sample (`step_batch`), and the streaming ``predict_kernel`` and
 ``update_kernel`` run the same two: streaming and batch agree bit for bit.
-The default configuration with one output and no covariance histories (ARX
-fits, long records) runs `exponential_batch` instead: one sweep over ``P``
+The default configuration with one output (ARX fits, long records) runs
+`exponential_batch` instead: one sweep over ``P``
 per sample applies the update, the next time update and the next gain
 together (reading and writing ``P`` once). Its arithmetic is, element by
 element, that of the two steps (the same products summed in the same
@@ -410,41 +410,58 @@ def _sweep(P, g, c, update, il, Q, predict, phin, gn):
                 P[i, j] = v
                 gn[j] += v * hi
     else:
-        for i in range(n):
-            gi = g[i]
-            hi = phin[i]
-            for j in range(n):
-                v = P[i, j]
-                if update:
-                    v = v - (gi * g[j]) * c
-                if predict:
-                    v = v * il
-                    if Q.shape[0]:
-                        v = v + Q[i, j]
-                P[i, j] = v
-                gn[j] += v * hi
+        none = P.reshape((1, n, n))                  # no histories to write
+        _sweep_store(P, g, c, update, il, Q, predict, phin, gn, none, -1, none, -1)
+
+
+@njit(cache=True, inline="always")
+def _sweep_store(P, g, c, update, il, Q, predict, phin, gn, covs, k_post, covs_p, k_prior):
+    """`_sweep` that also writes ``P`` after the update half to ``covs[k_post]`` and
+    after the predict half to ``covs_p[k_prior]`` (not for an index of -1)."""
+    n = P.shape[0]
+    for j in range(n):
+        gn[j] = 0.0
+    for i in range(n):
+        gi = g[i]
+        hi = phin[i]
+        for j in range(n):
+            v = P[i, j]
+            if update:
+                v = v - (gi * g[j]) * c
+            if k_post >= 0:
+                covs[k_post, i, j] = v
+            if predict:
+                v = v * il
+                if Q.shape[0]:
+                    v = v + Q[i, j]
+            if k_prior >= 0:
+                covs_p[k_prior, i, j] = v
+            P[i, j] = v
+            gn[j] += v * hi
 
 
 @njit(cache=True)
-def exponential_batch(x, P, Z, Hm, Rv, il, Q, update_first, means, ys, ss,
+def exponential_batch(x, P, Z, Hm, Rv, il, Q, update_first, means, covs, covs_p, ys, ss,
                       x_prior, P_prior, x_post, P_post, K, check_every, step0, cond_max, P_fail):
     """`step_batch` of the default configuration with one output, fused (see the module).
 
-    Exponential forgetting, no gate, no constraints, ``m = 1``, no
-    covariance histories: ``ys`` and ``ss`` have length 1 (the last step).
-    Arguments and returns otherwise as `step_batch` (``means_p`` is
-    ``means`` shifted by one step; the caller builds it).
+    Exponential forgetting, no gate, no constraints, ``m = 1``; ``ys`` and
+    ``ss`` have length 1 (the last step). Arguments and returns otherwise as
+    `step_batch` (``means_p`` is ``means`` shifted by one step; the caller
+    builds it).
     """
     N = Z.shape[0]
     n = x.shape[0]
     r_each = Rv.shape[0] == N
+    store = covs.shape[0] > 0
     predict = not (il == 1.0 and Q.shape[0] == 0)    # otherwise the time update is the identity
     th = x[:, 0]
     g = np.empty(n)
     gn = np.empty(n)
     k_fail = -1
     countdown = check_every - step0 % check_every if check_every > 0 else -1
-    _sweep(P, g, 0.0, False, il, Q, predict and not update_first, Hm[0], gn)   # P^-, g
+    _sweep_store(P, g, 0.0, False, il, Q, predict and not update_first, Hm[0], gn,  # P^-, g
+                 covs, -1, covs_p, 0 if store and not update_first else -1)
     g, gn = gn, g
     if not update_first and N == 1:
         copy2(x, x_prior)
@@ -480,7 +497,8 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, update_first, means, ys, ss,
             countdown = check_every
         last = k == N - 1
         if check or last:              # unfused, to look at P between the two halves
-            _sweep(P, g, c, update, il, Q, False, h, gn)
+            _sweep_store(P, g, c, update, il, Q, False, h, gn, covs, k if store else -1, covs_p,
+                         -1)
             if last:
                 copy2(x, x_post)
                 copy2(P, P_post)
@@ -488,10 +506,15 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, update_first, means, ys, ss,
                 k_fail = k
                 copy2(P, P_fail)
             if not last or update_first:
-                _sweep(P, g, c, False, il, Q, predict, Hm[min(k + 1, N - 1)], gn)
+                kp = (k if update_first else k + 1) if store else -1
+                _sweep_store(P, g, c, False, il, Q, predict, Hm[min(k + 1, N - 1)], gn,
+                             covs, -1, covs_p, kp)
             if check and update_first and unhealthy(P, cond_max):
                 k_fail = k
                 copy2(P, P_fail)
+        elif store:                    # with the histories of P after each half
+            _sweep_store(P, g, c, update, il, Q, predict, Hm[k + 1], gn, covs, k, covs_p,
+                         k if update_first else k + 1)
         else:
             _sweep(P, g, c, update, il, Q, predict, Hm[k + 1], gn)
         g, gn = gn, g
@@ -515,8 +538,8 @@ def run_batch(x, P, Z, Hm, Rv, cfg, Q, basis, update_first, store_covariances,
 
     `cfg` is ``forgetting.kernel_config``; `Q` None when absent; `basis`
     the null-space basis of the constraints (None without). Chooses
-    `exponential_batch` for the default configuration with one output and
-    no covariance histories, `step_batch` otherwise. Returns a
+    `exponential_batch` for the default configuration with one output,
+    `step_batch` otherwise. Returns a
     `BatchResult` (``ys``, ``ss``, ``gated`` hold the last step only after
     `exponential_batch`).
     """
@@ -538,24 +561,24 @@ def run_batch(x, P, Z, Hm, Rv, cfg, Q, basis, update_first, store_covariances,
     out.means = np.empty((N, n, m))
     K = np.zeros(n)
     out.P_fail = np.empty((n, n))
-    fused = (mode == EXPONENTIAL and gate == np.inf and len(cfg) == CFG_PI and m == 1
-             and not store_covariances and N > 0)
+    fused = mode == EXPONENTIAL and gate == np.inf and len(cfg) == CFG_PI and m == 1 and N > 0
+    covs = np.empty((N if store_covariances else 0, n, n))
+    covs_p = np.empty((N if store_covariances else 0, n, n))
+    out.covariances = covs if store_covariances else None
+    out.covariances_p = covs_p if store_covariances else None
     if fused:
         out.ys, out.ss = np.empty((1, 1)), np.empty(1)
         out.s_last, out.k_fail = exponential_batch(
-            out.x, out.P, Zc, Hc, Rv, il, Qa, bool(update_first), out.means, out.ys, out.ss,
-            out.x_prior, out.P_prior, out.x_post, out.P_post, K,
+            out.x, out.P, Zc, Hc, Rv, il, Qa, bool(update_first), out.means, covs, covs_p,
+            out.ys, out.ss, out.x_prior, out.P_prior, out.x_post, out.P_post, K,
             int(check_every), int(step0), float(cond_max), out.P_fail)
         out.gated = np.zeros(1, dtype=np.bool_)
         out.lam_t_last = lam
-        out.covariances = out.covariances_p = None
         out.means_p = out.means.copy() if update_first else np.empty((N, n, m))
         if not update_first:                         # the estimate is unchanged by a predict
             out.means_p[0] = x
             out.means_p[1:] = out.means[:-1]
     else:
-        covs = np.empty((N if store_covariances else 0, n, n))
-        covs_p = np.empty((N if store_covariances else 0, n, n))
         out.means_p = np.empty((N, n, m))
         out.ys, out.ss = np.empty((N, m)), np.empty(N)
         out.gated = np.zeros(N, dtype=np.bool_)
@@ -564,8 +587,6 @@ def run_batch(x, P, Z, Hm, Rv, cfg, Q, basis, update_first, store_covariances,
             out.means, out.means_p, covs, covs_p, out.ys, out.ss, out.gated,
             out.x_prior, out.P_prior, out.x_post, out.P_post, K,
             int(check_every), int(step0), float(cond_max), out.P_fail)
-        out.covariances = covs if store_covariances else None
-        out.covariances_p = covs_p if store_covariances else None
     if N and np.isnan(Z[-1]).any():                   # the last sample was missing: no gain
         K[:] = 0.0
     out.K_last = K.reshape(n, 1)

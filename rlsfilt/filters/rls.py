@@ -575,9 +575,9 @@ class RecursiveLeastSquares(_FilterBase):
         The loop runs in compiled code (numba, cached on disk after the first
         call): the compiled steps that :meth:`predict` and :meth:`update` call,
         one pair per sample. With exponential forgetting (the default), one
-        output, no gate or constraints and ``store_covariances=False``, one
-        sweep over ``P`` per step applies the update, the next forgetting step
-        and the next gain together (the same numbers, bit for bit), so a step
+        output and no gate or constraints, one sweep over ``P`` per step
+        applies the update, the next forgetting step and the next gain
+        together (the same numbers, bit for bit), so a step
         costs about :math:`6\,n^2` floating-point operations for
         ``n = dim_x`` and the record is processed at tens of nanoseconds per
         sample for small ``n`` (see ``docs/performance.md``).

@@ -17,9 +17,6 @@ from ._streaming import c_array
 
 __all__ = ["SlidingWindowRLS"]
 
-_FLOATS = (float, np.float64)
-
-
 class SlidingWindowRLS(_FilterBase):
     r"""Recursive least squares over the last `window` samples (update + downdate).
 
@@ -224,10 +221,7 @@ class SlidingWindowRLS(_FilterBase):
         """
         phi = self._as_regressor(H, "H")
         r = self._R if R is None else check_variance(R, "R")
-        if type(z) in _FLOATS and self.dim_z == 1 and z - z == 0.0:   # a finite float
-            zc = np.array([[z]], dtype=np.float64)
-        else:
-            zc = self._as_measurement(z, "z")
+        zc = self._as_measurement(z, "z")
         n, m = self.dim_x, self.dim_z
         x = np.array(self._checked_x(), dtype=np.float64, order="C")
         P = np.array(self._checked_P(), dtype=np.float64, order="C")

@@ -20,9 +20,6 @@ from ._streaming import c_array
 
 __all__ = ["SquareRootRLS"]
 
-_FLOATS = (float, np.float64)
-
-
 class SquareRootRLS(_FilterBase):
     r"""QR recursive least squares: the information square root, updated by QR.
 
@@ -216,10 +213,7 @@ class SquareRootRLS(_FilterBase):
         :meth:`RecursiveLeastSquares.update`; missing `z` keeps the estimate)."""
         phi = self._as_regressor(H, "H")
         r = self._R if R is None else check_variance(R, "R")
-        if type(z) in _FLOATS and self.dim_z == 1 and z - z == 0.0:   # a finite float
-            zc = np.array([[z]], dtype=np.float64)
-        else:
-            zc = self._as_measurement(z, "z")
+        zc = self._as_measurement(z, "z")
         n, m = self.dim_x, self.dim_z
         U, d, x = c_array(self._U.copy()), c_array(self._d.copy()), c_array(self._x.copy())
         y, K = np.empty((m, 1)), np.empty((n, 1))

@@ -9,6 +9,7 @@ from .arma import ARMA
 from .armax import ARMAX
 from .arx import ARX, ARXSummary
 from .bj import BJ
+from .fleet import ARXBank, fit_many
 from .oe import OE
 from .recursive import (
     RecursiveAR,
@@ -25,4 +26,4 @@ __all__ = ["ARX", "ARXSummary", "ARXStructure", "IdentifiedModel", "ModelSummary
            "Polynomials", "arx_regressors", "arx_structure", "check_is_fitted",
            "ARMAX", "OE", "BJ", "AR", "ARMA",
            "RecursiveARMAX", "RecursiveOE", "RecursiveBJ", "RecursiveARX", "RecursiveAR",
-           "RecursiveARMA", "RecursiveIV"]
+           "RecursiveARMA", "RecursiveIV", "ARXBank", "fit_many"]

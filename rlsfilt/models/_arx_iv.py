@@ -1,13 +1,21 @@
-"""``ARX.fit(method="iv" | "riv")``: the instrumental-variable fits of an ARX model.
+r"""``ARX.fit(method="iv" | "riv")``: the instrumental-variable fits of an ARX model.
 
 The numerics are :mod:`rlsfilt.models._iv`; this module validates the
 options of the two methods and returns what `ARX.fit` stores.
+
+An intercept (``ARX(offset=True)``: :math:`A y = B u + c + e`) is one more
+input, the constant :math:`u_0(t) = 1` with ``nb = 1``, ``nk = 0``, placed
+last so that ``c`` is the last parameter: its regressor column is the
+column of ones of the least-squares fit, and the instruments get the same
+column (the constant is its own instrument; the auxiliary model of
+``"model"`` instruments simulates :math:`x = (\hat B u + \hat c)/\hat A`).
 """
 
 import numpy as np
 
 from .._validation import check_covariance, check_int, check_lam, check_variance
-from ._iv import covariance_per_output, fit_iv, recursive_iv
+from ._iv import covariance_per_output, fit_iv_records, recursive_iv_records
+from .regressors import arx_structure
 
 __all__ = []
 
@@ -24,8 +32,31 @@ def check_options(method, options):
                             f"options are {list(OPTIONS[method])}")
 
 
-def fit_arx_iv(U, Y, s, method, options, y_1d=True, stacklevel=4):
+def with_intercept(records, s):
+    """The records with a last input column of ones and the structure with that input
+    (``nb = 1``, ``nk = 0``): the intercept as an input."""
+    records = [(np.hstack([U, np.ones((len(U), 1))]), Y) for U, Y in records]
+    s1 = arx_structure(s.na, list(s.nb) + [1], list(s.nk) + [0], s.n_inputs + 1, s.n_outputs)
+    return records, s1
+
+
+def fit_arx_iv(records, s, method, options, y_1d=True, stacklevel=4, intercept=False):
     """Estimate an ARX structure by batch (``"iv"``) or recursive (``"riv"``) IV.
+
+    Parameters
+    ----------
+    records : list of (ndarray (N_i, nu), ndarray (N_i, ny))
+        The experiments (deviations from the operating point for
+        ``offset="mean"``).
+    s : ARXStructure
+    method : {"iv", "riv"}
+    options : dict
+        Of the method (see `OPTIONS`).
+    y_1d : bool
+        `y` was 1-D (the history drops its output axis).
+    intercept : bool
+        Estimate an intercept ``c`` (the last parameter; user-given
+        instruments get a column of ones appended).
 
     Returns
     -------
@@ -40,15 +71,30 @@ def fit_arx_iv(U, Y, s, method, options, y_1d=True, stacklevel=4):
         instrument rows used).
     """
     check_options(method, options)
-    n, ny = s.n_params, Y.shape[1]
+    ny = records[0][1].shape[1]
     instruments = options.get("instruments", "model" if ny == 1 else "delayed")
+    if intercept and not isinstance(instruments, str):
+        # the user's rows, then the constant as its own instrument
+        Z = np.asarray(instruments, dtype=float)
+        Z = Z[:, None] if Z.ndim == 1 else Z
+        N = sum(len(U) for U, _ in records)
+        if Z.ndim != 2 or len(Z) != N or Z.shape[1] < s.n_params:
+            per = " of every experiment, one after the other" if len(records) > 1 else ""
+            raise ValueError(
+                f"`instruments` must have shape (N, n_z) with N = {N} rows (one per "
+                f"sample{per}) and n_z >= n_params = {s.n_params} (a column of ones is "
+                f"appended for the intercept); got {np.shape(instruments)}")
+        instruments = np.hstack([Z, np.ones((N, 1))])
+    if intercept:
+        records, s = with_intercept(records, s)
+    n = s.n_params
     prefilter = options.get("prefilter")
     if prefilter is not None and not isinstance(prefilter, (bool, np.bool_)):
         raise TypeError(f"`prefilter` must be True or False; got {prefilter!r}")
     if method == "iv":
         n_iter = check_int(options.get("n_iter", 10), "n_iter", minimum=1)
-        fit = fit_iv(U, Y, s, instruments, prefilter=True if prefilter is None else prefilter,
-                     n_iter=n_iter)
+        fit = fit_iv_records(records, s, instruments,
+                             prefilter=True if prefilter is None else prefilter, n_iter=n_iter)
         cov = fit.cov if ny > 1 else fit.cov[None]
         return fit.theta, cov, {"instruments_": fit.Z}
     kw = {}
@@ -76,8 +122,8 @@ def fit_arx_iv(U, Y, s, method, options, y_1d=True, stacklevel=4):
                          f"k0={kw['k0']} rows sets both")
     if "refresh" in options:
         kw["refresh"] = check_int(options["refresh"], "refresh", minimum=0)
-    fit = recursive_iv(U, Y, s, instruments, prefilter=bool(prefilter), stacklevel=stacklevel,
-                       **kw)
+    fit = recursive_iv_records(records, s, instruments, prefilter=bool(prefilter),
+                               stacklevel=stacklevel, **kw)
     resid = fit.target - fit.Phi @ fit.theta
     cov, _ = covariance_per_output(fit.P, fit.Z, resid, n)
     cov = cov if ny > 1 else cov[None]

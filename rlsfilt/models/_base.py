@@ -96,8 +96,9 @@ def check_is_fitted(model, what, name="model"):
         raise TypeError(f"`{name}` must be a fitted ARX model or another rlsfilt model (an "
                         f"IdentifiedModel); got {type(model).__name__}")
     if "theta_" not in vars(model):
+        call = "fit(y)" if getattr(model, "_TIME_SERIES", False) else "fit(u, y)"
         raise NotFittedError(f"This {type(model).__name__} instance is not fitted yet; call "
-                             f"`fit(u, y)` before using `{what}`.")
+                             f"`{call}` before using `{what}`.")
 
 
 class IdentifiedModel(abc.ABC):

@@ -243,20 +243,59 @@ class IVFit:
         self.__dict__.update(kw)
 
 
+def _split_rows(Z, records, s, n_params, what="instruments"):
+    """User instrument rows: one array with a row per sample of every experiment (one
+    after the other), checked and split; rows ``max_lag ..`` of each experiment kept."""
+    Z = np.asarray(Z, dtype=float)
+    if Z.ndim == 1:
+        Z = Z[:, None]
+    N = sum(len(U) for U, _ in records)
+    if Z.ndim != 2 or len(Z) != N or Z.shape[1] < n_params:
+        per = " of every experiment, one after the other" if len(records) > 1 else ""
+        raise ValueError(
+            f"`{what}` must have shape (N, n_z) with N = {N} rows (one per sample{per}) and "
+            f"n_z >= n_params = {n_params}; got {Z.shape}")
+    if not np.isfinite(Z).all():
+        raise ValueError(f"`{what}` must be finite")
+    ends = np.cumsum([len(U) for U, _ in records])
+    return np.vstack([Zi[s.max_lag:] for Zi in np.split(Z, ends[:-1])])
+
+
+def _stacked_rows(records, s):
+    """ARX regressor rows and targets of every experiment (rows never straddle two)."""
+    return (np.vstack([_build(U, Y, s, s.max_lag) for U, Y in records]),
+            np.vstack([Y[s.max_lag:] for _, Y in records]))
+
+
 def fit_iv(U, Y, s, instruments="model", *, prefilter=True, n_iter=10, tol=1e-10,
            theta0=None):
-    """Batch instrumental-variable estimate of an ARX structure.
+    """Batch instrumental-variable estimate of an ARX structure (one record; see
+    `fit_iv_records` for several experiments)."""
+    return fit_iv_records([(U, Y)], s, instruments, prefilter=prefilter, n_iter=n_iter,
+                          tol=tol, theta0=theta0)
+
+
+def fit_iv_records(records, s, instruments="model", *, prefilter=True, n_iter=10, tol=1e-10,
+                   theta0=None):
+    r"""Batch instrumental-variable estimate of an ARX structure.
+
+    With several experiments the normal equations sum over them,
+    :math:`(\sum_i Z_i^T\Phi_i)^{-1}\sum_i Z_i^T Y_i`: the regressor and
+    instrument rows of each experiment are built from its own samples
+    (the auxiliary model of ``"model"`` is simulated and prefiltered from rest
+    in each experiment).
 
     Parameters
     ----------
-    U : ndarray, shape (N, nu)
-    Y : ndarray, shape (N, ny)
+    records : list of (ndarray (N_i, nu), ndarray (N_i, ny))
+        The experiments.
     s : ARXStructure
     instruments : {"model", "delayed"} or ndarray, default "model"
         ``"model"``: auxiliary-model instruments, iterated from the least
         squares estimate (single output); ``"delayed"``: delayed inputs;
         an array of shape ``(N, n_z)``, ``n_z >= n_params``: one instrument
-        row per sample (rows before ``max_lag`` are dropped).
+        row per sample (of every experiment, one after the other; rows
+        before each experiment's ``max_lag`` are dropped).
     prefilter : bool, default True
         ``"model"`` only: filter the signals by ``1/A_aux`` (SRIV).
     n_iter : int, default 10
@@ -277,27 +316,29 @@ def fit_iv(U, Y, s, instruments="model", *, prefilter=True, n_iter=10, tol=1e-10
     >>> import numpy as np
     >>> from scipy.signal import lfilter
     >>> from rlsfilt.models import arx_structure
-    >>> from rlsfilt.models._iv import fit_iv
+    >>> from rlsfilt.models._iv import fit_iv_records
     >>> rng = np.random.default_rng(2)
     >>> u, e = rng.standard_normal(50000), rng.standard_normal(50000)
     >>> y = lfilter([0, 1, 0.5], [1, -1.5, 0.7], u) + lfilter([1, -1, 0.2], [1, -1.5, 0.7], e)
-    >>> fit = fit_iv(u[:, None], y[:, None], arx_structure(2, 2, 1))
+    >>> fit = fit_iv_records([(u[:, None], y[:, None])], arx_structure(2, 2, 1))
     >>> np.round(fit.theta[:, 0], 1)
     array([-1.5,  0.7,  1. ,  0.5])
     """
-    rows_phi = _build(U, Y, s, s.max_lag)
-    target = Y[s.max_lag:]
+    rows_phi, target = _stacked_rows(records, s)
     n_iter_done = 0
+    ny = records[0][1].shape[1]
     if isinstance(instruments, str) and instruments == "model":
-        if Y.shape[1] != 1:
+        if ny != 1:
             raise ValueError("`instruments='model'` needs a single output; got "
-                             f"{Y.shape[1]} outputs (use instruments='delayed' or give Z)")
+                             f"{ny} outputs (use instruments='delayed' or give Z)")
         if theta0 is None:
             theta = np.linalg.lstsq(rows_phi, target[:, 0], rcond=None)[0]
         else:
             theta = np.asarray(theta0, dtype=float).reshape(-1)
         for n_iter_done in range(1, n_iter + 1):     # noqa: B007 (count kept)
-            Phi, Z, tgt = model_instruments(U, Y, theta, s, prefilter=prefilter)
+            parts = [model_instruments(U, Y, theta, s, prefilter=prefilter)
+                     for U, Y in records]
+            Phi, Z, tgt = (np.vstack([p[k] for p in parts]) for k in range(3))
             new, G, M = iv_solve(Z, Phi, tgt[:, 0])
             step = np.max(np.abs(new - theta)) / max(np.max(np.abs(new)), 1e-300)
             theta = new
@@ -309,18 +350,9 @@ def fit_iv(U, Y, s, instruments="model", *, prefilter=True, n_iter=10, tol=1e-10
             if instruments != "delayed":
                 raise ValueError("`instruments` must be 'model', 'delayed' or an array of "
                                  f"instrument rows; got {instruments!r}")
-            Z = delayed_input_instruments(U, s)
+            Z = np.vstack([delayed_input_instruments(U, s) for U, _ in records])
         else:
-            Z = np.asarray(instruments, dtype=float)
-            if Z.ndim == 1:
-                Z = Z[:, None]
-            if Z.ndim != 2 or len(Z) != len(U) or Z.shape[1] < s.n_params:
-                raise ValueError(
-                    f"`instruments` must have shape (N, n_z) with N = {len(U)} rows (one per "
-                    f"sample) and n_z >= n_params = {s.n_params}; got {Z.shape}")
-            if not np.isfinite(Z).all():
-                raise ValueError("`instruments` must be finite")
-            Z = Z[s.max_lag:]
+            Z = _split_rows(instruments, records, s, s.n_params)
         Phi, tgt = rows_phi, target
         theta, G, M = iv_solve(Z, Phi, tgt)
     resid = tgt - Phi @ theta
@@ -348,19 +380,32 @@ def covariance_per_output(G, Z, resid, n_params):
 # ----------------------------------------------------------------------
 # recursive IV
 # ----------------------------------------------------------------------
-def recursive_iv(U, Y, s, instruments="model", *, lam=1.0, Q=None, R=1.0, P0=None, x0=None,
-                 k0=None, refresh=None, prefilter=False, theta_aux=None, tol=1e-10,
-                 cond_max=1e12, compiled=True, stacklevel=2):
-    r"""Recursive instrumental variables over an ARX record.
+def recursive_iv(U, Y, s, instruments="model", **options):
+    """`recursive_iv_records` on one record ``U (N, nu)``, ``Y (N, ny)``."""
+    options.setdefault("stacklevel", 2)
+    options["stacklevel"] += 1
+    return recursive_iv_records([(U, Y)], s, instruments, **options)
+
+
+def recursive_iv_records(records, s, instruments="model", *, lam=1.0, Q=None, R=1.0, P0=None,
+                         x0=None, k0=None, refresh=None, prefilter=False, theta_aux=None,
+                         tol=1e-10, cond_max=1e12, compiled=True, stacklevel=2):
+    r"""Recursive instrumental variables over ARX records (one or several experiments).
+
+    The rows of each experiment are built from its own samples (signals
+    from rest at each experiment's first sample, so no row straddles two
+    experiments); the estimate and ``P`` carry on from one experiment to
+    the next, and the histories hold the rows one after the other. The
+    exact start takes the first `k0` rows of the first experiment.
 
     Parameters
     ----------
-    U : ndarray, shape (N, nu)
-    Y : ndarray, shape (N, ny)
+    records : list of (ndarray (N_i, nu), ndarray (N_i, ny))
     s : ARXStructure
     instruments : {"model", "delayed"} or ndarray, default "model"
-        As `fit_iv`; ``"model"`` refreshes its auxiliary model from the
-        running estimate every `refresh` rows (single output).
+        As `fit_iv_records` (an array needs exactly ``n_params`` columns);
+        ``"model"`` refreshes its auxiliary model from the running estimate
+        every `refresh` rows of each experiment (single output).
     lam : float, default 1.0
         Forgetting factor (``P <- P / lam`` each step).
     Q : ndarray (n, n), optional
@@ -407,11 +452,14 @@ def recursive_iv(U, Y, s, instruments="model", *, lam=1.0, Q=None, R=1.0, P0=Non
         final ``P`` is not finite or has a condition number above
         `cond_max`.
     """
-    n, ny = s.n_params, Y.shape[1]
-    rows = len(U) - s.max_lag
+    n, ny = s.n_params, records[0][1].shape[1]
+    counts = [max(len(U) - s.max_lag, 0) for U, _ in records]
+    rows = sum(counts)
     k0 = n if k0 is None else k0
-    if k0 > rows:
-        raise ValueError(f"`k0` must be <= the number of regressor rows ({rows}); got {k0}")
+    if k0 > counts[0]:
+        first = " of the first experiment" if len(records) > 1 else ""
+        raise ValueError(f"`k0` must be <= the number of regressor rows{first} ({counts[0]}); "
+                         f"got {k0}")
     il = 1.0 / lam
     q_zero = Q is None or not np.any(Q)
     Qa = np.zeros((0, 0)) if q_zero else np.ascontiguousarray(Q, dtype=float)
@@ -431,7 +479,8 @@ def recursive_iv(U, Y, s, instruments="model", *, lam=1.0, Q=None, R=1.0, P0=Non
                              f"{ny} outputs (use instruments='delayed' or give Z)")
         refresh = max(50, 10 * n) if refresh is None else refresh
         if theta_aux is None:
-            m = min(rows, max(k0, 2 * n))
+            U, Y = records[0]
+            m = min(counts[0], max(k0, 2 * n))
             Phi0 = _build(U, Y, s, s.max_lag)[:m]
             theta_aux = np.linalg.lstsq(Phi0, Y[s.max_lag:s.max_lag + m, 0], rcond=None)[0]
         theta_aux = np.asarray(theta_aux, dtype=float).reshape(-1)
@@ -442,42 +491,48 @@ def recursive_iv(U, Y, s, instruments="model", *, lam=1.0, Q=None, R=1.0, P0=Non
         Phi = np.empty((rows, n))
         Z = np.empty((rows, n))
         target = np.empty(rows)
-        if compiled:
-            k = _get_kernels()
-            buf = np.zeros((4 + 2 * s.n_inputs, s.max_lag + 1))
-            bad, singular = k.riv_model(
-                theta, P, buf, np.ascontiguousarray(U, dtype=float),
-                np.ascontiguousarray(Y[:, 0], dtype=float), s.max_lag, s.na,
-                np.array(s.nb, dtype=np.int64), np.array(s.nk, dtype=np.int64), k0,
-                alpha, beta, refresh, bool(prefilter), il, Qa, q_zero, float(R), tol,
-                hist, eps, Phi, Z, target)
-        else:
-            from ._recursive_reference import riv_model_reference
-            bad, singular = riv_model_reference(
-                theta, P, U, Y[:, 0], s, k0, alpha, beta, refresh, prefilter, lam,
-                None if q_zero else Qa, R, tol, hist, eps, Phi, Z, target)
+        bad, singular, first = -1, False, 0
+        for i, ((U, Y), count) in enumerate(zip(records, counts)):
+            sl = slice(first, first + count)       # this experiment's rows
+            k0_i = k0 if i == 0 else 0             # the exact start is in the first
+            if compiled:
+                k = _get_kernels()
+                buf = np.zeros((4 + 2 * s.n_inputs, s.max_lag + 1))     # from rest
+                bad_i, singular = k.riv_model(
+                    theta, P, buf, np.ascontiguousarray(U, dtype=float),
+                    np.ascontiguousarray(Y[:, 0], dtype=float), s.max_lag, s.na,
+                    np.array(s.nb, dtype=np.int64), np.array(s.nk, dtype=np.int64), k0_i,
+                    alpha, beta, refresh, bool(prefilter), il, Qa, q_zero, float(R), tol,
+                    hist[sl], eps[sl], Phi[sl], Z[sl], target[sl])
+            else:
+                from ._recursive_reference import riv_model_reference
+                bad_i, singular = riv_model_reference(
+                    theta, P, U, Y[:, 0], s, k0_i, alpha, beta, refresh, prefilter, lam,
+                    None if q_zero else Qa, R, tol, hist[sl], eps[sl], Phi[sl], Z[sl],
+                    target[sl])
+            if singular:
+                break
+            if bad < 0 and bad_i >= 0:
+                bad = first + bad_i
+            first += count
         if singular:
             raise ValueError(f"the exact start on the first k0 = {k0} rows is singular "
                              "(Z0^T Phi0 not invertible): use a larger `k0`")
         target = target[:, None]
     else:
-        Phi = _build(U, Y, s, s.max_lag)
-        target = Y[s.max_lag:]
+        Phi, target = _stacked_rows(records, s)
         if isinstance(instruments, str):
             if instruments != "delayed":
                 raise ValueError("`instruments` must be 'model', 'delayed' or an array of "
                                  f"instrument rows; got {instruments!r}")
-            Z = delayed_input_instruments(U, s)
+            Z = np.vstack([delayed_input_instruments(U, s) for U, _ in records])
         else:
-            Z = np.asarray(instruments, dtype=float)
-            if Z.ndim == 1:
-                Z = Z[:, None]
-            if Z.shape != (len(U), n):
-                raise ValueError(f"`instruments` must have shape (N, n_params) = ({len(U)}, "
-                                 f"{n}) for the recursive IV; got {Z.shape}")
-            if not np.isfinite(Z).all():
-                raise ValueError("`instruments` must be finite")
-            Z = Z[s.max_lag:]
+            N = sum(len(U) for U, _ in records)
+            shape = np.shape(instruments)
+            if len(shape) not in (1, 2) or (shape + (1,))[:2] != (N, n):
+                raise ValueError(f"`instruments` must have shape (N, n_params) = ({N}, {n}) "
+                                 f"for the recursive IV; got {shape}")
+            Z = _split_rows(instruments, records, s, n)
         Z = np.ascontiguousarray(Z)
         hist = np.full((rows, n, ny), np.nan)
         eps = np.full((rows, ny), np.nan)

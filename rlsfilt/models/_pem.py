@@ -18,7 +18,11 @@ every filter started from rest (all signals zero before ``t = 0``: MATLAB's
     V(\theta) = \frac12 \sum_{t = t_0}^{N-1} \varepsilon(t, \theta)^2,
     \qquad t_0 = \max(n_a, \max_i(n_{k,i} + n_{b,i} - 1)),
 
-which for an ARX structure is least squares on the ARX regressor rows. Its
+which for an ARX structure is least squares on the ARX regressor rows. With
+several experiments (:func:`pem_records`) the criterion is the sum of the
+criteria of the experiments, each with its predictor started from rest at
+its own first sample (MATLAB's multi-experiment ``iddata``), so no
+prediction error pairs samples of two experiments. Its
 gradient :math:`\psi = \partial\hat y/\partial\theta = -\partial\varepsilon/
 \partial\theta` is exact (the initial states are zero, whatever
 :math:`\theta`), one filter per block followed by shifts (``q^{-k}`` commutes
@@ -158,6 +162,32 @@ def criterion(theta, s, U, y):
     return 0.5 * float(eps @ eps)
 
 
+def criterion_rows(s, records):
+    """Number of prediction errors in the criterion: ``sum_i max(N_i - t0, 0)``."""
+    return sum(max(len(y) - s.t0, 0) for _, y in records)
+
+
+def stacked_errors(theta, s, records):
+    r"""Prediction errors :math:`\varepsilon(t)`, ``t >= t0``, of every experiment (each
+    from rest), one experiment after the other."""
+    return np.concatenate([prediction_errors(theta, s, U, y)[s.t0:] for U, y in records])
+
+
+def stacked_gradient(theta, s, records, parts=None):
+    """`predictor_gradient` rows ``t >= t0`` of every experiment, stacked (`parts`: the
+    `prediction_error_parts` of each experiment at ``theta``)."""
+    parts = [None] * len(records) if parts is None else parts
+    return np.vstack([predictor_gradient(theta, s, U, y, parts=p)[s.t0:]
+                      for (U, y), p in zip(records, parts)])
+
+
+def joined(records):
+    """The experiments end to end ``(U, y)`` (for the consistent start only)."""
+    if len(records) == 1:
+        return records[0]
+    return np.vstack([U for U, _ in records]), np.concatenate([y for _, y in records])
+
+
 class PEMFit:
     """Result of `pem`.
 
@@ -170,7 +200,8 @@ class PEMFit:
     noise_variance : float
         :math:`\\hat\\sigma^2 = 2 V / (N - t_0 - n_\\theta)`.
     eps : ndarray, shape (N,)
-        Prediction errors at ``theta`` (from ``t = 0``).
+        Prediction errors at ``theta`` (from ``t = 0``; with several
+        experiments, those of every experiment one after the other).
     cost : float
         :math:`V(\\hat\\theta)`.
     theta0 : ndarray
@@ -228,13 +259,37 @@ def pem(U, y, s, theta0=None, *, ftol=1e-12, xtol=1e-12, gtol=1e-12, max_nfev=No
     >>> np.round(fit.theta, 2)          # [b1, b2, f1, f2]
     array([ 1. ,  0.5, -1.5,  0.7])
     """
-    N = len(y)
-    rows = N - s.t0
+    return pem_records([(U, y)], s, theta0, ftol=ftol, xtol=xtol, gtol=gtol,
+                       max_nfev=max_nfev)
+
+
+def pem_records(records, s, theta0=None, *, ftol=1e-12, xtol=1e-12, gtol=1e-12,
+                max_nfev=None):
+    r"""`pem` over several experiments: the summed criterion
+    :math:`\frac12\sum_i\sum_{t \ge t_0} \varepsilon_i(t, \theta)^2`, each
+    experiment's predictor started from rest.
+
+    Parameters
+    ----------
+    records : list of (ndarray (N_i, nu), ndarray (N_i,))
+        The experiments.
+    s, theta0, ftol, xtol, gtol, max_nfev
+        As `pem`; the default start is computed on the experiments joined
+        end to end (only the start: the seams perturb it slightly, never the
+        criterion).
+
+    Returns
+    -------
+    PEMFit
+    """
+    N = sum(len(y) for _, y in records)
+    rows = criterion_rows(s, records)
     if rows <= s.n_params:
+        per = " in all" if len(records) > 1 else ""
         raise ValueError(f"`y` must have more than t0 + n_params = {s.t0} + {s.n_params} = "
-                         f"{s.t0 + s.n_params} samples for this structure; got {N}")
+                         f"{s.t0 + s.n_params} samples{per} for this structure; got {N}")
     if theta0 is None:
-        theta0 = initial_estimate(U, y, s)
+        theta0 = initial_estimate(*joined(records), s)
     theta0, _ = stabilize_theta(np.asarray(theta0, dtype=float), s)
     cache = {}
 
@@ -243,7 +298,7 @@ def pem(U, y, s, theta0=None, *, ftol=1e-12, xtol=1e-12, gtol=1e-12, max_nfev=No
         if cache.get("key") != key:
             cache.clear()
             cache["key"] = key
-            cache["parts"] = (prediction_error_parts(theta, s, U, y)
+            cache["parts"] = ([prediction_error_parts(theta, s, U, y) for U, y in records]
                               if predictor_is_stable(theta, s) else None)
         return cache["parts"]
 
@@ -251,11 +306,10 @@ def pem(U, y, s, theta0=None, *, ftol=1e-12, xtol=1e-12, gtol=1e-12, max_nfev=No
         p = parts(theta)
         if p is None:                 # outside the stability region: reject the step
             return np.full(rows, np.nan)
-        return p[0][s.t0:]
+        return np.concatenate([pk[0][s.t0:] for pk in p])
 
     def jac(theta):
-        p = parts(theta)
-        return -predictor_gradient(theta, s, U, y, parts=p)[s.t0:]
+        return -stacked_gradient(theta, s, records, parts(theta))
 
     if s.is_arx:
         theta, res = _linear_least_squares(theta0, fun, jac)
@@ -264,9 +318,10 @@ def pem(U, y, s, theta0=None, *, ftol=1e-12, xtol=1e-12, gtol=1e-12, max_nfev=No
         res = least_squares(fun, theta0, jac=jac, method="trf", x_scale="jac", ftol=ftol,
                             xtol=xtol, gtol=gtol, max_nfev=max_nfev)
         theta = res.x
-    eps = parts(theta)[0]
+    eps = np.concatenate([pk[0] for pk in parts(theta)])
     J = jac(theta)
-    cost = 0.5 * float(eps[s.t0:] @ eps[s.t0:])
+    r = fun(theta)
+    cost = 0.5 * float(r @ r)
     sigma2 = 2.0 * cost / (rows - s.n_params)
     cov = sigma2 * _inverse_normal_matrix(J)
     return PEMFit(theta=theta, cov=cov, noise_variance=sigma2, eps=eps, cost=cost,

@@ -23,17 +23,25 @@ from .._validation import check_int
 from ._base import IdentifiedModel, Polynomials
 from ._family import param_names, split_theta
 from ._initial import initial_estimate
-from ._pem import _shift, pem, prediction_error_parts, predictor_gradient
-from ._recursive_pem import recursive_pem
+from ._pem import (
+    _shift,
+    criterion_rows,
+    joined,
+    pem_records,
+    prediction_error_parts,
+    stacked_errors,
+    stacked_gradient,
+)
+from ._recursive_pem import recursive_pem_records
 from ._stability import stabilize_theta
-from .regressors import _as_signal, _column_rank, as_records
+from .regressors import _as_signal, _column_rank, as_records, is_listed
 
 __all__ = []
 
 #: Options of the batch and recursive fits (anything else is a TypeError).
 PEM_OPTIONS = ("theta0", "ftol", "xtol", "gtol", "max_nfev")
 RECURSIVE_OPTIONS = ("lam", "lam_start", "lam_rate", "P0", "x0", "R", "Q", "forgetting",
-                     "forgetting_params", "gate", "project")
+                     "forgetting_params", "gate", "project", "check_every", "cond_max")
 METHODS = ("pem", "rpem", "rplr")
 _RECURSIVE_ONLY = "fit(..., method='rpem' or 'rplr')"
 
@@ -60,8 +68,13 @@ class PolynomialModel(IdentifiedModel):
     # ------------------------------------------------------------------
     # fitting
     # ------------------------------------------------------------------
-    def _fit(self, U, y, info, method, options, stacklevel=2):
-        """Validate, estimate, then assign every learned attribute (atomic)."""
+    def _fit(self, records, info, method, options, stacklevel=2):
+        """Validate, estimate, then assign every learned attribute (atomic).
+
+        `records` is ``[(U (N_i, nu), y (N_i,)), ...]``, one per experiment:
+        the batch criterion sums over them (each predictor from rest), the
+        recursions restart their signals at each boundary.
+        """
         if method not in METHODS:
             raise ValueError(f"`method` must be one of 'pem', 'rpem', 'rplr'; got {method!r}")
         allowed = PEM_OPTIONS if method == "pem" else RECURSIVE_OPTIONS
@@ -74,11 +87,15 @@ class PolynomialModel(IdentifiedModel):
                 raise TypeError(f"`{key}` is not an option of {type(self).__name__}.fit; the "
                                 f"options of method={method!r} are {list(allowed)}")
         self._check_dt()
-        s = self._family(U.shape[1])
-        N = len(y)
-        if N - s.t0 <= s.n_params:
+        s = self._family(records[0][0].shape[1])
+        N = sum(len(y) for _, y in records)
+        rows = criterion_rows(s, records)
+        if rows <= s.n_params:
+            per = (f" in each of {len(records)} experiments, or more in all"
+                   if len(records) > 1 else "")
             raise ValueError(f"`y` must have more than t0 + n_params = {s.t0} + {s.n_params} = "
-                             f"{s.t0 + s.n_params} samples for {self._orders_text()}; got {N}")
+                             f"{s.t0 + s.n_params} samples{per} for {self._orders_text()}; got "
+                             f"{N}")
         learned = {"method_": method}
         if method == "pem":
             theta0 = options.get("theta0")
@@ -88,9 +105,9 @@ class PolynomialModel(IdentifiedModel):
                     raise ValueError(f"`theta0` must hold n_params = {s.n_params} finite "
                                      f"values; got shape {theta0.shape}")
             else:
-                theta0 = initial_estimate(U, y, s)
+                theta0 = initial_estimate(*joined(records), s)
             theta0, _ = stabilize_theta(theta0, s)
-            J = predictor_gradient(theta0, s, U, y)[s.t0:]
+            J = stacked_gradient(theta0, s, records)
             rank = _column_rank(J) if np.isfinite(J).all() else 0
             if rank < s.n_params:
                 raise ValueError(
@@ -98,27 +115,28 @@ class PolynomialModel(IdentifiedModel):
                     "the input is not persistently exciting for these orders (or the orders "
                     "are too high); use a richer input, more data or lower orders")
             tol = {k: options[k] for k in ("ftol", "xtol", "gtol", "max_nfev") if k in options}
-            fit = pem(U, y, s, theta0, **tol)
+            fit = pem_records(records, s, theta0, **tol)
             theta, cov, sigma2 = fit.theta, fit.cov, fit.noise_variance
             learned["fit_info_"] = {"cost": fit.cost, "n_fev": fit.n_fev, "n_jev": fit.n_jev,
                                     "status": fit.status, "message": fit.message,
                                     "theta0": fit.theta0}
         else:
             opts = dict(options)
-            fit = recursive_pem(U, y, s, method, stacklevel=stacklevel + 1, **opts)
+            fit = recursive_pem_records(records, s, method, stacklevel=stacklevel + 1, **opts)
             theta = fit.theta
-            eps = prediction_error_parts(theta, s, U, y)[0][s.t0:]
-            sigma2 = float(eps @ eps) / (N - s.t0 - s.n_params)
+            eps = stacked_errors(theta, s, records)
+            sigma2 = float(eps @ eps) / (rows - s.n_params)
             cov = sigma2 * fit.P / fit.state.R
             cov = 0.5 * (cov + cov.T)
             learned.update(theta_history_=fit.theta_history, recursive_residuals_=fit.eps,
                            state_=fit.state)
             if method == "rplr":
                 learned["margins_"] = fit.margins
-        eps = prediction_error_parts(theta, s, U, y)[0][s.t0:]
+        eps = stacked_errors(theta, s, records)
         learned.update(theta_=theta.copy(), theta_cov_=cov, noise_variance_=float(sigma2),
-                       residuals_=eps, n_samples_=N - s.t0, n_params_=s.n_params,
-                       n_inputs_=s.n_inputs, n_outputs_=1, structure_=s, _info=dict(info))
+                       residuals_=eps, n_samples_=rows, n_params_=s.n_params,
+                       n_inputs_=s.n_inputs, n_outputs_=1, structure_=s,
+                       n_experiments_=len(records), _info=dict(info))
         u_names = info.get("u_names") or ([("u" if info.get("u_1d", True) else f"u{j + 1}")
                                            for j in range(s.n_inputs)])
         learned.update(input_names_=tuple(u_names[:s.n_inputs]),
@@ -419,14 +437,17 @@ class PolynomialModel(IdentifiedModel):
                 tag = "" if s.n_inputs == 1 else f"_{i + 1}"
                 polys.append(self._poly_text("F" + tag, F[i], style=style))
         nv = f"{self.noise_variance_:.4g}"
+        n_exp = self.__dict__.get("n_experiments_", 1)
+        exps = f" of {n_exp} experiments" if n_exp > 1 else ""
         if style == "html":
             esc = html.escape
             return ([f"<p><b>{esc(self._orders_text())}</b>: {esc(self._EQUATION)}, estimated "
-                     f"by {esc(how)} on {self.n_samples_} prediction errors, noise variance "
+                     f"by {esc(how)} on {self.n_samples_} prediction errors{exps}, noise "
+                     f"variance "
                      f"{nv}</p>"]
                     + [f"<p><code>{line}</code></p>" for line in polys])
         return ([f"{self._orders_text()}: {self._EQUATION}",
-                 f"  estimated by {how} on {self.n_samples_} prediction errors",
+                 f"  estimated by {how} on {self.n_samples_} prediction errors{exps}",
                  f"  noise variance: {nv}"] + ["  " + line for line in polys])
 
 
@@ -447,8 +468,11 @@ class TimeSeriesModel(PolynomialModel):
 
         Parameters
         ----------
-        y : array_like, shape (N,)
-            The signal (pandas Series works too).
+        y : array_like, shape (N,), or a list of them
+            The signal (pandas Series works too); a list holds several
+            experiments (records of the same process): the criterion sums
+            over them, each predictor started from rest, and the recursions
+            restart their signals at each boundary.
         method : {"pem", "rpem", "rplr"}, default "pem"
             As for the input/output models.
         **options
@@ -458,11 +482,29 @@ class TimeSeriesModel(PolynomialModel):
         -------
         self
         """
-        Y, y_1d, y_names = _as_signal(y, "y")
-        if Y.shape[1] != 1:
-            raise ValueError(f"`y` must have shape (N,) (one signal); got {np.shape(y)}")
+        listed = is_listed(y)
+        records, y_names = [], None
+        for i, yi in enumerate(y if listed else [y]):
+            label = f"y[{i}]" if listed else "y"
+            Y, _, names = _as_signal(yi, label)
+            if Y.shape[1] != 1:
+                raise ValueError(f"`{label}` must have shape (N,) (one signal); got "
+                                 f"{np.shape(yi)}")
+            records.append((np.zeros((len(Y), 0)), Y[:, 0]))
+            y_names = y_names or names
         info = {"u_1d": True, "y_1d": True, "u_names": None, "y_names": y_names}
-        return self._fit(np.zeros((len(Y), 0)), Y[:, 0], info, method, options, stacklevel=3)
+        return self._fit(records, info, method, options, stacklevel=3)
+
+    def _each_experiment(self, fn, u, y, *args, outputs=True):
+        """As `IdentifiedModel._each_experiment`, and a list of series `y` (one per
+        experiment; `u` None) gives one result per experiment."""
+        if outputs and is_listed(y):
+            if u is not None:
+                raise ValueError(f"`u` must be None for the time-series model "
+                                 f"{type(self).__name__}; got {type(u).__name__}")
+            outs = [fn(None, yi, *args) for yi in y]
+            return outs[0] if len(outs) == 1 else outs
+        return super()._each_experiment(fn, u, y, *args, outputs=outputs)
 
     def _data(self, u, y=None):
         if y is not None:
@@ -533,14 +575,12 @@ class TimeSeriesModel(PolynomialModel):
 
 
 def fit_io(model, u, y, method, options):
-    """``fit(u, y)`` of an input/output model of the family (single output, one experiment;
-    `u` may be an `IOData` with `y` omitted)."""
+    """``fit(u, y)`` of an input/output model of the family (single output; `u` may be an
+    `IOData`, with `y` omitted, or lists of arrays: several experiments)."""
     records, info = as_records(u, y)
-    if len(records) != 1:
-        raise ValueError(f"`u` must hold one experiment for {type(model).__name__}.fit; got "
-                         f"{len(records)} (fit each experiment, or merge them first)")
-    U, Y = records[0]
+    Y = records[0][1]
     if Y.shape[1] != 1:
         raise ValueError(f"`y` must have shape (N,) (one output; {type(model).__name__} is a "
                          f"single-output model, use ARX for several outputs); got {Y.shape}")
-    return model._fit(U, Y[:, 0], info, method, options, stacklevel=4)
+    return model._fit([(U, Yi[:, 0]) for U, Yi in records], info, method, options,
+                      stacklevel=4)

@@ -459,19 +459,45 @@ def rpem_batch(theta, P, buf, y, U, na, nb, nc, nd, nf, nk, off_b, off_c, off_d,
     return lam_now, lam_t, n_refl
 
 
+# layout of the packed arguments of `rpem_stream` (one call per sample from Python: a
+# numba call costs about 0.1 us per array argument, so the structure and the scalars
+# travel in two arrays instead of some thirty arguments)
+# spec (int64): the orders and flags, then the per-input blocks of length nu each
+SPEC_NA, SPEC_NC, SPEC_ND, SPEC_OFF_C, SPEC_OFF_D, SPEC_METHOD, SPEC_MODE = range(7)
+SPEC_Q_ZERO, SPEC_HAS_GATE, SPEC_PROJECT, SPEC_NU, SPEC_BLOCKS = range(7, 12)
+# fpar (float64): inputs lam, lam_rate, r, gate; state lam_now; outputs of the last step
+F_LAM, F_LAM_RATE, F_R, F_GATE, F_LAM_NOW, F_LAM_T, F_GATED, F_REFL, F_SIZE = range(9)
+
+
 @njit(cache=True)
-def rpem_stream(theta, P, buf, y, u, na, nb, nc, nd, nf, nk, off_b, off_c, off_d, off_f,
-                method, mode, params, lam, lam_now, lam_rate, Q, q_zero, r, has_gate, gate,
-                project, phi, psi, g, K, T):
+def rpem_stream(theta, P, buf, y, u, spec, fpar, params, Q, W, T):
     """One streaming step: `rpem_step` and `next_lam` exactly as `rpem_batch` runs them.
 
-    Returns ``(yhat, eps, lam_now_next, lam_t, gated, reflected)``.
+    The arguments are packed (see ``SPEC_*`` and ``F_*``): `spec` holds the
+    orders, offsets and flags, `fpar` the scalars, with ``fpar[F_LAM_NOW]``
+    (the factor of this step) advanced in place, and the step's ``lam_t``,
+    ``gated`` and number of reflections written to ``F_LAM_T``, ``F_GATED``,
+    ``F_REFL``. ``W`` (4, n) holds the work rows ``phi``, ``psi``, ``g``,
+    ``K``; ``T`` (n, n). Returns ``(yhat, eps)``.
     """
+    nu = spec[SPEC_NU]
+    b = SPEC_BLOCKS
+    nb = spec[b:b + nu]
+    nf = spec[b + nu:b + 2 * nu]
+    nk = spec[b + 2 * nu:b + 3 * nu]
+    off_b = spec[b + 3 * nu:b + 4 * nu]
+    off_f = spec[b + 4 * nu:b + 5 * nu]
+    lam_now = fpar[F_LAM_NOW]
     yh, ep, s, lam_t, gt, refl = rpem_step(
-        theta, P, buf, y, u, na, nb, nc, nd, nf, nk, off_b, off_c, off_d, off_f,
-        method, mode, params, lam_now, Q, q_zero, r, has_gate, gate, project,
-        phi, psi, g, K, T)
-    return yh, ep, next_lam(lam_now, lam, lam_rate), lam_t, gt, refl
+        theta, P, buf, y, u, spec[SPEC_NA], nb, spec[SPEC_NC], spec[SPEC_ND], nf, nk, off_b,
+        spec[SPEC_OFF_C], spec[SPEC_OFF_D], off_f, spec[SPEC_METHOD], spec[SPEC_MODE], params,
+        lam_now, Q, spec[SPEC_Q_ZERO] != 0, fpar[F_R], spec[SPEC_HAS_GATE] != 0, fpar[F_GATE],
+        spec[SPEC_PROJECT] != 0, W[0], W[1], W[2], W[3], T)
+    fpar[F_LAM_NOW] = next_lam(lam_now, fpar[F_LAM], fpar[F_LAM_RATE])
+    fpar[F_LAM_T] = lam_t
+    fpar[F_GATED] = 1.0 if gt else 0.0
+    fpar[F_REFL] = refl
+    return yh, ep
 
 
 # ----------------------------------------------------------------------
@@ -768,10 +794,40 @@ def riv_model(theta, P, buf, U, y, t0, na, nb, nk, k0, alpha, beta, refresh, pre
     return bad, False
 
 
+# packed arguments of `riv_stream` (as for `rpem_stream`)
+RSPEC_NA, RSPEC_K0, RSPEC_REFRESH, RSPEC_PREFILTER, RSPEC_GIVEN, RSPEC_Q_ZERO, RSPEC_NU = range(7)
+RSPEC_BLOCKS = 7
+RF_IL, RF_R, RF_TOL, RF_SIZE = range(4)
+# rows of the work array W (7, n): phi, z, g, h, K, theta before the step, eps (W[6, 0])
+W_PHI, W_Z, W_G, W_H, W_K, W_THETA, W_EPS = range(7)
+
+
 @njit(cache=True)
-def riv_stream(theta, P, buf, y, u, z_given, use_given, row, na, nb, nk, k0, alpha, beta,
-               refresh, prefilter, il, Q, q_zero, r, tol, Phi0, Z0, Y0, phi, z, g, h, K, eps):
-    """One streaming sample: `riv_model_step` behind its own entry point (the batch arithmetic)."""
-    return riv_model_step(theta, P, buf, y, u, z_given, use_given, row, na, nb, nk, k0, alpha,
-                          beta, refresh, prefilter, il, Q, q_zero, r, tol, Phi0, Z0, Y0, phi, z,
-                          g, h, K, eps)
+def riv_stream(theta, P, buf, y, u, z_given, row, spec, fpar, alpha, beta, Q, S0, Y0, W):
+    r"""One streaming sample: `riv_model_step` (the batch arithmetic) on packed arguments.
+
+    `spec` holds ``na, k0, refresh, prefilter, use_given, q_zero, nu`` and
+    the ``nb``, ``nk`` blocks; `fpar` ``1/lam, R, tol``; ``S0`` (2, m, n)
+    the start rows ``Phi0``, ``Z0``; ``W`` (7, n) the work rows (``W[6,
+    0]`` the residual). Returns ``(status, yhat)`` with ``yhat`` the
+    prediction :math:`\varphi^T\hat\theta(t-1)` of the (prefiltered) output
+    (NaN while the exact start collects its rows).
+    """
+    n = theta.shape[0]
+    nu = spec[RSPEC_NU]
+    nb = spec[RSPEC_BLOCKS:RSPEC_BLOCKS + nu]
+    nk = spec[RSPEC_BLOCKS + nu:RSPEC_BLOCKS + 2 * nu]
+    prev = W[W_THETA]
+    for i in range(n):
+        prev[i] = theta[i, 0]
+    status, _ = riv_model_step(
+        theta, P, buf, y, u, z_given, spec[RSPEC_GIVEN] != 0, row, spec[RSPEC_NA], nb, nk,
+        spec[RSPEC_K0], alpha, beta, spec[RSPEC_REFRESH], spec[RSPEC_PREFILTER] != 0,
+        fpar[RF_IL], Q, spec[RSPEC_Q_ZERO] != 0, fpar[RF_R], fpar[RF_TOL], S0[0], S0[1], Y0,
+        W[W_PHI], W[W_Z], W[W_G], W[W_H], W[W_K], W[W_EPS, :1])
+    yhat = np.nan
+    if status == 1 or status == 2 or status == -1:
+        yhat = 0.0
+        for i in range(n):
+            yhat += W[W_PHI, i] * prev[i]
+    return status, yhat

@@ -38,8 +38,9 @@ import warnings
 
 import numpy as np
 
-from .._validation import check_covariance, check_lam, check_scalar, check_variance
+from .._validation import check_covariance, check_int, check_lam, check_scalar, check_variance
 from ..exceptions import NumericalWarning
+from ..filters import _health
 from ..filters import forgetting as _fg
 from ._family import split_theta
 from ._stability import stabilize_theta
@@ -108,14 +109,24 @@ class RecursionState:
     project : bool, default True
         Reflect ``C``, ``D``, ``F_i`` into the unit circle whenever an update
         leaves the stability region.
+    check_every : int, default 100
+        Health check period, as `RecursiveLeastSquares` (0 disables it):
+        every `check_every` streaming steps, and at the end of :meth:`run`,
+        ``P`` is tested for positive definiteness and its condition number;
+        a failure issues one :class:`~rlsfilt.NumericalWarning`.
+    cond_max : float, default 1e12
+        Condition number of ``P`` beyond which the health check warns.
     """
 
     def __init__(self, s, method="rpem", *, lam=1.0, lam_start=0.97, lam_rate=0.998, P0=1e4,
                  x0=None, R=1.0, Q=0.0, forgetting="exponential", forgetting_params=None,
-                 gate=None, project=True):
+                 gate=None, project=True, check_every=100, cond_max=1e12):
         if method not in METHODS:
             raise ValueError(f"`method` must be 'rpem' or 'rplr'; got {method!r}")
         n = s.n_params
+        k = _get_kernels()
+        # the scalars the compiled step reads and writes (lam_now, lam_t: properties)
+        self._fpar = np.zeros(k.F_SIZE)
         self.s = s
         self.method = method
         self.mode = _fg.mode_code(forgetting)
@@ -132,6 +143,10 @@ class RecursionState:
         self.Q = np.ascontiguousarray(Qm) if not self.q_zero else np.zeros((0, 0))
         self.gate = None if gate is None else _check_positive(gate, "gate")
         self.project = bool(project)
+        self.check_every = check_int(check_every, "check_every", minimum=0)
+        self.cond_max = _check_positive(cond_max, "cond_max")
+        self._since_check = 0
+        self._warned_health = False
         P = check_covariance(P0, n, "P0", definite=True)
         if x0 is None:
             theta = np.zeros(n)
@@ -161,6 +176,34 @@ class RecursionState:
         self.n_steps = 0
         self.lam_t = self.lam
         self._work = None
+        # the packed arguments of the streaming step (see _recursive_kernels.rpem_stream)
+        i = self._ints
+        self._spec = np.array(
+            [s.na, s.nc, s.nd, i["off_c"], i["off_d"], 0 if method == "rpem" else 1, self.mode,
+             self.q_zero, self.gate is not None, self.project, nu]
+            + [int(v) for key in ("nb", "nf", "nk", "off_b", "off_f") for v in i[key]],
+            dtype=np.int64)
+        f = self._fpar
+        f[k.F_LAM], f[k.F_LAM_RATE], f[k.F_R] = self.lam, self.lam_rate, self.R
+        f[k.F_GATE] = 0.0 if self.gate is None else self.gate
+
+    @property
+    def lam_now(self):
+        """Forgetting factor of the next step (the start-up profile)."""
+        return float(self._fpar[_get_kernels().F_LAM_NOW])
+
+    @lam_now.setter
+    def lam_now(self, value):
+        self._fpar[_get_kernels().F_LAM_NOW] = value
+
+    @property
+    def lam_t(self):
+        """Forgetting factor the last step applied."""
+        return float(self._fpar[_get_kernels().F_LAM_T])
+
+    @lam_t.setter
+    def lam_t(self, value):
+        self._fpar[_get_kernels().F_LAM_T] = value
 
     def _common(self):
         i = self._ints
@@ -191,26 +234,55 @@ class RecursionState:
             self.lam_now, self.lam_t = lam_now, lam_t
         self.n_reflections += n_refl
         self.n_steps += N
+        if N and self.check_every and np.isfinite(self.P).all():   # (non-finite: the caller)
+            self._check_health()
         return out
 
+    def _check_health(self):
+        """One warning when ``P`` stops being a healthy covariance (see `check_every`)."""
+        self._since_check = 0
+        if self._warned_health:
+            return
+        problem = _health.symmetric_problem(self.P, self.cond_max)
+        if problem is not None:
+            self._warned_health = True
+            _health.warn(f"{self.method}: {problem} after sample {self.n_steps}",
+                         "Lower P0, use forgetting that bounds P (directional, constant_trace, "
+                         "efra) or a random walk Q, or check the scaling and excitation of "
+                         "the data")
+
+    def restart(self):
+        """A new experiment: the signal lags start from rest again (zero), while the
+        estimate, ``P`` and the forgetting profile carry on."""
+        self.buf[:] = 0.0
+
     def step(self, y, u):
-        """One sample through the compiled step; returns ``(yhat, eps, gated)``."""
+        """One sample through the compiled step; returns ``(yhat, eps, gated)``.
+
+        `y` is a float and `u` a float64 array of shape (nu,) (validated by
+        the caller): the work arrays are allocated on the first call, then
+        every call is one compiled call on preallocated arrays.
+        """
         if self._work is None:
             n = self.s.n_params
-            self._work = (np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty((n, n)))
-            self._u = np.empty(self.s.n_inputs)
-        self._u[:] = u
-        k = _get_kernels()
-        yhat, eps, self.lam_now, self.lam_t, gated, refl = k.rpem_stream(
-            self.theta, self.P, self.buf, float(y), self._u, *self._common(), *self._work)
-        self.n_reflections += refl
+            self._work = (np.empty((4, n)), np.empty((n, n)))
+            k = _get_kernels()
+            self._kernel, self._out = k.rpem_stream, (k.F_GATED, k.F_REFL)
+        f = self._fpar
+        yhat, eps = self._kernel(self.theta, self.P, self.buf, y, u, self._spec, f,
+                                 self.params, self.Q, *self._work)
+        gated, refl = self._out
+        self.n_reflections += int(f[refl])
         self.n_steps += 1
-        return yhat, eps, gated
+        self._since_check += 1
+        if self._since_check == self.check_every:
+            self._check_health()
+        return yhat, eps, f[gated] != 0.0
 
     @property
     def phi(self):
         """Regressor of the last step (after :meth:`step`)."""
-        return None if self._work is None else self._work[0].copy()
+        return None if self._work is None else self._work[0][0].copy()
 
     def copy(self):
         """An independent copy."""
@@ -342,7 +414,7 @@ def recursive_pem(U, y, s, method="rpem", *, stacklevel=2, **options):
     **options
         Of `RecursionState`: ``lam``, ``lam_start``, ``lam_rate``, ``P0``,
         ``x0``, ``R``, ``Q``, ``forgetting``, ``forgetting_params``, ``gate``,
-        ``project``.
+        ``project``, ``check_every``, ``cond_max``.
 
     Returns
     -------
@@ -371,9 +443,36 @@ def recursive_pem(U, y, s, method="rpem", *, stacklevel=2, **options):
     >>> np.round(fit.theta, 1)
     array([-0.7,  1. ,  0.4])
     """
+    return recursive_pem_records([(U, y)], s, method, stacklevel=stacklevel + 1, **options)
+
+
+def recursive_pem_records(records, s, method="rpem", *, stacklevel=2, **options):
+    """`recursive_pem` over several experiments, one after the other.
+
+    At each experiment boundary the recursion restarts its regressor and
+    filter signals from rest (`RecursionState.restart`), so no regressor
+    pairs samples of two experiments, while the estimate, ``P`` and the
+    forgetting profile carry on. The histories hold every experiment's
+    samples one after the other.
+
+    Parameters
+    ----------
+    records : list of (ndarray (N_i, nu), ndarray (N_i,))
+    s, method, stacklevel, **options
+        As `recursive_pem`.
+
+    Returns
+    -------
+    RecursiveFit
+    """
     state = RecursionState(s, method, **options)
-    out = state.run(y, U)
-    N = len(y)
+    runs = []
+    for i, (U, y) in enumerate(records):
+        if i:
+            state.restart()
+        runs.append(state.run(y, U))
+    out = {k: np.concatenate([r[k] for r in runs]) for k in runs[0]}
+    N = len(out["eps"])
     tail = out["eps"][N // 2:]
     fit = RecursiveFit(theta=state.theta.copy(), P=state.P.copy(),
                        theta_history=out["theta_history"], yhat=out["yhat"], eps=out["eps"],

@@ -113,10 +113,15 @@ class ARMAX(PolynomialModel):
         Parameters
         ----------
         u : array_like, shape (N,) or (N, nu), or IOData
-            Input record (pandas works too), or an `IOData` of one
-            experiment (then `y` is omitted).
-        y : array_like, shape (N,)
-            Output record.
+            Input record (pandas works too), or an `IOData` (then `y` is
+            omitted), or a list of input arrays, one per experiment.
+        y : array_like, shape (N,), or a list of them
+            Output record (a list: one per experiment). With several
+            experiments the batch criterion is the sum over them, each
+            predictor started from rest at its experiment's first sample; the
+            recursive fits restart their regressor and filter signals at
+            each boundary (estimate and ``P`` carry on) and their histories
+            hold the experiments one after the other.
         method : {"pem", "rpem", "rplr"}, default "pem"
             Batch prediction-error minimization, recursive prediction error,
             or recursive pseudo-linear regression (extended least squares).
@@ -125,7 +130,8 @@ class ARMAX(PolynomialModel):
             default), ``ftol``, ``xtol``, ``gtol``, ``max_nfev`` of
             ``scipy.optimize.least_squares``. ``"rpem"``/``"rplr"``: the
             options of `RecursiveLeastSquares` (``lam``, ``P0``, ``x0``,
-            ``R``, ``Q``, ``forgetting``, ``forgetting_params``, ``gate``),
+            ``R``, ``Q``, ``forgetting``, ``forgetting_params``, ``gate``,
+            ``check_every``, ``cond_max``),
             the start-up forgetting profile ``lam_start``, ``lam_rate`` and
             ``project`` (keep ``C`` stable).
 

@@ -403,12 +403,10 @@ class ARX(IdentifiedModel):
         if method == "ls":
             theta, inv_scaled, col_scale = _qr_least_squares(Phi, target)
         elif method in ("iv", "riv"):
-            if len(records) > 1 or _offset_mode(self.offset) == "intercept":
-                raise ValueError(
-                    f"method={method!r} takes one experiment and offset=False or 'mean'; got "
-                    f"{len(records)} experiment(s) and offset={self.offset!r}")
-            U, Y = records[0] if op is None else (records[0][0] - op[0], records[0][1] - op[1])
-            theta, cov_iv, recursive = fit_arx_iv(U, Y, s, method, iv_options, info["y_1d"])
+            dev = records if op is None else [(U - op[0], Y - op[1]) for U, Y in records]
+            theta, cov_iv, recursive = fit_arx_iv(
+                dev, s, method, iv_options, info["y_1d"],
+                intercept=_offset_mode(self.offset) == "intercept")
         else:
             theta, inv_scaled, rls, history, x_start, k0 = _fit_rls(Phi, target, s, opts)
             recursive = {"filter_": rls, "k0_": k0, "lam_": float(rls.lam),
@@ -1035,6 +1033,12 @@ class ARX(IdentifiedModel):
             return None
         lines = self._equation_lines("latex")
         return "$$\\begin{aligned}" + " \\\\ ".join(lines) + "\\end{aligned}$$"
+
+    def fit_many(self, u, y, method="ls", **options):
+        """Fit these orders to every channel of a fleet: :func:`rlsfilt.models.fit_many`."""
+        from .fleet import fit_many
+
+        return fit_many(self, u, y, method, **options)
 
 
 class ARXSummary(ModelSummary):

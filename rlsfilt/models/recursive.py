@@ -48,6 +48,8 @@ class _RecursiveModel:
         self._state = RecursionState(s, method, **options)
         self._initial = self._state.copy()
         self.last_error = np.nan
+        self._nu = s.n_inputs
+        self._ubuf = np.zeros(s.n_inputs)      # the input sample of the fast path
 
     # ------------------------------------------------------------------
     def step(self, y, u=None):
@@ -68,11 +70,23 @@ class _RecursiveModel:
         theta : ndarray, shape (n_params,)
             The updated estimate (a copy).
         """
-        yv = _scalar(y, "y")
-        uv = self._input(u)
-        yhat, eps, _ = self._state.step(yv, uv)
+        # fast path (the loop of a real-time application): float samples need only a
+        # finiteness check (x - x is NaN for NaN and inf); anything else is validated in full
+        if isinstance(y, float) and y - y == 0.0:
+            if self._nu == 1 and isinstance(u, float) and u - u == 0.0:
+                uv = self._ubuf
+                uv[0] = u
+            elif self._nu == 0 and u is None:
+                uv = self._ubuf
+            else:
+                uv = self._input(u)
+        else:
+            y = _scalar(y, "y")
+            uv = self._input(u)
+        state = self._state
+        yhat, eps, _ = state.step(y, uv)
         self.last_error = eps
-        return yhat, self._state.theta.copy()
+        return yhat, state.theta.copy()
 
     __call__ = step
 
@@ -108,6 +122,12 @@ class _RecursiveModel:
         if len(yv):
             self.last_error = float(out["eps"][-1])
         return out["yhat"], out["theta_history"]
+
+    def restart(self):
+        """Start a new experiment: the regressor and filter signals restart from rest
+        (zero past), while the estimate, ``P`` and the forgetting profile carry on (as
+        ``fit`` does at each experiment boundary of an `IOData`)."""
+        self._state.restart()
 
     def reset(self):
         """Return to the initial estimate and covariance."""

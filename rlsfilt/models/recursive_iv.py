@@ -45,11 +45,15 @@ class RecursiveIV:
     ----------
     na, nb, nk
         ARX orders (``nb``, ``nk`` per input), as :class:`~rlsfilt.ARX`.
-    instruments : {"model", "given"}, default "model"
+    instruments : {"model", "delayed", "given"}, default "model"
         ``"model"``: the ``-y`` block of the regressor replaced by the output
         of an auxiliary model :math:`\hat B/\hat A\,u`, refreshed from the
         running estimate every `refresh` samples (Young's refined IV; with
         `prefilter` every signal also passes through :math:`1/\hat A`).
+        ``"delayed"``: the ``-y`` block replaced by further delayed samples
+        of the first input, :math:`u_1(t - n_{k,1} - n_{b,1} - k + 1)`,
+        ``k = 1 .. na`` (as ``ARX.fit(method="riv", instruments="delayed")``;
+        open loop, no auxiliary model).
         ``"given"``: :meth:`step` takes the instrument row ``z`` (for example
         lags of a reference signal in closed loop).
     k0 : int, default 0
@@ -92,8 +96,9 @@ class RecursiveIV:
         nu = 1 if isinstance(nb, numbers.Integral) or not hasattr(nb, "__len__") else len(nb)
         s = arx_structure(na, nb, nk, nu, 1)
         n = s.n_params
-        if instruments not in ("model", "given"):
-            raise ValueError(f"`instruments` must be 'model' or 'given'; got {instruments!r}")
+        if instruments not in ("model", "delayed", "given"):
+            raise ValueError(f"`instruments` must be 'model', 'delayed' or 'given'; got "
+                             f"{instruments!r}")
         self._orders = {"na": na, "nb": nb, "nk": nk}
         self._s = s
         self.instruments = instruments
@@ -120,7 +125,13 @@ class RecursiveIV:
         self._P0 = np.ascontiguousarray(P)
         self._alpha0 = reflect(np.concatenate([[1.0], aux[:s.na]]))[1:].copy()
         self._beta0 = aux[s.na:].copy()
-        self._ints = (s.na, np.array(s.nb, dtype=np.int64), np.array(s.nk, dtype=np.int64))
+        given = instruments != "model"
+        # the packed arguments of the compiled step (_recursive_kernels.riv_stream)
+        self._spec = np.array([s.na, self.k0, 0 if given else self.refresh,
+                               self.prefilter and not given, given, self._q_zero, s.n_inputs]
+                              + list(s.nb) + list(s.nk), dtype=np.int64)
+        self._fpar = np.array([1.0 / self.lam, self.R, self.tol])
+        self._nu = s.n_inputs
         self.reset()
 
     def reset(self):
@@ -132,10 +143,13 @@ class RecursiveIV:
         self._beta = self._beta0.copy()
         self._buf = np.zeros((4 + 2 * s.n_inputs, s.max_lag + 1))
         m = max(self.k0, 1)
-        self._start = (np.empty((m, n)), np.empty((m, n)), np.empty(m))
-        self._work = tuple(np.empty(n) for _ in range(5)) + (np.empty(1),)
+        self._start = (np.empty((2, m, n)), np.empty(m))      # Phi0, Z0 and Y0
+        self._work = np.zeros((7, n))     # phi, z, g, h, K, theta before the step, eps
         self._z = np.zeros(n)
         self._u = np.empty(s.n_inputs)
+        # "delayed": the last samples of every input, lag 0 first (zero before the record)
+        self._ulags = np.zeros((s.n_inputs, max(s.nk[0] + s.nb[0] + s.na,
+                                                max(k + b for k, b in zip(s.nk, s.nb)))))
         self.n_steps = 0
         self.n_skipped = 0
         self.last_error = np.nan
@@ -161,6 +175,14 @@ class RecursiveIV:
         """The instrument row of the last sample (a copy)."""
         return self._work[1].copy()
 
+    def _input(self, u):
+        """`u` as a finite float array of shape (nu,) (the full validation)."""
+        uv = check_finite(as_float_array(u, "u").reshape(-1), "u")
+        if uv.size != self._nu:
+            raise ValueError(f"`u` must have {self._nu} entries (one per input); got "
+                             f"{uv.size}")
+        return uv
+
     def step(self, y, u, z=None):
         """Take one sample: return the prediction made before it and the new estimate.
 
@@ -180,15 +202,22 @@ class RecursiveIV:
         theta : ndarray, shape (n_params,)
             The updated estimate.
         """
-        yv = _scalar(y, "y")
+        # fast path: float samples need only a finiteness check (x - x is NaN for NaN, inf)
+        if isinstance(y, float) and y - y == 0.0:
+            yv = y
+        else:
+            yv = _scalar(y, "y")
+        if self._nu == 1 and isinstance(u, float) and u - u == 0.0:
+            self._u[0] = u
+        else:
+            self._u[:] = self._input(u)
+        uv = self._u
         s, n = self._s, self._s.n_params
-        uv = check_finite(as_float_array(u, "u").reshape(-1), "u")
-        if uv.size != s.n_inputs:
-            raise ValueError(f"`u` must have {s.n_inputs} entries (one per input); got "
-                             f"{uv.size}")
-        self._u[:] = uv
-        given = self.instruments == "given"
-        if given:
+        if self.instruments == "delayed":
+            if z is not None:
+                raise ValueError("`z` only applies to instruments='given'")
+            self._delayed_row(uv)
+        elif self.instruments == "given":
             if z is None:
                 raise ValueError("`z` must be given: instruments='given'")
             zv = check_finite(as_float_array(z, "z").reshape(-1), "z")
@@ -198,14 +227,9 @@ class RecursiveIV:
         elif z is not None:
             raise ValueError("`z` only applies to instruments='given'")
         row = self.n_steps - s.max_lag
-        pred_theta = self._theta[:, 0].copy()
-        na, nb, nk = self._ints
-        phi, zw, g, h, K, eps = self._work
-        status, _ = _get_kernels().riv_stream(
-            self._theta, self._P, self._buf, yv, self._u, self._z, given, row, na, nb, nk,
-            self.k0, self._alpha, self._beta, self.refresh if not given else 0,
-            self.prefilter and not given, 1.0 / self.lam, self._Q, self._q_zero, self.R,
-            self.tol, *self._start, phi, zw, g, h, K, eps)
+        status, yhat = _get_kernels().riv_stream(
+            self._theta, self._P, self._buf, yv, uv, self._z, row, self._spec, self._fpar,
+            self._alpha, self._beta, self._Q, *self._start, self._work)
         self.n_steps += 1
         if status == 3:
             self.n_steps -= 1
@@ -218,11 +242,24 @@ class RecursiveIV:
                 warnings.warn(f"RecursiveIV: the gain denominator R + phi^T P z nearly vanished "
                               f"at sample {self.n_steps - 1}; that update was skipped",
                               NumericalWarning, stacklevel=2)
-        yhat = float(phi @ pred_theta) if status in (1, 2) or row < 0 else np.nan
         self.last_error = yv - yhat
         return yhat, self._theta[:, 0].copy()
 
     __call__ = step
+
+    def _delayed_row(self, u):
+        """Shift the input lags and write the delayed-input instrument row into ``_z``:
+        ``[u_1(t - nk_1 - nb_1 - k + 1)]_{k=1..na}``, then the input block of the regressor."""
+        L = self._ulags
+        L[:, 1:] = L[:, :-1]
+        L[:, 0] = u
+        s, z = self._s, self._z
+        first = s.nk[0] + s.nb[0]
+        z[:s.na] = L[0, first:first + s.na]
+        j = s.na
+        for i in range(s.n_inputs):
+            z[j:j + s.nb[i]] = L[i, s.nk[i]:s.nk[i] + s.nb[i]]
+            j += s.nb[i]
 
     def __repr__(self):
         args = ", ".join(f"{k}={v!r}" for k, v in self._orders.items())

@@ -194,6 +194,12 @@ def as_io_data(u, y, names=("u", "y")):
     return U, Y, {"u_1d": u_1d, "y_1d": y_1d, "u_names": u_names, "y_names": y_names}
 
 
+def is_listed(x):
+    """True for a list or tuple of signals (arrays or pandas objects): one per experiment."""
+    return isinstance(x, (list, tuple)) and bool(x) and any(
+        isinstance(v, np.ndarray) or hasattr(v, "to_numpy") for v in x)
+
+
 def as_records(u, y=None, names=("u", "y")):
     """Validate one or several experiments: ``([(U, Y), ...], info)``.
 
@@ -206,9 +212,7 @@ def as_records(u, y=None, names=("u", "y")):
     """
     from ..data.iodata import IOData, as_iodata
 
-    listed = any(isinstance(x, (list, tuple)) and x
-                 and any(isinstance(v, np.ndarray) or hasattr(v, "to_numpy") for v in x)
-                 for x in (u, y))
+    listed = is_listed(u) or is_listed(y)
     if isinstance(u, IOData) or listed:
         data = as_iodata(u, y, u_name=names[0], y_name=names[1])
         info = {"u_1d": data.n_inputs == 1, "y_1d": data.n_outputs == 1,

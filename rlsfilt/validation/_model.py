@@ -47,6 +47,9 @@ def one_step_records(model, u, y=None, what="validate"):
     """
     from ..models.regressors import as_records
 
+    if u is None and y is not None:   # a time series (AR, ARMA): no input to align
+        Phi, _, E = one_step(model, None, y, what)
+        return Phi, E, None
     records, info = as_records(u, y)
     if info["n_experiments"] == 1 and y is not None:
         Phi, _, E = one_step(model, u, y, what)

@@ -12,7 +12,7 @@ from .._version import __version__
 from ..data.trend import _offset_messages
 from ..exceptions import ExactFitError, InsufficientDataError, OperatingPointWarning
 from ..models._base import check_is_fitted
-from ..models.regressors import as_records
+from ..models.regressors import _as_signal, as_records, is_listed
 from ..plotting import plot_comparison, plot_report
 from ._model import model_name, n_params, one_step
 from .criteria import _from_residuals
@@ -38,7 +38,8 @@ class ValidationReport:
         Measured output.
     y_simulated : ndarray
         Free-run simulation from the input, started from the measured first
-        ``max_lag`` outputs.
+        ``max_lag`` outputs (zeros for a time series: no input to simulate
+        from).
     y_predicted : ndarray
         One-step-ahead prediction.
     start : int
@@ -46,7 +47,13 @@ class ValidationReport:
     simulation_fit, prediction_fit : float or ndarray of shape (ny,)
         :func:`fit_percent` of the simulation and of the one-step prediction
         on samples ``start .. N-1`` (of every experiment). NaN for the
-        simulation of an unstable model, whose simulation diverges.
+        simulation of an unstable model, whose simulation diverges, and of a
+        time series (no input).
+    is_time_series : bool
+        True for a model without input (`AR`, `ARMA`): the residuals get
+        the whiteness test only (no cross-correlation, no independence
+        test), there is no simulation, and the stability and Bode diagram
+        are those of the noise model ``C/(A D)``.
     stability : str
         ``"stable (largest pole magnitude 0.93)"``, or ``"unstable model,
         largest pole magnitude 1.02, simulation diverges"``.
@@ -87,16 +94,17 @@ class ValidationReport:
         self.experiment_lengths = ()
         self.experiment_names = ()
         self.input_names = self.output_names = self.input_units = self.output_units = ()
+        self.is_time_series = False
         for key, value in fields.items():
             setattr(self, key, value)
 
     @property
     def passed(self):
-        """True if every residual test passed (white and independent for every output);
-        False when the tests were skipped."""
+        """True if every residual test passed (white and independent for every output;
+        white for a time series); False when the tests were skipped."""
         if not self.residuals:
             return False
-        return all(r.is_white and r.is_independent for r in self.residuals)
+        return all(r.is_white and r.is_independent is not False for r in self.residuals)
 
     def __repr__(self):
         return self.summary()
@@ -155,7 +163,9 @@ class ValidationReport:
             ``fit_percent`` (simulation; None for an unstable model) and
             ``fit_percent_prediction``; ``stability`` (the sentence of
             :attr:`stability`), ``unstable`` and ``max_pole_magnitude``;
-            ``experiment_lengths``;
+            ``experiment_lengths``; ``time_series`` (True for a model
+            without input: ``fit_percent`` and the independence entries of
+            ``residual_tests`` are then None);
             ``validation_skipped`` (None or the reason); when the tests ran,
             ``residual_tests`` (a dict; a list of dicts, one per output, for
             several outputs) and ``information_criteria``; with a plant,
@@ -190,7 +200,7 @@ class ValidationReport:
             stability=self.stability, unstable=self.is_unstable,
             max_pole_magnitude=self.max_pole_magnitude,
             experiment_lengths=list(self.experiment_lengths),
-            validation_skipped=self.skipped)
+            time_series=self.is_time_series, validation_skipped=self.skipped)
         if self.residuals:
             tests = [_residual_dict(r) for r in self.residuals]
             out["residual_tests"] = tests[0] if len(tests) == 1 else tests
@@ -217,6 +227,9 @@ class ValidationReport:
             rows.append(row(f"whiteness{tag}",
                             f"{'white' if r.is_white else 'NOT white'} "
                             f"(Ljung-Box p = {r.pvalue_white:.3g})"))
+            if not r.has_input:
+                rows.append(row(f"independence{tag}", "not applicable (time series: no input)"))
+                continue
             rows.append(row(f"independence{tag}",
                             f"{'independent' if r.is_independent else 'NOT independent'} "
                             f"(p = {r.pvalue_independent:.3g})"))
@@ -309,6 +322,8 @@ class ValidationReport:
         return model_name(self.model)
 
     def _simulation_text(self):
+        if self.is_time_series:
+            return "not applicable (time series: no input)"
         if self.is_unstable:
             return self.stability
         return _fmt_fit(self.simulation_fit)
@@ -326,12 +341,15 @@ def validate(model, u, y=None, plant=None, *, max_lag=25, alpha=0.01, skip_undef
     ----------
     model : IdentifiedModel
         A fitted model (`ARX` or any other model class of rlsfilt).
-    u : array_like, shape (N,) or (N, nu), or IOData
+    u : array_like, shape (N,) or (N, nu), or IOData, or None
         Input record, or an `IOData` holding inputs and outputs (then `y` is
         omitted; pass `plant` by keyword); validation data not used for the
         fit is the honest choice, the estimation data show the fit itself.
-    y : array_like, shape (N,) or (N, ny)
-        Output record.
+        None for a time-series model (`AR`, `ARMA`): the report then has
+        the whiteness test only (no input to correlate with), no
+        simulation, the prediction fit and the criteria.
+    y : array_like, shape (N,) or (N, ny), or a list of them
+        Output record (a list: one per experiment).
     plant : control.LTI, optional
         The true system, for simulated experiments (see
         :class:`PlantComparison`).
@@ -421,19 +439,25 @@ def validate(model, u, y=None, plant=None, *, max_lag=25, alpha=0.01, skip_undef
     from ..data.iodata import IOData
 
     u_arg = u
-    records, info = as_records(u, y)
-    # the regressors, residuals, simulation and prediction (their regressors, inputs and
-    # outputs) and the record's copies in the report (the residual tests check their own)
-    n_total = sum(len(U) for U, _ in records)
-    n_par = np.asarray(model.theta_).shape[0]
-    nu, ny = records[0][0].shape[1], records[0][1].shape[1]
-    check_memory(8 * n_total * (2 * n_par + 8 + 2 * nu + 4 * ny),
-                 f"validate on `u`, `y` of {n_total} samples")
-    if info["n_experiments"] == 1 and y is not None:
+    time_series = getattr(model, "n_inputs_", None) == 0
+    if time_series:                                       # AR, ARMA: u is None
+        records, info = _time_series_records(model, u, y)
+        parts = [(None, Y[:, 0]) for _, Y in records]
+    elif (records_info := as_records(u, y))[1]["n_experiments"] == 1 and y is not None:
+        records, info = records_info
         parts = [(u, y)]                                  # as given (1-D stays 1-D)
     else:
+        records, info = records_info
         parts = [(U if U.shape[1] > 1 else U[:, 0], Y if Y.shape[1] > 1 else Y[:, 0])
                  for U, Y in records]
+    # the regressors, residuals, simulation and prediction (their regressors, inputs and
+    # outputs) and the record's copies in the report (the residual tests check their own)
+    n_total = sum(len(Y) for _, Y in records)
+    n_par = np.asarray(model.theta_).shape[0]
+    nu = 0 if time_series else records[0][0].shape[1]
+    ny = records[0][1].shape[1]
+    check_memory(8 * n_total * (2 * n_par + 8 + 2 * nu + 4 * ny),
+                 f"validate on `u`, `y` of {n_total} samples")
     if _offset_mode(model) == "none":
         msgs = _offset_messages(records, (info.get("u_names"), info.get("y_names")))
         if msgs:
@@ -446,8 +470,11 @@ def validate(model, u, y=None, plant=None, *, max_lag=25, alpha=0.01, skip_undef
         Phi_k, _, E_k = one_step(model, uk, yk, "validate")   # the regressors, built once
         Yk = np.asarray(yk, dtype=float)
         start_k = len(Yk) - len(E_k)  # max_lag of the model
-        sims.append(np.asarray(model.simulate(uk, y0=Yk[:start_k] if start_k else None),
-                               dtype=float))
+        if time_series:               # nothing to simulate from: the zero-input response
+            sims.append(np.zeros(len(Yk)))
+        else:
+            sims.append(np.asarray(model.simulate(uk, y0=Yk[:start_k] if start_k else None),
+                                   dtype=float))
         preds.append(np.asarray(model.predict(uk, yk, horizon=1), dtype=float))
         Phis.append(Phi_k)
         Es.append(E_k)
@@ -456,7 +483,7 @@ def validate(model, u, y=None, plant=None, *, max_lag=25, alpha=0.01, skip_undef
         glued_u.append(Uk if k == 0 else Uk[start_k:])    # aligns residual rows across seams
         starts.append(start_k)
     Phi, E = np.vstack(Phis), np.vstack(Es)
-    u = np.vstack(glued_u) if len(parts) > 1 else parts[0][0]
+    u = np.vstack(glued_u) if len(parts) > 1 or time_series else parts[0][0]
     n = E.shape[0]
     if auto:
         lag = max(1, min(25, n // 4))
@@ -495,7 +522,7 @@ def validate(model, u, y=None, plant=None, *, max_lag=25, alpha=0.01, skip_undef
     r_max = float(np.max(np.abs(poles))) if len(poles) else 0.0
     unstable = r_max >= 1.0 + 1e-9
     sim_fit = fit_percent(Y[rows], y_sim[rows])
-    if unstable:  # a diverging simulation has no meaningful fit
+    if unstable or time_series:  # a diverging simulation (or none) has no meaningful fit
         sim_fit = np.full(np.shape(sim_fit), np.nan)
         sim_fit = float(sim_fit) if sim_fit.ndim == 0 else sim_fit
     return ValidationReport(
@@ -508,7 +535,7 @@ def validate(model, u, y=None, plant=None, *, max_lag=25, alpha=0.01, skip_undef
         criteria=criteria,
         intervals=parameter_intervals(model),
         plant_comparison=None if plant is None else PlantComparison(model, plant),
-        skipped=skipped, metadata=dict(metadata or {}),
+        skipped=skipped, metadata=dict(metadata or {}), is_time_series=time_series,
         experiment_names=(tuple(u_arg.experiment_names) if isinstance(u_arg, IOData)
                           else tuple(f"exp{k + 1}" for k in range(len(Ys)))),
         **_signal_labels(model, info),
@@ -531,6 +558,30 @@ def _signal_labels(model, info):
         out[f"{kind}_names"] = tuple(str(v) for v in names)
         out[f"{kind}_units"] = tuple(str(v) for v in units)
     return out
+
+
+def _time_series_records(model, u, y):
+    """``([(U (N_i, 0), Y (N_i, 1)), ...], info)`` of a time series (`u` None; `y` one
+    signal or a list of them, one per experiment)."""
+    name = type(model).__name__
+    if u is not None:
+        raise ValueError(f"`u` must be None for the time-series model {name} (it has no "
+                         f"input): call validate(model, None, y); got {type(u).__name__}")
+    if y is None:
+        raise TypeError(f"`y` is required: validate(model, None, y) for the time-series "
+                        f"model {name}")
+    listed = is_listed(y)
+    records = []
+    for i, yi in enumerate(y if listed else [y]):
+        label = f"y[{i}]" if listed else "y"
+        Y, _, names = _as_signal(yi, label)
+        if Y.shape[1] != 1:
+            raise ValueError(f"`{label}` must have shape (N,) (one signal, as in fit); got "
+                             f"{Y.shape}")
+        records.append((np.zeros((len(Y), 0)), Y))
+    info = {"u_1d": True, "y_1d": True, "u_names": [], "y_names": names,
+            "n_experiments": len(records)}
+    return records, info
 
 
 def _offset_mode(model):
