@@ -52,10 +52,13 @@ from numpy.testing import assert_allclose, assert_array_equal
 from scipy.signal import lfilter
 
 from rlsfilt import (
+    ARMAX,
     ARX,
+    IOData,
     NumericalWarning,
     OrderSelectionWarning,
     RecursiveLeastSquares,
+    RLSBank,
     SlidingWindowRLS,
     SquareRootRLS,
     datasets,
@@ -100,6 +103,7 @@ class Entry:
     kind: str = "array"        # "array", "scalar" or "int"
     expect: dict = field(default_factory=dict)   # outcome per kind, where not the default
     state: Callable = None     # state() -> bytes of the object whose state must not change
+    known: dict = field(default_factory=dict)    # kind -> reason: xfail(strict=True) until fixed
 
 
 # ----------------------------------------------------------------------
@@ -128,7 +132,8 @@ def _variants(entry):
     readonly.flags.writeable = False
     strided = np.repeat(a, 2, axis=0)[::2]
     return {"shape": a[None, None], "nan": nan, "inf": inf, "none": None,
-            "list": a.tolist(), "pandas": pd.Series(a) if a.ndim == 1 else pd.DataFrame(a),
+            "list": a.tolist(),
+            "pandas": pd.Series(a) if a.ndim == 1 else pd.DataFrame(a) if a.ndim == 2 else a,
             "0d": np.array(flat[0]), "complex": a + 0.0j, "object": obj,
             "bool": a > np.median(a), "int": np.round(4.0 * a).astype(np.int64),
             "readonly": readonly, "strided": strided, "huge": a * HUGE, "tiny": a * TINY}
@@ -346,6 +351,63 @@ def _arx_entries():
     ]
 
 
+def _bank_entries():
+    """`RLSBank`: four channels of three parameters."""
+    C = 4
+    zs = np.column_stack([ZS + 0.01 * c for c in range(C)])            # (N, C)
+    Hs = np.repeat(HS[:, None, :], C, axis=1)                        # (N, C, 3)
+
+    def run(**kw):
+        bank = RLSBank(C, 3, **kw)
+        bank.batch_filter(zs, Hs)
+        return bank.x.copy(), bank.P.copy()
+
+    def update(z=zs[10], H=Hs[10], R=None):
+        bank = RLSBank(C, 3)
+        bank.batch_filter(zs[:10], Hs[:10])
+        bank.predict()
+        bank.update(z, H, R)
+        return bank.x.copy(), bank.P.copy()
+
+    return [
+        Entry("RLSBank()", "R", lambda v: run(R=v), 0.5, kind="scalar",
+              expect={"huge": ERROR, "tiny": ERROR, "list": ERROR}),
+        Entry("RLSBank()", "lam", lambda v: run(lam=v), 0.95, kind="scalar",
+              expect={"huge": ERROR, "tiny": WARNS, "list": ERROR}),
+        Entry("RLSBank()", "P0", lambda v: run(P0=v), 10.0 * np.eye(3),
+              expect={"huge": ERROR, "0d": SAME, "none": ERROR}),
+        Entry("RLSBank.update", "z", lambda v: update(z=v), zs[10], expect={"nan": OK}),
+        Entry("RLSBank.update", "H", lambda v: update(H=v), Hs[10],
+              expect={"nan": OK, "huge": WARNS}),
+        Entry("RLSBank.batch_filter", "zs",
+              lambda v: RLSBank(C, 3).batch_filter(v, Hs).means, zs, expect={"nan": OK}),
+        Entry("RLSBank.batch_filter", "Hs",
+              lambda v: RLSBank(C, 3).batch_filter(zs, v).means, Hs,
+              expect={"nan": OK, "huge": WARNS}),
+        Entry("RLSBank()", "n_channels", lambda v: RLSBank(v, 3).x.shape, 4, kind="int"),
+    ]
+
+
+def _family_entries():
+    """`ARMAX` (prediction-error method) and `IOData`, the containers of real records."""
+    unsafe = ("#18 item 7: the prediction-error fits (ARMAX, OE, BJ) square the residuals "
+              "in the signals' units and overflow around 1e160 (a RuntimeWarning, not a "
+              "result); to be scaled as ARX's least squares is")
+    return [
+        Entry("ARMAX.fit", "u", lambda v: _theta(ARMAX(2, 2, 1).fit(v, Y)), U,
+              expect={"huge": EITHER, "tiny": EITHER}, known={"huge": unsafe, "tiny": unsafe}),
+        Entry("ARMAX.fit", "y", lambda v: _theta(ARMAX(2, 2, 1).fit(U, v)), Y,
+              expect={"huge": EITHER, "tiny": EITHER}, known={"huge": unsafe, "tiny": unsafe}),
+        Entry("IOData", "u", lambda v: np.asarray(IOData(v, Y, dt=0.1).u), U,
+              expect={"huge": OK, "tiny": OK}),
+        Entry("IOData", "y", lambda v: np.asarray(IOData(U, v, dt=0.1).y), Y,
+              expect={"huge": OK, "tiny": OK}),
+        Entry("IOData", "dt", lambda v: IOData(U, Y, dt=v).dt, 0.1, kind="scalar",
+              expect={"list": EITHER, "0d": EITHER, "int": AS_FLOAT, "huge": OK, "tiny": OK,
+                      "none": EITHER, "bool": EITHER}),
+    ]
+
+
 def _best(u, y, na=range(1, 4)):
     with warnings.catch_warnings():      # advice that the best lies at an edge of the grid
         warnings.simplefilter("ignore", OrderSelectionWarning)
@@ -353,9 +415,13 @@ def _best(u, y, na=range(1, 4)):
 
 
 ENTRIES = [e for label, make in _filters().items() for e in _filter_entries(label, make)]
-ENTRIES += _arx_entries()
+ENTRIES += _arx_entries() + _bank_entries() + _family_entries()
 CASES = [(e, kind) for e in ENTRIES
          for kind in {"array": ARRAY_KINDS, "scalar": SCALAR_KINDS, "int": INT_KINDS}[e.kind]]
+PARAMS = [pytest.param(e, kind, id=f"{e.name}-{e.arg}-{kind}",
+                       marks=[pytest.mark.xfail(strict=True, reason=e.known[kind])]
+                       if kind in e.known else [])
+          for e, kind in CASES]
 
 
 # ----------------------------------------------------------------------
@@ -379,8 +445,7 @@ def _equal(a, b, rtol=0.0):
             assert_array_equal(x, y)
 
 
-@pytest.mark.parametrize("entry, kind", CASES,
-                         ids=[f"{e.name}-{e.arg}-{k}" for e, k in CASES])
+@pytest.mark.parametrize("entry, kind", PARAMS)
 def test_bad_input_catalogue(entry, kind):
     value = _variants(entry)[kind]
     expected = _expected(entry, kind)
