@@ -14,8 +14,17 @@ runs on every registered filter:
 - a filterpy ``Saver`` records the same states as the filter produces;
 - no caller array is ever written (read-only inputs everywhere, and arrays
   assigned to ``x`` and ``P`` stay as they were);
+- assigning ``x``, ``P`` or ``R`` copies: the caller's array can change
+  afterwards without changing the filter (#18 item 1);
 - a rejected input (``ValueError``/``TypeError``) leaves the state
   bit-identical;
+- the audit's bad arguments (complex ``R`` or ``P0``, ``P0 = 1e308``,
+  ``R = 'a'``, ``batch_filter(None, Hs)``, ``saver=1``,
+  ``update_first='no'``, ...) are a ``ValueError``/``TypeError`` naming the
+  argument, and change nothing (#18 items 6 and 8);
+- a warning turned into an error (``warnings.simplefilter("error")``: the
+  health warning, ``ForgettingSkippedWarning``) leaves the state
+  bit-identical, from every entry point (#18 item 4);
 - ``copy.copy``, ``copy.deepcopy`` and a pickle round trip resume bit for
   bit like the original;
 - streaming ``predict``/``update`` equals ``batch_filter`` bit for bit;
@@ -25,6 +34,7 @@ runs on every registered filter:
 
 import copy
 import pickle
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -34,7 +44,13 @@ from contract import parametrize_with_checks
 from filterpy.common import Saver
 from numpy.testing import assert_allclose, assert_array_equal
 
-from rlsfilt import NumericalWarning, RecursiveLeastSquares, SlidingWindowRLS, SquareRootRLS
+from rlsfilt import (
+    ForgettingSkippedWarning,
+    NumericalWarning,
+    RecursiveLeastSquares,
+    SlidingWindowRLS,
+    SquareRootRLS,
+)
 
 N, DIM_X = 120, 3
 K0 = 6                                   # samples of the batch start
@@ -234,6 +250,99 @@ def check_rejected_input_leaves_the_state_unchanged(case):
         assert _state(f) == before, f"call {i} changed the state"
 
 
+def check_assignment_copies(case):
+    """``f.x = X``, ``f.P = P``, ``f.R = R`` store copies: changing the caller's arrays
+    afterwards changes nothing in the filter (as filterpy's users expect)."""
+    zs, Hs = _record()
+    f = case.make()
+    f.batch_filter(zs[:20], Hs[:20])
+    X, P, R = np.full((DIM_X, 1), 0.2), 20.0 * np.eye(DIM_X), np.array([[0.5]])
+    f.x, f.P, f.R = X, P, R
+    X[:], P[:], R[:] = 7.0, 9.0, 3.0
+    assert_array_equal(f.x, 0.2)
+    assert_allclose(f.P, 20.0 * np.eye(DIM_X), rtol=1e-12)
+    assert f.R == 0.5
+    view = np.frombuffer(np.full(DIM_X, 0.1).tobytes())   # read-only memory of bytes
+    f.x = view.reshape(-1, 1)
+    f.predict_update(zs[20], Hs[20])
+    f.batch_filter(zs[21:30], Hs[21:30])
+    assert_array_equal(view, 0.1)
+
+
+def check_bad_arguments_are_named(case):
+    """The audit's bad arguments: a ValueError/TypeError naming the argument, and no
+    change to a running filter."""
+    zs, Hs = _record()
+    constructions = [
+        ("R", lambda: case.make(R=1.0 + 1.0j)),
+        ("R", lambda: case.make(R="a")),
+        ("P0", lambda: case.make(P0=np.eye(DIM_X) * (1.0 + 0.0j))),
+        ("P0", lambda: case.make(P0=1e308)),
+        ("x0", lambda: case.make(x0=np.full(DIM_X, 1.0j))),
+    ]
+    for name, call in constructions:
+        with pytest.raises((ValueError, TypeError), match=f"`{name}`"):
+            call()
+    f = case.make()
+    f.batch_filter(zs[:20], Hs[:20])
+    calls = [
+        ("zs", lambda: f.batch_filter(None, Hs[:5])),
+        ("Hs", lambda: f.batch_filter(zs[:5], None)),
+        ("saver", lambda: f.batch_filter(zs[:5], Hs[:5], saver=1)),
+        ("update_first", lambda: f.batch_filter(zs[:5], Hs[:5], update_first="no")),
+        ("store_covariances", lambda: f.batch_filter(zs[:5], Hs[:5], store_covariances=2)),
+        ("R", lambda: f.update(zs[20], Hs[20], R="a")),
+        ("R", lambda: f.update(zs[20], Hs[20], R=1.0 + 1.0j)),
+        ("z", lambda: f.update(1.0j, Hs[20])),
+        ("z", lambda: f.update("1.0", Hs[20])),
+        ("H", lambda: f.update(zs[20], Hs[20] * 1.0j)),
+        ("H", lambda: f.update(zs[20], None)),
+        ("Rs", lambda: f.batch_filter(zs[:5], Hs[:5], Rs=np.full(5, 1.0j))),
+    ]
+    if hasattr(f, "Q"):
+        calls += [("Q", lambda: f.predict(Q=1.0j)), ("Q", lambda: f.predict(Q=1e308))]
+    for name, call in calls:
+        before = _state(f)
+        with pytest.raises((ValueError, TypeError), match=f"`{name}`"):
+            call()
+        assert _state(f) == before, name
+
+
+def check_warning_turned_error_changes_nothing(case):
+    """With ``warnings.simplefilter("error")`` a step whose warning becomes an exception
+    leaves the filter bit-identical: the health warning from ``update``,
+    ``predict_update`` and ``batch_filter`` (compiled and with a Saver), and
+    ``ForgettingSkippedWarning`` from a second ``update`` without ``predict``."""
+    zs, Hs = _record()
+    f = case.make(check_every=1, cond_max=1.0 + 1e-9)   # fails the check at once
+    f.predict()                                         # (predict itself checks nothing)
+    calls = [lambda: f.update(zs[0], Hs[0]),
+             lambda: f.predict_update(zs[0], Hs[0]),
+             lambda: f.batch_filter(zs[:5], Hs[:5]),
+             lambda: f.batch_filter(zs[:5], Hs[:5], store_covariances=False),
+             lambda: f.batch_filter(zs[:5], Hs[:5], update_first=True),
+             lambda: f.batch_filter(zs[:5], Hs[:5], saver=Saver(f))]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for i, call in enumerate(calls):
+            before = _state(f)
+            with pytest.raises(NumericalWarning):
+                call()
+            assert _state(f) == before, f"call {i} changed the state"
+    g = case.make()
+    g.predict()
+    g.update(zs[0], Hs[0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        before = _state(g)
+        try:
+            g.update(zs[1], Hs[1])                  # no predict in between
+        except ForgettingSkippedWarning:
+            assert _state(g) == before
+        else:                                       # nothing skipped: no warning is due
+            assert not getattr(g, "_forgets", False)
+
+
 def _resume(case, copier):
     zs, Hs = _record()
     f = case.make()
@@ -331,7 +440,10 @@ CHECKS = [
     check_least_squares,
     check_saver_round_trip,
     check_no_caller_array_is_written,
+    check_assignment_copies,
     check_rejected_input_leaves_the_state_unchanged,
+    check_bad_arguments_are_named,
+    check_warning_turned_error_changes_nothing,
     check_copy_resumes_bit_for_bit,
     check_deepcopy_resumes_bit_for_bit,
     check_pickle_resumes_bit_for_bit,
@@ -339,14 +451,7 @@ CHECKS = [
     check_health_warning_points_at_the_caller,
 ]
 
-EXPECTED_FAILURES = {
-    # (a window of 1000 never downdates in this record, so its copies agree by luck)
-    ("SlidingWindowRLS-window40", "check_copy_resumes_bit_for_bit"):
-        "#18 item 8: copy.copy(SlidingWindowRLS) copies share their window",
-    ("RecursiveLeastSquares-gate-constrained", "check_saver_round_trip"):
-        "#18: Saver.to_array() cannot convert the (A, b) tuple `constraints` of a "
-        "constrained filter",
-}
+EXPECTED_FAILURES = {}
 
 
 @parametrize_with_checks(FILTERS, CHECKS, EXPECTED_FAILURES)

@@ -33,8 +33,8 @@ order, ``P_ij - (g_i g_j) c`` keeping ``P`` exactly symmetric; no
 """
 
 import numpy as np
-from numba import njit
 
+from .._numba import njit  # numba.njit, uncached where no cache directory is writable
 from ._kernels_shared import any_nan, copy2, diagonal_bad, unhealthy, unhealthy_on
 from .forgetting import (
     CFG_GATE,

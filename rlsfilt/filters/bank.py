@@ -15,7 +15,15 @@ import math
 import numpy as np
 from filterpy.common import pretty_str
 
-from .._validation import as_float_array, check_covariance, check_int, check_scalar
+from .._validation import (
+    VARIANCE_RANGE,
+    as_float_array,
+    check_covariance,
+    check_dimension,
+    check_int,
+    check_length,
+    check_scalar,
+)
 from ..exceptions import ForgettingSkippedWarning, NumericalWarning
 from . import _health
 from . import forgetting as _fg
@@ -219,8 +227,10 @@ class RLSBank:
     def __init__(self, n_channels, dim_x, lam=1.0, *, Q=0.0, R=1.0, P0=1e4, x0=None,
                  forgetting="exponential", forgetting_params=None, check_every=100,
                  cond_max=1e12, parallel=False):
-        self.n_channels = check_int(n_channels, "n_channels", minimum=1)
-        self.dim_x = check_int(dim_x, "dim_x", minimum=1)
+        self.dim_x = check_dimension(dim_x, "dim_x")
+        # per channel: x, P and their priors, posteriors and the batch's work arrays
+        self.n_channels = check_length(n_channels, "n_channels",
+                                       bytes_per_item=64 * self.dim_x * (self.dim_x + 1))
         if not isinstance(forgetting, str) or forgetting not in _MODES:
             raise ValueError(
                 f"`forgetting` must be one of {', '.join(map(repr, _MODES))} for RLSBank; got "
@@ -698,6 +708,8 @@ class RLSBank:
     def _per_channel(self, value, name):
         """A scalar or one value per channel, as a new float array of shape (C,)."""
         C = self.n_channels
+        if np.asarray(value).dtype == bool:
+            raise TypeError(f"`{name}` must be a number or one number per channel; got {value!r}")
         arr = as_float_array(value, name)
         if arr.ndim == 0:
             return np.full(C, float(arr))
@@ -713,6 +725,12 @@ class RLSBank:
             c = int(np.argmax(bad))
             raise ValueError(f"`{name}` must be a positive finite variance; got {arr[c]} for "
                              f"channel {c}")
+        lo, hi = VARIANCE_RANGE
+        bad = (arr < lo) | (arr > hi)
+        if bad.any():
+            c = int(np.argmax(bad))
+            raise ValueError(f"`{name}` must be a variance in [{lo:.0e}, {hi:.0e}] (the update "
+                             f"multiplies and divides by it); got {arr[c]:.3g} for channel {c}")
         return arr
 
     def _covariances(self, value, name, definite=False):

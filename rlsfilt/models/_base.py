@@ -399,7 +399,7 @@ class IdentifiedModel(abc.ABC):
         self._check_fitted("to_tf")
         if not continuous and (method != "zoh" or pade is not None):
             raise TypeError("`method` and `pade` only apply with continuous=True")
-        G = _conversion.to_tf(self.polydata(), self.dt, noise)
+        G = _conversion.to_tf(self.polydata(), self._check_dt(), noise)
         G = _labelled(G, self._signal_labels(noise))
         if continuous:
             from ..continuous import d2c
@@ -563,7 +563,7 @@ class IdentifiedModel(abc.ABC):
             signal names as its input and output labels.
         """
         self._check_fitted("to_ss")
-        return _labelled(_conversion.to_ss(self.polydata(), self.dt, noise),
+        return _labelled(_conversion.to_ss(self.polydata(), self._check_dt(), noise),
                          self._signal_labels(noise))
 
     def to_dlti(self, noise=False):
@@ -582,7 +582,7 @@ class IdentifiedModel(abc.ABC):
             :meth:`to_ss`) otherwise.
         """
         self._check_fitted("to_dlti")
-        return _conversion.to_dlti(self.polydata(), self.dt, noise)
+        return _conversion.to_dlti(self.polydata(), self._check_dt(), noise)
 
     def to_kalman(self):
         """The model as a filterpy ``KalmanFilter``: `rlsfilt.adaptive.to_kalman`."""
@@ -609,7 +609,8 @@ class IdentifiedModel(abc.ABC):
             (``(ny, ny, n_points)`` for the noise model.)
         """
         self._check_fitted("frequency_response")
-        dt = 1.0 if self.dt is True else float(self.dt)
+        dt = self._check_dt()
+        dt = 1.0 if dt is True else dt
         return _conversion.frequency_response(self.polydata(theta), omega, dt, noise)
 
     # ------------------------------------------------------------------
@@ -648,11 +649,11 @@ class IdentifiedModel(abc.ABC):
         p = self.polydata()
         G = self.to_tf()
         tfs = [{"output": i, "input": j, "num": G.num[i][j], "den": G.den[i][j],
-                "dt": self.dt, "variable": "z"}
+                "dt": self._check_dt(), "variable": "z"}
                for i in range(self.n_outputs_) for j in range(self.n_inputs_)]
         return jsonable({
             "model": type(self).__name__, "params": self.get_params(), "orders": self.orders_,
-            "dt": self.dt,
+            "dt": self._check_dt(),
             "input_names": [self._u_name(j) for j in range(self.n_inputs_)],
             "output_names": [self._y_name(i) for i in range(self.n_outputs_)],
             "theta_names": self.param_names_, "theta": self.theta_,
@@ -717,7 +718,8 @@ class IdentifiedModel(abc.ABC):
     # helpers for subclasses: data against the fitted signals
     # ------------------------------------------------------------------
     def _check_dt(self):
-        check_dt(self.dt)
+        """``dt`` validated: True or a Python float (what python-control accepts)."""
+        return check_dt(self.dt)
 
     def _y_name(self, i):
         names = self._info.get("y_names")

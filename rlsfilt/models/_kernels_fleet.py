@@ -1,7 +1,8 @@
 """Compiled (numba) helpers of `fit_many`: statistics of many fitted ARX models."""
 
 import numpy as np
-from numba import njit
+
+from .._numba import njit  # numba.njit, uncached where no cache directory is writable
 
 __all__ = []
 

@@ -20,6 +20,8 @@ import numpy as np
 from scipy import signal
 from scipy.linalg import lapack, solve_triangular
 
+from .._resources import check_memory
+from .._scale import pow2_scale, safe_norm
 from .._serialize import jsonable
 from .._validation import as_float_array, check_finite, check_int, check_scalar
 from ..exceptions import InsufficientDataError, NumericalWarning
@@ -344,6 +346,9 @@ class ARX(IdentifiedModel):
             NaN/inf in the data (the first bad index is named), mismatched
             lengths, bad orders, too few samples, or a regressor matrix
             without full column rank (input not persistently exciting).
+        MemoryError
+            When the regressor matrix and the factorization would need more
+            memory than the process can get (checked before they are built).
 
         Warns
         -----
@@ -385,20 +390,25 @@ class ARX(IdentifiedModel):
             raise InsufficientDataError(
                 f"`y` must have at least max_lag + n_params = {s.max_lag} + {n_params} = "
                 f"{s.max_lag + n_params} samples{per} for ARX(na={s.na}, nb={_fmt(s.nb)}, "
-                f"nk={_fmt(s.nk)}); got {N}")
+                f"nk={_fmt(s.nk)}); got {N} (use a longer record or smaller `na`, `nb`, "
+                "`nk`)")
+        check_memory(_fit_bytes(rows, n_params, s, method),
+                     f"ARX.fit(method={method!r}) with {n_params} parameters on `u`, `y` of "
+                     f"{sum(len(U) for U, _ in records)} samples")
         op = _means(records) if _offset_mode(self.offset) == "mean" else None
         Phi, target = self._design(records, s, op)
         # compute everything first: a fit that raises leaves the model as it was
         recursive, cov_iv = {}, None
+        inv_scaled, col_scale = None, np.ones(Phi.shape[1])
         if method == "ls":
-            theta, cov_unscaled = _qr_least_squares(Phi, target)
+            theta, inv_scaled, col_scale = _qr_least_squares(Phi, target)
         elif method in ("iv", "riv"):
             dev = records if op is None else [(U - op[0], Y - op[1]) for U, Y in records]
             theta, cov_iv, recursive = fit_arx_iv(
                 dev, s, method, iv_options, info["y_1d"],
                 intercept=_offset_mode(self.offset) == "intercept")
         else:
-            theta, cov_unscaled, rls, history, x_start, k0 = _fit_rls(Phi, target, s, opts)
+            theta, inv_scaled, rls, history, x_start, k0 = _fit_rls(Phi, target, s, opts)
             recursive = {"filter_": rls, "k0_": k0, "lam_": float(rls.lam),
                          "form_": "square_root" if isinstance(rls, SquareRootRLS)
                          else "covariance",
@@ -416,15 +426,14 @@ class ARX(IdentifiedModel):
         self.__dict__.update(recursive)
         resid = target - Phi @ theta
         dof = rows - n_params
-        sigma2 = np.sum(resid ** 2, axis=0) / dof if dof > 0 else np.full(s.n_outputs, np.nan)
+        sigma2, cov, noise_cov = _noise_and_covariance(resid, dof, inv_scaled, col_scale)
         self._store(theta, s, info)
         self._set_operating_point(records, op)
-        cov = sigma2[:, None, None] * cov_unscaled[None] if cov_iv is None else cov_iv
+        cov = cov if cov_iv is None else cov_iv
         self.theta_cov_ = cov[0] if info["y_1d"] else cov
         self.noise_variance_ = float(sigma2[0]) if info["y_1d"] else sigma2
         if not info["y_1d"]:
-            self.noise_covariance_ = (resid.T @ resid / dof if dof > 0
-                                      else np.full((s.n_outputs, s.n_outputs), np.nan))
+            self.noise_covariance_ = noise_cov
         self.residuals_ = resid[:, 0] if info["y_1d"] else resid
         self.n_samples_ = rows
         self.n_experiments_ = len(records)
@@ -1064,6 +1073,19 @@ def _check_filter_options(options):
                             f"the filter's other options are {valid}")
 
 
+def _fit_bytes(rows, n, s, method):
+    r"""Peak working memory of a fit on `rows` equations with `n` parameters per output
+    (measured with tracemalloc, rounded up).
+
+    Batch least squares holds :math:`\Phi`, its scaled copy and the
+    orthogonal factor (three ``rows x n`` arrays); the recursive fit adds the
+    estimate after every row and the filter's history of means.
+    """
+    ny, nu = s.n_outputs, s.n_inputs
+    per_row = 3 * n + 4 * ny + nu if method in ("ls", "iv") else 4 * n + 3 * n * ny + 6 * ny + nu
+    return 8 * rows * per_row
+
+
 def _fit_rls(Phi, target, s, opts):
     """Recursive least squares over the rows: ``(theta, P / R, filter, history, x_start, k0)``."""
     n, rows = Phi.shape[1], len(Phi)  # an intercept adds a column to the structure's
@@ -1124,7 +1146,7 @@ def _choose_form(Phi, opts):
     if form == "square_root" and blocked:
         raise TypeError(f"form='square_root' (SquareRootRLS) takes lam, P0, x0, R, check_every "
                         f"and cond_max only; got `{blocked[0]}`")
-    norms = np.linalg.norm(Phi, axis=0)
+    norms = safe_norm(Phi, axis=0)
     R = np.linalg.qr(Phi / np.where(norms > 0, norms, 1.0), mode="r")
     cond, cond_raw = (_cond(M) for M in (R, R * norms))  # R D is the factor of Phi itself
     if form == "auto":
@@ -1151,7 +1173,16 @@ def _cond(R):
 
 
 def _qr_least_squares(Phi, target):
-    """``theta`` (n, ny) and ``(Phi^T Phi)^-1`` from a QR factorization of ``Phi``."""
+    r"""Least squares through QR, safe over the whole double range.
+
+    Returns ``(theta, C, c)``: ``theta`` (n, ny) and :math:`(\Phi^T\Phi)^{-1}
+    = C / (c c^T)`, with ``c`` the powers of two that scaled the columns.
+
+    The columns of ``Phi`` (by ``c``) and of the target (by ``t``) are
+    divided by powers of two near their largest entries, which is exact, so
+    the factorization never squares a number around 1e160 or 1e-160; then
+    :math:`\hat\theta_i = t_i \hat\theta^{s}_i / c`.
+    """
     n = Phi.shape[1]
     rank = _column_rank(Phi)
     if rank < n:
@@ -1159,17 +1190,47 @@ def _qr_least_squares(Phi, target):
             f"the regressor matrix has rank {rank} < n_params = {n}: the input is not "
             "persistently exciting for these orders (or the orders are too high); use a richer "
             "input, more data or lower orders")
-    Qf, Rf = np.linalg.qr(Phi)
-    c = Qf.T @ target
+    c = pow2_scale(Phi, axis=0)
+    t = pow2_scale(target, axis=0)
+    Qf, Rf = np.linalg.qr(Phi / c)
+    rhs = Qf.T @ (target / t)
     # back substitution one column at a time, and the triangular inverse from
     # LAPACK's trtri: multi-column triangular solves hit a slow threaded BLAS
     # path for tiny matrices on loaded machines (measured: 2-10 ms per call)
-    theta = np.column_stack([solve_triangular(Rf, c[:, i]) for i in range(c.shape[1])])
+    theta = np.column_stack([solve_triangular(Rf, rhs[:, i]) * (t[i] / c)
+                             for i in range(rhs.shape[1])])
     Rinv, info = lapack.dtrtri(Rf, lower=0)
     cov = Rinv @ Rinv.T
-    return theta, 0.5 * (cov + cov.T)
+    return theta, 0.5 * (cov + cov.T), c
 
 
+def _noise_and_covariance(resid, dof, inv_scaled, c):
+    r"""Noise variances, parameter covariances and (several outputs) the noise covariance.
+
+    With :math:`(\Phi^T\Phi)^{-1} = C / (c c^T)` and each residual column
+    divided by a power of two :math:`t_i` first, :math:`\hat\sigma_i^2 =
+    t_i^2 \hat\sigma_{s,i}^2` and ``cov[i] = sigma_s2[i] C (t_i / c)(t_i / c)^T``:
+    no intermediate overflows or underflows, so a record in any units gives
+    the covariance of its parameters wherever that is representable.
+    ``inv_scaled`` None (instrumental variables, whose covariance is their
+    own) gives no parameter covariance.
+    """
+    ny, n = resid.shape[1], len(c)
+    if dof <= 0:
+        nan = np.full(ny, np.nan)
+        return nan, np.full((ny, n, n), np.nan), np.full((ny, ny), np.nan)
+    t = pow2_scale(resid, axis=0)
+    rs = resid / t
+    noise_s = rs.T @ rs / dof
+    sigma2_s = np.diag(noise_s).copy()
+    g = t[:, None] / c[None, :]                          # (ny, n)
+    with np.errstate(over="ignore", under="ignore"):
+        sigma2 = sigma2_s * t * t
+        noise_cov = noise_s * np.outer(t, t)
+        if inv_scaled is None:
+            return sigma2, None, noise_cov
+        cov = (sigma2_s[:, None, None] * inv_scaled[None]) * g[:, :, None] * g[:, None, :]
+    return sigma2, cov, noise_cov
 
 
 def _split(theta, s):

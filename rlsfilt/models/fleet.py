@@ -25,11 +25,12 @@ import warnings
 
 import numpy as np
 
+from .._scale import unit_columns
 from .._validation import as_float_array, check_dt, check_int, check_probability
 from ..exceptions import NumericalWarning
 from ..filters._health import warn_at_caller as _warn_at_caller
 from ..filters.bank import RLSBank
-from .regressors import _full_rank_rows, _unit_columns, arx_structure
+from .regressors import _full_rank_rows, arx_structure
 
 __all__ = ["ARXBank", "fit_many"]
 
@@ -636,7 +637,7 @@ def _recursive(cs, Phi, target, opts, k0, labels, on_error, out):
         k0s = _batch_start_rows(Phi)
         for j in np.flatnonzero(k0s < 0):
             ok[j] = False
-            rank = int(np.linalg.matrix_rank(_unit_columns(Phi[:, j])))
+            rank = int(np.linalg.matrix_rank(unit_columns(Phi[:, j])))
             _fail(out, cs[j], labels,
                   f"the regressor matrix has rank {rank} < n_params = {n}: the input is not "
                   "persistently exciting for these orders (or the orders are too high); use a "
@@ -700,7 +701,7 @@ def _run_group(cs, g, k0, Phi, target, opts, labels, on_error, out):
 
 def _column_norms(Phi):
     """Norms of the regressor columns of each channel, (c, n), summed in time
-    order as ``regressors._unit_columns`` sums them."""
+    order (the rank decisions of ``regressors._column_rank`` use unit columns too)."""
     from ._kernels_fleet import column_norms
 
     out = np.empty(Phi.shape[1:])
@@ -726,7 +727,7 @@ def _batch_start_rows(Phi):
     fewest leading rows with full column rank (``regressors._full_rank_rows``),
     -1 when all rows together are rank-deficient."""
     rows, c, n = Phi.shape
-    norms = _column_norms(Phi)                                 # (c, n), as _unit_columns
+    norms = _column_norms(Phi)                                 # (c, n): unit columns
     Ps = Phi[:n].transpose(1, 0, 2) / np.where(norms > 0, norms, 1.0)[:, None, :]
     k0s = np.full(c, n)
     for j in np.flatnonzero(np.linalg.matrix_rank(Ps) < n):

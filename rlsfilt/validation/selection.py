@@ -14,6 +14,8 @@ import warnings
 
 import numpy as np
 
+from .._resources import check_memory
+from .._scale import pow2_scale, safe_norm
 from .._serialize import jsonable
 from .._validation import check_dt, check_int
 from ..exceptions import ExactFitError, InsufficientDataError, OrderSelectionWarning
@@ -23,6 +25,10 @@ from .criteria import _criteria
 
 __all__ = ["OrderSelection", "select_order"]
 
+# largest number of floating-point operations select_order agrees to spend on its
+# candidates (a few minutes on one core); a realistic grid (na, nb, nk up to 10 with
+# one input: 1210 candidates) needs about 1e7
+_MAX_WORK = 1e11
 _CRITERIA = ("aic", "aicc", "bic", "naic", "fpe", "mdl", "loss")
 _FIELDS = [("na", int), ("nb", int), ("nk", int), ("n_params", int), ("loss", float),
            ("val_loss", float), ("aic", float), ("aicc", float), ("bic", float),
@@ -61,11 +67,14 @@ class OrderSelection:
     """
 
     def __init__(self, table, criterion, values, thetas, n_rows, n_val_rows, data, dt,
-                 offset=False):
+                 offset=False, rank_key=None):
         self.table = table
         self.criterion = criterion
         self.values = np.asarray(values, dtype=float)
-        i = int(np.nanargmin(self.values))
+        # the order of `values` (a monotone transform of them that stays finite for
+        # records in any units, see select_order)
+        self._rank_key = self.values if rank_key is None else np.asarray(rank_key, float)
+        i = int(np.nanargmin(self._rank_key))
         self.best = (int(table["na"][i]), int(table["nb"][i]), int(table["nk"][i]))
         self.best_index = i
         self.thetas = thetas
@@ -128,7 +137,7 @@ class OrderSelection:
         str
         """
         top = check_int(top, "top", minimum=1)
-        order = np.argsort(self.values, kind="stable")[:top]
+        order = np.argsort(self._rank_key, kind="stable")[:top]
         val = not np.all(np.isnan(self.table["val_loss"]))
         head = f"{'na':>3} {'nb':>3} {'nk':>3} {'d':>3} {'loss':>11}"
         head += f" {'val_loss':>11}" if val else ""
@@ -219,10 +228,17 @@ def select_order(u, y=None, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), crit
 
     Raises
     ------
+    InsufficientDataError
+        When the largest orders leave no more aligned rows than regressors
+        (checked first, so ``na=10**9`` fails at once).
     ValueError
-        Bad orders or criterion, a record too short for the largest lags,
-        noise-free data (a zero loss), or no stable candidate with
-        `stable_only`.
+        Bad orders or criterion, noise-free data (a zero loss), no stable
+        candidate with `stable_only`, or a grid that would need more than
+        about 1e11 floating-point operations (minutes of computation):
+        narrow it or search it in parts.
+    MemoryError
+        When the regressor matrix and the table would need more memory than
+        the process can get (checked before they are built).
 
     Notes
     -----
@@ -273,27 +289,50 @@ def select_order(u, y=None, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), crit
     nb_list = _order_list(nb, "nb", 1)
     nk_list = _order_list(nk, "nk", 0)
     records, info = _records(u, y, "u", "y")
-    kmin = min(nk_list)
-    kmax = max(nk_list) + max(nb_list) - 1
-    na_max = max(na_list)
+    # the lists are sorted (ranges ascending): first and last are the extremes
+    kmin = nk_list[0]
+    kmax = nk_list[-1] + nb_list[-1] - 1
+    na_max = na_list[-1]
     t_max = max(na_max, kmax)
     nu = records[0][0].shape[1]
     n_lags = kmax - kmin + 1
     n_cols = na_max + nu * n_lags + (mode == "intercept")
+
+    # limits first, before anything of the size of the orders is allocated
+    n = sum(len(U) for U, _ in records)
+    rows = sum(max(len(U) - t_max, 0) for U, _ in records)
+    if rows <= n_cols:
+        raise InsufficientDataError(
+            f"`y` is too short for these orders: {n} samples leave {rows} aligned rows "
+            f"for up to {n_cols} regressors (largest `na` = {na_max}, `nb` = {nb_list[-1]}, "
+            f"`nk` = {nk_list[-1]}); use more data or smaller orders")
+    n_cand = len(na_list) * len(nb_list) * len(nk_list)
+    n_par = na_max + nu * nb_list[-1] + (mode == "intercept")
+    # each candidate is a least-squares problem with n_cols + 1 rows and up to n_par
+    # columns: refuse a grid that would take hours rather than run it
+    work = n_cand * (n_cols + 1) * n_par ** 2
+    if work > _MAX_WORK:
+        raise ValueError(
+            f"`na`, `nb`, `nk` span {n_cand} candidate structures with up to {n_par} "
+            f"parameters: about {work:.1e} floating-point operations, more than "
+            f"select_order's limit of {_MAX_WORK:.0e} (minutes of computation); narrow the "
+            "grid or search it in parts")
+    # the regressor matrix, its scaled copy and the QR work array; per candidate a table
+    # row, its parameters and their array
+    check_memory(8 * 3 * rows * (n_cols + 1) + n_cand * (200 + 8 * n_par),
+                 f"select_order with {n_cand} candidates (`na`, `nb`, `nk`) and up to {n_cols} "
+                 f"regressors on {n} samples")
     op = _means(records) if mode == "mean" else None
 
     Psi, target = _stacked_regressor(records, na_max, kmin, kmax, t_max, op, mode)
-    rows = len(target)
-    if rows <= n_cols:
-        n = sum(len(U) for U, _ in records)
-        raise InsufficientDataError(
-            f"`y` is too short for these orders: {n} samples leave {rows} aligned rows "
-            f"for up to {n_cols} regressors; use more data or smaller orders")
     # unit columns: the least-squares cut-off of rank-deficient candidates and the
-    # conditioning no longer depend on the signals' units (losses are unchanged)
-    scale = np.linalg.norm(Psi, axis=0)
+    # conditioning no longer depend on the signals' units (losses are unchanged); the
+    # target divided by a power of two near its largest entry (exact), so that losses are
+    # computed as ty^2 * loss_s without squaring a number around 1e160 or 1e-160
+    scale = safe_norm(Psi, axis=0)
     scale = np.where(scale > 0, scale, 1.0)
-    R = np.linalg.qr(np.column_stack([Psi / scale, target]), mode="r")
+    ty = pow2_scale(target)
+    R = np.linalg.qr(np.column_stack([Psi / scale, target / ty]), mode="r")
     r_y = R[:, -1]
 
     if validation is not None:
@@ -323,6 +362,7 @@ def select_order(u, y=None, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), crit
     cands = list(itertools.product(na_list, nb_list, nk_list))
     table = np.zeros(len(cands), dtype=_FIELDS)
     thetas = []
+    loss_s = np.empty(len(cands))        # the losses in units of ty^2
     const = [n_cols - 1] if mode == "intercept" else []
     for i, (a, b, k) in enumerate(cands):
         S = list(range(a)) + [na_max + j * n_lags + (k - kmin) + m
@@ -330,41 +370,52 @@ def select_order(u, y=None, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), crit
         M = R[:, S]
         theta = np.linalg.lstsq(M, r_y, rcond=None)[0] if S else np.zeros(0)
         res = r_y - M @ theta
-        theta = theta / scale[S]
+        theta = theta * (ty / scale[S])
         table[i]["na"], table[i]["nb"], table[i]["nk"] = a, b, k
         table[i]["n_params"] = len(S)
-        table[i]["loss"] = float(res @ res) / rows
         if validation is not None:
-            ev = target_v - Psi_v[:, S] @ theta
-            table[i]["val_loss"] = float(ev @ ev) / len(ev)
+            ev = (target_v - Psi_v[:, S] @ theta) / ty
+            loss_s[i] = float(ev @ ev) / len(ev)
         else:
-            table[i]["val_loss"] = np.nan
+            loss_s[i] = float(res @ res) / rows
+        with np.errstate(over="ignore", under="ignore"):
+            table[i]["loss"] = float(res @ res) / rows * ty * ty
+            table[i]["val_loss"] = loss_s[i] * ty * ty if validation is not None else np.nan
         poles = np.roots(np.concatenate([[1.0], theta[:a]])) if a else np.zeros(0)
         table[i]["max_pole"] = float(np.max(np.abs(poles))) if a else 0.0
         table[i]["stable"] = table[i]["max_pole"] < 1.0
         thetas.append(theta)
 
     use_val = validation is not None
-    V = table["val_loss"] if use_val else table["loss"]
     N = len(target_v) if use_val else rows
-    if np.any(V <= 1e-24 * float(np.mean(target ** 2))):
+    if np.any(loss_s <= 1e-24 * float(np.mean((target / ty) ** 2))):
         raise ExactFitError("a candidate fits the data exactly (zero loss); information "
                             "criteria are undefined for noise-free data")
-    crit = _criteria(V, N, table["n_params"])
+    V = table["val_loss"] if use_val else table["loss"]
+    log_V = np.log(loss_s) + 2.0 * np.log(ty)
+    crit = _criteria(V, N, table["n_params"], log_loss=log_V)
     for name in ("aic", "aicc", "bic", "naic", "fpe", "mdl"):
         table[name] = crit[name]
     values = np.array(table["val_loss"] if criterion == "loss" else table[criterion], float)
+    # the ranking uses logarithms where a criterion is proportional to V, so that it
+    # does not depend on the units even where V itself is out of range
+    d = table["n_params"].astype(float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rank_key = {"loss": log_V,
+                    "fpe": np.where(N - d > 0, log_V + np.log((1 + d / N) / (1 - d / N)), np.inf),
+                    "mdl": log_V + np.log1p(d * np.log(N) / N)}.get(criterion, values.copy())
     if stable_only:
         if not table["stable"].any():
             raise ValueError(f"`stable_only`: none of the {len(cands)} candidates is stable "
                              f"(smallest largest-pole magnitude {table['max_pole'].min():.4g});"
                              " check the data (operating point, delay) or widen the orders")
         values[~table["stable"]] = np.inf
+        rank_key[~table["stable"]] = np.inf
     # best_model() refits on the record as given: a 1-D input stays one signal `u`, and
     # pandas names are kept, so its summary names the signals as a direct ARX fit does
     data = _given(u, y, records, info)
     result = OrderSelection(table, criterion, values, thetas, rows, N if use_val else None,
-                            data, dt, offset)
+                            data, dt, offset, rank_key=rank_key)
     _warn_edges(result.best, {"na": na_list, "nb": nb_list, "nk": nk_list})
     return result
 
@@ -373,13 +424,23 @@ def select_order(u, y=None, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), crit
 # private helpers
 # ----------------------------------------------------------------------
 def _order_list(value, name, minimum):
+    """Sorted distinct orders: a list, or an ascending ``range`` (never materialized here,
+    so that ``range(10**12)`` is refused by the limits, not by a frozen loop)."""
+    if isinstance(value, np.ndarray) and value.ndim == 0:
+        value = value.item()
     if isinstance(value, numbers.Integral) and not isinstance(value, bool):
-        values = [value]
-    elif isinstance(value, (str, bytes)) or not hasattr(value, "__iter__"):
+        return [check_int(value, name, minimum=minimum)]
+    if isinstance(value, range):
+        if not value:
+            raise ValueError(f"`{name}` must hold at least one order; got an empty range")
+        if value.step < 0:
+            value = value[::-1]
+        check_int(value[0], name, minimum=minimum)
+        return value
+    if isinstance(value, (str, bytes)) or not hasattr(value, "__iter__"):
         raise TypeError(f"`{name}` must be an integer or an iterable of integers; got "
                         f"{type(value).__name__}")
-    else:
-        values = list(value)
+    values = list(value)
     if not values:
         raise ValueError(f"`{name}` must hold at least one order; got an empty range")
     return sorted({check_int(v, name, minimum=minimum) for v in values})
@@ -433,10 +494,11 @@ def _warn_edges(best, ranges):
     for (name, values), value in zip(ranges.items(), best):
         if len(values) < 2:
             continue
-        span = f"({min(values)}..{max(values)})"
-        if value == max(values):
+        lo, hi = values[0], values[-1]      # sorted lists, ascending ranges
+        span = f"({lo}..{hi})"
+        if value == hi:
             edges.append(f"the upper edge of the `{name}` range {span}: widen `{name}` upwards")
-        elif value == min(values) and min(values) > 1:
+        elif value == lo and lo > 1:
             edges.append(f"the lower edge of the `{name}` range {span}: widen `{name}` "
                          "downwards")
     if edges:
