@@ -63,7 +63,7 @@ import numpy as np
 
 from ._resources import check_memory
 from ._version import __version__
-from .data import IOData, detrend
+from .data import IOData, Trend, detrend
 from .datasets import PLANTS, heat_exchanger
 from .exceptions import (
     ForgettingSkippedWarning,
@@ -427,8 +427,9 @@ def _run_identify(args):
     offset = _DETREND[args.detrend]
     family = args.model != "arx"
     lines = [_describe(args.file, data), _detrend_line(args.detrend, est, family)]
+    trend = None   # what the model's deviations are about, saved with it (--save-model)
     if args.detrend == "linear":   # each record about its own line; the model about zero
-        est = detrend(est, "linear")[0]
+        est, trend = detrend(est, "linear")
         val = None if val is None else detrend(val, "linear")[0]
     elif family and args.detrend == "constant":
         # the family has no operating-point option: the estimation means are removed
@@ -436,6 +437,9 @@ def _run_identify(args):
         u_op, y_op = (np.vstack(x).mean(axis=0) for x in zip(*est.arrays()))
         est = _minus(est, u_op, y_op)
         val = None if val is None else _minus(val, u_op, y_op)
+        trend = Trend("constant", [[0]], [np.hstack([u_op, y_op])[None]],
+                      [np.zeros((1, len(u_op) + len(y_op)))], len(u_op), len(y_op),
+                      lengths=[est.n_samples])
     metadata = {"source": args.file, "inputs": list(args.inputs), "output": args.output,
                 "detrend": args.detrend, "experiments": list(data.experiment_names),
                 "experiment_lengths": list(data.lengths), "validated_on": where}
@@ -483,13 +487,17 @@ def _run_identify(args):
             raise CLIError(f"{type(model).__name__}: {exc}") from None
     if args.save_model:
         try:
-            model.save(args.save_model)
+            model.save(args.save_model, trend=trend)
         except OSError as exc:
             raise CLIError(f"cannot write '{args.save_model}': {exc.strerror}") from None
         metadata["model_file"] = args.save_model
+        metadata["model_file_trend"] = None if trend is None else trend.type
     report = _validate(model, val if val is not None else est, None,
                        args.lam if args.method in _LAM_METHODS else 1.0, metadata, progress)
     after = [f"\nmodel saved to {args.save_model}"] if args.save_model else []
+    if args.save_model and trend is not None:
+        after[0] += (f" with the {trend.type} trend removed from the estimation data "
+                     "(load it back as its trend_)")
     return _emit(report, args, lines + [""], after)
 
 

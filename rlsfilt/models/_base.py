@@ -155,6 +155,12 @@ class IdentifiedModel(abc.ABC):
         of the outputs; frequency-response bands then draw correlated
         parameters (``vec(theta_)`` with covariance
         ``kron(noise_covariance_, theta_cov_[0] / noise_variance_[0])``).
+    trend_ : Trend, optional
+        A loaded model only, when it was saved with ``save(path,
+        trend=...)``: the trend :func:`rlsfilt.detrend` removed from the
+        estimation record. The model describes the deviations from it;
+        ``trend_.remove(data)`` prepares new data and ``retrend`` puts
+        results back in the units of the data. ``fit`` drops it.
 
     Notes
     -----
@@ -506,7 +512,7 @@ class IdentifiedModel(abc.ABC):
     # ------------------------------------------------------------------
     # saving
     # ------------------------------------------------------------------
-    def save(self, path, *, include_data=False):
+    def save(self, path, *, include_data=False, trend=None):
         """Write the fitted model to a JSON file (:func:`rlsfilt.save_model`).
 
         Parameters
@@ -514,6 +520,11 @@ class IdentifiedModel(abc.ABC):
         path : str or os.PathLike
         include_data : bool, default False
             Also write the per-sample diagnostics (residuals, histories).
+        trend : Trend, optional
+            The trend :func:`rlsfilt.detrend` removed from the estimation
+            record (constant or linear); :meth:`load` restores it as
+            ``trend_``, so ``retrend`` puts predictions back in the units of
+            the data. By default the model's own ``trend_``, if any.
 
         Returns
         -------
@@ -523,7 +534,7 @@ class IdentifiedModel(abc.ABC):
         self._check_fitted("save")
         from ..persistence import save_model
 
-        return save_model(self, path, include_data=include_data)
+        return save_model(self, path, include_data=include_data, trend=trend)
 
     @classmethod
     def load(cls, path):
@@ -537,7 +548,7 @@ class IdentifiedModel(abc.ABC):
         -------
         model
             Predicts, simulates and reports standard errors exactly as the
-            saved one.
+            saved one; ``trend_`` holds the trend saved with it, if any.
         """
         from ..persistence import load_model
 

@@ -421,7 +421,7 @@ class ARX(IdentifiedModel):
             prior[k0:] = target[k0:] - np.einsum("ij,ijk->ik", Phi[k0:], history[k0 - 1:-1])
             recursive["recursive_residuals_"] = prior[:, 0] if info["y_1d"] else prior
         for name in ("theta_history_", "filter_", "k0_", "lam_", "form_", "recursive_residuals_",
-                     "noise_covariance_", "intercept_", "instruments_"):
+                     "noise_covariance_", "intercept_", "instruments_", "trend_"):
             self.__dict__.pop(name, None)
         self.__dict__.update(recursive)
         resid = target - Phi @ theta
