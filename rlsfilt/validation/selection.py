@@ -172,9 +172,23 @@ class OrderSelection:
         return plot_order_selection(self, ax)
 
 
-def select_order(u, y=None, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), criterion="bic",
-                 validation=None, *, dt=True, offset=False, stable_only=False):
-    r"""Choose ARX orders ``(na, nb, nk)`` by an information criterion.
+class _Default:
+    """A default order range, told apart from the same range given explicitly."""
+
+    def __init__(self, values):
+        self.values = values
+
+    def __repr__(self):
+        return repr(self.values)
+
+
+_NA, _NB, _NK = _Default(range(1, 6)), _Default(range(1, 6)), _Default(range(1, 4))
+
+
+def select_order(u, y=None, na=_NA, nb=_NB, nk=_NK, criterion="bic", validation=None, *, dt=True,
+                 offset=False, stable_only=False, model=None, nc=None, nd=None, nf=None,
+                 fit_options=None):
+    r"""Choose model orders by an information criterion: ARX ``(na, nb, nk)`` or any family.
 
     Parameters
     ----------
@@ -211,13 +225,36 @@ def select_order(u, y=None, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), crit
     stable_only : bool, default False
         Only candidates whose ``A`` has every pole inside the unit circle
         can be picked (an unstable ARX model predicts one step ahead but
-        its simulation diverges).
+        its simulation diverges). ARX only.
+    model : model class, default ARX
+        The structure searched. ``ARX`` (the default) is searched by least
+        squares as described below. Any other
+        :class:`~rlsfilt.models.IdentifiedModel` class (``ARMAX``, ``OE``,
+        ``BJ``, ``ARMA``, ``AR``) is searched by :func:`select_structure`:
+        every candidate fitted by prediction error and ranked by the same
+        criteria of its one-step prediction errors. Its orders are the
+        keywords its constructor takes (``ARMAX``: `na`, `nb`, `nc`, `nk`;
+        ``OE``: `nb`, `nf`, `nk`; ``BJ``: `nb`, `nc`, `nd`, `nf`, `nk`); an
+        order it does not take is refused. For these classes an order not
+        given tries 1 and 2 (`nk`: 1, 2, 3), and for a time-series class
+        (``ARMA``, ``AR``) `u` is None.
+    nc, nd, nf : int or iterable of int, optional
+        Candidate orders of ``C``, ``D`` and ``F`` for the classes that have
+        them (not ARX).
+    fit_options : dict, optional
+        Passed to every candidate's ``fit`` for the classes other than ARX
+        (for example ``{"method": "rpem"}``).
 
     Returns
     -------
-    OrderSelection
-        ``.best``, ``.table`` of every candidate, ``.plot()``,
-        ``.best_model()``.
+    OrderSelection or StructureSelection
+        For ARX an `OrderSelection`: ``.best`` (a tuple ``(na, nb, nk)``),
+        ``.table`` of every candidate, ``.plot()``, ``.best_model()``,
+        ``.summary()``, ``.to_dataframe()``. For another class the
+        :class:`StructureSelection` of :func:`select_structure` on the same
+        grid: ``.best`` (a dict of orders), ``.candidates``,
+        ``.best_model`` (the fitted model itself, an attribute),
+        ``.summary()``, ``.to_dataframe()``.
 
     Warns
     -----
@@ -278,10 +315,37 @@ def select_order(u, y=None, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), crit
     >>> y = lfilter([0, 0, 1.0, 0.5], [1, -1.5, 0.7], u) + lfilter([1], [1, -1.5, 0.7], e)
     >>> select_order(u, y, na=range(1, 5), nb=range(1, 5), nk=range(1, 4)).best
     (2, 2, 2)
+
+    The same entry point searches ARMAX orders on data with coloured
+    (moving-average) noise:
+
+    >>> from rlsfilt import ARMAX
+    >>> y = (lfilter([0, 1.0, 0.5], [1, -1.5, 0.7], u)
+    ...      + lfilter([1, -1.0, 0.2], [1, -1.5, 0.7], e))
+    >>> select_order(u, y, model=ARMAX, na=[1, 2, 3], nb=[2], nc=[1, 2, 3], nk=[1]).best
+    {'na': 2, 'nb': 2, 'nc': 2, 'nk': 1}
     """
     if criterion not in _CRITERIA:
         raise ValueError(f"`criterion` must be one of {', '.join(_CRITERIA)}; got {criterion!r}")
     check_dt(dt)  # here, not later in best_model()
+    orders = {"na": na, "nb": nb, "nk": nk, "nc": nc, "nd": nd, "nf": nf}
+    if model is not None:
+        from ..models import ARX
+
+        if not isinstance(model, type):
+            raise TypeError(f"`model` must be a model class such as ARMAX (not an instance); "
+                            f"got {type(model).__name__}")
+        if model is not ARX:
+            return _select_family(model, u, y, orders, criterion, validation, dt, offset,
+                                  stable_only, fit_options)
+    for name in ("nc", "nd", "nf"):
+        if orders[name] is not None:
+            raise ValueError(f"`{name}` is not an order of ARX (its orders: na, nb, nk); pass "
+                             f"`model=` a class with that polynomial (ARMAX, OE, BJ)")
+    if fit_options is not None:
+        raise ValueError("`fit_options` applies to the classes fitted by prediction error, "
+                         "not to ARX (searched by least squares); remove it")
+    na, nb, nk = (v.values if isinstance(v, _Default) else v for v in (na, nb, nk))
     from ..models.arx import _offset_mode
 
     mode = _offset_mode(offset)
@@ -423,6 +487,49 @@ def select_order(u, y=None, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), crit
 # ----------------------------------------------------------------------
 # private helpers
 # ----------------------------------------------------------------------
+_FAMILY_ORDERS = ("na", "nb", "nc", "nd", "nf", "nk")
+
+
+def _select_family(model, u, y, orders, criterion, validation, dt, offset, stable_only,
+                   fit_options):
+    """select_order for a class other than ARX: its orders as a grid for select_structure."""
+    import inspect
+
+    from .structure import select_structure
+
+    name = model.__name__
+    params = [p for p in inspect.signature(model.__init__).parameters
+              if p in _FAMILY_ORDERS]
+    if not params:
+        raise TypeError(f"`model` must be a model class with orders such as ARMAX; got "
+                        f"{name}, whose constructor takes none of {', '.join(_FAMILY_ORDERS)}")
+    for key, value in orders.items():
+        if key not in params and value is not None and not isinstance(value, _Default):
+            raise ValueError(f"`{key}` is not an order of {name} (its orders: "
+                             f"{', '.join(params)})")
+    if offset is not False:
+        raise ValueError(f"`offset` applies to ARX only; got offset={offset!r} with {name}: "
+                         "remove the operating point from the record first (IOData.detrend)")
+    if stable_only:
+        raise ValueError(f"`stable_only` applies to ARX only; with {name}, inspect "
+                         "`.models` (each has `is_stable`)")
+    if fit_options is not None and not isinstance(fit_options, dict):
+        raise TypeError(f"`fit_options` must be a dict; got {type(fit_options).__name__}")
+    if getattr(model, "_TIME_SERIES", False) and u is not None:
+        raise ValueError(f"`u` must be None for the time-series class {name} (the record is "
+                         f"`y`); got {type(u).__name__}")
+    grid = {}
+    for key in params:
+        value = orders[key]
+        if value is None or isinstance(value, _Default):
+            value = range(1, 4) if key == "nk" else range(1, 3)
+        grid[key] = _order_list(value, key, 1 if key == "nb" else 0)
+    result = select_structure(model, u, y, grid, criterion=criterion, validation=validation,
+                              dt=dt, **(fit_options or {}))
+    _warn_edges(tuple(result.best[k] for k in grid), grid, stacklevel=4)
+    return result
+
+
 def _order_list(value, name, minimum):
     """Sorted distinct orders: a list, or an ascending ``range`` (never materialized here,
     so that ``range(10**12)`` is refused by the limits, not by a frozen loop)."""
@@ -488,7 +595,7 @@ def _stacked_regressor(records, na_max, kmin, kmax, t_max, op, mode):
     return np.vstack(Psis), np.concatenate(targets)
 
 
-def _warn_edges(best, ranges):
+def _warn_edges(best, ranges, stacklevel=3):
     """Warn (once) when the best structure sits at edges of ranges that could be widened."""
     edges = []
     for (name, values), value in zip(ranges.items(), best):
@@ -503,8 +610,10 @@ def _warn_edges(best, ranges):
                          "downwards")
     if edges:
         text = "; and at ".join(edges)
-        warnings.warn(f"the best structure (na, nb, nk) = {best} is at {text} (the best may "
-                      "lie outside the grid)", OrderSelectionWarning, stacklevel=3)
+        names = ", ".join(ranges)
+        warnings.warn(f"the best structure ({names}) = {best} is at {text} (the best may "
+                      "lie outside the grid)", OrderSelectionWarning,
+                      stacklevel=stacklevel)
 
 
 def _as_given(X, was_1d, names):
