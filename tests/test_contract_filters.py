@@ -30,6 +30,16 @@ runs on every registered filter:
 - streaming ``predict``/``update`` equals ``batch_filter`` bit for bit;
 - the health warning points at the caller's line, from ``update``,
   ``predict_update`` and ``batch_filter`` (with and without a ``Saver``).
+
+`RLSBank` is registered through `BankAdapter`: a bank of ``len(SCALES)``
+channels fed the contract's single-channel record, channel ``c`` with its
+measurements scaled by ``SCALES[c]`` (powers of two, so every channel is
+channel 0 times its scale, bit for bit, and differs from the others). The
+checks read channel 0 in the filter's shapes; ``_same_state`` also compares
+every channel of the two banks, and the least-squares check every channel
+against its scaled oracle. In a bank a NaN in a regressor is missing data
+(that channel skips the step), not an error, so the calls of the
+rejected-input check that pass one are not made on a bank.
 """
 
 import copy
@@ -48,6 +58,7 @@ from rlsfilt import (
     ForgettingSkippedWarning,
     NumericalWarning,
     RecursiveLeastSquares,
+    RLSBank,
     SlidingWindowRLS,
     SquareRootRLS,
 )
@@ -64,6 +75,91 @@ class FilterCase:
     name: str
     make: Callable
     weights: Callable = None     # weights(n) of least squares after initialize, or None
+    nan_regressor_is_missing: bool = False   # a NaN in H skips the step (a bank), not an error
+
+
+SCALES = np.array([1.0, -2.0, 0.5])      # measurement scale of each channel of BankAdapter
+BANK_STATE = STATE[:-2] + ("z", "H", "lam_t")
+
+
+class BankAdapter:
+    """An `RLSBank` of ``len(SCALES)`` channels behind the single filter's interface.
+
+    Every call is forwarded to the bank (which validates it): a measurement
+    ``z`` becomes ``z * SCALES`` (one per channel), a regressor row is
+    given to every channel, a noise variance is shared. The attributes the
+    checks read are channel 0's, in the shapes of `RecursiveLeastSquares`
+    (``x`` is ``(dim_x, 1)``, ``y`` is ``(1, 1)``); ``bank`` is the bank.
+    """
+
+    def __init__(self, dim_x, x0=None, **kw):
+        self.bank = RLSBank(len(SCALES), dim_x, x0=x0, **kw)
+
+    # the forwarded calls: every channel gets the same regressor, scaled measurements
+    @staticmethod
+    def _z(z):
+        return np.multiply.outer(np.asarray(z, dtype=float).reshape(-1), SCALES)
+
+    @staticmethod
+    def _H(H):
+        H = np.asarray(H)
+        return np.broadcast_to(H.reshape(-1), (len(SCALES), H.size))
+
+    def predict(self):
+        self.bank.predict()
+
+    def update(self, z, H, R=None):
+        self.bank.update(self._one_z(z), self._H(H), R)
+
+    def predict_update(self, z, H, R=None):
+        self.bank.predict_update(self._one_z(z), self._H(H), R)
+
+    @classmethod
+    def _one_z(cls, z):
+        return cls._z(z)[0] if np.size(z) == 1 else cls._z(z)
+
+    def batch_filter(self, zs, Hs, Rs=None, update_first=False, saver=None,
+                     store_covariances=True):
+        Hs = np.asarray(Hs)
+        Hs = np.broadcast_to(Hs[:, None, :], (Hs.shape[0], len(SCALES), Hs.shape[-1]))
+        Rs = None if Rs is None else np.asarray(Rs, dtype=float)
+        Rs = None if Rs is None else np.broadcast_to(Rs[:, None], (len(Rs), len(SCALES)))
+        h = self.bank.batch_filter(self._z(zs), Hs, Rs, update_first, saver=saver,
+                                   store_covariances=store_covariances)
+        self.history = h
+        means, covs, means_p, covs_p = (None if a is None else a[:, 0] for a in h)
+        return means[..., None], covs, means_p[..., None], covs_p
+
+    def initialize(self, zs, Hs):
+        Hs = np.asarray(Hs)
+        self.bank.initialize(self._z(zs), np.broadcast_to(
+            Hs[:, None, :], (Hs.shape[0], len(SCALES), Hs.shape[-1])))
+
+    def copy(self):
+        return copy.deepcopy(self)
+
+    def __setattr__(self, name, value):
+        if name in ("x", "P"):           # the same value for every channel
+            value = np.asarray(value)
+            shape = (len(SCALES),) + ((value.size,) if name == "x" else value.shape)
+            value = np.broadcast_to(value.reshape(shape[1:]), shape)
+            setattr(self.bank, name, value)
+        else:
+            object.__setattr__(self, name, value)
+
+
+def _channel0(name, view):
+    """A property: the bank's attribute `name`, channel 0, in the filter's shape
+    (a property, so that filterpy's Saver records it)."""
+    return property(lambda self: view(getattr(self.bank, name)))
+
+
+for _name, _view in [
+        *[(n, lambda v: v[0][:, None]) for n in ("x", "x_prior", "x_post", "K")],
+        *[(n, lambda v: v[0]) for n in ("P", "P_prior", "P_post", "log_likelihood")],
+        *[(n, lambda v: np.full((1, 1), v[0])) for n in ("y", "z", "S", "SI")],
+        ("H", lambda v: v[0][None, :]), ("n_updates", lambda v: v)]:
+    setattr(BankAdapter, _name, _channel0(_name, _view))
 
 
 def _ones(n):
@@ -107,6 +203,15 @@ FILTERS = [
                _ones),
     FilterCase("SlidingWindowRLS-window40", lambda **kw: SlidingWindowRLS(DIM_X, 40, **kw),
                _window(40)),
+    FilterCase("RLSBank", lambda **kw: BankAdapter(DIM_X, **kw), _ones, True),
+    FilterCase("RLSBank-lam0.95", lambda **kw: BankAdapter(DIM_X, lam=0.95, **kw),
+               _exponential(0.95), True),
+    FilterCase("RLSBank-directional-Q",
+               lambda **kw: BankAdapter(DIM_X, lam=0.95, Q=1e-4, forgetting="directional",
+                                        **kw), None, True),
+    FilterCase("RLSBank-constant_trace",
+               lambda **kw: BankAdapter(DIM_X, lam=0.95, forgetting="constant_trace", **kw),
+               None, True),
 ]
 
 
@@ -138,6 +243,9 @@ def _same_state(a, b):
     for name in STATE:
         assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
     assert a.n_updates == b.n_updates
+    if isinstance(a, BankAdapter):       # every channel, not only the one the checks read
+        for name in BANK_STATE:
+            assert_array_equal(getattr(a.bank, name), getattr(b.bank, name), err_msg=name)
 
 
 # ----------------------------------------------------------------------
@@ -160,6 +268,9 @@ def check_least_squares(case):
         w = np.sqrt(case.weights(k + 1))
         theta, *_ = np.linalg.lstsq(Hs[:k + 1] * w[:, None], zs[:k + 1] * w, rcond=None)
         assert_allclose(means[k - K0, :, 0], theta, rtol=1e-9, atol=1e-12, err_msg=str(k))
+        if isinstance(f, BankAdapter):   # channel c: measurements and estimate times SCALES[c]
+            assert_allclose(f.history.means[k - K0], SCALES[:, None] * theta, rtol=1e-9,
+                            atol=1e-12, err_msg=str(k))
 
 
 def check_saver_round_trip(case):
@@ -225,6 +336,11 @@ def check_rejected_input_leaves_the_state_unchanged(case):
     f.predict_update(zs[20], Hs[20])
     bad_H = Hs[21].copy()
     bad_H[1] = np.nan
+    nan_H = [
+        lambda: f.update(1.0, bad_H),
+        lambda: f.predict_update(1.0, bad_H),
+        lambda: f.batch_filter(zs[:5], np.where(np.eye(5, DIM_X) > 0, np.nan, Hs[:5])),
+    ]
     calls = [
         lambda: f.update(1.0, bad_H),
         lambda: f.update(np.inf, Hs[21]),
@@ -243,6 +359,9 @@ def check_rejected_input_leaves_the_state_unchanged(case):
         lambda: f.initialize(zs[:5], np.ones((5, DIM_X))),          # rank-deficient
         lambda: f.initialize(zs[:5], Hs[:4]),
     ]
+    if case.nan_regressor_is_missing:    # missing data in a bank (tested in test_bank.py)
+        calls = [call for call in calls if call.__code__.co_code not in
+                 {c.__code__.co_code for c in nan_H}]
     for i, call in enumerate(calls):
         before = _state(f)
         with pytest.raises((ValueError, TypeError)):

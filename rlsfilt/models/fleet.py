@@ -564,12 +564,15 @@ def _fit_chunk(cs, U, Y, s, method, per_channel, k0, max_lag, tests, on_error, l
     rows, c, n = Phi.shape
     from ._kernels_fleet import fleet_statistics
 
-    resid = np.empty((rows, c))
+    cs, sel = _as_slice(cs)
+    # residuals written in place when the channels are consecutive (no copy)
+    resid = out.resid[:, sel] if isinstance(sel, slice) else np.empty((rows, c))
     sigma2, pred_fit, sim_fit = np.empty(c), np.empty(c), np.empty(c)
     fleet_statistics(_channels_last(Phi), target, theta, s.na, Y, resid, sigma2, pred_fit,
                      sim_fit)
-    cs, sel = _as_slice(cs)
-    out.theta[sel], out.sigma2[sel], out.resid[:, sel] = theta, sigma2, resid
+    out.theta[sel], out.sigma2[sel] = theta, sigma2
+    if not isinstance(sel, slice):
+        out.resid[:, sel] = resid
     out.cov[sel] = sigma2[:, None, None] * cov
     out.pred_fit[sel], out.sim_fit[sel] = pred_fit, sim_fit
     if tests:
