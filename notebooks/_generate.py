@@ -1031,7 +1031,7 @@ This notebook shows
 3. the recursive forms: recursive prediction error (RPEM) and pseudo-linear regression (RPLR,
    extended least squares), and the positive-realness condition that RPLR needs;
 4. a streaming estimator that takes one sample per call;
-5. a measured-like record (the heat exchanger of notebook 6: two runs, an operating point, a
+5. a measured-like record (the heat exchanger of [notebook 6](06_real_records.ipynb): two runs, an operating point, a
    dead time, a drifting disturbance): estimate on one run, validate on the other."""),
     ("code", r"""import warnings
 
@@ -1162,7 +1162,7 @@ print("parameters after 5000 samples:", np.round(theta, 3))
 print("mean square prediction error, last 1000 samples:", round(float(np.mean(np.square(errors[-1000:]))), 3))"""),
     ("md", r"""## 5. A measured-like record: the heat exchanger
 
-`datasets.heat_exchanger()` (notebook 6) holds two runs of a steam-heated exchanger around
+`datasets.heat_exchanger()` ([notebook 6](06_real_records.ipynb)) holds two runs of a steam-heated exchanger around
 40 % flow and 97 degC, with 7 s of transport delay ($n_k = 8$) and a disturbance that drifts
 the temperature: $A(q)\,v = e/(1 - 0.9q^{-1})$, so the noise model has the denominator
 $A(q)(1 - 0.9q^{-1})$ of order 3 and the true structure is `BJ(2, 0, 3, 2, 8)`. Each run is
