@@ -140,15 +140,16 @@ def predict(x, P, il, Q, cfg, spare):
     return out
 
 
-def update(x, P, phi, z, r, cfg, spare):
+def update(x, P, phi, z, r, cfg, w, spare):
     """One measurement update into a new block (`spare` if it is free).
 
     `phi` is the regressor row, a writable C-contiguous float64 array (n,)
     (the kernel checks that it is finite), `z` a float, a validated column
-    (m, 1) or None (missing). Returns ``code, s, lam_t, gated, block``: the
-    buffer (ending with ``n + n^2`` numbers of work space) and its views ``x,
-    P, y, K, S, SI, H, z, x_post, P_post``;
-    ``code`` as ``update_kernel``'s.
+    (m, 1) or None (missing); `w` is ``1 / lam`` when the last predict held
+    the forgetting back (the windup cap) and 1 otherwise. Returns ``code, s,
+    lam_t, gated, cap, block``: the buffer (ending with ``n + n^2`` numbers
+    of work space) and its views ``x, P, y, K, S, SI, H, z, x_post,
+    P_post``; ``code``, ``cap`` as ``update_kernel``'s.
     """
     if spare is not None and sum(map(_getrefcount, spare)) == _FREE_UPDATE:
         out = spare                                   # nobody else holds it: reuse
@@ -161,8 +162,8 @@ def update(x, P, phi, z, r, cfg, spare):
         z0, zmode = 0.0, 0
     else:
         z0, zmode = z, 1
-    code, s, lam_t, gated = _update_kernel(x, P, phi, z0, zmode, r, cfg, out[0])
-    return code, s, lam_t, gated, out
+    code, s, lam_t, gated, cap = _update_kernel(x, P, phi, z0, zmode, r, cfg, w, out[0])
+    return code, s, lam_t, gated, cap, out
 
 
 def _entry_point(dispatcher, args):
@@ -183,10 +184,10 @@ def _predict_kernel(*args):
     _predict_kernel = _entry_point(_kernels.predict_kernel, args)
 
 
-def _update_kernel(x, P, phi, z0, zmode, r, cfg, out):
+def _update_kernel(x, P, phi, z0, zmode, r, cfg, w, out):
     """The first call: run ``update_kernel``, then call its entry point directly."""
     global _update_kernel
-    args = (x, P, phi, float(z0), zmode, float(r), cfg, out)
+    args = (x, P, phi, float(z0), zmode, float(r), cfg, float(w), out)
     result = kernels().update_kernel(*args)
     _update_kernel = _entry_point(_kernels.update_kernel, args)
     return result

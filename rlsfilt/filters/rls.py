@@ -281,12 +281,12 @@ class RecursiveLeastSquares(_FilterBase):
         self._gate = None
         self._Pi = _EMPTY            # orthogonal projector onto null(A); empty: no constraints
         self.R = R
+        self._P0 = check_covariance(P0, self.dim_x, "P0", definite=True)
         self.lam = lam
         self.Q = Q
         self.gate = gate
         self.check_every = check_int(check_every, "check_every", minimum=0)
         self.cond_max = _check_positive(cond_max, "cond_max")
-        self._P0 = check_covariance(P0, self.dim_x, "P0", definite=True)
         self._x0 = self._as_state(np.zeros((self.dim_x, self.dim_z)) if x0 is None else x0, "x0")
         self._warned_skip = False
         self._batch_start = None     # n_updates when a step-by-step batch_filter started
@@ -318,6 +318,7 @@ class RecursiveLeastSquares(_FilterBase):
     def P(self, value):
         self._P = _own(value, "P")
         self._recheck = True
+        self._cap, self._w = False, 1.0     # the windup cap decides again from the new P
 
     @property
     def lam(self):
@@ -328,7 +329,7 @@ class RecursiveLeastSquares(_FilterBase):
     def lam(self, value):
         lam = check_lam(value)
         params = _fg.mode_params(self._mode, self._forgetting_params_in, self.dim_x, lam,
-                                 self._R)
+                                 self._R, float(np.trace(self._P0)))
         self._lam, self._params = lam, params
         self._il = 1.0 / lam if self._mode == _fg.EXPONENTIAL else 1.0   # predict: P / lam
         self._configure()
@@ -386,7 +387,10 @@ class RecursiveLeastSquares(_FilterBase):
         # P^- = P / lam + Q      (exponential mode: filterpy's fading memory)
         # P^- <- Pi P^- Pi       (constraints: keep A P = 0)
         # x^- = x                (constant, or random-walk, parameters)
-        out = _streaming.predict(x, P, self._il, Q, self._cfg, self._spare_predict)
+        # the windup cap (exponential mode): hold the forgetting back, the next
+        # update forgets along its regressor only
+        il, self._w = (1.0, self._il) if self._cap else (self._il, 1.0)
+        out = _streaming.predict(x, P, il, Q, self._cfg, self._spare_predict)
         self._spare_predict, self._last_predict = self._last_predict, out
         _, self._P, self.x_prior, self.P_prior = out
         self._updates_since_predict = 0
@@ -425,17 +429,21 @@ class RecursiveLeastSquares(_FilterBase):
         #   x = x^- + K y^T          (missing or gated: x = x^-, K = 0)
         #   P = P^- - K S K^T        (the other forgetting modes: their update)
         #   P <- Pi P Pi             (constraints)
-        code, s, lam_t, gated, out = _streaming.update(x, P, H, z, r, self._cfg,
-                                                       self._spare_update)
+        w = self._w
+        code, s, lam_t, gated, cap, out = _streaming.update(x, P, H, z, r, self._cfg, w,
+                                                            self._spare_update)
         if code == 1:
             check_finite(H, "H")                      # raises; nothing has changed
         n_updates = self.n_updates + 1
         skipped = self._updates_since_predict and not self._warned_skip and self._forgets
         every = self.check_every
-        checked = every and (code == 2 or not n_updates % every) and not self._warned_health
-        if skipped or checked:                        # warn before the state changes
-            self._warn(skipped, self._health_problem(out[2], n_updates, code == 2)
-                       if checked else None)
+        due = every and not n_updates % every
+        checked = due or (every and code == 2 and not self._warned_health)
+        problem = self._health_problem(out[2], n_updates, code == 2) if checked else None
+        if skipped or (problem is not None and not self._warned_health):
+            self._warn(skipped, problem)              # warn before the state changes
+        elif due and problem is None:
+            self._warned_health = False               # healthy again: the next problem warns
         self._spare_update, self._last_update = self._last_update, out
         (_, self._x, self._P, self.y, self.K, self.S, self.SI, self.H, self.z, self.x_post,
          self.P_post) = out
@@ -449,6 +457,9 @@ class RecursiveLeastSquares(_FilterBase):
         self.lam_t = lam_t
         self.n_updates = n_updates
         self._updates_since_predict += 1
+        self._cap, self._w = cap, 1.0
+        if w != 1.0:
+            self.n_capped += 1
         if self._recheck:
             self._recheck = self._efra_pending = False
 
@@ -529,6 +540,7 @@ class RecursiveLeastSquares(_FilterBase):
         self.x_prior, self.x_post = self._x.copy(), self._x.copy()
         self.P_prior, self.P_post = self._P.copy(), self._P.copy()
         self._updates_since_predict = 0
+        self._cap, self._w = False, 1.0
 
     def batch_filter(self, zs, Hs, Rs=None, update_first=False, saver=None,
                      store_covariances=True):
@@ -593,21 +605,32 @@ class RecursiveLeastSquares(_FilterBase):
         P = self._checked_P()
         if self._efra_pending:
             P = self._efra_start(P)
-        out = _streaming.kernels().run_batch(
+        kern = _streaming.kernels()
+        state = (0.0 if self._warned_health else 1.0, 0.0, 0.0, float(self._cap), self._w)
+        out = kern.run_batch(
             self._checked_x(), P, Z, Hm, Rv, self._cfg,
             None if self._Q_kernel is _EMPTY else self._Q, self._null_basis, update_first,
-            store_covariances, 0 if self._warned_health else self.check_every, self.n_updates,
-            self.cond_max)
-        N, problem = len(Z), None
-        if out.k_fail >= 0:
-            problem = ((_health.symmetric_problem(out.P_fail, self.cond_max, self._null_basis)
-                        or "`P` failed the health check")
-                       + _health.at_step(out.k_fail, self.n_updates + out.k_fail + 1))
-        elif not self._warned_health and self.check_every:      # the end-of-batch check
+            store_covariances, self.check_every, self.n_updates, self.cond_max, state)
+        N, problems = len(Z), []
+        armed, episodes = out.state[0] == 1.0, int(out.state[1])
+        for e, k in enumerate(out.episodes[:min(episodes, kern.MAX_EPISODES)]):
+            problems.append((_health.symmetric_problem(out.P_fail[e], self.cond_max,
+                                                       self._null_basis)
+                             or "`P` failed the health check")
+                            + _health.at_step(int(k), self.n_updates + int(k) + 1))
+        if episodes > kern.MAX_EPISODES:
+            problems.append(f"`P` failed the health check {episodes - kern.MAX_EPISODES} more "
+                            "times in this batch_filter (each after a healthy check)")
+        if armed and self.check_every:                # the end-of-batch check
             problem = _health.symmetric_problem(out.P, self.cond_max, self._null_basis)
             if problem is not None:
-                problem += _health.at_update(self.n_updates + N)
-        self._warn(False, problem)                    # before the state changes
+                problems.append(problem + _health.at_update(self.n_updates + N))
+                armed = False
+        for problem in problems:                      # before the state changes
+            _health.warn(problem, self._HEALTH_ADVICE)
+        self._warned_health = not armed
+        self._cap, self._w = out.state[3] == 1.0, float(out.state[4])
+        self.n_capped += int(out.state[2])
         self._x, self._P = out.x, out.P
         self.x_prior, self.P_prior, self.x_post, self.P_post = (out.x_prior, out.P_prior,
                                                                 out.x_post, out.P_post)
@@ -704,8 +727,8 @@ class RecursiveLeastSquares(_FilterBase):
         P = self._checked_P()
         if self._efra_pending:
             P = self._efra_start(P)
-        _, _, x, P = _streaming.predict(self._checked_x(), P, self._il, self._Q_kernel,
-                                        self._cfg, None)
+        _, _, x, P = _streaming.predict(self._checked_x(), P, 1.0 if self._cap else self._il,
+                                        self._Q_kernel, self._cfg, None)
         return x, P
 
     def reset(self):
@@ -723,6 +746,8 @@ class RecursiveLeastSquares(_FilterBase):
         self.gated = False
         self.n_gated = 0
         self.n_updates = 0
+        self.n_capped = 0
+        self._cap, self._w = False, 1.0     # the windup cap: see predict()
         self.lam_t = self._lam
         self._warned_health = False
         self._efra_pending = self._mode == _fg.EFRA
