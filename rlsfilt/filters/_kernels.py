@@ -645,13 +645,14 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, ys, ss,
     n = x.shape[0]
     r_each = Rv.shape[0] == N
     hasq = Q.shape[0] > 0
-    th = x[:, 0]
+    th = x[:, 0].copy()                              # local: no aliasing in the loop
     g = np.zeros(n)
     gn = np.empty(n)
     W = np.empty((n, n))
     X = np.empty((n, n))
     none = np.zeros((n, 0))
     cap = state[3] == 1
+    n_capped = 0
     w = state[4]
     countdown = check_every - step0 % check_every if check_every > 0 else -1
     if update_first:                                 # the gain of P
@@ -678,8 +679,7 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, ys, ss,
         s = w * q + r                                # S = H P H^T + R
         c = 1.0 / s
         updated = zk == zk                           # not missing
-        if w != 1.0:
-            state[2] += 1
+        n_capped += w != 1.0
         cu = exponential_coefficient(q, c, w, updated)
         kc = w * c
         if updated:
@@ -704,9 +704,11 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, ys, ss,
             countdown = check_every
         check = check_every > 0 and (due or (cheap_bad and state[0] == 1))
         last = k == N - 1
-        if last and updated:
-            for i in range(n):
-                K[i] = g[i] * kc
+        if last:
+            x[:, 0] = th
+            if updated:
+                for i in range(n):
+                    K[i] = g[i] * kc
         # the usual step is the last branch: the sweep does not wait for the
         # decisions above (the branch is predicted), only for cu
         if check or last or cap:       # unfused or held back: the rare path
@@ -720,10 +722,12 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, ys, ss,
             _sweep_rows(P, g, cu, il, Hm[k + 1], gn)
         g, gn = gn, g
         if k == N - 2 and not update_first:
+            x[:, 0] = th
             copy2(x, x_prior)
             copy2(P, P_prior)
     if not update_first:
         w = 1.0                                      # no time update after the last update
+    state[2] += n_capped
     ss[0] = s
     ys[0, 0] = yk
     state[3] = 1 if cap else 0

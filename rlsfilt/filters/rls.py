@@ -102,13 +102,18 @@ class RecursiveLeastSquares(_FilterBase):
         large; and an abrupt parameter change also makes large residuals,
         so a gate delays (a tight gate can block) tracking of jumps: watch
         ``n_gated`` or ``gated`` for runs of rejections.
-    check_every : int, default 100
+    check_every : int, optional
         Health check period (0 disables it): every `check_every` updates,
         and at the end of :meth:`batch_filter`, ``P`` is tested for positive
-        definiteness and its condition number (one ``eigvalsh``, O(dim_x^3));
-        every update also checks cheaply (O(dim_x)) that the diagonal of
-        ``P`` is positive and finite. A failure issues one
-        :class:`~rlsfilt.NumericalWarning` naming the update.
+        definiteness and its condition number (a Cholesky factor, and
+        ``eigvalsh`` when in doubt, O(dim_x^3)); every update also checks
+        cheaply (O(dim_x)) that the diagonal of ``P`` is positive and finite,
+        and runs the full test at once when it is not. By default
+        ``max(250, 16 dim_x)``, which keeps the O(dim_x^3) test under 5 % of
+        the O(dim_x^2) updates at every size. A failure issues one
+        :class:`~rlsfilt.NumericalWarning` naming the update; a later
+        periodic check that finds ``P`` healthy again re-arms it, so a
+        problem that recurs warns again.
     cond_max : float, default 1e12
         Condition number of ``P`` beyond which the health check warns.
 
@@ -272,7 +277,7 @@ class RecursiveLeastSquares(_FilterBase):
 
     def __init__(self, dim_x, dim_z=1, lam=1.0, *, P0=1e4, x0=None, R=1.0, Q=0.0,
                  forgetting="exponential", forgetting_params=None, gate=None,
-                 check_every=100, cond_max=1e12):
+                 check_every=None, cond_max=1e12):
         self.dim_x = check_int(dim_x, "dim_x", minimum=1)
         self.dim_z = check_int(dim_z, "dim_z", minimum=1)
         self._row_shape = (self.dim_x,)
@@ -285,7 +290,7 @@ class RecursiveLeastSquares(_FilterBase):
         self.lam = lam
         self.Q = Q
         self.gate = gate
-        self.check_every = check_int(check_every, "check_every", minimum=0)
+        self.check_every = check_every
         self.cond_max = _check_positive(cond_max, "cond_max")
         self._x0 = self._as_state(np.zeros((self.dim_x, self.dim_z)) if x0 is None else x0, "x0")
         self._warned_skip = False
@@ -319,6 +324,17 @@ class RecursiveLeastSquares(_FilterBase):
         self._P = _own(value, "P")
         self._recheck = True
         self._cap, self._w = False, 1.0     # the windup cap decides again from the new P
+
+    @property
+    def check_every(self):
+        """Health check period in updates (0: off); assign None for the default
+        ``max(250, 16 dim_x)``."""
+        return self._check_every
+
+    @check_every.setter
+    def check_every(self, value):
+        self._check_every = (max(250, 16 * self.dim_x) if value is None
+                             else check_int(value, "check_every", minimum=0))
 
     @property
     def lam(self):
@@ -622,9 +638,9 @@ class RecursiveLeastSquares(_FilterBase):
             problems.append(f"`P` failed the health check {episodes - kern.MAX_EPISODES} more "
                             "times in this batch_filter (each after a healthy check)")
         if armed and self.check_every:                # the end-of-batch check
-            problem = _health.symmetric_problem(out.P, self.cond_max, self._null_basis)
+            problem = self._health_problem(out.P, self.n_updates + N, False)
             if problem is not None:
-                problems.append(problem + _health.at_update(self.n_updates + N))
+                problems.append(problem)
                 armed = False
         for problem in problems:                      # before the state changes
             _health.warn(problem, self._HEALTH_ADVICE)
