@@ -49,6 +49,7 @@ import subprocess  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 import tracemalloc  # noqa: E402
+import warnings  # noqa: E402
 
 import numpy as np  # noqa: E402
 
@@ -110,7 +111,7 @@ def bench_batch(dims, scale, rounds, rng, peak=None):
     limits = {2: 1.5, 5: 1.0, 20: 1 / 2.5}
     out = {}
     for n in dims:
-        N = int(min(1e6, 2e7 / n**2) * scale)
+        N = int(min(1e6, 2e8 / n**2) * scale)
         Hs, zs = arx_data(n, N, rng)
         for lam in (1.0, 0.99):
             def batch():
@@ -145,7 +146,7 @@ def bench_health(dims, scale, rounds, rng):
     print("health check: batch_filter with the default check against check_every=0")
     out = {}
     for n in dims:
-        N = int(min(1e6, 2e7 / n**2) * scale)
+        N = int(min(1e6, 2e8 / n**2) * scale)
         Hs, zs = arx_data(n, N, rng)
 
         def run(every):
@@ -317,6 +318,9 @@ def main(argv=None):
     parser.add_argument("--only", nargs="+", choices=SECTIONS, help="run these sections only")
     parser.add_argument("--dims", type=int, nargs="+", default=[2, 5, 20, 100])
     args = parser.parse_args(argv)
+    # the ARX workload at 100 parameters makes P ill-conditioned: the health check
+    # warns (once per episode), which is part of what is timed, not of the output
+    warnings.simplefilter("ignore", rlsfilt.NumericalWarning)
     scale, rounds = (0.1, 3) if args.quick else (1.0, args.rounds)
     todo = set(args.only or SECTIONS)
     rng = np.random.default_rng(0)

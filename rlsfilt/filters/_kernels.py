@@ -449,17 +449,18 @@ def _health(P, basis, symmetric, cond_max, k, due, cheap_bad, state, episodes, P
     has columns), else with `unhealthy_sym` when ``P`` is exactly `symmetric`
     (it stays so when it starts so). A failure while armed starts an episode
     (its step in `episodes`, its ``P`` in `P_fail`, up to `MAX_EPISODES`) and
-    disarms; a due check that passes re-arms.
+    disarms; a due check whose Cholesky bound certifies ``P`` re-arms (while
+    disarmed, only that bound is computed).
     """
     armed = state[0] == 1
     if not (due or (cheap_bad and armed)):
         return
     if basis.shape[1]:
-        bad = unhealthy_on(P, basis, cond_max)
+        bad = unhealthy_on(P, basis, cond_max, armed)
     elif symmetric:
-        bad = unhealthy_sym(P, cond_max, W, X)
+        bad = unhealthy_sym(P, cond_max, W, X, armed)
     else:
-        bad = unhealthy(P, cond_max)
+        bad = unhealthy(P, cond_max, armed)
     if bad and armed:
         e = int(state[1])
         if e < episodes.shape[0]:

@@ -133,7 +133,7 @@ def singular_range(R):
 # health decisions (the NumPy definitions are in _health)
 # ----------------------------------------------------------------------
 @njit(cache=True)
-def unhealthy(P, cond_max):
+def unhealthy(P, cond_max, exact=True):
     """True when ``_health.symmetric_problem(P, cond_max)`` finds a problem:
     non-finite, not symmetric to 1e-8, not positive definite, or condition
     number above `cond_max` (`unhealthy_sym` of ``(P + P^T) / 2``)."""
@@ -151,11 +151,11 @@ def unhealthy(P, cond_max):
             scale = max(scale, abs(v))
     if asym > 1e-8 * scale:
         return True
-    return unhealthy_sym(A, cond_max, np.empty((n, n)), np.empty((n, n)))
+    return unhealthy_sym(A, cond_max, np.empty((n, n)), np.empty((n, n)), exact)
 
 
 @njit(cache=True)
-def unhealthy_sym(A, cond_max, W, X):
+def unhealthy_sym(A, cond_max, W, X, exact=True):
     """`unhealthy` of an exactly symmetric `A`, without allocating in the usual
     healthy case (`W`, `X`: (n, n) work space).
 
@@ -165,7 +165,9 @@ def unhealthy_sym(A, cond_max, W, X):
     and a bound well inside `cond_max` (and below 1e12, where the computed
     eigenvalues are safely positive) means healthy. Otherwise the eigenvalues
     decide. Both factorizations run along rows (their inner loops are
-    ``axpy``), so the compiler vectorizes them.
+    ``axpy``), so the compiler vectorizes them. Not `exact`, only the bound
+    decides: what it cannot call healthy counts as unhealthy (the re-arming
+    test of a warned filter, which need not pay for ``eigvalsh``).
     """
     n = A.shape[0]
     trace = 0.0
@@ -211,18 +213,20 @@ def unhealthy_sym(A, cond_max, W, X):
                 inv_norm2 += v * v
         if trace * inv_norm2 < min(0.5 * cond_max, 1e12):
             return False
+    if not exact:
+        return True
     w = np.linalg.eigvalsh(A)
     return w[0] <= 0.0 or w[n - 1] > cond_max * w[0]
 
 
 @njit(cache=True)
-def unhealthy_on(P, basis, cond_max):
+def unhealthy_on(P, basis, cond_max, exact=True):
     """`unhealthy` of ``basis^T P basis`` (``P`` under constraints; `basis` an
     orthonormal basis of the null space of ``A``), or of ``P`` when `basis`
     has no columns (no constraints)."""
     n, p = basis.shape
     if p == 0:
-        return unhealthy(P, cond_max)
+        return unhealthy(P, cond_max, exact)
     for i in range(n):
         for j in range(n):
             v = P[i, j]
@@ -240,7 +244,7 @@ def unhealthy_on(P, basis, cond_max):
             a = basis[k, i]
             for j in range(p):
                 R[i, j] += a * B[k, j]
-    return unhealthy(R, cond_max)
+    return unhealthy(R, cond_max, exact)
 
 
 @njit(cache=True)

@@ -845,8 +845,11 @@ class RecursiveLeastSquares(_FilterBase):
         `diagonal_bad`: the kernel's cheap check failed), or None."""
         kern = _streaming.kernels()
         basis = np.zeros((self.dim_x, 0)) if self._null_basis is None else self._null_basis
-        if not (diagonal_bad or kern.unhealthy_on(P, basis, self.cond_max)):
+        armed = not self._warned_health              # warned: only the bound re-arms
+        if not (diagonal_bad or kern.unhealthy_on(P, basis, self.cond_max, armed)):
             return None
+        if not armed:
+            return "`P` is not certified healthy"
         problem = _health.symmetric_problem(P, self.cond_max, self._null_basis)
         return None if problem is None else problem + _health.at_update(n_updates,
                                                                         self._batch_start)
