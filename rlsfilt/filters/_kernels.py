@@ -80,14 +80,14 @@ __all__ = []
 # ----------------------------------------------------------------------
 # one step
 # ----------------------------------------------------------------------
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def projector(cfg, n):
     """The projector ``Pi`` of the constraints in `cfg` ((0, 0) without them)."""
     k = n if cfg.shape[0] > CFG_PI else 0
     return cfg[CFG_PI:CFG_PI + k * k].reshape((k, k))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def project(P, Pi, T):
     """``P <- Pi P Pi`` made exactly symmetric; `T` is (n, n) work."""
     n = P.shape[0]
@@ -112,7 +112,7 @@ def project(P, Pi, T):
             P[j, i] = v
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def time_update(P, il, Q, Pi, T):
     """``P <- P il + Q`` then ``P <- Pi P Pi``, in place (`Q`, `Pi` empty when absent)."""
     n = P.shape[0]
@@ -128,7 +128,7 @@ def time_update(P, il, Q, Pi, T):
         project(P, Pi, T)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def gain(P, phi, g):
     """``g = P phi``, summed row by row (``g_j += P_ij phi_i``, ``i`` ascending: the
     order in which `_sweep` accumulates the next gain)."""
@@ -141,7 +141,7 @@ def gain(P, phi, g):
             g[j] += P[i, j] * hi
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def exponential_coefficient(q, c, w, updated):
     """The rank-one coefficient ``cu`` of ``P <- P - (g g^T) cu`` in the exponential mode.
 
@@ -156,7 +156,7 @@ def exponential_coefficient(q, c, w, updated):
     return w * w * c - f if updated else -f
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _diagonal_stats(P, g, cu, h):
     """``trace``, ``sum_i d_i h_i^2`` and ``min_i d_i`` of ``d_i = P_ii - (g_i g_i) cu``,
     the diagonal of ``P - (g g^T) cu`` (the updated ``P``), without forming it.
@@ -174,7 +174,7 @@ def _diagonal_stats(P, g, cu, h):
     return tr, spread, dmin
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def windup_cap(d_trace, d_spread, hph, il, cfg):
     """Whether the next time update must hold the forgetting back (see the module).
 
@@ -188,10 +188,11 @@ def windup_cap(d_trace, d_spread, hph, il, cfg):
     if d_trace * il > cfg[CFG_PARAMS + 1]:
         return True
     # under constraints P is singular by design: the spread test does not apply
-    return cfg.shape[0] == CFG_PI and d_spread > cfg[CFG_PARAMS] * hph
+    spread_max = cfg[CFG_PARAMS]
+    return cfg.shape[0] == CFG_PI and spread_max < np.inf and d_spread > spread_max * hph
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def measurement_update(x, P, phi, z, missing, r, cfg, Pi, g, y, K, T, w):
     """One measurement update of any mode with the gate and the constraints, in place.
 
@@ -345,19 +346,19 @@ def measurement_update(x, P, phi, z, missing, r, cfg, Pi, g, y, K, T, w):
 # ----------------------------------------------------------------------
 # the streaming steps (arguments packed by _streaming)
 # ----------------------------------------------------------------------
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _view(out, o, r, c):
     """The (r, c) array at offset `o` of the flat block `out`, and the next offset."""
     return out[o:o + r * c].reshape((r, c)), o + r * c
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def Pi_or_efra(cfg):
     """Whether a step needs the (n, n) work space: constraints or EFRA."""
     return cfg.shape[0] > CFG_PI or int(cfg[CFG_MODE]) == EFRA
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def predict_kernel(x, P, il, Q, cfg, out):
     """Streaming ``predict`` into the block `out` (``_streaming.predict_shapes``, then
     ``n^2`` of work space): ``P^-`` = `time_update` of ``P``, and the copies
@@ -373,7 +374,7 @@ def predict_kernel(x, P, il, Q, cfg, out):
     copy2(x, x_prior)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def update_kernel(x, P, phi, z0, zmode, r, cfg, w, out):
     """Streaming ``update``: `measurement_update` of ``x``, ``P`` into the block `out`.
 
@@ -439,7 +440,7 @@ def update_kernel(x, P, phi, z0, zmode, r, cfg, w, out):
 MAX_EPISODES = 16
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _health(P, basis, symmetric, cond_max, k, due, cheap_bad, state, episodes, P_fail, W, X):
     """The health check at the end of step `k` of a batch run.
 
@@ -472,7 +473,7 @@ def _health(P, basis, symmetric, cond_max, k, due, cheap_bad, state, episodes, P
         state[0] = 1
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def step_batch(x, P, Z, Hm, Rv, il, Q, update_first, cfg, basis,
                means, means_p, covs, covs_p, ys, ss, gated,
                x_prior, P_prior, x_post, P_post, K, check_every, step0, cond_max,
@@ -546,7 +547,7 @@ def step_batch(x, P, Z, Hm, Rv, il, Q, update_first, cfg, basis,
     return s, lam_t
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _time_step(x, P, il, Q, Pi, T, k, N, means_p, covs_p, x_prior, P_prior):
     """`time_update` in `step_batch`, with its histories (and the last prior)."""
     time_update(P, il, Q, Pi, T)
@@ -559,7 +560,7 @@ def _time_step(x, P, il, Q, Pi, T, k, N, means_p, covs_p, x_prior, P_prior):
         copy2(P, P_prior)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _sweep(P, g, cu, il, Q, h, gn):
     """One sweep over ``P``: ``P <- (P - (g g^T) cu) il + Q``, accumulating the next
     gain ``gn = P h`` on the way (row by row, as `gain` does).
@@ -575,7 +576,7 @@ def _sweep(P, g, cu, il, Q, h, gn):
         _sweep_rows(P, g, cu, il, h, gn)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _sweep_rows(P, g, cu, il, h, gn):
     """`_sweep` without ``Q``, four rows at a time.
 
@@ -614,7 +615,7 @@ def _sweep_rows(P, g, cu, il, h, gn):
         i += 1
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _sweep_q(P, g, cu, il, Q, h, gn):
     """`_sweep` with ``Q``, row by row."""
     n = P.shape[0]
@@ -631,7 +632,7 @@ def _sweep_q(P, g, cu, il, Q, h, gn):
             gn[j] += v * hi
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, ys, ss,
                       x_prior, P_prior, x_post, P_post, K, check_every, step0, cond_max,
                       state, episodes, P_fail, symmetric):
@@ -736,7 +737,7 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, ys, ss,
     return s
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _unfused_step(x, P, g, gn, cu, il, Q, h, k, last, check, update_first, due, cheap_bad,
                   cond_max, state, episodes, P_fail, W, X, none, symmetric, x_prior, P_prior,
                   x_post, P_post):

@@ -16,7 +16,7 @@ __all__ = []
 _EPS = float(np.finfo(np.float64).eps)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def copy2(a, b):
     """``b[:] = a`` for 2-D arrays."""
     for i in range(a.shape[0]):
@@ -24,7 +24,7 @@ def copy2(a, b):
             b[i, j] = a[i, j]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def any_nan(z):
     for v in z:
         if v != v:
@@ -32,7 +32,7 @@ def any_nan(z):
     return False
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def diagonal_bad(A):
     """True when a diagonal entry of ``A`` is not positive and finite (the cheap
     check: a positive definite ``P``, or the factor ``U`` of one, has a positive
@@ -44,7 +44,7 @@ def diagonal_bad(A):
     return False
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def back_substitute(U, B, X):
     """Solve ``U X = B`` (``U`` upper triangular); `X` may be `B`."""
     n, m = B.shape
@@ -56,7 +56,7 @@ def back_substitute(U, B, X):
             X[i, c] = acc / U[i, i]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def upper_inverse_gram(U, P):
     """``P = U^-1 U^-T`` for an upper-triangular `U` with a nonzero diagonal.
 
@@ -82,7 +82,7 @@ def upper_inverse_gram(U, P):
             P[j, i] = acc
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def singular_range(R):
     """Smallest and largest singular value of the square `R` (one-sided Jacobi).
 
@@ -132,7 +132,7 @@ def singular_range(R):
 # ----------------------------------------------------------------------
 # health decisions (the NumPy definitions are in _health)
 # ----------------------------------------------------------------------
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def unhealthy(P, cond_max, exact=True):
     """True when ``_health.symmetric_problem(P, cond_max)`` finds a problem:
     non-finite, not symmetric to 1e-8, not positive definite, or condition
@@ -154,7 +154,7 @@ def unhealthy(P, cond_max, exact=True):
     return unhealthy_sym(A, cond_max, np.empty((n, n)), np.empty((n, n)), exact)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def unhealthy_sym(A, cond_max, W, X, exact=True):
     """`unhealthy` of an exactly symmetric `A`, without allocating in the usual
     healthy case (`W`, `X`: (n, n) work space).
@@ -219,7 +219,7 @@ def unhealthy_sym(A, cond_max, W, X, exact=True):
     return w[0] <= 0.0 or w[n - 1] > cond_max * w[0]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def unhealthy_on(P, basis, cond_max, exact=True):
     """`unhealthy` of ``basis^T P basis`` (``P`` under constraints; `basis` an
     orthonormal basis of the null space of ``A``), or of ``P`` when `basis`
@@ -247,7 +247,7 @@ def unhealthy_on(P, basis, cond_max, exact=True):
     return unhealthy(R, cond_max, exact)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def factor_unhealthy(U, cond_max):
     """True when ``_health.factor_problem(U, cond_max)`` finds a problem with
     ``P = U^-1 U^-T``: non-finite ``U``, a diagonal entry that is not

@@ -50,7 +50,7 @@ from ._kernels_shared import (
 __all__ = []
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def sr_predict(U, d, c):
     """``U <- c U``, ``d <- c d`` in place (``c = sqrt(lam)``)."""
     n, m = d.shape
@@ -61,7 +61,7 @@ def sr_predict(U, d, c):
             d[i, j] = d[i, j] * c
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _sr_step(U, d, x, phi, z, r, w, y, K, gain):
     """One measurement update of the information square root, in place.
 
@@ -129,7 +129,7 @@ def _sr_step(U, d, x, phi, z, r, w, y, K, gain):
     return s
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def sr_update_kernel(U, d, x, phi, z, r, y, K):
     """Streaming :meth:`SquareRootRLS.update`: `_sr_step` on the given arrays.
 
@@ -141,7 +141,7 @@ def sr_update_kernel(U, d, x, phi, z, r, y, K):
     return s, diagonal_bad(U)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def sr_batch_kernel(U, d, x, Z, Hm, Rv, c, update_first, means, covs, covs_p,
                     x_prior, P_prior, P_post, y, K, check_every, step0, cond_max, U_fail):
     """Run `SquareRootRLS` over a record, in place on ``U``, ``d``, ``x``.
@@ -226,7 +226,7 @@ def sr_batch_kernel(U, d, x, Z, Hm, Rv, c, update_first, means, covs, covs_p,
 HEAD, NW, COUNT, NEXT_EXACT, EXACT = 0, 1, 2, 3, 4
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def window_lstsq(wH, wZ, wR, nw, Lt, Ltx0, n_prior, x, P):
     """Weighted least squares on the first `nw` stored rows, by Householder QR.
 
@@ -305,7 +305,7 @@ def window_lstsq(wH, wZ, wR, nw, Lt, Ltx0, n_prior, x, P):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _sw_step(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, g, y, K):
     """One `SlidingWindowRLS` update (add, slide the ring buffer, downdate,
     refit when due), in place on ``x``, ``P``, the buffer and ``ist``.
@@ -396,7 +396,7 @@ def _sw_step(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, g, y, K):
     return s
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def sw_update_kernel(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, y, K):
     """Streaming :meth:`SlidingWindowRLS.update`: `_sw_step` on the given arrays.
 
@@ -408,7 +408,7 @@ def sw_update_kernel(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, y, K):
     return s, diagonal_bad(P)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def sw_batch_kernel(x, P, Z, Hm, Rv, wH, wZ, wR, ist, refresh, Lt, Ltx0, means, covs, y, K,
                     P_last, check_every, step0, cond_max, P_fail):
     """Run `SlidingWindowRLS` over a record, in place on the state.

@@ -113,7 +113,8 @@ def windup_cap(P, phi, hph, lam, params, constrained=False):
     d = np.diagonal(P)
     if d.sum() / lam > trace_max:
         return True
-    return not constrained and float(d @ (phi[0] * phi[0])) > spread_max * hph
+    return (not constrained and spread_max < np.inf
+            and float(d @ (phi[0] * phi[0])) > spread_max * hph)
 
 
 def update_exponential(x, P, y, g, s, r, lam, params):
