@@ -81,7 +81,9 @@ class RecursiveLeastSquares(_FilterBase):
         regressor or residual, and bound ``P`` when the input stops
         exciting the system (no covariance windup).
     forgetting_params : dict, optional
-        Constants of the chosen mode: ``"directional"``: ``eps`` (1e-12,
+        Constants of the chosen mode: ``"exponential"``: the windup cap (see
+        Notes), ``spread_max`` (1e15) and ``trace_max`` (``1e12 trace(P0)``;
+        ``inf`` for both gives the plain recursion); ``"directional"``: ``eps`` (1e-12,
         smallest ``phi P phi^T / R`` that triggers forgetting);
         ``"constant_trace"``: ``trace`` (``dim_x * R * (1 - lam)`` with the
         `R` and `lam` given at construction: the trace plain forgetting
@@ -146,6 +148,10 @@ class RecursiveLeastSquares(_FilterBase):
         Number of measurements rejected by the gate since :meth:`reset`.
     n_updates : int
         Number of measurement updates since :meth:`reset`.
+    n_capped : int
+        Number of updates since :meth:`reset` whose forgetting the windup
+        cap restricted to the regressor's direction (exponential mode; see
+        Notes).
     lam_t : float
         Forgetting factor effectively applied by the last update (`lam` for
         ``"exponential"``; the directional weight, the variable factor or
@@ -204,6 +210,22 @@ class RecursiveLeastSquares(_FilterBase):
     * ``"variable"`` (Fortescue, Kershenbaum & Ydstie 1981):
       :math:`\lambda_t = 1 - (1 - \lambda)\, y^T y / (m S)`, clipped to
       ``[lam_min, 1]`` and raised so that ``trace(P) <= trace_max``.
+
+    **The windup cap** (exponential mode, ``lam < 1``). Plain exponential
+    forgetting lets ``P`` grow like ``lam**-k`` in the directions the data
+    stop exciting, until it overflows and the estimate is NaN for good. After
+    each update the filter therefore decides, in O(dim_x), whether the next
+    :meth:`predict` may divide ``P`` by ``lam``: not when
+    :math:`\sum_i P_{ii} H_i^2 > \text{spread\_max}\, H P H^T` (``P`` far
+    larger off the regressor's direction than along it; the ratio does not
+    depend on the units of the regressors) or when
+    :math:`\operatorname{tr} P / \lambda` would exceed ``trace_max``. Then
+    :meth:`predict` leaves ``P`` (and adds ``Q``) and the next :meth:`update`
+    forgets along its regressor only, :math:`P \leftarrow P + (1/\lambda -
+    1)\, g g^T / (H g)`, :math:`g = P H^T` (directional forgetting), so
+    ``P`` stays finite and positive definite whatever the data, and the
+    estimate recovers when excitation returns. Ordinary runs never reach the
+    cap: their results are bitwise those of the plain recursion.
 
     **Constraints.** After :meth:`constrain` the estimate satisfies
     ``A x = b``; plain updates keep it because ``A P = 0``. To hold
