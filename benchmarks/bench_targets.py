@@ -114,11 +114,11 @@ def bench_batch(dims, scale, rounds, rng, peak=None):
         N = int(min(1e6, 2e8 / n**2) * scale)
         Hs, zs = arx_data(n, N, rng)
         for lam in (1.0, 0.99):
-            def batch():
+            def batch(n=n, lam=lam, Hs=Hs, zs=zs):
                 rls = rlsfilt.RecursiveLeastSquares(n, lam=lam, P0=P0)
                 rls.batch_filter(zs, Hs, store_covariances=False)
 
-            def loop():
+            def loop(n=n, lam=lam, Hs=Hs, zs=zs):
                 rls_handwritten(Hs, zs, lam, P0 * np.eye(n), np.zeros(n))
 
             t = race({"batch": batch, "loop": loop}, rounds)
@@ -149,7 +149,7 @@ def bench_health(dims, scale, rounds, rng):
         N = int(min(1e6, 2e8 / n**2) * scale)
         Hs, zs = arx_data(n, N, rng)
 
-        def run(every):
+        def run(every, n=n, Hs=Hs, zs=zs):
             def go():
                 kw = {} if every is None else {"check_every": every}
                 rls = rlsfilt.RecursiveLeastSquares(n, lam=0.99, P0=P0, **kw)
@@ -198,14 +198,14 @@ def bench_stream(rounds, rng, steps=2000):
         Hl = list(Hs)
         zl = [float(z) for z in zs]
 
-        def ours():
+        def ours(n=n, Hl=Hl, zl=zl):
             rls = rlsfilt.RecursiveLeastSquares(n, lam=0.99, P0=P0)
             predict, update = rls.predict, rls.update
             for h, z in zip(Hl, zl):
                 predict()
                 update(z, h)
 
-        def theirs():
+        def theirs(n=n, Hl=Hl, zl=zl):
             kf = KalmanFilter(dim_x=n, dim_z=1)
             kf.F = np.eye(n)
             kf.P = P0 * np.eye(n)

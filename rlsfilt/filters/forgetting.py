@@ -76,7 +76,8 @@ def mode_params(code, params, dim_x, lam, R=1.0, P0_trace=1.0):
     """Validate the user's ``forgetting_params`` dict; return a float tuple.
 
     Defaults: exponential (the windup cap) ``spread_max = 1e15``,
-    ``trace_max = 1e12 trace(P0)`` (`P0_trace`); directional ``eps = 1e-12``; constant trace ``trace = dim_x R
+    ``trace_max = 1e12 trace(P0)`` (`P0_trace`); directional
+    ``eps = 1e-12``; constant trace ``trace = dim_x R
     (1 - lam)`` (the trace at which plain exponential forgetting settles for
     white, unit-power regressors; needs ``lam < 1``), ``ratio = 1e4``; EFRA
     ``alpha = 0.5``, ``beta = delta = 0.005``; variable

@@ -29,7 +29,6 @@ from ._summary import EQUATION_STYLES, ModelSummary
 from .regressors import (
     _as_signal,
     _build,
-    _column_rank,
     _full_rank_rows,
     arx_structure,
     as_io_data,
@@ -868,16 +867,29 @@ def _fit_rls(Phi, target, s, opts):
 
 
 def _qr_least_squares(Phi, target):
-    """``theta`` (n, ny) and ``(Phi^T Phi)^-1`` from a QR factorization of ``Phi``."""
-    n = Phi.shape[1]
-    rank = _column_rank(Phi)
+    """``theta`` (n, ny) and ``(Phi^T Phi)^-1`` from a QR factorization of ``Phi``.
+
+    One Householder QR (LAPACK ``geqrf``) of ``[Phi, target]`` gives ``R`` and
+    ``c = Q^T target`` without forming ``Q``; the rank is decided as
+    ``_column_rank(Phi)`` decides it, from the singular values of ``R`` with
+    its columns scaled to unit norm (those of ``Phi`` with unit columns), so
+    the record is read once.
+    """
+    rows, n = Phi.shape
+    A = np.empty((rows, n + target.shape[1]), order="F")
+    A[:, :n] = Phi
+    A[:, n:] = target
+    qr, _, _, _ = lapack.dgeqrf(A, overwrite_a=True)
+    Rf = np.triu(qr[:n, :n])
+    c = qr[:n, n:]
+    norms = np.linalg.norm(Rf, axis=0)                  # the column norms of Phi
+    sv = np.linalg.svd(Rf / np.where(norms > 0, norms, 1.0), compute_uv=False)
+    rank = int(np.sum(sv > sv.max() * max(rows, n) * np.finfo(float).eps)) if n else 0
     if rank < n:
         raise ValueError(
             f"the regressor matrix has rank {rank} < n_params = {n}: the input is not "
             "persistently exciting for these orders (or the orders are too high); use a richer "
             "input, more data or lower orders")
-    Qf, Rf = np.linalg.qr(Phi)
-    c = Qf.T @ target
     # back substitution one column at a time, and the triangular inverse from
     # LAPACK's trtri: multi-column triangular solves hit a slow threaded BLAS
     # path for tiny matrices on loaded machines (measured: 2-10 ms per call)
