@@ -639,13 +639,15 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, ys, ss,
     """`step_batch` of the default configuration with one output, fused (see the module).
 
     Exponential forgetting, no gate, no constraints, ``m = 1``, no
-    covariance histories: ``ys`` and ``ss`` have length 1 (the last step).
-    Arguments and returns otherwise as `step_batch` (``means_p`` is
-    ``means`` shifted by one step; the caller builds it), but for ``lam_t``.
+    covariance histories: ``ss`` has length 1 (the last step), ``ys`` length
+    N (every residual) or 1 (the last). Arguments and returns otherwise as
+    `step_batch` (``means_p`` is ``means`` shifted by one step; the caller
+    builds it), but for ``lam_t``.
     """
     N = Z.shape[0]
     n = x.shape[0]
     r_each = Rv.shape[0] == N
+    every_y = ys.shape[0] == N
     hasq = Q.shape[0] > 0
     th = x[:, 0].copy()                              # local: no aliasing in the loop
     g = np.zeros(n)
@@ -695,6 +697,8 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, ys, ss,
             for i in range(n):
                 means[k, i, 0] = th[i]
             hph = q * w
+        if every_y:
+            ys[k, 0] = yk
         # the diagonal of the updated P: the cheap check and the windup cap
         tr, spread, dmin = _diagonal_stats(P, g, cu, h)
         cheap_bad = not (dmin > 0.0 and tr < np.inf)
@@ -731,7 +735,7 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, ys, ss,
         w = 1.0                                      # no time update after the last update
     state[2] += n_capped
     ss[0] = s
-    ys[0, 0] = yk
+    ys[ys.shape[0] - 1, 0] = yk
     state[3] = 1 if cap else 0
     state[4] = w
     return s
@@ -767,13 +771,13 @@ def _unfused_step(x, P, g, gn, cu, il, Q, h, k, last, check, update_first, due, 
 class BatchResult:
     """What `run_batch` returns: the histories and the last step's state."""
 
-    __slots__ = ("means", "covariances", "means_p", "covariances_p", "ys", "ss", "gated",
-                 "x", "P", "x_prior", "P_prior", "x_post", "P_post", "K_last", "s_last",
+    __slots__ = ("buffer", "means", "covariances", "means_p", "covariances_p", "ys", "ss",
+                 "gated", "x", "P", "x_prior", "P_prior", "x_post", "P_post", "K_last", "s_last",
                  "lam_t_last", "state", "episodes", "P_fail")
 
 
 def run_batch(x, P, Z, Hm, Rv, cfg, Q, basis, update_first, store_covariances,
-              check_every, step0, cond_max, state):
+              check_every, step0, cond_max, state, lead=0, residuals=False):
     """Run `RecursiveLeastSquares` over a validated record; `x`, `P` are not modified.
 
     `cfg` is ``forgetting.kernel_config``; `Q` None when absent; `basis`
@@ -781,11 +785,13 @@ def run_batch(x, P, Z, Hm, Rv, cfg, Q, basis, update_first, store_covariances,
     ``[armed, n_episodes, n_capped, cap, w]`` of `step_batch` (a new array is
     returned in the result). Chooses `exponential_batch` for the default
     configuration with one output and no covariance histories, `step_batch`
-    otherwise. Returns a `BatchResult` (``ys``, ``ss``, ``gated`` hold the
-    last step only after `exponential_batch`). The estimate histories share
-    one buffer: ``means_p`` is a read-only view of it (the estimate before
-    each update is the one after the update before), so memory stays one
-    ``N x dim_x x dim_z`` array.
+    otherwise. Returns a `BatchResult` (``ss``, ``gated`` hold the last step
+    only after `exponential_batch`, and ``ys`` too unless `residuals`). The
+    estimate histories share one buffer, ``buffer``: `lead` rows of NaN (room
+    for what a caller puts before the run), the estimate before the first
+    update, then the estimate after each update (``means``); ``means_p`` is a
+    read-only view of it (the estimate before each update is the one after
+    the update before), so memory stays one ``N x dim_x x dim_z`` array.
     """
     N = len(Z)
     n, m = x.shape
@@ -804,10 +810,12 @@ def run_batch(x, P, Z, Hm, Rv, cfg, Q, basis, update_first, store_covariances,
     out.x_post, out.P_post = np.empty((n, m)), np.empty((n, n))
     # one buffer for both estimate histories: row k + 1 is the estimate after
     # update k, row 0 the estimate before the first (x does not change in a predict)
-    buf = np.empty((N + 1, n, m))
-    buf[0] = x
-    out.means = buf[1:]
-    means_p = buf[1:] if update_first else buf[:-1]
+    buf = np.empty((lead + N + 1, n, m))
+    buf[:lead] = np.nan
+    buf[lead] = x
+    out.buffer = buf
+    out.means = buf[lead + 1:]
+    means_p = buf[lead + 1:] if update_first else buf[lead:-1]
     out.means_p = means_p.view()
     out.means_p.flags.writeable = False
     K = np.zeros(n)
@@ -818,7 +826,7 @@ def run_batch(x, P, Z, Hm, Rv, cfg, Q, basis, update_first, store_covariances,
     fused = (mode == EXPONENTIAL and gate == np.inf and len(cfg) == CFG_PI and m == 1
              and not store_covariances and N > 0)
     if fused:
-        out.ys, out.ss = np.empty((1, 1)), np.empty(1)
+        out.ys, out.ss = np.empty((N if residuals else 1, 1)), np.empty(1)
         out.s_last = exponential_batch(
             out.x, out.P, Zc, Hc, Rv, il, Qa, cfg, bool(update_first), out.means, out.ys,
             out.ss, out.x_prior, out.P_prior, out.x_post, out.P_post, K,

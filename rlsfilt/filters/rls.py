@@ -640,6 +640,14 @@ class RecursiveLeastSquares(_FilterBase):
     def _batch_compiled(self, Z, Hm, Rv, update_first, store_covariances):
         """`batch_filter` in one compiled call (`_kernels.run_batch`); leaves the
         filter as the step-by-step loop would, and changes nothing if it raises."""
+        out = self._run_batch(Z, Hm, Rv, update_first, store_covariances)
+        return out.means, out.covariances, out.means_p, out.covariances_p
+
+    def _run_batch(self, Z, Hm, Rv, update_first, store_covariances, lead=0, residuals=False):
+        """`_batch_compiled` on a validated record ``Z`` (N, dim_z), ``Hm`` (N, dim_x),
+        ``Rv`` (N,); returns the kernel's `BatchResult`. `lead` and `residuals` as
+        in `_kernels.run_batch` (``ARX.fit`` writes its histories into the result's
+        buffer and takes every a-priori residual from it)."""
         P = self._checked_P()
         if self._efra_pending:
             P = self._efra_start(P)
@@ -648,7 +656,8 @@ class RecursiveLeastSquares(_FilterBase):
         out = kern.run_batch(
             self._checked_x(), P, Z, Hm, Rv, self._cfg,
             None if self._Q_kernel is _EMPTY else self._Q, self._null_basis, update_first,
-            store_covariances, self.check_every, self.n_updates, self.cond_max, state)
+            store_covariances, self.check_every, self.n_updates, self.cond_max, state, lead,
+            residuals)
         N, problems = len(Z), []
         armed, episodes = out.state[0] == 1.0, int(out.state[1])
         for e, k in enumerate(out.episodes[:min(episodes, kern.MAX_EPISODES)]):
@@ -689,7 +698,7 @@ class RecursiveLeastSquares(_FilterBase):
         self.gated = bool(out.gated[-1])
         self.lam_t = out.lam_t_last
         self._recheck = self._efra_pending = False
-        return out.means, out.covariances, out.means_p, out.covariances_p
+        return out
 
     # ------------------------------------------------------------------
     # equality constraints

@@ -292,16 +292,12 @@ class ARX(IdentifiedModel):
         if method == "ls":
             theta, cov_unscaled = _qr_least_squares(Phi, target)
         else:
-            theta, cov_unscaled, rls, history, x_start, k0 = _fit_rls(Phi, target, s, opts)
+            theta, cov_unscaled, rls, history, prior, k0 = _fit_rls(Phi, target, s, opts)
+            # prior: the a-priori (recursive) residuals y(t) - phi(t) theta(t-1) after
+            # the batch start
             recursive = {"filter_": rls, "k0_": k0,
-                         "theta_history_": history[:, :, 0] if info["y_1d"] else history}
-            # a-priori (recursive) residuals y(t) - phi(t) theta(t-1) after the batch start
-            prior = np.full_like(target, np.nan)
-            if k0 == 0 and rows:
-                prior[0] = target[0] - Phi[0] @ x_start
-                k0 = 1
-            prior[k0:] = target[k0:] - np.einsum("ij,ijk->ik", Phi[k0:], history[k0 - 1:-1])
-            recursive["recursive_residuals_"] = prior[:, 0] if info["y_1d"] else prior
+                         "theta_history_": history[:, :, 0] if info["y_1d"] else history,
+                         "recursive_residuals_": prior[:, 0] if info["y_1d"] else prior}
         for name in ("theta_history_", "filter_", "k0_", "recursive_residuals_",
                      "noise_covariance_"):
             self.__dict__.pop(name, None)
@@ -835,7 +831,14 @@ def _check_filter_options(options):
 
 
 def _fit_rls(Phi, target, s, opts):
-    """Recursive least squares over the rows: ``(theta, P / R, filter, history, x_start, k0)``."""
+    """Recursive least squares over the rows: ``(theta, P / R, filter, history, prior, k0)``.
+
+    ``history`` (rows, n, ny) is NaN before row ``k0 - 1`` (the batch start's
+    estimate); ``prior`` (rows, ny) the a-priori residuals, NaN before row ``k0``.
+    The rows come from validated signals, so the filter runs them without
+    validating them again, writing the estimates straight into ``history``
+    and every residual into ``prior`` (no copies of the record).
+    """
     n, rows = s.n_params, len(Phi)
     prior = opts["P0"] is not None or opts["x0"] is not None
     if opts["k0"] is not None:
@@ -855,15 +858,19 @@ def _fit_rls(Phi, target, s, opts):
     kw = {key: opts[key] for key in ("P0", "R", "Q", "x0") if opts[key] is not None}
     lam = 1.0 if opts["lam"] is None else opts["lam"]
     rls = RecursiveLeastSquares(n, dim_z=s.n_outputs, lam=lam, **kw, **opts["extra"])
-    history = np.full((rows, n, s.n_outputs), np.nan)
-    x_start = rls.x.copy()
+    prior = np.full((rows, s.n_outputs), np.nan)
     if k0 > 0:
         rls.initialize(target[:k0], Phi[:k0])
-        history[k0 - 1] = rls.x
     if k0 < rows:
-        means = rls.batch_filter(target[k0:], Phi[k0:], store_covariances=False)[0]
-        history[k0:] = means
-    return rls.x.copy(), rls.P / rls.R, rls, history, x_start, k0
+        Z, Hm = target[k0:], Phi[k0:]
+        out = rls._run_batch(Z, Hm, rls._as_batch_variances(None, len(Z)), False, False,
+                             lead=max(k0 - 1, 0), residuals=True)
+        history = out.buffer[1:] if k0 == 0 else out.buffer
+        prior[k0:] = out.ys
+    else:                                   # the batch start used every row
+        history = np.full((rows, n, s.n_outputs), np.nan)
+        history[k0 - 1] = rls.x
+    return rls.x.copy(), rls.P / rls.R, rls, history, prior, k0
 
 
 def _qr_least_squares(Phi, target):
