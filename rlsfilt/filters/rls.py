@@ -598,7 +598,8 @@ class RecursiveLeastSquares(_FilterBase):
             Its ``save()`` is called after each step.
         store_covariances : bool, default True
             With ``False`` the covariance histories are not stored (they are
-            returned as ``None``), so memory stays O(N dim_x dim_z).
+            returned as ``None``), so memory stays O(N dim_x dim_z): one
+            array of estimates, of which `means` and `means_p` are views.
 
         Returns
         -------
@@ -607,7 +608,9 @@ class RecursiveLeastSquares(_FilterBase):
         covariances : ndarray, shape (N, dim_x, dim_x), or None
             ``P`` after each update.
         means_p : ndarray, shape (N, dim_x, dim_z)
-            Estimates after each predict.
+            Estimates after each predict (a predict does not change the
+            estimate: a read-only view of the estimate before each update,
+            sharing memory with `means`).
         covariances_p : ndarray, shape (N, dim_x, dim_x), or None
             ``P`` after each predict.
 
@@ -623,11 +626,17 @@ class RecursiveLeastSquares(_FilterBase):
         call): the compiled steps that :meth:`predict` and :meth:`update` call,
         one pair per sample. With exponential forgetting (the default), one
         output, no gate or constraints and ``store_covariances=False``, one
-        sweep over ``P`` per step applies the update, the next forgetting step
-        and the next gain together (the same numbers, bit for bit), so a step
-        costs about :math:`6\,n^2` floating-point operations for
-        ``n = dim_x`` and the record is processed at tens of nanoseconds per
-        sample for small ``n`` (see ``docs/performance.md``).
+        vectorized sweep over ``P`` per step applies the update, the next
+        forgetting step and the next gain together (the same numbers, bit for
+        bit), and the record is processed at tens of nanoseconds per sample
+        for small ``n = dim_x`` (see ``docs/performance.md``).
+
+        **Records larger than memory.** Call :meth:`batch_filter` on
+        consecutive chunks (for example slices of ``np.load(path,
+        mmap_mode="r")``) with ``store_covariances=False``: the filter carries
+        its whole state from one call to the next, so the estimates are
+        bitwise those of one call over the whole record, and memory is that
+        of one chunk.
 
         Every forgetting mode, the gate and the constraints apply exactly as
         in the step-by-step loop (the results are bitwise equal); gated
