@@ -17,9 +17,8 @@ textbook NumPy is :mod:`rlsfilt.filters._reference`.
 import math
 
 import numpy as np
-from filterpy.common import pretty_str
-from scipy.linalg import null_space, solve_triangular
 
+from .._display import pretty_str
 from .._validation import (
     as_float_array,
     check_covariance,
@@ -547,6 +546,7 @@ class RecursiveLeastSquares(_FilterBase):
             If the regressor rows do not determine every parameter (fewer
             independent rows than ``dim_x``).
         """
+        from scipy.linalg import solve_triangular  # lazy: keeps `import rlsfilt` light
         Z, Hm = self._as_batch(zs, Hs)
         w = self._lam ** (0.5 * np.arange(len(Z) - 1, -1, -1.0))
         keep = ~np.isnan(Z).any(axis=1)
@@ -742,6 +742,7 @@ class RecursiveLeastSquares(_FilterBase):
         -------
         self
         """
+        from scipy.linalg import null_space  # lazy: keeps `import rlsfilt` light
         n, m = self.dim_x, self.dim_z
         A = as_float_array(A, "A")
         if A.ndim == 1:

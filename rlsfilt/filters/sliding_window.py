@@ -1,8 +1,8 @@
 """Exact least squares over a sliding window of the most recent samples."""
 
 import numpy as np
-from filterpy.common import pretty_str
 
+from .._display import pretty_str
 from .._validation import check_covariance, check_int, check_real, check_variance
 from . import _health, _streaming
 from ._base import _FilterBase

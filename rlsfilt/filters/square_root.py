@@ -3,9 +3,8 @@
 import math
 
 import numpy as np
-from filterpy.common import pretty_str
-from scipy.linalg import cho_factor, cho_solve, solve_triangular
 
+from .._display import pretty_str
 from .._validation import check_covariance, check_int, check_lam, check_real, check_variance
 from . import _health, _streaming
 from ._base import _FilterBase
@@ -181,6 +180,7 @@ class SquareRootRLS(_FilterBase):
 
     @P.setter
     def P(self, value):
+        from scipy.linalg import cho_factor, cho_solve  # lazy: keeps `import rlsfilt` light
         P = check_covariance(value, self.dim_x, "P", definite=True)
         info = cho_solve(cho_factor(P, lower=True), np.eye(self.dim_x))
         self._U = np.linalg.cholesky(0.5 * (info + info.T)).T
@@ -258,6 +258,7 @@ class SquareRootRLS(_FilterBase):
         ValueError
             If the rows do not determine every parameter.
         """
+        from scipy.linalg import solve_triangular  # lazy: keeps `import rlsfilt` light
         Z, Hm = self._as_batch(zs, Hs)
         keep = ~np.isnan(Z).any(axis=1)
         w = self._lam ** (0.5 * np.arange(len(Z) - 1, -1, -1.0)) / math.sqrt(self._R)
