@@ -63,9 +63,11 @@ def test_windup_warns_once_with_the_update():
 def test_windup_batch_filter_names_the_step():
     zs, Hs = _windup(2000)
     first = _first_ill_conditioned_update()
-    detected = -(-first // 100) * 100            # the next multiple of check_every=100
-    k0 = detected - 25                           # it happens in the second call
     f = SquareRootRLS(2, lam=LAM, P0=P0)
+    every = f.check_every                        # the default, max(250, 16 dim_x)
+    assert every == 250
+    detected = -(-first // every) * every        # the next multiple of check_every
+    k0 = first - 9                               # it happens in the second call
     with pytest.warns(NumericalWarning) as record:
         f.batch_filter(zs[:k0], Hs[:k0])
         f.batch_filter(zs[k0:], Hs[k0:])
@@ -222,9 +224,10 @@ def test_sliding_window_warns_once_with_the_update():
 def test_sliding_window_batch_filter_names_the_step():
     zs, Hs = _collinear_record()
     first = _first_ill_conditioned_window(Hs)
-    detected = -(-first // 100) * 100            # default check_every=100
-    k0 = 120
     f = SlidingWindowRLS(2, WINDOW)
+    every = f.check_every                        # the default, max(250, 16 dim_x)
+    detected = -(-first // every) * every
+    k0 = 120
     with pytest.warns(NumericalWarning) as record:
         f.batch_filter(zs[:k0], Hs[:k0])
         f.batch_filter(zs[k0:], Hs[k0:])

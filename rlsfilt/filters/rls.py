@@ -347,17 +347,6 @@ class RecursiveLeastSquares(_FilterBase):
         self._cap, self._w = False, 1.0     # the windup cap decides again from the new P
 
     @property
-    def check_every(self):
-        """Health check period in updates (0: off); assign None for the default
-        ``max(250, 16 dim_x)``."""
-        return self._check_every
-
-    @check_every.setter
-    def check_every(self, value):
-        self._check_every = (max(250, 16 * self.dim_x) if value is None
-                             else check_int(value, "check_every", minimum=0))
-
-    @property
     def lam(self):
         """Forgetting factor in (0, 1]."""
         return self._lam

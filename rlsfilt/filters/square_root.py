@@ -49,8 +49,9 @@ class SquareRootRLS(_FilterBase):
         Initial estimate; zeros by default.
     R : float, default 1.0
         Measurement-noise variance.
-    check_every : int, default 100
-        Health check period (0 disables it), with the semantics of
+    check_every : int, optional
+        Health check period (0 disables it; by default ``max(250, 16
+        dim_x)``), with the semantics of
         :class:`~rlsfilt.RecursiveLeastSquares`: every `check_every`
         updates, and at the end of :meth:`batch_filter`, the condition
         number of ``P`` is computed from the triangular factor,
@@ -137,12 +138,12 @@ class SquareRootRLS(_FilterBase):
                       "anti-windup forgetting mode (forgetting='directional', 'efra', ...).")
 
     def __init__(self, dim_x, dim_z=1, lam=1.0, *, P0=1e4, x0=None, R=1.0,
-                 check_every=100, cond_max=1e12):
+                 check_every=None, cond_max=1e12):
         self.dim_x = check_int(dim_x, "dim_x", minimum=1)
         self.dim_z = check_int(dim_z, "dim_z", minimum=1)
         self.lam = lam
         self.R = R
-        self.check_every = check_int(check_every, "check_every", minimum=0)
+        self.check_every = check_every
         self.cond_max = check_real(cond_max, "cond_max", minimum=0, strict=True)
         self._batch_start = None      # n_updates when a step-by-step batch_filter started
         self._P0 = check_covariance(P0, self.dim_x, "P0", definite=True)
