@@ -288,3 +288,25 @@ def test_sliding_window_indefinite_P_is_caught_by_the_cheap_check():
     with pytest.warns(NumericalWarning, match=r"`P` is not positive definite \(smallest "
                                               r"eigenvalue -0.001\) at update 1 since reset"):
         f.update(1.0, [1.0, 0.0])
+
+
+def test_compiled_factor_decision_equals_factor_problem():
+    """The square root's compiled check (trace bound, then singular values) decides as
+    ``_health.factor_problem`` (the NumPy SVD) does."""
+    from rlsfilt.filters import _health, _kernels_shared
+
+    rng = np.random.default_rng(9)
+    decided = {True: 0, False: 0}
+    for _ in range(1500):
+        n = int(rng.integers(1, 8))
+        Qo, _ = np.linalg.qr(rng.standard_normal((n, n)))
+        w = 10.0 ** rng.uniform(-7, 2, n)
+        U = np.linalg.qr((Qo * w) @ Qo.T)[1]
+        U *= np.sign(np.diagonal(U))[:, None]             # a positive diagonal
+        if rng.random() < 0.05:
+            U[-1, -1] = -abs(U[-1, -1])
+        cond_max = 10.0 ** rng.uniform(2, 13)
+        expected = _health.factor_problem(U, cond_max) is not None
+        assert _kernels_shared.factor_unhealthy(U, cond_max) == expected
+        decided[expected] += 1
+    assert min(decided.values()) > 200

@@ -22,8 +22,9 @@ Sliding window, one step (Haykin 2002, sec. 9)::
 Square root (QR, information form), one step::
 
     U <- sqrt(lam) U, d <- sqrt(lam) d      predict
-    w = U^-T phi, s = w . w + r,  K = U^-1 w / s
     [U d; phi/sqrt(r) z^T/sqrt(r)] -> [U' d'; 0 e]   by n Givens rotations
+    s = r / prod_i c_i^2 (the rotations' cosines: = |U^-T phi|^2 + r)
+    K = U^-1 w / s, w = U^-T phi (only when the gain is kept)
     x = U'^-1 d'
 
 The Givens rotations keep the diagonal of ``U`` positive by construction
@@ -98,29 +99,35 @@ def _sr_step(U, d, x, phi, z, r, w, y, K, gain, a, b, xc):
     holds a NaN) and returns ``s = H P H^T + R``. ``w``, ``a`` (n,), ``b``
     (m,) and ``xc`` (n,) are workspace. The gain is not needed to update
     ``U`` and ``d``: the batch kernel forms it for the last step only.
+
+    ``s`` comes from the rotations: they keep ``det(U)`` times the
+    determinant of the appended row's part, so ``prod_i (rho_i / U_ii)^2 =
+    1 + |U^-T phi|^2 / r`` and ``s = r / prod_i c_i^2`` with the cosines
+    ``c_i = U_ii / rho_i`` (no triangular solve; a missing sample, which
+    rotates nothing, takes ``s = |U^-T phi|^2 + r``).
     """
     n, m = d.shape
-    for i in range(n):                         # U^T w = phi: forward, column by column
-        w[i] = phi[i]
-    for k in range(n):
-        wk = w[k] / U[k, k]
-        w[k] = wk
-        row = U[k]
-        for i in range(k + 1, n):
-            w[i] -= row[i] * wk
-    s = r
-    for i in range(n):
-        s += w[i] * w[i]                       # s = |U^-T phi|^2 + r
-    if any_nan(z):
+    missing = any_nan(z)
+    if missing or gain:
+        for i in range(n):                     # U^T w = phi: forward, column by column
+            w[i] = phi[i]
+        for k in range(n):
+            wk = w[k] / U[k, k]
+            w[k] = wk
+            row = U[k]
+            for i in range(k + 1, n):
+                w[i] -= row[i] * wk
+    if missing:
+        s = r
+        for i in range(n):
+            s += w[i] * w[i]                   # s = |U^-T phi|^2 + r
         for j in range(m):
             y[j] = np.nan
         for i in range(n):
             K[i] = 0.0
         return s
     if gain:
-        _back_solve(U, w, K)                   # U v = w; K = v / s
-        for i in range(n):
-            K[i] = K[i] / s
+        _back_solve(U, w, K)                   # U v = w (the old U); K = v / s below
     for j in range(m):                         # y = z - phi x
         acc = 0.0
         for i in range(n):
@@ -132,6 +139,8 @@ def _sr_step(U, d, x, phi, z, r, w, y, K, gain, a, b, xc):
         a[i] = phi[i] * c0
     for j in range(m):
         b[j] = z[j] * c0
+    prod = 1.0                                 # prod_i c_i, times 2^(500 scaled)
+    scaled = 0
     for i in range(n):
         ai = a[i]
         if ai == 0.0:
@@ -145,6 +154,10 @@ def _sr_step(U, d, x, phi, z, r, w, y, K, gain, a, b, xc):
         inv = 1.0 / rho
         cs = uii * inv
         sn = ai * inv
+        prod *= cs
+        if prod < 1e-150:                      # keep it normal (an exact power of two)
+            prod *= 2.0 ** 500
+            scaled += 1
         U[i, i] = rho
         row = U[i]
         for j in range(i + 1, n):
@@ -157,6 +170,12 @@ def _sr_step(U, d, x, phi, z, r, w, y, K, gain, a, b, xc):
             bj = b[j]
             d[i, j] = cs * t + sn * bj
             b[j] = cs * bj - sn * t
+    s = r / (prod * prod)                      # S = H P H^T + R
+    for _ in range(scaled):
+        s *= 2.0 ** 1000
+    if gain:
+        for i in range(n):
+            K[i] = K[i] / s                    # K = P H^T / S
     for j in range(m):                         # x = U^-1 d, column by column
         for i in range(n):
             xc[i] = d[i, j]
