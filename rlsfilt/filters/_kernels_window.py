@@ -91,6 +91,15 @@ def _back_solve(U, b, v):
         v[i] = (b[i] - _dot_from(U[i], v, i + 1, n)) / U[i, i]
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _back_solve_inv(U, dinv, b, v):
+    """`_back_solve` with the reciprocals ``dinv`` of the diagonal of `U` known
+    (a multiply, not a division, on the chain from row to row)."""
+    n = U.shape[0]
+    for i in range(n - 1, -1, -1):
+        v[i] = (b[i] - _dot_from(U[i], v, i + 1, n)) * dinv[i]
+
+
 @njit(cache=True, error_model="numpy")
 def _sr_step(U, d, x, phi, z, r, w, y, K, gain, a, b, xc):
     """One measurement update of the information square root, in place.
@@ -144,6 +153,7 @@ def _sr_step(U, d, x, phi, z, r, w, y, K, gain, a, b, xc):
     for i in range(n):
         ai = a[i]
         if ai == 0.0:
+            w[i] = 1.0 / U[i, i]               # w: the reciprocals of the new diagonal
             continue
         uii = U[i, i]
         big = max(abs(uii), abs(ai))
@@ -152,6 +162,7 @@ def _sr_step(U, d, x, phi, z, r, w, y, K, gain, a, b, xc):
         else:
             rho = math.hypot(uii, ai)
         inv = 1.0 / rho
+        w[i] = inv
         cs = uii * inv
         sn = ai * inv
         prod *= cs
@@ -179,7 +190,7 @@ def _sr_step(U, d, x, phi, z, r, w, y, K, gain, a, b, xc):
     for j in range(m):                         # x = U^-1 d, column by column
         for i in range(n):
             xc[i] = d[i, j]
-        _back_solve(U, xc, xc)
+        _back_solve_inv(U, w, xc, xc)
         for i in range(n):
             x[i, j] = xc[i]
     return s
