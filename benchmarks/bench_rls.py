@@ -25,7 +25,10 @@ its ratio to a careful hand-written compiled loop
 The slow contenders (pure Python per sample) run on the first
 ``--peer-samples`` samples only; all times are per sample. Every contender
 runs once per round, rounds are interleaved and the best round counts, which
-keeps the ratios meaningful on a busy machine (absolute times are not).
+keeps the ratios meaningful on a busy machine (absolute times are not). On a
+machine that other jobs load heavily, ``--clock cpu`` times each contender
+by the process's CPU time instead of wall time (run with
+``OPENBLAS_NUM_THREADS=1``, so that every contender computes in one thread).
 
 Usage::
 
@@ -150,8 +153,8 @@ def run_write_floor(Hs, zs):
 def run_kernel(Hs, zs):
     n = Hs.shape[1]
     out = _kernels.run_batch(np.zeros((n, 1)), P0 * np.eye(n), zs.reshape(-1, 1), Hs,
-                             np.ones(1), kernel_config(EXPONENTIAL, LAM, ()), None, None, False,
-                             False, 0, 0, np.inf)
+                             np.ones(1), kernel_config(EXPONENTIAL, LAM, (np.inf, np.inf)), None,
+                             None, False, False, 0, 0, np.inf, (1.0, 0.0, 0.0, 0.0, 1.0))
     return out.x.ravel()
 
 
@@ -245,7 +248,7 @@ def _available(module):
 # timing
 # ----------------------------------------------------------------------
 def bench(dims, n_samples, peer_samples, rounds, max_cov_numbers=2e7, max_numbers=2e7,
-          rng=0, log=print):
+          rng=0, log=print, clock=time.perf_counter):
     """Time every contender; returns ``{dim_x: {name: seconds per sample}}``.
 
     The compiled contenders run on ``min(n_samples, max_numbers / dim_x)``
@@ -267,9 +270,9 @@ def bench(dims, n_samples, peer_samples, rounds, max_cov_numbers=2e7, max_number
         best = {name: np.inf for name in todo}
         for _ in range(rounds):
             for name, (fn, size) in todo.items():
-                t0 = time.perf_counter()
+                t0 = clock()
                 fn(Hs[:size], zs[:size])
-                best[name] = min(best[name], (time.perf_counter() - t0) / size)
+                best[name] = min(best[name], (clock() - t0) / size)
         results[n] = best
         log(f"dim_x = {n:3d}: N = {N}, " + ", ".join(
             f"{k} {v * 1e9:.0f} ns" for k, v in best.items()))
@@ -302,6 +305,47 @@ def streaming_vs_filterpy(results):
     """Speed-up of rlsfilt's predict+update pair over filterpy's, per dim_x."""
     return {n: r["filterpy"] / r["predict+update"] for n, r in results.items()
             if "filterpy" in r and "predict+update" in r}
+
+
+def streaming_ablation(dims, n_samples=5000, rounds=7, rng=0, log=print):
+    """Time the streaming pair with each trick of ``rlsfilt.filters._streaming`` off.
+
+    ``as shipped``; ``no reuse``: a fresh block of arrays every step (what a
+    caller who keeps every array would cost); ``dispatcher``: numba's
+    dispatcher instead of the compiled entry points. CPU time per sample
+    (``time.process_time``: steadier than wall time on a busy machine);
+    returns ``{dim_x: {variant: seconds}}``.
+    """
+    from rlsfilt.filters import _streaming as S
+
+    S.kernels()
+    run_stream(*arx_data(5, 50, np.random.default_rng(0)))      # resolve the entry points
+    shipped = {name: getattr(S, name) for name in ("_predict_kernel", "_update_kernel",
+                                                   "_FREE_PREDICT", "_FREE_UPDATE", "_FREE_EACH")}
+    changes = {"as shipped": {},
+               "no reuse": {"_FREE_PREDICT": -1, "_FREE_UPDATE": -1, "_FREE_EACH": None},
+               "dispatcher": {"_predict_kernel": S._kernels.predict_kernel,
+                              "_update_kernel": S._kernels.update_kernel}}
+    rng = np.random.default_rng(rng)
+    results = {}
+    try:
+        for n in dims:
+            Hs, zs = arx_data(n, n_samples, rng)
+            best = dict.fromkeys(changes, np.inf)
+            for _ in range(rounds):
+                for name, change in changes.items():
+                    for attr, value in {**shipped, **change}.items():
+                        setattr(S, attr, value)
+                    t0 = time.process_time()
+                    run_stream(Hs, zs)
+                    best[name] = min(best[name], (time.process_time() - t0) / n_samples)
+            results[n] = best
+            log(f"dim_x = {n:3d}, predict+update: " + ", ".join(
+                f"{k} {v * 1e6:.2f} us" for k, v in best.items()))
+    finally:
+        for attr, value in shipped.items():
+            setattr(S, attr, value)
+    return results
 
 
 def plot(results, path=None, ax=None):
@@ -344,6 +388,11 @@ def main(argv=None):
     parser.add_argument("--rounds", type=int, default=5, help="interleaved rounds (default 5)")
     parser.add_argument("--plot", metavar="PATH", help="save a plot of the times")
     parser.add_argument("--markdown", action="store_true", help="print the table as Markdown")
+    parser.add_argument("--clock", choices=("wall", "cpu"), default="wall",
+                        help="wall: time.perf_counter (default); cpu: time.process_time, the "
+                             "process's CPU time, steadier on a machine other jobs load")
+    parser.add_argument("--streaming-ablation", action="store_true",
+                        help="only time predict+update with array reuse and entry points off")
     parser.add_argument("--json", metavar="PATH",
                         help="also save the times (seconds per sample) as JSON")
     parser.add_argument("--replot", metavar="JSON",
@@ -356,13 +405,16 @@ def main(argv=None):
             plot(results, args.plot)
             print(f"plot saved to {args.plot}")
         return results
+    if args.streaming_ablation:
+        return streaming_ablation(args.dims or [5, 20], rounds=1 if args.smoke else args.rounds)
     if args.smoke:
         dims = args.dims or [2, 5]
         n_samples, peer_samples, rounds = 2000, 100, 1
     else:
         dims = args.dims or list(FULL_DIMS)
         n_samples, peer_samples, rounds = int(args.samples), args.peer_samples, args.rounds
-    results = bench(dims, n_samples, peer_samples, rounds)
+    clock = time.process_time if args.clock == "cpu" else time.perf_counter
+    results = bench(dims, n_samples, peer_samples, rounds, clock=clock)
     print()
     print("time per sample as a ratio to the hand-written compiled loop (< 1: faster);")
     print("the second column is the loop's own time per sample")

@@ -1,22 +1,21 @@
-"""Time the compiled SlidingWindowRLS and SquareRootRLS against their NumPy paths.
+"""Time the compiled SlidingWindowRLS and SquareRootRLS against their NumPy reference.
 
 Both filters run their recursion in compiled code (``_kernels_window``);
-the module flags ``sliding_window._COMPILED`` and ``square_root._COMPILED``
-switch them back to the pure-NumPy reference. This script times, per
-sample and on the same ARX data as ``bench_rls.py``:
+the same recursion in textbook NumPy is ``rlsfilt.filters._reference``
+(``SlidingWindow``, ``square_root_update``). This script times, per sample
+and on the same ARX data as ``bench_rls.py``:
 
 ==================  =========================================================
-``batch``           ``batch_filter(store_covariances=False)``, compiled
+``batch``           ``batch_filter(store_covariances=False)``
 ``batch+P``         the same, storing both covariance histories
-``stream``          ``predict()`` + ``update()`` per sample, compiled
-``numpy batch``     ``batch_filter`` on the NumPy reference path
-``numpy stream``    ``predict()`` + ``update()`` on the NumPy reference path
+``stream``          ``predict()`` + ``update()`` per sample
+``reference``       the NumPy reference recursion, one step per sample
 ``RLS batch``       ``RecursiveLeastSquares.batch_filter`` (exponential
                     forgetting), for scale
 ==================  =========================================================
 
-and prints the speed-up of the compiled ``batch`` over ``numpy batch``. The
-NumPy paths run on the first ``--slow-samples`` samples only. Every
+and prints the speed-up of ``batch`` over ``reference``. The reference and
+``stream`` run on the first ``--slow-samples`` samples only. Every
 contender runs once per round, rounds are interleaved and the best round
 counts.
 
@@ -39,19 +38,41 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 from bench_rls import arx_data  # noqa: E402
 
 import rlsfilt  # noqa: E402
-from rlsfilt.filters import sliding_window, square_root  # noqa: E402
+from rlsfilt.filters import _reference  # noqa: E402
 
 LAM = 0.99
 P0 = 1e4
-COLUMNS = ("batch", "batch+P", "stream", "numpy batch", "numpy stream", "RLS batch")
+COLUMNS = ("batch", "batch+P", "stream", "reference", "RLS batch")
+
+
+def _sliding_window_reference(window):
+    def run(Hs, zs):
+        n = Hs.shape[1]
+        w = _reference.SlidingWindow(np.zeros((n, 1)), P0 * np.eye(n), max(window, n),
+                                     10 * max(window, n), np.zeros((n, 1)), P0 * np.eye(n))
+        for k in range(len(zs)):
+            w.update(Hs[k:k + 1], zs[k:k + 1].reshape(1, 1), 1.0)
+        return w.x.ravel()
+    return run
+
+
+def _square_root_reference(Hs, zs):
+    n = Hs.shape[1]
+    U, d = np.eye(n) / np.sqrt(P0), np.zeros((n, 1))
+    for k in range(len(zs)):
+        U, d = _reference.square_root_predict(U, d, LAM)
+        U, d, x, *_ = _reference.square_root_update(U, d, Hs[k:k + 1],
+                                                    zs[k:k + 1].reshape(1, 1), 1.0)
+    return x.ravel()
 
 
 def _variants(window):
     return {
         f"SlidingWindowRLS(window={window})":
-            (sliding_window, lambda n: rlsfilt.SlidingWindowRLS(n, max(window, n), P0=P0)),
+            (_sliding_window_reference(window),
+             lambda n: rlsfilt.SlidingWindowRLS(n, max(window, n), P0=P0)),
         f"SquareRootRLS(lam={LAM})":
-            (square_root, lambda n: rlsfilt.SquareRootRLS(n, lam=LAM, P0=P0)),
+            (_square_root_reference, lambda n: rlsfilt.SquareRootRLS(n, lam=LAM, P0=P0)),
     }
 
 
@@ -80,25 +101,13 @@ def _rls_batch(Hs, zs):
     return f.x.ravel()
 
 
-def _reference(module, run):
-    """`run` with the module's compiled path switched off."""
-    def ref(Hs, zs):
-        module._COMPILED = False
-        try:
-            return run(Hs, zs)
-        finally:
-            module._COMPILED = True
-    return ref
-
-
-def time_row(module, make, Hs, zs, n_slow, rounds):
+def time_row(reference, make, Hs, zs, n_slow, rounds):
     """Best time per sample (seconds) of every column, and the final estimates."""
     jobs = {
         "batch": (_batch(make, False), len(zs)),
         "batch+P": (_batch(make, True), len(zs)),
         "stream": (_stream(make), n_slow),
-        "numpy batch": (_reference(module, _batch(make, False)), n_slow),
-        "numpy stream": (_reference(module, _stream(make)), n_slow),
+        "reference": (reference, n_slow),
         "RLS batch": (_rls_batch, len(zs)),
     }
     best = dict.fromkeys(jobs, np.inf)
@@ -127,17 +136,17 @@ def main(argv=None):
     window = 40 if args.smoke else args.window
     rounds = 1 if args.smoke else args.rounds
     rng = np.random.default_rng(0)
-    print(f"time per sample in us (N = {N}; NumPy paths and stream on {n_slow} samples)")
+    print(f"time per sample in us (N = {N}; reference and stream on {n_slow} samples)")
     print(f"{'filter':<32}{'dim_x':>6}" + "".join(f"{c:>14}" for c in COLUMNS)
           + f"{'speed-up':>10}")
     rows = []
     for n in dims:
         Hs, zs = arx_data(n, N, rng)
-        for label, (module, make) in _variants(window).items():
-            best, est = time_row(module, make, Hs, zs, n_slow, rounds)
-            # the compiled and NumPy paths agree on the same samples
-            np.testing.assert_allclose(est["stream"], est["numpy stream"], rtol=1e-8, atol=1e-10)
-            speedup = best["numpy batch"] / best["batch"]
+        for label, (reference, make) in _variants(window).items():
+            best, est = time_row(reference, make, Hs, zs, n_slow, rounds)
+            # the compiled filter and the reference agree on the same samples
+            np.testing.assert_allclose(est["stream"], est["reference"], rtol=1e-8, atol=1e-10)
+            speedup = best["reference"] / best["batch"]
             print(f"{label:<32}{n:>6}" + "".join(f"{1e6 * best[c]:>14.3f}" for c in COLUMNS)
                   + f"{speedup:>9.0f}x")
             rows.append((label, n, best, speedup))

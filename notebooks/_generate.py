@@ -173,10 +173,15 @@ print(G)
 print("poles:", np.round(G.poles(), 4), "  true:", np.round(np.roots(np.r_[1.0, a_true]), 4))"""),
     ("md", r"""## Where next
 
-- Notebook 2 tracks plants whose parameters change (forgetting, windup and its remedies).
-- Notebook 3 validates a model and selects its order against the true plant.
-- Notebook 4 designs a controller on the identified model.
-- Notebook 5 puts `RecursiveLeastSquares` beside filterpy's `KalmanFilter`."""),
+- [Notebook 2](02_tracking.ipynb) tracks plants whose parameters change (forgetting, windup and
+  its remedies).
+- [Notebook 3](03_validation.ipynb) validates a model and selects its order against the true
+  plant.
+- [Notebook 4](04_control.ipynb) designs a controller on the identified model.
+- [Notebook 5](05_beside_filterpy.ipynb) puts `RecursiveLeastSquares` beside filterpy's
+  `KalmanFilter`.
+- [Notebook 6](06_real_records.ipynb) takes a measured-like record through the whole workflow
+  (operating point, delay, orders on fresh data, saved model)."""),
 ]
 
 # ----------------------------------------------------------------------
@@ -842,10 +847,316 @@ the self-tuning regulator re-identifies the gain within a few reference steps an
 designed closed-loop behaviour. Three practical points are visible: the loop needs excitation
 to identify (the dither and the reference steps; the regulator's excitation monitor warns when
 they are missing); the forgetting factor sets how fast the estimate, and with it the
-controller, can follow the plant (notebook 2); and with measurement noise (not the equation
-error the ARX model assumes) the individual coefficients are biased, while the static gain, which
-the control relies on most, is estimated well (notebook 3 shows how the residual tests reveal
-such coloured noise)."""),
+controller, can follow the plant ([notebook 2](02_tracking.ipynb)); and with measurement noise
+(not the equation error the ARX model assumes) the individual coefficients are biased, while the
+static gain, which the control relies on most, is estimated well ([notebook 3](03_validation.ipynb)
+shows how the residual tests reveal such coloured noise)."""),
+]
+
+# ----------------------------------------------------------------------
+# 6. Real records
+# ----------------------------------------------------------------------
+REAL_RECORDS = [
+    ("md", r"""# 6. Real records: operating point, delay, orders, fresh data, saved model
+
+Measured records are not textbook experiments. They sit on an operating point, the plant has a
+dead time, the data come in several runs, and a model is only believed once it reproduces a run
+it was not fitted on. This notebook takes `rlsfilt.datasets.heat_exchanger` through the whole
+workflow:
+
+1. look at the record (an `IOData` of two runs);
+2. remove the operating point (`detrend`, or a model with an `offset`);
+3. estimate the delay (`delayest`);
+4. choose the orders on validation data (`select_order`);
+5. validate on fresh data, with stability said plainly;
+6. read the model in continuous time (`d2c`) and save it.
+
+The record is simulated (a steam-heated exchanger: liquid flow in % to outlet temperature in
+degC, $K = -0.6$ degC/%, time constants 15 s and 4 s, 7 s of transport delay, sampled every
+second), so every step can be checked against the truth."""),
+    ("code", r"""import os
+import tempfile
+import warnings
+
+import control
+import matplotlib.pyplot as plt
+import numpy as np
+
+from rlsfilt import ARX, delayest, detrend, select_order, validate
+from rlsfilt.datasets import heat_exchanger
+
+plt.rcParams.update({"figure.dpi": 150, "savefig.dpi": 150})   # sharp figures
+ds = heat_exchanger()
+ds"""),
+    ("code", r"""fig = ds.plot()
+fig.suptitle("Two runs around 40 % flow and 97 degC")
+plt.show()"""),
+    ("md", r"""## 1. The operating point
+
+An ARX model has no constant term: fitted on signals around 97 degC and 40 %, its parameters
+mostly describe the operating point. On the first run the static gain comes out with the wrong
+sign and the model is unstable, so its simulation diverges. `validate` warns about the ignored
+operating point and reports the instability instead of a huge negative fit."""),
+    ("code", r"""run1, run2 = ds.getexp("run1"), ds.getexp("run2")
+raw = ARX(2, 2, 8, dt=ds.dt).fit(run1)
+print("static gain of the raw model:", round(raw.dc_gain(), 3), "(true: -0.6)")
+print(raw.stability_text())
+print(validate(raw, run2).summary().splitlines()[2:4])"""),
+    ("md", r"""`detrend` removes the means (or a line per segment, `type="linear"`) of every signal of every
+run, as `scipy.signal.detrend` does, and returns the `Trend` that `retrend` puts back. A model
+can also keep the operating point itself: `offset="mean"` removes the estimation means and
+adds them back when it predicts, `offset=True` estimates an intercept. Both predict and
+simulate in degC."""),
+    ("code", r"""run1_d, trend = detrend(run1)
+print("operating point of run 1:", trend.input_offset, trend.output_offset)
+for offset in ("mean", True):
+    m = ARX(2, 2, 8, dt=ds.dt, offset=offset).fit(run1)
+    print(f"offset={offset!r:7}: static gain {m.dc_gain():.3f}, {m.stability_text()}, "
+          f"operating point {m.output_offset_[0]:.2f} degC")
+
+fig, ax = plt.subplots(figsize=(9, 3), layout="constrained")
+ax.plot(run1.t, run1.y - trend.output_offset[0], color="0.6", lw=0.8,
+        label="measured T_out - mean")
+ax.plot(run1.t, run1_d.y, color="C0", lw=0.8, ls="--", label="detrend(run1).y")
+ax.set_xlabel("time (s)")
+ax.set_ylabel("deviation (degC)")
+ax.legend(loc="upper right")
+plt.show()"""),
+    ("md", r"""## 2. The delay
+
+`delayest` fits ARX(2, 2, nk) models for every delay in a range, all from one QR factorization
+of a wide regressor matrix, and returns the delay with the smallest loss. With the zero-order
+hold's own sample, 7 s of transport delay is $n_k = 8$."""),
+    ("code", r"""est = delayest(detrend(ds)[0], full_output=True)   # both runs, each about its mean
+print("estimated delay:", est.nk)
+fig, ax = plt.subplots(figsize=(7, 3), layout="constrained")
+ax.semilogy(list(est.nk_range[0]), est.losses[0], "o-")
+ax.axvline(est.nk, color="C3", ls=":", label=f"nk = {est.nk}")
+ax.set_xlabel("delay $n_k$ (samples)")
+ax.set_ylabel("loss $V$ of ARX(2, 2, $n_k$)")
+ax.legend()
+plt.show()"""),
+    ("md", r"""## 3. The orders, chosen on fresh data
+
+`split(0.7)` keeps the first 70 % of every run for estimation and the rest for validation.
+`select_order` takes its delay range independently of the orders (around the estimated delay),
+scores every candidate on the validation part, and warns if the best one sits at an edge of the
+grid."""),
+    ("code", r"""est_data, val_data = ds.split(0.7)
+sel = select_order(est_data, na=range(1, 5), nb=range(1, 5), nk=range(est.nk - 2, est.nk + 3),
+                   validation=val_data, offset="mean", dt=ds.dt)
+print(sel.summary(top=5))
+sel.plot()
+plt.show()"""),
+    ("md", r"""## 4. Validation on fresh data
+
+The best model, fitted on the estimation parts of both runs (no regressor row straddles the two),
+is simulated on each validation part from its own start."""),
+    ("code", r"""model = sel.best_model()
+report = validate(model, val_data)
+print(report.summary().split("Parameters")[0])
+report.plot()
+plt.show()"""),
+    ("md", r"""Stability is said plainly: `model.poles()`, `model.is_stable`, `model.dc_gain()`, and in every
+report. On the raw (not detrended) record the best BIC candidate is unstable; `stable_only=True`
+restricts the choice to stable candidates."""),
+    ("code", r"""grid = dict(na=range(1, 6), nb=range(1, 6), nk=range(6, 11))
+raw_sel = select_order(run1, **grid)
+i = raw_sel.best_index
+print("raw record, best by BIC:", raw_sel.best,
+      "largest pole", round(raw_sel.table["max_pole"][i], 4))
+with warnings.catch_warnings():
+    warnings.simplefilter("ignore")   # the stable best sits at the grid's edge on raw data
+    safe = select_order(run1, **grid, stable_only=True)
+print("with stable_only:", safe.best, safe.best_model().stability_text())
+print("with the operating point handled:", select_order(run1, **grid, offset=True).best)"""),
+    ("md", r"""## 5. Continuous time
+
+`model.to_tf(continuous=True)` inverts the zero-order-hold sampling (`rlsfilt.d2c`, the matrix
+logarithm); the whole samples of delay stay an explicit `input_delay`. The signal names of the
+record become python-control's labels. Against the true plant:"""),
+    ("code", r"""Gc = model.to_tf(continuous=True)
+print(Gc)
+print("input delay:", Gc.input_delay, "s; static gain:", round(float(Gc(0).real), 3))
+true = control.tf([-0.6], [60.0, 19.0, 1.0])
+w = np.logspace(-3, 0, 200)
+fig, ax = plt.subplots(figsize=(7, 3.5), layout="constrained")
+ax.loglog(w, np.abs(true(1j * w)), "k-", lw=2, label="true plant")
+ax.loglog(w, np.abs(Gc(1j * w)), "C1--", label=f"identified {model._orders_text()}")
+ax.set_xlabel("frequency (rad/s)")
+ax.set_ylabel("|G(jw)| (degC / %)")
+ax.legend()
+plt.show()"""),
+    ("md", r"""## 6. Saving the model
+
+`model.save(path)` writes JSON (orders, sampling period, names and units, parameters, their
+covariance, the noise variance, the operating point, a version tag); `ARX.load(path)` gives back
+a model that predicts, simulates and reports standard errors exactly as the saved one. Nothing
+in the file is executed when it is read."""),
+    ("code", r"""path = os.path.join(tempfile.mkdtemp(), "exchanger.json")
+model.save(path)
+back = ARX.load(path)
+run = val_data.getexp("run2")
+print("same simulation:", np.array_equal(back.simulate(run.u), model.simulate(run.u)))
+print("same standard errors:", np.array_equal(back.std_errors_, model.std_errors_))
+print(open(path).read()[:400], "...")"""),
+    ("md", r"""The command line does the same in one call, on a CSV file with a time column and a run label:
+
+```bash
+rlsfilt identify exchanger.csv -u flow -y T_out --time t --experiment-column run \
+    --split 0.7 --select-order --save-model exchanger.json
+```
+
+(means removed by default, `--detrend constant`; the delay range centred on what `delayest`
+finds, `--delay-range` to set it; `--validation FILE.csv` for another file)."""),
+]
+
+# ----------------------------------------------------------------------
+# 7. Beyond ARX
+# ----------------------------------------------------------------------
+BEYOND_ARX = [
+    ("md", r"""# 7. Beyond ARX: coloured noise, ARMAX, OE, Box-Jenkins and instrumental variables
+
+ARX assumes that the disturbance enters as white noise filtered by the plant's own denominator,
+$A(q)\,y = B(q)\,u + e$. Real disturbances rarely do. When they are coloured, the least-squares
+ARX estimate converges to the **wrong** parameters, however long the record; its residuals fail
+the whiteness test, and no choice of ARX orders fixes the plant model.
+
+This notebook shows
+
+1. the bias of ARX on a simulated ARMAX plant, and that it does not shrink with more data, while
+   ARMAX by prediction error and ARX by instrumental variables converge to the truth;
+2. a DC-motor record with a slowly drifting disturbance: ARX, IV, output error and Box-Jenkins
+   compared on validation data and against the true plant;
+3. the recursive forms: recursive prediction error (RPEM) and pseudo-linear regression (RPLR,
+   extended least squares), and the positive-realness condition that RPLR needs;
+4. a streaming estimator that takes one sample per call."""),
+    ("code", r"""import warnings
+
+import control
+import matplotlib.pyplot as plt
+import numpy as np
+from scipy.signal import lfilter
+
+from rlsfilt import (ARMA, ARMAX, ARX, BJ, OE, NumericalWarning, RecursiveARMAX,
+                     select_structure, validate)
+from rlsfilt.datasets import dc_motor
+
+plt.rcParams.update({"figure.dpi": 150, "savefig.dpi": 150})   # sharp figures
+rng = np.random.default_rng(7)"""),
+    ("md", r"""## 1. The bias of ARX does not go away
+
+The plant is $y(t) - 1.5\,y(t-1) + 0.7\,y(t-2) = u(t-1) + 0.5\,u(t-2) + e(t) - e(t-1) + 0.2\,e(t-2)$
+with white input and noise: an ARMAX system. The ARX equation error $C(q)e(t)$ is a moving
+average, correlated with the past outputs in the regressor, so least squares converges to
+$\theta^* = R^{-1}E[\varphi y] \ne \theta_0$ (the test suite computes $\theta^*$ exactly from the
+plant's covariances: $a^* \approx (-1.227, 0.452)$)."""),
+    ("code", r"""a, b, c = [1, -1.5, 0.7], [0, 1, 0.5], [1, -1, 0.2]
+print(f"{'N':>7} {'ARX a1':>8} {'IV a1':>8} {'ARMAX a1':>9} {'ARMAX std err':>14}")
+for N in (1_000, 10_000, 100_000):
+    u, e = rng.standard_normal(N), rng.standard_normal(N)
+    y = lfilter(b, a, u) + lfilter(c, a, e)
+    arx = ARX(2, 2, 1).fit(u, y)
+    iv = ARX(2, 2, 1).fit(u, y, method="iv")         # refined instrumental variables
+    armax = ARMAX(2, 2, 2, 1).fit(u, y)              # prediction error, C estimated too
+    print(f"{N:>7} {arx.a_[0]:8.3f} {iv.a_[0]:8.3f} {armax.a_[0]:9.3f} {armax.std_errors_[0]:14.4f}")"""),
+    ("md", r"""The ARX column settles at $-1.227$, not $-1.5$. The instrumental-variable estimate (the
+ARX regressor with the past outputs replaced by the output of an auxiliary model driven by the
+input alone) and the ARMAX estimate approach the truth at the rate of their standard errors.
+The ARMAX summary shows the noise model $C(q)$ it found:"""),
+    ("code", r"""print(armax.summary())"""),
+    ("md", r"""## 2. A DC motor with a drifting disturbance
+
+`datasets.dc_motor(noise="colored")` adds an equation error $e(t)/(1 - 0.9q^{-1})$: the true
+system is $y = \frac{B}{A}u + \frac{1}{A(1 - 0.9q^{-1})}e$, a Box-Jenkins model with $n_f = 2$,
+$n_d = 3$. Two independent experiments give estimation and validation records; the true plant is
+known, so every model can be compared with it."""),
+    ("code", r"""est = dc_motor(n_samples=2000, noise="colored", rng=0)
+val = dc_motor(n_samples=2000, noise="colored", rng=1)
+dt = est.dt
+models = {
+    "ARX(2, 2, 1)": ARX(2, 2, 1, dt=dt).fit(est.u, est.y),
+    "ARX, IV": ARX(2, 2, 1, dt=dt).fit(est.u, est.y, method="iv"),
+    "OE(2, 2, 1)": OE(2, 2, 1, dt=dt).fit(est.u, est.y),
+    "BJ(2, 0, 3, 2, 1)": BJ(2, 0, 3, 2, 1, dt=dt).fit(est.u, est.y),
+}
+print(f"{'model':18} {'white':>6} {'indep.':>7} {'DC gain':>8} {'freq. error':>12}")
+print(f"{'true plant':18} {'':>6} {'':>7} {val.plant.dcgain():8.4f}")
+for name, m in models.items():
+    rep = validate(m, val.u, val.y, plant=val.plant)
+    r = rep.residuals[0]
+    print(f"{name:18} {str(r.is_white):>6} {str(r.is_independent):>7} "
+          f"{m.to_tf().dcgain():8.4f} {rep.plant_comparison.frequency_error:12.3f}")"""),
+    ("md", r"""- ARX is biased (its DC gain is 8 % high) and its residuals are neither white nor
+  independent of the input.
+- IV and OE give the same plant model here (the refined IV iteration converges to the
+  output-error estimate): consistent, residuals independent of the input, but coloured, and
+  inefficient: the drifting disturbance is left in the residuals, and the high-frequency part of
+  the response (where the PRBS held two samples has little power) is poorly determined.
+- Box-Jenkins models the disturbance too ($C/D$): white residuals, independent of the input, and
+  the smallest error against the true plant.
+
+The relative error of each frequency response against the truth, $|\hat G - G_0| / |G_0|$ (the
+IV curve lies under the OE curve):"""),
+    ("code", r"""omega = np.logspace(-1, np.log10(np.pi / dt), 200)
+G0 = val.plant(np.exp(1j * omega * dt))
+fig, ax = plt.subplots(figsize=(7, 3.5))
+for name, m in models.items():
+    ax.loglog(omega, np.abs(m.frequency_response(omega)[0, 0] - G0) / np.abs(G0), lw=1.2,
+              label=name)
+ax.set_xlabel(r"$\omega$ (rad/s)")
+ax.set_ylabel(r"$|\hat G - G_0| / |G_0|$")
+ax.legend(fontsize=8)
+plt.show()"""),
+    ("md", r"""Which noise model? `select_structure` fits every Box-Jenkins structure of a grid by prediction
+error and ranks them by BIC of the prediction errors (`select_order` covers ARX only):"""),
+    ("code", r"""sel = select_structure(BJ, est.u, est.y,
+                       {"nb": [2], "nc": [0, 1], "nd": [1, 2, 3], "nf": [2], "nk": [1]}, dt=dt)
+print(sel.summary())"""),
+    ("md", r"""## 3. Recursive estimation: RPEM and RPLR
+
+`fit(u, y, method="rpem")` runs the recursive prediction-error method: the covariance update of
+`RecursiveLeastSquares` with the gradient of the predictor (the pseudo-linear regressor filtered
+through $1/C$, $1/F$, $D/C$) in the gain. `method="rplr"` uses the regressor itself: extended
+least squares for ARMAX. Both keep the estimate after every sample in `theta_history_`."""),
+    ("code", r"""N = 20_000
+u, e = rng.standard_normal(N), rng.standard_normal(N)
+c_pr = [1, 0.5, 0.2]                       # Re{1/C} > 1/2: both recursions converge
+y = lfilter(b, a, u) + lfilter(c_pr, a, e)
+fits = {m: ARMAX(2, 2, 2, 1).fit(u, y, method=m) for m in ("rpem", "rplr")}
+fig, ax = plt.subplots(figsize=(7, 3.2))
+for (m, fit), style in zip(fits.items(), ("-", "--")):
+    ax.set_prop_cycle(None)                # the same colour for a parameter in both runs
+    ax.plot(fit.theta_history_[:, [0, 1, 4, 5]], style, lw=1)
+ax.hlines([-1.5, 0.7, 0.5, 0.2], 0, N, colors="k", lw=0.5)
+ax.set_xlabel("sample")
+ax.set_ylabel(r"$a_1, a_2, c_1, c_2$")
+ax.set_title("RPEM (solid) and RPLR (dashed)")
+ax.set_ylim(-2, 1.5)
+plt.show()"""),
+    ("md", r"""Extended least squares converges only when $\mathrm{Re}\{1/C(e^{i\omega})\} > 1/2$ at every
+frequency (Ljung 1977). On Ljung's example $y = (1 + 1.6 q^{-1} + 0.8 q^{-2})\,e$ the condition
+fails: RPLR stops short of the truth and warns, RPEM does not."""),
+    ("code", r"""y_ma = lfilter([1, 1.6, 0.8], [1], rng.standard_normal(50_000))
+with warnings.catch_warnings(record=True) as caught:
+    warnings.simplefilter("always", NumericalWarning)
+    els = ARMA(0, 2).fit(y_ma, method="rplr")
+rpem = ARMA(0, 2).fit(y_ma, method="rpem")
+print("RPLR:", np.round(els.theta_, 3), "  RPEM:", np.round(rpem.theta_, 3), "  truth: [1.6 0.8]")
+print(caught[0].message)"""),
+    ("md", r"""## 4. One sample at a time
+
+`RecursiveARMAX` (MATLAB's `recursiveARMAX`) takes `(y, u)` per call and returns the one-step
+prediction made before the sample and the updated parameters: the loop of an adaptive
+controller or of a monitoring system beside a Kalman filter. It runs the same compiled step as
+`fit(method="rpem")`."""),
+    ("code", r"""est_online = RecursiveARMAX(2, 2, 2, 1, lam=0.999)
+errors = []
+for t in range(5000):
+    yhat, theta = est_online.step(y[t], u[t])
+    errors.append(y[t] - yhat)
+print("parameters after 5000 samples:", np.round(theta, 3))
+print("mean square prediction error, last 1000 samples:", round(float(np.mean(np.square(errors[-1000:]))), 3))"""),
 ]
 
 NOTEBOOKS = {
@@ -854,6 +1165,8 @@ NOTEBOOKS = {
     "03_validation.ipynb": VALIDATION,
     "04_control.ipynb": CONTROL,
     "05_beside_filterpy.ipynb": FILTERPY,
+    "06_real_records.ipynb": REAL_RECORDS,
+    "07_beyond_arx.ipynb": BEYOND_ARX,
 }
 
 

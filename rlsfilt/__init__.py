@@ -5,8 +5,10 @@ A filterpy-style toolkit: `RecursiveLeastSquares` mirrors filterpy's
 ``P``, ``K``, ``y``, ``S``) so it drops in beside Kalman filters.
 """
 
-from . import adaptive, datasets, validation  # public subpackages
+from . import adaptive, data, datasets, validation  # public subpackages
 from ._version import __version__
+from .continuous import d2c
+from .data import IOData, Trend, detrend, retrend
 from .exceptions import (
     ExactFitError,
     ExcitationWarning,
@@ -14,21 +16,65 @@ from .exceptions import (
     InsufficientDataError,
     NotFittedError,
     NumericalWarning,
+    OperatingPointWarning,
+    OrderSelectionWarning,
 )
-from .filters import RecursiveLeastSquares, SlidingWindowRLS, SquareRootRLS
-from .models import ARX
-from .validation import fit_percent, select_order, validate
+from .filters import RecursiveLeastSquares, RLSBank, SlidingWindowRLS, SquareRootRLS
+from .models import (
+    AR,
+    ARMA,
+    ARMAX,
+    ARX,
+    BJ,
+    OE,
+    ARXBank,
+    RecursiveAR,
+    RecursiveARMA,
+    RecursiveARMAX,
+    RecursiveARX,
+    RecursiveBJ,
+    RecursiveIV,
+    RecursiveOE,
+    fit_many,
+)
+from .persistence import load_model, save_model
+from .validation import delayest, fit_percent, select_order, select_structure, validate
 
 __all__ = [
     "RecursiveLeastSquares",
     "SlidingWindowRLS",
     "SquareRootRLS",
+    "RLSBank",
     "ARX",
+    "ARMAX",
+    "OE",
+    "BJ",
+    "AR",
+    "ARMA",
+    "RecursiveARMAX",
+    "RecursiveOE",
+    "RecursiveBJ",
+    "RecursiveARX",
+    "RecursiveAR",
+    "RecursiveARMA",
+    "RecursiveIV",
+    "IOData",
+    "Trend",
+    "detrend",
+    "retrend",
+    "delayest",
+    "d2c",
+    "save_model",
+    "load_model",
     "adaptive",
+    "data",
+    "ARXBank",
+    "fit_many",
     "datasets",
     "validation",
     "validate",
     "select_order",
+    "select_structure",
     "fit_percent",
     "NotFittedError",
     "InsufficientDataError",
@@ -36,5 +82,7 @@ __all__ = [
     "NumericalWarning",
     "ForgettingSkippedWarning",
     "ExcitationWarning",
+    "OperatingPointWarning",
+    "OrderSelectionWarning",
     "__version__",
 ]

@@ -7,8 +7,16 @@ Two commands:
     batch start followed by RLS updates) and in batch, validate the model
     and compare it with the true plant through python-control.
 ``rlsfilt identify FILE.csv --input U --output Y``
-    Identify an ARX model from a CSV file with a header row and print the
-    same report, or a JSON result with ``--json``.
+    Identify an ARX model (or with ``--model armax|oe|bj`` a model of the
+    prediction-error family) from a CSV file with a header row and print
+    the same report, or a JSON result with ``--json``. Measured records are
+    handled as such: the means are removed by default (``--detrend``) and
+    the model predicts in the units of the data, several experiments can
+    share a file (``--experiment-column``), the model can be validated on
+    fresh data (``--validation FILE`` or ``--split 0.7``), the delay range
+    of ``--select-order`` is its own (``--delay-range``, or around the
+    delay ``rlsfilt.delayest`` finds) and the model can be saved
+    (``--save-model``).
 
 The command line is a thin layer over the library: it parses the options,
 reads the CSV file and shows progress; `rlsfilt.ARX` fits,
@@ -45,10 +53,17 @@ import warnings
 import numpy as np
 
 from ._version import __version__
-from .datasets import PLANTS
-from .exceptions import ForgettingSkippedWarning, NumericalWarning
-from .models import ARX, arx_structure
-from .validation import select_order, validate
+from .data import IOData, detrend
+from .datasets import PLANTS, heat_exchanger
+from .exceptions import (
+    ForgettingSkippedWarning,
+    NumericalWarning,
+    OperatingPointWarning,
+    OrderSelectionWarning,
+)
+from .models import ARMAX, ARX, BJ, OE, arx_structure
+from .models._family import family_structure
+from .validation import delayest, select_order, validate
 
 __all__ = ["main"]
 
@@ -60,6 +75,19 @@ _PROGRESS_AFTER = 2.0    # seconds before a progress line appears
 _FORGETTING_MODES = ("exponential", "directional", "constant_trace", "efra", "variable")
 _DEFAULT_PLANT = "dc_motor"
 _TRACKING_LAM = 0.98     # demo forgetting factor for the time-varying plant
+_DETREND = {"constant": "mean", "linear": False, "none": False}   # -> ARX(offset=...)
+_DELAY_SEARCH = 20       # largest delay delayest tries for --select-order without a range
+#: the demo's records: the textbook plants and a measured-like record (operating point,
+#: dead time, colored disturbance, two runs)
+_DEMO_PLANTS = {**PLANTS, "heat_exchanger": heat_exchanger}
+#: the methods of each --model (the first is the default), and the orders each one takes
+_METHODS = {"arx": ("ls", "rls", "iv", "riv"), "armax": ("pem", "rpem", "rplr"),
+            "oe": ("pem", "rpem", "rplr"), "bj": ("pem", "rpem", "rplr")}
+_ORDERS = {"arx": ("na",), "armax": ("na", "nc"), "oe": ("nf",), "bj": ("nc", "nd", "nf")}
+_FAMILY = {"armax": ARMAX, "oe": OE, "bj": BJ}
+#: methods that take --lam (a forgetting factor) and --forgetting (a forgetting scheme)
+_LAM_METHODS = ("rls", "riv", "rpem", "rplr")
+_FORGETTING_METHODS = ("rls", "rpem", "rplr")
 
 
 class CLIError(Exception):
@@ -97,7 +125,8 @@ def main(argv=None):
             if not sys.warnoptions:     # `python -W ...` keeps its own filters
                 # rlsfilt's own warnings are shown (once each); other libraries' warnings
                 # keep the interpreter's filters (DeprecationWarning stays hidden)
-                for category in (NumericalWarning, ForgettingSkippedWarning):
+                for category in (NumericalWarning, ForgettingSkippedWarning,
+                                 OperatingPointWarning, OrderSelectionWarning):
                     warnings.simplefilter("default", category)
             return args.run(args)
     except CLIError as exc:
@@ -186,6 +215,24 @@ _nonnegative_float = _float_where(lambda v: math.isfinite(v) and v >= 0.0,
                                   "a non-negative number")
 
 
+def _fraction(text):
+    value = _float(text)
+    if not 0.0 < value < 1.0:
+        raise argparse.ArgumentTypeError(f"must be in (0, 1); got {text}")
+    return value
+
+
+def _delay_range(text):
+    """An argparse type: ``LO:HI`` (or ``LO,HI``, or one delay ``K``), integers ``>= 0``."""
+    parts = text.replace(",", ":").split(":")
+    if len(parts) > 2:
+        raise argparse.ArgumentTypeError(f"must be LO:HI or one delay; got '{text}'")
+    lo, hi = (_nonnegative_int(p.strip()) for p in (parts if len(parts) == 2 else parts * 2))
+    if hi < lo:
+        raise argparse.ArgumentTypeError(f"must have LO <= HI; got '{text}'")
+    return range(lo, hi + 1)
+
+
 def _png(text):
     if not text.lower().endswith((".png", ".pdf", ".svg")):
         raise argparse.ArgumentTypeError(f"must be a .png, .pdf or .svg file name; got '{text}'")
@@ -204,11 +251,14 @@ def _build_parser():
         "demo", help="identify a simulated plant and compare it with the truth",
         description="Simulate a known plant, identify it recursively and in batch, validate "
                     "the model and compare it with the true plant.")
-    demo.add_argument("--plant", default=_DEFAULT_PLANT, choices=sorted(PLANTS),
-                      help="the simulated plant, from rlsfilt.datasets "
-                           f"(default: {_DEFAULT_PLANT})")
+    demo.add_argument("--plant", default=_DEFAULT_PLANT, choices=sorted(_DEMO_PLANTS),
+                      help="the simulated plant, from rlsfilt.datasets (default: "
+                           f"{_DEFAULT_PLANT}); heat_exchanger is a record of two runs "
+                           "around an operating point: the model removes the means, is "
+                           "estimated on the first run and validated on the second")
     demo.add_argument("--samples", type=_positive_int, default=None, metavar="N",
-                      help="record length (default: the dataset's)")
+                      help="record length (default: the dataset's; for heat_exchanger, "
+                           "the length of each of its two runs)")
     demo.add_argument("--noise", type=_nonnegative_float, default=None, metavar="STD",
                       help="noise standard deviation (default: the dataset's)")
     demo.add_argument("--lam", type=_lam, default=None,
@@ -219,42 +269,82 @@ def _build_parser():
     demo.set_defaults(run=_run_demo)
 
     ident = sub.add_parser(
-        "identify", help="identify an ARX model from a CSV file",
+        "identify", help="identify an ARX (or ARMAX, OE, BJ) model from a CSV file",
         description="Identify the ARX model y(t) + a1 y(t-1) + ... + a_na y(t-na) = "
                     "b1 u(t-nk) + ... + b_nb u(t-nk-nb+1) + e(t) (MATLAB's [na nb nk]) "
-                    "from a CSV file with a header row.")
+                    "from a CSV file with a header row; --model armax, oe or bj fits "
+                    "A y = B u + C e, y = B/F u + e or y = B/F u + C/D e by prediction error "
+                    "(MATLAB's armax, oe, bj).")
     ident.add_argument("file", metavar="FILE.csv", help="CSV file with a header row")
     ident.add_argument("--input", "-u", action="append", required=True, metavar="COL",
                        dest="inputs", help="input column (repeat for several inputs)")
     ident.add_argument("--output", "-y", required=True, metavar="COL", help="output column")
-    ident.add_argument("--na", type=_nonnegative_int, default=2,
-                       help="number of poles, A(q) order (default: 2)")
+    ident.add_argument("--model", choices=tuple(_METHODS), default="arx",
+                       help="model structure: arx (least squares), armax, oe or bj (prediction "
+                            "error; the orders --nc, --nd, --nf) (default: arx)")
+    ident.add_argument("--na", type=_nonnegative_int, default=None,
+                       help="number of poles, A(q) order, for arx and armax (default: 2)")
+    ident.add_argument("--nc", type=_nonnegative_int, default=None,
+                       help="C(q) order, noise numerator, for armax and bj (default: 1)")
+    ident.add_argument("--nd", type=_nonnegative_int, default=None,
+                       help="D(q) order, noise denominator, for bj (default: 1)")
+    ident.add_argument("--nf", type=_int_list(0), default=None, metavar="NF[,NF...]",
+                       help="F(q) order, one value or one per input, for oe and bj "
+                            "(default: 2)")
     ident.add_argument("--nb", type=_int_list(1), default=[2], metavar="NB[,NB...]",
                        help="number of B coefficients, one value or one per input (default: 2)")
     ident.add_argument("--nk", type=_int_list(0), default=None, metavar="NK[,NK...]",
                        help="input delay in samples, one value or one per input (default: 1; "
                             "searched by --select-order unless given)")
-    ident.add_argument("--method", choices=("ls", "rls"), default="ls",
-                       help="batch least squares or recursive least squares (default: ls)")
+    ident.add_argument("--method", choices=("ls", "rls", "iv", "riv", "pem", "rpem", "rplr"),
+                       default=None,
+                       help="arx: batch or recursive least squares (ls, rls) or instrumental "
+                            "variables (iv, riv); armax, oe, bj: batch or recursive prediction "
+                            "error (pem, rpem) or pseudo-linear regression (rplr) (default: ls "
+                            "for arx, pem for the others)")
     ident.add_argument("--lam", type=_lam, default=1.0,
-                       help="forgetting factor in (0, 1] for --method rls (default: 1)")
+                       help="forgetting factor in (0, 1] for --method rls, riv, rpem or rplr "
+                            "(default: 1)")
     ident.add_argument("--forgetting", choices=_FORGETTING_MODES, default="exponential",
-                       help="forgetting scheme for --method rls (default: exponential)")
+                       help="forgetting scheme for --method rls, rpem or rplr (default: "
+                            "exponential)")
     timing = ident.add_mutually_exclusive_group()
     timing.add_argument("--dt", type=_positive_float, default=None,
                         help="sample time in seconds (default: 1, or from --time)")
     timing.add_argument("--time", metavar="COL", default=None,
                         help="time column; the sample time is its (uniform) step")
+    ident.add_argument("--experiment-column", metavar="COL", default=None,
+                       help="column labelling the experiment of each row: the rows of each "
+                            "label are one experiment (no regressor spans two)")
+    ident.add_argument("--detrend", choices=("constant", "linear", "none"), default="constant",
+                       help="operating point: remove the means (the model keeps them and "
+                            "predicts in the data's units), a line per record, or nothing "
+                            "(default: constant)")
+    fresh = ident.add_mutually_exclusive_group()
+    fresh.add_argument("--validation", metavar="FILE.csv", default=None,
+                       help="validate (and with --select-order, choose the orders) on this "
+                            "record, with the same columns")
+    fresh.add_argument("--split", type=_fraction, default=None, metavar="FRACTION",
+                       help="estimate on the first FRACTION of each experiment, validate on "
+                            "the rest (e.g. 0.7)")
     ident.add_argument("--select-order", action="store_true",
-                       help="choose na, nb (and nk unless given) by BIC, up to --max-order")
+                       help="choose na, nb (and nk unless given) by BIC, up to --max-order "
+                            "(--model arx)")
     ident.add_argument("--max-order", type=_positive_int, default=4, metavar="N",
-                       help="largest na, nb and nk tried by --select-order (default: 4)")
+                       help="largest na and nb tried by --select-order (default: 4)")
+    ident.add_argument("--delay-range", type=_delay_range, default=None, metavar="LO:HI",
+                       help="delays tried by --select-order (default: around the delay "
+                            "estimated by delayest)")
+    ident.add_argument("--save-model", metavar="FILE.json", default=None,
+                       help="save the fitted model (ARX.load reads it back)")
     ident.add_argument("--delimiter", default=None, metavar="CHAR",
                        help="field separator (default: detected among , ; tab)")
     ident.add_argument("--save-params", metavar="FILE.json", default=None,
                        help="also write the JSON result to this file")
     _add_output_options(ident)
     ident.set_defaults(run=_run_identify)
+    from . import _cli_fleet  # identify-many: one ARX model per channel
+    _cli_fleet.add_parser(sub)
     return parser
 
 
@@ -271,83 +361,287 @@ def _add_output_options(p):
 # ----------------------------------------------------------------------
 def _run_identify(args):
     progress = _Progress(enabled=not args.quiet)
-    columns = list(args.inputs) + [args.output] + ([args.time] if args.time else [])
+    _check_identify_options(args)
+    data = _load(args.file, args, progress)
+    if args.validation:
+        val = _load(args.validation, args, progress)
+        if val.dt != data.dt:
+            raise CLIError(f"'{args.validation}' has sample time {val.dt:g}; '{args.file}' has "
+                           f"{data.dt:g}")
+        est, where = data, f"the record in '{args.validation}'"
+    elif args.split:
+        try:
+            est, val = data.split(args.split)
+        except ValueError as exc:
+            raise CLIError(f"--split {args.split:g}: {str(exc).split('; ')[-1]}") from None
+        where = f"the last {100 * (1 - args.split):.3g} % of each experiment"
+    else:
+        est, val, where = data, None, "the estimation data"
+    progress.done()
+    n_in = len(args.inputs)
+    na = 2 if args.na is None else args.na
+    nb = _per_input(args.nb, n_in, "--nb")
+    nk = _per_input(args.nk if args.nk is not None else [1], n_in, "--nk")
+    offset = _DETREND[args.detrend]
+    family = args.model != "arx"
+    lines = [_describe(args.file, data), _detrend_line(args.detrend, est, family)]
+    if args.detrend == "linear":   # each record about its own line; the model about zero
+        est = detrend(est, "linear")[0]
+        val = None if val is None else detrend(val, "linear")[0]
+    elif family and args.detrend == "constant":
+        # the family has no operating-point option: the estimation means are removed
+        # from both records, and the model describes the deviations
+        u_op, y_op = (np.vstack(x).mean(axis=0) for x in zip(*est.arrays()))
+        est = _minus(est, u_op, y_op)
+        val = None if val is None else _minus(val, u_op, y_op)
+    metadata = {"source": args.file, "inputs": list(args.inputs), "output": args.output,
+                "detrend": args.detrend, "experiments": list(data.experiment_names),
+                "experiment_lengths": list(data.lengths), "validated_on": where}
+    if args.select_order:
+        if args.delay_range is not None:
+            nks = args.delay_range
+        elif args.nk is not None:
+            nks = [nk[0]]
+        else:
+            nks, found = _delay_search(est, args, progress)
+            metadata["delay_estimate"] = found
+            lines.append(f"delay: delayest finds nk = {_fmt_list(list(np.atleast_1d(found)))};"
+                         f" orders searched with nk in {nks.start}..{nks.stop - 1}")
+        with progress.task("order selection"):
+            selection = select_order(est, na=range(0, args.max_order + 1),
+                                     nb=range(1, args.max_order + 1), nk=nks,
+                                     criterion="bic", validation=val, dt=est.dt,
+                                     offset=offset)
+        na, nb_best, nk_best = selection.best
+        nb, nk = [nb_best] * n_in, [nk_best] * n_in
+        metadata["order_selection"] = selection.to_dict()
+        lines += ["", selection.summary()]
+    if family:
+        model, orders = _family_model(args, na, nb, nk, n_in, est.dt)
+        s = family_structure(n_inputs=n_in, **orders)
+        _check_rows(max(est.lengths), s, orders, f"'{args.file}'")
+    else:
+        _check_rows(max(est.lengths), arx_structure(na, nb, nk, n_in, 1),
+                    {"na": na, "nb": nb, "nk": nk}, f"'{args.file}'")
+        model = ARX(na, nb[0] if n_in == 1 else nb, nk[0] if n_in == 1 else nk, dt=est.dt,
+                    offset=offset)
+    options = {}
+    if args.method in _LAM_METHODS:
+        options["lam"] = args.lam
+    if args.method in _FORGETTING_METHODS:
+        options["forgetting"] = args.forgetting
+    task = {"ls": "least squares", "rls": "recursive least squares",
+            "iv": "instrumental variables", "riv": "recursive instrumental variables",
+            "pem": "prediction-error minimization", "rpem": "recursive prediction error",
+            "rplr": "recursive pseudo-linear regression"}[args.method]
+    with progress.task(f"{task} on {est.n_samples} samples"):
+        try:
+            model.fit(est, method=args.method, **options)
+        except ValueError as exc:    # e.g. an input that is not exciting for these orders
+            raise CLIError(f"{type(model).__name__}: {exc}") from None
+    if args.save_model:
+        try:
+            model.save(args.save_model)
+        except OSError as exc:
+            raise CLIError(f"cannot write '{args.save_model}': {exc.strerror}") from None
+        metadata["model_file"] = args.save_model
+    report = _validate(model, val if val is not None else est, None,
+                       args.lam if args.method in _LAM_METHODS else 1.0, metadata, progress)
+    after = [f"\nmodel saved to {args.save_model}"] if args.save_model else []
+    return _emit(report, args, lines + [""], after)
+
+
+def _check_identify_options(args):
+    methods = _METHODS[args.model]
+    if args.method is None:
+        args.method = methods[0]
+    elif args.method not in methods:
+        raise CLIError(f"--method {args.method} does not apply to --model {args.model}; its "
+                       f"methods are {', '.join(methods)}")
+    for name in ("na", "nc", "nd", "nf"):
+        if getattr(args, name) is not None and name not in _ORDERS[args.model]:
+            takes = [m for m, orders in _ORDERS.items() if name in orders]
+            raise CLIError(f"--{name} does not apply to --model {args.model} (it is an order "
+                           f"of --model {' and '.join(takes)})")
     for col in args.inputs:
         if col == args.output:
             raise CLIError(f"column '{col}' is given as both --input and --output")
     if len(set(args.inputs)) != len(args.inputs):
         dup = next(c for c in args.inputs if args.inputs.count(c) > 1)
         raise CLIError(f"column '{dup}' is given twice as --input")
-    if args.lam != 1.0 and args.method != "rls":   # batch least squares has no forgetting
-        raise CLIError(f"--lam {args.lam:g} needs --method rls")
-    if args.forgetting != "exponential" and args.method != "rls":
-        raise CLIError(f"--forgetting {args.forgetting} needs --method rls")
+    if args.experiment_column is not None and \
+            args.experiment_column in list(args.inputs) + [args.output, args.time]:
+        raise CLIError(f"column '{args.experiment_column}' is given as --experiment-column "
+                       "and as a signal")
+    recursive = [m for m in methods if m in _LAM_METHODS]
+    if args.lam != 1.0 and args.method not in _LAM_METHODS:   # batch fits have no forgetting
+        raise CLIError(f"--lam {args.lam:g} needs --method {' or '.join(recursive)}")
+    if args.forgetting != "exponential" and args.method not in _FORGETTING_METHODS:
+        with_scheme = [m for m in methods if m in _FORGETTING_METHODS]
+        raise CLIError(f"--forgetting {args.forgetting} needs --method "
+                       f"{' or '.join(with_scheme)}")
+    if args.select_order and args.model != "arx":
+        raise CLIError(f"--select-order searches ARX orders; give the orders of --model "
+                       f"{args.model} (or rank structures with rlsfilt.select_structure)")
     if args.forgetting == "constant_trace" and args.lam == 1.0:
         raise CLIError("--forgetting constant_trace needs --lam < 1 (it holds trace(P) at "
                        "n_params * (1 - lam))")
     if args.select_order and args.nk is not None and len(set(args.nk)) > 1:
-        raise CLIError("--select-order uses one delay for all inputs; give one --nk value "
-                       "or none (then nk = 1 .. --max-order is searched too)")
-    data = _read_csv(args.file, columns, delimiter=args.delimiter, progress=progress)
-    progress.done()
-    # several inputs keep their column names (parameters b1[volts], ...); one is 1-D
-    u = data[args.inputs[0]] if len(args.inputs) == 1 else {c: data[c] for c in args.inputs}
-    y = data[args.output]
-    dt = _sample_time(data[args.time], args.time) if args.time else (args.dt or 1.0)
-    n_in = len(args.inputs)
-    na = args.na
-    nb = _per_input(args.nb, n_in, "--nb")
-    nk = _per_input(args.nk if args.nk is not None else [1], n_in, "--nk")
-    metadata = {"source": args.file, "inputs": list(args.inputs), "output": args.output}
-    lines = []
-    if args.select_order:
-        nks = range(1, args.max_order + 1) if args.nk is None else [nk[0]]
-        with progress.task("order selection"):
-            selection = select_order(u, y, na=range(0, args.max_order + 1),
-                                     nb=range(1, args.max_order + 1), nk=nks,
-                                     criterion="bic", dt=dt)
-        na, nb_best, nk_best = selection.best
-        nb, nk = [nb_best] * n_in, [nk_best] * n_in
-        metadata["order_selection"] = selection.to_dict()
-        lines += [selection.summary(), ""]
-    _check_rows(len(y), na, nb, nk, f"'{args.file}'")
-    model = ARX(na, nb[0] if n_in == 1 else nb, nk[0] if n_in == 1 else nk, dt=dt)
-    options = {"lam": args.lam, "forgetting": args.forgetting} if args.method == "rls" else {}
-    task = (f"recursive least squares over {len(y)} samples" if args.method == "rls"
-            else f"least squares on {len(y)} samples")
-    with progress.task(task):
-        model.fit(u, y, method=args.method, **options)
-    report = _validate(model, u, y, args.lam if args.method == "rls" else 1.0, metadata,
-                       progress)
-    return _emit(report, args, lines)
+        raise CLIError("--select-order uses one delay for all inputs; give one --nk value, "
+                       "a --delay-range, or neither (then delayest centres the range)")
+    if args.delay_range is not None and not args.select_order:
+        raise CLIError("--delay-range needs --select-order (give the delay itself with --nk)")
+
+
+def _load(path, args, progress):
+    """The numeric columns of a CSV file as an `IOData` (one experiment per label)."""
+    exp_col = args.experiment_column
+    columns = list(args.inputs) + [args.output] + ([args.time] if args.time else [])
+    columns += [exp_col] if exp_col else []
+    table = _read_csv(path, columns, delimiter=args.delimiter, progress=progress,
+                      text_columns=(exp_col,) if exp_col else ())
+    n = len(table[args.output])
+    if exp_col:
+        labels = table[exp_col]
+        names = list(dict.fromkeys(labels.tolist()))
+        groups = [np.flatnonzero(labels == name) for name in names]
+    else:
+        names, groups = None, [np.arange(n)]
+    dts, t0 = [], []
+    for name, rows in zip(names or [None], groups):
+        if args.time:
+            where = f" (experiment '{name}')" if name is not None else ""
+            t = table[args.time][rows]
+            dts.append(_sample_time(t, args.time, where) if len(t) > 1 else None)
+            t0.append(float(t[0]))
+    if args.time:
+        known = [d for d in dts if d is not None]
+        if not known:
+            raise CLIError(f"time column '{args.time}' needs at least 2 rows in an experiment "
+                           "to give a sample time")
+        if max(known) - min(known) > 1e-6 * max(known):
+            raise CLIError(f"the experiments of '{path}' have different sample times "
+                           f"({min(known):g} to {max(known):g}); resample them to one rate")
+        dt = float(np.mean(known))
+    else:
+        dt = args.dt or 1.0
+    us = [np.column_stack([table[c][rows] for c in args.inputs]) for rows in groups]
+    ys = [table[args.output][rows] for rows in groups]
+    return IOData(us if exp_col else us[0], ys if exp_col else ys[0], dt,
+                  input_names=list(args.inputs), output_names=[args.output],
+                  experiment_names=names, tstart=t0 or None)
+
+
+def _describe(path, data):
+    dt = "unspecified" if data.dt is True else f"{data.dt:g} s"
+    exps = ""
+    if data.n_experiments > 1:
+        exps = (f" in {data.n_experiments} experiments ("
+                + ", ".join(f"{n}: {k}" for n, k in zip(data.experiment_names, data.lengths))
+                + ")")
+    return f"data: '{path}', {data.n_samples} samples{exps}, sample time {dt}"
+
+
+def _detrend_line(mode, data, family=False):
+    if mode == "none":
+        return "detrend: none (the data are used as they are)"
+    if mode == "linear":
+        return ("detrend: linear (a least-squares line removed from every signal of every "
+                "record; the model describes the deviations)")
+    records = data.arrays()
+    means = np.vstack([np.hstack(r) for r in records]).mean(axis=0)
+    names = list(data.input_names) + list(data.output_names)
+    shown = ", ".join(f"{n} = {m:.6g}" for n, m in zip(names, means))
+    if family:
+        return (f"detrend: constant (means removed: {shown}, from the validation data too; "
+                "the model describes the deviations)")
+    return (f"detrend: constant (means removed: {shown}; the model keeps them and predicts in "
+            "the units of the data)")
+
+
+def _minus(data, u_op, y_op):
+    """`data` (IOData) with the operating point ``(u_op, y_op)`` subtracted."""
+    U, Y = zip(*data.arrays())
+    return IOData([X - u_op for X in U], [X - y_op for X in Y], data.dt,
+                  input_names=data.input_names, output_names=data.output_names,
+                  input_units=data.input_units, output_units=data.output_units,
+                  experiment_names=data.experiment_names, tstart=data.tstart)
+
+
+def _family_model(args, na, nb, nk, n_in, dt):
+    """The ARMAX/OE/BJ model of the options and its orders (``nb``, ``nf``, ``nk`` per input)."""
+    nf = _per_input(args.nf if args.nf is not None else [2], n_in, "--nf")
+    nc = 1 if args.nc is None else args.nc
+    nd = 1 if args.nd is None else args.nd
+    one = n_in == 1
+    orders = {"armax": {"na": na, "nb": nb, "nc": nc, "nk": nk},
+              "oe": {"nb": nb, "nf": nf, "nk": nk},
+              "bj": {"nb": nb, "nc": nc, "nd": nd, "nf": nf, "nk": nk}}[args.model]
+    given = {k: (v[0] if one and isinstance(v, list) else v) for k, v in orders.items()}
+    return _FAMILY[args.model](**given, dt=dt), orders
+
+
+def _delay_search(data, args, progress):
+    """``(range of delays, delayest's answer)`` for --select-order without a delay range."""
+    nu = data.n_inputs
+    nk_max = _DELAY_SEARCH
+    while nk_max > 1:   # the largest delay the record can test with ARX(2, 2) models
+        t_max = nk_max + 1
+        if sum(max(n - t_max, 0) for n in data.lengths) > 2 + nu * (nk_max + 2) + 1:
+            break
+        nk_max -= 1
+    test = detrend(data)[0] if args.detrend == "constant" else data
+    with progress.task("delay estimation"):
+        with warnings.catch_warnings():   # the edge of this search is not the user's range
+            warnings.simplefilter("ignore", OrderSelectionWarning)
+            found = delayest(test, nk_max=nk_max)
+    ks = np.atleast_1d(found)
+    return range(max(0, int(ks.min()) - 2), int(ks.max()) + 3), found
 
 
 def _run_demo(args):
     kwargs = {"rng": args.seed}
     if args.samples is not None:
-        kwargs["n_samples"] = args.samples
+        kwargs["n_samples"] = (args.samples if args.plant != "heat_exchanger"
+                               else (args.samples, args.samples))
     if args.noise is not None:
         kwargs["noise_std"] = args.noise
-    ds = PLANTS[args.plant](**kwargs)
+    ds = _DEMO_PLANTS[args.plant](**kwargs)
     tracking = ds.theta_true is not None
     lam = args.lam if args.lam is not None else (_TRACKING_LAM if tracking else 1.0)
-    _check_rows(len(ds.y), ds.na, [ds.nb], [ds.nk], "the simulated record")
+    # a record of several runs: estimate on all but the last, validate on the last (fresh data)
+    if ds.n_experiments > 1:
+        est, val = ds.getexp(list(range(ds.n_experiments - 1))), ds.getexp(-1)
+    else:
+        est, val = ds, None
+    _check_rows(min(est.lengths), arx_structure(ds.na, [ds.nb], [ds.nk]),
+                {"na": ds.na, "nb": [ds.nb], "nk": [ds.nk]}, "the simulated record")
+    offset = "mean" if (ds.u0, ds.y0) != (0.0, 0.0) else False
     progress = _Progress(enabled=not args.quiet)
-    with progress.task(f"recursive least squares over {len(ds.y)} samples"):
-        model = ARX(ds.na, ds.nb, ds.nk, dt=ds.dt).fit(ds.u, ds.y, method="rls", lam=lam)
-        batch = ARX(ds.na, ds.nb, ds.nk, dt=ds.dt).fit(ds.u, ds.y)
+    with progress.task(f"recursive least squares over {est.n_samples} samples"):
+        model = ARX(ds.na, ds.nb, ds.nk, dt=ds.dt, offset=offset).fit(est, method="rls",
+                                                                       lam=lam)
+        batch = ARX(ds.na, ds.nb, ds.nk, dt=ds.dt, offset=offset).fit(est)
     # a time-varying plant is compared with the plant in force at the end of the record
     theta_true = ds.theta_true[-1] if tracking else ds.theta
     label = "true at the end" if tracking else "true"
-    metadata = {"source": f"demo plant '{ds.name}'", "inputs": ["u"], "output": "y",
-                "seed": args.seed, "theta_true": theta_true, "theta_batch": batch.theta_}
-    report = _validate(model, ds.u, ds.y, lam, metadata, progress,
-                       plant=ds.plant_after if tracking else ds.plant)
+    metadata = {"source": f"demo plant '{ds.name}'", "inputs": list(ds.input_names),
+                "output": ds.output_names[0], "seed": args.seed, "theta_true": theta_true,
+                "theta_batch": batch.theta_}
     lines = [f"rlsfilt {__version__} demo: {ds.description}",
              f"  {ds.n_samples} samples, sample time {ds.dt:g} s, {ds.noise} noise of std "
-             f"{ds.noise_std:g}, seed {args.seed}",
-             "  identified recursively (batch start, then one RLS update per sample) and by "
-             "batch least squares", ""]
+             f"{ds.noise_std:g}, seed {args.seed}"]
+    if offset:
+        lines.append("  operating point: " + _detrend_line("constant", est).split(": ", 1)[1])
+    if val is not None:
+        metadata["validated_on"] = f"experiment {val.experiment_names[0]}"
+        lines.append(f"  estimated on {', '.join(est.experiment_names)} ({est.n_samples} "
+                     f"samples), validated on {val.experiment_names[0]} ({val.n_samples} "
+                     "samples, fresh data)")
+    lines += ["  identified recursively (batch start, then one RLS update per sample) and by "
+              "batch least squares", ""]
+    report = _validate(model, val if val is not None else est, None, lam, metadata, progress,
+                       plant=ds.plant_after if tracking else ds.plant)
     return _emit(report, args, lines, _truth_table(model, theta_true, batch, label, lam))
 
 
@@ -358,7 +652,9 @@ def _validate(model, u, y, lam, metadata, progress, plant=None):
     so it is validated on the last three memory lengths ``3 / (1 - lam)``
     samples (at least 100 rows with a complete regressor).
     """
-    N = len(y)
+    if isinstance(u, IOData) and lam < 1.0 and u.n_experiments > 1:
+        u = u.getexp(-1)  # the estimate describes the end of the last experiment
+    N = u.n_samples if isinstance(u, IOData) else len(y)
     start = 0
     if lam < 1.0:
         length = max(int(round(3.0 / (1.0 - lam))), 100 + model.max_lag + model.n_params)
@@ -367,8 +663,11 @@ def _validate(model, u, y, lam, metadata, progress, plant=None):
     if start:
         metadata["validation_note"] = (f"validation (on the last {N - start} samples, three "
                                        f"memory lengths of lam = {lam:g})")
-        u = {k: v[start:] for k, v in u.items()} if isinstance(u, dict) else u[start:]
-        y = y[start:]
+        if isinstance(u, IOData):
+            u = u[start:]
+        else:
+            u = {k: v[start:] for k, v in u.items()} if isinstance(u, dict) else u[start:]
+            y = y[start:]
     with progress.task("validating the model"):
         return validate(model, u, y, plant=plant, max_lag="auto", skip_undefined=True,
                         metadata=metadata)
@@ -414,12 +713,12 @@ def _emit(report, args, before=(), after=()):
 # ----------------------------------------------------------------------
 # reading data
 # ----------------------------------------------------------------------
-def _read_csv(path, columns, delimiter=None, progress=None):
-    """Read numeric `columns` of a CSV file with a header row.
+def _read_csv(path, columns, delimiter=None, progress=None, text_columns=()):
+    """Read numeric `columns` (and the labels in `text_columns`) of a CSV file with a header row.
 
-    Returns a dict mapping each column name to a float array. Raises
-    `CLIError` with a one-line message naming the file, row and column for
-    every problem a user can cause.
+    Returns a dict mapping each column name to a float array (an array of
+    strings for the text columns). Raises `CLIError` with a one-line message
+    naming the file, row and column for every problem a user can cause.
     """
     if not os.path.exists(path):
         raise CLIError(f"file '{path}' not found")
@@ -464,6 +763,9 @@ def _read_csv(path, columns, delimiter=None, progress=None):
                            f"the header has {len(header)}")
         for k, (c, j) in enumerate(zip(columns, idx)):
             cell = fields[j].strip()
+            if c in text_columns:
+                values[k].append(cell)
+                continue
             try:
                 v = float(cell)
             except ValueError:
@@ -478,7 +780,8 @@ def _read_csv(path, columns, delimiter=None, progress=None):
             progress.show(f"reading '{path}': {row} rows")
     if row == 0:
         raise CLIError(f"'{path}' has a header but no data rows")
-    return {c: np.array(v, dtype=float) for c, v in zip(columns, values)}
+    return {c: np.array(v, dtype=object if c in text_columns else float)
+            for c, v in zip(columns, values)}
 
 
 def _detect_delimiter(header_line):
@@ -489,18 +792,19 @@ def _detect_delimiter(header_line):
     return "," if " " not in header_line.strip() else " "
 
 
-def _sample_time(t, name):
+def _sample_time(t, name, where=""):
     if len(t) < 2:
-        raise CLIError(f"time column '{name}' needs at least 2 rows to give a sample time")
+        raise CLIError(f"time column '{name}'{where} needs at least 2 rows to give a sample "
+                       "time")
     steps = np.diff(t)
     if np.any(steps <= 0):
         i = int(np.argmax(steps <= 0))
-        raise CLIError(f"time column '{name}' must be strictly increasing; row {i + 2} has "
-                       f"{t[i + 1]:g} after {t[i]:g}")
+        raise CLIError(f"time column '{name}'{where} must be strictly increasing; row {i + 2} "
+                       f"has {t[i + 1]:g} after {t[i]:g}")
     dt = float(np.median(steps))
     if np.max(np.abs(steps - dt)) > 1e-6 * max(dt, abs(t[-1])):
-        raise CLIError(f"time column '{name}' is not uniformly sampled: steps range from "
-                       f"{steps.min():g} to {steps.max():g}; resample the data first")
+        raise CLIError(f"time column '{name}'{where} is not uniformly sampled: steps range "
+                       f"from {steps.min():g} to {steps.max():g}; resample the data first")
     return float((t[-1] - t[0]) / (len(t) - 1))
 
 
@@ -513,14 +817,15 @@ def _per_input(values, n_in, option):
     return list(values)
 
 
-def _check_rows(n_rows, na, nb, nk, source):
-    """At least one equation more than parameters, so that the noise variance exists."""
-    s = arx_structure(na, nb, nk, len(nb), 1)
+def _check_rows(n_rows, s, orders, source):
+    """At least one equation more than parameters, so that the noise variance exists
+    (`s` the structure, with ``n_params`` and ``max_lag``; `orders` as given)."""
     d, lag = s.n_params, s.max_lag
     need = lag + d + 1
     if n_rows < need:
-        orders = f"na={na}, nb={_fmt_list(nb)}, nk={_fmt_list(nk)}"
-        raise CLIError(f"too few rows for the orders {orders} ({d} parameters, largest lag "
+        text = ", ".join(f"{k}={_fmt_list(v) if isinstance(v, list) else v}"
+                         for k, v in orders.items())
+        raise CLIError(f"too few rows for the orders {text} ({d} parameters, largest lag "
                        f"{lag}): need at least {need} data rows; {source} has {n_rows}")
 
 

@@ -5,7 +5,8 @@ keeps working, while ``except NotFittedError`` lets a caller be precise.
 """
 
 __all__ = ["NotFittedError", "InsufficientDataError", "ExactFitError", "NumericalWarning",
-           "ForgettingSkippedWarning", "ExcitationWarning"]
+           "ForgettingSkippedWarning", "ExcitationWarning", "OperatingPointWarning",
+           "OrderSelectionWarning"]
 
 
 class NotFittedError(ValueError, AttributeError):
@@ -38,3 +39,15 @@ class ExcitationWarning(UserWarning):
     """An online estimator stopped learning: its regressors no longer excite
     every parameter direction, or its covariance is winding up (see
     `rlsfilt.adaptive.SelfTuningRegulator`)."""
+
+
+class OperatingPointWarning(UserWarning):
+    """A record sits far from zero (its mean is large against its variation)
+    and no offset handling was chosen: a linear model without an intercept
+    then mostly fits the operating point (detrend the data, or fit with
+    ``offset=True``)."""
+
+
+class OrderSelectionWarning(UserWarning):
+    """The best structure (or delay) found lies at the edge of the range that
+    was searched; the message names the bound to widen."""

@@ -2,9 +2,9 @@
 
 The result objects' ``plot`` methods (``ValidationReport.plot``,
 ``ResidualAnalysis.plot``, ``PlantComparison.plot``, ``FrequencyBand.plot``,
-``OrderSelection.plot``, ``CusumResult.plot``) are one-line calls into the
-functions of this module, so the report, the notebooks, the documentation and
-the command line draw the same figures.
+``OrderSelection.plot``, ``CusumResult.plot``, ``STRHistory.plot``) are
+one-line calls into the functions of this module, so the report, the notebooks,
+the documentation and the command line draw the same figures.
 
 The tracking functions accept what the filters and models produce:
 
@@ -59,6 +59,7 @@ __all__ = [
     "plot_order_selection",
     "plot_cusum",
     "plot_report",
+    "plot_str_history",
 ]
 
 #: Okabe-Ito colours in the order lines are drawn (blue, vermillion, bluish green,
@@ -302,11 +303,13 @@ def plot_tracking(source, covariances=None, *, t=None, names=None, true_values=N
 # model output against the data
 # ----------------------------------------------------------------------
 def plot_comparison(report, ax=None, *, window=None, ax_overview=None, output=0,
-                    output_name="y", output_unit=None):
+                    output_name=None, output_unit=None):
     """Measured, simulated and one-step predicted output (MATLAB ``compare``).
 
     A record longer than the window is drawn as a readable window (`ax`)
-    plus, in `ax_overview`, the whole record with the window marked.
+    plus, in `ax_overview`, the whole record with the window marked. The
+    experiments of a record of several are drawn one after the other on one
+    time axis, their seams dotted, no line joining two experiments.
 
     Parameters
     ----------
@@ -317,19 +320,25 @@ def plot_comparison(report, ax=None, *, window=None, ax_overview=None, output=0,
         window on top and, for a record longer than the window, an overview
         below.
     window : (int, int), optional
-        First and last-plus-one sample of the window. By default the last
-        400 samples (the whole record when it is shorter than 600 samples).
-        A window longer than ``MAX_POINTS`` samples is drawn through its
-        per-bin extremes.
+        First and last-plus-one sample of the window (indices into the
+        report's record, the experiments one after the other). By default
+        the last 400 samples (the whole record when it is shorter than 600
+        samples). A window longer than ``MAX_POINTS`` samples is drawn
+        through its per-bin extremes.
     ax_overview : matplotlib.axes.Axes, optional
         Axes for the overview of the whole record (none is drawn when `ax`
-        is given without `ax_overview`).
+        is given without `ax_overview`). When the output sits far from zero
+        (its mean more than 3 standard deviations away, an operating
+        point), the simulation error is drawn around the output's mean, and
+        its legend says so, so that both lines keep a readable scale.
     output : int, default 0
         Which output to show (for several outputs).
-    output_name : str, default "y"
-        Name of the output signal, for the labels.
+    output_name : str, optional
+        Name of the output signal, for the labels. Default: the report's
+        ``output_names`` (the data's names, or the model's), else ``"y"``.
     output_unit : str, optional
-        Unit of the output, for the y label (e.g. ``"K"``).
+        Unit of the output, for the y label (e.g. ``"K"``). Default: the
+        report's ``output_units`` (the data's or the model's), if any.
 
     Returns
     -------
@@ -340,18 +349,34 @@ def plot_comparison(report, ax=None, *, window=None, ax_overview=None, output=0,
     --------
     >>> import matplotlib.pyplot as plt
     >>> from rlsfilt import ARX, validate
-    >>> from rlsfilt.datasets import dc_motor
+    >>> from rlsfilt.datasets import dc_motor, heat_exchanger
     >>> from rlsfilt.plotting import plot_comparison
     >>> d = dc_motor()
     >>> report = validate(ARX(*d.orders, dt=d.dt).fit(d.u, d.y), d.u, d.y)
     >>> ax = plot_comparison(report, output_name="speed", output_unit="rad/s")
     >>> ax.get_ylabel(), len(ax.figure.axes)          # window + overview of 2000 samples
     ('speed (rad/s)', 2)
+
+    Names and units come from the data when it carries them:
+
+    >>> he = heat_exchanger()
+    >>> rep = validate(ARX(*he.orders, dt=he.dt, offset=True).fit(he), he)
+    >>> plot_comparison(rep).get_ylabel()
+    'T_out (degC)'
     """
     y = _column(report.y, output)
     ys = _column(report.y_simulated, output)
     yp = _column(report.y_predicted, output)
-    t = np.asarray(report.time, dtype=float)
+    output_name, output_unit = _signal_label(report, "output", output, output_name,
+                                             output_unit)
+    t, seams, exp_names = _record_time(report)
+    # the first `start` (max_lag) predictions of each experiment come from an assumed past,
+    # not from the measurements: the fits leave them out, and so does the figure
+    start = int(getattr(report, "start", 0) or 0)
+    if start:
+        yp = yp.copy()
+        for k in (0, *seams):
+            yp[k:k + start] = np.nan
     N = len(y)
     a, b = _window(window, N)
     windowed = (a, b) != (0, N)
@@ -365,24 +390,57 @@ def plot_comparison(report, ax=None, *, window=None, ax_overview=None, output=0,
     sf = np.atleast_1d(report.simulation_fit)[output]
     pf = np.atleast_1d(report.prediction_fit)[output]
     time_label = "sample" if report.model.dt is True else "time (s)"
+    if seams:
+        time_label += ", experiments one after the other"
     ylabel = output_name + (f" ({output_unit})" if output_unit else "")
-    sl = slice(a, b)
-    ax.plot(*_decimate(t[sl], y[sl]), color=_BLACK, lw=1.6, label=f"measured {output_name}")
-    ax.plot(*_decimate(t[sl], ys[sl]), color=COLORS[0], lw=1.2,
-            label=f"simulated (fit {sf:.1f}%)")
-    ax.plot(*_decimate(t[sl], yp[sl]), color=COLORS[1], lw=1.0, linestyle="--",
-            label=f"1-step predicted (fit {pf:.1f}%)")
+    inside = [k for k in seams if a < k < b]
+    # the measured output is a wide black line under the thinner model lines: where the
+    # model is good it shows on both sides of them instead of disappearing underneath
+    ax.plot(*_broken(t, y, a, b, inside), color=_BLACK, lw=3.2, alpha=0.8,
+            solid_capstyle="butt", label=f"measured {output_name}")
+    time_series = getattr(report, "is_time_series", False)
+    if time_series:     # AR, ARMA: no input, nothing to simulate
+        ax.plot([], [], color=COLORS[0], lw=1.2, label="no simulation (time series: no input)")
+    elif getattr(report, "is_unstable", False):
+        # a diverging simulation would set the scale and its "fit" means nothing: say so
+        ax.plot([], [], color=COLORS[0], lw=1.2, label=f"simulated: {report.stability}")
+    else:
+        ax.plot(*_broken(t, ys, a, b, inside), color=COLORS[0], lw=1.1,
+                label=f"simulated (fit {sf:.1f}%)")
+    ax.plot(*_broken(t, yp, a, b, inside), color=COLORS[1], lw=1.0,
+            linestyle="--", label=f"1-step predicted (fit {pf:.1f}%)")
+    for k in inside:
+        ax.axvline(0.5 * (t[k - 1] + t[k]), color=_GREY, lw=1.0, linestyle=":")
     ax.set_xlabel(time_label)
     ax.set_ylabel(ylabel)
-    ax.set_title("Model output against the data")
+    title = "Model output against the data"
+    if seams:
+        first = int(np.searchsorted(seams, a, side="right"))
+        last = int(np.searchsorted(seams, b - 1, side="right"))
+        title += f" ({', '.join(exp_names[first:last + 1])})"
+    ax.set_title(title)
     ax.set_xlim(t[a], t[b - 1])
     _legend_outside(ax)
     if ax_overview is not None:
         # per-bin extremes: a long record reads as its envelope, a single outlier stays visible
-        ax_overview.plot(*_decimate(t, y), color=_GREY, lw=0.7, label=f"measured {output_name}")
-        ax_overview.plot(*_decimate(t, y - ys), color=COLORS[1], lw=0.7,
-                         label=f"error {output_name} - simulated")
+        ax_overview.plot(*_broken(t, y, 0, N, seams), color=_GREY, lw=0.7,
+                         label=f"measured {output_name}")
+        if not (getattr(report, "is_unstable", False) or time_series):
+            # around an operating point the error (near 0) and the output (near its mean)
+            # would squash each other to two flat lines: draw the error around the mean
+            level, spread = float(np.mean(y)), float(np.std(y))
+            shift = level if abs(level) > 3.0 * spread else 0.0
+            tag = f" (+ {shift:.4g}, the mean)" if shift else ""
+            ax_overview.plot(*_broken(t, y - ys + shift, 0, N, seams),
+                             color=COLORS[1], lw=0.7,
+                             label=f"error {output_name} - simulated{tag}")
+        for k in seams:
+            ax_overview.axvline(0.5 * (t[k - 1] + t[k]), color=_BLACK, lw=0.8, linestyle=":")
         span = f"whole record ({N} samples)"
+        if seams:
+            lengths = np.diff([0, *seams, N])
+            span = "whole record: " + ", ".join(
+                f"{name} ({n})" for name, n in zip(exp_names, lengths)) + " samples"
         if windowed:
             # the window stays visible however long the record: at least 0.5 % of the width
             lo, hi = t[a], t[b - 1]
@@ -393,7 +451,7 @@ def plot_comparison(report, ax=None, *, window=None, ax_overview=None, output=0,
             span += f"; window {first:g} .. {last:g} shaded"
         ax_overview.set_xlim(t[0], t[-1])
         ax_overview.set_xlabel(time_label)
-        ax_overview.set_ylabel(output_name)
+        ax_overview.set_ylabel(ylabel)
         ax_overview.set_title(span, fontsize="medium", loc="left")
         _legend_outside(ax_overview)
     return ax
@@ -484,6 +542,12 @@ def plot_cross_correlation(analysis, ax=None):
     ax = _axes(ax)
     xc = np.asarray(analysis.cross_correlation, dtype=float)
     nu = xc.shape[0]
+    if nu == 0:         # a time series (AR, ARMA): no input to correlate with
+        ax.text(0.5, 0.5, "no input (time series):\nno cross-correlation, no independence test",
+                ha="center", va="center", transform=ax.transAxes)
+        ax.set_title("Input cross-correlation: not applicable", fontsize="medium")
+        ax.set_axis_off()
+        return ax
     pct = f"{100 * (1 - analysis.alpha):g}%"
     bands = np.atleast_1d(analysis.cross_correlation_band)
     for j in range(nu):
@@ -589,10 +653,15 @@ def plot_bode(source, ax_mag=None, ax_phase=None, *, band=None, plant=None):
         if plant is not None:
             _draw_plant_bode(ax_mag, ax_phase, source, plant)
         unit = "rad/sample" if source.dt_unspecified else "rad/s"
-        ax_mag.set_title("Frequency response with parameter uncertainty")
+        ax_mag.set_title("Frequency response")
     else:
         raise TypeError("`source` must be a PlantComparison or a FrequencyBand; got "
                         f"{type(source).__name__}")
+    drawn = band if band is not None else (source if hasattr(source, "magnitude_lower")
+                                           else None)
+    if drawn is not None:   # a band narrower than the line is there: say how wide it is
+        ax_mag.set_title(ax_mag.get_title() + "\n" + _band_width_text(drawn),
+                         fontsize="medium")
     ax_mag.set_ylabel("$|G(e^{j\\omega T})|$ (dB)")
     ax_phase.set_ylabel("phase (deg)")
     ax_phase.set_xlabel(f"$\\omega$ ({unit})")
@@ -603,7 +672,7 @@ def plot_bode(source, ax_mag=None, ax_phase=None, *, band=None, plant=None):
     return ax_mag, ax_phase
 
 
-def plot_step(comparison, ax=None):
+def plot_step(comparison, ax=None, *, input_unit=None, output_unit=None):
     """Unit-step responses of model (dashed) and true plant (black).
 
     Parameters
@@ -612,6 +681,10 @@ def plot_step(comparison, ax=None):
         A comparison of a model with its true plant.
     ax : matplotlib.axes.Axes, optional
         Axes to draw in; a new figure is made if omitted.
+    input_unit, output_unit : str, optional
+        Units of the input and output (one-input, one-output models): the y
+        label then reads ``"T_out (degC) per 1 % of flow"``, with the signal
+        names from the model (its python-control signal labels).
 
     Returns
     -------
@@ -621,13 +694,17 @@ def plot_step(comparison, ax=None):
     --------
     >>> import matplotlib.pyplot as plt
     >>> from rlsfilt import ARX
-    >>> from rlsfilt.datasets import thermal_process
+    >>> from rlsfilt.datasets import heat_exchanger, thermal_process
     >>> from rlsfilt.validation import PlantComparison
     >>> from rlsfilt.plotting import plot_step
     >>> d = thermal_process()
     >>> ax = plot_step(PlantComparison(ARX(*d.orders, dt=d.dt).fit(d.u, d.y), d.plant))
     >>> ax.get_xlabel()
     'time (s)'
+    >>> he = heat_exchanger()
+    >>> cmp = PlantComparison(ARX(*he.orders, dt=he.dt, offset=True).fit(he), he.plant)
+    >>> plot_step(cmp, input_unit="%", output_unit="degC").get_ylabel()
+    'T_out (degC) per 1 % of flow'
     """
     ax = _axes(ax)
     for c, ((i, j), label) in enumerate(_channels(comparison.step_plant.shape[:2])):
@@ -636,11 +713,33 @@ def plot_step(comparison, ax=None):
         ax.step(comparison.time, comparison.step_model[i, j], color=_color(c), lw=1.4,
                 linestyle="--", where="post", label=f"model{label}")
     ax.set_xlabel("time" if comparison.model_tf.dt is True else "time (s)")
-    ax.set_ylabel("step response $y(t)$")
+    ax.set_ylabel(_step_label(comparison.model_tf, input_unit, output_unit))
     ax.set_title(f"Step: relative error {100 * comparison.step_error:.3g}%")
     ax.grid(True, alpha=0.3)
     _legend_outside(ax)
     return ax
+
+
+def _step_label(tf, input_unit, output_unit):
+    """``"T_out (degC) per 1 % of flow"`` for a one-channel model with named signals,
+    ``"step response $y(t)$"`` otherwise."""
+    if tf.ninputs != 1 or tf.noutputs != 1:
+        return "step response $y(t)$"
+    u_name, y_name = _tf_label(tf, "input"), _tf_label(tf, "output")
+    if u_name in (None, "u") and y_name in (None, "y") and not input_unit and not output_unit:
+        return "step response $y(t)$"
+    y_text = (y_name or "y") + (f" ({output_unit})" if output_unit else "")
+    u_text = f"1 {input_unit} of " if input_unit else "a unit step of "
+    return f"{y_text} per {u_text}{u_name or 'u'}"
+
+
+def _tf_label(tf, kind):
+    """The signal label of a one-channel python-control system, None for its defaults
+    (``u[0]``, ``y[0]``)."""
+    labels = getattr(tf, f"{kind}_labels", None) or []
+    label = str(labels[0]) if labels else ""
+    default = "u[0]" if kind == "input" else "y[0]"
+    return None if not label or label == default else label
 
 
 def plot_plant_comparison(comparison, fig=None, *, band=None):
@@ -851,7 +950,7 @@ def plot_cusum(result, ax=None, *, t=None, xlabel=None):
 # ----------------------------------------------------------------------
 # the validation report
 # ----------------------------------------------------------------------
-def plot_report(report, fig=None, *, window=None, output_name="y", output_unit=None):
+def plot_report(report, fig=None, *, window=None, output_name=None, output_unit=None):
     """One figure of a validation: output fit, residual tests, Bode with uncertainty, step.
 
     Rows: the model's output against the data (a window, and an overview of
@@ -868,7 +967,8 @@ def plot_report(report, fig=None, *, window=None, output_name="y", output_unit=N
     fig : matplotlib.figure.Figure, optional
         Figure to draw in (empty); a new one if omitted.
     window, output_name, output_unit
-        As in :func:`plot_comparison`.
+        As in :func:`plot_comparison` (the names and units default to the
+        data's, or the model's).
 
     Returns
     -------
@@ -912,12 +1012,114 @@ def plot_report(report, fig=None, *, window=None, output_name="y", output_unit=N
         ax_mag = fig.add_subplot(gs[row + 1, 0])
         ax_phase = fig.add_subplot(gs[row + 2, 0], sharex=ax_mag)
         plot_bode(report.plant_comparison, ax_mag, ax_phase, band=band)
-        plot_step(report.plant_comparison, fig.add_subplot(gs[row + 1:, 1]))
+        _, u_unit = _signal_label(report, "input", 0)
+        _, y_unit = _signal_label(report, "output", 0)
+        plot_step(report.plant_comparison, fig.add_subplot(gs[row + 1:, 1]),
+                  input_unit=u_unit, output_unit=y_unit)
     else:
         ax_mag = fig.add_subplot(gs[row + 1:, 0])
         ax_phase = fig.add_subplot(gs[row + 1:, 1])
         plot_bode(band, ax_mag, ax_phase)
+        ax_mag.set_xlabel(ax_phase.get_xlabel())   # side by side: both need the frequency
         ax_phase.set_title("phase")
+        if getattr(report, "is_time_series", False):     # the Bode of H = C/(A D)
+            ax_mag.set_title("noise model C/(A D) (time series: no input)")
+    _label_gain(report, ax_mag)
+    return fig
+
+
+def _label_gain(report, ax_mag):
+    """Name the channel and the unit of the gain of a one-input, one-output model in the
+    report's Bode diagram: ``|G| (dB re 1 degC/%)`` under the title ``flow to T_out: ...``."""
+    if report.model.n_inputs_ != 1 or report.model.n_outputs_ != 1:
+        return
+    u_name, u_unit = _signal_label(report, "input", 0)
+    y_name, y_unit = _signal_label(report, "output", 0)
+    if u_unit or y_unit:
+        ratio = f"{y_unit or '1'}/{u_unit or '1'}"
+        ax_mag.set_ylabel(f"$|G(e^{{j\\omega T}})|$ (dB re 1 {ratio})")
+    if (u_name, y_name) != ("u", "y"):
+        first, *rest = ax_mag.get_title().split("\n")
+        ax_mag.set_title("\n".join([f"{first} ({u_name} to {y_name})", *rest]))
+
+
+# ----------------------------------------------------------------------
+# adaptive control
+# ----------------------------------------------------------------------
+def plot_str_history(history, fig=None, *, true_theta=None):
+    r"""A self-tuning regulator's run: output and reference, control, estimates, trace of P.
+
+    Four stacked axes sharing the time axis. Steps where a due redesign
+    was rejected (the last controller kept) are marked on the control.
+
+    Parameters
+    ----------
+    history : STRHistory
+        ``SelfTuningRegulator.history`` (anything with its attributes ``t``,
+        ``y``, ``r``, ``u``, ``theta``, ``trace_P``, ``rejected``, ``na``
+        and ``dt``).
+    fig : matplotlib.figure.Figure, optional
+        Figure to draw in (cleared); a new one if omitted.
+    true_theta : array_like, shape (na + nb,) or (N, na + nb), optional
+        True parameters ``[a1 .. a_na, b1 .. b_nb]``, drawn dashed.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> import matplotlib.pyplot as plt
+    >>> from rlsfilt import RecursiveLeastSquares
+    >>> from rlsfilt.adaptive import SelfTuningRegulator
+    >>> from rlsfilt.plotting import plot_str_history
+    >>> stre = SelfTuningRegulator(RecursiveLeastSquares(2, P0=100.0),
+    ...                            dict(Am=[1, -0.5], Ao=[1.0]), na=1, nb=1, dt=0.1)
+    >>> y = 0.0
+    >>> for t in range(100):
+    ...     u = stre.step(y, r=1.0 if (t // 25) % 2 else -1.0)
+    ...     y = 0.8 * y + 0.5 * u
+    >>> fig = plot_str_history(stre.history, true_theta=[-0.8, 0.5])
+    >>> [ax.get_ylabel() for ax in fig.axes]
+    ['$y$, $r$', 'control $u$', 'estimate $\\hat\\theta$', '$\\mathrm{tr}\\,P$']
+    >>> fig.axes[-1].get_xlabel()
+    'time (s)'
+    """
+    if fig is None:
+        fig = _figure(None, figsize=(9, 9), layout="constrained")
+    else:
+        fig.clf()
+    axes = fig.subplots(4, 1, sharex=True)
+    t = np.asarray(history.t, dtype=float)
+    ax = axes[0]
+    ax.plot(*_decimate(t, history.r), color=_BLACK, linestyle=":", lw=1.2, label="reference $r$")
+    ax.plot(*_decimate(t, history.y), color=COLORS[0], lw=1.1, label="output $y$")
+    ax.set_ylabel("$y$, $r$")
+    ax.set_title("Self-tuning regulator")
+    _legend_outside(ax)
+    ax = axes[1]
+    ax.plot(*_decimate(t, history.u), color=COLORS[2], lw=0.9, label="control $u$")
+    rejected = np.flatnonzero(np.asarray(history.rejected, dtype=bool))
+    if len(rejected):
+        ax.plot(t[rejected], np.asarray(history.u)[rejected], "x", color=COLORS[1], ms=4,
+                label="design kept\n(rejected estimate)")
+    ax.set_ylabel("control $u$")
+    _legend_outside(ax)
+    theta = np.asarray(history.theta, dtype=float)
+    names = ([rf"$\hat a_{{{i + 1}}}$" for i in range(history.na)]
+             + [rf"$\hat b_{{{i + 1}}}$" for i in range(theta.shape[1] - history.na)])
+    plot_parameters(theta, t=t, names=names, true_values=true_theta, ax=axes[2])
+    ax = axes[3]
+    trace = np.asarray(history.trace_P, dtype=float)
+    ax.plot(*_decimate(t, trace), color=COLORS[3], lw=1.1)
+    if trace.size and np.all(trace > 0):
+        ax.set_yscale("log")
+    ax.set_ylabel(r"$\mathrm{tr}\,P$")
+    for a in axes:
+        a.set_xlabel("")
+        a.grid(True, alpha=0.3)
+    axes[-1].set_xlabel("sample" if history.dt is True else "time (s)")
+    fig.align_ylabels(axes)
     return fig
 
 
@@ -947,6 +1149,18 @@ def _draw_band(ax_mag, ax_phase, band, model_line=True):
                         label=f"model{tag}")
             ax_phase.plot(band.omega, np.degrees(np.unwrap(np.angle(band.response[i, j]))),
                           color=color, lw=1.4)
+
+
+def _band_width_text(band):
+    """``"95% band (parameters): 0.04 to 0.76 dB wide"``: the band's width in words, for when it is
+    thinner than the line drawn over it."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        width = _db(band.magnitude_upper) - _db(band.magnitude_lower)
+    width = width[np.isfinite(width)]
+    if not width.size:
+        return f"{100 * band.level:g}% band"
+    return (f"{100 * band.level:g}% band (parameters): {np.min(width):.2g} to "
+            f"{np.max(width):.2g} dB wide")
 
 
 def _draw_comparison_bode(ax_mag, ax_phase, comparison):
@@ -1037,6 +1251,56 @@ def _names(names, default, n):
     if len(names) != n:
         raise ValueError(f"`names` must have {n} entries (one per parameter); got {len(names)}")
     return names
+
+
+def _signal_label(report, kind, index, name=None, unit=None):
+    """``(name, unit)`` of input or output `index`: the arguments, else the report's
+    ``output_names``/``output_units`` (the data's, or the model's), else the model's
+    ``output_names_``/``output_units_``, else ``"y"`` (``"u"``) and no unit."""
+    for source, suffix in ((report, ""), (getattr(report, "model", None), "_")):
+        if name is None:
+            names = getattr(source, f"{kind}_names{suffix}", None)
+            if names is not None and index < len(names):
+                name = str(names[index])
+        if unit is None:
+            units = getattr(source, f"{kind}_units{suffix}", None)
+            if units is not None and index < len(units) and units[index]:
+                unit = str(units[index])
+    return (name if name is not None else kind[0]), unit
+
+
+def _record_time(report):
+    """Time axis of a report's record, the seams between experiments (sample indices) and
+    the experiment names. Several experiments are laid one after the other on one axis
+    (each starts one sample period after the previous one ends)."""
+    t = np.asarray(report.time, dtype=float)
+    lengths = tuple(getattr(report, "experiment_lengths", ()) or ())
+    if len(lengths) < 2:
+        return t, [], ()
+    dt = 1.0 if report.model.dt is True else float(report.model.dt)
+    seams = [int(k) for k in np.cumsum(lengths)[:-1]]
+    names = tuple(getattr(report, "experiment_names", ()) or ())
+    if len(names) != len(lengths):
+        names = tuple(f"exp{k + 1}" for k in range(len(lengths)))
+    return t[0] + dt * np.arange(len(t)), seams, names
+
+
+def _broken(t, y, a, b, seams, max_points=MAX_POINTS):
+    """``(t[a:b], y[a:b])`` ready to draw: each experiment (the pieces between the seams
+    inside the slice) reduced by :func:`_decimate` to its share of `max_points`, with a
+    NaN between two experiments, so that no line joins the end of one experiment to the
+    start of the next."""
+    bounds = [a, *(k for k in seams if a < k < b), b]
+    xs, ys = [], []
+    for lo, hi in zip(bounds[:-1], bounds[1:]):
+        if xs:
+            xs.append([0.5 * (t[lo - 1] + t[lo])])
+            ys.append([np.nan])
+        share = max(4, int(max_points * (hi - lo) / (b - a)))
+        x_i, y_i = _decimate(t[lo:hi], y[lo:hi], share)
+        xs.append(x_i)
+        ys.append(y_i)
+    return np.concatenate(xs), np.concatenate(ys)
 
 
 def _column(a, output):

@@ -272,7 +272,7 @@ def test_history_plot_and_repr():
     assert_allclose(h.t, 0.1 * np.arange(120))
     fig = h.plot(true_theta=THETA)
     assert len(fig.axes) == 4
-    assert fig.axes[-1].get_xlabel() == "t [s]"
+    assert fig.axes[-1].get_xlabel() == "time (s)"
     plt.close(fig)
     assert "120 steps" in repr(h)
     assert "SelfTuningRegulator(na=2, nb=2, nk=1" in repr(stre) and "u(t) =" in repr(stre)

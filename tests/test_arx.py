@@ -159,10 +159,10 @@ def test_miso_matches_statsmodels_ardl(rng):
 
 def test_fit_returns_self_and_init_only_stores():
     model = ARX(2, 2)
-    assert vars(model) == {"na": 2, "nb": 2, "nk": 1, "dt": True}
+    assert vars(model) == {"na": 2, "nb": 2, "nk": 1, "dt": True, "offset": False}
     u = np.random.default_rng(1).standard_normal(50)
     assert model.fit(u, np.sin(np.arange(50.0)) + u ** 2) is model
-    assert model.get_params() == {"na": 2, "nb": 2, "nk": 1, "dt": True}
+    assert model.get_params() == {"na": 2, "nb": 2, "nk": 1, "dt": True, "offset": False}
     assert model.set_params(na=3) is model and model.na == 3
 
 

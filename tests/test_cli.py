@@ -77,7 +77,7 @@ def _ident_args(csv, *extra):
 def test_identify_json_matches_least_squares(capsys, csv_file, record):
     import statsmodels.api as sm
 
-    code, out, err = _run(capsys, *_ident_args(csv_file, "--json"))
+    code, out, err = _run(capsys, *_ident_args(csv_file, "--json", "--detrend", "none"))
     assert code == 0, err
     res = json.loads(out)
     Phi, z = _regression(record)
@@ -97,28 +97,36 @@ def test_identify_json_matches_least_squares(capsys, csv_file, record):
 
 def test_identify_json_is_the_report_dict(capsys, csv_file, record, tmp_path):
     """The CLI is a thin layer: --json prints exactly json.dumps(report.to_dict()) of the same
-    fit made with the library; the text is report.summary(), the figure report.plot()."""
-    from rlsfilt import ARX, validate
+    fit made with the library (the default --detrend constant is ARX(offset='mean')); the
+    text is two context lines and report.summary(), the figure report.plot()."""
+    from rlsfilt import ARX, IOData, validate
 
     code, out, err = _run(capsys, *_ident_args(csv_file, "--json", "--dt", "0.1"))
     assert code == 0, err
     # the same numbers as the CLI read them (the CSV holds 12 significant digits)
     table = np.genfromtxt(csv_file, delimiter=",", names=True)
-    u = {"u1": table["u1"], "u2": table["u2"]}
-    model = ARX(2, [2, 1], [1, 2], dt=0.1).fit(u, table["y"])
-    report = validate(model, u, table["y"], max_lag="auto", skip_undefined=True,
+    data = IOData(np.column_stack([table["u1"], table["u2"]]), table["y"], 0.1,
+                  input_names=["u1", "u2"], output_names=["y"])
+    model = ARX(2, [2, 1], [1, 2], dt=0.1, offset="mean").fit(data)
+    report = validate(model, data, max_lag="auto", skip_undefined=True,
                       metadata={"source": csv_file, "inputs": ["u1", "u2"], "output": "y",
+                                "detrend": "constant", "experiments": ["exp1"],
+                                "experiment_lengths": [500],
+                                "validated_on": "the estimation data",
                                 "validation_start": 0})
     assert out == json.dumps(report.to_dict()) + "\n"
     code, text, _ = _run(capsys, *_ident_args(csv_file, "--dt", "0.1"))
-    assert text == report.summary() + "\n"
+    means = ", ".join(f"{n} = {table[n].mean():.6g}" for n in ("u1", "u2", "y"))
+    assert text == (f"data: '{csv_file}', 500 samples, sample time 0.1 s\n"
+                    f"detrend: constant (means removed: {means}; the model keeps them and "
+                    "predicts in the units of the data)\n\n" + report.summary() + "\n")
     png = tmp_path / "fig.png"
     _run(capsys, *_ident_args(csv_file, "--dt", "0.1", "--plot", str(png)))
     assert len(report.plot().axes) >= 3 and png.stat().st_size > 0
 
 
 def test_identify_fit_percent_against_a_plain_simulation(capsys, csv_file, record):
-    code, out, _ = _run(capsys, *_ident_args(csv_file, "--json"))
+    code, out, _ = _run(capsys, *_ident_args(csv_file, "--json", "--detrend", "none"))
     res = json.loads(out)
     # simulate the identified difference equation from the measured first samples (the
     # model's largest lag, L = 2), the inputs alone driving it afterwards
@@ -201,7 +209,7 @@ def test_identify_forgetting_modes_match_the_filter(capsys, tmp_path, mode):
     ds = time_varying(n_samples=800, rng=1)
     path = _write_csv(tmp_path / "tv.csv", ["u", "y"], zip(ds.u, ds.y))
     code, out, err = _run(capsys, "identify", path, "-u", "u", "-y", "y", "--method", "rls",
-                          "--lam", "0.97", "--forgetting", mode, "--json")
+                          "--lam", "0.97", "--forgetting", mode, "--json", "--detrend", "none")
     assert code == 0, err
     res = json.loads(out)
     assert res["forgetting"] == mode
@@ -223,8 +231,11 @@ def test_identify_forgetting_modes_match_the_filter(capsys, tmp_path, mode):
 def test_identify_text_report(capsys, csv_file):
     code, out, err = _run(capsys, *_ident_args(csv_file, "--time", "t"))
     assert code == 0 and err == ""
-    # the text is the library's ValidationReport.summary()
-    assert "Validation of ARX(na=2, nb=[2, 1], nk=[1, 2]) on 500 samples" in out
+    # the text is the library's ValidationReport.summary(), after the data and its detrending
+    assert out.startswith(f"data: '{csv_file}', 500 samples, sample time 0.1 s\n"
+                          "detrend: constant (means removed: u1 = ")
+    assert "Validation of ARX(na=2, nb=[2, 1], nk=[1, 2], offset='mean') on 500 samples" in out
+    assert "operating point: u1 = " in out
     assert "sample time 0.1" in out
     for name in ("a1", "a2", "b1[u1]", "b2[u1]", "b1[u2]"):
         assert f"\n  {name} " in out
@@ -242,7 +253,7 @@ def test_identify_noise_free_data_keeps_the_table_columns(capsys, tmp_path):
     csv = tmp_path / "exact.csv"
     _write_csv(csv, ["u", "y"], np.column_stack([u, y]), fmt="{:.17g}")
     code, out, err = _run(capsys, "identify", str(csv), "--input", "u", "--output", "y",
-                          "--na", "1", "--nb", "1")
+                          "--na", "1", "--nb", "1", "--detrend", "none")
     assert code == 0 and err == ""
     rows = {line.split()[0]: line.split() for line in out.splitlines()
             if line.startswith(("  a1 ", "  b1 "))}
@@ -259,7 +270,7 @@ def test_identify_single_input_defaults_and_save_params(capsys, tmp_path, record
                       zip(record["u1"], lfilter([0, 1.0, 0.5], [1] + A_TRUE, record["u1"])))
     params = tmp_path / "params.json"
     code, out, err = _run(capsys, "identify", path, "-u", "u", "-y", "y", "--json",
-                          "--save-params", str(params))
+                          "--save-params", str(params), "--detrend", "none")
     assert code == 0, err
     res = json.loads(out)
     assert json.loads(params.read_text()) == res
@@ -306,7 +317,8 @@ def test_identify_semicolon_and_comments(capsys, tmp_path, record):
     y = lfilter([0, 1.0, 0.5], [1] + A_TRUE, record["u1"])
     lines += [f"{a:.12g}; {b:.12g}" for a, b in zip(record["u1"], y)]
     path.write_text("\n".join(lines) + "\n")
-    code, out, err = _run(capsys, "identify", str(path), "-u", "u", "-y", "y", "--json")
+    code, out, err = _run(capsys, "identify", str(path), "-u", "u", "-y", "y", "--json",
+                          "--detrend", "none")
     assert code == 0, err
     np.testing.assert_allclose(json.loads(out)["a"], A_TRUE, atol=1e-9)
 
@@ -316,7 +328,7 @@ def test_identify_tab_separated_with_time_column(capsys, tmp_path, record):
     path = _write_csv(tmp_path / "tab.tsv", ["time", "volts", "speed"],
                       zip(record["t"], record["u1"], y), sep="\t")
     code, out, err = _run(capsys, "identify", path, "-u", "volts", "-y", "speed", "--time",
-                          "time", "--json")
+                          "time", "--json", "--detrend", "none")
     assert code == 0, err
     res = json.loads(out)
     assert res["dt"] == pytest.approx(0.1, rel=1e-12) and res["metadata"]["inputs"] == ["volts"]
@@ -602,7 +614,7 @@ def test_identify_rls_on_noise_free_data_skips_the_residual_tests(capsys, tmp_pa
     u = np.sign(np.random.default_rng(4).standard_normal(300))
     csv = _write_csv(tmp_path / "exact.csv", ["u", "y"], np.column_stack([u, np.r_[0.0, u[:-1]]]))
     argv = ("identify", csv, "--input", "u", "--output", "y", "--na", "0", "--nb", "1",
-            "--method", "rls")
+            "--method", "rls", "--detrend", "none")
     code, out, err = _run(capsys, *argv)
     assert code == 0 and err == ""
     assert "Residual tests skipped: the residuals are zero or constant (an exact fit)" in out

@@ -3,7 +3,9 @@
 A new model class gets every check below by adding one `ModelCase` to `MODELS`:
 a factory of the unfitted model, the record it is fitted on, and whether its fit is
 ordinary least squares on its own regressors. Nothing here knows a parameter layout;
-the checks use the `IdentifiedModel` interface only.
+the checks use the `IdentifiedModel` interface only. A time-series model (AR, ARMA:
+no input) has a record ``(None, y)``; it is fitted by ``fit(y)``, simulated over a
+number of samples, and its transfer function is the noise model ``C/(A D)``.
 """
 
 import copy
@@ -16,7 +18,7 @@ import pytest
 from _toy_models import FirstOrderOE
 from scipy.signal import lfilter
 
-from rlsfilt import ARX, NotFittedError, validate
+from rlsfilt import AR, ARMA, ARMAX, ARX, BJ, OE, NotFittedError, validate
 from rlsfilt.models import IdentifiedModel
 
 
@@ -46,6 +48,11 @@ def _mimo(seed=3, n=400):
     return u, np.column_stack([y1, y2])
 
 
+def _series(seed=5, n=600):
+    gen = np.random.default_rng(seed)
+    return None, lfilter([1.0, 0.4], [1.0, -1.1, 0.3], gen.standard_normal(n))
+
+
 def _oe(seed=4, n=600):
     gen = np.random.default_rng(seed)
     u = gen.standard_normal(n)
@@ -64,7 +71,17 @@ class ModelCase:
 
     def fitted(self):
         u, y = self.data()
-        return self.make().fit(u, y, **self.fit_kwargs), u, y
+        return self.fit(self.make(), u, y), u, y
+
+    def fit(self, model, u, y):
+        """``fit(u, y)``, or ``fit(y)`` for a time series (``u`` None)."""
+        return model.fit(y, **self.fit_kwargs) if u is None else \
+            model.fit(u, y, **self.fit_kwargs)
+
+
+def _sim_input(u, y):
+    """What `simulate` takes: the input, or the number of samples of a time series."""
+    return len(y) if u is None else u
 
 
 # --- the registry: one line per model class (and per distinct configuration) ---
@@ -75,6 +92,27 @@ MODELS = [
     ModelCase("ARX-rls", lambda: ARX(2, 2, 1), _siso, {"method": "rls"}),
     ModelCase("ARX-fir", lambda: ARX(0, 3, 1), _siso),
     ModelCase("FirstOrderOE", lambda: FirstOrderOE(dt=0.2), _oe, least_squares=False),
+    ModelCase("ARX-iv", lambda: ARX(2, 2, 1), _siso, {"method": "iv"}, least_squares=False),
+    ModelCase("ARX-riv-delayed", lambda: ARX(2, 2, 1), _siso,
+              {"method": "riv", "instruments": "delayed"}, least_squares=False),
+    ModelCase("ARX-iv-2-outputs", lambda: ARX(1, 2, 1, dt=0.5), _mimo,
+              {"method": "iv", "instruments": "delayed"}, least_squares=False),
+    # the prediction-error family (time-series AR/ARMA: tests/test_model_family.py)
+    ModelCase("ARMAX-pem", lambda: ARMAX(2, 2, 1, 1, dt=0.1), _siso, least_squares=False),
+    ModelCase("ARMAX-nc0-is-least-squares", lambda: ARMAX(2, 2, 0, 1), _siso),
+    ModelCase("ARMAX-rpem-2-inputs", lambda: ARMAX(1, [2, 1], 1, [0, 1]), _miso,
+              {"method": "rpem"}, least_squares=False),
+    ModelCase("ARMAX-rplr", lambda: ARMAX(2, 2, 1, 1), _siso, {"method": "rplr", "lam": 0.999},
+              least_squares=False),
+    ModelCase("OE-pem", lambda: OE(1, 1, 1, dt=0.2), _oe, least_squares=False),
+    ModelCase("OE-feedthrough-2-inputs", lambda: OE([2, 2], [1, 1], [0, 1]), _miso,
+              least_squares=False),
+    ModelCase("OE-rpem", lambda: OE(1, 1, 1), _oe, {"method": "rpem"}, least_squares=False),
+    ModelCase("BJ-pem", lambda: BJ(2, 1, 1, 2, 1), _siso, least_squares=False),
+    ModelCase("AR-pem-is-least-squares", lambda: AR(2, dt=0.5), _series),
+    ModelCase("ARMA-pem", lambda: ARMA(2, 1), _series, least_squares=False),
+    ModelCase("ARMA-rpem", lambda: ARMA(1, 1), _series, {"method": "rpem"},
+              least_squares=False),
 ]
 
 cases = pytest.mark.parametrize("case", MODELS, ids=[c.name for c in MODELS])
@@ -128,6 +166,9 @@ def test_one_step_prediction_is_the_regression(case):
 @cases
 def test_simulate_is_the_transfer_function(case):
     model, u, y = case.fitted()
+    if u is None:   # a time series: to_tf() is the noise model, y = H eps from rest
+        _check_noise_model_gives_the_series(model, y)
+        return
     G = model.to_tf()
     dt = 1.0 if model.dt is True else model.dt
     T = dt * np.arange(len(u))
@@ -152,19 +193,40 @@ def test_simulate_is_the_transfer_function(case):
                                atol=1e-13)
 
 
+def _check_noise_model_gives_the_series(model, y):
+    """Time series: ``y = C/(A D) eps`` with the one-step prediction errors from rest,
+    by scipy's lfilter and by python-control on the transfer function and its state space;
+    the free run (an infinite horizon) is zero."""
+    eps = y - model.predict(None, y)
+    H = model.to_tf()
+    num, den = np.asarray(H.num[0][0]).ravel(), np.asarray(H.den[0][0]).ravel()
+    num = np.r_[np.zeros(len(den) - len(num)), num]
+    np.testing.assert_allclose(lfilter(num, den, eps), y, rtol=1e-9, atol=1e-10)
+    dt = 1.0 if model.dt is True else model.dt
+    T = dt * np.arange(len(y))
+    np.testing.assert_allclose(control.forced_response(H, T, eps).outputs, y, rtol=1e-9,
+                               atol=1e-10)
+    np.testing.assert_allclose(control.forced_response(model.to_ss(), T, eps).outputs, y,
+                               rtol=1e-8, atol=1e-10)
+    np.testing.assert_array_equal(model.simulate(len(y)), np.zeros(len(y)))
+    np.testing.assert_array_equal(model.predict(None, y, horizon=np.inf), np.zeros(len(y)))
+
+
 @cases
 def test_no_caller_array_is_written(case):
     u, y = case.data()
-    u, y = np.array(u), np.array(y)
-    u.flags.writeable = False
-    y.flags.writeable = False
-    u0, y0 = u.copy(), y.copy()
-    model = case.make().fit(u, y, **case.fit_kwargs)
+    u, y = (None if u is None else np.array(u)), np.array(y)
+    for x in (u, y):
+        if x is not None:
+            x.flags.writeable = False
+    u0, y0 = (None if u is None else u.copy()), y.copy()
+    model = case.fit(case.make(), u, y)
     model.regressors(u, y)
     model.predict(u, y, horizon=2)
-    model.simulate(u)
+    model.simulate(_sim_input(u, y))
     validate(model, u, y, max_lag=10)
-    np.testing.assert_array_equal(u, u0)
+    if u is not None:
+        np.testing.assert_array_equal(u, u0)
     np.testing.assert_array_equal(y, y0)
 
 
@@ -179,13 +241,14 @@ def test_rejected_input_leaves_the_model_unchanged(case):
     bad = np.array(y, dtype=float)
     bad[len(bad) // 2] = np.nan
     with pytest.raises(ValueError, match="`y`"):
-        model.fit(u, bad, **case.fit_kwargs)
-    with pytest.raises(ValueError, match="same length"):
-        model.fit(u, np.asarray(y)[:-3], **case.fit_kwargs)
-    if case.least_squares:   # no excitation: the regressors lose rank, the fit is refused
+        case.fit(model, u, bad)
+    if u is not None:
+        with pytest.raises(ValueError, match="same length"):
+            model.fit(u, np.asarray(y)[:-3], **case.fit_kwargs)
+    if case.least_squares and u is not None:   # no excitation: the regressors lose rank
         with pytest.raises(ValueError, match="not persistently exciting"):
             model.fit(np.zeros_like(u), y, **case.fit_kwargs)
-    U = _two_d(u)
+    U = np.zeros((len(y), 1)) if u is None else _two_d(u)
     with pytest.raises(ValueError, match="`u` must have"):
         model.predict(np.column_stack([U, U]), y)
     with pytest.raises(ValueError):
@@ -202,7 +265,8 @@ def test_copies_and_pickles_predict_identically(case):
     for other in (copy.copy(model), copy.deepcopy(model), pickle.loads(pickle.dumps(model))):
         assert type(other) is type(model)
         np.testing.assert_array_equal(other.predict(u, y, horizon=2), ref)
-        np.testing.assert_array_equal(other.simulate(u), model.simulate(u))
+        np.testing.assert_array_equal(other.simulate(_sim_input(u, y)),
+                                      model.simulate(_sim_input(u, y)))
         np.testing.assert_array_equal(other.theta_, model.theta_)
 
 
@@ -211,15 +275,16 @@ def test_not_fitted_wording(case):
     model = case.make()
     u, y = case.data()
     name = type(model).__name__
+    fit_call = r"fit\(y\)" if u is None else r"fit\(u, y\)"
     for what, call in (("predict", lambda m: m.predict(u, y)),
-                       ("simulate", lambda m: m.simulate(u)),
+                       ("simulate", lambda m: m.simulate(_sim_input(u, y))),
                        ("regressors", None), ("to_tf", lambda m: m.to_tf()),
                        ("theta_", lambda m: m.theta_), ("param_names_", lambda m: m.param_names_),
                        ("max_lag", lambda m: m.max_lag), ("validate", lambda m: validate(m, u, y))):
         if call is None:
             continue   # ARX builds regressors from its orders alone, without a fit
         with pytest.raises(NotFittedError, match=rf"^This {name} instance is not fitted yet; "
-                                                 rf"call `fit\(u, y\)` before using `{what}`"):
+                                                 rf"call `{fit_call}` before using `{what}`"):
             call(model)
     assert "theta_" not in vars(model)
 
@@ -230,12 +295,18 @@ def test_get_params_set_params_round_trip(case):
     params = model.get_params()
     clone = type(model)(**params)
     assert clone.get_params() == params
-    refit = clone.fit(u, y, **case.fit_kwargs)
+    refit = case.fit(clone, u, y)
     assert refit is clone
     np.testing.assert_array_equal(refit.theta_, model.theta_)
     assert clone.set_params(**params) is clone and clone.get_params() == params
+    # the repr shows every parameter up to dt, and later options (offset, ...) when set
+    shown = case.make()._display_params()
+    params = case.make().get_params()
+    names = list(params)
+    cut = names.index("dt") + 1 if "dt" in names else len(names)
+    assert set(names[:cut]) <= set(shown) and set(shown) <= set(names)
     assert repr(case.make()) == f"{type(model).__name__}(" + ", ".join(
-        f"{k}={v!r}" for k, v in case.make().get_params().items()) + ")"
+        f"{k}={v!r}" for k, v in shown.items()) + ")"
 
 
 @cases

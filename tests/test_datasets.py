@@ -330,3 +330,57 @@ def test_input_errors(call, exc, match):
 def test_plant_errors(call, exc, match):
     with pytest.raises(exc, match=match):
         call()
+
+
+# ----------------------------------------------------------------------
+# Dataset is an IOData; the measured-like heat exchanger record
+# ----------------------------------------------------------------------
+def test_every_dataset_is_an_iodata():
+    from rlsfilt.data import IOData
+
+    ds = dc_motor(n_samples=300)
+    assert isinstance(ds, IOData) and ds.n_experiments == 1
+    assert ds.input_names == ("u",) and ds.output_names == ("y",) and (ds.u0, ds.y0) == (0, 0)
+    est, val = ds.split(0.5)
+    np.testing.assert_array_equal(val.y, ds.y[150:])
+    assert type(est) is IOData  # derived records are plain IOData (no truth)
+    assert ds.getexp(0).plant is ds.plant
+
+
+def test_heat_exchanger_truth_per_experiment():
+    from rlsfilt.datasets import heat_exchanger
+
+    ds = heat_exchanger()
+    assert (ds.n_experiments, ds.lengths, ds.orders) == (2, (1200, 800), (2, 2, 8))
+    assert ds.input_names == ("flow",) and ds.output_names == ("T_out",)
+    assert ds.input_units == ("%",) and ds.output_units == ("degC",)
+    assert ds.experiment_names == ("run1", "run2") and ds.noise == "colored"
+    with pytest.raises(ValueError, match="`y_clean` is defined for a record of one experiment"):
+        _ = ds.y_clean
+    # the clean output is y0 + the plant's forced response to u - u0, run by run
+    for i in range(2):
+        run = ds.getexp(i)
+        assert isinstance(run, Dataset) and run.n_experiments == 1
+        resp = control.forced_response(ds.plant, run.t, run.u - ds.u0).outputs
+        np.testing.assert_allclose(run.y_clean, ds.y0 + resp, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(run.u.mean(), 40.0, atol=0.5)
+        assert 0.05 < np.std(run.y - run.y_clean) < 0.5       # a colored drift of ~0.2 degC
+        assert np.all(np.abs(np.diff(run.u)[np.diff(run.u) != 0]) == 8.0)  # PRBS +-4 %
+    # the static gain of the true plant is the physical one (more flow, cooler outlet)
+    assert complex(ds.plant(1.0)).real == pytest.approx(-0.6, rel=1e-10)
+    assert ds.plant.dt == 1.0 and "operating point: u0 = 40, y0 = 97" in repr(ds)
+
+
+def test_heat_exchanger_options_and_errors():
+    from rlsfilt.datasets import heat_exchanger
+
+    a, b = heat_exchanger(), heat_exchanger()
+    np.testing.assert_array_equal(a.getexp(1).y, b.getexp(1).y)
+    c = heat_exchanger(n_samples=300, delay=0, rng=3, u0=0.0, y0=20.0)
+    assert c.n_experiments == 1 and c.nk == 1 and c.y_clean[0] == 20.0
+    with pytest.raises(ValueError, match=r"`n_samples\[1\]` must be >= 50; got 10"):
+        heat_exchanger(n_samples=(100, 10))
+    with pytest.raises(ValueError, match="`gain` must be a finite nonzero number"):
+        heat_exchanger(gain=0.0)
+    with pytest.raises(ValueError, match=r"`time_constants` must be a pair"):
+        heat_exchanger(time_constants=3.0)

@@ -18,7 +18,7 @@ PAGES = sorted(p for p in DOCS.rglob("*.md")
 # public modules whose __all__ the API reference must cover (the command line's `main` and the
 # exceptions too: a name dropped from any of their lists in docs/api/index.rst must fail the test)
 SUBPACKAGES = ["rlsfilt.filters", "rlsfilt.models", "rlsfilt.datasets", "rlsfilt.validation",
-               "rlsfilt.adaptive",
+               "rlsfilt.adaptive", "rlsfilt.data",
                "rlsfilt.plotting", "rlsfilt.exceptions", "rlsfilt.cli"]
 _FENCE = re.compile(r"^(?P<skip>% skip-test\n)?```python\n(?P<code>.*?)^```$", re.M | re.S)
 
@@ -122,3 +122,145 @@ def test_readme_quick_start_is_two_commands_and_ci_runs_the_test_line():
     assert "pip install" in tests and "pytest" in tests, tests
     ci = (ROOT / ".ci" / "run").read_text().splitlines()
     assert tests in ci, f".ci/run does not run the README's test line verbatim: {tests!r}"
+
+
+# ----------------------------------------------------------------------
+# the numbers a page shows in its comments are the numbers its code prints
+# ----------------------------------------------------------------------
+_NUMBER = re.compile(r"(?<![\w.])[-+]?(?:\d+\.\d*|\.\d+|\d+)(?:[eE][-+]?\d+)?(?![\w])")
+# the first value a comment shows: a number, or a bracketed list of numbers, with an
+# optional "~" (approximately) or "close to" before it and a "%" after it
+_SHOWN = re.compile(r"(?P<approx>~|close to )?\s*(?P<value>[\[(][-+\d.,\s\[\]()eE]*[\])]"
+                    r"|(?<![\w.])[-+]?\d+(?:\.\d+)?(?![\w]))\s*(?P<pct>%)?")
+
+
+def _comments(code):
+    """``{line number: comment text}`` of a block of Python source."""
+    import io
+    import tokenize
+
+    return {tok.start[0]: tok.string.lstrip("#").strip()
+            for tok in tokenize.generate_tokens(io.StringIO(code).readline)
+            if tok.type == tokenize.COMMENT}
+
+
+def _shown(comment, at_start=False):
+    """``(numbers, approximate, percent)`` of the first value a comment shows (only at its
+    start with `at_start`), or None."""
+    matches = [_SHOWN.match(comment)] if at_start else _SHOWN.finditer(comment)
+    for m in matches:
+        numbers = _NUMBER.findall(m.group("value")) if m else []
+        if numbers:
+            return numbers, bool(m.group("approx")), bool(m.group("pct"))
+    return None
+
+
+def _matches(expected, got, approx, percent):
+    """True when the numbers `expected` (text, as the comment shows them) appear one after
+    the other in `got` (floats), each within one unit of its last shown digit (10 % for
+    an approximate value); a percentage may be printed as a fraction."""
+    want = [float(x) for x in expected]
+    tols = [10.0 ** -len(x.split(".")[1]) if "." in x.split("e")[0] else 0.5 for x in expected]
+    if approx:
+        tols = [max(t, 0.1 * abs(w)) for t, w in zip(tols, want)]
+    scales = (1.0, 100.0) if percent else (1.0,)
+    for scale in scales:
+        vals = [scale * g for g in got]
+        for i in range(len(vals) - len(want) + 1):
+            if all(abs(v - w) <= t * (1 + 1e-9)
+                   for v, w, t in zip(vals[i:], want, tols)):
+                return True
+    return False
+
+
+def _check_statement(stmt, comment, namespace, printed, where):
+    """Compare one top-level statement's comment with what it printed (a ``print(...)``) or
+    with the value it assigned (``name = ...``: a number, a tuple, or an array's shape).
+    Returns True when something was compared."""
+    import ast
+
+    import numpy as np
+
+    is_print = (isinstance(stmt, ast.Expr) and isinstance(stmt.value, ast.Call)
+                and getattr(stmt.value.func, "id", None) == "print")
+    if is_print:
+        for quoted in re.findall(r'"([^"]+)"', comment):   # quoted text is printed as is
+            pattern = ".*?".join(re.escape(part.strip()) for part in quoted.split("..."))
+            assert re.search(pattern, printed), f"{where}: {quoted!r} not in the output"
+        shown = _shown(re.sub(r'"[^"]*"', "", comment))
+        if shown is None:
+            return '"' in comment
+        got = [float(x) for x in _NUMBER.findall(printed)]
+    elif (isinstance(stmt, ast.Assign) and len(stmt.targets) == 1
+          and isinstance(stmt.targets[0], ast.Name)):
+        shown = _shown(comment, at_start=True)   # "x = f()  # 8 = ...", not prose
+        if shown is None:
+            return False
+        value = namespace[stmt.targets[0].id]
+        if isinstance(value, np.ndarray) and comment.startswith("("):
+            got = [float(n) for n in value.shape]
+        elif isinstance(value, (int, float, np.number, tuple, list, np.ndarray)):
+            got = [float(v) for v in np.ravel(value)]
+        else:
+            return False
+    else:
+        return False
+    numbers, approx, percent = shown
+    assert _matches(numbers, got, approx, percent), (
+        f"{where}: the comment shows {' '.join(numbers)}"
+        f"{' (approximately)' if approx else ''}; the code gives {got[:12]}")
+    return True
+
+
+@pytest.mark.parametrize("page", ["README.md", "docs/quickstart.md"])
+def test_printed_numbers_match_their_comments(page, monkeypatch, tmp_path):
+    """Every ```python block of the README and the quick start runs as written, statement
+    by statement in one namespace, and where a comment beside a ``print`` (or an
+    assignment) shows a value, the code gives that value: numbers loosely (to the last
+    shown digit, 10 % after "~" or "close to", a percentage also as a fraction), quoted
+    text literally ("..." standing for anything)."""
+    import ast
+    import contextlib
+    import io
+
+    monkeypatch.chdir(tmp_path)
+    namespace = {"__name__": "__docs__"}
+    checked = 0
+    for i, (code, skip) in enumerate(_python_blocks(ROOT / page)):
+        if skip:
+            continue
+        comments = _comments(code)
+        for stmt in ast.parse(code).body:
+            out = io.StringIO()
+            with contextlib.redirect_stdout(out):
+                exec(compile(ast.Module([stmt], type_ignores=[]), f"{page} block {i}", "exec"),
+                     namespace)
+            comment = comments.get(stmt.lineno, "")
+            if comment:
+                checked += _check_statement(stmt, comment, namespace, out.getvalue(),
+                                            f"{page} block {i} line {stmt.lineno}")
+    assert checked >= 4, f"{page}: only {checked} comments were compared with the output"
+
+
+def test_notebook_mentions_link_to_the_notebooks():
+    """"Notebook N" in a documentation page or a notebook's text is a link to that notebook
+    ({doc}`Notebook N </notebooks/0N_...>` in the pages, [Notebook N](0N_....ipynb) in the
+    notebooks); the changelog, which records history, is left as written."""
+    import json
+
+    names = {p.name[:2]: p.stem for p in (ROOT / "notebooks").glob("0*.ipynb")}
+    mention = re.compile(r"(?P<pre>\[|`)?[Nn]otebook (?P<n>\d)\b(?P<post>\]\((?P<target>[^)]+)\)"
+                         r"| </notebooks/(?P<doc>[^>]+)>`)?")
+    texts = [(str(p.relative_to(ROOT)), p.read_text()) for p in PAGES if p.name != "changelog.md"]
+    for nb in sorted((ROOT / "notebooks").glob("*.ipynb")):
+        cells = json.loads(nb.read_text())["cells"]
+        texts += [(f"{nb.name} cell {i}", "".join(c["source"])) for i, c in enumerate(cells)
+                  if c["cell_type"] == "markdown"]
+    bad = []
+    for where, text in texts:
+        for m in mention.finditer(text):
+            stem = names.get(f"0{m.group('n')}")
+            target = m.group("target") or m.group("doc") or ""
+            if not m.group("post") or stem is None or not target.startswith(stem):
+                bad.append(f"{where}: {text[max(0, m.start() - 20):m.end() + 20]!r}")
+    assert not bad, "unlinked notebook mentions:\n" + "\n".join(bad)

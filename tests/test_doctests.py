@@ -14,7 +14,10 @@ import pytest
 
 matplotlib.use("Agg")
 
-PACKAGES = ["rlsfilt.models", "rlsfilt.validation", "rlsfilt.datasets", "rlsfilt.adaptive"]
+PACKAGES = ["rlsfilt.models", "rlsfilt.validation", "rlsfilt.datasets", "rlsfilt.adaptive",
+            "rlsfilt.data"]
+# single-module parts of the package with Examples sections
+TOP_MODULES = ["rlsfilt.continuous", "rlsfilt.persistence"]
 
 
 def _modules():
@@ -23,7 +26,7 @@ def _modules():
         pkg = importlib.import_module(pkg_name)
         names.append(pkg_name)
         names += [f"{pkg_name}.{m.name}" for m in pkgutil.iter_modules(pkg.__path__)]
-    return names
+    return names + TOP_MODULES
 
 
 MODULES = _modules()

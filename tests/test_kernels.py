@@ -73,6 +73,7 @@ OPTIONS = [
     (1.0, 0.0, False, False, True, 1, ()),
     (0.95, 0.0, False, False, True, 1, ()),
     (0.95, 0.0, False, False, False, 1, ()),            # the fused default loop
+    (0.95, 1e-4, True, False, True, 1, (0, 5, 299)),     # fused, with covariance histories
     (0.95, 0.0, False, True, True, 1, ()),
     (0.95, 0.0, False, True, False, 1, (0, 7, 150, 299)),
     (0.97, 1e-4, False, False, True, 1, ()),
@@ -189,12 +190,16 @@ def test_fused_loop_equals_step_loop_bit_for_bit(rng, update_first, store):
     that never fires) give the same bits, also with Q and missing samples."""
     Hs, zs = _record(rng, 500, missing=(0, 3, 250, 499))
     for Q in (0.0, 1e-5):
-        a = RecursiveLeastSquares(4, lam=0.97, Q=Q)
-        b = RecursiveLeastSquares(4, lam=0.97, Q=Q, gate=1e300)
-        ma, _, mpa, _ = a.batch_filter(zs, Hs, update_first=update_first, store_covariances=store)
-        mb, _, mpb, _ = b.batch_filter(zs, Hs, update_first=update_first)
+        a = RecursiveLeastSquares(4, lam=0.97, Q=Q, check_every=7)
+        b = RecursiveLeastSquares(4, lam=0.97, Q=Q, check_every=7, gate=1e300)
+        ma, ca, mpa, cpa = a.batch_filter(zs, Hs, update_first=update_first,
+                                          store_covariances=store)
+        mb, cb, mpb, cpb = b.batch_filter(zs, Hs, update_first=update_first)
         assert_array_equal(ma, mb)
         assert_array_equal(mpa, mpb)
+        if store:
+            assert_array_equal(ca, cb)
+            assert_array_equal(cpa, cpb)
         for name in STATE:
             assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
 
@@ -419,6 +424,7 @@ def test_streaming_without_reuse_is_identical(rng, monkeypatch):
         a.predict_update(zs[k], Hs[k])
     monkeypatch.setattr(_streaming, "_FREE_UPDATE", -1)
     monkeypatch.setattr(_streaming, "_FREE_PREDICT", -1)
+    monkeypatch.setattr(_streaming, "_FREE_EACH", None)
     made = []
     block = _streaming._block
     monkeypatch.setattr(_streaming, "_block", lambda *a: made.append(1) or block(*a))

@@ -70,7 +70,7 @@ def test_validation_leaves_inputs_untouched(record):
     PlantComparison(model, d.plant, omega=omega)
     rep = validate(model, u, y, plant=d.plant)
     rep.summary(), rep._repr_html_()
-    select_order(u, y, na=range(1, 3), nb=range(1, 3), nk=[1], validation=(u, y)).best_model()
+    select_order(u, y, na=range(1, 4), nb=range(1, 4), nk=[1], validation=(u, y)).best_model()
     fit_percent(y, y[::-1])
     Phi, target = (frozen(a)[0] for a in model.regressors(u, y))
     recursive_residuals(target, Phi), cusum(target, Phi), cusum_squares(target, Phi)

@@ -572,7 +572,7 @@ class STRHistory:
     def plot(self, fig=None, true_theta=None):
         """Reference and output, control, estimates and ``trace(P)`` over time.
 
-        Calls :func:`rlsfilt.adaptive._plotting.plot_str_history`.
+        Calls :func:`rlsfilt.plotting.plot_str_history`.
 
         Parameters
         ----------
@@ -585,9 +585,9 @@ class STRHistory:
         -------
         matplotlib.figure.Figure
         """
-        from ._plotting import plot_str_history
+        from ..plotting import plot_str_history
 
-        return plot_str_history(self, fig=fig, true_theta=true_theta)
+        return plot_str_history(self, fig, true_theta=true_theta)
 
     def __repr__(self):
         return (f"STRHistory: {len(self)} steps, {int(self.updated.sum())} estimator updates, "

@@ -11,16 +11,17 @@ coefficients, and the noise level).
 >>> model = ARX(*ds.orders, dt=ds.dt).fit(ds.u, ds.y)
 """
 
+from .dataset import Dataset
 from .inputs import multisine, prbs, steps, white_noise
 from .plants import (
     PLANTS,
-    Dataset,
     dc_motor,
     mass_spring_damper,
     nonminimum_phase,
     thermal_process,
     time_varying,
 )
+from .records import heat_exchanger
 
 __all__ = [
     "Dataset",
@@ -30,6 +31,7 @@ __all__ = [
     "mass_spring_damper",
     "nonminimum_phase",
     "time_varying",
+    "heat_exchanger",
     "prbs",
     "white_noise",
     "multisine",

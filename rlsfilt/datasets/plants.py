@@ -18,16 +18,14 @@ Noise models (``e`` white Gaussian of standard deviation ``noise_std``):
   signal-to-noise).
 """
 
-from dataclasses import dataclass, field
-
 import numpy as np
 from scipy import signal
 
 from .._validation import as_float_array, as_generator, check_finite, check_int, check_real
+from .dataset import Dataset
 from .inputs import multisine, prbs, steps, white_noise
 
 __all__ = [
-    "Dataset",
     "PLANTS",
     "thermal_process",
     "dc_motor",
@@ -38,123 +36,6 @@ __all__ = [
 
 _NOISE_KINDS = ("white", "colored", "output")
 _COLORED_POLE = 0.9
-
-
-@dataclass(frozen=True, repr=False, eq=False)
-class Dataset:
-    """A simulated identification experiment with its true plant.
-
-    Attributes
-    ----------
-    name : str
-        Generator name (a key of `PLANTS`).
-    description : str
-        One line describing the plant and the experiment.
-    u, y : ndarray, shape (N,)
-        Input and measured output (time on axis 0).
-    dt : float
-        Sampling period in seconds.
-    plant : control.TransferFunction
-        The true discrete plant ``B(z)/A(z)`` with sampling time ``dt`` (for
-        `time_varying`, the plant before the change).
-    na, nb, nk : int
-        True ARX orders in the ``[na nb nk]`` convention of `rlsfilt.ARX`.
-    a, b : ndarray
-        True ``[a1, .., a_na]`` (without the leading 1) and ``[b1, .., b_nb]``
-        (before the change for `time_varying`), the layout of ``ARX.a_``
-        and ``ARX.b_``.
-    noise_std : float
-        Standard deviation of the white noise ``e``.
-    noise : str
-        ``"white"``, ``"colored"`` or ``"output"`` (see the module notes).
-    y_clean : ndarray, shape (N,)
-        The noise-free output.
-    theta_true : ndarray, shape (N, n_params), optional
-        `time_varying` only: the true ``[a1, .., b_nb]`` in force at each
-        sample (None for the time-invariant plants).
-    change_time : int, optional
-        `time_varying` with ``kind="jump"``: first sample of the new
-        parameters.
-    plant_after : control.TransferFunction, optional
-        `time_varying` only: the plant at the end of the record.
-    """
-
-    name: str
-    description: str
-    u: np.ndarray
-    y: np.ndarray
-    dt: float
-    plant: object
-    na: int
-    nb: int
-    nk: int
-    a: np.ndarray
-    b: np.ndarray
-    noise_std: float
-    noise: str
-    y_clean: np.ndarray
-    theta_true: np.ndarray = field(default=None)
-    change_time: int = field(default=None)
-    plant_after: object = field(default=None)
-
-    @property
-    def n_samples(self):
-        """Record length ``N``."""
-        return len(self.u)
-
-    @property
-    def t(self):
-        """Sample times ``k * dt`` in seconds, shape (N,)."""
-        return np.arange(len(self.u)) * self.dt
-
-    @property
-    def theta(self):
-        """True parameter vector ``[a1, .., a_na, b1, .., b_nb]`` (regressor order)."""
-        return np.concatenate([self.a, self.b])
-
-    @property
-    def orders(self):
-        """``(na, nb, nk)``, ready for ``ARX(*ds.orders)``."""
-        return self.na, self.nb, self.nk
-
-    @property
-    def noise_variance(self):
-        """``noise_std ** 2``: the variance of ``e``."""
-        return self.noise_std ** 2
-
-    def true_model(self):
-        """The true plant as a fitted-like `rlsfilt.ARX` (``ARX.from_polynomials``).
-
-        Returns
-        -------
-        ARX
-            With the true coefficients, ``dt`` and ``noise_variance_ =
-            noise_std ** 2``, the variance of ``e``. That is the variance of
-            the ARX equation error only for ``noise="white"``; for the colored
-            and output-error noise models ``e`` is filtered before it enters
-            the equation (see the module notes).
-        """
-        from ..models import ARX
-
-        return ARX.from_polynomials(self.a, self.b, nk=self.nk, dt=self.dt,
-                                    noise_variance=self.noise_variance)
-
-    def to_frame(self):
-        """The record as a pandas DataFrame indexed by time (needs pandas).
-
-        Returns
-        -------
-        pandas.DataFrame
-            Columns ``u`` and ``y``, index ``t`` in seconds.
-        """
-        import pandas as pd
-
-        return pd.DataFrame({"u": self.u, "y": self.y}, index=pd.Index(self.t, name="t"))
-
-    def __repr__(self):
-        return (f"Dataset(name={self.name!r}, N={self.n_samples}, dt={self.dt}, "
-                f"ARX orders (na, nb, nk)=({self.na}, {self.nb}, {self.nk}), "
-                f"noise={self.noise!r}, noise_std={self.noise_std})\n  {self.description}")
 
 
 # ----------------------------------------------------------------------

@@ -19,6 +19,10 @@ from . import _health
 __all__ = []
 
 _LOG_2PI = math.log(2.0 * math.pi)
+_TINY = float(np.finfo(float).tiny)
+#: The diagnostics of a missing measurement: it adds nothing to the log-likelihood,
+#: and there is no residual to measure.
+MISSING_DIAGNOSTICS = (0.0, 1.0, math.nan)
 
 
 class _FilterBase:
@@ -45,23 +49,26 @@ class _FilterBase:
     @property
     def log_likelihood(self):
         """Log-likelihood of the last measurement, ``log N(y; 0, S)``."""
-        if self._log_likelihood is None:
-            self._log_likelihood = _gaussian_logpdf(self.y, self.S[0, 0])
-        return self._log_likelihood
+        return self._diagnostics()[0]
 
     @property
     def likelihood(self):
         """``exp(log_likelihood)``, floored at the smallest positive float."""
-        if self._likelihood is None:
-            self._likelihood = max(math.exp(self.log_likelihood), np.finfo(float).tiny)
-        return self._likelihood
+        return self._diagnostics()[1]
 
     @property
     def mahalanobis(self):
         """Mahalanobis distance ``sqrt(y^T S^-1 y)`` of the last residual."""
-        if self._mahalanobis is None:
-            self._mahalanobis = math.sqrt(float(np.vdot(self.y, self.y)) / self.S[0, 0])
-        return self._mahalanobis
+        return self._diagnostics()[2]
+
+    def _diagnostics(self):
+        """``(log_likelihood, likelihood, mahalanobis)``, computed on first use after
+        an update (``_lazy`` is None until then)."""
+        if self._lazy is None:
+            ll = _gaussian_logpdf(self.y, self.S[0, 0])
+            self._lazy = (ll, max(math.exp(ll), _TINY),
+                          math.sqrt(float(np.vdot(self.y, self.y)) / self.S[0, 0]))
+        return self._lazy
 
     def residual_of(self, z, H):
         """A-priori residual ``z - H x`` for `z` and regressor `H`, shape ``(dim_z, 1)``."""
@@ -94,6 +101,20 @@ class _FilterBase:
         from ..adaptive.estimator_io import estimator_iosystem
         return estimator_iosystem(self, regressor, dt)
 
+    def predict_update(self, z, H, R=None):
+        """One textbook step: :meth:`predict` then :meth:`update`.
+
+        If :meth:`update` rejects its input (or its warning is turned into an
+        error), the :meth:`predict` is undone too: the filter is left as it was.
+        """
+        before = self._shallow_state()
+        self.predict()
+        try:
+            self.update(z, H, R)
+        except BaseException:
+            self._restore(before)
+            raise
+
     def _batch(self, zs, Hs, Rs, update_first, saver, store_covariances):
         """`batch_filter` of every filter: validate the record, then run the
         compiled loop (``_batch_compiled``) or, with a `saver` or an empty
@@ -104,7 +125,7 @@ class _FilterBase:
         Rv = self._as_batch_variances(Rs, len(Z))
         if saver is None and len(Z):
             return self._batch_compiled(Z, Hm, Rv, update_first, store_covariances)
-        before = copy.deepcopy(self)
+        before = copy.deepcopy(self)._shallow_state()
         self._batch_start = self.n_updates
         try:
             out = self._batch_stepwise(Z, Hm, Rv, update_first, saver, store_covariances)
@@ -157,12 +178,23 @@ class _FilterBase:
             _health.warn(problem, self._HEALTH_ADVICE)
             self._warned_health = True
 
-    def _restore(self, before):
-        """Put back the state of `before`, a deep copy of this filter."""
-        self.__dict__.update(before.__dict__)
+    def _shallow_state(self):
+        """The attributes (``__dict__`` and slots) as a new dict. The steps never
+        write into an array they leave behind, so this is enough to undo one."""
+        state = self.__dict__.copy()
         for cls in type(self).__mro__:
             for name in getattr(cls, "__slots__", ()):
-                setattr(self, name, getattr(before, name))
+                state[name] = getattr(self, name)
+        return state
+
+    def _restore(self, state):
+        """Put back `state` (from `_shallow_state`, of this filter or of a deep copy)."""
+        slots = _slots(type(self))
+        for name, value in state.items():
+            if name in slots:
+                setattr(self, name, value)
+            else:
+                self.__dict__[name] = value
 
     def _reset_diagnostics(self):
         """The filterpy attributes of a filter that has seen no data yet."""
@@ -175,14 +207,10 @@ class _FilterBase:
         self.S = np.zeros((m, m))
         self.SI = np.zeros((m, m))
         # before any update, as filterpy: nothing observed yet
-        self._log_likelihood = math.log(np.finfo(float).tiny)
-        self._likelihood = np.finfo(float).tiny
-        self._mahalanobis = 0.0
+        self._lazy = (math.log(_TINY), _TINY, 0.0)
 
     def _clear_lazy(self):
-        self._log_likelihood = None
-        self._likelihood = None
-        self._mahalanobis = None
+        self._lazy = None
 
 
     def _as_regressor(self, H, name):
@@ -202,6 +230,8 @@ class _FilterBase:
 
     def _as_measurement(self, z, name):
         """Return `z` as a new ``(dim_z, 1)`` column, or None when missing."""
+        if isinstance(z, float) and self.dim_z == 1 and z - z == 0.0:   # a finite float
+            return np.array([[z]], dtype=np.float64)
         if z is None:
             return None
         zz = as_float_array(z, name)
@@ -287,6 +317,11 @@ class _FilterBase:
             i = int(np.argmax(bad))
             raise ValueError(f"`Rs` must hold positive finite variances; got {arr[i]} at index {i}")
         return arr.copy()
+
+
+def _slots(cls):
+    """The slot names of `cls` and its bases."""
+    return {name for c in cls.__mro__ for name in getattr(c, "__slots__", ())}
 
 
 def _innovation(P, phi, r):

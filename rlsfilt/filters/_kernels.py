@@ -42,8 +42,8 @@ next update forgets along its regressor only (``_reference.windup_cap``).
 ``batch_filter`` runs ``time_update`` and ``measurement_update`` once per
 sample (`step_batch`), and the streaming ``predict_kernel`` and
 ``update_kernel`` run the same two: streaming and batch agree bit for bit.
-The default configuration with one output and no covariance histories (ARX
-fits, long records) runs `exponential_batch` instead: one sweep over ``P``
+The default configuration with one output (ARX fits, long records) runs
+`exponential_batch` instead: one sweep over ``P``
 per sample applies the update, the next time update and the next gain
 together (reading and writing ``P`` once, four rows at a time). Its
 arithmetic is, element by element, that of the two steps (the same products
@@ -113,19 +113,20 @@ def project(P, Pi, T):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def time_update(P, il, Q, Pi, T):
-    """``P <- P il + Q`` then ``P <- Pi P Pi``, in place (`Q`, `Pi` empty when absent)."""
+def time_update(P, il, Q, Pi, T, Pn):
+    """``Pn = P il + Q`` then ``Pn <- Pi Pn Pi`` (`Q`, `Pi` empty when absent; `Pn`
+    may be `P`: the batch loops update in place)."""
     n = P.shape[0]
     if Q.shape[0]:
         for i in range(n):
             for j in range(n):
-                P[i, j] = P[i, j] * il + Q[i, j]
-    elif il != 1.0:
+                Pn[i, j] = P[i, j] * il + Q[i, j]
+    else:
         for i in range(n):
             for j in range(n):
-                P[i, j] = P[i, j] * il
+                Pn[i, j] = P[i, j] * il
     if Pi.shape[0]:
-        project(P, Pi, T)
+        project(Pn, Pi, T)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -193,16 +194,17 @@ def windup_cap(d_trace, d_spread, hph, il, cfg):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def measurement_update(x, P, phi, z, missing, r, cfg, Pi, g, y, K, T, w):
-    """One measurement update of any mode with the gate and the constraints, in place.
+def measurement_update(x, P, phi, z, missing, r, cfg, Pi, g, y, K, T, w, xn, Pn):
+    """One measurement update of any mode with the gate and the constraints.
 
-    ``x`` (n, m) and ``P`` (n, n) are updated (unchanged for a missing or
-    gated sample, but for forgetting the time update held back); writes ``g
-    = P phi`` (n,), the residual ``y`` (m,; NaN when missing) and the gain
-    ``K`` (n,; zero when missing or gated). `cfg` is
-    ``forgetting.kernel_config``, `Pi` its projector; `T` is (n, n) work; `w`
-    is ``1 / lam`` when the last time update held the forgetting back (the
-    windup cap, exponential mode) and 1 otherwise.
+    Reads ``x`` (n, m) and ``P`` (n, n) and writes the new ones into ``xn``,
+    ``Pn`` (which may be ``x`` and ``P`` themselves: the batch loops update
+    in place); a missing or gated sample leaves them (but for forgetting the
+    time update held back). Writes ``g = P phi`` (n,), the residual ``y``
+    (m,; NaN when missing) and the gain ``K`` (n,; zero when missing or
+    gated). `cfg` is ``forgetting.kernel_config``, `Pi` its projector; `T`
+    is (n, n) work; `w` is ``1 / lam`` when the last time update held the
+    forgetting back (the windup cap, exponential mode) and 1 otherwise.
 
     Returns
     -------
@@ -244,6 +246,8 @@ def measurement_update(x, P, phi, z, missing, r, cfg, Pi, g, y, K, T, w):
         for i in range(n):
             K[i] = 0.0
         if mode != EXPONENTIAL:
+            copy2(x, xn)
+            copy2(P, Pn)
             return s, lam_skip, gated, False
     lam_t = lam
     if mode == EXPONENTIAL:
@@ -256,7 +260,7 @@ def measurement_update(x, P, phi, z, missing, r, cfg, Pi, g, y, K, T, w):
         for i in range(n):
             gi = g[i]
             for j in range(n):
-                P[i, j] = P[i, j] - (gi * g[j]) * cu    # P = P - g g^T / S
+                Pn[i, j] = P[i, j] - (gi * g[j]) * cu   # P = P - g g^T / S
         if not updated:
             lam_t = lam_skip
     elif mode == DIRECTIONAL:
@@ -270,7 +274,7 @@ def measurement_update(x, P, phi, z, missing, r, cfg, Pi, g, y, K, T, w):
         for i in range(n):
             gi = g[i]
             for j in range(n):
-                P[i, j] = P[i, j] - ed * (gi * g[j])
+                Pn[i, j] = P[i, j] - ed * (gi * g[j])
         lam_t = e
     elif mode == EFRA:
         alpha, beta, delta = cfg[CFG_PARAMS], cfg[CFG_PARAMS + 1], cfg[CFG_PARAMS + 2]
@@ -292,8 +296,8 @@ def measurement_update(x, P, phi, z, missing, r, cfg, Pi, g, y, K, T, w):
         br = beta * r
         for i in range(n):
             for j in range(n):
-                P[i, j] = 0.5 * (T[i, j] + T[j, i])
-            P[i, i] = P[i, i] + br
+                Pn[i, j] = 0.5 * (T[i, j] + T[j, i])
+            Pn[i, i] = Pn[i, i] + br
     else:                                    # constant trace, variable
         c = 1.0 / s
         for i in range(n):
@@ -301,19 +305,19 @@ def measurement_update(x, P, phi, z, missing, r, cfg, Pi, g, y, K, T, w):
         for i in range(n):
             gi = g[i]
             for j in range(n):
-                P[i, j] = P[i, j] - (gi * g[j]) * c    # P = P - g g^T / S
+                Pn[i, j] = P[i, j] - (gi * g[j]) * c   # P = P - g g^T / S
         if mode == CONSTANT_TRACE:
             trace, ratio = cfg[CFG_PARAMS], cfg[CFG_PARAMS + 1]
             c2 = trace / (ratio + n)
             c1 = trace - n * c2
             tb = 0.0
             for i in range(n):
-                tb += P[i, i]
+                tb += Pn[i, i]
             f = c1 / tb
             for i in range(n):
                 for j in range(n):
-                    P[i, j] = f * P[i, j]
-                P[i, i] = P[i, i] + c2
+                    Pn[i, j] = f * Pn[i, j]
+                Pn[i, i] = Pn[i, i] + c2
             lam_t = tb / c1
         elif mode == VARIABLE:
             lam_min, trace_max = cfg[CFG_PARAMS], cfg[CFG_PARAMS + 1]
@@ -321,24 +325,26 @@ def measurement_update(x, P, phi, z, missing, r, cfg, Pi, g, y, K, T, w):
             lt = min(1.0, max(lam_min, lt))
             tb = 0.0
             for i in range(n):
-                tb += P[i, i]
+                tb += Pn[i, i]
             lt = max(lt, min(1.0, tb / trace_max))
             if lt != 1.0:
                 for i in range(n):
                     for j in range(n):
-                        P[i, j] = P[i, j] / lt
+                        Pn[i, j] = Pn[i, j] / lt
             lam_t = lt
     if updated:
         for i in range(n):                   # x = x + K y^T
             ki = K[i]
             for j in range(m):
-                x[i, j] = x[i, j] + ki * y[j]
+                xn[i, j] = x[i, j] + ki * y[j]
+    else:                                    # exponential, held back: x unchanged
+        copy2(x, xn)
     if Pi.shape[0]:                          # keep A P = 0
-        project(P, Pi, T)
+        project(Pn, Pi, T)
     cap = False
     if mode == EXPONENTIAL:
         hph = q * r * (w * (1.0 / s)) if updated else q * w    # phi P phi^T after the update
-        tr, spread, _ = _diagonal_stats(P, g, 0.0, phi)   # of the updated P
+        tr, spread, _ = _diagonal_stats(Pn, g, 0.0, phi)   # of the updated P
         cap = windup_cap(tr, spread, hph, 1.0 / lam, cfg)
     return s, lam_t, gated, cap
 
@@ -346,12 +352,6 @@ def measurement_update(x, P, phi, z, missing, r, cfg, Pi, g, y, K, T, w):
 # ----------------------------------------------------------------------
 # the streaming steps (arguments packed by _streaming)
 # ----------------------------------------------------------------------
-@njit(cache=True, error_model="numpy", inline="always")
-def _view(out, o, r, c):
-    """The (r, c) array at offset `o` of the flat block `out`, and the next offset."""
-    return out[o:o + r * c].reshape((r, c)), o + r * c
-
-
 @njit(cache=True, error_model="numpy", inline="always")
 def Pi_or_efra(cfg):
     """Whether a step needs the (n, n) work space: constraints or EFRA."""
@@ -364,28 +364,30 @@ def predict_kernel(x, P, il, Q, cfg, out):
     ``n^2`` of work space): ``P^-`` = `time_update` of ``P``, and the copies
     ``x_prior = x``, ``P_prior = P^-``."""
     n, m = x.shape
-    Pn, o = _view(out, 0, n, n)
-    x_prior, o = _view(out, o, n, m)
-    P_prior, o = _view(out, o, n, n)
-    T, o = _view(out, o, n, n)               # work space
-    copy2(P, Pn)
-    time_update(Pn, il, Q, projector(cfg, n), T)
-    copy2(Pn, P_prior)
-    copy2(x, x_prior)
+    nP, nx = n * n, n * m                    # the block: P^- x_prior P_prior | T
+    k = n if cfg.shape[0] > CFG_PI else 0    # T: work space of the projection
+    o = nP + nx + nP
+    time_update(P, il, Q, projector(cfg, n), out[o:o + k * k].reshape((k, k)),
+                out[:nP].reshape((n, n)))
+    for i in range(n):
+        for j in range(m):
+            out[nP + i * m + j] = x[i, j]    # x_prior
+    for i in range(nP):
+        out[nP + nx + i] = out[i]            # P_prior
 
 
 @njit(cache=True, error_model="numpy")
-def update_kernel(x, P, phi, z0, zmode, r, cfg, w, out):
-    """Streaming ``update``: `measurement_update` of ``x``, ``P`` into the block `out`.
+def update_kernel(x, P, phi, z0, zmode, r, cfg, w, xn, Pn, out):
+    """Streaming ``update``: `measurement_update` of ``x``, ``P`` into new arrays.
 
-    The block (``_streaming.update_shapes``, then ``n + n^2`` of work
-    space) receives the new ``x``, ``P``,
-    ``y`` (m, 1), ``K`` (n, 1), ``S = s I`` and ``SI = I / s`` (m, m), the
-    copy ``H`` (1, n) of the regressor ``phi`` (n,), the measurement ``z``
-    (m, 1; NaN when missing) and the copies ``x_post``, ``P_post``. With
-    ``zmode`` 0 the caller has written the measurement into the block's
-    ``z``; with 1 it is the scalar ``z0``; with 2 it is missing. `w` as in
-    `measurement_update`.
+    Writes the new estimate ``xn`` (n, m) and covariance ``Pn`` (n, n), and
+    into the block `out` (``_streaming.update_shapes``, then ``n + n^2`` of
+    work space) ``y`` (m, 1), ``K`` (n, 1), ``S = s I`` and ``SI = I / s``
+    (m, m), the copy ``H`` (1, n) of the regressor ``phi`` (n,), the
+    measurement ``z`` (m, 1; NaN when missing) and the copies ``x_post``,
+    ``P_post``. With ``zmode`` 0 the caller has written the measurement into
+    the block's ``z``; with 1 it is the scalar ``z0``; with 2 it is missing.
+    `w` as in `measurement_update`.
 
     Returns
     -------
@@ -401,12 +403,8 @@ def update_kernel(x, P, phi, z0, zmode, r, cfg, w, out):
         v = phi[i]
         if v - v != 0.0:                     # NaN or inf
             return 1, np.nan, np.nan, False, False
-    nx, nP = n * m, n * n                    # the block: x P y K S SI H z x_post P_post | g T
-    xn = out[:nx].reshape((n, m))
-    Pn = out[nx:nx + nP].reshape((n, n))
-    o = nx + nP
-    y, K = out[o:o + m], out[o + m:o + m + n]
-    o += m + n
+    y, K = out[:m], out[m:m + n]             # the block: y K S SI H z x_post P_post | g T
+    o = m + n
     S, SI, Hz = out[o:o + m * m], out[o + m * m:o + 2 * m * m], out[o + 2 * m * m:]
     for i in range(n):
         Hz[i] = phi[i]                       # H
@@ -414,21 +412,23 @@ def update_kernel(x, P, phi, z0, zmode, r, cfg, w, out):
         if zmode != 0:
             Hz[n + j] = z0 if zmode == 1 else np.nan     # z
     o += 2 * m * m + n + m                   # x_post, P_post, then the work space
+    nx, nP = n * m, n * n
     g = out[o + nx + nP:o + nx + nP + n]
     k = n if Pi_or_efra(cfg) else 0
     T = out[o + nx + nP + n:o + nx + nP + n + k * k].reshape((k, k))
-    copy2(x, xn)
-    copy2(P, Pn)
-    s, lam_t, gated, cap = measurement_update(xn, Pn, phi, Hz[n:n + m], zmode == 2, r, cfg,
-                                              projector(cfg, n), g, y, K, T, w)
+    s, lam_t, gated, cap = measurement_update(x, P, phi, Hz[n:n + m], zmode == 2, r, cfg,
+                                              projector(cfg, n), g, y, K, T, w, xn, Pn)
     for i in range(m * m):
         S[i] = 0.0
         SI[i] = 0.0
     for i in range(m):
         S[i * m + i] = s
         SI[i * m + i] = 1.0 / s
-    for i in range(nx + nP):
-        out[o + i] = out[i]                  # x_post, P_post
+    xf, Pf = xn.reshape(nx), Pn.reshape(nP)
+    for i in range(nx):
+        out[o + i] = xf[i]                   # x_post
+    for i in range(nP):
+        out[o + nx + i] = Pf[i]              # P_post
     # the cheap check (without constraints: under them P is singular by design)
     return (2 if cfg.shape[0] == CFG_PI and diagonal_bad(Pn) else 0), s, lam_t, gated, cap
 
@@ -522,7 +522,8 @@ def step_batch(x, P, Z, Hm, Rv, il, Q, update_first, cfg, basis,
         if w != 1.0:
             state[2] += 1
         s, lam_t, gk, cap = measurement_update(x, P, Hm[k], z, any_nan(z),
-                                               Rv[k if r_each else 0], cfg, Pi, g, y, K, T, w)
+                                               Rv[k if r_each else 0], cfg, Pi, g, y, K, T, w,
+                                               x, P)
         w = 1.0
         ss[k] = s
         gated[k] = gk
@@ -550,7 +551,8 @@ def step_batch(x, P, Z, Hm, Rv, il, Q, update_first, cfg, basis,
 @njit(cache=True, error_model="numpy", inline="always")
 def _time_step(x, P, il, Q, Pi, T, k, N, means_p, covs_p, x_prior, P_prior):
     """`time_update` in `step_batch`, with its histories (and the last prior)."""
-    time_update(P, il, Q, Pi, T)
+    if il != 1.0 or Q.shape[0] or Pi.shape[0]:
+        time_update(P, il, Q, Pi, T, P)
     if means_p.shape[0]:
         copy2(x, means_p[k])
     if covs_p.shape[0]:
@@ -633,22 +635,24 @@ def _sweep_q(P, g, cu, il, Q, h, gn):
 
 
 @njit(cache=True, error_model="numpy")
-def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, ys, ss,
-                      x_prior, P_prior, x_post, P_post, K, check_every, step0, cond_max,
+def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, covs_p, ys,
+                      ss, x_prior, P_prior, x_post, P_post, K, check_every, step0, cond_max,
                       state, episodes, P_fail, symmetric):
     """`step_batch` of the default configuration with one output, fused (see the module).
 
-    Exponential forgetting, no gate, no constraints, ``m = 1``, no
-    covariance histories: ``ss`` has length 1 (the last step), ``ys`` length
-    N (every residual) or 1 (the last). Arguments and returns otherwise as
-    `step_batch` (``means_p`` is ``means`` shifted by one step; the caller
-    builds it), but for ``lam_t``.
+    Exponential forgetting, no gate, no constraints, ``m = 1``: ``ss`` has
+    length 1 (the last step), ``ys`` length N (every residual) or 1 (the
+    last). With covariance histories (``covs``, ``covs_p`` of length N) each
+    step's sweep runs in its two halves, ``P`` written after each. Arguments
+    and returns otherwise as `step_batch` (``means_p`` is ``means`` shifted
+    by one step; the caller builds it), but for ``lam_t``.
     """
     N = Z.shape[0]
     n = x.shape[0]
     r_each = Rv.shape[0] == N
     every_y = ys.shape[0] == N
     hasq = Q.shape[0] > 0
+    store = covs.shape[0] > 0
     th = x[:, 0].copy()                              # local: no aliasing in the loop
     g = np.zeros(n)
     gn = np.empty(n)
@@ -664,6 +668,8 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, ys, ss,
     else:                                            # P^- and its gain
         w = il if cap else 1.0
         _sweep(P, g, 0.0, 1.0 if cap else il, Q, Hm[0], gn)
+        if store:
+            copy2(P, covs_p[0])
     g, gn = gn, g
     if not update_first and N == 1:
         copy2(x, x_prior)
@@ -717,11 +723,11 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, ys, ss,
                     K[i] = g[i] * kc
         # the usual step is the last branch: the sweep does not wait for the
         # decisions above (the branch is predicted), only for cu
-        if check or last or cap:       # unfused or held back: the rare path
+        if check or last or cap or store:    # unfused, held back or stored: the rare path
             _unfused_step(x, P, g, gn, cu, 1.0 if cap else il, Q, Hm[min(k + 1, N - 1)], k,
                           last, check, update_first, due, cheap_bad, cond_max, state,
                           episodes, P_fail, W, X, none, symmetric, x_prior, P_prior, x_post,
-                          P_post)
+                          P_post, covs, covs_p)
         elif hasq:
             _sweep_q(P, g, cu, il, Q, Hm[k + 1], gn)
         else:
@@ -744,16 +750,20 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, ys, ss,
 @njit(cache=True, error_model="numpy")
 def _unfused_step(x, P, g, gn, cu, il, Q, h, k, last, check, update_first, due, cheap_bad,
                   cond_max, state, episodes, P_fail, W, X, none, symmetric, x_prior, P_prior,
-                  x_post, P_post):
+                  x_post, P_post, covs, covs_p):
     """The rare steps of `exponential_batch` (not inlined, so that they stay out of
     the loop's code): a step whose time update the windup cap holds back (`il`
-    is then 1), and a step whose updated ``P`` is checked or kept (the last),
-    whose sweep runs in two halves: the update, then the time update with the
-    next gain (after the last update only with `update_first`)."""
-    if not (check or last):
+    is then 1), and a step whose updated ``P`` is checked, kept (the last) or
+    stored (``covs``, ``covs_p`` of length N), whose sweep runs in two halves:
+    the update, then the time update with the next gain (after the last
+    update only with `update_first`)."""
+    store = covs.shape[0] > 0
+    if not (check or last or store):
         _sweep(P, g, cu, il, Q, h, gn)
         return
     _sweep_rows(P, g, cu, 1.0, h, gn)
+    if store:
+        copy2(P, covs[k])
     if last:
         copy2(x, x_post)
         copy2(P, P_post)
@@ -761,6 +771,8 @@ def _unfused_step(x, P, g, gn, cu, il, Q, h, k, last, check, update_first, due, 
         _health(P, none, symmetric, cond_max, k, due, cheap_bad, state, episodes, P_fail, W, X)
     if not last or update_first:
         _sweep(P, g, 0.0, il, Q, h, gn)
+        if store:
+            copy2(P, covs_p[k if update_first else k + 1])
     if check and update_first:
         _health(P, none, symmetric, cond_max, k, due, cheap_bad, state, episodes, P_fail, W, X)
     if last and update_first:
@@ -784,9 +796,9 @@ def run_batch(x, P, Z, Hm, Rv, cfg, Q, basis, update_first, store_covariances,
     the null-space basis of the constraints (None without); `state` the
     ``[armed, n_episodes, n_capped, cap, w]`` of `step_batch` (a new array is
     returned in the result). Chooses `exponential_batch` for the default
-    configuration with one output and no covariance histories, `step_batch`
-    otherwise. Returns a `BatchResult` (``ss``, ``gated`` hold the last step
-    only after `exponential_batch`, and ``ys`` too unless `residuals`). The
+    configuration with one output, `step_batch` otherwise. Returns a
+    `BatchResult` (``ss``, ``gated`` hold the last step only after
+    `exponential_batch`, and ``ys`` too unless `residuals`). The
     estimate histories share one buffer, ``buffer``: `lead` rows of NaN (room
     for what a caller puts before the run), the estimate before the first
     update, then the estimate after each update (``means``); ``means_p`` is a
@@ -823,21 +835,21 @@ def run_batch(x, P, Z, Hm, Rv, cfg, Q, basis, update_first, store_covariances,
     out.state = np.array(state, dtype=np.float64)
     out.episodes = np.zeros(MAX_EPISODES, dtype=np.int64)
     out.P_fail = np.empty((MAX_EPISODES, n, n))
-    fused = (mode == EXPONENTIAL and gate == np.inf and len(cfg) == CFG_PI and m == 1
-             and not store_covariances and N > 0)
+    fused = mode == EXPONENTIAL and gate == np.inf and len(cfg) == CFG_PI and m == 1 and N > 0
+    covs = np.empty((N if store_covariances else 0, n, n))
+    covs_p = np.empty((N if store_covariances else 0, n, n))
+    out.covariances = covs if store_covariances else None
+    out.covariances_p = covs_p if store_covariances else None
     if fused:
         out.ys, out.ss = np.empty((N if residuals else 1, 1)), np.empty(1)
         out.s_last = exponential_batch(
-            out.x, out.P, Zc, Hc, Rv, il, Qa, cfg, bool(update_first), out.means, out.ys,
-            out.ss, out.x_prior, out.P_prior, out.x_post, out.P_post, K,
+            out.x, out.P, Zc, Hc, Rv, il, Qa, cfg, bool(update_first), out.means, covs, covs_p,
+            out.ys, out.ss, out.x_prior, out.P_prior, out.x_post, out.P_post, K,
             int(check_every), int(step0), float(cond_max), out.state, out.episodes,
             out.P_fail, symmetric)
         out.gated = np.zeros(1, dtype=np.bool_)
         out.lam_t_last = lam
-        out.covariances = out.covariances_p = None
     else:
-        covs = np.empty((N if store_covariances else 0, n, n))
-        covs_p = np.empty((N if store_covariances else 0, n, n))
         out.ys, out.ss = np.empty((N, m)), np.empty(N)
         out.gated = np.zeros(N, dtype=np.bool_)
         out.s_last, out.lam_t_last = step_batch(
@@ -846,8 +858,6 @@ def run_batch(x, P, Z, Hm, Rv, cfg, Q, basis, update_first, store_covariances,
             out.x_prior, out.P_prior, out.x_post, out.P_post, K,
             int(check_every), int(step0), float(cond_max), out.state, out.episodes,
             out.P_fail, symmetric)
-        out.covariances = covs if store_covariances else None
-        out.covariances_p = covs_p if store_covariances else None
     if N and np.isnan(Z[-1]).any():                   # the last sample was missing: no gain
         K[:] = 0.0
     out.K_last = K.reshape(n, 1)

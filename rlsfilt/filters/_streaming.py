@@ -8,32 +8,34 @@ the compiled ``predict_kernel`` / ``update_kernel``
 (``x, P, y, K, S, SI, H, z, x_post, P_post`` for an update, ``P, x_prior,
 P_prior`` for a predict). Three things keep that small:
 
-**Blocks.** The arrays of one step are views of one buffer (a *block*,
-made by `_block`), so the kernel takes the buffer as one argument, not ten.
+**Blocks.** The diagnostics of a step are views of one buffer (a *block*,
+made by `_block`), so the kernel takes the buffer as one argument, not
+eight; the new ``x`` and ``P`` are arrays of their own, because callers keep
+them (a list of estimates, filterpy's ``Saver``) and that should not cost
+the rest.
 
-**Reuse.** Every step writes a block that nobody can see yet and then makes
-its views the filter's attributes, so a step never changes an array a
-caller holds (``history.append(rls.x)`` works as with filterpy), and a step
-that raises, or whose warning is turned into an error, leaves the filter as
-it was. The block a step replaced becomes the spare of the step after next;
-when nobody else holds any of its arrays (``sys.getrefcount`` shows only the
-filter's references) that step writes into it instead of allocating. Any
-outside reference (a list of past estimates, a view, a filterpy ``Saver``)
-raises a count and a fresh block is made, so no visible array ever changes.
+**Reuse.** Every step writes arrays that nobody can see yet and then makes
+them the filter's attributes, so a step never changes an array a caller
+holds (``history.append(rls.x)`` works as with filterpy), and a step that
+raises, or whose warning is turned into an error, leaves the filter as it
+was. The arrays a step replaced become the spares of the step after next;
+when nobody else holds them (``sys.getrefcount`` shows only the filter's
+tuple; the buffer's count also shows any view of a view) that step writes
+into them instead of allocating, and any part someone holds is made anew.
 Reuse is off where counts cannot be trusted (no ``sys.getrefcount``,
 free-threaded builds).
 
 **Entry points.** Calling a numba dispatcher first types every argument to
-choose the compiled version (tens of nanoseconds per argument). The steps
-here always pass the same types (C-contiguous float64 arrays, floats,
-ints), so after the first call they call the compiled version's entry point
-directly (numba's ``overloads[signature].entry_point``; the dispatcher is
-used if numba does not expose it).
+choose the compiled version. The steps here always pass the same types
+(C-contiguous float64 arrays, floats, ints), so after the first call they
+call the compiled version's entry point (numba's
+``overloads[signature].entry_point``) directly; the dispatcher serves if
+numba does not expose it.
 
-Measured with ``benchmarks/bench_rls.py`` (one ``predict()`` + ``update()``
-per sample, ``dim_x = 5``): fresh blocks instead of reuse cost about 1.5 us
-per sample more, the dispatcher instead of the entry points about 0.5 us
-more, of about 3 us in all (see ``docs/performance.md``).
+Both tricks pay (``python benchmarks/bench_rls.py --streaming-ablation``,
+CPU time per ``predict()`` + ``update()``, measured on a shared 2-core
+machine): at ``dim_x = 5`` 3.0 us as shipped, 9.2 us with fresh arrays every
+step, 3.4 us through the dispatcher; at ``dim_x = 20`` 3.7, 10.5 and 4.2 us.
 """
 
 import sys
@@ -83,9 +85,10 @@ def c_array(a):
 # blocks and their reuse
 # ----------------------------------------------------------------------
 def update_shapes(n, m):
-    """Shapes of the arrays an update writes, in the order of its block (the
-    layout ``_kernels.update_kernel`` writes; then its work space)."""
-    return ((n, m), (n, n), (m, 1), (n, 1), (m, m), (m, m), (1, n), (m, 1), (n, m), (n, n))
+    """Shapes of the diagnostics an update writes, in the order of its block (the
+    layout ``_kernels.update_kernel`` writes; then its work space): ``y, K, S,
+    SI, H, z, x_post, P_post``. The new ``x`` and ``P`` are arrays of their own."""
+    return ((m, 1), (n, 1), (m, m), (m, m), (1, n), (m, 1), (n, m), (n, n))
 
 
 def predict_shapes(n, m):
@@ -105,15 +108,25 @@ def _block(shapes, work=0):
     return tuple(views)
 
 
-def _free_sum(length):
-    """What ``sum(map(sys.getrefcount, block))`` gives for a block of `length`
-    arrays that nobody but the tuple ``block`` holds (every count is then at its
-    least, so the sum tests them all); -1 where counts cannot be trusted (no
-    ``sys.getrefcount``, free-threaded builds): reuse is then off."""
+def _sample(views, arrays=0):
+    """A tuple of `arrays` separate arrays and a block of `views` views, as the
+    steps hold them."""
+    return tuple(np.empty((1, 1)) for _ in range(arrays)) + _block(((1, 1),) * views)
+
+
+def _free_sum(views, arrays=0):
+    """What ``sum(map(sys.getrefcount, spare))`` gives for such a tuple when nobody
+    but the tuple holds its arrays (every count is then at its least, so the sum
+    tests them all); -1 where counts cannot be trusted (no ``sys.getrefcount``,
+    free-threaded builds): reuse is then off."""
     if not hasattr(sys, "getrefcount") or sysconfig.get_config_var("Py_GIL_DISABLED"):
         return -1
-    block = _block(((1, 1),) * (length - 1))
-    return sum(map(sys.getrefcount, block))
+    return sum(map(sys.getrefcount, _sample(views, arrays)))
+
+
+def _counts(spare):
+    """The reference count of every array of `spare`, one by one."""
+    return [sys.getrefcount(a) for a in spare]
 
 
 _getrefcount = getattr(sys, "getrefcount", lambda a: 0)
@@ -122,7 +135,8 @@ _getrefcount = getattr(sys, "getrefcount", lambda a: 0)
 # ----------------------------------------------------------------------
 # the steps
 # ----------------------------------------------------------------------
-_FREE_PREDICT, _FREE_UPDATE = _free_sum(4), _free_sum(11)
+_FREE_PREDICT, _FREE_UPDATE = _free_sum(3), _free_sum(8, arrays=2)
+_FREE_EACH = _counts(_sample(8, arrays=2)) if _FREE_UPDATE > 0 else None
 
 
 def predict(x, P, il, Q, cfg, spare):
@@ -141,29 +155,43 @@ def predict(x, P, il, Q, cfg, spare):
 
 
 def update(x, P, phi, z, r, cfg, w, spare):
-    """One measurement update into a new block (`spare` if it is free).
+    """One measurement update into new arrays (those of `spare` where they are free).
 
     `phi` is the regressor row, a writable C-contiguous float64 array (n,)
     (the kernel checks that it is finite), `z` a float, a validated column
     (m, 1) or None (missing); `w` is ``1 / lam`` when the last predict held
-    the forgetting back (the windup cap) and 1 otherwise. Returns ``code, s,
-    lam_t, gated, cap, block``: the buffer (ending with ``n + n^2`` numbers
-    of work space) and its views ``x, P, y, K, S, SI, H, z, x_post,
-    P_post``; ``code``, ``cap`` as ``update_kernel``'s.
+    the forgetting back (the windup cap) and 1 otherwise. `spare` is None or
+    the ``arrays`` of an earlier call. Returns ``code, s, lam_t, gated, cap,
+    arrays``: ``arrays = (x, P, buffer, y, K, S, SI, H, z, x_post, P_post)``,
+    the new estimate and covariance (arrays of their own: a caller who keeps
+    them, as a list of estimates or a ``Saver`` does, leaves the rest
+    reusable) and the block of the diagnostics (its buffer ends with ``n +
+    n^2`` numbers of work space); ``code``, ``cap`` as ``update_kernel``'s.
     """
-    if spare is not None and sum(map(_getrefcount, spare)) == _FREE_UPDATE:
-        out = spare                                   # nobody else holds it: reuse
-    else:
-        out = _block(update_shapes(*x.shape), len(P) + P.size)
+    if spare is None or sum(map(_getrefcount, spare)) != _FREE_UPDATE:
+        spare = _renew(spare, *x.shape)
     if z is None:
         z0, zmode = 0.0, 2
     elif type(z) is np.ndarray:
-        out[8][:] = z                                  # the block's z
+        spare[8][:] = z                                # the block's z
         z0, zmode = 0.0, 0
     else:
         z0, zmode = z, 1
-    code, s, lam_t, gated, cap = _update_kernel(x, P, phi, z0, zmode, r, cfg, w, out[0])
-    return code, s, lam_t, gated, cap, out
+    code, s, lam_t, gated, cap = _update_kernel(x, P, phi, z0, zmode, r, cfg, w, spare[0],
+                                                spare[1], spare[2])
+    return code, s, lam_t, gated, cap, spare
+
+
+def _renew(spare, n, m):
+    """`spare` with its held parts made anew: the pair ``x, P`` and the block."""
+    counts = None if spare is None or _FREE_EACH is None else _counts(spare)
+    if counts is not None and counts[:2] == _FREE_EACH[:2]:
+        state = spare[:2]
+    else:
+        state = (np.empty((n, m)), np.empty((n, n)))
+    if counts is not None and counts[2:] == _FREE_EACH[2:]:
+        return state + spare[2:]
+    return state + _block(update_shapes(n, m), n + n * n)
 
 
 def _entry_point(dispatcher, args):
@@ -184,10 +212,10 @@ def _predict_kernel(*args):
     _predict_kernel = _entry_point(_kernels.predict_kernel, args)
 
 
-def _update_kernel(x, P, phi, z0, zmode, r, cfg, w, out):
+def _update_kernel(x, P, phi, z0, zmode, r, cfg, w, xn, Pn, out):
     """The first call: run ``update_kernel``, then call its entry point directly."""
     global _update_kernel
-    args = (x, P, phi, float(z0), zmode, float(r), cfg, float(w), out)
+    args = (x, P, phi, float(z0), zmode, float(r), cfg, float(w), xn, Pn, out)
     result = kernels().update_kernel(*args)
     _update_kernel = _entry_point(_kernels.update_kernel, args)
     return result

@@ -32,7 +32,7 @@ from .._validation import (
 from ..exceptions import ForgettingSkippedWarning
 from . import _health, _streaming
 from . import forgetting as _fg
-from ._base import _FilterBase
+from ._base import MISSING_DIAGNOSTICS, _FilterBase
 
 __all__ = ["RecursiveLeastSquares"]
 
@@ -468,8 +468,8 @@ class RecursiveLeastSquares(_FilterBase):
         #   P = P^- - K S K^T        (the other forgetting modes: their update)
         #   P <- Pi P Pi             (constraints)
         w = self._w
-        code, s, lam_t, gated, cap, out = _streaming.update(x, P, H, z, r, self._cfg, w,
-                                                            self._spare_update)
+        code, s, lam_t, gated, cap, arrays = _streaming.update(x, P, H, z, r, self._cfg, w,
+                                                               self._spare_update)
         if code == 1:
             check_finite(H, "H")                      # raises; nothing has changed
         n_updates = self.n_updates + 1
@@ -477,18 +477,15 @@ class RecursiveLeastSquares(_FilterBase):
         every = self.check_every
         due = every and not n_updates % every
         checked = due or (every and code == 2 and not self._warned_health)
-        problem = self._health_problem(out[2], n_updates, code == 2) if checked else None
+        problem = self._health_problem(arrays[1], n_updates, code == 2) if checked else None
         if skipped or (problem is not None and not self._warned_health):
             self._warn(skipped, problem)              # warn before the state changes
         elif due and problem is None:
             self._warned_health = False               # healthy again: the next problem warns
-        self._spare_update, self._last_update = self._last_update, out
-        (_, self._x, self._P, self.y, self.K, self.S, self.SI, self.H, self.z, self.x_post,
-         self.P_post) = out
-        if z is None:
-            self._log_likelihood, self._likelihood, self._mahalanobis = 0.0, 1.0, math.nan
-        else:
-            self._log_likelihood = self._likelihood = self._mahalanobis = None
+        self._spare_update, self._last_update = self._last_update, arrays
+        (self._x, self._P, _, self.y, self.K, self.S, self.SI, self.H, self.z, self.x_post,
+         self.P_post) = arrays
+        self._lazy = None if z is not None else MISSING_DIAGNOSTICS
         self.gated = gated
         if gated:
             self.n_gated += 1
@@ -500,11 +497,6 @@ class RecursiveLeastSquares(_FilterBase):
             self.n_capped += 1
         if self._recheck:
             self._recheck = self._efra_pending = False
-
-    def predict_update(self, z, H, R=None):
-        """One textbook RLS step: :meth:`predict` then :meth:`update`."""
-        self.predict()
-        self.update(z, H, R)
 
     # ------------------------------------------------------------------
     # batch start and batch runs
@@ -625,11 +617,12 @@ class RecursiveLeastSquares(_FilterBase):
         The loop runs in compiled code (numba, cached on disk after the first
         call): the compiled steps that :meth:`predict` and :meth:`update` call,
         one pair per sample. With exponential forgetting (the default), one
-        output, no gate or constraints and ``store_covariances=False``, one
-        vectorized sweep over ``P`` per step applies the update, the next
-        forgetting step and the next gain together (the same numbers, bit for
-        bit), and the record is processed at tens of nanoseconds per sample
-        for small ``n = dim_x`` (see ``docs/performance.md``).
+        output and no gate or constraints, one vectorized sweep over ``P`` per
+        step applies the update, the next forgetting step and the next gain
+        together (the same numbers, bit for bit; with the covariance histories
+        in two halves, ``P`` stored after each), and the record is processed
+        at tens of nanoseconds per sample for small ``n = dim_x`` (see
+        ``docs/performance.md``).
 
         **Records larger than memory.** Call :meth:`batch_filter` on
         consecutive chunks (for example slices of ``np.load(path,
@@ -697,7 +690,7 @@ class RecursiveLeastSquares(_FilterBase):
         if np.isnan(Z[-1]).any():
             self.z = np.full((self.dim_z, 1), np.nan)
             self.y = np.full((self.dim_z, 1), np.nan)
-            self._log_likelihood, self._likelihood, self._mahalanobis = 0.0, 1.0, math.nan
+            self._lazy = MISSING_DIAGNOSTICS
         else:
             self.z = Z[-1].reshape(-1, 1).copy()
             self.y = out.ys[-1].reshape(-1, 1).copy()
@@ -771,6 +764,7 @@ class RecursiveLeastSquares(_FilterBase):
         self._P = self._projected(P - W @ PA.T)        # P <- P - W A P, then Pi P Pi
         self._null_basis = basis
         self._recheck = True
+        self._efra_pending = False                     # P above has EFRA's start
         self.constraints = (A.copy(), bb.copy())
         self.x_post, self.P_post = self._x.copy(), self._P.copy()
         return self

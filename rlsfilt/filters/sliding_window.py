@@ -5,13 +5,10 @@ from filterpy.common import pretty_str
 
 from .._validation import check_covariance, check_int, check_real, check_variance
 from . import _health, _streaming
-from ._base import _FilterBase
+from ._base import MISSING_DIAGNOSTICS, _FilterBase
 from ._streaming import c_array
 
 __all__ = ["SlidingWindowRLS"]
-
-_FLOATS = (float, np.float64)
-
 
 class SlidingWindowRLS(_FilterBase):
     r"""Recursive least squares over the last `window` samples (update + downdate).
@@ -183,10 +180,7 @@ class SlidingWindowRLS(_FilterBase):
         """
         phi = self._as_regressor(H, "H")
         r = self._R if R is None else check_variance(R, "R")
-        if type(z) in _FLOATS and self.dim_z == 1 and z - z == 0.0:   # a finite float
-            zc = np.array([[z]], dtype=np.float64)
-        else:
-            zc = self._as_measurement(z, "z")
+        zc = self._as_measurement(z, "z")
         n, m = self.dim_x, self.dim_z
         x = np.array(self._checked_x(), dtype=np.float64, order="C")
         P = np.array(self._checked_P(), dtype=np.float64, order="C")
@@ -221,7 +215,7 @@ class SlidingWindowRLS(_FilterBase):
         self.S, self.SI = s * self._I_z, self._I_z / s
         self.z, self.y, self.K = zrow.reshape(m, 1), y, K
         if zc is None:
-            self._log_likelihood, self._likelihood = 0.0, 1.0
+            self._lazy = MISSING_DIAGNOSTICS
         self.x, self.P = x, P
         self.x_post, self.P_post = x.copy(), P.copy()
 
@@ -233,11 +227,6 @@ class SlidingWindowRLS(_FilterBase):
     def _set_int_state(self, ist):
         self._head, self._nw, self._count, self._next_exact_try, exact = ist.tolist()
         self.exact = exact == 1
-
-    def predict_update(self, z, H, R=None):
-        """:meth:`predict` then :meth:`update`."""
-        self.predict()
-        self.update(z, H, R)
 
     def initialize(self, zs, Hs, Rs=None):
         """Start from exact least squares on the given samples.
@@ -342,7 +331,7 @@ class SlidingWindowRLS(_FilterBase):
         self.y, self.K = y.reshape(m, 1), K.reshape(n, 1)
         if np.isnan(self.z).any():
             self.z[:] = np.nan
-            self._log_likelihood, self._likelihood = 0.0, 1.0
+            self._lazy = MISSING_DIAGNOSTICS
         self.x, self.P = x, P
         self.x_post, self.P_post = x.copy(), P.copy()
         return means, (covs if store_covariances else None), means_p, covs_p

@@ -8,13 +8,10 @@ from scipy.linalg import cho_factor, cho_solve, solve_triangular
 
 from .._validation import check_covariance, check_int, check_lam, check_real, check_variance
 from . import _health, _streaming
-from ._base import _FilterBase
+from ._base import MISSING_DIAGNOSTICS, _FilterBase
 from ._streaming import c_array
 
 __all__ = ["SquareRootRLS"]
-
-_FLOATS = (float, np.float64)
-
 
 class SquareRootRLS(_FilterBase):
     r"""QR recursive least squares: the information square root, updated by QR.
@@ -209,10 +206,7 @@ class SquareRootRLS(_FilterBase):
         :meth:`RecursiveLeastSquares.update`; missing `z` keeps the estimate)."""
         phi = self._as_regressor(H, "H")
         r = self._R if R is None else check_variance(R, "R")
-        if type(z) in _FLOATS and self.dim_z == 1 and z - z == 0.0:   # a finite float
-            zc = np.array([[z]], dtype=np.float64)
-        else:
-            zc = self._as_measurement(z, "z")
+        zc = self._as_measurement(z, "z")
         n, m = self.dim_x, self.dim_z
         U, d, x = c_array(self._U.copy()), c_array(self._d.copy()), c_array(self._x.copy())
         y, K = np.empty((m, 1)), np.empty((n, 1))
@@ -235,16 +229,11 @@ class SquareRootRLS(_FilterBase):
         self.S, self.SI = s * self._I_z, self._I_z / s
         self.z, self.y, self.K = zrow.reshape(m, 1), y, K
         if zc is None:
-            self._log_likelihood, self._likelihood = 0.0, 1.0
+            self._lazy = MISSING_DIAGNOSTICS
         self._U, self._d, self._x = U, d, x
         self.n_updates = n_updates
         self.x_post = x.copy()
         self.P_post = self.P
-
-    def predict_update(self, z, H, R=None):
-        """:meth:`predict` then :meth:`update`."""
-        self.predict()
-        self.update(z, H, R)
 
     def initialize(self, zs, Hs):
         """Start from batch least squares on the first samples (QR of the rows).
@@ -332,7 +321,7 @@ class SquareRootRLS(_FilterBase):
         self.y, self.K = y.reshape(m, 1), K.reshape(n, 1)
         if np.isnan(self.z).any():
             self.z[:] = np.nan
-            self._log_likelihood, self._likelihood = 0.0, 1.0
+            self._lazy = MISSING_DIAGNOSTICS
         self.x_prior, self.P_prior = x_prior, P_prior
         self.x_post, self.P_post = x.copy(), P_post
         if not store_covariances:

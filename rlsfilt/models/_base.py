@@ -96,8 +96,9 @@ def check_is_fitted(model, what, name="model"):
         raise TypeError(f"`{name}` must be a fitted ARX model or another rlsfilt model (an "
                         f"IdentifiedModel); got {type(model).__name__}")
     if "theta_" not in vars(model):
+        call = "fit(y)" if getattr(model, "_TIME_SERIES", False) else "fit(u, y)"
         raise NotFittedError(f"This {type(model).__name__} instance is not fitted yet; call "
-                             f"`fit(u, y)` before using `{what}`.")
+                             f"`{call}` before using `{what}`.")
 
 
 class IdentifiedModel(abc.ABC):
@@ -365,27 +366,182 @@ class IdentifiedModel(abc.ABC):
     # ------------------------------------------------------------------
     # python-control / scipy bridge, from the polynomials
     # ------------------------------------------------------------------
-    def to_tf(self, noise=False):
+    def to_tf(self, noise=False, *, continuous=False, method="zoh", pade=None):
         r"""The model as a ``control.TransferFunction`` with sampling time ``dt``.
 
         Numerator and denominator are in positive powers of ``z``,
         zero-padded to equal length so that a feed-through (``nk = 0``) and
         every delay are exact. Several inputs or outputs give the matrix
         transfer function :math:`A(q)^{-1} B(q)/F(q)` (entries over a
-        common denominator).
+        common denominator). Signal names of the data (pandas columns,
+        `IOData` names) become python-control's signal labels.
 
         Parameters
         ----------
         noise : bool, default False
             Return the noise model :math:`H = A^{-1} C / D` (``ny`` x ``ny``)
             instead.
+        continuous : bool, default False
+            Return the continuous-time equivalent (:func:`rlsfilt.d2c`; needs
+            a numeric ``dt``), the delay of ``nk`` samples kept as the
+            attributes ``input_delay``/``io_delay`` in seconds.
+        method : {"zoh", "tustin"}, default "zoh"
+            The sampling the continuous model is read through (with
+            `continuous`).
+        pade : int, optional
+            With `continuous`: replace the delays by Pade approximations of
+            this order.
 
         Returns
         -------
         control.TransferFunction
         """
         self._check_fitted("to_tf")
-        return _conversion.to_tf(self.polydata(), self.dt, noise)
+        if not continuous and (method != "zoh" or pade is not None):
+            raise TypeError("`method` and `pade` only apply with continuous=True")
+        G = _conversion.to_tf(self.polydata(), self.dt, noise)
+        G = _labelled(G, self._signal_labels(noise))
+        if continuous:
+            from ..continuous import d2c
+
+            if self.dt is True:
+                raise ValueError("`continuous=True` needs the sampling period: the model has "
+                                 "dt=True (unspecified); fit it with dt=<seconds>")
+            G = d2c(G, method, pade=pade)
+        return G
+
+    def _signal_labels(self, noise=False):
+        """``(inputs, outputs)`` labels from the data's signal names, or None when unnamed."""
+        info = self.__dict__.get("_info", {})
+        outs = info.get("y_names")
+        ins = info.get("u_names") if not noise else None
+        if noise and outs:
+            ins = [f"e[{name}]" for name in outs]
+        return (list(ins) if ins else None, list(outs) if outs else None)
+
+    # ------------------------------------------------------------------
+    # stability, said plainly
+    # ------------------------------------------------------------------
+    def poles(self, noise=False):
+        r"""Poles of the model in the z-plane (MATLAB ``pole``).
+
+        The roots of :math:`\det(A(z) F(z))` for the input model (of
+        :math:`\det(A(z)) D(z)` for the noise model), from the polynomials:
+        no realization, so delays add no poles at the origin.
+
+        Parameters
+        ----------
+        noise : bool, default False
+            Poles of the noise model instead.
+
+        Returns
+        -------
+        ndarray of complex
+            Sorted by decreasing magnitude.
+
+        Examples
+        --------
+        >>> from rlsfilt import ARX
+        >>> model = ARX.from_polynomials([-1.5, 0.7], [1.0, 0.5], nk=3)
+        >>> abs(model.poles()).round(4)
+        array([0.8367, 0.8367])
+        """
+        self._check_fitted("poles")
+        from ._polynomials import poly_det, trim
+
+        A_t, _ = _conversion.arx_form(self.polydata(), noise)
+        ny = A_t.shape[0]
+        det = trim(poly_det([[trim(A_t[i, j]) for j in range(ny)] for i in range(ny)]))
+        roots = np.roots(det) if len(det) > 1 else np.zeros(0, dtype=complex)
+        roots = roots.astype(complex)
+        return roots[np.argsort(-np.abs(roots), kind="stable")]
+
+    @property
+    def is_stable(self):
+        """True when every pole of the input model lies strictly inside the unit circle."""
+        self._check_fitted("is_stable")
+        p = self.poles()
+        return bool(np.all(np.abs(p) < 1.0))
+
+    def dc_gain(self):
+        """Static gain :math:`G(z = 1)` of the input model (MATLAB ``dcgain``).
+
+        Returns
+        -------
+        float or ndarray of shape (ny, nu)
+            A float for one input and one output; ``inf`` for a model with
+            a pole at ``z = 1`` (an integrator).
+
+        Examples
+        --------
+        >>> from rlsfilt import ARX
+        >>> ARX.from_polynomials([-0.5], [1.0]).dc_gain()      # 1 / (1 - 0.5)
+        2.0
+        """
+        self._check_fitted("dc_gain")
+        from ._polynomials import evaluate
+
+        A_t, B_t = _conversion.arx_form(self.polydata(), False)
+        ny, nu = A_t.shape[0], B_t.shape[1]
+        A1 = np.array([[evaluate(A_t[i, j], 1.0).real for j in range(ny)] for i in range(ny)])
+        B1 = np.array([[evaluate(B_t[i, j], 1.0).real for j in range(nu)] for i in range(ny)])
+        if abs(np.linalg.det(A1)) <= 1e-14 * max(1.0, np.abs(A1).max()) ** ny:
+            G = np.where(B1 == 0, np.nan, np.inf * np.sign(B1))
+        else:
+            G = np.linalg.solve(A1, B1)
+        return float(G[0, 0]) if G.shape == (1, 1) else G
+
+    def stability_text(self):
+        """``"stable (largest pole magnitude 0.95)"`` or ``"unstable model, largest pole
+        magnitude 1.02, simulation diverges"``: what a report prints."""
+        self._check_fitted("stability_text")
+        p = self.poles()
+        r = float(np.max(np.abs(p))) if len(p) else 0.0
+        if r >= 1.0 + 1e-9:
+            return f"unstable model, largest pole magnitude {r:.4g}, simulation diverges"
+        if r > 1.0 - 1e-9:
+            return "marginally stable model (a pole on the unit circle), simulation may drift"
+        return f"stable (largest pole magnitude {r:.3g})"
+
+    # ------------------------------------------------------------------
+    # saving
+    # ------------------------------------------------------------------
+    def save(self, path, *, include_data=False):
+        """Write the fitted model to a JSON file (:func:`rlsfilt.save_model`).
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+        include_data : bool, default False
+            Also write the per-sample diagnostics (residuals, histories).
+
+        Returns
+        -------
+        dict
+            The document written.
+        """
+        self._check_fitted("save")
+        from ..persistence import save_model
+
+        return save_model(self, path, include_data=include_data)
+
+    @classmethod
+    def load(cls, path):
+        """A model of this class read from a file written by :meth:`save`.
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+
+        Returns
+        -------
+        model
+            Predicts, simulates and reports standard errors exactly as the
+            saved one.
+        """
+        from ..persistence import load_model
+
+        return load_model(path, cls=cls)
 
     def to_ss(self, noise=False):
         """The model as a ``control.StateSpace`` (observer canonical form).
@@ -403,10 +559,12 @@ class IdentifiedModel(abc.ABC):
         Returns
         -------
         control.StateSpace
-            With sampling time ``dt``.
+            With sampling time ``dt`` and, like :meth:`to_tf`, the data's
+            signal names as its input and output labels.
         """
         self._check_fitted("to_ss")
-        return _conversion.to_ss(self.polydata(), self.dt, noise)
+        return _labelled(_conversion.to_ss(self.polydata(), self.dt, noise),
+                         self._signal_labels(noise))
 
     def to_dlti(self, noise=False):
         """The model as a ``scipy.signal.dlti``.
@@ -470,7 +628,9 @@ class IdentifiedModel(abc.ABC):
             ``polynomials`` (``A`` .. ``F`` of :meth:`polydata`) and
             ``transfer_functions`` (one dict per output and input with
             ``num``, ``den`` in positive powers of ``z`` as in
-            :meth:`to_tf`, ``dt`` and ``variable``). Arrays are lists;
+            :meth:`to_tf`, ``dt`` and ``variable``), ``poles`` (``[real,
+            imag]`` pairs), ``stable``, ``stability`` (the sentence of
+            :meth:`stability_text`) and ``dc_gain``. Arrays are lists;
             non-finite numbers are ``None``, so ``json.dumps(d,
             allow_nan=False)`` works. Subclasses add their own fields.
 
@@ -499,13 +659,28 @@ class IdentifiedModel(abc.ABC):
             "theta_std": self.std_errors_, "noise_variance": self.noise_variance_,
             "n_equations": self.n_samples_,
             "polynomials": {name: getattr(p, name) for name in p._fields},
-            "transfer_functions": tfs})
+            "transfer_functions": tfs,
+            "poles": self.poles(), "stable": self.is_stable,
+            "stability": self.stability_text(), "dc_gain": self.dc_gain()})
 
     # ------------------------------------------------------------------
     # display
     # ------------------------------------------------------------------
+    def _display_params(self):
+        """Constructor parameters worth showing: all up to ``dt``, later ones (options such
+        as ``offset``) only when they differ from their default."""
+        sig = inspect.signature(type(self).__init__).parameters
+        names = self._param_names()
+        cut = names.index("dt") + 1 if "dt" in names else len(names)
+        shown = {}
+        for i, (k, v) in enumerate(self.get_params().items()):
+            default = sig[k].default
+            if i < cut or default is inspect.Parameter.empty or not _same_value(v, default):
+                shown[k] = v
+        return shown
+
     def _orders_text(self):
-        args = ", ".join(f"{k}={v!r}" for k, v in self.get_params().items())
+        args = ", ".join(f"{k}={v!r}" for k, v in self._display_params().items())
         return f"{type(self).__name__}({args})"
 
     def _summary_lines(self, style="text"):
@@ -571,6 +746,27 @@ class IdentifiedModel(abc.ABC):
                              f"got {U.shape[1]}")
         return U, Y
 
+    def _each_experiment(self, fn, u, y, *args, outputs=True):
+        """``fn(u, y, *args)`` on one record, or on every experiment of an `IOData`.
+
+        With an `IOData` (`y` omitted) the result is one array for one
+        experiment and a list of arrays, one per experiment, otherwise.
+        `outputs` false: `fn` takes no `y` (``fn(u, *args)``, simulation).
+        """
+        from ..data.iodata import IOData
+
+        if not isinstance(u, IOData):
+            if not outputs:
+                return fn(u, *args)
+            if y is None:
+                raise TypeError("`y` is required unless `u` is an IOData")
+            return fn(u, y, *args)
+        if y is not None:
+            raise TypeError(f"`y` must be omitted when `u` is an IOData (it holds the outputs); "
+                            f"got {type(y).__name__}")
+        outs = [fn(U, Y, *args) if outputs else fn(U, *args) for U, Y in u.arrays()]
+        return outs[0] if len(outs) == 1 else outs
+
     def _shape_out(self, Yh):
         """An (N, ny) array in the shape `y` had in ``fit``."""
         return Yh[:, 0] if self._info["y_1d"] else Yh
@@ -579,3 +775,32 @@ class IdentifiedModel(abc.ABC):
     def _horizon_is_inf(horizon):
         return (isinstance(horizon, numbers.Real) and not isinstance(horizon, numbers.Integral)
                 and horizon == np.inf)
+
+
+def _same_value(a, b):
+    """``a == b`` for parameter values, without numpy's elementwise comparison."""
+    try:
+        return type(a) is type(b) and bool(a == b)
+    except (TypeError, ValueError):
+        return False
+
+
+def _labelled(G, labels):
+    """`G` with signal labels (python-control keeps them through its conversions)."""
+    import control
+
+    ins, outs = labels
+    if ins is None and outs is None:
+        return G
+    kw = {}
+    if ins is not None and len(ins) == G.ninputs:
+        kw["inputs"] = ins
+    if outs is not None and len(outs) == G.noutputs:
+        kw["outputs"] = outs
+    if not kw:
+        return G
+    if isinstance(G, control.StateSpace):
+        return control.ss(G.A, G.B, G.C, G.D, G.dt, **kw)
+    if G.issiso():
+        return control.tf(G.num[0][0], G.den[0][0], G.dt, **kw)
+    return control.tf(G.num, G.den, G.dt, **kw)

@@ -14,6 +14,7 @@ convention and the translation table to SIPPY and the lecture notes.
 
 import html
 import inspect
+import warnings
 
 import numpy as np
 from scipy import signal
@@ -21,9 +22,11 @@ from scipy.linalg import lapack, solve_triangular
 
 from .._serialize import jsonable
 from .._validation import as_float_array, check_finite, check_int, check_scalar
-from ..exceptions import InsufficientDataError
-from ..filters import RecursiveLeastSquares
+from ..exceptions import InsufficientDataError, NumericalWarning
+from ..filters import RecursiveLeastSquares, SquareRootRLS
 from . import _conversion
+from ._arx_iv import check_options as check_iv_options
+from ._arx_iv import fit_arx_iv
 from ._base import IdentifiedModel, Polynomials
 from ._summary import EQUATION_STYLES, ModelSummary
 from .regressors import (
@@ -31,7 +34,7 @@ from .regressors import (
     _build,
     _full_rank_rows,
     arx_structure,
-    as_io_data,
+    as_records,
 )
 
 __all__ = ["ARX", "ARXSummary"]
@@ -52,6 +55,14 @@ class ARX(IdentifiedModel):
     dt : True or float, default True
         Sampling period, passed to python-control and scipy (``True``:
         discrete time with an unspecified period).
+    offset : {False, True, "mean"}, default False
+        Operating point handling. ``True`` estimates an intercept ``c``
+        (``A(q) y = B(q) u + c + e``, the last entry ``"c"`` of ``theta_``,
+        batch and recursive); ``"mean"`` removes the means of the estimation
+        record before the fit. Either way the model keeps its operating point
+        (``input_offset_``, ``output_offset_``) and predicts and simulates in
+        the units of the data; ``False`` means the data are already centred
+        (see :func:`rlsfilt.detrend`).
 
     Attributes
     ----------
@@ -68,7 +79,9 @@ class ARX(IdentifiedModel):
         one per input, when `u` was 2-D.
     theta_cov_ : ndarray, shape (n_params, n_params) or (ny, n_params, n_params)
         Parameter covariance :math:`\hat\sigma^2 (\Phi^T\Phi)^{-1}`, one per
-        output (the outputs share :math:`\Phi`).
+        output (the outputs share :math:`\Phi`); for ``"iv"``/``"riv"`` the
+        IV covariance under coloured equation error (a long-AR model of the
+        residuals; see :doc:`/guide/model-family`).
     noise_variance_ : float or ndarray of shape (ny,)
         Unbiased residual variance :math:`\hat\sigma^2 = \|y - \Phi\hat\theta\|^2
         / (N_{rows} - n_{params})` (NaN when there are no spare equations).
@@ -84,11 +97,27 @@ class ARX(IdentifiedModel):
         Number of parameters per output, ``ny * na + sum(nb)``.
     n_inputs_, n_outputs_ : int
         Number of input and output signals.
+    n_experiments_ : int
+        Number of experiments of the record (regressor rows never straddle
+        two of them).
+    input_offset_, output_offset_ : ndarray, shapes (nu,) and (ny,)
+        The operating point the model's dynamics are about: zero without
+        `offset`; the estimation means for ``"mean"``; for ``True`` the mean
+        input and the equilibrium output there,
+        :math:`A(1)^{-1}(c + B(1)\bar u)`.
+    intercept_ : float or ndarray of shape (ny,)
+        ``offset=True`` only: the estimated ``c``.
+    input_names_, output_names_, input_units_, output_units_ : tuple of str
+        Signal names (from pandas or an `IOData`, else ``u``, ``y``, ...)
+        and units (``""`` when unknown).
     method_ : str
-        ``"ls"`` or ``"rls"``.
+        ``"ls"``, ``"rls"``, ``"iv"`` or ``"riv"``.
     theta_history_ : ndarray, shape ``(n_samples_, n_params[, ny])``
-        ``method="rls"`` only: the estimate after each row; rows before the
-        batch start (``k0 - 1``) are NaN.
+        ``method="rls"`` or ``"riv"`` only: the estimate after each row; rows
+        before the batch start (``k0 - 1``) are NaN.
+    instruments_ : ndarray, shape ``(n_samples_, n_z)``
+        ``method="iv"`` or ``"riv"`` only: the instrument rows used (for
+        ``"model"`` instruments with the prefilter, prefiltered).
     recursive_residuals_ : ndarray, shape ``(n_samples_,)`` or ``(n_samples_, ny)``
         ``method="rls"`` only: the a-priori residuals
         :math:`y(t) - \varphi(t)\hat\theta(t-1)`, the errors the filter
@@ -96,9 +125,14 @@ class ARX(IdentifiedModel):
         these, not ``residuals_``, show how well the model tracked.
     k0_ : int
         ``method="rls"`` only: number of rows of the batch start.
-    filter_ : RecursiveLeastSquares
+    lam_ : float
+        ``method="rls"`` only: the forgetting factor used.
+    form_ : str
+        ``method="rls"`` only: ``"covariance"`` or ``"square_root"``, the
+        recursion that ran (see `form` of :meth:`fit`).
+    filter_ : RecursiveLeastSquares or SquareRootRLS
         ``method="rls"`` only: the filter after the last sample, ready for
-        more ``predict``/``update`` calls.
+        more ``predict``/``update`` calls (not kept by a saved model).
 
     Notes
     -----
@@ -173,29 +207,35 @@ class ARX(IdentifiedModel):
 
     # learned attributes that only some fits set, and which ones
     _ONLY_SET_BY = {**{name: "fit(..., method='rls')" for name in
-                       ("theta_history_", "recursive_residuals_", "k0_", "filter_")},
+                       ("lam_", "form_", "filter_")},
+                    **{name: "fit(..., method='rls' or 'riv')" for name in
+                       ("theta_history_", "recursive_residuals_", "k0_")},
+                    "instruments_": "fit(..., method='iv' or 'riv')",
                     "noise_covariance_": "a fit on 2-D `y` (several outputs)"}
 
-    def __init__(self, na, nb, nk=1, dt=True):
+    def __init__(self, na, nb, nk=1, dt=True, offset=False):
         self.na = na
         self.nb = nb
         self.nk = nk
         self.dt = dt
+        self.offset = offset
 
     # ------------------------------------------------------------------
     # structure
     # ------------------------------------------------------------------
     def _structure(self, n_inputs, n_outputs):
         self._check_dt()
+        _offset_mode(self.offset)
         return arx_structure(self.na, self.nb, self.nk, n_inputs, n_outputs)
 
-    def regressors(self, u, y):
+    def regressors(self, u, y=None):
         r"""Regressor matrix and target for this model's orders.
 
         Parameters
         ----------
-        u : array_like, shape (N,) or (N, nu)
-            Input record (time on axis 0; pandas works too).
+        u : array_like, shape (N,) or (N, nu), or IOData
+            Input record (time on axis 0; pandas works too), or an `IOData`
+            holding inputs and outputs (then `y` is omitted).
         y : array_like, shape (N,) or (N, ny)
             Output record.
 
@@ -204,33 +244,67 @@ class ARX(IdentifiedModel):
         Phi : ndarray, shape (N - max_lag, n_params)
             Rows :math:`\varphi(t)` for ``t = max_lag .. N-1``: blocks
             ``-y_1 .. -y_ny`` then ``u_1 .. u_nu``, each by increasing lag,
-            ``[-y(t-1) .. -y(t-na), u(t-nk) .. u(t-nk-nb+1)]``.
+            ``[-y(t-1) .. -y(t-na), u(t-nk) .. u(t-nk-nb+1)]``, and a last
+            column of ones with ``offset=True``. With ``offset="mean"`` the
+            rows are built from the deviations from the operating point (the
+            fitted one, or the record's means before a fit). Several
+            experiments give their rows one after the other (no row
+            straddles two experiments).
         target : ndarray, shape (N - max_lag,) or (N - max_lag, ny)
-            ``y(t)`` on the same rows.
+            ``y(t)`` on the same rows (minus the operating point for
+            ``offset="mean"``).
         """
-        U, Y, info = as_io_data(u, y)
-        s = self._structure(U.shape[1], Y.shape[1])
-        Phi = _build(U, Y, s, s.max_lag)
-        target = Y[s.max_lag:, 0] if info["y_1d"] else Y[s.max_lag:]
-        return Phi, target.copy()
+        records, info = as_records(u, y)
+        s = self._structure(records[0][0].shape[1], records[0][1].shape[1])
+        if _offset_mode(self.offset) == "mean":
+            op = self._fitted_op() if "theta_" in self.__dict__ else _means(records)
+        else:
+            op = None
+        Phi, target = self._design(records, s, op)
+        return Phi, (target[:, 0] if info["y_1d"] else target).copy()
+
+    def _design(self, records, s, op=None):
+        """``(Phi, target)`` stacked over the experiments; rows ``max_lag..N_i-1`` of each.
+
+        `op` is ``(u_op, y_op)`` to subtract first (``offset="mean"``).
+        """
+        Phis, targets = [], []
+        for U, Y in records:
+            if op is not None:
+                U, Y = U - op[0], Y - op[1]
+            Phi = _build(U, Y, s, s.max_lag)
+            if _offset_mode(self.offset) == "intercept":
+                Phi = np.hstack([Phi, np.ones((len(Phi), 1))])
+            Phis.append(Phi)
+            targets.append(Y[s.max_lag:])
+        return np.vstack(Phis), np.vstack(targets)
 
     # ------------------------------------------------------------------
     # fitting
     # ------------------------------------------------------------------
-    def fit(self, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=None, x0=None,
-            **filter_options):
+    def fit(self, u, y=None, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=None,
+            x0=None, form=None, **filter_options):
         r"""Estimate the parameters from an input/output record.
 
         Parameters
         ----------
-        u : array_like, shape (N,) or (N, nu)
-            Input record; pandas Series/DataFrame work too.
-        y : array_like, shape (N,) or (N, ny)
-            Output record, same length.
-        method : {"ls", "rls"}, default "ls"
+        u : array_like, shape (N,) or (N, nu), or IOData
+            Input record; pandas Series/DataFrame work too. Or an `IOData`
+            (then `y` is omitted), or a list of input arrays, one per
+            experiment.
+        y : array_like, shape (N,) or (N, ny), or a list of them
+            Output record, same length (a list: one per experiment).
+        method : {"ls", "rls", "iv", "riv"}, default "ls"
             ``"ls"``: batch least squares through QR. ``"rls"``:
             `RecursiveLeastSquares` over the rows, started by batch least
-            squares on the first `k0` rows.
+            squares on the first `k0` rows. ``"iv"``, ``"riv"``: batch and
+            recursive instrumental variables, unbiased under coloured
+            equation error (options ``instruments`` = ``"model"`` (refined
+            IV with an auxiliary model, the default for one output),
+            ``"delayed"`` or an ``(N, n_z)`` array of instrument rows;
+            ``prefilter``; ``n_iter`` for ``"iv"``; ``k0``, ``lam``, ``P0``,
+            ``R``, ``Q``, ``x0``, ``refresh`` for ``"riv"``; see
+            :doc:`/guide/model-family`).
         k0 : int, optional
             ``"rls"`` only: number of rows of the batch start. By default
             ``n_params`` (the lecture notes' choice), or, when those first
@@ -242,6 +316,18 @@ class ARX(IdentifiedModel):
             ``"rls"`` only: passed to `RecursiveLeastSquares` (forgetting
             factor, initial covariance and estimate for a prior start with
             ``k0 = 0``, noise variance, random-walk covariance).
+        form : {"auto", "covariance", "square_root"}, optional
+            ``"rls"`` only: the recursion. ``"covariance"`` is
+            `RecursiveLeastSquares` (updates ``P``); ``"square_root"`` is
+            `SquareRootRLS` (updates a triangular square root of the
+            information matrix by orthogonal rotations: its round-off grows
+            with the condition number of the regressors, not its square).
+            ``"auto"`` (the default) takes the square-root form when the
+            regressors (columns scaled to unit norm) have a condition number
+            above 1e4 and the options allow it (no `Q`, no other forgetting
+            mode), so that the recursive fit stays within about 1e-8
+            (relative) of batch least squares up to condition numbers of
+            1e8.
         **filter_options
             ``"rls"`` only: any other keyword argument of
             `RecursiveLeastSquares` (for example its forgetting mode), passed
@@ -258,6 +344,14 @@ class ARX(IdentifiedModel):
             lengths, bad orders, too few samples, or a regressor matrix
             without full column rank (input not persistently exciting).
 
+        Warns
+        -----
+        NumericalWarning
+            ``"rls"`` on ill-conditioned regressors when the accuracy of the
+            recursion cannot be guaranteed: the covariance form (asked for,
+            or forced by `Q` or a forgetting mode) above a condition number
+            of 1e6, or any form above 1e10.
+
         Notes
         -----
         With ``method="rls"``, ``theta_`` is the filter's last estimate and
@@ -267,46 +361,60 @@ class ARX(IdentifiedModel):
         end of the record, while ``noise_variance_`` (residuals of the final
         estimate over all rows) overstates the noise if the plant changed.
         """
-        if method not in ("ls", "rls"):
-            raise ValueError(f"`method` must be 'ls' or 'rls'; got {method!r}")
-        opts = {"k0": k0, "lam": lam, "P0": P0, "R": R, "Q": Q, "x0": x0}
+        if method not in ("ls", "rls", "iv", "riv"):
+            raise ValueError(f"`method` must be 'ls', 'rls', 'iv' or 'riv'; got {method!r}")
+        opts = {"k0": k0, "lam": lam, "P0": P0, "R": R, "Q": Q, "x0": x0, "form": form}
         if method == "ls":
             given = [k for k, v in opts.items() if v is not None] + list(filter_options)
             if given:
                 raise TypeError(f"`{given[0]}` only applies to method='rls'; got method='ls'")
-        _check_filter_options(filter_options)
+        iv_options = {k: v for k, v in opts.items() if v is not None} | filter_options
+        if method in ("iv", "riv"):
+            check_iv_options(method, iv_options)
+        else:
+            _check_filter_options(filter_options)
         opts["extra"] = filter_options
-        U, Y, info = as_io_data(u, y)
-        s = self._structure(U.shape[1], Y.shape[1])
-        N = len(U)
-        if N - s.max_lag < s.n_params:
+        records, info = as_records(u, y)
+        s = self._structure(records[0][0].shape[1], records[0][1].shape[1])
+        n_params = s.n_params + (_offset_mode(self.offset) == "intercept")
+        rows = sum(max(len(U) - s.max_lag, 0) for U, _ in records)
+        if rows < n_params:
+            N = sum(len(U) for U, _ in records)
+            per = " (over all experiments)" if len(records) > 1 else ""
             raise InsufficientDataError(
-                f"`y` must have at least max_lag + n_params = {s.max_lag} + {s.n_params} = "
-                f"{s.max_lag + s.n_params} samples for ARX(na={s.na}, nb={_fmt(s.nb)}, "
+                f"`y` must have at least max_lag + n_params = {s.max_lag} + {n_params} = "
+                f"{s.max_lag + n_params} samples{per} for ARX(na={s.na}, nb={_fmt(s.nb)}, "
                 f"nk={_fmt(s.nk)}); got {N}")
-        Phi = _build(U, Y, s, s.max_lag)
-        target = Y[s.max_lag:]
-        rows = len(Phi)
+        op = _means(records) if _offset_mode(self.offset) == "mean" else None
+        Phi, target = self._design(records, s, op)
         # compute everything first: a fit that raises leaves the model as it was
-        recursive = {}
+        recursive, cov_iv = {}, None
         if method == "ls":
             theta, cov_unscaled = _qr_least_squares(Phi, target)
+        elif method in ("iv", "riv"):
+            dev = records if op is None else [(U - op[0], Y - op[1]) for U, Y in records]
+            theta, cov_iv, recursive = fit_arx_iv(
+                dev, s, method, iv_options, info["y_1d"],
+                intercept=_offset_mode(self.offset) == "intercept")
         else:
             theta, cov_unscaled, rls, history, prior, k0 = _fit_rls(Phi, target, s, opts)
             # prior: the a-priori (recursive) residuals y(t) - phi(t) theta(t-1) after
             # the batch start
-            recursive = {"filter_": rls, "k0_": k0,
+            recursive = {"filter_": rls, "k0_": k0, "lam_": float(rls.lam),
+                         "form_": "square_root" if isinstance(rls, SquareRootRLS)
+                         else "covariance",
                          "theta_history_": history[:, :, 0] if info["y_1d"] else history,
                          "recursive_residuals_": prior[:, 0] if info["y_1d"] else prior}
-        for name in ("theta_history_", "filter_", "k0_", "recursive_residuals_",
-                     "noise_covariance_"):
+        for name in ("theta_history_", "filter_", "k0_", "lam_", "form_", "recursive_residuals_",
+                     "noise_covariance_", "intercept_", "instruments_"):
             self.__dict__.pop(name, None)
         self.__dict__.update(recursive)
         resid = target - Phi @ theta
-        dof = rows - s.n_params
+        dof = rows - n_params
         sigma2 = np.sum(resid ** 2, axis=0) / dof if dof > 0 else np.full(s.n_outputs, np.nan)
         self._store(theta, s, info)
-        cov = sigma2[:, None, None] * cov_unscaled[None]
+        self._set_operating_point(records, op)
+        cov = sigma2[:, None, None] * cov_unscaled[None] if cov_iv is None else cov_iv
         self.theta_cov_ = cov[0] if info["y_1d"] else cov
         self.noise_variance_ = float(sigma2[0]) if info["y_1d"] else sigma2
         if not info["y_1d"]:
@@ -314,6 +422,7 @@ class ARX(IdentifiedModel):
                                       else np.full((s.n_outputs, s.n_outputs), np.nan))
         self.residuals_ = resid[:, 0] if info["y_1d"] else resid
         self.n_samples_ = rows
+        self.n_experiments_ = len(records)
         self.method_ = method
         return self
 
@@ -321,7 +430,7 @@ class ARX(IdentifiedModel):
         """Set every fitted attribute derived from ``theta`` (n_params, ny)."""
         self.structure_ = s
         self._info = dict(info)
-        self.n_params_ = s.n_params
+        self.n_params_ = theta.shape[0]
         self.n_inputs_ = s.n_inputs
         self.n_outputs_ = s.n_outputs
         y_1d, u_1d = info["y_1d"], info["u_1d"]
@@ -331,6 +440,61 @@ class ARX(IdentifiedModel):
         self.a_ = A[0, 0].copy() if y_1d else A.copy()
         Bs = [b[0].copy() if y_1d else b.copy() for b in self._B]
         self.b_ = Bs[0] if u_1d else Bs
+        self.input_names_ = tuple(self._u_name(j) for j in range(s.n_inputs))
+        self.output_names_ = tuple(self._y_name(i) for i in range(s.n_outputs))
+        self.input_units_ = tuple(info.get("u_units") or ("",) * s.n_inputs)
+        self.output_units_ = tuple(info.get("y_units") or ("",) * s.n_outputs)
+        if theta.shape[0] > s.n_params:  # offset=True: the intercept is the last row
+            self.intercept_ = float(theta[-1, 0]) if y_1d else theta[-1].copy()
+        else:
+            self.__dict__.pop("intercept_", None)
+
+    def _restore_fitted(self, fitted):
+        """Rebuild a saved model (:func:`rlsfilt.load_model`): attributes and derived caches."""
+        missing = [k for k in ("theta_", "structure_", "b_", "input_names_", "output_names_")
+                   if k not in fitted]
+        if missing:
+            raise ValueError(f"the saved ARX model lacks its learned attributes {missing}; "
+                             "was it written by ARX.save?")
+        theta = np.asarray(fitted["theta_"], dtype=float)
+        s = fitted["structure_"]
+        y_1d, u_1d = theta.ndim == 1, not isinstance(fitted["b_"], list)
+        names = {}
+        for key, attr, n, one in (("u", "input", s.n_inputs, u_1d),
+                                  ("y", "output", s.n_outputs, y_1d)):
+            given = list(fitted[f"{attr}_names_"])
+            default = [key] if one else [f"{key}{i + 1}" for i in range(n)]
+            names[f"{key}_names"] = None if given == default else given  # None: not named
+            names[f"{key}_units"] = list(fitted.get(f"{attr}_units_", [""] * n))
+        info = {"u_1d": u_1d, "y_1d": y_1d, **names}
+        self._store(theta.reshape(len(theta), -1), s, info)
+        for key, value in fitted.items():
+            if key not in ("theta_", "a_", "b_", "structure_"):
+                setattr(self, key, value)
+
+    def _set_operating_point(self, records, op):
+        r"""``input_offset_``, ``output_offset_``: the point the model's deviations are about.
+
+        ``offset=False``: zero. ``offset="mean"``: the means of the
+        estimation record. ``offset=True``: the mean input :math:`\bar u` and
+        the equilibrium output there, :math:`y_{op} = A(1)^{-1} (c + B(1)
+        \bar u)`, so that :math:`A(q)(y - y_{op}) = B(q)(u - \bar u) + e`
+        is the same model as :math:`A(q) y = B(q) u + c + e`.
+        """
+        nu, ny = self.n_inputs_, self.n_outputs_
+        if _offset_mode(self.offset) == "mean":
+            u_op, y_op = op
+        elif _offset_mode(self.offset) == "intercept":
+            u_bar, y_bar = _means(records)
+            u_op, y_op = _equilibrium(self._A, self._B, np.atleast_1d(self.intercept_), u_bar,
+                                      y_bar)
+        else:
+            u_op, y_op = np.zeros(nu), np.zeros(ny)
+        self.input_offset_ = np.asarray(u_op, dtype=float).reshape(nu).copy()
+        self.output_offset_ = np.asarray(y_op, dtype=float).reshape(ny).copy()
+
+    def _fitted_op(self):
+        return self.input_offset_, self.output_offset_
 
     # ------------------------------------------------------------------
     # the IdentifiedModel interface: structure, names, polynomials
@@ -353,6 +517,8 @@ class ARX(IdentifiedModel):
         for j in range(s.n_inputs):
             tag = "" if info["u_1d"] else f"[{self._u_name(j)}]"
             names += [f"b{k}{tag}" for k in range(1, s.nb[j] + 1)]
+        if self.n_params_ > s.n_params:
+            names.append("c")
         return names
 
     @property
@@ -391,10 +557,10 @@ class ARX(IdentifiedModel):
             A, B = self._A, self._B
         else:
             theta = np.asarray(theta, dtype=float)
-            if theta.size != s.n_params * s.n_outputs:
+            if theta.size != self.n_params_ * s.n_outputs:
                 raise ValueError(f"`theta` must have the shape of `theta_` "
                                  f"{np.shape(self.theta_)}; got {theta.shape}")
-            A, B = _split(theta.reshape(s.n_params, s.n_outputs), s)
+            A, B = _split(theta.reshape(self.n_params_, s.n_outputs), s)
         ny, nu = s.n_outputs, s.n_inputs
         Apoly = np.zeros((ny, ny, s.na + 1))
         Apoly[:, :, 0] = np.eye(ny)
@@ -412,18 +578,27 @@ class ARX(IdentifiedModel):
         Adds ARX's own fields: ``na``, ``nb``, ``nk`` (lists, one entry per
         input), ``a`` (``a_``), ``b`` (a list of ``b_`` arrays, one per input),
         ``method``, ``lam`` (1 for batch least squares), ``forgetting``
-        (the filter's mode, None for ``"ls"``) and ``k0`` (rows of the batch
-        start, None for ``"ls"``).
+        (the filter's mode, None for ``"ls"`` and for a loaded model),
+        ``k0`` (rows of the batch start, None for ``"ls"``), ``offset``,
+        ``input_offset``, ``output_offset`` (the operating point),
+        ``intercept`` (None without ``offset=True``) and ``n_experiments``.
         """
         out = super().to_dict()
         s = self.structure_
         rls = self.method_ == "rls"
+        filt = self.__dict__.get("filter_")
         out.update(jsonable({
             "na": s.na, "nb": s.nb, "nk": s.nk, "a": self.a_,
             "b": self.b_ if isinstance(self.b_, list) else [self.b_],
-            "method": self.method_, "lam": self.filter_.lam if rls else 1.0,
-            "forgetting": self.filter_.forgetting if rls else None,
-            "k0": self.k0_ if rls else None}))
+            "method": self.method_, "lam": self.lam_ if rls else 1.0,
+            "forgetting": getattr(filt, "forgetting", "exponential") if filt is not None
+            else None,
+            "form": self.__dict__.get("form_"),
+            "k0": self.k0_ if rls else None,
+            "offset": self.offset, "input_offset": self.input_offset_,
+            "output_offset": self.output_offset_,
+            "intercept": self.__dict__.get("intercept_"),
+            "n_experiments": self.__dict__.get("n_experiments_", 1)}))
         return out
 
     def _theta2(self):
@@ -433,12 +608,12 @@ class ARX(IdentifiedModel):
         """``sum_j B_j(q) u_j(t)`` with zero inputs before t = 0, shape (N, ny)."""
         s = self.structure_
         Phi0 = _build(U, np.zeros((len(U), s.n_outputs)), s, 0)
-        return Phi0 @ self._theta2()
+        return Phi0 @ self._theta2()[:s.n_params]
 
     # ------------------------------------------------------------------
     # prediction and simulation
     # ------------------------------------------------------------------
-    def predict(self, u, y, horizon=1):
+    def predict(self, u, y=None, horizon=1):
         r"""``horizon``-step-ahead prediction (MATLAB ``predict``).
 
         ``yhat[t]`` is the prediction of ``y(t)`` from the outputs up to
@@ -450,10 +625,14 @@ class ARX(IdentifiedModel):
         :meth:`regressors`, and a horizon ``>= N`` (or ``np.inf``) is
         :meth:`simulate`.
 
+        With an operating point (``offset`` True or ``"mean"``) the model
+        runs on the deviations from it, the past before ``t = 0`` is the
+        operating point, and the prediction is in the units of the data.
+
         Parameters
         ----------
-        u : array_like, shape (N,) or (N, nu)
-            Input record.
+        u : array_like, shape (N,) or (N, nu), or IOData
+            Input record, or an `IOData` (then `y` is omitted).
         y : array_like, shape (N,) or (N, ny)
             Measured outputs.
         horizon : int or np.inf, default 1
@@ -462,6 +641,7 @@ class ARX(IdentifiedModel):
         Returns
         -------
         yhat : ndarray, shape (N,) or (N, ny)
+            (a list of them, one per experiment, for an `IOData` of several).
 
         Examples
         --------
@@ -479,14 +659,21 @@ class ARX(IdentifiedModel):
         array([0.  , 1.  , 0.9 , 0.81])
         """
         self._check_fitted("predict")
+        return self._each_experiment(self._predict, u, y, horizon)
+
+    def _predict(self, u, y, horizon):
         U, Y = self._data(u, y)
         N = len(U)
         if self._horizon_is_inf(horizon):
             horizon = N
         horizon = check_int(horizon, "horizon", minimum=1)
         if horizon >= N:
-            return self.simulate(U if not self._info["u_1d"] else U[:, 0])
-        bu = self._input_part(U)
+            return self._simulate(U, None)
+        # deviations from the operating point (zero without an offset); the past before
+        # t = 0 is the operating point
+        u_op, y_op = self._fitted_op()
+        Y = Y - y_op
+        bu = self._input_part(U - u_op)
         A, na = self._A, self.structure_.na
         preds = []  # preds[h - 1] is yhat_h; only the last na are needed
         for h in range(1, horizon + 1):
@@ -497,15 +684,18 @@ class ARX(IdentifiedModel):
             preds.append(yh)
             if len(preds) > na + 1:
                 preds[h - na - 2] = None
-        return self._shape_out(preds[-1])
+        return self._shape_out(preds[-1] + y_op)
 
     def simulate(self, u, y0=None):
         r"""Free-run simulation (MATLAB ``sim``): the output from the input alone.
 
         Parameters
         ----------
-        u : array_like, shape (N,) or (N, nu)
-            Input record; inputs before ``t = 0`` are zero.
+        u : array_like, shape (N,) or (N, nu), or IOData
+            Input record (or the inputs of an `IOData`); inputs before
+            ``t = 0`` are zero (the operating point for a model with an
+            offset, whose simulation then starts at its equilibrium and is in
+            the units of the data).
         y0 : array_like, shape (L,) or (L, ny), optional
             Known outputs ``y(0) .. y(L-1)`` (for example ``y[:na]`` of a
             measured record); the simulation continues from ``t = L``. By
@@ -516,6 +706,7 @@ class ARX(IdentifiedModel):
         Returns
         -------
         y_sim : ndarray, shape (N,) or (N, ny)
+            (a list of them, one per experiment, for an `IOData` of several).
 
         Examples
         --------
@@ -528,9 +719,13 @@ class ARX(IdentifiedModel):
         array([4.  , 3.  , 2.5 , 2.25])
         """
         self._check_fitted("simulate")
+        return self._each_experiment(self._simulate, u, None, y0, outputs=False)
+
+    def _simulate(self, u, y0):
         U, _ = self._data(u)
         N, ny = len(U), self.n_outputs_
-        bu = self._input_part(U)
+        u_op, y_op = self._fitted_op()
+        bu = self._input_part(U - u_op)
         A, na = self._A, self.structure_.na
         L = 0
         Ysim = np.zeros((N, ny))
@@ -541,7 +736,7 @@ class ARX(IdentifiedModel):
             L = len(Y0)
             if L > N:
                 raise ValueError(f"`y0` must have at most N = {N} samples; got {L}")
-            Ysim[:L] = Y0
+            Ysim[:L] = Y0 - y_op
         if ny == 1:
             a = np.concatenate([[1.0], A[0, 0]])
             past = Ysim[max(L - na, 0):L, 0][::-1]
@@ -558,7 +753,7 @@ class ARX(IdentifiedModel):
                 for k in range(1, min(na, t) + 1):
                     acc -= Ak[k - 1] @ Ysim[t - k]
                 Ysim[t] = acc
-        return self._shape_out(Ysim)
+        return self._shape_out(Ysim + y_op)
 
     # ------------------------------------------------------------------
     # polynomials and the python-control / scipy bridge
@@ -718,6 +913,8 @@ class ARX(IdentifiedModel):
 
     def _set_truth(self, theta, s, info, noise_variance):
         self._store(theta, s, info)
+        self._set_operating_point(None, None)
+        self.n_experiments_ = 0
         ny = s.n_outputs
         nv = np.broadcast_to(np.asarray(noise_variance, float), (ny,)).copy()
         zero = np.zeros((ny, s.n_params, s.n_params))
@@ -749,31 +946,57 @@ class ARX(IdentifiedModel):
             rhs = [fmt["term"](th[p, i], se[p, i], fmt["signal"](self._u_name(j), s.nk[j] + m))
                    for j in range(s.n_inputs) for m in range(s.nb[j])
                    for p in [b_sls[j].start + m]]
+            if self.n_params_ > s.n_params:  # the intercept c, without a signal
+                rhs.append(fmt["term"](th[-1, i], se[-1, i], "").rstrip().rstrip("\\,")
+                           .rstrip())
             # nb >= 1, so rhs is never empty; its first term carries its sign unspaced
             first = rhs[0][2:] if rhs[0].startswith("+ ") else "-" + rhs[0][2:]
             lines.append(" ".join(lhs) + fmt["equals"] + " ".join([first] + rhs[1:]) + " + e(t)")
         return lines
 
+    def _operating_point_text(self):
+        """``flow = 40.08 %, T_out = 96.91 degC`` (empty without an offset)."""
+        mode = _offset_mode(self.offset) if "input_offset_" in self.__dict__ else "none"
+        if mode == "none":
+            return ""
+        units = (self._info.get("u_units") or [""] * self.n_inputs_,
+                 self._info.get("y_units") or [""] * self.n_outputs_)
+        parts = [f"{name} = {v:.6g}" + (f" {unit}" if unit else "")
+                 for names, values, unit_list in ((self.input_names_, self.input_offset_,
+                                                   units[0]),
+                                                  (self.output_names_, self.output_offset_,
+                                                   units[1]))
+                 for name, v, unit in zip(names, values, unit_list)]
+        how = ("equilibrium at the mean input" if mode == "intercept"
+               else "means of the estimation record")
+        return ", ".join(parts) + f" ({how})"
+
     def _summary_lines(self, style="text"):
         """Orders, method, noise variance and the difference equation(s) (text or HTML)."""
         s = self.structure_
         nv = ", ".join(f"{v:.4g}" for v in np.atleast_1d(self.noise_variance_))
+        op = self._operating_point_text()
         if style == "html":
             esc = html.escape
             return ([f"<p><b>{esc(self._orders_text())}</b>, {self.n_samples_} equations, "
                      f"noise variance {nv}</p>"]
+                    + ([f"<p>operating point: {esc(op)}</p>"] if op else [])
                     + [f"<p><code>{line}</code></p>" for line in self._equation_lines("html")])
         how = {"ls": "batch least squares (QR)", "rls": "recursive least squares",
+               "iv": "instrumental variables", "riv": "recursive instrumental variables",
                "true": "given coefficients (no fit)"}[self.method_]
         if self.method_ == "rls":
-            f = self.filter_
             start = (f"batch start on {self.k0_} rows" if self.k0_ else "prior start")
-            how += f" (lam={f.lam:g}, {start})"
+            how += f" (lam={self.lam_:g}, {start})"
+        n_exp = self.__dict__.get("n_experiments_", 1)
+        exps = f" of {n_exp} experiments" if n_exp > 1 else ""
         out = [f"{self._orders_text()}: {s.n_inputs} input(s), {s.n_outputs} output(s), "
-               f"{s.n_params} parameters per output",
-               f"  estimated by {how} on {self.n_samples_} equations",
-               f"  noise variance (unbiased): {nv}",
-               "  difference equation (estimate +/- 1 standard error):"]
+               f"{self.n_params_} parameters per output",
+               f"  estimated by {how} on {self.n_samples_} equations{exps}",
+               f"  noise variance (unbiased): {nv}"]
+        if op:
+            out.append(f"  operating point: {op}")
+        out.append("  difference equation (estimate +/- 1 standard error):")
         out += ["    " + line for line in self._equation_lines()]
         return out
 
@@ -796,6 +1019,12 @@ class ARX(IdentifiedModel):
             return None
         lines = self._equation_lines("latex")
         return "$$\\begin{aligned}" + " \\\\ ".join(lines) + "\\end{aligned}$$"
+
+    def fit_many(self, u, y, method="ls", **options):
+        """Fit these orders to every channel of a fleet: :func:`rlsfilt.models.fit_many`."""
+        from .fleet import fit_many
+
+        return fit_many(self, u, y, method, **options)
 
 
 class ARXSummary(ModelSummary):
@@ -835,11 +1064,11 @@ def _fit_rls(Phi, target, s, opts):
 
     ``history`` (rows, n, ny) is NaN before row ``k0 - 1`` (the batch start's
     estimate); ``prior`` (rows, ny) the a-priori residuals, NaN before row ``k0``.
-    The rows come from validated signals, so the filter runs them without
-    validating them again, writing the estimates straight into ``history``
-    and every residual into ``prior`` (no copies of the record).
+    The rows come from validated signals, so the covariance-form filter runs
+    them without validating them again, writing the estimates straight into
+    ``history`` and every residual into ``prior`` (no copies of the record).
     """
-    n, rows = s.n_params, len(Phi)
+    n, rows = Phi.shape[1], len(Phi)  # an intercept adds a column to the structure's
     prior = opts["P0"] is not None or opts["x0"] is not None
     if opts["k0"] is not None:
         k0 = check_int(opts["k0"], "k0", minimum=0)
@@ -857,7 +1086,15 @@ def _fit_rls(Phi, target, s, opts):
                 f"k0={k0} rows sets both x0 and P0. Pass k0=0 to start from `{given[0]}`.")
     kw = {key: opts[key] for key in ("P0", "R", "Q", "x0") if opts[key] is not None}
     lam = 1.0 if opts["lam"] is None else opts["lam"]
-    rls = RecursiveLeastSquares(n, dim_z=s.n_outputs, lam=lam, **kw, **opts["extra"])
+    form, cond_raw = _choose_form(Phi, opts)
+    extra = dict(opts["extra"])
+    # cond(P) = cond(Phi)^2 (in the signals' units) is what the data give (and more on the
+    # first rows), and _choose_form has said so: the health check watches for windup beyond
+    extra.setdefault("cond_max", max(1e12, 1e4 * cond_raw ** 2))
+    cls = SquareRootRLS if form == "square_root" else RecursiveLeastSquares
+    rls = cls(n, dim_z=s.n_outputs, lam=lam, **kw, **extra)
+    if cls is SquareRootRLS:
+        return _fit_square_root(rls, Phi, target, k0)
     prior = np.full((rows, s.n_outputs), np.nan)
     if k0 > 0:
         rls.initialize(target[:k0], Phi[:k0])
@@ -871,6 +1108,74 @@ def _fit_rls(Phi, target, s, opts):
         history = np.full((rows, n, s.n_outputs), np.nan)
         history[k0 - 1] = rls.x
     return rls.x.copy(), rls.P / rls.R, rls, history, prior, k0
+
+
+def _fit_square_root(rls, Phi, target, k0):
+    """`_fit_rls` with a `SquareRootRLS` (its public ``batch_filter``): the same returns."""
+    rows = len(Phi)
+    history = np.full((rows, Phi.shape[1], target.shape[1]), np.nan)
+    x_start = rls.x.copy()
+    if k0 > 0:
+        rls.initialize(target[:k0], Phi[:k0])
+        history[k0 - 1] = rls.x
+    if k0 < rows:
+        history[k0:] = rls.batch_filter(target[k0:], Phi[k0:], store_covariances=False)[0]
+    # a-priori (recursive) residuals y(t) - phi(t) theta(t-1) after the batch start
+    prior = np.full_like(target, np.nan)
+    start = k0
+    if k0 == 0 and rows:
+        prior[0] = target[0] - Phi[0] @ x_start
+        start = 1
+    prior[start:] = target[start:] - np.einsum("ij,ijk->ik", Phi[start:], history[start - 1:-1])
+    return rls.x.copy(), rls.P / rls.R, rls, history, prior, k0
+
+
+_FORMS = ("auto", "covariance", "square_root")
+_SQRT_OPTIONS = {"check_every", "cond_max"}   # what SquareRootRLS takes beyond lam, P0, x0, R
+_COND_AUTO = 1e4        # "auto" takes the square-root form above this condition number
+_COND_COVARIANCE = 1e6  # the covariance form warns above this
+_COND_ANY = 1e10        # any recursion warns above this
+
+
+def _choose_form(Phi, opts):
+    """``(form, cond_raw)``: the recursion to run, and the condition number of the rows in the
+    signals' units (the choice itself uses the rows scaled to unit columns).
+
+    The covariance update's round-off grows with cond(P) = cond(Phi)^2, the square-root
+    (QR) update's with cond(Phi) (NUMERICS.md; Haykin 2002, ch. 14).
+    """
+    form = "auto" if opts["form"] is None else opts["form"]
+    if not isinstance(form, str) or form not in _FORMS:
+        raise ValueError(f"`form` must be 'auto', 'covariance' or 'square_root'; got {form!r}")
+    blocked = ["Q"] if opts["Q"] is not None else []
+    blocked += [k for k in opts["extra"] if k not in _SQRT_OPTIONS]
+    if form == "square_root" and blocked:
+        raise TypeError(f"form='square_root' (SquareRootRLS) takes lam, P0, x0, R, check_every "
+                        f"and cond_max only; got `{blocked[0]}`")
+    norms = np.linalg.norm(Phi, axis=0)
+    R = np.linalg.qr(Phi / np.where(norms > 0, norms, 1.0), mode="r")
+    cond, cond_raw = (_cond(M) for M in (R, R * norms))  # R D is the factor of Phi itself
+    if form == "auto":
+        form = "square_root" if cond > _COND_AUTO and not blocked else "covariance"
+    if form == "covariance" and cond > _COND_COVARIANCE:
+        why = (f"`{blocked[0]}` rules out the square-root form" if blocked
+               else "form='covariance' was asked for")
+        warnings.warn(f"the regressors are ill-conditioned (condition number {cond:.3g}): the "
+                      "covariance-form recursion may drift from batch least squares (its "
+                      f"round-off grows with {cond:.3g}^2) and {why}; use form='square_root' or "
+                      "method='ls'", NumericalWarning, stacklevel=4)
+    elif cond > _COND_ANY:
+        warnings.warn(f"the regressors are ill-conditioned (condition number {cond:.3g}): even "
+                      "the square-root recursion keeps only about "
+                      f"{max(0, int(-np.log10(np.finfo(float).eps * cond)))} digits; scale the "
+                      "signals, lower the orders or use a richer input", NumericalWarning,
+                      stacklevel=4)
+    return form, cond_raw
+
+
+def _cond(R):
+    sv = np.linalg.svd(R, compute_uv=False)
+    return float(sv[0] / sv[-1]) if len(sv) and sv[-1] > 0 else np.inf
 
 
 def _qr_least_squares(Phi, target):
@@ -922,3 +1227,41 @@ def _split(theta, s):
 
 def _fmt(t):
     return t[0] if len(set(t)) == 1 and len(t) == 1 else list(t)
+
+
+def _offset_mode(offset):
+    """``"none"``, ``"intercept"`` or ``"mean"`` for the `offset` parameter (validated)."""
+    if isinstance(offset, str):
+        if offset == "mean":
+            return "mean"
+    elif isinstance(offset, (bool, np.bool_)):
+        return "intercept" if offset else "none"
+    raise ValueError(f"`offset` must be False, True (estimate an intercept) or 'mean' (remove "
+                     f"the means of the estimation record); got {offset!r}")
+
+
+def _means(records):
+    """Means of the inputs and outputs over every sample of every experiment."""
+    U = np.vstack([U for U, _ in records])
+    Y = np.vstack([Y for _, Y in records])
+    return U.mean(axis=0), Y.mean(axis=0)
+
+
+def _equilibrium(A, B, c, u_bar, y_bar):
+    r"""The steady state of :math:`A(q) y = B(q) u + c` nearest the record's means.
+
+    With :math:`A(1) = I + \sum_k A_k` invertible: :math:`u = \bar u`,
+    :math:`y = A(1)^{-1}(c + B(1)\bar u)`. For an integrating model
+    (singular :math:`A(1)`) the point :math:`(u, y)` with
+    :math:`A(1) y - B(1) u = c` closest to :math:`(\bar u, \bar y)` (minimum
+    norm correction).
+    """
+    ny = A.shape[0]
+    A1 = np.eye(ny) + A.sum(axis=2)
+    B1 = np.hstack([b.sum(axis=1, keepdims=True) for b in B])  # (ny, nu)
+    if np.linalg.cond(A1) < 1e10:
+        return u_bar, np.linalg.solve(A1, c + B1 @ u_bar)
+    M = np.hstack([A1, -B1])
+    x_bar = np.concatenate([y_bar, u_bar])
+    x = x_bar + np.linalg.pinv(M) @ (c - M @ x_bar)
+    return x[ny:], x[:ny]

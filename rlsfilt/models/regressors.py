@@ -73,6 +73,17 @@ class ARXStructure:
         return (f"ARXStructure(na={self.na}, nb={self.nb}, nk={self.nk}, "
                 f"n_inputs={self.n_inputs}, n_outputs={self.n_outputs})")
 
+    def to_dict(self):
+        """Plain ints and lists (for saving a model); :meth:`from_dict` rebuilds it."""
+        return {"na": self.na, "nb": list(self.nb), "nk": list(self.nk),
+                "n_inputs": self.n_inputs, "n_outputs": self.n_outputs}
+
+    @classmethod
+    def from_dict(cls, d):
+        """The structure saved by :meth:`to_dict` (validated again)."""
+        return arx_structure(d["na"], list(d["nb"]), list(d["nk"]), d["n_inputs"],
+                             d["n_outputs"])
+
 
 def _per_input(value, name, n_inputs, minimum):
     """A scalar order or one per input, as a tuple of validated ints."""
@@ -182,6 +193,39 @@ def as_io_data(u, y, names=("u", "y")):
     return U, Y, {"u_1d": u_1d, "y_1d": y_1d, "u_names": u_names, "y_names": y_names}
 
 
+def is_listed(x):
+    """True for a list or tuple of signals (arrays or pandas objects): one per experiment."""
+    return isinstance(x, (list, tuple)) and bool(x) and any(
+        isinstance(v, np.ndarray) or hasattr(v, "to_numpy") for v in x)
+
+
+def as_records(u, y=None, names=("u", "y")):
+    """Validate one or several experiments: ``([(U, Y), ...], info)``.
+
+    `u` may be an :class:`~rlsfilt.data.IOData` (then `y` is omitted), lists
+    of arrays (one per experiment, as `IOData` takes them), or one record as
+    :func:`as_io_data` takes it. ``U`` is ``(N_i, nu)`` and ``Y`` is
+    ``(N_i, ny)`` per experiment; ``info`` is the dict of :func:`as_io_data`
+    (for an `IOData`: its signal names and units, one signal counting as
+    1-D) with ``"n_experiments"`` added.
+    """
+    from ..data.iodata import IOData, as_iodata
+
+    listed = is_listed(u) or is_listed(y)
+    if isinstance(u, IOData) or listed:
+        data = as_iodata(u, y, u_name=names[0], y_name=names[1])
+        info = {"u_1d": data.n_inputs == 1, "y_1d": data.n_outputs == 1,
+                "u_names": list(data.input_names), "y_names": list(data.output_names),
+                "u_units": list(data.input_units), "y_units": list(data.output_units),
+                "n_experiments": data.n_experiments}
+        return data.arrays(), info
+    if y is None:
+        raise TypeError(f"`{names[1]}` is required unless `{names[0]}` is an IOData")
+    U, Y, info = as_io_data(u, y, names=names)
+    info["n_experiments"] = 1
+    return [(U, Y)], info
+
+
 def _build(U, Y, s, start):
     """Regressor matrix for rows ``t = start .. N-1`` with zero past before t = 0."""
     N = len(U)
@@ -204,21 +248,25 @@ def _build(U, Y, s, start):
     return Phi
 
 
-def arx_regressors(u, y, na, nb, nk=1, *, start=None):
+def arx_regressors(u, y=None, na=None, nb=None, nk=1, *, start=None):
     r"""Regressor matrix and target of an ARX model.
 
     Parameters
     ----------
-    u : array_like, shape (N,) or (N, nu)
-        Input record (time on axis 0); pandas objects work too.
+    u : array_like, shape (N,) or (N, nu), or IOData
+        Input record (time on axis 0); pandas objects work too. Or an
+        `IOData` (or lists of arrays, one per experiment) holding inputs
+        and outputs: then `y` is omitted (pass the orders by keyword) and
+        the rows of every experiment come one after the other, none
+        straddling two experiments.
     y : array_like, shape (N,) or (N, ny)
         Output record.
     na, nb, nk
-        Orders as in :func:`arx_structure`.
+        Orders as in :func:`arx_structure` (`na` and `nb` are required).
     start : int, optional
-        First row. Defaults to ``max_lag``, the first sample whose regressor
-        is complete; a smaller ``start`` (``0`` gives one row per sample)
-        takes inputs and outputs before ``t = 0`` as zero.
+        First row (of each experiment). Defaults to ``max_lag``, the first
+        sample whose regressor is complete; a smaller ``start`` (``0`` gives
+        one row per sample) takes inputs and outputs before ``t = 0`` as zero.
 
     Returns
     -------
@@ -242,15 +290,26 @@ def arx_regressors(u, y, na, nb, nk=1, *, start=None):
            [-30.,   3.,   2.]])
     >>> target
     array([20., 30., 40.])
+
+    Two experiments: no row mixes the end of one with the start of the other.
+
+    >>> from rlsfilt import IOData
+    >>> Phi, target = arx_regressors(IOData([u, u], [y, y]), na=1, nb=2)
+    >>> Phi.shape, target
+    ((6, 3), array([20., 30., 40., 20., 30., 40.]))
     """
-    U, Y, info = as_io_data(u, y)
-    s = arx_structure(na, nb, nk, U.shape[1], Y.shape[1])
+    for value, name in ((na, "na"), (nb, "nb")):
+        if value is None:
+            raise TypeError(f"`{name}` is required (the orders of the model)")
+    records, info = as_records(u, y)
+    s = arx_structure(na, nb, nk, records[0][0].shape[1], records[0][1].shape[1])
     start = s.max_lag if start is None else check_int(start, "start", minimum=0)
-    if start > len(U):
-        raise ValueError(f"`start` must be <= N = {len(U)}; got {start}")
-    Phi = _build(U, Y, s, start)
-    target = Y[start:, 0].copy() if info["y_1d"] else Y[start:].copy()
-    return Phi, target
+    shortest = min(len(U) for U, _ in records)
+    if start > shortest:
+        raise ValueError(f"`start` must be <= N = {shortest}; got {start}")
+    Phi = np.vstack([_build(U, Y, s, start) for U, Y in records])
+    target = np.vstack([Y[start:] for _, Y in records])
+    return Phi, (target[:, 0] if info["y_1d"] else target).copy()
 
 
 def _full_rank_rows(Phi):

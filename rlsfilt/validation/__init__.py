@@ -1,7 +1,8 @@
 """Model validation: fit, residual tests, information criteria, order
 selection, CUSUM tests, uncertainty, and comparison against the true plant.
 
-Identification is only trusted after validation. This subpackage offers
+Identification is only trusted after validation (and structure comes
+first: ``delayest`` estimates input delays, ``select_order`` the orders). This subpackage offers
 what MATLAB users know as ``compare``, ``resid``, ``aic``/``fpe`` and
 ``arxstruc``/``selstruc``, the CUSUM tests of statsmodels' ``RecursiveLS``
 (usable on any regression, including an ARX model's regressors), and a
@@ -12,11 +13,13 @@ python-control. Results are objects with named fields, ``summary()`` and
 
 from .criteria import InformationCriteria, criteria_from_loss, information_criteria
 from .cusum import CusumResult, cusum, cusum_squares, recursive_residuals
+from .delay import DelayEstimate, delayest
 from .metrics import fit_percent
 from .plant import PlantComparison
 from .report import ValidationReport, validate
 from .residuals import ResidualAnalysis, residual_analysis
 from .selection import OrderSelection, select_order
+from .structure import StructureSelection, select_structure
 from .uncertainty import (
     FrequencyBand,
     ParameterIntervals,
@@ -26,16 +29,19 @@ from .uncertainty import (
 
 __all__ = [
     "CusumResult",
+    "DelayEstimate",
     "FrequencyBand",
     "InformationCriteria",
     "OrderSelection",
     "ParameterIntervals",
     "PlantComparison",
     "ResidualAnalysis",
+    "StructureSelection",
     "ValidationReport",
     "criteria_from_loss",
     "cusum",
     "cusum_squares",
+    "delayest",
     "fit_percent",
     "frequency_response_band",
     "information_criteria",
@@ -43,5 +49,6 @@ __all__ = [
     "recursive_residuals",
     "residual_analysis",
     "select_order",
+    "select_structure",
     "validate",
 ]

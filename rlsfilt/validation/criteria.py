@@ -19,7 +19,7 @@ import numpy as np
 
 from .._validation import check_int, check_scalar
 from ..exceptions import ExactFitError
-from ._model import n_params, one_step
+from ._model import n_params, one_step_records
 
 __all__ = ["InformationCriteria", "criteria_from_loss", "information_criteria"]
 
@@ -144,15 +144,17 @@ def criteria_from_loss(loss, n_samples, n_params, n_outputs=1):
     return _criteria(V, N, d, ny)
 
 
-def information_criteria(model, u, y):
+def information_criteria(model, u, y=None):
     """Information criteria of a fitted model on a record.
 
     Parameters
     ----------
     model : IdentifiedModel
         A fitted model (`ARX` or any other `IdentifiedModel`).
-    u : array_like, shape (N,) or (N, nu)
-        Input record.
+    u : array_like, shape (N,) or (N, nu), or IOData
+        Input record, or an `IOData` with inputs and outputs (then `y` is
+        omitted). With several experiments the one-step residuals of every
+        experiment count, each from its own start.
     y : array_like, shape (N,) or (N, ny)
         Output record. Pass the estimation data for the classical criteria;
         on fresh data they penalize a validation loss (as MATLAB's
@@ -181,7 +183,7 @@ def information_criteria(model, u, y):
     >>> ic.n_samples, ic.n_params
     (499, 2)
     """
-    _, _, e = one_step(model, u, y, "information_criteria")
+    _, e, _ = one_step_records(model, u, y, "information_criteria")
     return _from_residuals(e, n_params(model))
 
 

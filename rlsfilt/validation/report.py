@@ -1,13 +1,17 @@
 """One call that validates a model: fit, residual tests, criteria, plant comparison."""
 
 import html
+import warnings
 
 import numpy as np
 
 from .._serialize import jsonable
 from .._validation import check_int, check_probability
 from .._version import __version__
-from ..exceptions import ExactFitError, InsufficientDataError
+from ..data.trend import _offset_messages
+from ..exceptions import ExactFitError, InsufficientDataError, OperatingPointWarning
+from ..models._base import check_is_fitted
+from ..models.regressors import _as_signal, as_records, is_listed
 from ..plotting import plot_comparison, plot_report
 from ._model import model_name, n_params, one_step
 from .criteria import _from_residuals
@@ -33,14 +37,32 @@ class ValidationReport:
         Measured output.
     y_simulated : ndarray
         Free-run simulation from the input, started from the measured first
-        ``max_lag`` outputs.
+        ``max_lag`` outputs (zeros for a time series: no input to simulate
+        from).
     y_predicted : ndarray
         One-step-ahead prediction.
     start : int
         ``max_lag``: the first sample the fits are computed on.
     simulation_fit, prediction_fit : float or ndarray of shape (ny,)
         :func:`fit_percent` of the simulation and of the one-step prediction
-        on samples ``start .. N-1``.
+        on samples ``start .. N-1`` (of every experiment). NaN for the
+        simulation of an unstable model, whose simulation diverges, and of a
+        time series (no input).
+    is_time_series : bool
+        True for a model without input (`AR`, `ARMA`): the residuals get
+        the whiteness test only (no cross-correlation, no independence
+        test), there is no simulation, and the stability and Bode diagram
+        are those of the noise model ``C/(A D)``.
+    stability : str
+        ``"stable (largest pole magnitude 0.93)"``, or ``"unstable model,
+        largest pole magnitude 1.02, simulation diverges"``.
+    is_unstable : bool
+        True when a pole of the input model lies outside the unit circle.
+    max_pole_magnitude : float
+        Largest pole magnitude of the input model.
+    experiment_lengths : tuple of int
+        Samples per experiment (`y`, `y_simulated`, `y_predicted` and `time`
+        hold the experiments one after the other).
     residuals : tuple of ResidualAnalysis
         One analysis per output (empty when the tests were skipped).
     criteria : InformationCriteria or None
@@ -54,21 +76,34 @@ class ValidationReport:
         skip_undefined=True)`` on too short a record or on an exact fit).
     metadata : dict
         What the caller passed as ``validate(..., metadata=...)``.
+    input_names, output_names, input_units, output_units : tuple of str
+        The signals' names and units, for the labels of :meth:`plot`: those
+        of the validation record (an `IOData` or named pandas columns), else
+        those the model was fitted on (units ``""`` when unknown).
+    experiment_names : tuple of str
+        The experiments' names (``"exp1"``, ... unless the `IOData` names them).
     """
 
     def __init__(self, **fields):
         self.skipped = None
         self.metadata = {}
+        self.stability = ""
+        self.is_unstable = False
+        self.max_pole_magnitude = float("nan")
+        self.experiment_lengths = ()
+        self.experiment_names = ()
+        self.input_names = self.output_names = self.input_units = self.output_units = ()
+        self.is_time_series = False
         for key, value in fields.items():
             setattr(self, key, value)
 
     @property
     def passed(self):
-        """True if every residual test passed (white and independent for every output);
-        False when the tests were skipped."""
+        """True if every residual test passed (white and independent for every output;
+        white for a time series); False when the tests were skipped."""
         if not self.residuals:
             return False
-        return all(r.is_white and r.is_independent for r in self.residuals)
+        return all(r.is_white and r.is_independent is not False for r in self.residuals)
 
     def __repr__(self):
         return self.summary()
@@ -76,9 +111,11 @@ class ValidationReport:
     def summary(self):
         """The report as plain text, with the model's coefficient table."""
         dt = "" if self.model.dt is True else f" (sample time {float(self.model.dt):g})"
-        lines = [f"Validation of {self._model_name()} on {len(self.y)} samples{dt}",
+        lines = [f"Validation of {self._model_name()} on {len(self.y)} samples"
+                 f"{self._experiments_text()}{dt}",
                  "=" * 64,
-                 f"Simulation fit      : {_fmt_fit(self.simulation_fit)}",
+                 f"Model               : {self.stability}",
+                 f"Simulation fit      : {self._simulation_text()}",
                  f"1-step prediction fit: {_fmt_fit(self.prediction_fit)}",
                  ""]
         if self.residuals:
@@ -122,7 +159,12 @@ class ValidationReport:
             ``transfer_functions``, ...); ``theta_lower``, ``theta_upper``
             and ``confidence_level`` (:attr:`intervals`); ``n_samples`` (the
             record), ``n_used`` (rows with a complete predictor);
-            ``fit_percent`` (simulation) and ``fit_percent_prediction``;
+            ``fit_percent`` (simulation; None for an unstable model) and
+            ``fit_percent_prediction``; ``stability`` (the sentence of
+            :attr:`stability`), ``unstable`` and ``max_pole_magnitude``;
+            ``experiment_lengths``; ``time_series`` (True for a model
+            without input: ``fit_percent`` and the independence entries of
+            ``residual_tests`` are then None);
             ``validation_skipped`` (None or the reason); when the tests ran,
             ``residual_tests`` (a dict; a list of dicts, one per output, for
             several outputs) and ``information_criteria``; with a plant,
@@ -154,7 +196,10 @@ class ValidationReport:
             theta_lower=ci.lower, theta_upper=ci.upper, confidence_level=ci.level,
             n_samples=len(self.y), n_used=len(self.y) - self.start,
             fit_percent=self.simulation_fit, fit_percent_prediction=self.prediction_fit,
-            validation_skipped=self.skipped)
+            stability=self.stability, unstable=self.is_unstable,
+            max_pole_magnitude=self.max_pole_magnitude,
+            experiment_lengths=list(self.experiment_lengths),
+            time_series=self.is_time_series, validation_skipped=self.skipped)
         if self.residuals:
             tests = [_residual_dict(r) for r in self.residuals]
             out["residual_tests"] = tests[0] if len(tests) == 1 else tests
@@ -171,7 +216,8 @@ class ValidationReport:
                    f"<td style='text-align:left'>{html.escape(value)}</td></tr>"
 
         c = self.criteria
-        rows = [row("simulation fit", _fmt_fit(self.simulation_fit)),
+        rows = [row("model", self.stability),
+                row("simulation fit", self._simulation_text()),
                 row("1-step prediction fit", _fmt_fit(self.prediction_fit))]
         if not self.residuals:
             rows.append(row("residual tests", f"skipped: {self.skipped}"))
@@ -180,6 +226,9 @@ class ValidationReport:
             rows.append(row(f"whiteness{tag}",
                             f"{'white' if r.is_white else 'NOT white'} "
                             f"(Ljung-Box p = {r.pvalue_white:.3g})"))
+            if not r.has_input:
+                rows.append(row(f"independence{tag}", "not applicable (time series: no input)"))
+                continue
             rows.append(row(f"independence{tag}",
                             f"{'independent' if r.is_independent else 'NOT independent'} "
                             f"(p = {r.pvalue_independent:.3g})"))
@@ -204,7 +253,8 @@ class ValidationReport:
         rows.append(row("verdict", verdict + ("" if self.passed or not self.residuals
                                               else " (consider other orders)")))
         return (f"<div><h4>Validation of {html.escape(self._model_name())} on {len(self.y)} "
-                f"samples: <span style='color:{color}'>{mark} {verdict}</span></h4>"
+                f"samples{html.escape(self._experiments_text())}: "
+                f"<span style='color:{color}'>{mark} {verdict}</span></h4>"
                 f"<table>{''.join(rows)}</table>"
                 f"<details><summary>parameters</summary><pre>"
                 f"{html.escape(self.intervals.summary())}</pre></details></div>")
@@ -270,8 +320,19 @@ class ValidationReport:
     def _model_name(self):
         return model_name(self.model)
 
+    def _simulation_text(self):
+        if self.is_time_series:
+            return "not applicable (time series: no input)"
+        if self.is_unstable:
+            return self.stability
+        return _fmt_fit(self.simulation_fit)
 
-def validate(model, u, y, plant=None, *, max_lag=25, alpha=0.01, skip_undefined=False,
+    def _experiments_text(self):
+        n = len(self.experiment_lengths)
+        return f" of {n} experiments" if n > 1 else ""
+
+
+def validate(model, u, y=None, plant=None, *, max_lag=25, alpha=0.01, skip_undefined=False,
              metadata=None):
     """Validate a fitted model on a record (and against the true plant if known).
 
@@ -279,11 +340,15 @@ def validate(model, u, y, plant=None, *, max_lag=25, alpha=0.01, skip_undefined=
     ----------
     model : IdentifiedModel
         A fitted model (`ARX` or any other model class of rlsfilt).
-    u : array_like, shape (N,) or (N, nu)
-        Input record; validation data not used for the fit is the honest
-        choice, the estimation data show the fit itself.
-    y : array_like, shape (N,) or (N, ny)
-        Output record.
+    u : array_like, shape (N,) or (N, nu), or IOData, or None
+        Input record, or an `IOData` holding inputs and outputs (then `y` is
+        omitted; pass `plant` by keyword); validation data not used for the
+        fit is the honest choice, the estimation data show the fit itself.
+        None for a time-series model (`AR`, `ARMA`): the report then has
+        the whiteness test only (no input to correlate with), no
+        simulation, the prediction fit and the criteria.
+    y : array_like, shape (N,) or (N, ny), or a list of them
+        Output record (a list: one per experiment).
     plant : control.LTI, optional
         The true system, for simulated experiments (see
         :class:`PlantComparison`).
@@ -311,6 +376,14 @@ def validate(model, u, y, plant=None, *, max_lag=25, alpha=0.01, skip_undefined=
         (one figure), ``.to_dict()`` (JSON-ready) and every number as an
         attribute.
 
+    Warns
+    -----
+    OperatingPointWarning
+        When a signal's mean is large against its variation (more than 3
+        standard deviations) and the model has no offset handling (its
+        ``offset`` is False or it has none): detrend the data or fit with
+        ``offset=True``.
+
     Raises
     ------
     InsufficientDataError
@@ -325,7 +398,14 @@ def validate(model, u, y, plant=None, *, max_lag=25, alpha=0.01, skip_undefined=
     model's largest lag and the fits are computed from there on; the
     one-step prediction uses the measured past (:meth:`ARX.predict`), so on
     the same rows it equals ``Phi @ theta_`` (MATLAB's ``compare`` with
-    prediction horizon 1).
+    prediction horizon 1). An unstable model is reported as such ("unstable
+    model, largest pole magnitude 1.02, simulation diverges") and its
+    simulation fit is NaN instead of a meaningless huge negative number.
+
+    With several experiments every experiment is simulated and predicted
+    from its own start, the fits cover the rows of all of them, and the
+    residual tests run on the residuals of all experiments one after the
+    other (correlations at lag ``k`` pair ``k`` samples across each seam).
 
     Examples
     --------
@@ -342,7 +422,47 @@ def validate(model, u, y, plant=None, *, max_lag=25, alpha=0.01, skip_undefined=
     alpha = check_probability(alpha, "alpha")
     if metadata is not None and not isinstance(metadata, dict):
         raise TypeError(f"`metadata` must be a dict; got {type(metadata).__name__}")
-    Phi, _, E = one_step(model, u, y, "validate")      # the regressors, built once
+    check_is_fitted(model, "validate")
+    from ..data.iodata import IOData
+
+    u_arg = u
+    time_series = getattr(model, "n_inputs_", None) == 0
+    if time_series:                                       # AR, ARMA: u is None
+        records, info = _time_series_records(model, u, y)
+        parts = [(None, Y[:, 0]) for _, Y in records]
+    elif (records_info := as_records(u, y))[1]["n_experiments"] == 1 and y is not None:
+        records, info = records_info
+        parts = [(u, y)]                                  # as given (1-D stays 1-D)
+    else:
+        records, info = records_info
+        parts = [(U if U.shape[1] > 1 else U[:, 0], Y if Y.shape[1] > 1 else Y[:, 0])
+                 for U, Y in records]
+    if _offset_mode(model) == "none":
+        msgs = _offset_messages(records, (info.get("u_names"), info.get("y_names")))
+        if msgs:
+            warnings.warn("; ".join(msgs) + ", and the model has no offset handling: the "
+                          "fit mostly describes the operating point. Detrend the data "
+                          "(rlsfilt.detrend) or fit with offset=True", OperatingPointWarning,
+                          stacklevel=2)
+    Phis, Es, Ys, sims, preds, glued_u, starts = [], [], [], [], [], [], []
+    for k, (uk, yk) in enumerate(parts):
+        Phi_k, _, E_k = one_step(model, uk, yk, "validate")   # the regressors, built once
+        Yk = np.asarray(yk, dtype=float)
+        start_k = len(Yk) - len(E_k)  # max_lag of the model
+        if time_series:               # nothing to simulate from: the zero-input response
+            sims.append(np.zeros(len(Yk)))
+        else:
+            sims.append(np.asarray(model.simulate(uk, y0=Yk[:start_k] if start_k else None),
+                                   dtype=float))
+        preds.append(np.asarray(model.predict(uk, yk, horizon=1), dtype=float))
+        Phis.append(Phi_k)
+        Es.append(E_k)
+        Ys.append(Yk)
+        Uk = np.asarray(records[k][0], dtype=float)
+        glued_u.append(Uk if k == 0 else Uk[start_k:])    # aligns residual rows across seams
+        starts.append(start_k)
+    Phi, E = np.vstack(Phis), np.vstack(Es)
+    u = np.vstack(glued_u) if len(parts) > 1 or time_series else parts[0][0]
     n = E.shape[0]
     if auto:
         lag = max(1, min(25, n // 4))
@@ -369,23 +489,86 @@ def validate(model, u, y, plant=None, *, max_lag=25, alpha=0.01, skip_undefined=
             skipped = "the residuals are zero or constant (an exact fit)"
             residuals = ()
             break
-    Y = np.asarray(y, dtype=float)
-    start = len(Y) - n  # max_lag of the model
-    y0 = Y[:start]
-    y_sim = np.asarray(model.simulate(u, y0=y0 if start else None), dtype=float)
-    y_pred = np.asarray(model.predict(u, y, horizon=1), dtype=float)
+    Y, y_sim, y_pred = (np.concatenate(x) for x in (Ys, sims, preds))
+    offsets = np.cumsum([0] + [len(v) for v in Ys])[:-1]
+    rows = np.concatenate([off + np.arange(s0, len(Yk))
+                           for off, s0, Yk in zip(offsets, starts, Ys)])
     dt = 1.0 if model.dt is True else float(model.dt)
+    tstarts = list(u_arg.tstart) if isinstance(u_arg, IOData) else [0.0] * len(Ys)
+    time = np.concatenate([t0 + dt * np.arange(len(Yk)) for t0, Yk in zip(tstarts, Ys)])
+    stability = model.stability_text()
+    poles = model.poles()
+    r_max = float(np.max(np.abs(poles))) if len(poles) else 0.0
+    unstable = r_max >= 1.0 + 1e-9
+    sim_fit = fit_percent(Y[rows], y_sim[rows])
+    if unstable or time_series:  # a diverging simulation (or none) has no meaningful fit
+        sim_fit = np.full(np.shape(sim_fit), np.nan)
+        sim_fit = float(sim_fit) if sim_fit.ndim == 0 else sim_fit
     return ValidationReport(
-        model=model, time=np.arange(len(Y)) * dt, y=Y, y_simulated=y_sim, y_predicted=y_pred,
-        start=start,
-        simulation_fit=fit_percent(Y[start:], y_sim[start:]),
-        prediction_fit=fit_percent(Y[start:], y_pred[start:]),
+        model=model, time=time, y=Y, y_simulated=y_sim, y_predicted=y_pred,
+        start=starts[0], experiment_lengths=tuple(len(v) for v in Ys),
+        stability=stability, is_unstable=unstable, max_pole_magnitude=r_max,
+        simulation_fit=sim_fit,
+        prediction_fit=fit_percent(Y[rows], y_pred[rows]),
         residuals=residuals,
         criteria=criteria,
         intervals=parameter_intervals(model),
         plant_comparison=None if plant is None else PlantComparison(model, plant),
-        skipped=skipped, metadata=dict(metadata or {}),
+        skipped=skipped, metadata=dict(metadata or {}), is_time_series=time_series,
+        experiment_names=(tuple(u_arg.experiment_names) if isinstance(u_arg, IOData)
+                          else tuple(f"exp{k + 1}" for k in range(len(Ys)))),
+        **_signal_labels(model, info),
     )
+
+
+def _signal_labels(model, info):
+    """Names and units of the signals for the figures: the record's when it names them
+    (an IOData, pandas columns), else the fitted model's, else ``u``/``y`` and no unit."""
+    out = {}
+    for kind, key, n in (("input", "u", model.n_inputs_), ("output", "y", model.n_outputs_)):
+        names = info.get(f"{key}_names") or getattr(model, f"{kind}_names_", None)
+        if not names or len(names) != n:
+            names = [key] if n == 1 else [f"{key}{i + 1}" for i in range(n)]
+        units = info.get(f"{key}_units")
+        if not units or not any(units):
+            units = getattr(model, f"{kind}_units_", None)
+        if not units or len(units) != n:
+            units = [""] * n
+        out[f"{kind}_names"] = tuple(str(v) for v in names)
+        out[f"{kind}_units"] = tuple(str(v) for v in units)
+    return out
+
+
+def _time_series_records(model, u, y):
+    """``([(U (N_i, 0), Y (N_i, 1)), ...], info)`` of a time series (`u` None; `y` one
+    signal or a list of them, one per experiment)."""
+    name = type(model).__name__
+    if u is not None:
+        raise ValueError(f"`u` must be None for the time-series model {name} (it has no "
+                         f"input): call validate(model, None, y); got {type(u).__name__}")
+    if y is None:
+        raise TypeError(f"`y` is required: validate(model, None, y) for the time-series "
+                        f"model {name}")
+    listed = is_listed(y)
+    records = []
+    for i, yi in enumerate(y if listed else [y]):
+        label = f"y[{i}]" if listed else "y"
+        Y, _, names = _as_signal(yi, label)
+        if Y.shape[1] != 1:
+            raise ValueError(f"`{label}` must have shape (N,) (one signal, as in fit); got "
+                             f"{Y.shape}")
+        records.append((np.zeros((len(Y), 0)), Y))
+    info = {"u_1d": True, "y_1d": True, "u_names": [], "y_names": names,
+            "n_experiments": len(records)}
+    return records, info
+
+
+def _offset_mode(model):
+    """``"none"`` unless the model handles an operating point (an ``offset`` parameter)."""
+    offset = model.get_params().get("offset", False)
+    if isinstance(offset, str):
+        return offset
+    return "intercept" if offset else "none"
 
 
 def _residual_dict(r):

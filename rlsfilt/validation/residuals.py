@@ -13,7 +13,7 @@ from .._validation import check_int, check_probability
 from ..exceptions import ExactFitError, InsufficientDataError
 from ..models.regressors import _as_signal, _unit_columns
 from ..plotting import plot_autocorrelation, plot_cross_correlation, plot_residuals
-from ._model import one_step
+from ._model import one_step_records
 
 __all__ = ["ResidualAnalysis", "residual_analysis"]
 
@@ -48,8 +48,13 @@ class ResidualAnalysis:
     f_statistic, df_independent, pvalue_independent : float, int, float
         F statistic of the input-lag test, its numerator degrees of freedom
         and p-value.
-    is_white, is_independent : bool
-        ``pvalue > alpha``: the hypothesis is not rejected at level `alpha`.
+    is_white : bool
+        ``pvalue_white > alpha``: whiteness is not rejected at level `alpha`.
+    is_independent : bool or None
+        ``pvalue_independent > alpha``: independence is not rejected at level
+        `alpha`. None for a time series (AR, ARMA: no input, so no
+        cross-correlation and no independence test; `cross_correlation` has
+        zero rows and the F statistic and its p-value are NaN).
     alpha : float
         Significance level.
     max_lag : int
@@ -63,15 +68,24 @@ class ResidualAnalysis:
             setattr(self, key, value)
 
     def __repr__(self):
+        indep = (f"independent={self.is_independent} (p={self.pvalue_independent:.3g})"
+                 if self.has_input else "no input (time series)")
         return (f"<ResidualAnalysis: white={self.is_white} (p={self.pvalue_white:.3g}), "
-                f"independent={self.is_independent} (p={self.pvalue_independent:.3g}), "
-                f"alpha={self.alpha:g}, max_lag={self.max_lag}>")
+                f"{indep}, alpha={self.alpha:g}, max_lag={self.max_lag}>")
+
+    @property
+    def has_input(self):
+        """False for a time series (no input: only the whiteness test ran)."""
+        return self.is_independent is not None
 
     def summary(self):
         """Two lines of text: the two tests and their decisions."""
+        white = (f"  whiteness (Ljung-Box, {self.df_white} df): Q = {self.q_statistic:.4g}, "
+                 f"p = {self.pvalue_white:.4g} -> {'white' if self.is_white else 'NOT white'}")
+        if not self.has_input:
+            return white + "\n  independence of inputs: not applicable (time series: no input)"
         return "\n".join([
-            f"  whiteness (Ljung-Box, {self.df_white} df): Q = {self.q_statistic:.4g}, "
-            f"p = {self.pvalue_white:.4g} -> {'white' if self.is_white else 'NOT white'}",
+            white,
             f"  independence of inputs (F, {self.df_independent} df): "
             f"F = {self.f_statistic:.4g}, p = {self.pvalue_independent:.4g} -> "
             f"{'independent' if self.is_independent else 'NOT independent'}",
@@ -120,15 +134,20 @@ class ResidualAnalysis:
         return plot_cross_correlation(self, ax)
 
 
-def residual_analysis(model, u, y, max_lag=25, alpha=0.01, *, output=0, model_df=0):
+def residual_analysis(model, u, y=None, max_lag=25, alpha=0.01, *, output=0, model_df=0):
     r"""Whiteness and input-independence tests of the one-step residuals.
 
     Parameters
     ----------
     model : IdentifiedModel
         A fitted model (`ARX` or any other `IdentifiedModel`).
-    u : array_like, shape (N,) or (N, nu)
-        Input record (estimation or validation data).
+    u : array_like, shape (N,) or (N, nu), IOData, or None
+        Input record (estimation or validation data), or an `IOData` with
+        inputs and outputs (then `y` is omitted: pass `max_lag` and `alpha`
+        by keyword). Several experiments (an `IOData` or lists of arrays)
+        are analysed as :func:`validate` does: the residuals of every
+        experiment one after the other, each from its own start. None for a
+        time series (`AR`, `ARMA`), which gets the whiteness test only.
     y : array_like, shape (N,) or (N, ny)
         Output record.
     max_lag : int, default 25
@@ -231,12 +250,18 @@ def residual_analysis(model, u, y, max_lag=25, alpha=0.01, *, output=0, model_df
     """
     max_lag = check_int(max_lag, "max_lag", minimum=1)
     alpha = check_probability(alpha, "alpha")
-    Phi, _, E = one_step(model, u, y, "residual_analysis")
-    return _residual_analysis(Phi, E, u, max_lag, alpha, output, model_df)
+    Phi, E, U = one_step_records(model, u, y, "residual_analysis")
+    if getattr(model, "n_inputs_", None) == 0:        # a time series: no input to test
+        U = np.zeros((len(E) + model.max_lag, 0))
+    return _residual_analysis(Phi, E, U, max_lag, alpha, output, model_df)
 
 
 def _residual_analysis(Phi, E, u, max_lag, alpha, output=0, model_df=0):
-    """`residual_analysis` on the regressors `Phi` and residuals `E` (n, ny) of a model."""
+    """`residual_analysis` on the regressors `Phi` and residuals `E` (n, ny) of a model.
+
+    `u` with zero columns (``(N, 0)``, a time series) gives the whiteness test
+    only: no cross-correlation, ``is_independent`` None.
+    """
     ny = E.shape[1]
     output = check_int(output, "output", minimum=0)
     if output >= ny:
@@ -245,7 +270,10 @@ def _residual_analysis(Phi, E, u, max_lag, alpha, output=0, model_df=0):
     if model_df >= max_lag:
         raise ValueError(f"`max_lag` must exceed `model_df` = {model_df} (degrees of freedom "
                          f"left for the Ljung-Box test); got max_lag = {max_lag}")
-    U = _as_signal(u, "u")[0]  # (N, nu), validated by `one_step`
+    if isinstance(u, np.ndarray) and u.ndim == 2 and u.shape[1] == 0:
+        U = u                      # a time series: no input
+    else:
+        U = _as_signal(u, "u")[0]  # (N, nu), validated by `one_step`
     e = E[:, output]
     n = len(e)
     N = len(U)
@@ -288,14 +316,18 @@ def _residual_analysis(Phi, E, u, max_lag, alpha, output=0, model_df=0):
         P = max(float(acf_sym @ acf_u), 0.0)
         band[j] = z * np.sqrt(P / n)
 
-    # joint LM / F test of the lagged inputs given the regressors
-    F, q, p_indep = _input_lag_test(e, Phi, U, t0, max_lag)
+    # joint LM / F test of the lagged inputs given the regressors (none without an input)
+    if nu:
+        F, q, p_indep = _input_lag_test(e, Phi, U, t0, max_lag)
+        independent = bool(p_indep > alpha)
+    else:
+        F, q, p_indep, independent = np.nan, 0, np.nan, None
     return ResidualAnalysis(
         residuals=e.copy(), lags=lags, autocorrelation=acf, autocorrelation_band=z / np.sqrt(n),
         cross_lags=taus, cross_correlation=ccf, cross_correlation_band=band,
         q_statistic=Q, df_white=df_white, pvalue_white=p_white,
         f_statistic=F, df_independent=q, pvalue_independent=p_indep,
-        is_white=bool(p_white > alpha), is_independent=bool(p_indep > alpha),
+        is_white=bool(p_white > alpha), is_independent=independent,
         alpha=alpha, max_lag=max_lag, output=output)
 
 

@@ -10,13 +10,14 @@ is :math:`\min_b \lVert \Psi_S b - y \rVert = \min_b \lVert R_S b - r_y
 
 import itertools
 import numbers
+import warnings
 
 import numpy as np
 
 from .._serialize import jsonable
 from .._validation import check_dt, check_int
-from ..exceptions import ExactFitError, InsufficientDataError
-from ..models.regressors import _build, arx_structure, as_io_data
+from ..exceptions import ExactFitError, InsufficientDataError, OrderSelectionWarning
+from ..models.regressors import _build, arx_structure, as_records
 from ..plotting import plot_order_selection
 from .criteria import _criteria
 
@@ -25,7 +26,8 @@ __all__ = ["OrderSelection", "select_order"]
 _CRITERIA = ("aic", "aicc", "bic", "naic", "fpe", "mdl", "loss")
 _FIELDS = [("na", int), ("nb", int), ("nk", int), ("n_params", int), ("loss", float),
            ("val_loss", float), ("aic", float), ("aicc", float), ("bic", float),
-           ("naic", float), ("fpe", float), ("mdl", float)]
+           ("naic", float), ("fpe", float), ("mdl", float), ("max_pole", float),
+           ("stable", bool)]
 
 
 class OrderSelection:
@@ -41,12 +43,14 @@ class OrderSelection:
         One row per candidate, in the order tried, with fields ``na``,
         ``nb``, ``nk``, ``n_params``, ``loss`` (mean squared one-step
         residual on the estimation rows), ``val_loss`` (on the validation
-        rows, NaN without validation data) and ``aic``, ``aicc``, ``bic``,
+        rows, NaN without validation data), ``aic``, ``aicc``, ``bic``,
         ``naic``, ``fpe``, ``mdl`` (computed from ``val_loss`` when
-        validation data were given, else from ``loss``).
+        validation data were given, else from ``loss``), ``max_pole`` (the
+        largest pole magnitude of the candidate's ``A``) and ``stable``.
     values : ndarray
         The criterion column of `table` (``val_loss`` for ``"loss"``);
-        smaller is better.
+        smaller is better (``inf`` for the unstable candidates with
+        ``stable_only``).
     n_rows : int
         Number of aligned estimation rows (the same for every candidate).
     n_val_rows : int or None
@@ -56,7 +60,8 @@ class OrderSelection:
         order ``[a1..a_na, b1..b_nb]``, on the aligned rows).
     """
 
-    def __init__(self, table, criterion, values, thetas, n_rows, n_val_rows, data, dt):
+    def __init__(self, table, criterion, values, thetas, n_rows, n_val_rows, data, dt,
+                 offset=False):
         self.table = table
         self.criterion = criterion
         self.values = np.asarray(values, dtype=float)
@@ -68,6 +73,7 @@ class OrderSelection:
         self.n_val_rows = n_val_rows
         self._data = data
         self._dt = dt
+        self._offset = offset
 
     def __repr__(self):
         return (f"<OrderSelection: best (na, nb, nk) = {self.best} by {self.criterion} among "
@@ -85,8 +91,7 @@ class OrderSelection:
         from ..models import ARX
 
         na, nb, nk = self.best
-        u, y = self._data
-        return ARX(na, nb, nk, dt=self._dt).fit(u, y)
+        return ARX(na, nb, nk, dt=self._dt, offset=self._offset).fit(*self._data)
 
     def to_dict(self):
         """The selection as a JSON-ready dict.
@@ -136,6 +141,7 @@ class OrderSelection:
             line = f"{r['na']:>3} {r['nb']:>3} {r['nk']:>3} {r['n_params']:>3} {r['loss']:>11.5g}"
             line += f" {r['val_loss']:>11.5g}" if val else ""
             line += f" {self.values[i]:>12.6g}" if extra else ""
+            line += "  unstable" if not r["stable"] else ""
             line += "  <- best" if i == self.best_index else ""
             lines.append(line)
         return "\n".join(lines)
@@ -157,36 +163,66 @@ class OrderSelection:
         return plot_order_selection(self, ax)
 
 
-def select_order(u, y, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), criterion="bic",
-                 validation=None, *, dt=True):
+def select_order(u, y=None, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), criterion="bic",
+                 validation=None, *, dt=True, offset=False, stable_only=False):
     r"""Choose ARX orders ``(na, nb, nk)`` by an information criterion.
 
     Parameters
     ----------
-    u : array_like, shape (N,) or (N, nu)
-        Estimation input. With several inputs every candidate uses the same
-        ``nb`` and ``nk`` for all of them.
+    u : array_like, shape (N,) or (N, nu), or IOData
+        Estimation input, or an `IOData` holding inputs and outputs (then
+        `y` is omitted and the other arguments are given by keyword); with
+        several experiments no regressor row straddles two of them. With
+        several inputs every candidate uses the same ``nb`` and ``nk`` for
+        all of them.
     y : array_like, shape (N,)
         Estimation output (one output).
-    na, nb, nk : int or iterable of int
+    na, nb : int or iterable of int
         Candidate orders; every combination is tried (``na >= 0``,
-        ``nb >= 1``, ``nk >= 0``).
+        ``nb >= 1``).
+    nk : int or iterable of int, default range(1, 4)
+        Candidate delays, independent of the orders (``nk >= 0``): a dead
+        time of 16 samples needs ``nk=range(14, 19)``, not larger orders
+        (:func:`~rlsfilt.delayest` estimates it first).
     criterion : {"bic", "aic", "aicc", "naic", "fpe", "mdl", "loss"}, default "bic"
         What to minimize (see :func:`criteria_from_loss`); ``"loss"`` is the
         plain mean squared residual, sensible only with `validation`.
-    validation : tuple (u_val, y_val), optional
+    validation : tuple (u_val, y_val) or IOData, optional
         Validation record. The candidates are then still estimated on
-        ``(u, y)`` but scored on the loss of their one-step predictions on
-        the validation record (MATLAB's ``arxstruc(ze, zv, NN)``; the
-        criteria penalize that loss as ``selstruc`` does).
+        ``(u, y)`` but scored (and picked) on the loss of their one-step
+        predictions on the validation record (MATLAB's ``arxstruc(ze, zv,
+        NN)``; the criteria penalize that loss as ``selstruc`` does).
     dt : True or float, default True
         Sampling period given to :meth:`OrderSelection.best_model`.
+    offset : {False, True, "mean"}, default False
+        Operating point handling of every candidate, as in
+        :class:`~rlsfilt.ARX`: ``True`` adds an intercept column to all of
+        them, ``"mean"`` removes the estimation record's means (from the
+        validation record too).
+    stable_only : bool, default False
+        Only candidates whose ``A`` has every pole inside the unit circle
+        can be picked (an unstable ARX model predicts one step ahead but
+        its simulation diverges).
 
     Returns
     -------
     OrderSelection
         ``.best``, ``.table`` of every candidate, ``.plot()``,
         ``.best_model()``.
+
+    Warns
+    -----
+    OrderSelectionWarning
+        When the best candidate lies at the upper edge of a range of
+        several values (or at its lower edge, for a range starting above
+        1): the message names the bound to widen.
+
+    Raises
+    ------
+    ValueError
+        Bad orders or criterion, a record too short for the largest lags,
+        noise-free data (a zero loss), or no stable candidate with
+        `stable_only`.
 
     Notes
     -----
@@ -230,23 +266,28 @@ def select_order(u, y, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), criterion
     if criterion not in _CRITERIA:
         raise ValueError(f"`criterion` must be one of {', '.join(_CRITERIA)}; got {criterion!r}")
     check_dt(dt)  # here, not later in best_model()
+    from ..models.arx import _offset_mode
+
+    mode = _offset_mode(offset)
     na_list = _order_list(na, "na", 0)
     nb_list = _order_list(nb, "nb", 1)
     nk_list = _order_list(nk, "nk", 0)
-    U, Y, info = _io(u, y, "u", "y")
+    records, info = _records(u, y, "u", "y")
     kmin = min(nk_list)
     kmax = max(nk_list) + max(nb_list) - 1
     na_max = max(na_list)
     t_max = max(na_max, kmax)
-    nu = U.shape[1]
+    nu = records[0][0].shape[1]
     n_lags = kmax - kmin + 1
-    n_cols = na_max + nu * n_lags
+    n_cols = na_max + nu * n_lags + (mode == "intercept")
+    op = _means(records) if mode == "mean" else None
 
-    Psi, target = _full_regressor(U, Y, na_max, kmin, kmax, t_max)
+    Psi, target = _stacked_regressor(records, na_max, kmin, kmax, t_max, op, mode)
     rows = len(target)
     if rows <= n_cols:
+        n = sum(len(U) for U, _ in records)
         raise InsufficientDataError(
-            f"`y` is too short for these orders: {len(Y)} samples leave {rows} aligned rows "
+            f"`y` is too short for these orders: {n} samples leave {rows} aligned rows "
             f"for up to {n_cols} regressors; use more data or smaller orders")
     # unit columns: the least-squares cut-off of rank-deficient candidates and the
     # conditioning no longer depend on the signals' units (losses are unchanged)
@@ -256,19 +297,25 @@ def select_order(u, y, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), criterion
     r_y = R[:, -1]
 
     if validation is not None:
-        try:
-            u_val, y_val = validation
-        except (TypeError, ValueError):
-            raise TypeError("`validation` must be a pair (u_val, y_val); got "
-                            f"{type(validation).__name__}") from None
-        Uv, Yv, _ = _io(u_val, y_val, "validation[0]", "validation[1]")
-        if Uv.shape[1] != nu:
+        from ..data.iodata import IOData
+
+        if isinstance(validation, IOData):
+            val_records, _ = _records(validation, None, "validation", "validation")
+        else:
+            try:
+                u_val, y_val = validation
+            except (TypeError, ValueError):
+                raise TypeError("`validation` must be a pair (u_val, y_val) or an IOData; got "
+                                f"{type(validation).__name__}") from None
+            val_records, _ = _records(u_val, y_val, "validation[0]", "validation[1]")
+        if val_records[0][0].shape[1] != nu:
             raise ValueError(f"`validation` input must have {nu} column(s) like `u`; got "
-                             f"{Uv.shape[1]}")
-        Psi_v, target_v = _full_regressor(Uv, Yv, na_max, kmin, kmax, t_max)
+                             f"{val_records[0][0].shape[1]}")
+        Psi_v, target_v = _stacked_regressor(val_records, na_max, kmin, kmax, t_max, op, mode)
         if len(target_v) == 0:
-            raise InsufficientDataError(f"`validation` record is too short: {len(Yv)} samples "
-                                        f"for a largest lag of {t_max}")
+            raise InsufficientDataError(
+                f"`validation` record is too short: {sum(len(U) for U, _ in val_records)} "
+                f"samples for a largest lag of {t_max}")
     elif criterion == "loss":
         raise ValueError("`criterion`='loss' needs `validation` data (on the estimation data "
                          "the largest model always has the smallest loss)")
@@ -276,9 +323,10 @@ def select_order(u, y, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), criterion
     cands = list(itertools.product(na_list, nb_list, nk_list))
     table = np.zeros(len(cands), dtype=_FIELDS)
     thetas = []
+    const = [n_cols - 1] if mode == "intercept" else []
     for i, (a, b, k) in enumerate(cands):
         S = list(range(a)) + [na_max + j * n_lags + (k - kmin) + m
-                              for j in range(nu) for m in range(b)]
+                              for j in range(nu) for m in range(b)] + const
         M = R[:, S]
         theta = np.linalg.lstsq(M, r_y, rcond=None)[0] if S else np.zeros(0)
         res = r_y - M @ theta
@@ -291,23 +339,34 @@ def select_order(u, y, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), criterion
             table[i]["val_loss"] = float(ev @ ev) / len(ev)
         else:
             table[i]["val_loss"] = np.nan
+        poles = np.roots(np.concatenate([[1.0], theta[:a]])) if a else np.zeros(0)
+        table[i]["max_pole"] = float(np.max(np.abs(poles))) if a else 0.0
+        table[i]["stable"] = table[i]["max_pole"] < 1.0
         thetas.append(theta)
 
     use_val = validation is not None
     V = table["val_loss"] if use_val else table["loss"]
     N = len(target_v) if use_val else rows
     if np.any(V <= 1e-24 * float(np.mean(target ** 2))):
-        raise ExactFitError("a candidate fits the data exactly (zero loss); information criteria "
-                         "are undefined for noise-free data")
+        raise ExactFitError("a candidate fits the data exactly (zero loss); information "
+                            "criteria are undefined for noise-free data")
     crit = _criteria(V, N, table["n_params"])
     for name in ("aic", "aicc", "bic", "naic", "fpe", "mdl"):
         table[name] = crit[name]
-    values = table["val_loss"] if criterion == "loss" else table[criterion]
+    values = np.array(table["val_loss"] if criterion == "loss" else table[criterion], float)
+    if stable_only:
+        if not table["stable"].any():
+            raise ValueError(f"`stable_only`: none of the {len(cands)} candidates is stable "
+                             f"(smallest largest-pole magnitude {table['max_pole'].min():.4g});"
+                             " check the data (operating point, delay) or widen the orders")
+        values[~table["stable"]] = np.inf
     # best_model() refits on the record as given: a 1-D input stays one signal `u`, and
     # pandas names are kept, so its summary names the signals as a direct ARX fit does
-    data = (_as_given(U, info["u_1d"], info["u_names"]), _as_given(Y[:, 0], True, info["y_names"]))
-    return OrderSelection(table, criterion, values, thetas, rows, N if use_val else None,
-                          data, dt)
+    data = _given(u, y, records, info)
+    result = OrderSelection(table, criterion, values, thetas, rows, N if use_val else None,
+                            data, dt, offset)
+    _warn_edges(result.best, {"na": na_list, "nb": nb_list, "nk": nk_list})
+    return result
 
 
 # ----------------------------------------------------------------------
@@ -326,11 +385,64 @@ def _order_list(value, name, minimum):
     return sorted({check_int(v, name, minimum=minimum) for v in values})
 
 
-def _io(u, y, uname, yname):
-    U, Y, info = as_io_data(u, y, names=(uname, yname))
-    if Y.shape[1] != 1:
-        raise ValueError(f"`{yname}` must have shape (N,) (one output); got {Y.shape}")
-    return U, Y, info
+def _records(u, y, uname, yname):
+    """Experiments ``[(U, Y), ...]`` of a one-output record (IOData, lists or arrays)."""
+    records, info = as_records(u, y, names=(uname, yname))
+    if records[0][1].shape[1] != 1:
+        raise ValueError(f"`{yname}` must have shape (N,) (one output); got "
+                         f"{records[0][1].shape[1]} outputs")
+    return records, info
+
+
+def _given(u, y, records, info):
+    """``(u, y)`` for best_model(): the IOData itself, or the arrays in the form given."""
+    from ..data.iodata import IOData
+
+    if isinstance(u, IOData):
+        return (u,)
+    if len(records) > 1:
+        return ([U for U, _ in records], [Y[:, 0] for _, Y in records])
+    U, Y = records[0]
+    return (_as_given(U, info["u_1d"], info["u_names"]), _as_given(Y[:, 0], True,
+                                                                   info["y_names"]))
+
+
+def _means(records):
+    U = np.vstack([U for U, _ in records])
+    Y = np.vstack([Y for _, Y in records])
+    return U.mean(axis=0), Y.mean(axis=0)
+
+
+def _stacked_regressor(records, na_max, kmin, kmax, t_max, op, mode):
+    """`_full_regressor` of every experiment, one after the other (+ ones for an intercept)."""
+    Psis, targets = [], []
+    for U, Y in records:
+        if op is not None:
+            U, Y = U - op[0], Y - op[1]
+        Psi, target = _full_regressor(U, Y, na_max, kmin, kmax, t_max)
+        if mode == "intercept":
+            Psi = np.column_stack([Psi, np.ones(len(target))])
+        Psis.append(Psi)
+        targets.append(target)
+    return np.vstack(Psis), np.concatenate(targets)
+
+
+def _warn_edges(best, ranges):
+    """Warn (once) when the best structure sits at edges of ranges that could be widened."""
+    edges = []
+    for (name, values), value in zip(ranges.items(), best):
+        if len(values) < 2:
+            continue
+        span = f"({min(values)}..{max(values)})"
+        if value == max(values):
+            edges.append(f"the upper edge of the `{name}` range {span}: widen `{name}` upwards")
+        elif value == min(values) and min(values) > 1:
+            edges.append(f"the lower edge of the `{name}` range {span}: widen `{name}` "
+                         "downwards")
+    if edges:
+        text = "; and at ".join(edges)
+        warnings.warn(f"the best structure (na, nb, nk) = {best} is at {text} (the best may "
+                      "lie outside the grid)", OrderSelectionWarning, stacklevel=3)
 
 
 def _as_given(X, was_1d, names):

@@ -1,0 +1,196 @@
+"""The ``rlsfilt identify-many`` command: one ARX model per channel of a CSV file.
+
+The file is in long format, one row per sample: a channel column, the input
+column(s) and the output column, each channel's rows in time order (the
+channels may be interleaved and may have different lengths). The command
+fits the same ARX structure to every channel with
+:func:`rlsfilt.models.fit_many` and writes the per-channel summary (one row
+per channel: parameters, standard errors, fit percentages, residual tests)
+as CSV or JSON, to a file or to standard output.
+
+`add_parser` adds the command to the ``rlsfilt`` parser; `run` executes it.
+Errors the user can cause raise ``ValueError`` with a one-line message,
+which the ``rlsfilt`` entry point prints (exit status 1).
+"""
+
+import argparse
+import json
+import sys
+
+import numpy as np
+
+__all__ = []
+
+_MODES = ("exponential", "directional", "constant_trace")
+
+
+def add_parser(subparsers):
+    """Add ``identify-many`` to the ``rlsfilt`` sub-command parsers."""
+    p = subparsers.add_parser(
+        "identify-many", help="identify one ARX model per channel of a long-format CSV file",
+        description="Fit the ARX model y(t) + a1 y(t-1) + ... = b1 u(t-nk) + ... + e(t) "
+                    "(MATLAB's [na nb nk]) to every channel of a CSV file with one row per "
+                    "sample and a channel column, and write one summary row per channel "
+                    "(parameters, standard errors, fit percentages, residual tests).")
+    p.add_argument("file", metavar="FILE.csv", help="CSV file with a header row")
+    p.add_argument("--channel-column", "-c", required=True, metavar="COL",
+                   help="column holding the channel label of each row")
+    p.add_argument("--input", "-u", action="append", required=True, metavar="COL",
+                   dest="inputs", help="input column (repeat for several inputs)")
+    p.add_argument("--output", "-y", required=True, metavar="COL", help="output column")
+    p.add_argument("--na", type=_int_at_least(0), default=2,
+                   help="number of poles, A(q) order (default: 2)")
+    p.add_argument("--nb", type=_int_list(1), default=[2], metavar="NB[,NB...]",
+                   help="number of B coefficients, one value or one per input (default: 2)")
+    p.add_argument("--nk", type=_int_list(0), default=[1], metavar="NK[,NK...]",
+                   help="input delay in samples, one value or one per input (default: 1)")
+    p.add_argument("--method", choices=("ls", "rls"), default="ls",
+                   help="batch least squares or recursive least squares (default: ls)")
+    p.add_argument("--lam", type=_lam, default=None,
+                   help="forgetting factor in (0, 1] for --method rls (default: 1)")
+    p.add_argument("--forgetting", choices=_MODES, default=None,
+                   help="forgetting scheme for --method rls (default: exponential)")
+    p.add_argument("--max-lag", type=_int_at_least(1), default=25, metavar="M",
+                   help="largest lag of the residual tests (default: 25)")
+    p.add_argument("--alpha", type=_probability, default=0.01,
+                   help="significance level of the residual tests (default: 0.01)")
+    p.add_argument("--no-residual-tests", action="store_true",
+                   help="skip the whiteness and independence tests (much faster)")
+    p.add_argument("--on-error", choices=("raise", "nan"), default="raise",
+                   help="a channel that cannot be fitted stops the command (raise, the "
+                        "default) or gets empty numbers and an error column (nan)")
+    p.add_argument("--format", choices=("csv", "json"), default="csv",
+                   help="output format (default: csv)")
+    p.add_argument("-o", "--out", metavar="FILE", default=None,
+                   help="write the summary to FILE (default: standard output)")
+    p.add_argument("--delimiter", default=None, metavar="CHAR",
+                   help="field separator (default: detected among , ; tab)")
+    p.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
+    p.set_defaults(run=run)
+    return p
+
+
+def run(args):
+    """Execute ``identify-many``; returns the exit status (0)."""
+    import pandas as pd
+
+    from .models import ARX
+    from .models.fleet import _summary_long
+
+    if args.output in args.inputs:
+        raise ValueError(f"column '{args.output}' is given as both --input and --output")
+    if args.channel_column in [*args.inputs, args.output]:
+        raise ValueError(f"column '{args.channel_column}' is the channel column; it cannot "
+                         "be an input or the output")
+    if args.method != "rls" and (args.lam is not None or args.forgetting is not None):
+        raise ValueError(f"--{'lam' if args.lam is not None else 'forgetting'} needs "
+                         "--method rls")
+    n_in = len(args.inputs)
+    nb, nk = _per_input(args.nb, n_in, "--nb"), _per_input(args.nk, n_in, "--nk")
+    columns = [args.channel_column, *args.inputs, args.output]
+    frame = pd.read_csv(args.file, sep=args.delimiter, engine="python" if args.delimiter
+                        is None else "c", usecols=lambda c: c in columns)
+    missing = [c for c in columns if c not in frame.columns]
+    if missing:
+        raise ValueError(f"column '{missing[0]}' is not in '{args.file}'")
+    for col in [*args.inputs, args.output]:
+        values = pd.to_numeric(frame[col], errors="coerce")
+        bad = values.isna() & frame[col].notna()
+        if bad.any():
+            row = int(np.argmax(bad.to_numpy()))
+            raise ValueError(f"column '{col}', data row {row + 1} of '{args.file}' is not a "
+                             f"number: {frame[col].iloc[row]!r}")
+        frame[col] = values
+    options = {"max_lag": args.max_lag, "alpha": args.alpha,
+               "residual_tests": not args.no_residual_tests, "on_error": args.on_error,
+               "progress": not args.quiet and sys.stderr.isatty()}
+    if args.method == "rls":
+        if args.lam is not None:
+            options["lam"] = args.lam
+        if args.forgetting is not None:
+            options["forgetting"] = args.forgetting
+    model = ARX(args.na, nb[0] if n_in == 1 else nb, nk[0] if n_in == 1 else nk)
+    table = _summary_long(model, frame, args.channel_column, args.inputs, args.output,
+                          args.method, **options)
+    if table["error"].isna().all():
+        table = table.drop(columns="error")
+    else:
+        failed = int(table["error"].notna().sum())
+        print(f"rlsfilt: warning: {failed} of {len(table)} channel(s) could not be fitted "
+              "(see the error column)", file=sys.stderr)
+    text = _render(table, args.format)
+    if args.out is None:
+        sys.stdout.write(text)
+    else:
+        with open(args.out, "w", encoding="utf-8", newline="") as fh:
+            fh.write(text)
+    return 0
+
+
+def _render(table, fmt):
+    if fmt == "csv":
+        return table.to_csv()
+    records = []
+    for label, row in table.iterrows():
+        rec = {"channel": _plain(label)}
+        rec.update({key: _plain(value) for key, value in row.items()})
+        records.append(rec)
+    return json.dumps(records, indent=1) + "\n"
+
+
+def _plain(value):
+    """A JSON value: NaN becomes null, NumPy scalars Python ones."""
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, float) and not np.isfinite(value):
+        return None
+    return value
+
+
+def _int_at_least(minimum):
+    def parse(text):
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"must be an integer; got '{text}'") from None
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"must be >= {minimum}; got {value}")
+        return value
+    return parse
+
+
+def _int_list(minimum):
+    one = _int_at_least(minimum)
+
+    def parse(text):
+        return [one(part) for part in text.split(",")]
+    return parse
+
+
+def _lam(text):
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number in (0, 1]; got '{text}'") from None
+    if not 0.0 < value <= 1.0:
+        raise argparse.ArgumentTypeError(f"must be in (0, 1]; got {value}")
+    return value
+
+
+def _probability(text):
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number in (0, 1); got '{text}'") from None
+    if not 0.0 < value < 1.0:
+        raise argparse.ArgumentTypeError(f"must be in (0, 1); got {value}")
+    return value
+
+
+def _per_input(values, n_in, option):
+    if len(values) == 1:
+        return values * n_in
+    if len(values) != n_in:
+        raise ValueError(f"{option} must have one value or one per input ({n_in}); got "
+                         f"{len(values)}")
+    return values

@@ -1,0 +1,597 @@
+"""Compiled (numba) kernels of `RLSBank`: many independent RLS filters at once.
+
+The readable NumPy version of the same recursion is
+:mod:`rlsfilt.filters._reference_bank`; the tests hold the two equal to
+1e-12, and every channel equal (bit for bit, in practice) to its own
+`RecursiveLeastSquares`.
+
+Layout. The kernels process the channels in blocks (`block_size`).
+A block's state is copied into local arrays with the channel index last,
+``x[i, b]`` and the upper triangle of ``P`` packed row by row,
+``P[t, b]`` with ``t`` running over ``(i, j), i <= j`` (``P`` is exactly
+symmetric, so the other triangle carries no information). The record
+kernel runs the whole record on one block before the next block starts:
+the block's state (``dim_x (dim_x + 3) / 2`` numbers per channel) stays in
+cache for the whole record, and
+every inner loop runs over the channels of the block with no dependency
+between them, so LLVM vectorizes it without reordering any sum (no
+``fastmath``). The arithmetic of each channel is therefore exactly that of
+one `RecursiveLeastSquares`, operation by operation:
+
+    P <- P * (1/lam) + Q                     time update (1/lam = 1 except "exponential")
+    g = P h                                  g_i = sum_j P_ji h_j, j ascending
+    s = h . g + r
+    y = z - h . x
+    "exponential":     c = 1 / s, K = g c, x <- x + K y, P <- P - (g g^T) c
+    "directional":     rho = (s - r) / r, e = lam - (1 - lam) / rho (rho > eps, else 1),
+                       d = r (1 + e rho), K = g / d, x <- x + K y, P <- P - (e / d)(g g^T)
+    "constant_trace":  K = g / s, x <- x + K y, P <- P - (g g^T) / s, t = trace P,
+                       P <- (c1 / t) P + c2 I
+
+(``_kernels.batch_filter_kernel`` for the exponential mode,
+``_kernels.general_update`` for the two others). As in the exponential
+kernel of `RecursiveLeastSquares`, the exponential mode applies the next
+time update in the same sweep over ``P`` as the measurement update
+(``P <- (P - (g g^T) c) / lam + Q``), whenever nothing needs ``P`` in
+between (no covariance history, no health check at that step).
+
+A channel whose measurement is missing (NaN ``z``) or whose regressor holds
+a NaN is left unchanged by the measurement update. The choice is made with
+selects (``c if ok else 0``); multiplying by a selected ``1`` or adding a
+selected ``0`` is exact, so the channels that do update are not perturbed.
+
+The blocks are independent: ``bank_batch_parallel`` runs them on numba's
+threads (``prange``); ``docs/performance.md`` says when that pays.
+
+Every function is ``njit(cache=True)`` with ``error_model="numpy"``
+(IEEE division: no zero test in the vectorized loops).
+"""
+
+import numpy as np
+from numba import njit, prange
+
+from ._kernels_shared import unhealthy as _unhealthy
+
+__all__ = []
+
+EXPONENTIAL, DIRECTIONAL, CONSTANT_TRACE = 0, 1, 2
+
+_JIT = {"cache": True, "error_model": "numpy"}
+
+
+def block_size(dim_x, n_channels):
+    """Channels per block of the record kernels.
+
+    Each step runs a few dozen short loops over the channels of a block, so
+    wide blocks amortize the loop overhead over more channels (measured at
+    ``dim_x = 4``: 32 channels per block ran 1.9x the time of the
+    hand-written loop of ``benchmarks/handwritten_bank.py``, 256 channels
+    1.2x, 512 channels 1.1x). The block's working set (``x``, ``P``, ``Q``,
+    ``g``, ``h``, ``K``: about ``(dim_x^2 + 9 dim_x) / 2 + 8`` numbers per
+    channel) is kept near 128 KB, in the second-level cache. A multiple of
+    8 between 16 and 1024, no wider than `n_channels` needs.
+    """
+    per_channel = 8 * ((dim_x * dim_x + 9 * dim_x) // 2 + 8)
+    b = max(16, min(1024, (128 * 1024 // per_channel) // 8 * 8))
+    return int(min(b, max(8, -(-n_channels // 8) * 8)))
+
+
+# ----------------------------------------------------------------------
+# packed upper triangle
+# ----------------------------------------------------------------------
+@njit(**_JIT)
+def _triangle(n):
+    """Row and column of each packed entry, and the packed index of ``(i, j)``."""
+    nt = n * (n + 1) // 2
+    iu = np.empty(nt, dtype=np.int64)
+    ju = np.empty(nt, dtype=np.int64)
+    tri = np.empty((n, n), dtype=np.int64)
+    t = 0
+    for i in range(n):
+        for j in range(i, n):
+            iu[t] = i
+            ju[t] = j
+            tri[i, j] = t
+            tri[j, i] = t
+            t += 1
+    return iu, ju, tri
+
+
+@njit(**_JIT)
+def _load(x, P, Q, q_zero, c0, nb, xb, Pb, Qb, iu, ju):
+    """Copy channels ``c0 .. c0 + nb - 1`` into the block arrays.
+
+    ``P`` is read as ``(P + P^T) / 2``, which is ``P`` itself, bit for bit,
+    when ``P`` is exactly symmetric. The loops run over the channels
+    innermost (measured: a third faster than channel by channel).
+    """
+    n = x.shape[1]
+    for i in range(n):
+        for b in range(nb):
+            xb[i, b] = x[c0 + b, i]
+    t = 0
+    for i in range(n):
+        for j in range(i, n):
+            for b in range(nb):
+                Pb[t, b] = 0.5 * (P[c0 + b, i, j] + P[c0 + b, j, i])
+            if not q_zero:
+                for b in range(nb):
+                    Qb[t, b] = Q[c0 + b, i, j]
+            t += 1
+
+
+@njit(inline="always", **_JIT)
+def _store(xb, Pb, x_out, P_out, c0, nb, iu, ju):
+    """``x_out[c], P_out[c]`` (both triangles) from the block."""
+    n = xb.shape[0]
+    for i in range(n):
+        for b in range(nb):
+            x_out[c0 + b, i] = xb[i, b]
+    t = 0
+    for i in range(n):
+        for j in range(i, n):
+            for b in range(nb):
+                v = Pb[t, b]
+                P_out[c0 + b, i, j] = v
+                P_out[c0 + b, j, i] = v
+            t += 1
+
+
+@njit(inline="always", **_JIT)
+def _store_P(Pb, out, k, c0, nb, iu, ju):
+    """``out[k, c] = P`` of each channel of the block."""
+    n = out.shape[2]
+    t = 0
+    for i in range(n):
+        for j in range(i, n):
+            for b in range(nb):
+                v = Pb[t, b]
+                out[k, c0 + b, i, j] = v
+                out[k, c0 + b, j, i] = v
+            t += 1
+
+
+# ----------------------------------------------------------------------
+# the arithmetic of one step on a block
+# ----------------------------------------------------------------------
+@njit(inline="always", **_JIT)
+def _predict(Pb, ilb, Qb, q_zero, nb):
+    """Time update ``P <- P * il + Q``."""
+    for t in range(Pb.shape[0]):
+        if q_zero:
+            for b in range(nb):
+                Pb[t, b] = Pb[t, b] * ilb[b]
+        else:
+            for b in range(nb):
+                Pb[t, b] = Pb[t, b] * ilb[b] + Qb[t, b]
+
+
+@njit(inline="always", **_JIT)
+def _infinite(h, zb, flag, nb):
+    """Whether a regressor or measurement of the block is infinite (``flag[b]``
+    marks the channels); NaN (missing) is not."""
+    n = h.shape[0]
+    for b in range(nb):
+        v = zb[b]
+        flag[b] = v == v and v - v != 0.0
+    for j in range(n):
+        for b in range(nb):
+            v = h[j, b]
+            flag[b] = flag[b] or (v == v and v - v != 0.0)
+    found = False
+    for b in range(nb):
+        found = found or flag[b]
+    return found
+
+
+@njit(inline="always", **_JIT)
+def _measure(xb, Pb, h, zb, rb, hok, ok, g, sb, yb, acc, nb, tri):
+    """Validity, ``g = P h``, ``s = h . g + r`` and ``y = z - h . x``.
+
+    ``hok``: the regressor has no NaN (otherwise it is zeroed here, so that
+    no NaN enters the arithmetic); ``ok``: ``hok`` and ``z`` is not NaN.
+    """
+    n = xb.shape[0]
+    for b in range(nb):
+        hok[b] = True
+    for j in range(n):
+        for b in range(nb):
+            hok[b] = hok[b] and h[j, b] == h[j, b]
+    for b in range(nb):
+        ok[b] = hok[b] and zb[b] == zb[b]
+    for j in range(n):
+        for b in range(nb):
+            h[j, b] = h[j, b] if hok[b] else 0.0
+    for i in range(n):
+        for b in range(nb):
+            g[i, b] = 0.0
+    for j in range(n):
+        for i in range(n):
+            t = tri[j, i]
+            for b in range(nb):
+                g[i, b] += Pb[t, b] * h[j, b]               # g = P h
+    for b in range(nb):
+        acc[b] = 0.0
+    for i in range(n):
+        for b in range(nb):
+            acc[b] += h[i, b] * g[i, b]
+    for b in range(nb):
+        sb[b] = acc[b] + rb[b]                              # s = h . g + r
+        acc[b] = 0.0
+    for i in range(n):
+        for b in range(nb):
+            acc[b] += h[i, b] * xb[i, b]
+    for b in range(nb):
+        yb[b] = zb[b] - acc[b]                              # y = z - h . x
+
+
+@njit(inline="always", **_JIT)
+def _update(xb, Pb, g, Kb, sb, yb, rb, ok, lamb, p0, p1, mode, lt, w, d, nb, iu, ju,
+            fuse, ilb, Qb, q_zero):
+    """The measurement update of `mode`; channels not `ok` are unchanged.
+
+    Writes ``x``, ``P``, the gain ``K`` (zero where not `ok`) and the
+    forgetting factor ``lt`` the step applied (``lam`` in the exponential
+    mode, whose forgetting is the time update; 1 where not `ok` in the
+    others). With `fuse` (exponential mode only) the sweep over ``P`` also
+    applies the next time update. ``w``, ``d`` are work arrays (one entry per channel).
+    """
+    n = xb.shape[0]
+    nt = Pb.shape[0]
+    if mode == EXPONENTIAL:
+        for b in range(nb):
+            w[b] = 1.0 / sb[b] if ok[b] else 0.0           # c = 1 / s
+            d[b] = yb[b] if ok[b] else 0.0
+            lt[b] = lamb[b]
+        for i in range(n):
+            for b in range(nb):
+                ki = g[i, b] * w[b]                         # K = g c
+                Kb[i, b] = ki
+                xb[i, b] = xb[i, b] + ki * d[b]             # x = x + K y
+        if not fuse:
+            for t in range(nt):
+                i, j = iu[t], ju[t]
+                for b in range(nb):                         # P = P - (g g^T) c
+                    Pb[t, b] = Pb[t, b] - (g[i, b] * g[j, b]) * w[b]
+        elif q_zero:
+            for t in range(nt):
+                i, j = iu[t], ju[t]
+                for b in range(nb):                         # ... then P = P / lam
+                    Pb[t, b] = (Pb[t, b] - (g[i, b] * g[j, b]) * w[b]) * ilb[b]
+        else:
+            for t in range(nt):
+                i, j = iu[t], ju[t]
+                for b in range(nb):                         # ... then P = P / lam + Q
+                    Pb[t, b] = (Pb[t, b] - (g[i, b] * g[j, b]) * w[b]) * ilb[b] + Qb[t, b]
+        return
+    if mode == DIRECTIONAL:
+        for b in range(nb):
+            r = rb[b]
+            rho = (sb[b] - r) / r                           # h P h^T / r
+            lm = lamb[b]
+            e = lm - (1.0 - lm) / rho if rho > p0[b] else 1.0
+            dd = r * (1.0 + e * rho)
+            lt[b] = e if ok[b] else 1.0
+            w[b] = e / dd if ok[b] else 0.0                 # e / d
+            d[b] = dd if ok[b] else np.inf                  # K = g / d (0 where not ok)
+    else:                                                   # constant trace
+        for b in range(nb):
+            d[b] = sb[b] if ok[b] else np.inf               # K = g / s (0 where not ok)
+    for i in range(n):
+        for b in range(nb):
+            ki = g[i, b] / d[b]
+            Kb[i, b] = ki
+            xb[i, b] = xb[i, b] + ki * (yb[b] if ok[b] else 0.0)
+    if mode == DIRECTIONAL:
+        for t in range(nt):
+            i, j = iu[t], ju[t]
+            for b in range(nb):                             # P = P - (e / d) g g^T
+                Pb[t, b] = Pb[t, b] - w[b] * (g[i, b] * g[j, b])
+        return
+    for t in range(nt):
+        i, j = iu[t], ju[t]
+        for b in range(nb):                                 # P_bar = P - g g^T / s
+            Pb[t, b] = Pb[t, b] - (g[i, b] * g[j, b]) / d[b]
+    for b in range(nb):
+        w[b] = 0.0
+    for i in range(n):
+        t = (i * (2 * n - i + 1)) // 2                      # packed index of (i, i)
+        for b in range(nb):
+            w[b] += Pb[t, b]                                # t = trace(P_bar)
+    for b in range(nb):
+        trace, ratio = p0[b], p1[b]
+        c2 = trace / (ratio + n)
+        c1 = trace - n * c2
+        lt[b] = w[b] / c1 if ok[b] else 1.0
+        w[b] = c1 / w[b] if ok[b] else 1.0                  # c1 / t
+        d[b] = c2 if ok[b] else 0.0
+    for t in range(nt):
+        for b in range(nb):                                 # P = (c1 / t) P_bar ...
+            Pb[t, b] = w[b] * Pb[t, b]
+    for i in range(n):
+        t = (i * (2 * n - i + 1)) // 2
+        for b in range(nb):                                 # ... + c2 I
+            Pb[t, b] = Pb[t, b] + d[b]
+
+
+# ----------------------------------------------------------------------
+# record kernels (batch_filter)
+# ----------------------------------------------------------------------
+@njit(**_JIT)
+def _run_block(c0, nb, B, x, P, Z, H, h_last, Rv, il, lam, Q, q_zero, mode, params, update_first,
+               means, covs, covs_p, ys, ss, x_prior, P_prior, x_post, P_post, K, lam_t,
+               check_every, step0, cond_max, k_fail, k_inf):
+    """Run the record on channels ``c0 .. c0 + nb - 1``, ``nb <= B`` (see `bank_batch`)."""
+    N = Z.shape[0]
+    n = x.shape[1]
+    iu, ju, tri = _triangle(n)
+    nt = iu.shape[0]
+    store_means = means.shape[0] == N
+    store_covs = covs.shape[0] == N
+    r_each = Rv.shape[0] == N
+    xb = np.empty((n, B))
+    Pb = np.empty((nt, B))
+    Qb = np.zeros((nt, B))
+    _load(x, P, Q, q_zero, c0, nb, xb, Pb, Qb, iu, ju)
+    ilb = np.ones(B)
+    lamb = np.ones(B)
+    p0 = np.zeros(B)
+    p1 = np.zeros(B)
+    for b in range(nb):
+        ilb[b] = il[c0 + b]
+        lamb[b] = lam[c0 + b]
+        p0[b] = params[c0 + b, 0]
+        p1[b] = params[c0 + b, 1]
+    lt = lamb.copy()
+    g = np.empty((n, B))
+    h = np.empty((n, B))
+    Kb = np.zeros((n, B))
+    zb = np.empty(B)
+    rb = np.empty(B)
+    ok = np.empty(B, dtype=np.bool_)
+    hok = np.empty(B, dtype=np.bool_)
+    sb = np.empty(B)
+    yb = np.empty(B)
+    w = np.empty(B)
+    d = np.empty(B)
+    T = np.empty((n, n))
+    predict = not q_zero                   # else the time update is the identity
+    for b in range(nb):
+        if ilb[b] != 1.0:
+            predict = True
+    # the time update before the first measurement update; later ones are
+    # fused into the sweep of the measurement update when possible
+    pending = predict and not update_first
+    for k in range(N):
+        if not update_first:
+            if pending:
+                _predict(Pb, ilb, Qb, q_zero, nb)
+            if store_covs:
+                _store_P(Pb, covs_p, k, c0, nb, iu, ju)
+            if k == N - 1:
+                _store(xb, Pb, x_prior, P_prior, c0, nb, iu, ju)
+        for b in range(nb):
+            zb[b] = Z[k, c0 + b]
+            rb[b] = Rv[k if r_each else 0, c0 + b]
+        if h_last:                           # H is (N, n, C): contiguous loads
+            for j in range(n):
+                for b in range(nb):
+                    h[j, b] = H[k, j, c0 + b]
+        else:
+            for j in range(n):
+                for b in range(nb):
+                    h[j, b] = H[k, c0 + b, j]
+        if _infinite(h, zb, hok, nb):            # an error: stop the block, report where
+            for b in range(nb):
+                if hok[b]:
+                    k_inf[c0 + b] = k
+            return
+        _measure(xb, Pb, h, zb, rb, hok, ok, g, sb, yb, w, nb, tri)
+        check = check_every > 0 and (step0 + k + 1) % check_every == 0
+        # fuse the next time update into this sweep when nothing looks at P in between
+        fuse = (mode == EXPONENTIAL and predict and not store_covs and not check
+                and k < N - 1)
+        _update(xb, Pb, g, Kb, sb, yb, rb, ok, lamb, p0, p1, mode, lt, w, d, nb, iu, ju,
+                fuse, ilb, Qb, q_zero)
+        pending = predict and not fuse
+        for b in range(nb):
+            ys[k, c0 + b] = yb[b] if ok[b] else np.nan
+            ss[k, c0 + b] = sb[b] if hok[b] else np.nan
+        if store_means:
+            for b in range(nb):
+                for i in range(n):
+                    means[k, c0 + b, i] = xb[i, b]
+        if store_covs:
+            _store_P(Pb, covs, k, c0, nb, iu, ju)
+        if k == N - 1:
+            _store(xb, Pb, x_post, P_post, c0, nb, iu, ju)
+        if update_first:
+            if pending:
+                _predict(Pb, ilb, Qb, q_zero, nb)
+            pending = False
+            if store_covs:
+                _store_P(Pb, covs_p, k, c0, nb, iu, ju)
+            if k == N - 1:
+                _store(xb, Pb, x_prior, P_prior, c0, nb, iu, ju)
+        if check:                          # the periodic health check of each channel's P
+            for b in range(nb):
+                if k_fail[c0 + b] < 0:
+                    for t in range(nt):
+                        T[iu[t], ju[t]] = Pb[t, b]
+                        T[ju[t], iu[t]] = Pb[t, b]
+                    if _unhealthy(T, cond_max):
+                        k_fail[c0 + b] = k
+    _store(xb, Pb, x, P, c0, nb, iu, ju)
+    for b in range(nb):
+        lam_t[c0 + b] = lt[b]
+        for i in range(n):
+            K[c0 + b, i] = Kb[i, b]
+
+
+@njit(**_JIT)
+def bank_batch(x, P, Z, H, h_last, Rv, il, lam, Q, q_zero, mode, params, update_first,
+               means, covs, covs_p, ys, ss, x_prior, P_prior, x_post, P_post, K, lam_t,
+               check_every, step0, cond_max, k_fail, k_inf, block):
+    """Run the recursion of every channel over a record, one block after another.
+
+    Parameters
+    ----------
+    x : (C, n), P : (C, n, n)
+        Working state, overwritten with the final state.
+    Z : (N, C), H : (N, C, n), or (N, n, C) with `h_last`
+        Measurements and regressors (NaN marks a missing sample of a
+        channel). With `h_last` the channel index of ``H`` is last, so that
+        the loads of a block's regressors are contiguous (`fit_many` builds
+        its regressors that way).
+    Rv : (N, C) or (1, C)
+        Noise variances per step, or one per channel for every step.
+    il, lam : (C,)
+        ``1 / lam`` applied by the time update (1 except in the exponential
+        mode) and the forgetting factors.
+    Q : (C, n, n), q_zero : bool
+        Random walks (ignored, and may be (1, n, n), when `q_zero`).
+    mode : int, params : (C, 2)
+        Mode code and its constants (directional: ``eps``; constant trace:
+        ``trace``, ``ratio``).
+    update_first : bool
+        Update before predict in each step.
+    means : (N, C, n) or (0, C, n); covs, covs_p : (N, C, n, n) or (0, C, n, n)
+        Estimates after each update and covariances after each update and
+        each predict, written when their length is N.
+    ys, ss : (N, C)
+        A-priori residuals (NaN where skipped) and innovation variances
+        (NaN where the regressor holds NaN).
+    x_prior, P_prior, x_post, P_post : like x and P
+        The last step's prior and posterior (written when N > 0).
+    K : (C, n), lam_t : (C,)
+        The last step's gain (zero where skipped) and forgetting factor.
+    check_every, step0, cond_max, k_fail : int, int, float, (C,) int64
+        The health check of each channel's P after step ``k`` when
+        ``(step0 + k + 1) % check_every == 0``; the first failing step of
+        channel ``c`` is written to ``k_fail[c]`` if that is still -1.
+    k_inf : (C,) int64
+        Set to the step at which channel ``c`` has an infinite regressor or
+        measurement (an error: the block of that channel stops there, and
+        the caller discards the results).
+    block : int
+        Channels per block (`block_size`).
+    """
+    C = x.shape[0]
+    for blk in range((C + block - 1) // block):
+        c0 = blk * block
+        _run_block(c0, min(block, C - c0), block, x, P, Z, H, h_last, Rv, il, lam, Q, q_zero,
+                   mode, params, update_first, means, covs, covs_p, ys, ss, x_prior, P_prior,
+                   x_post, P_post, K, lam_t, check_every, step0, cond_max, k_fail, k_inf)
+
+
+@njit(parallel=True, **_JIT)
+def bank_batch_parallel(x, P, Z, H, h_last, Rv, il, lam, Q, q_zero, mode, params,
+                        update_first, means, covs, covs_p, ys, ss, x_prior, P_prior, x_post,
+                        P_post, K, lam_t, check_every, step0, cond_max, k_fail, k_inf, block):
+    """`bank_batch` with the blocks distributed over numba's threads (``prange``)."""
+    C = x.shape[0]
+    for blk in prange((C + block - 1) // block):
+        c0 = blk * block
+        _run_block(c0, min(block, C - c0), block, x, P, Z, H, h_last, Rv, il, lam, Q, q_zero,
+                   mode, params, update_first, means, covs, covs_p, ys, ss, x_prior, P_prior,
+                   x_post, P_post, K, lam_t, check_every, step0, cond_max, k_fail, k_inf)
+
+
+# ----------------------------------------------------------------------
+# streaming kernels (predict, update) and the health check
+# ----------------------------------------------------------------------
+@njit(**_JIT)
+def bank_predict(P, il, Q, q_zero, Pn):
+    """``Pn = P * il + Q`` for every channel (``Q`` ignored when `q_zero`)."""
+    C, n = P.shape[0], P.shape[1]
+    for c in range(C):
+        f = il[c]
+        for i in range(n):
+            for j in range(n):
+                if q_zero:
+                    Pn[c, i, j] = P[c, i, j] * f
+                else:
+                    Pn[c, i, j] = P[c, i, j] * f + Q[c, i, j]
+
+
+@njit(**_JIT)
+def bank_update(x, P, z, H, r, lam, mode, params, xn, Pn, y, S, K, lam_t, block):
+    """One measurement update of every channel: the arithmetic of `bank_batch`.
+
+    Reads ``x`` (C, n), ``P`` (C, n, n), ``z`` (C,), ``H`` (C, n), ``r``
+    (C,); writes the new state ``xn``, ``Pn``, the residuals ``y`` (NaN
+    where skipped), ``S`` (NaN where the regressor holds NaN), the gains
+    ``K`` (zero where skipped) and ``lam_t``; ``block`` channels at a time
+    (`block_size`).
+
+    Returns
+    -------
+    int
+        The number of channels whose new ``P`` has a diagonal entry that is
+        not positive and finite (the cheap health check).
+    """
+    C, n = x.shape
+    B = block
+    iu, ju, tri = _triangle(n)
+    nt = iu.shape[0]
+    xb = np.empty((n, B))
+    Pb = np.empty((nt, B))
+    Qb = np.empty((1, 1))
+    h = np.empty((n, B))
+    g = np.empty((n, B))
+    Kb = np.zeros((n, B))
+    zb = np.empty(B)
+    rb = np.empty(B)
+    ok = np.empty(B, dtype=np.bool_)
+    hok = np.empty(B, dtype=np.bool_)
+    sb = np.empty(B)
+    yb = np.empty(B)
+    w = np.empty(B)
+    d = np.empty(B)
+    lamb = np.ones(B)
+    lt = np.empty(B)
+    p0 = np.zeros(B)
+    p1 = np.zeros(B)
+    bad = 0
+    for c0 in range(0, C, B):
+        nb = min(B, C - c0)
+        _load(x, P, P, True, c0, nb, xb, Pb, Qb, iu, ju)
+        for b in range(nb):
+            c = c0 + b
+            zb[b] = z[c]
+            rb[b] = r[c]
+            lamb[b] = lam[c]
+            p0[b] = params[c, 0]
+            p1[b] = params[c, 1]
+            for j in range(n):
+                h[j, b] = H[c, j]
+        _measure(xb, Pb, h, zb, rb, hok, ok, g, sb, yb, w, nb, tri)
+        _update(xb, Pb, g, Kb, sb, yb, rb, ok, lamb, p0, p1, mode, lt, w, d, nb, iu, ju,
+                False, lamb, Qb, True)
+        _store(xb, Pb, xn, Pn, c0, nb, iu, ju)
+        for b in range(nb):
+            c = c0 + b
+            y[c] = yb[b] if ok[b] else np.nan
+            S[c] = sb[b] if hok[b] else np.nan
+            lam_t[c] = lt[b]
+            hok[b] = False
+        for i in range(n):
+            for b in range(nb):
+                K[c0 + b, i] = Kb[i, b]
+        for i in range(n):                   # the cheap health check: the diagonal
+            t = (i * (2 * n - i + 1)) // 2
+            for b in range(nb):
+                v = Pb[t, b]
+                hok[b] = hok[b] or not (v > 0.0 and v != np.inf)
+        for b in range(nb):
+            if hok[b]:
+                bad += 1
+    return bad
+
+
+@njit(**_JIT)
+def bank_unhealthy(P, cond_max, bad):
+    """``bad[c]``: channel ``c``'s ``P`` fails the health check of
+    `RecursiveLeastSquares` (``_kernels_shared.unhealthy``)."""
+    for c in range(P.shape[0]):
+        bad[c] = _unhealthy(P[c], cond_max)

@@ -1,0 +1,849 @@
+r"""A bank of independent recursive least-squares filters, one per channel.
+
+`RLSBank` runs ``n_channels`` single-output `RecursiveLeastSquares` filters
+of the same size side by side: the state has a leading channel axis
+(``x`` is ``(C, dim_x)``, ``P`` is ``(C, dim_x, dim_x)``), and one compiled
+call updates every channel (:mod:`rlsfilt.filters._kernels_bank`). Each
+channel follows exactly the arithmetic of its own `RecursiveLeastSquares`,
+so ``bank.channel(i)`` is an ordinary filter that continues where channel
+``i`` of the bank stands.
+"""
+
+import copy
+import math
+
+import numpy as np
+from filterpy.common import pretty_str
+
+from .._validation import as_float_array, check_covariance, check_int, check_scalar
+from ..exceptions import ForgettingSkippedWarning, NumericalWarning
+from . import _health
+from . import forgetting as _fg
+
+__all__ = ["RLSBank", "BankHistory"]
+
+_MODES = ("exponential", "directional", "constant_trace")
+_LOG_2PI = math.log(2.0 * math.pi)
+_TINY = np.finfo(float).tiny
+_kernels = None
+
+
+def _get_kernels():
+    """Import the numba kernels on first use, so that ``import rlsfilt`` stays light."""
+    global _kernels
+    if _kernels is None:
+        from . import _kernels_bank
+        _kernels = _kernels_bank
+    return _kernels
+
+
+class BankHistory:
+    """What :meth:`RLSBank.batch_filter` returns.
+
+    It unpacks like filterpy's ``batch_filter`` result, ``means,
+    covariances, means_p, covariances_p = bank.batch_filter(zs, Hs)``, and
+    also holds the residual histories.
+
+    Attributes
+    ----------
+    means, means_p : ndarray, shape (N, C, dim_x), or None
+        Estimates after each update and after each predict (None with
+        ``store_means=False``).
+    covariances, covariances_p : ndarray, shape (N, C, dim_x, dim_x), or None
+        ``P`` after each update and after each predict (None with
+        ``store_covariances=False``).
+    residuals : ndarray, shape (N, C)
+        A-priori residuals :math:`z - H x^-` of each step and channel (NaN
+        where the channel skipped the step).
+    innovation_variances : ndarray, shape (N, C)
+        :math:`S = H P^- H^T + R` (NaN where the regressor held NaN), so
+        that ``residuals / sqrt(innovation_variances)`` are the recursive
+        residuals of each channel.
+    """
+
+    def __init__(self, means, covariances, means_p, covariances_p, residuals,
+                 innovation_variances):
+        self.means = means
+        self.covariances = covariances
+        self.means_p = means_p
+        self.covariances_p = covariances_p
+        self.residuals = residuals
+        self.innovation_variances = innovation_variances
+
+    def __iter__(self):
+        return iter((self.means, self.covariances, self.means_p, self.covariances_p))
+
+    def __len__(self):
+        return 4
+
+    def __getitem__(self, index):
+        return (self.means, self.covariances, self.means_p, self.covariances_p)[index]
+
+    def __repr__(self):
+        N, C = self.residuals.shape
+        return f"<BankHistory: {N} steps of {C} channels>"
+
+
+class RLSBank:
+    r"""``n_channels`` independent recursive least-squares filters updated together.
+
+    Channel ``c`` estimates ``x[c]`` in its own regression
+    :math:`z_{k,c} = H_{k,c}\, x_c + v_{k,c}`, with its own forgetting
+    factor, noise variance and random walk, exactly as a
+    :class:`~rlsfilt.RecursiveLeastSquares` with ``dim_z = 1`` would; the
+    bank runs all channels in one compiled call per :meth:`update` and per
+    :meth:`batch_filter`, which for thousands of small filters is one to
+    two orders of magnitude faster than a Python loop over filters (see
+    ``docs/performance.md``).
+
+    Parameters
+    ----------
+    n_channels : int
+        Number of channels ``C``.
+    dim_x : int
+        Number of parameters of every channel.
+    lam : float or array_like of shape (C,), default 1.0
+        Forgetting factor in (0, 1], shared or one per channel.
+    Q : float or array_like, default 0.0
+        Random walk added to ``P`` by :meth:`predict`: a scalar ``q``
+        (``q I`` for every channel), one scalar per channel (shape
+        ``(C,)``), one matrix for all channels ``(dim_x, dim_x)``, or one
+        matrix per channel ``(C, dim_x, dim_x)``.
+    R : float or array_like of shape (C,), default 1.0
+        Measurement-noise variance, shared or one per channel.
+    P0 : float or array_like, default 1e4
+        Initial covariance, in the forms of `Q` (positive definite).
+    x0 : array_like of shape (dim_x,) or (C, dim_x), optional
+        Initial estimate, shared or one per channel; zeros by default.
+    forgetting : {"exponential", "directional", "constant_trace"}, default "exponential"
+        Forgetting mode, as in :class:`~rlsfilt.RecursiveLeastSquares`.
+        ``"efra"``, ``"variable"``, the outlier gate and equality
+        constraints are not available in the bank (use one
+        `RecursiveLeastSquares` per channel for them).
+    forgetting_params : dict, optional
+        Constants of the mode, as in `RecursiveLeastSquares` (defaults
+        computed per channel from its `lam` and `R`).
+    check_every : int, default 100
+        Health check period (0 disables it): every `check_every` updates,
+        and at the end of :meth:`batch_filter`, each channel's ``P`` is
+        tested as `RecursiveLeastSquares` tests it; every :meth:`update`
+        also tests the diagonals. Channels that fail are named in one
+        :class:`~rlsfilt.NumericalWarning` and listed in
+        ``failed_channels``.
+    cond_max : float, default 1e12
+        Condition number of ``P`` beyond which the health check fails.
+    parallel : bool, default False
+        Run :meth:`batch_filter`'s blocks of channels on numba's threads
+        (``numba.set_num_threads``). Off by default: on the shared 2-core
+        machine of ``docs/performance.md`` two threads gained little, and
+        under Dask or a process pool the cores are already busy. The
+        results are the same bits either way.
+
+    Attributes
+    ----------
+    x : ndarray, shape (C, dim_x)
+        Estimates, one row per channel.
+    P : ndarray, shape (C, dim_x, dim_x)
+        Covariances.
+    x_prior, P_prior, x_post, P_post : ndarray
+        Copies of ``x`` and ``P`` after the last predict and update.
+    H : ndarray, shape (C, dim_x)
+        Regressors of the last update.
+    z, y : ndarray, shape (C,)
+        Last measurements and a-priori residuals :math:`z - H x^-` (NaN
+        where a channel skipped the update).
+    S, SI : ndarray, shape (C,)
+        Innovation variances :math:`H P^- H^T + R` and their inverses (NaN
+        where the regressor held NaN).
+    K : ndarray, shape (C, dim_x)
+        Gains of the last update (zero where a channel skipped it).
+    lam_t : ndarray, shape (C,)
+        Forgetting factor each channel's last update applied.
+    n_updates : int
+        Measurement updates since :meth:`reset`.
+    failed_channels : ndarray of int
+        Channels whose ``P`` failed a health check since :meth:`reset`.
+    n_channels, dim_x : int
+        Sizes given at construction.
+
+    Notes
+    -----
+    Each channel runs the recursion of `RecursiveLeastSquares` (Ljung
+    1999, sec. 11.2; Astrom & Wittenmark 1995, sec. 2.2):
+
+    .. math::
+
+        P_c^- &= P_c / \lambda_c + Q_c \\
+        y_c &= z_c - H_c x_c^- ,\qquad S_c = H_c P_c^- H_c^T + R_c \\
+        K_c &= P_c^- H_c^T / S_c ,\qquad x_c = x_c^- + K_c y_c \\
+        P_c &= P_c^- - (P_c^- H_c^T)(P_c^- H_c^T)^T / S_c
+
+    with the same operations in the same order, so every channel agrees
+    with a separate filter to round-off (in practice bit for bit); the
+    directional and constant-trace modes replace the last two lines as in
+    :mod:`rlsfilt.filters.forgetting`. ``P`` is kept exactly symmetric.
+
+    **Missing data per channel.** A NaN in ``z[c]``, or any NaN in the
+    regressor ``H[c]``, skips the measurement update of channel ``c`` only
+    (its estimate and covariance are kept, its ``K`` is zero and its ``y``
+    NaN); the other channels update. Infinite values are errors.
+
+    References
+    ----------
+    .. [1] L. Ljung, *System Identification: Theory for the User*, 2nd ed.,
+       Prentice Hall, 1999, ch. 11.
+    .. [2] K. J. Astrom and B. Wittenmark, *Adaptive Control*, 2nd ed.,
+       Addison-Wesley, 1995, ch. 2.
+
+    Examples
+    --------
+    Three first-order plants ``y(t) = a y(t-1) + b u(t-1)`` identified at once:
+
+    >>> import numpy as np
+    >>> from rlsfilt import RLSBank
+    >>> rng = np.random.default_rng(0)
+    >>> a, b = np.array([0.5, 0.8, -0.3]), np.array([1.0, 2.0, 0.5])
+    >>> u = rng.standard_normal((300, 3))
+    >>> y = np.zeros((300, 3))
+    >>> for t in range(1, 300):
+    ...     y[t] = a * y[t - 1] + b * u[t - 1]
+    >>> Hs = np.stack([y[:-1], u[:-1]], axis=-1)      # (N, C, dim_x)
+    >>> bank = RLSBank(3, 2)
+    >>> _ = bank.batch_filter(y[1:], Hs)
+    >>> np.round(bank.x, 3)
+    array([[ 0.5,  1. ],
+           [ 0.8,  2. ],
+           [-0.3,  0.5]])
+    """
+
+    def __init__(self, n_channels, dim_x, lam=1.0, *, Q=0.0, R=1.0, P0=1e4, x0=None,
+                 forgetting="exponential", forgetting_params=None, check_every=100,
+                 cond_max=1e12, parallel=False):
+        self.n_channels = check_int(n_channels, "n_channels", minimum=1)
+        self.dim_x = check_int(dim_x, "dim_x", minimum=1)
+        if not isinstance(forgetting, str) or forgetting not in _MODES:
+            raise ValueError(
+                f"`forgetting` must be one of {', '.join(map(repr, _MODES))} for RLSBank; got "
+                f"{forgetting!r} (use one RecursiveLeastSquares per channel for the others)")
+        self._mode = _MODES.index(forgetting)
+        self._forgetting_params_in = (None if forgetting_params is None
+                                      else dict(forgetting_params)
+                                      if isinstance(forgetting_params, dict)
+                                      else forgetting_params)
+        self._R = self._per_channel_positive(R, "R")
+        self.lam = lam
+        self.Q = Q
+        self.check_every = check_int(check_every, "check_every", minimum=0)
+        cond_max = check_scalar(cond_max, "cond_max")
+        if not (math.isfinite(cond_max) and cond_max > 0.0):
+            raise ValueError(f"`cond_max` must be a positive finite number; got {cond_max}")
+        self.cond_max = cond_max
+        if not isinstance(parallel, (bool, np.bool_)):
+            raise TypeError(f"`parallel` must be True or False; got {parallel!r}")
+        self.parallel = bool(parallel)
+        self._P0 = self._covariances(P0, "P0", definite=True)
+        self._x0 = self._estimates(np.zeros(self.dim_x) if x0 is None else x0, "x0")
+        self.reset()
+
+    # ------------------------------------------------------------------
+    # configuration, validated on assignment
+    # ------------------------------------------------------------------
+    @property
+    def lam(self):
+        """Forgetting factors, shape (C,) (a copy; assign to change them)."""
+        return self._lam.copy()
+
+    @lam.setter
+    def lam(self, value):
+        lam = self._per_channel(value, "lam")
+        bad = ~((lam > 0.0) & (lam <= 1.0))
+        if bad.any():
+            c = int(np.argmax(bad))
+            raise ValueError(f"`lam` must be in (0, 1]; got {lam[c]} for channel {c}")
+        self._params = self._mode_params(lam, self._R)
+        self._lam = lam
+
+    @property
+    def R(self):
+        """Measurement-noise variances, shape (C,) (a copy; assign to change them)."""
+        return self._R.copy()
+
+    @R.setter
+    def R(self, value):
+        self._R = self._per_channel_positive(value, "R")
+
+    @property
+    def Q(self):
+        """Random-walk covariances, shape (C, dim_x, dim_x) (a copy)."""
+        return self._Q.copy()
+
+    @Q.setter
+    def Q(self, value):
+        self._Q = self._covariances(value, "Q")
+        self._Q_is_zero = not self._Q.any()
+
+    @property
+    def forgetting(self):
+        """Forgetting mode (read-only; chosen at construction)."""
+        return _MODES[self._mode]
+
+    @property
+    def forgetting_params(self):
+        """Constants of the forgetting mode, one array of shape (C,) per name."""
+        names = _fg._PARAM_NAMES[self._mode]
+        return {name: self._params[:, i].copy() for i, name in enumerate(names)}
+
+    def _mode_params(self, lam, R):
+        """``(C, 2)`` constants of the mode, validated by `forgetting.mode_params`
+        once per distinct ``(lam, R)`` pair (so the defaults are per channel)."""
+        C = self.n_channels
+        params = np.zeros((C, 2))
+        if self._mode == 0:          # no constants; still reject unknown keys
+            _fg.mode_params(0, self._forgetting_params_in, self.dim_x, float(lam[0]),
+                            float(R[0]))
+            return params
+        pairs, inverse = np.unique(np.column_stack([lam, R]), axis=0, return_inverse=True)
+        for k, (lam_k, r_k) in enumerate(pairs):
+            try:
+                values = _fg.mode_params(self._mode, self._forgetting_params_in, self.dim_x,
+                                         float(lam_k), float(r_k))
+            except ValueError as exc:
+                c = int(np.argmax(inverse.reshape(-1) == k))
+                raise ValueError(f"{exc} (channel {c})") from None
+            params[inverse.reshape(-1) == k, :len(values)] = values
+        return params
+
+    # ------------------------------------------------------------------
+    # the recursion
+    # ------------------------------------------------------------------
+    def predict(self):
+        r"""Time update of every channel, :math:`P \leftarrow P / \lambda + Q`.
+
+        The estimates are unchanged. For the directional and constant-trace
+        modes only ``Q`` is added (their forgetting happens in
+        :meth:`update`), as in `RecursiveLeastSquares`.
+        """
+        P = self._checked_P()
+        Pn = np.empty_like(P)
+        _get_kernels().bank_predict(P, self._time_il(), self._Q, self._Q_is_zero, Pn)
+        self.P = Pn
+        self.x_prior = self._checked_x().copy()
+        self.P_prior = Pn.copy()
+        self._updates_since_predict = 0
+
+    def update(self, z, H, R=None):
+        r"""Measurement update of every channel.
+
+        Parameters
+        ----------
+        z : array_like, shape (C,)
+            One measurement per channel; NaN skips that channel.
+        H : array_like, shape (C, dim_x)
+            One regressor row per channel; a row holding NaN skips that
+            channel.
+        R : float or array_like of shape (C,), optional
+            Noise variances for this call only.
+        """
+        C, n = self.n_channels, self.dim_x
+        zz = self._measurements(z, "z", (C,), f"({C},) (one measurement per channel)")
+        Hm = self._measurements(H, "H", (C, n), f"({C}, {n}) (one regressor row of dim_x = "
+                                                 f"{n} per channel)")
+        r = self._R if R is None else self._per_channel_positive(R, "R")
+        x, P = self._checked_x(), self._checked_P()
+        xn, Pn = np.empty((C, n)), np.empty((C, n, n))
+        y, S, K, lam_t = np.empty(C), np.empty(C), np.empty((C, n)), np.empty(C)
+        kern = _get_kernels()
+        bad = kern.bank_update(x, P, zz, Hm, r, self._lam, self._mode, self._params, xn, Pn, y,
+                               S, K, lam_t, kern.block_size(n, C))
+        self._note_update()
+        self.x, self.P = xn, Pn
+        self.x_post, self.P_post = xn.copy(), Pn.copy()
+        self.z, self.H = zz.copy(), Hm.copy()
+        self.y, self.S, self.SI, self.K, self.lam_t = y, S, 1.0 / S, K, lam_t
+        self.n_updates += 1
+        every = self.check_every
+        if every and (bad or not self.n_updates % every):
+            self._check_health(f"at update {self.n_updates} since reset")
+
+    def predict_update(self, z, H, R=None):
+        """One textbook step of every channel: :meth:`predict` then :meth:`update`."""
+        self.predict()
+        self.update(z, H, R)
+
+    def batch_filter(self, zs, Hs, Rs=None, update_first=False, store_covariances=True,
+                     store_means=True):
+        r"""Run every channel over a record in one compiled call.
+
+        Parameters
+        ----------
+        zs : array_like, shape (N, C)
+            Measurements; NaN skips that channel at that step.
+        Hs : array_like, shape (N, C, dim_x)
+            Regressor rows; a row holding NaN skips that channel at that step.
+        Rs : float or array_like of shape (C,) or (N, C), optional
+            Noise variances: shared, one per channel, or one per step and
+            channel (the bank's `R` if omitted).
+        update_first : bool, default False
+            Update then predict in each step instead of predict then update.
+        store_covariances : bool, default True
+            With ``False`` no covariance histories are kept (returned as
+            None): memory stays ``O(N C dim_x)``.
+        store_means : bool, default True
+            With ``False`` no estimate histories are kept either (returned as
+            None): memory stays ``O(N C)`` (the residual histories).
+
+        Returns
+        -------
+        BankHistory
+            Unpacks as ``means, covariances, means_p, covariances_p``
+            (shapes ``(N, C, dim_x)`` and ``(N, C, dim_x, dim_x)``); its
+            ``residuals`` and ``innovation_variances`` (``(N, C)``) are the
+            a-priori residuals and their variances.
+
+        Notes
+        -----
+        The channels are processed in blocks that stay in cache for the
+        whole record, and the loops over the channels of a block vectorize
+        (see :mod:`rlsfilt.filters._kernels_bank`). The health check runs
+        every `check_every` steps inside the loop and once at the end.
+        """
+        C, n = self.n_channels, self.dim_x
+        Z = self._measurements(zs, "zs", None, f"(N, {C}) (one column per channel)", ndim=2,
+                               finite=False)
+        if Z.shape[1] != C:
+            raise ValueError(f"`zs` must have shape (N, {C}) (one column per channel, "
+                             f"n_channels = {C}); got {Z.shape}")
+        N = Z.shape[0]
+        Hm = self._measurements(Hs, "Hs", (N, C, n),
+                                f"({N}, {C}, {n}) (N = len(zs) steps, n_channels = {C}, "
+                                f"dim_x = {n})", finite=False, strided=True)
+        # regressors stored with the channel index last (a transposed view of an
+        # (N, dim_x, C) array, as fit_many builds them) are read in place
+        Ht = Hm.transpose(0, 2, 1)
+        h_last = Ht.flags.c_contiguous and not Hm.flags.c_contiguous
+        Hk = Ht if h_last else np.ascontiguousarray(Hm)
+        Rv = self._batch_variances(Rs, N)
+        x = np.array(self._checked_x(), dtype=np.float64, order="C")
+        P = np.array(self._checked_P(), dtype=np.float64, order="C")
+        means = np.empty((N if store_means else 0, C, n))
+        covs = np.empty((N if store_covariances else 0, C, n, n))
+        covs_p = np.empty_like(covs)
+        ys, ss = np.empty((N, C)), np.empty((N, C))
+        x_prior, P_prior = np.empty((C, n)), np.empty((C, n, n))
+        x_post, P_post = np.empty((C, n)), np.empty((C, n, n))
+        K, lam_t = np.zeros((C, n)), self._lam.copy()
+        k_fail = np.full(C, -1, dtype=np.int64)
+        k_inf = np.full(C, -1, dtype=np.int64)
+        kern = _get_kernels()
+        if N:
+            run = kern.bank_batch_parallel if self.parallel else kern.bank_batch
+            run(x, P, Z, Hk, h_last, Rv, self._time_il(), self._lam, self._Q, self._Q_is_zero,
+                self._mode, self._params, bool(update_first), means, covs, covs_p, ys, ss,
+                x_prior, P_prior, x_post, P_post, K, lam_t, self.check_every, self.n_updates,
+                self.cond_max, k_fail, k_inf, kern.block_size(n, C))
+            _raise_infinite(k_inf, Z, Hm)          # (checked in the kernel: no extra pass)
+        means_p = None
+        if store_means:            # the estimate is unchanged by a time update
+            means_p = means.copy() if update_first else np.concatenate(
+                [self._checked_x()[None], means[:-1]]) if N else means.copy()
+        step0 = self.n_updates
+        self.x, self.P = x, P
+        if N:
+            self.x_prior, self.P_prior, self.x_post, self.P_post = x_prior, P_prior, x_post, P_post
+            self.z, self.H = Z[-1].copy(), Hm[-1].copy()
+            self.y, self.S = ys[-1].copy(), ss[-1].copy()
+            self.SI, self.K, self.lam_t = 1.0 / self.S, K, lam_t
+            self.n_updates += N
+            self._updates_since_predict = 0 if update_first else 1
+            self._fresh = False
+        failed = np.flatnonzero(k_fail >= 0)
+        if failed.size:
+            self._warn_health(failed, f"at step {int(k_fail[failed[0]])} of batch_filter "
+                                      f"(update {step0 + int(k_fail[failed[0]]) + 1} since "
+                                      "reset)")
+        if self.check_every:
+            self._check_health("at the end of batch_filter")
+        return BankHistory(means if store_means else None,
+                           covs if store_covariances else None, means_p,
+                           covs_p if store_covariances else None, ys, ss)
+
+    def initialize(self, zs, Hs):
+        r"""Start every channel from batch least squares on its first samples.
+
+        As :meth:`RecursiveLeastSquares.initialize` for each channel: with
+        the first ``k0`` samples of channel ``c`` stacked as
+        :math:`Z_c = \Phi_c x_c + V_c` (rows weighted by
+        :math:`\lambda_c^{(k_0 - 1 - i)/2}`, rows with a NaN dropped),
+        :math:`x_c = (\Phi_c^T \Phi_c)^{-1} \Phi_c^T Z_c` and
+        :math:`P_c = R_c (\Phi_c^T \Phi_c)^{-1}`, both from a QR
+        factorization of the regressors with unit-norm columns (batched over
+        the channels), never from the normal equations.
+
+        Parameters
+        ----------
+        zs : array_like, shape (k0, C)
+        Hs : array_like, shape (k0, C, dim_x)
+
+        Raises
+        ------
+        ValueError
+            If the rows of some channel do not determine every parameter
+            (the channels are named).
+        """
+        C, n = self.n_channels, self.dim_x
+        Z = self._measurements(zs, "zs", None, f"(k0, {C})", ndim=2)
+        if Z.shape[1] != C:
+            raise ValueError(f"`zs` must have shape (k0, {C}) (one column per channel, "
+                             f"n_channels = {C}); got {Z.shape}")
+        k0 = Z.shape[0]
+        Hm = self._measurements(Hs, "Hs", (k0, C, n), f"({k0}, {C}, {n})")
+        keep = ~(np.isnan(Z) | np.isnan(Hm).any(axis=2))              # (k0, C)
+        w = self._lam[None, :] ** (0.5 * np.arange(k0 - 1, -1, -1.0))[:, None]
+        w = np.where(keep, w, 0.0)
+        A = np.where(keep[:, :, None], Hm, 0.0) * w[:, :, None]        # (k0, C, n)
+        B = np.where(keep, Z, 0.0) * w                                 # (k0, C)
+        A = A.transpose(1, 0, 2)                                       # (C, k0, n)
+        B = B.T[:, :, None]                                            # (C, k0, 1)
+        norms = np.linalg.norm(A, axis=1)                              # (C, n)
+        d = np.where(norms > 0.0, norms, 1.0)
+        As = A / d[:, None, :]
+        rank = (np.linalg.matrix_rank(As) if k0 else np.zeros(C, dtype=int))
+        rank = np.broadcast_to(rank, (C,))
+        short = np.flatnonzero(rank < n)
+        if short.size:
+            c = int(short[0])
+            raise ValueError(
+                f"`Hs` is rank-deficient in {short.size} channel(s) {_list(short)}: channel "
+                f"{c} has {int(rank[c])} linearly independent rows in {int(keep[:, c].sum())} "
+                f"usable samples; need {n} (one per parameter). Use more samples or a more "
+                "exciting input.")
+        Qf, Rf = np.linalg.qr(As)
+        Rinv = np.linalg.inv(Rf)                          # upper triangular, batched
+        x = (Rinv @ (Qf.transpose(0, 2, 1) @ B))[:, :, 0] / d
+        Rinv = Rinv / d[:, :, None]                       # D^-1 R_s^-1
+        P = self._R[:, None, None] * (Rinv @ Rinv.transpose(0, 2, 1))
+        self.x = x
+        self.P = 0.5 * (P + P.transpose(0, 2, 1))
+        self.x_prior, self.x_post = x.copy(), x.copy()
+        self.P_prior, self.P_post = self.P.copy(), self.P.copy()
+        self._updates_since_predict = 0
+
+    # ------------------------------------------------------------------
+    # channels, copies, reset
+    # ------------------------------------------------------------------
+    def channel(self, i):
+        """Channel `i` as an ordinary :class:`~rlsfilt.RecursiveLeastSquares`.
+
+        The filter has the channel's configuration (`lam`, `R`, `Q`, `x0`,
+        `P0`, forgetting mode and constants, health-check settings) and
+        state (``x``, ``P``, priors, posteriors and the last step's
+        diagnostics), so further ``predict``/``update`` calls continue
+        exactly as channel `i` of the bank would; its :meth:`reset` returns
+        to the channel's ``x0``, ``P0``. The bank is not changed.
+
+        Parameters
+        ----------
+        i : int
+            Channel index, ``0 <= i < n_channels`` (negative counts from the end).
+
+        Returns
+        -------
+        RecursiveLeastSquares
+        """
+        from .rls import RecursiveLeastSquares
+
+        C, n = self.n_channels, self.dim_x
+        i = check_int(i, "i")
+        if not -C <= i < C:
+            raise ValueError(f"`i` must be a channel index in [{-C}, {C}); got {i}")
+        i %= C
+        f = RecursiveLeastSquares(
+            n, lam=float(self._lam[i]), P0=self._P0[i], x0=self._x0[i], R=float(self._R[i]),
+            Q=self._Q[i], forgetting=self.forgetting,
+            forgetting_params=self._forgetting_params_in, check_every=self.check_every,
+            cond_max=self.cond_max)
+        f.x = self._checked_x()[i].reshape(n, 1).copy()
+        f.P = self._checked_P()[i].copy()
+        f.x_prior, f.P_prior = self.x_prior[i].reshape(n, 1).copy(), self.P_prior[i].copy()
+        f.x_post, f.P_post = self.x_post[i].reshape(n, 1).copy(), self.P_post[i].copy()
+        f.n_updates = self.n_updates
+        f._updates_since_predict = self._updates_since_predict
+        f._warned_health = bool(np.isin(i, self.failed_channels))
+        if not self._fresh:
+            f.H = self.H[i].reshape(1, n).copy()
+            f.z = np.full((1, 1), self.z[i])
+            f.y = np.full((1, 1), self.y[i])
+            f.K = self.K[i].reshape(n, 1).copy()
+            f.S, f.SI = np.full((1, 1), self.S[i]), np.full((1, 1), self.SI[i])
+            f.lam_t = float(self.lam_t[i])
+            f._clear_lazy()
+            if np.isnan(self.y[i]):
+                f._log_likelihood, f._likelihood, f._mahalanobis = 0.0, 1.0, math.nan
+        return f
+
+    def reset(self):
+        """Return every channel to ``x0``, ``P0``; diagnostics and counters are cleared.
+
+        ``lam``, ``R``, ``Q`` and the forgetting mode are kept.
+        """
+        C, n = self.n_channels, self.dim_x
+        self.x = self._x0.copy()
+        self.P = self._P0.copy()
+        self.x_prior, self.P_prior = self.x.copy(), self.P.copy()
+        self.x_post, self.P_post = self.x.copy(), self.P.copy()
+        self.H = np.zeros((C, n))
+        self.z = np.zeros(C)
+        self.y = np.zeros(C)
+        self.S = np.zeros(C)
+        self.SI = np.zeros(C)
+        self.K = np.zeros((C, n))
+        self.lam_t = self._lam.copy()
+        self.n_updates = 0
+        self.failed_channels = np.zeros(0, dtype=np.int64)
+        self._updates_since_predict = 0
+        self._warned_skip = False
+        self._fresh = True
+
+    def copy(self):
+        """An independent deep copy of the bank."""
+        return copy.deepcopy(self)
+
+    # ------------------------------------------------------------------
+    # filterpy diagnostics, per channel
+    # ------------------------------------------------------------------
+    @property
+    def log_likelihood(self):
+        """``log N(y; 0, S)`` of each channel's last measurement, shape (C,)
+        (0 where the channel skipped it; ``log(tiny)`` before any update)."""
+        if self._fresh:
+            return np.full(self.n_channels, math.log(_TINY))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            ll = -0.5 * (_LOG_2PI + np.log(self.S) + self.y * self.y / self.S)
+        return np.where(np.isnan(self.y), 0.0, ll)
+
+    @property
+    def likelihood(self):
+        """``exp(log_likelihood)``, floored at the smallest positive float, shape (C,)."""
+        return np.maximum(np.exp(self.log_likelihood), _TINY)
+
+    @property
+    def mahalanobis(self):
+        """``|y| / sqrt(S)`` of each channel's last residual, shape (C,) (NaN where skipped)."""
+        if self._fresh:
+            return np.zeros(self.n_channels)
+        with np.errstate(invalid="ignore"):
+            return np.abs(self.y) / np.sqrt(self.S)
+
+    def __repr__(self):
+        return "\n".join([
+            "RLSBank object",
+            pretty_str("n_channels", self.n_channels),
+            pretty_str("dim_x", self.dim_x),
+            pretty_str("lam", self._lam),
+            pretty_str("forgetting", self.forgetting),
+            pretty_str("x", self.x),
+            pretty_str("P", self.P),
+            pretty_str("R", self._R),
+            pretty_str("y", self.y),
+            pretty_str("S", self.S),
+            pretty_str("K", self.K),
+            pretty_str("failed_channels", self.failed_channels),
+        ])
+
+    # ------------------------------------------------------------------
+    # health of P
+    # ------------------------------------------------------------------
+    def _check_health(self, where):
+        """Full check of every channel's ``P``; warn about channels that newly fail."""
+        bad = np.zeros(self.n_channels, dtype=np.bool_)
+        _get_kernels().bank_unhealthy(self.P, self.cond_max, bad)
+        failed = np.flatnonzero(bad)
+        if failed.size:
+            self._warn_health(failed, where)
+
+    def _warn_health(self, failed, where):
+        new = np.setdiff1d(failed, self.failed_channels)
+        if not new.size:
+            return
+        self.failed_channels = np.union1d(self.failed_channels, new)
+        c = int(new[0])
+        problem = (_health.symmetric_problem(self.P[c], self.cond_max)
+                   or "`P` failed the health check")
+        _health.warn_at_caller(
+            f"`P` failed the health check in {new.size} of {self.n_channels} channel(s) "
+            f"{_list(new)} {where}; channel {c}: {problem}. The estimates of these channels "
+            "may be unreliable: use forgetting='directional' or 'constant_trace', or more "
+            "exciting input (the channels are listed in `failed_channels`).",
+            NumericalWarning)
+
+    # ------------------------------------------------------------------
+    # private helpers
+    # ------------------------------------------------------------------
+    def _time_il(self):
+        """``1 / lam`` applied by the time update: the exponential mode only."""
+        return 1.0 / self._lam if self._mode == 0 else np.ones(self.n_channels)
+
+    def _note_update(self):
+        """Warn once when forgetting is skipped by two updates in a row."""
+        if (self._updates_since_predict and not self._warned_skip
+                and ((self._mode == 0 and (self._lam < 1.0).any()) or not self._Q_is_zero)):
+            self._warned_skip = True
+            _health.warn_at_caller(
+                "update() was called twice without predict() in between, so the forgetting "
+                "(lam < 1) or random walk (Q > 0) of this step was skipped; call predict() "
+                "before each update() or use predict_update().", ForgettingSkippedWarning)
+        self._updates_since_predict += 1
+        self._fresh = False
+
+    def _per_channel(self, value, name):
+        """A scalar or one value per channel, as a new float array of shape (C,)."""
+        C = self.n_channels
+        arr = as_float_array(value, name)
+        if arr.ndim == 0:
+            return np.full(C, float(arr))
+        if arr.shape != (C,):
+            raise ValueError(f"`{name}` must be a scalar or have shape ({C},) (one value per "
+                             f"channel, n_channels = {C}); got shape {arr.shape}")
+        return arr.copy()
+
+    def _per_channel_positive(self, value, name):
+        arr = self._per_channel(value, name)
+        bad = ~(np.isfinite(arr) & (arr > 0.0))
+        if bad.any():
+            c = int(np.argmax(bad))
+            raise ValueError(f"`{name}` must be a positive finite variance; got {arr[c]} for "
+                             f"channel {c}")
+        return arr
+
+    def _covariances(self, value, name, definite=False):
+        """``(C, n, n)`` covariances from a scalar, (C,), (n, n) or (C, n, n)."""
+        C, n = self.n_channels, self.dim_x
+        arr = as_float_array(value, name)
+        if arr.ndim == 0 or arr.shape == (n, n):
+            one = check_covariance(arr, n, name, definite=definite)
+            return np.ascontiguousarray(np.broadcast_to(one, (C, n, n)))
+        if arr.shape == (C,):
+            scalars = self._per_channel(arr, name)
+            bad = ~np.isfinite(scalars) | (scalars <= 0.0 if definite else scalars < 0.0)
+            if bad.any():
+                c = int(np.argmax(bad))
+                want = "positive" if definite else "non-negative"
+                raise ValueError(f"`{name}` must hold {want} finite variances; got "
+                                 f"{scalars[c]} for channel {c}")
+            return scalars[:, None, None] * np.eye(n)[None]
+        if arr.shape != (C, n, n):
+            raise ValueError(f"`{name}` must be a scalar or have shape ({C},), ({n}, {n}) or "
+                             f"({C}, {n}, {n}) (n_channels = {C}, dim_x = {n}); got shape "
+                             f"{arr.shape}")
+        # the checks of `check_covariance`, for every channel at once
+        arr = np.array(arr, dtype=np.float64)
+        finite = np.isfinite(arr).all(axis=(1, 2))
+        if not finite.all():
+            raise ValueError(f"`{name}` must be finite; got NaN or inf entries (channel "
+                             f"{int(np.argmin(finite))})")
+        scale = np.maximum(np.abs(arr).max(axis=(1, 2)), np.finfo(float).tiny)
+        asym = np.abs(arr - arr.transpose(0, 2, 1)).max(axis=(1, 2))
+        if (asym > 1e-10 * scale).any():
+            c = int(np.argmax(asym > 1e-10 * scale))
+            raise ValueError(f"`{name}` must be symmetric; got max |{name} - {name}^T| = "
+                             f"{asym[c]:.3g} (channel {c})")
+        arr = 0.5 * (arr + arr.transpose(0, 2, 1))
+        eig_min = np.linalg.eigvalsh(arr)[:, 0]
+        bad = eig_min <= 0.0 if definite else eig_min < -n * np.finfo(float).eps * scale
+        if bad.any():
+            c = int(np.argmax(bad))
+            kind = "definite" if definite else "semidefinite"
+            raise ValueError(f"`{name}` must be positive {kind}; got smallest eigenvalue "
+                             f"{eig_min[c]:.3g} (channel {c})")
+        return arr
+
+    def _estimates(self, value, name):
+        C, n = self.n_channels, self.dim_x
+        arr = as_float_array(value, name)
+        if arr.shape == (n,):
+            arr = np.broadcast_to(arr, (C, n))
+        if arr.shape != (C, n):
+            raise ValueError(f"`{name}` must have shape ({n},) or ({C}, {n}) (n_channels = "
+                             f"{C}, dim_x = {n}); got shape {arr.shape}")
+        if not np.isfinite(arr).all():
+            bad = np.argwhere(~np.isfinite(arr))[0]
+            raise ValueError(f"`{name}` must be finite; got {arr[tuple(bad)]} at index "
+                             f"{tuple(int(v) for v in bad)}")
+        return np.array(arr, dtype=np.float64, order="C")
+
+    def _measurements(self, value, name, shape, expected, ndim=None, finite=True,
+                      strided=False):
+        """A float64 array of `shape` (or `ndim`): NaN allowed, inf not (not
+        checked here with ``finite=False``: the record kernel checks it).
+
+        C-contiguous, or with ``strided=True`` in the caller's layout (the
+        caller decides). The kernels only read it, so the caller's array is
+        passed without a copy.
+        """
+        arr = value if (type(value) is np.ndarray and value.dtype == np.float64) \
+            else as_float_array(value, name)
+        if (shape is not None and arr.shape != shape) or (ndim is not None and arr.ndim != ndim):
+            raise ValueError(f"`{name}` must have shape {expected}; got {arr.shape}")
+        if not strided:
+            arr = np.ascontiguousarray(arr)
+        if finite and not np.isfinite(arr.sum()) and np.isinf(arr).any():
+            idx = tuple(int(v) for v in np.argwhere(np.isinf(arr))[0])
+            raise ValueError(f"`{name}` must be finite or NaN (missing); got {arr[idx]} at "
+                             f"index {idx}")
+        return arr
+
+    def _batch_variances(self, Rs, N):
+        C = self.n_channels
+        if Rs is None:
+            return self._R.reshape(1, C)
+        arr = as_float_array(Rs, "Rs")
+        if arr.ndim <= 1:
+            return self._per_channel_positive(arr, "Rs").reshape(1, C)
+        if arr.shape != (N, C):
+            raise ValueError(f"`Rs` must be a scalar or have shape ({C},) or ({N}, {C}) (one "
+                             f"variance per channel, or per step and channel); got {arr.shape}")
+        bad = ~(np.isfinite(arr) & (arr > 0.0))
+        if bad.any():
+            idx = tuple(int(v) for v in np.argwhere(bad)[0])
+            raise ValueError(f"`Rs` must hold positive finite variances; got {arr[idx]} at "
+                             f"index {idx}")
+        return np.ascontiguousarray(arr)
+
+    def _checked_x(self):
+        x = self.x
+        C, n = self.n_channels, self.dim_x
+        if not isinstance(x, np.ndarray) or x.shape != (C, n):
+            raise ValueError(f"`x` must be an array of shape ({C}, {n}); got "
+                             f"{getattr(x, 'shape', type(x).__name__)}")
+        return np.ascontiguousarray(x, dtype=np.float64)
+
+    def _checked_P(self):
+        P = self.P
+        C, n = self.n_channels, self.dim_x
+        if not isinstance(P, np.ndarray) or P.shape != (C, n, n):
+            raise ValueError(f"`P` must be an array of shape ({C}, {n}, {n}); got "
+                             f"{getattr(P, 'shape', type(P).__name__)}")
+        return np.ascontiguousarray(P, dtype=np.float64)
+
+
+
+def _raise_infinite(k_inf, Z, H):
+    """Name the first infinite measurement or regressor entry the kernel found."""
+    bad = np.flatnonzero(k_inf >= 0)
+    if not bad.size:
+        return
+    k = int(k_inf[bad].min())
+    c = int(bad[k_inf[bad] == k][0])
+    if np.isinf(Z[k, c]):
+        raise ValueError(f"`zs` must be finite or NaN (missing); got {Z[k, c]} at index "
+                         f"({k}, {c})")
+    j = int(np.argmax(np.isinf(H[k, c])))
+    raise ValueError(f"`Hs` must be finite or NaN (missing); got {H[k, c, j]} at index "
+                     f"({k}, {c}, {j})")
+
+
+def _list(channels, most=10):
+    """``[3, 17, 40]``, or the first `most` and a count."""
+    shown = ", ".join(str(int(c)) for c in channels[:most])
+    more = f", ... ({len(channels) - most} more)" if len(channels) > most else ""
+    return f"[{shown}{more}]"

@@ -1,0 +1,320 @@
+r"""Streaming estimators of the polynomial family, one call per sample (MATLAB's recursive objects).
+
+``RecursiveARMAX``, ``RecursiveOE``, ``RecursiveBJ``, ``RecursiveARX``,
+``RecursiveAR`` and ``RecursiveARMA`` are what MATLAB's ``recursiveARMAX``,
+``recursiveOE``, ... are: objects that take one measurement ``(y, u)`` at a
+time, return the one-step prediction made *before* the measurement and the
+updated parameters, and can run beside a Kalman filter in a loop. They are
+thin wrappers around the compiled RPEM/RPLR step of
+:mod:`rlsfilt.models._recursive_kernels`, the same step that
+``fit(u, y, method="rpem")`` runs over a record, so stepping through a
+record gives bit for bit the estimates of the batch run.
+"""
+
+import numbers
+
+import numpy as np
+
+from .._validation import as_float_array, check_finite
+from ._family import family_structure, param_names, split_theta
+from ._recursive_pem import RecursionState
+
+__all__ = ["RecursiveARMAX", "RecursiveOE", "RecursiveBJ", "RecursiveARX", "RecursiveAR",
+           "RecursiveARMA"]
+
+
+def _n_inputs(nb):
+    if isinstance(nb, np.ndarray) and nb.ndim == 0:
+        nb = nb.item()
+    if isinstance(nb, numbers.Integral) or not hasattr(nb, "__len__"):
+        return 1
+    return len(nb)
+
+
+class _RecursiveModel:
+    """One-sample-at-a-time estimation of a model of the family (shared machinery).
+
+    Parameters of every subclass: the orders, then keyword options
+    ``method`` (``"rpem"`` or ``"rplr"``) and those of the recursion
+    (``lam``, ``lam_start``, ``lam_rate``, ``P0``, ``x0``, ``R``, ``Q``,
+    ``forgetting``, ``forgetting_params``, ``gate``, ``project``; see
+    :meth:`ARMAX.fit`).
+    """
+
+    def __init__(self, s, method, options):
+        self._structure = s
+        self._options = dict(options)
+        self.method = method
+        self._state = RecursionState(s, method, **options)
+        self._initial = self._state.copy()
+        self.last_error = np.nan
+        self._nu = s.n_inputs
+        self._ubuf = np.zeros(s.n_inputs)      # the input sample of the fast path
+
+    # ------------------------------------------------------------------
+    def step(self, y, u=None):
+        """Take one sample: return the prediction made before it and the new estimate.
+
+        Parameters
+        ----------
+        y : float
+            The measured output ``y(t)``.
+        u : float or array_like, shape (nu,)
+            The input ``u(t)`` (omit for AR/ARMA). With a delay ``nk >= 1``
+            the prediction does not depend on it.
+
+        Returns
+        -------
+        yhat : float
+            :math:`\\hat y(t \\mid t-1)`, the prediction with the previous estimate.
+        theta : ndarray, shape (n_params,)
+            The updated estimate (a copy).
+        """
+        # fast path (the loop of a real-time application): float samples need only a
+        # finiteness check (x - x is NaN for NaN and inf); anything else is validated in full
+        if isinstance(y, float) and y - y == 0.0:
+            if self._nu == 1 and isinstance(u, float) and u - u == 0.0:
+                uv = self._ubuf
+                uv[0] = u
+            elif self._nu == 0 and u is None:
+                uv = self._ubuf
+            else:
+                uv = self._input(u)
+        else:
+            y = _scalar(y, "y")
+            uv = self._input(u)
+        state = self._state
+        yhat, eps, _ = state.step(y, uv)
+        self.last_error = eps
+        return yhat, state.theta.copy()
+
+    __call__ = step
+
+    def batch(self, y, u=None):
+        """Run a record through the same compiled recursion; return the estimates.
+
+        Parameters
+        ----------
+        y : array_like, shape (N,)
+        u : array_like, shape (N,) or (N, nu)
+
+        Returns
+        -------
+        yhat : ndarray, shape (N,)
+            One-step predictions.
+        theta_history : ndarray, shape (N, n_params)
+            The estimate after each sample.
+        """
+        yv = check_finite(as_float_array(y, "y").reshape(-1), "y")
+        nu = self._structure.n_inputs
+        if nu:
+            if u is None:
+                raise ValueError(f"`u` must be given: the model has {nu} input(s)")
+            U = as_float_array(u, "u")
+            U = U[:, None] if U.ndim == 1 else U
+            if U.shape != (len(yv), nu):
+                raise ValueError(f"`u` must have shape ({len(yv)},) or ({len(yv)}, {nu}); got "
+                                 f"{np.shape(u)}")
+            check_finite(U, "u")
+        else:
+            U = np.zeros((len(yv), 0))
+        out = self._state.run(yv, U)
+        if len(yv):
+            self.last_error = float(out["eps"][-1])
+        return out["yhat"], out["theta_history"]
+
+    def restart(self):
+        """Start a new experiment: the regressor and filter signals restart from rest
+        (zero past), while the estimate, ``P`` and the forgetting profile carry on (as
+        ``fit`` does at each experiment boundary of an `IOData`)."""
+        self._state.restart()
+
+    def reset(self):
+        """Return to the initial estimate and covariance."""
+        self._state = self._initial.copy()
+        self.last_error = np.nan
+
+    # ------------------------------------------------------------------
+    @property
+    def theta(self):
+        """The current estimate (a copy), in the order of :attr:`param_names`."""
+        return self._state.theta.copy()
+
+    @property
+    def P(self):
+        """The covariance matrix of the recursion (a copy)."""
+        return self._state.P.copy()
+
+    @property
+    def param_names(self):
+        """Names of the entries of :attr:`theta`."""
+        return param_names(self._structure)
+
+    @property
+    def n_steps(self):
+        """Samples taken since construction or :meth:`reset`."""
+        return self._state.n_steps
+
+    @property
+    def lam_t(self):
+        """Forgetting factor the last step applied."""
+        return self._state.lam_t
+
+    def polynomials(self):
+        """Current ``(A, B, C, D, F)`` in MATLAB's form (``B``, ``F`` lists per input)."""
+        return split_theta(self._state.theta, self._structure)
+
+    @property
+    def A(self):
+        """Current ``A`` polynomial ``[1, a1, ..]``."""
+        return self.polynomials()[0]
+
+    @property
+    def B(self):
+        """Current ``B`` polynomial ``[0]*nk + [b1, ..]`` (a list for several inputs)."""
+        B = self.polynomials()[1]
+        return B[0] if len(B) == 1 else B
+
+    @property
+    def C(self):
+        """Current ``C`` polynomial."""
+        return self.polynomials()[2]
+
+    @property
+    def D(self):
+        """Current ``D`` polynomial."""
+        return self.polynomials()[3]
+
+    @property
+    def F(self):
+        """Current ``F`` polynomial (a list for several inputs)."""
+        F = self.polynomials()[4]
+        return F[0] if len(F) == 1 else F
+
+    def __repr__(self):
+        args = ", ".join(f"{k}={v!r}" for k, v in self._orders.items())
+        return f"{type(self).__name__}({args}, method={self.method!r}), {self.n_steps} steps"
+
+    def _input(self, u):
+        nu = self._structure.n_inputs
+        if nu == 0:
+            if u is not None and np.size(u):
+                raise ValueError(f"`u` must be omitted: {type(self).__name__} has no input")
+            return np.zeros(0)
+        if u is None:
+            raise ValueError(f"`u` must be given: the model has {nu} input(s)")
+        if isinstance(u, numbers.Real) and nu == 1:
+            v = float(u)
+            if v - v != 0.0:
+                raise ValueError(f"`u` must be finite; got {v}")
+            return np.array([v])
+        arr = as_float_array(u, "u").reshape(-1)
+        if arr.size != nu:
+            raise ValueError(f"`u` must have {nu} entries (one per input); got {arr.size}")
+        return check_finite(arr, "u")
+
+
+def _scalar(y, name):
+    if isinstance(y, numbers.Real) and not isinstance(y, bool):
+        v = float(y)
+    else:
+        arr = as_float_array(y, name)
+        if arr.size != 1:
+            raise ValueError(f"`{name}` must be a scalar (one sample); got shape {arr.shape}")
+        v = float(arr.reshape(()))
+    if v - v != 0.0:
+        raise ValueError(f"`{name}` must be finite; got {v}")
+    return v
+
+
+class RecursiveARMAX(_RecursiveModel):
+    r"""Streaming ARMAX estimation (MATLAB ``recursiveARMAX``).
+
+    Parameters
+    ----------
+    na, nb, nc, nk
+        Orders as :class:`~rlsfilt.ARMAX` (``nb``, ``nk`` per input).
+    method : {"rpem", "rplr"}, default "rpem"
+        Gradient-filtered regressors, or extended least squares.
+    **options
+        Of the recursion (see :class:`_RecursiveModel`).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scipy.signal import lfilter
+    >>> from rlsfilt import RecursiveARMAX
+    >>> rng = np.random.default_rng(5)
+    >>> u, e = rng.standard_normal(20000), 0.5 * rng.standard_normal(20000)
+    >>> y = lfilter([0, 1.0], [1, -0.7], u) + lfilter([1, 0.4], [1, -0.7], e)
+    >>> est = RecursiveARMAX(1, 1, 1, 1)
+    >>> for t in range(len(y)):
+    ...     yhat, theta = est.step(y[t], u[t])
+    >>> np.round(theta, 1)
+    array([-0.7,  1. ,  0.4])
+    """
+
+    def __init__(self, na, nb, nc, nk=1, *, method="rpem", **options):
+        self._orders = {"na": na, "nb": nb, "nc": nc, "nk": nk}
+        s = family_structure(na=na, nb=nb, nc=nc, nk=nk, n_inputs=_n_inputs(nb))
+        super().__init__(s, method, options)
+
+
+class RecursiveOE(_RecursiveModel):
+    """Streaming output-error estimation (MATLAB ``recursiveOE``): orders as :class:`~rlsfilt.OE`.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scipy.signal import lfilter
+    >>> from rlsfilt import RecursiveOE
+    >>> rng = np.random.default_rng(6)
+    >>> u = rng.standard_normal(20000)
+    >>> y = lfilter([0, 1.0], [1, -0.7], u) + 0.3 * rng.standard_normal(20000)
+    >>> yhat, theta = RecursiveOE(1, 1, 1).batch(y, u)
+    >>> np.round(theta[-1], 2)
+    array([ 1. , -0.7])
+    """
+
+    def __init__(self, nb, nf, nk=1, *, method="rpem", **options):
+        self._orders = {"nb": nb, "nf": nf, "nk": nk}
+        s = family_structure(nb=nb, nf=nf, nk=nk, n_inputs=_n_inputs(nb))
+        super().__init__(s, method, options)
+
+
+class RecursiveBJ(_RecursiveModel):
+    """Streaming Box-Jenkins estimation (MATLAB ``recursiveBJ``): orders as :class:`~rlsfilt.BJ`."""
+
+    def __init__(self, nb, nc, nd, nf, nk=1, *, method="rpem", **options):
+        self._orders = {"nb": nb, "nc": nc, "nd": nd, "nf": nf, "nk": nk}
+        s = family_structure(nb=nb, nc=nc, nd=nd, nf=nf, nk=nk, n_inputs=_n_inputs(nb))
+        super().__init__(s, method, options)
+
+
+class RecursiveARX(_RecursiveModel):
+    """Streaming ARX estimation (MATLAB ``recursiveARX``): orders as :class:`~rlsfilt.ARX`.
+
+    The recursion is `RecursiveLeastSquares` on the ARX regressor (RPLR and
+    RPEM coincide for ARX); every option of the filter applies.
+    """
+
+    def __init__(self, na, nb, nk=1, **options):
+        self._orders = {"na": na, "nb": nb, "nk": nk}
+        s = family_structure(na=na, nb=nb, nk=nk, n_inputs=_n_inputs(nb))
+        super().__init__(s, "rplr", options)
+
+
+class RecursiveAR(_RecursiveModel):
+    """Streaming AR estimation (MATLAB ``recursiveAR``): ``step(y)``."""
+
+    def __init__(self, na, **options):
+        self._orders = {"na": na}
+        super().__init__(family_structure(na=na, n_inputs=0), "rplr", options)
+
+
+class RecursiveARMA(_RecursiveModel):
+    """Streaming ARMA estimation (MATLAB ``recursiveARMA``): ``step(y)``."""
+
+    def __init__(self, na, nc, *, method="rpem", **options):
+        self._orders = {"na": na, "nc": nc}
+        super().__init__(family_structure(na=na, nc=nc, n_inputs=0), method, options)

@@ -1,0 +1,257 @@
+r"""Input delay estimation from one factorization (MATLAB's ``delayest``).
+
+Every candidate delay :math:`n_k` of an ARX model with fixed orders
+``(na, nb)`` uses a subset of the columns of one wide regressor matrix
+
+.. math::
+
+    \Psi(t) = [-y(t-1), \dots, -y(t-n_a),\;
+               u_j(t - n_{k,\min}), \dots, u_j(t - n_{k,\max} - n_b + 1)
+               \text{ for every input } j],
+
+so, as in :func:`~rlsfilt.validation.select_order`, one QR factorization
+:math:`[\Psi\; y] = QR` gives the loss of every candidate from a problem with
+as many rows as :math:`\Psi` has columns.
+"""
+
+import warnings
+from collections import namedtuple
+
+import numpy as np
+from scipy import stats
+
+from .._validation import check_int
+from ..data.iodata import as_iodata
+from ..exceptions import OrderSelectionWarning
+
+__all__ = ["delayest", "DelayEstimate"]
+
+DelayEstimate = namedtuple("DelayEstimate", ["nk", "losses", "nk_range", "n_rows"])
+DelayEstimate.__doc__ = """Full output of :func:`delayest`.
+
+Attributes
+----------
+nk : int or tuple of int
+    The estimated delay (one per input for several inputs).
+losses : list of ndarray
+    Per input, the mean squared one-step residual of each delay in
+    ``nk_range[j]`` with the other inputs at their estimated delays.
+nk_range : list of range
+    Per input, the delays tried.
+n_rows : int
+    Number of aligned regressor rows (over all experiments).
+"""
+
+# rows of the wide regressor matrix fed to the QR factorization at once: the memory of the
+# factorization stays bounded by this block (and the triangular factor), whatever N
+_BLOCK_ROWS = 16384
+_MAX_SWEEPS = 20
+
+
+def delayest(u, y=None, na=2, nb=2, nk_min=0, nk_max=None, *, full_output=False):
+    r"""Estimate the input delay(s) of a plant from an input/output record.
+
+    ARX models ``(na, nb, nk)`` are fitted for every delay
+    ``nk_min <= nk <= nk_max`` and the delay with the smallest one-step
+    prediction loss is returned (all candidates have the same number of
+    parameters and are fitted on the same rows, so their losses compare
+    directly). With several inputs the delays are found coordinate-wise:
+    each input alone first, then sweeps over the inputs, each time with the
+    other delays fixed, until no delay changes.
+
+    Parameters
+    ----------
+    u : array_like, shape (N,) or (N, nu), or IOData
+        Input record, or an `IOData` holding inputs and outputs (then `y`
+        is omitted); several experiments are used together, no regressor
+        row straddling two of them.
+    y : array_like, shape (N,), optional
+        Output record (one output).
+    na : int, default 2
+        Number of past outputs of the test models.
+    nb : int or sequence of int, default 2
+        Number of input coefficients of the test models (per input).
+    nk_min : int or sequence of int, default 0
+        Smallest delay tried (per input).
+    nk_max : int or sequence of int, optional
+        Largest delay tried (per input); ``nk_min + 20`` by default.
+    full_output : bool, default False
+        Return a `DelayEstimate` with the loss of every delay tried.
+
+    Returns
+    -------
+    nk : int or tuple of int
+        The delay in samples (a tuple, one per input, for several inputs);
+        a `DelayEstimate` when `full_output` is true.
+
+    Warns
+    -----
+    OrderSelectionWarning
+        When an estimated delay is at ``nk_max`` (or at ``nk_min > 0``):
+        the true delay may lie outside the range, so widen that bound.
+
+    Raises
+    ------
+    ValueError
+        Bad orders or ranges, several outputs, or a range so large that the
+        record leaves fewer rows than regressors (the message says how many
+        of each).
+
+    Notes
+    -----
+    Candidates whose loss :math:`V` lies within the noise of the best,
+    :math:`V \le V_{min}\,(1 + F_{0.95}(1, n_{dof}) / n_{dof})`, count as
+    ties, and the largest tied delay is returned: a model whose extra
+    leading coefficient is zero (``nb`` larger than the plant's) fits as
+    well as the one with the true delay, and a delay means exactly that the
+    first coefficients vanish.
+
+    One Householder QR factorization of :math:`[\Psi\;y]`, accumulated over
+    blocks of rows (:math:`R \leftarrow \mathrm{qr}([R;\,\text{block}])`,
+    so memory does not grow with the record), gives for every candidate the
+    problem :math:`\min_b \lVert R_S b - r_y \rVert` with only
+    :math:`\mathrm{cols}(\Psi) + 1` rows; columns are scaled to unit norm
+    (:math:`\Psi D^{-1} = Q (R D^{-1})`) so rank decisions do not depend on
+    the units of the signals.
+
+    References
+    ----------
+    .. [1] L. Ljung, *System Identification: Theory for the User*, 2nd ed.,
+       Prentice Hall, 1999, sec. 16.4.
+    .. [2] MATLAB System Identification Toolbox, ``delayest``.
+
+    Examples
+    --------
+    A second-order plant with 7 samples of dead time:
+
+    >>> import numpy as np
+    >>> from scipy.signal import lfilter
+    >>> from rlsfilt.validation.delay import delayest
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.standard_normal(1000)
+    >>> y = lfilter([0] * 7 + [1.0, 0.5], [1, -1.5, 0.7], u) + 0.1 * rng.standard_normal(1000)
+    >>> delayest(u, y)
+    7
+    """
+    data = as_iodata(u, y)
+    if data.n_outputs != 1:
+        raise ValueError(f"`y` must hold one output; got {data.n_outputs} (estimate the delays "
+                         "of each output separately)")
+    nu = data.n_inputs
+    na = check_int(na, "na", minimum=0)
+    nb = _per_input(nb, "nb", nu, 1)
+    nk_min = _per_input(nk_min, "nk_min", nu, 0)
+    nk_max = tuple(k + 20 for k in nk_min) if nk_max is None else _per_input(nk_max, "nk_max",
+                                                                             nu, 0)
+    for j in range(nu):
+        if nk_max[j] < nk_min[j]:
+            raise ValueError(f"`nk_max` must be >= `nk_min`; got nk_max={nk_max[j]} < "
+                             f"nk_min={nk_min[j]}" + (f" for input {j}" if nu > 1 else ""))
+    lags = [range(nk_min[j], nk_max[j] + nb[j]) for j in range(nu)]
+    t_max = max([na] + [nk_max[j] + nb[j] - 1 for j in range(nu)])
+    n_cols = na + sum(len(lag) for lag in lags)
+    rows = _rows(data.lengths, na, nb, nk_max)
+    if rows <= n_cols:
+        fits = [k for k in range(max(nk_min), max(nk_max))
+                if _rows(data.lengths, na, nb, (k,) * nu) > na + sum(k - lo + b for lo, b in
+                                                                     zip(nk_min, nb))]
+        hint = f" (at most nk_max={fits[-1]} fits)" if fits and len(set(nk_max)) == 1 else ""
+        raise ValueError(
+            f"the record is too short for delays up to nk_max={_fmt(nk_max)}: {data.n_samples} "
+            f"samples leave {rows} aligned rows for {n_cols} regressor columns (the largest lag "
+            f"is {t_max}); lower `nk_max`{hint} or give a longer record")
+    R = _triangular_factor(data, na, lags, t_max)
+    scale = np.linalg.norm(R[:, :-1], axis=0)  # = column norms of Psi (Q is orthogonal)
+    Rs = R[:, :-1] / np.where(scale > 0, scale, 1.0)
+    r_y = R[:, -1]
+    n_params = na + sum(nb)
+    dof = rows - n_params
+    tie = 1.0 + (stats.f.ppf(0.95, 1, dof) / dof if dof > 0 else 0.0)
+    offsets = np.cumsum([na] + [len(lag) for lag in lags])[:-1]
+
+    def columns(j, k):
+        start = offsets[j] + (k - nk_min[j])
+        return list(range(start, start + nb[j]))
+
+    def loss(delays, inputs):
+        S = list(range(na)) + [c for j in inputs for c in columns(j, delays[j])]
+        M = Rs[:, S]
+        res = r_y - M @ np.linalg.lstsq(M, r_y, rcond=None)[0]
+        return float(res @ res) / rows
+
+    def best_for(j, delays, inputs):
+        ks = range(nk_min[j], nk_max[j] + 1)
+        curve = np.array([loss({**delays, j: k}, inputs) for k in ks])
+        ok = np.flatnonzero(curve <= curve.min() * tie)
+        return ks[int(ok[-1])], curve
+
+    delays = {j: nk_min[j] for j in range(nu)}
+    for j in range(nu):  # each input alone: a start that does not depend on input order
+        delays[j] = best_for(j, delays, [j])[0]
+    curves = [None] * nu
+    for _ in range(_MAX_SWEEPS):
+        changed = False
+        for j in range(nu):
+            k, curves[j] = best_for(j, delays, range(nu))
+            changed |= k != delays[j]
+            delays[j] = k
+        if not changed:
+            break
+    names = data.input_names
+    for j in range(nu):
+        for bound, value, edge in (("nk_max", nk_max[j], True),
+                                   ("nk_min", nk_min[j], nk_min[j] > 0)):
+            if edge and delays[j] == value and nk_max[j] > nk_min[j]:
+                warnings.warn(f"the estimated delay of input {names[j]!r} is {bound}={value}, "
+                              f"the edge of the range tried; widen `{bound}`",
+                              OrderSelectionWarning, stacklevel=2)
+    nk = delays[0] if nu == 1 else tuple(delays[j] for j in range(nu))
+    if full_output:
+        return DelayEstimate(nk, curves, [range(nk_min[j], nk_max[j] + 1) for j in range(nu)],
+                             rows)
+    return nk
+
+
+# ----------------------------------------------------------------------
+# private helpers
+# ----------------------------------------------------------------------
+def _per_input(value, name, nu, minimum):
+    if isinstance(value, (list, tuple, np.ndarray)):
+        values = list(value)
+        if len(values) != nu:
+            raise ValueError(f"`{name}` must be an integer or have one entry per input ({nu}); "
+                             f"got {len(values)} entries")
+        return tuple(check_int(v, f"{name}[{i}]", minimum=minimum) for i, v in enumerate(values))
+    return (check_int(value, name, minimum=minimum),) * nu
+
+
+def _rows(lengths, na, nb, nk_max):
+    """Aligned rows over the experiments for the largest lag of these ranges."""
+    t_max = max([na] + [k + b - 1 for k, b in zip(nk_max, nb)])
+    return sum(max(n - t_max, 0) for n in lengths)
+
+
+def _fmt(values):
+    return values[0] if len(set(values)) == 1 else list(values)
+
+
+def _triangular_factor(data, na, lags, t_max):
+    """``R`` of ``[Psi y] = Q R``, rows of every experiment, accumulated by blocks."""
+    n_cols = na + sum(len(lag) for lag in lags) + 1
+    R = np.zeros((0, n_cols))
+    for U, Y in data.arrays():
+        N = len(Y)
+        for start in range(t_max, N, _BLOCK_ROWS):
+            stop = min(start + _BLOCK_ROWS, N)
+            block = np.empty((stop - start, n_cols))
+            c = 0
+            for k in range(1, na + 1):
+                np.negative(Y[start - k:stop - k, 0], out=block[:, c])
+                c += 1
+            for j, lag in enumerate(lags):
+                for k in lag:
+                    block[:, c] = U[start - k:stop - k, j]
+                    c += 1
+            block[:, c] = Y[start:stop, 0]
+            R = np.linalg.qr(np.vstack([R, block]), mode="r")
+    return R  # square: the caller checked that there are more rows than columns

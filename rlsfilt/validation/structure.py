@@ -1,0 +1,232 @@
+r"""Structure selection for any model class: fit a grid of orders, rank by a criterion.
+
+:func:`select_order` searches ARX orders by least squares on nested regressors;
+model classes whose fits are not linear regressions (ARMAX, OE, BJ, ARMA)
+need every candidate fitted by prediction error. :func:`select_structure`
+does that for any :class:`~rlsfilt.models.IdentifiedModel` class and ranks
+the candidates by the information criteria of their one-step prediction
+errors (:func:`information_criteria`, MATLAB's ``aic``/``fpe`` definitions),
+or by the loss on validation data.
+"""
+
+import itertools
+import math
+
+import numpy as np
+
+from .._serialize import jsonable
+from .._validation import check_int
+from ._model import one_step
+from .criteria import _criteria, information_criteria
+
+__all__ = ["StructureSelection", "select_structure"]
+
+_CRITERIA = ("aic", "aicc", "bic", "naic", "fpe", "mdl", "loss")
+
+
+class StructureSelection:
+    """Result of :func:`select_structure`.
+
+    Attributes
+    ----------
+    candidates : list of dict
+        One per structure tried, in the order tried: the orders, ``n_params``,
+        ``loss`` (mean squared one-step prediction error on the estimation
+        data), ``val_loss`` (on the validation data, NaN without), the
+        criteria ``aic`` .. ``mdl`` and ``error`` (the message when the fit
+        was refused, else None).
+    criterion : str
+    values : ndarray
+        The criterion of each candidate (NaN when its fit was refused).
+    best : dict
+        The orders of the best candidate.
+    best_model : IdentifiedModel
+        The best candidate, fitted on the estimation data.
+    models : list
+        Every fitted candidate (None where the fit was refused).
+    """
+
+    def __init__(self, candidates, criterion, values, models):
+        self.candidates = candidates
+        self.criterion = criterion
+        self.values = np.asarray(values, dtype=float)
+        if np.all(np.isnan(self.values)):
+            errors = "; ".join(sorted({c["error"] for c in candidates if c["error"]}))
+            raise ValueError(f"no candidate structure could be fitted: {errors}")
+        i = int(np.nanargmin(self.values))
+        self.best_index = i
+        self.models = models
+        self.best_model = models[i]
+        self.best = {k: v for k, v in candidates[i]["orders"].items()}
+
+    def __repr__(self):
+        return (f"<StructureSelection: best {type(self.best_model).__name__} {self.best} by "
+                f"{self.criterion} among {len(self.candidates)} candidates>")
+
+    def summary(self, top=10):
+        """Text table of the `top` candidates, best first.
+
+        Parameters
+        ----------
+        top : int, default 10
+
+        Returns
+        -------
+        str
+        """
+        top = check_int(top, "top", minimum=1)
+        order = np.argsort(np.where(np.isnan(self.values), np.inf, self.values),
+                           kind="stable")[:top]
+        name = type(self.best_model).__name__
+        lines = [f"Structure selection of {name} by {self.criterion} "
+                 f"({len(self.candidates)} candidates)"]
+        for i in order:
+            c = self.candidates[i]
+            orders = ", ".join(f"{k}={v}" for k, v in c["orders"].items())
+            if c["error"]:
+                lines.append(f"  {orders:<40} refused: {c['error']}")
+                continue
+            mark = "  <- best" if i == self.best_index else ""
+            lines.append(f"  {orders:<40} d={c['n_params']:<3} loss={c['loss']:<11.5g} "
+                         f"{self.criterion}={self.values[i]:.6g}{mark}")
+        return "\n".join(lines)
+
+    def to_dict(self):
+        """The selection as a JSON-ready dict (non-finite numbers as None)."""
+        return jsonable({"model": type(self.best_model).__name__, "best": self.best,
+                         "criterion": self.criterion, "candidates": self.candidates})
+
+    def to_dataframe(self):
+        """The candidates as a ``pandas.DataFrame`` (one column per order and number)."""
+        import pandas as pd
+
+        rows = [{**c["orders"], **{k: v for k, v in c.items() if k != "orders"}}
+                for c in self.candidates]
+        return pd.DataFrame(rows)
+
+
+def _grid(grid):
+    if isinstance(grid, dict):
+        if not grid:
+            raise ValueError("`grid` must name at least one order; got an empty dict")
+        names = list(grid)
+        values = []
+        for name in names:
+            v = grid[name]
+            v = list(v) if hasattr(v, "__iter__") and not isinstance(v, (str, bytes)) else [v]
+            if not v:
+                raise ValueError(f"`grid['{name}']` must hold at least one value; got none")
+            values.append(v)
+        return [dict(zip(names, combo)) for combo in itertools.product(*values)]
+    combos = [dict(c) for c in grid]
+    if not combos:
+        raise ValueError("`grid` must hold at least one structure; got none")
+    return combos
+
+
+def select_structure(model_class, u, y, grid, *, criterion="bic", validation=None,
+                     dt=True, **fit_options):
+    r"""Fit every structure of a grid and rank them by a criterion of the prediction errors.
+
+    Parameters
+    ----------
+    model_class : type
+        An :class:`~rlsfilt.models.IdentifiedModel` class (`ARMAX`, `OE`,
+        `BJ`, `ARMA`, `ARX`, ...).
+    u : array_like or None
+        Input record (None for a time-series class such as `ARMA`).
+    y : array_like, shape (N,)
+        Output record.
+    grid : dict or iterable of dict
+        Orders to try: a dict from each constructor parameter to its values
+        (every combination is tried; per-input orders of several inputs as
+        tuples, ``{"nb": [(2, 1), (3, 1)]}``), or an explicit list of dicts.
+    criterion : {"bic", "aic", "aicc", "naic", "fpe", "mdl", "loss"}, default "bic"
+        Smaller is better. ``"loss"`` is the mean squared one-step prediction
+        error on the validation data (or the estimation data without them).
+    validation : tuple ``(u_v, y_v)``, optional
+        Fresh data: the criteria then penalize the validation loss (as
+        MATLAB's ``selstruc`` on validation losses).
+    dt : True or float, default True
+        Sampling period of the candidates.
+    **fit_options
+        Passed to every ``fit`` (for example ``method="rpem"``).
+
+    Returns
+    -------
+    StructureSelection
+
+    Notes
+    -----
+    A candidate whose fit is refused (too few samples, an input that is not
+    persistently exciting for its orders) is kept in the table with its
+    error message and no criterion. With :math:`V` the mean squared one-step
+    prediction error on the :math:`N` rows after the candidate's own
+    ``max_lag`` and :math:`d` its number of parameters, the criteria are
+    those of :func:`criteria_from_loss`.
+
+    Examples
+    --------
+    Output-error data: among OE structures, BIC picks the true orders.
+
+    >>> import numpy as np
+    >>> from scipy.signal import lfilter
+    >>> from rlsfilt import OE
+    >>> from rlsfilt.validation import select_structure
+    >>> rng = np.random.default_rng(7)
+    >>> u = rng.standard_normal(2000)
+    >>> y = lfilter([0, 1.0, 0.5], [1, -1.5, 0.7], u) + 0.3 * rng.standard_normal(2000)
+    >>> sel = select_structure(OE, u, y, {"nb": [1, 2, 3], "nf": [1, 2, 3], "nk": [1]})
+    >>> sel.best
+    {'nb': 2, 'nf': 2, 'nk': 1}
+    """
+    if criterion not in _CRITERIA:
+        raise ValueError(f"`criterion` must be one of {', '.join(map(repr, _CRITERIA))}; got "
+                         f"{criterion!r}")
+    if not isinstance(model_class, type):
+        raise TypeError(f"`model_class` must be a model class such as ARMAX; got "
+                        f"{type(model_class).__name__}")
+    time_series = bool(getattr(model_class, "_TIME_SERIES", False))
+    if validation is not None:
+        if not isinstance(validation, (tuple, list)) or len(validation) != 2:
+            raise TypeError("`validation` must be a tuple (u_v, y_v)")
+    combos = _grid(grid)
+    candidates, values, models = [], [], []
+    for orders in combos:
+        row = {"orders": dict(orders), "n_params": None, "loss": math.nan,
+               "val_loss": math.nan, **{k: math.nan for k in _CRITERIA if k != "loss"},
+               "error": None}
+        try:
+            model = model_class(**orders, dt=dt)
+        except TypeError as exc:
+            raise TypeError(f"`grid` names a parameter {model_class.__name__} does not take: "
+                            f"{exc}") from None
+        try:
+            model = model.fit(y, **fit_options) if time_series else \
+                model.fit(u, y, **fit_options)
+        except ValueError as exc:
+            row["error"] = str(exc).split(";")[0]
+            candidates.append(row)
+            values.append(math.nan)
+            models.append(None)
+            continue
+        ic = information_criteria(model, u, y)
+        row["n_params"] = ic.n_params
+        row["loss"] = ic.loss
+        if validation is not None:
+            uv, yv = validation
+            _, _, e = one_step(model, uv, yv, "select_structure")
+            V = float(np.mean(e ** 2))
+            row["val_loss"] = V
+            crit = _criteria(V, len(e), ic.n_params)
+            crit = {k: getattr(crit, k) for k in ("aic", "aicc", "bic", "naic", "fpe", "mdl")}
+        else:
+            crit = {k: getattr(ic, k) for k in ("aic", "aicc", "bic", "naic", "fpe", "mdl")}
+        row.update(crit)
+        candidates.append(row)
+        models.append(model)
+        if criterion == "loss":
+            values.append(row["val_loss"] if validation is not None else row["loss"])
+        else:
+            values.append(row[criterion])
+    return StructureSelection(candidates, criterion, values, models)

@@ -1,0 +1,87 @@
+"""High-order recursive fits: the square-root form keeps ARX.fit(method='rls') on batch LS."""
+
+import warnings
+
+import numpy as np
+import pytest
+from scipy.signal import lfilter
+
+from rlsfilt import ARX, NumericalWarning, RecursiveLeastSquares, SquareRootRLS
+from rlsfilt.models.regressors import _unit_columns, arx_regressors
+
+
+def _resonant_record(seed=1, n=4000):
+    """A lightly damped plant (pole pairs at radius 0.995 and 0.99) driven by a colored input:
+    high-order ARX regressors with condition numbers 1e6 .. 1e8."""
+    rng = np.random.default_rng(seed)
+    p = np.array([0.995 * np.exp(0.05j), 0.99 * np.exp(0.3j)])
+    A = np.real(np.poly(np.r_[p, p.conj()]))
+    u = lfilter([1.0], [1.0, -0.9], rng.standard_normal(n))
+    y = lfilter([0, 1.0, 0.5, 0.2, 0.1], A, u) + 0.01 * rng.standard_normal(n)
+    return u, y
+
+
+def _rel(a, b):
+    return np.max(np.abs(a - b)) / np.max(np.abs(b))
+
+
+@pytest.mark.parametrize("order", [6, 10, 12, 16])
+def test_high_order_recursive_fit_equals_batch_least_squares(order):
+    u, y = _resonant_record()
+    Phi, _ = arx_regressors(u, y, order, order, 1)
+    cond = np.linalg.cond(_unit_columns(Phi))
+    assert 1e6 < cond < 1e8 and np.linalg.cond(Phi) > 5e6
+    ls = ARX(order, order, 1).fit(u, y)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        rls = ARX(order, order, 1).fit(u, y, method="rls")
+    assert rls.form_ == "square_root" and isinstance(rls.filter_, SquareRootRLS)
+    assert _rel(rls.theta_, ls.theta_) < 1e-8
+    assert _rel(rls.theta_cov_, ls.theta_cov_) < 1e-8
+    assert rls.to_dict()["form"] == "square_root"
+
+
+def test_well_conditioned_fits_keep_the_covariance_form(rng):
+    u = rng.standard_normal(800)
+    y = lfilter([0, 1.0, 0.5], [1, -1.5, 0.7], u) + 0.1 * rng.standard_normal(800)
+    cov = ARX(2, 2, 1).fit(u, y, method="rls")
+    assert cov.form_ == "covariance" and isinstance(cov.filter_, RecursiveLeastSquares)
+    sqrt = ARX(2, 2, 1).fit(u, y, method="rls", form="square_root")
+    np.testing.assert_allclose(sqrt.theta_, cov.theta_, rtol=1e-10)
+    np.testing.assert_allclose(sqrt.theta_history_[5:], cov.theta_history_[5:], rtol=1e-8,
+                               atol=1e-10)
+    # exponential forgetting: both forms compute the same weighted least squares
+    f1 = ARX(2, 2, 1).fit(u, y, method="rls", lam=0.99, form="covariance")
+    f2 = ARX(2, 2, 1).fit(u, y, method="rls", lam=0.99, form="square_root")
+    np.testing.assert_allclose(f2.theta_, f1.theta_, rtol=1e-9)
+    assert f2.lam_ == 0.99 and "lam=0.99" in repr(f2)
+
+
+def test_warns_when_the_recursion_cannot_be_trusted():
+    u, y = _resonant_record()
+    with pytest.warns(NumericalWarning, match=r"ill-conditioned \(condition number 8.6e\+06\): "
+                                              r"the covariance-form recursion may drift.*"
+                                              r"form='covariance' was asked for"):
+        ARX(12, 12, 1).fit(u, y, method="rls", form="covariance")
+    with pytest.warns(NumericalWarning, match="`Q` rules out the square-root form"):
+        model = ARX(12, 12, 1).fit(u, y, method="rls", Q=1e-12)
+    assert model.form_ == "covariance"
+    # beyond 1e10 even the square-root form loses digits, and says so
+    rng = np.random.default_rng(0)
+    w = lfilter([1.0], np.poly([0.995] * 3), rng.standard_normal(3000))
+    v = lfilter([0, 1.0, 0.5], [1, -1.5, 0.7], w) + 1e-4 * rng.standard_normal(3000)
+    with pytest.warns(NumericalWarning, match=r"even the square-root recursion keeps only "
+                                              r"about \d+ digits"):
+        ARX(3, 3, 1).fit(w, v, method="rls")
+
+
+def test_form_errors():
+    u, y = _resonant_record(n=300)
+    with pytest.raises(ValueError, match="`form` must be 'auto', 'covariance' or "
+                                         "'square_root'; got 'qr'"):
+        ARX(2, 2, 1).fit(u, y, method="rls", form="qr")
+    with pytest.raises(TypeError, match="form='square_root' .* takes lam, P0, x0, R, "
+                                        "check_every and cond_max only; got `forgetting`"):
+        ARX(2, 2, 1).fit(u, y, method="rls", form="square_root", forgetting="directional")
+    with pytest.raises(TypeError, match="`form` only applies to method='rls'"):
+        ARX(2, 2, 1).fit(u, y, form="square_root")

@@ -1,0 +1,564 @@
+"""RLSBank: C channels in one compiled call equal C separate RecursiveLeastSquares.
+
+Oracles: one `RecursiveLeastSquares` per channel (run step by step), the
+NumPy textbook recursion of `rlsfilt.filters._reference_bank`, and
+`RecursiveLeastSquares.initialize` for the batch start. Tolerance 1e-12
+relative (the arithmetic is the same, operation by operation, so in
+practice the numbers agree bit for bit, which some tests pin).
+"""
+
+import copy
+import doctest
+import pickle
+import re
+import warnings
+
+import numpy as np
+import pytest
+from conftest import assert_close_steps
+from numpy.testing import assert_allclose, assert_array_equal
+
+import rlsfilt
+from rlsfilt import ForgettingSkippedWarning, NumericalWarning, RecursiveLeastSquares, RLSBank
+from rlsfilt.filters import _kernels_bank
+from rlsfilt.filters._reference_bank import bank_batch_reference
+
+MODES = ["exponential", "directional", "constant_trace"]
+
+
+def _record(rng, N=120, C=23, n=3, missing=0.06, bad_rows=0.03):
+    """Regressors and measurements of C noisy linear regressions, with NaN
+    measurements and NaN regressor rows scattered over the channels."""
+    theta = rng.standard_normal((C, n))
+    H = rng.standard_normal((N, C, n))
+    Z = np.einsum("kci,ci->kc", H, theta) + 0.1 * rng.standard_normal((N, C))
+    Z[rng.random((N, C)) < missing] = np.nan
+    rows = rng.random((N, C)) < bad_rows
+    H[rows, rng.integers(0, n, rows.sum())] = np.nan
+    return Z, H
+
+
+def _options(rng, C, mode):
+    lam = rng.uniform(0.9, 1.0, C)
+    if mode != "constant_trace":          # (whose default trace needs lam < 1)
+        lam[0] = 1.0
+    return dict(lam=lam, R=rng.uniform(0.5, 2.0, C), Q=rng.uniform(0.0, 1e-4, C),
+                P0=rng.uniform(10.0, 1e3, C), forgetting=mode)
+
+
+def _separate(Z, H, opts, update_first=False):
+    """One RecursiveLeastSquares per channel, step by step (NaN regressor: no update)."""
+    N, C, n = H.shape
+    means, covs = np.empty((N, C, n)), np.empty((N, C, n, n))
+    covs_p = np.empty((N, C, n, n))
+    ys, ss = np.full((N, C), np.nan), np.full((N, C), np.nan)
+    filters = []
+    for c in range(C):
+        f = RecursiveLeastSquares(n, lam=opts["lam"][c], R=opts["R"][c], Q=opts["Q"][c],
+                                  P0=opts["P0"][c], forgetting=opts["forgetting"])
+        for k in range(N):
+            if not update_first:
+                f.predict()
+                covs_p[k, c] = f.P
+            if not np.isnan(H[k, c]).any():
+                f.update(Z[k, c], H[k, c])
+                ys[k, c], ss[k, c] = f.y[0, 0], f.S[0, 0]
+            means[k, c], covs[k, c] = f.x[:, 0], f.P
+            if update_first:
+                f.predict()
+                covs_p[k, c] = f.P
+        filters.append(f)
+    return filters, means, covs, covs_p, ys, ss
+
+
+# ----------------------------------------------------------------------
+# equality with C separate filters and with the NumPy reference
+# ----------------------------------------------------------------------
+@pytest.mark.parametrize("update_first", [False, True])
+@pytest.mark.parametrize("mode", MODES)
+def test_batch_filter_equals_separate_filters(rng, mode, update_first):
+    Z, H = _record(rng)
+    N, C, n = H.shape
+    opts = _options(rng, C, mode)
+    bank = RLSBank(C, n, **opts)
+    hist = bank.batch_filter(Z, H, update_first=update_first)
+    filters, means, covs, covs_p, ys, ss = _separate(Z, H, opts, update_first)
+    assert_close_steps(hist.means, means, "means")
+    assert_close_steps(hist.covariances.reshape(N, C, n * n), covs.reshape(N, C, n * n), "P")
+    assert_close_steps(hist.covariances_p.reshape(N, C, n * n), covs_p.reshape(N, C, n * n),
+                       "P prior")
+    assert_close_steps(hist.residuals[:, :, None], ys[:, :, None], "residuals")
+    ok = ~np.isnan(ys)                     # S of a missing z is the predictive variance
+    assert_allclose(hist.innovation_variances[ok], ss[ok], rtol=1e-12)
+    for c, f in enumerate(filters):
+        assert_allclose(bank.x[c], f.x[:, 0], rtol=1e-12, atol=1e-12 * np.abs(f.x).max())
+        assert_allclose(bank.P[c], f.P, rtol=1e-12, atol=1e-12 * np.abs(f.P).max())
+        if not np.isnan(H[-1, c]).any():     # (a NaN regressor: the filter made no update)
+            assert_allclose(bank.lam_t[c], f.lam_t, rtol=1e-12)
+    # the arithmetic is the same operation by operation: in fact bitwise equal (the
+    # constant-trace rescaling is ordered differently in RecursiveLeastSquares' kernel:
+    # round-off there, held to 1e-12 above)
+    if mode != "constant_trace":
+        assert_array_equal(bank.x, np.array([f.x[:, 0] for f in filters]))
+        assert_array_equal(bank.P, np.array([f.P for f in filters]))
+
+
+@pytest.mark.parametrize("update_first", [False, True])
+@pytest.mark.parametrize("mode", MODES)
+def test_batch_filter_equals_numpy_reference(rng, mode, update_first):
+    Z, H = _record(rng, N=150, C=41, n=4)
+    N, C, n = H.shape
+    opts = _options(rng, C, mode)
+    bank = RLSBank(C, n, **opts)
+    x0, P0 = bank.x.copy(), bank.P.copy()
+    hist = bank.batch_filter(Z, H, update_first=update_first)
+    params = np.column_stack([bank.forgetting_params.get(k, np.zeros(C))
+                              for k in {"exponential": ("", ""), "directional": ("eps", ""),
+                                        "constant_trace": ("trace", "ratio")}[mode]])
+    means, covs, ys, x, P = bank_batch_reference(x0, P0, Z, H, opts["R"], opts["lam"],
+                                                 bank.Q, mode, params, update_first)
+    assert_close_steps(hist.means, means, "means")
+    assert_close_steps(hist.covariances.reshape(N, C, n * n), covs.reshape(N, C, n * n), "P")
+    assert_close_steps(hist.residuals[:, :, None], ys[:, :, None], "residuals")
+    assert_close_steps(bank.P.reshape(1, C, n * n), P.reshape(1, C, n * n), "final P")
+
+
+@pytest.mark.parametrize("mode", MODES)
+def test_histories_off_and_streaming_give_the_same_bits(rng, mode):
+    """The fused sweep (no covariance history), the unfused one and the
+    streaming predict/update pair run the same arithmetic."""
+    Z, H = _record(rng, C=45, n=4)
+    N, C, n = H.shape
+    opts = _options(rng, C, mode)
+    full = RLSBank(C, n, **opts)
+    hist = full.batch_filter(Z, H)
+    lean = RLSBank(C, n, **opts)
+    out = lean.batch_filter(Z, H, store_covariances=False, store_means=False)
+    assert out.means is None and out.covariances is None and out.covariances_p is None
+    assert_array_equal(lean.x, full.x)
+    assert_array_equal(lean.P, full.P)
+    assert_array_equal(out.residuals, hist.residuals)
+    stream = RLSBank(C, n, **opts)
+    for k in range(N):
+        stream.predict()
+        stream.update(Z[k], H[k])
+        assert_array_equal(stream.x, hist.means[k])
+        assert_array_equal(stream.y, hist.residuals[k])
+    assert_array_equal(stream.P, full.P)
+    for name in ("x_prior", "P_prior", "x_post", "P_post", "y", "S", "K", "lam_t", "z", "H"):
+        assert_array_equal(getattr(stream, name), getattr(full, name), err_msg=name)
+    assert stream.n_updates == full.n_updates == N
+
+
+def test_parallel_kernel_gives_the_same_bits(rng):
+    Z, H = _record(rng, N=60, C=70, n=3)
+    N, C, n = H.shape
+    serial, parallel = RLSBank(C, n, lam=0.97), RLSBank(C, n, lam=0.97, parallel=True)
+    a = serial.batch_filter(Z, H)
+    b = parallel.batch_filter(Z, H)
+    for u, v in zip([*a, a.residuals], [*b, b.residuals]):
+        assert_array_equal(u, v)
+    assert_array_equal(serial.P, parallel.P)
+    with pytest.raises(TypeError, match="`parallel` must be True or False; got 1"):
+        RLSBank(2, 2, parallel=1)
+
+
+def test_regressors_stored_channel_last_give_the_same_bits(rng):
+    """An (N, dim_x, C) array passed as its transposed view (as fit_many does) is
+    read in place and gives the bits of the (N, C, dim_x) copy."""
+    Z, H = _record(rng, N=50, C=37, n=3)
+    Ht = np.ascontiguousarray(H.transpose(0, 2, 1))          # (N, n, C)
+    a, b = RLSBank(37, 3, lam=0.98), RLSBank(37, 3, lam=0.98)
+    ha = a.batch_filter(Z, H)
+    hb = b.batch_filter(Z, Ht.transpose(0, 2, 1))
+    assert_array_equal(a.x, b.x)
+    assert_array_equal(ha.residuals, hb.residuals)
+    assert_array_equal(ha.covariances, hb.covariances)
+    assert_array_equal(a.H, b.H)
+
+
+def test_per_step_noise_variances(rng):
+    Z, H = _record(rng, C=7, missing=0.0, bad_rows=0.0)
+    N, C, n = H.shape
+    Rs = rng.uniform(0.5, 2.0, (N, C))
+    bank = RLSBank(C, n, lam=0.98)
+    hist = bank.batch_filter(Z, H, Rs=Rs)
+    for c in range(C):
+        f = RecursiveLeastSquares(n, lam=0.98)
+        means = f.batch_filter(Z[:, c], H[:, c], Rs=Rs[:, c])[0]
+        assert_allclose(hist.means[:, c], means[:, :, 0], rtol=1e-12, atol=1e-12)
+    shared = RLSBank(C, n, lam=0.98, R=Rs[0])
+    shared.batch_filter(Z[:1], H[:1])
+    per_channel = RLSBank(C, n, lam=0.98)
+    per_channel.batch_filter(Z[:1], H[:1], Rs=Rs[0])
+    assert_array_equal(shared.x, per_channel.x)
+
+
+def test_nan_skips_only_that_channel(rng):
+    Z, H = _record(rng, N=1, C=5, missing=0.0, bad_rows=0.0)
+    Z[0, 1] = np.nan          # missing measurement
+    H[0, 3, 2] = np.nan       # missing regressor entry
+    bank = RLSBank(5, 3, lam=0.9)
+    x0, P0 = bank.x.copy(), bank.P.copy()
+    bank.predict()
+    bank.update(Z[0], H[0])
+    for c in (1, 3):
+        assert_array_equal(bank.x[c], x0[c])
+        assert_array_equal(bank.P[c], P0[c] / 0.9)          # the time update still applies
+        assert np.isnan(bank.y[c]) and not bank.K[c].any()
+    assert np.isnan(bank.S[3]) and np.isfinite(bank.S[1])   # S of a missing z is predictive
+    for c in (0, 2, 4):
+        f = RecursiveLeastSquares(3, lam=0.9)
+        f.predict_update(Z[0, c], H[0, c])
+        assert_array_equal(bank.x[c], f.x[:, 0])
+        assert_array_equal(bank.P[c], f.P)
+    assert bank.log_likelihood[1] == 0.0 and np.isnan(bank.mahalanobis[1])
+
+
+def test_filterpy_diagnostics_per_channel(rng):
+    Z, H = _record(rng, N=30, C=6, missing=0.0, bad_rows=0.0)
+    bank = RLSBank(6, 3, lam=0.95)
+    assert_array_equal(bank.log_likelihood, np.log(np.finfo(float).tiny))
+    bank.batch_filter(Z, H)
+    for c in range(6):
+        f = RecursiveLeastSquares(3, lam=0.95)
+        f.batch_filter(Z[:, c], H[:, c])
+        assert_allclose(bank.log_likelihood[c], f.log_likelihood, rtol=1e-12)
+        assert_allclose(bank.likelihood[c], f.likelihood, rtol=1e-12)
+        assert_allclose(bank.mahalanobis[c], f.mahalanobis, rtol=1e-12)
+        assert_allclose(bank.SI[c], f.SI[0, 0], rtol=1e-12)
+
+
+# ----------------------------------------------------------------------
+# channel(i)
+# ----------------------------------------------------------------------
+@pytest.mark.parametrize("mode", MODES)
+def test_channel_continues_exactly_like_the_bank(rng, mode):
+    Z, H = _record(rng, N=80, C=9, n=3)
+    opts = _options(rng, 9, mode)
+    bank = RLSBank(9, 3, **opts, x0=rng.standard_normal((9, 3)))
+    bank.batch_filter(Z[:40], H[:40])
+    channels = [bank.channel(i) for i in range(9)]
+    assert isinstance(channels[0], RecursiveLeastSquares)
+    for i, f in enumerate(channels):
+        assert_array_equal(f.x[:, 0], bank.x[i])
+        assert_array_equal(f.P, bank.P[i])
+        assert f.n_updates == bank.n_updates and f.lam == bank.lam[i]
+        assert_array_equal(f.y[0], bank.y[i:i + 1])
+    for k in range(40, 80):
+        bank.predict()
+        bank.update(Z[k], H[k])
+        for i, f in enumerate(channels):
+            f.predict()
+            if not np.isnan(H[k, i]).any():
+                f.update(Z[k, i], H[k, i])
+    same = (assert_array_equal if mode != "constant_trace"     # see the batch test above
+            else lambda a, b: assert_allclose(a, b, rtol=1e-12, atol=1e-15))
+    for i, f in enumerate(channels):
+        same(f.x[:, 0], bank.x[i])
+        same(f.P, bank.P[i])
+    # its reset returns to the channel's own x0 and P0
+    f = bank.channel(-1)
+    f.reset()
+    assert_array_equal(f.x[:, 0], bank._x0[8])
+    assert_array_equal(f.P, opts["P0"][8] * np.eye(3))
+
+
+def test_channel_index_errors():
+    bank = RLSBank(4, 2)
+    with pytest.raises(ValueError, match=r"`i` must be a channel index in \[-4, 4\); got 4"):
+        bank.channel(4)
+    with pytest.raises(TypeError, match="`i` must be an integer"):
+        bank.channel(1.0)
+
+
+# ----------------------------------------------------------------------
+# batch start
+# ----------------------------------------------------------------------
+def test_initialize_equals_rls_initialize(rng):
+    Z, H = _record(rng, N=12, C=8, n=3, missing=0.0, bad_rows=0.0)
+    Z[2, 5] = np.nan                       # dropped rows, per channel
+    H[7, 1, 0] = np.nan
+    lam = rng.uniform(0.9, 1.0, 8)
+    R = rng.uniform(0.5, 2.0, 8)
+    bank = RLSBank(8, 3, lam=lam, R=R)
+    bank.initialize(Z, H)
+    for c in range(8):
+        f = RecursiveLeastSquares(3, lam=lam[c], R=R[c])
+        bad = np.isnan(H[:, c]).any(axis=1)      # a NaN regressor drops its row, as a NaN z
+        f.initialize(np.where(bad, np.nan, Z[:, c]), np.where(bad[:, None], 0.0, H[:, c]))
+        assert_allclose(bank.x[c], f.x[:, 0], rtol=1e-12, atol=1e-13)
+        assert_allclose(bank.P[c], f.P, rtol=1e-11, atol=1e-14)
+    assert_array_equal(bank.P, bank.P.transpose(0, 2, 1))
+
+
+def test_initialize_names_rank_deficient_channels(rng):
+    Z, H = _record(rng, N=5, C=4, n=3, missing=0.0, bad_rows=0.0)
+    H[:, 2, 1] = H[:, 2, 0]                # channel 2: two equal columns
+    bank = RLSBank(4, 3)
+    x, P = bank.x.copy(), bank.P.copy()
+    with pytest.raises(ValueError, match=r"rank-deficient in 1 channel\(s\) \[2\]: channel 2 "
+                                         r"has 2 linearly independent rows in 5 usable"):
+        bank.initialize(Z, H)
+    assert_array_equal(bank.x, x)
+    assert_array_equal(bank.P, P)
+
+
+# ----------------------------------------------------------------------
+# health check
+# ----------------------------------------------------------------------
+def _windup_record(N=120):
+    """Channel 2 sees only its first regressor: under forgetting the other
+    direction of its P winds up; channels 0, 1, 3 are well excited."""
+    rng = np.random.default_rng(5)
+    H = rng.standard_normal((N, 4, 2))
+    H[:, 2] = [1.0, 0.0]
+    return rng.standard_normal((N, 4)), H
+
+
+def test_health_check_names_the_failing_channels_in_batch():
+    Z, H = _windup_record()
+    bank = RLSBank(4, 2, lam=[1.0, 1.0, 0.7, 1.0])
+    with pytest.warns(NumericalWarning, match=r"health check in 1 of 4 channel\(s\) \[2\] at "
+                                              r"step 99 of batch_filter .*ill-conditioned"):
+        bank.batch_filter(Z, H)
+    assert_array_equal(bank.failed_channels, [2])
+    with warnings.catch_warnings():        # warned once per channel until reset
+        warnings.simplefilter("error")
+        bank.batch_filter(Z, H)
+    bank.reset()
+    assert bank.failed_channels.size == 0
+
+
+def test_health_check_names_the_failing_channels_when_streaming():
+    """The bank warns at the update where channel 2's own filter warns."""
+    Z, H = _windup_record()
+    f = RecursiveLeastSquares(2, lam=0.7, check_every=10)
+    with pytest.warns(NumericalWarning) as record:
+        for k in range(len(Z)):
+            f.predict_update(Z[k, 2], H[k, 2])
+    update = re.search(r"at update (\d+) since reset", str(record[0].message)).group(1)
+    bank = RLSBank(4, 2, lam=[1.0, 1.0, 0.7, 1.0], check_every=10)
+    with pytest.warns(NumericalWarning, match=rf"\[2\] at update {update} since reset; "
+                                              "channel 2: `P` is ill-conditioned"):
+        for k in range(len(Z)):
+            bank.predict_update(Z[k], H[k])
+    assert_array_equal(bank.failed_channels, [2])
+
+
+def test_warnings_point_at_the_callers_line():
+    Z, H = _windup_record()
+    for call in (lambda b: b.batch_filter(Z, H),
+                 lambda b: [b.predict_update(Z[k], H[k]) for k in range(len(Z))],
+                 lambda b: [(b.predict(), b.update(Z[k], H[k])) for k in range(len(Z))]):
+        bank = RLSBank(4, 2, lam=[1.0, 1.0, 0.7, 1.0], check_every=10)
+        with pytest.warns(NumericalWarning) as record:
+            call(bank)
+        assert record[0].filename == __file__
+    bank = RLSBank(3, 2, lam=0.9)
+    bank.update(np.ones(3), np.ones((3, 2)))
+    with pytest.warns(ForgettingSkippedWarning) as record:
+        bank.update(np.ones(3), np.ones((3, 2)))
+    assert record[0].filename == __file__
+
+
+def test_directional_forgetting_keeps_the_bank_healthy():
+    Z, H = _windup_record()
+    bank = RLSBank(4, 2, lam=[1.0, 1.0, 0.7, 1.0], forgetting="directional")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        bank.batch_filter(Z, H)
+    assert bank.failed_channels.size == 0
+
+
+def test_update_twice_without_predict_warns():
+    bank = RLSBank(3, 2, lam=0.9)
+    bank.update(np.ones(3), np.ones((3, 2)))
+    with pytest.warns(ForgettingSkippedWarning, match="without predict"):
+        bank.update(np.ones(3), np.ones((3, 2)))
+
+
+# ----------------------------------------------------------------------
+# errors, no mutation, state kept by a failed call
+# ----------------------------------------------------------------------
+@pytest.mark.parametrize("kwargs, exc, match", [
+    ({"lam": 1.5}, ValueError, r"`lam` must be in \(0, 1\]; got 1.5 for channel 0"),
+    ({"lam": [1.0, 0.0, 1.0]}, ValueError, r"`lam` must be in \(0, 1\]; got 0.0 for channel 1"),
+    ({"lam": [0.9, 0.9]}, ValueError, r"`lam` must be a scalar or have shape \(3,\) \(one value "
+                                      r"per channel, n_channels = 3\); got shape \(2,\)"),
+    ({"R": [1.0, -1.0, 1.0]}, ValueError, "`R` must be a positive finite variance; got -1.0 "
+                                          "for channel 1"),
+    ({"Q": np.zeros((2, 3))}, ValueError, r"`Q` must be a scalar or have shape \(3,\), \(2, 2\) "
+                                          r"or \(3, 2, 2\)"),
+    ({"Q": [0.0, -1.0, 0.0]}, ValueError, "`Q` must hold non-negative finite variances"),
+    ({"P0": 0.0}, ValueError, "`P0` must be positive definite"),
+    ({"x0": np.zeros(3)}, ValueError, r"`x0` must have shape \(2,\) or \(3, 2\)"),
+    ({"forgetting": "efra"}, ValueError, "`forgetting` must be one of 'exponential', "
+                                         "'directional', 'constant_trace' for RLSBank; got 'efra'"),
+    ({"forgetting": "constant_trace", "lam": [0.9, 1.0, 0.9]}, ValueError,
+     r"needs an explicit `forgetting_params\['trace'\]`.*\(channel 1\)"),
+    ({"forgetting_params": {"eps": 1.0}}, TypeError, "unknown keys"),
+    ({"check_every": -1}, ValueError, "`check_every` must be >= 0"),
+])
+def test_constructor_errors_name_the_argument(kwargs, exc, match):
+    with pytest.raises(exc, match=match):
+        RLSBank(3, 2, **kwargs)
+
+
+def test_shape_errors_name_the_argument_and_the_channel_count(rng):
+    bank = RLSBank(4, 3)
+    Z, H = _record(rng, N=10, C=4, n=3, missing=0.0, bad_rows=0.0)
+    with pytest.raises(ValueError, match=r"`zs` must have shape \(N, 4\) \(one column per "
+                                         r"channel, n_channels = 4\); got \(10, 5\)"):
+        bank.batch_filter(np.zeros((10, 5)), H)
+    with pytest.raises(ValueError, match=r"`Hs` must have shape \(10, 4, 3\) \(N = len\(zs\) "
+                                         r"steps, n_channels = 4, dim_x = 3\); got \(10, 4, 2\)"):
+        bank.batch_filter(Z, H[:, :, :2])
+    with pytest.raises(ValueError, match=r"`Hs` must have shape \(10, 4, 3\).*got \(9, 4, 3\)"):
+        bank.batch_filter(Z, H[:9])
+    with pytest.raises(ValueError, match=r"`z` must have shape \(4,\) \(one measurement per "
+                                         r"channel\); got \(3,\)"):
+        bank.update(np.zeros(3), H[0])
+    with pytest.raises(ValueError, match=r"`H` must have shape \(4, 3\)"):
+        bank.update(Z[0], H[0, :3])
+    with pytest.raises(ValueError, match=r"`Rs` must be a scalar or have shape \(4,\) or "
+                                         r"\(10, 4\)"):
+        bank.batch_filter(Z, H, Rs=np.ones((10, 3)))
+    with pytest.raises(ValueError, match=r"`H` must be finite or NaN \(missing\); got inf at "
+                                         r"index \(2, 1\)"):
+        bad_H = H[0].copy()
+        bad_H[2, 1] = np.inf
+        bank.update(Z[0], bad_H)
+    H_inf, Z_inf = H.copy(), Z.copy()
+    H_inf[7, 3, 2] = -np.inf
+    H_inf[9, 0, 0] = np.inf
+    Z_inf[8, 1] = np.inf
+    with pytest.raises(ValueError, match=r"`Hs` must be finite or NaN \(missing\); got -inf at "
+                                         r"index \(7, 3, 2\)"):
+        bank.batch_filter(Z_inf, H_inf)
+    with pytest.raises(ValueError, match=r"`zs` must be finite or NaN \(missing\); got inf at "
+                                         r"index \(8, 1\)"):
+        bank.batch_filter(Z_inf, H)
+    bank.x = np.zeros((3, 3))
+    with pytest.raises(ValueError, match=r"`x` must be an array of shape \(4, 3\)"):
+        bank.predict()
+
+
+def test_failed_calls_leave_the_state_unchanged(rng):
+    Z, H = _record(rng, N=20, C=4, n=3, missing=0.0, bad_rows=0.0)
+    bank = RLSBank(4, 3, lam=0.95)
+    bank.batch_filter(Z[:10], H[:10])
+    before = copy.deepcopy(bank.__dict__)
+    bad_H = H[10].copy()
+    bad_H[1, 1] = np.inf
+    calls = [lambda: bank.update(Z[10], bad_H),
+             lambda: bank.update(Z[10], H[10], R=[1.0, 0.0, 1.0, 1.0]),
+             lambda: bank.batch_filter(Z[10:], H[10:19]),
+             lambda: bank.batch_filter(Z[10:], H[10:], Rs=-1.0),
+             lambda: bank.batch_filter(Z[10:], np.where(np.arange(3) == 2, np.inf, H[10:])),
+             lambda: bank.initialize(Z[:2], H[:2])]
+    for call in calls:
+        with pytest.raises(ValueError):
+            call()
+        for key, value in before.items():
+            now = bank.__dict__[key]
+            if isinstance(value, np.ndarray):
+                assert_array_equal(now, value, err_msg=key)
+            else:
+                assert now == value, key
+
+
+def test_no_caller_array_is_mutated(rng):
+    Z, H = _record(rng, N=20, C=5, n=3)
+    lam, R, P0, x0 = np.full(5, 0.9), np.ones(5), np.full(5, 10.0), np.ones((5, 3))
+    inputs = [Z, H, lam, R, P0, x0]
+    saved = [a.copy() for a in inputs]
+    bank = RLSBank(5, 3, lam=lam, R=R, P0=P0, x0=x0)
+    x_held, P_held = bank.x, bank.P          # arrays a user holds from the bank
+    x_copy, P_copy = x_held.copy(), P_held.copy()
+    bank.batch_filter(Z, H)
+    bank.predict()
+    bank.update(Z[0], H[0])
+    bank.initialize(Z[:10], np.nan_to_num(H[:10]))
+    lam[0] = 0.5                             # the bank kept its own copy
+    assert bank.lam[0] == 0.9
+    lam[0] = 0.9
+    for a, b in zip(inputs, saved):
+        assert_array_equal(a, b)
+    assert_array_equal(x_held, x_copy)
+    assert_array_equal(P_held, P_copy)
+    bank.lam[1] = 0.1                        # the property returns a copy
+    assert bank.lam[1] == 0.9
+
+
+@pytest.mark.parametrize("how", ["copy", "deepcopy", "pickle"])
+def test_copies_resume_identically(rng, how):
+    Z, H = _record(rng, N=60, C=6, n=3)
+    bank = RLSBank(6, 3, lam=0.97, forgetting="directional")
+    bank.batch_filter(Z[:30], H[:30])
+    twin = {"copy": bank.copy, "deepcopy": lambda: copy.deepcopy(bank),
+            "pickle": lambda: pickle.loads(pickle.dumps(bank))}[how]()
+    for b in (bank, twin):
+        b.batch_filter(Z[30:45], H[30:45])
+        for k in range(45, 60):
+            b.predict_update(Z[k], H[k])
+    assert_array_equal(twin.x, bank.x)
+    assert_array_equal(twin.P, bank.P)
+    assert twin.n_updates == bank.n_updates == 60
+
+
+def test_reset_and_repr(rng):
+    Z, H = _record(rng, N=10, C=3, n=2)
+    bank = RLSBank(3, 2, x0=[1.0, 2.0], P0=5.0)
+    bank.batch_filter(Z, H)
+    bank.reset()
+    assert_array_equal(bank.x, [[1.0, 2.0]] * 3)
+    assert_array_equal(bank.P, np.broadcast_to(5.0 * np.eye(2), (3, 2, 2)))
+    assert bank.n_updates == 0
+    assert "RLSBank object" in repr(bank) and "n_channels = 3" in repr(bank)
+    hist = bank.batch_filter(Z, H)
+    assert repr(hist) == "<BankHistory: 10 steps of 3 channels>"
+    means, covs, means_p, covs_p = hist
+    assert means is hist[0] and covs_p is hist.covariances_p and len(hist) == 4
+    assert_array_equal(means_p[1:], means[:-1])
+
+
+def test_forgetting_params_and_exports():
+    bank = RLSBank(3, 2, lam=[0.9, 0.8, 0.9], forgetting="constant_trace")
+    params = bank.forgetting_params
+    assert_allclose(params["trace"], 2 * (1 - np.array([0.9, 0.8, 0.9])))
+    assert_array_equal(params["ratio"], 1e4)
+    assert "RLSBank" in rlsfilt.__all__ and rlsfilt.RLSBank is RLSBank
+
+
+def test_docstring_example_runs():
+    from rlsfilt.filters import bank
+
+    finder = doctest.DocTestFinder(exclude_empty=True)
+    runner = doctest.DocTestRunner(optionflags=doctest.NORMALIZE_WHITESPACE)
+    for test in finder.find(bank, "rlsfilt.filters.bank", globs={}):
+        runner.run(test)
+    assert runner.summarize(verbose=False).failed == 0
+
+
+def test_kernels_are_cached_on_disk():
+    for name in ("bank_batch", "bank_batch_parallel", "bank_predict", "bank_update",
+                 "bank_unhealthy"):
+        assert getattr(_kernels_bank, name)._cache.__class__.__name__ == "FunctionCache", name
+
+
+def test_benchmark_script_runs_in_smoke_mode(tmp_path):
+    """benchmarks/bench_bank.py runs end to end (tiny sizes; timings are not tested)."""
+    import os
+    import pathlib
+    import subprocess
+    import sys
+
+    root = pathlib.Path(__file__).resolve().parents[1]
+    env = dict(os.environ, PYTHONPATH=str(root) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    proc = subprocess.run([sys.executable, str(root / "benchmarks" / "bench_bank.py"),
+                           "--smoke"], env=env, cwd=str(tmp_path), capture_output=True,
+                          text=True, timeout=600, check=True)
+    for row in ("batch (bank)", "handwritten", "loop batch_filter", "prange 2 threads",
+                "fit_many rls", "update (bank)", "loop predict+update"):
+        assert row in proc.stdout, row

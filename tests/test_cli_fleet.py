@@ -1,0 +1,123 @@
+"""``rlsfilt identify-many``: one ARX model per channel of a long-format CSV file.
+
+Oracle: ``fit_many(...).summary()`` of the same channels (the CSV round trip
+of a float is exact, so the written table equals it exactly).
+"""
+
+import argparse
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+from scipy.signal import lfilter
+
+from rlsfilt import ARX, fit_many
+from rlsfilt import _cli_fleet as cli_fleet
+
+
+def _write_csv(path, rng, C=5, N=300, bad=None):
+    rows = []
+    for c in range(C):
+        u = rng.standard_normal(N)
+        a = [1.0, -1.2 + 0.05 * c, 0.5]
+        y = lfilter([0, 1.0, 0.4], a, u) + lfilter([1.0], a, 0.1 * rng.standard_normal(N))
+        rows.append(pd.DataFrame({"t": np.arange(N), "cell": f"cell{c}", "current": u,
+                                  "voltage": y}))
+    frame = pd.concat(rows, ignore_index=True).sort_values(["t", "cell"], kind="stable")
+    if bad is not None:
+        frame = bad(frame)
+    frame.to_csv(path, index=False)
+    return frame
+
+
+def _run(argv):
+    """Parse with a parser holding only identify-many (independent of rlsfilt.cli)."""
+    parser = argparse.ArgumentParser(prog="rlsfilt")
+    cli_fleet.add_parser(parser.add_subparsers(dest="command"))
+    args = parser.parse_args(argv)
+    return args.run(args)
+
+
+def _expected(frame, method="ls", **options):
+    labels = list(dict.fromkeys(frame["cell"]))
+    u = np.column_stack([frame.loc[frame["cell"] == c, "current"].to_numpy() for c in labels])
+    y = np.column_stack([frame.loc[frame["cell"] == c, "voltage"].to_numpy() for c in labels])
+    return fit_many(ARX(2, 2, 1), u, y, method, channels=labels, **options).summary()
+
+
+def test_csv_summary_equals_fit_many(rng, tmp_path):
+    frame = _write_csv(tmp_path / "pack.csv", rng)
+    out = tmp_path / "summary.csv"
+    assert _run(["identify-many", str(tmp_path / "pack.csv"), "--channel-column", "cell",
+                 "--input", "current", "--output", "voltage", "-o", str(out), "-q"]) == 0
+    got = pd.read_csv(out, index_col="channel")
+    expected = _expected(frame)
+    pd.testing.assert_frame_equal(got, expected, check_exact=True, check_index_type=False)
+
+
+def test_json_to_stdout_with_rls(rng, tmp_path, capsys):
+    frame = _write_csv(tmp_path / "pack.csv", rng)
+    _run(["identify-many", str(tmp_path / "pack.csv"), "-c", "cell", "-u", "current",
+          "-y", "voltage", "--method", "rls", "--lam", "0.99", "--forgetting", "directional",
+          "--format", "json", "-q"])
+    records = json.loads(capsys.readouterr().out)
+    expected = _expected(frame, "rls", lam=0.99, forgetting="directional")
+    assert [r["channel"] for r in records] == list(expected.index)
+    for rec, (_, row) in zip(records, expected.iterrows()):
+        for key, value in row.items():
+            assert rec[key] == (value.item() if hasattr(value, "item") else value), key
+
+
+def test_bad_channel_is_named_or_reported(rng, tmp_path, capsys):
+    def blank(frame):
+        frame.loc[(frame["cell"] == "cell3") & (frame["t"] == 40), "voltage"] = np.nan
+        return frame
+
+    _write_csv(tmp_path / "pack.csv", rng, bad=blank)
+    argv = ["identify-many", str(tmp_path / "pack.csv"), "-c", "cell", "-u", "current",
+            "-y", "voltage", "-q", "--no-residual-tests"]
+    with pytest.raises(ValueError, match=r"`y` must be finite; got nan .*\(channel 'cell3'\)"):
+        _run(argv)
+    _run(argv + ["--on-error", "nan"])
+    captured = capsys.readouterr()
+    assert "1 of 5 channel(s) could not be fitted" in captured.err
+    table = pd.read_csv(pd.io.common.StringIO(captured.out), index_col="channel")
+    assert table.loc["cell3", "error"].startswith("`y` must be finite")
+    assert table["error"].isna().sum() == 4 and np.isnan(table.loc["cell3", "a1"])
+
+
+def test_user_errors_are_one_line(rng, tmp_path):
+    def garble(frame):                      # the 8th data row: a cell that is not a number
+        frame = frame.astype({"current": object})
+        frame.iloc[7, frame.columns.get_loc("current")] = "4,2V"
+        return frame
+
+    _write_csv(tmp_path / "pack.csv", rng, bad=garble)
+    base = ["identify-many", str(tmp_path / "pack.csv"), "-c", "cell", "-y", "voltage", "-q"]
+    with pytest.raises(ValueError, match="column 'current', data row 8 of .* is not a number: "
+                                         "'4,2V'"):
+        _run(base + ["-u", "current"])
+    with pytest.raises(ValueError, match="column 'power' is not in"):
+        _run(base + ["-u", "power"])
+    with pytest.raises(ValueError, match="--lam needs --method rls"):
+        _run(base + ["-u", "voltage2", "--lam", "0.9"])
+    with pytest.raises(ValueError, match="given as both --input and --output"):
+        _run(base + ["-u", "voltage"])
+    with pytest.raises(SystemExit):
+        _run(base + ["-u", "current", "--lam", "1.5"])
+
+
+def test_main_runs_identify_many(rng, tmp_path, capsys):
+    from rlsfilt.cli import main
+
+    frame = _write_csv(tmp_path / "pack.csv", rng, C=3)
+    code = main(["identify-many", str(tmp_path / "pack.csv"), "--channel-column", "cell",
+                 "--input", "current", "--output", "voltage", "--no-residual-tests", "-q"])
+    assert code == 0
+    got = pd.read_csv(pd.io.common.StringIO(capsys.readouterr().out), index_col="channel")
+    pd.testing.assert_frame_equal(got, _expected(frame, residual_tests=False), check_exact=True,
+                                  check_index_type=False)
+    assert main(["identify-many", str(tmp_path / "nope.csv"), "-c", "cell", "-u", "current",
+                 "-y", "voltage"]) == 1
+    assert "nope.csv" in capsys.readouterr().err

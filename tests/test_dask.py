@@ -1,0 +1,125 @@
+"""rlsfilt.dask: fit_many over Dask collections on a two-worker LocalCluster.
+
+Oracle: the in-memory ``fit_many(...).summary()``; the distributed result
+must equal it exactly (a channel's numbers do not depend on which other
+channels share its block). Also: ``import rlsfilt`` never imports Dask.
+"""
+
+import json
+import pathlib
+import subprocess
+import sys
+
+import numpy as np
+import pandas as pd
+import pytest
+from scipy.signal import lfilter
+
+from rlsfilt import ARX, fit_many
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+
+da = pytest.importorskip("dask.array")
+dd = pytest.importorskip("dask.dataframe")
+distributed = pytest.importorskip("dask.distributed")
+rdask = pytest.importorskip("rlsfilt.dask")
+
+
+def test_import_rlsfilt_does_not_import_dask():
+    code = ("import json, sys, rlsfilt, rlsfilt.models, rlsfilt.filters; "
+            "print(json.dumps([m for m in ('dask', 'distributed') if m in sys.modules]))")
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True,
+                         text=True, check=True)
+    assert json.loads(out.stdout) == []
+
+
+@pytest.fixture(scope="module")
+def client():
+    """Two worker processes with one thread each, no dashboard (a free port is not assured)."""
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster, \
+            distributed.Client(cluster) as c:
+        yield c
+
+
+def _fleet(rng, C=23, N=300, nu=1):
+    u = rng.standard_normal((N, C, nu))
+    y = np.zeros((N, C))
+    for c in range(C):
+        r = rng.uniform(0.5, 0.85)
+        a = [1.0, -2 * r * np.cos(rng.uniform(0.3, 1.2)), r * r]
+        for j in range(nu):
+            y[:, c] += lfilter([0.0, 1.0, 0.5], a, u[:, c, j])
+        y[:, c] += lfilter([1.0], a, 0.2 * rng.standard_normal(N))
+    return (u[:, :, 0] if nu == 1 else u), y
+
+
+@pytest.mark.parametrize("method, options", [("ls", {}), ("rls", {"lam": 0.99}),
+                                             ("rls", {"lam": "per channel"})])
+def test_dask_arrays_on_two_workers_equal_fit_many(rng, client, method, options):
+    u, y = _fleet(rng)
+    if options.get("lam") == "per channel":
+        options = {"lam": rng.uniform(0.97, 1.0, 23)}
+    labels = [f"cell{c:02d}" for c in range(23)]
+    expected = fit_many(ARX(2, 2, 1), u, y, method, channels=labels, **options).summary()
+    chunks = (-1, (5, 9, 1, 8))                         # uneven blocks of channels
+    got = rdask.fit_many(ARX(2, 2, 1), da.from_array(u, chunks=chunks),
+                         da.from_array(y, chunks=chunks), method, channels=labels,
+                         client=client, **options)
+    pd.testing.assert_frame_equal(got, expected, check_exact=True)
+
+
+def test_several_inputs_and_lazy_result(rng, client):
+    u, y = _fleet(rng, C=10, nu=2)
+    model = ARX(2, 2, 1)
+    lazy = rdask.fit_many(model, da.from_array(u, chunks=(-1, 4, -1)),
+                          da.from_array(y, chunks=(-1, 3)), residual_tests=False, compute=False)
+    assert isinstance(lazy, dd.DataFrame) and lazy.npartitions == 4   # y's channel blocks
+    future = client.compute(lazy)
+    distributed.wait(future)
+    got = future.result().drop(columns="error")
+    expected = fit_many(model, u, y, residual_tests=False).summary()
+    pd.testing.assert_frame_equal(got, expected, check_exact=True)
+
+
+def test_long_dask_dataframe_partitioned_by_channel(rng, client):
+    u, y = _fleet(rng, C=9)
+    frames = []
+    for c in range(9):
+        n = 300 if c % 3 else 250                      # channels of two lengths
+        frames.append(pd.DataFrame({"sensor": f"s{c}", "u": u[:n, c], "y": y[:n, c]}))
+    long = pd.concat(frames, ignore_index=True)
+    ddf = dd.from_pandas(long, npartitions=3, sort=False)   # 3 channels per partition
+    got = rdask.fit_many_frame(ARX(2, 2, 1), ddf, channel="sensor", input="u", output="y",
+                               method="rls", client=client)
+    full = [c for c in range(9) if c % 3]
+    short = [c for c in range(9) if not c % 3]
+    expected = pd.concat([
+        fit_many(ARX(2, 2, 1), u[:, full], y[:, full], "rls",
+                 channels=[f"s{c}" for c in full]).summary(),
+        fit_many(ARX(2, 2, 1), u[:250, short], y[:250, short], "rls",
+                 channels=[f"s{c}" for c in short]).summary()]).loc[[f"s{c}" for c in range(9)]]
+    assert list(got.index) == [f"s{c}" for c in range(9)]
+    pd.testing.assert_frame_equal(got, expected, check_exact=True, check_index_type=False)
+
+
+def test_channel_split_over_partitions_is_an_error(rng, client):
+    u, y = _fleet(rng, C=2)
+    long = pd.concat([pd.DataFrame({"ch": c, "u": u[:, c], "y": y[:, c]}) for c in range(2)],
+                     ignore_index=True)
+    ddf = dd.from_pandas(long, npartitions=3, sort=False)   # splits a channel
+    with pytest.raises(ValueError, match="appears in more than one partition"):
+        rdask.fit_many_frame(ARX(2, 2, 1), ddf, channel="ch", input="u", output="y",
+                             residual_tests=False, client=client)
+
+
+def test_argument_errors():
+    y = da.zeros((100, 4), chunks=(-1, 2))
+    with pytest.raises(ValueError, match=r"`u` must have one column per channel of `y` \(4\)"):
+        rdask.fit_many(ARX(1, 1), da.zeros((100, 3)), y)
+    with pytest.raises(ValueError, match="`u` and `y` must have the same length"):
+        rdask.fit_many(ARX(1, 1), da.zeros((90, 4)), y)
+    with pytest.raises(ValueError, match=r"`y` must have shape \(N, C\)"):
+        rdask.fit_many(ARX(1, 1), da.zeros(100), da.zeros(100))
+    with pytest.raises(TypeError, match="`frame` must be a dask or pandas DataFrame"):
+        rdask.fit_many_frame(ARX(1, 1), np.zeros((3, 3)), channel="c", input="u", output="y")

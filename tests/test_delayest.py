@@ -1,0 +1,141 @@
+"""delayest: recovers known delays; every loss equals numpy lstsq on the aligned rows."""
+
+import numpy as np
+import pytest
+from scipy.signal import lfilter
+
+from rlsfilt.data import IOData
+from rlsfilt.datasets import thermal_process
+from rlsfilt.validation import delay as delay_module
+from rlsfilt.validation.delay import delayest
+
+A = [1.0, -1.5, 0.7]
+
+
+def _plant(rng, nk, n=1500, noise=0.1, b=(1.0, 0.5)):
+    u = rng.standard_normal(n)
+    e = noise * rng.standard_normal(n)
+    y = lfilter(np.r_[np.zeros(nk), b], A, u) + lfilter([1.0], A, e)
+    return u, y
+
+
+def _aligned_losses(blocks, na, nb, ks, t_max):
+    """Oracle: np.linalg.lstsq on explicitly built ARX regressors, rows t_max.. per block."""
+    out = []
+    for k in ks:
+        Phis, targets = [], []
+        for u, y in blocks:
+            t = np.arange(t_max, len(y))
+            cols = [-y[t - i] for i in range(1, na + 1)] + [u[t - k - m] for m in range(nb)]
+            Phis.append(np.column_stack(cols))
+            targets.append(y[t])
+        Phi, target = np.vstack(Phis), np.concatenate(targets)
+        res = target - Phi @ np.linalg.lstsq(Phi, target, rcond=None)[0]
+        out.append(res @ res / len(target))
+    return np.array(out)
+
+
+@pytest.mark.parametrize("nk", [0, 1, 3, 7, 12])
+def test_recovers_the_delay(rng, nk):
+    u, y = _plant(rng, nk)
+    assert delayest(u, y) == nk
+    assert delayest(IOData(u, y, dt=0.1)) == nk
+
+
+def test_losses_equal_lstsq(rng):
+    u, y = _plant(rng, 5, n=800)
+    est = delayest(u, y, na=2, nb=3, nk_min=1, nk_max=9, full_output=True)
+    assert est.nk == 5 and list(est.nk_range[0]) == list(range(1, 10))
+    t_max = 9 + 3 - 1
+    ref = _aligned_losses([(u, y)], 2, 3, range(1, 10), t_max)
+    np.testing.assert_allclose(est.losses[0], ref, rtol=1e-10)
+    assert est.n_rows == 800 - t_max
+
+
+def test_first_order_plant_with_spare_coefficient():
+    """nb = 2 on a plant with one b coefficient: nk - 1 (b1 = 0) fits as well; the tie
+    rule returns the true delay (thermal_process: 3 samples of dead time + the hold)."""
+    ds = thermal_process()
+    assert ds.nk == 4
+    assert delayest(ds.u, ds.y) == 4
+    assert delayest(ds.u, ds.y, na=1, nb=1) == 4
+
+
+def test_three_inputs_per_input_delays(rng):
+    n = 3000
+    U = rng.standard_normal((n, 3))
+    delays, bs = (1, 4, 9), ([1.0, 0.5], [-0.8, 0.4], [0.6, 0.6])
+    forced = sum(lfilter(np.r_[np.zeros(k), b], [1.0], U[:, j])
+                 for j, (k, b) in enumerate(zip(delays, bs)))
+    y = lfilter([1.0], A, forced + 0.1 * rng.standard_normal(n))
+    assert delayest(U, y) == delays
+    est = delayest(U, y, nk_max=[5, 8, 12], full_output=True)
+    assert est.nk == delays and [len(r) for r in est.nk_range] == [6, 9, 13]
+    # the curve of input 2 (others at their delays) equals lstsq with all three blocks
+    t_max = 12 + 2 - 1
+    t = np.arange(t_max, n)
+    ref = []
+    for k in range(0, 13):
+        ks = (1, 4, k)
+        cols = [-y[t - 1], -y[t - 2]] + [U[t - ks[j] - m, j] for j in range(3) for m in range(2)]
+        Phi = np.column_stack(cols)
+        res = y[t] - Phi @ np.linalg.lstsq(Phi, y[t], rcond=None)[0]
+        ref.append(res @ res / len(t))
+    np.testing.assert_allclose(est.losses[2], ref, rtol=1e-10)
+
+
+def test_experiments_never_straddle(rng):
+    u1, y1 = _plant(rng, 3, n=400)
+    u2, y2 = _plant(rng, 3, n=300)
+    y2 = y2 + 50.0  # a different level: a straddling row would notice
+    est = delayest(IOData([u1, u2], [y1, y2]), nk_max=6, full_output=True)
+    t_max = 6 + 2 - 1
+    ref = _aligned_losses([(u1, y1), (u2, y2)], 2, 2, range(0, 7), t_max)
+    np.testing.assert_allclose(est.losses[0], ref, rtol=1e-10)
+    glued = _aligned_losses([(np.r_[u1, u2], np.r_[y1, y2])], 2, 2, range(0, 7), t_max)
+    assert np.max(np.abs(glued / ref - 1)) > 1e-3
+    assert est.n_rows == 400 + 300 - 2 * t_max
+
+
+def test_blocks_and_units_do_not_change_the_answer(rng, monkeypatch):
+    u, y = _plant(rng, 7, n=600)
+    ref = delayest(u, y, full_output=True)
+    monkeypatch.setattr(delay_module, "_BLOCK_ROWS", 7)
+    blocked = delayest(u, y, full_output=True)
+    np.testing.assert_allclose(blocked.losses[0], ref.losses[0], rtol=1e-10)
+    scaled = delayest(1e6 * u, 1e-3 * y, full_output=True)
+    assert scaled.nk == 7
+    np.testing.assert_allclose(scaled.losses[0], 1e-6 * ref.losses[0], rtol=1e-8)
+
+
+def test_edge_of_the_range_warns(rng):
+    u, y = _plant(rng, 12)
+    with pytest.warns(UserWarning, match="delay of input 'u' is nk_max=12, the edge of the "
+                                         "range tried; widen `nk_max`"):
+        assert delayest(u, y, nk_max=12) == 12
+    u, y = _plant(rng, 3)
+    with pytest.warns(UserWarning, match="nk_min=5, the edge .* widen `nk_min`"):
+        delayest(u, y, nk_min=5, nk_max=10)
+
+
+def test_errors(rng):
+    u, y = _plant(rng, 2, n=300)
+    with pytest.raises(ValueError, match=r"too short for delays up to nk_max=500: 300 samples "
+                                         r"leave 0 aligned rows for 504 regressor columns "
+                                         r"\(the largest lag is 501\); "
+                                         r"lower `nk_max` \(at most nk_max=147 fits\)"):
+        delayest(u, y, nk_max=500)
+    with pytest.raises(ValueError, match="`nk_max` must be >= `nk_min`; got nk_max=2 < "
+                                         "nk_min=4"):
+        delayest(u, y, nk_min=4, nk_max=2)
+    with pytest.raises(ValueError, match="`y` must hold one output; got 2"):
+        delayest(u, np.column_stack([y, y]))
+    with pytest.raises(ValueError, match=r"`nb` must be an integer or have one entry per input "
+                                         r"\(1\); got 2 entries"):
+        delayest(u, y, nb=[2, 2])
+    with pytest.raises(TypeError, match="`y` must be omitted when `u` is an IOData"):
+        delayest(IOData(u, y), y)
+    with pytest.raises(TypeError, match="`y` is required"):
+        delayest(u)
+    with pytest.raises(ValueError, match="`na` must be >= 0"):
+        delayest(u, y, na=-1)

@@ -1,0 +1,62 @@
+"""select_structure: any model class, a grid of orders, criteria of the prediction errors.
+
+Oracles: the criteria of each candidate equal information_criteria of the same fitted
+model (MATLAB's definitions); the true structure wins on long simulated records."""
+
+import json
+
+import numpy as np
+import pytest
+from scipy.signal import lfilter
+
+from rlsfilt import ARMA, ARMAX, OE, select_structure
+from rlsfilt.validation import information_criteria
+
+
+def test_the_true_armax_structure_wins_and_criteria_are_the_models(rng):
+    u, e = rng.standard_normal(4000), rng.standard_normal(4000)
+    a = [1, -1.5, 0.7]
+    y = lfilter([0, 1, 0.5], a, u) + lfilter([1, -1, 0.2], a, e)
+    sel = select_structure(ARMAX, u, y, {"na": [1, 2, 3], "nb": [2], "nc": [0, 1, 2],
+                                         "nk": [1]})
+    assert sel.best == {"na": 2, "nb": 2, "nc": 2, "nk": 1}
+    for c, m in zip(sel.candidates, sel.models):
+        ic = information_criteria(m, u, y)
+        assert c["bic"] == pytest.approx(ic.bic, rel=1e-12)
+        assert c["n_params"] == ic.n_params
+    assert sel.best_model is sel.models[sel.best_index]
+    assert "<- best" in sel.summary()
+    json.dumps(sel.to_dict(), allow_nan=False)
+
+
+def test_validation_data_and_the_loss_criterion(rng):
+    u = rng.standard_normal(3000)
+    y = lfilter([0, 1.0, 0.5], [1, -1.5, 0.7], u) + 0.3 * rng.standard_normal(3000)
+    sel = select_structure(OE, u[:2000], y[:2000], [{"nb": 1, "nf": 1}, {"nb": 2, "nf": 2}],
+                           criterion="loss", validation=(u[2000:], y[2000:]))
+    assert sel.best == {"nb": 2, "nf": 2}
+    m = sel.best_model
+    e = y[2000:][m.max_lag:] - m.predict(u[2000:], y[2000:])[m.max_lag:]
+    assert sel.values[sel.best_index] == pytest.approx(np.mean(e ** 2), rel=1e-12)
+
+
+def test_time_series_and_refused_candidates(rng):
+    y = lfilter([1, 0.5], [1, -0.8], rng.standard_normal(3000))
+    sel = select_structure(ARMA, None, y, {"na": [1, 2], "nc": [0, 1]})
+    assert sel.best == {"na": 1, "nc": 1}
+    short = select_structure(ARMA, None, y[:12], {"na": [1, 12], "nc": [1]})
+    assert short.candidates[1]["error"].startswith("`y` must have more than")
+    assert np.isnan(short.values[1]) and short.models[1] is None
+    assert "refused" in short.summary()
+
+
+def test_errors(rng):
+    y = rng.standard_normal(200)
+    with pytest.raises(ValueError, match="`criterion` must be one of"):
+        select_structure(ARMA, None, y, {"na": [1]}, criterion="r2")
+    with pytest.raises(TypeError, match="`model_class` must be a model class"):
+        select_structure(ARMA(1, 1), None, y, {"na": [1]})
+    with pytest.raises(TypeError, match="`grid` names a parameter ARMA does not take"):
+        select_structure(ARMA, None, y, {"nb": [1]})
+    with pytest.raises(ValueError, match="no candidate structure could be fitted"):
+        select_structure(ARMA, None, y[:5], {"na": [4], "nc": [4]})
