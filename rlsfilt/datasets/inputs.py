@@ -8,7 +8,6 @@ seed ``0`` makes the default signal the same on every call.
 import math
 
 import numpy as np
-from scipy import signal
 
 from .._validation import as_float_array, as_generator, check_finite, check_int, check_real
 
@@ -56,6 +55,7 @@ def prbs(n_samples=1000, *, amplitude=1.0, hold=1, nbits=None, offset=0.0, rng=0
     >>> np.unique(u)
     array([-2.,  2.])
     """
+    from scipy import signal  # lazy: keeps `import rlsfilt` light
     n_samples = check_int(n_samples, "n_samples", minimum=1)
     hold = check_int(hold, "hold", minimum=1)
     amplitude = check_real(amplitude, "amplitude")

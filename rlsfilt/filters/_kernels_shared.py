@@ -196,27 +196,35 @@ def unhealthy_sym(A, cond_max, W, X, exact=True):
             a = W[k, i]
             for j in range(i, n):
                 W[i, j] = W[i, j] - a * W[k, j]
-    if chol:
-        inv_norm2 = 0.0                      # ||U^-T||_F^2: rows of X = U^-T (lower)
-        for i in range(n):
-            for j in range(i + 1):
-                X[i, j] = 0.0
-            X[i, i] = 1.0
-            for k in range(i):               # X_i -= U_ki X_k
-                a = W[k, i]
-                for j in range(k + 1):
-                    X[i, j] = X[i, j] - a * X[k, j]
-            inv = 1.0 / W[i, i]
-            for j in range(i + 1):
-                v = X[i, j] * inv
-                X[i, j] = v
-                inv_norm2 += v * v
-        if trace * inv_norm2 < min(0.5 * cond_max, 1e12):
-            return False
+    if chol and trace * inverse_norm2(W, X) < min(0.5 * cond_max, 1e12):
+        return False
     if not exact:
         return True
     w = np.linalg.eigvalsh(A)
     return w[0] <= 0.0 or w[n - 1] > cond_max * w[0]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def inverse_norm2(U, X):
+    """``||U^-1||_F^2`` of the upper-triangular `U` (nonzero diagonal; only its upper
+    triangle is read), from the rows of ``X = U^-T`` (lower; `X` (n, n) work):
+    ``X_i = (e_i - sum_{k<i} U_ki X_k) / U_ii``, row ``axpy`` loops."""
+    n = U.shape[0]
+    acc = 0.0
+    for i in range(n):
+        for j in range(i + 1):
+            X[i, j] = 0.0
+        X[i, i] = 1.0
+        for k in range(i):                   # X_i -= U_ki X_k
+            a = U[k, i]
+            for j in range(k + 1):
+                X[i, j] = X[i, j] - a * X[k, j]
+        inv = 1.0 / U[i, i]
+        for j in range(i + 1):
+            v = X[i, j] * inv
+            X[i, j] = v
+            acc += v * v
+    return acc
 
 
 @njit(cache=True, error_model="numpy")
@@ -251,16 +259,23 @@ def unhealthy_on(P, basis, cond_max, exact=True):
 def factor_unhealthy(U, cond_max):
     """True when ``_health.factor_problem(U, cond_max)`` finds a problem with
     ``P = U^-1 U^-T``: non-finite ``U``, a diagonal entry that is not
-    positive, or ``cond(P) = cond(U)^2`` above `cond_max` (singular values
-    from `singular_range`, ``O(n^3)``, without forming ``P``)."""
+    positive, or ``cond(P) = cond(U)^2`` above `cond_max`, without forming
+    ``P``. As in `unhealthy_sym`, the bound ``cond(P) <= trace(P) trace(P^-1)
+    = ||U^-1||_F^2 ||U||_F^2`` (one triangular inverse, ``n^3 / 3``) settles
+    the usual healthy case; otherwise the singular values of ``U`` decide
+    (`singular_range`, one-sided Jacobi)."""
     n = U.shape[0]
+    norm2 = 0.0
     for i in range(n):
         for j in range(n):
             v = U[i, j]
             if v - v != 0.0:
                 return True
+            norm2 += v * v
     if diagonal_bad(U):
         return True
+    if norm2 * inverse_norm2(U, np.empty((n, n))) < min(0.5 * cond_max, 1e12):
+        return False
     smin, smax = singular_range(U)
     if not smin > 0.0:
         return True

@@ -292,10 +292,11 @@ class SlidingWindow:
         s = (phi @ g).item() + r                      # S = H P H^T + R
         y, K = None, np.zeros_like(g)
         if z is not None:
+            c = 1.0 / s
             y = z - (phi @ x).T                       # y = z - H x
-            K = g / s                                 # K = P H^T / S
+            K = g * c                                 # K = P H^T / S
             x = x + K * y.T                           # x = x + K y^T
-            P = P - (g * g.T) / s                     # P = P - g g^T / S
+            P = P - (g * g.T) * c                     # P = P - g g^T / S
         h = self.head                                 # the slot of the oldest sample
         refit = False
         if self.nw == self.window and not np.isnan(self.wZ[h]).any():
@@ -336,7 +337,8 @@ def downdate(x, P, phi, z, r):
     if not d > 1e-8 * r:
         return False, x, P
     e = z - (phi @ x).T                               # residual of the leaving sample
-    return True, x - (g / d) * e.T, P + (g * g.T) / d
+    c = 1.0 / d
+    return True, x - (g * c) * e.T, P + (g * g.T) * c
 
 
 def window_lstsq(Hw, Zw, Rw, x0=None, P0=None):

@@ -17,9 +17,8 @@ textbook NumPy is :mod:`rlsfilt.filters._reference`.
 import math
 
 import numpy as np
-from filterpy.common import pretty_str
-from scipy.linalg import null_space, solve_triangular
 
+from .._display import pretty_str
 from .._validation import (
     as_float_array,
     check_covariance,
@@ -348,17 +347,6 @@ class RecursiveLeastSquares(_FilterBase):
         self._cap, self._w = False, 1.0     # the windup cap decides again from the new P
 
     @property
-    def check_every(self):
-        """Health check period in updates (0: off); assign None for the default
-        ``max(250, 16 dim_x)``."""
-        return self._check_every
-
-    @check_every.setter
-    def check_every(self, value):
-        self._check_every = (max(250, 16 * self.dim_x) if value is None
-                             else check_int(value, "check_every", minimum=0))
-
-    @property
     def lam(self):
         """Forgetting factor in (0, 1]."""
         return self._lam
@@ -539,6 +527,7 @@ class RecursiveLeastSquares(_FilterBase):
             If the regressor rows do not determine every parameter (fewer
             independent rows than ``dim_x``).
         """
+        from scipy.linalg import solve_triangular  # lazy: keeps `import rlsfilt` light
         Z, Hm = self._as_batch(zs, Hs)
         w = self._lam ** (0.5 * np.arange(len(Z) - 1, -1, -1.0))
         keep = ~np.isnan(Z).any(axis=1)
@@ -735,6 +724,7 @@ class RecursiveLeastSquares(_FilterBase):
         -------
         self
         """
+        from scipy.linalg import null_space  # lazy: keeps `import rlsfilt` light
         n, m = self.dim_x, self.dim_z
         A = as_float_array(A, "A")
         if A.ndim == 1:

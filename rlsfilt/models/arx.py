@@ -17,8 +17,6 @@ import inspect
 import warnings
 
 import numpy as np
-from scipy import signal
-from scipy.linalg import lapack, solve_triangular
 
 from .._serialize import jsonable
 from .._validation import as_float_array, check_finite, check_int, check_scalar
@@ -718,6 +716,7 @@ class ARX(IdentifiedModel):
         >>> model.simulate(np.ones(4), y0=[4.0])          # continue from y(0) = 4
         array([4.  , 3.  , 2.5 , 2.25])
         """
+        from scipy import signal  # lazy: keeps `import rlsfilt` light
         self._check_fitted("simulate")
         return self._each_experiment(self._simulate, u, None, y0, outputs=False)
 
@@ -1187,6 +1186,7 @@ def _qr_least_squares(Phi, target):
     its columns scaled to unit norm (those of ``Phi`` with unit columns), so
     the record is read once.
     """
+    from scipy.linalg import lapack, solve_triangular  # lazy: keeps `import rlsfilt` light
     rows, n = Phi.shape
     A = np.empty((rows, n + target.shape[1]), order="F")
     A[:, :n] = Phi

@@ -21,8 +21,6 @@ their mean, the CUSUM of squares test for a drift of their variance.
 import math
 
 import numpy as np
-from scipy.optimize import brentq
-from scipy.stats import norm
 
 from .._validation import as_float_array, check_finite, check_probability
 from ..exceptions import ExactFitError
@@ -413,10 +411,12 @@ def cusum_squares(zs, Hs, alpha=0.05):
 # ----------------------------------------------------------------------
 def _bde_crossing_probability(a):
     """BDE (1975) eq. (2.4): P(a Brownian path crosses a(1 + 2t), t in [0, 1])."""
+    from scipy.stats import norm  # lazy: keeps `import rlsfilt` light
     return float(min(1.0, 2.0 * (norm.sf(3.0 * a) + math.exp(-4.0 * a * a) * norm.cdf(a))))
 
 
 def _bde_constant(alpha):
+    from scipy.optimize import brentq  # lazy: keeps `import rlsfilt` light
     for level, a in _BDE_A.items():
         if math.isclose(alpha, level):
             return a

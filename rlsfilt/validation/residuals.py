@@ -7,7 +7,6 @@ MATLAB's ``resid`` and Ljung (1999, sec. 16.6).
 """
 
 import numpy as np
-from scipy.stats import chi2, f, norm
 
 from .._validation import check_int, check_probability
 from ..exceptions import ExactFitError, InsufficientDataError
@@ -262,6 +261,7 @@ def _residual_analysis(Phi, E, u, max_lag, alpha, output=0, model_df=0):
     `u` with zero columns (``(N, 0)``, a time series) gives the whiteness test
     only: no cross-correlation, ``is_independent`` None.
     """
+    from scipy.stats import chi2, norm  # lazy: keeps `import rlsfilt` light
     ny = E.shape[1]
     output = check_int(output, "output", minimum=0)
     if output >= ny:
@@ -333,6 +333,7 @@ def _residual_analysis(Phi, E, u, max_lag, alpha, output=0, model_df=0):
 
 def _input_lag_test(e, Phi, U, t0, M):
     """F test that lagged inputs u(t - tau), |tau| <= M, do not explain `e`."""
+    from scipy.stats import f  # lazy: keeps `import rlsfilt` light
     n = len(e)
     N = len(U)
     t = t0 + np.arange(n)
