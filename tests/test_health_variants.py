@@ -64,7 +64,7 @@ def test_windup_batch_filter_names_the_step():
     zs, Hs = _windup(2000)
     first = _first_ill_conditioned_update()
     f = SquareRootRLS(2, lam=LAM, P0=P0)
-    every = f.check_every                        # the default, max(250, 16 dim_x)
+    every = f.check_every                        # the default, max(250, 32 dim_x)
     assert every == 250
     detected = -(-first // every) * every        # the next multiple of check_every
     k0 = first - 9                               # it happens in the second call
@@ -225,7 +225,7 @@ def test_sliding_window_batch_filter_names_the_step():
     zs, Hs = _collinear_record()
     first = _first_ill_conditioned_window(Hs)
     f = SlidingWindowRLS(2, WINDOW)
-    every = f.check_every                        # the default, max(250, 16 dim_x)
+    every = f.check_every                        # the default, max(250, 32 dim_x)
     detected = -(-first // every) * every
     k0 = 120
     with pytest.warns(NumericalWarning) as record:

@@ -587,6 +587,20 @@ def _sweep_rows(P, g, cu, il, h, gn):
     of the row-by-row loop.
     """
     n = P.shape[0]
+    if n == 2:                       # the same operations, written out (no loop overhead)
+        g0, g1 = g[0], g[1]
+        h0, h1 = h[0], h[1]
+        v00 = (P[0, 0] - (g0 * g0) * cu) * il
+        v01 = (P[0, 1] - (g0 * g1) * cu) * il
+        v10 = (P[1, 0] - (g1 * g0) * cu) * il
+        v11 = (P[1, 1] - (g1 * g1) * cu) * il
+        P[0, 0] = v00
+        P[0, 1] = v01
+        P[1, 0] = v10
+        P[1, 1] = v11
+        gn[0] = (0.0 + v00 * h0) + v10 * h1
+        gn[1] = (0.0 + v01 * h0) + v11 * h1
+        return
     for j in range(n):
         gn[j] = 0.0
     i = 0

@@ -110,7 +110,7 @@ class RecursiveLeastSquares(_FilterBase):
         ``eigvalsh`` when in doubt, O(dim_x^3)); every update also checks
         cheaply (O(dim_x)) that the diagonal of ``P`` is positive and finite,
         and runs the full test at once when it is not. By default
-        ``max(250, 16 dim_x)``, which keeps the O(dim_x^3) test under 5 % of
+        ``max(250, 32 dim_x)``, which keeps the O(dim_x^3) test under 5 % of
         the O(dim_x^2) updates at every size. A failure issues one
         :class:`~rlsfilt.NumericalWarning` naming the update; a later
         periodic check that finds ``P`` healthy again re-arms it, so a

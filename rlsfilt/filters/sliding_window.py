@@ -44,7 +44,7 @@ class SlidingWindowRLS(_FilterBase):
         updates, which removes the round-off that downdating accumulates;
         ``0`` never refreshes.
     check_every : int, optional
-        Health check period (0 disables it; by default ``max(250, 16
+        Health check period (0 disables it; by default ``max(250, 32
         dim_x)``), with the semantics of
         :class:`~rlsfilt.RecursiveLeastSquares`: every `check_every`
         updates, and at the end of :meth:`batch_filter`, ``P`` is tested for

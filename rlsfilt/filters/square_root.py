@@ -47,7 +47,7 @@ class SquareRootRLS(_FilterBase):
     R : float, default 1.0
         Measurement-noise variance.
     check_every : int, optional
-        Health check period (0 disables it; by default ``max(250, 16
+        Health check period (0 disables it; by default ``max(250, 32
         dim_x)``), with the semantics of
         :class:`~rlsfilt.RecursiveLeastSquares`: every `check_every`
         updates, and at the end of :meth:`batch_filter`, the condition
