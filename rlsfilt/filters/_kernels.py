@@ -349,9 +349,65 @@ def measurement_update(x, P, phi, z, missing, r, cfg, Pi, g, y, K, T, w, xn, Pn)
     return s, lam_t, gated, cap
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _exponential_update_into(x, P, phi, z, missing, r, cfg, g, y, K, w, xn, Pn, xp, Pp):
+    """`measurement_update` in the exponential mode without constraints, reading
+    ``x``, ``P`` and writing the updated ones to ``xn``, ``Pn`` and the copies
+    ``xp``, ``Pp`` in one pass: the same operations in the same order, so the
+    same numbers (the streaming ``update``'s path)."""
+    n, m = x.shape
+    lam = cfg[CFG_LAM]
+    gain(P, phi, g)                          # g = P H^T
+    q = 0.0
+    for i in range(n):
+        q += phi[i] * g[i]
+    s = w * q + r                            # S = H P H^T + R
+    updated = not missing
+    gated = False
+    yy = 0.0
+    if missing:
+        for j in range(m):
+            y[j] = np.nan
+    else:
+        for j in range(m):                   # y = z - H x
+            acc = 0.0
+            for i in range(n):
+                acc += phi[i] * x[i, j]
+            y[j] = z[j] - acc
+            yy += y[j] * y[j]
+        gate = cfg[CFG_GATE]
+        gated = yy > gate * gate * s         # sqrt(y'y / S) > gate
+        updated = not gated
+    c = 1.0 / s
+    cu = exponential_coefficient(q, c, w, updated)
+    kc = w * c
+    for i in range(n):
+        K[i] = g[i] * kc if updated else 0.0             # K = P H^T / S
+    for i in range(n):
+        gi = g[i]
+        for j in range(n):
+            v = P[i, j] - (gi * g[j]) * cu                # P = P - g g^T / S
+            Pn[i, j] = v
+            Pp[i, j] = v
+        ki = K[i]
+        for j in range(m):
+            v = x[i, j] + ki * y[j] if updated else x[i, j]   # x = x + K y^T
+            xn[i, j] = v
+            xp[i, j] = v
+    hph = q * r * (w * (1.0 / s)) if updated else q * w    # phi P phi^T after the update
+    tr, spread, _ = _diagonal_stats(Pn, g, 0.0, phi)
+    return s, lam, gated, windup_cap(tr, spread, hph, 1.0 / lam, cfg)
+
+
 # ----------------------------------------------------------------------
 # the streaming steps (arguments packed by _streaming)
 # ----------------------------------------------------------------------
+@njit(cache=True, error_model="numpy", inline="always")
+def _view(out, o, r, c):
+    """The (r, c) array at offset `o` of the flat block `out`, and the next offset."""
+    return out[o:o + r * c].reshape((r, c)), o + r * c
+
+
 @njit(cache=True, error_model="numpy", inline="always")
 def Pi_or_efra(cfg):
     """Whether a step needs the (n, n) work space: constraints or EFRA."""
@@ -364,16 +420,27 @@ def predict_kernel(x, P, il, Q, cfg, out):
     ``n^2`` of work space): ``P^-`` = `time_update` of ``P``, and the copies
     ``x_prior = x``, ``P_prior = P^-``."""
     n, m = x.shape
-    nP, nx = n * n, n * m                    # the block: P^- x_prior P_prior | T
-    k = n if cfg.shape[0] > CFG_PI else 0    # T: work space of the projection
-    o = nP + nx + nP
-    time_update(P, il, Q, projector(cfg, n), out[o:o + k * k].reshape((k, k)),
-                out[:nP].reshape((n, n)))
-    for i in range(n):
-        for j in range(m):
-            out[nP + i * m + j] = x[i, j]    # x_prior
-    for i in range(nP):
-        out[nP + nx + i] = out[i]            # P_prior
+    Pn, o = _view(out, 0, n, n)              # the block: P^- x_prior P_prior | T
+    x_prior, o = _view(out, o, n, m)
+    P_prior, o = _view(out, o, n, n)
+    copy2(x, x_prior)
+    if cfg.shape[0] == CFG_PI:               # no constraints: one pass, two copies
+        if Q.shape[0]:                       # time_update's numbers
+            for i in range(n):
+                for j in range(n):
+                    v = P[i, j] * il + Q[i, j]
+                    Pn[i, j] = v
+                    P_prior[i, j] = v
+        else:
+            for i in range(n):
+                for j in range(n):
+                    v = P[i, j] * il
+                    Pn[i, j] = v
+                    P_prior[i, j] = v
+        return
+    T, o = _view(out, o, n, n)               # work space of the projection
+    time_update(P, il, Q, projector(cfg, n), T, Pn)
+    copy2(Pn, P_prior)
 
 
 @njit(cache=True, error_model="numpy")
@@ -416,19 +483,23 @@ def update_kernel(x, P, phi, z0, zmode, r, cfg, w, xn, Pn, out):
     g = out[o + nx + nP:o + nx + nP + n]
     k = n if Pi_or_efra(cfg) else 0
     T = out[o + nx + nP + n:o + nx + nP + n + k * k].reshape((k, k))
-    s, lam_t, gated, cap = measurement_update(x, P, phi, Hz[n:n + m], zmode == 2, r, cfg,
-                                              projector(cfg, n), g, y, K, T, w, xn, Pn)
+    xp = out[o:o + nx].reshape((n, m))
+    Pp = out[o + nx:o + nx + nP].reshape((n, n))
+    if int(cfg[CFG_MODE]) == EXPONENTIAL and cfg.shape[0] == CFG_PI:
+        # the default: x, P read once, the new ones written twice (x, x_post; P, P_post)
+        s, lam_t, gated, cap = _exponential_update_into(x, P, phi, Hz[n:n + m], zmode == 2, r,
+                                                        cfg, g, y, K, w, xn, Pn, xp, Pp)
+    else:
+        s, lam_t, gated, cap = measurement_update(x, P, phi, Hz[n:n + m], zmode == 2, r, cfg,
+                                                  projector(cfg, n), g, y, K, T, w, xn, Pn)
+        copy2(xn, xp)
+        copy2(Pn, Pp)
     for i in range(m * m):
         S[i] = 0.0
         SI[i] = 0.0
     for i in range(m):
         S[i * m + i] = s
         SI[i * m + i] = 1.0 / s
-    xf, Pf = xn.reshape(nx), Pn.reshape(nP)
-    for i in range(nx):
-        out[o + i] = xf[i]                   # x_post
-    for i in range(nP):
-        out[o + nx + i] = Pf[i]              # P_post
     # the cheap check (without constraints: under them P is singular by design)
     return (2 if cfg.shape[0] == CFG_PI and diagonal_bad(Pn) else 0), s, lam_t, gated, cap
 
