@@ -511,7 +511,7 @@ def update_kernel(x, P, phi, z0, zmode, r, cfg, w, xn, Pn, out):
 MAX_EPISODES = 16
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def _health(P, basis, symmetric, cond_max, k, due, cheap_bad, state, episodes, P_fail, W, X):
     """The health check at the end of step `k` of a batch run.
 
@@ -522,11 +522,10 @@ def _health(P, basis, symmetric, cond_max, k, due, cheap_bad, state, episodes, P
     (it stays so when it starts so). A failure while armed starts an episode
     (its step in `episodes`, its ``P`` in `P_fail`, up to `MAX_EPISODES`) and
     disarms; a due check whose Cholesky bound certifies ``P`` re-arms (while
-    disarmed, only that bound is computed).
+    disarmed, only that bound is computed). The caller calls it only then (not
+    inlined: the loops stay lean).
     """
     armed = state[0] == 1
-    if not (due or (cheap_bad and armed)):
-        return
     if basis.shape[1]:
         bad = unhealthy_on(P, basis, cond_max, armed)
     elif symmetric:
@@ -584,14 +583,16 @@ def step_batch(x, P, Z, Hm, Rv, il, Q, update_first, cfg, basis,
     lam_t = cfg[CFG_LAM]
     cap = state[3] == 1
     w = state[4]
+    armed = state[0] == 1                     # local copies: no store to `state` in the loop
+    n_capped = 0
+    countdown = check_every - step0 % check_every if check_every > 0 else -1
     for k in range(N):
         if not update_first:
             w = il if cap else 1.0
             _time_step(x, P, 1.0 if cap else il, Q, Pi, T, k, N, means_p, covs_p,
                        x_prior, P_prior)
         z = Z[k]
-        if w != 1.0:
-            state[2] += 1
+        n_capped += w != 1.0
         s, lam_t, gk, cap = measurement_update(x, P, Hm[k], z, any_nan(z),
                                                Rv[k if r_each else 0], cfg, Pi, g, y, K, T, w,
                                                x, P)
@@ -611,9 +612,15 @@ def step_batch(x, P, Z, Hm, Rv, il, Q, update_first, cfg, basis,
             w = il if cap else 1.0
             _time_step(x, P, 1.0 if cap else il, Q, Pi, T, k, N, means_p, covs_p,
                        x_prior, P_prior)
-        if check_every > 0:
-            _health(P, basis, symmetric, cond_max, k, (step0 + k + 1) % check_every == 0,
-                    cheap_bad, state, episodes, P_fail, W, X)
+        countdown -= 1                 # zero when (step0 + k + 1) % check_every == 0
+        due = countdown == 0
+        if due:
+            countdown = check_every
+        if check_every > 0 and (due or (cheap_bad and armed)):
+            _health(P, basis, symmetric, cond_max, k, due, cheap_bad, state, episodes, P_fail,
+                    W, X)
+            armed = state[0] == 1
+    state[2] += n_capped
     state[3] = 1 if cap else 0
     state[4] = w
     return s, lam_t
