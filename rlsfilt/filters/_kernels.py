@@ -814,16 +814,23 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
                 for i in range(n):
                     K[i] = g[i] * kc
         # the usual step is the last branch: the sweep does not wait for the
-        # decisions above (the branch is predicted), only for cu
-        if check or last or cap or store:    # unfused, held back or stored: the rare path
+        # decisions above (the branch is predicted), only for cu. A due health
+        # check looks at P after the fused sweep: that is the P it tests with
+        # update_first, and otherwise P / lam, whose definiteness and condition
+        # number are those of P (with Q the two halves run apart)
+        if last or cap or store or (check and hasq and not update_first):
             _unfused_step(x, P, g, gn, cu, 1.0 if cap else il, Q, Hm[min(k + 1, N - 1)], k,
                           last, check, update_first, due, cheap_bad, cond_max, state,
                           episodes, P_fail, W, X, none, symmetric, x_prior, P_prior, x_post,
                           P_post, covs, covs_p)
-        elif hasq:
-            _sweep_q(P, g, cu, il, Q, Hm[k + 1], gn)
         else:
-            _sweep_rows(P, g, cu, il, Hm[k + 1], gn)
+            if hasq:
+                _sweep_q(P, g, cu, il, Q, Hm[k + 1], gn)
+            else:
+                _sweep_rows(P, g, cu, il, Hm[k + 1], gn)
+            if check:
+                _health(P, none, symmetric, cond_max, k, due, cheap_bad, state, episodes,
+                        P_fail, W, X)
         g, gn = gn, g
         if k == N - 2 and not update_first:
             x[:, 0] = th
