@@ -74,7 +74,7 @@ def filter_html(f):
         settings.append(_row(label, _fmt(value)))
     constraints = getattr(f, "constraints", None)
     if constraints is not None:
-        settings.append(_row("equality constraints", f"{np.shape(constraints[0])[0]} rows"))
+        settings.append(_row("equality constraints", f"{np.shape(constraints.A)[0]} rows"))
     settings.append(_row("health of P", details))
     # the estimate, one column per output, and the standard deviation shared by the columns
     cols = "".join(f"<th>x[:, {j}]</th>" for j in range(m)) if m > 1 else "<th>estimate</th>"

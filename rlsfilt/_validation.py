@@ -9,6 +9,8 @@ import numbers
 
 import numpy as np
 
+from ._resources import check_memory
+
 __all__ = []
 
 
@@ -25,6 +27,26 @@ def check_int(value, name, minimum=None):
     if minimum is not None and value < minimum:
         raise ValueError(f"`{name}` must be >= {minimum}; got {value}")
     return value
+
+
+def check_length(value, name, minimum=1, bytes_per_item=64):
+    """A number of samples (or slots): an ``int >= minimum`` whose arrays fit in memory.
+
+    `bytes_per_item` is what the caller allocates per unit (for example eight
+    arrays of doubles: 64); beyond the available memory a `MemoryError`
+    names the argument before anything is allocated.
+    """
+    n = check_int(value, name, minimum=minimum)
+    check_memory(bytes_per_item * n, f"`{name}` = {n}")
+    return n
+
+
+def check_dimension(value, name, minimum=1):
+    """A matrix dimension ``n``: an ``int >= minimum`` whose ``(n, n)`` matrices fit in memory
+    (a filter keeps about a dozen of them)."""
+    n = check_int(value, name, minimum=minimum)
+    check_memory(16 * 8 * n * n, f"`{name}` = {n} ({n} x {n} covariance matrices)")
+    return n
 
 
 def check_scalar(value, name):
@@ -79,14 +101,16 @@ def as_generator(rng, name="rng"):
 
 def check_dt(dt, name="dt"):
     """A sampling period: ``True`` (unspecified, python-control's convention) or a
-    positive finite number."""
+    positive finite number, returned as a Python ``float`` (numpy scalars such as
+    ``np.float32(0.1)`` included, which python-control itself rejects)."""
     if dt is True:
         return dt
-    ok = isinstance(dt, numbers.Real) and not isinstance(dt, bool) and np.isfinite(dt) and dt > 0
+    ok = (isinstance(dt, numbers.Real) and not isinstance(dt, (bool, np.bool_))
+          and np.isfinite(dt) and dt > 0)
     if not ok:
         raise ValueError(f"`{name}` must be True (unspecified sampling period) or a positive "
                          f"sampling period; got {dt!r}")
-    return dt
+    return float(dt)
 
 
 def check_lam(lam, name="lam"):
@@ -97,31 +121,46 @@ def check_lam(lam, name="lam"):
     return lam
 
 
+#: Range of the measurement-noise variances the filters take: their updates
+#: multiply and divide by them, and the results must stay in the double range.
+VARIANCE_RANGE = (1e-150, 1e150)
+
+
 def check_variance(R, name="R"):
-    """Measurement-noise variance: a positive finite scalar or a (1, 1) array."""
-    if not isinstance(R, numbers.Real) or isinstance(R, bool):
-        arr = np.asarray(R, dtype=float) if not isinstance(R, bool) else None
-        if arr is None or arr.size != 1 or arr.ndim > 2:
-            shape = getattr(arr, "shape", None)
-            raise ValueError(
-                f"`{name}` must be a positive scalar variance or a (1, 1) array; got "
-                + (f"an array of shape {shape}" if shape is not None else repr(R))
-            )
+    """Measurement-noise variance: a positive finite scalar or a (1, 1) array, within
+    `VARIANCE_RANGE`."""
+    if isinstance(R, (bool, np.bool_)):
+        raise TypeError(f"`{name}` must be a positive scalar variance; got {R!r}")
+    if not isinstance(R, numbers.Real):
+        arr = as_float_array(R, name)      # names the argument; rejects complex and text
+        if arr.size != 1 or arr.ndim > 2:
+            raise ValueError(f"`{name}` must be a positive scalar variance or a (1, 1) array; "
+                             f"got an array of shape {arr.shape}")
         R = arr.reshape(())
     R = float(R)
     if not (np.isfinite(R) and R > 0.0):
         raise ValueError(f"`{name}` must be a positive finite variance; got {R}")
+    lo, hi = VARIANCE_RANGE
+    if not lo <= R <= hi:
+        raise ValueError(f"`{name}` must be a variance in [{lo:.0e}, {hi:.0e}] (the update "
+                         f"multiplies and divides by it); got {R:.3g}")
     return R
+
+
+#: Largest magnitude of a covariance entry the filters take: their updates form
+#: products of two entries (P h h^T P), which must not overflow.
+COVARIANCE_MAX = 1e150
 
 
 def check_covariance(C, n, name, definite=False):
     """Return a symmetric ``(n, n)`` covariance from a scalar or a matrix.
 
-    A scalar ``c`` means ``c * I``. The matrix must be finite, symmetric (to
-    round-off) and positive semidefinite, or positive definite when
-    `definite` is true. The result is a new, exactly symmetric array.
+    A scalar ``c`` means ``c * I``. The matrix must be finite, real,
+    symmetric (to round-off), no larger than `COVARIANCE_MAX` in any entry,
+    and positive semidefinite, or positive definite when `definite` is true.
+    The result is a new, exactly symmetric array.
     """
-    arr = np.asarray(C, dtype=float)
+    arr = as_float_array(C, name)
     if arr.size == 1 and arr.ndim <= 2 and arr.shape != (n, n):
         c = float(arr.reshape(()))
         arr = c * np.eye(n)
@@ -131,11 +170,14 @@ def check_covariance(C, n, name, definite=False):
         arr = arr.copy()
     if not np.all(np.isfinite(arr)):
         raise ValueError(f"`{name}` must be finite; got NaN or inf entries")
-    scale = max(float(np.max(np.abs(arr))), np.finfo(float).tiny)
-    if np.max(np.abs(arr - arr.T)) > 1e-10 * scale:
-        raise ValueError(f"`{name}` must be symmetric; got max |{name} - {name}^T| = "
-                         f"{np.max(np.abs(arr - arr.T)):.3g}")
-    arr = 0.5 * (arr + arr.T)
+    scale = max(float(np.max(np.abs(arr))), np.finfo(float).tiny) if arr.size else 1.0
+    if scale > COVARIANCE_MAX:
+        raise ValueError(f"`{name}` must have entries of magnitude at most {COVARIANCE_MAX:.0e} "
+                         f"(the update multiplies two of them); got {scale:.3g}")
+    asym = float(np.max(np.abs(arr - arr.T))) if arr.size else 0.0
+    if asym > 1e-10 * scale:
+        raise ValueError(f"`{name}` must be symmetric; got max |{name} - {name}^T| = {asym:.3g}")
+    arr = 0.5 * arr + 0.5 * arr.T
     diagonal = not np.any(arr[~np.eye(n, dtype=bool)])     # e.g. a scalar times I
     eig_min = (float(np.min(np.diagonal(arr))) if diagonal  # its eigenvalues, exactly
                else float(np.linalg.eigvalsh(arr)[0])) if n else 0.0
@@ -164,17 +206,32 @@ def check_finite(arr, name):
 def as_float_array(value, name):
     """``np.asarray(value, float)`` with a message that names the argument.
 
-    Complex values are rejected instead of silently losing their imaginary part.
+    Complex values are rejected instead of silently losing their imaginary
+    part, and text (``"1.0"``) instead of being parsed as a number.
     """
+    if value is None:
+        raise TypeError(f"`{name}` must be numeric array-like; got None")
     try:
         arr = np.asarray(value)
         complex_values = np.iscomplexobj(arr)
+        if arr.dtype.kind in "USV":
+            shown = repr(value) if len(repr(value)) <= 40 else repr(value)[:37] + "..."
+            raise TypeError(f"`{name}` must be numeric array-like; got text {shown}")
         if not complex_values:
             arr = np.asarray(arr, dtype=float)
     except (TypeError, ValueError) as exc:
+        if str(exc).startswith(f"`{name}`"):
+            raise TypeError(str(exc)) from None
         raise TypeError(
             f"`{name}` must be numeric array-like; got {type(value).__name__}: {exc}"
         ) from None
     if complex_values:
         raise TypeError(f"`{name}` must be real; got complex values (dtype {arr.dtype})")
     return arr
+
+
+def check_bool(value, name):
+    """A flag: ``True`` or ``False`` (numpy booleans included), never a truthy string."""
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    raise TypeError(f"`{name}` must be True or False; got {value!r}")

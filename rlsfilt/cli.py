@@ -28,8 +28,12 @@ context), ``--json`` prints ``json.dumps(report.to_dict())`` and ``--plot``
 saves ``report.plot()``. Every failure the user can
 cause (a missing file, an unknown column, a non-numeric cell, too few rows
 for the orders, an invalid option) is one line on stderr and a non-zero
-exit status, never a traceback. Work that takes more than a couple of
-seconds shows a progress line on a terminal.
+exit status, never a traceback; so is a lack of memory (``rlsfilt demo
+--samples N`` estimates its memory before it starts, the library checks its
+own before large allocations). Work that takes more than a couple of
+seconds shows a progress line on a terminal. ``identify`` reads the CSV
+file line by line into arrays of doubles and works in :math:`O(N)` memory:
+about 170 bytes per sample for one input and output (tested below 300).
 
 The ARX convention is MATLAB's ``[na nb nk]``::
 
@@ -40,20 +44,26 @@ with one ``nb``, ``nk`` per input.
 """
 
 import argparse
+import array
+import atexit
 import contextlib
 import csv
+import itertools
 import json
 import math
 import os
+import shutil
 import sys
+import tempfile
 import threading
 import time
 import warnings
 
 import numpy as np
 
+from ._resources import check_memory
 from ._version import __version__
-from .data import IOData, detrend
+from .data import IOData, Trend, detrend
 from .datasets import PLANTS, heat_exchanger
 from .exceptions import (
     ForgettingSkippedWarning,
@@ -75,6 +85,7 @@ _PROGRESS_AFTER = 2.0    # seconds before a progress line appears
 _FORGETTING_MODES = ("exponential", "directional", "constant_trace", "efra", "variable")
 _DEFAULT_PLANT = "dc_motor"
 _TRACKING_LAM = 0.98     # demo forgetting factor for the time-varying plant
+_DEMO_BYTES_PER_SAMPLE = 700   # the demo's peak per sample (measured about 500 at 2e5 samples)
 _DETREND = {"constant": "mean", "linear": False, "none": False}   # -> ARX(offset=...)
 _DELAY_SEARCH = 20       # largest delay delayest tries for --select-order without a range
 #: the demo's records: the textbook plants and a measured-like record (operating point,
@@ -119,6 +130,7 @@ def main(argv=None):
     if args.command is None:
         parser.print_help()
         return EXIT_OK
+    _writable_matplotlib_config()
     try:
         with warnings.catch_warnings():
             warnings.showwarning = _show_warning
@@ -138,12 +150,42 @@ def main(argv=None):
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
         return EXIT_OK
+    except MemoryError as exc:
+        # an up-front estimate of the library (rlsfilt._resources), or an allocation
+        # that failed: one line either way
+        text = str(exc).splitlines()[0] if str(exc) else "an allocation failed"
+        _error(f"out of memory: {text}")
     except OSError as exc:
         _error(f"{exc.strerror or exc}: '{exc.filename}'" if exc.filename else str(exc))
     except KeyboardInterrupt:
         _error("interrupted")
         return 130
     return EXIT_ERROR
+
+
+def _writable_matplotlib_config():
+    """Give matplotlib a temporary configuration directory when its own is not writable.
+
+    With an unwritable ``HOME`` matplotlib (imported by python-control) does
+    the same itself, after two lines of log on stderr; a command's stderr is
+    for one-line errors and warnings.
+    """
+    if "MPLCONFIGDIR" in os.environ or "matplotlib" in sys.modules:
+        return
+    base = os.environ.get("XDG_CONFIG_HOME") or os.path.join(os.path.expanduser("~"), ".config")
+    path = os.path.join(base, "matplotlib")
+    try:
+        os.makedirs(path, exist_ok=True)
+        if os.access(path, os.W_OK):
+            return
+    except OSError:
+        pass
+    try:
+        tmp = tempfile.mkdtemp(prefix="rlsfilt-matplotlib-")
+    except OSError:  # no writable temporary directory either: matplotlib will say so
+        return
+    atexit.register(shutil.rmtree, tmp, ignore_errors=True)
+    os.environ["MPLCONFIGDIR"] = tmp
 
 
 def _error(message):
@@ -385,8 +427,9 @@ def _run_identify(args):
     offset = _DETREND[args.detrend]
     family = args.model != "arx"
     lines = [_describe(args.file, data), _detrend_line(args.detrend, est, family)]
+    trend = None   # what the model's deviations are about, saved with it (--save-model)
     if args.detrend == "linear":   # each record about its own line; the model about zero
-        est = detrend(est, "linear")[0]
+        est, trend = detrend(est, "linear")
         val = None if val is None else detrend(val, "linear")[0]
     elif family and args.detrend == "constant":
         # the family has no operating-point option: the estimation means are removed
@@ -394,6 +437,9 @@ def _run_identify(args):
         u_op, y_op = (np.vstack(x).mean(axis=0) for x in zip(*est.arrays()))
         est = _minus(est, u_op, y_op)
         val = None if val is None else _minus(val, u_op, y_op)
+        trend = Trend("constant", [[0]], [np.hstack([u_op, y_op])[None]],
+                      [np.zeros((1, len(u_op) + len(y_op)))], len(u_op), len(y_op),
+                      lengths=[est.n_samples])
     metadata = {"source": args.file, "inputs": list(args.inputs), "output": args.output,
                 "detrend": args.detrend, "experiments": list(data.experiment_names),
                 "experiment_lengths": list(data.lengths), "validated_on": where}
@@ -441,13 +487,17 @@ def _run_identify(args):
             raise CLIError(f"{type(model).__name__}: {exc}") from None
     if args.save_model:
         try:
-            model.save(args.save_model)
+            model.save(args.save_model, trend=trend)
         except OSError as exc:
             raise CLIError(f"cannot write '{args.save_model}': {exc.strerror}") from None
         metadata["model_file"] = args.save_model
+        metadata["model_file_trend"] = None if trend is None else trend.type
     report = _validate(model, val if val is not None else est, None,
                        args.lam if args.method in _LAM_METHODS else 1.0, metadata, progress)
     after = [f"\nmodel saved to {args.save_model}"] if args.save_model else []
+    if args.save_model and trend is not None:
+        after[0] += (f" with the {trend.type} trend removed from the estimation data "
+                     "(load it back as its trend_)")
     return _emit(report, args, lines + [""], after)
 
 
@@ -600,6 +650,11 @@ def _delay_search(data, args, progress):
 
 
 def _run_demo(args):
+    if args.samples is not None:
+        # the record, two fits and the validation together (measured with tracemalloc
+        # at 2e5 samples: about 500 bytes per sample, rounded up)
+        check_memory(_DEMO_BYTES_PER_SAMPLE * args.samples,
+                     f"the demo with --samples {args.samples}")
     kwargs = {"rng": args.seed}
     if args.samples is not None:
         kwargs["n_samples"] = (args.samples if args.plant != "heat_exchanger"
@@ -718,7 +773,9 @@ def _read_csv(path, columns, delimiter=None, progress=None, text_columns=()):
 
     Returns a dict mapping each column name to a float array (an array of
     strings for the text columns). Raises `CLIError` with a one-line message
-    naming the file, row and column for every problem a user can cause.
+    naming the file, row and column for every problem a user can cause. The
+    file is read line by line, the numbers into arrays of doubles (8 bytes
+    per value), never held as text.
     """
     if not os.path.exists(path):
         raise CLIError(f"file '{path}' not found")
@@ -726,16 +783,22 @@ def _read_csv(path, columns, delimiter=None, progress=None, text_columns=()):
         raise CLIError(f"'{path}' is a directory; expected a CSV file")
     try:
         with open(path, newline="", encoding="utf-8-sig") as fh:
-            text = fh.read()
+            return _parse_csv(fh, path, columns, delimiter, progress, text_columns)
     except UnicodeDecodeError:
         raise CLIError(f"'{path}' is not a UTF-8 text file") from None
-    lines = text.splitlines()
-    first = next((i for i, ln in enumerate(lines) if ln.strip() and not ln.startswith("#")), None)
-    if first is None:
+
+
+def _parse_csv(fh, path, columns, delimiter, progress, text_columns):
+    first = 0           # lines before the header (blank lines and comments)
+    for header_line in fh:
+        if header_line.strip() and not header_line.startswith("#"):
+            break
+        first += 1
+    else:
         raise CLIError(f"'{path}' is empty; expected a header row and data rows")
     if delimiter is None:
-        delimiter = _detect_delimiter(lines[first])
-    reader = csv.reader(lines[first:], delimiter=delimiter)
+        delimiter = _detect_delimiter(header_line.rstrip("\r\n"))
+    reader = csv.reader(itertools.chain([header_line], fh), delimiter=delimiter)
     header = [h.strip() for h in next(reader)]
     where = {}
     for j, name in enumerate(header):
@@ -749,7 +812,7 @@ def _read_csv(path, columns, delimiter=None, progress=None, text_columns=()):
             raise CLIError(f"column '{c}' appears {header.count(c)} times in the header of "
                            f"'{path}'; rename the duplicates")
     idx = [where[c] for c in columns]
-    values = [[] for _ in columns]
+    values = [[] if c in text_columns else array.array("d") for c in columns]
     row = 0
     for fields in reader:
         line = first + reader.line_num
@@ -780,7 +843,7 @@ def _read_csv(path, columns, delimiter=None, progress=None, text_columns=()):
             progress.show(f"reading '{path}': {row} rows")
     if row == 0:
         raise CLIError(f"'{path}' has a header but no data rows")
-    return {c: np.array(v, dtype=object if c in text_columns else float)
+    return {c: np.array(v, dtype=object) if c in text_columns else np.frombuffer(v, dtype=float)
             for c, v in zip(columns, values)}
 
 

@@ -12,6 +12,14 @@ rlsfilt (``get_params()``, learned attributes ending in ``_``). A class whose
 learned state needs more than its public attributes to be usable (derived
 private caches) defines ``_restore_fitted(self, fitted)``, which receives the
 decoded attributes as a dict; otherwise they are set with ``setattr``.
+
+The pretreatment a model was fitted under travels with it: ``save_model(model,
+path, trend=trend)`` stores the `rlsfilt.Trend` that :func:`rlsfilt.detrend`
+removed from the estimation record (constant or piecewise linear) as the
+learned attribute ``trend_``, and :func:`load_model` restores it, so
+``trend_.remove(new_data)`` and ``retrend`` put predictions in the units of
+the data exactly as before saving. A model that already holds a ``trend_``
+(a loaded one) keeps it when saved again; ``fit`` drops it.
 """
 
 import importlib
@@ -31,7 +39,7 @@ _PER_SAMPLE_SUFFIXES = ("residuals_", "_history_")
 _FLOAT_NAMES = {"NaN": math.nan, "Infinity": math.inf, "-Infinity": -math.inf}
 
 
-def save_model(model, path, *, include_data=False):
+def save_model(model, path, *, include_data=False, trend=None):
     """Write a fitted model to a JSON file.
 
     Parameters
@@ -44,6 +52,13 @@ def save_model(model, path, *, include_data=False):
     include_data : bool, default False
         Also write the per-sample diagnostics of the fit (attributes named
         ``*residuals_`` and ``*_history_``, as long as the record).
+    trend : Trend, optional
+        The trend :func:`rlsfilt.detrend` removed from the estimation record
+        (``detrend(IOData(u, y, dt), type="linear")``), written as the
+        learned attribute ``trend_`` that :func:`load_model` restores. It
+        must be the trend of an `IOData` with the model's numbers of inputs
+        and outputs (for a time-series model, also the trend of its output
+        array). By default the model's own ``trend_``, if it has one.
 
     Returns
     -------
@@ -55,10 +70,11 @@ def save_model(model, path, *, include_data=False):
     Raises
     ------
     TypeError
-        If `model` has no ``get_params`` or a constructor parameter cannot
-        be written as JSON.
+        If `model` has no ``get_params``, a constructor parameter cannot be
+        written as JSON, or `trend` is not a `Trend`.
     ValueError
-        If `model` has no learned attributes (it was not fitted).
+        If `model` has no learned attributes (it was not fitted), or
+        `trend` describes other signals than the model's.
 
     Examples
     --------
@@ -76,8 +92,27 @@ def save_model(model, path, *, include_data=False):
     >>> _ = save_model(Mean(2.0).fit([1.0, 2.0]), path)
     >>> load_model(path, cls=Mean).mean_
     3.0
+
+    An ARX model fitted on linearly detrended data keeps its trend:
+
+    >>> from rlsfilt import ARX, IOData, detrend, retrend
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.standard_normal(200)
+    >>> y = np.convolve(u, [0.0, 1.0, 0.5])[:200] + 0.02 * np.arange(200) + 50.0
+    >>> data_d, trend = detrend(IOData(u, y, dt=0.1), type="linear")
+    >>> model = ARX(0, 2, 1, dt=0.1).fit(data_d)
+    >>> _ = model.save(path, trend=trend)
+    >>> loaded = ARX.load(path)
+    >>> loaded.trend_.type, bool(np.array_equal(loaded.trend_.slope[0], trend.slope[0]))
+    ('linear', True)
+    >>> def in_units(m, trend):                       # one-step predictions, data units
+    ...     return retrend(IOData(data_d.u, m.predict(data_d), dt=0.1), trend).y
+    >>> bool(np.array_equal(in_units(loaded, loaded.trend_), in_units(model, trend)))
+    True
+    >>> bool(np.max(np.abs(in_units(loaded, loaded.trend_)[2:] - y[2:])) < 0.05)
+    True
     """
-    doc = _document(model, include_data=include_data)
+    doc = _document(model, include_data=include_data, trend=trend)
     text = _dumps(doc)
     with open(os.fspath(path), "w", encoding="utf-8") as fh:
         fh.write(text + "\n")
@@ -119,7 +154,7 @@ def load_model(path, cls=None):
 # ----------------------------------------------------------------------
 # private helpers
 # ----------------------------------------------------------------------
-def _document(model, *, include_data=False):
+def _document(model, *, include_data=False, trend=None):
     """The JSON-ready dict that :func:`save_model` writes."""
     if not callable(getattr(model, "get_params", None)):
         raise TypeError(f"`model` must be an estimator with get_params(); got "
@@ -145,6 +180,11 @@ def _document(model, *, include_data=False):
     if not fitted:
         raise ValueError(f"`model` has no learned attributes to save; call fit() on the "
                          f"{type(model).__name__} first")
+    if trend is not None:
+        _check_trend(trend, model)
+        fitted["trend_"] = _encode(trend)
+        if "trend_" in omitted:
+            omitted.remove("trend_")
     from ._version import __version__
 
     return {"format": FORMAT, "format_version": FORMAT_VERSION, "rlsfilt_version": __version__,
@@ -177,6 +217,26 @@ def _from_document(doc, cls=None, source="the document"):
         for key, value in fitted.items():
             setattr(model, key, value)
     return model
+
+
+def _check_trend(trend, model):
+    """TypeError/ValueError unless `trend` can be the pretreatment of `model`'s data."""
+    from .data.trend import Trend
+
+    if not isinstance(trend, Trend):
+        raise TypeError(f"`trend` must be a Trend (from rlsfilt.detrend); got "
+                        f"{type(trend).__name__}")
+    nu, ny = getattr(model, "n_inputs_", None), getattr(model, "n_outputs_", None)
+    if nu is None or ny is None:
+        return
+    if trend.n_inputs is not None:
+        if (trend.n_inputs, trend.n_outputs) != (nu, ny):
+            raise ValueError(f"`trend` must describe {nu} input(s) and {ny} output(s) like the "
+                             f"model; got {trend.n_inputs} and {trend.n_outputs}")
+    elif nu != 0 or trend.n_columns != ny:
+        raise ValueError(f"`trend` must be the trend of an IOData with {nu} input(s) and {ny} "
+                         f"output(s) (detrend(IOData(u, y, dt))); got the trend of an array "
+                         f"with {trend.n_columns} column(s)")
 
 
 def _find_class(name, module, source):

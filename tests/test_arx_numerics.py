@@ -7,7 +7,8 @@ import pytest
 from scipy.signal import lfilter
 
 from rlsfilt import ARX, NumericalWarning, RecursiveLeastSquares, SquareRootRLS
-from rlsfilt.models.regressors import _unit_columns, arx_regressors
+from rlsfilt._scale import unit_columns
+from rlsfilt.models.regressors import arx_regressors
 
 
 def _resonant_record(seed=1, n=4000):
@@ -29,7 +30,7 @@ def _rel(a, b):
 def test_high_order_recursive_fit_equals_batch_least_squares(order):
     u, y = _resonant_record()
     Phi, _ = arx_regressors(u, y, order, order, 1)
-    cond = np.linalg.cond(_unit_columns(Phi))
+    cond = np.linalg.cond(unit_columns(Phi))
     assert 1e6 < cond < 1e8 and np.linalg.cond(Phi) > 5e6
     ls = ARX(order, order, 1).fit(u, y)
     with warnings.catch_warnings():

@@ -1,5 +1,7 @@
 """Equality constraints (against KKT-solved least squares) and the outlier gate."""
 
+import pickle
+
 import numpy as np
 import pytest
 from conftest import arx_record
@@ -92,6 +94,75 @@ def test_initialize_and_reset_keep_constraints(rng):
     assert_allclose(rls.x[:, 0], _kkt(Hs[:10], zs[:10], A2, B2), rtol=1e-9)
     rls.reset()
     assert_allclose(A2 @ rls.x[:, 0], B2, atol=1e-12)
+
+
+def test_constraints_accumulate_and_stay_the_kkt_answer(rng):
+    """Three constraints added one call at a time (one, two, then one more row), updates
+    between them, reset() and initialize() after: at every step the estimate is the
+    equality-constrained least-squares answer under all constraints given so far (KKT)."""
+    n = 6
+    H = rng.standard_normal((260, n))
+    z = H @ rng.standard_normal(n) + 0.3 * rng.standard_normal(260)
+    blocks = [(np.array([[1.0, 1.0, 0.0, 0.0, 0.0, 0.0]]), np.array([0.5])),
+              (np.array([[0.0, 0.0, 1.0, -1.0, 0.0, 0.0],
+                         [0.0, 1.0, 0.0, 0.0, 2.0, 0.0]]), np.array([0.2, -0.4])),
+              (np.array([[1.0, 0.0, 0.0, 0.0, 0.0, 3.0]]), np.array([1.0]))]
+    rls = RecursiveLeastSquares(n)
+    rls.initialize(z[:10], H[:10])
+    A, b = np.zeros((0, n)), np.zeros(0)
+    t = 10
+    for Ak, bk in blocks:
+        rls.constrain(Ak, bk)
+        A, b = np.vstack([A, Ak]), np.concatenate([b, bk])
+        assert_array_equal(rls.constraints.A, A)
+        assert_allclose(rls.x[:, 0], _kkt(H[:t], z[:t], A, b), rtol=1e-8, atol=1e-10)
+        for _ in range(60):
+            rls.predict_update(z[t], H[t])
+            t += 1
+            assert_allclose(rls.x[:, 0], _kkt(H[:t], z[:t], A, b), rtol=1e-8, atol=1e-10)
+        assert_allclose(A @ rls.x[:, 0], b, atol=1e-10)
+    # every constraint is active: the unconstrained answer violates each block
+    free = np.linalg.lstsq(H[:t], z[:t], rcond=None)[0]
+    assert all(np.abs(Ak @ free - bk).max() > 1e-3 for Ak, bk in blocks)
+    # configuration, not state: reset() and initialize() keep all of them
+    rls.reset()
+    assert_allclose(A @ rls.x[:, 0], b, atol=1e-10)
+    rls.initialize(z[:40], H[:40])
+    assert_allclose(rls.x[:, 0], _kkt(H[:40], z[:40], A, b), rtol=1e-8, atol=1e-10)
+    rls.batch_filter(z[40:], H[40:])
+    assert_allclose(rls.x[:, 0], _kkt(H, z, A, b), rtol=1e-8, atol=1e-10)
+
+
+def test_redundant_or_conflicting_constraints_are_refused_atomically(rng):
+    """The audit's case: a second constraint on a constrained direction raised
+    LinAlgError or gave an estimate far from the constrained answer."""
+    Hs, zs = arx_record(rng, n_samples=60)
+    rls = RecursiveLeastSquares(4)
+    rls.initialize(zs[:8], Hs[:8])
+    rls.constrain(A2, B2)
+    for A, b, what in ((A2[0], B2[0], "redundant"),                       # the same again
+                       (2.0 * A2[1], 2.0 * B2[1], "redundant"),           # a multiple
+                       (A2[0] + A2[1], B2[0] + B2[1], "redundant"),       # a combination
+                       (A2[0], B2[0] + 0.1, "conflict"),                  # another value
+                       (A2[0] - A2[1], 0.0, "conflict")):
+        before = pickle.dumps(rls)
+        with pytest.raises(ValueError, match=f"`A`, `b` (are {what}|{what})"):
+            rls.constrain(A, b)
+        assert pickle.dumps(rls) == before
+    with pytest.raises(ValueError, match="4 constraints would fix all dim_x = 4 parameters"):
+        rls.constrain([[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]], [0.0, 0.0])
+
+
+def test_constraints_survive_reset_with_efra(rng):
+    """EFRA's start is clipped before the constraints are imposed again (the projection
+    must not meet a covariance already singular in their directions)."""
+    Hs, zs = arx_record(rng, n_samples=300)
+    rls = RecursiveLeastSquares(4, lam=0.95, forgetting="efra", R=0.01)
+    rls.constrain(A2[:1], B2[:1]).constrain(A2[1:], B2[1:])
+    rls.batch_filter(zs, Hs)
+    rls.reset()
+    means, *_ = rls.batch_filter(zs, Hs)
+    assert_allclose(means[:, :, 0] @ A2.T, np.broadcast_to(B2, (len(zs), 2)), atol=1e-9)
 
 
 def test_constrain_bad_arguments():

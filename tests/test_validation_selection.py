@@ -233,3 +233,105 @@ def test_best_model_names_signals_like_a_direct_fit():
     U2 = np.column_stack([d.u, np.roll(d.u, 3)])
     two = select_order(U2, d.y, na=2, nb=2, nk=1).best_model()
     assert two.param_names_ == ARX(2, 2, 1).fit(U2, d.y).param_names_
+
+
+# ----------------------------------------------------------------------
+# select_order over the prediction-error family (delegates to select_structure)
+# ----------------------------------------------------------------------
+def _armax_record(rng, n=3000):
+    u, e = rng.standard_normal(n), 0.3 * rng.standard_normal(n)
+    a = [1, -1.5, 0.7]
+    return u, lfilter([0, 1, 0.5], a, u) + lfilter([1, -1, 0.2], a, e)
+
+
+def test_select_order_armax_picks_the_truth_and_is_select_structure(rng):
+    from rlsfilt import ARMAX, select_structure
+
+    u, y = _armax_record(rng)
+    grid = {"na": [1, 2, 3], "nb": [1, 2, 3], "nc": [1, 2, 3], "nk": [1]}
+    sel = select_order(u, y, model=ARMAX, **grid)
+    assert sel.best == {"na": 2, "nb": 2, "nc": 2, "nk": 1}
+    ref = select_structure(ARMAX, u, y, grid)
+    assert sel.best == ref.best and sel.best_index == ref.best_index
+    np.testing.assert_array_equal(sel.values, ref.values)
+    for c, r in zip(sel.candidates, ref.candidates):
+        assert c["orders"] == r["orders"] and c["loss"] == r["loss"]
+    np.testing.assert_array_equal(sel.best_model.theta_, ref.best_model.theta_)
+    assert "<- best" in sel.summary()
+    assert list(sel.to_dataframe()[["na", "nb", "nc", "nk"]].iloc[sel.best_index]) == [2, 2, 2, 1]
+    # the ARMAX one-step loss is the noise variance (0.09); ARX of the true (na, nb, nk),
+    # from the same entry point, leaves the coloured part C e in its residuals
+    assert sel.candidates[sel.best_index]["loss"] == pytest.approx(0.09, rel=0.06)
+    arx = select_order(u, y, na=[2], nb=[2], nk=[1])
+    assert arx.best == (2, 2, 1) and arx.table["loss"][0] > 1.3 * 0.09
+
+
+def test_select_order_family_validation_criterion_and_options(rng):
+    import warnings
+
+    from rlsfilt import OE, select_structure
+    from rlsfilt.exceptions import OrderSelectionWarning
+
+    u = rng.standard_normal(3000)
+    y = lfilter([0, 1.0, 0.5], [1, -1.5, 0.7], u) + 0.3 * rng.standard_normal(3000)
+    val = (u[2000:], y[2000:])
+    sel = select_order(u[:2000], y[:2000], model=OE, nb=[2], nf=[1, 2, 3], nk=[1],
+                       criterion="bic", validation=val)
+    ref = select_structure(OE, u[:2000], y[:2000], {"nb": [2], "nf": [1, 2, 3], "nk": [1]},
+                           criterion="bic", validation=val)
+    assert sel.best == ref.best == {"nb": 2, "nf": 2, "nk": 1}
+    np.testing.assert_array_equal(sel.values, ref.values)
+    assert all(np.isfinite(c["val_loss"]) for c in sel.candidates)
+    # orders not given take the documented default grid (1, 2; nk 1, 2, 3)
+    with warnings.catch_warnings():  # the true (2, 2) is at the default grid's edge
+        warnings.simplefilter("ignore", OrderSelectionWarning)
+        short = select_order(u[:600], y[:600], model=OE, nk=[1])
+    assert [c["orders"] for c in short.candidates] == [
+        {"nb": b, "nf": f, "nk": 1} for b in (1, 2) for f in (1, 2)]
+
+
+def test_select_order_family_warns_at_the_grid_edge(rng):
+    from rlsfilt import ARMAX
+    from rlsfilt.exceptions import OrderSelectionWarning
+
+    u, y = _armax_record(rng, 2000)
+    with pytest.warns(OrderSelectionWarning, match=r"\(na, nb, nc, nk\) = \(2, 2, 2, 1\).*"
+                                                  r"upper edge of the `nc` range"):
+        select_order(u, y, model=ARMAX, na=[2], nb=[2], nc=[1, 2], nk=[1])
+
+
+def test_select_order_family_errors(rng):
+    from rlsfilt import ARMA, ARMAX, BJ, OE
+
+    u, y = _armax_record(rng, 300)
+    with pytest.raises(ValueError, match="`nc` is not an order of ARX"):
+        select_order(u, y, nc=[1, 2])
+    with pytest.raises(ValueError, match="`fit_options` applies to the classes"):
+        select_order(u, y, fit_options={"method": "rpem"})
+    with pytest.raises(ValueError, match=r"`na` is not an order of OE \(its orders: nb, nf, nk\)"):
+        select_order(u, y, na=[1, 2], model=OE)
+    with pytest.raises(ValueError, match="`nf` is not an order of ARMAX"):
+        select_order(u, y, model=ARMAX, nf=[1])
+    with pytest.raises(ValueError, match="`na` is not an order of BJ"):
+        select_order(u, y, model=BJ, na=2)
+    with pytest.raises(TypeError, match="`model` must be a model class such as ARMAX"):
+        select_order(u, y, model=ARMAX(2, 2, 2))
+    with pytest.raises(ValueError, match="`offset` applies to ARX only"):
+        select_order(u, y, model=ARMAX, offset=True)
+    with pytest.raises(ValueError, match="`stable_only` applies to ARX only"):
+        select_order(u, y, model=ARMAX, stable_only=True)
+    with pytest.raises(ValueError, match="`u` must be None for the time-series class ARMA"):
+        select_order(u, y, model=ARMA)
+    with pytest.raises(ValueError, match="`nc` must be"):
+        select_order(u, y, model=ARMAX, nc=[-1])
+    with pytest.raises(ValueError, match="`criterion` must be one of"):
+        select_order(u, y, model=ARMAX, criterion="r2")
+
+
+def test_select_order_time_series_class(rng):
+    from rlsfilt import ARMA, select_structure
+
+    y = lfilter([1, 0.5], [1, -0.8], rng.standard_normal(3000))
+    sel = select_order(None, y, model=ARMA, na=[1, 2, 3], nc=[0, 1, 2])
+    assert sel.best == select_structure(ARMA, None, y, {"na": [1, 2, 3], "nc": [0, 1, 2]}).best \
+        == {"na": 1, "nc": 1}

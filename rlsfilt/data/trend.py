@@ -23,6 +23,7 @@ import numbers
 
 import numpy as np
 
+from .._scale import pow2_scale
 from .._validation import as_float_array, check_finite, check_int
 from .iodata import IOData
 
@@ -350,7 +351,9 @@ def _offset_messages(records, names, ratio=3.0):
     out = []
     for k, (kind, label) in enumerate((("input", "u"), ("output", "y"))):
         X = np.vstack([r[k] for r in records])
-        mean, std = X.mean(axis=0), X.std(axis=0)
+        c = pow2_scale(X, axis=0)       # std of a record in any units (rlsfilt._scale)
+        Xs = X / c
+        mean, std = Xs.mean(axis=0) * c, Xs.std(axis=0) * c
         for j in range(X.shape[1]):
             if abs(mean[j]) > ratio * std[j]:
                 default = label if X.shape[1] == 1 else f"{label}{j + 1}"

@@ -9,7 +9,14 @@ import math
 
 import numpy as np
 
-from .._validation import as_float_array, as_generator, check_finite, check_int, check_real
+from .._validation import (
+    as_float_array,
+    as_generator,
+    check_finite,
+    check_int,
+    check_length,
+    check_real,
+)
 
 __all__ = ["prbs", "white_noise", "multisine", "steps"]
 
@@ -56,7 +63,7 @@ def prbs(n_samples=1000, *, amplitude=1.0, hold=1, nbits=None, offset=0.0, rng=0
     array([-2.,  2.])
     """
     from scipy import signal  # lazy: keeps `import rlsfilt` light
-    n_samples = check_int(n_samples, "n_samples", minimum=1)
+    n_samples = check_length(n_samples, "n_samples")
     hold = check_int(hold, "hold", minimum=1)
     amplitude = check_real(amplitude, "amplitude")
     offset = check_real(offset, "offset")
@@ -102,7 +109,7 @@ def white_noise(n_samples=1000, *, std=1.0, mean=0.0, rng=0):
     >>> white_noise(5, std=2.0, rng=1).round(3)
     array([ 0.691,  1.643,  0.661, -2.606,  1.811])
     """
-    n_samples = check_int(n_samples, "n_samples", minimum=1)
+    n_samples = check_length(n_samples, "n_samples")
     std = check_real(std, "std", minimum=0)
     mean = check_real(mean, "mean")
     return mean + std * as_generator(rng).standard_normal(n_samples)
@@ -151,7 +158,7 @@ def multisine(n_samples=1000, *, n_components=None, band=(0.0, 1.0), rms=1.0,
     >>> int(np.count_nonzero(np.abs(np.fft.rfft(u)) > 1e-9))     # eight spectral lines
     8
     """
-    n_samples = check_int(n_samples, "n_samples", minimum=4)
+    n_samples = check_length(n_samples, "n_samples", minimum=4)
     rms = check_real(rms, "rms", minimum=0)
     gen = as_generator(rng)
     try:
@@ -215,7 +222,7 @@ def steps(n_samples=1000, *, hold=100, amplitude=1.0, levels=None, rng=0):
     >>> steps(6, hold=2, levels=[0, 1])
     array([0., 0., 1., 1., 0., 0.])
     """
-    n_samples = check_int(n_samples, "n_samples", minimum=1)
+    n_samples = check_length(n_samples, "n_samples")
     hold = check_int(hold, "hold", minimum=1)
     n_levels = math.ceil(n_samples / hold)
     gen = as_generator(rng)

@@ -20,6 +20,7 @@ Noise models (``e`` white Gaussian of standard deviation ``noise_std``):
 
 import numpy as np
 
+from .._resources import check_memory
 from .._validation import as_float_array, as_generator, check_finite, check_int, check_real
 from .dataset import Dataset
 from .inputs import multisine, prbs, steps, white_noise
@@ -47,6 +48,9 @@ def _make_input(spec, n_samples, rng, defaults):
         if spec not in makers:
             raise ValueError(f"`input` must be one of {sorted(makers)} or an array; got {spec!r}")
         kwargs = dict(defaults.get(spec, {}))
+        n = check_int(n_samples, "n_samples", minimum=1)
+        # the input, noise, clean and noisy output and the filters' temporaries
+        check_memory(8 * 12 * n, f"a dataset of `n_samples` = {n}")
         return makers[spec](n_samples, rng=rng, **kwargs)
     u = as_float_array(spec, "input")
     if u.ndim != 1:

@@ -13,7 +13,14 @@ import math
 import numpy as np
 
 from .._display import filter_html
-from .._validation import as_float_array, check_finite, check_int, check_variance
+from .._validation import (
+    VARIANCE_RANGE,
+    as_float_array,
+    check_bool,
+    check_finite,
+    check_int,
+    check_variance,
+)
 from . import _health
 
 __all__ = []
@@ -135,6 +142,11 @@ class _FilterBase:
         as it was."""
         Z, Hm = self._as_batch(zs, Hs)
         Rv = self._as_batch_variances(Rs, len(Z))
+        update_first = check_bool(update_first, "update_first")
+        store_covariances = check_bool(store_covariances, "store_covariances")
+        if saver is not None and not callable(getattr(saver, "save", None)):
+            raise TypeError(f"`saver` must be None or have a save() method (filterpy's Saver); "
+                            f"got {type(saver).__name__}")
         if saver is None and len(Z):
             return self._batch_compiled(Z, Hm, Rv, update_first, store_covariances)
         before = copy.deepcopy(self)._shallow_state()
@@ -285,7 +297,10 @@ class _FilterBase:
     def _as_batch(self, zs, Hs):
         """Validate a record: ``Z`` (N, dim_z) with NaN for missing, ``H`` (N, dim_x)."""
         n, m = self.dim_x, self.dim_z
-        if isinstance(zs, np.ndarray) or not any(v is None for v in zs):
+        for arg, value in (("zs", zs), ("Hs", Hs)):
+            if value is None or isinstance(value, (str, bytes)):
+                raise TypeError(f"`{arg}` must be an array of one row per sample; got {value!r}")
+        if isinstance(zs, np.ndarray) or not _has_none(zs):
             Z = as_float_array(zs, "zs")
         else:  # a list with None entries for missing samples
             Z = np.array([np.full(m, np.nan) if v is None
@@ -328,7 +343,31 @@ class _FilterBase:
         if bad.any():
             i = int(np.argmax(bad))
             raise ValueError(f"`Rs` must hold positive finite variances; got {arr[i]} at index {i}")
+        lo, hi = VARIANCE_RANGE
+        bad = (arr < lo) | (arr > hi)
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise ValueError(f"`Rs` must hold variances in [{lo:.0e}, {hi:.0e}] (the update "
+                             f"multiplies and divides by them); got {arr[i]:.3g} at index {i}")
         return arr.copy()
+
+
+def own_array(value, name):
+    """`value` as the filter's own C-contiguous float64 array (always a copy).
+
+    What assigning ``x`` or ``P`` stores: the caller's array is never kept,
+    so neither can later change the other. Shapes are checked where the
+    array is used, so that the error names the method that cannot use it.
+    """
+    return np.array(as_float_array(value, name), dtype=np.float64, order="C")
+
+
+def _has_none(values):
+    """Whether a sequence of measurements marks a missing one by None (a scalar: no)."""
+    try:
+        return any(v is None for v in values)
+    except TypeError:            # not iterable: a scalar, refused by the shape check
+        return False
 
 
 def _slots(cls):

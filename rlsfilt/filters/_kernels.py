@@ -58,8 +58,8 @@ next failure warns again.
 """
 
 import numpy as np
-from numba import njit
 
+from .._numba import njit  # numba.njit, uncached where no cache directory is writable
 from ._kernels_shared import any_nan, copy2, diagonal_bad, unhealthy, unhealthy_on, unhealthy_sym
 from .forgetting import (
     CFG_GATE,

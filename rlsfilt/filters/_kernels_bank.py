@@ -48,8 +48,9 @@ Every function is ``njit(cache=True)`` with ``error_model="numpy"``
 """
 
 import numpy as np
-from numba import njit, prange
+from numba import prange
 
+from .._numba import njit  # numba.njit, uncached where no cache directory is writable
 from ._kernels_shared import unhealthy as _unhealthy
 
 __all__ = []

@@ -9,7 +9,8 @@ loaded from the disk cache by later processes.
 import math
 
 import numpy as np
-from numba import njit
+
+from .._numba import njit  # numba.njit, uncached where no cache directory is writable
 
 __all__ = []
 

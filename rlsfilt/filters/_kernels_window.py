@@ -34,8 +34,8 @@ The Givens rotations keep the diagonal of ``U`` positive by construction
 import math
 
 import numpy as np
-from numba import njit
 
+from .._numba import njit  # numba.njit, uncached where no cache directory is writable
 from ._kernels_shared import (
     _EPS,
     any_nan,

@@ -15,7 +15,15 @@ import math
 import numpy as np
 from filterpy.common import pretty_str
 
-from .._validation import as_float_array, check_covariance, check_int, check_scalar
+from .._validation import (
+    VARIANCE_RANGE,
+    as_float_array,
+    check_covariance,
+    check_dimension,
+    check_int,
+    check_length,
+    check_scalar,
+)
 from ..exceptions import ForgettingSkippedWarning, NumericalWarning
 from . import _health
 from . import forgetting as _fg
@@ -219,8 +227,10 @@ class RLSBank:
     def __init__(self, n_channels, dim_x, lam=1.0, *, Q=0.0, R=1.0, P0=1e4, x0=None,
                  forgetting="exponential", forgetting_params=None, check_every=100,
                  cond_max=1e12, parallel=False):
-        self.n_channels = check_int(n_channels, "n_channels", minimum=1)
-        self.dim_x = check_int(dim_x, "dim_x", minimum=1)
+        self.dim_x = check_dimension(dim_x, "dim_x")
+        # per channel: x, P and their priors, posteriors and the batch's work arrays
+        self.n_channels = check_length(n_channels, "n_channels",
+                                       bytes_per_item=64 * self.dim_x * (self.dim_x + 1))
         if not isinstance(forgetting, str) or forgetting not in _MODES:
             raise ValueError(
                 f"`forgetting` must be one of {', '.join(map(repr, _MODES))} for RLSBank; got "
@@ -366,12 +376,21 @@ class RLSBank:
             self._check_health(f"at update {self.n_updates} since reset")
 
     def predict_update(self, z, H, R=None):
-        """One textbook step of every channel: :meth:`predict` then :meth:`update`."""
-        self.predict()
-        self.update(z, H, R)
+        """One textbook step of every channel: :meth:`predict` then :meth:`update`.
 
-    def batch_filter(self, zs, Hs, Rs=None, update_first=False, store_covariances=True,
-                     store_means=True):
+        A step whose update raises leaves the bank as it was (no half step).
+        """
+        before = dict(self.__dict__)     # predict and update replace arrays, never write them
+        self.predict()
+        try:
+            self.update(z, H, R)
+        except BaseException:
+            self.__dict__.clear()
+            self.__dict__.update(before)
+            raise
+
+    def batch_filter(self, zs, Hs, Rs=None, update_first=False, saver=None,
+                     store_covariances=True, store_means=True):
         r"""Run every channel over a record in one compiled call.
 
         Parameters
@@ -385,6 +404,10 @@ class RLSBank:
             channel (the bank's `R` if omitted).
         update_first : bool, default False
             Update then predict in each step instead of predict then update.
+        saver : filterpy.common.Saver, optional
+            Saved after every step. The record then runs step by step
+            (:meth:`predict` and :meth:`update`, the same arithmetic and
+            results as the compiled call, but a Python loop over the steps).
         store_covariances : bool, default True
             With ``False`` no covariance histories are kept (returned as
             None): memory stays ``O(N C dim_x)``.
@@ -423,6 +446,9 @@ class RLSBank:
         h_last = Ht.flags.c_contiguous and not Hm.flags.c_contiguous
         Hk = Ht if h_last else np.ascontiguousarray(Hm)
         Rv = self._batch_variances(Rs, N)
+        if saver is not None:
+            return self._batch_stepwise(Z, Hm, Rv, bool(update_first), saver,
+                                        store_covariances, store_means)
         x = np.array(self._checked_x(), dtype=np.float64, order="C")
         P = np.array(self._checked_P(), dtype=np.float64, order="C")
         means = np.empty((N if store_means else 0, C, n))
@@ -465,6 +491,53 @@ class RLSBank:
             self._check_health("at the end of batch_filter")
         return BankHistory(means if store_means else None,
                            covs if store_covariances else None, means_p,
+                           covs_p if store_covariances else None, ys, ss)
+
+    def _batch_stepwise(self, Z, Hm, Rv, update_first, saver, store_covariances, store_means):
+        """`batch_filter` with a `saver`: :meth:`predict`/:meth:`update` step by
+        step, ``saver.save()`` after each step. The record is validated first,
+        and a call that raises (or whose warning is turned into an error)
+        leaves the bank as it was."""
+        C, n = self.n_channels, self.dim_x
+        N = len(Z)
+        for name, arr in (("zs", Z), ("Hs", Hm)):
+            if np.isinf(arr).any():
+                idx = tuple(int(v) for v in np.argwhere(np.isinf(arr))[0])
+                raise ValueError(f"`{name}` must be finite or NaN (missing); got {arr[idx]} "
+                                 f"at index {idx}")
+        Rv = np.broadcast_to(Rv, (N, C))
+        means = np.empty((N if store_means else 0, C, n))
+        means_p = np.empty_like(means)
+        covs = np.empty((N if store_covariances else 0, C, n, n))
+        covs_p = np.empty_like(covs)
+        ys, ss = np.empty((N, C)), np.empty((N, C))
+        before = copy.deepcopy(self.__dict__)
+        try:
+            for k in range(N):
+                if not update_first:
+                    self.predict()
+                    if store_covariances:
+                        covs_p[k] = self.P
+                self.update(Z[k], Hm[k], Rv[k])
+                ys[k], ss[k] = self.y, self.S
+                if store_means:
+                    means[k] = self.x
+                if store_covariances:
+                    covs[k] = self.P
+                if update_first:
+                    self.predict()
+                    if store_covariances:
+                        covs_p[k] = self.P
+                if store_means:
+                    means_p[k] = self.x_prior
+                saver.save()
+        except BaseException:
+            self.__dict__.clear()
+            self.__dict__.update(before)
+            raise
+        return BankHistory(means if store_means else None,
+                           covs if store_covariances else None,
+                           means_p if store_means else None,
                            covs_p if store_covariances else None, ys, ss)
 
     def initialize(self, zs, Hs):
@@ -698,6 +771,8 @@ class RLSBank:
     def _per_channel(self, value, name):
         """A scalar or one value per channel, as a new float array of shape (C,)."""
         C = self.n_channels
+        if np.asarray(value).dtype == bool:
+            raise TypeError(f"`{name}` must be a number or one number per channel; got {value!r}")
         arr = as_float_array(value, name)
         if arr.ndim == 0:
             return np.full(C, float(arr))
@@ -713,6 +788,12 @@ class RLSBank:
             c = int(np.argmax(bad))
             raise ValueError(f"`{name}` must be a positive finite variance; got {arr[c]} for "
                              f"channel {c}")
+        lo, hi = VARIANCE_RANGE
+        bad = (arr < lo) | (arr > hi)
+        if bad.any():
+            c = int(np.argmax(bad))
+            raise ValueError(f"`{name}` must be a variance in [{lo:.0e}, {hi:.0e}] (the update "
+                             f"multiplies and divides by it); got {arr[c]:.3g} for channel {c}")
         return arr
 
     def _covariances(self, value, name, definite=False):
@@ -786,7 +867,9 @@ class RLSBank:
             raise ValueError(f"`{name}` must have shape {expected}; got {arr.shape}")
         if not strided:
             arr = np.ascontiguousarray(arr)
-        if finite and not np.isfinite(arr.sum()) and np.isinf(arr).any():
+        with np.errstate(invalid="ignore", over="ignore"):    # inf - inf: NaN, no warning
+            total = arr.sum() if finite else 0.0
+        if finite and not np.isfinite(total) and np.isinf(arr).any():
             idx = tuple(int(v) for v in np.argwhere(np.isinf(arr))[0])
             raise ValueError(f"`{name}` must be finite or NaN (missing); got {arr[idx]} at "
                              f"index {idx}")

@@ -19,9 +19,11 @@ import math
 import numpy as np
 
 from .._display import pretty_str
+from .._scale import safe_norm
 from .._validation import (
     as_float_array,
     check_covariance,
+    check_dimension,
     check_finite,
     check_int,
     check_lam,
@@ -31,7 +33,7 @@ from .._validation import (
 from ..exceptions import ForgettingSkippedWarning
 from . import _health, _streaming
 from . import forgetting as _fg
-from ._base import MISSING_DIAGNOSTICS, _FilterBase
+from ._base import MISSING_DIAGNOSTICS, _FilterBase, own_array
 
 __all__ = ["RecursiveLeastSquares"]
 
@@ -155,8 +157,11 @@ class RecursiveLeastSquares(_FilterBase):
         Forgetting factor effectively applied by the last update (`lam` for
         ``"exponential"``; the directional weight, the variable factor or
         the constant-trace normalization otherwise).
-    constraints : tuple of ndarray or None
-        ``(A, b)`` given to :meth:`constrain`.
+    constraints : EqualityConstraints or None
+        Every constraint given to :meth:`constrain`, stacked: ``.A`` of
+        shape ``(p, dim_x)`` and ``.b`` of shape ``(p, dim_z)``; unpacks as
+        ``A, b = rls.constraints``. Configuration, not state: kept by
+        :meth:`reset` and :meth:`initialize`.
 
     Notes
     -----
@@ -299,7 +304,7 @@ class RecursiveLeastSquares(_FilterBase):
     def __init__(self, dim_x, dim_z=1, lam=1.0, *, P0=1e4, x0=None, R=1.0, Q=0.0,
                  forgetting="exponential", forgetting_params=None, gate=None,
                  check_every=None, cond_max=1e12):
-        self.dim_x = check_int(dim_x, "dim_x", minimum=1)
+        self.dim_x = check_dimension(dim_x, "dim_x")
         self.dim_z = check_int(dim_z, "dim_z", minimum=1)
         self._row_shape = (self.dim_x,)
         self._mode = _fg.mode_code(forgetting)
@@ -332,7 +337,7 @@ class RecursiveLeastSquares(_FilterBase):
 
     @x.setter
     def x(self, value):
-        self._x = _own(value, "x")
+        self._x = own_array(value, "x")
         self._recheck = True
 
     @property
@@ -342,7 +347,7 @@ class RecursiveLeastSquares(_FilterBase):
 
     @P.setter
     def P(self, value):
-        self._P = _own(value, "P")
+        self._P = own_array(value, "P")
         self._recheck = True
         self._cap, self._w = False, 1.0     # the windup cap decides again from the new P
 
@@ -537,7 +542,7 @@ class RecursiveLeastSquares(_FilterBase):
         # QR depends on the units of the regressors (1e-8 beside 1e6 is not rank
         # deficiency); the solution is scaled back exactly: x = D^-1 x_s,
         # (A^T A)^-1 = D^-1 (A_s^T A_s)^-1 D^-1
-        norms = np.linalg.norm(A, axis=0) if len(A) else np.ones(self.dim_x)
+        norms = safe_norm(A, axis=0) if len(A) else np.ones(self.dim_x)
         d = np.where(norms > 0.0, norms, 1.0)
         As = A / d
         rank = int(np.linalg.matrix_rank(As)) if len(A) else 0
@@ -548,14 +553,20 @@ class RecursiveLeastSquares(_FilterBase):
                 "samples or a more exciting input."
             )
         Qf, Rf = np.linalg.qr(As)
-        self._x = solve_triangular(Rf, Qf.T @ B) / d[:, None]
+        x = solve_triangular(Rf, Qf.T @ B) / d[:, None]
         Rinv = solve_triangular(Rf, np.eye(self.dim_x)) / d[:, None]   # D^-1 R_s^-1
-        P = self._R * (Rinv @ Rinv.T)
+        with np.errstate(over="ignore", under="ignore"):
+            P = self._R * (Rinv @ Rinv.T)
+        if not (np.isfinite(P).all() and np.isfinite(x).all() and (np.diag(P) > 0).all()):
+            raise ValueError(
+                f"`Hs` (largest entry {np.abs(Hm).max():.3g}) gives a covariance "
+                "R (Hs^T Hs)^-1 outside the range of double precision; scale the regressors")
+        self._x = x
         self._P = 0.5 * (P + P.T)
         self._efra_pending = self._mode == _fg.EFRA
         self._recheck = True
         if self.constraints is not None:   # keep the constraints given earlier
-            self.constrain(*self.constraints)
+            self._impose(*self.constraints, *self.constraints, fresh=True)
         self.x_prior, self.x_post = self._x.copy(), self._x.copy()
         self.P_prior, self.P_post = self._P.copy(), self._P.copy()
         self._updates_since_predict = 0
@@ -695,27 +706,36 @@ class RecursiveLeastSquares(_FilterBase):
     # equality constraints
     # ------------------------------------------------------------------
     def constrain(self, A, b):
-        r"""From now on keep the estimate on the affine set ``A x = b``.
+        r"""From now on keep the estimate on the affine set ``A x = b`` as well.
 
-        The state and covariance are projected once (Zhu & Li 2007):
+        Constraints accumulate: each call adds its rows to those given
+        before (:attr:`constraints` holds them all), and the estimate then
+        satisfies every one. The state and covariance are projected once,
+        with the new rows only (Zhu & Li 2007):
 
         .. math::
 
             W &= P A^T (A P A^T)^{-1} \\
             x &\leftarrow x + W (b - A x), \qquad P \leftarrow P - W A P
 
-        after which :math:`A P = 0`, so every gain satisfies :math:`A K = 0`
-        and plain updates keep :math:`A x = b`. Started from
-        :meth:`initialize` with ``lam = 1`` this gives, at every later step,
-        the equality-constrained least-squares estimate (the KKT solution)
-        on all data so far, as statsmodels' ``RecursiveLS(constraints=...)``.
-        ``P`` is then singular (rank ``dim_x - rank(A)``); the health check
-        tests it on the null space of ``A``.
+        after which :math:`A P = 0` for every row given so far (the earlier
+        rows already had it, and :math:`A_{old} W = 0`), so every gain
+        satisfies :math:`A K = 0` and plain updates keep all of them.
+        Conditioning on the rows one call at a time is conditioning on all
+        of them at once, so started from :meth:`initialize` with
+        ``lam = 1`` the estimate is, at every later step, the
+        equality-constrained least-squares estimate (the KKT solution) on
+        all data so far under all constraints given so far, as statsmodels'
+        ``RecursiveLS(constraints=...)``. ``P`` is then singular (rank
+        ``dim_x - p``); the health check tests it on the null space of the
+        constraints. :meth:`reset` and :meth:`initialize` impose them all
+        again on their fresh ``x`` and ``P``.
 
         Parameters
         ----------
         A : array_like, shape (p, dim_x) or (dim_x,)
-            Constraint matrix of full row rank ``p < dim_x``.
+            Constraint rows, independent of each other and of the rows
+            given before, fewer than ``dim_x`` in all.
         b : float or array_like, shape (p,) or (p, dim_z)
             Right-hand side; one column per output when ``dim_z > 1`` (a
             1-D `b` applies to every output).
@@ -723,8 +743,15 @@ class RecursiveLeastSquares(_FilterBase):
         Returns
         -------
         self
+
+        Raises
+        ------
+        ValueError
+            When a row is redundant (implied by the others: the same or a
+            combination of constraints already given) or conflicting (no
+            ``x`` satisfies all of them), or when all constraints together
+            would fix every parameter. The filter is left as it was.
         """
-        from scipy.linalg import null_space  # lazy: keeps `import rlsfilt` light
         n, m = self.dim_x, self.dim_z
         A = as_float_array(A, "A")
         if A.ndim == 1:
@@ -733,7 +760,7 @@ class RecursiveLeastSquares(_FilterBase):
             raise ValueError(f"`A` must have shape (p, {n}) (dim_x = {n} columns); got {A.shape}")
         check_finite(A, "A")
         p = A.shape[0]
-        rank = np.linalg.matrix_rank(A)
+        rank = _row_rank(A)
         if rank != p or p >= n:
             raise ValueError(f"`A` must have full row rank p < dim_x = {n}; got {p} rows of "
                              f"rank {rank}")
@@ -742,22 +769,70 @@ class RecursiveLeastSquares(_FilterBase):
             bb = np.repeat(bb.reshape(p, 1), m, axis=1)
         if bb.shape != (p, m):
             raise ValueError(f"`b` must have shape ({p},) or ({p}, {m}); got {bb.shape}")
+        A_all, b_all = A, bb
+        if self.constraints is not None:
+            A_all = np.vstack([self.constraints.A, A])
+            b_all = np.vstack([self.constraints.b, bb])
+            if A_all.shape[0] >= n:
+                raise ValueError(
+                    f"`A` adds {p} row(s) to the {A_all.shape[0] - p} constraint(s) given "
+                    f"before: {A_all.shape[0]} constraints would fix all dim_x = {n} "
+                    "parameters; at most dim_x - 1 can be imposed")
+            if _row_rank(A_all) < A_all.shape[0]:
+                c = _row_norms(A_all)
+                x_ls = np.linalg.lstsq(A_all / c[:, None], b_all / c[:, None], rcond=None)[0]
+                A_all, b_all = A_all / c[:, None], b_all / c[:, None]
+                gap = np.abs(A_all @ x_ls - b_all).max()
+                size = np.abs(b_all).max() + np.abs(A_all).max() * np.abs(x_ls).max()
+                if gap <= 1e-9 * max(size, np.finfo(float).tiny):
+                    raise ValueError(
+                        "`A`, `b` are redundant: the constraint is implied by the ones given "
+                        "before (the rows of all constraints are linearly dependent); "
+                        "constrain only new directions")
+                raise ValueError(
+                    "`A`, `b` conflict with the constraints given before: no estimate "
+                    "satisfies all of them (a row of `A` is a combination of earlier rows, "
+                    "with a different right-hand side)")
+        self._impose(A, bb, A_all, b_all)
+        return self
+
+    def _impose(self, A, bb, A_all, b_all, fresh=False):
+        """Project ``x`` and ``P`` onto ``A x = bb`` (the rows to add) and configure the
+        projector onto the null space of all constraints ``A_all``. `fresh`: ``x``
+        and ``P`` are new (reset, initialize) and ``A`` is all of them. Computes
+        everything first: a failure leaves the filter as it was."""
+        # each row scaled to unit norm with its right-hand side (the same constraint), so
+        # that A P A^T neither overflows nor underflows for rows in any units
+        c = _row_norms(A)
+        A, bb = A / c[:, None], bb / c[:, None]
         x, P = self._checked_x(), self._checked_P()
-        if self._efra_pending:
-            P = self._efra_start(P)
+        if self._efra_pending:    # EFRA's start; projected only onto the constraints kept
+            lo, hi = _fg.efra_bounds(self._lam, *self._params)
+            P = _fg.clip_eigenvalues(P, lo * self._R, hi * self._R)
+            if not fresh:
+                P = self._projected(P)
         PA = P @ A.T
-        W = np.linalg.solve(A @ PA, PA.T).T            # W = P A^T (A P A^T)^-1
-        basis = null_space(A)
-        self._x = x + W @ (bb - A @ x)                 # x <- x + W (b - A x)
-        self._Pi = np.ascontiguousarray(basis @ basis.T)
+        M = A @ PA
+        try:
+            W = np.linalg.solve(M, PA.T).T             # W = P A^T (A P A^T)^-1
+        except np.linalg.LinAlgError:
+            raise ValueError("`A`: the covariance `P` carries no uncertainty in the "
+                             "constrained directions (A P A^T is singular), so the estimate "
+                             "cannot be moved onto the constraint; reset() or initialize() "
+                             "first") from None
+        from scipy.linalg import null_space  # lazy: keeps `import rlsfilt` light
+        basis = null_space(A_all / _row_norms(A_all)[:, None])
+        Pi = np.ascontiguousarray(basis @ basis.T)
+        x_new = x + W @ (bb - A @ x)                   # x <- x + W (b - A x)
+        P_new = self._projected(P - W @ PA.T, Pi)      # P <- P - W A P, then Pi P Pi
+        self._x, self._P = x_new, P_new
+        self._Pi = Pi
         self._configure()
-        self._P = self._projected(P - W @ PA.T)        # P <- P - W A P, then Pi P Pi
         self._null_basis = basis
         self._recheck = True
         self._efra_pending = False                     # P above has EFRA's start
-        self.constraints = (A.copy(), bb.copy())
+        self.constraints = EqualityConstraints(A_all, b_all)
         self.x_post, self.P_post = self._x.copy(), self._P.copy()
-        return self
 
     # ------------------------------------------------------------------
     # filterpy helpers
@@ -793,7 +868,7 @@ class RecursiveLeastSquares(_FilterBase):
         self._efra_pending = self._mode == _fg.EFRA
         self._recheck = True          # check the state (and start EFRA) at the next step
         if self.constraints is not None:
-            self.constrain(*self.constraints)
+            self._impose(*self.constraints, *self.constraints, fresh=True)
 
     def __getstate__(self):
         """The state for pickle and copy: ``__dict__`` and the slots, without the
@@ -899,21 +974,54 @@ class RecursiveLeastSquares(_FilterBase):
         lo, hi = _fg.efra_bounds(self._lam, *self._params)
         return self._projected(_fg.clip_eigenvalues(P, lo * self._R, hi * self._R))
 
-    def _projected(self, P):
-        """``Pi P Pi`` (a new array; ``P`` itself without constraints)."""
+    def _projected(self, P, Pi=None):
+        """``Pi P Pi`` (a new array; ``P`` itself without constraints). `Pi` is the
+        filter's projector unless given."""
+        Pi = self._Pi if Pi is None else Pi
         P = np.array(P, dtype=np.float64, order="C")
-        if self._Pi.size:
-            _streaming.kernels().project(P, self._Pi, np.empty(P.shape))
+        if Pi.size:
+            _streaming.kernels().project(P, Pi, np.empty(P.shape))
         return P
 
 
-def _own(value, name):
-    """`value` as the filter's own C-contiguous float64 array (always a copy).
+class EqualityConstraints:
+    """The equality constraints ``A x = b`` a filter keeps: every row given to
+    `RecursiveLeastSquares.constrain`, stacked.
 
-    Shapes are checked where the array is used, so that the error names the
-    method that cannot use it.
+    Attributes
+    ----------
+    A : ndarray, shape (p, dim_x)
+    b : ndarray, shape (p, dim_z)
+
+    Unpacks as ``A, b = rls.constraints``. (Not a tuple: filterpy's
+    ``Saver.to_array`` makes an array of the saved values, which a tuple of
+    two arrays of different shapes cannot be.)
     """
-    return np.array(as_float_array(value, name), dtype=np.float64, order="C")
+
+    __slots__ = ("A", "b")
+
+    def __init__(self, A, b):
+        self.A, self.b = A.copy(), b.copy()
+
+    def __iter__(self):
+        return iter((self.A, self.b))
+
+    def __repr__(self):
+        return f"EqualityConstraints(A={self.A.tolist()}, b={self.b.tolist()})"
+
+
+def _row_norms(A):
+    """2-norms of the rows of `A`, without overflow or underflow (1 for a zero row)."""
+    norms = safe_norm(A.T, axis=0)
+    return np.where(norms > 0, norms, 1.0)
+
+
+def _row_rank(A):
+    """Numerical rank of the rows of `A` after scaling each to unit norm (a constraint's
+    units do not decide whether it is independent)."""
+    Au = A / _row_norms(A)[:, None]
+    sv = np.linalg.svd(Au, compute_uv=False)
+    return int(np.sum(sv > 1e-10 * max(sv[0], np.finfo(float).tiny))) if len(sv) else 0
 
 
 def _check_positive(value, name):

@@ -3,9 +3,16 @@
 import numpy as np
 
 from .._display import pretty_str
-from .._validation import check_covariance, check_int, check_real, check_variance
+from .._validation import (
+    check_covariance,
+    check_dimension,
+    check_int,
+    check_length,
+    check_real,
+    check_variance,
+)
 from . import _health, _streaming
-from ._base import MISSING_DIAGNOSTICS, _FilterBase
+from ._base import MISSING_DIAGNOSTICS, _FilterBase, own_array
 from ._streaming import c_array
 
 __all__ = ["SlidingWindowRLS"]
@@ -131,9 +138,11 @@ class SlidingWindowRLS(_FilterBase):
 
     def __init__(self, dim_x, window, dim_z=1, *, P0=1e4, x0=None, R=1.0, refresh=None,
                  check_every=None, cond_max=1e12):
-        self.dim_x = check_int(dim_x, "dim_x", minimum=1)
+        self.dim_x = check_dimension(dim_x, "dim_x")
         self.dim_z = check_int(dim_z, "dim_z", minimum=1)
-        self.window = check_int(window, "window", minimum=self.dim_x)
+        # the ring buffer: rows, measurements and variances, and the batch's copies of them
+        self.window = check_length(window, "window", minimum=self.dim_x,
+                                   bytes_per_item=16 * (self.dim_x + self.dim_z + 1))
         self.refresh = (10 * self.window if refresh is None
                         else check_int(refresh, "refresh", minimum=0))
         self.R = R
@@ -146,6 +155,35 @@ class SlidingWindowRLS(_FilterBase):
         self._Lt = np.ascontiguousarray(np.linalg.cholesky(np.linalg.inv(self._P0)).T)
         self._Ltx0 = self._Lt @ self._x0
         self.reset()
+
+    # ------------------------------------------------------------------
+    # state (assignments copy: the filter owns its arrays)
+    # ------------------------------------------------------------------
+    @property
+    def x(self):
+        """Estimate ``(dim_x, dim_z)``; assigning copies the value."""
+        return self._x
+
+    @x.setter
+    def x(self, value):
+        self._x = own_array(value, "x")
+
+    @property
+    def P(self):
+        """Covariance ``(dim_x, dim_x)``; assigning copies the value."""
+        return self._P
+
+    @P.setter
+    def P(self, value):
+        self._P = own_array(value, "P")
+
+    def __copy__(self):
+        """A shallow copy with its own window: the compiled step writes the ring
+        buffer in place, so two filters must never share it."""
+        new = type(self).__new__(type(self))
+        new.__dict__.update(self.__dict__)
+        new._wH, new._wZ, new._wR = self._wH.copy(), self._wZ.copy(), self._wR.copy()
+        return new
 
     @property
     def n_samples(self):
@@ -172,8 +210,11 @@ class SlidingWindowRLS(_FilterBase):
         Parameters
         ----------
         z : float, array_like of shape (dim_z,), or None
-            Measurement; ``None`` or NaN marks it missing (it takes a slot in
-            the window but changes nothing).
+            Measurement; ``None`` or NaN marks it missing: it takes a slot in
+            the window and adds no information. Once the window is full the
+            oldest sample still leaves it, so ``x`` and ``P`` change: they
+            become least squares on the samples left in the window (a
+            window one valid sample shorter).
         H : array_like, shape (dim_x,) or (1, dim_x)
             Regressor row.
         R : float, optional
@@ -217,7 +258,7 @@ class SlidingWindowRLS(_FilterBase):
         self.z, self.y, self.K = zrow.reshape(m, 1), y, K
         if zc is None:
             self._lazy = MISSING_DIAGNOSTICS
-        self.x, self.P = x, P
+        self._x, self._P = x, P
         self.x_post, self.P_post = x.copy(), P.copy()
 
     def _int_state(self):
@@ -264,7 +305,7 @@ class SlidingWindowRLS(_FilterBase):
                              f"rank {rank}; need {self.dim_x} (one per parameter)")
         self._wH, self._wZ, self._wR = wH, wZ, wR
         self._nw, self._head = k, k % w
-        self.x, self.P = x, P
+        self._x, self._P = x, P
         self.exact = True
         self.x_prior, self.x_post = x.copy(), x.copy()
         self.P_prior, self.P_post = P.copy(), P.copy()
@@ -333,7 +374,7 @@ class SlidingWindowRLS(_FilterBase):
         if np.isnan(self.z).any():
             self.z[:] = np.nan
             self._lazy = MISSING_DIAGNOSTICS
-        self.x, self.P = x, P
+        self._x, self._P = x, P
         self.x_post, self.P_post = x.copy(), P.copy()
         return means, (covs if store_covariances else None), means_p, covs_p
 
@@ -358,9 +399,9 @@ class SlidingWindowRLS(_FilterBase):
     def reset(self):
         """Empty the window and return to ``x0``, ``P0``. Re-arms the health
         warning."""
-        self.x = self._x0.copy()
-        self.P = self._P0.copy()
-        self.x_prior, self.P_prior = self.x.copy(), self.P.copy()
+        self._x = self._x0.copy()
+        self._P = self._P0.copy()
+        self.x_prior, self.P_prior = self._x.copy(), self._P.copy()
         self.x_post, self.P_post = self.x.copy(), self.P.copy()
         self._reset_diagnostics()
         self._clear_window()

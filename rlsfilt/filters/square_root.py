@@ -5,7 +5,14 @@ import math
 import numpy as np
 
 from .._display import pretty_str
-from .._validation import check_covariance, check_int, check_lam, check_real, check_variance
+from .._validation import (
+    check_covariance,
+    check_dimension,
+    check_int,
+    check_lam,
+    check_real,
+    check_variance,
+)
 from . import _health, _streaming
 from ._base import MISSING_DIAGNOSTICS, _FilterBase
 from ._streaming import c_array
@@ -136,7 +143,7 @@ class SquareRootRLS(_FilterBase):
 
     def __init__(self, dim_x, dim_z=1, lam=1.0, *, P0=1e4, x0=None, R=1.0,
                  check_every=None, cond_max=1e12):
-        self.dim_x = check_int(dim_x, "dim_x", minimum=1)
+        self.dim_x = check_dimension(dim_x, "dim_x")
         self.dim_z = check_int(dim_z, "dim_z", minimum=1)
         self.lam = lam
         self.R = R

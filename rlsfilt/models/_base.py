@@ -155,6 +155,12 @@ class IdentifiedModel(abc.ABC):
         of the outputs; frequency-response bands then draw correlated
         parameters (``vec(theta_)`` with covariance
         ``kron(noise_covariance_, theta_cov_[0] / noise_variance_[0])``).
+    trend_ : Trend, optional
+        A loaded model only, when it was saved with ``save(path,
+        trend=...)``: the trend :func:`rlsfilt.detrend` removed from the
+        estimation record. The model describes the deviations from it;
+        ``trend_.remove(data)`` prepares new data and ``retrend`` puts
+        results back in the units of the data. ``fit`` drops it.
 
     Notes
     -----
@@ -399,7 +405,7 @@ class IdentifiedModel(abc.ABC):
         self._check_fitted("to_tf")
         if not continuous and (method != "zoh" or pade is not None):
             raise TypeError("`method` and `pade` only apply with continuous=True")
-        G = _conversion.to_tf(self.polydata(), self.dt, noise)
+        G = _conversion.to_tf(self.polydata(), self._check_dt(), noise)
         G = _labelled(G, self._signal_labels(noise))
         if continuous:
             from ..continuous import d2c
@@ -506,7 +512,7 @@ class IdentifiedModel(abc.ABC):
     # ------------------------------------------------------------------
     # saving
     # ------------------------------------------------------------------
-    def save(self, path, *, include_data=False):
+    def save(self, path, *, include_data=False, trend=None):
         """Write the fitted model to a JSON file (:func:`rlsfilt.save_model`).
 
         Parameters
@@ -514,6 +520,11 @@ class IdentifiedModel(abc.ABC):
         path : str or os.PathLike
         include_data : bool, default False
             Also write the per-sample diagnostics (residuals, histories).
+        trend : Trend, optional
+            The trend :func:`rlsfilt.detrend` removed from the estimation
+            record (constant or linear); :meth:`load` restores it as
+            ``trend_``, so ``retrend`` puts predictions back in the units of
+            the data. By default the model's own ``trend_``, if any.
 
         Returns
         -------
@@ -523,7 +534,7 @@ class IdentifiedModel(abc.ABC):
         self._check_fitted("save")
         from ..persistence import save_model
 
-        return save_model(self, path, include_data=include_data)
+        return save_model(self, path, include_data=include_data, trend=trend)
 
     @classmethod
     def load(cls, path):
@@ -537,7 +548,7 @@ class IdentifiedModel(abc.ABC):
         -------
         model
             Predicts, simulates and reports standard errors exactly as the
-            saved one.
+            saved one; ``trend_`` holds the trend saved with it, if any.
         """
         from ..persistence import load_model
 
@@ -563,7 +574,7 @@ class IdentifiedModel(abc.ABC):
             signal names as its input and output labels.
         """
         self._check_fitted("to_ss")
-        return _labelled(_conversion.to_ss(self.polydata(), self.dt, noise),
+        return _labelled(_conversion.to_ss(self.polydata(), self._check_dt(), noise),
                          self._signal_labels(noise))
 
     def to_dlti(self, noise=False):
@@ -582,7 +593,7 @@ class IdentifiedModel(abc.ABC):
             :meth:`to_ss`) otherwise.
         """
         self._check_fitted("to_dlti")
-        return _conversion.to_dlti(self.polydata(), self.dt, noise)
+        return _conversion.to_dlti(self.polydata(), self._check_dt(), noise)
 
     def to_kalman(self):
         """The model as a filterpy ``KalmanFilter``: `rlsfilt.adaptive.to_kalman`."""
@@ -609,7 +620,8 @@ class IdentifiedModel(abc.ABC):
             (``(ny, ny, n_points)`` for the noise model.)
         """
         self._check_fitted("frequency_response")
-        dt = 1.0 if self.dt is True else float(self.dt)
+        dt = self._check_dt()
+        dt = 1.0 if dt is True else dt
         return _conversion.frequency_response(self.polydata(theta), omega, dt, noise)
 
     # ------------------------------------------------------------------
@@ -648,11 +660,11 @@ class IdentifiedModel(abc.ABC):
         p = self.polydata()
         G = self.to_tf()
         tfs = [{"output": i, "input": j, "num": G.num[i][j], "den": G.den[i][j],
-                "dt": self.dt, "variable": "z"}
+                "dt": self._check_dt(), "variable": "z"}
                for i in range(self.n_outputs_) for j in range(self.n_inputs_)]
         return jsonable({
             "model": type(self).__name__, "params": self.get_params(), "orders": self.orders_,
-            "dt": self.dt,
+            "dt": self._check_dt(),
             "input_names": [self._u_name(j) for j in range(self.n_inputs_)],
             "output_names": [self._y_name(i) for i in range(self.n_outputs_)],
             "theta_names": self.param_names_, "theta": self.theta_,
@@ -717,7 +729,8 @@ class IdentifiedModel(abc.ABC):
     # helpers for subclasses: data against the fitted signals
     # ------------------------------------------------------------------
     def _check_dt(self):
-        check_dt(self.dt)
+        """``dt`` validated: True or a Python float (what python-control accepts)."""
+        return check_dt(self.dt)
 
     def _y_name(self, i):
         names = self._info.get("y_names")

@@ -222,6 +222,13 @@ def from_tf(G):
         for j in range(G.ninputs):
             den = np.trim_zeros(np.asarray(G.den[i][j], float), "f")
             num = np.trim_zeros(np.asarray(G.num[i][j], float), "f")
+            for what, coef in (("numerator", num), ("denominator", den)):
+                if not np.all(np.isfinite(coef)):
+                    raise ValueError(f"`G` must have finite coefficients; got {coef.tolist()} in "
+                                     f"the {what} of entry ({i}, {j})")
+            if len(den) == 0:
+                raise ValueError(f"`G` must have a nonzero denominator; entry ({i}, {j}) has "
+                                 "a zero denominator")
             if len(num) > len(den):
                 raise ValueError(f"`G` must be proper (causal); entry ({i}, {j}) has a "
                                  f"numerator of degree {len(num) - 1} over a denominator "

@@ -1,7 +1,8 @@
 """Compiled (numba) helpers of `fit_many`: statistics of many fitted ARX models."""
 
 import numpy as np
-from numba import njit
+
+from .._numba import njit  # numba.njit, uncached where no cache directory is writable
 
 __all__ = []
 
@@ -38,29 +39,38 @@ def fleet_statistics(Phi, target, theta, na, Y, resid, sigma2, pred_fit, sim_fit
     ss_pred = np.zeros(C)
     ss_sim = np.zeros(C)
     ss_dev = np.zeros(C)
+    ar = np.empty(C)
+    bu = np.empty(C)
     for t in range(start):
         for c in range(C):
             ysim[t, c] = Y[t, c]
+    # every loop over the channels is innermost (contiguous, vectorized); each
+    # channel's sums still run over p and t in the same order as before
     for k in range(rows):
         t = start + k
         for c in range(C):
-            ar = 0.0
-            for p in range(na):
-                ar += Phi[k, p, c] * theta[c, p]
-            bu = 0.0
-            for p in range(na, n):
-                bu += Phi[k, p, c] * theta[c, p]
+            ar[c] = 0.0
+            bu[c] = 0.0
+        for p in range(na):
+            for c in range(C):
+                ar[c] += Phi[k, p, c] * theta[c, p]
+        for p in range(na, n):
+            for c in range(C):
+                bu[c] += Phi[k, p, c] * theta[c, p]
+        for c in range(C):
             yk = target[k, c]
-            r = yk - (ar + bu)                        # y - Phi theta
+            r = yk - (ar[c] + bu[c])                  # y - Phi theta
             resid[k, c] = r
             ss_pred[c] += r * r
-            ys = bu
-            for p in range(1, na + 1):
-                ys -= theta[c, p - 1] * ysim[t - p, c]
-            ysim[t, c] = ys
-            e = yk - ys
-            ss_sim[c] += e * e
             mean[c] += yk
+        for c in range(C):
+            ysim[t, c] = bu[c]
+        for p in range(1, na + 1):
+            for c in range(C):
+                ysim[t, c] -= theta[c, p - 1] * ysim[t - p, c]
+        for c in range(C):
+            e = target[k, c] - ysim[t, c]
+            ss_sim[c] += e * e
     for c in range(C):
         mean[c] /= rows
     for k in range(rows):

@@ -144,7 +144,7 @@ class PolynomialModel(IdentifiedModel):
                        input_units_=tuple(info.get("u_units") or ("",) * s.n_inputs),
                        output_units_=tuple(info.get("y_units") or ("",)))
         for name in ("theta_history_", "recursive_residuals_", "state_", "margins_",
-                     "fit_info_"):
+                     "fit_info_", "trend_"):
             self.__dict__.pop(name, None)
         self.__dict__.update(learned)
         self._set_polynomials()

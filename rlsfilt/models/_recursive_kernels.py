@@ -60,7 +60,8 @@ skipped and reported.
 """
 
 import numpy as np
-from numba import njit
+
+from .._numba import njit  # numba.njit, uncached where no cache directory is writable
 
 __all__ = []
 

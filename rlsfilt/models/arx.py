@@ -18,6 +18,8 @@ import warnings
 
 import numpy as np
 
+from .._resources import check_memory
+from .._scale import pow2_scale, safe_norm
 from .._serialize import jsonable
 from .._validation import as_float_array, check_finite, check_int, check_scalar
 from ..exceptions import InsufficientDataError, NumericalWarning
@@ -341,6 +343,9 @@ class ARX(IdentifiedModel):
             NaN/inf in the data (the first bad index is named), mismatched
             lengths, bad orders, too few samples, or a regressor matrix
             without full column rank (input not persistently exciting).
+        MemoryError
+            When the regressor matrix and the factorization would need more
+            memory than the process can get (checked before they are built).
 
         Warns
         -----
@@ -382,20 +387,25 @@ class ARX(IdentifiedModel):
             raise InsufficientDataError(
                 f"`y` must have at least max_lag + n_params = {s.max_lag} + {n_params} = "
                 f"{s.max_lag + n_params} samples{per} for ARX(na={s.na}, nb={_fmt(s.nb)}, "
-                f"nk={_fmt(s.nk)}); got {N}")
+                f"nk={_fmt(s.nk)}); got {N} (use a longer record or smaller `na`, `nb`, "
+                "`nk`)")
+        check_memory(_fit_bytes(rows, n_params, s, method),
+                     f"ARX.fit(method={method!r}) with {n_params} parameters on `u`, `y` of "
+                     f"{sum(len(U) for U, _ in records)} samples")
         op = _means(records) if _offset_mode(self.offset) == "mean" else None
         Phi, target = self._design(records, s, op)
         # compute everything first: a fit that raises leaves the model as it was
         recursive, cov_iv = {}, None
+        inv_scaled, col_scale = None, np.ones(Phi.shape[1])
         if method == "ls":
-            theta, cov_unscaled = _qr_least_squares(Phi, target)
+            theta, inv_scaled, col_scale = _qr_least_squares(Phi, target)
         elif method in ("iv", "riv"):
             dev = records if op is None else [(U - op[0], Y - op[1]) for U, Y in records]
             theta, cov_iv, recursive = fit_arx_iv(
                 dev, s, method, iv_options, info["y_1d"],
                 intercept=_offset_mode(self.offset) == "intercept")
         else:
-            theta, cov_unscaled, rls, history, prior, k0 = _fit_rls(Phi, target, s, opts)
+            theta, inv_scaled, rls, history, prior, k0 = _fit_rls(Phi, target, s, opts)
             # prior: the a-priori (recursive) residuals y(t) - phi(t) theta(t-1) after
             # the batch start
             recursive = {"filter_": rls, "k0_": k0, "lam_": float(rls.lam),
@@ -404,20 +414,19 @@ class ARX(IdentifiedModel):
                          "theta_history_": history[:, :, 0] if info["y_1d"] else history,
                          "recursive_residuals_": prior[:, 0] if info["y_1d"] else prior}
         for name in ("theta_history_", "filter_", "k0_", "lam_", "form_", "recursive_residuals_",
-                     "noise_covariance_", "intercept_", "instruments_"):
+                     "noise_covariance_", "intercept_", "instruments_", "trend_"):
             self.__dict__.pop(name, None)
         self.__dict__.update(recursive)
         resid = target - Phi @ theta
         dof = rows - n_params
-        sigma2 = np.sum(resid ** 2, axis=0) / dof if dof > 0 else np.full(s.n_outputs, np.nan)
+        sigma2, cov, noise_cov = _noise_and_covariance(resid, dof, inv_scaled, col_scale)
         self._store(theta, s, info)
         self._set_operating_point(records, op)
-        cov = sigma2[:, None, None] * cov_unscaled[None] if cov_iv is None else cov_iv
+        cov = cov if cov_iv is None else cov_iv
         self.theta_cov_ = cov[0] if info["y_1d"] else cov
         self.noise_variance_ = float(sigma2[0]) if info["y_1d"] else sigma2
         if not info["y_1d"]:
-            self.noise_covariance_ = (resid.T @ resid / dof if dof > 0
-                                      else np.full((s.n_outputs, s.n_outputs), np.nan))
+            self.noise_covariance_ = noise_cov
         self.residuals_ = resid[:, 0] if info["y_1d"] else resid
         self.n_samples_ = rows
         self.n_experiments_ = len(records)
@@ -716,11 +725,11 @@ class ARX(IdentifiedModel):
         >>> model.simulate(np.ones(4), y0=[4.0])          # continue from y(0) = 4
         array([4.  , 3.  , 2.5 , 2.25])
         """
-        from scipy import signal  # lazy: keeps `import rlsfilt` light
         self._check_fitted("simulate")
         return self._each_experiment(self._simulate, u, None, y0, outputs=False)
 
     def _simulate(self, u, y0):
+        from scipy import signal  # lazy: keeps `import rlsfilt` light
         U, _ = self._data(u)
         N, ny = len(U), self.n_outputs_
         u_op, y_op = self._fitted_op()
@@ -1058,6 +1067,19 @@ def _check_filter_options(options):
                             f"the filter's other options are {valid}")
 
 
+def _fit_bytes(rows, n, s, method):
+    r"""Peak working memory of a fit on `rows` equations with `n` parameters per output
+    (measured with tracemalloc, rounded up).
+
+    Batch least squares holds :math:`\Phi`, its scaled copy and the
+    orthogonal factor (three ``rows x n`` arrays); the recursive fit adds the
+    estimate after every row and the filter's history of means.
+    """
+    ny, nu = s.n_outputs, s.n_inputs
+    per_row = 3 * n + 4 * ny + nu if method in ("ls", "iv") else 4 * n + 3 * n * ny + 6 * ny + nu
+    return 8 * rows * per_row
+
+
 def _fit_rls(Phi, target, s, opts):
     """Recursive least squares over the rows: ``(theta, P / R, filter, history, prior, k0)``.
 
@@ -1151,7 +1173,7 @@ def _choose_form(Phi, opts):
     if form == "square_root" and blocked:
         raise TypeError(f"form='square_root' (SquareRootRLS) takes lam, P0, x0, R, check_every "
                         f"and cond_max only; got `{blocked[0]}`")
-    norms = np.linalg.norm(Phi, axis=0)
+    norms = safe_norm(Phi, axis=0)
     R = np.linalg.qr(Phi / np.where(norms > 0, norms, 1.0), mode="r")
     cond, cond_raw = (_cond(M) for M in (R, R * norms))  # R D is the factor of Phi itself
     if form == "auto":
@@ -1178,23 +1200,32 @@ def _cond(R):
 
 
 def _qr_least_squares(Phi, target):
-    """``theta`` (n, ny) and ``(Phi^T Phi)^-1`` from a QR factorization of ``Phi``.
+    r"""Least squares through QR, safe over the whole double range.
 
-    One Householder QR (LAPACK ``geqrf``) of ``[Phi, target]`` gives ``R`` and
-    ``c = Q^T target`` without forming ``Q``; the rank is decided as
+    Returns ``(theta, C, c)``: ``theta`` (n, ny) and :math:`(\Phi^T\Phi)^{-1}
+    = C / (c c^T)`, with ``c`` the powers of two that scaled the columns.
+
+    The columns of ``Phi`` (by ``c``) and of the target (by ``t``) are
+    divided by powers of two near their largest entries, which is exact, so
+    the factorization never squares a number around 1e160 or 1e-160; then
+    :math:`\hat\theta_i = t_i \hat\theta^{s}_i / c`. One Householder QR
+    (LAPACK ``geqrf``) of the scaled ``[Phi, target]`` gives ``R`` and
+    ``Q^T target`` without forming ``Q``; the rank is decided as
     ``_column_rank(Phi)`` decides it, from the singular values of ``R`` with
     its columns scaled to unit norm (those of ``Phi`` with unit columns), so
     the record is read once.
     """
     from scipy.linalg import lapack, solve_triangular  # lazy: keeps `import rlsfilt` light
     rows, n = Phi.shape
+    c = pow2_scale(Phi, axis=0)
+    t = pow2_scale(target, axis=0)
     A = np.empty((rows, n + target.shape[1]), order="F")
-    A[:, :n] = Phi
-    A[:, n:] = target
+    np.divide(Phi, c, out=A[:, :n])
+    np.divide(target, t, out=A[:, n:])
     qr, _, _, _ = lapack.dgeqrf(A, overwrite_a=True)
     Rf = np.triu(qr[:n, :n])
-    c = qr[:n, n:]
-    norms = np.linalg.norm(Rf, axis=0)                  # the column norms of Phi
+    rhs = qr[:n, n:]
+    norms = np.linalg.norm(Rf, axis=0)                  # the column norms of Phi / c
     sv = np.linalg.svd(Rf / np.where(norms > 0, norms, 1.0), compute_uv=False)
     rank = int(np.sum(sv > sv.max() * max(rows, n) * np.finfo(float).eps)) if n else 0
     if rank < n:
@@ -1205,12 +1236,40 @@ def _qr_least_squares(Phi, target):
     # back substitution one column at a time, and the triangular inverse from
     # LAPACK's trtri: multi-column triangular solves hit a slow threaded BLAS
     # path for tiny matrices on loaded machines (measured: 2-10 ms per call)
-    theta = np.column_stack([solve_triangular(Rf, c[:, i]) for i in range(c.shape[1])])
+    theta = np.column_stack([solve_triangular(Rf, rhs[:, i]) * (t[i] / c)
+                             for i in range(rhs.shape[1])])
     Rinv, info = lapack.dtrtri(Rf, lower=0)
     cov = Rinv @ Rinv.T
-    return theta, 0.5 * (cov + cov.T)
+    return theta, 0.5 * (cov + cov.T), c
 
 
+def _noise_and_covariance(resid, dof, inv_scaled, c):
+    r"""Noise variances, parameter covariances and (several outputs) the noise covariance.
+
+    With :math:`(\Phi^T\Phi)^{-1} = C / (c c^T)` and each residual column
+    divided by a power of two :math:`t_i` first, :math:`\hat\sigma_i^2 =
+    t_i^2 \hat\sigma_{s,i}^2` and ``cov[i] = sigma_s2[i] C (t_i / c)(t_i / c)^T``:
+    no intermediate overflows or underflows, so a record in any units gives
+    the covariance of its parameters wherever that is representable.
+    ``inv_scaled`` None (instrumental variables, whose covariance is their
+    own) gives no parameter covariance.
+    """
+    ny, n = resid.shape[1], len(c)
+    if dof <= 0:
+        nan = np.full(ny, np.nan)
+        return nan, np.full((ny, n, n), np.nan), np.full((ny, ny), np.nan)
+    t = pow2_scale(resid, axis=0)
+    rs = resid / t
+    noise_s = rs.T @ rs / dof
+    sigma2_s = np.diag(noise_s).copy()
+    g = t[:, None] / c[None, :]                          # (ny, n)
+    with np.errstate(over="ignore", under="ignore"):
+        sigma2 = sigma2_s * t * t
+        noise_cov = noise_s * np.outer(t, t)
+        if inv_scaled is None:
+            return sigma2, None, noise_cov
+        cov = (sigma2_s[:, None, None] * inv_scaled[None]) * g[:, :, None] * g[:, None, :]
+    return sigma2, cov, noise_cov
 
 
 def _split(theta, s):

@@ -25,11 +25,12 @@ import warnings
 
 import numpy as np
 
+from .._scale import unit_columns
 from .._validation import as_float_array, check_dt, check_int, check_probability
 from ..exceptions import NumericalWarning
 from ..filters._health import warn_at_caller as _warn_at_caller
 from ..filters.bank import RLSBank
-from .regressors import _full_rank_rows, _unit_columns, arx_structure
+from .regressors import _full_rank_rows, arx_structure
 
 __all__ = ["ARXBank", "fit_many"]
 
@@ -563,12 +564,15 @@ def _fit_chunk(cs, U, Y, s, method, per_channel, k0, max_lag, tests, on_error, l
     rows, c, n = Phi.shape
     from ._kernels_fleet import fleet_statistics
 
-    resid = np.empty((rows, c))
+    cs, sel = _as_slice(cs)
+    # residuals written in place when the channels are consecutive (no copy)
+    resid = out.resid[:, sel] if isinstance(sel, slice) else np.empty((rows, c))
     sigma2, pred_fit, sim_fit = np.empty(c), np.empty(c), np.empty(c)
     fleet_statistics(_channels_last(Phi), target, theta, s.na, Y, resid, sigma2, pred_fit,
                      sim_fit)
-    cs, sel = _as_slice(cs)
-    out.theta[sel], out.sigma2[sel], out.resid[:, sel] = theta, sigma2, resid
+    out.theta[sel], out.sigma2[sel] = theta, sigma2
+    if not isinstance(sel, slice):
+        out.resid[:, sel] = resid
     out.cov[sel] = sigma2[:, None, None] * cov
     out.pred_fit[sel], out.sim_fit[sel] = pred_fit, sim_fit
     if tests:
@@ -636,7 +640,7 @@ def _recursive(cs, Phi, target, opts, k0, labels, on_error, out):
         k0s = _batch_start_rows(Phi)
         for j in np.flatnonzero(k0s < 0):
             ok[j] = False
-            rank = int(np.linalg.matrix_rank(_unit_columns(Phi[:, j])))
+            rank = int(np.linalg.matrix_rank(unit_columns(Phi[:, j])))
             _fail(out, cs[j], labels,
                   f"the regressor matrix has rank {rank} < n_params = {n}: the input is not "
                   "persistently exciting for these orders (or the orders are too high); use a "
@@ -700,7 +704,7 @@ def _run_group(cs, g, k0, Phi, target, opts, labels, on_error, out):
 
 def _column_norms(Phi):
     """Norms of the regressor columns of each channel, (c, n), summed in time
-    order as ``regressors._unit_columns`` sums them."""
+    order (the rank decisions of ``regressors._column_rank`` use unit columns too)."""
     from ._kernels_fleet import column_norms
 
     out = np.empty(Phi.shape[1:])
@@ -726,7 +730,7 @@ def _batch_start_rows(Phi):
     fewest leading rows with full column rank (``regressors._full_rank_rows``),
     -1 when all rows together are rank-deficient."""
     rows, c, n = Phi.shape
-    norms = _column_norms(Phi)                                 # (c, n), as _unit_columns
+    norms = _column_norms(Phi)                                 # (c, n): unit columns
     Ps = Phi[:n].transpose(1, 0, 2) / np.where(norms > 0, norms, 1.0)[:, None, :]
     k0s = np.full(c, n)
     for j in np.flatnonzero(np.linalg.matrix_rank(Ps) < n):

@@ -29,6 +29,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from .._scale import unit_columns
 from .._validation import as_float_array, check_finite, check_int
 
 __all__ = ["arx_regressors", "arx_structure", "ARXStructure"]
@@ -227,23 +228,35 @@ def as_records(u, y=None, names=("u", "y")):
 
 
 def _build(U, Y, s, start):
-    """Regressor matrix for rows ``t = start .. N-1`` with zero past before t = 0."""
+    """Regressor matrix for rows ``t = start .. N-1`` with zero past before t = 0.
+
+    Each column is a shifted slice of the record written in place: no padded
+    copies, no index arrays, so the memory is the matrix itself.
+    """
     N = len(U)
-    pad = s.max_lag
-    Up = np.vstack([np.zeros((pad, U.shape[1])), U])
-    Yp = np.vstack([np.zeros((pad, Y.shape[1])), Y])
-    # each column is a shifted slice of the padded record, written in place
-    # (no index arrays, no temporaries: long records build fast)
-    Phi = np.empty((max(N - start, 0), s.n_params))
-    lo, hi = start + pad, N + pad        # rows t = start .. N-1 of the padded arrays
+    rows = max(N - start, 0)
+    Phi = np.empty((rows, s.n_params))
+    if rows == 0:
+        return Phi
+
+    def shifted(col, x, k, negate=False):
+        # Phi[r, col] = x(start + r - k), zero where start + r - k < 0
+        first = min(max(k - start, 0), rows)
+        Phi[:first, col] = 0.0
+        seg = x[start + first - k:N - k] if first < rows else x[:0]
+        if negate:
+            np.negative(seg, out=Phi[first:, col])
+        else:
+            Phi[first:, col] = seg
+
     col = 0
     for i in range(s.n_outputs):
         for k in range(1, s.na + 1):
-            np.negative(Yp[lo - k:hi - k, i], out=Phi[:, col])
+            shifted(col, Y[:, i], k, negate=True)
             col += 1
     for j in range(s.n_inputs):
         for k in range(s.nk[j], s.nk[j] + s.nb[j]):
-            Phi[:, col] = Up[lo - k:hi - k, j]
+            shifted(col, U[:, j], k)
             col += 1
     return Phi
 
@@ -334,7 +347,7 @@ def _full_rank_rows(Phi):
         return 0
 
     def full(k):
-        return np.linalg.matrix_rank(_unit_columns(Phi[:k])) == n
+        return np.linalg.matrix_rank(unit_columns(Phi[:k])) == n
 
     if rows < n:
         return None
@@ -360,11 +373,7 @@ def _column_rank(Phi):
     The rank decision then does not depend on the units of the signals: a
     regressor in nanoamperes beside one in megapascals is not mistaken for a
     zero column (Householder QR, which solves the problem, is itself
-    insensitive to column scaling; Golub & Van Loan 2013, sec. 5.3.7).
+    insensitive to column scaling; Golub & Van Loan 2013, sec. 5.3.7), nor
+    whether the entries are around 1e-160 or 1e160 (`rlsfilt._scale`).
     """
-    return int(np.linalg.matrix_rank(_unit_columns(Phi))) if Phi.shape[1] else 0
-
-
-def _unit_columns(Phi):
-    norms = np.linalg.norm(Phi, axis=0)
-    return Phi / np.where(norms > 0, norms, 1.0)
+    return int(np.linalg.matrix_rank(unit_columns(Phi))) if Phi.shape[1] else 0

@@ -17,6 +17,7 @@ import math
 
 import numpy as np
 
+from .._scale import pow2_scale
 from .._validation import check_int, check_scalar
 from ..exceptions import ExactFitError
 from ._model import n_params, one_step_records
@@ -188,30 +189,50 @@ def information_criteria(model, u, y=None):
 
 
 def _from_residuals(e, d):
-    """`information_criteria` from the one-step residuals `e` (N, ny) and `d` parameters."""
+    r"""`information_criteria` from the one-step residuals `e` (N, ny) and `d` parameters.
+
+    Each residual column is divided by a power of two ``t_j`` near its
+    largest entry first (exact), so :math:`\log V = \log V_s + 2 \sum_j
+    \log t_j` is finite for a record in any units, and so are AIC, BIC and
+    nAIC; ``V`` itself (and FPE, MDL) is ``inf`` or 0 only where it is not
+    representable.
+    """
     N, ny = e.shape
-    cov = (e.T @ e) / N
-    V = float(np.linalg.det(cov)) if ny > 1 else float(cov[0, 0])
-    if not V > 0.0:
+    t = pow2_scale(e, axis=0)
+    es = e / t
+    cov = (es.T @ es) / N
+    if ny > 1:
+        sign, log_det = np.linalg.slogdet(cov)
+        V_s = float(np.linalg.det(cov))
+    else:
+        V_s = float(cov[0, 0])
+        sign, log_det = (1.0, math.log(V_s)) if V_s > 0.0 else (0.0, -np.inf)
+    if not (sign > 0.0 and np.isfinite(log_det)):
         raise ExactFitError("the residuals are zero (an exact fit); information criteria are "
                          "undefined")
-    return _criteria(V, N, d, ny)
+    with np.errstate(over="ignore", under="ignore"):
+        V = V_s * float(np.prod(t * t))
+    return _criteria(V, N, d, ny, log_loss=log_det + 2.0 * float(np.sum(np.log(t))))
 
 
-def _criteria(V, N, d, ny=1):
-    """The formulas of `criteria_from_loss`, vectorized over numpy arrays."""
+def _criteria(V, N, d, ny=1, log_loss=None):
+    r"""The formulas of `criteria_from_loss`, vectorized over numpy arrays.
+
+    `log_loss` is :math:`\log V` when ``V`` itself may be out of range
+    (computed from scaled residuals); by default ``log(V)``.
+    """
     V = np.asarray(V, dtype=float)
     N = np.asarray(N, dtype=float)
     d = np.asarray(d, dtype=float)
-    logV = np.log(V)
+    logV = np.log(V) if log_loss is None else np.asarray(log_loss, dtype=float)
     const = N * ny * (_LOG_2PI + 1.0)
     aic = N * logV + 2.0 * d + const
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         aicc = np.where(N - d - 1.0 > 0.0, aic + 2.0 * d * (d + 1.0) / (N - d - 1.0), np.inf)
         fpe = np.where(N - d > 0.0, V * (1.0 + d / N) / (1.0 - d / N), np.inf)
+        mdl = V * (1.0 + d * np.log(N) / N)
     bic = N * logV + d * np.log(N) + const
     naic = logV + 2.0 * d / N
-    mdl = V * (1.0 + d * np.log(N) / N)
     if V.ndim == 0 and N.ndim == 0 and d.ndim == 0:
         return InformationCriteria(loss=float(V), n_samples=int(N), n_params=int(d),
                                    n_outputs=int(ny), aic=float(aic), aicc=float(aicc),

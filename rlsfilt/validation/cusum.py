@@ -22,10 +22,11 @@ import math
 
 import numpy as np
 
+from .._scale import pow2_scale, unit_columns
 from .._validation import as_float_array, check_finite, check_probability
 from ..exceptions import ExactFitError
 from ..filters import RecursiveLeastSquares
-from ..models.regressors import _column_rank, _full_rank_rows, _unit_columns
+from ..models.regressors import _column_rank, _full_rank_rows
 from ..plotting import plot_cusum
 
 __all__ = ["CusumResult", "cusum", "cusum_squares", "recursive_residuals"]
@@ -177,12 +178,23 @@ def recursive_residuals(zs, Hs):
     >>> start, w.shape, round(float(np.std(w, ddof=1)), 3)
     (2, (48,), 0.103)
     """
+    w, scale, start, _ = _scaled_recursive_residuals(zs, Hs)
+    with np.errstate(over="ignore"):
+        return w * scale, start
+
+
+def _scaled_recursive_residuals(zs, Hs):
+    """``(w / c, c, start, z / c)``: the recursive residuals and the measurements divided by
+    a power of two ``c`` near ``max|z|``, so that their squares stay in range."""
     z, H = _as_regression(zs, Hs)
     k = H.shape[1]
     start = _exact_start(H)
     # w_t depends on the column space of H only, so unit columns change nothing but
-    # keep the filter's rank decision independent of the regressors' units
-    H = _unit_columns(H)
+    # keep the filter's rank decision independent of the regressors' units; w_t is
+    # proportional to z, so the filter runs on z / c (exact) for any units of z
+    H = unit_columns(H)
+    c = pow2_scale(z)
+    z = z / c
     rls = RecursiveLeastSquares(dim_x=k, R=1.0)
     rls.initialize(z[:start], H[:start])
     Hr = H[start:]
@@ -190,7 +202,7 @@ def recursive_residuals(zs, Hs):
     _, _, x_prior, P_prior = rls.batch_filter(z[start:], Hr)
     y = z[start:] - np.einsum("ti,ti->t", Hr, x_prior[:, :, 0])
     S = np.einsum("ti,tij,tj->t", Hr, P_prior, Hr) + rls.R
-    return y / np.sqrt(S), start
+    return y / np.sqrt(S), c, start, z
 
 
 def cusum(zs, Hs, alpha=0.05):
@@ -274,13 +286,13 @@ def cusum(zs, Hs, alpha=0.05):
     (True, 266)
     """
     alpha = check_probability(alpha, "alpha")
-    w, start = recursive_residuals(zs, Hs)
+    w, c, start, z = _scaled_recursive_residuals(zs, Hs)   # W is invariant to the scale c
     m = len(w)
     if m < 2:
         raise ValueError(f"`zs` must have at least 2 rows beyond the {start} used for the exact "
                          f"start; got {m}")
     sigma = np.std(w, ddof=1)
-    if sigma <= 1e-10 * math.sqrt(np.mean(np.asarray(zs, dtype=float) ** 2)):
+    if sigma <= 1e-10 * math.sqrt(np.mean(z ** 2)):
         raise ExactFitError("the recursive residuals are all equal to round-off (an exact fit); "
                          "CUSUM is undefined")
     W = np.cumsum(w) / sigma
@@ -289,6 +301,8 @@ def cusum(zs, Hs, alpha=0.05):
     upper = a * math.sqrt(m) + 2.0 * a * j / math.sqrt(m)
     # smallest `a` whose lines the path touches, and its crossing probability
     a_obs = float(np.max(np.abs(W) / (math.sqrt(m) + 2.0 * j / math.sqrt(m))))
+    with np.errstate(over="ignore"):
+        w = w * c
     return CusumResult("cusum", W, (-upper, upper), alpha, np.arange(start, start + m), w,
                        start, a, pvalue=_bde_crossing_probability(a_obs))
 
@@ -388,20 +402,22 @@ def cusum_squares(zs, Hs, alpha=0.05):
     if level is None:
         raise ValueError("`alpha` must be one of 0.2, 0.1, 0.05, 0.02, 0.01 (the levels of the "
                          f"Edgerton-Wells critical values); got {alpha}")
-    w, start = recursive_residuals(zs, Hs)
+    w, c, start, z = _scaled_recursive_residuals(zs, Hs)   # S is invariant to the scale c
     m = len(w)
     n = 0.5 * m - 1.0
     if n < 1.0:
         raise ValueError(f"`zs` must have at least 4 rows beyond the {start} used for the exact "
                          f"start; got {m}")
     sq = np.cumsum(w * w)
-    if sq[-1] <= 1e-20 * m * np.mean(np.asarray(zs, dtype=float) ** 2):
+    if sq[-1] <= 1e-20 * m * np.mean(z ** 2):
         raise ExactFitError("the recursive residuals are zero to round-off (an exact fit); the "
                          "CUSUM of squares is undefined")
     S = sq / sq[-1]
     c1, c2, c3 = _EW_COEF[level]
     c0 = c1 / math.sqrt(n) + c2 / n + c3 / n**1.5
     line = np.arange(1, m + 1) / m
+    with np.errstate(over="ignore"):
+        w = w * c
     return CusumResult("cusum_squares", S, (line - c0, line + c0), alpha,
                        np.arange(start, start + m), w, start, c0)
 
@@ -409,10 +425,16 @@ def cusum_squares(zs, Hs, alpha=0.05):
 # ----------------------------------------------------------------------
 # private helpers
 # ----------------------------------------------------------------------
+def _bde_log_crossing_probability(a):
+    """Logarithm of the right-hand side of BDE (1975) eq. (2.4), exact in the far tail."""
+    from scipy.stats import norm  # lazy: keeps `import rlsfilt` light
+    return math.log(2.0) + float(np.logaddexp(norm.logsf(3.0 * a),
+                                              -4.0 * a * a + norm.logcdf(a)))
+
+
 def _bde_crossing_probability(a):
     """BDE (1975) eq. (2.4): P(a Brownian path crosses a(1 + 2t), t in [0, 1])."""
-    from scipy.stats import norm  # lazy: keeps `import rlsfilt` light
-    return float(min(1.0, 2.0 * (norm.sf(3.0 * a) + math.exp(-4.0 * a * a) * norm.cdf(a))))
+    return min(1.0, math.exp(_bde_log_crossing_probability(a)))
 
 
 def _bde_constant(alpha):
@@ -420,7 +442,11 @@ def _bde_constant(alpha):
     for level, a in _BDE_A.items():
         if math.isclose(alpha, level):
             return a
-    return brentq(lambda a: _bde_crossing_probability(a) - alpha, 1e-6, 10.0, xtol=1e-12)
+    # solved in logarithms, so that any level down to the smallest double has its root
+    # (at a = 40 the log-probability is about -6400, below log(5e-324) = -744)
+    log_alpha = math.log(alpha)
+    return brentq(lambda a: _bde_log_crossing_probability(a) - log_alpha, 1e-6, 40.0,
+                  xtol=1e-12)
 
 
 def _as_regression(zs, Hs):
@@ -437,7 +463,8 @@ def _as_regression(zs, Hs):
                          f"measurement); got {H.shape}")
     if H.shape[1] == 0:
         raise ValueError("`Hs` must have at least one column; got 0")
-    return z, H
+    # one memory layout (a pandas frame is Fortran-ordered): the same numbers bit for bit
+    return np.ascontiguousarray(z), np.ascontiguousarray(H)
 
 
 def _exact_start(H):

@@ -2,6 +2,7 @@
 
 import numpy as np
 
+from .._scale import safe_norm
 from .._validation import as_float_array, check_finite
 
 __all__ = ["fit_percent"]
@@ -65,8 +66,9 @@ def fit_percent(y, yhat):
     one = Y.ndim == 1
     if one:
         Y, Yh = Y[:, None], Yh[:, None]
-    num = np.linalg.norm(Y - Yh, axis=0)
-    den = np.linalg.norm(Y - Y.mean(axis=0), axis=0)
+    # norms without overflow or underflow, so the fit of a record in any units is the same
+    num = safe_norm(Y - Yh, axis=0)
+    den = safe_norm(Y - Y.mean(axis=0), axis=0)
     if np.any(den == 0.0):
         col = int(np.argmax(den == 0.0))
         raise ValueError(f"`y` must vary to define a fit; output {col} is constant")

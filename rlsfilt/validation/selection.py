@@ -14,6 +14,8 @@ import warnings
 
 import numpy as np
 
+from .._resources import check_memory
+from .._scale import pow2_scale, safe_norm
 from .._serialize import jsonable
 from .._validation import check_dt, check_int
 from ..exceptions import ExactFitError, InsufficientDataError, OrderSelectionWarning
@@ -23,6 +25,10 @@ from .criteria import _criteria
 
 __all__ = ["OrderSelection", "select_order"]
 
+# largest number of floating-point operations select_order agrees to spend on its
+# candidates (a few minutes on one core); a realistic grid (na, nb, nk up to 10 with
+# one input: 1210 candidates) needs about 1e7
+_MAX_WORK = 1e11
 _CRITERIA = ("aic", "aicc", "bic", "naic", "fpe", "mdl", "loss")
 _FIELDS = [("na", int), ("nb", int), ("nk", int), ("n_params", int), ("loss", float),
            ("val_loss", float), ("aic", float), ("aicc", float), ("bic", float),
@@ -61,11 +67,14 @@ class OrderSelection:
     """
 
     def __init__(self, table, criterion, values, thetas, n_rows, n_val_rows, data, dt,
-                 offset=False):
+                 offset=False, rank_key=None):
         self.table = table
         self.criterion = criterion
         self.values = np.asarray(values, dtype=float)
-        i = int(np.nanargmin(self.values))
+        # the order of `values` (a monotone transform of them that stays finite for
+        # records in any units, see select_order)
+        self._rank_key = self.values if rank_key is None else np.asarray(rank_key, float)
+        i = int(np.nanargmin(self._rank_key))
         self.best = (int(table["na"][i]), int(table["nb"][i]), int(table["nk"][i]))
         self.best_index = i
         self.thetas = thetas
@@ -128,7 +137,7 @@ class OrderSelection:
         str
         """
         top = check_int(top, "top", minimum=1)
-        order = np.argsort(self.values, kind="stable")[:top]
+        order = np.argsort(self._rank_key, kind="stable")[:top]
         val = not np.all(np.isnan(self.table["val_loss"]))
         head = f"{'na':>3} {'nb':>3} {'nk':>3} {'d':>3} {'loss':>11}"
         head += f" {'val_loss':>11}" if val else ""
@@ -163,9 +172,23 @@ class OrderSelection:
         return plot_order_selection(self, ax)
 
 
-def select_order(u, y=None, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), criterion="bic",
-                 validation=None, *, dt=True, offset=False, stable_only=False):
-    r"""Choose ARX orders ``(na, nb, nk)`` by an information criterion.
+class _Default:
+    """A default order range, told apart from the same range given explicitly."""
+
+    def __init__(self, values):
+        self.values = values
+
+    def __repr__(self):
+        return repr(self.values)
+
+
+_NA, _NB, _NK = _Default(range(1, 6)), _Default(range(1, 6)), _Default(range(1, 4))
+
+
+def select_order(u, y=None, na=_NA, nb=_NB, nk=_NK, criterion="bic", validation=None, *, dt=True,
+                 offset=False, stable_only=False, model=None, nc=None, nd=None, nf=None,
+                 fit_options=None):
+    r"""Choose model orders by an information criterion: ARX ``(na, nb, nk)`` or any family.
 
     Parameters
     ----------
@@ -202,13 +225,36 @@ def select_order(u, y=None, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), crit
     stable_only : bool, default False
         Only candidates whose ``A`` has every pole inside the unit circle
         can be picked (an unstable ARX model predicts one step ahead but
-        its simulation diverges).
+        its simulation diverges). ARX only.
+    model : model class, default ARX
+        The structure searched. ``ARX`` (the default) is searched by least
+        squares as described below. Any other
+        :class:`~rlsfilt.models.IdentifiedModel` class (``ARMAX``, ``OE``,
+        ``BJ``, ``ARMA``, ``AR``) is searched by :func:`select_structure`:
+        every candidate fitted by prediction error and ranked by the same
+        criteria of its one-step prediction errors. Its orders are the
+        keywords its constructor takes (``ARMAX``: `na`, `nb`, `nc`, `nk`;
+        ``OE``: `nb`, `nf`, `nk`; ``BJ``: `nb`, `nc`, `nd`, `nf`, `nk`); an
+        order it does not take is refused. For these classes an order not
+        given tries 1 and 2 (`nk`: 1, 2, 3), and for a time-series class
+        (``ARMA``, ``AR``) `u` is None.
+    nc, nd, nf : int or iterable of int, optional
+        Candidate orders of ``C``, ``D`` and ``F`` for the classes that have
+        them (not ARX).
+    fit_options : dict, optional
+        Passed to every candidate's ``fit`` for the classes other than ARX
+        (for example ``{"method": "rpem"}``).
 
     Returns
     -------
-    OrderSelection
-        ``.best``, ``.table`` of every candidate, ``.plot()``,
-        ``.best_model()``.
+    OrderSelection or StructureSelection
+        For ARX an `OrderSelection`: ``.best`` (a tuple ``(na, nb, nk)``),
+        ``.table`` of every candidate, ``.plot()``, ``.best_model()``,
+        ``.summary()``, ``.to_dataframe()``. For another class the
+        :class:`StructureSelection` of :func:`select_structure` on the same
+        grid: ``.best`` (a dict of orders), ``.candidates``,
+        ``.best_model`` (the fitted model itself, an attribute),
+        ``.summary()``, ``.to_dataframe()``.
 
     Warns
     -----
@@ -219,10 +265,17 @@ def select_order(u, y=None, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), crit
 
     Raises
     ------
+    InsufficientDataError
+        When the largest orders leave no more aligned rows than regressors
+        (checked first, so ``na=10**9`` fails at once).
     ValueError
-        Bad orders or criterion, a record too short for the largest lags,
-        noise-free data (a zero loss), or no stable candidate with
-        `stable_only`.
+        Bad orders or criterion, noise-free data (a zero loss), no stable
+        candidate with `stable_only`, or a grid that would need more than
+        about 1e11 floating-point operations (minutes of computation):
+        narrow it or search it in parts.
+    MemoryError
+        When the regressor matrix and the table would need more memory than
+        the process can get (checked before they are built).
 
     Notes
     -----
@@ -262,10 +315,37 @@ def select_order(u, y=None, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), crit
     >>> y = lfilter([0, 0, 1.0, 0.5], [1, -1.5, 0.7], u) + lfilter([1], [1, -1.5, 0.7], e)
     >>> select_order(u, y, na=range(1, 5), nb=range(1, 5), nk=range(1, 4)).best
     (2, 2, 2)
+
+    The same entry point searches ARMAX orders on data with coloured
+    (moving-average) noise:
+
+    >>> from rlsfilt import ARMAX
+    >>> y = (lfilter([0, 1.0, 0.5], [1, -1.5, 0.7], u)
+    ...      + lfilter([1, -1.0, 0.2], [1, -1.5, 0.7], e))
+    >>> select_order(u, y, model=ARMAX, na=[1, 2, 3], nb=[2], nc=[1, 2, 3], nk=[1]).best
+    {'na': 2, 'nb': 2, 'nc': 2, 'nk': 1}
     """
     if criterion not in _CRITERIA:
         raise ValueError(f"`criterion` must be one of {', '.join(_CRITERIA)}; got {criterion!r}")
     check_dt(dt)  # here, not later in best_model()
+    orders = {"na": na, "nb": nb, "nk": nk, "nc": nc, "nd": nd, "nf": nf}
+    if model is not None:
+        from ..models import ARX
+
+        if not isinstance(model, type):
+            raise TypeError(f"`model` must be a model class such as ARMAX (not an instance); "
+                            f"got {type(model).__name__}")
+        if model is not ARX:
+            return _select_family(model, u, y, orders, criterion, validation, dt, offset,
+                                  stable_only, fit_options)
+    for name in ("nc", "nd", "nf"):
+        if orders[name] is not None:
+            raise ValueError(f"`{name}` is not an order of ARX (its orders: na, nb, nk); pass "
+                             f"`model=` a class with that polynomial (ARMAX, OE, BJ)")
+    if fit_options is not None:
+        raise ValueError("`fit_options` applies to the classes fitted by prediction error, "
+                         "not to ARX (searched by least squares); remove it")
+    na, nb, nk = (v.values if isinstance(v, _Default) else v for v in (na, nb, nk))
     from ..models.arx import _offset_mode
 
     mode = _offset_mode(offset)
@@ -273,27 +353,50 @@ def select_order(u, y=None, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), crit
     nb_list = _order_list(nb, "nb", 1)
     nk_list = _order_list(nk, "nk", 0)
     records, info = _records(u, y, "u", "y")
-    kmin = min(nk_list)
-    kmax = max(nk_list) + max(nb_list) - 1
-    na_max = max(na_list)
+    # the lists are sorted (ranges ascending): first and last are the extremes
+    kmin = nk_list[0]
+    kmax = nk_list[-1] + nb_list[-1] - 1
+    na_max = na_list[-1]
     t_max = max(na_max, kmax)
     nu = records[0][0].shape[1]
     n_lags = kmax - kmin + 1
     n_cols = na_max + nu * n_lags + (mode == "intercept")
+
+    # limits first, before anything of the size of the orders is allocated
+    n = sum(len(U) for U, _ in records)
+    rows = sum(max(len(U) - t_max, 0) for U, _ in records)
+    if rows <= n_cols:
+        raise InsufficientDataError(
+            f"`y` is too short for these orders: {n} samples leave {rows} aligned rows "
+            f"for up to {n_cols} regressors (largest `na` = {na_max}, `nb` = {nb_list[-1]}, "
+            f"`nk` = {nk_list[-1]}); use more data or smaller orders")
+    n_cand = len(na_list) * len(nb_list) * len(nk_list)
+    n_par = na_max + nu * nb_list[-1] + (mode == "intercept")
+    # each candidate is a least-squares problem with n_cols + 1 rows and up to n_par
+    # columns: refuse a grid that would take hours rather than run it
+    work = n_cand * (n_cols + 1) * n_par ** 2
+    if work > _MAX_WORK:
+        raise ValueError(
+            f"`na`, `nb`, `nk` span {n_cand} candidate structures with up to {n_par} "
+            f"parameters: about {work:.1e} floating-point operations, more than "
+            f"select_order's limit of {_MAX_WORK:.0e} (minutes of computation); narrow the "
+            "grid or search it in parts")
+    # the regressor matrix, its scaled copy and the QR work array; per candidate a table
+    # row, its parameters and their array
+    check_memory(8 * 3 * rows * (n_cols + 1) + n_cand * (200 + 8 * n_par),
+                 f"select_order with {n_cand} candidates (`na`, `nb`, `nk`) and up to {n_cols} "
+                 f"regressors on {n} samples")
     op = _means(records) if mode == "mean" else None
 
     Psi, target = _stacked_regressor(records, na_max, kmin, kmax, t_max, op, mode)
-    rows = len(target)
-    if rows <= n_cols:
-        n = sum(len(U) for U, _ in records)
-        raise InsufficientDataError(
-            f"`y` is too short for these orders: {n} samples leave {rows} aligned rows "
-            f"for up to {n_cols} regressors; use more data or smaller orders")
     # unit columns: the least-squares cut-off of rank-deficient candidates and the
-    # conditioning no longer depend on the signals' units (losses are unchanged)
-    scale = np.linalg.norm(Psi, axis=0)
+    # conditioning no longer depend on the signals' units (losses are unchanged); the
+    # target divided by a power of two near its largest entry (exact), so that losses are
+    # computed as ty^2 * loss_s without squaring a number around 1e160 or 1e-160
+    scale = safe_norm(Psi, axis=0)
     scale = np.where(scale > 0, scale, 1.0)
-    R = np.linalg.qr(np.column_stack([Psi / scale, target]), mode="r")
+    ty = pow2_scale(target)
+    R = np.linalg.qr(np.column_stack([Psi / scale, target / ty]), mode="r")
     r_y = R[:, -1]
 
     if validation is not None:
@@ -323,6 +426,7 @@ def select_order(u, y=None, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), crit
     cands = list(itertools.product(na_list, nb_list, nk_list))
     table = np.zeros(len(cands), dtype=_FIELDS)
     thetas = []
+    loss_s = np.empty(len(cands))        # the losses in units of ty^2
     const = [n_cols - 1] if mode == "intercept" else []
     for i, (a, b, k) in enumerate(cands):
         S = list(range(a)) + [na_max + j * n_lags + (k - kmin) + m
@@ -330,41 +434,52 @@ def select_order(u, y=None, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), crit
         M = R[:, S]
         theta = np.linalg.lstsq(M, r_y, rcond=None)[0] if S else np.zeros(0)
         res = r_y - M @ theta
-        theta = theta / scale[S]
+        theta = theta * (ty / scale[S])
         table[i]["na"], table[i]["nb"], table[i]["nk"] = a, b, k
         table[i]["n_params"] = len(S)
-        table[i]["loss"] = float(res @ res) / rows
         if validation is not None:
-            ev = target_v - Psi_v[:, S] @ theta
-            table[i]["val_loss"] = float(ev @ ev) / len(ev)
+            ev = (target_v - Psi_v[:, S] @ theta) / ty
+            loss_s[i] = float(ev @ ev) / len(ev)
         else:
-            table[i]["val_loss"] = np.nan
+            loss_s[i] = float(res @ res) / rows
+        with np.errstate(over="ignore", under="ignore"):
+            table[i]["loss"] = float(res @ res) / rows * ty * ty
+            table[i]["val_loss"] = loss_s[i] * ty * ty if validation is not None else np.nan
         poles = np.roots(np.concatenate([[1.0], theta[:a]])) if a else np.zeros(0)
         table[i]["max_pole"] = float(np.max(np.abs(poles))) if a else 0.0
         table[i]["stable"] = table[i]["max_pole"] < 1.0
         thetas.append(theta)
 
     use_val = validation is not None
-    V = table["val_loss"] if use_val else table["loss"]
     N = len(target_v) if use_val else rows
-    if np.any(V <= 1e-24 * float(np.mean(target ** 2))):
+    if np.any(loss_s <= 1e-24 * float(np.mean((target / ty) ** 2))):
         raise ExactFitError("a candidate fits the data exactly (zero loss); information "
                             "criteria are undefined for noise-free data")
-    crit = _criteria(V, N, table["n_params"])
+    V = table["val_loss"] if use_val else table["loss"]
+    log_V = np.log(loss_s) + 2.0 * np.log(ty)
+    crit = _criteria(V, N, table["n_params"], log_loss=log_V)
     for name in ("aic", "aicc", "bic", "naic", "fpe", "mdl"):
         table[name] = crit[name]
     values = np.array(table["val_loss"] if criterion == "loss" else table[criterion], float)
+    # the ranking uses logarithms where a criterion is proportional to V, so that it
+    # does not depend on the units even where V itself is out of range
+    d = table["n_params"].astype(float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rank_key = {"loss": log_V,
+                    "fpe": np.where(N - d > 0, log_V + np.log((1 + d / N) / (1 - d / N)), np.inf),
+                    "mdl": log_V + np.log1p(d * np.log(N) / N)}.get(criterion, values.copy())
     if stable_only:
         if not table["stable"].any():
             raise ValueError(f"`stable_only`: none of the {len(cands)} candidates is stable "
                              f"(smallest largest-pole magnitude {table['max_pole'].min():.4g});"
                              " check the data (operating point, delay) or widen the orders")
         values[~table["stable"]] = np.inf
+        rank_key[~table["stable"]] = np.inf
     # best_model() refits on the record as given: a 1-D input stays one signal `u`, and
     # pandas names are kept, so its summary names the signals as a direct ARX fit does
     data = _given(u, y, records, info)
     result = OrderSelection(table, criterion, values, thetas, rows, N if use_val else None,
-                            data, dt, offset)
+                            data, dt, offset, rank_key=rank_key)
     _warn_edges(result.best, {"na": na_list, "nb": nb_list, "nk": nk_list})
     return result
 
@@ -372,14 +487,67 @@ def select_order(u, y=None, na=range(1, 6), nb=range(1, 6), nk=range(1, 4), crit
 # ----------------------------------------------------------------------
 # private helpers
 # ----------------------------------------------------------------------
+_FAMILY_ORDERS = ("na", "nb", "nc", "nd", "nf", "nk")
+
+
+def _select_family(model, u, y, orders, criterion, validation, dt, offset, stable_only,
+                   fit_options):
+    """select_order for a class other than ARX: its orders as a grid for select_structure."""
+    import inspect
+
+    from .structure import select_structure
+
+    name = model.__name__
+    params = [p for p in inspect.signature(model.__init__).parameters
+              if p in _FAMILY_ORDERS]
+    if not params:
+        raise TypeError(f"`model` must be a model class with orders such as ARMAX; got "
+                        f"{name}, whose constructor takes none of {', '.join(_FAMILY_ORDERS)}")
+    for key, value in orders.items():
+        if key not in params and value is not None and not isinstance(value, _Default):
+            raise ValueError(f"`{key}` is not an order of {name} (its orders: "
+                             f"{', '.join(params)})")
+    if offset is not False:
+        raise ValueError(f"`offset` applies to ARX only; got offset={offset!r} with {name}: "
+                         "remove the operating point from the record first (IOData.detrend)")
+    if stable_only:
+        raise ValueError(f"`stable_only` applies to ARX only; with {name}, inspect "
+                         "`.models` (each has `is_stable`)")
+    if fit_options is not None and not isinstance(fit_options, dict):
+        raise TypeError(f"`fit_options` must be a dict; got {type(fit_options).__name__}")
+    if getattr(model, "_TIME_SERIES", False) and u is not None:
+        raise ValueError(f"`u` must be None for the time-series class {name} (the record is "
+                         f"`y`); got {type(u).__name__}")
+    grid = {}
+    for key in params:
+        value = orders[key]
+        if value is None or isinstance(value, _Default):
+            value = range(1, 4) if key == "nk" else range(1, 3)
+        grid[key] = _order_list(value, key, 1 if key == "nb" else 0)
+    result = select_structure(model, u, y, grid, criterion=criterion, validation=validation,
+                              dt=dt, **(fit_options or {}))
+    _warn_edges(tuple(result.best[k] for k in grid), grid, stacklevel=4)
+    return result
+
+
 def _order_list(value, name, minimum):
+    """Sorted distinct orders: a list, or an ascending ``range`` (never materialized here,
+    so that ``range(10**12)`` is refused by the limits, not by a frozen loop)."""
+    if isinstance(value, np.ndarray) and value.ndim == 0:
+        value = value.item()
     if isinstance(value, numbers.Integral) and not isinstance(value, bool):
-        values = [value]
-    elif isinstance(value, (str, bytes)) or not hasattr(value, "__iter__"):
+        return [check_int(value, name, minimum=minimum)]
+    if isinstance(value, range):
+        if not value:
+            raise ValueError(f"`{name}` must hold at least one order; got an empty range")
+        if value.step < 0:
+            value = value[::-1]
+        check_int(value[0], name, minimum=minimum)
+        return value
+    if isinstance(value, (str, bytes)) or not hasattr(value, "__iter__"):
         raise TypeError(f"`{name}` must be an integer or an iterable of integers; got "
                         f"{type(value).__name__}")
-    else:
-        values = list(value)
+    values = list(value)
     if not values:
         raise ValueError(f"`{name}` must hold at least one order; got an empty range")
     return sorted({check_int(v, name, minimum=minimum) for v in values})
@@ -427,22 +595,25 @@ def _stacked_regressor(records, na_max, kmin, kmax, t_max, op, mode):
     return np.vstack(Psis), np.concatenate(targets)
 
 
-def _warn_edges(best, ranges):
+def _warn_edges(best, ranges, stacklevel=3):
     """Warn (once) when the best structure sits at edges of ranges that could be widened."""
     edges = []
     for (name, values), value in zip(ranges.items(), best):
         if len(values) < 2:
             continue
-        span = f"({min(values)}..{max(values)})"
-        if value == max(values):
+        lo, hi = values[0], values[-1]      # sorted lists, ascending ranges
+        span = f"({lo}..{hi})"
+        if value == hi:
             edges.append(f"the upper edge of the `{name}` range {span}: widen `{name}` upwards")
-        elif value == min(values) and min(values) > 1:
+        elif value == lo and lo > 1:
             edges.append(f"the lower edge of the `{name}` range {span}: widen `{name}` "
                          "downwards")
     if edges:
         text = "; and at ".join(edges)
-        warnings.warn(f"the best structure (na, nb, nk) = {best} is at {text} (the best may "
-                      "lie outside the grid)", OrderSelectionWarning, stacklevel=3)
+        names = ", ".join(ranges)
+        warnings.warn(f"the best structure ({names}) = {best} is at {text} (the best may "
+                      "lie outside the grid)", OrderSelectionWarning,
+                      stacklevel=stacklevel)
 
 
 def _as_given(X, was_1d, names):

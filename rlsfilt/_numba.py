@@ -1,0 +1,54 @@
+"""The one place where rlsfilt asks numba to compile: `njit` with a disk cache when it can.
+
+The compiled kernels are declared ``njit(cache=True)`` so that their machine
+code is written to disk once and loaded by later processes. numba looks for a
+writable cache directory (``NUMBA_CACHE_DIR``, the ``__pycache__`` beside the
+source, then the user's cache directory under ``HOME``); on a read-only
+installation with an unwritable ``HOME`` it finds none and raises
+``RuntimeError: cannot cache function ...: no locator available`` while the
+module is being imported. Here that case compiles the function without a
+disk cache instead (correct, only slower at first use in each process) and
+says so in one warning, once per process.
+"""
+
+import warnings
+
+import numba
+
+__all__ = []
+
+_warned = False
+
+
+def njit(*args, **options):
+    """``numba.njit`` that falls back to ``cache=False`` when no cache directory is writable.
+
+    Used exactly like ``numba.njit``: ``@njit``, ``@njit(cache=True)``,
+    ``@njit(cache=True, inline="always")``.
+    """
+    if args and callable(args[0]) and len(args) == 1 and not options:
+        return numba.njit(args[0])
+
+    def decorate(func):
+        if not options.get("cache"):
+            return numba.njit(*args, **options)(func)
+        try:
+            return numba.njit(*args, **options)(func)
+        except RuntimeError as exc:     # numba found no writable cache directory
+            if "cannot cache function" not in str(exc):
+                raise
+            _warn_uncached(func)
+            return numba.njit(*args, **{**options, "cache": False})(func)
+
+    return decorate
+
+
+def _warn_uncached(func):
+    global _warned
+    if _warned:
+        return
+    _warned = True
+    warnings.warn(
+        f"numba found no writable cache directory for {func.__module__} (set NUMBA_CACHE_DIR "
+        "to a writable directory); the kernels are compiled in memory, again in every process",
+        RuntimeWarning, stacklevel=3)

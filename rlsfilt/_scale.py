@@ -1,0 +1,72 @@
+r"""Scaling that keeps sums of squares inside the range of double precision.
+
+Least squares, correlations, the residual tests and the CUSUM tests do not
+depend on the units of the signals, but their sums of squares do: with
+entries around :math:`10^{155}`, :math:`\sum x_t^2` overflows to ``inf``;
+around :math:`10^{-155}` it underflows to subnormal numbers (losing digits)
+and then to zero. A record of a pressure in pascal or a current in
+attoampere must not be called "not persistently exciting" or an "exact fit"
+for that reason.
+
+The remedy used everywhere in rlsfilt: divide each signal (or column) by a
+power of two near its largest entry before squaring, and undo the factor
+where a result carries units. Dividing by a power of two changes only the
+exponent, so it is exact; the scaled squares are near one; and a
+scale-invariant quantity (a rank, a correlation, a test statistic, a
+p-value) is then the same, to round-off, for the record multiplied by any
+factor. Quantities that carry units (a noise variance of a record around
+:math:`10^{160}`) are ``inf`` only when they are not representable.
+"""
+
+import numpy as np
+
+__all__ = []
+
+
+def pow2_scale(x, axis=None):
+    """Powers of two ``2^e >= max|x|`` (along `axis`), 1 where `x` is all zero.
+
+    Parameters
+    ----------
+    x : ndarray
+        Finite values.
+    axis : int, optional
+        ``0`` for one scale per column; None for one scale for all of `x`.
+
+    Returns
+    -------
+    float or ndarray
+        ``x / pow2_scale(x)`` is exact and has entries in ``[-1, 1]``.
+    """
+    x = np.asarray(x, dtype=float)
+    if x.size == 0:
+        return 1.0 if axis is None else np.ones(np.delete(x.shape, axis))
+    _, exponent = np.frexp(np.max(np.abs(x), axis=axis))   # max = f 2^e, 0.5 <= f < 1
+    return np.ldexp(1.0, exponent)                           # frexp(0) gives e = 0: scale 1
+
+
+def unit_columns(X):
+    """`X` with every nonzero column scaled to unit 2-norm, without overflow or underflow.
+
+    A rank decision on the result does not depend on the units of the
+    columns (Householder QR, which solves the least-squares problems, is
+    itself insensitive to column scaling; Golub & Van Loan 2013, sec. 5.3.7).
+    """
+    X = np.asarray(X, dtype=float)
+    if X.shape[0] == 0:
+        return X.copy()
+    Xs = X / pow2_scale(X, axis=0)
+    norms = np.linalg.norm(Xs, axis=0)
+    return Xs / np.where(norms > 0, norms, 1.0)
+
+
+def safe_norm(x, axis=None):
+    """The 2-norm of `x` (of each column with ``axis=0``) without intermediate overflow.
+
+    The result is ``inf`` only when the norm itself exceeds the largest
+    double.
+    """
+    x = np.asarray(x, dtype=float)
+    s = pow2_scale(x, axis=axis)
+    with np.errstate(over="ignore"):
+        return s * np.linalg.norm(x / s, axis=axis)

@@ -1,0 +1,553 @@
+"""The bad-input catalogue, tried against every public entry point (issue #18).
+
+The audit behind #18 fed rlsfilt what a hurried user or an attacker would:
+wrong shapes, NaN, inf, None, lists, pandas, 0-d arrays, complex, object,
+bool and int arrays, read-only and non-contiguous arrays, and records around
+1e160 and 1e-160. This module keeps that audit. It is a table: one
+`Entry` per (entry point, argument), with a `run(value)` that calls the
+entry point with the argument replaced, a valid value, and the outcome
+expected for each kind of bad value where it differs from the default:
+
+``ERROR``
+    ``ValueError`` or ``TypeError`` (``MemoryError`` for sizes) whose
+    message names the argument in backticks; for a filter, the state is
+    bit-identical afterwards.
+``SAME``
+    the result equals the result for the valid value bit for bit (lists,
+    pandas, read-only and strided arrays are the same numbers).
+``AS_FLOAT``
+    the result equals the result for the same values as float64 (an int
+    array is its numbers).
+``EITHER``
+    a clear error as above, or a result (an unusual value that some entry
+    points can use).
+``OK``
+    any result (e.g. NaN marks a missing measurement).
+``WARNS``
+    a clear error, or the filter's documented health warning
+    (`NumericalWarning`, raised as an exception under ``-W error``) with the
+    state unchanged: regressors around 1e160 are out of a filter's range (its
+    prior covariance has units), which its health check reports.
+``scaled(f)``
+    the result equals ``f(valid result, s)`` for the value multiplied by
+    ``s`` (1e160 or 1e-160), to ``rtol`` 1e-9: what a scale-invariant or
+    linear entry point must give over the whole double range.
+
+pytest runs with ``-W error``, so a stray warning is a failure of its own.
+To cover a new entry point, add its `Entry` lines to `ENTRIES`.
+"""
+
+import os
+import pickle
+import subprocess
+import sys
+import warnings
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+import pytest
+from numpy.testing import assert_allclose, assert_array_equal
+from scipy.signal import lfilter
+
+from rlsfilt import (
+    ARMAX,
+    ARX,
+    IOData,
+    NumericalWarning,
+    OrderSelectionWarning,
+    RecursiveLeastSquares,
+    RLSBank,
+    SlidingWindowRLS,
+    SquareRootRLS,
+    datasets,
+    fit_percent,
+    select_order,
+    validate,
+)
+from rlsfilt.validation import cusum, information_criteria, residual_analysis
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+ERROR, SAME, AS_FLOAT, EITHER, OK, WARNS = "error", "same", "as_float", "either", "ok", "warns"
+HUGE, TINY = 1e160, 1e-160
+
+ARRAY_KINDS = ("shape", "nan", "inf", "none", "list", "pandas", "0d", "complex", "object",
+               "bool", "int", "readonly", "strided", "huge", "tiny")
+SCALAR_KINDS = ("shape", "nan", "inf", "none", "list", "0d", "complex", "object", "bool",
+                "int", "text", "huge", "tiny")
+INT_KINDS = ("float", "bool", "none", "negative", "huge", "numpy", "0d", "complex", "text")
+
+DEFAULT = {"shape": ERROR, "nan": ERROR, "inf": ERROR, "none": ERROR, "list": SAME,
+           "pandas": SAME, "0d": ERROR, "complex": ERROR, "object": ERROR, "bool": EITHER,
+           "int": AS_FLOAT, "readonly": SAME, "strided": SAME, "huge": EITHER, "tiny": EITHER,
+           "text": ERROR, "float": ERROR, "negative": ERROR, "numpy": SAME}
+SCALAR_DEFAULT = {**DEFAULT, "list": SAME, "0d": SAME, "bool": ERROR}
+INT_DEFAULT = {**DEFAULT, "0d": SAME}
+
+
+def scaled(f):
+    """Expected result for the value times ``s``: ``f(result, s)``."""
+    return ("scaled", f)
+
+
+@dataclass(frozen=True)
+class Entry:
+    """One argument of one public entry point."""
+
+    name: str                  # "ARX.fit"
+    arg: str                   # the argument's name, as error messages spell it
+    run: Callable              # run(value) -> result (an array or a tuple of arrays)
+    good: object               # a valid value
+    kind: str = "array"        # "array", "scalar" or "int"
+    expect: dict = field(default_factory=dict)   # outcome per kind, where not the default
+    state: Callable = None     # state() -> bytes of the object whose state must not change
+    known: dict = field(default_factory=dict)    # kind -> reason: xfail(strict=True) until fixed
+
+
+# ----------------------------------------------------------------------
+# the bad values
+# ----------------------------------------------------------------------
+def _variants(entry):
+    g = entry.good
+    if entry.kind == "int":
+        return {"float": float(g), "bool": True, "none": None, "negative": -1, "huge": 10**13,
+                "numpy": np.int64(g), "0d": np.array(g), "complex": complex(g),
+                "text": str(g)}
+    if entry.kind == "scalar":
+        return {"shape": np.full((2, 2), g), "nan": np.nan, "inf": np.inf, "none": None,
+                "list": [g], "0d": np.array(g), "complex": complex(g, 1.0),
+                "object": np.array(["a"], dtype=object), "bool": True, "int": 1,
+                "text": "a", "huge": g * HUGE, "tiny": g * TINY}
+    a = np.array(g, dtype=float)
+    flat = a.reshape(-1)
+    mid = flat.size // 2
+    nan, inf = a.copy(), a.copy()
+    nan.reshape(-1)[mid] = np.nan
+    inf.reshape(-1)[mid] = np.inf
+    obj = a.astype(object)
+    obj.reshape(-1)[mid] = "a"
+    readonly = a.copy()
+    readonly.flags.writeable = False
+    strided = np.repeat(a, 2, axis=0)[::2]
+    return {"shape": a[None, None], "nan": nan, "inf": inf, "none": None,
+            "list": a.tolist(),
+            "pandas": pd.Series(a) if a.ndim == 1 else pd.DataFrame(a) if a.ndim == 2 else a,
+            "0d": np.array(flat[0]), "complex": a + 0.0j, "object": obj,
+            "bool": a > np.median(a), "int": np.round(4.0 * a).astype(np.int64),
+            "readonly": readonly, "strided": strided, "huge": a * HUGE, "tiny": a * TINY}
+
+
+def _as_float(value):
+    if isinstance(value, np.ndarray):
+        return value.astype(float)
+    return float(value)
+
+
+# ----------------------------------------------------------------------
+# records and helpers for the table
+# ----------------------------------------------------------------------
+_RNG = np.random.default_rng(18)
+N = 300
+U = _RNG.standard_normal(N)
+Y = lfilter([0, 1.0, 0.5], [1, -1.5, 0.7], U) + lfilter([1.0], [1, -1.5, 0.7],
+                                                         0.1 * _RNG.standard_normal(N))
+HS = _RNG.standard_normal((40, 3))
+ZS = HS @ np.array([0.7, -0.3, -0.2]) + 0.05 * _RNG.standard_normal(40)
+ROW = np.array([0.3, -1.2, 0.8])
+MODEL = ARX(2, 2).fit(U, Y)
+PHI, TARGET = MODEL.regressors(U, Y)
+
+
+def _filters():
+    return {"RecursiveLeastSquares": lambda **kw: RecursiveLeastSquares(3, **kw),
+            "RecursiveLeastSquares-lam0.95": lambda **kw: RecursiveLeastSquares(3, lam=0.95,
+                                                                                **kw),
+            "SquareRootRLS": lambda **kw: SquareRootRLS(3, **kw),
+            "SlidingWindowRLS": lambda **kw: SlidingWindowRLS(3, 20, **kw)}
+
+
+def _xp(f):
+    return f.x.copy(), f.P.copy()
+
+
+class _Running:
+    """A filter run on the first samples, whose method is then called; its state is
+    compared before and after a rejected call, and put back after an accepted one."""
+
+    def __init__(self, make):
+        self.f = make()
+        self.f.batch_filter(ZS[:10], HS[:10])
+
+    def state(self):
+        return pickle.dumps(self.f)
+
+    def call(self, method):
+        def run(v):
+            before = self.state()
+            try:
+                return method(self.f, v)
+            finally:
+                if self.state() != before:          # an accepted call: back to the start
+                    self.f = pickle.loads(before)
+        return run
+
+
+def _filter_entries(label, make):
+    """The table lines of one filter configuration."""
+    linear_in_z = scaled(lambda r, s: (r[0] * s, r[1]))     # x0 = 0: x is linear in z
+    entries = [
+        Entry(f"{label}()", "x0", lambda v: _xp(_batch(make(x0=v))), [0.1, 0.2, 0.3],
+              expect={"none": OK}),
+        Entry(f"{label}()", "P0", lambda v: _xp(_batch(make(P0=v))), 10.0 * np.eye(3),
+              expect={"none": ERROR, "huge": ERROR, "0d": SAME}),
+        Entry(f"{label}()", "R", lambda v: _xp(_batch(make(R=v))), 0.5, kind="scalar",
+              expect={"huge": ERROR, "tiny": ERROR}),
+    ]
+    running = _Running(make)
+
+    def update(z=ZS[10], H=HS[10], R=None):
+        g = pickle.loads(running.state())
+        g.predict()
+        g.update(z, H, R)
+        return _xp(g)
+
+    on_running = running.call
+
+    entries += [
+        Entry(f"{label}.update", "z", lambda v: update(z=v), ZS[10], kind="scalar",
+              expect={"nan": OK, "none": OK, "bool": EITHER, "huge": EITHER, "tiny": EITHER}),
+        Entry(f"{label}.update", "H", lambda v: update(H=v), ROW, expect={"huge": WARNS}),
+        Entry(f"{label}.update", "R", lambda v: update(R=v), 0.5, kind="scalar",
+              expect={"none": OK, "huge": ERROR, "tiny": ERROR}),
+        Entry(f"{label}.batch_filter", "zs",
+              on_running(lambda g, v: g.batch_filter(v, HS[10:])[0]), ZS[10:],
+              expect={"nan": OK, "pandas": SAME}, state=running.state),
+        Entry(f"{label}.batch_filter", "Hs",
+              on_running(lambda g, v: g.batch_filter(ZS[10:], v)[0]), HS[10:],
+              expect={"huge": WARNS}, state=running.state),
+        Entry(f"{label}.batch_filter", "Rs",
+              on_running(lambda g, v: g.batch_filter(ZS[10:], HS[10:], Rs=v)[0]),
+              np.linspace(0.5, 2.0, 30), expect={"none": OK, "0d": OK, "int": EITHER,
+                                                 "huge": ERROR, "tiny": ERROR},
+              state=running.state),
+        Entry(f"{label}.initialize", "zs", lambda v: _xp(_init(make(), v, HS[:12])), ZS[:12],
+              expect={"nan": OK, "huge": linear_in_z, "tiny": linear_in_z}),
+        Entry(f"{label}.initialize", "Hs", lambda v: _xp(_init(make(), ZS[:12], v)), HS[:12],
+              expect={"bool": EITHER, "int": EITHER, "huge": WARNS, "tiny": WARNS}),
+    ]
+    if label in ("RecursiveLeastSquares", "SquareRootRLS"):
+        entries.append(Entry(f"{label}()", "lam", lambda v: _xp(_batch(make(lam=v))), 0.95,
+                             kind="scalar", expect={"huge": ERROR, "tiny": WARNS}))
+    if label.startswith("RecursiveLeastSquares"):
+        entries += [
+            Entry(f"{label}()", "Q", lambda v: _xp(_batch(make(Q=v))), 1e-4 * np.eye(3),
+                  expect={"none": ERROR, "huge": ERROR, "0d": EITHER, "bool": EITHER,
+                          "int": EITHER}),
+            Entry(f"{label}.constrain", "A",
+                  on_running(lambda g, v: _xp(g.constrain(v, [0.5]))), [[1.0, 1.0, 0.0]],
+                  expect={"shape": ERROR, "0d": ERROR, "int": EITHER, "bool": EITHER},
+                  state=running.state),
+            Entry(f"{label}.constrain", "b",
+                  on_running(lambda g, v: _xp(g.constrain([[1.0, 1.0, 0.0]], v))), [0.5],
+                  expect={"0d": SAME}, state=running.state),
+        ]
+    if label == "SlidingWindowRLS":
+        entries.append(Entry("SlidingWindowRLS()", "window",
+                             lambda v: _xp(_batch(SlidingWindowRLS(3, v))), 20, kind="int"))
+    entries.append(Entry(f"{label}()", "dim_x", lambda v: _dims(label, v), 3, kind="int"))
+    return entries
+
+
+def _dims(label, n):
+    make = {"RecursiveLeastSquares": RecursiveLeastSquares, "SquareRootRLS": SquareRootRLS}
+    if label == "SlidingWindowRLS":
+        f = SlidingWindowRLS(n, 20)
+    else:
+        f = make[label.split("-")[0]](n)
+    return f.x.shape
+
+
+def _batch(f):
+    f.batch_filter(ZS, HS)
+    return f
+
+
+def _init(f, zs, Hs):
+    f.initialize(zs, Hs)
+    return f
+
+
+def _theta(model):
+    return model.theta_.copy()
+
+
+def _arx_entries():
+    b_scaled = scaled(lambda r, s: r * np.array([1.0, 1.0, s, s]))     # y * s: b * s
+    b_inverse = scaled(lambda r, s: r * np.array([1.0, 1.0, 1 / s, 1 / s]))  # u * s: b / s
+    linear = scaled(lambda r, s: r * s)
+    same_scale = scaled(lambda r, s: r)
+    return [
+        Entry("ARX.fit", "u", lambda v: _theta(ARX(2, 2).fit(v, Y)), U,
+              expect={"huge": b_inverse, "tiny": b_inverse}),
+        Entry("ARX.fit", "y", lambda v: _theta(ARX(2, 2).fit(U, v)), Y,
+              expect={"huge": b_scaled, "tiny": b_scaled, "shape": ERROR}),
+        Entry("ARX()", "na", lambda v: _theta(ARX(v, 2).fit(U, Y)), 2, kind="int",
+              expect={"negative": ERROR, "huge": ERROR}),
+        Entry("ARX()", "nb", lambda v: _theta(ARX(2, v).fit(U, Y)), 2, kind="int"),
+        Entry("ARX()", "nk", lambda v: _theta(ARX(2, 2, v).fit(U, Y)), 1, kind="int"),
+        Entry("ARX()", "dt", lambda v: float(ARX(2, 2, dt=v).fit(U, Y).to_tf().dt), 0.1,
+              kind="scalar", expect={"list": ERROR, "0d": ERROR, "int": AS_FLOAT,
+                                     "huge": OK, "tiny": OK, "none": ERROR, "bool": OK}),
+        Entry("ARX.predict", "u", lambda v: MODEL.predict(v, Y, horizon=2), U,
+              expect={"huge": EITHER, "tiny": EITHER}),
+        Entry("ARX.predict", "y", lambda v: MODEL.predict(U, v, horizon=2), Y),
+        Entry("ARX.predict", "horizon", lambda v: MODEL.predict(U, Y, horizon=v), 3,
+              kind="int", expect={"huge": OK, "negative": ERROR}),
+        Entry("ARX.simulate", "u", lambda v: MODEL.simulate(v), U,
+              expect={"huge": linear, "tiny": linear}),
+        Entry("ARX.simulate", "y0", lambda v: MODEL.simulate(U, y0=v), Y[:2],
+              expect={"none": OK, "0d": ERROR, "huge": EITHER}),
+        Entry("ARX.from_polynomials", "a", lambda v: _theta(ARX.from_polynomials(v, [1.0])),
+              [-1.5, 0.7], expect={"0d": OK, "huge": OK, "tiny": OK}),
+        Entry("ARX.from_polynomials", "b",
+              lambda v: _theta(ARX.from_polynomials([-0.5], v)), [1.0, 0.5],
+              expect={"0d": OK, "huge": OK, "tiny": OK}),
+        Entry("validate", "u", lambda v: validate(MODEL, v, Y).simulation_fit, U,
+              expect={"huge": EITHER, "tiny": EITHER}),
+        Entry("validate", "y", lambda v: validate(MODEL, U, v).simulation_fit, Y,
+              expect={"huge": EITHER, "tiny": EITHER}),
+        Entry("validate", "max_lag", lambda v: validate(MODEL, U, Y, max_lag=v).residuals[0]
+              .q_statistic, 10, kind="int"),
+        Entry("validate", "alpha", lambda v: validate(MODEL, U, Y, alpha=v).passed, 0.01,
+              kind="scalar", expect={"huge": ERROR, "tiny": OK, "int": ERROR}),
+        Entry("residual_analysis", "y", lambda v: residual_analysis(MODEL, U, v).q_statistic,
+              Y),
+        Entry("information_criteria", "u", lambda v: information_criteria(MODEL, v, Y).aic,
+              U),
+        Entry("select_order", "u", lambda v: _best(v, Y), U,
+              expect={"huge": same_scale, "tiny": same_scale}),
+        Entry("select_order", "y", lambda v: _best(U, v), Y,
+              expect={"huge": same_scale, "tiny": same_scale}),
+        Entry("select_order", "na", lambda v: _best(U, Y, na=v), 2, kind="int",
+              expect={"negative": ERROR}),
+        Entry("cusum", "zs", lambda v: cusum(v, PHI).statistic, TARGET,
+              expect={"huge": scaled(lambda r, s: r), "tiny": scaled(lambda r, s: r)}),
+        Entry("cusum", "Hs", lambda v: cusum(TARGET, v).statistic, PHI,
+              expect={"huge": scaled(lambda r, s: r), "tiny": scaled(lambda r, s: r),
+                      "bool": EITHER, "int": EITHER}),
+        Entry("cusum", "alpha", lambda v: cusum(TARGET, PHI, alpha=v).critical_value, 0.05,
+              kind="scalar", expect={"huge": ERROR, "tiny": OK, "int": ERROR}),
+        Entry("fit_percent", "yhat", lambda v: fit_percent(Y, v), 0.9 * Y,
+              expect={"huge": EITHER, "tiny": EITHER}),
+        Entry("datasets.dc_motor", "n_samples", lambda v: datasets.dc_motor(n_samples=v).y,
+              400, kind="int", expect={"huge": ERROR}),
+        Entry("datasets.dc_motor", "noise_std",
+              lambda v: datasets.dc_motor(n_samples=300, noise_std=v).y, 0.01, kind="scalar",
+              expect={"int": OK, "huge": OK, "tiny": OK}),
+        Entry("datasets.prbs", "n_samples", lambda v: datasets.prbs(v), 100, kind="int",
+              expect={"huge": ERROR}),
+    ]
+
+
+def _bank_entries():
+    """`RLSBank`: four channels of three parameters."""
+    C = 4
+    zs = np.column_stack([ZS + 0.01 * c for c in range(C)])            # (N, C)
+    Hs = np.repeat(HS[:, None, :], C, axis=1)                        # (N, C, 3)
+
+    def run(**kw):
+        bank = RLSBank(C, 3, **kw)
+        bank.batch_filter(zs, Hs)
+        return bank.x.copy(), bank.P.copy()
+
+    def update(z=zs[10], H=Hs[10], R=None):
+        bank = RLSBank(C, 3)
+        bank.batch_filter(zs[:10], Hs[:10])
+        bank.predict()
+        bank.update(z, H, R)
+        return bank.x.copy(), bank.P.copy()
+
+    return [
+        Entry("RLSBank()", "R", lambda v: run(R=v), 0.5, kind="scalar",
+              expect={"huge": ERROR, "tiny": ERROR, "list": ERROR}),
+        Entry("RLSBank()", "lam", lambda v: run(lam=v), 0.95, kind="scalar",
+              expect={"huge": ERROR, "tiny": WARNS, "list": ERROR}),
+        Entry("RLSBank()", "P0", lambda v: run(P0=v), 10.0 * np.eye(3),
+              expect={"huge": ERROR, "0d": SAME, "none": ERROR}),
+        Entry("RLSBank.update", "z", lambda v: update(z=v), zs[10], expect={"nan": OK}),
+        Entry("RLSBank.update", "H", lambda v: update(H=v), Hs[10],
+              expect={"nan": OK, "huge": WARNS}),
+        Entry("RLSBank.batch_filter", "zs",
+              lambda v: RLSBank(C, 3).batch_filter(v, Hs).means, zs, expect={"nan": OK}),
+        Entry("RLSBank.batch_filter", "Hs",
+              lambda v: RLSBank(C, 3).batch_filter(zs, v).means, Hs,
+              expect={"nan": OK, "huge": WARNS}),
+        Entry("RLSBank()", "n_channels", lambda v: RLSBank(v, 3).x.shape, 4, kind="int"),
+    ]
+
+
+def _family_entries():
+    """`ARMAX` (prediction-error method) and `IOData`, the containers of real records."""
+    unsafe = ("#18 item 7: the prediction-error fits (ARMAX, OE, BJ) square the residuals "
+              "in the signals' units and overflow around 1e160 (a RuntimeWarning, not a "
+              "result); to be scaled as ARX's least squares is")
+    return [
+        Entry("ARMAX.fit", "u", lambda v: _theta(ARMAX(2, 2, 1).fit(v, Y)), U,
+              expect={"huge": EITHER, "tiny": EITHER}, known={"huge": unsafe, "tiny": unsafe}),
+        Entry("ARMAX.fit", "y", lambda v: _theta(ARMAX(2, 2, 1).fit(U, v)), Y,
+              expect={"huge": EITHER, "tiny": EITHER}, known={"huge": unsafe, "tiny": unsafe}),
+        Entry("IOData", "u", lambda v: np.asarray(IOData(v, Y, dt=0.1).u), U,
+              expect={"huge": OK, "tiny": OK}),
+        Entry("IOData", "y", lambda v: np.asarray(IOData(U, v, dt=0.1).y), Y,
+              expect={"huge": OK, "tiny": OK}),
+        Entry("IOData", "dt", lambda v: IOData(U, Y, dt=v).dt, 0.1, kind="scalar",
+              expect={"list": EITHER, "0d": EITHER, "int": AS_FLOAT, "huge": OK, "tiny": OK,
+                      "none": EITHER, "bool": EITHER}),
+    ]
+
+
+def _best(u, y, na=range(1, 4)):
+    with warnings.catch_warnings():      # advice that the best lies at an edge of the grid
+        warnings.simplefilter("ignore", OrderSelectionWarning)
+        return np.array(select_order(u, y, na=na, nb=range(1, 4), nk=[1]).best)
+
+
+ENTRIES = [e for label, make in _filters().items() for e in _filter_entries(label, make)]
+ENTRIES += _arx_entries() + _bank_entries() + _family_entries()
+CASES = [(e, kind) for e in ENTRIES
+         for kind in {"array": ARRAY_KINDS, "scalar": SCALAR_KINDS, "int": INT_KINDS}[e.kind]]
+PARAMS = [pytest.param(e, kind, id=f"{e.name}-{e.arg}-{kind}",
+                       marks=[pytest.mark.xfail(strict=True, reason=e.known[kind])]
+                       if kind in e.known else [])
+          for e, kind in CASES]
+
+
+# ----------------------------------------------------------------------
+# the test
+# ----------------------------------------------------------------------
+def _expected(entry, kind):
+    if kind in entry.expect:
+        return entry.expect[kind]
+    return {"scalar": SCALAR_DEFAULT, "int": INT_DEFAULT}.get(entry.kind, DEFAULT)[kind]
+
+
+def _equal(a, b, rtol=0.0):
+    a = a if isinstance(a, tuple) else (a,)
+    b = b if isinstance(b, tuple) else (b,)
+    assert len(a) == len(b)
+    for x, y in zip(a, b):
+        if rtol:
+            assert_allclose(np.asarray(x, float), np.asarray(y, float), rtol=rtol,
+                            atol=rtol * np.abs(np.asarray(y, float)).max())
+        else:
+            assert_array_equal(x, y)
+
+
+@pytest.mark.parametrize("entry, kind", PARAMS)
+def test_bad_input_catalogue(entry, kind):
+    value = _variants(entry)[kind]
+    expected = _expected(entry, kind)
+    before = entry.state() if entry.state else None
+    try:
+        result = entry.run(value)
+    except NumericalWarning as exc:
+        assert expected == WARNS, f"warned ({exc!r}); expected {expected}"
+        if before is not None:
+            assert entry.state() == before, "a call that warned changed the state"
+        return
+    except (ValueError, TypeError, MemoryError) as exc:
+        assert expected in (ERROR, EITHER, WARNS), f"refused ({exc!r}); expected {expected}"
+        assert f"`{entry.arg}" in str(exc), f"the message does not name `{entry.arg}`: {exc}"
+        if before is not None:
+            assert entry.state() == before, "a rejected call changed the state"
+        return
+    assert expected != ERROR, f"accepted {kind} {entry.arg}; expected a clear error"
+    if expected == SAME:
+        _equal(result, entry.run(entry.good))
+    elif expected == AS_FLOAT:
+        _equal(result, entry.run(_as_float(value)))
+    elif isinstance(expected, tuple):                       # scaled(f)
+        s = HUGE if kind == "huge" else TINY
+        _equal(result, expected[1](entry.run(entry.good), s), rtol=1e-9)
+
+
+def test_every_kind_has_an_outcome():
+    """The table is complete: every case resolves to one of the outcome classes."""
+    for entry, kind in CASES:
+        assert _expected(entry, kind) in (ERROR, SAME, AS_FLOAT, EITHER, OK, WARNS) or \
+            _expected(entry, kind)[0] == "scaled"
+
+
+def test_arx_accepts_numpy_scalar_sampling_periods():
+    """``ARX(dt=np.float32(0.1))`` failed later inside python-control."""
+    model = ARX(2, 2, dt=np.float32(0.1)).fit(U, Y)
+    assert model.to_tf().dt == float(np.float32(0.1))
+    assert model.to_ss().dt == float(np.float32(0.1))
+    assert model.to_dict()["dt"] == float(np.float32(0.1))
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_from_tf_refuses_non_finite_coefficients(bad):
+    import control
+
+    for G in (control.tf([1.0, bad], [1.0, -0.5], 0.1), control.tf([1.0], [1.0, bad], 0.1)):
+        with pytest.raises(ValueError, match="`G` must have finite coefficients"):
+            ARX.from_tf(G)
+
+
+def test_sliding_window_missing_sample_downdates_the_oldest():
+    """What ``SlidingWindowRLS.update`` documents: once the window is full a missing
+    sample adds nothing but the oldest sample still leaves, so the estimate becomes
+    least squares on the samples left in the window."""
+    w = 12
+    sw = SlidingWindowRLS(3, w)
+    sw.initialize(ZS[:w], HS[:w])
+    x_full = sw.x.copy()
+    sw.predict()
+    sw.update(None, HS[w])
+    assert not np.array_equal(sw.x, x_full)
+    theta = np.linalg.lstsq(HS[1:w], ZS[1:w], rcond=None)[0]
+    assert_allclose(sw.x[:, 0], theta, rtol=1e-9)
+    assert sw.n_samples == w
+
+
+@pytest.mark.slow
+def test_no_input_array_is_written_in_a_fresh_process(tmp_path):
+    """In a fresh process (a new numba cache: every kernel compiled for read-only
+    arrays from scratch), read-only arrays and memory from ``np.frombuffer(bytes)``
+    go through every entry point of every filter unchanged, and assigning ``x`` then
+    stepping leaves the caller's array as it was."""
+    job = r"""
+import numpy as np
+from rlsfilt import RecursiveLeastSquares as RLS, SlidingWindowRLS as SW, SquareRootRLS as SR
+rng = np.random.default_rng(0)
+Hs_w = rng.standard_normal((12, 3)); zs_w = Hs_w @ [1.0, 2.0, 3.0]
+Hs = np.frombuffer(Hs_w.tobytes()).reshape(12, 3); zs = np.frombuffer(zs_w.tobytes())
+H = np.frombuffer(np.array([1.0, 2.0, 3.0]).tobytes())
+x0 = np.zeros(3); x0.flags.writeable = False
+X = np.full((3, 1), 0.5)
+for make in (lambda: RLS(3, x0=x0), lambda: RLS(3, lam=0.9, forgetting="directional"),
+             lambda: RLS(3, lam=0.95, Q=1e-4), lambda: SR(3, lam=0.9, x0=x0),
+             lambda: SW(3, 6, x0=x0)):
+    f = make()
+    f.x = X
+    for k in range(4):
+        f.predict(); f.update(zs[k], H)
+        f.predict_update(np.frombuffer(np.array([2.0]).tobytes()), Hs[k])
+    f.batch_filter(zs, Hs); f.batch_filter(zs, Hs, store_covariances=False)
+    f.batch_filter(zs, Hs, Rs=np.frombuffer(np.ones(12).tobytes()), update_first=True)
+    f.initialize(zs, Hs)
+    f.x = X.reshape(-1, 1)
+    f.predict(); f.update(1.0, H)
+assert np.array_equal(X, np.full((3, 1), 0.5)) and np.array_equal(x0, np.zeros(3))
+assert np.array_equal(Hs, Hs_w) and np.array_equal(zs, zs_w)
+print("ok")
+"""
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path), "PYTHONPATH": ROOT}
+    env.pop("NUMBA_DISABLE_JIT", None)
+    proc = subprocess.run([sys.executable, "-c", job], env=env, capture_output=True, text=True,
+                          timeout=1200)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert proc.stdout.strip().endswith("ok")
