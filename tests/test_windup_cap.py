@@ -215,3 +215,37 @@ def test_windup_cap_parameters():
     assert rls.forgetting_params == {"spread_max": 1e15, "trace_max": 7.0}
     with pytest.raises(TypeError, match=r"unknown keys \['P_max'\] for forgetting='exponential'"):
         RecursiveLeastSquares(3, lam=0.95, forgetting_params={"P_max": 1.0})
+
+
+@pytest.mark.parametrize("after_predict", [False, True])
+def test_a_state_restored_while_capped_continues_bit_for_bit(after_predict):
+    """The cap's pending decision is part of the flat state python-control simulates
+    (``rlsfilt.adaptive``): a filter restored after an ``update`` that set the cap
+    (or after the ``predict`` that held the forgetting back) forgets as the original
+    does."""
+    from rlsfilt.adaptive import _filter_state
+    rng = np.random.default_rng(3)
+    Hs = np.r_[rng.standard_normal((100, 2)), np.zeros((3000, 2)), rng.standard_normal((50, 2))]
+    zs = Hs @ np.array([1.0, -2.0]) + 0.01 * rng.standard_normal(len(Hs))
+    f = RecursiveLeastSquares(2, lam=0.9, P0=1.0)
+    k = 0
+    while not f._cap:                                  # run until the cap holds back
+        f.predict()
+        f.update(zs[k], Hs[k:k + 1])
+        k += 1
+    assert 100 < k < 3100
+    if after_predict:
+        f.predict()
+        assert f._w == 1.0 / 0.9                       # the next update forgets along H only
+    g = RecursiveLeastSquares(2, lam=0.9, P0=1.0)
+    _filter_state.set_state(g, _filter_state.get_state(f))
+    assert (g._cap, g._w, g.n_capped) == (f._cap, f._w, f.n_capped)
+    for j in range(k, len(zs)):
+        for h in (f, g):
+            if j > k or not after_predict:
+                h.predict()
+            h.update(zs[j], Hs[j:j + 1])
+    assert f.n_capped > 0
+    assert_array_equal(g.x, f.x)
+    assert_array_equal(g.P, f.P)
+    assert g.n_capped == f.n_capped
