@@ -60,7 +60,7 @@ from handwritten import rls_handwritten  # noqa: E402
 
 import rlsfilt  # noqa: E402
 from rlsfilt.filters import _kernels  # noqa: E402
-from rlsfilt.filters.forgetting import EXPONENTIAL, kernel_config  # noqa: E402
+from rlsfilt.filters.forgetting import EXPONENTIAL, kernel_config, mode_params  # noqa: E402
 
 LAM = 0.99
 P0 = 1e4
@@ -152,9 +152,10 @@ def run_write_floor(Hs, zs):
 
 def run_kernel(Hs, zs):
     n = Hs.shape[1]
+    params = mode_params(EXPONENTIAL, None, n, LAM, 1.0, n * P0)      # the windup cap
     out = _kernels.run_batch(np.zeros((n, 1)), P0 * np.eye(n), zs.reshape(-1, 1), Hs,
-                             np.ones(1), kernel_config(EXPONENTIAL, LAM, ()), None, None, False,
-                             False, 0, 0, np.inf)
+                             np.ones(1), kernel_config(EXPONENTIAL, LAM, params), None, None,
+                             False, False, 0, 0, np.inf, (1.0, 0.0, 0.0, 0.0, 1.0))
     return out.x.ravel()
 
 

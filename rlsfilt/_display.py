@@ -1,4 +1,5 @@
-"""Rich HTML display of the filters in Jupyter (``_repr_html_``).
+"""Display of the filters: rich HTML in Jupyter (``_repr_html_``) and the text of
+their ``repr`` (`pretty_str`).
 
 One table a user can read at a glance instead of forty lines of matrices:
 the dimensions and settings, the current estimate with its standard
@@ -31,6 +32,22 @@ _SETTINGS = (    # (attribute, label), shown when the filter has the attribute
     ("Q", "Q (random walk)"),
     ("n_updates", "updates so far"),
 )
+
+
+def pretty_str(label, value):
+    """``label = value`` as filterpy prints filter state: the later lines of an
+    array aligned under its first, a column vector ``(n, 1)`` printed as a row
+    followed by ``.T`` (without `label`: the value alone)."""
+    if isinstance(value, np.ndarray) and value.ndim == 2 and value.shape == (len(value), 1) \
+            and len(value) > 1:
+        text = str(value.T) + ".T"
+    else:
+        text = str(value)
+    if not label:
+        return text
+    first, *rest = text.split("\n")
+    pad = " " * (len(label) + 3)
+    return f"{label} = {first}" + "".join("\n" + pad + line for line in rest)
 
 
 def filter_html(f):

@@ -178,7 +178,9 @@ def check_covariance(C, n, name, definite=False):
     if asym > 1e-10 * scale:
         raise ValueError(f"`{name}` must be symmetric; got max |{name} - {name}^T| = {asym:.3g}")
     arr = 0.5 * arr + 0.5 * arr.T
-    eig_min = float(np.linalg.eigvalsh(arr)[0]) if n else 0.0
+    diagonal = not np.any(arr[~np.eye(n, dtype=bool)])     # e.g. a scalar times I
+    eig_min = (float(np.min(np.diagonal(arr))) if diagonal  # its eigenvalues, exactly
+               else float(np.linalg.eigvalsh(arr)[0])) if n else 0.0
     tol = n * np.finfo(float).eps * scale
     if definite and eig_min <= 0.0:
         raise ValueError(

@@ -18,7 +18,6 @@ only delay the input) become explicit time delays.
 import numbers
 
 import numpy as np
-from scipy import linalg
 
 __all__ = ["d2c"]
 
@@ -217,6 +216,7 @@ def _ss_d2c(A, B, C, D, dt, method):
         # log([[Ad, Bd], [0, I]]) / T = [[Ac, Bc], [0, 0]]
         M = np.zeros((n + m, n + m))
         M[:n, :n], M[:n, n:], M[n:, n:] = A, B, np.eye(m)
+        from scipy import linalg  # lazy: keeps `import rlsfilt` light
         L = linalg.logm(M)
         if np.iscomplexobj(L):
             if np.max(np.abs(L.imag)) > 1e-8 * max(1.0, np.max(np.abs(L.real))):

@@ -5,7 +5,8 @@ returns what ``batch_filter`` returns, step by step, computed by the plain
 NumPy reference: the histories ``means``, ``covs`` (after each update),
 ``means_p``, ``covs_p`` (after each predict), the residuals ``ys`` (N, m;
 NaN where missing), the innovation variances ``ss`` and, for
-`RecursiveLeastSquares`, the gate decisions and the forgetting factors. The
+`RecursiveLeastSquares`, the gate decisions, the forgetting factors and
+whether the windup cap held each step's forgetting back (``capped``). The
 kernel tests hold the compiled filters equal to these step by step.
 """
 
@@ -32,9 +33,11 @@ class _History:
     def __init__(self):
         self.means, self.covs, self.means_p, self.covs_p = [], [], [], []
         self.ys, self.ss, self.gated, self.lam_t, self.K = [], [], [], [], []
+        self.capped = []
 
     def finish(self):
-        for name in ("means", "covs", "means_p", "covs_p", "ys", "ss", "gated", "lam_t"):
+        for name in ("means", "covs", "means_p", "covs_p", "ys", "ss", "gated", "lam_t",
+                     "capped"):
             setattr(self, name, np.array(getattr(self, name)))
         return self
 
@@ -52,9 +55,10 @@ def rls_run(f, zs, Hs, Rs=None, update_first=False):
         P = clip_eigenvalues(P, lo * f.R, hi * f.R)
         P = P if Pi is None else ref.project(P, Pi)
     h = _History()
+    cap, held_back = f._cap, f._w != 1.0                # the windup cap's state
 
     def predict(P):
-        P = ref.rls_predict(P, lam_time, Q, Pi)
+        P = ref.rls_predict(P, lam_time, Q, Pi, cap)
         h.means_p.append(x)
         h.covs_p.append(P)
         return P
@@ -62,8 +66,11 @@ def rls_run(f, zs, Hs, Rs=None, update_first=False):
     for k in range(len(Z)):
         if not update_first:
             P = predict(P)
-        x, P, y, K, s, lam_t, gated = ref.rls_update(x, P, Hm[k:k + 1], _column(Z[k]), Rv[k],
-                                                      mode, params, lam, gate, Pi)
+            held_back = cap
+        x, P, y, K, s, lam_t, gated, cap = ref.rls_update(
+            x, P, Hm[k:k + 1], _column(Z[k]), Rv[k], mode, params, lam, gate, Pi, held_back)
+        h.capped.append(held_back)
+        held_back = False
         h.means.append(x)
         h.covs.append(P)
         h.ys.append(np.full(Z.shape[1], np.nan) if y is None else y[:, 0])
@@ -73,6 +80,7 @@ def rls_run(f, zs, Hs, Rs=None, update_first=False):
         h.K = K
         if update_first:
             P = predict(P)
+            held_back = cap
     return h.finish()
 
 

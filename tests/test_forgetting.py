@@ -253,8 +253,14 @@ def test_bad_forgetting_arguments():
     with pytest.raises(TypeError, match=r"`forgetting_params` has unknown keys \['trace'\] for "
                                         r"forgetting='efra'; allowed: alpha, beta, delta"):
         RecursiveLeastSquares(2, lam=0.9, forgetting="efra", forgetting_params={"trace": 1})
-    with pytest.raises(TypeError, match=r"unknown keys \['eps'\].*allowed: none"):
+    with pytest.raises(TypeError, match=r"unknown keys \['eps'\] for forgetting='exponential'; "
+                                        r"allowed: spread_max, trace_max"):
         RecursiveLeastSquares(2, forgetting_params={"eps": 1})
+    for name in ("spread_max", "trace_max"):           # the windup cap of the exponential mode
+        for bad in (0.0, -1.0, np.nan):
+            with pytest.raises(ValueError, match=rf"`forgetting_params\['{name}'\]` must be a "
+                                                 r"positive number \(inf turns the cap off\)"):
+                RecursiveLeastSquares(2, lam=0.9, forgetting_params={name: bad})
     with pytest.raises(TypeError, match=r"`forgetting_params` must be a dict or None; got list"):
         RecursiveLeastSquares(2, forgetting="efra", forgetting_params=[1])
     with pytest.raises(ValueError, match=r"`forgetting_params\['beta'\]` must be a positive"):

@@ -63,9 +63,11 @@ def test_windup_warns_once_with_the_update():
 def test_windup_batch_filter_names_the_step():
     zs, Hs = _windup(2000)
     first = _first_ill_conditioned_update()
-    detected = -(-first // 100) * 100            # the next multiple of check_every=100
-    k0 = detected - 25                           # it happens in the second call
     f = SquareRootRLS(2, lam=LAM, P0=P0)
+    every = f.check_every                        # the default, max(250, 32 dim_x)
+    assert every == 250
+    detected = -(-first // every) * every        # the next multiple of check_every
+    k0 = first - 9                               # it happens in the second call
     with pytest.warns(NumericalWarning) as record:
         f.batch_filter(zs[:k0], Hs[:k0])
         f.batch_filter(zs[k0:], Hs[k0:])
@@ -222,9 +224,10 @@ def test_sliding_window_warns_once_with_the_update():
 def test_sliding_window_batch_filter_names_the_step():
     zs, Hs = _collinear_record()
     first = _first_ill_conditioned_window(Hs)
-    detected = -(-first // 100) * 100            # default check_every=100
-    k0 = 120
     f = SlidingWindowRLS(2, WINDOW)
+    every = f.check_every                        # the default, max(250, 32 dim_x)
+    detected = -(-first // every) * every
+    k0 = 120
     with pytest.warns(NumericalWarning) as record:
         f.batch_filter(zs[:k0], Hs[:k0])
         f.batch_filter(zs[k0:], Hs[k0:])
@@ -285,3 +288,25 @@ def test_sliding_window_indefinite_P_is_caught_by_the_cheap_check():
     with pytest.warns(NumericalWarning, match=r"`P` is not positive definite \(smallest "
                                               r"eigenvalue -0.001\) at update 1 since reset"):
         f.update(1.0, [1.0, 0.0])
+
+
+def test_compiled_factor_decision_equals_factor_problem():
+    """The square root's compiled check (trace bound, then singular values) decides as
+    ``_health.factor_problem`` (the NumPy SVD) does."""
+    from rlsfilt.filters import _health, _kernels_shared
+
+    rng = np.random.default_rng(9)
+    decided = {True: 0, False: 0}
+    for _ in range(1500):
+        n = int(rng.integers(1, 8))
+        Qo, _ = np.linalg.qr(rng.standard_normal((n, n)))
+        w = 10.0 ** rng.uniform(-7, 2, n)
+        U = np.linalg.qr((Qo * w) @ Qo.T)[1]
+        U *= np.sign(np.diagonal(U))[:, None]             # a positive diagonal
+        if rng.random() < 0.05:
+            U[-1, -1] = -abs(U[-1, -1])
+        cond_max = 10.0 ** rng.uniform(2, 13)
+        expected = _health.factor_problem(U, cond_max) is not None
+        assert _kernels_shared.factor_unhealthy(U, cond_max) == expected
+        decided[expected] += 1
+    assert min(decided.values()) > 200

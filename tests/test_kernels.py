@@ -596,3 +596,41 @@ def _env(**extra):
     env["PYTHONPATH"] = _root() + os.pathsep + env.get("PYTHONPATH", "")
     env.update(extra)
     return env
+
+
+# ----------------------------------------------------------------------
+# memory: one estimate history, and records larger than memory in chunks
+# ----------------------------------------------------------------------
+@pytest.mark.parametrize("update_first", [False, True])
+def test_estimate_histories_share_one_buffer(rng, update_first):
+    """Without covariance histories batch_filter keeps one N x dim_x x dim_z array:
+    means_p is a read-only view of the buffer behind means."""
+    Hs, zs = _record(rng, 200)
+    for gate in (None, 1e300):                    # the fused loop and the step loop
+        f = RecursiveLeastSquares(4, lam=0.95, gate=gate)
+        x0 = f.x.copy()
+        means, covs, means_p, covs_p = f.batch_filter(zs, Hs, update_first=update_first,
+                                                      store_covariances=False)
+        assert covs is None and covs_p is None
+        assert np.shares_memory(means, means_p) and not means_p.flags.writeable
+        expected = means if update_first else np.concatenate([x0[None], means[:-1]])
+        assert_array_equal(means_p, expected)
+
+
+@pytest.mark.parametrize("update_first", [False, True])
+@pytest.mark.parametrize("gate, Q", [(None, 0.0), (None, 1e-6), (1e300, 0.0)])
+def test_chunks_give_the_bits_of_one_run(update_first, gate, Q):
+    """A record larger than memory runs in chunks (e.g. from ``np.load(..., mmap_mode='r')``):
+    successive batch_filter calls give exactly the numbers of one call."""
+    rng = np.random.default_rng(8)
+    Hs, zs = _record(rng, 5000, missing=(0, 999, 1000, 4321))
+    whole = RecursiveLeastSquares(4, lam=0.97, Q=Q, gate=gate, check_every=7)
+    m_whole = whole.batch_filter(zs, Hs, update_first=update_first, store_covariances=False)[0]
+    parts = RecursiveLeastSquares(4, lam=0.97, Q=Q, gate=gate, check_every=7)
+    cuts = np.r_[0, np.sort(rng.choice(np.arange(1, len(zs)), 12, replace=False)), len(zs)]
+    m_parts = [parts.batch_filter(zs[a:b], Hs[a:b], update_first=update_first,
+                                  store_covariances=False)[0] for a, b in zip(cuts, cuts[1:])]
+    assert_array_equal(np.concatenate(m_parts), m_whole)
+    for name in STATE:
+        assert_array_equal(getattr(parts, name), getattr(whole, name), err_msg=name)
+    assert parts.n_updates == whole.n_updates == len(zs)

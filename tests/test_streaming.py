@@ -74,11 +74,12 @@ def test_update_writes_the_textbook_step_into_a_new_block(rng, z):
     phi = rng.standard_normal(n)
     zc = None if z == "missing" else rng.standard_normal((m, 1))
     cfg = kernel_config(DIRECTIONAL, 0.95, (1e-12,))
-    code, s, lam_t, gated, arrays = _streaming.update(x, P, phi, zc, 0.5, cfg, None)
+    code, s, lam_t, gated, cap, arrays = _streaming.update(x, P, phi, zc, 0.5, cfg, 1.0,
+                                                           None)
     xn, Pn, _, y, K, S, SI, H, zb, x_post, P_post = arrays
-    rx, rP, ry, rK, rs, rlam, rgated = ref.rls_update(x, P, phi.reshape(1, -1), zc, 0.5,
+    rx, rP, ry, rK, rs, rlam, rgated, _ = ref.rls_update(x, P, phi.reshape(1, -1), zc, 0.5,
                                                       DIRECTIONAL, (1e-12,), 0.95)
-    assert code == 0 and not gated and not rgated
+    assert code == 0 and not gated and not rgated and not cap
     assert_allclose(xn, rx, rtol=1e-13)
     assert_allclose(Pn, rP, rtol=1e-13)
     assert_allclose(K, rK, rtol=1e-13, atol=1e-300)
@@ -100,28 +101,28 @@ def test_update_writes_the_textbook_step_into_a_new_block(rng, z):
 def test_update_of_a_scalar_measurement_and_a_bad_row(rng):
     x, P = rng.standard_normal((n, 1)), np.eye(n)
     cfg = kernel_config(EXPONENTIAL, 1.0, ())
-    code, s, _, _, arrays = _streaming.update(x, P, np.ones(n), 2.5, 1.0, cfg, None)
+    code, s, _, _, _, arrays = _streaming.update(x, P, np.ones(n), 2.5, 1.0, cfg, 1.0, None)
     assert code == 0 and arrays[8][0, 0] == 2.5 and s == pytest.approx(n + 1.0)
     phi = np.ones(n)
     phi[2] = np.nan
-    code, *_ = _streaming.update(x, P, phi, 2.5, 1.0, cfg, None)
+    code, *_ = _streaming.update(x, P, phi, 2.5, 1.0, cfg, 1.0, None)
     assert code == 1                               # the caller raises; nothing is visible
     P_bad = -np.eye(n)
-    code, *_ = _streaming.update(x, P_bad, np.ones(n) * 1e-3, 2.5, 1.0, cfg, None)
+    code, *_ = _streaming.update(x, P_bad, np.ones(n) * 1e-3, 2.5, 1.0, cfg, 1.0, None)
     assert code == 2                               # the cheap check: a diagonal not positive
 
 
 def test_entry_points_give_the_dispatchers_results(rng):
     x, P = _state(rng)
     cfg = kernel_config(EXPONENTIAL, 0.9, ())
-    _streaming.update(x, P, np.ones(n), None, 1.0, cfg, None)     # resolve the entry point
+    _streaming.update(x, P, np.ones(n), None, 1.0, cfg, 1.0, None)     # resolve the entry point
     assert _streaming._update_kernel is not _streaming.kernels().update_kernel
     phi = rng.standard_normal(n)
     a = _streaming._block(_streaming.update_shapes(n, m), n + n * n)
     b = _streaming._block(_streaming.update_shapes(n, m), n + n * n)
     xa, Pa, xb, Pb = np.empty((n, m)), np.empty((n, n)), np.empty((n, m)), np.empty((n, n))
-    ra = _streaming._update_kernel(x, P, phi, 0.0, 2, 1.0, cfg, xa, Pa, a[0])
-    rb = _streaming.kernels().update_kernel(x, P, phi, 0.0, 2, 1.0, cfg, xb, Pb, b[0])
+    ra = _streaming._update_kernel(x, P, phi, 0.0, 2, 1.0, cfg, 1.0, xa, Pa, a[0])
+    rb = _streaming.kernels().update_kernel(x, P, phi, 0.0, 2, 1.0, cfg, 1.0, xb, Pb, b[0])
     assert ra == rb or (np.isnan(ra[2]) and np.isnan(rb[2]))
     assert_array_equal(xa, xb)
     assert_array_equal(Pa, Pb)
@@ -164,12 +165,12 @@ def test_renew_keeps_what_is_free(rng):
     """A held estimate makes a new x, P pair but keeps the block, and the reverse."""
     x, P = _state(rng)
     cfg = kernel_config(EXPONENTIAL, 0.9, ())
-    *_, spare = _streaming.update(x, P, np.ones(n), None, 1.0, cfg, None)
+    *_, spare = _streaming.update(x, P, np.ones(n), None, 1.0, cfg, 1.0, None)
     held = spare[0]                                # a caller keeps the estimate
-    *_, again = _streaming.update(x, P, np.ones(n), None, 1.0, cfg, spare)
+    *_, again = _streaming.update(x, P, np.ones(n), None, 1.0, cfg, 1.0, spare)
     assert again[0] is not held and again[2:] == spare[2:]
     del spare, held
     row = again[3][0]                              # a caller keeps a row of y: the buffer
-    *_, third = _streaming.update(x, P, np.ones(n), None, 1.0, cfg, again)
+    *_, third = _streaming.update(x, P, np.ones(n), None, 1.0, cfg, 1.0, again)
     assert third[:2] == again[:2] and third[2] is not again[2]
     del row

@@ -18,19 +18,25 @@ __all__ = []
 
 def _rls_fields(f):
     n, m = f.dim_x, f.dim_z
-    return [("x", (n, m)), ("P", (n, n)), ("n_updates", ()), ("efra_pending", ())]
+    # the windup cap's decision for the next time update and the pending w belong to
+    # the state: a filter restored between update() and predict() forgets as the
+    # original would
+    return [("x", (n, m)), ("P", (n, n)), ("n_updates", ()), ("efra_pending", ()),
+            ("n_capped", ()), ("cap", ()), ("w", ())]
 
 
 def _rls_get(f):
-    return [f.x, f.P, f.n_updates, float(f._efra_pending)]
+    return [f.x, f.P, f.n_updates, float(f._efra_pending), f.n_capped, float(f._cap), f._w]
 
 
 def _rls_set(f, parts):
-    x, P, nu, efra = parts
+    x, P, nu, efra, n_capped, cap, w = parts
     f.x = x.copy()
     f.P = P.copy()
     f.n_updates = int(nu)
     f._efra_pending = bool(efra)
+    f.n_capped = int(n_capped)
+    f._cap, f._w = bool(cap), float(w)
 
 
 def _sr_fields(f):

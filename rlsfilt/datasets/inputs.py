@@ -8,7 +8,6 @@ seed ``0`` makes the default signal the same on every call.
 import math
 
 import numpy as np
-from scipy import signal
 
 from .._validation import (
     as_float_array,
@@ -63,6 +62,7 @@ def prbs(n_samples=1000, *, amplitude=1.0, hold=1, nbits=None, offset=0.0, rng=0
     >>> np.unique(u)
     array([-2.,  2.])
     """
+    from scipy import signal  # lazy: keeps `import rlsfilt` light
     n_samples = check_length(n_samples, "n_samples")
     hold = check_int(hold, "hold", minimum=1)
     amplitude = check_real(amplitude, "amplitude")

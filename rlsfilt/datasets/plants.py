@@ -19,7 +19,6 @@ Noise models (``e`` white Gaussian of standard deviation ``noise_std``):
 """
 
 import numpy as np
-from scipy import signal
 
 from .._resources import check_memory
 from .._validation import as_float_array, as_generator, check_finite, check_int, check_real
@@ -68,6 +67,7 @@ def _check_noise(noise, noise_std):
 
 
 def _add_noise(y_clean, A, noise, noise_std, gen):
+    from scipy import signal  # lazy: keeps `import rlsfilt` light
     e = noise_std * gen.standard_normal(len(y_clean))
     if noise == "white":
         return y_clean + signal.lfilter([1.0], A, e)
@@ -79,6 +79,8 @@ def _add_noise(y_clean, A, noise, noise_std, gen):
 
 def _dataset_from_plant(name, description, plant, u, noise, noise_std, gen, dt):
     """Simulate a SISO discrete plant given as a TransferFunction."""
+    from scipy import signal  # lazy: keeps `import rlsfilt` light
+
     from ..models import ARX
 
     truth = ARX.from_tf(plant)

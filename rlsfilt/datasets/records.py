@@ -8,7 +8,6 @@ run. They are still simulated, so the truth is known.
 """
 
 import numpy as np
-from scipy import signal
 
 from .._validation import as_generator, check_int, check_real
 from .dataset import Dataset
@@ -111,6 +110,7 @@ def heat_exchanger(n_samples=(1200, 800), *, delay=7, gain=-0.6, time_constants=
     a, b, nk = truth.a_, truth.b_, int(truth.structure_.nk[0])
     A = np.concatenate([[1.0], a])
     B = np.concatenate([np.zeros(nk), b])
+    from scipy import signal  # lazy: keeps `import rlsfilt` light
     us, ys, cleans = [], [], []
     for n in lengths:
         du = prbs(n, amplitude=amplitude, hold=6, rng=gen)

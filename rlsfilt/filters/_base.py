@@ -18,6 +18,7 @@ from .._validation import (
     as_float_array,
     check_bool,
     check_finite,
+    check_int,
     check_variance,
 )
 from . import _health
@@ -44,6 +45,18 @@ class _FilterBase:
     def R(self):
         """Measurement-noise variance (a positive float)."""
         return self._R
+
+    @property
+    def check_every(self):
+        """Health check period in updates (0: off); assign None for the default
+        ``max(250, 32 dim_x)``, which keeps the O(dim_x^3) test under 5 % of the
+        O(dim_x^2) updates at every size."""
+        return self._check_every
+
+    @check_every.setter
+    def check_every(self, value):
+        self._check_every = (max(250, 32 * self.dim_x) if value is None
+                             else check_int(value, "check_every", minimum=0))
 
     @R.setter
     def R(self, value):

@@ -4,21 +4,40 @@ Every public method of the filter that runs the recursion calls these
 (``predict``, ``update``, ``predict_update``, ``batch_filter``,
 ``get_prediction``, the projection of ``constrain``). The same recursion in
 readable NumPy is :mod:`rlsfilt.filters._reference` (``rls_predict``,
-``rls_update``, ``update_<mode>``); ``tests/test_kernels.py`` holds the two
-equal step by step to 1e-12 for every mode and option. Every function is
-``njit(cache=True)``: compiled on first use, then loaded from the disk cache.
+``rls_update``, ``update_<mode>``, ``windup_cap``); ``tests/test_kernels.py``
+holds the two equal step by step to 1e-12 for every mode and option. Every
+function is ``njit(cache=True)``: compiled on first use, then loaded from the
+disk cache.
 
 One step, for every forgetting mode (the codes of
 :mod:`rlsfilt.filters.forgetting`), the gate and the constraints::
 
     P <- P il + Q;  P <- Pi P Pi            time_update (il = 1/lam in the exponential
-                                            mode; the other modes forget in the update)
-    g = P phi;  s = phi . g + r             measurement_update
+                                            mode, 1 when the windup cap holds the
+                                            forgetting back; the other modes forget
+                                            in the update)
+    g = P phi;  q = phi . g                 measurement_update
+    s = w q + r                             w = il if the forgetting was held back, else 1
     y = z - phi x                           per output
-    y . y > gate^2 s: gated, no change
-    exponential: c = 1/s;  K = g c;  x <- x + K y^T;  P <- P - (g g^T) c
+    y . y > gate^2 s: gated, no measurement update
+    exponential: c = 1/s;  K = g (w c);  x <- x + K y^T;  P <- P - (g g^T) cu
+                 cu = c, or cu = w^2 c - (w - 1)/q when held back (the held-back
+                 forgetting P <- P + (w - 1) g g^T / q along the regressor, and
+                 the update, in one rank-one term)
     directional, constant_trace, efra, variable: the formulas of _reference.update_<mode>
     P <- Pi P Pi
+
+``P`` is kept exactly symmetric: every entry is computed from the symmetric
+formula ``P_ij - (g_i g_j) cu`` (the product ``g_i g_j`` is the same number as
+``g_j g_i``), never mirrored.
+
+**The windup cap** (exponential mode, ``lam < 1``). After each update the
+kernels decide, in O(n), whether the next time update may divide ``P`` by
+``lam``: not when that would make ``trace(P)`` exceed ``trace_max``, or when
+``sum_i P_ii phi_i^2 > spread_max * phi P phi^T`` (``P`` is far larger off the
+regressor's direction than along it: the directions the data no longer excite
+are winding up). Then the time update leaves ``P`` (and adds ``Q``) and the
+next update forgets along its regressor only (``_reference.windup_cap``).
 
 ``batch_filter`` runs ``time_update`` and ``measurement_update`` once per
 sample (`step_batch`), and the streaming ``predict_kernel`` and
@@ -26,16 +45,22 @@ sample (`step_batch`), and the streaming ``predict_kernel`` and
 The default configuration with one output (ARX fits, long records) runs
 `exponential_batch` instead: one sweep over ``P``
 per sample applies the update, the next time update and the next gain
-together (reading and writing ``P`` once). Its arithmetic is, element by
-element, that of the two steps (the same products summed in the same
-order, ``P_ij - (g_i g_j) c`` keeping ``P`` exactly symmetric; no
-``fastmath``), so it gives the same bits, faster.
+together (reading and writing ``P`` once, four rows at a time). Its
+arithmetic is, element by element, that of the two steps (the same products
+summed in the same order; no ``fastmath``), so it gives the same bits, faster.
+
+**The health check** runs in two tiers: every update tests the diagonal of
+``P`` (positive and finite, O(n)); every ``check_every`` updates (and at once
+when the diagonal test fails) `unhealthy_sym` decides as ``eigvalsh`` would
+(a vectorized Cholesky settles the healthy case). A failure starts an
+*episode* (one warning); a later periodic check that passes ends it, so the
+next failure warns again.
 """
 
 import numpy as np
 
 from .._numba import njit  # numba.njit, uncached where no cache directory is writable
-from ._kernels_shared import any_nan, copy2, diagonal_bad, unhealthy, unhealthy_on
+from ._kernels_shared import any_nan, copy2, diagonal_bad, unhealthy, unhealthy_on, unhealthy_sym
 from .forgetting import (
     CFG_GATE,
     CFG_LAM,
@@ -55,14 +80,14 @@ __all__ = []
 # ----------------------------------------------------------------------
 # one step
 # ----------------------------------------------------------------------
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def projector(cfg, n):
     """The projector ``Pi`` of the constraints in `cfg` ((0, 0) without them)."""
     k = n if cfg.shape[0] > CFG_PI else 0
     return cfg[CFG_PI:CFG_PI + k * k].reshape((k, k))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def project(P, Pi, T):
     """``P <- Pi P Pi`` made exactly symmetric; `T` is (n, n) work."""
     n = P.shape[0]
@@ -87,7 +112,7 @@ def project(P, Pi, T):
             P[j, i] = v
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def time_update(P, il, Q, Pi, T, Pn):
     """``Pn = P il + Q`` then ``Pn <- Pi Pn Pi`` (`Q`, `Pi` empty when absent; `Pn`
     may be `P`: the batch loops update in place)."""
@@ -104,60 +129,141 @@ def time_update(P, il, Q, Pi, T, Pn):
         project(Pn, Pi, T)
 
 
-@njit(cache=True, inline="always")
-def measurement_update(x, P, phi, z, missing, r, cfg, Pi, g, y, K, T, xn, Pn):
+@njit(cache=True, error_model="numpy", inline="always")
+def gain(P, phi, g):
+    """``g = P phi``, summed row by row (``g_j += P_ij phi_i``, ``i`` ascending: the
+    order in which `_sweep` accumulates the next gain)."""
+    n = P.shape[0]
+    for j in range(n):
+        g[j] = 0.0
+    for i in range(n):
+        hi = phi[i]
+        for j in range(n):
+            g[j] += P[i, j] * hi
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def exponential_coefficient(q, c, w, updated):
+    """The rank-one coefficient ``cu`` of ``P <- P - (g g^T) cu`` in the exponential mode.
+
+    ``c = 1 / s``; `w` is ``1 / lam`` when the time update held the forgetting
+    back (the windup cap) and 1 otherwise; `updated` is False for a missing or
+    gated sample. Held back, the forgetting happens here, along the regressor
+    only: ``P <- P + (w - 1) g g^T / q`` (``q = phi g``), whose gain is ``w g``.
+    """
+    if w == 1.0:
+        return c if updated else 0.0
+    f = (w - 1.0) / q if q > 0.0 else 0.0
+    return w * w * c - f if updated else -f
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _diagonal_stats(P, g, cu, h):
+    """``trace``, ``sum_i d_i h_i^2`` and ``min_i d_i`` of ``d_i = P_ii - (g_i g_i) cu``,
+    the diagonal of ``P - (g g^T) cu`` (the updated ``P``), without forming it.
+
+    (``min`` skips NaN; NaN or inf then shows in the trace.)
+    """
+    tr = 0.0
+    spread = 0.0
+    dmin = np.inf
+    for i in range(P.shape[0]):
+        d = P[i, i] - (g[i] * g[i]) * cu
+        tr += d
+        spread += (d * h[i]) * h[i]
+        dmin = d if d < dmin else dmin
+    return tr, spread, dmin
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def windup_cap(d_trace, d_spread, hph, il, cfg):
+    """Whether the next time update must hold the forgetting back (see the module).
+
+    `d_trace` is ``trace(P)`` after the update, `d_spread` ``sum_i P_ii
+    phi_i^2``, `hph` ``phi P phi^T`` (all of the updated ``P``), `il` ``1 /
+    lam``; the limits ``spread_max``, ``trace_max`` are the exponential
+    mode's parameters in `cfg`.
+    """
+    if il == 1.0:
+        return False
+    if d_trace * il > cfg[CFG_PARAMS + 1]:
+        return True
+    # under constraints P is singular by design: the spread test does not apply
+    spread_max = cfg[CFG_PARAMS]
+    return cfg.shape[0] == CFG_PI and spread_max < np.inf and d_spread > spread_max * hph
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def measurement_update(x, P, phi, z, missing, r, cfg, Pi, g, y, K, T, w, xn, Pn):
     """One measurement update of any mode with the gate and the constraints.
 
     Reads ``x`` (n, m) and ``P`` (n, n) and writes the new ones into ``xn``,
     ``Pn`` (which may be ``x`` and ``P`` themselves: the batch loops update
-    in place); a missing or gated sample leaves them. Writes ``g = P phi``
-    (n,), the residual ``y`` (m,; NaN when missing) and the gain ``K`` (n,;
-    zero when missing or gated). `cfg` is ``forgetting.kernel_config``,
-    `Pi` its projector; `T` is (n, n) work.
+    in place); a missing or gated sample leaves them (but for forgetting the
+    time update held back). Writes ``g = P phi`` (n,), the residual ``y``
+    (m,; NaN when missing) and the gain ``K`` (n,; zero when missing or
+    gated). `cfg` is ``forgetting.kernel_config``, `Pi` its projector; `T`
+    is (n, n) work; `w` is ``1 / lam`` when the last time update held the
+    forgetting back (the windup cap, exponential mode) and 1 otherwise.
 
     Returns
     -------
     s : float
-        Innovation variance ``phi P phi^T + r``.
+        Innovation variance ``w phi P phi^T + r``.
     lam_t : float
         Forgetting factor the step applied.
     gated : bool
         Whether the gate rejected the sample.
+    cap : bool
+        Whether the next time update must hold the forgetting back.
     """
     n, m = x.shape
     mode = int(cfg[CFG_MODE])
     lam = cfg[CFG_LAM]
-    for j in range(n):
-        g[j] = 0.0
-    for i in range(n):                       # g = P phi (row i of the symmetric P times phi_i)
-        hi = phi[i]
-        for j in range(n):
-            g[j] += P[i, j] * hi
-    s = 0.0
+    gain(P, phi, g)                          # g = P H^T
+    q = 0.0
     for i in range(n):
-        s += phi[i] * g[i]
-    s = s + r                                # S = H P H^T + R
+        q += phi[i] * g[i]
+    s = w * q + r                            # S = H P H^T + R
     lam_skip = lam if mode == EXPONENTIAL else 1.0
-    yy = 0.0
-    if not missing:
+    updated = not missing
+    gated = False
+    if missing:
+        for j in range(m):
+            y[j] = np.nan
+    else:
+        yy = 0.0
         for j in range(m):                   # y = z - H x
             acc = 0.0
             for i in range(n):
                 acc += phi[i] * x[i, j]
             y[j] = z[j] - acc
             yy += y[j] * y[j]
-    gate = cfg[CFG_GATE]
-    if missing or yy > gate * gate * s:      # missing, or sqrt(y'y / S) > gate: no update
-        for j in range(m):
-            if missing:
-                y[j] = np.nan
+        gate = cfg[CFG_GATE]
+        gated = yy > gate * gate * s         # sqrt(y'y / S) > gate
+        updated = not gated
+    if not updated:
         for i in range(n):
             K[i] = 0.0
-        copy2(x, xn)
-        copy2(P, Pn)
-        return s, lam_skip, not missing
+        if mode != EXPONENTIAL:
+            copy2(x, xn)
+            copy2(P, Pn)
+            return s, lam_skip, gated, False
     lam_t = lam
-    if mode == DIRECTIONAL:
+    if mode == EXPONENTIAL:
+        c = 1.0 / s
+        cu = exponential_coefficient(q, c, w, updated)
+        if updated:
+            kc = w * c
+            for i in range(n):
+                K[i] = g[i] * kc             # K = P H^T / S
+        for i in range(n):
+            gi = g[i]
+            for j in range(n):
+                Pn[i, j] = P[i, j] - (gi * g[j]) * cu   # P = P - g g^T / S
+        if not updated:
+            lam_t = lam_skip
+    elif mode == DIRECTIONAL:
         eps = cfg[CFG_PARAMS]
         rho = (s - r) / r                    # phi P phi^T / r
         e = lam - (1.0 - lam) / rho if rho > eps else 1.0
@@ -192,7 +298,7 @@ def measurement_update(x, P, phi, z, missing, r, cfg, Pi, g, y, K, T, xn, Pn):
             for j in range(n):
                 Pn[i, j] = 0.5 * (T[i, j] + T[j, i])
             Pn[i, i] = Pn[i, i] + br
-    else:                                    # exponential, constant trace, variable
+    else:                                    # constant trace, variable
         c = 1.0 / s
         for i in range(n):
             K[i] = g[i] * c                  # K = P H^T / S
@@ -226,44 +332,119 @@ def measurement_update(x, P, phi, z, missing, r, cfg, Pi, g, y, K, T, xn, Pn):
                     for j in range(n):
                         Pn[i, j] = Pn[i, j] / lt
             lam_t = lt
-    for i in range(n):                       # x = x + K y^T
-        ki = K[i]
-        for j in range(m):
-            xn[i, j] = x[i, j] + ki * y[j]
+    if updated:
+        for i in range(n):                   # x = x + K y^T
+            ki = K[i]
+            for j in range(m):
+                xn[i, j] = x[i, j] + ki * y[j]
+    else:                                    # exponential, held back: x unchanged
+        copy2(x, xn)
     if Pi.shape[0]:                          # keep A P = 0
         project(Pn, Pi, T)
-    return s, lam_t, False
+    cap = False
+    if mode == EXPONENTIAL:
+        hph = q * r * (w * (1.0 / s)) if updated else q * w    # phi P phi^T after the update
+        tr, spread, _ = _diagonal_stats(Pn, g, 0.0, phi)   # of the updated P
+        cap = windup_cap(tr, spread, hph, 1.0 / lam, cfg)
+    return s, lam_t, gated, cap
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _exponential_update_into(x, P, phi, z, missing, r, cfg, g, y, K, w, xn, Pn, xp, Pp):
+    """`measurement_update` in the exponential mode without constraints, reading
+    ``x``, ``P`` and writing the updated ones to ``xn``, ``Pn`` and the copies
+    ``xp``, ``Pp`` in one pass: the same operations in the same order, so the
+    same numbers (the streaming ``update``'s path)."""
+    n, m = x.shape
+    lam = cfg[CFG_LAM]
+    gain(P, phi, g)                          # g = P H^T
+    q = 0.0
+    for i in range(n):
+        q += phi[i] * g[i]
+    s = w * q + r                            # S = H P H^T + R
+    updated = not missing
+    gated = False
+    yy = 0.0
+    if missing:
+        for j in range(m):
+            y[j] = np.nan
+    else:
+        for j in range(m):                   # y = z - H x
+            acc = 0.0
+            for i in range(n):
+                acc += phi[i] * x[i, j]
+            y[j] = z[j] - acc
+            yy += y[j] * y[j]
+        gate = cfg[CFG_GATE]
+        gated = yy > gate * gate * s         # sqrt(y'y / S) > gate
+        updated = not gated
+    c = 1.0 / s
+    cu = exponential_coefficient(q, c, w, updated)
+    kc = w * c
+    for i in range(n):
+        K[i] = g[i] * kc if updated else 0.0             # K = P H^T / S
+    for i in range(n):
+        gi = g[i]
+        for j in range(n):
+            v = P[i, j] - (gi * g[j]) * cu                # P = P - g g^T / S
+            Pn[i, j] = v
+            Pp[i, j] = v
+        ki = K[i]
+        for j in range(m):
+            v = x[i, j] + ki * y[j] if updated else x[i, j]   # x = x + K y^T
+            xn[i, j] = v
+            xp[i, j] = v
+    hph = q * r * (w * (1.0 / s)) if updated else q * w    # phi P phi^T after the update
+    tr, spread, _ = _diagonal_stats(Pn, g, 0.0, phi)
+    return s, lam, gated, windup_cap(tr, spread, hph, 1.0 / lam, cfg)
 
 
 # ----------------------------------------------------------------------
 # the streaming steps (arguments packed by _streaming)
 # ----------------------------------------------------------------------
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
+def _view(out, o, r, c):
+    """The (r, c) array at offset `o` of the flat block `out`, and the next offset."""
+    return out[o:o + r * c].reshape((r, c)), o + r * c
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def Pi_or_efra(cfg):
     """Whether a step needs the (n, n) work space: constraints or EFRA."""
     return cfg.shape[0] > CFG_PI or int(cfg[CFG_MODE]) == EFRA
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def predict_kernel(x, P, il, Q, cfg, out):
     """Streaming ``predict`` into the block `out` (``_streaming.predict_shapes``, then
     ``n^2`` of work space): ``P^-`` = `time_update` of ``P``, and the copies
     ``x_prior = x``, ``P_prior = P^-``."""
     n, m = x.shape
-    nP, nx = n * n, n * m                    # the block: P^- x_prior P_prior | T
-    k = n if cfg.shape[0] > CFG_PI else 0    # T: work space of the projection
-    o = nP + nx + nP
-    time_update(P, il, Q, projector(cfg, n), out[o:o + k * k].reshape((k, k)),
-                out[:nP].reshape((n, n)))
-    for i in range(n):
-        for j in range(m):
-            out[nP + i * m + j] = x[i, j]    # x_prior
-    for i in range(nP):
-        out[nP + nx + i] = out[i]            # P_prior
+    Pn, o = _view(out, 0, n, n)              # the block: P^- x_prior P_prior | T
+    x_prior, o = _view(out, o, n, m)
+    P_prior, o = _view(out, o, n, n)
+    copy2(x, x_prior)
+    if cfg.shape[0] == CFG_PI:               # no constraints: one pass, two copies
+        if Q.shape[0]:                       # time_update's numbers
+            for i in range(n):
+                for j in range(n):
+                    v = P[i, j] * il + Q[i, j]
+                    Pn[i, j] = v
+                    P_prior[i, j] = v
+        else:
+            for i in range(n):
+                for j in range(n):
+                    v = P[i, j] * il
+                    Pn[i, j] = v
+                    P_prior[i, j] = v
+        return
+    T, o = _view(out, o, n, n)               # work space of the projection
+    time_update(P, il, Q, projector(cfg, n), T, Pn)
+    copy2(Pn, P_prior)
 
 
-@njit(cache=True)
-def update_kernel(x, P, phi, z0, zmode, r, cfg, xn, Pn, out):
+@njit(cache=True, error_model="numpy")
+def update_kernel(x, P, phi, z0, zmode, r, cfg, w, xn, Pn, out):
     """Streaming ``update``: `measurement_update` of ``x``, ``P`` into new arrays.
 
     Writes the new estimate ``xn`` (n, m) and covariance ``Pn`` (n, n), and
@@ -273,6 +454,7 @@ def update_kernel(x, P, phi, z0, zmode, r, cfg, xn, Pn, out):
     measurement ``z`` (m, 1; NaN when missing) and the copies ``x_post``,
     ``P_post``. With ``zmode`` 0 the caller has written the measurement into
     the block's ``z``; with 1 it is the scalar ``z0``; with 2 it is missing.
+    `w` as in `measurement_update`.
 
     Returns
     -------
@@ -281,13 +463,13 @@ def update_kernel(x, P, phi, z0, zmode, r, cfg, xn, Pn, out):
         the diagonal of the new ``P`` is not positive and finite (checked
         without constraints only: under them ``P`` is singular by design).
     s, lam_t : float
-    gated : bool
+    gated, cap : bool
     """
     n, m = x.shape
     for i in range(n):
         v = phi[i]
         if v - v != 0.0:                     # NaN or inf
-            return 1, np.nan, np.nan, False
+            return 1, np.nan, np.nan, False, False
     y, K = out[:m], out[m:m + n]             # the block: y K S SI H z x_post P_post | g T
     o = m + n
     S, SI, Hz = out[o:o + m * m], out[o + m * m:o + 2 * m * m], out[o + 2 * m * m:]
@@ -301,43 +483,71 @@ def update_kernel(x, P, phi, z0, zmode, r, cfg, xn, Pn, out):
     g = out[o + nx + nP:o + nx + nP + n]
     k = n if Pi_or_efra(cfg) else 0
     T = out[o + nx + nP + n:o + nx + nP + n + k * k].reshape((k, k))
-    s, lam_t, gated = measurement_update(x, P, phi, Hz[n:n + m], zmode == 2, r, cfg,
-                                         projector(cfg, n), g, y, K, T, xn, Pn)
+    xp = out[o:o + nx].reshape((n, m))
+    Pp = out[o + nx:o + nx + nP].reshape((n, n))
+    if int(cfg[CFG_MODE]) == EXPONENTIAL and cfg.shape[0] == CFG_PI:
+        # the default: x, P read once, the new ones written twice (x, x_post; P, P_post)
+        s, lam_t, gated, cap = _exponential_update_into(x, P, phi, Hz[n:n + m], zmode == 2, r,
+                                                        cfg, g, y, K, w, xn, Pn, xp, Pp)
+    else:
+        s, lam_t, gated, cap = measurement_update(x, P, phi, Hz[n:n + m], zmode == 2, r, cfg,
+                                                  projector(cfg, n), g, y, K, T, w, xn, Pn)
+        copy2(xn, xp)
+        copy2(Pn, Pp)
     for i in range(m * m):
         S[i] = 0.0
         SI[i] = 0.0
     for i in range(m):
         S[i * m + i] = s
         SI[i * m + i] = 1.0 / s
-    xf, Pf = xn.reshape(nx), Pn.reshape(nP)
-    for i in range(nx):
-        out[o + i] = xf[i]                   # x_post
-    for i in range(nP):
-        out[o + nx + i] = Pf[i]              # P_post
     # the cheap check (without constraints: under them P is singular by design)
-    return (2 if cfg.shape[0] == CFG_PI and diagonal_bad(Pn) else 0), s, lam_t, gated
+    return (2 if cfg.shape[0] == CFG_PI and diagonal_bad(Pn) else 0), s, lam_t, gated, cap
 
 
 # ----------------------------------------------------------------------
 # batch_filter
 # ----------------------------------------------------------------------
-@njit(cache=True, inline="always")
-def _predict_step(x, P, il, Q, Pi, T, k, means_p, covs_p, x_prior, P_prior):
-    """`time_update` in `step_batch`, with its histories (and the last prior)."""
-    if il != 1.0 or Q.shape[0] or Pi.shape[0]:
-        time_update(P, il, Q, Pi, T, P)
-    copy2(x, means_p[k])
-    if covs_p.shape[0]:
-        copy2(P, covs_p[k])
-    if k == means_p.shape[0] - 1:
-        copy2(x, x_prior)
-        copy2(P, P_prior)
+#: Health episodes a batch run records with their step and ``P`` (more are counted).
+MAX_EPISODES = 16
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
+def _health(P, basis, symmetric, cond_max, k, due, cheap_bad, state, episodes, P_fail, W, X):
+    """The health check at the end of step `k` of a batch run.
+
+    `state` is ``[armed, n_episodes, ...]``; a full check runs when it is
+    `due` (every ``check_every`` updates) or when the cheap diagonal test
+    failed while armed: on the null space `basis` of the constraints (when it
+    has columns), else with `unhealthy_sym` when ``P`` is exactly `symmetric`
+    (it stays so when it starts so). A failure while armed starts an episode
+    (its step in `episodes`, its ``P`` in `P_fail`, up to `MAX_EPISODES`) and
+    disarms; a due check whose Cholesky bound certifies ``P`` re-arms (while
+    disarmed, only that bound is computed). The caller calls it only then (not
+    inlined: the loops stay lean).
+    """
+    armed = state[0] == 1
+    if basis.shape[1]:
+        bad = unhealthy_on(P, basis, cond_max, armed)
+    elif symmetric:
+        bad = unhealthy_sym(P, cond_max, W, X, armed)
+    else:
+        bad = unhealthy(P, cond_max, armed)
+    if bad and armed:
+        e = int(state[1])
+        if e < episodes.shape[0]:
+            episodes[e] = k
+            copy2(P, P_fail[e])
+        state[1] = e + 1
+        state[0] = 0
+    elif not bad and due:
+        state[0] = 1
+
+
+@njit(cache=True, error_model="numpy")
 def step_batch(x, P, Z, Hm, Rv, il, Q, update_first, cfg, basis,
                means, means_p, covs, covs_p, ys, ss, gated,
-               x_prior, P_prior, x_post, P_post, K, check_every, step0, cond_max, P_fail):
+               x_prior, P_prior, x_post, P_post, K, check_every, step0, cond_max,
+               state, episodes, P_fail, symmetric):
     """`time_update` and `measurement_update` over a record, in place on ``x``, ``P``.
 
     ``Z`` (N, m; NaN rows missing), ``Hm`` (N, n), ``Rv`` (N,) or (1,) (one
@@ -348,16 +558,17 @@ def step_batch(x, P, Z, Hm, Rv, il, Q, update_first, cfg, basis,
     variances ``ss`` (N,), the gate decisions ``gated`` (N,), the last
     step's prior and posterior, and ``K`` (n,), the last gain. The health
     check of ``P`` (on the null space `basis` of the constraints; `basis`
-    has no columns without them) runs at the end of each step whose update
-    count ``step0 + k + 1`` is a multiple of `check_every`; the first
-    failing ``P`` is copied to ``P_fail``.
+    has no columns without them) runs as `_health` says at the end of each
+    step; ``step0`` is the filter's update count before the run. `state` is
+    ``[armed, n_episodes, n_capped, cap, w]`` on entry and exit: the
+    health-check state, the count of updates whose forgetting the windup
+    cap held back, whether the next time update must hold it back, and
+    ``1 / lam`` when the last one did (else 1).
 
     Returns
     -------
     s, lam_t : float
         The last step's innovation variance and forgetting factor.
-    k_fail : int
-        Step of the first failed health check, or -1.
     """
     N = Z.shape[0]
     n, m = x.shape
@@ -366,15 +577,26 @@ def step_batch(x, P, Z, Hm, Rv, il, Q, update_first, cfg, basis,
     g = np.empty(n)
     y = np.empty(m)
     T = np.empty((n, n))
+    W = np.empty((n, n))
+    X = np.empty((n, n))
     s = np.nan
     lam_t = cfg[CFG_LAM]
-    k_fail = -1
+    cap = state[3] == 1
+    w = state[4]
+    armed = state[0] == 1                     # local copies: no store to `state` in the loop
+    n_capped = 0
+    countdown = check_every - step0 % check_every if check_every > 0 else -1
     for k in range(N):
         if not update_first:
-            _predict_step(x, P, il, Q, Pi, T, k, means_p, covs_p, x_prior, P_prior)
+            w = il if cap else 1.0
+            _time_step(x, P, 1.0 if cap else il, Q, Pi, T, k, N, means_p, covs_p,
+                       x_prior, P_prior)
         z = Z[k]
-        s, lam_t, gk = measurement_update(x, P, Hm[k], z, any_nan(z), Rv[k if r_each else 0],
-                                          cfg, Pi, g, y, K, T, x, P)
+        n_capped += w != 1.0
+        s, lam_t, gk, cap = measurement_update(x, P, Hm[k], z, any_nan(z),
+                                               Rv[k if r_each else 0], cfg, Pi, g, y, K, T, w,
+                                               x, P)
+        w = 1.0
         ss[k] = s
         gated[k] = gk
         for j in range(m):
@@ -385,163 +607,302 @@ def step_batch(x, P, Z, Hm, Rv, il, Q, update_first, cfg, basis,
         if k == N - 1:
             copy2(x, x_post)
             copy2(P, P_post)
+        cheap_bad = cfg.shape[0] == CFG_PI and diagonal_bad(P)
         if update_first:
-            _predict_step(x, P, il, Q, Pi, T, k, means_p, covs_p, x_prior, P_prior)
-        if (check_every > 0 and k_fail < 0 and (step0 + k + 1) % check_every == 0
-                and unhealthy_on(P, basis, cond_max)):
-            k_fail = k
-            copy2(P, P_fail)
-    return s, lam_t, k_fail
+            w = il if cap else 1.0
+            _time_step(x, P, 1.0 if cap else il, Q, Pi, T, k, N, means_p, covs_p,
+                       x_prior, P_prior)
+        countdown -= 1                 # zero when (step0 + k + 1) % check_every == 0
+        due = countdown == 0
+        if due:
+            countdown = check_every
+        if check_every > 0 and (due or (cheap_bad and armed)):
+            _health(P, basis, symmetric, cond_max, k, due, cheap_bad, state, episodes, P_fail,
+                    W, X)
+            armed = state[0] == 1
+    state[2] += n_capped
+    state[3] = 1 if cap else 0
+    state[4] = w
+    return s, lam_t
 
 
-@njit(cache=True, inline="always")
-def _sweep(P, g, c, update, il, Q, predict, phin, gn):
-    """One sweep over ``P``: ``P <- P - (g g^T) c`` (`update`), then ``P <- P il + Q``
-    (`predict`), accumulating the next gain ``gn = P phin`` on the way."""
+@njit(cache=True, error_model="numpy", inline="always")
+def _time_step(x, P, il, Q, Pi, T, k, N, means_p, covs_p, x_prior, P_prior):
+    """`time_update` in `step_batch`, with its histories (and the last prior)."""
+    if il != 1.0 or Q.shape[0] or Pi.shape[0]:
+        time_update(P, il, Q, Pi, T, P)
+    if means_p.shape[0]:
+        copy2(x, means_p[k])
+    if covs_p.shape[0]:
+        copy2(P, covs_p[k])
+    if k == N - 1:
+        copy2(x, x_prior)
+        copy2(P, P_prior)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _sweep(P, g, cu, il, Q, h, gn):
+    """One sweep over ``P``: ``P <- (P - (g g^T) cu) il + Q``, accumulating the next
+    gain ``gn = P h`` on the way (row by row, as `gain` does).
+
+    ``cu = 0`` is a time update alone (``P - 0 = P`` exactly), ``il = 1``
+    (without ``Q``) an update alone. The two loops (with and without ``Q``)
+    are separate functions, so that neither carries a branch in its inner
+    loop (the compiler then vectorizes it).
+    """
+    if Q.shape[0]:
+        _sweep_q(P, g, cu, il, Q, h, gn)
+    else:
+        _sweep_rows(P, g, cu, il, h, gn)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _sweep_rows(P, g, cu, il, h, gn):
+    """`_sweep` without ``Q``, four rows at a time.
+
+    Each ``g_j``, ``gn_j`` is loaded once for four rows and the four
+    contributions are added to ``gn_j`` in row order, so the numbers are those
+    of the row-by-row loop.
+    """
     n = P.shape[0]
+    if n == 2:                       # the same operations, written out (no loop overhead)
+        g0, g1 = g[0], g[1]
+        h0, h1 = h[0], h[1]
+        v00 = (P[0, 0] - (g0 * g0) * cu) * il
+        v01 = (P[0, 1] - (g0 * g1) * cu) * il
+        v10 = (P[1, 0] - (g1 * g0) * cu) * il
+        v11 = (P[1, 1] - (g1 * g1) * cu) * il
+        P[0, 0] = v00
+        P[0, 1] = v01
+        P[1, 0] = v10
+        P[1, 1] = v11
+        gn[0] = (0.0 + v00 * h0) + v10 * h1
+        gn[1] = (0.0 + v01 * h0) + v11 * h1
+        return
     for j in range(n):
         gn[j] = 0.0
-    if update and predict and Q.shape[0] == 0:       # the common case, branch-free
-        for i in range(n):
-            gi = g[i]
-            hi = phin[i]
-            for j in range(n):
-                v = (P[i, j] - (gi * g[j]) * c) * il
-                P[i, j] = v
-                gn[j] += v * hi
-    else:
-        none = P.reshape((1, n, n))                  # no histories to write
-        _sweep_store(P, g, c, update, il, Q, predict, phin, gn, none, -1, none, -1)
+    i = 0
+    while i + 4 <= n:
+        r0, r1, r2, r3 = P[i], P[i + 1], P[i + 2], P[i + 3]
+        a0, a1, a2, a3 = g[i], g[i + 1], g[i + 2], g[i + 3]
+        h0, h1, h2, h3 = h[i], h[i + 1], h[i + 2], h[i + 3]
+        for j in range(n):
+            gj = g[j]
+            v0 = (r0[j] - (a0 * gj) * cu) * il
+            v1 = (r1[j] - (a1 * gj) * cu) * il
+            v2 = (r2[j] - (a2 * gj) * cu) * il
+            v3 = (r3[j] - (a3 * gj) * cu) * il
+            r0[j] = v0
+            r1[j] = v1
+            r2[j] = v2
+            r3[j] = v3
+            gn[j] = (((gn[j] + v0 * h0) + v1 * h1) + v2 * h2) + v3 * h3
+        i += 4
+    while i < n:
+        ri = P[i]
+        ai = g[i]
+        hi = h[i]
+        for j in range(n):
+            v = (ri[j] - (ai * g[j]) * cu) * il
+            ri[j] = v
+            gn[j] += v * hi
+        i += 1
 
 
-@njit(cache=True, inline="always")
-def _sweep_store(P, g, c, update, il, Q, predict, phin, gn, covs, k_post, covs_p, k_prior):
-    """`_sweep` that also writes ``P`` after the update half to ``covs[k_post]`` and
-    after the predict half to ``covs_p[k_prior]`` (not for an index of -1)."""
+@njit(cache=True, error_model="numpy", inline="always")
+def _sweep_q(P, g, cu, il, Q, h, gn):
+    """`_sweep` with ``Q``, row by row."""
     n = P.shape[0]
     for j in range(n):
         gn[j] = 0.0
     for i in range(n):
-        gi = g[i]
-        hi = phin[i]
+        ri = P[i]
+        qi = Q[i]
+        ai = g[i]
+        hi = h[i]
         for j in range(n):
-            v = P[i, j]
-            if update:
-                v = v - (gi * g[j]) * c
-            if k_post >= 0:
-                covs[k_post, i, j] = v
-            if predict:
-                v = v * il
-                if Q.shape[0]:
-                    v = v + Q[i, j]
-            if k_prior >= 0:
-                covs_p[k_prior, i, j] = v
-            P[i, j] = v
+            v = (ri[j] - (ai * g[j]) * cu) * il + qi[j]
+            ri[j] = v
             gn[j] += v * hi
 
 
-@njit(cache=True)
-def exponential_batch(x, P, Z, Hm, Rv, il, Q, update_first, means, covs, covs_p, ys, ss,
-                      x_prior, P_prior, x_post, P_post, K, check_every, step0, cond_max, P_fail):
+@njit(cache=True, error_model="numpy")
+def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, covs_p, ys,
+                      ss, x_prior, P_prior, x_post, P_post, K, check_every, step0, cond_max,
+                      state, episodes, P_fail, symmetric):
     """`step_batch` of the default configuration with one output, fused (see the module).
 
-    Exponential forgetting, no gate, no constraints, ``m = 1``; ``ys`` and
-    ``ss`` have length 1 (the last step). Arguments and returns otherwise as
-    `step_batch` (``means_p`` is ``means`` shifted by one step; the caller
-    builds it).
+    Exponential forgetting, no gate, no constraints, ``m = 1``: ``ss`` has
+    length 1 (the last step), ``ys`` length N (every residual) or 1 (the
+    last). With covariance histories (``covs``, ``covs_p`` of length N) each
+    step's sweep runs in its two halves, ``P`` written after each. Arguments
+    and returns otherwise as `step_batch` (``means_p`` is ``means`` shifted
+    by one step; the caller builds it), but for ``lam_t``.
     """
     N = Z.shape[0]
     n = x.shape[0]
     r_each = Rv.shape[0] == N
+    every_y = ys.shape[0] == N
+    hasq = Q.shape[0] > 0
     store = covs.shape[0] > 0
-    predict = not (il == 1.0 and Q.shape[0] == 0)    # otherwise the time update is the identity
-    th = x[:, 0]
-    g = np.empty(n)
+    th = x[:, 0].copy()                              # local: no aliasing in the loop
+    g = np.zeros(n)
     gn = np.empty(n)
-    k_fail = -1
+    W = np.empty((n, n))
+    X = np.empty((n, n))
+    none = np.zeros((n, 0))
+    cap = state[3] == 1
+    n_capped = 0
+    w = state[4]
     countdown = check_every - step0 % check_every if check_every > 0 else -1
-    _sweep_store(P, g, 0.0, False, il, Q, predict and not update_first, Hm[0], gn,  # P^-, g
-                 covs, -1, covs_p, 0 if store and not update_first else -1)
+    if update_first:                                 # the gain of P
+        _sweep_rows(P, g, 0.0, 1.0, Hm[0], gn)
+    else:                                            # P^- and its gain
+        w = il if cap else 1.0
+        _sweep(P, g, 0.0, 1.0 if cap else il, Q, Hm[0], gn)
+        if store:
+            copy2(P, covs_p[0])
     g, gn = gn, g
     if not update_first and N == 1:
         copy2(x, x_prior)
         copy2(P, P_prior)
     s = np.nan
+    yk = np.nan
     for k in range(N):
         h = Hm[k]
+        zk = Z[k, 0]
+        q = 0.0
         acc = 0.0
         for i in range(n):
-            acc += h[i] * g[i]
-        s = acc + Rv[k if r_each else 0]            # S = H P H^T + R
-        ss[0] = s
+            hi = h[i]
+            q += hi * g[i]
+            acc += hi * th[i]
+        r = Rv[k if r_each else 0]
+        s = w * q + r                                # S = H P H^T + R
         c = 1.0 / s
-        zk = Z[k, 0]
-        update = zk == zk                            # not missing
-        if update:
-            acc = 0.0
-            for i in range(n):
-                acc += h[i] * th[i]
+        updated = zk == zk                           # not missing
+        n_capped += w != 1.0
+        cu = exponential_coefficient(q, c, w, updated)
+        kc = w * c
+        if updated:
             yk = zk - acc                            # y = z - H x
-            ys[0, 0] = yk
             for i in range(n):
-                ki = g[i] * c                        # K = P H^T / S
-                K[i] = ki
-                th[i] = th[i] + ki * yk              # x = x + K y
+                th[i] = th[i] + (g[i] * kc) * yk     # x = x + K y,  K = P H^T / S
+                means[k, i, 0] = th[i]
+            hph = q * r * kc                         # H P H^T after the update
         else:
-            ys[0, 0] = np.nan
-        for i in range(n):
-            means[k, i, 0] = th[i]
+            yk = np.nan
+            for i in range(n):
+                means[k, i, 0] = th[i]
+            hph = q * w
+        if every_y:
+            ys[k, 0] = yk
+        # the diagonal of the updated P: the cheap check and the windup cap
+        tr, spread, dmin = _diagonal_stats(P, g, cu, h)
+        cheap_bad = not (dmin > 0.0 and tr < np.inf)
+        cap = windup_cap(tr, spread, hph, il, cfg)
+        w = il if cap else 1.0                       # the next update's w
         countdown -= 1                 # zero when (step0 + k + 1) % check_every == 0
-        check = countdown == 0 and k_fail < 0
-        if countdown == 0:
+        due = countdown == 0
+        if due:
             countdown = check_every
+        check = check_every > 0 and (due or (cheap_bad and state[0] == 1))
         last = k == N - 1
-        if check or last:              # unfused, to look at P between the two halves
-            _sweep_store(P, g, c, update, il, Q, False, h, gn, covs, k if store else -1, covs_p,
-                         -1)
-            if last:
-                copy2(x, x_post)
-                copy2(P, P_post)
-            if check and not update_first and unhealthy(P, cond_max):
-                k_fail = k
-                copy2(P, P_fail)
-            if not last or update_first:
-                kp = (k if update_first else k + 1) if store else -1
-                _sweep_store(P, g, c, False, il, Q, predict, Hm[min(k + 1, N - 1)], gn,
-                             covs, -1, covs_p, kp)
-            if check and update_first and unhealthy(P, cond_max):
-                k_fail = k
-                copy2(P, P_fail)
-        elif store:                    # with the histories of P after each half
-            _sweep_store(P, g, c, update, il, Q, predict, Hm[k + 1], gn, covs, k, covs_p,
-                         k if update_first else k + 1)
+        if last:
+            x[:, 0] = th
+            if updated:
+                for i in range(n):
+                    K[i] = g[i] * kc
+        # the usual step is the last branch: the sweep does not wait for the
+        # decisions above (the branch is predicted), only for cu. A due health
+        # check looks at P after the fused sweep: that is the P it tests with
+        # update_first, and otherwise P / lam, whose definiteness and condition
+        # number are those of P (with Q the two halves run apart)
+        if last or cap or store or (check and hasq and not update_first):
+            _unfused_step(x, P, g, gn, cu, 1.0 if cap else il, Q, Hm[min(k + 1, N - 1)], k,
+                          last, check, update_first, due, cheap_bad, cond_max, state,
+                          episodes, P_fail, W, X, none, symmetric, x_prior, P_prior, x_post,
+                          P_post, covs, covs_p)
         else:
-            _sweep(P, g, c, update, il, Q, predict, Hm[k + 1], gn)
+            if hasq:
+                _sweep_q(P, g, cu, il, Q, Hm[k + 1], gn)
+            else:
+                _sweep_rows(P, g, cu, il, Hm[k + 1], gn)
+            if check:
+                _health(P, none, symmetric, cond_max, k, due, cheap_bad, state, episodes,
+                        P_fail, W, X)
         g, gn = gn, g
-        if (k == N - 2 and not update_first) or (last and update_first):
+        if k == N - 2 and not update_first:
+            x[:, 0] = th
             copy2(x, x_prior)
             copy2(P, P_prior)
-    return s, k_fail
+    if not update_first:
+        w = 1.0                                      # no time update after the last update
+    state[2] += n_capped
+    ss[0] = s
+    ys[ys.shape[0] - 1, 0] = yk
+    state[3] = 1 if cap else 0
+    state[4] = w
+    return s
+
+
+@njit(cache=True, error_model="numpy")
+def _unfused_step(x, P, g, gn, cu, il, Q, h, k, last, check, update_first, due, cheap_bad,
+                  cond_max, state, episodes, P_fail, W, X, none, symmetric, x_prior, P_prior,
+                  x_post, P_post, covs, covs_p):
+    """The rare steps of `exponential_batch` (not inlined, so that they stay out of
+    the loop's code): a step whose time update the windup cap holds back (`il`
+    is then 1), and a step whose updated ``P`` is checked, kept (the last) or
+    stored (``covs``, ``covs_p`` of length N), whose sweep runs in two halves:
+    the update, then the time update with the next gain (after the last
+    update only with `update_first`)."""
+    store = covs.shape[0] > 0
+    if not (check or last or store):
+        _sweep(P, g, cu, il, Q, h, gn)
+        return
+    _sweep_rows(P, g, cu, 1.0, h, gn)
+    if store:
+        copy2(P, covs[k])
+    if last:
+        copy2(x, x_post)
+        copy2(P, P_post)
+    if check and not update_first:
+        _health(P, none, symmetric, cond_max, k, due, cheap_bad, state, episodes, P_fail, W, X)
+    if not last or update_first:
+        _sweep(P, g, 0.0, il, Q, h, gn)
+        if store:
+            copy2(P, covs_p[k if update_first else k + 1])
+    if check and update_first:
+        _health(P, none, symmetric, cond_max, k, due, cheap_bad, state, episodes, P_fail, W, X)
+    if last and update_first:
+        copy2(x, x_prior)
+        copy2(P, P_prior)
 
 
 class BatchResult:
     """What `run_batch` returns: the histories and the last step's state."""
 
-    __slots__ = ("means", "covariances", "means_p", "covariances_p", "ys", "ss", "gated",
-                 "x", "P", "x_prior", "P_prior", "x_post", "P_post", "K_last", "s_last",
-                 "lam_t_last", "k_fail", "P_fail")
+    __slots__ = ("buffer", "means", "covariances", "means_p", "covariances_p", "ys", "ss",
+                 "gated", "x", "P", "x_prior", "P_prior", "x_post", "P_post", "K_last", "s_last",
+                 "lam_t_last", "state", "episodes", "P_fail")
 
 
 def run_batch(x, P, Z, Hm, Rv, cfg, Q, basis, update_first, store_covariances,
-              check_every, step0, cond_max):
+              check_every, step0, cond_max, state, lead=0, residuals=False):
     """Run `RecursiveLeastSquares` over a validated record; `x`, `P` are not modified.
 
     `cfg` is ``forgetting.kernel_config``; `Q` None when absent; `basis`
-    the null-space basis of the constraints (None without). Chooses
-    `exponential_batch` for the default configuration with one output,
-    `step_batch` otherwise. Returns a
-    `BatchResult` (``ys``, ``ss``, ``gated`` hold the last step only after
-    `exponential_batch`).
+    the null-space basis of the constraints (None without); `state` the
+    ``[armed, n_episodes, n_capped, cap, w]`` of `step_batch` (a new array is
+    returned in the result). Chooses `exponential_batch` for the default
+    configuration with one output, `step_batch` otherwise. Returns a
+    `BatchResult` (``ss``, ``gated`` hold the last step only after
+    `exponential_batch`, and ``ys`` too unless `residuals`). The
+    estimate histories share one buffer, ``buffer``: `lead` rows of NaN (room
+    for what a caller puts before the run), the estimate before the first
+    update, then the estimate after each update (``means``); ``means_p`` is a
+    read-only view of it (the estimate before each update is the one after
+    the update before), so memory stays one ``N x dim_x x dim_z`` array.
     """
     N = len(Z)
     n, m = x.shape
@@ -558,35 +919,44 @@ def run_batch(x, P, Z, Hm, Rv, cfg, Q, basis, update_first, store_covariances,
     out.P = np.array(P, dtype=np.float64, order="C")
     out.x_prior, out.P_prior = np.empty((n, m)), np.empty((n, n))
     out.x_post, out.P_post = np.empty((n, m)), np.empty((n, n))
-    out.means = np.empty((N, n, m))
+    # one buffer for both estimate histories: row k + 1 is the estimate after
+    # update k, row 0 the estimate before the first (x does not change in a predict)
+    buf = np.empty((lead + N + 1, n, m))
+    buf[:lead] = np.nan
+    buf[lead] = x
+    out.buffer = buf
+    out.means = buf[lead + 1:]
+    means_p = buf[lead + 1:] if update_first else buf[lead:-1]
+    out.means_p = means_p.view()
+    out.means_p.flags.writeable = False
     K = np.zeros(n)
-    out.P_fail = np.empty((n, n))
+    symmetric = bool(np.array_equal(out.P, out.P.T))    # then it stays exactly symmetric
+    out.state = np.array(state, dtype=np.float64)
+    out.episodes = np.zeros(MAX_EPISODES, dtype=np.int64)
+    out.P_fail = np.empty((MAX_EPISODES, n, n))
     fused = mode == EXPONENTIAL and gate == np.inf and len(cfg) == CFG_PI and m == 1 and N > 0
     covs = np.empty((N if store_covariances else 0, n, n))
     covs_p = np.empty((N if store_covariances else 0, n, n))
     out.covariances = covs if store_covariances else None
     out.covariances_p = covs_p if store_covariances else None
     if fused:
-        out.ys, out.ss = np.empty((1, 1)), np.empty(1)
-        out.s_last, out.k_fail = exponential_batch(
-            out.x, out.P, Zc, Hc, Rv, il, Qa, bool(update_first), out.means, covs, covs_p,
+        out.ys, out.ss = np.empty((N if residuals else 1, 1)), np.empty(1)
+        out.s_last = exponential_batch(
+            out.x, out.P, Zc, Hc, Rv, il, Qa, cfg, bool(update_first), out.means, covs, covs_p,
             out.ys, out.ss, out.x_prior, out.P_prior, out.x_post, out.P_post, K,
-            int(check_every), int(step0), float(cond_max), out.P_fail)
+            int(check_every), int(step0), float(cond_max), out.state, out.episodes,
+            out.P_fail, symmetric)
         out.gated = np.zeros(1, dtype=np.bool_)
         out.lam_t_last = lam
-        out.means_p = out.means.copy() if update_first else np.empty((N, n, m))
-        if not update_first:                         # the estimate is unchanged by a predict
-            out.means_p[0] = x
-            out.means_p[1:] = out.means[:-1]
     else:
-        out.means_p = np.empty((N, n, m))
         out.ys, out.ss = np.empty((N, m)), np.empty(N)
         out.gated = np.zeros(N, dtype=np.bool_)
-        out.s_last, out.lam_t_last, out.k_fail = step_batch(
+        out.s_last, out.lam_t_last = step_batch(
             out.x, out.P, Zc, Hc, Rv, il, Qa, bool(update_first), cfg, Ba,
-            out.means, out.means_p, covs, covs_p, out.ys, out.ss, out.gated,
+            out.means, np.empty((0, n, m)), covs, covs_p, out.ys, out.ss, out.gated,
             out.x_prior, out.P_prior, out.x_post, out.P_post, K,
-            int(check_every), int(step0), float(cond_max), out.P_fail)
+            int(check_every), int(step0), float(cond_max), out.state, out.episodes,
+            out.P_fail, symmetric)
     if N and np.isnan(Z[-1]).any():                   # the last sample was missing: no gain
         K[:] = 0.0
     out.K_last = K.reshape(n, 1)

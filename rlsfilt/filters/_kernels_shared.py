@@ -17,7 +17,7 @@ __all__ = []
 _EPS = float(np.finfo(np.float64).eps)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def copy2(a, b):
     """``b[:] = a`` for 2-D arrays."""
     for i in range(a.shape[0]):
@@ -25,7 +25,7 @@ def copy2(a, b):
             b[i, j] = a[i, j]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def any_nan(z):
     for v in z:
         if v != v:
@@ -33,7 +33,7 @@ def any_nan(z):
     return False
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def diagonal_bad(A):
     """True when a diagonal entry of ``A`` is not positive and finite (the cheap
     check: a positive definite ``P``, or the factor ``U`` of one, has a positive
@@ -45,7 +45,7 @@ def diagonal_bad(A):
     return False
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def back_substitute(U, B, X):
     """Solve ``U X = B`` (``U`` upper triangular); `X` may be `B`."""
     n, m = B.shape
@@ -57,7 +57,7 @@ def back_substitute(U, B, X):
             X[i, c] = acc / U[i, i]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def upper_inverse_gram(U, P):
     """``P = U^-1 U^-T`` for an upper-triangular `U` with a nonzero diagonal.
 
@@ -83,7 +83,7 @@ def upper_inverse_gram(U, P):
             P[j, i] = acc
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def singular_range(R):
     """Smallest and largest singular value of the square `R` (one-sided Jacobi).
 
@@ -133,19 +133,11 @@ def singular_range(R):
 # ----------------------------------------------------------------------
 # health decisions (the NumPy definitions are in _health)
 # ----------------------------------------------------------------------
-@njit(cache=True)
-def unhealthy(P, cond_max):
+@njit(cache=True, error_model="numpy")
+def unhealthy(P, cond_max, exact=True):
     """True when ``_health.symmetric_problem(P, cond_max)`` finds a problem:
     non-finite, not symmetric to 1e-8, not positive definite, or condition
-    number above `cond_max`.
-
-    The decision is the one ``eigvalsh`` gives, but a Cholesky factor
-    ``A = L L^T`` settles the usual healthy case in about ``n^3 / 3``
-    operations: ``cond(A) <= trace(A) trace(A^-1) = trace(A) ||L^-1||_F^2``,
-    and a bound well inside `cond_max` (and below 1e12, where the computed
-    eigenvalues are safely positive) means healthy. Otherwise the
-    eigenvalues decide.
-    """
+    number above `cond_max` (`unhealthy_sym` of ``(P + P^T) / 2``)."""
     n = P.shape[0]
     A = np.empty((n, n))
     asym = 0.0
@@ -160,50 +152,90 @@ def unhealthy(P, cond_max):
             scale = max(scale, abs(v))
     if asym > 1e-8 * scale:
         return True
-    L = np.zeros((n, n))
+    return unhealthy_sym(A, cond_max, np.empty((n, n)), np.empty((n, n)), exact)
+
+
+@njit(cache=True, error_model="numpy")
+def unhealthy_sym(A, cond_max, W, X, exact=True):
+    """`unhealthy` of an exactly symmetric `A`, without allocating in the usual
+    healthy case (`W`, `X`: (n, n) work space).
+
+    The decision is the one ``eigvalsh`` gives, but a Cholesky factor
+    ``A = U^T U`` settles the usual healthy case in about ``2 n^3 / 3``
+    operations: ``cond(A) <= trace(A) trace(A^-1) = trace(A) ||U^-T||_F^2``,
+    and a bound well inside `cond_max` (and below 1e12, where the computed
+    eigenvalues are safely positive) means healthy. Otherwise the eigenvalues
+    decide. Both factorizations run along rows (their inner loops are
+    ``axpy``), so the compiler vectorizes them. Not `exact`, only the bound
+    decides: what it cannot call healthy counts as unhealthy (the re-arming
+    test of a warned filter, which need not pay for ``eigvalsh``).
+    """
+    n = A.shape[0]
+    trace = 0.0
+    for i in range(n):
+        for j in range(n):
+            W[i, j] = A[i, j]
+        trace += A[i, i]
+    finite = 0.0
+    for i in range(n):                       # NaN or inf anywhere makes this NaN
+        for j in range(n):
+            finite += 0.0 * W[i, j]
+    if finite != 0.0:
+        return True
     chol = True
-    for j in range(n):
-        d = A[j, j]
-        for k in range(j):
-            d -= L[j, k] * L[j, k]
+    for k in range(n):                       # W <- U, row by row (right-looking)
+        d = W[k, k]
         if not d > 0.0:
             chol = False
             break
-        ljj = np.sqrt(d)
-        L[j, j] = ljj
-        for i in range(j + 1, n):
-            t = A[i, j]
-            for k in range(j):
-                t -= L[i, k] * L[j, k]
-            L[i, j] = t / ljj
-    if chol:
-        trace = 0.0
-        for i in range(n):
-            trace += A[i, i]
-        inv_norm2 = 0.0                      # ||L^-1||_F^2, column by column
-        col = np.empty(n)
-        for j in range(n):
-            for i in range(n):
-                t = 1.0 if i == j else 0.0
-                for k in range(j, i):
-                    t -= L[i, k] * col[k]
-                col[i] = t / L[i, i] if i >= j else 0.0
-                if i >= j:
-                    inv_norm2 += col[i] * col[i]
-        if trace * inv_norm2 < min(0.5 * cond_max, 1e12):
-            return False
+        ukk = math.sqrt(d)
+        W[k, k] = ukk
+        inv = 1.0 / ukk
+        for j in range(k + 1, n):
+            W[k, j] = W[k, j] * inv
+        for i in range(k + 1, n):            # trailing upper triangle -= u_k^T u_k
+            a = W[k, i]
+            for j in range(i, n):
+                W[i, j] = W[i, j] - a * W[k, j]
+    if chol and trace * inverse_norm2(W, X) < min(0.5 * cond_max, 1e12):
+        return False
+    if not exact:
+        return True
     w = np.linalg.eigvalsh(A)
     return w[0] <= 0.0 or w[n - 1] > cond_max * w[0]
 
 
-@njit(cache=True)
-def unhealthy_on(P, basis, cond_max):
+@njit(cache=True, error_model="numpy", inline="always")
+def inverse_norm2(U, X):
+    """``||U^-1||_F^2`` of the upper-triangular `U` (nonzero diagonal; only its upper
+    triangle is read), from the rows of ``X = U^-T`` (lower; `X` (n, n) work):
+    ``X_i = (e_i - sum_{k<i} U_ki X_k) / U_ii``, row ``axpy`` loops."""
+    n = U.shape[0]
+    acc = 0.0
+    for i in range(n):
+        for j in range(i + 1):
+            X[i, j] = 0.0
+        X[i, i] = 1.0
+        for k in range(i):                   # X_i -= U_ki X_k
+            a = U[k, i]
+            for j in range(k + 1):
+                X[i, j] = X[i, j] - a * X[k, j]
+        inv = 1.0 / U[i, i]
+        for j in range(i + 1):
+            v = X[i, j] * inv
+            X[i, j] = v
+            acc += v * v
+    return acc
+
+
+@njit(cache=True, error_model="numpy")
+def unhealthy_on(P, basis, cond_max, exact=True):
     """`unhealthy` of ``basis^T P basis`` (``P`` under constraints; `basis` an
     orthonormal basis of the null space of ``A``), or of ``P`` when `basis`
     has no columns (no constraints)."""
     n, p = basis.shape
     if p == 0:
-        return unhealthy(P, cond_max)
+        return unhealthy(P, cond_max, exact)
     for i in range(n):
         for j in range(n):
             v = P[i, j]
@@ -221,23 +253,30 @@ def unhealthy_on(P, basis, cond_max):
             a = basis[k, i]
             for j in range(p):
                 R[i, j] += a * B[k, j]
-    return unhealthy(R, cond_max)
+    return unhealthy(R, cond_max, exact)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def factor_unhealthy(U, cond_max):
     """True when ``_health.factor_problem(U, cond_max)`` finds a problem with
     ``P = U^-1 U^-T``: non-finite ``U``, a diagonal entry that is not
-    positive, or ``cond(P) = cond(U)^2`` above `cond_max` (singular values
-    from `singular_range`, ``O(n^3)``, without forming ``P``)."""
+    positive, or ``cond(P) = cond(U)^2`` above `cond_max`, without forming
+    ``P``. As in `unhealthy_sym`, the bound ``cond(P) <= trace(P) trace(P^-1)
+    = ||U^-1||_F^2 ||U||_F^2`` (one triangular inverse, ``n^3 / 3``) settles
+    the usual healthy case; otherwise the singular values of ``U`` decide
+    (`singular_range`, one-sided Jacobi)."""
     n = U.shape[0]
+    norm2 = 0.0
     for i in range(n):
         for j in range(n):
             v = U[i, j]
             if v - v != 0.0:
                 return True
+            norm2 += v * v
     if diagonal_bad(U):
         return True
+    if norm2 * inverse_norm2(U, np.empty((n, n))) < min(0.5 * cond_max, 1e12):
+        return False
     smin, smax = singular_range(U)
     if not smin > 0.0:
         return True

@@ -22,8 +22,9 @@ Sliding window, one step (Haykin 2002, sec. 9)::
 Square root (QR, information form), one step::
 
     U <- sqrt(lam) U, d <- sqrt(lam) d      predict
-    w = U^-T phi, s = w . w + r,  K = U^-1 w / s
     [U d; phi/sqrt(r) z^T/sqrt(r)] -> [U' d'; 0 e]   by n Givens rotations
+    s = r / prod_i c_i^2 (the rotations' cosines: = |U^-T phi|^2 + r)
+    K = U^-1 w / s, w = U^-T phi (only when the gain is kept)
     x = U'^-1 d'
 
 The Givens rotations keep the diagonal of ``U`` positive by construction
@@ -50,7 +51,7 @@ from ._kernels_shared import (
 __all__ = []
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def sr_predict(U, d, c):
     """``U <- c U``, ``d <- c d`` in place (``c = sqrt(lam)``)."""
     n, m = d.shape
@@ -61,38 +62,81 @@ def sr_predict(U, d, c):
             d[i, j] = d[i, j] * c
 
 
-@njit(cache=True)
-def _sr_step(U, d, x, phi, z, r, w, y, K, gain):
+@njit(cache=True, error_model="numpy", inline="always")
+def _dot_from(u, v, lo, hi):
+    """``sum_{k=lo}^{hi-1} u_k v_k`` in four interleaved partial sums (added as
+    ``(s0 + s1) + (s2 + s3)``, then the tail): four independent chains of
+    additions instead of one, the same bits on every machine."""
+    s0 = s1 = s2 = s3 = 0.0
+    k = lo
+    while k + 4 <= hi:
+        s0 += u[k] * v[k]
+        s1 += u[k + 1] * v[k + 1]
+        s2 += u[k + 2] * v[k + 2]
+        s3 += u[k + 3] * v[k + 3]
+        k += 4
+    acc = (s0 + s1) + (s2 + s3)
+    while k < hi:
+        acc += u[k] * v[k]
+        k += 1
+    return acc
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _back_solve(U, b, v):
+    """``U v = b`` for the upper-triangular `U` (row by row from the last, the dot
+    products by `_dot_from`); `v` may be `b`."""
+    n = U.shape[0]
+    for i in range(n - 1, -1, -1):
+        v[i] = (b[i] - _dot_from(U[i], v, i + 1, n)) / U[i, i]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _back_solve_inv(U, dinv, b, v):
+    """`_back_solve` with the reciprocals ``dinv`` of the diagonal of `U` known
+    (a multiply, not a division, on the chain from row to row)."""
+    n = U.shape[0]
+    for i in range(n - 1, -1, -1):
+        v[i] = (b[i] - _dot_from(U[i], v, i + 1, n)) * dinv[i]
+
+
+@njit(cache=True, error_model="numpy")
+def _sr_step(U, d, x, phi, z, r, w, y, K, gain, a, b, xc):
     """One measurement update of the information square root, in place.
 
     Writes ``y`` (m,) and, when `gain`, ``K`` (n,) (NaN and zero when `z`
-    holds a NaN) and returns ``s = H P H^T + R``. ``w`` (n,) is workspace.
-    The gain is not needed to update ``U`` and ``d``: the batch kernel forms
-    it for the last step only.
+    holds a NaN) and returns ``s = H P H^T + R``. ``w``, ``a`` (n,), ``b``
+    (m,) and ``xc`` (n,) are workspace. The gain is not needed to update
+    ``U`` and ``d``: the batch kernel forms it for the last step only.
+
+    ``s`` comes from the rotations: they keep ``det(U)`` times the
+    determinant of the appended row's part, so ``prod_i (rho_i / U_ii)^2 =
+    1 + |U^-T phi|^2 / r`` and ``s = r / prod_i c_i^2`` with the cosines
+    ``c_i = U_ii / rho_i`` (no triangular solve; a missing sample, which
+    rotates nothing, takes ``s = |U^-T phi|^2 + r``).
     """
     n, m = d.shape
-    for i in range(n):                         # U^T w = phi (forward substitution)
-        acc = phi[i]
-        for k in range(i):
-            acc -= U[k, i] * w[k]
-        w[i] = acc / U[i, i]
-    s = r
-    for i in range(n):
-        s += w[i] * w[i]                       # s = |U^-T phi|^2 + r
-    if any_nan(z):
+    missing = any_nan(z)
+    if missing or gain:
+        for i in range(n):                     # U^T w = phi: forward, column by column
+            w[i] = phi[i]
+        for k in range(n):
+            wk = w[k] / U[k, k]
+            w[k] = wk
+            row = U[k]
+            for i in range(k + 1, n):
+                w[i] -= row[i] * wk
+    if missing:
+        s = r
+        for i in range(n):
+            s += w[i] * w[i]                   # s = |U^-T phi|^2 + r
         for j in range(m):
             y[j] = np.nan
         for i in range(n):
             K[i] = 0.0
         return s
     if gain:
-        for i in range(n - 1, -1, -1):         # U v = w (back substitution); K = v / s
-            acc = w[i]
-            for k in range(i + 1, n):
-                acc -= U[i, k] * K[k]
-            K[i] = acc / U[i, i]
-        for i in range(n):
-            K[i] = K[i] / s
+        _back_solve(U, w, K)                   # U v = w (the old U); K = v / s below
     for j in range(m):                         # y = z - phi x
         acc = 0.0
         for i in range(n):
@@ -100,48 +144,72 @@ def _sr_step(U, d, x, phi, z, r, w, y, K, gain):
         y[j] = z[j] - acc
     # fold the row [phi, z^T] / sqrt(r) into [U, d] with Givens rotations
     c0 = 1.0 / math.sqrt(r)
-    a = np.empty(n)
-    b = np.empty(m)
     for i in range(n):
         a[i] = phi[i] * c0
     for j in range(m):
         b[j] = z[j] * c0
+    prod = 1.0                                 # prod_i c_i, times 2^(500 scaled)
+    scaled = 0
     for i in range(n):
         ai = a[i]
         if ai == 0.0:
+            w[i] = 1.0 / U[i, i]               # w: the reciprocals of the new diagonal
             continue
         uii = U[i, i]
-        rho = math.hypot(uii, ai)
-        cs = uii / rho
-        sn = ai / rho
+        big = max(abs(uii), abs(ai))
+        if 1e-150 < big < 1e150:               # no overflow or underflow: sqrt, not hypot
+            rho = math.sqrt(uii * uii + ai * ai)
+        else:
+            rho = math.hypot(uii, ai)
+        inv = 1.0 / rho
+        w[i] = inv
+        cs = uii * inv
+        sn = ai * inv
+        prod *= cs
+        if prod < 1e-150:                      # keep it normal (an exact power of two)
+            prod *= 2.0 ** 500
+            scaled += 1
         U[i, i] = rho
+        row = U[i]
         for j in range(i + 1, n):
-            t = U[i, j]
+            t = row[j]
             aj = a[j]
-            U[i, j] = cs * t + sn * aj
+            row[j] = cs * t + sn * aj
             a[j] = cs * aj - sn * t
         for j in range(m):
             t = d[i, j]
             bj = b[j]
             d[i, j] = cs * t + sn * bj
             b[j] = cs * bj - sn * t
-    back_substitute(U, d, x)                  # x = U^-1 d
+    s = r / (prod * prod)                      # S = H P H^T + R
+    for _ in range(scaled):
+        s *= 2.0 ** 1000
+    if gain:
+        for i in range(n):
+            K[i] = K[i] / s                    # K = P H^T / S
+    for j in range(m):                         # x = U^-1 d, column by column
+        for i in range(n):
+            xc[i] = d[i, j]
+        _back_solve_inv(U, w, xc, xc)
+        for i in range(n):
+            x[i, j] = xc[i]
     return s
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def sr_update_kernel(U, d, x, phi, z, r, y, K):
     """Streaming :meth:`SquareRootRLS.update`: `_sr_step` on the given arrays.
 
     Returns ``s`` and whether the diagonal of the new ``U`` fails the cheap
     health check (``diagonal_bad``).
     """
-    w = np.empty(U.shape[0])
-    s = _sr_step(U, d, x, phi, z, r, w, y, K, U.shape[0] > 0)
+    n, m = d.shape
+    w = np.empty(n)
+    s = _sr_step(U, d, x, phi, z, r, w, y, K, n > 0, np.empty(n), np.empty(m), np.empty(n))
     return s, diagonal_bad(U)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def sr_batch_kernel(U, d, x, Z, Hm, Rv, c, update_first, means, covs, covs_p,
                     x_prior, P_prior, P_post, y, K, check_every, step0, cond_max, U_fail):
     """Run `SquareRootRLS` over a record, in place on ``U``, ``d``, ``x``.
@@ -171,6 +239,9 @@ def sr_batch_kernel(U, d, x, Z, Hm, Rv, c, update_first, means, covs, covs_p,
     store = covs.shape[0] == N and N > 0
     r_each = Rv.shape[0] == N
     w = np.empty(n)
+    a = np.empty(n)
+    b = np.empty(m)
+    xc = np.empty(n)
     s = np.nan
     k_fail = -1
     # steps to the next full health check (a countdown: no division per step)
@@ -187,7 +258,8 @@ def sr_batch_kernel(U, d, x, Z, Hm, Rv, c, update_first, means, covs, covs_p,
                     copy2(covs_p[k], P_prior)
                 else:
                     upper_inverse_gram(U, P_prior)
-        s = _sr_step(U, d, x, Hm[k], Z[k], Rv[k if r_each else 0], w, y, K, k == N - 1)
+        s = _sr_step(U, d, x, Hm[k], Z[k], Rv[k if r_each else 0], w, y, K, k == N - 1, a, b,
+                     xc)
         if countdown > 0:
             countdown -= 1
             full = countdown == 0
@@ -226,7 +298,7 @@ def sr_batch_kernel(U, d, x, Z, Hm, Rv, c, update_first, means, covs, covs_p,
 HEAD, NW, COUNT, NEXT_EXACT, EXACT = 0, 1, 2, 3, 4
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def window_lstsq(wH, wZ, wR, nw, Lt, Ltx0, n_prior, x, P):
     """Weighted least squares on the first `nw` stored rows, by Householder QR.
 
@@ -305,7 +377,21 @@ def window_lstsq(wH, wZ, wR, nw, Lt, Ltx0, n_prior, x, P):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", inline="always")
+def _sym_gain(P, h, g):
+    """``g = P h`` for the symmetric ``P``, accumulated row by row (``g_j += P_ij
+    h_i``: contiguous, vectorizable loops, no chain of dependent additions)."""
+    n = P.shape[0]
+    for j in range(n):
+        g[j] = 0.0
+    for i in range(n):
+        hi = h[i]
+        row = P[i]
+        for j in range(n):
+            g[j] += row[j] * hi
+
+
+@njit(cache=True, error_model="numpy")
 def _sw_step(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, g, y, K):
     """One `SlidingWindowRLS` update (add, slide the ring buffer, downdate,
     refit when due), in place on ``x``, ``P``, the buffer and ``ist``.
@@ -315,11 +401,7 @@ def _sw_step(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, g, y, K):
     """
     n, m = x.shape
     window = wH.shape[0]
-    for i in range(n):                         # g = P phi^T
-        acc = 0.0
-        for j in range(n):
-            acc += P[i, j] * phi[j]
-        g[i] = acc
+    _sym_gain(P, phi, g)                       # g = P phi^T
     s = r
     for i in range(n):
         s += phi[i] * g[i]                     # s = phi P phi^T + r
@@ -335,15 +417,17 @@ def _sw_step(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, g, y, K):
             for i in range(n):
                 acc += phi[i] * x[i, j]
             y[j] = z[j] - acc
+        c = 1.0 / s
         for i in range(n):
-            ki = g[i] / s                      # K = P phi^T / s
+            ki = g[i] * c                      # K = P phi^T / s
             K[i] = ki
             for j in range(m):
                 x[i, j] = x[i, j] + ki * y[j]
-        for i in range(n):                     # P = P - g g^T / s
+        for i in range(n):                     # P = P - g g^T / s (symmetric products)
             gi = g[i]
+            row = P[i]
             for j in range(n):
-                P[i, j] = P[i, j] - (gi * g[j]) / s
+                row[j] = row[j] - (gi * g[j]) * c
     # ring buffer: slot `head` holds the oldest sample once the window is full
     h = ist[HEAD]
     leaving = ist[NW] == window and not any_nan(wZ[h])
@@ -351,26 +435,24 @@ def _sw_step(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, g, y, K):
     if leaving:                                # downdate with the leaving sample
         hl = wH[h]
         rl = wR[h]
-        for i in range(n):
-            acc = 0.0
-            for j in range(n):
-                acc += P[i, j] * hl[j]
-            g[i] = acc
+        _sym_gain(P, hl, g)                    # g = P h^T
         dd = rl
         for i in range(n):
             dd -= hl[i] * g[i]                 # d = R - h P h^T
         if dd > 1e-8 * rl:
+            cd = 1.0 / dd
             for j in range(m):
                 acc = 0.0
                 for i in range(n):
                     acc += hl[i] * x[i, j]
                 e = wZ[h, j] - acc             # residual of the leaving sample
                 for i in range(n):
-                    x[i, j] = x[i, j] - (g[i] / dd) * e
-            for i in range(n):                 # P = P + g g^T / d
+                    x[i, j] = x[i, j] - (g[i] * cd) * e
+            for i in range(n):                 # P = P + g g^T / d (symmetric products)
                 gi = g[i]
+                row = P[i]
                 for j in range(n):
-                    P[i, j] = P[i, j] + (gi * g[j]) / dd
+                    row[j] = row[j] + (gi * g[j]) * cd
         else:
             refit = True
     for j in range(n):
@@ -396,7 +478,7 @@ def _sw_step(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, g, y, K):
     return s
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def sw_update_kernel(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, y, K):
     """Streaming :meth:`SlidingWindowRLS.update`: `_sw_step` on the given arrays.
 
@@ -408,7 +490,7 @@ def sw_update_kernel(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, y, K):
     return s, diagonal_bad(P)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def sw_batch_kernel(x, P, Z, Hm, Rv, wH, wZ, wR, ist, refresh, Lt, Ltx0, means, covs, y, K,
                     P_last, check_every, step0, cond_max, P_fail):
     """Run `SlidingWindowRLS` over a record, in place on the state.

@@ -29,34 +29,92 @@ __all__ = []
 # ----------------------------------------------------------------------
 # RecursiveLeastSquares
 # ----------------------------------------------------------------------
-def rls_predict(P, lam, Q=None, Pi=None):
-    """Time update ``P^- = P / lam + Q`` (then ``Pi P^- Pi`` with constraints)."""
-    P = P / lam
+def rls_predict(P, lam, Q=None, Pi=None, cap=False):
+    """Time update ``P^- = P / lam + Q`` (then ``Pi P^- Pi`` with constraints).
+
+    With `cap` (the windup cap of the last update, `windup_cap`) the division
+    by `lam` is held back: the next `rls_update` forgets along its regressor.
+    """
+    if not cap:
+        P = P / lam
     if Q is not None:
         P = P + Q
     return P if Pi is None else project(P, Pi)
 
 
-def rls_update(x, P, phi, z, r, mode=EXPONENTIAL, params=(), lam=1.0, gate=None, Pi=None):
+def rls_update(x, P, phi, z, r, mode=EXPONENTIAL, params=(), lam=1.0, gate=None, Pi=None,
+               held_back=False):
     """One measurement update of any mode, with the gate and the constraints.
 
-    `z` is a column or None (missing). Returns ``x, P, y, K, s, lam_t,
-    gated``; a missing or gated sample leaves ``x`` and ``P``, ``K`` is zero
-    and ``lam_t`` is `lam` in the exponential mode (its predict forgot) and
-    1 otherwise.
+    `z` is a column or None (missing). `held_back` says that the last
+    `rls_predict` held the forgetting back (the windup cap, exponential
+    mode): the update then first forgets along its regressor
+    (`forget_along`). Returns ``x, P, y, K, s, lam_t, gated, cap``; a
+    missing or gated sample leaves ``x`` and ``P`` (but for that
+    forgetting), ``K`` is zero and ``lam_t`` is `lam` in the exponential
+    mode (its predict forgot) and 1 otherwise; ``cap`` is `windup_cap` of
+    the new ``P``: whether the next `rls_predict` holds the forgetting back.
     """
+    if held_back:
+        P = forget_along(P, phi, lam)
     g = P @ phi.T                                   # g = P H^T
     s = (phi @ g).item() + r                        # S = H P H^T + R
     lam_skip = lam if mode == EXPONENTIAL else 1.0
+    gated = False
     if z is None:
-        return x, P, None, np.zeros_like(g), s, lam_skip, False
-    y = z - (phi @ x).T                             # y = z - H x
-    if gate is not None and float(np.vdot(y, y)) > gate * gate * s:   # sqrt(y'y / S) > gate
-        return x, P, y, np.zeros_like(g), s, lam_skip, True
-    x, P, K, lam_t = UPDATES[mode](x, P, y, g, s, r, lam, params)
-    if Pi is not None:                              # keep A P = 0
-        P = project(P, Pi)
-    return x, P, y, K, s, lam_t, False
+        y = None
+    else:
+        y = z - (phi @ x).T                         # y = z - H x
+        gated = gate is not None and float(np.vdot(y, y)) > gate * gate * s  # sqrt(y'y/S) > gate
+    if z is None or gated:
+        x, K, lam_t, hph = x, np.zeros_like(g), lam_skip, s - r
+    else:
+        x, P, K, lam_t = UPDATES[mode](x, P, y, g, s, r, lam, params)
+        if Pi is not None:                          # keep A P = 0
+            P = project(P, Pi)
+        hph = (s - r) * r / s                       # phi P phi^T after the update
+    cap = mode == EXPONENTIAL and windup_cap(P, phi, hph, lam, params, Pi is not None)
+    return x, P, y, K, s, lam_t, gated, cap
+
+
+def forget_along(P, phi, lam):
+    r"""The forgetting of one step along the regressor only (directional forgetting).
+
+    .. math:: g = P \phi^T,\quad q = \phi g,\qquad
+              P \leftarrow P + (1/\lambda - 1)\, g g^T / q
+
+    so that :math:`\phi P \phi^T` grows by :math:`1/\lambda` as under exponential
+    forgetting, while every direction the regressor does not excite keeps its
+    ``P`` (a zero regressor changes nothing).
+    """
+    g = P @ phi.T
+    q = (phi @ g).item()
+    return P + ((1.0 / lam - 1.0) / q) * (g * g.T) if q > 0.0 else P
+
+
+def windup_cap(P, phi, hph, lam, params, constrained=False):
+    r"""Whether the next time update holds the forgetting back (exponential mode).
+
+    With ``params = (spread_max, trace_max)``: when dividing ``P`` by `lam`
+    would make :math:`\operatorname{tr} P / \lambda` exceed ``trace_max``, or
+    when ``P`` is far larger off the regressor's direction than along it,
+
+    .. math:: \sum_i P_{ii} \phi_i^2 > \text{spread\_max}\; \phi P \phi^T
+
+    (`hph` is :math:`\phi P \phi^T`, from the update's identity
+    :math:`\phi P^+ \phi^T = q r / (q + r)`). The left side is invariant to the
+    units of each regressor; the ratio is at most ``dim_x`` times the
+    condition number of the correlation matrix of ``P``. Never with ``lam =
+    1``; the spread test is off under constraints (``P`` is singular there).
+    """
+    if lam == 1.0:
+        return False
+    spread_max, trace_max = params
+    d = np.diagonal(P)
+    if d.sum() / lam > trace_max:
+        return True
+    return (not constrained and spread_max < np.inf
+            and float(d @ (phi[0] * phi[0])) > spread_max * hph)
 
 
 def update_exponential(x, P, y, g, s, r, lam, params):
@@ -234,10 +292,11 @@ class SlidingWindow:
         s = (phi @ g).item() + r                      # S = H P H^T + R
         y, K = None, np.zeros_like(g)
         if z is not None:
+            c = 1.0 / s
             y = z - (phi @ x).T                       # y = z - H x
-            K = g / s                                 # K = P H^T / S
+            K = g * c                                 # K = P H^T / S
             x = x + K * y.T                           # x = x + K y^T
-            P = P - (g * g.T) / s                     # P = P - g g^T / S
+            P = P - (g * g.T) * c                     # P = P - g g^T / S
         h = self.head                                 # the slot of the oldest sample
         refit = False
         if self.nw == self.window and not np.isnan(self.wZ[h]).any():
@@ -278,7 +337,8 @@ def downdate(x, P, phi, z, r):
     if not d > 1e-8 * r:
         return False, x, P
     e = z - (phi @ x).T                               # residual of the leaving sample
-    return True, x - (g / d) * e.T, P + (g * g.T) / d
+    c = 1.0 / d
+    return True, x - (g * c) * e.T, P + (g * g.T) * c
 
 
 def window_lstsq(Hw, Zw, Rw, x0=None, P0=None):

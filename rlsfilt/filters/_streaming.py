@@ -154,18 +154,19 @@ def predict(x, P, il, Q, cfg, spare):
     return out
 
 
-def update(x, P, phi, z, r, cfg, spare):
+def update(x, P, phi, z, r, cfg, w, spare):
     """One measurement update into new arrays (those of `spare` where they are free).
 
     `phi` is the regressor row, a writable C-contiguous float64 array (n,)
     (the kernel checks that it is finite), `z` a float, a validated column
-    (m, 1) or None (missing). `spare` is None or the ``arrays`` of an earlier
-    call. Returns ``code, s, lam_t, gated, arrays``: ``arrays = (x, P,
-    buffer, y, K, S, SI, H, z, x_post, P_post)``, the new estimate and
-    covariance (arrays of their own: a caller who keeps them, as a list of
-    estimates or a ``Saver`` does, leaves the rest reusable) and the block of
-    the diagnostics (its buffer ends with ``n + n^2`` numbers of work space);
-    ``code`` as ``update_kernel``'s.
+    (m, 1) or None (missing); `w` is ``1 / lam`` when the last predict held
+    the forgetting back (the windup cap) and 1 otherwise. `spare` is None or
+    the ``arrays`` of an earlier call. Returns ``code, s, lam_t, gated, cap,
+    arrays``: ``arrays = (x, P, buffer, y, K, S, SI, H, z, x_post, P_post)``,
+    the new estimate and covariance (arrays of their own: a caller who keeps
+    them, as a list of estimates or a ``Saver`` does, leaves the rest
+    reusable) and the block of the diagnostics (its buffer ends with ``n +
+    n^2`` numbers of work space); ``code``, ``cap`` as ``update_kernel``'s.
     """
     if spare is None or sum(map(_getrefcount, spare)) != _FREE_UPDATE:
         spare = _renew(spare, *x.shape)
@@ -176,9 +177,9 @@ def update(x, P, phi, z, r, cfg, spare):
         z0, zmode = 0.0, 0
     else:
         z0, zmode = z, 1
-    code, s, lam_t, gated = _update_kernel(x, P, phi, z0, zmode, r, cfg, spare[0], spare[1],
-                                           spare[2])
-    return code, s, lam_t, gated, spare
+    code, s, lam_t, gated, cap = _update_kernel(x, P, phi, z0, zmode, r, cfg, w, spare[0],
+                                                spare[1], spare[2])
+    return code, s, lam_t, gated, cap, spare
 
 
 def _renew(spare, n, m):
@@ -211,10 +212,10 @@ def _predict_kernel(*args):
     _predict_kernel = _entry_point(_kernels.predict_kernel, args)
 
 
-def _update_kernel(x, P, phi, z0, zmode, r, cfg, xn, Pn, out):
+def _update_kernel(x, P, phi, z0, zmode, r, cfg, w, xn, Pn, out):
     """The first call: run ``update_kernel``, then call its entry point directly."""
     global _update_kernel
-    args = (x, P, phi, float(z0), zmode, float(r), cfg, xn, Pn, out)
+    args = (x, P, phi, float(z0), zmode, float(r), cfg, float(w), xn, Pn, out)
     result = kernels().update_kernel(*args)
     _update_kernel = _entry_point(_kernels.update_kernel, args)
     return result

@@ -13,8 +13,8 @@ import copy
 import math
 
 import numpy as np
-from filterpy.common import pretty_str
 
+from .._display import pretty_str
 from .._validation import (
     VARIANCE_RANGE,
     as_float_array,

@@ -50,7 +50,7 @@ EXPONENTIAL, DIRECTIONAL, CONSTANT_TRACE, EFRA, VARIABLE = range(5)
 
 # Names of each mode's parameters, in the order of the params tuple.
 _PARAM_NAMES = {
-    EXPONENTIAL: (),
+    EXPONENTIAL: ("spread_max", "trace_max"),
     DIRECTIONAL: ("eps",),
     CONSTANT_TRACE: ("trace", "ratio"),
     EFRA: ("alpha", "beta", "delta"),
@@ -66,10 +66,18 @@ def mode_code(forgetting):
     return MODES.index(forgetting)
 
 
-def mode_params(code, params, dim_x, lam, R=1.0):
+#: Default ``spread_max`` of the exponential mode's windup cap (see `mode_params`).
+SPREAD_MAX = 1e15
+#: Default ``trace_max`` of the exponential mode's windup cap, in units of ``trace(P0)``.
+TRACE_MAX_FACTOR = 1e12
+
+
+def mode_params(code, params, dim_x, lam, R=1.0, P0_trace=1.0):
     """Validate the user's ``forgetting_params`` dict; return a float tuple.
 
-    Defaults: directional ``eps = 1e-12``; constant trace ``trace = dim_x R
+    Defaults: exponential (the windup cap) ``spread_max = 1e15``,
+    ``trace_max = 1e12 trace(P0)`` (`P0_trace`); directional
+    ``eps = 1e-12``; constant trace ``trace = dim_x R
     (1 - lam)`` (the trace at which plain exponential forgetting settles for
     white, unit-power regressors; needs ``lam < 1``), ``ratio = 1e4``; EFRA
     ``alpha = 0.5``, ``beta = delta = 0.005``; variable
@@ -94,7 +102,17 @@ def mode_params(code, params, dim_x, lam, R=1.0):
             raise ValueError(f"`forgetting_params['{name}']` must be a positive finite number; "
                              f"got {p[name]}")
 
-    if code == DIRECTIONAL:
+    def positive_or_inf(name):
+        if not p[name] > 0.0 or math.isnan(p[name]):
+            raise ValueError(f"`forgetting_params['{name}']` must be a positive number (inf "
+                             f"turns the cap off); got {p[name]}")
+
+    if code == EXPONENTIAL:
+        p.setdefault("spread_max", SPREAD_MAX)
+        p.setdefault("trace_max", TRACE_MAX_FACTOR * P0_trace)
+        positive_or_inf("spread_max")
+        positive_or_inf("trace_max")
+    elif code == DIRECTIONAL:
         p.setdefault("eps", 1e-12)
         positive("eps")
     elif code == CONSTANT_TRACE:

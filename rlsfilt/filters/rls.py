@@ -17,9 +17,8 @@ textbook NumPy is :mod:`rlsfilt.filters._reference`.
 import math
 
 import numpy as np
-from filterpy.common import pretty_str
-from scipy.linalg import null_space, solve_triangular
 
+from .._display import pretty_str
 from .._scale import safe_norm
 from .._validation import (
     as_float_array,
@@ -83,7 +82,9 @@ class RecursiveLeastSquares(_FilterBase):
         regressor or residual, and bound ``P`` when the input stops
         exciting the system (no covariance windup).
     forgetting_params : dict, optional
-        Constants of the chosen mode: ``"directional"``: ``eps`` (1e-12,
+        Constants of the chosen mode: ``"exponential"``: the windup cap (see
+        Notes), ``spread_max`` (1e15) and ``trace_max`` (``1e12 trace(P0)``;
+        ``inf`` for both gives the plain recursion); ``"directional"``: ``eps`` (1e-12,
         smallest ``phi P phi^T / R`` that triggers forgetting);
         ``"constant_trace"``: ``trace`` (``dim_x * R * (1 - lam)`` with the
         `R` and `lam` given at construction: the trace plain forgetting
@@ -104,13 +105,18 @@ class RecursiveLeastSquares(_FilterBase):
         large; and an abrupt parameter change also makes large residuals,
         so a gate delays (a tight gate can block) tracking of jumps: watch
         ``n_gated`` or ``gated`` for runs of rejections.
-    check_every : int, default 100
+    check_every : int, optional
         Health check period (0 disables it): every `check_every` updates,
         and at the end of :meth:`batch_filter`, ``P`` is tested for positive
-        definiteness and its condition number (one ``eigvalsh``, O(dim_x^3));
-        every update also checks cheaply (O(dim_x)) that the diagonal of
-        ``P`` is positive and finite. A failure issues one
-        :class:`~rlsfilt.NumericalWarning` naming the update.
+        definiteness and its condition number (a Cholesky factor, and
+        ``eigvalsh`` when in doubt, O(dim_x^3)); every update also checks
+        cheaply (O(dim_x)) that the diagonal of ``P`` is positive and finite,
+        and runs the full test at once when it is not. By default
+        ``max(250, 32 dim_x)``, which keeps the O(dim_x^3) test under 5 % of
+        the O(dim_x^2) updates at every size. A failure issues one
+        :class:`~rlsfilt.NumericalWarning` naming the update; a later
+        periodic check that finds ``P`` healthy again re-arms it, so a
+        problem that recurs warns again.
     cond_max : float, default 1e12
         Condition number of ``P`` beyond which the health check warns.
 
@@ -143,6 +149,10 @@ class RecursiveLeastSquares(_FilterBase):
         Number of measurements rejected by the gate since :meth:`reset`.
     n_updates : int
         Number of measurement updates since :meth:`reset`.
+    n_capped : int
+        Number of updates since :meth:`reset` whose forgetting the windup
+        cap restricted to the regressor's direction (exponential mode; see
+        Notes).
     lam_t : float
         Forgetting factor effectively applied by the last update (`lam` for
         ``"exponential"``; the directional weight, the variable factor or
@@ -204,6 +214,22 @@ class RecursiveLeastSquares(_FilterBase):
     * ``"variable"`` (Fortescue, Kershenbaum & Ydstie 1981):
       :math:`\lambda_t = 1 - (1 - \lambda)\, y^T y / (m S)`, clipped to
       ``[lam_min, 1]`` and raised so that ``trace(P) <= trace_max``.
+
+    **The windup cap** (exponential mode, ``lam < 1``). Plain exponential
+    forgetting lets ``P`` grow like ``lam**-k`` in the directions the data
+    stop exciting, until it overflows and the estimate is NaN for good. After
+    each update the filter therefore decides, in O(dim_x), whether the next
+    :meth:`predict` may divide ``P`` by ``lam``: not when
+    :math:`\sum_i P_{ii} H_i^2 > \text{spread\_max}\, H P H^T` (``P`` far
+    larger off the regressor's direction than along it; the ratio does not
+    depend on the units of the regressors) or when
+    :math:`\operatorname{tr} P / \lambda` would exceed ``trace_max``. Then
+    :meth:`predict` leaves ``P`` (and adds ``Q``) and the next :meth:`update`
+    forgets along its regressor only, :math:`P \leftarrow P + (1/\lambda -
+    1)\, g g^T / (H g)`, :math:`g = P H^T` (directional forgetting), so
+    ``P`` stays finite and positive definite whatever the data, and the
+    estimate recovers when excitation returns. Ordinary runs never reach the
+    cap: their results are bitwise those of the plain recursion.
 
     **Constraints.** After :meth:`constrain` the estimate satisfies
     ``A x = b``; plain updates keep it because ``A P = 0``. To hold
@@ -277,7 +303,7 @@ class RecursiveLeastSquares(_FilterBase):
 
     def __init__(self, dim_x, dim_z=1, lam=1.0, *, P0=1e4, x0=None, R=1.0, Q=0.0,
                  forgetting="exponential", forgetting_params=None, gate=None,
-                 check_every=100, cond_max=1e12):
+                 check_every=None, cond_max=1e12):
         self.dim_x = check_dimension(dim_x, "dim_x")
         self.dim_z = check_int(dim_z, "dim_z", minimum=1)
         self._row_shape = (self.dim_x,)
@@ -286,12 +312,12 @@ class RecursiveLeastSquares(_FilterBase):
         self._gate = None
         self._Pi = _EMPTY            # orthogonal projector onto null(A); empty: no constraints
         self.R = R
+        self._P0 = check_covariance(P0, self.dim_x, "P0", definite=True)
         self.lam = lam
         self.Q = Q
         self.gate = gate
-        self.check_every = check_int(check_every, "check_every", minimum=0)
+        self.check_every = check_every
         self.cond_max = _check_positive(cond_max, "cond_max")
-        self._P0 = check_covariance(P0, self.dim_x, "P0", definite=True)
         self._x0 = self._as_state(np.zeros((self.dim_x, self.dim_z)) if x0 is None else x0, "x0")
         self._warned_skip = False
         self._batch_start = None     # n_updates when a step-by-step batch_filter started
@@ -323,6 +349,7 @@ class RecursiveLeastSquares(_FilterBase):
     def P(self, value):
         self._P = own_array(value, "P")
         self._recheck = True
+        self._cap, self._w = False, 1.0     # the windup cap decides again from the new P
 
     @property
     def lam(self):
@@ -333,7 +360,7 @@ class RecursiveLeastSquares(_FilterBase):
     def lam(self, value):
         lam = check_lam(value)
         params = _fg.mode_params(self._mode, self._forgetting_params_in, self.dim_x, lam,
-                                 self._R)
+                                 self._R, float(np.trace(self._P0)))
         self._lam, self._params = lam, params
         self._il = 1.0 / lam if self._mode == _fg.EXPONENTIAL else 1.0   # predict: P / lam
         self._configure()
@@ -391,7 +418,10 @@ class RecursiveLeastSquares(_FilterBase):
         # P^- = P / lam + Q      (exponential mode: filterpy's fading memory)
         # P^- <- Pi P^- Pi       (constraints: keep A P = 0)
         # x^- = x                (constant, or random-walk, parameters)
-        out = _streaming.predict(x, P, self._il, Q, self._cfg, self._spare_predict)
+        # the windup cap (exponential mode): hold the forgetting back, the next
+        # update forgets along its regressor only
+        il, self._w = (1.0, self._il) if self._cap else (self._il, 1.0)
+        out = _streaming.predict(x, P, il, Q, self._cfg, self._spare_predict)
         self._spare_predict, self._last_predict = self._last_predict, out
         _, self._P, self.x_prior, self.P_prior = out
         self._updates_since_predict = 0
@@ -430,17 +460,21 @@ class RecursiveLeastSquares(_FilterBase):
         #   x = x^- + K y^T          (missing or gated: x = x^-, K = 0)
         #   P = P^- - K S K^T        (the other forgetting modes: their update)
         #   P <- Pi P Pi             (constraints)
-        code, s, lam_t, gated, arrays = _streaming.update(x, P, H, z, r, self._cfg,
-                                                          self._spare_update)
+        w = self._w
+        code, s, lam_t, gated, cap, arrays = _streaming.update(x, P, H, z, r, self._cfg, w,
+                                                               self._spare_update)
         if code == 1:
             check_finite(H, "H")                      # raises; nothing has changed
         n_updates = self.n_updates + 1
         skipped = self._updates_since_predict and not self._warned_skip and self._forgets
         every = self.check_every
-        checked = every and (code or not n_updates % every) and not self._warned_health
-        if skipped or checked:                        # warn before the state changes
-            self._warn(skipped, self._health_problem(arrays[1], n_updates, code == 2)
-                       if checked else None)
+        due = every and not n_updates % every
+        checked = due or (every and code == 2 and not self._warned_health)
+        problem = self._health_problem(arrays[1], n_updates, code == 2) if checked else None
+        if skipped or (problem is not None and not self._warned_health):
+            self._warn(skipped, problem)              # warn before the state changes
+        elif due and problem is None:
+            self._warned_health = False               # healthy again: the next problem warns
         self._spare_update, self._last_update = self._last_update, arrays
         (self._x, self._P, _, self.y, self.K, self.S, self.SI, self.H, self.z, self.x_post,
          self.P_post) = arrays
@@ -451,6 +485,9 @@ class RecursiveLeastSquares(_FilterBase):
         self.lam_t = lam_t
         self.n_updates = n_updates
         self._updates_since_predict += 1
+        self._cap, self._w = cap, 1.0
+        if w != 1.0:
+            self.n_capped += 1
         if self._recheck:
             self._recheck = self._efra_pending = False
 
@@ -495,6 +532,7 @@ class RecursiveLeastSquares(_FilterBase):
             If the regressor rows do not determine every parameter (fewer
             independent rows than ``dim_x``).
         """
+        from scipy.linalg import solve_triangular  # lazy: keeps `import rlsfilt` light
         Z, Hm = self._as_batch(zs, Hs)
         w = self._lam ** (0.5 * np.arange(len(Z) - 1, -1, -1.0))
         keep = ~np.isnan(Z).any(axis=1)
@@ -532,6 +570,7 @@ class RecursiveLeastSquares(_FilterBase):
         self.x_prior, self.x_post = self._x.copy(), self._x.copy()
         self.P_prior, self.P_post = self._P.copy(), self._P.copy()
         self._updates_since_predict = 0
+        self._cap, self._w = False, 1.0
 
     def batch_filter(self, zs, Hs, Rs=None, update_first=False, saver=None,
                      store_covariances=True):
@@ -551,7 +590,8 @@ class RecursiveLeastSquares(_FilterBase):
             Its ``save()`` is called after each step.
         store_covariances : bool, default True
             With ``False`` the covariance histories are not stored (they are
-            returned as ``None``), so memory stays O(N dim_x dim_z).
+            returned as ``None``), so memory stays O(N dim_x dim_z): one
+            array of estimates, of which `means` and `means_p` are views.
 
         Returns
         -------
@@ -560,7 +600,9 @@ class RecursiveLeastSquares(_FilterBase):
         covariances : ndarray, shape (N, dim_x, dim_x), or None
             ``P`` after each update.
         means_p : ndarray, shape (N, dim_x, dim_z)
-            Estimates after each predict.
+            Estimates after each predict (a predict does not change the
+            estimate: a read-only view of the estimate before each update,
+            sharing memory with `means`).
         covariances_p : ndarray, shape (N, dim_x, dim_x), or None
             ``P`` after each predict.
 
@@ -575,12 +617,19 @@ class RecursiveLeastSquares(_FilterBase):
         The loop runs in compiled code (numba, cached on disk after the first
         call): the compiled steps that :meth:`predict` and :meth:`update` call,
         one pair per sample. With exponential forgetting (the default), one
-        output and no gate or constraints, one sweep over ``P`` per step
-        applies the update, the next forgetting step and the next gain
-        together (the same numbers, bit for bit), so a step
-        costs about :math:`6\,n^2` floating-point operations for
-        ``n = dim_x`` and the record is processed at tens of nanoseconds per
-        sample for small ``n`` (see ``docs/performance.md``).
+        output and no gate or constraints, one vectorized sweep over ``P`` per
+        step applies the update, the next forgetting step and the next gain
+        together (the same numbers, bit for bit; with the covariance histories
+        in two halves, ``P`` stored after each), and the record is processed
+        at tens of nanoseconds per sample for small ``n = dim_x`` (see
+        ``docs/performance.md``).
+
+        **Records larger than memory.** Call :meth:`batch_filter` on
+        consecutive chunks (for example slices of ``np.load(path,
+        mmap_mode="r")``) with ``store_covariances=False``: the filter carries
+        its whole state from one call to the next, so the estimates are
+        bitwise those of one call over the whole record, and memory is that
+        of one chunk.
 
         Every forgetting mode, the gate and the constraints apply exactly as
         in the step-by-step loop (the results are bitwise equal); gated
@@ -593,24 +642,44 @@ class RecursiveLeastSquares(_FilterBase):
     def _batch_compiled(self, Z, Hm, Rv, update_first, store_covariances):
         """`batch_filter` in one compiled call (`_kernels.run_batch`); leaves the
         filter as the step-by-step loop would, and changes nothing if it raises."""
+        out = self._run_batch(Z, Hm, Rv, update_first, store_covariances)
+        return out.means, out.covariances, out.means_p, out.covariances_p
+
+    def _run_batch(self, Z, Hm, Rv, update_first, store_covariances, lead=0, residuals=False):
+        """`_batch_compiled` on a validated record ``Z`` (N, dim_z), ``Hm`` (N, dim_x),
+        ``Rv`` (N,); returns the kernel's `BatchResult`. `lead` and `residuals` as
+        in `_kernels.run_batch` (``ARX.fit`` writes its histories into the result's
+        buffer and takes every a-priori residual from it)."""
         P = self._checked_P()
         if self._efra_pending:
             P = self._efra_start(P)
-        out = _streaming.kernels().run_batch(
+        kern = _streaming.kernels()
+        state = (0.0 if self._warned_health else 1.0, 0.0, 0.0, float(self._cap), self._w)
+        out = kern.run_batch(
             self._checked_x(), P, Z, Hm, Rv, self._cfg,
             None if self._Q_kernel is _EMPTY else self._Q, self._null_basis, update_first,
-            store_covariances, 0 if self._warned_health else self.check_every, self.n_updates,
-            self.cond_max)
-        N, problem = len(Z), None
-        if out.k_fail >= 0:
-            problem = ((_health.symmetric_problem(out.P_fail, self.cond_max, self._null_basis)
-                        or "`P` failed the health check")
-                       + _health.at_step(out.k_fail, self.n_updates + out.k_fail + 1))
-        elif not self._warned_health and self.check_every:      # the end-of-batch check
-            problem = _health.symmetric_problem(out.P, self.cond_max, self._null_basis)
+            store_covariances, self.check_every, self.n_updates, self.cond_max, state, lead,
+            residuals)
+        N, problems = len(Z), []
+        armed, episodes = out.state[0] == 1.0, int(out.state[1])
+        for e, k in enumerate(out.episodes[:min(episodes, kern.MAX_EPISODES)]):
+            problems.append((_health.symmetric_problem(out.P_fail[e], self.cond_max,
+                                                       self._null_basis)
+                             or "`P` failed the health check")
+                            + _health.at_step(int(k), self.n_updates + int(k) + 1))
+        if episodes > kern.MAX_EPISODES:
+            problems.append(f"`P` failed the health check {episodes - kern.MAX_EPISODES} more "
+                            "times in this batch_filter (each after a healthy check)")
+        if armed and self.check_every:                # the end-of-batch check
+            problem = self._health_problem(out.P, self.n_updates + N, False)
             if problem is not None:
-                problem += _health.at_update(self.n_updates + N)
-        self._warn(False, problem)                    # before the state changes
+                problems.append(problem)
+                armed = False
+        for problem in problems:                      # before the state changes
+            _health.warn(problem, self._HEALTH_ADVICE)
+        self._warned_health = not armed
+        self._cap, self._w = out.state[3] == 1.0, float(out.state[4])
+        self.n_capped += int(out.state[2])
         self._x, self._P = out.x, out.P
         self.x_prior, self.P_prior, self.x_post, self.P_post = (out.x_prior, out.P_prior,
                                                                 out.x_post, out.P_post)
@@ -631,7 +700,7 @@ class RecursiveLeastSquares(_FilterBase):
         self.gated = bool(out.gated[-1])
         self.lam_t = out.lam_t_last
         self._recheck = self._efra_pending = False
-        return out.means, out.covariances, out.means_p, out.covariances_p
+        return out
 
     # ------------------------------------------------------------------
     # equality constraints
@@ -751,6 +820,7 @@ class RecursiveLeastSquares(_FilterBase):
                              "constrained directions (A P A^T is singular), so the estimate "
                              "cannot be moved onto the constraint; reset() or initialize() "
                              "first") from None
+        from scipy.linalg import null_space  # lazy: keeps `import rlsfilt` light
         basis = null_space(A_all / _row_norms(A_all)[:, None])
         Pi = np.ascontiguousarray(basis @ basis.T)
         x_new = x + W @ (bb - A @ x)                   # x <- x + W (b - A x)
@@ -772,8 +842,8 @@ class RecursiveLeastSquares(_FilterBase):
         P = self._checked_P()
         if self._efra_pending:
             P = self._efra_start(P)
-        _, _, x, P = _streaming.predict(self._checked_x(), P, self._il, self._Q_kernel,
-                                        self._cfg, None)
+        _, _, x, P = _streaming.predict(self._checked_x(), P, 1.0 if self._cap else self._il,
+                                        self._Q_kernel, self._cfg, None)
         return x, P
 
     def reset(self):
@@ -791,6 +861,8 @@ class RecursiveLeastSquares(_FilterBase):
         self.gated = False
         self.n_gated = 0
         self.n_updates = 0
+        self.n_capped = 0
+        self._cap, self._w = False, 1.0     # the windup cap: see predict()
         self.lam_t = self._lam
         self._warned_health = False
         self._efra_pending = self._mode == _fg.EFRA
@@ -872,8 +944,11 @@ class RecursiveLeastSquares(_FilterBase):
         `diagonal_bad`: the kernel's cheap check failed), or None."""
         kern = _streaming.kernels()
         basis = np.zeros((self.dim_x, 0)) if self._null_basis is None else self._null_basis
-        if not (diagonal_bad or kern.unhealthy_on(P, basis, self.cond_max)):
+        armed = not self._warned_health              # warned: only the bound re-arms
+        if not (diagonal_bad or kern.unhealthy_on(P, basis, self.cond_max, armed)):
             return None
+        if not armed:
+            return "`P` is not certified healthy"
         problem = _health.symmetric_problem(P, self.cond_max, self._null_basis)
         return None if problem is None else problem + _health.at_update(n_updates,
                                                                         self._batch_start)

@@ -1,8 +1,8 @@
 """Exact least squares over a sliding window of the most recent samples."""
 
 import numpy as np
-from filterpy.common import pretty_str
 
+from .._display import pretty_str
 from .._validation import (
     check_covariance,
     check_dimension,
@@ -50,8 +50,9 @@ class SlidingWindowRLS(_FilterBase):
         Recompute the estimate from the stored window by QR every `refresh`
         updates, which removes the round-off that downdating accumulates;
         ``0`` never refreshes.
-    check_every : int, default 100
-        Health check period (0 disables it), with the semantics of
+    check_every : int, optional
+        Health check period (0 disables it; by default ``max(250, 32
+        dim_x)``), with the semantics of
         :class:`~rlsfilt.RecursiveLeastSquares`: every `check_every`
         updates, and at the end of :meth:`batch_filter`, ``P`` is tested for
         symmetry, positive definiteness and its condition number (O(dim_x^3));
@@ -136,7 +137,7 @@ class SlidingWindowRLS(_FilterBase):
                       "exciting input.")
 
     def __init__(self, dim_x, window, dim_z=1, *, P0=1e4, x0=None, R=1.0, refresh=None,
-                 check_every=100, cond_max=1e12):
+                 check_every=None, cond_max=1e12):
         self.dim_x = check_dimension(dim_x, "dim_x")
         self.dim_z = check_int(dim_z, "dim_z", minimum=1)
         # the ring buffer: rows, measurements and variances, and the batch's copies of them
@@ -145,7 +146,7 @@ class SlidingWindowRLS(_FilterBase):
         self.refresh = (10 * self.window if refresh is None
                         else check_int(refresh, "refresh", minimum=0))
         self.R = R
-        self.check_every = check_int(check_every, "check_every", minimum=0)
+        self.check_every = check_every
         self.cond_max = check_real(cond_max, "cond_max", minimum=0, strict=True)
         self._batch_start = None      # n_updates at the start of a stepwise batch_filter
         self._P0 = check_covariance(P0, self.dim_x, "P0", definite=True)

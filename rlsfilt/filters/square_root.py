@@ -3,9 +3,8 @@
 import math
 
 import numpy as np
-from filterpy.common import pretty_str
-from scipy.linalg import cho_factor, cho_solve, solve_triangular
 
+from .._display import pretty_str
 from .._validation import (
     check_covariance,
     check_dimension,
@@ -54,8 +53,9 @@ class SquareRootRLS(_FilterBase):
         Initial estimate; zeros by default.
     R : float, default 1.0
         Measurement-noise variance.
-    check_every : int, default 100
-        Health check period (0 disables it), with the semantics of
+    check_every : int, optional
+        Health check period (0 disables it; by default ``max(250, 32
+        dim_x)``), with the semantics of
         :class:`~rlsfilt.RecursiveLeastSquares`: every `check_every`
         updates, and at the end of :meth:`batch_filter`, the condition
         number of ``P`` is computed from the triangular factor,
@@ -142,12 +142,12 @@ class SquareRootRLS(_FilterBase):
                       "anti-windup forgetting mode (forgetting='directional', 'efra', ...).")
 
     def __init__(self, dim_x, dim_z=1, lam=1.0, *, P0=1e4, x0=None, R=1.0,
-                 check_every=100, cond_max=1e12):
+                 check_every=None, cond_max=1e12):
         self.dim_x = check_dimension(dim_x, "dim_x")
         self.dim_z = check_int(dim_z, "dim_z", minimum=1)
         self.lam = lam
         self.R = R
-        self.check_every = check_int(check_every, "check_every", minimum=0)
+        self.check_every = check_every
         self.cond_max = check_real(cond_max, "cond_max", minimum=0, strict=True)
         self._batch_start = None      # n_updates when a step-by-step batch_filter started
         self._P0 = check_covariance(P0, self.dim_x, "P0", definite=True)
@@ -185,6 +185,7 @@ class SquareRootRLS(_FilterBase):
 
     @P.setter
     def P(self, value):
+        from scipy.linalg import cho_factor, cho_solve  # lazy: keeps `import rlsfilt` light
         P = check_covariance(value, self.dim_x, "P", definite=True)
         info = cho_solve(cho_factor(P, lower=True), np.eye(self.dim_x))
         self._U = np.linalg.cholesky(0.5 * (info + info.T)).T
@@ -254,6 +255,7 @@ class SquareRootRLS(_FilterBase):
         ValueError
             If the rows do not determine every parameter.
         """
+        from scipy.linalg import solve_triangular  # lazy: keeps `import rlsfilt` light
         Z, Hm = self._as_batch(zs, Hs)
         keep = ~np.isnan(Z).any(axis=1)
         w = self._lam ** (0.5 * np.arange(len(Z) - 1, -1, -1.0)) / math.sqrt(self._R)

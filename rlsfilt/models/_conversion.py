@@ -28,7 +28,6 @@ realization.
 """
 
 import numpy as np
-from scipy import signal
 
 from ._polynomials import (
     equalize,
@@ -143,6 +142,7 @@ def to_ss(polys, dt, noise=False):
 
 def to_dlti(polys, dt, noise=False):
     """``scipy.signal.dlti``: a transfer function for SISO, the realization otherwise."""
+    from scipy import signal  # lazy: keeps `import rlsfilt` light
     A_t, B_t = arx_form(polys, noise)
     if A_t.shape[0] == 1 and B_t.shape[1] == 1:
         nums, dens = tf_data(A_t, B_t)

@@ -29,8 +29,8 @@ References
 """
 
 import numpy as np
-from scipy.signal import lfilter
 
+from .._lazy_scipy import lfilter
 from ._family import join_theta
 from ._iv import fit_iv
 from ._long_ar import long_arx_residuals

@@ -53,8 +53,8 @@ References
 import warnings
 
 import numpy as np
-from scipy.signal import lfilter
 
+from .._lazy_scipy import lfilter
 from ..exceptions import NumericalWarning
 from ._long_ar import levinson_ar
 from ._stability import reflect

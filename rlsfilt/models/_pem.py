@@ -54,9 +54,8 @@ References
 """
 
 import numpy as np
-from scipy.optimize import least_squares
-from scipy.signal import lfilter
 
+from .._lazy_scipy import least_squares, lfilter
 from ._family import split_theta
 from ._initial import initial_estimate
 from ._stability import predictor_is_stable, stabilize_theta

@@ -17,8 +17,8 @@ import html
 import numbers
 
 import numpy as np
-from scipy.signal import lfilter, lfiltic
 
+from .._lazy_scipy import lfilter, lfiltic
 from .._validation import check_int
 from ._base import IdentifiedModel, Polynomials
 from ._family import param_names, split_theta

@@ -12,7 +12,6 @@ import html
 import math
 
 import numpy as np
-from scipy.stats import t as student_t
 
 __all__ = ["ModelSummary", "coefficient_statistics"]
 
@@ -47,6 +46,7 @@ def coefficient_statistics(estimate, std_error, dof, level=0.95):
     error (given coefficients, no fit) gives a zero-width interval, an
     infinite ``t`` (NaN for a zero estimate) and a NaN p-value.
     """
+    from scipy.stats import t as student_t  # lazy: keeps `import rlsfilt` light
     estimate = np.asarray(estimate, dtype=float)
     se = np.asarray(std_error, dtype=float)
     quantile = float(student_t.ppf(0.5 + level / 2.0, dof)) if dof > 0 else math.inf

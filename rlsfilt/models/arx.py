@@ -17,8 +17,6 @@ import inspect
 import warnings
 
 import numpy as np
-from scipy import signal
-from scipy.linalg import lapack, solve_triangular
 
 from .._resources import check_memory
 from .._scale import pow2_scale, safe_norm
@@ -34,7 +32,6 @@ from ._summary import EQUATION_STYLES, ModelSummary
 from .regressors import (
     _as_signal,
     _build,
-    _column_rank,
     _full_rank_rows,
     arx_structure,
     as_records,
@@ -408,18 +405,14 @@ class ARX(IdentifiedModel):
                 dev, s, method, iv_options, info["y_1d"],
                 intercept=_offset_mode(self.offset) == "intercept")
         else:
-            theta, inv_scaled, rls, history, x_start, k0 = _fit_rls(Phi, target, s, opts)
+            theta, inv_scaled, rls, history, prior, k0 = _fit_rls(Phi, target, s, opts)
+            # prior: the a-priori (recursive) residuals y(t) - phi(t) theta(t-1) after
+            # the batch start
             recursive = {"filter_": rls, "k0_": k0, "lam_": float(rls.lam),
                          "form_": "square_root" if isinstance(rls, SquareRootRLS)
                          else "covariance",
-                         "theta_history_": history[:, :, 0] if info["y_1d"] else history}
-            # a-priori (recursive) residuals y(t) - phi(t) theta(t-1) after the batch start
-            prior = np.full_like(target, np.nan)
-            if k0 == 0 and rows:
-                prior[0] = target[0] - Phi[0] @ x_start
-                k0 = 1
-            prior[k0:] = target[k0:] - np.einsum("ij,ijk->ik", Phi[k0:], history[k0 - 1:-1])
-            recursive["recursive_residuals_"] = prior[:, 0] if info["y_1d"] else prior
+                         "theta_history_": history[:, :, 0] if info["y_1d"] else history,
+                         "recursive_residuals_": prior[:, 0] if info["y_1d"] else prior}
         for name in ("theta_history_", "filter_", "k0_", "lam_", "form_", "recursive_residuals_",
                      "noise_covariance_", "intercept_", "instruments_", "trend_"):
             self.__dict__.pop(name, None)
@@ -736,6 +729,7 @@ class ARX(IdentifiedModel):
         return self._each_experiment(self._simulate, u, None, y0, outputs=False)
 
     def _simulate(self, u, y0):
+        from scipy import signal  # lazy: keeps `import rlsfilt` light
         U, _ = self._data(u)
         N, ny = len(U), self.n_outputs_
         u_op, y_op = self._fitted_op()
@@ -1087,7 +1081,14 @@ def _fit_bytes(rows, n, s, method):
 
 
 def _fit_rls(Phi, target, s, opts):
-    """Recursive least squares over the rows: ``(theta, P / R, filter, history, x_start, k0)``."""
+    """Recursive least squares over the rows: ``(theta, P / R, filter, history, prior, k0)``.
+
+    ``history`` (rows, n, ny) is NaN before row ``k0 - 1`` (the batch start's
+    estimate); ``prior`` (rows, ny) the a-priori residuals, NaN before row ``k0``.
+    The rows come from validated signals, so the covariance-form filter runs
+    them without validating them again, writing the estimates straight into
+    ``history`` and every residual into ``prior`` (no copies of the record).
+    """
     n, rows = Phi.shape[1], len(Phi)  # an intercept adds a column to the structure's
     prior = opts["P0"] is not None or opts["x0"] is not None
     if opts["k0"] is not None:
@@ -1113,15 +1114,41 @@ def _fit_rls(Phi, target, s, opts):
     extra.setdefault("cond_max", max(1e12, 1e4 * cond_raw ** 2))
     cls = SquareRootRLS if form == "square_root" else RecursiveLeastSquares
     rls = cls(n, dim_z=s.n_outputs, lam=lam, **kw, **extra)
-    history = np.full((rows, n, s.n_outputs), np.nan)
+    if cls is SquareRootRLS:
+        return _fit_square_root(rls, Phi, target, k0)
+    prior = np.full((rows, s.n_outputs), np.nan)
+    if k0 > 0:
+        rls.initialize(target[:k0], Phi[:k0])
+    if k0 < rows:
+        Z, Hm = target[k0:], Phi[k0:]
+        out = rls._run_batch(Z, Hm, rls._as_batch_variances(None, len(Z)), False, False,
+                             lead=max(k0 - 1, 0), residuals=True)
+        history = out.buffer[1:] if k0 == 0 else out.buffer
+        prior[k0:] = out.ys
+    else:                                   # the batch start used every row
+        history = np.full((rows, n, s.n_outputs), np.nan)
+        history[k0 - 1] = rls.x
+    return rls.x.copy(), rls.P / rls.R, rls, history, prior, k0
+
+
+def _fit_square_root(rls, Phi, target, k0):
+    """`_fit_rls` with a `SquareRootRLS` (its public ``batch_filter``): the same returns."""
+    rows = len(Phi)
+    history = np.full((rows, Phi.shape[1], target.shape[1]), np.nan)
     x_start = rls.x.copy()
     if k0 > 0:
         rls.initialize(target[:k0], Phi[:k0])
         history[k0 - 1] = rls.x
     if k0 < rows:
-        means = rls.batch_filter(target[k0:], Phi[k0:], store_covariances=False)[0]
-        history[k0:] = means
-    return rls.x.copy(), rls.P / rls.R, rls, history, x_start, k0
+        history[k0:] = rls.batch_filter(target[k0:], Phi[k0:], store_covariances=False)[0]
+    # a-priori (recursive) residuals y(t) - phi(t) theta(t-1) after the batch start
+    prior = np.full_like(target, np.nan)
+    start = k0
+    if k0 == 0 and rows:
+        prior[0] = target[0] - Phi[0] @ x_start
+        start = 1
+    prior[start:] = target[start:] - np.einsum("ij,ijk->ik", Phi[start:], history[start - 1:-1])
+    return rls.x.copy(), rls.P / rls.R, rls, history, prior, k0
 
 
 _FORMS = ("auto", "covariance", "square_root")
@@ -1181,19 +1208,31 @@ def _qr_least_squares(Phi, target):
     The columns of ``Phi`` (by ``c``) and of the target (by ``t``) are
     divided by powers of two near their largest entries, which is exact, so
     the factorization never squares a number around 1e160 or 1e-160; then
-    :math:`\hat\theta_i = t_i \hat\theta^{s}_i / c`.
+    :math:`\hat\theta_i = t_i \hat\theta^{s}_i / c`. One Householder QR
+    (LAPACK ``geqrf``) of the scaled ``[Phi, target]`` gives ``R`` and
+    ``Q^T target`` without forming ``Q``; the rank is decided as
+    ``_column_rank(Phi)`` decides it, from the singular values of ``R`` with
+    its columns scaled to unit norm (those of ``Phi`` with unit columns), so
+    the record is read once.
     """
-    n = Phi.shape[1]
-    rank = _column_rank(Phi)
+    from scipy.linalg import lapack, solve_triangular  # lazy: keeps `import rlsfilt` light
+    rows, n = Phi.shape
+    c = pow2_scale(Phi, axis=0)
+    t = pow2_scale(target, axis=0)
+    A = np.empty((rows, n + target.shape[1]), order="F")
+    np.divide(Phi, c, out=A[:, :n])
+    np.divide(target, t, out=A[:, n:])
+    qr, _, _, _ = lapack.dgeqrf(A, overwrite_a=True)
+    Rf = np.triu(qr[:n, :n])
+    rhs = qr[:n, n:]
+    norms = np.linalg.norm(Rf, axis=0)                  # the column norms of Phi / c
+    sv = np.linalg.svd(Rf / np.where(norms > 0, norms, 1.0), compute_uv=False)
+    rank = int(np.sum(sv > sv.max() * max(rows, n) * np.finfo(float).eps)) if n else 0
     if rank < n:
         raise ValueError(
             f"the regressor matrix has rank {rank} < n_params = {n}: the input is not "
             "persistently exciting for these orders (or the orders are too high); use a richer "
             "input, more data or lower orders")
-    c = pow2_scale(Phi, axis=0)
-    t = pow2_scale(target, axis=0)
-    Qf, Rf = np.linalg.qr(Phi / c)
-    rhs = Qf.T @ (target / t)
     # back substitution one column at a time, and the triangular inverse from
     # LAPACK's trtri: multi-column triangular solves hit a slow threaded BLAS
     # path for tiny matrices on loaded machines (measured: 2-10 ms per call)

@@ -331,8 +331,11 @@ def _full_rank_rows(Phi):
     This is where an exact least-squares start can be made (the lecture notes'
     batch start of recursive least squares, and the start of the recursive
     residuals of Brown, Durbin & Evans). The rank of a prefix grows with its
-    length, so the search doubles until full rank, then bisects: ``O(log N)``
-    rank computations.
+    length, so the search doubles from ``n`` rows until full rank, then
+    bisects: ``O(log k0)`` rank computations on prefixes of at most ``2 k0``
+    rows (the columns of each prefix scaled to unit norm), so a long record
+    costs no more than its first full-rank block; only a record that is
+    rank-deficient throughout is scanned to its end.
 
     Returns
     -------
@@ -342,17 +345,18 @@ def _full_rank_rows(Phi):
     rows, n = Phi.shape
     if n == 0:
         return 0
-    Phi = unit_columns(Phi)
 
     def full(k):
-        return np.linalg.matrix_rank(Phi[:k]) == n
+        return np.linalg.matrix_rank(unit_columns(Phi[:k])) == n
 
-    if rows < n or not full(rows):
+    if rows < n:
         return None
     if full(n):
         return n
     lo, hi = n, min(2 * n, rows)  # full(lo) is False
     while not full(hi):
+        if hi == rows:
+            return None
         lo, hi = hi, min(2 * hi, rows)
     while hi - lo > 1:
         mid = (lo + hi) // 2

@@ -11,7 +11,6 @@ channel does not depend on which other channels are computed with it.
 """
 
 import numpy as np
-from scipy.stats import chi2, f
 
 from .residuals import _input_lag_test
 
@@ -49,6 +48,7 @@ def ljung_box_many(E, max_lag, model_df=0):
         acf2 = acf2 + rho ** 2 / (n - k)
     Q = np.where(ok, n * (n + 2) * acf2, np.nan)
     df = max_lag - model_df
+    from scipy.stats import chi2  # lazy: keeps `import rlsfilt` light
     return Q, df, chi2.sf(Q, df)
 
 
@@ -83,6 +83,7 @@ def input_lag_test_many(E, Phi, U, t0, max_lag):
         Numerator degrees of freedom (lagged-input directions tested).
     pvalue : ndarray, shape (C,)
     """
+    from scipy.stats import f  # lazy: keeps `import rlsfilt` light
     C, n = E.shape
     N, nu = U.shape[1], U.shape[2]
     M = max_lag

@@ -21,8 +21,6 @@ their mean, the CUSUM of squares test for a drift of their variance.
 import math
 
 import numpy as np
-from scipy.optimize import brentq
-from scipy.stats import norm
 
 from .._scale import pow2_scale, unit_columns
 from .._validation import as_float_array, check_finite, check_probability
@@ -429,6 +427,7 @@ def cusum_squares(zs, Hs, alpha=0.05):
 # ----------------------------------------------------------------------
 def _bde_log_crossing_probability(a):
     """Logarithm of the right-hand side of BDE (1975) eq. (2.4), exact in the far tail."""
+    from scipy.stats import norm  # lazy: keeps `import rlsfilt` light
     return math.log(2.0) + float(np.logaddexp(norm.logsf(3.0 * a),
                                               -4.0 * a * a + norm.logcdf(a)))
 
@@ -439,6 +438,7 @@ def _bde_crossing_probability(a):
 
 
 def _bde_constant(alpha):
+    from scipy.optimize import brentq  # lazy: keeps `import rlsfilt` light
     for level, a in _BDE_A.items():
         if math.isclose(alpha, level):
             return a

@@ -18,7 +18,6 @@ import warnings
 from collections import namedtuple
 
 import numpy as np
-from scipy import stats
 
 from .._validation import check_int
 from ..data.iodata import as_iodata
@@ -166,6 +165,7 @@ def delayest(u, y=None, na=2, nb=2, nk_min=0, nk_max=None, *, full_output=False)
     r_y = R[:, -1]
     n_params = na + sum(nb)
     dof = rows - n_params
+    from scipy import stats  # lazy: keeps `import rlsfilt` light
     tie = 1.0 + (stats.f.ppf(0.95, 1, dof) / dof if dof > 0 else 0.0)
     offsets = np.cumsum([na] + [len(lag) for lag in lags])[:-1]
 

@@ -10,7 +10,6 @@ import math
 import warnings
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 from .._validation import as_float_array, check_int
 from ..models._base import IdentifiedModel, check_is_fitted
@@ -114,6 +113,7 @@ class PlantComparison:
     """
 
     def __init__(self, model, plant, n_points=500, n_steps=None, omega=None):
+        from scipy.optimize import linear_sum_assignment  # lazy: keeps `import rlsfilt` light
         self.model_tf = _model_tf(model)
         self.plant_tf = _plant_tf(plant, self.model_tf)
         n_points = check_int(n_points, "n_points", minimum=2)

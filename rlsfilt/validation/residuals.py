@@ -7,7 +7,6 @@ MATLAB's ``resid`` and Ljung (1999, sec. 16.6).
 """
 
 import numpy as np
-from scipy.stats import chi2, f, norm
 
 from .._resources import check_memory
 from .._scale import pow2_scale
@@ -264,6 +263,7 @@ def _residual_analysis(Phi, E, u, max_lag, alpha, output=0, model_df=0):
     `u` with zero columns (``(N, 0)``, a time series) gives the whiteness test
     only: no cross-correlation, ``is_independent`` None.
     """
+    from scipy.stats import chi2, norm  # lazy: keeps `import rlsfilt` light
     ny = E.shape[1]
     output = check_int(output, "output", minimum=0)
     if output >= ny:
@@ -353,6 +353,7 @@ def _input_lag_test(e, Phi, U, t0, M, block=8192):
     2012). Since ``A^T A = R^T R``, every projection below is computed on the
     columns of ``R`` exactly as it would be on the columns of ``A``.
     """
+    from scipy.stats import f  # lazy: keeps `import rlsfilt` light
     n = len(e)
     N = len(U)
     nu = U.shape[1]

@@ -1,0 +1,251 @@
+"""The windup cap of exponential forgetting: the default filter survives lost excitation.
+
+Without it (``spread_max = trace_max = inf``) exponential forgetting keeps
+dividing ``P`` by ``lam`` in the directions a held input no longer excites,
+until ``P`` overflows and the estimate is NaN for good. With it (the default)
+``P`` stays finite and positive definite, the health check warns once per
+episode of lost excitation, the estimate recovers when excitation returns,
+and ordinary runs give the same bits as without it.
+"""
+
+import re
+import warnings
+
+import numpy as np
+import pytest
+from conftest import arx_record
+from conftest import assert_close_steps as _close
+from numpy.testing import assert_allclose, assert_array_equal
+from reference_runs import rls_run
+
+from rlsfilt import NumericalWarning, RecursiveLeastSquares
+
+THETA = np.array([0.5, 2.0, -1.0])
+OFF = {"spread_max": np.inf, "trace_max": np.inf}
+STATE = ("x", "P", "x_prior", "P_prior", "x_post", "P_post", "y", "K", "S", "SI", "z", "H")
+
+
+def held_record(periods=3, period=20000, held=19600, tail=400, seed=0):
+    """Regressor ``[1, u_k, u_k-1]``; the input is white noise for ``period - held``
+    samples, then held at its last value for `held` samples, `periods` times, then
+    white again for `tail` samples."""
+    rng = np.random.default_rng(seed)
+    N = periods * period + tail + 1
+    u = rng.standard_normal(N)
+    for p in range(periods):
+        s = p * period + (period - held)
+        u[s:s + held] = u[s - 1]
+    Hs = np.column_stack([np.ones(N - 1), u[1:], u[:-1]])
+    zs = Hs @ THETA + 0.1 * rng.standard_normal(N - 1)
+    return Hs, zs
+
+
+def _updates(messages):
+    return [int(re.search(r"update (\d+) since reset", m).group(1)) for m in messages]
+
+
+# ----------------------------------------------------------------------
+# the long windup run (shortened from 1e6 samples)
+# ----------------------------------------------------------------------
+def test_lost_excitation_stays_finite_warns_once_per_episode_and_recovers():
+    period, held = 20000, 19600
+    Hs, zs = held_record(period=period, held=held)
+    rls = RecursiveLeastSquares(3, lam=0.95)
+    smallest = []
+    with pytest.warns(NumericalWarning) as record:
+        for k in range(0, len(zs), 1000):             # in chunks, to look at P on the way
+            rls.batch_filter(zs[k:k + 1000], Hs[k:k + 1000], store_covariances=False)
+            assert np.isfinite(rls.P).all() and np.isfinite(rls.x).all(), k
+            smallest.append(np.linalg.eigvalsh(rls.P)[0])
+    assert min(smallest) > 0.0                         # positive definite throughout
+    messages = [str(w.message) for w in record]
+    assert len(messages) == 3, messages                # one warning per episode
+    assert all("ill-conditioned" in m for m in messages)
+    for p, u in enumerate(_updates(messages)):         # each inside its hold
+        assert p * period + period - held < u <= (p + 1) * period, (p, u)
+    assert rls.n_capped > 0
+    # the estimate recovers each time the input is rich again
+    check = RecursiveLeastSquares(3, lam=0.95)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", NumericalWarning)
+        means = check.batch_filter(zs, Hs, store_covariances=False)[0][:, :, 0]
+    assert_array_equal(means[-1], rls.x[:, 0])        # chunks give the bits of one run
+    for p in range(1, 3):
+        end = p * period + period - held - 1           # the last rich sample after hold p
+        assert_allclose(means[end], THETA, atol=0.05, err_msg=f"after hold {p}")
+    assert_allclose(means[-1], THETA, atol=0.05)
+
+
+def test_without_the_cap_the_default_filter_goes_nan_for_good():
+    """The failure the cap prevents (the audit's run): P overflows, x is NaN after it."""
+    Hs, zs = held_record(periods=1, period=14000, held=13600, tail=400)
+    rls = RecursiveLeastSquares(3, lam=0.95, forgetting_params=OFF)
+    with pytest.warns(NumericalWarning, match="ill-conditioned") as record:
+        means = rls.batch_filter(zs, Hs, store_covariances=False)[0]
+    assert len(record) == 1
+    assert np.isnan(means[-1]).all() and not np.isfinite(rls.P).all()
+    capped = RecursiveLeastSquares(3, lam=0.95)
+    with pytest.warns(NumericalWarning, match="ill-conditioned"):
+        capped.batch_filter(zs, Hs, store_covariances=False)
+    assert_allclose(capped.x[:, 0], THETA, atol=0.05)
+
+
+def test_zero_regressors_stop_at_trace_max_and_recover():
+    """With nothing excited at all (h = 0) P grows uniformly: the trace cap holds it."""
+    rng = np.random.default_rng(3)
+    Hs = np.r_[rng.standard_normal((100, 2)), np.zeros((5000, 2)), rng.standard_normal((200, 2))]
+    zs = Hs @ np.array([1.0, -2.0]) + 0.01 * rng.standard_normal(len(Hs))
+    rls = RecursiveLeastSquares(2, lam=0.9, P0=1.0)
+    trace_max = rls.forgetting_params["trace_max"]
+    assert trace_max == 1e12 * 2.0                     # tied to trace(P0)
+    _, covs, _, covs_p = rls.batch_filter(zs, Hs)
+    traces = np.trace(covs_p, axis1=1, axis2=2)
+    assert traces.max() <= trace_max
+    assert traces[5000] > 1e-3 * trace_max             # it did wind up to the cap
+    assert np.all(np.linalg.eigvalsh(covs)[:, 0] > 0)
+    # after the hold: exponentially weighted least squares on the rows since
+    # (the prior and the rows before the hold weigh 1e-12 and 0.9**5200)
+    w = np.sqrt(0.9 ** np.arange(199, -1, -1.0))
+    ewls = np.linalg.lstsq(Hs[-200:] * w[:, None], zs[-200:] * w, rcond=None)[0]
+    assert_allclose(rls.x[:, 0], ewls, rtol=1e-8, atol=1e-9)
+
+
+def test_health_warning_rearms_in_streaming_as_in_batch():
+    """The streaming steps warn at the same updates as batch_filter, once per episode."""
+    Hs, zs = held_record(periods=2, period=3000, held=2700, tail=300, seed=1)
+    messages = []
+    for stream in (False, True):
+        rls = RecursiveLeastSquares(3, lam=0.9, check_every=50)
+        with pytest.warns(NumericalWarning) as record:
+            if stream:
+                for k in range(len(zs)):
+                    rls.predict_update(zs[k], Hs[k])
+            else:
+                rls.batch_filter(zs, Hs, store_covariances=False)
+        messages.append(_updates([str(w.message) for w in record]))
+    assert len(messages[0]) == 2 and messages[0] == messages[1]
+
+
+# ----------------------------------------------------------------------
+# the capped steps are the reference's, and every path gives the same bits
+# ----------------------------------------------------------------------
+def _capped_filter(**kw):
+    # a low spread_max engages the cap at a moderate condition number
+    return RecursiveLeastSquares(3, lam=0.9, P0=10.0, R=0.01, check_every=0,
+                                 forgetting_params={"spread_max": 1e4}, **kw)
+
+
+@pytest.mark.parametrize("update_first", [False, True])
+@pytest.mark.parametrize("Q", [0.0, 1e-6])
+def test_capped_steps_equal_the_reference(update_first, Q):
+    Hs, zs = held_record(periods=2, period=400, held=300, tail=100, seed=2)
+    zs[[5, 150, 420]] = np.nan                          # missing samples, some in a hold
+    f = _capped_filter(Q=Q)
+    ref = rls_run(f, zs, Hs, None, update_first)
+    means, covs, means_p, covs_p = f.batch_filter(zs, Hs, update_first=update_first)
+    assert ref.capped.sum() > 100 and f.n_capped == ref.capped.sum()
+    # the capped stretches are ill-conditioned by design (P spread up to 1e4 times
+    # more off the regressor than along it): round-off grows with that
+    for label, a, b in (("means", means, ref.means), ("covs", covs, ref.covs),
+                        ("means_p", means_p, ref.means_p), ("covs_p", covs_p, ref.covs_p)):
+        _close(a, b, label, rtol=1e-11)
+
+
+@pytest.mark.parametrize("update_first", [False, True])
+def test_capped_run_gives_the_same_bits_in_every_path(update_first):
+    """Fused loop, step loop (a gate that never fires), streaming and chunks agree."""
+    Hs, zs = held_record(periods=2, period=400, held=300, tail=100, seed=4)
+    zs[[7, 250]] = np.nan
+    fused = _capped_filter()
+    m_fused = fused.batch_filter(zs, Hs, update_first=update_first, store_covariances=False)[0]
+    step = _capped_filter(gate=1e300)
+    m_step = step.batch_filter(zs, Hs, update_first=update_first)[0]
+    stream = _capped_filter()
+    m_stream = []
+    for k in range(len(zs)):
+        if update_first:
+            stream.update(zs[k], Hs[k])
+            stream.predict()
+        else:
+            stream.predict_update(zs[k], Hs[k])
+        m_stream.append(stream.x)
+    chunks = _capped_filter()
+    m_chunks = np.concatenate([chunks.batch_filter(zs[a:b], Hs[a:b], update_first=update_first,
+                                                   store_covariances=False)[0]
+                               for a, b in [(0, 97), (97, 98), (98, 450), (450, len(zs))]])
+    assert fused.n_capped > 100
+    for name, m, f in (("step", m_step, step), ("stream", np.array(m_stream), stream),
+                       ("chunks", m_chunks, chunks)):
+        assert_array_equal(m, m_fused, err_msg=name)
+        for attr in STATE:
+            assert_array_equal(getattr(f, attr), getattr(fused, attr), err_msg=f"{name} {attr}")
+        assert f.n_capped == fused.n_capped, name
+
+
+# ----------------------------------------------------------------------
+# ordinary runs: the cap never acts, the bits are those without it
+# ----------------------------------------------------------------------
+@pytest.mark.parametrize("lam", [0.9, 0.99, 1.0])
+@pytest.mark.parametrize("P0", [1e-2, 1.0, 1e4, 1e8])
+def test_ordinary_runs_are_bitwise_unchanged(rng, lam, P0):
+    Hs, zs = arx_record(rng, n_samples=3000)
+    zs = zs.astype(float)
+    zs[[10, 2000]] = np.nan
+    for Q in (0.0, 1e-6):
+        runs = []
+        for params in (None, OFF):
+            f = RecursiveLeastSquares(4, lam=lam, P0=P0, Q=Q, forgetting_params=params)
+            with warnings.catch_warnings():
+                warnings.simplefilter("error")           # healthy: no warning either
+                means = f.batch_filter(zs, Hs, store_covariances=False)[0]
+                for k in range(50):
+                    f.predict_update(zs[k], Hs[k])
+            runs.append((means, f))
+        (m_on, on), (m_off, off) = runs
+        assert on.n_capped == 0
+        assert_array_equal(m_on, m_off)
+        for attr in STATE:
+            assert_array_equal(getattr(on, attr), getattr(off, attr), err_msg=attr)
+
+
+def test_windup_cap_parameters():
+    rls = RecursiveLeastSquares(3, lam=0.95, P0=[[2.0, 0, 0], [0, 3.0, 0], [0, 0, 5.0]])
+    assert rls.forgetting_params == {"spread_max": 1e15, "trace_max": 1e13}
+    rls = RecursiveLeastSquares(3, lam=0.95, forgetting_params={"trace_max": 7.0})
+    assert rls.forgetting_params == {"spread_max": 1e15, "trace_max": 7.0}
+    with pytest.raises(TypeError, match=r"unknown keys \['P_max'\] for forgetting='exponential'"):
+        RecursiveLeastSquares(3, lam=0.95, forgetting_params={"P_max": 1.0})
+
+
+@pytest.mark.parametrize("after_predict", [False, True])
+def test_a_state_restored_while_capped_continues_bit_for_bit(after_predict):
+    """The cap's pending decision is part of the flat state python-control simulates
+    (``rlsfilt.adaptive``): a filter restored after an ``update`` that set the cap
+    (or after the ``predict`` that held the forgetting back) forgets as the original
+    does."""
+    from rlsfilt.adaptive import _filter_state
+    rng = np.random.default_rng(3)
+    Hs = np.r_[rng.standard_normal((100, 2)), np.zeros((3000, 2)), rng.standard_normal((50, 2))]
+    zs = Hs @ np.array([1.0, -2.0]) + 0.01 * rng.standard_normal(len(Hs))
+    f = RecursiveLeastSquares(2, lam=0.9, P0=1.0)
+    k = 0
+    while not f._cap:                                  # run until the cap holds back
+        f.predict()
+        f.update(zs[k], Hs[k:k + 1])
+        k += 1
+    assert 100 < k < 3100
+    if after_predict:
+        f.predict()
+        assert f._w == 1.0 / 0.9                       # the next update forgets along H only
+    g = RecursiveLeastSquares(2, lam=0.9, P0=1.0)
+    _filter_state.set_state(g, _filter_state.get_state(f))
+    assert (g._cap, g._w, g.n_capped) == (f._cap, f._w, f.n_capped)
+    for j in range(k, len(zs)):
+        for h in (f, g):
+            if j > k or not after_predict:
+                h.predict()
+            h.update(zs[j], Hs[j:j + 1])
+    assert f.n_capped > 0
+    assert_array_equal(g.x, f.x)
+    assert_array_equal(g.P, f.P)
+    assert g.n_capped == f.n_capped
