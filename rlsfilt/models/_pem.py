@@ -290,6 +290,8 @@ class PEMFit:
     eps : ndarray, shape (N,)
         Prediction errors at ``theta`` (from ``t = 0``; with several
         experiments, those of every experiment one after the other).
+    residuals : ndarray, shape (rows,)
+        The errors of the criterion: ``t >= t0`` of every experiment.
     cost : float
         :math:`V(\\hat\\theta)`.
     theta0 : ndarray
@@ -405,9 +407,17 @@ def pem_records(records, s, theta0=None, *, ftol=1e-12, xtol=1e-12, gtol=1e-12,
             "are too high); use a richer input, more data or lower orders")
     fit = _pem_unit(scaled, s, theta0, rows, ftol=ftol, xtol=xtol, gtol=gtol,
                     max_nfev=max_nfev)
-    return PEMFit(theta=units.theta_from_unit(fit.theta), cov=units.cov_from_unit(fit.cov),
+    theta = units.theta_from_unit(fit.theta)
+    if not np.isfinite(theta).all():
+        with np.errstate(divide="ignore"):       # log2|b| in the user's units
+            log2_b = np.max(np.log2(np.abs(fit.theta)) + units.theta_exponents)
+        raise ValueError("`u` and `y` must have units whose ratio double precision can hold; "
+                         f"got b coefficients of about 2^{log2_b:.0f} (above the largest "
+                         "double, 2^1024): scale `y` down or `u` up")
+    return PEMFit(theta=theta, cov=units.cov_from_unit(fit.cov),
                   noise_variance=float(units.output_from_unit(fit.noise_variance, 2)),
                   eps=units.output_from_unit(fit.eps),
+                  residuals=units.output_from_unit(fit.residuals),
                   cost=float(units.output_from_unit(fit.cost, 2)),
                   theta0=units.theta_from_unit(fit.theta0), n_fev=fit.n_fev, n_jev=fit.n_jev,
                   status=fit.status, message=fit.message)
@@ -448,7 +458,7 @@ def _pem_unit(records, s, theta0, rows, *, ftol, xtol, gtol, max_nfev):
     cost = 0.5 * float(r @ r)
     sigma2 = 2.0 * cost / (rows - s.n_params)
     cov = sigma2 * _inverse_normal_matrix(J)
-    return PEMFit(theta=theta, cov=cov, noise_variance=sigma2, eps=eps, cost=cost,
+    return PEMFit(theta=theta, cov=cov, noise_variance=sigma2, eps=eps, residuals=r, cost=cost,
                   theta0=theta0, n_fev=int(res.nfev), n_jev=int(res.njev or 0),
                   status=int(res.status), message=str(res.message))
 

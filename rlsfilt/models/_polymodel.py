@@ -104,7 +104,7 @@ class PolynomialModel(IdentifiedModel):
             # the consistent start, the rank check and the search run in scaled units
             # (`RecordUnits`); the fit comes back in the units of the records
             fit = pem_records(records, s, theta0, **tol)
-            theta, cov, sigma2 = fit.theta, fit.cov, fit.noise_variance
+            theta, cov, sigma2, eps = fit.theta, fit.cov, fit.noise_variance, fit.residuals
             learned["fit_info_"] = {"cost": fit.cost, "n_fev": fit.n_fev, "n_jev": fit.n_jev,
                                     "status": fit.status, "message": fit.message,
                                     "theta0": fit.theta0}
@@ -120,7 +120,6 @@ class PolynomialModel(IdentifiedModel):
                            state_=fit.state)
             if method == "rplr":
                 learned["margins_"] = fit.margins
-        eps = stacked_errors(theta, s, records)
         learned.update(theta_=theta.copy(), theta_cov_=cov, noise_variance_=float(sigma2),
                        residuals_=eps, n_samples_=rows, n_params_=s.n_params,
                        n_inputs_=s.n_inputs, n_outputs_=1, structure_=s,
