@@ -38,11 +38,32 @@ def pow2_scale(x, axis=None):
     float or ndarray
         ``x / pow2_scale(x)`` is exact and has entries in ``[-1, 1]``.
     """
+    return np.ldexp(1.0, pow2_exponent(x, axis=axis))
+
+
+def pow2_exponent(x, axis=None):
+    """The exponents ``e`` of `pow2_scale`: ``2^e >= max|x|`` (along `axis`), 0 for zeros.
+
+    Parameters
+    ----------
+    x : ndarray
+        Finite values.
+    axis : int, optional
+        ``0`` for one exponent per column; None for one for all of `x`.
+
+    Returns
+    -------
+    int or ndarray of int
+        ``np.ldexp(x, -pow2_exponent(x))`` is exact and has entries in
+        ``[-1, 1]``; a result computed from it is brought back to the units
+        of `x` by ``np.ldexp`` as well, exactly unless it over- or
+        underflows.
+    """
     x = np.asarray(x, dtype=float)
     if x.size == 0:
-        return 1.0 if axis is None else np.ones(np.delete(x.shape, axis))
+        return 0 if axis is None else np.zeros(np.delete(x.shape, axis), dtype=int)
     _, exponent = np.frexp(np.max(np.abs(x), axis=axis))   # max = f 2^e, 0.5 <= f < 1
-    return np.ldexp(1.0, exponent)                           # frexp(0) gives e = 0: scale 1
+    return exponent                                          # frexp(0) gives e = 0: scale 1
 
 
 def unit_columns(X):

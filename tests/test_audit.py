@@ -54,6 +54,8 @@ from scipy.signal import lfilter
 from rlsfilt import (
     ARMAX,
     ARX,
+    BJ,
+    OE,
     IOData,
     NumericalWarning,
     OrderSelectionWarning,
@@ -389,15 +391,31 @@ def _bank_entries():
 
 
 def _family_entries():
-    """`ARMAX` (prediction-error method) and `IOData`, the containers of real records."""
-    unsafe = ("#18 item 7: the prediction-error fits (ARMAX, OE, BJ) square the residuals "
-              "in the signals' units and overflow around 1e160 (a RuntimeWarning, not a "
-              "result); to be scaled as ARX's least squares is")
-    return [
-        Entry("ARMAX.fit", "u", lambda v: _theta(ARMAX(2, 2, 1).fit(v, Y)), U,
-              expect={"huge": EITHER, "tiny": EITHER}, known={"huge": unsafe, "tiny": unsafe}),
-        Entry("ARMAX.fit", "y", lambda v: _theta(ARMAX(2, 2, 1).fit(U, v)), Y,
-              expect={"huge": EITHER, "tiny": EITHER}, known={"huge": unsafe, "tiny": unsafe}),
+    """`ARMAX`, `OE` and `BJ` (prediction-error method) and `IOData`, the containers of
+    real records.
+
+    The prediction-error fits run in scaled units (`rlsfilt.models._pem.RecordUnits`), so
+    around 1e160 and 1e-160 they are the fit of the unscaled record with the ``b``
+    coefficients scaled by ``s`` (``y * s``) or ``1 / s`` (``u * s``), the others unchanged.
+    """
+    def b_times(mask):          # mask: 1 where theta_ holds a b coefficient
+        mask = np.array(mask, dtype=float)
+        return (scaled(lambda r, s: r * np.where(mask == 1, s, 1.0)),
+                scaled(lambda r, s: r * np.where(mask == 1, 1 / s, 1.0)))
+
+    models = {"ARMAX": (lambda: ARMAX(2, 2, 1), [0, 0, 1, 1, 0]),       # a1 a2 b1 b2 c1
+              "OE": (lambda: OE(2, 2), [1, 1, 0, 0]),                   # b1 b2 f1 f2
+              "BJ": (lambda: BJ(2, 1, 1, 2), [1, 1, 0, 0, 0, 0])}       # b1 b2 c1 d1 f1 f2
+    entries = []
+    for name, (make, mask) in models.items():
+        y_scaled, u_scaled = b_times(mask)
+        entries += [
+            Entry(f"{name}.fit", "u", lambda v, make=make: _theta(make().fit(v, Y)), U,
+                  expect={"huge": u_scaled, "tiny": u_scaled}),
+            Entry(f"{name}.fit", "y", lambda v, make=make: _theta(make().fit(U, v)), Y,
+                  expect={"huge": y_scaled, "tiny": y_scaled}),
+        ]
+    return entries + [
         Entry("IOData", "u", lambda v: np.asarray(IOData(v, Y, dt=0.1).u), U,
               expect={"huge": OK, "tiny": OK}),
         Entry("IOData", "y", lambda v: np.asarray(IOData(U, v, dt=0.1).y), Y,

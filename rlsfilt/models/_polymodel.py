@@ -22,19 +22,15 @@ from .._lazy_scipy import lfilter, lfiltic
 from .._validation import check_int
 from ._base import IdentifiedModel, Polynomials
 from ._family import param_names, split_theta
-from ._initial import initial_estimate
 from ._pem import (
     _shift,
     criterion_rows,
-    joined,
     pem_records,
     prediction_error_parts,
     stacked_errors,
-    stacked_gradient,
 )
 from ._recursive_pem import recursive_pem_records
-from ._stability import stabilize_theta
-from .regressors import _as_signal, _column_rank, as_records, is_listed
+from .regressors import _as_signal, as_records, is_listed
 
 __all__ = []
 
@@ -104,19 +100,11 @@ class PolynomialModel(IdentifiedModel):
                 if theta0.shape != (s.n_params,) or not np.isfinite(theta0).all():
                     raise ValueError(f"`theta0` must hold n_params = {s.n_params} finite "
                                      f"values; got shape {theta0.shape}")
-            else:
-                theta0 = initial_estimate(*joined(records), s)
-            theta0, _ = stabilize_theta(theta0, s)
-            J = stacked_gradient(theta0, s, records)
-            rank = _column_rank(J) if np.isfinite(J).all() else 0
-            if rank < s.n_params:
-                raise ValueError(
-                    f"the gradient of the predictor has rank {rank} < n_params = {s.n_params}: "
-                    "the input is not persistently exciting for these orders (or the orders "
-                    "are too high); use a richer input, more data or lower orders")
             tol = {k: options[k] for k in ("ftol", "xtol", "gtol", "max_nfev") if k in options}
+            # the consistent start, the rank check and the search run in scaled units
+            # (`RecordUnits`); the fit comes back in the units of the records
             fit = pem_records(records, s, theta0, **tol)
-            theta, cov, sigma2 = fit.theta, fit.cov, fit.noise_variance
+            theta, cov, sigma2, eps = fit.theta, fit.cov, fit.noise_variance, fit.residuals
             learned["fit_info_"] = {"cost": fit.cost, "n_fev": fit.n_fev, "n_jev": fit.n_jev,
                                     "status": fit.status, "message": fit.message,
                                     "theta0": fit.theta0}
@@ -132,7 +120,6 @@ class PolynomialModel(IdentifiedModel):
                            state_=fit.state)
             if method == "rplr":
                 learned["margins_"] = fit.margins
-        eps = stacked_errors(theta, s, records)
         learned.update(theta_=theta.copy(), theta_cov_=cov, noise_variance_=float(sigma2),
                        residuals_=eps, n_samples_=rows, n_params_=s.n_params,
                        n_inputs_=s.n_inputs, n_outputs_=1, structure_=s,
