@@ -260,7 +260,7 @@ def dask_scaling(C, N, method, workers, residual_tests):
     out = {}
     for n in workers:
         with LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                          dashboard_address=None) as cluster, Client(cluster) as client:
+                          dashboard_address=":0") as cluster, Client(cluster) as client:
             rs = da.random.RandomState(0)
             u = rs.standard_normal((N, C), chunks=(-1, max(1, C // (4 * n))))
             y = 0.5 * u + 0.1 * rs.standard_normal((N, C), chunks=u.chunks)

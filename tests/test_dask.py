@@ -35,9 +35,11 @@ def test_import_rlsfilt_does_not_import_dask():
 
 @pytest.fixture(scope="module")
 def client():
-    """Two worker processes with one thread each, no dashboard (a free port is not assured)."""
+    """Two worker processes with one thread each. The scheduler always serves HTTP (its
+    dashboard, or at least health and metrics routes) and takes port 8787 unless told
+    otherwise: ":0" lets the OS pick a free port, so concurrent runs do not collide."""
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as cluster, \
+                                  dashboard_address=":0") as cluster, \
             distributed.Client(cluster) as c:
         yield c
 
