@@ -98,5 +98,12 @@ def test_coefficient_statistics_closed_forms():
     np.testing.assert_allclose(out["pvalue"][:2], 2 * stats.t.sf(2.0, 10), rtol=1e-14)
     np.testing.assert_allclose(out["lower"], [2 - q, -1 - 0.5 * q, 0.0], rtol=1e-14)
     assert out["quantile"] == pytest.approx(q, rel=1e-14)
+    assert np.isnan(out["pvalue"][2])                 # 0 / 0: nothing to test
+    # an exact fit (zero standard error): t is infinite and P>|t| is its limit 0
+    # (statsmodels leaves round-off in the standard error and reports about 1e-89)
+    exact = coefficient_statistics(np.array([3.0, -2.0]), np.zeros(2), dof=5)
+    assert np.array_equal(exact["t"], [np.inf, -np.inf])
+    assert np.array_equal(exact["pvalue"], [0.0, 0.0])
+    assert np.array_equal(exact["lower"], exact["upper"])
     none = coefficient_statistics(np.array([1.0]), np.array([0.1]), dof=0)
     assert none["quantile"] == np.inf and np.isnan(none["pvalue"][0]) and np.isnan(none["t"][0])

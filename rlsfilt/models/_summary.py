@@ -43,8 +43,9 @@ def coefficient_statistics(estimate, std_error, dof, level=0.95):
     for dynamic models, where the Student distribution tends to the normal
     one of Ljung (1999, sec. 9.2). With no spare equations (``dof <= 0``)
     the quantile is infinite and ``t``, p-values are NaN. A zero standard
-    error (given coefficients, no fit) gives a zero-width interval, an
-    infinite ``t`` (NaN for a zero estimate) and a NaN p-value.
+    error (an exact fit, or given coefficients) gives a zero-width interval,
+    an infinite ``t`` and a p-value of 0 (the limit as the standard error
+    goes to zero); a zero estimate with a zero standard error has NaN for both.
     """
     from scipy.stats import t as student_t  # lazy: keeps `import rlsfilt` light
     estimate = np.asarray(estimate, dtype=float)
@@ -57,7 +58,8 @@ def coefficient_statistics(estimate, std_error, dof, level=0.95):
         tval = np.where(se > 0, estimate / np.where(se > 0, se, 1.0),
                         np.where(estimate != 0, np.copysign(np.inf, estimate), np.nan))
     if dof > 0:
-        pvalue = np.where(se > 0, 2.0 * student_t.sf(np.abs(tval), dof), np.nan)
+        # 2 P(T > |t|): 0 for an infinite t, NaN for a NaN t (0 / 0)
+        pvalue = 2.0 * student_t.sf(np.abs(tval), dof)
     else:
         pvalue = np.full(estimate.shape, np.nan)
         tval = np.where(se > 0, np.nan, tval)
