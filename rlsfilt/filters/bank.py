@@ -731,6 +731,24 @@ class RLSBank:
                 f._log_likelihood, f._likelihood, f._mahalanobis = 0.0, 1.0, math.nan
         return f
 
+    def _subset(self, channels):
+        """A new bank of `channels` (an integer index array) of this one, with their
+        configuration (``lam``, ``R``, ``Q``, ``P0``, ``x0``, the mode's constants,
+        already validated here) and a fresh state, as ``RLSBank(len(channels),
+        ...)`` with those channels' options would be, without validating them
+        again (`fit_many` takes one chunk of a fleet at a time)."""
+        channels = np.asarray(channels, dtype=np.int64)
+        new = copy.copy(self)
+        new.__dict__ = {key: value for key, value in self.__dict__.items()
+                        if key in ("dim_x", "_mode", "_forgetting_params_in", "check_every",
+                                   "cond_max", "parallel")}
+        new.n_channels = len(channels)
+        for name in ("_lam", "_R", "_Q", "_params", "_P0", "_x0"):
+            setattr(new, name, getattr(self, name)[channels])       # (copies)
+        new._Q_is_zero = not new._Q.any()
+        new.reset()
+        return new
+
     def reset(self):
         """Return every channel to ``x0``, ``P0``; diagnostics and counters are cleared.
 

@@ -20,6 +20,7 @@ numbers.
 
 import contextlib
 import inspect
+import math
 import numbers
 import warnings
 
@@ -388,13 +389,14 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
     bar = _progress_bar(progress, C)
     chunk = max(1, _CHUNK_BYTES // (8 * max(rows, 1) * (n + 2)))
     todo = np.flatnonzero(good)
+    buffer = np.empty(rows * n * min(chunk, C))               # the regressors of a chunk
     try:
         with _one_blas_thread():
             for start in range(0, C, chunk):
                 cs = todo[(todo >= start) & (todo < start + chunk)]
                 if cs.size:
                     _fit_chunk(cs, U, Y, s, method, per_channel, k0, max_lag, residual_tests,
-                               on_error, labels, out)
+                               on_error, labels, out, buffer)
                 if bar is not None:
                     bar.update(min(chunk, C - start))
     finally:
@@ -541,12 +543,12 @@ class _Results:
             self.rec[:, bad] = np.nan
 
 
-def _fit_chunk(cs, U, Y, s, method, per_channel, k0, max_lag, tests, on_error, labels, out):
-    """Fit channels `cs` and write their numbers into `out`."""
+def _fit_chunk(cs, U, Y, s, method, per_channel, k0, max_lag, tests, on_error, labels, out,
+               buffer):
+    """Fit channels `cs` of the record `U`, `Y` and write their numbers into `out`
+    (`buffer`: the memory of the chunk's regressors, reused from chunk to chunk)."""
     cs, sel = _as_slice(cs)                                  # a view when `cs` is a range
-    Y = Y[:, sel]
-    U = U[:, sel]
-    Phi, target = _regressors(U, Y, s)                       # (rows, c, n), (rows, c)
+    Phi, target = _regressors(U[:, sel], Y[:, sel], s, buffer)   # (rows, c, n), (rows, c)
     if method == "ls":
         ok, theta, cov = _least_squares(Phi, target)
         rank_msg = ("the regressor matrix has rank < n_params = {n}: the input is not "
@@ -559,19 +561,30 @@ def _fit_chunk(cs, U, Y, s, method, per_channel, k0, max_lag, tests, on_error, l
     if not ok.any():
         return
     if not ok.all():
-        cs, Phi, target, theta, cov = cs[ok], Phi[:, ok], target[:, ok], theta[ok], cov[ok]
-        Y, U = Y[:, ok], U[:, ok]
+        cs, Phi, theta, cov = cs[ok], Phi[:, ok], theta[ok], cov[ok]
     rows, c, n = Phi.shape
     from ._kernels_fleet import fleet_statistics
 
     cs, sel = _as_slice(cs)
-    # residuals written in place when the channels are consecutive (no copy)
-    resid = out.resid[:, sel] if isinstance(sel, slice) else np.empty((rows, c))
+    # the statistics read the record itself (not the regressors) and write the
+    # residuals in place when the channels are consecutive (no copies); the
+    # inputs one (N, C) record per input (a view of the record for one input)
+    if isinstance(sel, slice):
+        Yc, c0, resid = Y, sel.start, out.resid
+    else:
+        Yc, c0, resid = Y[:, cs], 0, np.empty((rows, c))
+    if U.shape[2] == 1 and isinstance(sel, slice):
+        Uc, cu0 = U.reshape(1, *U.shape[:2]), sel.start
+    else:
+        Uc, cu0 = np.ascontiguousarray(U[:, sel].transpose(2, 0, 1)), 0
     sigma2, pred_fit, sim_fit = np.empty(c), np.empty(c), np.empty(c)
-    fleet_statistics(_channels_last(Phi), target, theta, s.na, Y, resid, sigma2, pred_fit,
+    u_lag, u_input = _input_columns(s)
+    fleet_statistics(Yc, c0, Uc, cu0, s.na, u_lag, u_input, theta, resid, sigma2, pred_fit,
                      sim_fit)
     out.theta[sel], out.sigma2[sel] = theta, sigma2
-    if not isinstance(sel, slice):
+    if isinstance(sel, slice):
+        resid = resid[:, sel]
+    else:
         out.resid[:, sel] = resid
     out.cov[sel] = sigma2[:, None, None] * cov
     out.pred_fit[sel], out.sim_fit[sel] = pred_fit, sim_fit
@@ -582,6 +595,7 @@ def _fit_chunk(cs, U, Y, s, method, per_channel, k0, max_lag, tests, on_error, l
         resid = np.ascontiguousarray(resid.T)                  # one row per channel
         Q, _, p_white = ljung_box_many(resid, max_lag)
         out.Q[sel], out.p_white[sel] = Q, p_white
+        U = U[:, sel]
         nu = U.shape[2]
         width = 8 * rows * (nu * (2 * max_lag + 1) + n + 2)
         step = max(1, _TEST_BYTES // width)
@@ -666,11 +680,8 @@ def _run_group(cs, g, k0, Phi, target, opts, labels, on_error, out):
     """Batch start on ``k0`` rows and the filter over the rest, for channels `g`."""
     rows = Phi.shape[0]
 
-    def make(channels):
-        return RLSBank(len(channels), Phi.shape[2], lam=opts["lam"][cs[channels]],
-                       R=opts["R"][cs[channels]], Q=opts["Q"][cs[channels]],
-                       P0=opts["P0"][cs[channels]], x0=opts["x0"][cs[channels]],
-                       **opts["filter"])
+    def make(channels):                 # the fleet's bank, validated once, cut to `channels`
+        return opts["bank"]._subset(cs[channels])
 
     bank = make(g)
     g_sel = slice(None) if len(g) == Phi.shape[1] else g      # no copy for a whole chunk
@@ -739,7 +750,15 @@ def _batch_start_rows(Phi):
     return k0s
 
 
-def _regressors(U, Y, s):
+def _input_columns(s):
+    """Lags and input indices of the input columns of the ARX regressor (in its
+    order: input by input, increasing lag), as two int64 arrays."""
+    lags = [k for j in range(s.n_inputs) for k in range(s.nk[j], s.nk[j] + s.nb[j])]
+    inputs = [j for j in range(s.n_inputs) for _ in range(s.nb[j])]
+    return np.array(lags, dtype=np.int64), np.array(inputs, dtype=np.int64)
+
+
+def _regressors(U, Y, s, buffer=None):
     r"""Regressors ``(rows, C, n)`` and targets ``(rows, C)`` of every channel.
 
     The convention of :func:`~rlsfilt.models.arx_regressors` (rows
@@ -748,11 +767,15 @@ def _regressors(U, Y, s):
     record for all channels at once. The tests hold it equal to
     ``ARX.regressors`` channel by channel. The regressors are stored as
     ``(rows, n, C)`` (each column a contiguous copy) and returned as the
-    transposed view, which `RLSBank.batch_filter` reads without a copy.
+    transposed view, which `RLSBank.batch_filter` reads without a copy. With a
+    `buffer` (a 1-d float64 array of at least ``rows n C`` elements) the
+    regressors are written into its first elements (`fit_many` reuses one
+    buffer for all chunks of channels).
     """
     N, C, nu = U.shape
     t0 = s.max_lag
-    Phi = np.empty((N - t0, s.n_params, C))
+    shape = (N - t0, s.n_params, C)
+    Phi = np.empty(shape) if buffer is None else buffer[:math.prod(shape)].reshape(shape)
     col = 0
     for k in range(1, s.na + 1):                               # -y(t-1) .. -y(t-na)
         np.negative(Y[t0 - k:N - k], out=Phi[:, col])
@@ -846,7 +869,7 @@ def _rls_options(C, n, method, opts, filter_options):
     kw = {key: opts[key] for key in ("lam", "R", "Q", "P0", "x0") if opts[key] is not None}
     proto = RLSBank(C, n, **kw, **filter_options)
     return {"lam": proto.lam, "R": proto.R, "Q": proto.Q, "P0": proto._P0, "x0": proto._x0,
-            "filter": dict(filter_options),
+            "filter": dict(filter_options), "bank": proto,
             "prior": opts["P0"] is not None or opts["x0"] is not None}
 
 
