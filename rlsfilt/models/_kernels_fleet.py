@@ -134,18 +134,41 @@ def record_sums(Y, U, out):
 
 
 @njit(cache=True)
-def column_norms(Phi, out):
-    """``out[c, p] = sqrt(sum_t Phi[t, p, c]^2)`` (``Phi`` is (rows, n, C)), summed in
-    time order."""
+def build_regressors(Y, c0, U, cu0, na, u_lag, u_input, Phi, norms):
+    r"""ARX regressors of many channels, and the norms of their columns.
+
+    Channel ``c`` is column ``c0 + c`` of the outputs ``Y`` (N, C_all) and
+    column ``cu0 + c`` of the inputs ``U`` (n_inputs, N, C_u); for the rows
+    ``t = start .. N - 1`` (``start = N - rows``) it writes
+
+    .. math::
+
+        \Phi[t - start, :, c] = [-y_{t-1}, \dots, -y_{t-n_a},\;
+                                 u_{j_1}(t - l_1), \dots, u_{j_m}(t - l_m)]
+
+    into ``Phi`` (rows, n, c) (the channel index last; `u_lag`, `u_input`: the
+    lags and inputs of the input columns) and ``norms[c, p] = sqrt(sum_t
+    Phi[t, p, c]^2)``, summed in time order in the same pass (the unit columns
+    of the rank decisions).
+    """
     rows, n, C = Phi.shape
-    for c in range(C):
-        for p in range(n):
-            out[c, p] = 0.0
-    for t in range(rows):
-        for p in range(n):
+    start = Y.shape[0] - rows
+    ss = np.zeros((n, C))
+    for k in range(rows):
+        t = start + k
+        for p in range(na):
+            src, dst, acc = Y[t - 1 - p, c0:c0 + C], Phi[k, p], ss[p]
             for c in range(C):
-                v = Phi[t, p, c]
-                out[c, p] += v * v
+                v = -src[c]
+                dst[c] = v
+                acc[c] += v * v
+        for p in range(na, n):
+            src = U[u_input[p - na], t - u_lag[p - na], cu0:cu0 + C]
+            dst, acc = Phi[k, p], ss[p]
+            for c in range(C):
+                v = src[c]
+                dst[c] = v
+                acc[c] += v * v
     for c in range(C):
         for p in range(n):
-            out[c, p] = np.sqrt(out[c, p])
+            norms[c, p] = np.sqrt(ss[p, c])
