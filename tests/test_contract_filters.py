@@ -40,9 +40,9 @@ every channel of the two banks, and the least-squares check every channel
 against its scaled oracle. Assigning ``x``, ``P``, ``R`` or ``Q`` sets every
 channel; arguments the adapter cannot translate (None, text, complex) reach
 the bank unchanged, so the bad-argument check reads the bank's own messages,
-and the warning-turned-error check the bank's own atomicity. In a bank a NaN in a regressor is missing data
-(that channel skips the step), not an error, so the calls of the
-rejected-input check that pass one are not made on a bank.
+and the warning-turned-error check the bank's own atomicity. In a bank a NaN
+in a regressor is missing data (that channel skips the step), not an error,
+so the calls of the rejected-input check that pass one are not made on a bank.
 """
 
 import copy

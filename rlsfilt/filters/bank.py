@@ -363,18 +363,20 @@ class RLSBank:
     @property
     def forgetting_params(self):
         """Constants of the forgetting mode, one array of shape (C,) per name."""
-        names = _fg._PARAM_NAMES[self._mode]
+        names = _SUPPORTED_PARAMS[self.forgetting]
         return {name: self._params[:, i].copy() for i, name in enumerate(names)}
 
     def _mode_params(self, lam, R):
-        """``(C, 2)`` constants of the mode, validated by `forgetting.mode_params`
-        once per distinct ``(lam, R)`` pair (so the defaults are per channel)."""
+        """``(C, 2)`` constants of the mode (those of `_SUPPORTED_PARAMS`, in its
+        order), validated by `forgetting.mode_params` once per distinct ``(lam,
+        R)`` pair (so the defaults are per channel)."""
         C = self.n_channels
         params = np.zeros((C, 2))
-        if self._mode == 0:          # no constants; still reject unknown keys
-            _fg.mode_params(0, self._forgetting_params_in, self.dim_x, float(lam[0]),
-                            float(R[0]))
-            return params
+        supported = _SUPPORTED_PARAMS[self.forgetting]
+        if not supported:            # exponential: no constants (`_supported_params`
+            return params            # refused every key)
+        names = _fg._PARAM_NAMES[self._mode]
+        pick = [names.index(name) for name in supported]
         pairs, inverse = np.unique(np.column_stack([lam, R]), axis=0, return_inverse=True)
         for k, (lam_k, r_k) in enumerate(pairs):
             try:
@@ -383,7 +385,7 @@ class RLSBank:
             except ValueError as exc:
                 c = int(np.argmax(inverse.reshape(-1) == k))
                 raise ValueError(f"{exc} (channel {c})") from None
-            params[inverse.reshape(-1) == k, :len(values)] = values
+            params[inverse.reshape(-1) == k, :len(pick)] = [values[i] for i in pick]
         return params
 
     # ------------------------------------------------------------------
