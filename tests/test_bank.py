@@ -397,12 +397,127 @@ def test_update_twice_without_predict_warns():
                                          "'directional', 'constant_trace' for RLSBank; got 'efra'"),
     ({"forgetting": "constant_trace", "lam": [0.9, 1.0, 0.9]}, ValueError,
      r"needs an explicit `forgetting_params\['trace'\]`.*\(channel 1\)"),
-    ({"forgetting_params": {"eps": 1.0}}, TypeError, "unknown keys"),
+    ({"forgetting_params": {"eps": 1.0}}, ValueError,
+     r"`forgetting_params` key 'eps' is not supported by RLSBank \(mode 'exponential'\); "
+     "supported: none"),
+    ({"forgetting_params": [("eps", 1.0)]}, TypeError,
+     "`forgetting_params` must be a dict or None; got list"),
+    ({"P0": [1.0, 1e308, 1.0]}, ValueError, "`P0` must have entries of magnitude at most "
+                                            r"1e\+150 .* got 1e\+308 for channel 1"),
+    ({"Q": np.stack([np.eye(2), 1e200 * np.eye(2), np.eye(2)])}, ValueError,
+     r"`Q` must have entries of magnitude at most 1e\+150 .* got 1e\+200 for channel 1"),
     ({"check_every": -1}, ValueError, "`check_every` must be >= 0"),
 ])
 def test_constructor_errors_name_the_argument(kwargs, exc, match):
     with pytest.raises(exc, match=match):
         RLSBank(3, 2, **kwargs)
+
+
+@pytest.mark.parametrize("mode, key, supported", [
+    ("exponential", "spread_max", "none"),            # RecursiveLeastSquares' windup caps
+    ("exponential", "trace_max", "none"),
+    ("directional", "trace", "'eps'"),
+    ("constant_trace", "eps", "'trace', 'ratio'"),
+    ("constant_trace", "lam_min", "'trace', 'ratio'"),
+])
+def test_forgetting_params_the_bank_does_not_read_are_refused(mode, key, supported):
+    """A constant only RecursiveLeastSquares reads would be silently ignored by the
+    bank's kernels: it is refused, naming the key, the mode and what is supported."""
+    params = {"trace": 0.1} if mode == "constant_trace" else {}
+    params[key] = 10.0
+    with pytest.raises(ValueError, match=re.escape(
+            f"`forgetting_params` key '{key}' is not supported by RLSBank (mode '{mode}'); "
+            f"supported: {supported}")):
+        RLSBank(3, 2, lam=0.95, forgetting=mode, forgetting_params=params)
+
+
+def test_supported_forgetting_params_reach_every_channel():
+    bank = RLSBank(3, 2, lam=0.95, forgetting="constant_trace",
+                   forgetting_params={"trace": 0.3, "ratio": 50.0})
+    assert_array_equal(bank.forgetting_params["trace"], 0.3)
+    assert_array_equal(bank.forgetting_params["ratio"], 50.0)
+    bank = RLSBank(3, 2, lam=0.95, forgetting="directional", forgetting_params={"eps": 1e-9})
+    assert_array_equal(bank.forgetting_params["eps"], 1e-9)
+    assert bank.channel(1).forgetting_params == {"eps": 1e-9}
+
+
+@pytest.mark.parametrize("Q", [2e-3, [1e-3, 0.0, 5e-3], np.diag([1e-3, 2e-3, 3e-3])])
+def test_predict_with_a_random_walk_for_this_call(rng, Q):
+    """``predict(Q)`` adds `Q` for that call only, as RecursiveLeastSquares.predict(Q) does
+    for each channel."""
+    Z, H = _record(rng, N=30, C=3, n=3, missing=0.0, bad_rows=0.0)
+    bank = RLSBank(3, 3, lam=0.97, Q=1e-4)
+    bank.batch_filter(Z[:20], H[:20])
+    channels = [bank.channel(i) for i in range(3)]
+    Qc = np.asarray(Q, dtype=float)
+    Qc = [Qc[i] if Qc.shape == (3,) else Qc for i in range(3)]
+    for k in range(20, 30):
+        bank.predict(Q=Q if k % 2 else None)
+        bank.update(Z[k], H[k])
+        for i, f in enumerate(channels):
+            f.predict(Q=Qc[i] if k % 2 else None)
+            f.update(Z[k, i], H[k, i])
+    for i, f in enumerate(channels):
+        assert_allclose(bank.x[i], f.x[:, 0], rtol=1e-12, atol=1e-15)
+        assert_allclose(bank.P[i], f.P, rtol=1e-12, atol=1e-18)
+    assert_array_equal(bank.Q, np.broadcast_to(1e-4 * np.eye(3), (3, 3, 3)))  # kept
+
+
+def test_assigning_x_and_P_stores_copies(rng):
+    """``bank.x = X`` and ``bank.P = P`` copy: the caller's arrays can change later
+    (or be read-only memory) without the bank seeing it."""
+    Z, H = _record(rng, N=20, C=4, n=3, missing=0.0, bad_rows=0.0)
+    bank = RLSBank(4, 3, lam=0.95)
+    X, P = np.full((4, 3), 0.2), np.broadcast_to(20.0 * np.eye(3), (4, 3, 3)).copy()
+    bank.x, bank.P = X, P
+    X[:], P[:] = 7.0, 9.0
+    assert_array_equal(bank.x, 0.2)
+    assert_array_equal(bank.P, np.broadcast_to(20.0 * np.eye(3), (4, 3, 3)))
+    frozen = np.broadcast_to(np.full(3, 0.1), (4, 3))   # read-only view
+    bank.x = frozen
+    bank.predict_update(Z[0], H[0])
+    bank.batch_filter(Z[1:], H[1:])
+    assert_array_equal(frozen, 0.1)
+    with pytest.raises(TypeError, match="`x` must be real"):
+        bank.x = np.full((4, 3), 1.0j)
+
+
+def test_batch_filter_flags_and_saver_are_checked(rng):
+    Z, H = _record(rng, N=5, C=2, n=2)
+    bank = RLSBank(2, 2)
+    for kw, match in [({"update_first": "no"}, "`update_first` must be True or False"),
+                      ({"store_covariances": 2}, "`store_covariances` must be True or False"),
+                      ({"store_means": None}, "`store_means` must be True or False"),
+                      ({"saver": 1}, r"`saver` must be None or have a save\(\) method")]:
+        with pytest.raises(TypeError, match=match):
+            bank.batch_filter(Z, H, **kw)
+    assert bank.n_updates == 0
+
+
+def test_a_warning_turned_error_leaves_the_bank_unchanged(rng):
+    """With warnings as errors, a health warning (raised after the step was
+    computed) and the skipped-forgetting warning leave every channel as it was."""
+    Z, H = _record(rng, N=10, C=4, n=3, missing=0.0, bad_rows=0.0)
+    bank = RLSBank(4, 3, lam=0.95, check_every=1, cond_max=1.0 + 1e-9)
+    bank.predict()
+    calls = [lambda: bank.update(Z[0], H[0]), lambda: bank.predict_update(Z[0], H[0]),
+             lambda: bank.batch_filter(Z, H)]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for i, call in enumerate(calls):
+            before = pickle.dumps(bank)
+            with pytest.raises(NumericalWarning):
+                call()
+            assert pickle.dumps(bank) == before, i
+    quiet = RLSBank(4, 3, lam=0.95)
+    quiet.predict()
+    quiet.update(Z[0], H[0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        before = pickle.dumps(quiet)
+        with pytest.raises(ForgettingSkippedWarning):
+            quiet.update(Z[1], H[1])
+        assert pickle.dumps(quiet) == before
 
 
 def test_shape_errors_name_the_argument_and_the_channel_count(rng):

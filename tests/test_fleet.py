@@ -141,6 +141,21 @@ def test_several_inputs_per_channel(rng):
         _assert_channel_equals_arx(bank, c, ref, u[:, c], y[:, c])
 
 
+@pytest.mark.parametrize("method", ["ls", "rls"])
+def test_several_inputs_with_a_channel_dropped(rng, method):
+    """The compiled passes read the record itself: with two inputs and a channel that
+    cannot be fitted in the middle (the other channels are then not consecutive),
+    every fitted channel still equals ARX.fit and validate."""
+    u, y = _fleet(rng, C=6, nu=2)
+    u[:, 2] = 0.0                           # channel 2: no excitation at all
+    model = ARX(3, [2, 1], [1, 0])
+    bank = model.fit_many(u, y, method, on_error="nan")
+    assert [e is None for e in bank.errors_] == [True, True, False, True, True, True]
+    for c in (0, 1, 3, 4, 5):
+        ref = ARX(3, [2, 1], [1, 0]).fit(u[:, c], y[:, c], method)
+        _assert_channel_equals_arx(bank, c, ref, u[:, c], y[:, c])
+
+
 def test_arx_fit_many_is_fit_many(rng):
     u, y = _fleet(rng, C=4)
     a = ARX(2, 2, 1).fit_many(u, y, "rls", lam=0.99, residual_tests=False)
@@ -278,6 +293,9 @@ def test_argument_errors(rng):
         fit_many(model, u, y, lam=0.9)
     with pytest.raises(TypeError, match="`gate` is not an option of fit_many or RLSBank"):
         fit_many(model, u, y, "rls", gate=3.0)
+    with pytest.raises(ValueError, match="`forgetting_params` key 'trace_max' is not supported "
+                                         r"by RLSBank \(mode 'exponential'\); supported: none"):
+        fit_many(model, u, y, "rls", lam=0.99, forgetting_params={"trace_max": 10.0})
     with pytest.raises(ValueError, match="`method` must be 'ls' or 'rls'"):
         fit_many(model, u, y, "ml")
     with pytest.raises(ValueError, match="`on_error` must be 'raise' or 'nan'"):

@@ -10,14 +10,17 @@ so ``bank.channel(i)`` is an ordinary filter that continues where channel
 """
 
 import copy
+import functools
 import math
 
 import numpy as np
 
 from .._display import pretty_str
 from .._validation import (
+    COVARIANCE_MAX,
     VARIANCE_RANGE,
     as_float_array,
+    check_bool,
     check_covariance,
     check_dimension,
     check_int,
@@ -31,6 +34,9 @@ from . import forgetting as _fg
 __all__ = ["RLSBank", "BankHistory"]
 
 _MODES = ("exponential", "directional", "constant_trace")
+# the keys of `forgetting_params` each mode of the bank reads (its kernels know no others)
+_SUPPORTED_PARAMS = {"exponential": (), "directional": ("eps",),
+                     "constant_trace": ("trace", "ratio")}
 _LOG_2PI = math.log(2.0 * math.pi)
 _TINY = np.finfo(float).tiny
 _kernels = None
@@ -43,6 +49,42 @@ def _get_kernels():
         from . import _kernels_bank
         _kernels = _kernels_bank
     return _kernels
+
+
+def _atomic(method):
+    """Run `method` as one transaction: if it raises (a rejected input, or a
+    warning turned into an error after the step was computed), the bank's
+    attributes are put back as they were. The methods replace arrays and
+    never write into the ones they leave behind, so a shallow copy of the
+    attributes is enough to undo them."""
+    @functools.wraps(method)
+    def run(self, *args, **kwargs):
+        before = self.__dict__.copy()
+        try:
+            return method(self, *args, **kwargs)
+        except BaseException:
+            self.__dict__.clear()
+            self.__dict__.update(before)
+            raise
+    return run
+
+
+def _supported_params(forgetting, params):
+    """A copy of the user's `forgetting_params`, holding only keys that the bank's
+    `forgetting` mode reads (a key only `RecursiveLeastSquares` reads is refused
+    here rather than silently ignored by the bank's kernels)."""
+    if params is None:
+        return None
+    if not isinstance(params, dict):
+        raise TypeError(f"`forgetting_params` must be a dict or None; got "
+                        f"{type(params).__name__}")
+    supported = _SUPPORTED_PARAMS[forgetting]
+    for key in params:
+        if key not in supported:
+            raise ValueError(
+                f"`forgetting_params` key {key!r} is not supported by RLSBank (mode "
+                f"{forgetting!r}); supported: {', '.join(map(repr, supported)) or 'none'}")
+    return dict(params)
 
 
 class BankHistory:
@@ -130,7 +172,11 @@ class RLSBank:
         `RecursiveLeastSquares` per channel for them).
     forgetting_params : dict, optional
         Constants of the mode, as in `RecursiveLeastSquares` (defaults
-        computed per channel from its `lam` and `R`).
+        computed per channel from its `lam` and `R`): ``eps`` for
+        ``"directional"``, ``trace`` and ``ratio`` for ``"constant_trace"``,
+        none for ``"exponential"``. Any other key (one that only
+        `RecursiveLeastSquares` reads, such as a windup cap) is a
+        ValueError naming it.
     check_every : int, default 100
         Health check period (0 disables it): every `check_every` updates,
         and at the end of :meth:`batch_filter`, each channel's ``P`` is
@@ -236,10 +282,7 @@ class RLSBank:
                 f"`forgetting` must be one of {', '.join(map(repr, _MODES))} for RLSBank; got "
                 f"{forgetting!r} (use one RecursiveLeastSquares per channel for the others)")
         self._mode = _MODES.index(forgetting)
-        self._forgetting_params_in = (None if forgetting_params is None
-                                      else dict(forgetting_params)
-                                      if isinstance(forgetting_params, dict)
-                                      else forgetting_params)
+        self._forgetting_params_in = _supported_params(forgetting, forgetting_params)
         self._R = self._per_channel_positive(R, "R")
         self.lam = lam
         self.Q = Q
@@ -256,8 +299,28 @@ class RLSBank:
         self.reset()
 
     # ------------------------------------------------------------------
-    # configuration, validated on assignment
+    # state and configuration; assigning stores a copy
     # ------------------------------------------------------------------
+    @property
+    def x(self):
+        """Estimates, ``(C, dim_x)``; assigning stores a copy (the shape is checked
+        where it is used, so that the error names the method)."""
+        return self._x
+
+    @x.setter
+    def x(self, value):
+        self._x = np.array(as_float_array(value, "x"), dtype=np.float64, order="C")
+
+    @property
+    def P(self):
+        """Covariances, ``(C, dim_x, dim_x)``; assigning stores a copy (the shape is
+        checked where it is used)."""
+        return self._P
+
+    @P.setter
+    def P(self, value):
+        self._P = np.array(as_float_array(value, "P"), dtype=np.float64, order="C")
+
     @property
     def lam(self):
         """Forgetting factors, shape (C,) (a copy; assign to change them)."""
@@ -300,18 +363,20 @@ class RLSBank:
     @property
     def forgetting_params(self):
         """Constants of the forgetting mode, one array of shape (C,) per name."""
-        names = _fg._PARAM_NAMES[self._mode]
+        names = _SUPPORTED_PARAMS[self.forgetting]
         return {name: self._params[:, i].copy() for i, name in enumerate(names)}
 
     def _mode_params(self, lam, R):
-        """``(C, 2)`` constants of the mode, validated by `forgetting.mode_params`
-        once per distinct ``(lam, R)`` pair (so the defaults are per channel)."""
+        """``(C, 2)`` constants of the mode (those of `_SUPPORTED_PARAMS`, in its
+        order), validated by `forgetting.mode_params` once per distinct ``(lam,
+        R)`` pair (so the defaults are per channel)."""
         C = self.n_channels
         params = np.zeros((C, 2))
-        if self._mode == 0:          # no constants; still reject unknown keys
-            _fg.mode_params(0, self._forgetting_params_in, self.dim_x, float(lam[0]),
-                            float(R[0]))
-            return params
+        supported = _SUPPORTED_PARAMS[self.forgetting]
+        if not supported:            # exponential: no constants (`_supported_params`
+            return params            # refused every key)
+        names = _fg._PARAM_NAMES[self._mode]
+        pick = [names.index(name) for name in supported]
         pairs, inverse = np.unique(np.column_stack([lam, R]), axis=0, return_inverse=True)
         for k, (lam_k, r_k) in enumerate(pairs):
             try:
@@ -320,29 +385,45 @@ class RLSBank:
             except ValueError as exc:
                 c = int(np.argmax(inverse.reshape(-1) == k))
                 raise ValueError(f"{exc} (channel {c})") from None
-            params[inverse.reshape(-1) == k, :len(values)] = values
+            params[inverse.reshape(-1) == k, :len(pick)] = [values[i] for i in pick]
         return params
 
     # ------------------------------------------------------------------
     # the recursion
     # ------------------------------------------------------------------
-    def predict(self):
+    @_atomic
+    def predict(self, Q=None):
         r"""Time update of every channel, :math:`P \leftarrow P / \lambda + Q`.
 
         The estimates are unchanged. For the directional and constant-trace
         modes only ``Q`` is added (their forgetting happens in
         :meth:`update`), as in `RecursiveLeastSquares`.
+
+        Parameters
+        ----------
+        Q : float or array_like, optional
+            Random-walk covariance for this call only, in the forms of the
+            constructor's `Q`; the bank's `Q` if omitted.
         """
-        P = self._checked_P()
+        if Q is None:
+            Q, Q_is_zero = self._Q, self._Q_is_zero
+        else:
+            Q = self._covariances(Q, "Q")
+            Q_is_zero = not Q.any()
+        x, P = self._checked_x(), self._checked_P()
         Pn = np.empty_like(P)
-        _get_kernels().bank_predict(P, self._time_il(), self._Q, self._Q_is_zero, Pn)
-        self.P = Pn
-        self.x_prior = self._checked_x().copy()
+        _get_kernels().bank_predict(P, self._time_il(), Q, Q_is_zero, Pn)
+        self._P = Pn
+        self.x_prior = x.copy()
         self.P_prior = Pn.copy()
         self._updates_since_predict = 0
 
+    @_atomic
     def update(self, z, H, R=None):
         r"""Measurement update of every channel.
+
+        A call that raises, or whose warning is turned into an error, leaves
+        the bank as it was.
 
         Parameters
         ----------
@@ -366,7 +447,7 @@ class RLSBank:
         bad = kern.bank_update(x, P, zz, Hm, r, self._lam, self._mode, self._params, xn, Pn, y,
                                S, K, lam_t, kern.block_size(n, C))
         self._note_update()
-        self.x, self.P = xn, Pn
+        self._x, self._P = xn, Pn
         self.x_post, self.P_post = xn.copy(), Pn.copy()
         self.z, self.H = zz.copy(), Hm.copy()
         self.y, self.S, self.SI, self.K, self.lam_t = y, S, 1.0 / S, K, lam_t
@@ -375,20 +456,16 @@ class RLSBank:
         if every and (bad or not self.n_updates % every):
             self._check_health(f"at update {self.n_updates} since reset")
 
+    @_atomic
     def predict_update(self, z, H, R=None):
         """One textbook step of every channel: :meth:`predict` then :meth:`update`.
 
         A step whose update raises leaves the bank as it was (no half step).
         """
-        before = dict(self.__dict__)     # predict and update replace arrays, never write them
         self.predict()
-        try:
-            self.update(z, H, R)
-        except BaseException:
-            self.__dict__.clear()
-            self.__dict__.update(before)
-            raise
+        self.update(z, H, R)
 
+    @_atomic
     def batch_filter(self, zs, Hs, Rs=None, update_first=False, saver=None,
                      store_covariances=True, store_means=True):
         r"""Run every channel over a record in one compiled call.
@@ -428,9 +505,17 @@ class RLSBank:
         The channels are processed in blocks that stay in cache for the
         whole record, and the loops over the channels of a block vectorize
         (see :mod:`rlsfilt.filters._kernels_bank`). The health check runs
-        every `check_every` steps inside the loop and once at the end.
+        every `check_every` steps inside the loop and once at the end. A
+        call that raises, or whose warning is turned into an error, leaves
+        the bank as it was.
         """
         C, n = self.n_channels, self.dim_x
+        update_first = check_bool(update_first, "update_first")
+        store_covariances = check_bool(store_covariances, "store_covariances")
+        store_means = check_bool(store_means, "store_means")
+        if saver is not None and not callable(getattr(saver, "save", None)):
+            raise TypeError(f"`saver` must be None or have a save() method (filterpy's Saver); "
+                            f"got {type(saver).__name__}")
         Z = self._measurements(zs, "zs", None, f"(N, {C}) (one column per channel)", ndim=2,
                                finite=False)
         if Z.shape[1] != C:
@@ -447,8 +532,8 @@ class RLSBank:
         Hk = Ht if h_last else np.ascontiguousarray(Hm)
         Rv = self._batch_variances(Rs, N)
         if saver is not None:
-            return self._batch_stepwise(Z, Hm, Rv, bool(update_first), saver,
-                                        store_covariances, store_means)
+            return self._batch_stepwise(Z, Hm, Rv, update_first, saver, store_covariances,
+                                        store_means)
         x = np.array(self._checked_x(), dtype=np.float64, order="C")
         P = np.array(self._checked_P(), dtype=np.float64, order="C")
         means = np.empty((N if store_means else 0, C, n))
@@ -464,7 +549,7 @@ class RLSBank:
         if N:
             run = kern.bank_batch_parallel if self.parallel else kern.bank_batch
             run(x, P, Z, Hk, h_last, Rv, self._time_il(), self._lam, self._Q, self._Q_is_zero,
-                self._mode, self._params, bool(update_first), means, covs, covs_p, ys, ss,
+                self._mode, self._params, update_first, means, covs, covs_p, ys, ss,
                 x_prior, P_prior, x_post, P_post, K, lam_t, self.check_every, self.n_updates,
                 self.cond_max, k_fail, k_inf, kern.block_size(n, C))
             _raise_infinite(k_inf, Z, Hm)          # (checked in the kernel: no extra pass)
@@ -473,7 +558,7 @@ class RLSBank:
             means_p = means.copy() if update_first else np.concatenate(
                 [self._checked_x()[None], means[:-1]]) if N else means.copy()
         step0 = self.n_updates
-        self.x, self.P = x, P
+        self._x, self._P = x, P
         if N:
             self.x_prior, self.P_prior, self.x_post, self.P_post = x_prior, P_prior, x_post, P_post
             self.z, self.H = Z[-1].copy(), Hm[-1].copy()
@@ -495,9 +580,8 @@ class RLSBank:
 
     def _batch_stepwise(self, Z, Hm, Rv, update_first, saver, store_covariances, store_means):
         """`batch_filter` with a `saver`: :meth:`predict`/:meth:`update` step by
-        step, ``saver.save()`` after each step. The record is validated first,
-        and a call that raises (or whose warning is turned into an error)
-        leaves the bank as it was."""
+        step, ``saver.save()`` after each step. The record is validated first;
+        a call that raises is undone by `batch_filter` (see `_atomic`)."""
         C, n = self.n_channels, self.dim_x
         N = len(Z)
         for name, arr in (("zs", Z), ("Hs", Hm)):
@@ -511,35 +595,30 @@ class RLSBank:
         covs = np.empty((N if store_covariances else 0, C, n, n))
         covs_p = np.empty_like(covs)
         ys, ss = np.empty((N, C)), np.empty((N, C))
-        before = copy.deepcopy(self.__dict__)
-        try:
-            for k in range(N):
-                if not update_first:
-                    self.predict()
-                    if store_covariances:
-                        covs_p[k] = self.P
-                self.update(Z[k], Hm[k], Rv[k])
-                ys[k], ss[k] = self.y, self.S
-                if store_means:
-                    means[k] = self.x
+        for k in range(N):
+            if not update_first:
+                self.predict()
                 if store_covariances:
-                    covs[k] = self.P
-                if update_first:
-                    self.predict()
-                    if store_covariances:
-                        covs_p[k] = self.P
-                if store_means:
-                    means_p[k] = self.x_prior
-                saver.save()
-        except BaseException:
-            self.__dict__.clear()
-            self.__dict__.update(before)
-            raise
+                    covs_p[k] = self.P
+            self.update(Z[k], Hm[k], Rv[k])
+            ys[k], ss[k] = self.y, self.S
+            if store_means:
+                means[k] = self.x
+            if store_covariances:
+                covs[k] = self.P
+            if update_first:
+                self.predict()
+                if store_covariances:
+                    covs_p[k] = self.P
+            if store_means:
+                means_p[k] = self.x_prior
+            saver.save()
         return BankHistory(means if store_means else None,
                            covs if store_covariances else None,
                            means_p if store_means else None,
                            covs_p if store_covariances else None, ys, ss)
 
+    @_atomic
     def initialize(self, zs, Hs):
         r"""Start every channel from batch least squares on its first samples.
 
@@ -595,8 +674,8 @@ class RLSBank:
         x = (Rinv @ (Qf.transpose(0, 2, 1) @ B))[:, :, 0] / d
         Rinv = Rinv / d[:, :, None]                       # D^-1 R_s^-1
         P = self._R[:, None, None] * (Rinv @ Rinv.transpose(0, 2, 1))
-        self.x = x
-        self.P = 0.5 * (P + P.transpose(0, 2, 1))
+        self._x = x
+        self._P = 0.5 * (P + P.transpose(0, 2, 1))
         self.x_prior, self.x_post = x.copy(), x.copy()
         self.P_prior, self.P_post = self.P.copy(), self.P.copy()
         self._updates_since_predict = 0
@@ -654,14 +733,32 @@ class RLSBank:
                 f._log_likelihood, f._likelihood, f._mahalanobis = 0.0, 1.0, math.nan
         return f
 
+    def _subset(self, channels):
+        """A new bank of `channels` (an integer index array) of this one, with their
+        configuration (``lam``, ``R``, ``Q``, ``P0``, ``x0``, the mode's constants,
+        already validated here) and a fresh state, as ``RLSBank(len(channels),
+        ...)`` with those channels' options would be, without validating them
+        again (`fit_many` takes one chunk of a fleet at a time)."""
+        channels = np.asarray(channels, dtype=np.int64)
+        new = copy.copy(self)
+        new.__dict__ = {key: value for key, value in self.__dict__.items()
+                        if key in ("dim_x", "_mode", "_forgetting_params_in", "check_every",
+                                   "cond_max", "parallel")}
+        new.n_channels = len(channels)
+        for name in ("_lam", "_R", "_Q", "_params", "_P0", "_x0"):
+            setattr(new, name, getattr(self, name)[channels])       # (copies)
+        new._Q_is_zero = not new._Q.any()
+        new.reset()
+        return new
+
     def reset(self):
         """Return every channel to ``x0``, ``P0``; diagnostics and counters are cleared.
 
         ``lam``, ``R``, ``Q`` and the forgetting mode are kept.
         """
         C, n = self.n_channels, self.dim_x
-        self.x = self._x0.copy()
-        self.P = self._P0.copy()
+        self._x = self._x0.copy()
+        self._P = self._P0.copy()
         self.x_prior, self.P_prior = self.x.copy(), self.P.copy()
         self.x_post, self.P_post = self.x.copy(), self.P.copy()
         self.H = np.zeros((C, n))
@@ -811,6 +908,7 @@ class RLSBank:
                 want = "positive" if definite else "non-negative"
                 raise ValueError(f"`{name}` must hold {want} finite variances; got "
                                  f"{scalars[c]} for channel {c}")
+            _check_magnitude(scalars, name)
             return scalars[:, None, None] * np.eye(n)[None]
         if arr.shape != (C, n, n):
             raise ValueError(f"`{name}` must be a scalar or have shape ({C},), ({n}, {n}) or "
@@ -823,6 +921,7 @@ class RLSBank:
             raise ValueError(f"`{name}` must be finite; got NaN or inf entries (channel "
                              f"{int(np.argmin(finite))})")
         scale = np.maximum(np.abs(arr).max(axis=(1, 2)), np.finfo(float).tiny)
+        _check_magnitude(scale, name)
         asym = np.abs(arr - arr.transpose(0, 2, 1)).max(axis=(1, 2))
         if (asym > 1e-10 * scale).any():
             c = int(np.argmax(asym > 1e-10 * scale))
@@ -908,6 +1007,17 @@ class RLSBank:
                              f"{getattr(P, 'shape', type(P).__name__)}")
         return np.ascontiguousarray(P, dtype=np.float64)
 
+
+
+def _check_magnitude(scale, name):
+    """The largest entry of each channel's covariance (`scale`, shape (C,)) is at
+    most `COVARIANCE_MAX`, as `check_covariance` requires of one matrix."""
+    bad = scale > COVARIANCE_MAX
+    if bad.any():
+        c = int(np.argmax(bad))
+        raise ValueError(f"`{name}` must have entries of magnitude at most {COVARIANCE_MAX:.0e} "
+                         f"(the update multiplies two of them); got {scale[c]:.3g} for channel "
+                         f"{c}")
 
 
 def _raise_infinite(k_inf, Z, H):

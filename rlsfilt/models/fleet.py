@@ -20,6 +20,7 @@ numbers.
 
 import contextlib
 import inspect
+import math
 import numbers
 import warnings
 
@@ -388,13 +389,14 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
     bar = _progress_bar(progress, C)
     chunk = max(1, _CHUNK_BYTES // (8 * max(rows, 1) * (n + 2)))
     todo = np.flatnonzero(good)
+    buffer = np.empty(rows * n * min(chunk, C))               # the regressors of a chunk
     try:
         with _one_blas_thread():
             for start in range(0, C, chunk):
                 cs = todo[(todo >= start) & (todo < start + chunk)]
                 if cs.size:
                     _fit_chunk(cs, U, Y, s, method, per_channel, k0, max_lag, residual_tests,
-                               on_error, labels, out)
+                               on_error, labels, out, buffer)
                 if bar is not None:
                     bar.update(min(chunk, C - start))
     finally:
@@ -541,37 +543,43 @@ class _Results:
             self.rec[:, bad] = np.nan
 
 
-def _fit_chunk(cs, U, Y, s, method, per_channel, k0, max_lag, tests, on_error, labels, out):
-    """Fit channels `cs` and write their numbers into `out`."""
+def _fit_chunk(cs, U, Y, s, method, per_channel, k0, max_lag, tests, on_error, labels, out,
+               buffer):
+    """Fit channels `cs` of the record `U`, `Y` and write their numbers into `out`
+    (`buffer`: the memory of the chunk's regressors, reused from chunk to chunk)."""
     cs, sel = _as_slice(cs)                                  # a view when `cs` is a range
-    Y = Y[:, sel]
-    U = U[:, sel]
-    Phi, target = _regressors(U, Y, s)                       # (rows, c, n), (rows, c)
+    norms = np.empty((cs.size, s.n_params))                  # column norms of the regressors
+    Phi, target = _regressors(U, Y, s, sel, buffer, norms)   # (rows, c, n), (rows, c)
     if method == "ls":
-        ok, theta, cov = _least_squares(Phi, target)
+        ok, theta, cov = _least_squares(Phi, target, norms)
         rank_msg = ("the regressor matrix has rank < n_params = {n}: the input is not "
                     "persistently exciting for these orders (or the orders are too high); use a "
                     "richer input, more data or lower orders")
         for j in np.flatnonzero(~ok):
             _fail(out, cs[j], labels, rank_msg.format(n=s.n_params), on_error)
     else:
-        ok, theta, cov = _recursive(cs, Phi, target, per_channel, k0, labels, on_error, out)
+        ok, theta, cov = _recursive(cs, Phi, target, norms, per_channel, k0, labels, on_error,
+                                    out)
     if not ok.any():
         return
     if not ok.all():
-        cs, Phi, target, theta, cov = cs[ok], Phi[:, ok], target[:, ok], theta[ok], cov[ok]
-        Y, U = Y[:, ok], U[:, ok]
+        cs, Phi, theta, cov = cs[ok], Phi[:, ok], theta[ok], cov[ok]
     rows, c, n = Phi.shape
     from ._kernels_fleet import fleet_statistics
 
     cs, sel = _as_slice(cs)
-    # residuals written in place when the channels are consecutive (no copy)
-    resid = out.resid[:, sel] if isinstance(sel, slice) else np.empty((rows, c))
+    # the statistics read the record itself (not the regressors) and write the
+    # residuals in place when the channels are consecutive (no copies)
+    Yc, c0, Uc, cu0 = _record_views(U, Y, sel)
+    resid = out.resid if isinstance(sel, slice) else np.empty((rows, c))
     sigma2, pred_fit, sim_fit = np.empty(c), np.empty(c), np.empty(c)
-    fleet_statistics(_channels_last(Phi), target, theta, s.na, Y, resid, sigma2, pred_fit,
+    u_lag, u_input = _input_columns(s)
+    fleet_statistics(Yc, c0, Uc, cu0, s.na, u_lag, u_input, theta, resid, sigma2, pred_fit,
                      sim_fit)
     out.theta[sel], out.sigma2[sel] = theta, sigma2
-    if not isinstance(sel, slice):
+    if isinstance(sel, slice):
+        resid = resid[:, sel]
+    else:
         out.resid[:, sel] = resid
     out.cov[sel] = sigma2[:, None, None] * cov
     out.pred_fit[sel], out.sim_fit[sel] = pred_fit, sim_fit
@@ -582,6 +590,7 @@ def _fit_chunk(cs, U, Y, s, method, per_channel, k0, max_lag, tests, on_error, l
         resid = np.ascontiguousarray(resid.T)                  # one row per channel
         Q, _, p_white = ljung_box_many(resid, max_lag)
         out.Q[sel], out.p_white[sel] = Q, p_white
+        U = U[:, sel]
         nu = U.shape[2]
         width = 8 * rows * (nu * (2 * max_lag + 1) + n + 2)
         step = max(1, _TEST_BYTES // width)
@@ -593,7 +602,7 @@ def _fit_chunk(cs, U, Y, s, method, per_channel, k0, max_lag, tests, on_error, l
             out.F[cs[sl]], out.q[cs[sl]], out.p_indep[cs[sl]] = F, q, p
 
 
-def _least_squares(Phi, target):
+def _least_squares(Phi, target, norms):
     r"""Batch least squares of each channel through QR, as ``ARX.fit(method="ls")``.
 
     One Householder QR of ``[Phi, y]`` per channel (NumPy's stacked QR)
@@ -602,6 +611,7 @@ def _least_squares(Phi, target):
     decided, as in ``ARX.fit``, on the columns scaled to unit norm (from the
     singular values of :math:`R_1 D^{-1}`, those of :math:`\Phi D^{-1}`).
 
+    ``norms`` (c, n) are the column norms of ``Phi`` (from `_regressors`).
     Returns ``ok`` (c,) full rank, ``theta`` (c, n), ``cov`` (c, n, n).
     """
     rows, c, n = Phi.shape
@@ -610,7 +620,6 @@ def _least_squares(Phi, target):
     A[:, :, n] = target.T
     R = np.linalg.qr(A, mode="r")
     R1, qty = R[:, :n, :n], R[:, :n, n]
-    norms = _column_norms(Phi)                                 # (c, n)
     d = np.where(norms > 0.0, norms, 1.0)
     sv = np.linalg.svd(R1 / d[:, None, :], compute_uv=False)
     tol = sv[:, :1] * max(rows, n) * np.finfo(float).eps
@@ -625,7 +634,7 @@ def _least_squares(Phi, target):
     return ok, theta, cov
 
 
-def _recursive(cs, Phi, target, opts, k0, labels, on_error, out):
+def _recursive(cs, Phi, target, norms, opts, k0, labels, on_error, out):
     """Recursive least squares of each channel, as ``ARX.fit(method="rls")``:
     an `RLSBank` per group of channels with the same batch start ``k0``."""
     rows, c, n = Phi.shape
@@ -637,7 +646,7 @@ def _recursive(cs, Phi, target, opts, k0, labels, on_error, out):
     elif opts["prior"]:
         k0s = np.zeros(c, dtype=int)
     else:
-        k0s = _batch_start_rows(Phi)
+        k0s = _batch_start_rows(Phi, norms)
         for j in np.flatnonzero(k0s < 0):
             ok[j] = False
             rank = int(np.linalg.matrix_rank(unit_columns(Phi[:, j])))
@@ -666,11 +675,8 @@ def _run_group(cs, g, k0, Phi, target, opts, labels, on_error, out):
     """Batch start on ``k0`` rows and the filter over the rest, for channels `g`."""
     rows = Phi.shape[0]
 
-    def make(channels):
-        return RLSBank(len(channels), Phi.shape[2], lam=opts["lam"][cs[channels]],
-                       R=opts["R"][cs[channels]], Q=opts["Q"][cs[channels]],
-                       P0=opts["P0"][cs[channels]], x0=opts["x0"][cs[channels]],
-                       **opts["filter"])
+    def make(channels):                 # the fleet's bank, validated once, cut to `channels`
+        return opts["bank"]._subset(cs[channels])
 
     bank = make(g)
     g_sel = slice(None) if len(g) == Phi.shape[1] else g      # no copy for a whole chunk
@@ -702,22 +708,6 @@ def _run_group(cs, g, k0, Phi, target, opts, labels, on_error, out):
     return g, bank, residuals
 
 
-def _column_norms(Phi):
-    """Norms of the regressor columns of each channel, (c, n), summed in time
-    order (the rank decisions of ``regressors._column_rank`` use unit columns too)."""
-    from ._kernels_fleet import column_norms
-
-    out = np.empty(Phi.shape[1:])
-    column_norms(_channels_last(Phi), out)
-    return out
-
-
-def _channels_last(Phi):
-    """``Phi`` (rows, c, n) as a C-ordered (rows, n, c) array: the buffer
-    `_regressors` built, without a copy, unless channels were dropped since."""
-    return np.ascontiguousarray(Phi.transpose(0, 2, 1))
-
-
 def _as_slice(cs):
     """``(cs, selector)``: a slice when the positions `cs` are consecutive."""
     if cs.size and cs[-1] - cs[0] + 1 == cs.size:
@@ -725,12 +715,12 @@ def _as_slice(cs):
     return cs, cs
 
 
-def _batch_start_rows(Phi):
+def _batch_start_rows(Phi, norms):
     """The default ``k0`` of ``ARX.fit(method="rls")`` for each channel: the
     fewest leading rows with full column rank (``regressors._full_rank_rows``),
-    -1 when all rows together are rank-deficient."""
+    -1 when all rows together are rank-deficient (`norms`: the column norms of
+    ``Phi``, whose unit columns decide the rank, as ``regressors._column_rank``)."""
     rows, c, n = Phi.shape
-    norms = _column_norms(Phi)                                 # (c, n): unit columns
     Ps = Phi[:n].transpose(1, 0, 2) / np.where(norms > 0, norms, 1.0)[:, None, :]
     k0s = np.full(c, n)
     for j in np.flatnonzero(np.linalg.matrix_rank(Ps) < n):
@@ -739,29 +729,60 @@ def _batch_start_rows(Phi):
     return k0s
 
 
-def _regressors(U, Y, s):
-    r"""Regressors ``(rows, C, n)`` and targets ``(rows, C)`` of every channel.
+def _input_columns(s):
+    """Lags and input indices of the input columns of the ARX regressor (in its
+    order: input by input, increasing lag), as two int64 arrays."""
+    lags = [k for j in range(s.n_inputs) for k in range(s.nk[j], s.nk[j] + s.nb[j])]
+    inputs = [j for j in range(s.n_inputs) for _ in range(s.nb[j])]
+    return np.array(lags, dtype=np.int64), np.array(inputs, dtype=np.int64)
+
+
+def _regressors(U, Y, s, channels=None, buffer=None, norms=None):
+    r"""Regressors ``(rows, c, n)`` and targets ``(rows, c)`` of the `channels`.
 
     The convention of :func:`~rlsfilt.models.arx_regressors` (rows
     ``t = max_lag .. N-1``, blocks ``-y`` then ``u`` by increasing lag) with a
-    channel axis: each column of the regressor is one shifted slice of the
-    record for all channels at once. The tests hold it equal to
-    ``ARX.regressors`` channel by channel. The regressors are stored as
-    ``(rows, n, C)`` (each column a contiguous copy) and returned as the
-    transposed view, which `RLSBank.batch_filter` reads without a copy.
+    channel axis, for the channels `channels` (a slice or positions; all by
+    default) of the record ``U`` (N, C, n_inputs), ``Y`` (N, C). The tests
+    hold it equal to ``ARX.regressors`` channel by channel. The regressors
+    are built by one compiled pass over the record
+    (:func:`~rlsfilt.models._kernels_fleet.build_regressors`), stored as
+    ``(rows, n, c)`` and returned as the transposed view, which
+    `RLSBank.batch_filter` reads without a copy. With a `buffer` (a 1-d
+    float64 array of at least ``rows n c`` elements) they are written into
+    its first elements (`fit_many` reuses one buffer for all chunks); with
+    `norms` (c, n) that array receives the norms of their columns (summed in
+    time order, in the same pass).
     """
+    from ._kernels_fleet import build_regressors
+
+    U, Y = np.ascontiguousarray(U, dtype=float), np.ascontiguousarray(Y, dtype=float)
+    channels = slice(0, Y.shape[1]) if channels is None else channels
+    Yc, c0, Uc, cu0 = _record_views(U, Y, channels)
+    c = len(range(Y.shape[1])[channels]) if isinstance(channels, slice) else len(channels)
+    shape = (Y.shape[0] - s.max_lag, s.n_params, c)
+    Phi = np.empty(shape) if buffer is None else buffer[:math.prod(shape)].reshape(shape)
+    norms = np.empty((c, s.n_params)) if norms is None else norms
+    u_lag, u_input = _input_columns(s)
+    build_regressors(Yc, c0, Uc, cu0, s.na, u_lag, u_input, Phi, norms)
+    return Phi.transpose(0, 2, 1), Y[s.max_lag:, channels]
+
+
+def _record_views(U, Y, channels):
+    """The record of `channels` as the compiled kernels read it: ``(Y, c0, U, cu0)``
+    with channel ``c`` in column ``c0 + c`` of ``Y`` (N, C') and ``cu0 + c`` of
+    ``U`` (n_inputs, N, C'). Views of the whole (C-ordered) record when
+    `channels` is a slice (for ``U`` with one input), otherwise copies of the
+    channels' columns."""
     N, C, nu = U.shape
-    t0 = s.max_lag
-    Phi = np.empty((N - t0, s.n_params, C))
-    col = 0
-    for k in range(1, s.na + 1):                               # -y(t-1) .. -y(t-na)
-        np.negative(Y[t0 - k:N - k], out=Phi[:, col])
-        col += 1
-    for j in range(nu):                                        # u_j(t-nk) .. u_j(t-nk-nb+1)
-        for k in range(s.nk[j], s.nk[j] + s.nb[j]):
-            Phi[:, col] = U[t0 - k:N - k, :, j]
-            col += 1
-    return Phi.transpose(0, 2, 1), Y[t0:]
+    if isinstance(channels, slice):
+        c0 = range(C)[channels].start
+        Yc = Y
+    else:
+        c0, Yc = 0, np.ascontiguousarray(Y[:, channels])
+    if nu == 1 and isinstance(channels, slice):
+        return Yc, c0, U.reshape(1, N, C), c0
+    return Yc, c0, np.ascontiguousarray(U[:, channels].transpose(2, 0, 1)), 0
 
 
 def _fleet_data(u, y, channels):
@@ -846,7 +867,7 @@ def _rls_options(C, n, method, opts, filter_options):
     kw = {key: opts[key] for key in ("lam", "R", "Q", "P0", "x0") if opts[key] is not None}
     proto = RLSBank(C, n, **kw, **filter_options)
     return {"lam": proto.lam, "R": proto.R, "Q": proto.Q, "P0": proto._P0, "x0": proto._x0,
-            "filter": dict(filter_options),
+            "filter": dict(filter_options), "bank": proto,
             "prior": opts["P0"] is not None or opts["x0"] is not None}
 
 
