@@ -218,6 +218,30 @@ def rls_update(theta, P, psi, eps, r, cfg, g, K, T, dx, zy):
 
 
 # ----------------------------------------------------------------------
+# the signal buffers
+# ----------------------------------------------------------------------
+@njit(cache=True, inline="always")
+def shift(buf):
+    """Move every signal (row) of `buf` one lag back: ``buf[:, k] <- buf[:, k - 1]``,
+    and lag 0 to zero (the step then writes it)."""
+    n_sig, M = buf.shape
+    for sg in range(n_sig):
+        for k in range(M - 1, 0, -1):
+            buf[sg, k] = buf[sg, k - 1]
+        buf[sg, 0] = 0.0
+
+
+@njit(cache=True, inline="always")
+def through_ar(v, alpha, buf, row, na):
+    """Lag 0 of ``1/A`` applied to a signal whose new sample is `v`:
+    ``v - sum_{k=1..na} alpha[k-1] buf[row, k]`` (``buf[row]`` the past of the
+    output; the terms subtracted one at a time, in order of lag)."""
+    for k in range(1, na + 1):
+        v -= alpha[k - 1] * buf[row, k]
+    return v
+
+
+# ----------------------------------------------------------------------
 # RPEM / RPLR
 # ----------------------------------------------------------------------
 @njit(cache=True)
@@ -260,12 +284,7 @@ def rpem_step(theta, P, buf, y, u, na, nb, nc, nd, nf, nk, off_b, off_c, off_d, 
     """
     n = theta.shape[0]
     nu = nb.shape[0]
-    n_sig, M = buf.shape
-    # shift every signal one lag back
-    for sg in range(n_sig):
-        for k in range(M - 1, 0, -1):
-            buf[sg, k] = buf[sg, k - 1]
-        buf[sg, 0] = 0.0
+    shift(buf)
     buf[SIG_Y, 0] = y
     for i in range(nu):
         buf[N_SIG_BASE + N_SIG_INPUT * i + SIG_U, 0] = u[i]
@@ -527,39 +546,24 @@ def riv_signals(buf, y, u, na, nb, nk, alpha, beta, prefilter, phi, z):
     (signals before the record are zero). Returns the (prefiltered) target
     ``yf(t)``.
     """
-    n_sig, M = buf.shape
     nu = nb.shape[0]
-    for sg in range(n_sig):
-        for k in range(M - 1, 0, -1):
-            buf[sg, k] = buf[sg, k - 1]
-        buf[sg, 0] = 0.0
+    n_pre = na if prefilter else 0           # the order of the prefilter 1/A
+    shift(buf)
     buf[RIV_Y, 0] = y
-    yf = y
-    if prefilter:
-        for k in range(1, na + 1):
-            yf -= alpha[k - 1] * buf[RIV_YF, k]
+    yf = through_ar(y, alpha, buf, RIV_YF, n_pre)
     buf[RIV_YF, 0] = yf
     x = 0.0
     off = 0
     for i in range(nu):
         ru = 4 + 2 * i
         buf[ru, 0] = u[i]
-        uf = u[i]
-        if prefilter:
-            for k in range(1, na + 1):
-                uf -= alpha[k - 1] * buf[ru + 1, k]
-        buf[ru + 1, 0] = uf
+        buf[ru + 1, 0] = through_ar(u[i], alpha, buf, ru + 1, n_pre)
         for k in range(nb[i]):
             x += beta[off + k] * buf[ru, nk[i] + k]
         off += nb[i]
-    for k in range(1, na + 1):
-        x -= alpha[k - 1] * buf[RIV_X, k]
+    x = through_ar(x, alpha, buf, RIV_X, na)
     buf[RIV_X, 0] = x
-    xf = x
-    if prefilter:
-        for k in range(1, na + 1):
-            xf -= alpha[k - 1] * buf[RIV_XF, k]
-    buf[RIV_XF, 0] = xf
+    buf[RIV_XF, 0] = through_ar(x, alpha, buf, RIV_XF, n_pre)
     j = 0
     for k in range(1, na + 1):
         phi[j] = -buf[RIV_YF, k]
