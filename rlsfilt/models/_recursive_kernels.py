@@ -241,6 +241,18 @@ def through_ar(v, alpha, buf, row, na):
     return v
 
 
+@njit(cache=True, inline="always")
+def take_lags(a, b, j, buf, ra, rb, first, count, sign):
+    """One block of two rows (regressor and gradient, or regressor and instrument):
+    ``a[j + k] = sign buf[ra, first + k]``, ``b[j + k] = sign buf[rb, first + k]``
+    for ``k < count``, `sign` 1 or -1. Returns ``j + count``, where the next block
+    starts."""
+    for k in range(count):
+        a[j + k] = sign * buf[ra, first + k]
+        b[j + k] = sign * buf[rb, first + k]
+    return j + count
+
+
 # ----------------------------------------------------------------------
 # RPEM / RPLR
 # ----------------------------------------------------------------------
@@ -299,32 +311,16 @@ def rpem_step(theta, P, buf, y, u, na, nb, nc, nd, nf, nk, off_b, off_c, off_d, 
             buf[base + SIG_P, 0] = p
             buf[base + SIG_UF, 0] = (p + _lagged_sum(theta, off_d, nd, buf, base + SIG_P, 1)
                                      - _lagged_sum(theta, off_c, nc, buf, base + SIG_UF, 1))
-    # regressor phi and gradient psi
-    j = 0
-    for k in range(1, na + 1):
-        phi[j] = -buf[SIG_Y, k]
-        psi[j] = -buf[SIG_YF, k]
-        j += 1
+    # regressor phi and gradient psi, block by block
+    j = take_lags(phi, psi, 0, buf, SIG_Y, SIG_YF, 1, na, -1.0)
     for i in range(nu):
         base = N_SIG_BASE + N_SIG_INPUT * i
-        for k in range(nb[i]):
-            phi[j] = buf[base + SIG_U, nk[i] + k]
-            psi[j] = buf[base + SIG_UF, nk[i] + k]
-            j += 1
-    for k in range(1, nc + 1):
-        phi[j] = buf[SIG_E, k]
-        psi[j] = buf[SIG_EF, k]
-        j += 1
-    for k in range(1, nd + 1):
-        phi[j] = -buf[SIG_V, k]
-        psi[j] = -buf[SIG_VF, k]
-        j += 1
+        j = take_lags(phi, psi, j, buf, base + SIG_U, base + SIG_UF, nk[i], nb[i], 1.0)
+    j = take_lags(phi, psi, j, buf, SIG_E, SIG_EF, 1, nc, 1.0)
+    j = take_lags(phi, psi, j, buf, SIG_V, SIG_VF, 1, nd, -1.0)
     for i in range(nu):
         base = N_SIG_BASE + N_SIG_INPUT * i
-        for k in range(1, nf[i] + 1):
-            phi[j] = -buf[base + SIG_W, k]
-            psi[j] = -buf[base + SIG_WF, k]
-            j += 1
+        j = take_lags(phi, psi, j, buf, base + SIG_W, base + SIG_WF, 1, nf[i], -1.0)
     if not rpem:
         for i in range(n):
             psi[i] = phi[i]
@@ -564,18 +560,10 @@ def riv_signals(buf, y, u, na, nb, nk, alpha, beta, prefilter, phi, z):
     x = through_ar(x, alpha, buf, RIV_X, na)
     buf[RIV_X, 0] = x
     buf[RIV_XF, 0] = through_ar(x, alpha, buf, RIV_XF, n_pre)
-    j = 0
-    for k in range(1, na + 1):
-        phi[j] = -buf[RIV_YF, k]
-        z[j] = -buf[RIV_XF, k]
-        j += 1
+    j = take_lags(phi, z, 0, buf, RIV_YF, RIV_XF, 1, na, -1.0)
     for i in range(nu):
         ru = 4 + 2 * i
-        for k in range(nb[i]):
-            v = buf[ru + 1, nk[i] + k]
-            phi[j] = v
-            z[j] = v
-            j += 1
+        j = take_lags(phi, z, j, buf, ru + 1, ru + 1, nk[i], nb[i], 1.0)
     return yf
 
 
