@@ -71,6 +71,7 @@ from .exceptions import (
     OperatingPointWarning,
     OrderSelectionWarning,
 )
+from .filters.forgetting import MODES
 from .models import ARMAX, ARX, BJ, OE, arx_structure
 from .models._family import family_structure
 from .validation import delayest, select_order, validate
@@ -82,7 +83,6 @@ EXIT_ERROR = 1   # the command could not do its work (bad file, bad data)
 EXIT_USAGE = 2   # the command line itself is wrong (argparse's convention)
 
 _PROGRESS_AFTER = 2.0    # seconds before a progress line appears
-_FORGETTING_MODES = ("exponential", "directional", "constant_trace", "efra", "variable")
 _DEFAULT_PLANT = "dc_motor"
 _TRACKING_LAM = 0.98     # demo forgetting factor for the time-varying plant
 _DEMO_BYTES_PER_SAMPLE = 700   # the demo's peak per sample (measured about 500 at 2e5 samples)
@@ -347,7 +347,7 @@ def _build_parser():
     ident.add_argument("--lam", type=_lam, default=1.0,
                        help="forgetting factor in (0, 1] for --method rls, riv, rpem or rplr "
                             "(default: 1)")
-    ident.add_argument("--forgetting", choices=_FORGETTING_MODES, default="exponential",
+    ident.add_argument("--forgetting", choices=MODES, default="exponential",
                        help="forgetting scheme for --method rls, rpem or rplr (default: "
                             "exponential)")
     timing = ident.add_mutually_exclusive_group()
