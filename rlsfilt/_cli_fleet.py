@@ -13,15 +13,15 @@ Errors the user can cause raise ``ValueError`` with a one-line message,
 which the ``rlsfilt`` entry point prints (exit status 1).
 """
 
-import argparse
 import json
 import sys
 
 import numpy as np
 
-__all__ = []
+from ._cli_args import forgetting_factor, fraction, int_at_least, int_list, per_input
+from .filters.bank import _MODES as BANK_MODES  # the forgetting modes RLSBank runs
 
-_MODES = ("exponential", "directional", "constant_trace")
+__all__ = []
 
 
 def add_parser(subparsers):
@@ -38,21 +38,21 @@ def add_parser(subparsers):
     p.add_argument("--input", "-u", action="append", required=True, metavar="COL",
                    dest="inputs", help="input column (repeat for several inputs)")
     p.add_argument("--output", "-y", required=True, metavar="COL", help="output column")
-    p.add_argument("--na", type=_int_at_least(0), default=2,
+    p.add_argument("--na", type=int_at_least(0), default=2,
                    help="number of poles, A(q) order (default: 2)")
-    p.add_argument("--nb", type=_int_list(1), default=[2], metavar="NB[,NB...]",
+    p.add_argument("--nb", type=int_list(1), default=[2], metavar="NB[,NB...]",
                    help="number of B coefficients, one value or one per input (default: 2)")
-    p.add_argument("--nk", type=_int_list(0), default=[1], metavar="NK[,NK...]",
+    p.add_argument("--nk", type=int_list(0), default=[1], metavar="NK[,NK...]",
                    help="input delay in samples, one value or one per input (default: 1)")
     p.add_argument("--method", choices=("ls", "rls"), default="ls",
                    help="batch least squares or recursive least squares (default: ls)")
-    p.add_argument("--lam", type=_lam, default=None,
+    p.add_argument("--lam", type=forgetting_factor, default=None,
                    help="forgetting factor in (0, 1] for --method rls (default: 1)")
-    p.add_argument("--forgetting", choices=_MODES, default=None,
+    p.add_argument("--forgetting", choices=BANK_MODES, default=None,
                    help="forgetting scheme for --method rls (default: exponential)")
-    p.add_argument("--max-lag", type=_int_at_least(1), default=25, metavar="M",
+    p.add_argument("--max-lag", type=int_at_least(1), default=25, metavar="M",
                    help="largest lag of the residual tests (default: 25)")
-    p.add_argument("--alpha", type=_probability, default=0.01,
+    p.add_argument("--alpha", type=fraction, default=0.01,
                    help="significance level of the residual tests (default: 0.01)")
     p.add_argument("--no-residual-tests", action="store_true",
                    help="skip the whiteness and independence tests (much faster)")
@@ -86,7 +86,7 @@ def run(args):
         raise ValueError(f"--{'lam' if args.lam is not None else 'forgetting'} needs "
                          "--method rls")
     n_in = len(args.inputs)
-    nb, nk = _per_input(args.nb, n_in, "--nb"), _per_input(args.nk, n_in, "--nk")
+    nb, nk = per_input(args.nb, n_in, "--nb"), per_input(args.nk, n_in, "--nk")
     columns = [args.channel_column, *args.inputs, args.output]
     frame = pd.read_csv(args.file, sep=args.delimiter, engine="python" if args.delimiter
                         is None else "c", usecols=lambda c: c in columns)
@@ -145,52 +145,3 @@ def _plain(value):
     if isinstance(value, float) and not np.isfinite(value):
         return None
     return value
-
-
-def _int_at_least(minimum):
-    def parse(text):
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"must be an integer; got '{text}'") from None
-        if value < minimum:
-            raise argparse.ArgumentTypeError(f"must be >= {minimum}; got {value}")
-        return value
-    return parse
-
-
-def _int_list(minimum):
-    one = _int_at_least(minimum)
-
-    def parse(text):
-        return [one(part) for part in text.split(",")]
-    return parse
-
-
-def _lam(text):
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a number in (0, 1]; got '{text}'") from None
-    if not 0.0 < value <= 1.0:
-        raise argparse.ArgumentTypeError(f"must be in (0, 1]; got {value}")
-    return value
-
-
-def _probability(text):
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a number in (0, 1); got '{text}'") from None
-    if not 0.0 < value < 1.0:
-        raise argparse.ArgumentTypeError(f"must be in (0, 1); got {value}")
-    return value
-
-
-def _per_input(values, n_in, option):
-    if len(values) == 1:
-        return values * n_in
-    if len(values) != n_in:
-        raise ValueError(f"{option} must have one value or one per input ({n_in}); got "
-                         f"{len(values)}")
-    return values

@@ -61,6 +61,15 @@ import warnings
 
 import numpy as np
 
+from ._cli_args import (
+    CLIError,
+    float_where,
+    forgetting_factor,
+    fraction,
+    int_at_least,
+    int_list,
+    per_input,
+)
 from ._resources import check_memory
 from ._version import __version__
 from .data import IOData, Trend, detrend
@@ -71,6 +80,7 @@ from .exceptions import (
     OperatingPointWarning,
     OrderSelectionWarning,
 )
+from .filters.forgetting import MODES
 from .models import ARMAX, ARX, BJ, OE, arx_structure
 from .models._family import family_structure
 from .validation import delayest, select_order, validate
@@ -82,7 +92,6 @@ EXIT_ERROR = 1   # the command could not do its work (bad file, bad data)
 EXIT_USAGE = 2   # the command line itself is wrong (argparse's convention)
 
 _PROGRESS_AFTER = 2.0    # seconds before a progress line appears
-_FORGETTING_MODES = ("exponential", "directional", "constant_trace", "efra", "variable")
 _DEFAULT_PLANT = "dc_motor"
 _TRACKING_LAM = 0.98     # demo forgetting factor for the time-varying plant
 _DEMO_BYTES_PER_SAMPLE = 700   # the demo's peak per sample (measured about 500 at 2e5 samples)
@@ -99,10 +108,6 @@ _FAMILY = {"armax": ARMAX, "oe": OE, "bj": BJ}
 #: methods that take --lam (a forgetting factor) and --forgetting (a forgetting scheme)
 _LAM_METHODS = ("rls", "riv", "rpem", "rplr")
 _FORGETTING_METHODS = ("rls", "rpem", "rplr")
-
-
-class CLIError(Exception):
-    """A user-facing failure: printed as one line, exit status 1."""
 
 
 # ----------------------------------------------------------------------
@@ -209,59 +214,11 @@ class _Parser(argparse.ArgumentParser):
         raise SystemExit(EXIT_USAGE)
 
 
-def _int(text):
-    try:
-        return int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be an integer; got '{text}'") from None
-
-
-def _float(text):
-    try:
-        return float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a number; got '{text}'") from None
-
-
-def _int_at_least(minimum):
-    """An argparse type: an integer ``>= minimum``."""
-    def parse(text):
-        value = _int(text)
-        if value < minimum:
-            raise argparse.ArgumentTypeError(f"must be >= {minimum}; got {value}")
-        return value
-    return parse
-
-
-def _int_list(minimum):
-    """An argparse type: comma-separated integers, each ``>= minimum``."""
-    check = _int_at_least(minimum)
-    return lambda text: [check(part.strip()) for part in text.split(",")]
-
-
-def _float_where(accept, expected):
-    """An argparse type: a number for which ``accept(value)`` holds."""
-    def parse(text):
-        value = _float(text)
-        if not accept(value):
-            raise argparse.ArgumentTypeError(f"must be {expected}; got {text}")
-        return value
-    return parse
-
-
-_positive_int = _int_at_least(1)
-_nonnegative_int = _int_at_least(0)
-_lam = _float_where(lambda v: 0.0 < v <= 1.0, "in (0, 1]")
-_positive_float = _float_where(lambda v: math.isfinite(v) and v > 0.0, "a positive number")
-_nonnegative_float = _float_where(lambda v: math.isfinite(v) and v >= 0.0,
-                                  "a non-negative number")
-
-
-def _fraction(text):
-    value = _float(text)
-    if not 0.0 < value < 1.0:
-        raise argparse.ArgumentTypeError(f"must be in (0, 1); got {text}")
-    return value
+_positive_int = int_at_least(1)
+_nonnegative_int = int_at_least(0)
+_positive_float = float_where(lambda v: math.isfinite(v) and v > 0.0, "a positive number")
+_nonnegative_float = float_where(lambda v: math.isfinite(v) and v >= 0.0,
+                                 "a non-negative number")
 
 
 def _delay_range(text):
@@ -303,7 +260,7 @@ def _build_parser():
                            "the length of each of its two runs)")
     demo.add_argument("--noise", type=_nonnegative_float, default=None, metavar="STD",
                       help="noise standard deviation (default: the dataset's)")
-    demo.add_argument("--lam", type=_lam, default=None,
+    demo.add_argument("--lam", type=forgetting_factor, default=None,
                       help=f"RLS forgetting factor (default: 1, or {_TRACKING_LAM} for "
                            "time_varying)")
     demo.add_argument("--seed", type=_nonnegative_int, default=0, help="random seed (default: 0)")
@@ -330,12 +287,12 @@ def _build_parser():
                        help="C(q) order, noise numerator, for armax and bj (default: 1)")
     ident.add_argument("--nd", type=_nonnegative_int, default=None,
                        help="D(q) order, noise denominator, for bj (default: 1)")
-    ident.add_argument("--nf", type=_int_list(0), default=None, metavar="NF[,NF...]",
+    ident.add_argument("--nf", type=int_list(0), default=None, metavar="NF[,NF...]",
                        help="F(q) order, one value or one per input, for oe and bj "
                             "(default: 2)")
-    ident.add_argument("--nb", type=_int_list(1), default=[2], metavar="NB[,NB...]",
+    ident.add_argument("--nb", type=int_list(1), default=[2], metavar="NB[,NB...]",
                        help="number of B coefficients, one value or one per input (default: 2)")
-    ident.add_argument("--nk", type=_int_list(0), default=None, metavar="NK[,NK...]",
+    ident.add_argument("--nk", type=int_list(0), default=None, metavar="NK[,NK...]",
                        help="input delay in samples, one value or one per input (default: 1; "
                             "searched by --select-order unless given)")
     ident.add_argument("--method", choices=("ls", "rls", "iv", "riv", "pem", "rpem", "rplr"),
@@ -344,10 +301,10 @@ def _build_parser():
                             "variables (iv, riv); armax, oe, bj: batch or recursive prediction "
                             "error (pem, rpem) or pseudo-linear regression (rplr) (default: ls "
                             "for arx, pem for the others)")
-    ident.add_argument("--lam", type=_lam, default=1.0,
+    ident.add_argument("--lam", type=forgetting_factor, default=1.0,
                        help="forgetting factor in (0, 1] for --method rls, riv, rpem or rplr "
                             "(default: 1)")
-    ident.add_argument("--forgetting", choices=_FORGETTING_MODES, default="exponential",
+    ident.add_argument("--forgetting", choices=MODES, default="exponential",
                        help="forgetting scheme for --method rls, rpem or rplr (default: "
                             "exponential)")
     timing = ident.add_mutually_exclusive_group()
@@ -366,7 +323,7 @@ def _build_parser():
     fresh.add_argument("--validation", metavar="FILE.csv", default=None,
                        help="validate (and with --select-order, choose the orders) on this "
                             "record, with the same columns")
-    fresh.add_argument("--split", type=_fraction, default=None, metavar="FRACTION",
+    fresh.add_argument("--split", type=fraction, default=None, metavar="FRACTION",
                        help="estimate on the first FRACTION of each experiment, validate on "
                             "the rest (e.g. 0.7)")
     ident.add_argument("--select-order", action="store_true",
@@ -422,8 +379,8 @@ def _run_identify(args):
     progress.done()
     n_in = len(args.inputs)
     na = 2 if args.na is None else args.na
-    nb = _per_input(args.nb, n_in, "--nb")
-    nk = _per_input(args.nk if args.nk is not None else [1], n_in, "--nk")
+    nb = per_input(args.nb, n_in, "--nb")
+    nk = per_input(args.nk if args.nk is not None else [1], n_in, "--nk")
     offset = _DETREND[args.detrend]
     family = args.model != "arx"
     lines = [_describe(args.file, data), _detrend_line(args.detrend, est, family)]
@@ -620,7 +577,7 @@ def _minus(data, u_op, y_op):
 
 def _family_model(args, na, nb, nk, n_in, dt):
     """The ARMAX/OE/BJ model of the options and its orders (``nb``, ``nf``, ``nk`` per input)."""
-    nf = _per_input(args.nf if args.nf is not None else [2], n_in, "--nf")
+    nf = per_input(args.nf if args.nf is not None else [2], n_in, "--nf")
     nc = 1 if args.nc is None else args.nc
     nd = 1 if args.nd is None else args.nd
     one = n_in == 1
@@ -869,15 +826,6 @@ def _sample_time(t, name, where=""):
         raise CLIError(f"time column '{name}'{where} is not uniformly sampled: steps range "
                        f"from {steps.min():g} to {steps.max():g}; resample the data first")
     return float((t[-1] - t[0]) / (len(t) - 1))
-
-
-def _per_input(values, n_in, option):
-    if len(values) == 1:
-        return values * n_in
-    if len(values) != n_in:
-        raise CLIError(f"{option} must give one value or one per input ({n_in}); "
-                       f"got {len(values)} values")
-    return list(values)
 
 
 def _check_rows(n_rows, s, orders, source):

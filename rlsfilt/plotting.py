@@ -169,7 +169,7 @@ def plot_parameters(source, covariances=None, *, t=None, names=None, true_values
     if covs is not None and span > 0:
         pad = 0.05 * (hi - lo)
         ax.set_ylim(lo - pad, hi + pad)
-    ax.set_xlabel(xlabel if xlabel is not None else ("time" if t is not None else "sample $k$"))
+    ax.set_xlabel(_time_xlabel(xlabel, t))
     ax.set_ylabel(r"estimate $\hat\theta$")
     title = "parameter estimates"
     if covs is not None:
@@ -227,10 +227,8 @@ def plot_trace(source, covariances=None, *, t=None, log=True, xlabel=None, label
     color = _color(sum(1 for ln in ax.get_lines() if ln.get_label()[:1] != "_"))
     ax.plot(*_decimate(tt, tr), color=color, lw=1.2,
             label=label if label is not None else r"$\mathrm{tr}\,P$")
-    if log and np.all(tr > 0):
-        ax.set_yscale("log")
-    ax.set_xlabel(xlabel if xlabel is not None else ("time" if t is not None else "sample $k$"))
-    ax.set_ylabel(r"$\mathrm{tr}\,P$")
+    _trace_axis(ax, tr, log)
+    ax.set_xlabel(_time_xlabel(xlabel, t))
     ax.set_title("trace of the covariance")
     if label is not None:
         _legend_outside(ax)
@@ -293,8 +291,7 @@ def plot_tracking(source, covariances=None, *, t=None, names=None, true_values=N
         ax2.axhline(0.0, color=_BLACK, lw=0.6)
         ax2.set_ylabel(r"a-priori error $\varepsilon(t)$")
         ax2.set_title(r"one-step errors of the filter, $y(t) - \varphi(t)^T\hat\theta(t-1)$")
-        ax2.set_xlabel(xlabel if xlabel is not None
-                       else ("time" if t is not None else "sample $k$"))
+        ax2.set_xlabel(_time_xlabel(xlabel, t))
     ax1.set_xlabel("")
     return fig
 
@@ -389,7 +386,7 @@ def plot_comparison(report, ax=None, *, window=None, ax_overview=None, output=0,
             ax = fig.subplots()
     sf = np.atleast_1d(report.simulation_fit)[output]
     pf = np.atleast_1d(report.prediction_fit)[output]
-    time_label = "sample" if report.model.dt is True else "time (s)"
+    time_label = _time_unit(report.model.dt)
     if seams:
         time_label += ", experiments one after the other"
     ylabel = output_name + (f" ({output_unit})" if output_unit else "")
@@ -410,7 +407,7 @@ def plot_comparison(report, ax=None, *, window=None, ax_overview=None, output=0,
     ax.plot(*_broken(t, yp, a, b, inside), color=COLORS[1], lw=1.0,
             linestyle="--", label=f"1-step predicted (fit {pf:.1f}%)")
     for k in inside:
-        ax.axvline(0.5 * (t[k - 1] + t[k]), color=_GREY, lw=1.0, linestyle=":")
+        ax.axvline(_seam_time(t, k), color=_GREY, lw=1.0, linestyle=":")
     ax.set_xlabel(time_label)
     ax.set_ylabel(ylabel)
     title = "Model output against the data"
@@ -435,7 +432,7 @@ def plot_comparison(report, ax=None, *, window=None, ax_overview=None, output=0,
                              color=COLORS[1], lw=0.7,
                              label=f"error {output_name} - simulated{tag}")
         for k in seams:
-            ax_overview.axvline(0.5 * (t[k - 1] + t[k]), color=_BLACK, lw=0.8, linestyle=":")
+            ax_overview.axvline(_seam_time(t, k), color=_BLACK, lw=0.8, linestyle=":")
         span = f"whole record ({N} samples)"
         if seams:
             lengths = np.diff([0, *seams, N])
@@ -495,21 +492,17 @@ def plot_autocorrelation(analysis, ax=None):
     keep = lags > 0
     lags, rho = lags[keep], rho[keep]
     band = float(analysis.autocorrelation_band)
-    pct = f"{100 * (1 - analysis.alpha):g}%"
     ax.axhspan(-band, band, color=COLORS[5], alpha=0.35, linewidth=0)
     ax.vlines(lags, 0.0, rho, color=COLORS[0], lw=1.2)
     outside = np.abs(rho) > band
     ax.plot(lags[~outside], rho[~outside], "o", color=COLORS[0], ms=3.5)
     ax.plot(lags[outside], rho[outside], "o", color=COLORS[1], ms=4.5)
-    ax.axhline(0.0, color=_BLACK, lw=0.6)
-    top = 1.15 * max(band, float(np.max(np.abs(rho))) if rho.size else band)
-    ax.set_ylim(-top, top)
+    _zero_line_and_scale(ax, band, rho)
     ax.set_xlim(0.4, lags.max() + 0.6 if lags.size else 1.6)
     ax.set_xlabel("lag $k$ (samples)")
     ax.set_ylabel(r"$\hat\rho_\varepsilon(k)$")
-    verdict = "white" if analysis.is_white else "NOT white"
-    ax.set_title(f"Residual autocorrelation: {verdict} (p = {analysis.pvalue_white:.3g})\n"
-                 f"shaded: {pct} band under whiteness", fontsize="medium")
+    _test_title(ax, "Residual autocorrelation", "white" if analysis.is_white else "NOT white",
+                analysis.pvalue_white, analysis.alpha, "whiteness")
     return ax
 
 
@@ -548,7 +541,6 @@ def plot_cross_correlation(analysis, ax=None):
         ax.set_title("Input cross-correlation: not applicable", fontsize="medium")
         ax.set_axis_off()
         return ax
-    pct = f"{100 * (1 - analysis.alpha):g}%"
     bands = np.atleast_1d(analysis.cross_correlation_band)
     for j in range(nu):
         color = _color(j)
@@ -556,14 +548,12 @@ def plot_cross_correlation(analysis, ax=None):
                         linewidth=0)
         ax.plot(analysis.cross_lags, xc[j], "o-", ms=3, lw=1.0, color=color,
                 label=f"input {j}" if nu > 1 else None)
-    ax.axhline(0.0, color=_BLACK, lw=0.6)
-    top = 1.15 * max(float(np.max(bands)), float(np.max(np.abs(xc))))
-    ax.set_ylim(-top, top)
+    _zero_line_and_scale(ax, float(np.max(bands)), xc)
     ax.set_xlabel(r"lag $\tau$ (samples; $\tau > 0$: past inputs)")
     ax.set_ylabel(r"$\hat\rho_{\varepsilon u}(\tau)$")
-    verdict = "independent" if analysis.is_independent else "NOT independent"
-    ax.set_title(f"Input cross-correlation: {verdict} (p = {analysis.pvalue_independent:.3g})"
-                 f"\nshaded: {pct} band under independence", fontsize="medium")
+    _test_title(ax, "Input cross-correlation",
+                "independent" if analysis.is_independent else "NOT independent",
+                analysis.pvalue_independent, analysis.alpha, "independence")
     if nu > 1:
         _legend_outside(ax)
     return ax
@@ -1112,13 +1102,11 @@ def plot_str_history(history, fig=None, *, true_theta=None):
     ax = axes[3]
     trace = np.asarray(history.trace_P, dtype=float)
     ax.plot(*_decimate(t, trace), color=COLORS[3], lw=1.1)
-    if trace.size and np.all(trace > 0):
-        ax.set_yscale("log")
-    ax.set_ylabel(r"$\mathrm{tr}\,P$")
+    _trace_axis(ax, trace)
     for a in axes:
         a.set_xlabel("")
         a.grid(True, alpha=0.3)
-    axes[-1].set_xlabel("sample" if history.dt is True else "time (s)")
+    axes[-1].set_xlabel(_time_unit(history.dt))
     fig.align_ylabels(axes)
     return fig
 
@@ -1134,10 +1122,8 @@ def _report_band(report):
 
 
 def _draw_band(ax_mag, ax_phase, band, model_line=True):
-    ny, nu = band.response.shape[:2]
     pct = f"{100 * band.level:g}%"
-    for c, (i, j) in enumerate((i, j) for i in range(ny) for j in range(nu)):
-        tag = f" (u{j} to y{i})" if ny * nu > 1 else ""
+    for c, ((i, j), tag) in enumerate(_channels(band.response.shape[:2])):
         color = _color(c)
         ax_mag.fill_between(band.omega, _db(band.magnitude_lower[i, j]),
                             _db(band.magnitude_upper[i, j]), color=color, alpha=0.25,
@@ -1145,10 +1131,8 @@ def _draw_band(ax_mag, ax_phase, band, model_line=True):
         ax_phase.fill_between(band.omega, band.phase_lower[i, j], band.phase_upper[i, j],
                               color=color, alpha=0.25, linewidth=0)
         if model_line:   # a PlantComparison draws the model itself
-            ax_mag.plot(band.omega, _db(np.abs(band.response[i, j])), color=color, lw=1.4,
-                        label=f"model{tag}")
-            ax_phase.plot(band.omega, np.degrees(np.unwrap(np.angle(band.response[i, j]))),
-                          color=color, lw=1.4)
+            _bode_lines(ax_mag, ax_phase, band.omega, band.response[i, j], f"model{tag}",
+                        color=color, lw=1.4)
 
 
 def _band_width_text(band):
@@ -1168,11 +1152,8 @@ def _draw_comparison_bode(ax_mag, ax_phase, comparison):
         for resp, name, color, style, lw in (
                 (comparison.response_plant, "plant", _BLACK, "-", 1.6),
                 (comparison.response_model, "model", _color(c), "--", 1.4)):
-            g = resp[i, j]
-            ax_mag.plot(comparison.omega, _db(np.abs(g)), color=color, linestyle=style, lw=lw,
-                        label=f"{name}{label}")
-            ax_phase.plot(comparison.omega, np.degrees(np.unwrap(np.angle(g))), color=color,
-                          linestyle=style, lw=lw)
+            _bode_lines(ax_mag, ax_phase, comparison.omega, resp[i, j], f"{name}{label}",
+                        color=color, linestyle=style, lw=lw)
 
 
 def _draw_plant_bode(ax_mag, ax_phase, band, plant):
@@ -1184,10 +1165,8 @@ def _draw_plant_bode(ax_mag, ax_phase, band, plant):
     first = True
     for i in range(min(ny, G.shape[0])):
         for j in range(min(nu, G.shape[1])):
-            ax_mag.plot(band.omega, _db(np.abs(G[i, j])), color=_BLACK, linestyle="--", lw=1.2,
-                        label="plant" if first else None)
-            ax_phase.plot(band.omega, np.degrees(np.unwrap(np.angle(G[i, j]))), color=_BLACK,
-                          linestyle="--", lw=1.2)
+            _bode_lines(ax_mag, ax_phase, band.omega, G[i, j], "plant" if first else None,
+                        color=_BLACK, linestyle="--", lw=1.2)
             first = False
 
 
@@ -1294,7 +1273,7 @@ def _broken(t, y, a, b, seams, max_points=MAX_POINTS):
     xs, ys = [], []
     for lo, hi in zip(bounds[:-1], bounds[1:]):
         if xs:
-            xs.append([0.5 * (t[lo - 1] + t[lo])])
+            xs.append([_seam_time(t, lo)])
             ys.append([np.nan])
         share = max(4, int(max_points * (hi - lo) / (b - a)))
         x_i, y_i = _decimate(t[lo:hi], y[lo:hi], share)
@@ -1331,6 +1310,54 @@ def _db(mag):
     return 20.0 * np.log10(np.maximum(mag, np.finfo(float).tiny))
 
 
+def _bode_lines(ax_mag, ax_phase, omega, g, label, **style):
+    """One response ``g(e^{j omega T})`` in a Bode diagram: ``|g|`` in dB over its unwrapped
+    phase in degrees, the legend entry `label` on the magnitude."""
+    ax_mag.plot(omega, _db(np.abs(g)), label=label, **style)
+    ax_phase.plot(omega, np.degrees(np.unwrap(np.angle(g))), **style)
+
+
+def _time_xlabel(xlabel, t):
+    """The time axis of the tracking plots: `xlabel`, else ``"time"`` when a time axis
+    `t` is given, else ``"sample $k$"``."""
+    if xlabel is not None:
+        return xlabel
+    return "time" if t is not None else "sample $k$"
+
+
+def _time_unit(dt):
+    """``"sample"`` for a model without a sample time (``dt is True``), else ``"time (s)"``."""
+    return "sample" if dt is True else "time (s)"
+
+
+def _seam_time(t, k):
+    """Where the seam before sample `k` is drawn: halfway between ``t[k - 1]`` and ``t[k]``."""
+    return 0.5 * (t[k - 1] + t[k])
+
+
+def _trace_axis(ax, trace, log=True):
+    r"""The axis of a :math:`\mathrm{tr}\,P` panel: logarithmic when `log` and the trace is
+    positive (windup spans many decades), and its label."""
+    if log and trace.size and np.all(trace > 0):
+        ax.set_yscale("log")
+    ax.set_ylabel(r"$\mathrm{tr}\,P$")
+
+
+def _zero_line_and_scale(ax, band, values):
+    """A correlation panel's zero line and its y-range, symmetric about zero: 15 % above
+    the larger of the (widest) `band` and the largest ``|values|``."""
+    ax.axhline(0.0, color=_BLACK, lw=0.6)
+    top = 1.15 * max(band, float(np.max(np.abs(values))) if values.size else band)
+    ax.set_ylim(-top, top)
+
+
+def _test_title(ax, what, verdict, pvalue, alpha, hypothesis):
+    """The title of a residual-test panel: ``"<what>: <verdict> (p = ...)"`` over the
+    meaning of the shaded band (the ``1 - alpha`` band under `hypothesis`)."""
+    ax.set_title(f"{what}: {verdict} (p = {pvalue:.3g})\n"
+                 f"shaded: {100 * (1 - alpha):g}% band under {hypothesis}", fontsize="medium")
+
+
 def _decimate(x, y, max_points=MAX_POINTS):
     """``(x, y)``, or their per-bin minima and maxima in time order when longer than
     `max_points` (the line then looks the same at any screen resolution)."""
@@ -1339,8 +1366,8 @@ def _decimate(x, y, max_points=MAX_POINTS):
     n = len(y)
     if n <= max_points:
         return x, y
-    bins = max_points // 2
-    edges = np.linspace(0, n, bins + 1).astype(int)
+    edges = _bin_edges(n, max_points)
+    bins = len(edges) - 1
     size = int(np.max(np.diff(edges)))
     # pad each bin to the same length with NaN, then take the extremes of each row
     idx = edges[:-1, None] + np.arange(size)[None, :]
@@ -1355,6 +1382,12 @@ def _decimate(x, y, max_points=MAX_POINTS):
     return x[pick], y[pick]
 
 
+def _bin_edges(n, max_points):
+    """The ``max_points // 2 + 1`` edges of the bins a line of `n` points is reduced to
+    (two points, the minimum and the maximum, per bin)."""
+    return np.linspace(0, n, max_points // 2 + 1).astype(int)
+
+
 def _envelope(x, lower, upper, max_points=MAX_POINTS):
     """``(x, lower, upper)`` for ``fill_between``, reduced to per-bin extremes if long."""
     x = np.asarray(x)
@@ -1363,8 +1396,7 @@ def _envelope(x, lower, upper, max_points=MAX_POINTS):
     n = len(x)
     if n <= max_points:
         return x, lower, upper
-    bins = max_points // 2
-    edges = np.linspace(0, n, bins + 1).astype(int)
+    edges = _bin_edges(n, max_points)
     with np.errstate(invalid="ignore"):
         lo = np.fmin.reduceat(lower, edges[:-1])
         hi = np.fmax.reduceat(upper, edges[:-1])

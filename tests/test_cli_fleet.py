@@ -106,6 +106,25 @@ def test_user_errors_are_one_line(rng, tmp_path):
         _run(base + ["-u", "voltage"])
     with pytest.raises(SystemExit):
         _run(base + ["-u", "current", "--lam", "1.5"])
+    with pytest.raises(ValueError, match=r"^--nb must give one value or one per input \(1\); "
+                                         r"got 2 values$"):
+        _run(base + ["-u", "current", "--nb", "2,3"])
+
+
+@pytest.mark.parametrize("option, value, message", [
+    ("--lam", "1.5", "argument --lam: must be in (0, 1]; got 1.5"),
+    ("--alpha", "x", "argument --alpha: must be a number; got 'x'"),
+    ("--na", "-1", "argument --na: must be >= 0; got -1"),
+    ("--nk", "1,-2", "argument --nk: must be >= 0; got -2"),
+    ("--forgetting", "efra", "argument --forgetting: invalid choice: 'efra'"),
+])
+def test_option_errors_read_as_rlsfilt_identify(option, value, message, tmp_path, capsys):
+    """identify-many parses its options with the types of ``rlsfilt identify`` (the same
+    messages), and offers the forgetting modes RLSBank runs."""
+    with pytest.raises(SystemExit):
+        _run(["identify-many", str(tmp_path / "pack.csv"), "-c", "cell", "-u", "current",
+              "-y", "voltage", option, value])
+    assert message in capsys.readouterr().err
 
 
 def test_main_runs_identify_many(rng, tmp_path, capsys):

@@ -108,6 +108,32 @@ def test_summary_and_plot():
     plt.close("all")
 
 
+def test_plot_methods_pass_their_options_to_the_plotting_functions():
+    """The methods are the plotting functions applied to the comparison: their keyword
+    options (the band, the units) reach the figure."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from rlsfilt.validation import frequency_response_band
+
+    d = datasets.dc_motor(n_samples=400)
+    model = ARX(2, 2, 1, dt=d.dt).fit(d.u, d.y)
+    cmp = PlantComparison(model, d.plant)
+    band = frequency_response_band(model, n_draws=50, rng=0)
+    fig = cmp.plot(band=band)
+    labels = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
+    assert labels == ["95% band", "plant", "model"]
+    ax_mag, _ = cmp.plot_bode(band=band)
+    assert "95% band (parameters)" in ax_mag.get_title()
+    ax = cmp.plot_step(input_unit="V", output_unit="rad/s")
+    assert ax.get_ylabel() == "y (rad/s) per 1 V of u"
+    with pytest.raises(TypeError, match="unexpected keyword argument 'units'"):
+        cmp.plot_step(units="V")
+    plt.close("all")
+
+
 def test_plant_comparison_errors():
     plant = control.tf([1.0], [1.0, -0.5], 0.1)
     with pytest.raises(TypeError, match="`plant` must be a python-control LTI system"):

@@ -77,12 +77,20 @@ def _add_noise(y_clean, A, noise, noise_std, gen):
     return y_clean + e
 
 
-def _dataset_from_plant(name, description, plant, u, noise, noise_std, gen, dt):
-    """Simulate a SISO discrete plant given as a TransferFunction."""
+def _dataset_from_plant(name, description, plant, dt, n_samples, input, input_defaults, noise,
+                        noise_std, rng):
+    """Simulate a SISO discrete plant given as a TransferFunction.
+
+    The excitation is `input` (a signal name, made with the plant's
+    `input_defaults`, or the record itself), then the noise, both drawn from
+    `rng` in that order.
+    """
     from scipy import signal  # lazy: keeps `import rlsfilt` light
 
     from ..models import ARX
 
+    gen = as_generator(rng)
+    u = _make_input(input, n_samples, gen, input_defaults)
     truth = ARX.from_tf(plant)
     a, b, nk = truth.a_, truth.b_, truth.structure_.nk[0]
     A = np.concatenate([[1.0], a])
@@ -162,16 +170,16 @@ def thermal_process(n_samples=1000, *, gain=2.0, time_constant=20.0, delay=3, dt
     delay = check_int(delay, "delay", minimum=0)
     dt = check_real(dt, "dt", minimum=0, strict=True)
     noise_std = _check_noise(noise, noise_std)
-    gen = as_generator(rng)
     import control
 
     plant = _zoh([gain], [tau, 1.0], dt)
     if delay:
         plant = plant * control.tf([1.0], [1.0] + [0.0] * delay, dt)
-    u = _make_input(input, n_samples, gen, {"prbs": {"hold": 5}, "steps": {"hold": 100}})
     desc = (f"thermal process K={gain:g}/({tau:g} s + 1) with {delay}-sample dead time, "
             f"ZOH at dt={dt:g} s; true ARX(1, 1, {1 + delay})")
-    return _dataset_from_plant("thermal_process", desc, plant, u, noise, noise_std, gen, dt)
+    return _dataset_from_plant("thermal_process", desc, plant, dt, n_samples, input,
+                               {"prbs": {"hold": 5}, "steps": {"hold": 100}}, noise, noise_std,
+                               rng)
 
 
 def dc_motor(n_samples=2000, *, inertia=0.01, friction=0.1, motor_constant=0.01,
@@ -229,14 +237,13 @@ def dc_motor(n_samples=2000, *, inertia=0.01, friction=0.1, motor_constant=0.01,
     dt = check_real(dt, "dt", minimum=0, strict=True)
     amplitude = check_real(amplitude, "amplitude", minimum=0, strict=True)
     noise_std = _check_noise(noise, noise_std)
-    gen = as_generator(rng)
     plant = _zoh([K], [J * L, J * R + b * L, b * R + K * K], dt)
-    u = _make_input(input, n_samples, gen, {
-        "prbs": {"hold": 2, "amplitude": amplitude}, "white": {"std": amplitude},
-        "multisine": {"rms": amplitude}, "steps": {"amplitude": amplitude, "hold": 40}})
     desc = (f"DC motor voltage -> speed, K/((J s + b)(L s + R) + K^2), ZOH at dt={dt:g} s; "
             "true ARX(2, 2, 1)")
-    return _dataset_from_plant("dc_motor", desc, plant, u, noise, noise_std, gen, dt)
+    return _dataset_from_plant("dc_motor", desc, plant, dt, n_samples, input, {
+        "prbs": {"hold": 2, "amplitude": amplitude}, "white": {"std": amplitude},
+        "multisine": {"rms": amplitude}, "steps": {"amplitude": amplitude, "hold": 40}},
+        noise, noise_std, rng)
 
 
 def mass_spring_damper(n_samples=2000, *, mass=1.0, stiffness=4.0, damping=0.1, dt=0.1,
@@ -288,13 +295,12 @@ def mass_spring_damper(n_samples=2000, *, mass=1.0, stiffness=4.0, damping=0.1, 
     c = check_real(damping, "damping", minimum=0)
     dt = check_real(dt, "dt", minimum=0, strict=True)
     noise_std = _check_noise(noise, noise_std)
-    gen = as_generator(rng)
     plant = _zoh([1.0], [m, c, k], dt)
-    u = _make_input(input, n_samples, gen, {"steps": {"hold": 50}})
     zeta = c / (2 * np.sqrt(k * m))
     desc = (f"mass-spring-damper force -> position, wn={np.sqrt(k / m):.3g} rad/s, "
             f"zeta={zeta:.3g}, ZOH at dt={dt:g} s; true ARX(2, 2, 1)")
-    return _dataset_from_plant("mass_spring_damper", desc, plant, u, noise, noise_std, gen, dt)
+    return _dataset_from_plant("mass_spring_damper", desc, plant, dt, n_samples, input,
+                               {"steps": {"hold": 50}}, noise, noise_std, rng)
 
 
 def nonminimum_phase(n_samples=1000, *, zero=0.5, dt=0.2, input="white", noise="white",
@@ -344,12 +350,12 @@ def nonminimum_phase(n_samples=1000, *, zero=0.5, dt=0.2, input="white", noise="
     z0 = check_real(zero, "zero", minimum=0, strict=True)
     dt = check_real(dt, "dt", minimum=0, strict=True)
     noise_std = _check_noise(noise, noise_std)
-    gen = as_generator(rng)
     plant = _zoh([-1.0 / z0, 1.0], [0.5, 1.5, 1.0], dt)
-    u = _make_input(input, n_samples, gen, {"prbs": {"hold": 2}, "steps": {"hold": 50}})
     desc = (f"non-minimum-phase process (1 - s/{z0:g})/((s + 1)(0.5 s + 1)), ZOH at "
             f"dt={dt:g} s; true ARX(2, 2, 1)")
-    return _dataset_from_plant("nonminimum_phase", desc, plant, u, noise, noise_std, gen, dt)
+    return _dataset_from_plant("nonminimum_phase", desc, plant, dt, n_samples, input,
+                               {"prbs": {"hold": 2}, "steps": {"hold": 50}}, noise, noise_std,
+                               rng)
 
 
 def time_varying(n_samples=2000, *, kind="jump", change_time=None, a_before=(-1.5, 0.7),

@@ -502,7 +502,7 @@ def recursive_iv_records(records, s, instruments="model", *, lam=1.0, Q=None, R=
                     theta, P, buf, np.ascontiguousarray(U, dtype=float),
                     np.ascontiguousarray(Y[:, 0], dtype=float), s.max_lag, s.na,
                     np.array(s.nb, dtype=np.int64), np.array(s.nk, dtype=np.int64), k0_i,
-                    alpha, beta, refresh, bool(prefilter), il, Qa, q_zero, float(R), tol,
+                    alpha, beta, refresh, bool(prefilter), il, Qa, float(R), tol,
                     hist[sl], eps[sl], Phi[sl], Z[sl], target[sl])
             else:
                 from ._recursive_reference import riv_model_reference
@@ -548,7 +548,7 @@ def recursive_iv_records(records, s, instruments="model", *, lam=1.0, Q=None, R=
         if compiled:
             k = _get_kernels()
             bad = k.riv_rows(theta, P, Phi[k0:], Z[k0:], np.ascontiguousarray(target[k0:]),
-                             il, Qa, q_zero, float(R), tol, hist[k0:], eps[k0:])
+                             il, Qa, float(R), tol, hist[k0:], eps[k0:])
         else:
             from ._recursive_reference import riv_rows_reference
             bad = riv_rows_reference(theta, P, Phi[k0:], Z[k0:], target[k0:], lam,

@@ -3,8 +3,11 @@ r"""Compiled (numba) recursions of the model family: RPEM, RPLR and recursive IV
 Every function is ``njit(cache=True)``; the module is imported on first use
 (``import rlsfilt`` stays light). The readable NumPy reference of the same
 arithmetic is :mod:`rlsfilt.models._recursive_reference`; the tests hold the
-two equal to round-off, and hold the covariance update equal to
-`RecursiveLeastSquares` for every forgetting mode.
+two equal to round-off. The covariance updates are not written here: they
+are the compiled updates of `RecursiveLeastSquares`
+(:func:`rlsfilt.filters._kernels.time_update` and ``measurement_update``,
+called through `forget` and `rls_update`), so every forgetting mode and the
+gate behave as the filter's.
 
 **One step of RPEM / RPLR** (Ljung 1999, ch. 11; Ljung & Soderstrom
 1983), for the general model :math:`A y = \sum_i B_i/F_i\, u_i + C/D\, e`
@@ -30,9 +33,9 @@ least squares for ARMAX, the output-error PLR for OE) or the gradient
 
 filtered with the current estimate. Measured signals (``y``, ``u``) are
 filtered with :math:`\theta(t-1)` at the start of the step; the model's own
-signals with :math:`\theta(t)` after the update. Then, exactly as
-`RecursiveLeastSquares` with regressor :math:`\psi` (the same forgetting
-modes, random walk ``Q`` and noise variance ``R``)::
+signals with :math:`\theta(t)` after the update. Then the step of
+`RecursiveLeastSquares` (its own kernels) with regressor :math:`\psi` (the
+same forgetting modes, random walk ``Q`` and noise variance ``R``)::
 
     P <- P / lam + Q                    (time update; lam only when exponential)
     eps = y(t) - phi^T theta            a-priori prediction error
@@ -62,11 +65,12 @@ skipped and reported.
 import numpy as np
 
 from .._numba import njit  # numba.njit, uncached where no cache directory is writable
+from ..filters._kernels import measurement_update, time_update
+from ..filters.forgetting import CFG_LAM, CFG_MODE, EXPONENTIAL
 
 __all__ = []
 
 RPEM, RPLR = 0, 1
-MODE_EXPONENTIAL, MODE_DIRECTIONAL, MODE_CONSTANT_TRACE, MODE_EFRA, MODE_VARIABLE = range(5)
 
 # rows of the signal buffer `buf` (lag k of signal s is buf[s, k]; k = 0 is time t)
 SIG_Y, SIG_YF, SIG_E, SIG_EF, SIG_V, SIG_VF = 0, 1, 2, 3, 4, 5
@@ -168,31 +172,30 @@ def stabilize(theta, nc, nd, nf, off_c, off_d, off_f):
 
 
 # ----------------------------------------------------------------------
-# the covariance update of RecursiveLeastSquares, with a given residual
+# the covariance update: RecursiveLeastSquares' own, with a given residual
 # ----------------------------------------------------------------------
-@njit(cache=True)
-def time_update(P, il, Q, q_zero):
-    """``P <- P * il + Q`` in place (``il = 1/lam`` when exponential, else 1)."""
-    n = P.shape[0]
-    if il != 1.0:
-        for i in range(n):
-            for j in range(n):
-                P[i, j] = P[i, j] * il
-    if not q_zero:
-        for i in range(n):
-            for j in range(n):
-                P[i, j] = P[i, j] + Q[i, j]
+@njit(cache=True, inline="always")
+def forget(P, il, Q):
+    """``P <- P il + Q`` in place (``il = 1/lam`` when exponential, else 1; ``Q`` (0, 0)
+    when absent): `filters._kernels.time_update` without constraints."""
+    none = P[:0, :0]                         # no projector, so no work space either
+    time_update(P, il, Q, none, none, P)
 
 
-@njit(cache=True)
-def measurement_update(theta, P, psi, eps, r, mode, params, lam, has_gate, gate, g, K, T):
+@njit(cache=True, inline="always")
+def rls_update(theta, P, psi, eps, r, cfg, g, K, T, dx, zy):
     """One measurement update of any forgetting mode, with the residual `eps` given.
 
-    The arithmetic of ``RecursiveLeastSquares`` (``filters._reference.update_<mode>``)
-    for one output, with the regressor ``psi`` and the residual ``eps``
-    (for RLS, ``eps = z - psi . theta``). ``theta`` (n,) and ``P`` are
-    updated in place; ``g = P psi`` and ``K`` (n,) are written; ``T`` is
-    (n, n) work.
+    `filters._kernels.measurement_update` (``RecursiveLeastSquares``' update:
+    every forgetting mode of `cfg`, ``forgetting.kernel_config`` without
+    constraints, and its gate) for one output with the regressor ``psi``.
+    That update computes its residual as ``z - psi . x``: run on the zero
+    state ``x = 0`` (``dx``, (n, 1)) with ``z = eps`` it sees exactly `eps`,
+    and its new state is the step ``K eps``, added to ``theta`` (n,) here.
+    ``P`` is updated in place; ``g = P psi`` and ``K`` (n,) are written;
+    ``T`` is (n, n) work and ``zy`` (2,) holds ``z`` and the update's residual.
+    The windup cap's decision is not used: the recursions forget in every
+    step.
 
     Returns
     -------
@@ -204,91 +207,50 @@ def measurement_update(theta, P, psi, eps, r, mode, params, lam, has_gate, gate,
         Whether the gate rejected the sample (then nothing changed).
     """
     n = theta.shape[0]
-    for i in range(n):                       # g = P psi
-        acc = 0.0
-        for j in range(n):
-            acc += P[i, j] * psi[j]
-        g[i] = acc
-    acc = 0.0
     for i in range(n):
-        acc += psi[i] * g[i]
-    s = acc + r
-    if has_gate and eps * eps > gate * gate * s:
-        for i in range(n):
-            K[i] = 0.0
-        return s, (lam if mode == MODE_EXPONENTIAL else 1.0), True
-    lam_t = lam
-    if mode == MODE_DIRECTIONAL:
-        eps_dir = params[0]
-        rho = (s - r) / r                    # psi P psi^T / r
-        e = lam - (1.0 - lam) / rho if rho > eps_dir else 1.0
-        d = r * (1.0 + e * rho)
-        for i in range(n):
-            K[i] = g[i] / d
-        ed = e / d
-        for i in range(n):
-            gi = g[i]
-            for j in range(n):
-                P[i, j] = P[i, j] - ed * (gi * g[j])
-        lam_t = e
-    elif mode == MODE_EFRA:
-        alpha, beta, delta = params[0], params[1], params[2]
-        a_s = alpha / s
-        d_r = delta / r
-        for i in range(n):
-            K[i] = a_s * g[i]
-        for i in range(n):                   # T = P @ P
-            for j in range(n):
-                T[i, j] = 0.0
-            for k in range(n):
-                a = P[i, k]
-                for j in range(n):
-                    T[i, j] += a * P[k, j]
-        for i in range(n):
-            gi = g[i]
-            for j in range(n):
-                T[i, j] = P[i, j] / lam - a_s * (gi * g[j]) - d_r * T[i, j]
-        br = beta * r
-        for i in range(n):
-            for j in range(n):
-                P[i, j] = 0.5 * (T[i, j] + T[j, i])
-            P[i, i] = P[i, i] + br
-    else:                                    # exponential, constant trace, variable
-        for i in range(n):
-            K[i] = g[i] / s
-        for i in range(n):
-            gi = g[i]
-            for j in range(n):
-                P[i, j] = P[i, j] - (gi * g[j]) / s
-        if mode == MODE_CONSTANT_TRACE:
-            trace, ratio = params[0], params[1]
-            c2 = trace / (ratio + n)
-            c1 = trace - n * c2
-            tb = 0.0
-            for i in range(n):
-                tb += P[i, i]
-            f = c1 / tb
-            for i in range(n):
-                for j in range(n):
-                    P[i, j] = f * P[i, j]
-                P[i, i] = P[i, i] + c2
-            lam_t = tb / c1
-        elif mode == MODE_VARIABLE:
-            lam_min, trace_max = params[0], params[1]
-            lt = 1.0 - (1.0 - lam) * eps * eps / s
-            lt = min(1.0, max(lam_min, lt))
-            tb = 0.0
-            for i in range(n):
-                tb += P[i, i]
-            lt = max(lt, min(1.0, tb / trace_max))
-            if lt != 1.0:
-                for i in range(n):
-                    for j in range(n):
-                        P[i, j] = P[i, j] / lt
-            lam_t = lt
+        dx[i, 0] = 0.0
+    zy[0] = eps
+    s, lam_t, gated, _ = measurement_update(dx, P, psi, zy[:1], False, r, cfg, P[:0, :0], g,
+                                            zy[1:], K, T, 1.0, dx, P)
     for i in range(n):                       # theta = theta + K eps
-        theta[i] = theta[i] + K[i] * eps
-    return s, lam_t, False
+        theta[i] = theta[i] + dx[i, 0]
+    return s, lam_t, gated
+
+
+# ----------------------------------------------------------------------
+# the signal buffers
+# ----------------------------------------------------------------------
+@njit(cache=True, inline="always")
+def shift(buf):
+    """Move every signal (row) of `buf` one lag back: ``buf[:, k] <- buf[:, k - 1]``,
+    and lag 0 to zero (the step then writes it)."""
+    n_sig, M = buf.shape
+    for sg in range(n_sig):
+        for k in range(M - 1, 0, -1):
+            buf[sg, k] = buf[sg, k - 1]
+        buf[sg, 0] = 0.0
+
+
+@njit(cache=True, inline="always")
+def through_ar(v, alpha, buf, row, na):
+    """Lag 0 of ``1/A`` applied to a signal whose new sample is `v`:
+    ``v - sum_{k=1..na} alpha[k-1] buf[row, k]`` (``buf[row]`` the past of the
+    output; the terms subtracted one at a time, in order of lag)."""
+    for k in range(1, na + 1):
+        v -= alpha[k - 1] * buf[row, k]
+    return v
+
+
+@njit(cache=True, inline="always")
+def take_lags(a, b, j, buf, ra, rb, first, count, sign):
+    """One block of two rows (regressor and gradient, or regressor and instrument):
+    ``a[j + k] = sign buf[ra, first + k]``, ``b[j + k] = sign buf[rb, first + k]``
+    for ``k < count``, `sign` 1 or -1. Returns ``j + count``, where the next block
+    starts."""
+    for k in range(count):
+        a[j + k] = sign * buf[ra, first + k]
+        b[j + k] = sign * buf[rb, first + k]
+    return j + count
 
 
 # ----------------------------------------------------------------------
@@ -305,16 +267,18 @@ def _lagged_sum(theta, start, n, buf, sig, first_lag):
 
 @njit(cache=True)
 def rpem_step(theta, P, buf, y, u, na, nb, nc, nd, nf, nk, off_b, off_c, off_d, off_f,
-              method, mode, params, lam, Q, q_zero, r, has_gate, gate, project,
-              phi, psi, g, K, T):
+              method, cfg, lam, Q, r, project, phi, psi, g, K, T, dx, zy):
     """One step of RPEM (``method`` 0) or RPLR (1), in place on ``theta``, ``P``, ``buf``.
 
-    ``lam`` is this step's forgetting factor (see `next_lam`).
+    ``lam`` is this step's forgetting factor (see `next_lam`); `cfg` the
+    filters' configuration (``forgetting.kernel_config``: the forgetting
+    mode, its parameters and the gate, ``inf`` without one), into which the
+    step writes ``lam``; ``Q`` the random walk ((0, 0) without one).
 
     ``buf`` (6 + 6 nu, M) holds the lags ``0 .. M-1`` of the signals (rows
     ``SIG_*``); ``u`` (nu,) is the input sample. ``phi``, ``psi``, ``g``,
-    ``K`` (n,) and ``T`` (n, n) are work arrays (``phi`` and ``psi`` hold
-    the step's regressor and gradient on return).
+    ``K`` (n,), ``T`` (n, n), ``dx`` (n, 1) and ``zy`` (2,) are work arrays
+    (``phi`` and ``psi`` hold the step's regressor and gradient on return).
 
     Returns
     -------
@@ -332,12 +296,7 @@ def rpem_step(theta, P, buf, y, u, na, nb, nc, nd, nf, nk, off_b, off_c, off_d, 
     """
     n = theta.shape[0]
     nu = nb.shape[0]
-    n_sig, M = buf.shape
-    # shift every signal one lag back
-    for sg in range(n_sig):
-        for k in range(M - 1, 0, -1):
-            buf[sg, k] = buf[sg, k - 1]
-        buf[sg, 0] = 0.0
+    shift(buf)
     buf[SIG_Y, 0] = y
     for i in range(nu):
         buf[N_SIG_BASE + N_SIG_INPUT * i + SIG_U, 0] = u[i]
@@ -352,32 +311,16 @@ def rpem_step(theta, P, buf, y, u, na, nb, nc, nd, nf, nk, off_b, off_c, off_d, 
             buf[base + SIG_P, 0] = p
             buf[base + SIG_UF, 0] = (p + _lagged_sum(theta, off_d, nd, buf, base + SIG_P, 1)
                                      - _lagged_sum(theta, off_c, nc, buf, base + SIG_UF, 1))
-    # regressor phi and gradient psi
-    j = 0
-    for k in range(1, na + 1):
-        phi[j] = -buf[SIG_Y, k]
-        psi[j] = -buf[SIG_YF, k]
-        j += 1
+    # regressor phi and gradient psi, block by block
+    j = take_lags(phi, psi, 0, buf, SIG_Y, SIG_YF, 1, na, -1.0)
     for i in range(nu):
         base = N_SIG_BASE + N_SIG_INPUT * i
-        for k in range(nb[i]):
-            phi[j] = buf[base + SIG_U, nk[i] + k]
-            psi[j] = buf[base + SIG_UF, nk[i] + k]
-            j += 1
-    for k in range(1, nc + 1):
-        phi[j] = buf[SIG_E, k]
-        psi[j] = buf[SIG_EF, k]
-        j += 1
-    for k in range(1, nd + 1):
-        phi[j] = -buf[SIG_V, k]
-        psi[j] = -buf[SIG_VF, k]
-        j += 1
+        j = take_lags(phi, psi, j, buf, base + SIG_U, base + SIG_UF, nk[i], nb[i], 1.0)
+    j = take_lags(phi, psi, j, buf, SIG_E, SIG_EF, 1, nc, 1.0)
+    j = take_lags(phi, psi, j, buf, SIG_V, SIG_VF, 1, nd, -1.0)
     for i in range(nu):
         base = N_SIG_BASE + N_SIG_INPUT * i
-        for k in range(1, nf[i] + 1):
-            phi[j] = -buf[base + SIG_W, k]
-            psi[j] = -buf[base + SIG_WF, k]
-            j += 1
+        j = take_lags(phi, psi, j, buf, base + SIG_W, base + SIG_WF, 1, nf[i], -1.0)
     if not rpem:
         for i in range(n):
             psi[i] = phi[i]
@@ -387,10 +330,9 @@ def rpem_step(theta, P, buf, y, u, na, nb, nc, nd, nf, nk, off_b, off_c, off_d, 
         yhat += phi[i] * theta[i]
     eps = y - yhat
     # covariance and estimate update (RecursiveLeastSquares with regressor psi)
-    il = 1.0 / lam if mode == MODE_EXPONENTIAL else 1.0
-    time_update(P, il, Q, q_zero)
-    s, lam_t, gated = measurement_update(theta, P, psi, eps, r, mode, params, lam,
-                                         has_gate, gate, g, K, T)
+    cfg[CFG_LAM] = lam
+    forget(P, 1.0 / lam if int(cfg[CFG_MODE]) == EXPONENTIAL else 1.0, Q)
+    s, lam_t, gated = rls_update(theta, P, psi, eps, r, cfg, g, K, T, dx, zy)
     reflected = stabilize(theta, nc, nd, nf, off_c, off_d, off_f) if project else 0
     # the model's own signals with theta(t): w_i = B_i/F_i u_i, v = A y - sum w_i, e = D/C v
     wsum = 0.0
@@ -426,8 +368,8 @@ def next_lam(lam_now, lam, rate):
 
 @njit(cache=True)
 def rpem_batch(theta, P, buf, y, U, na, nb, nc, nd, nf, nk, off_b, off_c, off_d, off_f,
-               method, mode, params, lam, lam_now, lam_rate, Q, q_zero, r, has_gate, gate,
-               project, theta_hist, yhat, eps, gated):
+               method, cfg, lam, lam_now, lam_rate, Q, r, project, theta_hist, yhat, eps,
+               gated):
     """`rpem_step` over a record, in place on ``theta``, ``P``, ``buf``.
 
     The forgetting factor of each step follows the profile of `next_lam`
@@ -442,13 +384,14 @@ def rpem_batch(theta, P, buf, y, U, na, nb, nc, nd, nf, nk, off_b, off_c, off_d,
     g = np.empty(n)
     K = np.empty(n)
     T = np.empty((n, n))
+    dx = np.empty((n, 1))
+    zy = np.empty(2)
     lam_t = lam_now
     n_refl = 0
     for t in range(y.shape[0]):
         yh, ep, s, lam_t, gt, refl = rpem_step(
             theta, P, buf, y[t], U[t], na, nb, nc, nd, nf, nk, off_b, off_c, off_d, off_f,
-            method, mode, params, lam_now, Q, q_zero, r, has_gate, gate, project,
-            phi, psi, g, K, T)
+            method, cfg, lam_now, Q, r, project, phi, psi, g, K, T, dx, zy)
         lam_now = next_lam(lam_now, lam, lam_rate)
         yhat[t] = yh
         eps[t] = ep
@@ -463,22 +406,24 @@ def rpem_batch(theta, P, buf, y, U, na, nb, nc, nd, nf, nk, off_b, off_c, off_d,
 # numba call costs about 0.1 us per array argument, so the structure and the scalars
 # travel in two arrays instead of some thirty arguments)
 # spec (int64): the orders and flags, then the per-input blocks of length nu each
-SPEC_NA, SPEC_NC, SPEC_ND, SPEC_OFF_C, SPEC_OFF_D, SPEC_METHOD, SPEC_MODE = range(7)
-SPEC_Q_ZERO, SPEC_HAS_GATE, SPEC_PROJECT, SPEC_NU, SPEC_BLOCKS = range(7, 12)
-# fpar (float64): inputs lam, lam_rate, r, gate; state lam_now; outputs of the last step
-F_LAM, F_LAM_RATE, F_R, F_GATE, F_LAM_NOW, F_LAM_T, F_GATED, F_REFL, F_SIZE = range(9)
+SPEC_NA, SPEC_NC, SPEC_ND, SPEC_OFF_C, SPEC_OFF_D, SPEC_METHOD = range(6)
+SPEC_PROJECT, SPEC_NU, SPEC_BLOCKS = range(6, 9)
+# fpar (float64): inputs lam, lam_rate, r; state lam_now; outputs of the last step; the
+# work of `rls_update` (its measurement and residual)
+F_LAM, F_LAM_RATE, F_R, F_LAM_NOW, F_LAM_T, F_GATED, F_REFL, F_Z, F_Y, F_SIZE = range(10)
 
 
 @njit(cache=True)
-def rpem_stream(theta, P, buf, y, u, spec, fpar, params, Q, W, T):
+def rpem_stream(theta, P, buf, y, u, spec, fpar, cfg, Q, W, T):
     """One streaming step: `rpem_step` and `next_lam` exactly as `rpem_batch` runs them.
 
     The arguments are packed (see ``SPEC_*`` and ``F_*``): `spec` holds the
     orders, offsets and flags, `fpar` the scalars, with ``fpar[F_LAM_NOW]``
     (the factor of this step) advanced in place, and the step's ``lam_t``,
     ``gated`` and number of reflections written to ``F_LAM_T``, ``F_GATED``,
-    ``F_REFL``. ``W`` (4, n) holds the work rows ``phi``, ``psi``, ``g``,
-    ``K``; ``T`` (n, n). Returns ``(yhat, eps)``.
+    ``F_REFL``. `cfg` and `Q` as in `rpem_step`. ``W`` (5, n) holds the work
+    rows ``phi``, ``psi``, ``g``, ``K`` and ``dx``; ``T`` (n, n). Returns
+    ``(yhat, eps)``.
     """
     nu = spec[SPEC_NU]
     b = SPEC_BLOCKS
@@ -490,9 +435,9 @@ def rpem_stream(theta, P, buf, y, u, spec, fpar, params, Q, W, T):
     lam_now = fpar[F_LAM_NOW]
     yh, ep, s, lam_t, gt, refl = rpem_step(
         theta, P, buf, y, u, spec[SPEC_NA], nb, spec[SPEC_NC], spec[SPEC_ND], nf, nk, off_b,
-        spec[SPEC_OFF_C], spec[SPEC_OFF_D], off_f, spec[SPEC_METHOD], spec[SPEC_MODE], params,
-        lam_now, Q, spec[SPEC_Q_ZERO] != 0, fpar[F_R], spec[SPEC_HAS_GATE] != 0, fpar[F_GATE],
-        spec[SPEC_PROJECT] != 0, W[0], W[1], W[2], W[3], T)
+        spec[SPEC_OFF_C], spec[SPEC_OFF_D], off_f, spec[SPEC_METHOD], cfg, lam_now, Q, fpar[F_R],
+        spec[SPEC_PROJECT] != 0, W[0], W[1], W[2], W[3], T, W[4].reshape((W.shape[1], 1)),
+        fpar[F_Z:F_Z + 2])
     fpar[F_LAM_NOW] = next_lam(lam_now, fpar[F_LAM], fpar[F_LAM_RATE])
     fpar[F_LAM_T] = lam_t
     fpar[F_GATED] = 1.0 if gt else 0.0
@@ -555,7 +500,7 @@ def riv_update(theta, P, phi, z, y, r, tol, g, h, K, eps):
 
 
 @njit(cache=True)
-def riv_rows(theta, P, Phi, Z, Y, il, Q, q_zero, r, tol, theta_hist, eps_hist):
+def riv_rows(theta, P, Phi, Z, Y, il, Q, r, tol, theta_hist, eps_hist):
     """Recursive IV over given regressor rows ``Phi``, instruments ``Z`` and targets ``Y``.
 
     Writes ``theta_hist`` (N, n, m) and ``eps_hist`` (N, m). Returns the
@@ -568,7 +513,7 @@ def riv_rows(theta, P, Phi, Z, Y, il, Q, q_zero, r, tol, theta_hist, eps_hist):
     eps = np.empty(m)
     bad = -1
     for t in range(Phi.shape[0]):
-        time_update(P, il, Q, q_zero)
+        forget(P, il, Q)
         skipped = riv_update(theta, P, Phi[t], Z[t], Y[t], r, tol, g, h, K, eps)
         if bad < 0 and skipped:
             bad = t
@@ -597,51 +542,28 @@ def riv_signals(buf, y, u, na, nb, nk, alpha, beta, prefilter, phi, z):
     (signals before the record are zero). Returns the (prefiltered) target
     ``yf(t)``.
     """
-    n_sig, M = buf.shape
     nu = nb.shape[0]
-    for sg in range(n_sig):
-        for k in range(M - 1, 0, -1):
-            buf[sg, k] = buf[sg, k - 1]
-        buf[sg, 0] = 0.0
+    n_pre = na if prefilter else 0           # the order of the prefilter 1/A
+    shift(buf)
     buf[RIV_Y, 0] = y
-    yf = y
-    if prefilter:
-        for k in range(1, na + 1):
-            yf -= alpha[k - 1] * buf[RIV_YF, k]
+    yf = through_ar(y, alpha, buf, RIV_YF, n_pre)
     buf[RIV_YF, 0] = yf
     x = 0.0
     off = 0
     for i in range(nu):
         ru = 4 + 2 * i
         buf[ru, 0] = u[i]
-        uf = u[i]
-        if prefilter:
-            for k in range(1, na + 1):
-                uf -= alpha[k - 1] * buf[ru + 1, k]
-        buf[ru + 1, 0] = uf
+        buf[ru + 1, 0] = through_ar(u[i], alpha, buf, ru + 1, n_pre)
         for k in range(nb[i]):
             x += beta[off + k] * buf[ru, nk[i] + k]
         off += nb[i]
-    for k in range(1, na + 1):
-        x -= alpha[k - 1] * buf[RIV_X, k]
+    x = through_ar(x, alpha, buf, RIV_X, na)
     buf[RIV_X, 0] = x
-    xf = x
-    if prefilter:
-        for k in range(1, na + 1):
-            xf -= alpha[k - 1] * buf[RIV_XF, k]
-    buf[RIV_XF, 0] = xf
-    j = 0
-    for k in range(1, na + 1):
-        phi[j] = -buf[RIV_YF, k]
-        z[j] = -buf[RIV_XF, k]
-        j += 1
+    buf[RIV_XF, 0] = through_ar(x, alpha, buf, RIV_XF, n_pre)
+    j = take_lags(phi, z, 0, buf, RIV_YF, RIV_XF, 1, na, -1.0)
     for i in range(nu):
         ru = 4 + 2 * i
-        for k in range(nb[i]):
-            v = buf[ru + 1, nk[i] + k]
-            phi[j] = v
-            z[j] = v
-            j += 1
+        j = take_lags(phi, z, j, buf, ru + 1, ru + 1, nk[i], nb[i], 1.0)
     return yf
 
 
@@ -686,8 +608,7 @@ def riv_refresh(theta, na, alpha, beta):
 
 @njit(cache=True)
 def riv_model_step(theta, P, buf, y, u, z_given, use_given, row, na, nb, nk, k0, alpha, beta,
-                   refresh, prefilter, il, Q, q_zero, r, tol, Phi0, Z0, Y0, phi, z, g, h, K,
-                   eps):
+                   refresh, prefilter, il, Q, r, tol, Phi0, Z0, Y0, phi, z, g, h, K, eps):
     """One sample of recursive IV with auxiliary-model instruments (batch and streaming).
 
     `row` is the index of this sample's regressor row (negative before the
@@ -724,7 +645,7 @@ def riv_model_step(theta, P, buf, y, u, z_given, use_given, row, na, nb, nk, k0,
         if row == k0 - 1 and not riv_exact_start(Z0, Phi0, Y0, theta, P):
             return 3, target
     else:
-        time_update(P, il, Q, q_zero)
+        forget(P, il, Q)
         yv = np.empty(1)
         yv[0] = target
         if riv_update(theta, P, phi, z, yv, r, tol, g, h, K, eps):
@@ -736,7 +657,7 @@ def riv_model_step(theta, P, buf, y, u, z_given, use_given, row, na, nb, nk, k0,
 
 @njit(cache=True)
 def riv_model(theta, P, buf, U, y, t0, na, nb, nk, k0, alpha, beta, refresh, prefilter,
-              il, Q, q_zero, r, tol, theta_hist, eps_hist, Phi_out, Z_out, Y_out):
+              il, Q, r, tol, theta_hist, eps_hist, Phi_out, Z_out, Y_out):
     r"""Recursive IV with instruments from an auxiliary model refreshed every `refresh` rows.
 
     The auxiliary model :math:`\hat A x = \sum_i \hat B_i u_i` (``alpha``
@@ -772,7 +693,7 @@ def riv_model(theta, P, buf, U, y, t0, na, nb, nk, k0, alpha, beta, refresh, pre
     for t in range(N):
         row = t - t0
         status, target = riv_model_step(theta, P, buf, y[t], U[t], z, False, row, na, nb, nk,
-                                        k0, alpha, beta, refresh, prefilter, il, Q, q_zero, r,
+                                        k0, alpha, beta, refresh, prefilter, il, Q, r,
                                         tol, Phi0, Z0, Y0, phi, z, g, h, K, eps)
         if status < 0:
             continue
@@ -795,8 +716,8 @@ def riv_model(theta, P, buf, U, y, t0, na, nb, nk, k0, alpha, beta, refresh, pre
 
 
 # packed arguments of `riv_stream` (as for `rpem_stream`)
-RSPEC_NA, RSPEC_K0, RSPEC_REFRESH, RSPEC_PREFILTER, RSPEC_GIVEN, RSPEC_Q_ZERO, RSPEC_NU = range(7)
-RSPEC_BLOCKS = 7
+RSPEC_NA, RSPEC_K0, RSPEC_REFRESH, RSPEC_PREFILTER, RSPEC_GIVEN, RSPEC_NU = range(6)
+RSPEC_BLOCKS = 6
 RF_IL, RF_R, RF_TOL, RF_SIZE = range(4)
 # rows of the work array W (7, n): phi, z, g, h, K, theta before the step, eps (W[6, 0])
 W_PHI, W_Z, W_G, W_H, W_K, W_THETA, W_EPS = range(7)
@@ -806,8 +727,9 @@ W_PHI, W_Z, W_G, W_H, W_K, W_THETA, W_EPS = range(7)
 def riv_stream(theta, P, buf, y, u, z_given, row, spec, fpar, alpha, beta, Q, S0, Y0, W):
     r"""One streaming sample: `riv_model_step` (the batch arithmetic) on packed arguments.
 
-    `spec` holds ``na, k0, refresh, prefilter, use_given, q_zero, nu`` and
-    the ``nb``, ``nk`` blocks; `fpar` ``1/lam, R, tol``; ``S0`` (2, m, n)
+    `spec` holds ``na, k0, refresh, prefilter, use_given, nu`` and the
+    ``nb``, ``nk`` blocks; `fpar` ``1/lam, R, tol``; `Q` (0, 0) without a
+    random walk; ``S0`` (2, m, n)
     the start rows ``Phi0``, ``Z0``; ``W`` (7, n) the work rows (``W[6,
     0]`` the residual). Returns ``(status, yhat)`` with ``yhat`` the
     prediction :math:`\varphi^T\hat\theta(t-1)` of the (prefiltered) output
@@ -823,7 +745,7 @@ def riv_stream(theta, P, buf, y, u, z_given, row, spec, fpar, alpha, beta, Q, S0
     status, _ = riv_model_step(
         theta, P, buf, y, u, z_given, spec[RSPEC_GIVEN] != 0, row, spec[RSPEC_NA], nb, nk,
         spec[RSPEC_K0], alpha, beta, spec[RSPEC_REFRESH], spec[RSPEC_PREFILTER] != 0,
-        fpar[RF_IL], Q, spec[RSPEC_Q_ZERO] != 0, fpar[RF_R], fpar[RF_TOL], S0[0], S0[1], Y0,
+        fpar[RF_IL], Q, fpar[RF_R], fpar[RF_TOL], S0[0], S0[1], Y0,
         W[W_PHI], W[W_Z], W[W_G], W[W_H], W[W_K], W[W_EPS, :1])
     yhat = np.nan
     if status == 1 or status == 2 or status == -1:

@@ -142,6 +142,8 @@ class RecursionState:
         self.q_zero = not Qm.any()
         self.Q = np.ascontiguousarray(Qm) if not self.q_zero else np.zeros((0, 0))
         self.gate = None if gate is None else _check_positive(gate, "gate")
+        # the filters' configuration (its lam is written by each step: the start-up profile)
+        self._cfg = _fg.kernel_config(self.mode, self.lam, self.params, self.gate)
         self.project = bool(project)
         self.check_every = check_int(check_every, "check_every", minimum=0)
         self.cond_max = _check_positive(cond_max, "cond_max")
@@ -179,13 +181,12 @@ class RecursionState:
         # the packed arguments of the streaming step (see _recursive_kernels.rpem_stream)
         i = self._ints
         self._spec = np.array(
-            [s.na, s.nc, s.nd, i["off_c"], i["off_d"], 0 if method == "rpem" else 1, self.mode,
-             self.q_zero, self.gate is not None, self.project, nu]
+            [s.na, s.nc, s.nd, i["off_c"], i["off_d"], 0 if method == "rpem" else 1,
+             self.project, nu]
             + [int(v) for key in ("nb", "nf", "nk", "off_b", "off_f") for v in i[key]],
             dtype=np.int64)
         f = self._fpar
         f[k.F_LAM], f[k.F_LAM_RATE], f[k.F_R] = self.lam, self.lam_rate, self.R
-        f[k.F_GATE] = 0.0 if self.gate is None else self.gate
 
     @property
     def lam_now(self):
@@ -208,9 +209,8 @@ class RecursionState:
     def _common(self):
         i = self._ints
         return (i["na"], i["nb"], i["nc"], i["nd"], i["nf"], i["nk"], i["off_b"], i["off_c"],
-                i["off_d"], i["off_f"], 0 if self.method == "rpem" else 1, self.mode,
-                self.params, self.lam, self.lam_now, self.lam_rate, self.Q, self.q_zero, self.R,
-                self.gate is not None, 0.0 if self.gate is None else self.gate, self.project)
+                i["off_d"], i["off_f"], 0 if self.method == "rpem" else 1, self._cfg,
+                self.lam, self.lam_now, self.lam_rate, self.Q, self.R, self.project)
 
     def run(self, y, U):
         """Run the compiled recursion over ``y`` (N,) and ``U`` (N, nu); returns histories.
@@ -265,12 +265,12 @@ class RecursionState:
         """
         if self._work is None:
             n = self.s.n_params
-            self._work = (np.empty((4, n)), np.empty((n, n)))
+            self._work = (np.empty((5, n)), np.empty((n, n)))
             k = _get_kernels()
             self._kernel, self._out = k.rpem_stream, (k.F_GATED, k.F_REFL)
         f = self._fpar
         yhat, eps = self._kernel(self.theta, self.P, self.buf, y, u, self._spec, f,
-                                 self.params, self.Q, *self._work)
+                                 self._cfg, self.Q, *self._work)
         gated, refl = self._out
         self.n_reflections += int(f[refl])
         self.n_steps += 1

@@ -106,8 +106,7 @@ class RecursiveIV:
         self.lam = check_lam(lam)
         self.R = check_variance(R, "R")
         Qm = check_covariance(Q, n, "Q")
-        self._q_zero = not Qm.any()
-        self._Q = np.ascontiguousarray(Qm) if not self._q_zero else np.zeros((0, 0))
+        self._Q = np.ascontiguousarray(Qm) if Qm.any() else np.zeros((0, 0))
         P = check_covariance(P0, n, "P0", definite=True)
         theta = np.zeros(n) if x0 is None else as_float_array(x0, "x0").reshape(-1)
         if theta.shape != (n,):
@@ -128,7 +127,7 @@ class RecursiveIV:
         given = instruments != "model"
         # the packed arguments of the compiled step (_recursive_kernels.riv_stream)
         self._spec = np.array([s.na, self.k0, 0 if given else self.refresh,
-                               self.prefilter and not given, given, self._q_zero, s.n_inputs]
+                               self.prefilter and not given, given, s.n_inputs]
                               + list(s.nb) + list(s.nk), dtype=np.int64)
         self._fpar = np.array([1.0 / self.lam, self.R, self.tol])
         self._nu = s.n_inputs

@@ -188,50 +188,28 @@ class PlantComparison:
             lines.append(f"    plant pole not modelled {_fmt_complex(p)}")
         return "\n".join(lines)
 
-    def plot(self, fig=None):
-        """Bode diagram and step responses, model over plant
-        (:func:`rlsfilt.plotting.plot_plant_comparison`).
+    # the figures: each method is its plotting function applied to this comparison, which
+    # documents the arguments (passed on) and the return value
+    def plot(self, fig=None, **kwargs):
+        """Bode diagram and step responses, model over plant.
 
-        Parameters
-        ----------
-        fig : matplotlib.figure.Figure, optional
-            Figure to draw in (it should be empty); a new one if omitted.
-
-        Returns
-        -------
-        matplotlib.figure.Figure
+        Refer to :func:`rlsfilt.plotting.plot_plant_comparison` for full documentation.
         """
-        return plot_plant_comparison(self, fig)
+        return plot_plant_comparison(self, fig, **kwargs)
 
-    def plot_bode(self, ax_mag=None, ax_phase=None):
+    def plot_bode(self, ax_mag=None, ax_phase=None, **kwargs):
         """Bode magnitude (dB) and phase (deg) of model and plant.
 
-        Parameters
-        ----------
-        ax_mag, ax_phase : matplotlib.axes.Axes, optional
-            Axes for magnitude and phase; a new figure with both is made
-            unless both are given.
-
-        Returns
-        -------
-        (matplotlib.axes.Axes, matplotlib.axes.Axes)
-            The magnitude and phase axes.
+        Refer to :func:`rlsfilt.plotting.plot_bode` for full documentation.
         """
-        return plot_bode(self, ax_mag, ax_phase)
+        return plot_bode(self, ax_mag, ax_phase, **kwargs)
 
-    def plot_step(self, ax=None):
+    def plot_step(self, ax=None, **kwargs):
         """Unit-step responses of model and plant.
 
-        Parameters
-        ----------
-        ax : matplotlib.axes.Axes, optional
-            Axes to draw in; a new figure is made if omitted.
-
-        Returns
-        -------
-        matplotlib.axes.Axes
+        Refer to :func:`rlsfilt.plotting.plot_step` for full documentation.
         """
-        return plot_step(self, ax)
+        return plot_step(self, ax, **kwargs)
 
 
 # ----------------------------------------------------------------------

@@ -92,45 +92,26 @@ class ResidualAnalysis:
             f"{'independent' if self.is_independent else 'NOT independent'}",
         ])
 
+    # the figures: each method is its plotting function applied to this analysis, which
+    # documents the argument and the return value
     def plot(self, fig=None):
         """Autocorrelation and input cross-correlations with their bands (MATLAB ``resid``).
 
-        Parameters
-        ----------
-        fig : matplotlib.figure.Figure, optional
-            Figure to draw in (it should be empty); a new one if omitted.
-
-        Returns
-        -------
-        matplotlib.figure.Figure
+        Refer to :func:`rlsfilt.plotting.plot_residuals` for full documentation.
         """
         return plot_residuals(self, fig)
 
     def plot_autocorrelation(self, ax=None):
-        """Stem plot of :math:`\\hat\\rho_\\varepsilon(k)` with its band.
+        r"""Stem plot of :math:`\hat\rho_\varepsilon(k)` with its band.
 
-        Parameters
-        ----------
-        ax : matplotlib.axes.Axes, optional
-            Axes to draw in; a new figure is made if omitted.
-
-        Returns
-        -------
-        matplotlib.axes.Axes
+        Refer to :func:`rlsfilt.plotting.plot_autocorrelation` for full documentation.
         """
         return plot_autocorrelation(self, ax)
 
     def plot_cross_correlation(self, ax=None):
-        """Cross-correlation :math:`\\hat\\rho_{\\varepsilon u}(\\tau)` with each input.
+        r"""Cross-correlation :math:`\hat\rho_{\varepsilon u}(\tau)` with each input.
 
-        Parameters
-        ----------
-        ax : matplotlib.axes.Axes, optional
-            Axes to draw in; a new figure is made if omitted.
-
-        Returns
-        -------
-        matplotlib.axes.Axes
+        Refer to :func:`rlsfilt.plotting.plot_cross_correlation` for full documentation.
         """
         return plot_cross_correlation(self, ax)
 
