@@ -394,7 +394,7 @@ def _family_entries():
     """`ARMAX`, `OE` and `BJ` (prediction-error method) and `IOData`, the containers of
     real records.
 
-    The prediction-error fits run in scaled units (`rlsfilt.models._pem.RecordUnits`), so
+    The prediction-error fits run in scaled units (`rlsfilt.models._units.RecordUnits`), so
     around 1e160 and 1e-160 they are the fit of the unscaled record with the ``b``
     coefficients scaled by ``s`` (``y * s``) or ``1 / s`` (``u * s``), the others unchanged.
     """

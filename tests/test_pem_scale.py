@@ -8,7 +8,7 @@ diagonal of those factors), predictions and simulations times ``c_y`` in the
 user's units, and the same fit percentages and residual-test p-values. The
 criterion is a sum of squares: around 1e160 it overflowed, around 1e-160 it
 underflowed, before the fit learned to run in power-of-two scaled units
-(`rlsfilt.models._pem.RecordUnits`).
+(`rlsfilt.models._units.RecordUnits`).
 
 The oracle is the fit of the same record at scale 1, whose numbers
 `test_pem.py` and `test_family_oracles.py` check against least squares,

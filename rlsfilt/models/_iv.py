@@ -55,6 +55,7 @@ import warnings
 import numpy as np
 
 from .._lazy_scipy import lfilter
+from .._scale import safe_norm
 from ..exceptions import NumericalWarning
 from ._long_ar import levinson_ar
 from ._stability import reflect
@@ -169,8 +170,8 @@ def iv_solve(Z, Phi, Y):
     M = Z.T @ Phi
     rhs = Z.T @ Y
     # scale rows and columns so the rank decision does not depend on units
-    dr = np.sqrt(np.sum(Z ** 2, axis=0))
-    dc = np.sqrt(np.sum(Phi ** 2, axis=0))
+    dr = safe_norm(Z, axis=0)
+    dc = safe_norm(Phi, axis=0)
     dr[dr == 0] = 1.0
     dc[dc == 0] = 1.0
     Ms = M / dr[:, None] / dc[None, :]

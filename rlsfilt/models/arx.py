@@ -19,7 +19,7 @@ import warnings
 import numpy as np
 
 from .._resources import check_memory
-from .._scale import pow2_scale, safe_norm
+from .._scale import pow2_exponent, pow2_scale, safe_norm
 from .._serialize import jsonable
 from .._validation import as_float_array, check_finite, check_int, check_scalar
 from ..exceptions import InsufficientDataError, NumericalWarning
@@ -29,6 +29,7 @@ from ._arx_iv import check_options as check_iv_options
 from ._arx_iv import fit_arx_iv
 from ._base import IdentifiedModel, Polynomials
 from ._summary import EQUATION_STYLES, ModelSummary
+from ._units import estimate_in_units
 from .regressors import (
     _as_signal,
     _build,
@@ -398,7 +399,8 @@ class ARX(IdentifiedModel):
         recursive, cov_iv = {}, None
         inv_scaled, col_scale = None, np.ones(Phi.shape[1])
         if method == "ls":
-            theta, inv_scaled, col_scale = _qr_least_squares(Phi, target)
+            theta, inv_scaled, col_scale = _qr_least_squares(Phi, target,
+                                                             _output_lags(s, Phi.shape[1]))
         elif method in ("iv", "riv"):
             dev = records if op is None else [(U - op[0], Y - op[1]) for U, Y in records]
             theta, cov_iv, recursive = fit_arx_iv(
@@ -1199,11 +1201,14 @@ def _cond(R):
     return float(sv[0] / sv[-1]) if len(sv) and sv[-1] > 0 else np.inf
 
 
-def _qr_least_squares(Phi, target):
+def _qr_least_squares(Phi, target, of_output=None):
     r"""Least squares through QR, safe over the whole double range.
 
     Returns ``(theta, C, c)``: ``theta`` (n, ny) and :math:`(\Phi^T\Phi)^{-1}
-    = C / (c c^T)`, with ``c`` the powers of two that scaled the columns.
+    = C / (c c^T)`, with ``c`` the powers of two that scaled the columns. A
+    coefficient beyond the largest double (``u`` around 1e-160, ``y`` around
+    1e160) is a ValueError naming ``u`` and ``y`` (`of_output` marks the
+    ``a`` coefficients, for the message).
 
     The columns of ``Phi`` (by ``c``) and of the target (by ``t``) are
     divided by powers of two near their largest entries, which is exact, so
@@ -1217,8 +1222,8 @@ def _qr_least_squares(Phi, target):
     """
     from scipy.linalg import lapack, solve_triangular  # lazy: keeps `import rlsfilt` light
     rows, n = Phi.shape
-    c = pow2_scale(Phi, axis=0)
-    t = pow2_scale(target, axis=0)
+    ce, te = pow2_exponent(Phi, axis=0), pow2_exponent(target, axis=0)
+    c, t = np.ldexp(1.0, ce), np.ldexp(1.0, te)
     A = np.empty((rows, n + target.shape[1]), order="F")
     np.divide(Phi, c, out=A[:, :n])
     np.divide(target, t, out=A[:, n:])
@@ -1236,8 +1241,8 @@ def _qr_least_squares(Phi, target):
     # back substitution one column at a time, and the triangular inverse from
     # LAPACK's trtri: multi-column triangular solves hit a slow threaded BLAS
     # path for tiny matrices on loaded machines (measured: 2-10 ms per call)
-    theta = np.column_stack([solve_triangular(Rf, rhs[:, i]) * (t[i] / c)
-                             for i in range(rhs.shape[1])])
+    theta = np.column_stack([solve_triangular(Rf, rhs[:, i]) for i in range(rhs.shape[1])])
+    theta = estimate_in_units(theta, te[None, :] - ce[:, None], of_output)  # times t_i / c
     Rinv, info = lapack.dtrtri(Rf, lower=0)
     cov = Rinv @ Rinv.T
     return theta, 0.5 * (cov + cov.T), c
@@ -1262,14 +1267,19 @@ def _noise_and_covariance(resid, dof, inv_scaled, c):
     rs = resid / t
     noise_s = rs.T @ rs / dof
     sigma2_s = np.diag(noise_s).copy()
-    g = t[:, None] / c[None, :]                          # (ny, n)
     with np.errstate(over="ignore", under="ignore"):
+        g = t[:, None] / c[None, :]                      # (ny, n)
         sigma2 = sigma2_s * t * t
         noise_cov = noise_s * np.outer(t, t)
         if inv_scaled is None:
             return sigma2, None, noise_cov
         cov = (sigma2_s[:, None, None] * inv_scaled[None]) * g[:, :, None] * g[:, None, :]
     return sigma2, cov, noise_cov
+
+
+def _output_lags(s, n):
+    """Which of the `n` regressor columns are lags of an output (``a`` coefficients)."""
+    return np.arange(n) < s.n_outputs * s.na
 
 
 def _split(theta, s):
