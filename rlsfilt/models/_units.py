@@ -29,17 +29,28 @@ units (the gain denominator :math:`R + \varphi^T P z` is :math:`2^r` times
 its unscaled value, the gain :math:`P z / (R + \varphi^T P z)` has the units
 of :math:`\theta / y`). Multiplying by a power of two is exact, so the two
 runs give the same bits wherever the user's run stays inside the normal range
-of doubles, and the scaled run stays inside it for records of any size. Any
-integer :math:`r` will do: :math:`r = 0` keeps ``R`` as it is (and an exact
-start :math:`P = R (\Phi_0^T\Phi_0)^{-1}` or :math:`(Z_0^T\Phi_0)^{-1}` on
-the scaled rows is then the scaled image of the unscaled one), while a step
-that compares a residual with ``R`` (the outlier gate
-:math:`|\varepsilon| / \sqrt{R + \varphi^T P\varphi}`) needs
-:math:`r = -2 e_y` (:math:`e_y` of the first output), under which the
-residuals and the gain denominator scale alike. (Constants that bound
-``trace(P)`` or its eigenvalues, such as the constant-trace, EFRA and
-variable forgetting modes, are not of this form: those recursions run in the
-signals' units.)
+of doubles, and the scaled run stays inside it for records of any size as
+long as the options suit the data. Any integer :math:`r` will do where ``P``
+is proportional to ``R`` (a prior start, or the exact start
+:math:`R (\Phi_0^T\Phi_0)^{-1}` of RLS): :math:`\tilde R \approx 1` keeps
+both in range. The exact start :math:`(Z_0^T\Phi_0)^{-1}` of recursive IV
+does not carry ``R``: there :math:`r = 0`. A step that compares a residual
+with ``R`` (the outlier gate :math:`|\varepsilon| / \sqrt{R + \varphi^T
+P\varphi}`) needs :math:`r = -2 e_y` (:math:`e_y` of the first output),
+under which the residuals and the gain denominator scale alike. (Constants
+that bound ``trace(P)`` or its eigenvalues, such as the constant-trace, EFRA
+and variable forgetting modes, are not of this form: those recursions run in
+the signals' units.)
+
+``P0``, ``R`` and ``Q`` are the user's, in the signals' units, and so are
+their defaults (``P0 = 1e4 I``, ``R = 1``: MATLAB's convention, and that of
+the streaming estimators, which cannot know the scale of the data in
+advance). A prior start whose ``P0`` outweighs the data (the default for
+signals far below unit size) is reported by a NumericalWarning naming
+``P0`` (`RecordUnits.recursion_start`); one that no double can carry in
+the scaled units (the default for signals around 1e160, about 1e320 times
+too diffuse: the first update would lose every digit of ``P`` in any units)
+is a ValueError naming it.
 
 Every conversion is an ``ldexp``: exact unless its result over- or
 underflows (then ``inf`` or a subnormal number, as the product in exact
@@ -56,6 +67,9 @@ from .._validation import COVARIANCE_MAX, VARIANCE_RANGE
 from ..exceptions import NumericalWarning
 
 __all__ = []
+
+#: Largest |exponent| of a signal whose recursions run in the signals' units (`moderate`).
+MODERATE = 100
 
 
 def _column_exponents(s, input_exponents, output_exponents, intercept):
@@ -189,6 +203,15 @@ class RecordUnits:
         out.theta_exponents = np.zeros_like(self.theta_exponents)
         return out
 
+    @property
+    def moderate(self):
+        """Whether every signal's power of two is within ``2^(+-100)``: then a recursion
+        in the signals' units stays far inside the double range, and gives the numbers
+        of the scaled one (a fit that returns a live filter runs in the signals' units
+        there)."""
+        e = np.concatenate([self.input_exponents, self.output_exponents])
+        return bool(np.all(np.abs(e) <= MODERATE))
+
     # ------------------------------------------------------------------
     # signals
     # ------------------------------------------------------------------
@@ -249,6 +272,12 @@ class RecordUnits:
         to the gain denominator's square root is unchanged (see the module notes)."""
         return -2 * self.output_exponent
 
+    def r_for(self, R, gate=False):
+        """The shift ``r`` of a recursion whose ``P`` is proportional to ``R`` (a prior start,
+        or the batch start ``R (Phi_0^T Phi_0)^-1``): `gate_shift` with an outlier gate,
+        else the one that brings ``R`` to about 1 (any ``r`` gives the same numbers)."""
+        return self.gate_shift if gate else -int(np.round(np.log2(R)))
+
     def P_exponents(self, z=None, r=0):
         """Exponents of ``P``: :math:`c_k + z_l + r` (`z` the instrument columns'
         exponents, the regressors' by default)."""
@@ -283,7 +312,7 @@ class RecordUnits:
         return out
 
     def recursion_start(self, P0, R, Q=None, *, z=None, r=0, prior=True, default_P0=False,
-                        stacklevel=2):
+                        strict=True, stacklevel=2):
         r"""A recursion's ``P0``, ``R`` and ``Q`` (validated, in the signals' units) in
         the scaled units, checked against the range the filters take.
 
@@ -297,6 +326,9 @@ class RecordUnits:
             As `P_exponents`.
         default_P0 : bool
             `P0` is the default ``1e4 I``: warn when it outweighs the data.
+        strict : bool, default True
+            Raise when the options are too large for the scaled units; False returns
+            None instead (the recursion runs in the signals' units anyway).
 
         Returns
         -------
@@ -323,6 +355,8 @@ class RecordUnits:
         """
         out = {"R": self.R_to_unit(R, r)}
         lo, hi = VARIANCE_RANGE
+        if not lo <= out["R"] <= hi and not strict:
+            return None
         if not lo <= out["R"] <= hi:
             raise ValueError(f"`R` must suit the scale of the data ({self._scale_text()}): "
                              f"R = {R:.3g} in the signals' units is {out['R']:.3g} for the "
@@ -332,6 +366,8 @@ class RecordUnits:
         if Q is not None:
             out["Q"] = self.P_to_unit(Q, z, r)
             if not np.max(np.abs(out["Q"]), initial=0.0) <= COVARIANCE_MAX:
+                if not strict:
+                    return None
                 raise ValueError(f"`Q` must suit the scale of the data ({self._scale_text()}): "
                                  "read in the signals' units it is beyond the range of the "
                                  "recursion for the record scaled to unit size; pass a smaller "
@@ -348,6 +384,8 @@ class RecordUnits:
         what = "P0 = 1e4 I (the default; P0 and R are in the signals' units)" if default_P0 \
             else "P0 (in the signals' units, as R)"
         if not np.max(np.abs(P), initial=0.0) <= COVARIANCE_MAX:
+            if not strict:
+                return None
             raise ValueError(
                 f"`P0` must suit the scale of the data ({self._scale_text()}): {what} is "
                 f"{_times(rel.max())} the prior variance 1e4 of the record scaled "
@@ -367,7 +405,8 @@ class RecordUnits:
         """``"`u` up to 4e+160, `y` up to 2e-160"`` (the powers of two of the signals)."""
         def around(e):
             x = float(e) * math.log10(2.0)
-            return f"{10.0 ** (x - math.floor(x)):.0f}e{math.floor(x):+d}"
+            m, k = round(10.0 ** (x - math.floor(x))), math.floor(x)
+            return f"1e{k + 1:+d}" if m == 10 else f"{m}e{k:+d}"
         us = ", ".join(around(e) for e in self.input_exponents)
         ys = ", ".join(around(e) for e in self.output_exponents)
         return (f"`u` up to {us}, " if us else "") + f"`y` up to {ys}"

@@ -21,7 +21,13 @@ import numpy as np
 from .._resources import check_memory
 from .._scale import pow2_exponent, pow2_scale, safe_norm
 from .._serialize import jsonable
-from .._validation import as_float_array, check_finite, check_int, check_scalar
+from .._validation import (
+    as_float_array,
+    check_covariance,
+    check_finite,
+    check_int,
+    check_scalar,
+)
 from ..exceptions import InsufficientDataError, NumericalWarning
 from ..filters import RecursiveLeastSquares, SquareRootRLS
 from . import _conversion
@@ -29,7 +35,7 @@ from ._arx_iv import check_options as check_iv_options
 from ._arx_iv import fit_arx_iv
 from ._base import IdentifiedModel, Polynomials
 from ._summary import EQUATION_STYLES, ModelSummary
-from ._units import estimate_in_units
+from ._units import RecordUnits, estimate_in_units
 from .regressors import (
     _as_signal,
     _build,
@@ -407,7 +413,10 @@ class ARX(IdentifiedModel):
                 dev, s, method, iv_options, info["y_1d"],
                 intercept=_offset_mode(self.offset) == "intercept")
         else:
-            theta, inv_scaled, rls, history, prior, k0 = _fit_rls(Phi, target, s, opts)
+            dev = records if op is None else [(U - op[0], Y - op[1]) for U, Y in records]
+            units = RecordUnits(dev, s, intercept=_offset_mode(self.offset) == "intercept")
+            theta, inv_scaled, rls, history, prior, col_scale, k0 = _fit_rls(Phi, target, s,
+                                                                             opts, units)
             # prior: the a-priori (recursive) residuals y(t) - phi(t) theta(t-1) after
             # the batch start
             recursive = {"filter_": rls, "k0_": k0, "lam_": float(rls.lam),
@@ -1082,14 +1091,21 @@ def _fit_bytes(rows, n, s, method):
     return 8 * rows * per_row
 
 
-def _fit_rls(Phi, target, s, opts):
-    """Recursive least squares over the rows: ``(theta, P / R, filter, history, prior, k0)``.
+def _fit_rls(Phi, target, s, opts, units):
+    """Recursive least squares over the rows: ``(theta, C, filter, history, prior, c, k0)``.
 
-    ``history`` (rows, n, ny) is NaN before row ``k0 - 1`` (the batch start's
-    estimate); ``prior`` (rows, ny) the a-priori residuals, NaN before row ``k0``.
-    The rows come from validated signals, so the covariance-form filter runs
-    them without validating them again, writing the estimates straight into
-    ``history`` and every residual into ``prior`` (no copies of the record).
+    :math:`P / R = C / (c c^T)` as in `_qr_least_squares` (``c`` the powers of two of
+    the columns, ones when the recursion ran in the signals' units). ``history``
+    (rows, n, ny) is NaN before row ``k0 - 1`` (the batch start's estimate);
+    ``prior`` (rows, ny) the a-priori residuals, NaN before row ``k0``.
+
+    The recursion runs in the signals' units when the record's powers of two are
+    moderate (`RecordUnits.moderate`); otherwise on the rows scaled to unit size by
+    `units`, from ``P0``, ``R``, ``Q``, ``x0`` mapped into those units (the same numbers
+    times powers of two wherever both runs are exact: :mod:`rlsfilt.models._units`),
+    and the filter returned, built from the user's options, gets the final state in
+    the signals' units. Forgetting modes whose constants bound ``trace(P)`` or its
+    eigenvalues always run in the signals' units.
     """
     n, rows = Phi.shape[1], len(Phi)  # an intercept adds a column to the structure's
     prior = opts["P0"] is not None or opts["x0"] is not None
@@ -1109,16 +1125,71 @@ def _fit_rls(Phi, target, s, opts):
                 f"k0={k0} rows sets both x0 and P0. Pass k0=0 to start from `{given[0]}`.")
     kw = {key: opts[key] for key in ("P0", "R", "Q", "x0") if opts[key] is not None}
     lam = 1.0 if opts["lam"] is None else opts["lam"]
-    form, cond_raw = _choose_form(Phi, opts)
     extra = dict(opts["extra"])
-    # cond(P) = cond(Phi)^2 (in the signals' units) is what the data give (and more on the
-    # first rows), and _choose_form has said so: the health check watches for windup beyond
+    scaled = not units.moderate and _equivariant(extra)
+    rows_in = units.scale_rows(Phi, target) if scaled else (Phi, target)
+    form, cond_raw = _choose_form(rows_in[0], opts)
+    # cond(P) = cond(Phi)^2 (in the units the recursion runs in) is what the data give (and
+    # more on the first rows), and _choose_form has said so: the health check watches for
+    # windup beyond
     extra.setdefault("cond_max", max(1e12, 1e4 * cond_raw ** 2))
     cls = SquareRootRLS if form == "square_root" else RecursiveLeastSquares
-    rls = cls(n, dim_z=s.n_outputs, lam=lam, **kw, **extra)
-    if cls is SquareRootRLS:
+    user = cls(n, dim_z=s.n_outputs, lam=lam, **kw, **extra)  # validates; becomes filter_
+    # P0, R, Q in the scaled units (see RecordUnits.r_for)
+    r = units.r_for(user.R, gate=extra.get("gate") is not None)
+    P0 = check_covariance(kw.get("P0", 1e4), n, "P0", definite=True)
+    start = units.recursion_start(P0, user.R, user.Q if "Q" in kw else None, r=r,
+                                  prior=k0 == 0, default_P0=opts["P0"] is None, strict=scaled,
+                                  stacklevel=5)
+    if not scaled or start is None:       # the signals' units (a prior the data cannot bear
+        return (*_run_rls(user, Phi, target, k0), np.ones(n), k0)       # was warned about)
+    start["x0"] = units.start_to_unit(user.x, "x0")
+    rls = cls(n, dim_z=s.n_outputs, lam=lam, **{k: v for k, v in start.items() if v is not None},
+              **extra)
+    theta, C, rls, history, prior = _run_rls(rls, *rows_in, k0)
+    theta = units.estimate_from_unit(theta)
+    _hand_over(rls, user, theta, units, r)
+    return (theta, C, user, units.theta_from_unit(history), units.output_from_unit(prior),
+            np.ldexp(1.0, units.column_exponents), k0)
+
+
+def _equivariant(extra):
+    """Whether the filter's options keep the recursion the same in scaled units: the
+    exponential (without an absolute ``trace_max``) and directional forgetting modes."""
+    mode = extra.get("forgetting", "exponential")
+    params = extra.get("forgetting_params") or {}
+    return mode in ("exponential", "directional") and "trace_max" not in params
+
+
+def _hand_over(rls, user, theta, units, r):
+    """Give `user` (the filter built from the user's options) the final state of `rls`,
+    which ran in the scaled units: the estimate `theta`, ``P`` (over- or underflowing
+    where it is not representable in the signals' units) and the counters."""
+    if isinstance(rls, SquareRootRLS):
+        # the information square root U (U^T U = P^-1) maps exactly: U = 2^(r/2) U~ 2^c
+        user._U = np.ldexp(rls._U, units.column_exponents[None, :] + r // 2)
+        user._x = np.array(theta, dtype=float)
+        user._d = user._U @ user._x
+    else:
+        user.x = theta
+        user.P = units.P_from_unit(rls.P, r=r)
+        user._cap, user._w = rls._cap, rls._w          # the windup cap's pending decision
+    for name in ("n_updates", "n_gated", "n_capped", "lam_t", "gated", "_warned_health"):
+        if name in rls.__dict__:
+            setattr(user, name, getattr(rls, name))
+
+
+def _run_rls(rls, Phi, target, k0):
+    """Run `rls` over the rows: ``(theta, P / R, rls, history, prior)`` (see `_fit_rls`).
+
+    The rows come from validated signals, so the covariance-form filter runs
+    them without validating them again, writing the estimates straight into
+    ``history`` and every residual into ``prior`` (no copies of the record).
+    """
+    if isinstance(rls, SquareRootRLS):
         return _fit_square_root(rls, Phi, target, k0)
-    prior = np.full((rows, s.n_outputs), np.nan)
+    rows, n = Phi.shape
+    prior = np.full((rows, target.shape[1]), np.nan)
     if k0 > 0:
         rls.initialize(target[:k0], Phi[:k0])
     if k0 < rows:
@@ -1128,13 +1199,13 @@ def _fit_rls(Phi, target, s, opts):
         history = out.buffer[1:] if k0 == 0 else out.buffer
         prior[k0:] = out.ys
     else:                                   # the batch start used every row
-        history = np.full((rows, n, s.n_outputs), np.nan)
+        history = np.full((rows, n, target.shape[1]), np.nan)
         history[k0 - 1] = rls.x
-    return rls.x.copy(), rls.P / rls.R, rls, history, prior, k0
+    return rls.x.copy(), rls.P / rls.R, rls, history, prior
 
 
 def _fit_square_root(rls, Phi, target, k0):
-    """`_fit_rls` with a `SquareRootRLS` (its public ``batch_filter``): the same returns."""
+    """`_run_rls` with a `SquareRootRLS` (its public ``batch_filter``): the same returns."""
     rows = len(Phi)
     history = np.full((rows, Phi.shape[1], target.shape[1]), np.nan)
     x_start = rls.x.copy()
@@ -1150,7 +1221,7 @@ def _fit_square_root(rls, Phi, target, k0):
         prior[0] = target[0] - Phi[0] @ x_start
         start = 1
     prior[start:] = target[start:] - np.einsum("ij,ijk->ik", Phi[start:], history[start - 1:-1])
-    return rls.x.copy(), rls.P / rls.R, rls, history, prior, k0
+    return rls.x.copy(), rls.P / rls.R, rls, history, prior
 
 
 _FORMS = ("auto", "covariance", "square_root")
