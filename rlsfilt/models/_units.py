@@ -87,6 +87,14 @@ def _column_exponents(s, input_exponents, output_exponents, intercept):
     return c, of_output
 
 
+def equivariant_forgetting(forgetting, params):
+    """Whether a recursion with this forgetting mode gives the same numbers in scaled
+    units (see the notes): exponential forgetting (unless ``forgetting_params`` holds an
+    absolute ``trace_max``) and directional forgetting."""
+    return (forgetting in ("exponential", "directional")
+            and "trace_max" not in (params if isinstance(params, dict) else {}))
+
+
 def estimate_in_units(theta, g, of_output=None):
     r"""An estimate computed in scaled units -> the user's units, ``ldexp(theta, g)``; a
     ValueError naming `u` and `y` when a coefficient is beyond the largest double there.

@@ -35,7 +35,7 @@ from ._arx_iv import check_options as check_iv_options
 from ._arx_iv import fit_arx_iv
 from ._base import IdentifiedModel, Polynomials
 from ._summary import EQUATION_STYLES, ModelSummary
-from ._units import RecordUnits, estimate_in_units
+from ._units import RecordUnits, equivariant_forgetting, estimate_in_units
 from .regressors import (
     _as_signal,
     _build,
@@ -1126,7 +1126,8 @@ def _fit_rls(Phi, target, s, opts, units):
     kw = {key: opts[key] for key in ("P0", "R", "Q", "x0") if opts[key] is not None}
     lam = 1.0 if opts["lam"] is None else opts["lam"]
     extra = dict(opts["extra"])
-    scaled = not units.moderate and _equivariant(extra)
+    scaled = not units.moderate and equivariant_forgetting(
+        extra.get("forgetting", "exponential"), extra.get("forgetting_params"))
     rows_in = units.scale_rows(Phi, target) if scaled else (Phi, target)
     form, cond_raw = _choose_form(rows_in[0], opts)
     # cond(P) = cond(Phi)^2 (in the units the recursion runs in) is what the data give (and
@@ -1151,14 +1152,6 @@ def _fit_rls(Phi, target, s, opts, units):
     _hand_over(rls, user, theta, units, r)
     return (theta, C, user, units.theta_from_unit(history), units.output_from_unit(prior),
             np.ldexp(1.0, units.column_exponents), k0)
-
-
-def _equivariant(extra):
-    """Whether the filter's options keep the recursion the same in scaled units: the
-    exponential (without an absolute ``trace_max``) and directional forgetting modes."""
-    mode = extra.get("forgetting", "exponential")
-    params = extra.get("forgetting_params") or {}
-    return mode in ("exponential", "directional") and "trace_max" not in params
 
 
 def _hand_over(rls, user, theta, units, r):
