@@ -144,10 +144,12 @@ def fit_arx_iv(records, s, method, options, y_1d=True, stacklevel=4, intercept=F
                          f"k0={kw['k0']} rows sets both")
     if "refresh" in options:
         kw["refresh"] = check_int(options["refresh"], "refresh", minimum=0)
+    units.check_ratio()
+    if "x0" in kw:
+        units.start_to_unit(kw["x0"], "x0")      # a clear error before the prior's
     start = units.recursion_start(kw.get("P0", 1e4 * np.eye(n)), kw.get("R", 1.0), kw.get("Q"),
                                   z=z_exp, prior=kw.get("k0", n) == 0,
-                                  default_P0="P0" not in kw, strict=not units.moderate,
-                                  stacklevel=stacklevel)
+                                  default_P0="P0" not in kw, stacklevel=stacklevel)
     if start is None:             # a prior too strong for the data's scale: its own units
         units = units.unscaled()
         scaled = units.scale_records(records)

@@ -569,29 +569,31 @@ class TimeSeriesModel(PolynomialModel):
 def _recursive_fit(records, s, method, options, stacklevel):
     """`recursive_pem_records` in the units the recursion runs in: ``(fit, units, P, R)``.
 
-    Records whose powers of two are moderate (`RecordUnits.moderate`), and forgetting
-    modes with constants that bound ``trace(P)`` or its eigenvalues, run in the signals'
-    units (``units`` the identity). Others run on the records scaled to unit size with
-    ``P0``, ``R``, ``Q`` and ``x0`` mapped exactly (the same numbers as the unscaled
-    recursion times powers of two, where both are exact: :mod:`rlsfilt.models._units`);
-    the returned ``fit.state`` is then the recursion in the signals' units, with the
-    final state of the scaled run, while ``P`` and ``R`` are those of the run (``P / R``
-    maps to the signals' units with ``units.cov_from_unit``). A default ``P0`` the data
-    cannot bear is a warning or an error naming it (`RecordUnits.recursion_start`).
+    The recursion runs on the records scaled to unit size, with ``P0``, ``R``, ``Q`` and
+    ``x0`` mapped exactly: the numbers of the recursion in the signals' units times
+    powers of two wherever both are exact (:mod:`rlsfilt.models._units`), and in range
+    for records of any size. The returned ``fit.state`` is the recursion in the signals'
+    units with the final state of the scaled run, while ``P`` and ``R`` are those of the
+    run (``P / R`` maps to the signals' units with ``units.cov_from_unit``). Forgetting
+    modes whose constants bound ``trace(P)`` or its eigenvalues, and a default ``P0``
+    that outweighs the data (warned about), run in the signals' units (``units`` the
+    identity); a ``P0`` too diffuse for the data is a ValueError naming it
+    (`RecordUnits.recursion_start`).
     """
     units = RecordUnits(records, s)
     user = RecursionState(s, method, **options)      # validates every option
+    units.check_ratio()
+    x0 = units.start_to_unit(user.theta, "x0")
     Q = None if user.q_zero else user.Q
     r = units.r_for(user.R, gate=options.get("gate") is not None)
-    scaled = not units.moderate and equivariant_forgetting(
-        options.get("forgetting", "exponential"), options.get("forgetting_params"))
+    scaled = equivariant_forgetting(options.get("forgetting", "exponential"),
+                                    options.get("forgetting_params"))
     start = units.recursion_start(user.P, user.R, Q, r=r, default_P0="P0" not in options,
-                                  strict=scaled, stacklevel=stacklevel + 1)
-    if not scaled or start is None:
+                                  stacklevel=stacklevel + 1) if scaled else None
+    if start is None:
         fit = recursive_pem_records(records, s, method, stacklevel=stacklevel + 1, **options)
         return fit, units.unscaled(), fit.P, fit.state.R
-    opts = dict(options, P0=start["P0"], R=start["R"],
-                x0=units.start_to_unit(user.theta, "x0"))
+    opts = dict(options, P0=start["P0"], R=start["R"], x0=x0)
     if Q is not None:
         opts["Q"] = start["Q"]
     fit = recursive_pem_records(units.scale_records(records), s, method,

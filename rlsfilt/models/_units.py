@@ -68,9 +68,6 @@ from ..exceptions import NumericalWarning
 
 __all__ = []
 
-#: Largest |exponent| of a signal whose recursions run in the signals' units (`moderate`).
-MODERATE = 100
-
 
 def _column_exponents(s, input_exponents, output_exponents, intercept):
     """Exponent of every regressor column, its signal's (0 for the intercept's ones), and
@@ -200,7 +197,7 @@ class RecordUnits:
 
     def unscaled(self):
         """The same record in its own units (every exponent 0): the identity map, for a
-        recursion whose options do not fit the scaled units."""
+        recursion that runs in the signals' units."""
         import copy
 
         out = copy.copy(self)
@@ -210,15 +207,6 @@ class RecordUnits:
         out.column_exponents = np.zeros_like(self.column_exponents)
         out.theta_exponents = np.zeros_like(self.theta_exponents)
         return out
-
-    @property
-    def moderate(self):
-        """Whether every signal's power of two is within ``2^(+-100)``: then a recursion
-        in the signals' units stays far inside the double range, and gives the numbers
-        of the scaled one (a fit that returns a live filter runs in the signals' units
-        there)."""
-        e = np.concatenate([self.input_exponents, self.output_exponents])
-        return bool(np.all(np.abs(e) <= MODERATE))
 
     # ------------------------------------------------------------------
     # signals
@@ -309,6 +297,15 @@ class RecordUnits:
         with np.errstate(over="ignore", under="ignore"):
             return np.ldexp(P, -self.P_exponents(z, r))
 
+    def check_ratio(self):
+        """The ValueError of `estimate_from_unit`, up front, when a coefficient of unit
+        size in the scaled units is already beyond the largest double in the user's units
+        (``u`` around 1e-160 and ``y`` around 1e160): checked before a recursion, whose
+        options would otherwise be reported first."""
+        g = self.theta_exponents
+        if np.max(g, initial=0) >= 1024:
+            estimate_in_units(np.ones(g.shape), g, self._of_output)
+
     def start_to_unit(self, theta, name):
         """A start ``x0`` or ``theta0`` in the user's units -> the scaled units, or a
         ValueError naming it when a coefficient overflows there."""
@@ -320,7 +317,7 @@ class RecordUnits:
         return out
 
     def recursion_start(self, P0, R, Q=None, *, z=None, r=0, prior=True, default_P0=False,
-                        strict=True, stacklevel=2):
+                        stacklevel=2):
         r"""A recursion's ``P0``, ``R`` and ``Q`` (validated, in the signals' units) in
         the scaled units, checked against the range the filters take.
 
@@ -334,9 +331,6 @@ class RecordUnits:
             As `P_exponents`.
         default_P0 : bool
             `P0` is the default ``1e4 I``: warn when it outweighs the data.
-        strict : bool, default True
-            Raise when the options are too large for the scaled units; False returns
-            None instead (the recursion runs in the signals' units anyway).
 
         Returns
         -------
@@ -363,8 +357,6 @@ class RecordUnits:
         """
         out = {"R": self.R_to_unit(R, r)}
         lo, hi = VARIANCE_RANGE
-        if not lo <= out["R"] <= hi and not strict:
-            return None
         if not lo <= out["R"] <= hi:
             raise ValueError(f"`R` must suit the scale of the data ({self._scale_text()}): "
                              f"R = {R:.3g} in the signals' units is {out['R']:.3g} for the "
@@ -374,8 +366,6 @@ class RecordUnits:
         if Q is not None:
             out["Q"] = self.P_to_unit(Q, z, r)
             if not np.max(np.abs(out["Q"]), initial=0.0) <= COVARIANCE_MAX:
-                if not strict:
-                    return None
                 raise ValueError(f"`Q` must suit the scale of the data ({self._scale_text()}): "
                                  "read in the signals' units it is beyond the range of the "
                                  "recursion for the record scaled to unit size; pass a smaller "
@@ -392,8 +382,6 @@ class RecordUnits:
         what = "P0 = 1e4 I (the default; P0 and R are in the signals' units)" if default_P0 \
             else "P0 (in the signals' units, as R)"
         if not np.max(np.abs(P), initial=0.0) <= COVARIANCE_MAX:
-            if not strict:
-                return None
             raise ValueError(
                 f"`P0` must suit the scale of the data ({self._scale_text()}): {what} is "
                 f"{_times(rel.max())} the prior variance 1e4 of the record scaled "

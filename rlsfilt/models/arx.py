@@ -30,6 +30,7 @@ from .._validation import (
 )
 from ..exceptions import InsufficientDataError, NumericalWarning
 from ..filters import RecursiveLeastSquares, SquareRootRLS
+from ..filters._base import MISSING_DIAGNOSTICS
 from . import _conversion
 from ._arx_iv import check_options as check_iv_options
 from ._arx_iv import fit_arx_iv
@@ -1099,13 +1100,14 @@ def _fit_rls(Phi, target, s, opts, units):
     (rows, n, ny) is NaN before row ``k0 - 1`` (the batch start's estimate);
     ``prior`` (rows, ny) the a-priori residuals, NaN before row ``k0``.
 
-    The recursion runs in the signals' units when the record's powers of two are
-    moderate (`RecordUnits.moderate`); otherwise on the rows scaled to unit size by
-    `units`, from ``P0``, ``R``, ``Q``, ``x0`` mapped into those units (the same numbers
-    times powers of two wherever both runs are exact: :mod:`rlsfilt.models._units`),
-    and the filter returned, built from the user's options, gets the final state in
-    the signals' units. Forgetting modes whose constants bound ``trace(P)`` or its
-    eigenvalues always run in the signals' units.
+    The recursion runs on the rows scaled to unit size by `units`, from ``P0``, ``R``,
+    ``Q``, ``x0`` mapped into those units: the numbers of the run in the signals' units
+    times powers of two wherever both are exact (:mod:`rlsfilt.models._units`), in range
+    for records of any size, and with a health check that sees ``P`` of unit-size
+    signals. The filter returned, built from the user's options, gets the final state
+    in the signals' units (`_hand_over`). Forgetting modes whose constants bound
+    ``trace(P)`` or its eigenvalues, and a default prior that outweighs the data (warned
+    about), run in the signals' units.
     """
     n, rows = Phi.shape[1], len(Phi)  # an intercept adds a column to the structure's
     prior = opts["P0"] is not None or opts["x0"] is not None
@@ -1126,8 +1128,8 @@ def _fit_rls(Phi, target, s, opts, units):
     kw = {key: opts[key] for key in ("P0", "R", "Q", "x0") if opts[key] is not None}
     lam = 1.0 if opts["lam"] is None else opts["lam"]
     extra = dict(opts["extra"])
-    scaled = not units.moderate and equivariant_forgetting(
-        extra.get("forgetting", "exponential"), extra.get("forgetting_params"))
+    scaled = equivariant_forgetting(extra.get("forgetting", "exponential"),
+                                    extra.get("forgetting_params"))
     rows_in = units.scale_rows(Phi, target) if scaled else (Phi, target)
     form, cond_raw = _choose_form(rows_in[0], opts)
     # cond(P) = cond(Phi)^2 (in the units the recursion runs in) is what the data give (and
@@ -1136,15 +1138,17 @@ def _fit_rls(Phi, target, s, opts, units):
     extra.setdefault("cond_max", max(1e12, 1e4 * cond_raw ** 2))
     cls = SquareRootRLS if form == "square_root" else RecursiveLeastSquares
     user = cls(n, dim_z=s.n_outputs, lam=lam, **kw, **extra)  # validates; becomes filter_
+    units.check_ratio()
+    x0 = units.start_to_unit(user.x, "x0") if k0 == 0 else None
     # P0, R, Q in the scaled units (see RecordUnits.r_for)
     r = units.r_for(user.R, gate=extra.get("gate") is not None)
     P0 = check_covariance(kw.get("P0", 1e4), n, "P0", definite=True)
     start = units.recursion_start(P0, user.R, user.Q if "Q" in kw else None, r=r,
-                                  prior=k0 == 0, default_P0=opts["P0"] is None, strict=scaled,
-                                  stacklevel=5)
-    if not scaled or start is None:       # the signals' units (a prior the data cannot bear
-        return (*_run_rls(user, Phi, target, k0), np.ones(n), k0)       # was warned about)
-    start["x0"] = units.start_to_unit(user.x, "x0")
+                                  prior=k0 == 0, default_P0=opts["P0"] is None,
+                                  stacklevel=5) if scaled else None
+    if start is None:       # the signals' units (a prior the data cannot bear was warned about)
+        return (*_run_rls(user, Phi, target, k0), np.ones(n), k0)
+    start["x0"] = x0
     rls = cls(n, dim_z=s.n_outputs, lam=lam, **{k: v for k, v in start.items() if v is not None},
               **extra)
     theta, C, rls, history, prior = _run_rls(rls, *rows_in, k0)
@@ -1156,20 +1160,44 @@ def _fit_rls(Phi, target, s, opts, units):
 
 def _hand_over(rls, user, theta, units, r):
     """Give `user` (the filter built from the user's options) the final state of `rls`,
-    which ran in the scaled units: the estimate `theta`, ``P`` (over- or underflowing
-    where it is not representable in the signals' units) and the counters."""
-    if isinstance(rls, SquareRootRLS):
-        # the information square root U (U^T U = P^-1) maps exactly: U = 2^(r/2) U~ 2^c
-        user._U = np.ldexp(rls._U, units.column_exponents[None, :] + r // 2)
-        user._x = np.array(theta, dtype=float)
-        user._d = user._U @ user._x
-    else:
-        user.x = theta
-        user.P = units.P_from_unit(rls.P, r=r)
-        user._cap, user._w = rls._cap, rls._w          # the windup cap's pending decision
-    for name in ("n_updates", "n_gated", "n_capped", "lam_t", "gated", "_warned_health"):
+    which ran in the scaled units with ``R~ = 2^r R``: the estimate `theta` (already
+    mapped), ``P`` (over- or underflowing where it is not representable in the signals'
+    units), the last step's diagnostics and the counters, so that it continues as the
+    filter run in the signals' units would."""
+    c, ey = units.column_exponents, units.output_exponents[:, None]
+
+    def cols(H):                                   # a regressor row: phi = 2^c phi~
+        return np.ldexp(H, c)
+
+    def gain(K):                                   # K = P phi / S = 2^-c K~
+        return np.ldexp(K, -c[:, None] if np.ndim(K) == 2 else -c)
+
+    maps = {"x_prior": units.theta_from_unit, "x_post": units.theta_from_unit,
+            "P_prior": lambda P: units.P_from_unit(P, r=r),
+            "P_post": lambda P: units.P_from_unit(P, r=r), "H": cols, "K": gain,
+            "S": lambda S: np.ldexp(S, -r), "SI": lambda S: np.ldexp(S, r),
+            "z": lambda z: np.ldexp(z, ey), "y": lambda y: np.ldexp(y, ey)}
+    with np.errstate(over="ignore", under="ignore"):
+        if isinstance(rls, SquareRootRLS):
+            # the information square root (U^T U = P^-1) maps exactly, U = 2^(r/2) U~ 2^c,
+            # and so does d = U x = 2^(r/2 + e_y) d~
+            user._U = np.ldexp(rls._U, c[None, :] + r // 2)
+            user._x = np.array(theta, dtype=float)
+            user._d = np.ldexp(rls._d, units.output_exponents[None, :] + r // 2)
+        else:
+            user.x = theta
+            user.P = units.P_from_unit(rls.P, r=r)
+            user._cap, user._w = rls._cap, rls._w      # the windup cap's pending decision
+        for name, f in maps.items():
+            value = rls.__dict__.get(name)
+            if value is not None:
+                setattr(user, name, f(value))
+    for name in ("n_updates", "n_gated", "n_capped", "lam_t", "gated", "_warned_health",
+                 "_updates_since_predict", "_recheck", "_efra_pending"):
         if name in rls.__dict__:
-            setattr(user, name, getattr(rls, name))
+            setattr(user, name, rls.__dict__[name])
+    if "_lazy" in rls.__dict__:                 # a missing last sample's marker, else lazy
+        user._lazy = rls._lazy if rls._lazy == MISSING_DIAGNOSTICS else None
 
 
 def _run_rls(rls, Phi, target, k0):
