@@ -33,11 +33,12 @@ recursions run in the scaled units compute the numbers of the same recursion
 in the signals' units times powers of two: held bit for bit against the
 filter and the streaming estimator run in the signals' units. For other
 factors (1e160 is not a power of two) the scaled record differs from the
-scale-1 one by a factor in [1/2, 2] and one rounding of every sample. Measured: the final estimates and covariances of the recursions and
-of delayed-input IV agree to 2e-14 relative (rtol 1e-12); refined IV with
+scale-1 one by a factor in [1/2, 2] and one rounding of every sample.
+Measured: the final estimates and covariances of the recursions and of
+delayed-input IV agree to 2e-14 relative (rtol 1e-12); refined IV with
 auxiliary-model instruments iterates until its step is below 1e-10 relative,
 and its estimate moves by up to 2e-12 (rtol 1e-10); histories agree to 3e-13
-of each step's largest entry (the first rows after the start are
+of each parameter's largest value (the first rows after the start are
 ill-conditioned; rtol 1e-11). The covariance is compared relative to
 ``sqrt(P_ii P_jj)``.
 
