@@ -518,7 +518,8 @@ def recursive_iv_records(records, s, instruments="model", *, lam=1.0, Q=None, R=
             first += count
         if singular:
             raise ValueError(f"the exact start on the first k0 = {k0} rows is singular "
-                             "(Z0^T Phi0 not invertible): use a larger `k0`")
+                             "(Z0^T Phi0 not invertible: the first samples of `u` and `y` do "
+                             "not excite every parameter): use a larger `k0`")
         target = target[:, None]
     else:
         Phi, target = _stacked_rows(records, s)
@@ -542,7 +543,8 @@ def recursive_iv_records(records, s, instruments="model", *, lam=1.0, Q=None, R=
                 theta, G, _ = iv_solve(Z[:k0], Phi[:k0], target[:k0])
             except ValueError:
                 raise ValueError(f"the exact start on the first k0 = {k0} rows is singular "
-                                 "(Z0^T Phi0 not invertible): use a larger `k0`") from None
+                                 "(Z0^T Phi0 not invertible: the first samples of `u` and `y` "
+                                 "do not excite every parameter): use a larger `k0`") from None
             P = np.ascontiguousarray(G)
             theta = np.ascontiguousarray(theta)
             hist[k0 - 1] = theta
