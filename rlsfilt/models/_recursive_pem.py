@@ -93,7 +93,10 @@ class RecursionState:
         profile, at most 0.7 with it). ``lam_start = 1`` switches the
         profile off.
     P0 : float or array_like, default 1e4
-        Initial covariance (``P0 * I`` for a scalar), as `RecursiveLeastSquares`.
+        Initial covariance (``P0 * I`` for a scalar), as `RecursiveLeastSquares`,
+        in the units of the signals the recursion runs on (the model fits give
+        it the image of the user's ``P0`` in their scaled units:
+        :mod:`rlsfilt.models._units`).
     x0 : array_like, optional
         Initial estimate (zeros: ``A = C = D = F = 1``, ``B = 0``).
     R : float, default 1.0

@@ -323,7 +323,11 @@ class ARX(IdentifiedModel):
         lam, P0, R, Q, x0
             ``"rls"`` only: passed to `RecursiveLeastSquares` (forgetting
             factor, initial covariance and estimate for a prior start with
-            ``k0 = 0``, noise variance, random-walk covariance).
+            ``k0 = 0``, noise variance, random-walk covariance), in the
+            signals' units, as their defaults (``P0 = 1e4 I``, ``R = 1``,
+            MATLAB's ``rarx``). The batch start does not depend on the units;
+            a prior start is the same fit for a record in other units only
+            with ``P0 / R`` (and ``Q / R``) in those units.
         form : {"auto", "covariance", "square_root"}, optional
             ``"rls"`` only: the recursion. ``"covariance"`` is
             `RecursiveLeastSquares` (updates ``P``); ``"square_root"`` is
@@ -350,7 +354,13 @@ class ARX(IdentifiedModel):
         ValueError
             NaN/inf in the data (the first bad index is named), mismatched
             lengths, bad orders, too few samples, or a regressor matrix
-            without full column rank (input not persistently exciting).
+            without full column rank (input not persistently exciting);
+            ``u`` and ``y`` in units whose ratio makes a ``b`` coefficient
+            exceed the double range (every method; the message names both);
+            a recursive prior start whose ``P0`` (the default for signals
+            around 1e160) is too diffuse for double precision in the
+            record's units, or whose ``R`` is outside the recursion's range
+            there (the message names it and the scale).
         MemoryError
             When the regressor matrix and the factorization would need more
             memory than the process can get (checked before they are built).
@@ -361,10 +371,28 @@ class ARX(IdentifiedModel):
             ``"rls"`` on ill-conditioned regressors when the accuracy of the
             recursion cannot be guaranteed: the covariance form (asked for,
             or forced by `Q` or a forgetting mode) above a condition number
-            of 1e6, or any form above 1e10.
+            of 1e6, or any form above 1e10. ``"rls"``/``"riv"`` with a prior
+            start from the default ``P0`` when it outweighs the data
+            (signals far below unit size).
 
         Notes
         -----
+        Every method runs on the record scaled to unit size (each signal
+        divided by a power of two near its largest entry; the columns of
+        :math:`\Phi` for ``"ls"``) and maps the results back exactly:
+        records around :math:`10^{\pm 160}`, whose sums of squares leave
+        the double range, give the fit of the same record at unit size, in
+        their units. The recursions run from the exact images of ``P0``,
+        ``R``, ``Q``, ``x0`` in the scaled units: the same numbers, bit for
+        bit, as the recursion in the signals' units wherever that stays in
+        the double range (:mod:`rlsfilt.models._units`), and ``filter_``
+        holds the final state in the signals' units (``P`` over- or
+        underflows there for records around :math:`10^{\pm 160}`: continue
+        such a record with the square-root form, whose factor stays in
+        range). Forgetting modes with constants that bound ``trace(P)``
+        (``"constant_trace"``, ``"efra"``, ``"variable"``, an explicit
+        ``trace_max``) run in the signals' units.
+
         With ``method="rls"``, ``theta_`` is the filter's last estimate and
         ``theta_cov_`` is ``noise_variance_ * P / R``, its covariance; with
         ``lam = 1``, ``Q = 0`` and a batch start both equal the batch answer.
