@@ -37,10 +37,14 @@ both in range. The exact start :math:`(Z_0^T\Phi_0)^{-1}` of recursive IV
 does not carry ``R``: there :math:`r = 0`. A step that compares a residual
 with ``R`` (the outlier gate :math:`|\varepsilon| / \sqrt{R + \varphi^T
 P\varphi}`) needs :math:`r = -2 e_y` (:math:`e_y` of the first output),
-under which the residuals and the gain denominator scale alike. (Constants
-that bound ``trace(P)`` or its eigenvalues, such as the constant-trace, EFRA
-and variable forgetting modes, are not of this form: those recursions run in
-the signals' units.)
+under which the residuals and the gain denominator scale alike. Constants
+that bound ``trace(P)`` or its eigenvalues are not of this form: the
+constant-trace, EFRA and variable forgetting modes (and an explicit
+``trace_max``) run in the signals' units; the default trace limit of the
+exponential mode's windup cap applies in the scaled units (it acts only on a
+``P`` wound up by about 1e12); and the filters' health checks (the condition number of ``P``)
+judge ``P`` of unit-size signals, so a well-posed record whose inputs and
+outputs have very different units is no longer called ill-conditioned.
 
 ``P0``, ``R`` and ``Q`` are the user's, in the signals' units, and so are
 their defaults (``P0 = 1e4 I``, ``R = 1``: MATLAB's convention, and that of
