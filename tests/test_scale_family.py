@@ -444,3 +444,36 @@ def test_x0_beyond_the_scaled_units_is_a_clear_error():
     u, y = _record()
     with pytest.raises(ValueError, match="`x0` must have b coefficients"):
         ARMAX(2, 2, 1).fit(u * 1e150, y * 1e-150, method="rpem", x0=[0, 0, 1e300, 1e300, 0])
+
+
+def test_time_series_recursions_scale_too():
+    """ARMA by RPEM at 2^600 with the prior in the signals' units is the scale-1 fit, bit
+    for bit; AR by RPLR with the default prior around 1e-160 names P0."""
+    from rlsfilt import AR, ARMA
+
+    y = lfilter([1, 0.6], [1, -0.8], np.random.default_rng(5).standard_normal(2000))
+    ref = _fit(lambda: ARMA(1, 1), y, method="rpem", P0=100.0, R=1.0)
+    c = 2.0 ** 600
+    m = _fit(lambda: ARMA(1, 1), y * c, method="rpem", P0=np.ldexp(100.0, 400 - 1200),
+             R=2.0 ** 400)
+    assert_array_equal(m.theta_, ref.theta_)
+    assert_array_equal(m.theta_history_, ref.theta_history_)
+    assert_array_equal(m.residuals_, ref.residuals_ * c)
+    with pytest.warns(NumericalWarning, match=r"P0 = 1e4 I .*\(`y` up to .*e-1[56]\d\)"):
+        AR(2).fit(y * 1e-160, method="rplr")
+
+
+def test_a_gate_on_outputs_in_different_units_runs_in_the_signals_units():
+    """One R for two outputs in different units: the gate's decisions depend on those
+    units, so the recursion runs in them (the filter with the same options, bit for bit)."""
+    rng = np.random.default_rng(13)
+    u = rng.standard_normal(600)
+    Y = np.column_stack([lfilter([0, 1.0], [1, -0.5], u), lfilter([0, 0.3], [1, -0.2], u)])
+    Y = (Y + 0.1 * rng.standard_normal(Y.shape)) * [8.0, 0.25]
+    m = _fit(lambda: ARX(1, 1), u, Y, method="rls", gate=3.0, lam=0.99)
+    f = RecursiveLeastSquares(3, dim_z=2, lam=0.99, gate=3.0, cond_max=m.filter_.cond_max)
+    Phi, target = m.regressors(u, Y)
+    f.initialize(target[:m.k0_], Phi[:m.k0_])
+    means = f.batch_filter(target[m.k0_:], Phi[m.k0_:])[0]
+    assert_array_equal(m.theta_history_[m.k0_:], means)
+    assert m.filter_ is not None and m.filter_.n_gated == f.n_gated

@@ -1156,8 +1156,11 @@ def _fit_rls(Phi, target, s, opts, units):
     kw = {key: opts[key] for key in ("P0", "R", "Q", "x0") if opts[key] is not None}
     lam = 1.0 if opts["lam"] is None else opts["lam"]
     extra = dict(opts["extra"])
+    # (a gate compares every output's residual with one R: outputs in different units
+    # keep their own units)
     scaled = equivariant_forgetting(extra.get("forgetting", "exponential"),
-                                    extra.get("forgetting_params"))
+                                    extra.get("forgetting_params")) and not (
+        extra.get("gate") is not None and len(set(units.output_exponents)) > 1)
     rows_in = units.scale_rows(Phi, target) if scaled else (Phi, target)
     form, cond_raw = _choose_form(rows_in[0], opts)
     # cond(P) = cond(Phi)^2 (in the units the recursion runs in) is what the data give (and
