@@ -44,3 +44,28 @@ def assert_close_steps(a, b, name, rtol=1e-12):
     scale = mag.max(axis=(1, 2), keepdims=True) if a.ndim == 3 else (mag.max() if b.size else 1.0)
     err = np.abs(np.nan_to_num(a - b))
     assert np.all(err <= rtol * np.maximum(scale, 1e-300)), (name, float(err.max()))
+
+
+TINY = np.finfo(float).tiny                       # smallest normal double, 2^-1022
+SUBNORMAL = np.finfo(float).smallest_subnormal    # 2^-1074
+
+
+def assert_in_units(actual, expected, rtol, scale):
+    """`actual` equals `expected` (a unit-scale result times the factors of the user's units,
+    in floating point): ``|actual - expected| <= rtol * scale``, plus a few units in the last
+    place of the subnormal range where the product underflows (each of its roundings there
+    is absolute, 2^-1074); ``inf`` (with its sign) where the product overflows."""
+    actual, expected = np.broadcast_arrays(np.asarray(actual, float), np.asarray(expected, float))
+    scale = np.broadcast_to(scale, expected.shape)
+    big = ~np.isfinite(expected)
+    assert_array_equal(actual[big], expected[big])
+    fin = ~big
+    err = np.abs(actual[fin] - expected[fin])
+    bound = rtol * scale[fin] + np.where(np.abs(expected[fin]) < TINY, 3 * SUBNORMAL, 0.0)
+    assert np.all(err <= bound), (err - bound).max()
+
+
+def scaled_by(x, factor):
+    """``x * factor`` without over/underflow warnings (``inf`` or subnormal where it must)."""
+    with np.errstate(over="ignore", under="ignore"):
+        return x * factor

@@ -295,6 +295,14 @@ def _arx_entries():
               expect={"huge": b_inverse, "tiny": b_inverse}),
         Entry("ARX.fit", "y", lambda v: _theta(ARX(2, 2).fit(U, v)), Y,
               expect={"huge": b_scaled, "tiny": b_scaled, "shape": ERROR}),
+        # the IV and recursive fits run in power-of-two scaled units too (#18 item 7)
+        *[Entry(f"ARX.fit(method={m!r})", "u",
+                lambda v, m=m: _theta(ARX(2, 2).fit(v, Y, method=m)), U,
+                expect={"huge": b_inverse, "tiny": b_inverse}) for m in ("iv", "riv", "rls")],
+        *[Entry(f"ARX.fit(method={m!r})", "y",
+                lambda v, m=m: _theta(ARX(2, 2).fit(U, v, method=m)), Y,
+                expect={"huge": b_scaled, "tiny": b_scaled, "shape": ERROR})
+          for m in ("iv", "riv", "rls")],
         Entry("ARX()", "na", lambda v: _theta(ARX(v, 2).fit(U, Y)), 2, kind="int",
               expect={"negative": ERROR, "huge": ERROR}),
         Entry("ARX()", "nb", lambda v: _theta(ARX(2, v).fit(U, Y)), 2, kind="int"),
@@ -394,9 +402,10 @@ def _family_entries():
     """`ARMAX`, `OE` and `BJ` (prediction-error method) and `IOData`, the containers of
     real records.
 
-    The prediction-error fits run in scaled units (`rlsfilt.models._pem.RecordUnits`), so
+    The prediction-error fits run in scaled units (`rlsfilt.models._units.RecordUnits`), so
     around 1e160 and 1e-160 they are the fit of the unscaled record with the ``b``
-    coefficients scaled by ``s`` (``y * s``) or ``1 / s`` (``u * s``), the others unchanged.
+    coefficients scaled by ``s`` (``y * s``) or ``1 / s`` (``u * s``), the others unchanged;
+    the recursive ones run there as well, from a prior in the signals' units.
     """
     def b_times(mask):          # mask: 1 where theta_ holds a b coefficient
         mask = np.array(mask, dtype=float)
@@ -415,6 +424,16 @@ def _family_entries():
             Entry(f"{name}.fit", "y", lambda v, make=make: _theta(make().fit(U, v)), Y,
                   expect={"huge": y_scaled, "tiny": y_scaled}),
         ]
+    # the recursive prediction-error fits: their prior P0 = 1e4 I is in the signals' units
+    # (MATLAB's, and the streaming estimators'), so a record around 1e-160 hears that the
+    # prior outweighs the data (NumericalWarning naming P0), one around 1e160 that it is too
+    # diffuse for double precision (ValueError naming P0 and the scale of `u` and `y`)
+    for arg in ("u", "y"):
+        entries.append(Entry(
+            "ARMAX.fit(method='rpem')", arg,
+            (lambda v: _theta(ARMAX(2, 2, 1).fit(v, Y, method="rpem"))) if arg == "u" else
+            (lambda v: _theta(ARMAX(2, 2, 1).fit(U, v, method="rpem"))), U if arg == "u" else Y,
+            expect={"huge": ERROR, "tiny": WARNS}))
     return entries + [
         Entry("IOData", "u", lambda v: np.asarray(IOData(v, Y, dt=0.1).u), U,
               expect={"huge": OK, "tiny": OK}),

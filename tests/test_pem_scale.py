@@ -8,7 +8,7 @@ diagonal of those factors), predictions and simulations times ``c_y`` in the
 user's units, and the same fit percentages and residual-test p-values. The
 criterion is a sum of squares: around 1e160 it overflowed, around 1e-160 it
 underflowed, before the fit learned to run in power-of-two scaled units
-(`rlsfilt.models._pem.RecordUnits`).
+(`rlsfilt.models._units.RecordUnits`).
 
 The oracle is the fit of the same record at scale 1, whose numbers
 `test_pem.py` and `test_family_oracles.py` check against least squares,
@@ -45,14 +45,12 @@ import warnings
 
 import numpy as np
 import pytest
+from conftest import assert_in_units, scaled_by
 from numpy.testing import assert_allclose, assert_array_equal
 from scipy.signal import lfilter
 
 from rlsfilt import AR, ARMA, ARMAX, BJ, OE, validate
 from rlsfilt.validation import fit_percent, residual_analysis
-
-TINY = np.finfo(float).tiny                  # smallest normal double, 2^-1022
-SUBNORMAL = np.finfo(float).smallest_subnormal  # 2^-1074
 
 #: (c_u, c_y): the audit's extremes, both signals and the two mixed ways.
 EXTREME = [(1e160, 1e160), (1e-160, 1e-160), (1e150, 1e-150), (1e-150, 1e150), (1e-160, 1.0),
@@ -106,26 +104,6 @@ def _gain(n_params, b_index, cu, cy):
     return g
 
 
-def _assert_in_units(actual, expected, rtol, scale):
-    """`actual` equals `expected` (the scale-1 result times the factors, in floating point):
-    ``|actual - expected| <= rtol * scale``, plus a few units in the last place of the
-    subnormal range where the product underflows (each of its roundings there is absolute,
-    2^-1074); ``inf`` (with its sign) where the product overflows."""
-    actual, expected = np.broadcast_arrays(np.asarray(actual, float), np.asarray(expected, float))
-    scale = np.broadcast_to(scale, expected.shape)
-    big = ~np.isfinite(expected)
-    assert_array_equal(actual[big], expected[big])
-    fin = ~big
-    err = np.abs(actual[fin] - expected[fin])
-    bound = rtol * scale[fin] + np.where(np.abs(expected[fin]) < TINY, 3 * SUBNORMAL, 0.0)
-    assert np.all(err <= bound), (err - bound).max()
-
-
-def _scaled(x, factor):
-    with np.errstate(over="ignore", under="ignore"):
-        return x * factor
-
-
 def _check_fit(m, ref, g, cy, rtol, exact=False):
     """Every learned number of `m` against the scale-1 fit `ref` in the user's units."""
     check = assert_array_equal if exact else None
@@ -135,32 +113,32 @@ def _check_fit(m, ref, g, cy, rtol, exact=False):
     else:
         assert_allclose(m.theta_, ref.theta_ * g, rtol=rtol, atol=0)
     # covariance G P G; entries compared relative to sqrt(P_ii P_jj) in the same units
-    cov_ref = _scaled(_scaled(ref.theta_cov_, g[:, None]), g[None, :])
+    cov_ref = scaled_by(scaled_by(ref.theta_cov_, g[:, None]), g[None, :])
     sd = np.sqrt(np.diag(ref.theta_cov_))
-    cov_scale = _scaled(_scaled(np.outer(sd, sd), g[:, None]), g[None, :])
+    cov_scale = scaled_by(scaled_by(np.outer(sd, sd), g[:, None]), g[None, :])
     if exact:
         check(m.theta_cov_, cov_ref)
     else:
-        _assert_in_units(m.theta_cov_, cov_ref, rtol, np.abs(cov_scale))
+        assert_in_units(m.theta_cov_, cov_ref, rtol, np.abs(cov_scale))
     # noise variance by c_y^2 (inf around 1e160, subnormal around 1e-160)
-    var_ref = _scaled(_scaled(ref.noise_variance_, cy), cy)
+    var_ref = scaled_by(scaled_by(ref.noise_variance_, cy), cy)
     if exact:
         assert m.noise_variance_ == var_ref
     else:
-        _assert_in_units(m.noise_variance_, var_ref, rtol, np.abs(var_ref))
+        assert_in_units(m.noise_variance_, var_ref, rtol, np.abs(var_ref))
     # prediction errors by c_y
-    res_ref = _scaled(ref.residuals_, cy)
+    res_ref = scaled_by(ref.residuals_, cy)
     if exact:
         check(m.residuals_, res_ref)
     else:
-        _assert_in_units(m.residuals_, res_ref, rtol, np.abs(res_ref).max())
+        assert_in_units(m.residuals_, res_ref, rtol, np.abs(res_ref).max())
     # the optimizer's report: the start in theta units, the cost in y units squared
     if exact:
         check(m.fit_info_["theta0"], ref.fit_info_["theta0"] * g)
     else:
         assert_allclose(m.fit_info_["theta0"], ref.fit_info_["theta0"] * g, rtol=1e-10)
-    cost_ref = _scaled(_scaled(ref.fit_info_["cost"], cy), cy)
-    _assert_in_units(m.fit_info_["cost"], cost_ref, 0.0 if exact else rtol, np.abs(cost_ref))
+    cost_ref = scaled_by(scaled_by(ref.fit_info_["cost"], cy), cy)
+    assert_in_units(m.fit_info_["cost"], cost_ref, 0.0 if exact else rtol, np.abs(cost_ref))
 
 
 # ----------------------------------------------------------------------
@@ -258,7 +236,7 @@ def test_several_experiments_scale_together(io_refs, cu, cy):
     m = _fit(make, [u[p] * cu for p in parts], [y[p] * cy for p in parts])
     g = _gain(ref.n_params_, b_index, cu, cy)
     assert_allclose(m.theta_, ref.theta_ * g, rtol=rtol)
-    _assert_in_units(m.residuals_, ref.residuals_ * cy, rtol, np.abs(ref.residuals_ * cy).max())
+    assert_in_units(m.residuals_, ref.residuals_ * cy, rtol, np.abs(ref.residuals_ * cy).max())
 
 
 def test_two_inputs_get_their_own_factors():

@@ -9,12 +9,29 @@ last so that ``c`` is the last parameter: its regressor column is the
 column of ones of the least-squares fit, and the instruments get the same
 column (the constant is its own instrument; the auxiliary model of
 ``"model"`` instruments simulates :math:`x = (\hat B u + \hat c)/\hat A`).
+
+Both fits run in the units of :class:`~rlsfilt.models._units.RecordUnits`:
+every signal divided by a power of two near its largest entry (the
+intercept's constant input too), user-given instruments by one power of two
+near their largest entry. The IV estimate :math:`(Z^T\Phi)^{-1}Z^TY` does
+not change when a column of :math:`Z` or the whole of :math:`Y` is
+multiplied by a constant, and multiplying a column of :math:`\Phi` by
+:math:`2^{-c_k}` multiplies its parameter by :math:`2^{c_k}`: the estimate,
+its covariance, the histories and the instrument rows are mapped back
+exactly (``ldexp``), and records around :math:`10^{\pm 160}`, whose sums of
+products :math:`Z^T\Phi` leave the double range, give the estimate of the
+same record at unit size. The recursive fit's options ``P0``, ``R``, ``Q``
+and ``x0`` are read in the signals' units and mapped into the scaled units
+(:mod:`rlsfilt.models._units`), so the recursion computes the numbers of
+the unscaled one times powers of two.
 """
 
 import numpy as np
 
+from .._scale import pow2_exponent
 from .._validation import check_covariance, check_int, check_lam, check_variance
 from ._iv import covariance_per_output, fit_iv_records, recursive_iv_records
+from ._units import RecordUnits
 from .regressors import arx_structure
 
 __all__ = []
@@ -88,15 +105,20 @@ def fit_arx_iv(records, s, method, options, y_1d=True, stacklevel=4, intercept=F
     if intercept:
         records, s = with_intercept(records, s)
     n = s.n_params
+    # the fit runs on the record scaled to unit size (see the module notes)
+    units = RecordUnits(records, s)
+    scaled = units.scale_records(records)
+    z_exp, instruments = _instruments_in_units(instruments, units, s)
     prefilter = options.get("prefilter")
     if prefilter is not None and not isinstance(prefilter, (bool, np.bool_)):
         raise TypeError(f"`prefilter` must be True or False; got {prefilter!r}")
     if method == "iv":
         n_iter = check_int(options.get("n_iter", 10), "n_iter", minimum=1)
-        fit = fit_iv_records(records, s, instruments,
+        fit = fit_iv_records(scaled, s, instruments,
                              prefilter=True if prefilter is None else prefilter, n_iter=n_iter)
+        theta = units.estimate_from_unit(fit.theta)
         cov = fit.cov if ny > 1 else fit.cov[None]
-        return fit.theta, cov, {"instruments_": fit.Z}
+        return theta, _cov_from_unit(cov, units), {"instruments_": np.ldexp(fit.Z, z_exp)}
     kw = {}
     if "lam" in options:
         kw["lam"] = check_lam(options["lam"])
@@ -122,13 +144,55 @@ def fit_arx_iv(records, s, method, options, y_1d=True, stacklevel=4, intercept=F
                          f"k0={kw['k0']} rows sets both")
     if "refresh" in options:
         kw["refresh"] = check_int(options["refresh"], "refresh", minimum=0)
-    fit = recursive_iv_records(records, s, instruments, prefilter=bool(prefilter),
+    units.check_ratio()
+    if "x0" in kw:
+        units.start_to_unit(kw["x0"], "x0")      # a clear error before the prior's
+    start = units.recursion_start(kw.get("P0", 1e4 * np.eye(n)), kw.get("R", 1.0), kw.get("Q"),
+                                  z=z_exp, prior=kw.get("k0", n) == 0,
+                                  default_P0="P0" not in kw, stacklevel=stacklevel)
+    if start is None:             # a prior too strong for the data's scale: its own units
+        units = units.unscaled()
+        scaled = units.scale_records(records)
+        z_exp, instruments = _instruments_in_units(instruments, units, s)
+        start = {"P0": kw["P0"] if "P0" in kw else 1e4 * np.eye(n), "R": kw.get("R", 1.0),
+                 "Q": kw.get("Q")}
+    kw.update({k: v for k, v in start.items() if v is not None})
+    if "x0" in kw:
+        kw["x0"] = units.start_to_unit(kw["x0"], "x0")
+    fit = recursive_iv_records(scaled, s, instruments, prefilter=bool(prefilter),
                                stacklevel=stacklevel, **kw)
     resid = fit.target - fit.Phi @ fit.theta
     cov, _ = covariance_per_output(fit.P, fit.Z, resid, n)
     cov = cov if ny > 1 else cov[None]
-    hist = fit.theta_history
+    hist = units.theta_from_unit(fit.theta_history)
+    eps = units.output_from_unit(fit.eps)
     learned = {"theta_history_": hist[:, :, 0] if y_1d else hist,
-               "recursive_residuals_": fit.eps[:, 0] if y_1d else fit.eps,
-               "k0_": n if "k0" not in kw else kw["k0"], "instruments_": fit.Z}
-    return fit.theta, cov, learned
+               "recursive_residuals_": eps[:, 0] if y_1d else eps,
+               "k0_": n if "k0" not in kw else kw["k0"],
+               "instruments_": np.ldexp(fit.Z, z_exp)}
+    return units.estimate_from_unit(fit.theta), _cov_from_unit(cov, units), learned
+
+
+def _instruments_in_units(instruments, units, s):
+    """``(z_exp, instruments)``: the exponents of the instrument columns, and the
+    instruments to give the scaled record (a user's array divided by one power of two).
+
+    ``"model"`` instruments have the regressor's layout (the auxiliary output in the
+    units of ``y``); ``"delayed"`` ones replace the ``-y`` lags by lags of the first
+    input; a user's array keeps its columns' ratios (extended IV weighs its equations
+    by them).
+    """
+    if isinstance(instruments, str):
+        z_exp = units.column_exponents.copy()
+        if instruments == "delayed":
+            z_exp[:s.n_outputs * s.na] = units.input_exponents[0] if s.n_inputs else 0
+        return z_exp, instruments
+    Z = np.asarray(instruments, dtype=float)
+    e = int(pow2_exponent(Z)) if np.isfinite(Z).all() else 0
+    width = Z.shape[1] if Z.ndim == 2 else 1
+    return np.full(width, e, dtype=int), np.ldexp(Z, -e)
+
+
+def _cov_from_unit(cov, units):
+    """Covariances ``(ny, n, n)`` of the scaled parameters -> the user's units."""
+    return np.array([units.cov_from_unit(c, j) for j, c in enumerate(cov)])

@@ -55,6 +55,7 @@ import warnings
 import numpy as np
 
 from .._lazy_scipy import lfilter
+from .._scale import safe_norm
 from ..exceptions import NumericalWarning
 from ._long_ar import levinson_ar
 from ._stability import reflect
@@ -169,8 +170,8 @@ def iv_solve(Z, Phi, Y):
     M = Z.T @ Phi
     rhs = Z.T @ Y
     # scale rows and columns so the rank decision does not depend on units
-    dr = np.sqrt(np.sum(Z ** 2, axis=0))
-    dc = np.sqrt(np.sum(Phi ** 2, axis=0))
+    dr = safe_norm(Z, axis=0)
+    dc = safe_norm(Phi, axis=0)
     dr[dr == 0] = 1.0
     dc[dc == 0] = 1.0
     Ms = M / dr[:, None] / dc[None, :]
@@ -517,7 +518,8 @@ def recursive_iv_records(records, s, instruments="model", *, lam=1.0, Q=None, R=
             first += count
         if singular:
             raise ValueError(f"the exact start on the first k0 = {k0} rows is singular "
-                             "(Z0^T Phi0 not invertible): use a larger `k0`")
+                             "(Z0^T Phi0 not invertible: the first samples of `u` and `y` do "
+                             "not excite every parameter): use a larger `k0`")
         target = target[:, None]
     else:
         Phi, target = _stacked_rows(records, s)
@@ -541,7 +543,8 @@ def recursive_iv_records(records, s, instruments="model", *, lam=1.0, Q=None, R=
                 theta, G, _ = iv_solve(Z[:k0], Phi[:k0], target[:k0])
             except ValueError:
                 raise ValueError(f"the exact start on the first k0 = {k0} rows is singular "
-                                 "(Z0^T Phi0 not invertible): use a larger `k0`") from None
+                                 "(Z0^T Phi0 not invertible: the first samples of `u` and `y` "
+                                 "do not excite every parameter): use a larger `k0`") from None
             P = np.ascontiguousarray(G)
             theta = np.ascontiguousarray(theta)
             hist[k0 - 1] = theta

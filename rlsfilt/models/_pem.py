@@ -45,10 +45,10 @@ shrink, so every iterate has a stable predictor. The covariance is
 :math:`\hat\sigma^2 (J^T J)^{-1}` at the minimum, with
 :math:`\hat\sigma^2 = 2V / (N - t_0 - n_\theta)` (Ljung 1999, ch. 9).
 
-The search runs in scaled units (`RecordUnits`): each input and the output
-divided by a power of two near its largest entry, so that the criterion, a
-sum of squares, stays inside the double range for records around
-:math:`10^{\pm 160}` (:mod:`rlsfilt._scale`). The model is linear in the
+The search runs in scaled units (:class:`~rlsfilt.models._units.RecordUnits`):
+each input and the output divided by a power of two near its largest entry,
+so that the criterion, a sum of squares, stays inside the double range for
+records around :math:`10^{\pm 160}` (:mod:`rlsfilt._scale`). The model is linear in the
 signals: with :math:`u_i = 2^{e_i} \tilde u_i` and :math:`y = 2^{e_y}\tilde y`,
 the minimizer for the scaled record has the same ``a, c, d, f`` and
 :math:`b_i = 2^{e_y - e_i}\tilde b_i`; the prediction errors are
@@ -71,10 +71,10 @@ References
 import numpy as np
 
 from .._lazy_scipy import least_squares, lfilter
-from .._scale import pow2_exponent
 from ._family import split_theta
 from ._initial import initial_estimate
 from ._stability import predictor_is_stable, stabilize_theta
+from ._units import RecordUnits
 from .regressors import _column_rank
 
 __all__ = []
@@ -204,77 +204,6 @@ def joined(records):
     return np.vstack([U for U, _ in records]), np.concatenate([y for _, y in records])
 
 
-class RecordUnits:
-    r"""Powers of two that bring the records to unit size, and the map of the results back.
-
-    ``2^{e_i}`` for input ``i`` and ``2^{e_y}`` for the output are the
-    `pow2_exponent` of each signal over every experiment. In the scaled
-    units every entry is in ``[-1, 1]``; every conversion is an ``ldexp``,
-    exact unless its result over- or underflows (then ``inf`` or a
-    subnormal number, as the product in exact arithmetic would round).
-
-    Parameters
-    ----------
-    records : list of (ndarray (N_i, nu), ndarray (N_i,))
-    s : FamilyStructure
-
-    Attributes
-    ----------
-    input_exponents : ndarray of int, shape (nu,)
-    output_exponent : int
-    theta_exponents : ndarray of int, shape (n_params,)
-        :math:`e_y - e_i` on the ``b`` block of input ``i``, 0 on
-        ``a, c, d, f`` (which have no units).
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> from rlsfilt.models._family import family_structure
-    >>> from rlsfilt.models._pem import RecordUnits
-    >>> units = RecordUnits([(np.array([[3.0], [-1.0]]), np.array([1e-3, 0.0]))],
-    ...                     family_structure(na=1, nb=1, nk=1))
-    >>> int(units.input_exponents[0]), int(units.output_exponent), units.theta_exponents
-    (2, -9, array([  0, -11]))
-    """
-
-    def __init__(self, records, s):
-        nu = s.n_inputs
-        U = np.vstack([U for U, _ in records]) if nu else np.zeros((0, 0))
-        self.input_exponents = (pow2_exponent(U, axis=0).astype(int) if nu
-                                else np.zeros(0, dtype=int))
-        self.output_exponent = int(pow2_exponent(np.concatenate([y for _, y in records])))
-        g = np.zeros(s.n_params, dtype=int)
-        for i, sl in enumerate(s.slices()["b"]):
-            g[sl] = self.output_exponent - self.input_exponents[i]
-        self.theta_exponents = g
-
-    def scale_records(self, records):
-        """The records in the scaled units (new arrays; the caller's are not touched)."""
-        return [(np.ldexp(U, -self.input_exponents), np.ldexp(y, -self.output_exponent))
-                for U, y in records]
-
-    def theta_to_unit(self, theta):
-        """Parameters in the user's units -> the scaled units."""
-        with np.errstate(over="ignore", under="ignore"):
-            return np.ldexp(theta, -self.theta_exponents)
-
-    def theta_from_unit(self, theta):
-        """Parameters in the scaled units -> the user's units."""
-        with np.errstate(over="ignore", under="ignore"):
-            return np.ldexp(theta, self.theta_exponents)
-
-    def cov_from_unit(self, cov):
-        """Covariance of the parameters -> the user's units: :math:`G P G`."""
-        g = self.theta_exponents
-        with np.errstate(over="ignore", under="ignore"):
-            return np.ldexp(cov, g[:, None] + g[None, :])
-
-    def output_from_unit(self, x, power=1):
-        """An output signal (``power=1``) or a variance of one (``power=2``) -> the user's units."""
-        with np.errstate(over="ignore", under="ignore"):
-            return np.ldexp(x, power * self.output_exponent)
-
-
 class PEMFit:
     """Result of `pem`.
 
@@ -391,11 +320,7 @@ def pem_records(records, s, theta0=None, *, ftol=1e-12, xtol=1e-12, gtol=1e-12,
     if theta0 is None:
         theta0 = initial_estimate(*joined(scaled), s)
     else:
-        theta0 = units.theta_to_unit(np.asarray(theta0, dtype=float))
-        if not np.isfinite(theta0).all():
-            raise ValueError("`theta0` must have b coefficients of the size the record's "
-                             "units allow (|b| up to about max|y| / max|u| times 1e300); got "
-                             "coefficients that overflow")
+        theta0 = units.start_to_unit(np.asarray(theta0, dtype=float), "theta0")
     theta0, _ = stabilize_theta(theta0, s)
     J = stacked_gradient(theta0, s, scaled)
     rank = _column_rank(J) if np.isfinite(J).all() else 0
@@ -406,13 +331,7 @@ def pem_records(records, s, theta0=None, *, ftol=1e-12, xtol=1e-12, gtol=1e-12,
             "are too high); use a richer input, more data or lower orders")
     fit = _pem_unit(scaled, s, theta0, rows, ftol=ftol, xtol=xtol, gtol=gtol,
                     max_nfev=max_nfev)
-    theta = units.theta_from_unit(fit.theta)
-    if not np.isfinite(theta).all():
-        with np.errstate(divide="ignore"):       # log2|b| in the user's units
-            log2_b = np.max(np.log2(np.abs(fit.theta)) + units.theta_exponents)
-        raise ValueError("`u` and `y` must have units whose ratio double precision can hold; "
-                         f"got b coefficients of about 2^{log2_b:.0f} (above the largest "
-                         "double, 2^1024): scale `y` down or `u` up")
+    theta = units.estimate_from_unit(fit.theta)   # a clear error if b is not a double
     return PEMFit(theta=theta, cov=units.cov_from_unit(fit.cov),
                   noise_variance=float(units.output_from_unit(fit.noise_variance, 2)),
                   eps=units.output_from_unit(fit.eps),

@@ -29,7 +29,8 @@ from ._pem import (
     prediction_error_parts,
     stacked_errors,
 )
-from ._recursive_pem import recursive_pem_records
+from ._recursive_pem import RecursionState, recursive_pem_records
+from ._units import RecordUnits, equivariant_forgetting
 from .regressors import _as_signal, as_records, is_listed
 
 __all__ = []
@@ -109,14 +110,18 @@ class PolynomialModel(IdentifiedModel):
                                     "status": fit.status, "message": fit.message,
                                     "theta0": fit.theta0}
         else:
-            opts = dict(options)
-            fit = recursive_pem_records(records, s, method, stacklevel=stacklevel + 1, **opts)
-            theta = fit.theta
-            eps = stacked_errors(theta, s, records)
-            sigma2 = float(eps @ eps) / (rows - s.n_params)
-            cov = sigma2 * fit.P / fit.state.R
+            fit, units, P, R = _recursive_fit(records, s, method, dict(options), stacklevel + 1)
+            theta = units.estimate_from_unit(fit.theta)
+            # residuals, noise variance and covariance from the fit in its units (sums of
+            # squares in range), then mapped
+            eps = stacked_errors(fit.theta, s, units.scale_records(records))
+            sigma2_unit = float(eps @ eps) / (rows - s.n_params)
+            sigma2 = units.output_from_unit(sigma2_unit, 2)
+            eps = units.output_from_unit(eps)
+            cov = units.cov_from_unit(sigma2_unit * P / R)
             cov = 0.5 * (cov + cov.T)
-            learned.update(theta_history_=fit.theta_history, recursive_residuals_=fit.eps,
+            learned.update(theta_history_=units.theta_from_unit(fit.theta_history),
+                           recursive_residuals_=units.output_from_unit(fit.eps),
                            state_=fit.state)
             if method == "rplr":
                 learned["margins_"] = fit.margins
@@ -559,6 +564,46 @@ class TimeSeriesModel(PolynomialModel):
         self._check_fitted("frequency_response")
         self._no_input_model(noise, "frequency_response")
         return super().frequency_response(omega, theta, noise=True)
+
+
+def _recursive_fit(records, s, method, options, stacklevel):
+    """`recursive_pem_records` in the units the recursion runs in: ``(fit, units, P, R)``.
+
+    The recursion runs on the records scaled to unit size, with ``P0``, ``R``, ``Q`` and
+    ``x0`` mapped exactly: the numbers of the recursion in the signals' units times
+    powers of two wherever both are exact (:mod:`rlsfilt.models._units`), and in range
+    for records of any size. The returned ``fit.state`` is the recursion in the signals'
+    units with the final state of the scaled run, while ``P`` and ``R`` are those of the
+    run (``P / R`` maps to the signals' units with ``units.cov_from_unit``). Forgetting
+    modes whose constants bound ``trace(P)`` or its eigenvalues, and a default ``P0``
+    that outweighs the data (warned about), run in the signals' units (``units`` the
+    identity); a ``P0`` too diffuse for the data is a ValueError naming it
+    (`RecordUnits.recursion_start`).
+    """
+    units = RecordUnits(records, s)
+    user = RecursionState(s, method, **options)      # validates every option
+    units.check_ratio()
+    x0 = units.start_to_unit(user.theta, "x0")
+    Q = None if user.q_zero else user.Q
+    r = units.r_for(user.R, gate=options.get("gate") is not None)
+    scaled = equivariant_forgetting(options.get("forgetting", "exponential"),
+                                    options.get("forgetting_params"))
+    start = units.recursion_start(user.P, user.R, Q, r=r, default_P0="P0" not in options,
+                                  stacklevel=stacklevel + 1) if scaled else None
+    if start is None:
+        fit = recursive_pem_records(records, s, method, stacklevel=stacklevel + 1, **options)
+        return fit, units.unscaled(), fit.P, fit.state.R
+    opts = dict(options, P0=start["P0"], R=start["R"], x0=x0)
+    if Q is not None:
+        opts["Q"] = start["Q"]
+    fit = recursive_pem_records(units.scale_records(records), s, method,
+                                stacklevel=stacklevel + 1, **opts)
+    P, R = fit.P, fit.state.R
+    with np.errstate(over="ignore", under="ignore"):
+        user.adopt(fit.state, units.theta_from_unit(fit.theta), units.P_from_unit(fit.P, r=r),
+                   units.input_exponents, units.output_exponent)
+    fit.state = user
+    return fit, units, P, R
 
 
 def fit_io(model, u, y, method, options):

@@ -93,7 +93,10 @@ class RecursionState:
         profile, at most 0.7 with it). ``lam_start = 1`` switches the
         profile off.
     P0 : float or array_like, default 1e4
-        Initial covariance (``P0 * I`` for a scalar), as `RecursiveLeastSquares`.
+        Initial covariance (``P0 * I`` for a scalar), as `RecursiveLeastSquares`,
+        in the units of the signals the recursion runs on (the model fits give
+        it the image of the user's ``P0`` in their scaled units:
+        :mod:`rlsfilt.models._units`).
     x0 : array_like, optional
         Initial estimate (zeros: ``A = C = D = F = 1``, ``B = 0``).
     R : float, default 1.0
@@ -278,6 +281,30 @@ class RecursionState:
         if self._since_check == self.check_every:
             self._check_health()
         return yhat, eps, f[gated] != 0.0
+
+    def adopt(self, other, theta, P, input_exponents, output_exponent):
+        """Take the state of `other`, the same recursion run on the record with input ``i``
+        divided by ``2^input_exponents[i]`` and the output by ``2^output_exponent``: the
+        estimate `theta` and covariance `P` (already in this recursion's units), the
+        signal lags (mapped back exactly: ``y``, ``eps``, ``v``, ``w_i`` and their filtered
+        forms in the units of ``y``, ``u_i`` and its filtered forms in those of ``u_i``),
+        the forgetting profile and the counters. ``R``, ``Q`` and the options stay this
+        recursion's own."""
+        k = _get_kernels()
+        e = np.full(self.buf.shape[0], output_exponent, dtype=int)
+        for i, ei in enumerate(input_exponents):
+            base = k.N_SIG_BASE + k.N_SIG_INPUT * i
+            e[base + k.SIG_U] = e[base + k.SIG_P] = e[base + k.SIG_UF] = ei
+        with np.errstate(over="ignore", under="ignore"):
+            self.buf = np.ldexp(other.buf, e[:, None])
+        self.theta = np.ascontiguousarray(theta, dtype=np.float64)
+        self.P = np.ascontiguousarray(P, dtype=np.float64)
+        R = self._fpar[k.F_R]
+        self._fpar[:] = other._fpar
+        self._fpar[k.F_R] = R
+        self.n_reflections, self.n_steps = other.n_reflections, other.n_steps
+        self._since_check, self._warned_health = other._since_check, other._warned_health
+        self._work = None
 
     @property
     def phi(self):

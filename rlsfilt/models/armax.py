@@ -133,7 +133,11 @@ class ARMAX(PolynomialModel):
             ``R``, ``Q``, ``forgetting``, ``forgetting_params``, ``gate``,
             ``check_every``, ``cond_max``),
             the start-up forgetting profile ``lam_start``, ``lam_rate`` and
-            ``project`` (keep ``C`` stable).
+            ``project`` (keep ``C`` stable). ``P0``, ``R``, ``Q`` and ``x0``
+            are in the signals' units, and so are their defaults (``P0 = 1e4
+            I``, ``R = 1``, ``x0 = 0``: MATLAB's ``rarmax`` and the
+            streaming :class:`~rlsfilt.RecursiveARMAX`, which the fit equals
+            bit for bit).
 
         Returns
         -------
@@ -143,13 +147,32 @@ class ARMAX(PolynomialModel):
         ------
         ValueError
             Bad orders, NaN/inf data, mismatched lengths, too few samples,
-            an input that is not persistently exciting.
+            an input that is not persistently exciting; ``u`` and ``y`` in
+            units whose ratio makes a ``b`` coefficient exceed the double
+            range (the message names both); ``"rpem"``/``"rplr"`` with a
+            ``P0`` (the default for signals around 1e160) too diffuse for
+            double precision in the record's units, or an ``R`` outside the
+            recursion's range there (the message names it and the scale).
 
         Warns
         -----
         NumericalWarning
             ``"rplr"`` when :math:`\\mathrm{Re}\\{1/C\\} > 1/2` fails at the
             estimate (extended least squares may not converge to the
-            prediction-error estimate; use ``"rpem"``).
+            prediction-error estimate; use ``"rpem"``); ``"rpem"``/``"rplr"``
+            when the default ``P0`` outweighs the data (signals far below
+            unit size: around 1e-3 it biases the estimate by percents,
+            around 1e-160 it holds it at ``x0``).
+
+        Notes
+        -----
+        Every method runs on the record scaled to unit size (each signal
+        divided by a power of two near its largest entry) and maps the
+        results back exactly, so records around :math:`10^{\\pm 160}` give
+        the fit of the same record at unit size, in their units. The
+        recursions read ``P0``, ``R``, ``Q``, ``x0`` in the signals' units
+        and run from their exact images in the scaled units: the same
+        numbers, bit for bit, as the recursion in the signals' units
+        wherever that stays in the double range (:mod:`rlsfilt.models._units`).
         """
         return fit_io(self, u, y, method, options)

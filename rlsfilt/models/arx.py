@@ -19,16 +19,24 @@ import warnings
 import numpy as np
 
 from .._resources import check_memory
-from .._scale import pow2_scale, safe_norm
+from .._scale import pow2_exponent, pow2_scale, safe_norm
 from .._serialize import jsonable
-from .._validation import as_float_array, check_finite, check_int, check_scalar
+from .._validation import (
+    as_float_array,
+    check_covariance,
+    check_finite,
+    check_int,
+    check_scalar,
+)
 from ..exceptions import InsufficientDataError, NumericalWarning
 from ..filters import RecursiveLeastSquares, SquareRootRLS
+from ..filters._base import MISSING_DIAGNOSTICS
 from . import _conversion
 from ._arx_iv import check_options as check_iv_options
 from ._arx_iv import fit_arx_iv
 from ._base import IdentifiedModel, Polynomials
 from ._summary import EQUATION_STYLES, ModelSummary
+from ._units import RecordUnits, equivariant_forgetting, estimate_in_units
 from .regressors import (
     _as_signal,
     _build,
@@ -315,7 +323,11 @@ class ARX(IdentifiedModel):
         lam, P0, R, Q, x0
             ``"rls"`` only: passed to `RecursiveLeastSquares` (forgetting
             factor, initial covariance and estimate for a prior start with
-            ``k0 = 0``, noise variance, random-walk covariance).
+            ``k0 = 0``, noise variance, random-walk covariance), in the
+            signals' units, as their defaults (``P0 = 1e4 I``, ``R = 1``,
+            MATLAB's ``rarx``). The batch start does not depend on the units;
+            a prior start is the same fit for a record in other units only
+            with ``P0 / R`` (and ``Q / R``) in those units.
         form : {"auto", "covariance", "square_root"}, optional
             ``"rls"`` only: the recursion. ``"covariance"`` is
             `RecursiveLeastSquares` (updates ``P``); ``"square_root"`` is
@@ -342,7 +354,13 @@ class ARX(IdentifiedModel):
         ValueError
             NaN/inf in the data (the first bad index is named), mismatched
             lengths, bad orders, too few samples, or a regressor matrix
-            without full column rank (input not persistently exciting).
+            without full column rank (input not persistently exciting);
+            ``u`` and ``y`` in units whose ratio makes a ``b`` coefficient
+            exceed the double range (every method; the message names both);
+            a recursive prior start whose ``P0`` (the default for signals
+            around 1e160) is too diffuse for double precision in the
+            record's units, or whose ``R`` is outside the recursion's range
+            there (the message names it and the scale).
         MemoryError
             When the regressor matrix and the factorization would need more
             memory than the process can get (checked before they are built).
@@ -353,10 +371,28 @@ class ARX(IdentifiedModel):
             ``"rls"`` on ill-conditioned regressors when the accuracy of the
             recursion cannot be guaranteed: the covariance form (asked for,
             or forced by `Q` or a forgetting mode) above a condition number
-            of 1e6, or any form above 1e10.
+            of 1e6, or any form above 1e10. ``"rls"``/``"riv"`` with a prior
+            start from the default ``P0`` when it outweighs the data
+            (signals far below unit size).
 
         Notes
         -----
+        Every method runs on the record scaled to unit size (each signal
+        divided by a power of two near its largest entry; the columns of
+        :math:`\Phi` for ``"ls"``) and maps the results back exactly:
+        records around :math:`10^{\pm 160}`, whose sums of squares leave
+        the double range, give the fit of the same record at unit size, in
+        their units. The recursions run from the exact images of ``P0``,
+        ``R``, ``Q``, ``x0`` in the scaled units: the same numbers, bit for
+        bit, as the recursion in the signals' units wherever that stays in
+        the double range (:mod:`rlsfilt.models._units`), and ``filter_``
+        holds the final state in the signals' units (``P`` over- or
+        underflows there for records around :math:`10^{\pm 160}`: continue
+        such a record with the square-root form, whose factor stays in
+        range). Forgetting modes with constants that bound ``trace(P)``
+        (``"constant_trace"``, ``"efra"``, ``"variable"``, an explicit
+        ``trace_max``) run in the signals' units.
+
         With ``method="rls"``, ``theta_`` is the filter's last estimate and
         ``theta_cov_`` is ``noise_variance_ * P / R``, its covariance; with
         ``lam = 1``, ``Q = 0`` and a batch start both equal the batch answer.
@@ -398,14 +434,18 @@ class ARX(IdentifiedModel):
         recursive, cov_iv = {}, None
         inv_scaled, col_scale = None, np.ones(Phi.shape[1])
         if method == "ls":
-            theta, inv_scaled, col_scale = _qr_least_squares(Phi, target)
+            theta, inv_scaled, col_scale = _qr_least_squares(Phi, target,
+                                                             _output_lags(s, Phi.shape[1]))
         elif method in ("iv", "riv"):
             dev = records if op is None else [(U - op[0], Y - op[1]) for U, Y in records]
             theta, cov_iv, recursive = fit_arx_iv(
                 dev, s, method, iv_options, info["y_1d"],
                 intercept=_offset_mode(self.offset) == "intercept")
         else:
-            theta, inv_scaled, rls, history, prior, k0 = _fit_rls(Phi, target, s, opts)
+            dev = records if op is None else [(U - op[0], Y - op[1]) for U, Y in records]
+            units = RecordUnits(dev, s, intercept=_offset_mode(self.offset) == "intercept")
+            theta, inv_scaled, rls, history, prior, col_scale, k0 = _fit_rls(Phi, target, s,
+                                                                             opts, units)
             # prior: the a-priori (recursive) residuals y(t) - phi(t) theta(t-1) after
             # the batch start
             recursive = {"filter_": rls, "k0_": k0, "lam_": float(rls.lam),
@@ -1080,14 +1120,22 @@ def _fit_bytes(rows, n, s, method):
     return 8 * rows * per_row
 
 
-def _fit_rls(Phi, target, s, opts):
-    """Recursive least squares over the rows: ``(theta, P / R, filter, history, prior, k0)``.
+def _fit_rls(Phi, target, s, opts, units):
+    """Recursive least squares over the rows: ``(theta, C, filter, history, prior, c, k0)``.
 
-    ``history`` (rows, n, ny) is NaN before row ``k0 - 1`` (the batch start's
-    estimate); ``prior`` (rows, ny) the a-priori residuals, NaN before row ``k0``.
-    The rows come from validated signals, so the covariance-form filter runs
-    them without validating them again, writing the estimates straight into
-    ``history`` and every residual into ``prior`` (no copies of the record).
+    :math:`P / R = C / (c c^T)` as in `_qr_least_squares` (``c`` the powers of two of
+    the columns, ones when the recursion ran in the signals' units). ``history``
+    (rows, n, ny) is NaN before row ``k0 - 1`` (the batch start's estimate);
+    ``prior`` (rows, ny) the a-priori residuals, NaN before row ``k0``.
+
+    The recursion runs on the rows scaled to unit size by `units`, from ``P0``, ``R``,
+    ``Q``, ``x0`` mapped into those units: the numbers of the run in the signals' units
+    times powers of two wherever both are exact (:mod:`rlsfilt.models._units`), in range
+    for records of any size, and with a health check that sees ``P`` of unit-size
+    signals. The filter returned, built from the user's options, gets the final state
+    in the signals' units (`_hand_over`). Forgetting modes whose constants bound
+    ``trace(P)`` or its eigenvalues, and a default prior that outweighs the data (warned
+    about), run in the signals' units.
     """
     n, rows = Phi.shape[1], len(Phi)  # an intercept adds a column to the structure's
     prior = opts["P0"] is not None or opts["x0"] is not None
@@ -1107,16 +1155,93 @@ def _fit_rls(Phi, target, s, opts):
                 f"k0={k0} rows sets both x0 and P0. Pass k0=0 to start from `{given[0]}`.")
     kw = {key: opts[key] for key in ("P0", "R", "Q", "x0") if opts[key] is not None}
     lam = 1.0 if opts["lam"] is None else opts["lam"]
-    form, cond_raw = _choose_form(Phi, opts)
     extra = dict(opts["extra"])
-    # cond(P) = cond(Phi)^2 (in the signals' units) is what the data give (and more on the
-    # first rows), and _choose_form has said so: the health check watches for windup beyond
+    # (a gate compares every output's residual with one R: outputs in different units
+    # keep their own units)
+    scaled = equivariant_forgetting(extra.get("forgetting", "exponential"),
+                                    extra.get("forgetting_params")) and not (
+        extra.get("gate") is not None and len(set(units.output_exponents)) > 1)
+    rows_in = units.scale_rows(Phi, target) if scaled else (Phi, target)
+    form, cond_raw = _choose_form(rows_in[0], opts)
+    # cond(P) = cond(Phi)^2 (in the units the recursion runs in) is what the data give (and
+    # more on the first rows), and _choose_form has said so: the health check watches for
+    # windup beyond
     extra.setdefault("cond_max", max(1e12, 1e4 * cond_raw ** 2))
     cls = SquareRootRLS if form == "square_root" else RecursiveLeastSquares
-    rls = cls(n, dim_z=s.n_outputs, lam=lam, **kw, **extra)
-    if cls is SquareRootRLS:
+    user = cls(n, dim_z=s.n_outputs, lam=lam, **kw, **extra)  # validates; becomes filter_
+    units.check_ratio()
+    x0 = units.start_to_unit(user.x, "x0") if k0 == 0 else None
+    # P0, R, Q in the scaled units (see RecordUnits.r_for)
+    r = units.r_for(user.R, gate=extra.get("gate") is not None)
+    P0 = check_covariance(kw.get("P0", 1e4), n, "P0", definite=True)
+    start = units.recursion_start(P0, user.R, user.Q if "Q" in kw else None, r=r,
+                                  prior=k0 == 0, default_P0=opts["P0"] is None,
+                                  stacklevel=5) if scaled else None
+    if start is None:       # the signals' units (a prior the data cannot bear was warned about)
+        return (*_run_rls(user, Phi, target, k0), np.ones(n), k0)
+    start["x0"] = x0
+    rls = cls(n, dim_z=s.n_outputs, lam=lam, **{k: v for k, v in start.items() if v is not None},
+              **extra)
+    theta, C, rls, history, prior = _run_rls(rls, *rows_in, k0)
+    theta = units.estimate_from_unit(theta)
+    _hand_over(rls, user, theta, units, r)
+    return (theta, C, user, units.theta_from_unit(history), units.output_from_unit(prior),
+            np.ldexp(1.0, units.column_exponents), k0)
+
+
+def _hand_over(rls, user, theta, units, r):
+    """Give `user` (the filter built from the user's options) the final state of `rls`,
+    which ran in the scaled units with ``R~ = 2^r R``: the estimate `theta` (already
+    mapped), ``P`` (over- or underflowing where it is not representable in the signals'
+    units), the last step's diagnostics and the counters, so that it continues as the
+    filter run in the signals' units would."""
+    c, ey = units.column_exponents, units.output_exponents[:, None]
+
+    def cols(H):                                   # a regressor row: phi = 2^c phi~
+        return np.ldexp(H, c)
+
+    def gain(K):                                   # K = P phi / S = 2^-c K~
+        return np.ldexp(K, -c[:, None] if np.ndim(K) == 2 else -c)
+
+    maps = {"x_prior": units.theta_from_unit, "x_post": units.theta_from_unit,
+            "P_prior": lambda P: units.P_from_unit(P, r=r),
+            "P_post": lambda P: units.P_from_unit(P, r=r), "H": cols, "K": gain,
+            "S": lambda S: np.ldexp(S, -r), "SI": lambda S: np.ldexp(S, r),
+            "z": lambda z: np.ldexp(z, ey), "y": lambda y: np.ldexp(y, ey)}
+    with np.errstate(over="ignore", under="ignore"):
+        if isinstance(rls, SquareRootRLS):
+            # the information square root (U^T U = P^-1) maps exactly, U = 2^(r/2) U~ 2^c,
+            # and so does d = U x = 2^(r/2 + e_y) d~
+            user._U = np.ldexp(rls._U, c[None, :] + r // 2)
+            user._x = np.array(theta, dtype=float)
+            user._d = np.ldexp(rls._d, units.output_exponents[None, :] + r // 2)
+        else:
+            user.x = theta
+            user.P = units.P_from_unit(rls.P, r=r)
+            user._cap, user._w = rls._cap, rls._w      # the windup cap's pending decision
+        for name, f in maps.items():
+            value = rls.__dict__.get(name)
+            if value is not None:
+                setattr(user, name, f(value))
+    for name in ("n_updates", "n_gated", "n_capped", "lam_t", "gated", "_warned_health",
+                 "_updates_since_predict", "_recheck", "_efra_pending"):
+        if name in rls.__dict__:
+            setattr(user, name, rls.__dict__[name])
+    if "_lazy" in rls.__dict__:                 # a missing last sample's marker, else lazy
+        user._lazy = rls._lazy if rls._lazy == MISSING_DIAGNOSTICS else None
+
+
+def _run_rls(rls, Phi, target, k0):
+    """Run `rls` over the rows: ``(theta, P / R, rls, history, prior)`` (see `_fit_rls`).
+
+    The rows come from validated signals, so the covariance-form filter runs
+    them without validating them again, writing the estimates straight into
+    ``history`` and every residual into ``prior`` (no copies of the record).
+    """
+    if isinstance(rls, SquareRootRLS):
         return _fit_square_root(rls, Phi, target, k0)
-    prior = np.full((rows, s.n_outputs), np.nan)
+    rows, n = Phi.shape
+    prior = np.full((rows, target.shape[1]), np.nan)
     if k0 > 0:
         rls.initialize(target[:k0], Phi[:k0])
     if k0 < rows:
@@ -1126,13 +1251,13 @@ def _fit_rls(Phi, target, s, opts):
         history = out.buffer[1:] if k0 == 0 else out.buffer
         prior[k0:] = out.ys
     else:                                   # the batch start used every row
-        history = np.full((rows, n, s.n_outputs), np.nan)
+        history = np.full((rows, n, target.shape[1]), np.nan)
         history[k0 - 1] = rls.x
-    return rls.x.copy(), rls.P / rls.R, rls, history, prior, k0
+    return rls.x.copy(), rls.P / rls.R, rls, history, prior
 
 
 def _fit_square_root(rls, Phi, target, k0):
-    """`_fit_rls` with a `SquareRootRLS` (its public ``batch_filter``): the same returns."""
+    """`_run_rls` with a `SquareRootRLS` (its public ``batch_filter``): the same returns."""
     rows = len(Phi)
     history = np.full((rows, Phi.shape[1], target.shape[1]), np.nan)
     x_start = rls.x.copy()
@@ -1148,7 +1273,7 @@ def _fit_square_root(rls, Phi, target, k0):
         prior[0] = target[0] - Phi[0] @ x_start
         start = 1
     prior[start:] = target[start:] - np.einsum("ij,ijk->ik", Phi[start:], history[start - 1:-1])
-    return rls.x.copy(), rls.P / rls.R, rls, history, prior, k0
+    return rls.x.copy(), rls.P / rls.R, rls, history, prior
 
 
 _FORMS = ("auto", "covariance", "square_root")
@@ -1199,11 +1324,14 @@ def _cond(R):
     return float(sv[0] / sv[-1]) if len(sv) and sv[-1] > 0 else np.inf
 
 
-def _qr_least_squares(Phi, target):
+def _qr_least_squares(Phi, target, of_output=None):
     r"""Least squares through QR, safe over the whole double range.
 
     Returns ``(theta, C, c)``: ``theta`` (n, ny) and :math:`(\Phi^T\Phi)^{-1}
-    = C / (c c^T)`, with ``c`` the powers of two that scaled the columns.
+    = C / (c c^T)`, with ``c`` the powers of two that scaled the columns. A
+    coefficient beyond the largest double (``u`` around 1e-160, ``y`` around
+    1e160) is a ValueError naming ``u`` and ``y`` (`of_output` marks the
+    ``a`` coefficients, for the message).
 
     The columns of ``Phi`` (by ``c``) and of the target (by ``t``) are
     divided by powers of two near their largest entries, which is exact, so
@@ -1217,8 +1345,8 @@ def _qr_least_squares(Phi, target):
     """
     from scipy.linalg import lapack, solve_triangular  # lazy: keeps `import rlsfilt` light
     rows, n = Phi.shape
-    c = pow2_scale(Phi, axis=0)
-    t = pow2_scale(target, axis=0)
+    ce, te = pow2_exponent(Phi, axis=0), pow2_exponent(target, axis=0)
+    c, t = np.ldexp(1.0, ce), np.ldexp(1.0, te)
     A = np.empty((rows, n + target.shape[1]), order="F")
     np.divide(Phi, c, out=A[:, :n])
     np.divide(target, t, out=A[:, n:])
@@ -1236,8 +1364,8 @@ def _qr_least_squares(Phi, target):
     # back substitution one column at a time, and the triangular inverse from
     # LAPACK's trtri: multi-column triangular solves hit a slow threaded BLAS
     # path for tiny matrices on loaded machines (measured: 2-10 ms per call)
-    theta = np.column_stack([solve_triangular(Rf, rhs[:, i]) * (t[i] / c)
-                             for i in range(rhs.shape[1])])
+    theta = np.column_stack([solve_triangular(Rf, rhs[:, i]) for i in range(rhs.shape[1])])
+    theta = estimate_in_units(theta, te[None, :] - ce[:, None], of_output)  # times t_i / c
     Rinv, info = lapack.dtrtri(Rf, lower=0)
     cov = Rinv @ Rinv.T
     return theta, 0.5 * (cov + cov.T), c
@@ -1262,14 +1390,19 @@ def _noise_and_covariance(resid, dof, inv_scaled, c):
     rs = resid / t
     noise_s = rs.T @ rs / dof
     sigma2_s = np.diag(noise_s).copy()
-    g = t[:, None] / c[None, :]                          # (ny, n)
     with np.errstate(over="ignore", under="ignore"):
+        g = t[:, None] / c[None, :]                      # (ny, n)
         sigma2 = sigma2_s * t * t
         noise_cov = noise_s * np.outer(t, t)
         if inv_scaled is None:
             return sigma2, None, noise_cov
         cov = (sigma2_s[:, None, None] * inv_scaled[None]) * g[:, :, None] * g[:, None, :]
     return sigma2, cov, noise_cov
+
+
+def _output_lags(s, n):
+    """Which of the `n` regressor columns are lags of an output (``a`` coefficients)."""
+    return np.arange(n) < s.n_outputs * s.na
 
 
 def _split(theta, s):

@@ -9,6 +9,18 @@ thin wrappers around the compiled RPEM/RPLR step of
 :mod:`rlsfilt.models._recursive_kernels`, the same step that
 ``fit(u, y, method="rpem")`` runs over a record, so stepping through a
 record gives bit for bit the estimates of the batch run.
+
+**Units.** A streaming estimator sees one sample at a time and cannot know
+the scale of the record in advance: ``P0``, ``R``, ``Q``, ``x0`` and their
+defaults (``P0 = 1e4 I``, ``R = 1``, as MATLAB's recursive objects) are in
+the signals' units, and the recursion runs in them. For signals far from
+unit size give options of that size (``P0`` about ``1e4 R / max|phi_k|^2``
+for parameter ``k``, ``R`` of the size of the noise variance) or scale the
+signals first: around 1e-160 the default prior outweighs every sample,
+around 1e160 the covariance update overflows. The batch fits read the same
+options in the same units and give the same numbers, but run in scaled units
+and name a default prior that does not suit the data
+(:mod:`rlsfilt.models._units`).
 """
 
 import numbers
@@ -38,7 +50,7 @@ class _RecursiveModel:
     ``method`` (``"rpem"`` or ``"rplr"``) and those of the recursion
     (``lam``, ``lam_start``, ``lam_rate``, ``P0``, ``x0``, ``R``, ``Q``,
     ``forgetting``, ``forgetting_params``, ``gate``, ``project``; see
-    :meth:`ARMAX.fit`).
+    :meth:`ARMAX.fit`), in the signals' units (see the module notes).
     """
 
     def __init__(self, s, method, options):

@@ -61,7 +61,12 @@ class RecursiveIV:
         prior `P0`, `x0`).
     lam, Q, R, P0, x0
         Forgetting factor, random walk, gain-denominator constant, prior
-        covariance and estimate, as ``ARX.fit(method="riv")``.
+        covariance and estimate, as ``ARX.fit(method="riv")``, in the
+        signals' units (defaults ``P0 = 1e4 I``, ``R = 1``): one sample at a
+        time, the estimator cannot know the scale of the record in advance.
+        For signals far from unit size give a prior of that size (``P0``
+        about ``1e4 R / max|phi_k|^2``) or use the exact start (``k0 > 0``),
+        which does not depend on the units.
     refresh : int, optional
         ``"model"``: samples between refreshes of the auxiliary model
         (default ``max(50, 10 n_params)``; ``0`` never).
