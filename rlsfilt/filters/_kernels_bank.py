@@ -168,6 +168,38 @@ def _predict(Pb, ilb, Qb, q_zero, nb):
 
 
 @njit(inline="always", **_JIT)
+def _read_step(Z, H, h_last, k, c0, nb, zb, h, fin):
+    """Load step ``k`` of the block (``zb``, ``h``); return how many of its
+    channels hold a value that is not finite (NaN: missing, or inf: an error).
+
+    ``fin[b] = (z - z) + sum_j (h_j - h_j)`` is 0 for finite values and NaN
+    otherwise: one pass over the loads, no branch in the channel loop, and
+    an integer count (which vectorizes) decides the path of the whole block.
+    """
+    n = h.shape[0]
+    for b in range(nb):
+        v = Z[k, c0 + b]
+        zb[b] = v
+        fin[b] = v - v
+    if h_last:                           # H is (N, n, C): contiguous loads
+        for j in range(n):
+            for b in range(nb):
+                v = H[k, j, c0 + b]
+                h[j, b] = v
+                fin[b] += v - v
+    else:
+        for j in range(n):
+            for b in range(nb):
+                v = H[k, c0 + b, j]
+                h[j, b] = v
+                fin[b] += v - v
+    count = 0
+    for b in range(nb):
+        count += fin[b] != fin[b]
+    return count
+
+
+@njit(inline="always", **_JIT)
 def _infinite(h, zb, flag, nb):
     """Whether a regressor or measurement of the block is infinite (``flag[b]``
     marks the channels); NaN (missing) is not."""
@@ -224,6 +256,70 @@ def _measure(xb, Pb, h, zb, rb, hok, ok, g, sb, yb, acc, nb, tri):
             acc[b] += h[i, b] * xb[i, b]
     for b in range(nb):
         yb[b] = zb[b] - acc[b]                              # y = z - h . x
+
+
+@njit(inline="always", **_JIT)
+def _measure_all(xb, Pb, h, zb, rb, g, sb, yb, acc, nb, tri):
+    """`_measure` for a block step whose values are all finite (every channel
+    updates): the same operations, without the validity masks."""
+    n = xb.shape[0]
+    for i in range(n):
+        for b in range(nb):
+            g[i, b] = 0.0
+    for j in range(n):
+        for i in range(n):
+            t = tri[j, i]
+            for b in range(nb):
+                g[i, b] += Pb[t, b] * h[j, b]               # g = P h
+    for b in range(nb):
+        acc[b] = 0.0
+    for i in range(n):
+        for b in range(nb):
+            acc[b] += h[i, b] * g[i, b]
+    for b in range(nb):
+        sb[b] = acc[b] + rb[b]                              # s = h . g + r
+        acc[b] = 0.0
+    for i in range(n):
+        for b in range(nb):
+            acc[b] += h[i, b] * xb[i, b]
+    for b in range(nb):
+        yb[b] = zb[b] - acc[b]                              # y = z - h . x
+
+
+@njit(inline="always", **_JIT)
+def _update_exponential(xb, Pb, g, Kb, sb, yb, w, nb, iu, ju, fuse, ilb, Qb, q_zero, store_k):
+    """The exponential measurement update of `_update` when every channel of the
+    block updates: the same operations, no selects. The gain is written to
+    ``Kb`` only with `store_k` (the last step)."""
+    n = xb.shape[0]
+    nt = Pb.shape[0]
+    for b in range(nb):
+        w[b] = 1.0 / sb[b]                                  # c = 1 / s
+    if store_k:
+        for i in range(n):
+            for b in range(nb):
+                ki = g[i, b] * w[b]                         # K = g c
+                Kb[i, b] = ki
+                xb[i, b] = xb[i, b] + ki * yb[b]            # x = x + K y
+    else:
+        for i in range(n):
+            for b in range(nb):
+                xb[i, b] = xb[i, b] + (g[i, b] * w[b]) * yb[b]
+    if not fuse:
+        for t in range(nt):
+            i, j = iu[t], ju[t]
+            for b in range(nb):                             # P = P - (g g^T) c
+                Pb[t, b] = Pb[t, b] - (g[i, b] * g[j, b]) * w[b]
+    elif q_zero:
+        for t in range(nt):
+            i, j = iu[t], ju[t]
+            for b in range(nb):                             # ... then P = P / lam
+                Pb[t, b] = (Pb[t, b] - (g[i, b] * g[j, b]) * w[b]) * ilb[b]
+    else:
+        for t in range(nt):
+            i, j = iu[t], ju[t]
+            for b in range(nb):                             # ... then P = P / lam + Q
+                Pb[t, b] = (Pb[t, b] - (g[i, b] * g[j, b]) * w[b]) * ilb[b] + Qb[t, b]
 
 
 @njit(inline="always", **_JIT)
@@ -316,19 +412,117 @@ def _update(xb, Pb, g, Kb, sb, yb, rb, ok, lamb, p0, p1, mode, lt, w, d, nb, iu,
 
 
 # ----------------------------------------------------------------------
+# the health check of a block
+# ----------------------------------------------------------------------
+@njit(inline="always", **_JIT)
+def _bound_healthy(W, X, tr, fin, acc, good, nb, cond_max):
+    """``good[b]``: the cheap bound of ``_kernels_shared.unhealthy_sym`` proves
+    channel ``b`` healthy.
+
+    ``W[i, j, b]`` (``j >= i``) holds the upper triangle of ``A = (P +
+    P^T) / 2`` and ``fin[b]`` the sum of ``0 * A_ij`` (0 when every entry
+    is finite, else NaN). The operations are those of `unhealthy_sym`, one
+    channel per lane: the Cholesky factor ``A = U^T U`` (in ``W``), then
+    ``trace(A) ||U^-T||_F^2 < min(cond_max / 2, 1e12)`` (``X``: the rows
+    of ``U^-T``). Where it holds `unhealthy_sym` returns False; elsewhere
+    (no factor, a large bound, a non-finite entry) the caller asks
+    `unhealthy` itself, so the decisions are the same, channel by channel.
+    """
+    n = W.shape[0]
+    for b in range(nb):
+        tr[b] = 0.0
+        good[b] = fin[b] == 0.0
+    for i in range(n):
+        for b in range(nb):
+            tr[b] += W[i, i, b]                             # trace(A)
+    for k in range(n):                                      # W <- U, row by row
+        for b in range(nb):
+            d = W[k, k, b]
+            good[b] = good[b] and d > 0.0
+            u = np.sqrt(d)
+            W[k, k, b] = u
+            acc[b] = 1.0 / u
+        for j in range(k + 1, n):
+            for b in range(nb):
+                W[k, j, b] = W[k, j, b] * acc[b]
+        for i in range(k + 1, n):                           # trailing triangle -= u_k^T u_k
+            for j in range(i, n):
+                for b in range(nb):
+                    W[i, j, b] = W[i, j, b] - W[k, i, b] * W[k, j, b]
+    for b in range(nb):
+        acc[b] = 0.0
+    for i in range(n):                                      # ||U^-1||_F^2, rows of U^-T
+        for j in range(i + 1):
+            for b in range(nb):
+                X[i, j, b] = 0.0
+        for b in range(nb):
+            X[i, i, b] = 1.0
+        for k in range(i):                                  # X_i -= U_ki X_k
+            for j in range(k + 1):
+                for b in range(nb):
+                    X[i, j, b] = X[i, j, b] - W[k, i, b] * X[k, j, b]
+        for j in range(i + 1):
+            for b in range(nb):
+                v = X[i, j, b] * (1.0 / W[i, i, b])
+                X[i, j, b] = v
+                acc[b] += v * v
+    limit = min(0.5 * cond_max, 1e12)
+    for b in range(nb):
+        good[b] = good[b] and tr[b] * acc[b] < limit
+
+
+@njit(**_JIT)
+def _check_block(Pb, nb, tri, cond_max, c0, k, k_fail, W, X, tr, fin, acc, good, T):
+    """The periodic health check of a block's packed ``P`` (after step ``k``):
+    ``k_fail[c0 + b] = k`` for each channel that fails it first.
+
+    Most channels are proved healthy by `_bound_healthy`, all lanes at once;
+    the others are decided by `unhealthy` on the channel's matrix."""
+    n = W.shape[0]
+    for b in range(nb):
+        fin[b] = 0.0
+    for i in range(n):
+        for j in range(i, n):
+            t = tri[i, j]
+            for b in range(nb):
+                v = Pb[t, b]
+                a = 0.5 * (v + v)                           # A = (P + P^T) / 2
+                W[i, j, b] = a
+                fin[b] += 0.0 * a
+    _bound_healthy(W, X, tr, fin, acc, good, nb, cond_max)
+    for b in range(nb):
+        if k_fail[c0 + b] < 0 and not good[b]:
+            for i in range(n):
+                for j in range(n):
+                    T[i, j] = Pb[tri[i, j], b]
+            if _unhealthy(T, cond_max):
+                k_fail[c0 + b] = k
+
+
+# ----------------------------------------------------------------------
 # record kernels (batch_filter)
 # ----------------------------------------------------------------------
 @njit(**_JIT)
 def _run_block(c0, nb, B, x, P, Z, H, h_last, Rv, il, lam, Q, q_zero, mode, params, update_first,
                means, covs, covs_p, ys, ss, x_prior, P_prior, x_post, P_post, K, lam_t,
                check_every, step0, cond_max, k_fail, k_inf):
-    """Run the record on channels ``c0 .. c0 + nb - 1``, ``nb <= B`` (see `bank_batch`)."""
+    """Run the record on channels ``c0 .. c0 + nb - 1``, ``nb <= B`` (see `bank_batch`).
+
+    Each step first loads the block's measurements and regressors and counts
+    its non-finite values (`_read_step`). When there are none (the usual
+    case) every channel updates, and the step runs without validity masks
+    (`_measure_all`, and `_update_exponential` in the exponential mode);
+    otherwise infinities are reported and the masked path (`_measure`,
+    `_update`) skips the channels with missing data. Both paths do the same
+    operations on a channel that updates.
+    """
     N = Z.shape[0]
     n = x.shape[1]
     iu, ju, tri = _triangle(n)
     nt = iu.shape[0]
     store_means = means.shape[0] == N
     store_covs = covs.shape[0] == N
+    store_res = ys.shape[0] == N           # else only the last step's, in row 0
     r_each = Rv.shape[0] == N
     xb = np.empty((n, B))
     Pb = np.empty((nt, B))
@@ -338,23 +532,29 @@ def _run_block(c0, nb, B, x, P, Z, H, h_last, Rv, il, lam, Q, q_zero, mode, para
     lamb = np.ones(B)
     p0 = np.zeros(B)
     p1 = np.zeros(B)
+    rb = np.empty(B)
     for b in range(nb):
         ilb[b] = il[c0 + b]
         lamb[b] = lam[c0 + b]
         p0[b] = params[c0 + b, 0]
         p1[b] = params[c0 + b, 1]
+        rb[b] = Rv[0, c0 + b]
     lt = lamb.copy()
     g = np.empty((n, B))
     h = np.empty((n, B))
     Kb = np.zeros((n, B))
     zb = np.empty(B)
-    rb = np.empty(B)
     ok = np.empty(B, dtype=np.bool_)
     hok = np.empty(B, dtype=np.bool_)
+    every = np.ones(B, dtype=np.bool_)     # the validity of a step where all channels update
     sb = np.empty(B)
     yb = np.empty(B)
     w = np.empty(B)
     d = np.empty(B)
+    fin = np.empty(B)
+    nc = n if check_every > 0 else 0       # work space of the health check
+    W = np.empty((nc, nc, B))
+    X = np.empty((nc, nc, B))
     T = np.empty((n, n))
     predict = not q_zero                   # else the time update is the identity
     for b in range(nb):
@@ -364,47 +564,57 @@ def _run_block(c0, nb, B, x, P, Z, H, h_last, Rv, il, lam, Q, q_zero, mode, para
     # fused into the sweep of the measurement update when possible
     pending = predict and not update_first
     for k in range(N):
+        last = k == N - 1
         if not update_first:
             if pending:
                 _predict(Pb, ilb, Qb, q_zero, nb)
             if store_covs:
                 _store_P(Pb, covs_p, k, c0, nb, iu, ju)
-            if k == N - 1:
+            if last:
                 _store(xb, Pb, x_prior, P_prior, c0, nb, iu, ju)
-        for b in range(nb):
-            zb[b] = Z[k, c0 + b]
-            rb[b] = Rv[k if r_each else 0, c0 + b]
-        if h_last:                           # H is (N, n, C): contiguous loads
-            for j in range(n):
-                for b in range(nb):
-                    h[j, b] = H[k, j, c0 + b]
-        else:
-            for j in range(n):
-                for b in range(nb):
-                    h[j, b] = H[k, c0 + b, j]
-        if _infinite(h, zb, hok, nb):            # an error: stop the block, report where
+        if r_each:
+            for b in range(nb):
+                rb[b] = Rv[k, c0 + b]
+        masked = _read_step(Z, H, h_last, k, c0, nb, zb, h, fin) > 0
+        if masked and _infinite(h, zb, hok, nb):    # an error: stop the block, report where
             for b in range(nb):
                 if hok[b]:
                     k_inf[c0 + b] = k
             return
-        _measure(xb, Pb, h, zb, rb, hok, ok, g, sb, yb, w, nb, tri)
         check = check_every > 0 and (step0 + k + 1) % check_every == 0
         # fuse the next time update into this sweep when nothing looks at P in between
         fuse = (mode == EXPONENTIAL and predict and not store_covs and not check
-                and k < N - 1)
-        _update(xb, Pb, g, Kb, sb, yb, rb, ok, lamb, p0, p1, mode, lt, w, d, nb, iu, ju,
-                fuse, ilb, Qb, q_zero)
+                and not last)
+        if masked:                         # missing data: skip those channels
+            _measure(xb, Pb, h, zb, rb, hok, ok, g, sb, yb, w, nb, tri)
+            _update(xb, Pb, g, Kb, sb, yb, rb, ok, lamb, p0, p1, mode, lt, w, d, nb, iu, ju,
+                    fuse, ilb, Qb, q_zero)
+        else:                              # every channel updates: no masks
+            _measure_all(xb, Pb, h, zb, rb, g, sb, yb, w, nb, tri)
+            if mode == EXPONENTIAL:
+                _update_exponential(xb, Pb, g, Kb, sb, yb, w, nb, iu, ju, fuse, ilb, Qb,
+                                    q_zero, last)
+            else:
+                _update(xb, Pb, g, Kb, sb, yb, rb, every, lamb, p0, p1, mode, lt, w, d, nb,
+                        iu, ju, fuse, ilb, Qb, q_zero)
         pending = predict and not fuse
-        for b in range(nb):
-            ys[k, c0 + b] = yb[b] if ok[b] else np.nan
-            ss[k, c0 + b] = sb[b] if hok[b] else np.nan
+        if store_res or last:
+            row = k if store_res else 0
+            if masked:
+                for b in range(nb):
+                    ys[row, c0 + b] = yb[b] if ok[b] else np.nan
+                    ss[row, c0 + b] = sb[b] if hok[b] else np.nan
+            else:
+                for b in range(nb):
+                    ys[row, c0 + b] = yb[b]
+                    ss[row, c0 + b] = sb[b]
         if store_means:
             for b in range(nb):
                 for i in range(n):
                     means[k, c0 + b, i] = xb[i, b]
         if store_covs:
             _store_P(Pb, covs, k, c0, nb, iu, ju)
-        if k == N - 1:
+        if last:
             _store(xb, Pb, x_post, P_post, c0, nb, iu, ju)
         if update_first:
             if pending:
@@ -412,16 +622,10 @@ def _run_block(c0, nb, B, x, P, Z, H, h_last, Rv, il, lam, Q, q_zero, mode, para
             pending = False
             if store_covs:
                 _store_P(Pb, covs_p, k, c0, nb, iu, ju)
-            if k == N - 1:
+            if last:
                 _store(xb, Pb, x_prior, P_prior, c0, nb, iu, ju)
         if check:                          # the periodic health check of each channel's P
-            for b in range(nb):
-                if k_fail[c0 + b] < 0:
-                    for t in range(nt):
-                        T[iu[t], ju[t]] = Pb[t, b]
-                        T[ju[t], iu[t]] = Pb[t, b]
-                    if _unhealthy(T, cond_max):
-                        k_fail[c0 + b] = k
+            _check_block(Pb, nb, tri, cond_max, c0, k, k_fail, W, X, w, fin, d, hok, T)
     _store(xb, Pb, x, P, c0, nb, iu, ju)
     for b in range(nb):
         lam_t[c0 + b] = lt[b]
