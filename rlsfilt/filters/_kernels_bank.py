@@ -797,6 +797,33 @@ def bank_update(x, P, z, H, r, lam, mode, params, xn, Pn, y, S, K, lam_t, block)
 @njit(**_JIT)
 def bank_unhealthy(P, cond_max, bad):
     """``bad[c]``: channel ``c``'s ``P`` fails the health check of
-    `RecursiveLeastSquares` (``_kernels_shared.unhealthy``)."""
-    for c in range(P.shape[0]):
-        bad[c] = _unhealthy(P[c], cond_max)
+    `RecursiveLeastSquares` (``_kernels_shared.unhealthy``).
+
+    Blocks of channels whose ``P`` is exactly symmetric are proved healthy
+    by `_bound_healthy` all at once; `unhealthy` decides the others.
+    """
+    C, n = P.shape[0], P.shape[1]
+    B = 64
+    W = np.empty((n, n, B))
+    X = np.empty((n, n, B))
+    tr = np.empty(B)
+    fin = np.empty(B)
+    acc = np.empty(B)
+    good = np.empty(B, dtype=np.bool_)
+    for c0 in range(0, C, B):
+        nb = min(B, C - c0)
+        for b in range(nb):
+            fin[b] = 0.0
+        for i in range(n):
+            for j in range(i, n):
+                for b in range(nb):
+                    u = P[c0 + b, i, j]
+                    v = P[c0 + b, j, i]
+                    a = 0.5 * (u + v)                       # A = (P + P^T) / 2
+                    W[i, j, b] = a
+                    # 0 when finite; NaN (the exact test decides) when not, or when
+                    # P is not exactly symmetric
+                    fin[b] += 0.0 * a + (0.0 if u == v else np.nan)
+        _bound_healthy(W, X, tr, fin, acc, good, nb, cond_max)
+        for b in range(nb):
+            bad[c0 + b] = False if good[b] else _unhealthy(P[c0 + b], cond_max)
