@@ -705,40 +705,64 @@ def bank_batch_parallel(x, P, Z, H, h_last, Rv, il, lam, Q, q_zero, mode, params
 # ----------------------------------------------------------------------
 # streaming kernels (predict, update) and the health check
 # ----------------------------------------------------------------------
-@njit(**_JIT)
-def bank_predict(P, il, Q, q_zero, Pn):
-    """``Pn = P * il + Q`` for every channel (``Q`` ignored when `q_zero`)."""
-    C, n = P.shape[0], P.shape[1]
-    for c in range(C):
-        f = il[c]
-        for i in range(n):
-            for j in range(n):
-                if q_zero:
-                    Pn[c, i, j] = P[c, i, j] * f
-                else:
-                    Pn[c, i, j] = P[c, i, j] * f + Q[c, i, j]
+STREAM_BLOCK = 64     # channels per block of the streaming kernels (their work arrays in L1)
 
 
 @njit(**_JIT)
-def bank_update(x, P, z, H, r, lam, mode, params, xn, Pn, y, S, K, lam_t, block):
+def bank_predict(P, il, Q, q_zero, Pn, P_prior):
+    """``Pn = P * il + Q`` for every channel (``Q`` ignored when `q_zero`), and
+    the same values in `P_prior`: one pass over contiguous rows of ``n^2``."""
+    C = P.shape[0]
+    nn = P.shape[1] * P.shape[2]
+    Pf, Nf, Af = P.reshape((C, nn)), Pn.reshape((C, nn)), P_prior.reshape((C, nn))
+    if q_zero:
+        for c in range(C):
+            f = il[c]
+            for e in range(nn):
+                v = Pf[c, e] * f
+                Nf[c, e] = v
+                Af[c, e] = v
+    else:
+        Qf = Q.reshape((C, nn))
+        for c in range(C):
+            f = il[c]
+            for e in range(nn):
+                v = Pf[c, e] * f + Qf[c, e]
+                Nf[c, e] = v
+                Af[c, e] = v
+
+
+@njit(**_JIT)
+def bank_update(x, P, z, H, r, lam, mode, params, xn, Pn, x_post, P_post, y, S, SI, K,
+                lam_t):
     """One measurement update of every channel: the arithmetic of `bank_batch`.
 
     Reads ``x`` (C, n), ``P`` (C, n, n), ``z`` (C,), ``H`` (C, n), ``r``
-    (C,); writes the new state ``xn``, ``Pn``, the residuals ``y`` (NaN
-    where skipped), ``S`` (NaN where the regressor holds NaN), the gains
-    ``K`` (zero where skipped) and ``lam_t``; ``block`` channels at a time
-    (`block_size`).
+    (C,); writes the new state ``xn``, ``Pn`` and the same values in
+    `x_post`, `P_post`, the residuals ``y`` (NaN where skipped), ``S`` and
+    ``SI = 1 / S`` (NaN where the regressor holds NaN), the gains ``K``
+    (zero where skipped) and ``lam_t``; `STREAM_BLOCK` channels at a time.
+
+    The state of a block is transposed to the channel-last layout in two
+    steps: a plain copy of each channel's contiguous ``n^2`` entries into
+    ``F[e, b]``, then ``P_b[(i, j)] = (F[(i, j)] + F[(j, i)]) / 2`` along the
+    channels (and back in the same way): both loops have unit stride.
 
     Returns
     -------
     int
         The number of channels whose new ``P`` has a diagonal entry that is
-        not positive and finite (the cheap health check).
+        not positive and finite (the cheap health check), or ``-1 - c`` when
+        channel ``c`` (the first) has an infinite measurement or regressor
+        (an error: the outputs are then incomplete).
     """
     C, n = x.shape
-    B = block
+    B = STREAM_BLOCK
+    nn = n * n
     iu, ju, tri = _triangle(n)
     nt = iu.shape[0]
+    Pf, Nf, Af = P.reshape((C, nn)), Pn.reshape((C, nn)), P_post.reshape((C, nn))
+    F = np.empty((nn, B))
     xb = np.empty((n, B))
     Pb = np.empty((nt, B))
     Qb = np.empty((1, 1))
@@ -749,10 +773,12 @@ def bank_update(x, P, z, H, r, lam, mode, params, xn, Pn, y, S, K, lam_t, block)
     rb = np.empty(B)
     ok = np.empty(B, dtype=np.bool_)
     hok = np.empty(B, dtype=np.bool_)
+    every = np.ones(B, dtype=np.bool_)
     sb = np.empty(B)
     yb = np.empty(B)
     w = np.empty(B)
     d = np.empty(B)
+    fin = np.empty(B)
     lamb = np.ones(B)
     lt = np.empty(B)
     p0 = np.zeros(B)
@@ -760,37 +786,85 @@ def bank_update(x, P, z, H, r, lam, mode, params, xn, Pn, y, S, K, lam_t, block)
     bad = 0
     for c0 in range(0, C, B):
         nb = min(B, C - c0)
-        _load(x, P, P, True, c0, nb, xb, Pb, Qb, iu, ju)
+        for b in range(nb):                  # copy each channel's rows (contiguous)
+            for e in range(nn):
+                F[e, b] = Pf[c0 + b, e]
         for b in range(nb):
-            c = c0 + b
-            zb[b] = z[c]
-            rb[b] = r[c]
-            lamb[b] = lam[c]
-            p0[b] = params[c, 0]
-            p1[b] = params[c, 1]
-            for j in range(n):
-                h[j, b] = H[c, j]
-        _measure(xb, Pb, h, zb, rb, hok, ok, g, sb, yb, w, nb, tri)
-        _update(xb, Pb, g, Kb, sb, yb, rb, ok, lamb, p0, p1, mode, lt, w, d, nb, iu, ju,
-                False, lamb, Qb, True)
-        _store(xb, Pb, xn, Pn, c0, nb, iu, ju)
+            for i in range(n):
+                xb[i, b] = x[c0 + b, i]
+                h[i, b] = H[c0 + b, i]
         for b in range(nb):
-            c = c0 + b
-            y[c] = yb[b] if ok[b] else np.nan
-            S[c] = sb[b] if hok[b] else np.nan
-            lam_t[c] = lt[b]
-            hok[b] = False
-        for i in range(n):
+            zb[b] = z[c0 + b]
+            rb[b] = r[c0 + b]
+            lamb[b] = lam[c0 + b]
+        if mode != EXPONENTIAL:
             for b in range(nb):
-                K[c0 + b, i] = Kb[i, b]
-        for i in range(n):                   # the cheap health check: the diagonal
-            t = (i * (2 * n - i + 1)) // 2
+                p0[b] = params[c0 + b, 0]
+                p1[b] = params[c0 + b, 1]
+        for i in range(n):                   # P_b = (P + P^T) / 2, packed
+            for j in range(i, n):
+                t = tri[i, j]
+                for b in range(nb):
+                    Pb[t, b] = 0.5 * (F[i * n + j, b] + F[j * n + i, b])
+        for b in range(nb):                  # the finiteness of the block's inputs
+            fin[b] = zb[b] - zb[b]
+        for j in range(n):
+            for b in range(nb):
+                fin[b] += h[j, b] - h[j, b]
+        count = 0
+        for b in range(nb):
+            count += fin[b] != fin[b]
+        if count:
+            if _infinite(h, zb, hok, nb):
+                for b in range(nb):
+                    if hok[b]:
+                        return -1 - (c0 + b)
+            _measure(xb, Pb, h, zb, rb, hok, ok, g, sb, yb, w, nb, tri)
+            _update(xb, Pb, g, Kb, sb, yb, rb, ok, lamb, p0, p1, mode, lt, w, d, nb, iu, ju,
+                    False, lamb, Qb, True)
+            for b in range(nb):
+                yb[b] = yb[b] if ok[b] else np.nan
+                sb[b] = sb[b] if hok[b] else np.nan
+        else:
+            _measure_all(xb, Pb, h, zb, rb, g, sb, yb, w, nb, tri)
+            if mode == EXPONENTIAL:
+                _update_exponential(xb, Pb, g, Kb, sb, yb, w, nb, iu, ju, False, lamb, Qb,
+                                    True, True)
+                for b in range(nb):
+                    lt[b] = lamb[b]
+            else:
+                _update(xb, Pb, g, Kb, sb, yb, rb, every, lamb, p0, p1, mode, lt, w, d, nb,
+                        iu, ju, False, lamb, Qb, True)
+        for b in range(nb):                  # the cheap health check: the diagonal
+            fin[b] = 0.0
+        for i in range(n):
+            t = tri[i, i]
             for b in range(nb):
                 v = Pb[t, b]
-                hok[b] = hok[b] or not (v > 0.0 and v != np.inf)
+                fin[b] += 0.0 if v > 0.0 and v != np.inf else 1.0
         for b in range(nb):
-            if hok[b]:
-                bad += 1
+            bad += fin[b] > 0.0
+        for i in range(n):                   # both triangles, channel last
+            for j in range(n):
+                t = tri[i, j]
+                for b in range(nb):
+                    F[i * n + j, b] = Pb[t, b]
+        for b in range(nb):                  # ... and back to each channel's rows
+            for e in range(nn):
+                v = F[e, b]
+                Nf[c0 + b, e] = v
+                Af[c0 + b, e] = v
+        for b in range(nb):
+            for i in range(n):
+                v = xb[i, b]
+                xn[c0 + b, i] = v
+                x_post[c0 + b, i] = v
+                K[c0 + b, i] = Kb[i, b]
+        for b in range(nb):
+            y[c0 + b] = yb[b]
+            S[c0 + b] = sb[b]
+            SI[c0 + b] = 1.0 / sb[b]
+            lam_t[c0 + b] = lt[b]
     return bad
 
 

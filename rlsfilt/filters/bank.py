@@ -337,6 +337,8 @@ class RLSBank:
             raise ValueError(f"`lam` must be in (0, 1]; got {lam[c]} for channel {c}")
         self._params = self._mode_params(lam, self._R)
         self._lam = lam
+        # 1 / lam, applied by the time update: the exponential mode only
+        self._il = 1.0 / lam if self._mode == 0 else np.ones(self.n_channels)
 
     @property
     def R(self):
@@ -413,11 +415,11 @@ class RLSBank:
             Q = self._covariances(Q, "Q")
             Q_is_zero = not Q.any()
         x, P = self._checked_x(), self._checked_P()
-        Pn = np.empty_like(P)
-        _get_kernels().bank_predict(P, self._time_il(), Q, Q_is_zero, Pn)
+        Pn, P_prior = np.empty_like(P), np.empty_like(P)
+        (_kernels or _get_kernels()).bank_predict(P, self._il, Q, Q_is_zero, Pn, P_prior)
         self._P = Pn
         self.x_prior = x.copy()
-        self.P_prior = Pn.copy()
+        self.P_prior = P_prior
         self._updates_since_predict = 0
 
     @_atomic
@@ -438,21 +440,27 @@ class RLSBank:
             Noise variances for this call only.
         """
         C, n = self.n_channels, self.dim_x
-        zz = self._measurements(z, "z", (C,), f"({C},) (one measurement per channel)")
+        # shapes and types here; infinities are found by the kernel (no extra pass)
+        zz = self._measurements(z, "z", (C,), f"({C},) (one measurement per channel)",
+                                finite=False)
         Hm = self._measurements(H, "H", (C, n), f"({C}, {n}) (one regressor row of dim_x = "
-                                                 f"{n} per channel)")
+                                                 f"{n} per channel)", finite=False)
         r = self._R if R is None else self._per_channel_positive(R, "R")
         x, P = self._checked_x(), self._checked_P()
-        xn, Pn = np.empty((C, n)), np.empty((C, n, n))
-        y, S, K, lam_t = np.empty(C), np.empty(C), np.empty((C, n)), np.empty(C)
-        kern = _get_kernels()
-        bad = kern.bank_update(x, P, zz, Hm, r, self._lam, self._mode, self._params, xn, Pn, y,
-                               S, K, lam_t, kern.block_size(n, C))
+        xn, x_post, K = np.empty((C, n)), np.empty((C, n)), np.empty((C, n))
+        Pn, P_post = np.empty((C, n, n)), np.empty((C, n, n))
+        y, S, SI, lam_t = np.empty(C), np.empty(C), np.empty(C), np.empty(C)
+        bad = (_kernels or _get_kernels()).bank_update(
+            x, P, zz, Hm, r, self._lam, self._mode, self._params, xn, Pn, x_post, P_post, y, S,
+            SI, K, lam_t)
+        if bad < 0:                          # an infinite value: name the first one
+            for name, arr in (("z", zz), ("H", Hm)):
+                self._measurements(arr, name, None, None)
         self._note_update()
         self._x, self._P = xn, Pn
-        self.x_post, self.P_post = xn.copy(), Pn.copy()
+        self.x_post, self.P_post = x_post, P_post
         self.z, self.H = zz.copy(), Hm.copy()
-        self.y, self.S, self.SI, self.K, self.lam_t = y, S, 1.0 / S, K, lam_t
+        self.y, self.S, self.SI, self.K, self.lam_t = y, S, SI, K, lam_t
         self.n_updates += 1
         every = self.check_every
         if every and (bad or not self.n_updates % every):
@@ -559,7 +567,7 @@ class RLSBank:
         kern = _get_kernels()
         if N:
             run = kern.bank_batch_parallel if self.parallel else kern.bank_batch
-            run(x, P, Z, Hk, h_last, Rv, self._time_il(), self._lam, self._Q, self._Q_is_zero,
+            run(x, P, Z, Hk, h_last, Rv, self._il, self._lam, self._Q, self._Q_is_zero,
                 self._mode, self._params, update_first, means, covs, covs_p, ys, ss,
                 x_prior, P_prior, x_post, P_post, K, lam_t, self.check_every, self.n_updates,
                 self.cond_max, k_fail, k_inf, kern.block_size(n, C))
@@ -761,7 +769,7 @@ class RLSBank:
                         if key in ("dim_x", "_mode", "_forgetting_params_in", "check_every",
                                    "cond_max", "parallel")}
         new.n_channels = len(channels)
-        for name in ("_lam", "_R", "_Q", "_params", "_P0", "_x0"):
+        for name in ("_lam", "_il", "_R", "_Q", "_params", "_P0", "_x0"):
             setattr(new, name, getattr(self, name)[channels])       # (copies)
         new._Q_is_zero = not new._Q.any()
         new.reset()
@@ -865,10 +873,6 @@ class RLSBank:
     # ------------------------------------------------------------------
     # private helpers
     # ------------------------------------------------------------------
-    def _time_il(self):
-        """``1 / lam`` applied by the time update: the exponential mode only."""
-        return 1.0 / self._lam if self._mode == 0 else np.ones(self.n_channels)
-
     def _note_update(self):
         """Warn once when forgetting is skipped by two updates in a row."""
         if (self._updates_since_predict and not self._warned_skip
@@ -970,7 +974,7 @@ class RLSBank:
     def _measurements(self, value, name, shape, expected, ndim=None, finite=True,
                       strided=False):
         """A float64 array of `shape` (or `ndim`): NaN allowed, inf not (not
-        checked here with ``finite=False``: the record kernel checks it).
+        checked here with ``finite=False``: the kernels check it).
 
         C-contiguous, or with ``strided=True`` in the caller's layout (the
         caller decides). The kernels only read it, so the caller's array is
@@ -982,12 +986,13 @@ class RLSBank:
             raise ValueError(f"`{name}` must have shape {expected}; got {arr.shape}")
         if not strided:
             arr = np.ascontiguousarray(arr)
-        with np.errstate(invalid="ignore", over="ignore"):    # inf - inf: NaN, no warning
-            total = arr.sum() if finite else 0.0
-        if finite and not np.isfinite(total) and np.isinf(arr).any():
-            idx = tuple(int(v) for v in np.argwhere(np.isinf(arr))[0])
-            raise ValueError(f"`{name}` must be finite or NaN (missing); got {arr[idx]} at "
-                             f"index {idx}")
+        if finite:
+            with np.errstate(invalid="ignore", over="ignore"):    # inf - inf: NaN, no warning
+                total = arr.sum()
+            if not np.isfinite(total) and np.isinf(arr).any():
+                idx = tuple(int(v) for v in np.argwhere(np.isinf(arr))[0])
+                raise ValueError(f"`{name}` must be finite or NaN (missing); got {arr[idx]} at "
+                                 f"index {idx}")
         return arr
 
     def _batch_variances(self, Rs, N):
