@@ -405,7 +405,7 @@ def test_vectorized_health_check_decides_as_unhealthy(rng):
         expected = np.array([unhealthy(M, cond_max) for M in P_pub])
         assert 0 < expected.sum() < len(P_pub)
         bad = np.zeros(len(P_pub), dtype=bool)
-        _kernels_bank.bank_unhealthy(P_pub, cond_max, bad)
+        _kernels_bank.bank_unhealthy(np.ascontiguousarray(P_pub.T), cond_max, bad)
         assert_array_equal(bad, expected)
         # the record kernel's check reads the packed upper triangle, channel last
         C = len(P)

@@ -99,42 +99,45 @@ def _triangle(n):
 
 
 @njit(**_JIT)
-def _load(x, P, Q, q_zero, c0, nb, xb, Pb, Qb, iu, ju):
-    """Copy channels ``c0 .. c0 + nb - 1`` into the block arrays.
+def _load(xt, Pt, Qt, q_zero, c0, nb, xb, Pb, Qb, iu, ju):
+    """Copy channels ``c0 .. c0 + nb - 1`` of the state into the block arrays.
 
-    ``P`` is read as ``(P + P^T) / 2``, which is ``P`` itself, bit for bit,
-    when ``P`` is exactly symmetric. The loops run over the channels
-    innermost (measured: a third faster than channel by channel).
+    ``xt``, ``Pt``, ``Qt`` are the bank's state in its own layout, the
+    transposes ``x^T`` (n, C) and ``P^T`` (n, n, C) (``Pt[j, i, c] = P[c,
+    i, j]``): every loop below runs over contiguous channels. ``P`` is read
+    as ``(P + P^T) / 2``, which is ``P`` itself, bit for bit, when ``P`` is
+    exactly symmetric.
     """
-    n = x.shape[1]
+    n = xt.shape[0]
     for i in range(n):
         for b in range(nb):
-            xb[i, b] = x[c0 + b, i]
+            xb[i, b] = xt[i, c0 + b]
     t = 0
     for i in range(n):
         for j in range(i, n):
             for b in range(nb):
-                Pb[t, b] = 0.5 * (P[c0 + b, i, j] + P[c0 + b, j, i])
+                Pb[t, b] = 0.5 * (Pt[j, i, c0 + b] + Pt[i, j, c0 + b])
             if not q_zero:
                 for b in range(nb):
-                    Qb[t, b] = Q[c0 + b, i, j]
+                    Qb[t, b] = Qt[j, i, c0 + b]
             t += 1
 
 
 @njit(inline="always", **_JIT)
-def _store(xb, Pb, x_out, P_out, c0, nb, iu, ju):
-    """``x_out[c], P_out[c]`` (both triangles) from the block."""
+def _store(xb, Pb, xt, Pt, c0, nb, iu, ju):
+    """``x[c], P[c]`` (both triangles) from the block, into the transposes
+    ``xt`` (n, C) and ``Pt`` (n, n, C), as `_load` reads them."""
     n = xb.shape[0]
     for i in range(n):
         for b in range(nb):
-            x_out[c0 + b, i] = xb[i, b]
+            xt[i, c0 + b] = xb[i, b]
     t = 0
     for i in range(n):
         for j in range(i, n):
             for b in range(nb):
                 v = Pb[t, b]
-                P_out[c0 + b, i, j] = v
-                P_out[c0 + b, j, i] = v
+                Pt[j, i, c0 + b] = v
+                Pt[i, j, c0 + b] = v
             t += 1
 
 
@@ -517,7 +520,7 @@ def _run_block(c0, nb, B, x, P, Z, H, h_last, Rv, il, lam, Q, q_zero, mode, para
     operations on a channel that updates.
     """
     N = Z.shape[0]
-    n = x.shape[1]
+    n = x.shape[0]
     iu, ju, tri = _triangle(n)
     nt = iu.shape[0]
     store_means = means.shape[0] == N
@@ -629,8 +632,9 @@ def _run_block(c0, nb, B, x, P, Z, H, h_last, Rv, il, lam, Q, q_zero, mode, para
     _store(xb, Pb, x, P, c0, nb, iu, ju)
     for b in range(nb):
         lam_t[c0 + b] = lt[b]
-        for i in range(n):
-            K[c0 + b, i] = Kb[i, b]
+    for i in range(n):
+        for b in range(nb):
+            K[i, c0 + b] = Kb[i, b]
 
 
 @njit(**_JIT)
@@ -641,8 +645,11 @@ def bank_batch(x, P, Z, H, h_last, Rv, il, lam, Q, q_zero, mode, params, update_
 
     Parameters
     ----------
-    x : (C, n), P : (C, n, n)
-        Working state, overwritten with the final state.
+    x : (n, C), P : (n, n, C)
+        Working state, overwritten with the final state, stored as the
+        transposes of the bank's ``x`` (C, n) and ``P`` (C, n, n) (see
+        `_load`; so are ``Q``, ``x_prior``, ``P_prior``, ``x_post``,
+        ``P_post`` and ``K``).
     Z : (N, C), H : (N, C, n), or (N, n, C) with `h_last`
         Measurements and regressors (NaN marks a missing sample of a
         channel). With `h_last` the channel index of ``H`` is last, so that
@@ -653,8 +660,8 @@ def bank_batch(x, P, Z, H, h_last, Rv, il, lam, Q, q_zero, mode, params, update_
     il, lam : (C,)
         ``1 / lam`` applied by the time update (1 except in the exponential
         mode) and the forgetting factors.
-    Q : (C, n, n), q_zero : bool
-        Random walks (ignored, and may be (1, n, n), when `q_zero`).
+    Q : (n, n, C), q_zero : bool
+        Random walks (ignored, and may be (n, n, 1), when `q_zero`).
     mode : int, params : (C, 2)
         Mode code and its constants (directional: ``eps``; constant trace:
         ``trace``, ``ratio``).
@@ -663,12 +670,13 @@ def bank_batch(x, P, Z, H, h_last, Rv, il, lam, Q, q_zero, mode, params, update_
     means : (N, C, n) or (0, C, n); covs, covs_p : (N, C, n, n) or (0, C, n, n)
         Estimates after each update and covariances after each update and
         each predict, written when their length is N.
-    ys, ss : (N, C)
+    ys, ss : (N, C), or (1, C)
         A-priori residuals (NaN where skipped) and innovation variances
-        (NaN where the regressor holds NaN).
+        (NaN where the regressor holds NaN) of every step, or (one row)
+        of the last step only.
     x_prior, P_prior, x_post, P_post : like x and P
         The last step's prior and posterior (written when N > 0).
-    K : (C, n), lam_t : (C,)
+    K : (n, C), lam_t : (C,)
         The last step's gain (zero where skipped) and forgetting factor.
     check_every, step0, cond_max, k_fail : int, int, float, (C,) int64
         The health check of each channel's P after step ``k`` when
@@ -681,7 +689,7 @@ def bank_batch(x, P, Z, H, h_last, Rv, il, lam, Q, q_zero, mode, params, update_
     block : int
         Channels per block (`block_size`).
     """
-    C = x.shape[0]
+    C = x.shape[1]
     for blk in range((C + block - 1) // block):
         c0 = blk * block
         _run_block(c0, min(block, C - c0), block, x, P, Z, H, h_last, Rv, il, lam, Q, q_zero,
@@ -694,7 +702,7 @@ def bank_batch_parallel(x, P, Z, H, h_last, Rv, il, lam, Q, q_zero, mode, params
                         update_first, means, covs, covs_p, ys, ss, x_prior, P_prior, x_post,
                         P_post, K, lam_t, check_every, step0, cond_max, k_fail, k_inf, block):
     """`bank_batch` with the blocks distributed over numba's threads (``prange``)."""
-    C = x.shape[0]
+    C = x.shape[1]
     for blk in prange((C + block - 1) // block):
         c0 = blk * block
         _run_block(c0, min(block, C - c0), block, x, P, Z, H, h_last, Rv, il, lam, Q, q_zero,
@@ -705,48 +713,43 @@ def bank_batch_parallel(x, P, Z, H, h_last, Rv, il, lam, Q, q_zero, mode, params
 # ----------------------------------------------------------------------
 # streaming kernels (predict, update) and the health check
 # ----------------------------------------------------------------------
-STREAM_BLOCK = 64     # channels per block of the streaming kernels (their work arrays in L1)
+STREAM_BLOCK = 128    # channels per block of `bank_update` (its work arrays stay in L1)
 
 
 @njit(**_JIT)
-def bank_predict(P, il, Q, q_zero, Pn, P_prior):
+def bank_predict(Pt, il, Qt, q_zero, Pn, P_prior):
     """``Pn = P * il + Q`` for every channel (``Q`` ignored when `q_zero`), and
-    the same values in `P_prior`: one pass over contiguous rows of ``n^2``."""
-    C = P.shape[0]
-    nn = P.shape[1] * P.shape[2]
-    Pf, Nf, Af = P.reshape((C, nn)), Pn.reshape((C, nn)), P_prior.reshape((C, nn))
+    the same values in `P_prior`. All in the bank's layout ``(n, n, C)``
+    (`_load`): each loop runs over the channels, contiguous."""
+    n, C = Pt.shape[0], Pt.shape[2]
+    nn = n * n
+    Pf, Nf, Af = Pt.reshape((nn, C)), Pn.reshape((nn, C)), P_prior.reshape((nn, C))
     if q_zero:
-        for c in range(C):
-            f = il[c]
-            for e in range(nn):
-                v = Pf[c, e] * f
-                Nf[c, e] = v
-                Af[c, e] = v
+        for e in range(nn):
+            for c in range(C):
+                v = Pf[e, c] * il[c]
+                Nf[e, c] = v
+                Af[e, c] = v
     else:
-        Qf = Q.reshape((C, nn))
-        for c in range(C):
-            f = il[c]
-            for e in range(nn):
-                v = Pf[c, e] * f + Qf[c, e]
-                Nf[c, e] = v
-                Af[c, e] = v
+        Qf = Qt.reshape((nn, C))
+        for e in range(nn):
+            for c in range(C):
+                v = Pf[e, c] * il[c] + Qf[e, c]
+                Nf[e, c] = v
+                Af[e, c] = v
 
 
 @njit(**_JIT)
-def bank_update(x, P, z, H, r, lam, mode, params, xn, Pn, x_post, P_post, y, S, SI, K,
+def bank_update(xt, Pt, z, H, r, lam, mode, params, xn, Pn, x_post, P_post, y, S, SI, K,
                 lam_t):
     """One measurement update of every channel: the arithmetic of `bank_batch`.
 
-    Reads ``x`` (C, n), ``P`` (C, n, n), ``z`` (C,), ``H`` (C, n), ``r``
-    (C,); writes the new state ``xn``, ``Pn`` and the same values in
-    `x_post`, `P_post`, the residuals ``y`` (NaN where skipped), ``S`` and
-    ``SI = 1 / S`` (NaN where the regressor holds NaN), the gains ``K``
-    (zero where skipped) and ``lam_t``; `STREAM_BLOCK` channels at a time.
-
-    The state of a block is transposed to the channel-last layout in two
-    steps: a plain copy of each channel's contiguous ``n^2`` entries into
-    ``F[e, b]``, then ``P_b[(i, j)] = (F[(i, j)] + F[(j, i)]) / 2`` along the
-    channels (and back in the same way): both loops have unit stride.
+    Reads the state ``xt`` (n, C), ``Pt`` (n, n, C) (the bank's layout, see
+    `_load`), ``z`` (C,), ``H`` (C, n), ``r`` (C,); writes the new state
+    ``xn``, ``Pn`` and the same values in `x_post`, `P_post` (same layout),
+    the residuals ``y`` (NaN where skipped), ``S`` and ``SI = 1 / S`` (NaN
+    where the regressor holds NaN), the gains ``K`` (n, C; zero where
+    skipped) and ``lam_t``; `STREAM_BLOCK` channels at a time.
 
     Returns
     -------
@@ -756,13 +759,10 @@ def bank_update(x, P, z, H, r, lam, mode, params, xn, Pn, x_post, P_post, y, S, 
         channel ``c`` (the first) has an infinite measurement or regressor
         (an error: the outputs are then incomplete).
     """
-    C, n = x.shape
+    n, C = xt.shape
     B = STREAM_BLOCK
-    nn = n * n
     iu, ju, tri = _triangle(n)
     nt = iu.shape[0]
-    Pf, Nf, Af = P.reshape((C, nn)), Pn.reshape((C, nn)), P_post.reshape((C, nn))
-    F = np.empty((nn, B))
     xb = np.empty((n, B))
     Pb = np.empty((nt, B))
     Qb = np.empty((1, 1))
@@ -786,13 +786,10 @@ def bank_update(x, P, z, H, r, lam, mode, params, xn, Pn, x_post, P_post, y, S, 
     bad = 0
     for c0 in range(0, C, B):
         nb = min(B, C - c0)
-        for b in range(nb):                  # copy each channel's rows (contiguous)
-            for e in range(nn):
-                F[e, b] = Pf[c0 + b, e]
-        for b in range(nb):
-            for i in range(n):
-                xb[i, b] = x[c0 + b, i]
-                h[i, b] = H[c0 + b, i]
+        _load(xt, Pt, Pt, True, c0, nb, xb, Pb, Qb, iu, ju)
+        for b in range(nb):                  # the regressors, one row per channel
+            for j in range(n):
+                h[j, b] = H[c0 + b, j]
         for b in range(nb):
             zb[b] = z[c0 + b]
             rb[b] = r[c0 + b]
@@ -801,11 +798,6 @@ def bank_update(x, P, z, H, r, lam, mode, params, xn, Pn, x_post, P_post, y, S, 
             for b in range(nb):
                 p0[b] = params[c0 + b, 0]
                 p1[b] = params[c0 + b, 1]
-        for i in range(n):                   # P_b = (P + P^T) / 2, packed
-            for j in range(i, n):
-                t = tri[i, j]
-                for b in range(nb):
-                    Pb[t, b] = 0.5 * (F[i * n + j, b] + F[j * n + i, b])
         for b in range(nb):                  # the finiteness of the block's inputs
             fin[b] = zb[b] - zb[b]
         for j in range(n):
@@ -844,22 +836,11 @@ def bank_update(x, P, z, H, r, lam, mode, params, xn, Pn, x_post, P_post, y, S, 
                 fin[b] += 0.0 if v > 0.0 and v != np.inf else 1.0
         for b in range(nb):
             bad += fin[b] > 0.0
-        for i in range(n):                   # both triangles, channel last
-            for j in range(n):
-                t = tri[i, j]
-                for b in range(nb):
-                    F[i * n + j, b] = Pb[t, b]
-        for b in range(nb):                  # ... and back to each channel's rows
-            for e in range(nn):
-                v = F[e, b]
-                Nf[c0 + b, e] = v
-                Af[c0 + b, e] = v
-        for b in range(nb):
-            for i in range(n):
-                v = xb[i, b]
-                xn[c0 + b, i] = v
-                x_post[c0 + b, i] = v
-                K[c0 + b, i] = Kb[i, b]
+        _store(xb, Pb, xn, Pn, c0, nb, iu, ju)
+        _store(xb, Pb, x_post, P_post, c0, nb, iu, ju)
+        for i in range(n):
+            for b in range(nb):
+                K[i, c0 + b] = Kb[i, b]
         for b in range(nb):
             y[c0 + b] = yb[b]
             S[c0 + b] = sb[b]
@@ -869,17 +850,19 @@ def bank_update(x, P, z, H, r, lam, mode, params, xn, Pn, x_post, P_post, y, S, 
 
 
 @njit(**_JIT)
-def bank_unhealthy(P, cond_max, bad):
+def bank_unhealthy(Pt, cond_max, bad):
     """``bad[c]``: channel ``c``'s ``P`` fails the health check of
     `RecursiveLeastSquares` (``_kernels_shared.unhealthy``).
 
-    Blocks of channels whose ``P`` is exactly symmetric are proved healthy
-    by `_bound_healthy` all at once; `unhealthy` decides the others.
+    ``Pt`` is in the bank's layout (n, n, C) (`_load`). Blocks of channels
+    whose ``P`` is exactly symmetric are proved healthy by `_bound_healthy`
+    all at once; `unhealthy` decides the others.
     """
-    C, n = P.shape[0], P.shape[1]
+    n, C = Pt.shape[0], Pt.shape[2]
     B = 64
     W = np.empty((n, n, B))
     X = np.empty((n, n, B))
+    T = np.empty((n, n))
     tr = np.empty(B)
     fin = np.empty(B)
     acc = np.empty(B)
@@ -891,8 +874,8 @@ def bank_unhealthy(P, cond_max, bad):
         for i in range(n):
             for j in range(i, n):
                 for b in range(nb):
-                    u = P[c0 + b, i, j]
-                    v = P[c0 + b, j, i]
+                    u = Pt[j, i, c0 + b]                    # P[c, i, j]
+                    v = Pt[i, j, c0 + b]                    # P[c, j, i]
                     a = 0.5 * (u + v)                       # A = (P + P^T) / 2
                     W[i, j, b] = a
                     # 0 when finite; NaN (the exact test decides) when not, or when
@@ -900,4 +883,10 @@ def bank_unhealthy(P, cond_max, bad):
                     fin[b] += 0.0 * a + (0.0 if u == v else np.nan)
         _bound_healthy(W, X, tr, fin, acc, good, nb, cond_max)
         for b in range(nb):
-            bad[c0 + b] = False if good[b] else _unhealthy(P[c0 + b], cond_max)
+            if good[b]:
+                bad[c0 + b] = False
+            else:
+                for i in range(n):
+                    for j in range(n):
+                        T[i, j] = Pt[j, i, c0 + b]
+                bad[c0 + b] = _unhealthy(T, cond_max)

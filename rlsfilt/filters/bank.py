@@ -7,6 +7,13 @@ call updates every channel (:mod:`rlsfilt.filters._kernels_bank`). Each
 channel follows exactly the arithmetic of its own `RecursiveLeastSquares`,
 so ``bank.channel(i)`` is an ordinary filter that continues where channel
 ``i`` of the bank stands.
+
+The state arrays the bank makes (``x``, ``P``, their priors and
+posteriors, ``K``, ``Q``) are stored in Fortran order, the channel index
+varying fastest: their transposes (``x.T`` is ``(dim_x, C)``) are the
+C-contiguous arrays the kernels read and write along the channels, with no
+copy or transposition per call. An array assigned in another layout is
+copied into this one once, at its next use.
 """
 
 import copy
@@ -296,8 +303,9 @@ class RLSBank:
         if not isinstance(parallel, (bool, np.bool_)):
             raise TypeError(f"`parallel` must be True or False; got {parallel!r}")
         self.parallel = bool(parallel)
-        self._P0 = self._covariances(P0, "P0", definite=True)
-        self._x0 = self._estimates(np.zeros(self.dim_x) if x0 is None else x0, "x0")
+        self._P0 = np.asfortranarray(self._covariances(P0, "P0", definite=True))
+        self._x0 = np.asfortranarray(
+            self._estimates(np.zeros(self.dim_x) if x0 is None else x0, "x0"))
         self.reset()
 
     # ------------------------------------------------------------------
@@ -311,7 +319,7 @@ class RLSBank:
 
     @x.setter
     def x(self, value):
-        self._x = np.array(as_float_array(value, "x"), dtype=np.float64, order="C")
+        self._x = np.array(as_float_array(value, "x"), dtype=np.float64, order="F")
 
     @property
     def P(self):
@@ -321,7 +329,7 @@ class RLSBank:
 
     @P.setter
     def P(self, value):
-        self._P = np.array(as_float_array(value, "P"), dtype=np.float64, order="C")
+        self._P = np.array(as_float_array(value, "P"), dtype=np.float64, order="F")
 
     @property
     def lam(self):
@@ -356,7 +364,7 @@ class RLSBank:
 
     @Q.setter
     def Q(self, value):
-        self._Q = self._covariances(value, "Q")
+        self._Q = np.asfortranarray(self._covariances(value, "Q"))
         self._Q_is_zero = not self._Q.any()
 
     @property
@@ -414,12 +422,12 @@ class RLSBank:
         else:
             Q = self._covariances(Q, "Q")
             Q_is_zero = not Q.any()
-        x, P = self._checked_x(), self._checked_P()
-        Pn, P_prior = np.empty_like(P), np.empty_like(P)
-        (_kernels or _get_kernels()).bank_predict(P, self._il, Q, Q_is_zero, Pn, P_prior)
-        self._P = Pn
-        self.x_prior = x.copy()
-        self.P_prior = P_prior
+        xt, Pt = self._checked_x(), self._checked_P()          # (n, C), (n, n, C)
+        Pn, P_prior = np.empty_like(Pt), np.empty_like(Pt)
+        (_kernels or _get_kernels()).bank_predict(Pt, self._il, _t(Q), Q_is_zero, Pn, P_prior)
+        self._P = Pn.T
+        self.x_prior = xt.copy().T
+        self.P_prior = P_prior.T
         self._updates_since_predict = 0
 
     @_atomic
@@ -446,21 +454,21 @@ class RLSBank:
         Hm = self._measurements(H, "H", (C, n), f"({C}, {n}) (one regressor row of dim_x = "
                                                  f"{n} per channel)", finite=False)
         r = self._R if R is None else self._per_channel_positive(R, "R")
-        x, P = self._checked_x(), self._checked_P()
-        xn, x_post, K = np.empty((C, n)), np.empty((C, n)), np.empty((C, n))
-        Pn, P_post = np.empty((C, n, n)), np.empty((C, n, n))
+        xt, Pt = self._checked_x(), self._checked_P()          # (n, C), (n, n, C)
+        xn, x_post, K = np.empty((n, C)), np.empty((n, C)), np.empty((n, C))
+        Pn, P_post = np.empty((n, n, C)), np.empty((n, n, C))
         y, S, SI, lam_t = np.empty(C), np.empty(C), np.empty(C), np.empty(C)
         bad = (_kernels or _get_kernels()).bank_update(
-            x, P, zz, Hm, r, self._lam, self._mode, self._params, xn, Pn, x_post, P_post, y, S,
-            SI, K, lam_t)
+            xt, Pt, zz, Hm, r, self._lam, self._mode, self._params, xn, Pn, x_post, P_post, y,
+            S, SI, K, lam_t)
         if bad < 0:                          # an infinite value: name the first one
             for name, arr in (("z", zz), ("H", Hm)):
                 self._measurements(arr, name, None, None)
         self._note_update()
-        self._x, self._P = xn, Pn
-        self.x_post, self.P_post = x_post, P_post
+        self._x, self._P = xn.T, Pn.T
+        self.x_post, self.P_post = x_post.T, P_post.T
         self.z, self.H = zz.copy(), Hm.copy()
-        self.y, self.S, self.SI, self.K, self.lam_t = y, S, SI, K, lam_t
+        self.y, self.S, self.SI, self.K, self.lam_t = y, S, SI, K.T, lam_t
         self.n_updates += 1
         every = self.check_every
         if every and (bad or not self.n_updates % every):
@@ -552,22 +560,22 @@ class RLSBank:
         if saver is not None:
             return self._batch_stepwise(Z, Hm, Rv, update_first, saver, store_covariances,
                                         store_means, store_residuals)
-        x = np.array(self._checked_x(), dtype=np.float64, order="C")
-        P = np.array(self._checked_P(), dtype=np.float64, order="C")
+        x0t = self._checked_x()
+        xt, Pt = x0t.copy(), self._checked_P().copy()     # (n, C), (n, n, C), overwritten
         means = np.empty((N if store_means else 0, C, n))
         covs = np.empty((N if store_covariances else 0, C, n, n))
         covs_p = np.empty_like(covs)
         rows = N if store_residuals else min(N, 1)   # else the last step's only
         ys, ss = np.empty((rows, C)), np.empty((rows, C))
-        x_prior, P_prior = np.empty((C, n)), np.empty((C, n, n))
-        x_post, P_post = np.empty((C, n)), np.empty((C, n, n))
-        K, lam_t = np.zeros((C, n)), self._lam.copy()
+        x_prior, P_prior = np.empty((n, C)), np.empty((n, n, C))
+        x_post, P_post = np.empty((n, C)), np.empty((n, n, C))
+        K, lam_t = np.zeros((n, C)), self._lam.copy()
         k_fail = np.full(C, -1, dtype=np.int64)
         k_inf = np.full(C, -1, dtype=np.int64)
         kern = _get_kernels()
         if N:
             run = kern.bank_batch_parallel if self.parallel else kern.bank_batch
-            run(x, P, Z, Hk, h_last, Rv, self._il, self._lam, self._Q, self._Q_is_zero,
+            run(xt, Pt, Z, Hk, h_last, Rv, self._il, self._lam, _t(self._Q), self._Q_is_zero,
                 self._mode, self._params, update_first, means, covs, covs_p, ys, ss,
                 x_prior, P_prior, x_post, P_post, K, lam_t, self.check_every, self.n_updates,
                 self.cond_max, k_fail, k_inf, kern.block_size(n, C))
@@ -575,14 +583,15 @@ class RLSBank:
         means_p = None
         if store_means:            # the estimate is unchanged by a time update
             means_p = means.copy() if update_first else np.concatenate(
-                [self._checked_x()[None], means[:-1]]) if N else means.copy()
+                [x0t.T[None], means[:-1]]) if N else means.copy()
         step0 = self.n_updates
-        self._x, self._P = x, P
+        self._x, self._P = xt.T, Pt.T
         if N:
-            self.x_prior, self.P_prior, self.x_post, self.P_post = x_prior, P_prior, x_post, P_post
+            self.x_prior, self.P_prior = x_prior.T, P_prior.T
+            self.x_post, self.P_post = x_post.T, P_post.T
             self.z, self.H = Z[-1].copy(), Hm[-1].copy()
             self.y, self.S = ys[-1].copy(), ss[-1].copy()
-            self.SI, self.K, self.lam_t = 1.0 / self.S, K, lam_t
+            self.SI, self.K, self.lam_t = 1.0 / self.S, K.T, lam_t
             self.n_updates += N
             self._updates_since_predict = 0 if update_first else 1
             self._fresh = False
@@ -698,10 +707,10 @@ class RLSBank:
         x = (Rinv @ (Qf.transpose(0, 2, 1) @ B))[:, :, 0] / d
         Rinv = Rinv / d[:, :, None]                       # D^-1 R_s^-1
         P = self._R[:, None, None] * (Rinv @ Rinv.transpose(0, 2, 1))
-        self._x = x
-        self._P = 0.5 * (P + P.transpose(0, 2, 1))
-        self.x_prior, self.x_post = x.copy(), x.copy()
-        self.P_prior, self.P_post = self.P.copy(), self.P.copy()
+        self._x = np.asfortranarray(x)
+        self._P = np.asfortranarray(0.5 * (P + P.transpose(0, 2, 1)))
+        self.x_prior, self.x_post = self._x.copy(order="F"), self._x.copy(order="F")
+        self.P_prior, self.P_post = self._P.copy(order="F"), self._P.copy(order="F")
         self._updates_since_predict = 0
 
     # ------------------------------------------------------------------
@@ -738,8 +747,8 @@ class RLSBank:
             Q=self._Q[i], forgetting=self.forgetting,
             forgetting_params=self._forgetting_params_in, check_every=self.check_every,
             cond_max=self.cond_max)
-        f.x = self._checked_x()[i].reshape(n, 1).copy()
-        f.P = self._checked_P()[i].copy()
+        f.x = self._checked_x()[:, i].reshape(n, 1).copy()
+        f.P = self._checked_P()[:, :, i].T.copy()
         f.x_prior, f.P_prior = self.x_prior[i].reshape(n, 1).copy(), self.P_prior[i].copy()
         f.x_post, f.P_post = self.x_post[i].reshape(n, 1).copy(), self.P_post[i].copy()
         f.n_updates = self.n_updates
@@ -769,8 +778,10 @@ class RLSBank:
                         if key in ("dim_x", "_mode", "_forgetting_params_in", "check_every",
                                    "cond_max", "parallel")}
         new.n_channels = len(channels)
-        for name in ("_lam", "_il", "_R", "_Q", "_params", "_P0", "_x0"):
+        for name in ("_lam", "_il", "_R", "_params"):
             setattr(new, name, getattr(self, name)[channels])       # (copies)
+        for name in ("_Q", "_P0", "_x0"):                           # (state layout)
+            setattr(new, name, np.asfortranarray(getattr(self, name)[channels]))
         new._Q_is_zero = not new._Q.any()
         new.reset()
         return new
@@ -781,16 +792,16 @@ class RLSBank:
         ``lam``, ``R``, ``Q`` and the forgetting mode are kept.
         """
         C, n = self.n_channels, self.dim_x
-        self._x = self._x0.copy()
-        self._P = self._P0.copy()
-        self.x_prior, self.P_prior = self.x.copy(), self.P.copy()
-        self.x_post, self.P_post = self.x.copy(), self.P.copy()
+        self._x = self._x0.copy(order="F")
+        self._P = self._P0.copy(order="F")
+        self.x_prior, self.P_prior = self._x.copy(order="F"), self._P.copy(order="F")
+        self.x_post, self.P_post = self._x.copy(order="F"), self._P.copy(order="F")
         self.H = np.zeros((C, n))
         self.z = np.zeros(C)
         self.y = np.zeros(C)
         self.S = np.zeros(C)
         self.SI = np.zeros(C)
-        self.K = np.zeros((C, n))
+        self.K = np.zeros((C, n), order="F")
         self.lam_t = self._lam.copy()
         self.n_updates = 0
         self.failed_channels = np.zeros(0, dtype=np.int64)
@@ -850,7 +861,7 @@ class RLSBank:
     def _check_health(self, where):
         """Full check of every channel's ``P``; warn about channels that newly fail."""
         bad = np.zeros(self.n_channels, dtype=np.bool_)
-        _get_kernels().bank_unhealthy(self.P, self.cond_max, bad)
+        _get_kernels().bank_unhealthy(self._checked_P(), self.cond_max, bad)
         failed = np.flatnonzero(bad)
         if failed.size:
             self._warn_health(failed, where)
@@ -1013,21 +1024,31 @@ class RLSBank:
         return np.ascontiguousarray(arr)
 
     def _checked_x(self):
+        """``x`` in the kernels' layout, ``x^T`` of shape (dim_x, C) (`_t`)."""
         x = self.x
         C, n = self.n_channels, self.dim_x
         if not isinstance(x, np.ndarray) or x.shape != (C, n):
             raise ValueError(f"`x` must be an array of shape ({C}, {n}); got "
                              f"{getattr(x, 'shape', type(x).__name__)}")
-        return np.ascontiguousarray(x, dtype=np.float64)
+        return _t(x)
 
     def _checked_P(self):
+        """``P`` in the kernels' layout, ``P^T`` of shape (dim_x, dim_x, C) (`_t`)."""
         P = self.P
         C, n = self.n_channels, self.dim_x
         if not isinstance(P, np.ndarray) or P.shape != (C, n, n):
             raise ValueError(f"`P` must be an array of shape ({C}, {n}, {n}); got "
                              f"{getattr(P, 'shape', type(P).__name__)}")
-        return np.ascontiguousarray(P, dtype=np.float64)
+        return _t(P)
 
+
+
+def _t(a):
+    """The kernels' view of a state array of the bank: its transpose, C-contiguous
+    float64 (no copy when `a` is in the bank's Fortran order, else a copy)."""
+    t = a.T
+    return t if t.flags.c_contiguous and t.dtype == np.float64 else \
+        np.ascontiguousarray(t, dtype=np.float64)
 
 
 def _check_magnitude(scale, name):
