@@ -720,19 +720,19 @@ def bank_predict(Pt, il, Qt, q_zero, Pn, P_prior):
     n, C = Pt.shape[0], Pt.shape[2]
     nn = n * n
     Pf, Nf, Af = Pt.reshape((nn, C)), Pn.reshape((nn, C)), P_prior.reshape((nn, C))
-    if q_zero:
-        for e in range(nn):
+    for e in range(nn):
+        p, pn, pa = Pf[e], Nf[e], Af[e]
+        if q_zero:
             for c in range(C):
-                v = Pf[e, c] * il[c]
-                Nf[e, c] = v
-                Af[e, c] = v
-    else:
-        Qf = Qt.reshape((nn, C))
-        for e in range(nn):
+                v = p[c] * il[c]
+                pn[c] = v
+                pa[c] = v
+        else:
+            q = Qt.reshape((nn, C))[e]
             for c in range(C):
-                v = Pf[e, c] * il[c] + Qf[e, c]
-                Nf[e, c] = v
-                Af[e, c] = v
+                v = p[c] * il[c] + q[c]
+                pn[c] = v
+                pa[c] = v
 
 
 @njit(**_JIT)
@@ -782,14 +782,17 @@ def bank_update(xt, Pt, z, H, r, lam, mode, params, xn, Pn, x_post, P_post, y, S
     bad = 0
     for c0 in range(0, C, B):
         nb = min(B, C - c0)
+        c1 = c0 + nb
         _load(xt, Pt, Pt, True, c0, nb, xb, Pb, Qb, iu, ju)
-        for b in range(nb):                  # the regressors, one row per channel
-            for j in range(n):
-                h[j, b] = H[c0 + b, j]
+        for j in range(n):                   # the regressors, one row per channel
+            src, dst = H[c0:c1, j], h[j]
+            for b in range(nb):
+                dst[b] = src[b]
+        zs, rs, ls = z[c0:c1], r[c0:c1], lam[c0:c1]
         for b in range(nb):
-            zb[b] = z[c0 + b]
-            rb[b] = r[c0 + b]
-            lamb[b] = lam[c0 + b]
+            zb[b] = zs[b]
+            rb[b] = rs[b]
+            lamb[b] = ls[b]
         if mode != EXPONENTIAL:
             for b in range(nb):
                 p0[b] = params[c0 + b, 0]
@@ -835,13 +838,15 @@ def bank_update(xt, Pt, z, H, r, lam, mode, params, xn, Pn, x_post, P_post, y, S
         _store(xb, Pb, xn, Pn, c0, nb, iu, ju)
         _store(xb, Pb, x_post, P_post, c0, nb, iu, ju)
         for i in range(n):
+            src, dst = Kb[i], K[i, c0:c1]
             for b in range(nb):
-                K[i, c0 + b] = Kb[i, b]
+                dst[b] = src[b]
+        ys, ss, si, lts = y[c0:c1], S[c0:c1], SI[c0:c1], lam_t[c0:c1]
         for b in range(nb):
-            y[c0 + b] = yb[b]
-            S[c0 + b] = sb[b]
-            SI[c0 + b] = 1.0 / sb[b]
-            lam_t[c0 + b] = lt[b]
+            ys[b] = yb[b]
+            ss[b] = sb[b]
+            si[b] = 1.0 / sb[b]
+            lts[b] = lt[b]
     return bad
 
 

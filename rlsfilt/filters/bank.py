@@ -449,10 +449,10 @@ class RLSBank:
         """
         C, n = self.n_channels, self.dim_x
         # shapes and types here; infinities are found by the kernel (no extra pass)
-        zz = self._measurements(z, "z", (C,), f"({C},) (one measurement per channel)",
+        zz = self._measurements(z, "z", (C,), "({C},) (one measurement per channel)",
                                 finite=False)
-        Hm = self._measurements(H, "H", (C, n), f"({C}, {n}) (one regressor row of dim_x = "
-                                                 f"{n} per channel)", finite=False)
+        Hm = self._measurements(H, "H", (C, n), "({C}, {n}) (one regressor row of dim_x = "
+                                                 "{n} per channel)", finite=False)
         r = self._R if R is None else self._per_channel_positive(R, "R")
         xt, Pt = self._checked_x(), self._checked_P()          # (n, C), (n, n, C)
         xn, x_post, K = np.empty((n, C)), np.empty((n, C)), np.empty((n, C))
@@ -987,6 +987,9 @@ class RLSBank:
         """A float64 array of `shape` (or `ndim`): NaN allowed, inf not (not
         checked here with ``finite=False``: the kernels check it).
 
+        `expected` describes the shape in the error message; it may hold the
+        fields ``{C}`` and ``{n}`` (filled in only when the message is made).
+
         C-contiguous, or with ``strided=True`` in the caller's layout (the
         caller decides). The kernels only read it, so the caller's array is
         passed without a copy.
@@ -994,6 +997,7 @@ class RLSBank:
         arr = value if (type(value) is np.ndarray and value.dtype == np.float64) \
             else as_float_array(value, name)
         if (shape is not None and arr.shape != shape) or (ndim is not None and arr.ndim != ndim):
+            expected = expected.format(C=self.n_channels, n=self.dim_x)
             raise ValueError(f"`{name}` must have shape {expected}; got {arr.shape}")
         if not strided:
             arr = np.ascontiguousarray(arr)
