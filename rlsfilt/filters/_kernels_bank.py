@@ -5,7 +5,10 @@ The readable NumPy version of the same recursion is
 1e-12, and every channel equal (bit for bit, in practice) to its own
 `RecursiveLeastSquares`.
 
-Layout. The kernels process the channels in blocks (`block_size`).
+Layout. `RLSBank` stores its state in Fortran order, so that the kernels
+read and write the transposes ``x^T`` (n, C) and ``P^T`` (n, n, C), the
+channel index last and contiguous (see `_load`). The kernels process the
+channels in blocks (`block_size`).
 A block's state is copied into local arrays with the channel index last,
 ``x[i, b]`` and the upper triangle of ``P`` packed row by row,
 ``P[t, b]`` with ``t`` running over ``(i, j), i <= j`` (``P`` is exactly
@@ -36,9 +39,18 @@ time update in the same sweep over ``P`` as the measurement update
 between (no covariance history, no health check at that step).
 
 A channel whose measurement is missing (NaN ``z``) or whose regressor holds
-a NaN is left unchanged by the measurement update. The choice is made with
-selects (``c if ok else 0``); multiplying by a selected ``1`` or adding a
-selected ``0`` is exact, so the channels that do update are not perturbed.
+a NaN is left unchanged by the measurement update. Each step of a block
+first counts the non-finite inputs of the block in one vectorized pass
+(`_read_step`). With none (the usual case) the step runs without masks or
+selects; otherwise infinities are reported as errors and the masked path
+decides per channel with selects (``c if ok else 0``): multiplying by a
+selected ``1`` or adding a selected ``0`` is exact, so the channels that do
+update are not perturbed, and both paths give the same bits.
+
+The periodic health check of a block (`_check_block`) runs the cheap bound
+of `unhealthy` (a Cholesky factor and ``trace(P) trace(P^-1)``) on all
+lanes at once; only the channels it cannot prove healthy are decided by
+`unhealthy` itself, so the decisions are the same.
 
 The blocks are independent: ``bank_batch_parallel`` runs them on numba's
 threads (``prange``); ``docs/performance.md`` says when that pays.
@@ -65,9 +77,10 @@ def block_size(dim_x, n_channels):
 
     Each step runs a few dozen short loops over the channels of a block, so
     wide blocks amortize the loop overhead over more channels (measured at
-    ``dim_x = 4``: 32 channels per block ran 1.9x the time of the
-    hand-written loop of ``benchmarks/handwritten_bank.py``, 256 channels
-    1.2x, 512 channels 1.1x). The block's working set (``x``, ``P``, ``Q``,
+    ``dim_x = 4``, 10,000 channels x 1,000 samples, no histories: 32
+    channels per block ran 1.43x the time of the hand-written loop of
+    ``benchmarks/handwritten_bank.py``, 128 channels 1.04x, 256 channels
+    0.89x, 512 and 1024 channels 0.85x). The block's working set (``x``, ``P``, ``Q``,
     ``g``, ``h``, ``K``: about ``(dim_x^2 + 9 dim_x) / 2 + 8`` numbers per
     channel) is kept near 128 KB, in the second-level cache. A multiple of
     8 between 16 and 1024, no wider than `n_channels` needs.
