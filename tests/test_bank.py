@@ -339,6 +339,37 @@ def test_initialize_equals_rls_initialize(rng):
     assert_array_equal(bank.P, bank.P.transpose(0, 2, 1))
 
 
+def test_initialize_rank_check_equals_matrix_rank(rng):
+    """The QR bound that settles most ranks of `initialize` gives exactly the ranks
+    of numpy's matrix_rank (SVD), near the threshold too."""
+    from rlsfilt.filters.bank import _full_rank
+
+    mats = []
+    for k0, n in ((6, 3), (3, 3), (8, 4)):
+        for gap in (0.0, 1e-20, 1e-15, 1e-14, 1e-13, 1e-12, 1e-9, 1e-3, 1.0):
+            A = rng.standard_normal((k0, n))
+            A[:, -1] = A[:, 0] + gap * rng.standard_normal(k0)   # near-dependent column
+            mats.append(A)
+        A = rng.standard_normal((k0, n))
+        A[:, 1] = 0.0
+        mats.append(A)
+        mats.append(np.zeros((k0, n)))
+        mats.append(rng.standard_normal((k0, n)) * np.r_[1e-150, 1.0, 1e150, 1.0][:n])
+        stack = np.array(mats[-12:])
+        stack /= np.maximum(np.linalg.norm(stack, axis=1), 1e-300)[:, None, :]
+        rank, Rinv = _full_rank(stack, np.linalg.qr(stack, mode="r"))
+        assert_array_equal(rank, np.linalg.matrix_rank(stack))
+        assert Rinv is None                                      # (a zero column)
+    short = rng.standard_normal((4, 2, 3))                       # fewer rows than columns
+    assert_array_equal(_full_rank(short, None)[0], np.linalg.matrix_rank(short))
+    assert _full_rank(np.empty((3, 0, 2)), None)[0].tolist() == [0, 0, 0]
+    full = rng.standard_normal((5, 6, 3))
+    R = np.linalg.qr(full, mode="r")
+    rank, Rinv = _full_rank(full, R)
+    assert_array_equal(rank, 3)
+    assert_array_equal(Rinv, np.linalg.inv(R))
+
+
 def test_initialize_names_rank_deficient_channels(rng):
     Z, H = _record(rng, N=5, C=4, n=3, missing=0.0, bad_rows=0.0)
     H[:, 2, 1] = H[:, 2, 0]                # channel 2: two equal columns

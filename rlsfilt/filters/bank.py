@@ -692,8 +692,8 @@ class RLSBank:
         norms = np.linalg.norm(A, axis=1)                              # (C, n)
         d = np.where(norms > 0.0, norms, 1.0)
         As = A / d[:, None, :]
-        rank = (np.linalg.matrix_rank(As) if k0 else np.zeros(C, dtype=int))
-        rank = np.broadcast_to(rank, (C,))
+        Qf, Rf = np.linalg.qr(As) if k0 >= n else (None, None)
+        rank, Rinv = _full_rank(As, Rf)
         short = np.flatnonzero(rank < n)
         if short.size:
             c = int(short[0])
@@ -702,8 +702,8 @@ class RLSBank:
                 f"{c} has {int(rank[c])} linearly independent rows in {int(keep[:, c].sum())} "
                 f"usable samples; need {n} (one per parameter). Use more samples or a more "
                 "exciting input.")
-        Qf, Rf = np.linalg.qr(As)
-        Rinv = np.linalg.inv(Rf)                          # upper triangular, batched
+        if Rinv is None:
+            Rinv = np.linalg.inv(Rf)                      # upper triangular, batched
         x = (Rinv @ (Qf.transpose(0, 2, 1) @ B))[:, :, 0] / d
         Rinv = Rinv / d[:, :, None]                       # D^-1 R_s^-1
         P = self._R[:, None, None] * (Rinv @ Rinv.transpose(0, 2, 1))
@@ -1045,6 +1045,38 @@ class RLSBank:
                              f"{getattr(P, 'shape', type(P).__name__)}")
         return _t(P)
 
+
+
+def _full_rank(As, R):
+    """``np.linalg.matrix_rank(As)`` of each ``(k0, n)`` matrix of the stack `As`
+    (C, k0, n), from its QR factors ``R`` (C, n, n) where they settle the
+    answer (`R` is None when ``k0 < n``); and ``R^-1`` when every ``R`` has
+    a nonzero diagonal (else None).
+
+    ``matrix_rank`` counts the singular values above ``tol = s_max max(k0,
+    n) eps``. With ``As = Q R``, ``s_max <= ||R||_F`` and ``s_min >= 1 /
+    ||R^-1||_F``, so ``1 / ||R^-1||_F > 1000 ||R||_F max(k0, n) eps``
+    proves full rank ``n`` with a wide margin for the rounding of either
+    computation; ``matrix_rank`` (an SVD per matrix) decides the other
+    matrices, so the ranks are those ``matrix_rank`` gives. Most channels of
+    an excited fleet are settled by the QR (cheaper than the SVD).
+    """
+    C, k0, n = As.shape
+    if R is None or C == 0:
+        return np.broadcast_to(np.linalg.matrix_rank(As) if k0 else 0, (C,)), None
+    rank = np.full(C, n)
+    proved = (np.diagonal(R, axis1=1, axis2=2) != 0.0).all(axis=1)
+    every = bool(proved.all())
+    Rinv = np.linalg.inv(R if every else R[proved])
+    Rp = R if every else R[proved]
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):  # (not proved)
+        bound = 1.0 / np.sqrt((Rinv * Rinv).sum(axis=(1, 2)))
+        scale = np.sqrt((Rp * Rp).sum(axis=(1, 2)))
+    proved[proved] = bound > 1000.0 * scale * max(k0, n) * np.finfo(float).eps
+    rest = np.flatnonzero(~proved)
+    if rest.size:
+        rank[rest] = np.linalg.matrix_rank(As[rest])
+    return rank, (Rinv if every else None)
 
 
 def _t(a):
