@@ -251,6 +251,14 @@ class RLSBank:
     (its estimate and covariance are kept, its ``K`` is zero and its ``y``
     NaN); the other channels update. Infinite values are errors.
 
+    **Memory layout.** The arrays the bank makes for its state (``x``,
+    ``P``, their priors and posteriors, ``K``) have the documented shapes
+    but Fortran order: the channel index varies fastest, so that the
+    compiled kernels run along the channels with no transposition (NumPy
+    handles them as any array; ``np.ascontiguousarray`` gives a C-ordered
+    copy). An array assigned to ``x`` or ``P`` is stored as a Fortran-ordered
+    copy.
+
     References
     ----------
     .. [1] L. Ljung, *System Identification: Theory for the User*, 2nd ed.,
