@@ -248,19 +248,26 @@ def _infinite(h, zb, flag, nb):
 
 
 @njit(inline="always", **_JIT)
-def _gain_residual(xb, Pb, h, zb, rb, g, sb, yb, acc, nb, tri):
+def _gain_residual(xb, Pb, h, zb, rb, g, sb, yb, acc, nb, iu, ju):
     """``g = P h``, ``s = h . g + r`` and ``y = z - h . x`` of every lane."""
     n = xb.shape[0]
     for i in range(n):
         gi = g[i]
         for b in range(nb):
             gi[b] = 0.0
-    for j in range(n):
-        hj = h[j]
-        for i in range(n):
-            p, gi = Pb[tri[j, i]], g[i]
+    # g = P h, g_i = sum_j P_ij h_j with j ascending: the packed rows in order,
+    # row (i, j) (i <= j) adds P_ij h_j to g_i and P_ij h_i to g_j; each g_i
+    # receives its terms in the order j = 0, 1, ..., n - 1, and each row of P
+    # is read once
+    for t in range(Pb.shape[0]):
+        i, j = iu[t], ju[t]
+        p, gi, hj = Pb[t], g[i], h[j]
+        for b in range(nb):
+            gi[b] += p[b] * hj[b]
+        if i != j:
+            gj, hi = g[j], h[i]
             for b in range(nb):
-                gi[b] += p[b] * hj[b]                       # g = P h
+                gj[b] += p[b] * hi[b]
     for b in range(nb):
         acc[b] = 0.0
     for i in range(n):
@@ -279,7 +286,7 @@ def _gain_residual(xb, Pb, h, zb, rb, g, sb, yb, acc, nb, tri):
 
 
 @njit(inline="always", **_JIT)
-def _measure(xb, Pb, h, zb, rb, hok, ok, g, sb, yb, acc, nb, tri):
+def _measure(xb, Pb, h, zb, rb, hok, ok, g, sb, yb, acc, nb, iu, ju):
     """Validity, then `_gain_residual`.
 
     ``hok``: the regressor has no NaN (otherwise it is zeroed here, so that
@@ -298,7 +305,7 @@ def _measure(xb, Pb, h, zb, rb, hok, ok, g, sb, yb, acc, nb, tri):
         hj = h[j]
         for b in range(nb):
             hj[b] = hj[b] if hok[b] else 0.0
-    _gain_residual(xb, Pb, h, zb, rb, g, sb, yb, acc, nb, tri)
+    _gain_residual(xb, Pb, h, zb, rb, g, sb, yb, acc, nb, iu, ju)
 
 
 @njit(inline="always", **_JIT)
@@ -598,11 +605,11 @@ def _run_block(c0, nb, B, x, P, Z, H, h_last, Rv, il, lam, Q, q_zero, mode, para
         fuse = (mode == EXPONENTIAL and predict and not store_covs and not check
                 and not last)
         if masked:                         # missing data: skip those channels
-            _measure(xb, Pb, h, zb, rb, hok, ok, g, sb, yb, w, nb, tri)
+            _measure(xb, Pb, h, zb, rb, hok, ok, g, sb, yb, w, nb, iu, ju)
             _update(xb, Pb, g, Kb, sb, yb, rb, ok, lamb, p0, p1, mode, lt, w, d, nb, iu, ju,
                     fuse, ilb, Qb, q_zero)
         else:                              # every channel updates: no masks
-            _gain_residual(xb, Pb, h, zb, rb, g, sb, yb, w, nb, tri)
+            _gain_residual(xb, Pb, h, zb, rb, g, sb, yb, w, nb, iu, ju)
             if mode == EXPONENTIAL:
                 _update_exponential(xb, Pb, g, Kb, sb, yb, w, nb, iu, ju, fuse, ilb, Qb,
                                     q_zero, last)
@@ -823,14 +830,14 @@ def bank_update(xt, Pt, z, H, r, lam, mode, params, xn, Pn, x_post, P_post, y, S
                 for b in range(nb):
                     if hok[b]:
                         return -1 - (c0 + b)
-            _measure(xb, Pb, h, zb, rb, hok, ok, g, sb, yb, w, nb, tri)
+            _measure(xb, Pb, h, zb, rb, hok, ok, g, sb, yb, w, nb, iu, ju)
             _update(xb, Pb, g, Kb, sb, yb, rb, ok, lamb, p0, p1, mode, lt, w, d, nb, iu, ju,
                     False, lamb, Qb, True)
             for b in range(nb):
                 yb[b] = yb[b] if ok[b] else np.nan
                 sb[b] = sb[b] if hok[b] else np.nan
         else:
-            _gain_residual(xb, Pb, h, zb, rb, g, sb, yb, w, nb, tri)
+            _gain_residual(xb, Pb, h, zb, rb, g, sb, yb, w, nb, iu, ju)
             if mode == EXPONENTIAL:
                 _update_exponential(xb, Pb, g, Kb, sb, yb, w, nb, iu, ju, False, lamb, Qb,
                                     True, True)
