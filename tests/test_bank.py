@@ -406,7 +406,8 @@ def _health_cases(rng, n):
         A = (Qm * d) @ Qm.T
         mats.append(0.5 * (A + A.T))
     A = rng.standard_normal((n, n))
-    mats += [A @ A.T + np.eye(n), np.zeros((n, n)), -np.eye(n), np.diag(np.r_[1.0, -1.0, 1.0, 2.0][:n])]
+    mats += [A @ A.T + np.eye(n), np.zeros((n, n)), -np.eye(n),
+             np.diag(np.r_[1.0, -1.0, 1.0, 2.0][:n])]
     v = rng.standard_normal(n)
     mats.append(np.outer(v, v))                                 # singular
     for bad in (np.nan, np.inf, -np.inf, 1e308):
