@@ -150,6 +150,53 @@ def test_histories_off_and_streaming_give_the_same_bits(rng, mode):
     assert stream.n_updates == full.n_updates == N
 
 
+@pytest.mark.parametrize("mode", MODES)
+def test_clean_and_masked_steps_give_the_bits_of_separate_filters(rng, mode):
+    """Most steps of most blocks hold no missing data (the kernel's unmasked path),
+    a few hold one NaN (the masked path for that block and step): every channel
+    still equals its own filter bit for bit, and the residual histories off keep
+    the state and the last step's diagnostics."""
+    N, C, n = 90, 70, 3
+    Z, H = _record(rng, N=N, C=C, n=n, missing=0.0, bad_rows=0.0)
+    Z[[5, 40, 88], [3, 66, 12]] = np.nan
+    H[[17, 60], [50, 1], [0, 2]] = np.nan
+    opts = _options(rng, C, mode)
+    filters, means, covs, covs_p, ys, ss = _separate(Z, H, opts)
+    bank = RLSBank(C, n, **opts)
+    hist = bank.batch_filter(Z, H, store_covariances=False)
+    # bit for bit, except the constant-trace rescaling (round-off, as above)
+    same = assert_array_equal if mode != "constant_trace" else (
+        lambda a, b: assert_allclose(a, b, rtol=1e-12, atol=1e-12))
+    same(hist.means, means)
+    same(hist.residuals, ys)
+    ok = ~np.isnan(ss)
+    same(hist.innovation_variances[ok], ss[ok])
+    same(bank.x, np.array([f.x[:, 0] for f in filters]))
+    same(bank.P, np.array([f.P for f in filters]))
+    same(bank.K, np.array([f.K[:, 0] for f in filters]))
+    # one more channel, missing at every step, sends every step down the masked
+    # path: the other channels keep their bits
+    more = {k: np.r_[v, v[:1]] if isinstance(v, np.ndarray) else v for k, v in opts.items()}
+    masked = RLSBank(C + 1, n, **more)
+    hm = masked.batch_filter(np.c_[Z, np.full(N, np.nan)], np.concatenate([H, H[:, :1]], 1),
+                             store_covariances=False)
+    assert_array_equal(hm.means[:, :C], hist.means)
+    assert_array_equal(hm.residuals[:, :C], hist.residuals)
+    assert_array_equal(hm.innovation_variances[:, :C], hist.innovation_variances)
+    for name in ("x", "P", "K", "lam_t", "x_prior", "P_prior"):
+        assert_array_equal(getattr(masked, name)[:C], getattr(bank, name), err_msg=name)
+    lean = RLSBank(C, n, **opts)
+    out = lean.batch_filter(Z, H, store_covariances=False, store_means=False,
+                            store_residuals=False)
+    assert out.residuals is None and out.innovation_variances is None
+    assert repr(out) == f"<BankHistory: {N} steps of {C} channels>"
+    for name in ("x", "P", "x_prior", "P_prior", "x_post", "P_post", "y", "S", "SI", "K",
+                 "lam_t", "z", "H"):
+        assert_array_equal(getattr(lean, name), getattr(bank, name), err_msg=name)
+    with pytest.raises(TypeError, match="`store_residuals` must be True or False"):
+        lean.batch_filter(Z, H, store_residuals="no")
+
+
 def test_parallel_kernel_gives_the_same_bits(rng):
     Z, H = _record(rng, N=60, C=70, n=3)
     N, C, n = H.shape
@@ -292,6 +339,37 @@ def test_initialize_equals_rls_initialize(rng):
     assert_array_equal(bank.P, bank.P.transpose(0, 2, 1))
 
 
+def test_initialize_rank_check_equals_matrix_rank(rng):
+    """The QR bound that settles most ranks of `initialize` gives exactly the ranks
+    of numpy's matrix_rank (SVD), near the threshold too."""
+    from rlsfilt.filters.bank import _full_rank
+
+    mats = []
+    for k0, n in ((6, 3), (3, 3), (8, 4)):
+        for gap in (0.0, 1e-20, 1e-15, 1e-14, 1e-13, 1e-12, 1e-9, 1e-3, 1.0):
+            A = rng.standard_normal((k0, n))
+            A[:, -1] = A[:, 0] + gap * rng.standard_normal(k0)   # near-dependent column
+            mats.append(A)
+        A = rng.standard_normal((k0, n))
+        A[:, 1] = 0.0
+        mats.append(A)
+        mats.append(np.zeros((k0, n)))
+        mats.append(rng.standard_normal((k0, n)) * np.r_[1e-150, 1.0, 1e150, 1.0][:n])
+        stack = np.array(mats[-12:])
+        stack /= np.maximum(np.linalg.norm(stack, axis=1), 1e-300)[:, None, :]
+        rank, Rinv = _full_rank(stack, np.linalg.qr(stack, mode="r"))
+        assert_array_equal(rank, np.linalg.matrix_rank(stack))
+        assert Rinv is None                                      # (a zero column)
+    short = rng.standard_normal((4, 2, 3))                       # fewer rows than columns
+    assert_array_equal(_full_rank(short, None)[0], np.linalg.matrix_rank(short))
+    assert _full_rank(np.empty((3, 0, 2)), None)[0].tolist() == [0, 0, 0]
+    full = rng.standard_normal((5, 6, 3))
+    R = np.linalg.qr(full, mode="r")
+    rank, Rinv = _full_rank(full, R)
+    assert_array_equal(rank, 3)
+    assert_array_equal(Rinv, np.linalg.inv(R))
+
+
 def test_initialize_names_rank_deficient_channels(rng):
     Z, H = _record(rng, N=5, C=4, n=3, missing=0.0, bad_rows=0.0)
     H[:, 2, 1] = H[:, 2, 0]                # channel 2: two equal columns
@@ -314,6 +392,69 @@ def _windup_record(N=120):
     H = rng.standard_normal((N, 4, 2))
     H[:, 2] = [1.0, 0.0]
     return rng.standard_normal((N, 4)), H
+
+
+def _health_cases(rng, n):
+    """Matrices on both sides of every decision of the health check: well and
+    badly conditioned (around the bound's limit and `cond_max`), singular,
+    indefinite, a negative or zero diagonal, NaN, inf, huge finite entries and
+    (for the public-P check) a matrix that is not exactly symmetric."""
+    mats = []
+    for cond in (1.0, 1e3, 1e6, 1e9, 2e9, 1e11, 4e11, 5e11, 6e11, 1e12, 2e12, 1e14):
+        Qm, _ = np.linalg.qr(rng.standard_normal((n, n)))
+        d = np.geomspace(1.0, cond, n) * rng.uniform(1e-3, 1e3)
+        A = (Qm * d) @ Qm.T
+        mats.append(0.5 * (A + A.T))
+    A = rng.standard_normal((n, n))
+    mats += [A @ A.T + np.eye(n), np.zeros((n, n)), -np.eye(n),
+             np.diag(np.r_[1.0, -1.0, 1.0, 2.0][:n])]
+    v = rng.standard_normal(n)
+    mats.append(np.outer(v, v))                                 # singular
+    for bad in (np.nan, np.inf, -np.inf, 1e308):
+        M = np.eye(n)
+        M[0, n - 1] = M[n - 1, 0] = bad
+        mats.append(M)
+        M = np.eye(n)
+        M[1, 1] = bad
+        mats.append(M)
+    return np.array(mats)
+
+
+def test_vectorized_health_check_decides_as_unhealthy(rng):
+    """The bank's health checks (`_check_block` in the record kernel,
+    `bank_unhealthy` on the public P) decide every channel exactly as
+    `unhealthy`, the check of `RecursiveLeastSquares`, decides it."""
+    from rlsfilt.filters._kernels_shared import unhealthy
+
+    n = 4
+    P = _health_cases(rng, n)
+    with np.errstate(over="ignore"):                            # 1e308 * 1e100: inf
+        P = np.concatenate([P, P * 1e-200, P * 1e100])          # scales near the ends
+    asym = P[:3].copy()
+    asym[:, 0, 1] += 1e-3                                       # not exactly symmetric
+    P_pub = np.concatenate([P, asym])
+    for cond_max in (1e12, 1e9, 1.0 + 1e-9, 1e300):
+        expected = np.array([unhealthy(M, cond_max) for M in P_pub])
+        assert 0 < expected.sum() < len(P_pub)
+        bad = np.zeros(len(P_pub), dtype=bool)
+        _kernels_bank.bank_unhealthy(np.ascontiguousarray(P_pub.T), cond_max, bad)
+        assert_array_equal(bad, expected)
+        # the record kernel's check reads the packed upper triangle, channel last
+        C = len(P)
+        iu, ju, tri = _kernels_bank._triangle(n)
+        Pb = np.ascontiguousarray(P[:, iu, ju].T)
+        k_fail = np.full(C, -1, dtype=np.int64)
+        k_fail[5] = 3                                           # already failed: kept
+        B = C + 3
+        work = (np.empty((n, n, B)), np.empty((n, n, B)), np.empty(B), np.empty(B),
+                np.empty(B), np.empty(B, dtype=bool), np.empty((n, n)))
+        _kernels_bank._check_block(Pb, C, tri, cond_max, 0, 7, k_fail, *work)
+        want = np.where(expected[:C], 7, -1)
+        want[5] = 3
+        assert_array_equal(k_fail, want)
+        proved = work[5][:C]                    # the lanes the cheap bound settled
+        assert not (proved & expected[:C]).any()
+        assert proved[:2].all() or cond_max < 1e6             # (conditions 1 and 1e3)
 
 
 def test_health_check_names_the_failing_channels_in_batch():

@@ -5,7 +5,10 @@ The readable NumPy version of the same recursion is
 1e-12, and every channel equal (bit for bit, in practice) to its own
 `RecursiveLeastSquares`.
 
-Layout. The kernels process the channels in blocks (`block_size`).
+Layout. `RLSBank` stores its state in Fortran order, so that the kernels
+read and write the transposes ``x^T`` (n, C) and ``P^T`` (n, n, C), the
+channel index last and contiguous (see `_load`). The kernels process the
+channels in blocks (`block_size`).
 A block's state is copied into local arrays with the channel index last,
 ``x[i, b]`` and the upper triangle of ``P`` packed row by row,
 ``P[t, b]`` with ``t`` running over ``(i, j), i <= j`` (``P`` is exactly
@@ -36,9 +39,18 @@ time update in the same sweep over ``P`` as the measurement update
 between (no covariance history, no health check at that step).
 
 A channel whose measurement is missing (NaN ``z``) or whose regressor holds
-a NaN is left unchanged by the measurement update. The choice is made with
-selects (``c if ok else 0``); multiplying by a selected ``1`` or adding a
-selected ``0`` is exact, so the channels that do update are not perturbed.
+a NaN is left unchanged by the measurement update. Each step of a block
+first counts the non-finite inputs of the block in one vectorized pass
+(`_read_step`). With none (the usual case) the step runs without masks or
+selects; otherwise infinities are reported as errors and the masked path
+decides per channel with selects (``c if ok else 0``): multiplying by a
+selected ``1`` or adding a selected ``0`` is exact, so the channels that do
+update are not perturbed, and both paths give the same bits.
+
+The periodic health check of a block (`_check_block`) runs the cheap bound
+of `unhealthy` (a Cholesky factor and ``trace(P) trace(P^-1)``) on all
+lanes at once; only the channels it cannot prove healthy are decided by
+`unhealthy` itself, so the decisions are the same.
 
 The blocks are independent: ``bank_batch_parallel`` runs them on numba's
 threads (``prange``); ``docs/performance.md`` says when that pays.
@@ -65,9 +77,10 @@ def block_size(dim_x, n_channels):
 
     Each step runs a few dozen short loops over the channels of a block, so
     wide blocks amortize the loop overhead over more channels (measured at
-    ``dim_x = 4``: 32 channels per block ran 1.9x the time of the
-    hand-written loop of ``benchmarks/handwritten_bank.py``, 256 channels
-    1.2x, 512 channels 1.1x). The block's working set (``x``, ``P``, ``Q``,
+    ``dim_x = 4``, 10,000 channels x 1,000 samples, no histories: 32
+    channels per block ran 1.43x the time of the hand-written loop of
+    ``benchmarks/handwritten_bank.py``, 128 channels 1.04x, 256 channels
+    0.89x, 512 and 1024 channels 0.85x). The block's working set (``x``, ``P``, ``Q``,
     ``g``, ``h``, ``K``: about ``(dim_x^2 + 9 dim_x) / 2 + 8`` numbers per
     channel) is kept near 128 KB, in the second-level cache. A multiple of
     8 between 16 and 1024, no wider than `n_channels` needs.
@@ -99,43 +112,48 @@ def _triangle(n):
 
 
 @njit(**_JIT)
-def _load(x, P, Q, q_zero, c0, nb, xb, Pb, Qb, iu, ju):
-    """Copy channels ``c0 .. c0 + nb - 1`` into the block arrays.
+def _load(xt, Pt, Qt, q_zero, c0, nb, xb, Pb, Qb, iu, ju):
+    """Copy channels ``c0 .. c0 + nb - 1`` of the state into the block arrays.
 
-    ``P`` is read as ``(P + P^T) / 2``, which is ``P`` itself, bit for bit,
-    when ``P`` is exactly symmetric. The loops run over the channels
-    innermost (measured: a third faster than channel by channel).
+    ``xt``, ``Pt``, ``Qt`` are the bank's state in its own layout, the
+    transposes ``x^T`` (n, C) and ``P^T`` (n, n, C) (``Pt[j, i, c] = P[c,
+    i, j]``): every loop below runs over contiguous channels. ``P`` is read
+    as ``(P + P^T) / 2``, which is ``P`` itself, bit for bit, when ``P`` is
+    exactly symmetric.
     """
-    n = x.shape[1]
+    n = xt.shape[0]
+    c1 = c0 + nb
     for i in range(n):
+        src, dst = xt[i, c0:c1], xb[i]
         for b in range(nb):
-            xb[i, b] = x[c0 + b, i]
-    t = 0
-    for i in range(n):
-        for j in range(i, n):
+            dst[b] = src[b]
+    for t in range(iu.shape[0]):
+        i, j = iu[t], ju[t]
+        u, v, dst = Pt[j, i, c0:c1], Pt[i, j, c0:c1], Pb[t]
+        for b in range(nb):
+            dst[b] = 0.5 * (u[b] + v[b])
+        if not q_zero:
+            src, dst = Qt[j, i, c0:c1], Qb[t]
             for b in range(nb):
-                Pb[t, b] = 0.5 * (P[c0 + b, i, j] + P[c0 + b, j, i])
-            if not q_zero:
-                for b in range(nb):
-                    Qb[t, b] = Q[c0 + b, i, j]
-            t += 1
+                dst[b] = src[b]
 
 
 @njit(inline="always", **_JIT)
-def _store(xb, Pb, x_out, P_out, c0, nb, iu, ju):
-    """``x_out[c], P_out[c]`` (both triangles) from the block."""
+def _store(xb, Pb, xt, Pt, c0, nb, iu, ju):
+    """``x[c], P[c]`` (both triangles) from the block, into the transposes
+    ``xt`` (n, C) and ``Pt`` (n, n, C), as `_load` reads them."""
     n = xb.shape[0]
+    c1 = c0 + nb
     for i in range(n):
+        src, dst = xb[i], xt[i, c0:c1]
         for b in range(nb):
-            x_out[c0 + b, i] = xb[i, b]
-    t = 0
-    for i in range(n):
-        for j in range(i, n):
-            for b in range(nb):
-                v = Pb[t, b]
-                P_out[c0 + b, i, j] = v
-                P_out[c0 + b, j, i] = v
-            t += 1
+            dst[b] = src[b]
+    for t in range(iu.shape[0]):
+        i, j = iu[t], ju[t]
+        src, u, v = Pb[t], Pt[j, i, c0:c1], Pt[i, j, c0:c1]
+        for b in range(nb):
+            u[b] = src[b]
+            v[b] = src[b]
 
 
 @njit(inline="always", **_JIT)
@@ -154,17 +172,60 @@ def _store_P(Pb, out, k, c0, nb, iu, ju):
 
 # ----------------------------------------------------------------------
 # the arithmetic of one step on a block
+#
+# Every inner loop runs over the channels of the block through 1-d views
+# (``row = A[i]``; ``row[b]``): indexed so, numba's loops vectorize, where
+# ``A[i, b]`` inside the loop kept LLVM from vectorizing some of them
+# (measured: the state copy of `_load` ran 3.5x faster).
 # ----------------------------------------------------------------------
 @njit(inline="always", **_JIT)
 def _predict(Pb, ilb, Qb, q_zero, nb):
     """Time update ``P <- P * il + Q``."""
     for t in range(Pb.shape[0]):
+        p = Pb[t]
         if q_zero:
             for b in range(nb):
-                Pb[t, b] = Pb[t, b] * ilb[b]
+                p[b] = p[b] * ilb[b]
         else:
+            q = Qb[t]
             for b in range(nb):
-                Pb[t, b] = Pb[t, b] * ilb[b] + Qb[t, b]
+                p[b] = p[b] * ilb[b] + q[b]
+
+
+@njit(inline="always", **_JIT)
+def _read_step(Z, H, h_last, k, c0, nb, zb, h, fin):
+    """Load step ``k`` of the block (``zb``, ``h``); return how many of its
+    channels hold a value that is not finite (NaN: missing, or inf: an error).
+
+    ``fin[b] = (z - z) + sum_j (h_j - h_j)`` is 0 for finite values and NaN
+    otherwise: one pass over the loads, no branch in the channel loop, and
+    an integer count (which vectorizes) decides the path of the whole block.
+    """
+    n = h.shape[0]
+    c1 = c0 + nb
+    src = Z[k, c0:c1]
+    for b in range(nb):
+        v = src[b]
+        zb[b] = v
+        fin[b] = v - v
+    for j in range(n):
+        dst = h[j]
+        if h_last:                       # H is (N, n, C): contiguous loads
+            src = H[k, j, c0:c1]
+            for b in range(nb):
+                v = src[b]
+                dst[b] = v
+                fin[b] += v - v
+        else:                            # H is (N, C, n)
+            src2 = H[k, c0:c1, j]
+            for b in range(nb):
+                v = src2[b]
+                dst[b] = v
+                fin[b] += v - v
+    count = 0
+    for b in range(nb):
+        count += fin[b] != fin[b]
+    return count
 
 
 @njit(inline="always", **_JIT)
@@ -176,8 +237,9 @@ def _infinite(h, zb, flag, nb):
         v = zb[b]
         flag[b] = v == v and v - v != 0.0
     for j in range(n):
+        hj = h[j]
         for b in range(nb):
-            v = h[j, b]
+            v = hj[b]
             flag[b] = flag[b] or (v == v and v - v != 0.0)
     found = False
     for b in range(nb):
@@ -186,8 +248,46 @@ def _infinite(h, zb, flag, nb):
 
 
 @njit(inline="always", **_JIT)
-def _measure(xb, Pb, h, zb, rb, hok, ok, g, sb, yb, acc, nb, tri):
-    """Validity, ``g = P h``, ``s = h . g + r`` and ``y = z - h . x``.
+def _gain_residual(xb, Pb, h, zb, rb, g, sb, yb, acc, nb, iu, ju):
+    """``g = P h``, ``s = h . g + r`` and ``y = z - h . x`` of every lane."""
+    n = xb.shape[0]
+    for i in range(n):
+        gi = g[i]
+        for b in range(nb):
+            gi[b] = 0.0
+    # g = P h, g_i = sum_j P_ij h_j with j ascending: the packed rows in order,
+    # row (i, j) (i <= j) adds P_ij h_j to g_i and P_ij h_i to g_j; each g_i
+    # receives its terms in the order j = 0, 1, ..., n - 1, and each row of P
+    # is read once
+    for t in range(Pb.shape[0]):
+        i, j = iu[t], ju[t]
+        p, gi, hj = Pb[t], g[i], h[j]
+        for b in range(nb):
+            gi[b] += p[b] * hj[b]
+        if i != j:
+            gj, hi = g[j], h[i]
+            for b in range(nb):
+                gj[b] += p[b] * hi[b]
+    for b in range(nb):
+        acc[b] = 0.0
+    for i in range(n):
+        hi, gi = h[i], g[i]
+        for b in range(nb):
+            acc[b] += hi[b] * gi[b]
+    for b in range(nb):
+        sb[b] = acc[b] + rb[b]                              # s = h . g + r
+        acc[b] = 0.0
+    for i in range(n):
+        hi, xi = h[i], xb[i]
+        for b in range(nb):
+            acc[b] += hi[b] * xi[b]
+    for b in range(nb):
+        yb[b] = zb[b] - acc[b]                              # y = z - h . x
+
+
+@njit(inline="always", **_JIT)
+def _measure(xb, Pb, h, zb, rb, hok, ok, g, sb, yb, acc, nb, iu, ju):
+    """Validity, then `_gain_residual`.
 
     ``hok``: the regressor has no NaN (otherwise it is zeroed here, so that
     no NaN enters the arithmetic); ``ok``: ``hok`` and ``z`` is not NaN.
@@ -196,34 +296,49 @@ def _measure(xb, Pb, h, zb, rb, hok, ok, g, sb, yb, acc, nb, tri):
     for b in range(nb):
         hok[b] = True
     for j in range(n):
+        hj = h[j]
         for b in range(nb):
-            hok[b] = hok[b] and h[j, b] == h[j, b]
+            hok[b] = hok[b] and hj[b] == hj[b]
     for b in range(nb):
         ok[b] = hok[b] and zb[b] == zb[b]
     for j in range(n):
+        hj = h[j]
         for b in range(nb):
-            h[j, b] = h[j, b] if hok[b] else 0.0
+            hj[b] = hj[b] if hok[b] else 0.0
+    _gain_residual(xb, Pb, h, zb, rb, g, sb, yb, acc, nb, iu, ju)
+
+
+@njit(inline="always", **_JIT)
+def _update_exponential(xb, Pb, g, Kb, sb, yb, w, nb, iu, ju, fuse, ilb, Qb, q_zero, store_k):
+    """The exponential measurement update of `_update` when every channel of the
+    block updates: the same operations, no selects. The gain is written to
+    ``Kb`` only with `store_k` (the last step)."""
+    n = xb.shape[0]
+    for b in range(nb):
+        w[b] = 1.0 / sb[b]                                  # c = 1 / s
     for i in range(n):
-        for b in range(nb):
-            g[i, b] = 0.0
-    for j in range(n):
-        for i in range(n):
-            t = tri[j, i]
+        gi, xi = g[i], xb[i]
+        if store_k:
+            ki = Kb[i]
             for b in range(nb):
-                g[i, b] += Pb[t, b] * h[j, b]               # g = P h
-    for b in range(nb):
-        acc[b] = 0.0
-    for i in range(n):
-        for b in range(nb):
-            acc[b] += h[i, b] * g[i, b]
-    for b in range(nb):
-        sb[b] = acc[b] + rb[b]                              # s = h . g + r
-        acc[b] = 0.0
-    for i in range(n):
-        for b in range(nb):
-            acc[b] += h[i, b] * xb[i, b]
-    for b in range(nb):
-        yb[b] = zb[b] - acc[b]                              # y = z - h . x
+                k = gi[b] * w[b]                            # K = g c
+                ki[b] = k
+                xi[b] = xi[b] + k * yb[b]                   # x = x + K y
+        else:
+            for b in range(nb):
+                xi[b] = xi[b] + (gi[b] * w[b]) * yb[b]
+    for t in range(Pb.shape[0]):
+        p, gi, gj = Pb[t], g[iu[t]], g[ju[t]]
+        if not fuse:
+            for b in range(nb):                             # P = P - (g g^T) c
+                p[b] = p[b] - (gi[b] * gj[b]) * w[b]
+        elif q_zero:
+            for b in range(nb):                             # ... then P = P / lam
+                p[b] = (p[b] - (gi[b] * gj[b]) * w[b]) * ilb[b]
+        else:
+            q = Qb[t]
+            for b in range(nb):                             # ... then P = P / lam + Q
+                p[b] = (p[b] - (gi[b] * gj[b]) * w[b]) * ilb[b] + q[b]
 
 
 @njit(inline="always", **_JIT)
@@ -245,25 +360,23 @@ def _update(xb, Pb, g, Kb, sb, yb, rb, ok, lamb, p0, p1, mode, lt, w, d, nb, iu,
             d[b] = yb[b] if ok[b] else 0.0
             lt[b] = lamb[b]
         for i in range(n):
+            gi, ki, xi = g[i], Kb[i], xb[i]
             for b in range(nb):
-                ki = g[i, b] * w[b]                         # K = g c
-                Kb[i, b] = ki
-                xb[i, b] = xb[i, b] + ki * d[b]             # x = x + K y
-        if not fuse:
-            for t in range(nt):
-                i, j = iu[t], ju[t]
+                k = gi[b] * w[b]                            # K = g c
+                ki[b] = k
+                xi[b] = xi[b] + k * d[b]                    # x = x + K y
+        for t in range(nt):
+            p, gi, gj = Pb[t], g[iu[t]], g[ju[t]]
+            if not fuse:
                 for b in range(nb):                         # P = P - (g g^T) c
-                    Pb[t, b] = Pb[t, b] - (g[i, b] * g[j, b]) * w[b]
-        elif q_zero:
-            for t in range(nt):
-                i, j = iu[t], ju[t]
+                    p[b] = p[b] - (gi[b] * gj[b]) * w[b]
+            elif q_zero:
                 for b in range(nb):                         # ... then P = P / lam
-                    Pb[t, b] = (Pb[t, b] - (g[i, b] * g[j, b]) * w[b]) * ilb[b]
-        else:
-            for t in range(nt):
-                i, j = iu[t], ju[t]
+                    p[b] = (p[b] - (gi[b] * gj[b]) * w[b]) * ilb[b]
+            else:
+                q = Qb[t]
                 for b in range(nb):                         # ... then P = P / lam + Q
-                    Pb[t, b] = (Pb[t, b] - (g[i, b] * g[j, b]) * w[b]) * ilb[b] + Qb[t, b]
+                    p[b] = (p[b] - (gi[b] * gj[b]) * w[b]) * ilb[b] + q[b]
         return
     if mode == DIRECTIONAL:
         for b in range(nb):
@@ -279,26 +392,27 @@ def _update(xb, Pb, g, Kb, sb, yb, rb, ok, lamb, p0, p1, mode, lt, w, d, nb, iu,
         for b in range(nb):
             d[b] = sb[b] if ok[b] else np.inf               # K = g / s (0 where not ok)
     for i in range(n):
+        gi, ki, xi = g[i], Kb[i], xb[i]
         for b in range(nb):
-            ki = g[i, b] / d[b]
-            Kb[i, b] = ki
-            xb[i, b] = xb[i, b] + ki * (yb[b] if ok[b] else 0.0)
+            k = gi[b] / d[b]
+            ki[b] = k
+            xi[b] = xi[b] + k * (yb[b] if ok[b] else 0.0)
     if mode == DIRECTIONAL:
         for t in range(nt):
-            i, j = iu[t], ju[t]
+            p, gi, gj = Pb[t], g[iu[t]], g[ju[t]]
             for b in range(nb):                             # P = P - (e / d) g g^T
-                Pb[t, b] = Pb[t, b] - w[b] * (g[i, b] * g[j, b])
+                p[b] = p[b] - w[b] * (gi[b] * gj[b])
         return
     for t in range(nt):
-        i, j = iu[t], ju[t]
+        p, gi, gj = Pb[t], g[iu[t]], g[ju[t]]
         for b in range(nb):                                 # P_bar = P - g g^T / s
-            Pb[t, b] = Pb[t, b] - (g[i, b] * g[j, b]) / d[b]
+            p[b] = p[b] - (gi[b] * gj[b]) / d[b]
     for b in range(nb):
         w[b] = 0.0
     for i in range(n):
-        t = (i * (2 * n - i + 1)) // 2                      # packed index of (i, i)
+        p = Pb[(i * (2 * n - i + 1)) // 2]                  # packed index of (i, i)
         for b in range(nb):
-            w[b] += Pb[t, b]                                # t = trace(P_bar)
+            w[b] += p[b]                                    # t = trace(P_bar)
     for b in range(nb):
         trace, ratio = p0[b], p1[b]
         c2 = trace / (ratio + n)
@@ -307,12 +421,101 @@ def _update(xb, Pb, g, Kb, sb, yb, rb, ok, lamb, p0, p1, mode, lt, w, d, nb, iu,
         w[b] = c1 / w[b] if ok[b] else 1.0                  # c1 / t
         d[b] = c2 if ok[b] else 0.0
     for t in range(nt):
+        p = Pb[t]
         for b in range(nb):                                 # P = (c1 / t) P_bar ...
-            Pb[t, b] = w[b] * Pb[t, b]
+            p[b] = w[b] * p[b]
     for i in range(n):
-        t = (i * (2 * n - i + 1)) // 2
+        p = Pb[(i * (2 * n - i + 1)) // 2]
         for b in range(nb):                                 # ... + c2 I
-            Pb[t, b] = Pb[t, b] + d[b]
+            p[b] = p[b] + d[b]
+
+
+# ----------------------------------------------------------------------
+# the health check of a block
+# ----------------------------------------------------------------------
+@njit(inline="always", **_JIT)
+def _bound_healthy(W, X, tr, fin, acc, good, nb, cond_max):
+    """``good[b]``: the cheap bound of ``_kernels_shared.unhealthy_sym`` proves
+    channel ``b`` healthy.
+
+    ``W[i, j, b]`` (``j >= i``) holds the upper triangle of ``A = (P +
+    P^T) / 2`` and ``fin[b]`` the sum of ``0 * A_ij`` (0 when every entry
+    is finite, else NaN). The operations are those of `unhealthy_sym`, one
+    channel per lane: the Cholesky factor ``A = U^T U`` (in ``W``), then
+    ``trace(A) ||U^-T||_F^2 < min(cond_max / 2, 1e12)`` (``X``: the rows
+    of ``U^-T``). Where it holds `unhealthy_sym` returns False; elsewhere
+    (no factor, a large bound, a non-finite entry) the caller asks
+    `unhealthy` itself, so the decisions are the same, channel by channel.
+    """
+    n = W.shape[0]
+    for b in range(nb):
+        tr[b] = 0.0
+        good[b] = fin[b] == 0.0
+    for i in range(n):
+        for b in range(nb):
+            tr[b] += W[i, i, b]                             # trace(A)
+    for k in range(n):                                      # W <- U, row by row
+        for b in range(nb):
+            d = W[k, k, b]
+            good[b] = good[b] and d > 0.0
+            u = np.sqrt(d)
+            W[k, k, b] = u
+            acc[b] = 1.0 / u
+        for j in range(k + 1, n):
+            for b in range(nb):
+                W[k, j, b] = W[k, j, b] * acc[b]
+        for i in range(k + 1, n):                           # trailing triangle -= u_k^T u_k
+            for j in range(i, n):
+                for b in range(nb):
+                    W[i, j, b] = W[i, j, b] - W[k, i, b] * W[k, j, b]
+    for b in range(nb):
+        acc[b] = 0.0
+    for i in range(n):                                      # ||U^-1||_F^2, rows of U^-T
+        for j in range(i + 1):
+            for b in range(nb):
+                X[i, j, b] = 0.0
+        for b in range(nb):
+            X[i, i, b] = 1.0
+        for k in range(i):                                  # X_i -= U_ki X_k
+            for j in range(k + 1):
+                for b in range(nb):
+                    X[i, j, b] = X[i, j, b] - W[k, i, b] * X[k, j, b]
+        for j in range(i + 1):
+            for b in range(nb):
+                v = X[i, j, b] * (1.0 / W[i, i, b])
+                X[i, j, b] = v
+                acc[b] += v * v
+    limit = min(0.5 * cond_max, 1e12)
+    for b in range(nb):
+        good[b] = good[b] and tr[b] * acc[b] < limit
+
+
+@njit(**_JIT)
+def _check_block(Pb, nb, tri, cond_max, c0, k, k_fail, W, X, tr, fin, acc, good, T):
+    """The periodic health check of a block's packed ``P`` (after step ``k``):
+    ``k_fail[c0 + b] = k`` for each channel that fails it first.
+
+    Most channels are proved healthy by `_bound_healthy`, all lanes at once;
+    the others are decided by `unhealthy` on the channel's matrix."""
+    n = W.shape[0]
+    for b in range(nb):
+        fin[b] = 0.0
+    for i in range(n):
+        for j in range(i, n):
+            t = tri[i, j]
+            for b in range(nb):
+                v = Pb[t, b]
+                a = 0.5 * (v + v)                           # A = (P + P^T) / 2
+                W[i, j, b] = a
+                fin[b] += 0.0 * a
+    _bound_healthy(W, X, tr, fin, acc, good, nb, cond_max)
+    for b in range(nb):
+        if k_fail[c0 + b] < 0 and not good[b]:
+            for i in range(n):
+                for j in range(n):
+                    T[i, j] = Pb[tri[i, j], b]
+            if _unhealthy(T, cond_max):
+                k_fail[c0 + b] = k
 
 
 # ----------------------------------------------------------------------
@@ -322,13 +525,23 @@ def _update(xb, Pb, g, Kb, sb, yb, rb, ok, lamb, p0, p1, mode, lt, w, d, nb, iu,
 def _run_block(c0, nb, B, x, P, Z, H, h_last, Rv, il, lam, Q, q_zero, mode, params, update_first,
                means, covs, covs_p, ys, ss, x_prior, P_prior, x_post, P_post, K, lam_t,
                check_every, step0, cond_max, k_fail, k_inf):
-    """Run the record on channels ``c0 .. c0 + nb - 1``, ``nb <= B`` (see `bank_batch`)."""
+    """Run the record on channels ``c0 .. c0 + nb - 1``, ``nb <= B`` (see `bank_batch`).
+
+    Each step first loads the block's measurements and regressors and counts
+    its non-finite values (`_read_step`). When there are none (the usual
+    case) every channel updates, and the step runs without validity masks
+    (`_gain_residual`, and `_update_exponential` in the exponential mode);
+    otherwise infinities are reported and the masked path (`_measure`,
+    `_update`) skips the channels with missing data. Both paths do the same
+    operations on a channel that updates.
+    """
     N = Z.shape[0]
-    n = x.shape[1]
+    n = x.shape[0]
     iu, ju, tri = _triangle(n)
     nt = iu.shape[0]
     store_means = means.shape[0] == N
     store_covs = covs.shape[0] == N
+    store_res = ys.shape[0] == N           # else only the last step's, in row 0
     r_each = Rv.shape[0] == N
     xb = np.empty((n, B))
     Pb = np.empty((nt, B))
@@ -338,23 +551,29 @@ def _run_block(c0, nb, B, x, P, Z, H, h_last, Rv, il, lam, Q, q_zero, mode, para
     lamb = np.ones(B)
     p0 = np.zeros(B)
     p1 = np.zeros(B)
+    rb = np.empty(B)
     for b in range(nb):
         ilb[b] = il[c0 + b]
         lamb[b] = lam[c0 + b]
         p0[b] = params[c0 + b, 0]
         p1[b] = params[c0 + b, 1]
+        rb[b] = Rv[0, c0 + b]
     lt = lamb.copy()
     g = np.empty((n, B))
     h = np.empty((n, B))
     Kb = np.zeros((n, B))
     zb = np.empty(B)
-    rb = np.empty(B)
     ok = np.empty(B, dtype=np.bool_)
     hok = np.empty(B, dtype=np.bool_)
+    every = np.ones(B, dtype=np.bool_)     # the validity of a step where all channels update
     sb = np.empty(B)
     yb = np.empty(B)
     w = np.empty(B)
     d = np.empty(B)
+    fin = np.empty(B)
+    nc = n if check_every > 0 else 0       # work space of the health check
+    W = np.empty((nc, nc, B))
+    X = np.empty((nc, nc, B))
     T = np.empty((n, n))
     predict = not q_zero                   # else the time update is the identity
     for b in range(nb):
@@ -364,47 +583,57 @@ def _run_block(c0, nb, B, x, P, Z, H, h_last, Rv, il, lam, Q, q_zero, mode, para
     # fused into the sweep of the measurement update when possible
     pending = predict and not update_first
     for k in range(N):
+        last = k == N - 1
         if not update_first:
             if pending:
                 _predict(Pb, ilb, Qb, q_zero, nb)
             if store_covs:
                 _store_P(Pb, covs_p, k, c0, nb, iu, ju)
-            if k == N - 1:
+            if last:
                 _store(xb, Pb, x_prior, P_prior, c0, nb, iu, ju)
-        for b in range(nb):
-            zb[b] = Z[k, c0 + b]
-            rb[b] = Rv[k if r_each else 0, c0 + b]
-        if h_last:                           # H is (N, n, C): contiguous loads
-            for j in range(n):
-                for b in range(nb):
-                    h[j, b] = H[k, j, c0 + b]
-        else:
-            for j in range(n):
-                for b in range(nb):
-                    h[j, b] = H[k, c0 + b, j]
-        if _infinite(h, zb, hok, nb):            # an error: stop the block, report where
+        if r_each:
+            for b in range(nb):
+                rb[b] = Rv[k, c0 + b]
+        masked = _read_step(Z, H, h_last, k, c0, nb, zb, h, fin) > 0
+        if masked and _infinite(h, zb, hok, nb):    # an error: stop the block, report where
             for b in range(nb):
                 if hok[b]:
                     k_inf[c0 + b] = k
             return
-        _measure(xb, Pb, h, zb, rb, hok, ok, g, sb, yb, w, nb, tri)
         check = check_every > 0 and (step0 + k + 1) % check_every == 0
         # fuse the next time update into this sweep when nothing looks at P in between
         fuse = (mode == EXPONENTIAL and predict and not store_covs and not check
-                and k < N - 1)
-        _update(xb, Pb, g, Kb, sb, yb, rb, ok, lamb, p0, p1, mode, lt, w, d, nb, iu, ju,
-                fuse, ilb, Qb, q_zero)
+                and not last)
+        if masked:                         # missing data: skip those channels
+            _measure(xb, Pb, h, zb, rb, hok, ok, g, sb, yb, w, nb, iu, ju)
+            _update(xb, Pb, g, Kb, sb, yb, rb, ok, lamb, p0, p1, mode, lt, w, d, nb, iu, ju,
+                    fuse, ilb, Qb, q_zero)
+        else:                              # every channel updates: no masks
+            _gain_residual(xb, Pb, h, zb, rb, g, sb, yb, w, nb, iu, ju)
+            if mode == EXPONENTIAL:
+                _update_exponential(xb, Pb, g, Kb, sb, yb, w, nb, iu, ju, fuse, ilb, Qb,
+                                    q_zero, last)
+            else:
+                _update(xb, Pb, g, Kb, sb, yb, rb, every, lamb, p0, p1, mode, lt, w, d, nb,
+                        iu, ju, fuse, ilb, Qb, q_zero)
         pending = predict and not fuse
-        for b in range(nb):
-            ys[k, c0 + b] = yb[b] if ok[b] else np.nan
-            ss[k, c0 + b] = sb[b] if hok[b] else np.nan
+        if store_res or last:
+            row = k if store_res else 0
+            if masked:
+                for b in range(nb):
+                    ys[row, c0 + b] = yb[b] if ok[b] else np.nan
+                    ss[row, c0 + b] = sb[b] if hok[b] else np.nan
+            else:
+                for b in range(nb):
+                    ys[row, c0 + b] = yb[b]
+                    ss[row, c0 + b] = sb[b]
         if store_means:
             for b in range(nb):
                 for i in range(n):
                     means[k, c0 + b, i] = xb[i, b]
         if store_covs:
             _store_P(Pb, covs, k, c0, nb, iu, ju)
-        if k == N - 1:
+        if last:
             _store(xb, Pb, x_post, P_post, c0, nb, iu, ju)
         if update_first:
             if pending:
@@ -412,21 +641,16 @@ def _run_block(c0, nb, B, x, P, Z, H, h_last, Rv, il, lam, Q, q_zero, mode, para
             pending = False
             if store_covs:
                 _store_P(Pb, covs_p, k, c0, nb, iu, ju)
-            if k == N - 1:
+            if last:
                 _store(xb, Pb, x_prior, P_prior, c0, nb, iu, ju)
         if check:                          # the periodic health check of each channel's P
-            for b in range(nb):
-                if k_fail[c0 + b] < 0:
-                    for t in range(nt):
-                        T[iu[t], ju[t]] = Pb[t, b]
-                        T[ju[t], iu[t]] = Pb[t, b]
-                    if _unhealthy(T, cond_max):
-                        k_fail[c0 + b] = k
+            _check_block(Pb, nb, tri, cond_max, c0, k, k_fail, W, X, w, fin, d, hok, T)
     _store(xb, Pb, x, P, c0, nb, iu, ju)
     for b in range(nb):
         lam_t[c0 + b] = lt[b]
-        for i in range(n):
-            K[c0 + b, i] = Kb[i, b]
+    for i in range(n):
+        for b in range(nb):
+            K[i, c0 + b] = Kb[i, b]
 
 
 @njit(**_JIT)
@@ -437,8 +661,11 @@ def bank_batch(x, P, Z, H, h_last, Rv, il, lam, Q, q_zero, mode, params, update_
 
     Parameters
     ----------
-    x : (C, n), P : (C, n, n)
-        Working state, overwritten with the final state.
+    x : (n, C), P : (n, n, C)
+        Working state, overwritten with the final state, stored as the
+        transposes of the bank's ``x`` (C, n) and ``P`` (C, n, n) (see
+        `_load`; so are ``Q``, ``x_prior``, ``P_prior``, ``x_post``,
+        ``P_post`` and ``K``).
     Z : (N, C), H : (N, C, n), or (N, n, C) with `h_last`
         Measurements and regressors (NaN marks a missing sample of a
         channel). With `h_last` the channel index of ``H`` is last, so that
@@ -449,8 +676,8 @@ def bank_batch(x, P, Z, H, h_last, Rv, il, lam, Q, q_zero, mode, params, update_
     il, lam : (C,)
         ``1 / lam`` applied by the time update (1 except in the exponential
         mode) and the forgetting factors.
-    Q : (C, n, n), q_zero : bool
-        Random walks (ignored, and may be (1, n, n), when `q_zero`).
+    Q : (n, n, C), q_zero : bool
+        Random walks (ignored, and may be (n, n, 1), when `q_zero`).
     mode : int, params : (C, 2)
         Mode code and its constants (directional: ``eps``; constant trace:
         ``trace``, ``ratio``).
@@ -459,12 +686,13 @@ def bank_batch(x, P, Z, H, h_last, Rv, il, lam, Q, q_zero, mode, params, update_
     means : (N, C, n) or (0, C, n); covs, covs_p : (N, C, n, n) or (0, C, n, n)
         Estimates after each update and covariances after each update and
         each predict, written when their length is N.
-    ys, ss : (N, C)
+    ys, ss : (N, C), or (1, C)
         A-priori residuals (NaN where skipped) and innovation variances
-        (NaN where the regressor holds NaN).
+        (NaN where the regressor holds NaN) of every step, or (one row)
+        of the last step only.
     x_prior, P_prior, x_post, P_post : like x and P
         The last step's prior and posterior (written when N > 0).
-    K : (C, n), lam_t : (C,)
+    K : (n, C), lam_t : (C,)
         The last step's gain (zero where skipped) and forgetting factor.
     check_every, step0, cond_max, k_fail : int, int, float, (C,) int64
         The health check of each channel's P after step ``k`` when
@@ -477,7 +705,7 @@ def bank_batch(x, P, Z, H, h_last, Rv, il, lam, Q, q_zero, mode, params, update_
     block : int
         Channels per block (`block_size`).
     """
-    C = x.shape[0]
+    C = x.shape[1]
     for blk in range((C + block - 1) // block):
         c0 = blk * block
         _run_block(c0, min(block, C - c0), block, x, P, Z, H, h_last, Rv, il, lam, Q, q_zero,
@@ -490,7 +718,7 @@ def bank_batch_parallel(x, P, Z, H, h_last, Rv, il, lam, Q, q_zero, mode, params
                         update_first, means, covs, covs_p, ys, ss, x_prior, P_prior, x_post,
                         P_post, K, lam_t, check_every, step0, cond_max, k_fail, k_inf, block):
     """`bank_batch` with the blocks distributed over numba's threads (``prange``)."""
-    C = x.shape[0]
+    C = x.shape[1]
     for blk in prange((C + block - 1) // block):
         c0 = blk * block
         _run_block(c0, min(block, C - c0), block, x, P, Z, H, h_last, Rv, il, lam, Q, q_zero,
@@ -501,38 +729,54 @@ def bank_batch_parallel(x, P, Z, H, h_last, Rv, il, lam, Q, q_zero, mode, params
 # ----------------------------------------------------------------------
 # streaming kernels (predict, update) and the health check
 # ----------------------------------------------------------------------
-@njit(**_JIT)
-def bank_predict(P, il, Q, q_zero, Pn):
-    """``Pn = P * il + Q`` for every channel (``Q`` ignored when `q_zero`)."""
-    C, n = P.shape[0], P.shape[1]
-    for c in range(C):
-        f = il[c]
-        for i in range(n):
-            for j in range(n):
-                if q_zero:
-                    Pn[c, i, j] = P[c, i, j] * f
-                else:
-                    Pn[c, i, j] = P[c, i, j] * f + Q[c, i, j]
+STREAM_BLOCK = 128    # channels per block of `bank_update` (its work arrays stay in L1)
 
 
 @njit(**_JIT)
-def bank_update(x, P, z, H, r, lam, mode, params, xn, Pn, y, S, K, lam_t, block):
+def bank_predict(Pt, il, Qt, q_zero, Pn, P_prior):
+    """``Pn = P * il + Q`` for every channel (``Q`` ignored when `q_zero`), and
+    the same values in `P_prior`. All in the bank's layout ``(n, n, C)``
+    (`_load`): each loop runs over the channels, contiguous."""
+    n, C = Pt.shape[0], Pt.shape[2]
+    nn = n * n
+    Pf, Nf, Af = Pt.reshape((nn, C)), Pn.reshape((nn, C)), P_prior.reshape((nn, C))
+    for e in range(nn):
+        p, pn, pa = Pf[e], Nf[e], Af[e]
+        if q_zero:
+            for c in range(C):
+                v = p[c] * il[c]
+                pn[c] = v
+                pa[c] = v
+        else:
+            q = Qt.reshape((nn, C))[e]
+            for c in range(C):
+                v = p[c] * il[c] + q[c]
+                pn[c] = v
+                pa[c] = v
+
+
+@njit(**_JIT)
+def bank_update(xt, Pt, z, H, r, lam, mode, params, xn, Pn, x_post, P_post, y, S, SI, K,
+                lam_t):
     """One measurement update of every channel: the arithmetic of `bank_batch`.
 
-    Reads ``x`` (C, n), ``P`` (C, n, n), ``z`` (C,), ``H`` (C, n), ``r``
-    (C,); writes the new state ``xn``, ``Pn``, the residuals ``y`` (NaN
-    where skipped), ``S`` (NaN where the regressor holds NaN), the gains
-    ``K`` (zero where skipped) and ``lam_t``; ``block`` channels at a time
-    (`block_size`).
+    Reads the state ``xt`` (n, C), ``Pt`` (n, n, C) (the bank's layout, see
+    `_load`), ``z`` (C,), ``H`` (C, n), ``r`` (C,); writes the new state
+    ``xn``, ``Pn`` and the same values in `x_post`, `P_post` (same layout),
+    the residuals ``y`` (NaN where skipped), ``S`` and ``SI = 1 / S`` (NaN
+    where the regressor holds NaN), the gains ``K`` (n, C; zero where
+    skipped) and ``lam_t``; `STREAM_BLOCK` channels at a time.
 
     Returns
     -------
     int
         The number of channels whose new ``P`` has a diagonal entry that is
-        not positive and finite (the cheap health check).
+        not positive and finite (the cheap health check), or ``-1 - c`` when
+        channel ``c`` (the first) has an infinite measurement or regressor
+        (an error: the outputs are then incomplete).
     """
-    C, n = x.shape
-    B = block
+    n, C = xt.shape
+    B = STREAM_BLOCK
     iu, ju, tri = _triangle(n)
     nt = iu.shape[0]
     xb = np.empty((n, B))
@@ -545,10 +789,12 @@ def bank_update(x, P, z, H, r, lam, mode, params, xn, Pn, y, S, K, lam_t, block)
     rb = np.empty(B)
     ok = np.empty(B, dtype=np.bool_)
     hok = np.empty(B, dtype=np.bool_)
+    every = np.ones(B, dtype=np.bool_)
     sb = np.empty(B)
     yb = np.empty(B)
     w = np.empty(B)
     d = np.empty(B)
+    fin = np.empty(B)
     lamb = np.ones(B)
     lt = np.empty(B)
     p0 = np.zeros(B)
@@ -556,43 +802,112 @@ def bank_update(x, P, z, H, r, lam, mode, params, xn, Pn, y, S, K, lam_t, block)
     bad = 0
     for c0 in range(0, C, B):
         nb = min(B, C - c0)
-        _load(x, P, P, True, c0, nb, xb, Pb, Qb, iu, ju)
-        for b in range(nb):
-            c = c0 + b
-            zb[b] = z[c]
-            rb[b] = r[c]
-            lamb[b] = lam[c]
-            p0[b] = params[c, 0]
-            p1[b] = params[c, 1]
-            for j in range(n):
-                h[j, b] = H[c, j]
-        _measure(xb, Pb, h, zb, rb, hok, ok, g, sb, yb, w, nb, tri)
-        _update(xb, Pb, g, Kb, sb, yb, rb, ok, lamb, p0, p1, mode, lt, w, d, nb, iu, ju,
-                False, lamb, Qb, True)
-        _store(xb, Pb, xn, Pn, c0, nb, iu, ju)
-        for b in range(nb):
-            c = c0 + b
-            y[c] = yb[b] if ok[b] else np.nan
-            S[c] = sb[b] if hok[b] else np.nan
-            lam_t[c] = lt[b]
-            hok[b] = False
-        for i in range(n):
+        c1 = c0 + nb
+        _load(xt, Pt, Pt, True, c0, nb, xb, Pb, Qb, iu, ju)
+        for j in range(n):                   # the regressors, one row per channel
+            src, dst = H[c0:c1, j], h[j]
             for b in range(nb):
-                K[c0 + b, i] = Kb[i, b]
-        for i in range(n):                   # the cheap health check: the diagonal
-            t = (i * (2 * n - i + 1)) // 2
+                dst[b] = src[b]
+        zs, rs, ls = z[c0:c1], r[c0:c1], lam[c0:c1]
+        for b in range(nb):
+            zb[b] = zs[b]
+            rb[b] = rs[b]
+            lamb[b] = ls[b]
+        if mode != EXPONENTIAL:
+            for b in range(nb):
+                p0[b] = params[c0 + b, 0]
+                p1[b] = params[c0 + b, 1]
+        for b in range(nb):                  # the finiteness of the block's inputs
+            fin[b] = zb[b] - zb[b]
+        for j in range(n):
+            for b in range(nb):
+                fin[b] += h[j, b] - h[j, b]
+        count = 0
+        for b in range(nb):
+            count += fin[b] != fin[b]
+        if count:
+            if _infinite(h, zb, hok, nb):
+                for b in range(nb):
+                    if hok[b]:
+                        return -1 - (c0 + b)
+            _measure(xb, Pb, h, zb, rb, hok, ok, g, sb, yb, w, nb, iu, ju)
+            _update(xb, Pb, g, Kb, sb, yb, rb, ok, lamb, p0, p1, mode, lt, w, d, nb, iu, ju,
+                    False, lamb, Qb, True)
+            for b in range(nb):
+                yb[b] = yb[b] if ok[b] else np.nan
+                sb[b] = sb[b] if hok[b] else np.nan
+        else:
+            _gain_residual(xb, Pb, h, zb, rb, g, sb, yb, w, nb, iu, ju)
+            if mode == EXPONENTIAL:
+                _update_exponential(xb, Pb, g, Kb, sb, yb, w, nb, iu, ju, False, lamb, Qb,
+                                    True, True)
+                for b in range(nb):
+                    lt[b] = lamb[b]
+            else:
+                _update(xb, Pb, g, Kb, sb, yb, rb, every, lamb, p0, p1, mode, lt, w, d, nb,
+                        iu, ju, False, lamb, Qb, True)
+        for b in range(nb):                  # the cheap health check: the diagonal
+            fin[b] = 0.0
+        for i in range(n):
+            t = tri[i, i]
             for b in range(nb):
                 v = Pb[t, b]
-                hok[b] = hok[b] or not (v > 0.0 and v != np.inf)
+                fin[b] += 0.0 if v > 0.0 and v != np.inf else 1.0
         for b in range(nb):
-            if hok[b]:
-                bad += 1
+            bad += fin[b] > 0.0
+        _store(xb, Pb, xn, Pn, c0, nb, iu, ju)
+        _store(xb, Pb, x_post, P_post, c0, nb, iu, ju)
+        for i in range(n):
+            src, dst = Kb[i], K[i, c0:c1]
+            for b in range(nb):
+                dst[b] = src[b]
+        ys, ss, si, lts = y[c0:c1], S[c0:c1], SI[c0:c1], lam_t[c0:c1]
+        for b in range(nb):
+            ys[b] = yb[b]
+            ss[b] = sb[b]
+            si[b] = 1.0 / sb[b]
+            lts[b] = lt[b]
     return bad
 
 
 @njit(**_JIT)
-def bank_unhealthy(P, cond_max, bad):
+def bank_unhealthy(Pt, cond_max, bad):
     """``bad[c]``: channel ``c``'s ``P`` fails the health check of
-    `RecursiveLeastSquares` (``_kernels_shared.unhealthy``)."""
-    for c in range(P.shape[0]):
-        bad[c] = _unhealthy(P[c], cond_max)
+    `RecursiveLeastSquares` (``_kernels_shared.unhealthy``).
+
+    ``Pt`` is in the bank's layout (n, n, C) (`_load`). Blocks of channels
+    whose ``P`` is exactly symmetric are proved healthy by `_bound_healthy`
+    all at once; `unhealthy` decides the others.
+    """
+    n, C = Pt.shape[0], Pt.shape[2]
+    B = 64
+    W = np.empty((n, n, B))
+    X = np.empty((n, n, B))
+    T = np.empty((n, n))
+    tr = np.empty(B)
+    fin = np.empty(B)
+    acc = np.empty(B)
+    good = np.empty(B, dtype=np.bool_)
+    for c0 in range(0, C, B):
+        nb = min(B, C - c0)
+        for b in range(nb):
+            fin[b] = 0.0
+        for i in range(n):
+            for j in range(i, n):
+                for b in range(nb):
+                    u = Pt[j, i, c0 + b]                    # P[c, i, j]
+                    v = Pt[i, j, c0 + b]                    # P[c, j, i]
+                    a = 0.5 * (u + v)                       # A = (P + P^T) / 2
+                    W[i, j, b] = a
+                    # 0 when finite; NaN (the exact test decides) when not, or when
+                    # P is not exactly symmetric
+                    fin[b] += 0.0 * a + (0.0 if u == v else np.nan)
+        _bound_healthy(W, X, tr, fin, acc, good, nb, cond_max)
+        for b in range(nb):
+            if good[b]:
+                bad[c0 + b] = False
+            else:
+                for i in range(n):
+                    for j in range(n):
+                        T[i, j] = Pt[j, i, c0 + b]
+                bad[c0 + b] = _unhealthy(T, cond_max)

@@ -7,6 +7,13 @@ call updates every channel (:mod:`rlsfilt.filters._kernels_bank`). Each
 channel follows exactly the arithmetic of its own `RecursiveLeastSquares`,
 so ``bank.channel(i)`` is an ordinary filter that continues where channel
 ``i`` of the bank stands.
+
+The state arrays the bank makes (``x``, ``P``, their priors and
+posteriors, ``K``, ``Q``) are stored in Fortran order, the channel index
+varying fastest: their transposes (``x.T`` is ``(dim_x, C)``) are the
+C-contiguous arrays the kernels read and write along the channels, with no
+copy or transposition per call. An array assigned in another layout is
+copied into this one once, at its next use.
 """
 
 import copy
@@ -102,23 +109,25 @@ class BankHistory:
     covariances, covariances_p : ndarray, shape (N, C, dim_x, dim_x), or None
         ``P`` after each update and after each predict (None with
         ``store_covariances=False``).
-    residuals : ndarray, shape (N, C)
+    residuals : ndarray, shape (N, C), or None
         A-priori residuals :math:`z - H x^-` of each step and channel (NaN
-        where the channel skipped the step).
-    innovation_variances : ndarray, shape (N, C)
+        where the channel skipped the step; None with
+        ``store_residuals=False``).
+    innovation_variances : ndarray, shape (N, C), or None
         :math:`S = H P^- H^T + R` (NaN where the regressor held NaN), so
         that ``residuals / sqrt(innovation_variances)`` are the recursive
-        residuals of each channel.
+        residuals of each channel (None with ``store_residuals=False``).
     """
 
     def __init__(self, means, covariances, means_p, covariances_p, residuals,
-                 innovation_variances):
+                 innovation_variances, shape=None):
         self.means = means
         self.covariances = covariances
         self.means_p = means_p
         self.covariances_p = covariances_p
         self.residuals = residuals
         self.innovation_variances = innovation_variances
+        self._shape = residuals.shape if shape is None else tuple(shape)
 
     def __iter__(self):
         return iter((self.means, self.covariances, self.means_p, self.covariances_p))
@@ -130,7 +139,7 @@ class BankHistory:
         return (self.means, self.covariances, self.means_p, self.covariances_p)[index]
 
     def __repr__(self):
-        N, C = self.residuals.shape
+        N, C = self._shape
         return f"<BankHistory: {N} steps of {C} channels>"
 
 
@@ -242,6 +251,14 @@ class RLSBank:
     (its estimate and covariance are kept, its ``K`` is zero and its ``y``
     NaN); the other channels update. Infinite values are errors.
 
+    **Memory layout.** The arrays the bank makes for its state (``x``,
+    ``P``, their priors and posteriors, ``K``) have the documented shapes
+    but Fortran order: the channel index varies fastest, so that the
+    compiled kernels run along the channels with no transposition (NumPy
+    handles them as any array; ``np.ascontiguousarray`` gives a C-ordered
+    copy). An array assigned to ``x`` or ``P`` is stored as a Fortran-ordered
+    copy.
+
     References
     ----------
     .. [1] L. Ljung, *System Identification: Theory for the User*, 2nd ed.,
@@ -294,8 +311,9 @@ class RLSBank:
         if not isinstance(parallel, (bool, np.bool_)):
             raise TypeError(f"`parallel` must be True or False; got {parallel!r}")
         self.parallel = bool(parallel)
-        self._P0 = self._covariances(P0, "P0", definite=True)
-        self._x0 = self._estimates(np.zeros(self.dim_x) if x0 is None else x0, "x0")
+        self._P0 = np.asfortranarray(self._covariances(P0, "P0", definite=True))
+        self._x0 = np.asfortranarray(
+            self._estimates(np.zeros(self.dim_x) if x0 is None else x0, "x0"))
         self.reset()
 
     # ------------------------------------------------------------------
@@ -309,7 +327,7 @@ class RLSBank:
 
     @x.setter
     def x(self, value):
-        self._x = np.array(as_float_array(value, "x"), dtype=np.float64, order="C")
+        self._x = np.array(as_float_array(value, "x"), dtype=np.float64, order="F")
 
     @property
     def P(self):
@@ -319,7 +337,7 @@ class RLSBank:
 
     @P.setter
     def P(self, value):
-        self._P = np.array(as_float_array(value, "P"), dtype=np.float64, order="C")
+        self._P = np.array(as_float_array(value, "P"), dtype=np.float64, order="F")
 
     @property
     def lam(self):
@@ -335,6 +353,8 @@ class RLSBank:
             raise ValueError(f"`lam` must be in (0, 1]; got {lam[c]} for channel {c}")
         self._params = self._mode_params(lam, self._R)
         self._lam = lam
+        # 1 / lam, applied by the time update: the exponential mode only
+        self._il = 1.0 / lam if self._mode == 0 else np.ones(self.n_channels)
 
     @property
     def R(self):
@@ -352,7 +372,7 @@ class RLSBank:
 
     @Q.setter
     def Q(self, value):
-        self._Q = self._covariances(value, "Q")
+        self._Q = np.asfortranarray(self._covariances(value, "Q"))
         self._Q_is_zero = not self._Q.any()
 
     @property
@@ -410,12 +430,12 @@ class RLSBank:
         else:
             Q = self._covariances(Q, "Q")
             Q_is_zero = not Q.any()
-        x, P = self._checked_x(), self._checked_P()
-        Pn = np.empty_like(P)
-        _get_kernels().bank_predict(P, self._time_il(), Q, Q_is_zero, Pn)
-        self._P = Pn
-        self.x_prior = x.copy()
-        self.P_prior = Pn.copy()
+        xt, Pt = self._checked_x(), self._checked_P()          # (n, C), (n, n, C)
+        Pn, P_prior = np.empty_like(Pt), np.empty_like(Pt)
+        (_kernels or _get_kernels()).bank_predict(Pt, self._il, _t(Q), Q_is_zero, Pn, P_prior)
+        self._P = Pn.T
+        self.x_prior = xt.copy().T
+        self.P_prior = P_prior.T
         self._updates_since_predict = 0
 
     @_atomic
@@ -436,21 +456,27 @@ class RLSBank:
             Noise variances for this call only.
         """
         C, n = self.n_channels, self.dim_x
-        zz = self._measurements(z, "z", (C,), f"({C},) (one measurement per channel)")
-        Hm = self._measurements(H, "H", (C, n), f"({C}, {n}) (one regressor row of dim_x = "
-                                                 f"{n} per channel)")
+        # shapes and types here; infinities are found by the kernel (no extra pass)
+        zz = self._measurements(z, "z", (C,), "({C},) (one measurement per channel)",
+                                finite=False)
+        Hm = self._measurements(H, "H", (C, n), "({C}, {n}) (one regressor row of dim_x = "
+                                                 "{n} per channel)", finite=False)
         r = self._R if R is None else self._per_channel_positive(R, "R")
-        x, P = self._checked_x(), self._checked_P()
-        xn, Pn = np.empty((C, n)), np.empty((C, n, n))
-        y, S, K, lam_t = np.empty(C), np.empty(C), np.empty((C, n)), np.empty(C)
-        kern = _get_kernels()
-        bad = kern.bank_update(x, P, zz, Hm, r, self._lam, self._mode, self._params, xn, Pn, y,
-                               S, K, lam_t, kern.block_size(n, C))
+        xt, Pt = self._checked_x(), self._checked_P()          # (n, C), (n, n, C)
+        xn, x_post, K = np.empty((n, C)), np.empty((n, C)), np.empty((n, C))
+        Pn, P_post = np.empty((n, n, C)), np.empty((n, n, C))
+        y, S, SI, lam_t = np.empty(C), np.empty(C), np.empty(C), np.empty(C)
+        bad = (_kernels or _get_kernels()).bank_update(
+            xt, Pt, zz, Hm, r, self._lam, self._mode, self._params, xn, Pn, x_post, P_post, y,
+            S, SI, K, lam_t)
+        if bad < 0:                          # an infinite value: name the first one
+            for name, arr in (("z", zz), ("H", Hm)):
+                self._measurements(arr, name, None, None)
         self._note_update()
-        self._x, self._P = xn, Pn
-        self.x_post, self.P_post = xn.copy(), Pn.copy()
+        self._x, self._P = xn.T, Pn.T
+        self.x_post, self.P_post = x_post.T, P_post.T
         self.z, self.H = zz.copy(), Hm.copy()
-        self.y, self.S, self.SI, self.K, self.lam_t = y, S, 1.0 / S, K, lam_t
+        self.y, self.S, self.SI, self.K, self.lam_t = y, S, SI, K.T, lam_t
         self.n_updates += 1
         every = self.check_every
         if every and (bad or not self.n_updates % every):
@@ -467,7 +493,7 @@ class RLSBank:
 
     @_atomic
     def batch_filter(self, zs, Hs, Rs=None, update_first=False, saver=None,
-                     store_covariances=True, store_means=True):
+                     store_covariances=True, store_means=True, store_residuals=True):
         r"""Run every channel over a record in one compiled call.
 
         Parameters
@@ -491,6 +517,13 @@ class RLSBank:
         store_means : bool, default True
             With ``False`` no estimate histories are kept either (returned as
             None): memory stays ``O(N C)`` (the residual histories).
+        store_residuals : bool, default True
+            With ``False`` the residual histories are not kept either
+            (``residuals`` and ``innovation_variances`` are None): with the
+            two options above, the call keeps only the final state (and the
+            last step's ``y``, ``S``), in ``O(C dim_x^2)`` memory, and saves
+            writing two ``(N, C)`` arrays (a fifth of the run time of 10,000
+            channels x 1,000 samples at 4 parameters; ``docs/performance.md``).
 
         Returns
         -------
@@ -513,6 +546,7 @@ class RLSBank:
         update_first = check_bool(update_first, "update_first")
         store_covariances = check_bool(store_covariances, "store_covariances")
         store_means = check_bool(store_means, "store_means")
+        store_residuals = check_bool(store_residuals, "store_residuals")
         if saver is not None and not callable(getattr(saver, "save", None)):
             raise TypeError(f"`saver` must be None or have a save() method (filterpy's Saver); "
                             f"got {type(saver).__name__}")
@@ -533,22 +567,23 @@ class RLSBank:
         Rv = self._batch_variances(Rs, N)
         if saver is not None:
             return self._batch_stepwise(Z, Hm, Rv, update_first, saver, store_covariances,
-                                        store_means)
-        x = np.array(self._checked_x(), dtype=np.float64, order="C")
-        P = np.array(self._checked_P(), dtype=np.float64, order="C")
+                                        store_means, store_residuals)
+        x0t = self._checked_x()
+        xt, Pt = x0t.copy(), self._checked_P().copy()     # (n, C), (n, n, C), overwritten
         means = np.empty((N if store_means else 0, C, n))
         covs = np.empty((N if store_covariances else 0, C, n, n))
         covs_p = np.empty_like(covs)
-        ys, ss = np.empty((N, C)), np.empty((N, C))
-        x_prior, P_prior = np.empty((C, n)), np.empty((C, n, n))
-        x_post, P_post = np.empty((C, n)), np.empty((C, n, n))
-        K, lam_t = np.zeros((C, n)), self._lam.copy()
+        rows = N if store_residuals else min(N, 1)   # else the last step's only
+        ys, ss = np.empty((rows, C)), np.empty((rows, C))
+        x_prior, P_prior = np.empty((n, C)), np.empty((n, n, C))
+        x_post, P_post = np.empty((n, C)), np.empty((n, n, C))
+        K, lam_t = np.zeros((n, C)), self._lam.copy()
         k_fail = np.full(C, -1, dtype=np.int64)
         k_inf = np.full(C, -1, dtype=np.int64)
         kern = _get_kernels()
         if N:
             run = kern.bank_batch_parallel if self.parallel else kern.bank_batch
-            run(x, P, Z, Hk, h_last, Rv, self._time_il(), self._lam, self._Q, self._Q_is_zero,
+            run(xt, Pt, Z, Hk, h_last, Rv, self._il, self._lam, _t(self._Q), self._Q_is_zero,
                 self._mode, self._params, update_first, means, covs, covs_p, ys, ss,
                 x_prior, P_prior, x_post, P_post, K, lam_t, self.check_every, self.n_updates,
                 self.cond_max, k_fail, k_inf, kern.block_size(n, C))
@@ -556,14 +591,15 @@ class RLSBank:
         means_p = None
         if store_means:            # the estimate is unchanged by a time update
             means_p = means.copy() if update_first else np.concatenate(
-                [self._checked_x()[None], means[:-1]]) if N else means.copy()
+                [x0t.T[None], means[:-1]]) if N else means.copy()
         step0 = self.n_updates
-        self._x, self._P = x, P
+        self._x, self._P = xt.T, Pt.T
         if N:
-            self.x_prior, self.P_prior, self.x_post, self.P_post = x_prior, P_prior, x_post, P_post
+            self.x_prior, self.P_prior = x_prior.T, P_prior.T
+            self.x_post, self.P_post = x_post.T, P_post.T
             self.z, self.H = Z[-1].copy(), Hm[-1].copy()
             self.y, self.S = ys[-1].copy(), ss[-1].copy()
-            self.SI, self.K, self.lam_t = 1.0 / self.S, K, lam_t
+            self.SI, self.K, self.lam_t = 1.0 / self.S, K.T, lam_t
             self.n_updates += N
             self._updates_since_predict = 0 if update_first else 1
             self._fresh = False
@@ -576,9 +612,12 @@ class RLSBank:
             self._check_health("at the end of batch_filter")
         return BankHistory(means if store_means else None,
                            covs if store_covariances else None, means_p,
-                           covs_p if store_covariances else None, ys, ss)
+                           covs_p if store_covariances else None,
+                           ys if store_residuals else None,
+                           ss if store_residuals else None, (N, C))
 
-    def _batch_stepwise(self, Z, Hm, Rv, update_first, saver, store_covariances, store_means):
+    def _batch_stepwise(self, Z, Hm, Rv, update_first, saver, store_covariances, store_means,
+                        store_residuals):
         """`batch_filter` with a `saver`: :meth:`predict`/:meth:`update` step by
         step, ``saver.save()`` after each step. The record is validated first;
         a call that raises is undone by `batch_filter` (see `_atomic`)."""
@@ -616,7 +655,9 @@ class RLSBank:
         return BankHistory(means if store_means else None,
                            covs if store_covariances else None,
                            means_p if store_means else None,
-                           covs_p if store_covariances else None, ys, ss)
+                           covs_p if store_covariances else None,
+                           ys if store_residuals else None,
+                           ss if store_residuals else None, (N, C))
 
     @_atomic
     def initialize(self, zs, Hs):
@@ -659,8 +700,8 @@ class RLSBank:
         norms = np.linalg.norm(A, axis=1)                              # (C, n)
         d = np.where(norms > 0.0, norms, 1.0)
         As = A / d[:, None, :]
-        rank = (np.linalg.matrix_rank(As) if k0 else np.zeros(C, dtype=int))
-        rank = np.broadcast_to(rank, (C,))
+        Qf, Rf = np.linalg.qr(As) if k0 >= n else (None, None)
+        rank, Rinv = _full_rank(As, Rf)
         short = np.flatnonzero(rank < n)
         if short.size:
             c = int(short[0])
@@ -669,15 +710,15 @@ class RLSBank:
                 f"{c} has {int(rank[c])} linearly independent rows in {int(keep[:, c].sum())} "
                 f"usable samples; need {n} (one per parameter). Use more samples or a more "
                 "exciting input.")
-        Qf, Rf = np.linalg.qr(As)
-        Rinv = np.linalg.inv(Rf)                          # upper triangular, batched
+        if Rinv is None:
+            Rinv = np.linalg.inv(Rf)                      # upper triangular, batched
         x = (Rinv @ (Qf.transpose(0, 2, 1) @ B))[:, :, 0] / d
         Rinv = Rinv / d[:, :, None]                       # D^-1 R_s^-1
         P = self._R[:, None, None] * (Rinv @ Rinv.transpose(0, 2, 1))
-        self._x = x
-        self._P = 0.5 * (P + P.transpose(0, 2, 1))
-        self.x_prior, self.x_post = x.copy(), x.copy()
-        self.P_prior, self.P_post = self.P.copy(), self.P.copy()
+        self._x = np.asfortranarray(x)
+        self._P = np.asfortranarray(0.5 * (P + P.transpose(0, 2, 1)))
+        self.x_prior, self.x_post = self._x.copy(order="F"), self._x.copy(order="F")
+        self.P_prior, self.P_post = self._P.copy(order="F"), self._P.copy(order="F")
         self._updates_since_predict = 0
 
     # ------------------------------------------------------------------
@@ -714,8 +755,8 @@ class RLSBank:
             Q=self._Q[i], forgetting=self.forgetting,
             forgetting_params=self._forgetting_params_in, check_every=self.check_every,
             cond_max=self.cond_max)
-        f.x = self._checked_x()[i].reshape(n, 1).copy()
-        f.P = self._checked_P()[i].copy()
+        f.x = self._checked_x()[:, i].reshape(n, 1).copy()
+        f.P = self._checked_P()[:, :, i].T.copy()
         f.x_prior, f.P_prior = self.x_prior[i].reshape(n, 1).copy(), self.P_prior[i].copy()
         f.x_post, f.P_post = self.x_post[i].reshape(n, 1).copy(), self.P_post[i].copy()
         f.n_updates = self.n_updates
@@ -745,8 +786,10 @@ class RLSBank:
                         if key in ("dim_x", "_mode", "_forgetting_params_in", "check_every",
                                    "cond_max", "parallel")}
         new.n_channels = len(channels)
-        for name in ("_lam", "_R", "_Q", "_params", "_P0", "_x0"):
+        for name in ("_lam", "_il", "_R", "_params"):
             setattr(new, name, getattr(self, name)[channels])       # (copies)
+        for name in ("_Q", "_P0", "_x0"):                           # (state layout)
+            setattr(new, name, np.asfortranarray(getattr(self, name)[channels]))
         new._Q_is_zero = not new._Q.any()
         new.reset()
         return new
@@ -757,16 +800,16 @@ class RLSBank:
         ``lam``, ``R``, ``Q`` and the forgetting mode are kept.
         """
         C, n = self.n_channels, self.dim_x
-        self._x = self._x0.copy()
-        self._P = self._P0.copy()
-        self.x_prior, self.P_prior = self.x.copy(), self.P.copy()
-        self.x_post, self.P_post = self.x.copy(), self.P.copy()
+        self._x = self._x0.copy(order="F")
+        self._P = self._P0.copy(order="F")
+        self.x_prior, self.P_prior = self._x.copy(order="F"), self._P.copy(order="F")
+        self.x_post, self.P_post = self._x.copy(order="F"), self._P.copy(order="F")
         self.H = np.zeros((C, n))
         self.z = np.zeros(C)
         self.y = np.zeros(C)
         self.S = np.zeros(C)
         self.SI = np.zeros(C)
-        self.K = np.zeros((C, n))
+        self.K = np.zeros((C, n), order="F")
         self.lam_t = self._lam.copy()
         self.n_updates = 0
         self.failed_channels = np.zeros(0, dtype=np.int64)
@@ -826,7 +869,7 @@ class RLSBank:
     def _check_health(self, where):
         """Full check of every channel's ``P``; warn about channels that newly fail."""
         bad = np.zeros(self.n_channels, dtype=np.bool_)
-        _get_kernels().bank_unhealthy(self.P, self.cond_max, bad)
+        _get_kernels().bank_unhealthy(self._checked_P(), self.cond_max, bad)
         failed = np.flatnonzero(bad)
         if failed.size:
             self._warn_health(failed, where)
@@ -849,10 +892,6 @@ class RLSBank:
     # ------------------------------------------------------------------
     # private helpers
     # ------------------------------------------------------------------
-    def _time_il(self):
-        """``1 / lam`` applied by the time update: the exponential mode only."""
-        return 1.0 / self._lam if self._mode == 0 else np.ones(self.n_channels)
-
     def _note_update(self):
         """Warn once when forgetting is skipped by two updates in a row."""
         if (self._updates_since_predict and not self._warned_skip
@@ -954,7 +993,10 @@ class RLSBank:
     def _measurements(self, value, name, shape, expected, ndim=None, finite=True,
                       strided=False):
         """A float64 array of `shape` (or `ndim`): NaN allowed, inf not (not
-        checked here with ``finite=False``: the record kernel checks it).
+        checked here with ``finite=False``: the kernels check it).
+
+        `expected` describes the shape in the error message; it may hold the
+        fields ``{C}`` and ``{n}`` (filled in only when the message is made).
 
         C-contiguous, or with ``strided=True`` in the caller's layout (the
         caller decides). The kernels only read it, so the caller's array is
@@ -963,15 +1005,17 @@ class RLSBank:
         arr = value if (type(value) is np.ndarray and value.dtype == np.float64) \
             else as_float_array(value, name)
         if (shape is not None and arr.shape != shape) or (ndim is not None and arr.ndim != ndim):
+            expected = expected.format(C=self.n_channels, n=self.dim_x)
             raise ValueError(f"`{name}` must have shape {expected}; got {arr.shape}")
         if not strided:
             arr = np.ascontiguousarray(arr)
-        with np.errstate(invalid="ignore", over="ignore"):    # inf - inf: NaN, no warning
-            total = arr.sum() if finite else 0.0
-        if finite and not np.isfinite(total) and np.isinf(arr).any():
-            idx = tuple(int(v) for v in np.argwhere(np.isinf(arr))[0])
-            raise ValueError(f"`{name}` must be finite or NaN (missing); got {arr[idx]} at "
-                             f"index {idx}")
+        if finite:
+            with np.errstate(invalid="ignore", over="ignore"):    # inf - inf: NaN, no warning
+                total = arr.sum()
+            if not np.isfinite(total) and np.isinf(arr).any():
+                idx = tuple(int(v) for v in np.argwhere(np.isinf(arr))[0])
+                raise ValueError(f"`{name}` must be finite or NaN (missing); got {arr[idx]} at "
+                                 f"index {idx}")
         return arr
 
     def _batch_variances(self, Rs, N):
@@ -992,21 +1036,63 @@ class RLSBank:
         return np.ascontiguousarray(arr)
 
     def _checked_x(self):
+        """``x`` in the kernels' layout, ``x^T`` of shape (dim_x, C) (`_t`)."""
         x = self.x
         C, n = self.n_channels, self.dim_x
         if not isinstance(x, np.ndarray) or x.shape != (C, n):
             raise ValueError(f"`x` must be an array of shape ({C}, {n}); got "
                              f"{getattr(x, 'shape', type(x).__name__)}")
-        return np.ascontiguousarray(x, dtype=np.float64)
+        return _t(x)
 
     def _checked_P(self):
+        """``P`` in the kernels' layout, ``P^T`` of shape (dim_x, dim_x, C) (`_t`)."""
         P = self.P
         C, n = self.n_channels, self.dim_x
         if not isinstance(P, np.ndarray) or P.shape != (C, n, n):
             raise ValueError(f"`P` must be an array of shape ({C}, {n}, {n}); got "
                              f"{getattr(P, 'shape', type(P).__name__)}")
-        return np.ascontiguousarray(P, dtype=np.float64)
+        return _t(P)
 
+
+
+def _full_rank(As, R):
+    """``np.linalg.matrix_rank(As)`` of each ``(k0, n)`` matrix of the stack `As`
+    (C, k0, n), from its QR factors ``R`` (C, n, n) where they settle the
+    answer (`R` is None when ``k0 < n``); and ``R^-1`` when every ``R`` has
+    a nonzero diagonal (else None).
+
+    ``matrix_rank`` counts the singular values above ``tol = s_max max(k0,
+    n) eps``. With ``As = Q R``, ``s_max <= ||R||_F`` and ``s_min >= 1 /
+    ||R^-1||_F``, so ``1 / ||R^-1||_F > 1000 ||R||_F max(k0, n) eps``
+    proves full rank ``n`` with a wide margin for the rounding of either
+    computation; ``matrix_rank`` (an SVD per matrix) decides the other
+    matrices, so the ranks are those ``matrix_rank`` gives. Most channels of
+    an excited fleet are settled by the QR (cheaper than the SVD).
+    """
+    C, k0, n = As.shape
+    if R is None or C == 0:
+        return np.broadcast_to(np.linalg.matrix_rank(As) if k0 else 0, (C,)), None
+    rank = np.full(C, n)
+    proved = (np.diagonal(R, axis1=1, axis2=2) != 0.0).all(axis=1)
+    every = bool(proved.all())
+    Rinv = np.linalg.inv(R if every else R[proved])
+    Rp = R if every else R[proved]
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):  # (not proved)
+        bound = 1.0 / np.sqrt((Rinv * Rinv).sum(axis=(1, 2)))
+        scale = np.sqrt((Rp * Rp).sum(axis=(1, 2)))
+    proved[proved] = bound > 1000.0 * scale * max(k0, n) * np.finfo(float).eps
+    rest = np.flatnonzero(~proved)
+    if rest.size:
+        rank[rest] = np.linalg.matrix_rank(As[rest])
+    return rank, (Rinv if every else None)
+
+
+def _t(a):
+    """The kernels' view of a state array of the bank: its transpose, C-contiguous
+    float64 (no copy when `a` is in the bank's Fortran order, else a copy)."""
+    t = a.T
+    return t if t.flags.c_contiguous and t.dtype == np.float64 else \
+        np.ascontiguousarray(t, dtype=np.float64)
 
 
 def _check_magnitude(scale, name):
