@@ -85,10 +85,24 @@ def c_array(a):
 # blocks and their reuse
 # ----------------------------------------------------------------------
 def update_shapes(n, m):
-    """Shapes of the diagnostics an update writes, in the order of its block (the
-    layout ``_kernels.update_kernel`` writes; then its work space): ``y, K, S,
-    SI, H, z, x_post, P_post``. The new ``x`` and ``P`` are arrays of their own."""
-    return ((m, 1), (n, 1), (m, m), (m, m), (1, n), (m, 1), (n, m), (n, n))
+    """Shapes of the arrays an update writes, in the order of its block (the
+    layout ``_kernels.update_kernel`` writes; then its work space, `update_work`):
+    ``y, K, S, SI, H, z, x_post, P_post, x_prior, P_prior`` (the last two only
+    when the update runs a pending predict). The new ``x`` and ``P`` are
+    arrays of their own."""
+    return ((m, 1), (n, 1), (m, m), (m, m), (1, n), (m, 1), (n, m), (n, n), (n, m), (n, n))
+
+
+def lam_t_at(n, m):
+    """Where in an update's buffer ``update_kernel`` writes ``lam_t`` (after the
+    arrays and the gain)."""
+    return sum(r * c for r, c in update_shapes(n, m)) + n
+
+
+def update_work(n):
+    """The work space at the end of an update's block: the gain, ``lam_t`` and an
+    (n, n) matrix (constraints, EFRA)."""
+    return n + 1 + n * n
 
 
 def predict_shapes(n, m):
@@ -135,8 +149,22 @@ _getrefcount = getattr(sys, "getrefcount", lambda a: 0)
 # ----------------------------------------------------------------------
 # the steps
 # ----------------------------------------------------------------------
-_FREE_PREDICT, _FREE_UPDATE = _free_sum(3), _free_sum(8, arrays=2)
-_FREE_EACH = _counts(_sample(8, arrays=2)) if _FREE_UPDATE > 0 else None
+#: The empty (0, 0) array the kernels take for an absent ``Q`` or projector.
+EMPTY = np.zeros((0, 0))
+
+def quick_count(spare):
+    """The reference counts of ``x``, ``P`` and the buffer of an update's `spare`,
+    summed: the quick test of `update` (written out there the same way)."""
+    return _getrefcount(spare[0]) + _getrefcount(spare[1]) + _getrefcount(spare[2])
+
+
+_N_UPDATE = len(update_shapes(1, 1))            # the views of an update's block
+_FREE_PREDICT = _free_sum(3)
+_FREE_EACH = _counts(_sample(_N_UPDATE, arrays=2)) if _free_sum(1) > 0 else None
+#: What `quick_count` gives when nobody else holds ``x``, ``P`` or the buffer of an
+#: update's arrays: the quick test, enough while no view of the block was handed
+#: out (a view of a view, or the buffer itself, shows in the buffer's count).
+_FREE_UPDATE = quick_count(_sample(_N_UPDATE, arrays=2)) if _FREE_EACH is not None else -1
 
 
 def predict(x, P, il, Q, cfg, spare):
@@ -154,35 +182,42 @@ def predict(x, P, il, Q, cfg, spare):
     return out
 
 
-def update(x, P, phi, z, r, cfg, w, spare):
+def measurement(z):
+    """``(z0, zmode)`` of `update_kernel` for `z`: a float, None (missing) or a
+    validated column (written into the block by `update`)."""
+    if z is None:
+        return 0.0, 2
+    if type(z) is np.ndarray:
+        return 0.0, 0
+    return z, 1
+
+
+def update(x, P, phi, z, r, cfg, w, spare, handed=True, il=0.0, Q=EMPTY):
     """One measurement update into new arrays (those of `spare` where they are free).
 
     `phi` is the regressor row, a writable C-contiguous float64 array (n,)
     (the kernel checks that it is finite), `z` a float, a validated column
     (m, 1) or None (missing); `w` is ``1 / lam`` when the last predict held
-    the forgetting back (the windup cap) and 1 otherwise. `spare` is None or
-    the ``arrays`` of an earlier call. Returns ``code, s, lam_t, gated, cap,
-    arrays``: ``arrays = (x, P, buffer, y, K, S, SI, H, z, x_post, P_post)``,
-    the new estimate and covariance (arrays of their own: a caller who keeps
-    them, as a list of estimates or a ``Saver`` does, leaves the rest
-    reusable) and the block of the diagnostics (its buffer ends with ``n +
-    n^2`` numbers of work space); ``code``, ``cap`` as ``update_kernel``'s.
+    the forgetting back (the windup cap) and 1 otherwise; ``il > 0`` (with
+    `Q`) runs a pending predict first (``update_kernel``). `spare` is None or
+    the ``arrays`` of an earlier call; `handed`: a view of its block may be
+    held by someone (then every array is tested, not only ``x``, ``P`` and
+    the buffer). Returns ``flags, arrays``: ``flags`` as ``update_kernel``'s,
+    ``arrays = (x, P, buffer, y, K, S, SI, H, z, x_post, P_post, x_prior,
+    P_prior)``, the new estimate and covariance (arrays of their own: a caller
+    who keeps them, as a list of estimates or a ``Saver`` does, leaves the
+    rest reusable) and the block of the diagnostics.
     """
-    if spare is None or sum(map(_getrefcount, spare)) != _FREE_UPDATE:
-        spare = _renew(spare, *x.shape)
-    if z is None:
-        z0, zmode = 0.0, 2
-    elif type(z) is np.ndarray:
+    if spare is None or handed or quick_count(spare) != _FREE_UPDATE:
+        spare = renew(spare, *x.shape)
+    z0, zmode = measurement(z)
+    if zmode == 0:
         spare[8][:] = z                                # the block's z
-        z0, zmode = 0.0, 0
-    else:
-        z0, zmode = z, 1
-    code, s, lam_t, gated, cap = _update_kernel(x, P, phi, z0, zmode, r, cfg, w, spare[0],
-                                                spare[1], spare[2])
-    return code, s, lam_t, gated, cap, spare
+    return _update_kernel(x, P, phi, z0, zmode, r, cfg, w, il, Q, spare[0], spare[1],
+                          spare[2]), spare
 
 
-def _renew(spare, n, m):
+def renew(spare, n, m):
     """`spare` with its held parts made anew: the pair ``x, P`` and the block."""
     counts = None if spare is None or _FREE_EACH is None else _counts(spare)
     if counts is not None and counts[:2] == _FREE_EACH[:2]:
@@ -191,7 +226,7 @@ def _renew(spare, n, m):
         state = (np.empty((n, m)), np.empty((n, n)))
     if counts is not None and counts[2:] == _FREE_EACH[2:]:
         return state + spare[2:]
-    return state + _block(update_shapes(n, m), n + n * n)
+    return state + _block(update_shapes(n, m), update_work(n))
 
 
 def _entry_point(dispatcher, args):
@@ -212,10 +247,10 @@ def _predict_kernel(*args):
     _predict_kernel = _entry_point(_kernels.predict_kernel, args)
 
 
-def _update_kernel(x, P, phi, z0, zmode, r, cfg, w, xn, Pn, out):
+def _update_kernel(x, P, phi, z0, zmode, r, cfg, w, il, Q, xn, Pn, out):
     """The first call: run ``update_kernel``, then call its entry point directly."""
     global _update_kernel
-    args = (x, P, phi, float(z0), zmode, float(r), cfg, float(w), xn, Pn, out)
+    args = (x, P, phi, float(z0), zmode, float(r), cfg, float(w), float(il), Q, xn, Pn, out)
     result = kernels().update_kernel(*args)
     _update_kernel = _entry_point(_kernels.update_kernel, args)
     return result
