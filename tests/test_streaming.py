@@ -41,9 +41,9 @@ def test_blocks_are_contiguous_views_of_one_buffer():
 
 @pytest.mark.skipif(_streaming._FREE_UPDATE < 0, reason="reference counts not trusted here")
 def test_a_block_is_free_only_when_nobody_else_holds_it():
-    """The full test (every array's count) sees anything held; the quick test (``x``,
-    ``P``, the buffer) sees all but a view itself, which the filter tracks instead
-    (a view read through its property marks the block as handed out)."""
+    """The full test (every array's count) sees anything held; the quick test (``x``
+    and ``P``) sees those two: the filter marks the block as handed out when it
+    gives out one of its views (a property read), and then runs the full test."""
     block = (np.empty((n, m)), np.empty((n, n))) + _streaming._block(_streaming.update_shapes(n, m))
 
     def full():
@@ -55,7 +55,7 @@ def test_a_block_is_free_only_when_nobody_else_holds_it():
     assert full() and quick()
     for held, seen_quickly in (
             (lambda: block[0], True), (lambda: block[1][0], True),   # x, a row of P
-            (lambda: block[4][0], True), (lambda: block[2], True),   # a row of a view, buffer
+            (lambda: block[4][0], False), (lambda: block[2], False),  # a row of a view, buffer
             (lambda: block[3], False), (lambda: [block[5]], False),  # a view, a list of one
             (lambda: block[-1], False)):                             # P_prior
         keep = held()
@@ -216,7 +216,7 @@ def test_renew_keeps_what_is_free(rng):
     assert again[0] is not held and again[2:] == spare[2:]
     del spare, held
     row = again[3][0]                              # a caller keeps a row of y: the buffer
-    _, third = _streaming.update(x, P, np.ones(n), None, 1.0, cfg, 1.0, again, handed=False)
+    _, third = _streaming.update(x, P, np.ones(n), None, 1.0, cfg, 1.0, again, handed=True)
     assert third[:2] == again[:2] and third[2] is not again[2]
     del row, again
     view = third[4]                                # a caller keeps K itself

@@ -153,17 +153,18 @@ _getrefcount = getattr(sys, "getrefcount", lambda a: 0)
 EMPTY = np.zeros((0, 0))
 
 def quick_count(spare):
-    """The reference counts of ``x``, ``P`` and the buffer of an update's `spare`,
-    summed: the quick test of `update` (written out there the same way)."""
-    return _getrefcount(spare[0]) + _getrefcount(spare[1]) + _getrefcount(spare[2])
+    """The reference counts of ``x`` and ``P`` of an update's `spare`, summed: the
+    quick test of `update` (written out the same way in
+    ``RecursiveLeastSquares.update``). Enough while no view of the block was handed
+    out: the filter reads its views only through properties that mark the block
+    (``handed``), so the buffer and the views are then held by the block alone."""
+    return _getrefcount(spare[0]) + _getrefcount(spare[1])
 
 
 _N_UPDATE = len(update_shapes(1, 1))            # the views of an update's block
 _FREE_PREDICT = _free_sum(3)
 _FREE_EACH = _counts(_sample(_N_UPDATE, arrays=2)) if _free_sum(1) > 0 else None
-#: What `quick_count` gives when nobody else holds ``x``, ``P`` or the buffer of an
-#: update's arrays: the quick test, enough while no view of the block was handed
-#: out (a view of a view, or the buffer itself, shows in the buffer's count).
+#: What `quick_count` gives when nobody else holds ``x`` or ``P`` of an update's arrays.
 _FREE_UPDATE = quick_count(_sample(_N_UPDATE, arrays=2)) if _FREE_EACH is not None else -1
 
 
@@ -195,14 +196,14 @@ def measurement(z):
 def update(x, P, phi, z, r, cfg, w, spare, handed=True, il=0.0, Q=EMPTY):
     """One measurement update into new arrays (those of `spare` where they are free).
 
-    `phi` is the regressor row, a writable C-contiguous float64 array (n,)
-    (the kernel checks that it is finite), `z` a float, a validated column
+    `phi` is the regressor row, a float64 array (n,) of any layout (the kernel
+    checks that it is finite), `z` a float, a validated column
     (m, 1) or None (missing); `w` is ``1 / lam`` when the last predict held
     the forgetting back (the windup cap) and 1 otherwise; ``il > 0`` (with
     `Q`) runs a pending predict first (``update_kernel``). `spare` is None or
-    the ``arrays`` of an earlier call; `handed`: a view of its block may be
-    held by someone (then every array is tested, not only ``x``, ``P`` and
-    the buffer). Returns ``flags, arrays``: ``flags`` as ``update_kernel``'s,
+    the ``arrays`` of an earlier call; `handed`: a view of its block (or the
+    buffer) may be held by someone (then every array is tested, not only
+    ``x`` and ``P``). Returns ``flags, arrays``: ``flags`` as ``update_kernel``'s,
     ``arrays = (x, P, buffer, y, K, S, SI, H, z, x_post, P_post, x_prior,
     P_prior)``, the new estimate and covariance (arrays of their own: a caller
     who keeps them, as a list of estimates or a ``Saver`` does, leaves the
@@ -229,13 +230,21 @@ def renew(spare, n, m):
     return state + _block(update_shapes(n, m), update_work(n))
 
 
-def _entry_point(dispatcher, args):
+def _entry_point(dispatcher, args, strided=()):
     """The compiled function of `dispatcher` for exactly the types of `args` (the
-    dispatcher itself if numba does not expose it)."""
+    dispatcher itself if numba does not expose it); the arrays at the positions
+    `strided` are typed with any layout (compiled for them if needed), so that
+    the caller need not test them for contiguity."""
     try:
         from numba import typeof
 
-        return dispatcher.overloads[tuple(typeof(a) for a in args)].entry_point
+        sig = [typeof(a) for a in args]
+        for i in strided:
+            sig[i] = sig[i].copy(layout="A", readonly=False)
+        sig = tuple(sig)
+        if sig not in dispatcher.overloads:
+            dispatcher.compile(sig)
+        return dispatcher.overloads[sig].entry_point
     except Exception:       # pragma: no cover - numba internals changed
         return dispatcher
 
@@ -248,9 +257,10 @@ def _predict_kernel(*args):
 
 
 def _update_kernel(x, P, phi, z0, zmode, r, cfg, w, il, Q, xn, Pn, out):
-    """The first call: run ``update_kernel``, then call its entry point directly."""
+    """The first call: find ``update_kernel``'s entry point (the regressor row `phi`
+    of any layout: ``update`` tests its type, dtype and shape only), then call it
+    directly."""
     global _update_kernel
     args = (x, P, phi, float(z0), zmode, float(r), cfg, float(w), float(il), Q, xn, Pn, out)
-    result = kernels().update_kernel(*args)
-    _update_kernel = _entry_point(_kernels.update_kernel, args)
-    return result
+    _update_kernel = _entry_point(kernels().update_kernel, args, strided=(2,))
+    return _update_kernel(*args)

@@ -51,8 +51,8 @@ def _diagnostic(i, doc):
     """The property of the diagnostic at position `i` of ``_last_update`` (the
     arrays of the last update: ``x, P, buffer, y, K, S, SI, H, z, x_post,
     P_post, ...``). Reading it marks the arrays as handed out; assigning it
-    replaces it (and takes the block out of reuse: its views are no longer all
-    the filter's)."""
+    replaces it and takes those arrays out of reuse (``None`` for ``x``, ``P``
+    and the buffer: the quick test of `update` then fails)."""
 
     def get(self):
         self._handed = True
@@ -60,7 +60,7 @@ def _diagnostic(i, doc):
 
     def put(self, value):
         lu = self._last_update
-        self._last_update = lu[:2] + (None,) + lu[3:i] + (value,) + lu[i + 1:]
+        self._last_update = (None, None, None) + lu[3:i] + (value,) + lu[i + 1:]
 
     return property(get, put, doc=doc)
 
@@ -331,8 +331,8 @@ class RecursiveLeastSquares(_FilterBase):
     # them was handed out (read through its property), so that the step that reuses
     # those arrays tests every one of them, not only ``x``, ``P`` and the buffer.
     __slots__ = ("_x", "_P", "_cfg", "_last_predict", "_spare_predict", "_last_update",
-                 "_spare_update", "_pending", "_x_prior", "_P_prior", "_handed",
-                 "_handed_spare")
+                 "_spare_update", "_pending", "_deferred", "_x_prior", "_P_prior",
+                 "_handed", "_handed_spare")
 
     _HEALTH_ADVICE = ("The estimate may be unreliable: use a forgetting mode that bounds P "
                       "(forgetting='directional', 'efra', ...), SquareRootRLS, or more "
@@ -466,6 +466,7 @@ class RecursiveLeastSquares(_FilterBase):
                                  self._R, float(np.trace(self._P0)))
         self._lam, self._params = lam, params
         self._il = 1.0 / lam if self._mode == _fg.EXPONENTIAL else 1.0   # predict: P / lam
+        self._deferred = (self._il, getattr(self, "_Q_kernel", _EMPTY))   # predict()'s default
         self._configure()
 
     @property
@@ -497,6 +498,7 @@ class RecursiveLeastSquares(_FilterBase):
     def Q(self, value):
         self._Q = check_covariance(value, self.dim_x, "Q")
         self._Q_kernel = self._Q if self._Q.any() else _EMPTY
+        self._deferred = (self._il, self._Q_kernel)
 
     # ------------------------------------------------------------------
     # the recursion
@@ -516,7 +518,8 @@ class RecursiveLeastSquares(_FilterBase):
         Q : float or array_like, optional
             Random-walk covariance for this call only; ``self.Q`` if omitted.
         """
-        Q = self._Q_kernel if Q is None else self._random_walk(Q)
+        if Q is not None:
+            Q = self._random_walk(Q)
         # P^- = P / lam + Q      (exponential mode: filterpy's fading memory)
         # P^- <- Pi P^- Pi       (constraints: keep A P = 0)
         # x^- = x                (constant, or random-walk, parameters)
@@ -524,6 +527,7 @@ class RecursiveLeastSquares(_FilterBase):
         # update forgets along its regressor only
         if self._recheck:                 # a new state: checked (and EFRA's start) now
             x, P = self._state()
+            Q = self._Q_kernel if Q is None else Q
             il, self._w = (1.0, self._il) if self._cap else (self._il, 1.0)
             out = _streaming.predict(x, P, il, Q, self._cfg, self._spare_predict)
             self._spare_predict, self._last_predict = self._last_predict, out
@@ -535,9 +539,10 @@ class RecursiveLeastSquares(_FilterBase):
             if self._pending is not None:
                 self._materialize()       # predict() twice: the first one happens now
             if self._cap:
-                self._pending, self._w = (1.0, Q), self._il
-            else:
-                self._pending, self._w = (self._il, Q), 1.0
+                self._pending = (1.0, self._Q_kernel if Q is None else Q)
+                self._w = self._il
+            else:                         # (_w is 1 after every update when _cap is off)
+                self._pending = self._deferred if Q is None else (self._il, Q)
         self._updates_since_predict = 0
 
     def update(self, z, H, R=None):
@@ -558,9 +563,8 @@ class RecursiveLeastSquares(_FilterBase):
         R : float, optional
             Measurement-noise variance for this call only.
         """
-        if not (type(H) is np.ndarray and H.dtype is _F8 and H.shape == self._row_shape
-                and H.flags.carray):
-            H = self._row(H)                          # the row as a C-contiguous float64 copy
+        if not (type(H) is np.ndarray and H.dtype is _F8 and H.shape == self._row_shape):
+            H = self._row(H)                          # the row as a float64 (dim_x,) array
         r = self._R if R is None else check_variance(R, "R")
         if isinstance(z, float) and self.dim_z == 1 and z - z == 0.0:   # a finite float
             z0, zmode = z, 1
@@ -578,7 +582,7 @@ class RecursiveLeastSquares(_FilterBase):
         # (_streaming.update's test, written out: this is the hot path)
         spare = self._spare_update
         if (spare is None or self._handed_spare
-                or _rc(spare[0]) + _rc(spare[1]) + _rc(spare[2]) != _streaming._FREE_UPDATE):
+                or _rc(spare[0]) + _rc(spare[1]) != _streaming._FREE_UPDATE):
             spare = _streaming.renew(spare, *x.shape)
         if zmode == 0:
             spare[8][:] = z                           # the block's z
