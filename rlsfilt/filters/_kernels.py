@@ -515,7 +515,8 @@ def update_kernel(x, P, phi, z0, zmode, r, cfg, w, il, Q, xn, Pn, out):
         v = phi[i]
         if v - v != 0.0:                     # NaN or inf
             return BAD_ROW
-    # the block: y K S SI H z x_post P_post x_prior P_prior | g lam_t T
+    # the block: y K S SI H z x_post P_post x_prior P_prior | g lam_t T (the 2-D views
+    # made where they are used: a reshape costs as much as a small step's arithmetic)
     nx, nP = n * m, n * n
     y, o = out[:m], m
     K, o = out[o:o + n], o + n
@@ -523,14 +524,10 @@ def update_kernel(x, P, phi, z0, zmode, r, cfg, w, il, Q, xn, Pn, out):
     SI, o = out[o:o + m * m], o + m * m
     Hb, o = out[o:o + n], o + n
     zb, o = out[o:o + m], o + m
-    xp, o = out[o:o + nx].reshape((n, m)), o + nx
-    Pp, o = out[o:o + nP].reshape((n, n)), o + nP
-    x_prior, o = out[o:o + nx].reshape((n, m)), o + nx
-    P_prior, o = out[o:o + nP].reshape((n, n)), o + nP
+    post, prior, o = o, o + nx + nP, o + 2 * (nx + nP)
     g, o = out[o:o + n], o + n
     lam_out, o = out[o:o + 1], o + 1
     k = n if Pi_or_efra(cfg) else 0
-    T = out[o:o + k * k].reshape((k, k))
     for i in range(n):
         Hb[i] = phi[i]                       # H
     if zmode != 0:
@@ -540,20 +537,27 @@ def update_kernel(x, P, phi, z0, zmode, r, cfg, w, il, Q, xn, Pn, out):
     g_ready = False
     Pm = P
     if il > 0.0:                             # the pending predict: P^- = P il + Q
+        x_prior = out[prior:prior + nx].reshape((n, m))
+        P_prior = out[prior + nx:prior + nx + nP].reshape((n, n))
         copy2(x, x_prior)
         if plain:
             _time_update_gain(P, il, Q, phi, P_prior, g)
             g_ready = True
         else:
-            time_update(P, il, Q, projector(cfg, n), T, P_prior)
+            time_update(P, il, Q, projector(cfg, n), out[o:o + k * k].reshape((k, k)),
+                        P_prior)
         Pm = P_prior
+    xp = out[post:post + nx].reshape((n, m))
+    Pp = out[post + nx:post + nx + nP].reshape((n, n))
     if int(cfg[CFG_MODE]) == EXPONENTIAL and plain:
         # the default: x, P read once, the new ones written twice (x, x_post; P, P_post)
         s, lam_t, gated, cap = _exponential_update_into(x, Pm, phi, zb, zmode == 2, r, cfg, g,
                                                         y, K, w, xn, Pn, xp, Pp, g_ready)
     else:
         s, lam_t, gated, cap = measurement_update(x, Pm, phi, zb, zmode == 2, r, cfg,
-                                                  projector(cfg, n), g, y, K, T, w, xn, Pn)
+                                                  projector(cfg, n),
+                                                  g, y, K, out[o:o + k * k].reshape((k, k)), w,
+                                                  xn, Pn)
         copy2(xn, xp)
         copy2(Pn, Pp)
     for i in range(m * m):

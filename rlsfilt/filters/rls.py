@@ -41,6 +41,8 @@ __all__ = ["RecursiveLeastSquares"]
 
 _EMPTY = np.zeros((0, 0))          # an absent Q or projector, as the kernels take it
 _F8 = np.dtype(np.float64)
+_NDARRAY = np.ndarray
+_EXPONENTIAL = _fg.EXPONENTIAL
 _BAD_ROW, _BAD_DIAGONAL, _GATED, _CAP = 1, 2, 4, 8   # the flags of _kernels.update_kernel
 _NOT_FINE = _BAD_ROW | _BAD_DIAGONAL
 #: ``_last_update`` before any update: no arrays written by a step (and no block)
@@ -563,7 +565,7 @@ class RecursiveLeastSquares(_FilterBase):
         R : float, optional
             Measurement-noise variance for this call only.
         """
-        if not (type(H) is np.ndarray and H.dtype is _F8 and H.shape == self._row_shape):
+        if not (type(H) is _NDARRAY and H.dtype is _F8 and H.shape == self._row_shape):
             H = self._row(H)                          # the row as a float64 (dim_x,) array
         r = self._R if R is None else check_variance(R, "R")
         if isinstance(z, float) and self.dim_z == 1 and z - z == 0.0:   # a finite float
@@ -626,7 +628,8 @@ class RecursiveLeastSquares(_FilterBase):
                 self.n_gated += 1
         else:
             self.gated = self._cap = False
-        self.lam_t = self._lam if self._mode == _fg.EXPONENTIAL else float(
+        # (the exponential mode applies lam itself; the others say what they did)
+        self.lam_t = self._lam if self._mode == _EXPONENTIAL else float(
             spare[2][self._lam_t_at])
         self.n_updates = n_updates
         self._w = 1.0
