@@ -391,21 +391,81 @@ def _sym_gain(P, h, g):
             g[j] += row[j] * hi
 
 
-@njit(cache=True, error_model="numpy")
-def _sw_step(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, g, y, K):
-    """One `SlidingWindowRLS` update (add, slide the ring buffer, downdate,
-    refit when due), in place on ``x``, ``P``, the buffer and ``ist``.
+@njit(cache=True, error_model="numpy", inline="always")
+def _sym_sweep(P, g, cu, h, gn):
+    """``P <- P - (g g^T) cu`` (every entry from the symmetric product ``g_i g_j``:
+    ``P`` stays exactly symmetric), accumulating ``gn = P h`` of the result on the
+    way, four rows at a time.
 
-    Writes ``y`` (m,) and ``K`` (n,) (NaN and zero for a missing `z`) and
-    returns ``s``. ``g`` (n,) is workspace.
+    The contributions to ``gn_j`` are added in row order, so ``gn`` has the bits
+    of `_sym_gain` on the new ``P``; ``cu = -c`` adds ``(g g^T) c`` with the bits
+    of ``P + (g g^T) c`` (negation is exact). One pass over ``P`` instead of two.
+    """
+    n = P.shape[0]
+    for j in range(n):
+        gn[j] = 0.0
+    i = 0
+    while i + 4 <= n:
+        r0, r1, r2, r3 = P[i], P[i + 1], P[i + 2], P[i + 3]
+        a0, a1, a2, a3 = g[i], g[i + 1], g[i + 2], g[i + 3]
+        h0, h1, h2, h3 = h[i], h[i + 1], h[i + 2], h[i + 3]
+        for j in range(n):
+            gj = g[j]
+            v0 = r0[j] - (a0 * gj) * cu
+            v1 = r1[j] - (a1 * gj) * cu
+            v2 = r2[j] - (a2 * gj) * cu
+            v3 = r3[j] - (a3 * gj) * cu
+            r0[j] = v0
+            r1[j] = v1
+            r2[j] = v2
+            r3[j] = v3
+            gn[j] = (((gn[j] + v0 * h0) + v1 * h1) + v2 * h2) + v3 * h3
+        i += 4
+    while i < n:
+        ri = P[i]
+        ai = g[i]
+        hi = h[i]
+        for j in range(n):
+            v = ri[j] - (ai * g[j]) * cu
+            ri[j] = v
+            gn[j] += v * hi
+        i += 1
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _sw_refit_due(ist, window, refresh):
+    """Whether the step that is about to add a sample ends with a refit, whatever
+    its downdate gives: the window fills without the exact solution due, or the
+    `refresh` period ends (the counters as the step leaves them)."""
+    nw = min(ist[NW] + 1, window)
+    count = ist[COUNT] + 1
+    due = nw == window and not ist[EXACT] and count >= ist[NEXT_EXACT]
+    return due or (refresh > 0 and count % refresh == 0)
+
+
+@njit(cache=True, error_model="numpy")
+def _sw_step(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, ga, gb, y, K, hn):
+    """One `SlidingWindowRLS` update (add, slide the ring buffer, downdate, refit
+    when due), in place on ``x``, ``P``, the buffer and ``ist``.
+
+    `ga` holds ``P phi`` on entry (its bits as `_sym_gain` sums them) and ``P
+    hn`` of the new ``P`` on exit: the batch loop passes the next regressor as
+    `hn`, so that each step's two passes over ``P`` also give the next step's
+    gain. The passes (`_sym_sweep`): ``P' = P - g g^T / s`` accumulating the
+    downdate's gain ``gb = P' h`` (or, with nothing leaving, ``P' hn``), then
+    ``P'' = P' + gb gb^T / d`` accumulating ``P'' hn``: the operations of
+    update, gain, downdate, gain one after the other, in two passes. A step
+    that ends with a refit (`window_lstsq` replaces ``x`` and ``P``) skips
+    them. Writes ``y`` (m,) and ``K`` (n,) (NaN and zero for a missing `z`)
+    and returns ``s``.
     """
     n, m = x.shape
     window = wH.shape[0]
-    _sym_gain(P, phi, g)                       # g = P phi^T
     s = r
     for i in range(n):
-        s += phi[i] * g[i]                     # s = phi P phi^T + r
+        s += phi[i] * ga[i]                    # s = phi P phi^T + r
     missing = any_nan(z)
+    c = 0.0
     if missing:
         for j in range(m):
             y[j] = np.nan
@@ -419,42 +479,43 @@ def _sw_step(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, g, y, K):
             y[j] = z[j] - acc
         c = 1.0 / s
         for i in range(n):
-            ki = g[i] * c                      # K = P phi^T / s
+            ki = ga[i] * c                     # K = P phi^T / s
             K[i] = ki
             for j in range(m):
                 x[i, j] = x[i, j] + ki * y[j]
-        for i in range(n):                     # P = P - g g^T / s (symmetric products)
-            gi = g[i]
-            row = P[i]
-            for j in range(n):
-                row[j] = row[j] - (gi * g[j]) * c
     # ring buffer: slot `head` holds the oldest sample once the window is full
     h = ist[HEAD]
     leaving = ist[NW] == window and not any_nan(wZ[h])
-    refit = False
-    if leaving:                                # downdate with the leaving sample
-        hl = wH[h]
-        rl = wR[h]
-        _sym_gain(P, hl, g)                    # g = P h^T
-        dd = rl
-        for i in range(n):
-            dd -= hl[i] * g[i]                 # d = R - h P h^T
-        if dd > 1e-8 * rl:
-            cd = 1.0 / dd
-            for j in range(m):
-                acc = 0.0
-                for i in range(n):
-                    acc += hl[i] * x[i, j]
-                e = wZ[h, j] - acc             # residual of the leaving sample
-                for i in range(n):
-                    x[i, j] = x[i, j] - (g[i] * cd) * e
-            for i in range(n):                 # P = P + g g^T / d (symmetric products)
-                gi = g[i]
-                row = P[i]
-                for j in range(n):
-                    row[j] = row[j] + (gi * g[j]) * cd
+    refit = _sw_refit_due(ist, window, refresh)
+    if not refit:
+        if leaving:                            # downdate with the leaving sample
+            hl = wH[h]
+            rl = wR[h]
+            if missing:
+                _sym_gain(P, hl, gb)           # gb = P h^T
+            else:                              # P = P - g g^T / s, gb = P h^T
+                _sym_sweep(P, ga, c, hl, gb)
+            dd = rl
+            for i in range(n):
+                dd -= hl[i] * gb[i]            # d = R - h P h^T
+            if dd > 1e-8 * rl:
+                cd = 1.0 / dd
+                for j in range(m):
+                    acc = 0.0
+                    for i in range(n):
+                        acc += hl[i] * x[i, j]
+                    e = wZ[h, j] - acc         # residual of the leaving sample
+                    for i in range(n):
+                        x[i, j] = x[i, j] - (gb[i] * cd) * e
+                _sym_sweep(P, gb, -cd, hn, ga)  # P = P + gb gb^T / d, ga = P hn^T
+            else:
+                refit = True
+        elif not missing:
+            _sym_sweep(P, ga, c, hn, gb)       # P = P - g g^T / s, ga = P hn^T
+            for i in range(n):
+                ga[i] = gb[i]
         else:
-            refit = True
+            _sym_gain(P, hn, ga)
     for j in range(n):
         wH[h, j] = phi[j]
     for j in range(m):
@@ -463,10 +524,6 @@ def _sw_step(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, g, y, K):
     ist[HEAD] = (h + 1) % window
     ist[NW] = min(ist[NW] + 1, window)
     ist[COUNT] += 1
-    if ist[NW] == window and not ist[EXACT]:
-        refit = refit or ist[COUNT] >= ist[NEXT_EXACT]
-    if refresh and ist[COUNT] % refresh == 0:
-        refit = True
     if refit:
         nw = ist[NW]
         if window_lstsq(wH, wZ, wR, nw, Lt, Ltx0, n - n, x, P):   # (n - n: one typing)
@@ -475,6 +532,7 @@ def _sw_step(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, g, y, K):
             ist[EXACT] = 0
             ist[NEXT_EXACT] = ist[COUNT] + window
             window_lstsq(wH, wZ, wR, nw, Lt, Ltx0, n, x, P)
+        _sym_gain(P, hn, ga)
     return s
 
 
@@ -485,8 +543,10 @@ def sw_update_kernel(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, y, K):
     Returns ``s`` and whether the diagonal of the new ``P`` fails the cheap
     health check (``diagonal_bad``).
     """
-    g = np.empty(x.shape[0])
-    s = _sw_step(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, g, y, K)
+    n = x.shape[0]
+    ga, gb = np.empty(n), np.empty(n)
+    _sym_gain(P, phi, ga)                      # g = P phi^T
+    s = _sw_step(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, ga, gb, y, K, phi)
     return s, diagonal_bad(P)
 
 
@@ -516,7 +576,10 @@ def sw_batch_kernel(x, P, Z, Hm, Rv, wH, wZ, wR, ist, refresh, Lt, Ltx0, means, 
     N = Z.shape[0]
     store = covs.shape[0] == N and N > 0
     r_each = Rv.shape[0] == N
-    g = np.empty(x.shape[0])
+    n = x.shape[0]
+    ga, gb = np.empty(n), np.empty(n)
+    if N:
+        _sym_gain(P, Hm[0], ga)                # g = P phi^T; later steps leave it
     s = np.nan
     k_fail = -1
     # steps to the next full health check (a countdown: no division per step)
@@ -525,7 +588,7 @@ def sw_batch_kernel(x, P, Z, Hm, Rv, wH, wZ, wR, ist, refresh, Lt, Ltx0, means, 
         if k == N - 1:
             copy2(P, P_last)
         s = _sw_step(x, P, Hm[k], Z[k], Rv[k if r_each else 0], wH, wZ, wR, ist, refresh,
-                     Lt, Ltx0, g, y, K)
+                     Lt, Ltx0, ga, gb, y, K, Hm[min(k + 1, N - 1)])
         if countdown > 0:
             countdown -= 1
             full = countdown == 0
