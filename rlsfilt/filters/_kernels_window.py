@@ -334,8 +334,12 @@ def window_lstsq(wH, wZ, wR, nw, Lt, Ltx0, n_prior, x, P):
         for j in range(m):
             A[i, n + j] = wZ[k, j] * wk
         i += 1
-    # Householder QR of the first n columns, applied to all n + m columns
+    # Householder QR of the first n columns, applied to all n + m columns; the
+    # reflection of the columns right of j runs along the rows (each column's sum
+    # in row order, as a column-by-column loop would add it: contiguous, and the
+    # columns' sums are independent chains)
     v = np.empty(rows)
+    f = np.empty(n + m)
     for j in range(n):
         norm2 = 0.0
         for i in range(j, rows):
@@ -354,26 +358,44 @@ def window_lstsq(wH, wZ, wR, nw, Lt, Ltx0, n_prior, x, P):
         if vnorm2 == 0.0:
             continue
         for col in range(j + 1, n + m):
-            acc = 0.0
-            for i in range(j, rows):
-                acc += v[i] * A[i, col]
-            f = 2.0 * acc / vnorm2
-            for i in range(j, rows):
-                A[i, col] -= f * v[i]
+            f[col] = 0.0
+        for i in range(j, rows):               # f = A^T v
+            vi = v[i]
+            row = A[i]
+            for col in range(j + 1, n + m):
+                f[col] += vi * row[col]
+        for col in range(j + 1, n + m):
+            f[col] = 2.0 * f[col] / vnorm2
+        for i in range(j, rows):               # A -= v (2 A^T v / |v|^2)^T
+            vi = v[i]
+            row = A[i]
+            for col in range(j + 1, n + m):
+                row[col] -= f[col] * vi
     Rf = np.empty((n, n))
+    fro2 = 0.0
     for i in range(n):
         for j in range(n):
             Rf[i, j] = A[i, j] if j >= i else 0.0
+            fro2 += Rf[i, j] * Rf[i, j]
+    Pt = np.empty((n, n))
+    upper_inverse_gram(Rf, Pt)                     # (R^T R)^-1
     if n_prior == 0:
-        smin, smax = singular_range(Rf)
-        if not smin > smax * max(rows, n) * _EPS:
-            return False
+        # full rank when s_min > s_max tol; cond(R) <= ||R||_F ||R^-1||_F =
+        # sqrt(||R||_F^2 trace(P)) settles the clear case without the SVD
+        tol = max(rows, n) * _EPS
+        tr = 0.0
+        for i in range(n):
+            tr += Pt[i, i]
+        if not fro2 * tr * tol * tol < 1.0:
+            smin, smax = singular_range(Rf)
+            if not smin > smax * tol:
+                return False
     QtB = np.empty((n, m))
     for i in range(n):
         for j in range(m):
             QtB[i, j] = A[i, n + j]
     back_substitute(Rf, QtB, x)
-    upper_inverse_gram(Rf, P)
+    copy2(Pt, P)
     return True
 
 
@@ -433,18 +455,17 @@ def _sym_sweep(P, g, cu, h, gn):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _sw_refit_due(ist, window, refresh):
+def _sw_refit_due(ist, window, refreshing):
     """Whether the step that is about to add a sample ends with a refit, whatever
     its downdate gives: the window fills without the exact solution due, or the
-    `refresh` period ends (the counters as the step leaves them)."""
+    step ends a `refresh` period (`refreshing`; the counters as the step leaves
+    them)."""
     nw = min(ist[NW] + 1, window)
-    count = ist[COUNT] + 1
-    due = nw == window and not ist[EXACT] and count >= ist[NEXT_EXACT]
-    return due or (refresh > 0 and count % refresh == 0)
+    return refreshing or (nw == window and not ist[EXACT] and ist[COUNT] + 1 >= ist[NEXT_EXACT])
 
 
-@njit(cache=True, error_model="numpy")
-def _sw_step(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, ga, gb, y, K, hn):
+@njit(cache=True, error_model="numpy", inline="always")
+def _sw_step(x, P, phi, z, r, wH, wZ, wR, ist, refreshing, Lt, Ltx0, ga, gb, y, K, hn):
     """One `SlidingWindowRLS` update (add, slide the ring buffer, downdate, refit
     when due), in place on ``x``, ``P``, the buffer and ``ist``.
 
@@ -456,14 +477,17 @@ def _sw_step(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, ga, gb, y, K, 
     ``P'' = P' + gb gb^T / d`` accumulating ``P'' hn``: the operations of
     update, gain, downdate, gain one after the other, in two passes. A step
     that ends with a refit (`window_lstsq` replaces ``x`` and ``P``) skips
-    them. Writes ``y`` (m,) and ``K`` (n,) (NaN and zero for a missing `z`)
-    and returns ``s``.
+    them. `refreshing`: the step ends a ``refresh`` period (the caller counts).
+    Writes ``y`` (m,) and ``K`` (n,) (NaN and zero for a missing `z`) and
+    returns ``s``.
     """
     n, m = x.shape
     window = wH.shape[0]
     s = r
-    for i in range(n):
+    acc = 0.0
+    for i in range(n):                         # (two independent sums in one loop)
         s += phi[i] * ga[i]                    # s = phi P phi^T + r
+        acc += phi[i] * x[i, 0]                # phi x, first output
     missing = any_nan(z)
     c = 0.0
     if missing:
@@ -472,21 +496,23 @@ def _sw_step(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, ga, gb, y, K, 
         for i in range(n):
             K[i] = 0.0
     else:
-        for j in range(m):                     # y = z - phi x
+        y[0] = z[0] - acc                      # y = z - phi x
+        for j in range(1, m):
             acc = 0.0
             for i in range(n):
                 acc += phi[i] * x[i, j]
             y[j] = z[j] - acc
         c = 1.0 / s
         for i in range(n):
-            ki = ga[i] * c                     # K = P phi^T / s
-            K[i] = ki
-            for j in range(m):
-                x[i, j] = x[i, j] + ki * y[j]
+            K[i] = ga[i] * c                   # K = P phi^T / s
+        for j in range(m):
+            yj = y[j]
+            for i in range(n):
+                x[i, j] = x[i, j] + K[i] * yj
     # ring buffer: slot `head` holds the oldest sample once the window is full
     h = ist[HEAD]
     leaving = ist[NW] == window and not any_nan(wZ[h])
-    refit = _sw_refit_due(ist, window, refresh)
+    refit = _sw_refit_due(ist, window, refreshing)
     if not refit:
         if leaving:                            # downdate with the leaving sample
             hl = wH[h]
@@ -521,7 +547,7 @@ def _sw_step(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, ga, gb, y, K, 
     for j in range(m):
         wZ[h, j] = np.nan if missing else z[j]
     wR[h] = r
-    ist[HEAD] = (h + 1) % window
+    ist[HEAD] = h + 1 if h + 1 < window else 0
     ist[NW] = min(ist[NW] + 1, window)
     ist[COUNT] += 1
     if refit:
@@ -546,7 +572,8 @@ def sw_update_kernel(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, y, K):
     n = x.shape[0]
     ga, gb = np.empty(n), np.empty(n)
     _sym_gain(P, phi, ga)                      # g = P phi^T
-    s = _sw_step(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, ga, gb, y, K, phi)
+    refreshing = refresh > 0 and (ist[COUNT] + 1) % refresh == 0
+    s = _sw_step(x, P, phi, z, r, wH, wZ, wR, ist, refreshing, Lt, Ltx0, ga, gb, y, K, phi)
     return s, diagonal_bad(P)
 
 
@@ -582,12 +609,18 @@ def sw_batch_kernel(x, P, Z, Hm, Rv, wH, wZ, wR, ist, refresh, Lt, Ltx0, means, 
         _sym_gain(P, Hm[0], ga)                # g = P phi^T; later steps leave it
     s = np.nan
     k_fail = -1
-    # steps to the next full health check (a countdown: no division per step)
+    # steps to the next full health check and to the end of a refresh period
+    # (countdowns: no division per step)
     countdown = check_every - step0 % check_every if check_every > 0 else -1
+    to_refresh = refresh - ist[COUNT] % refresh if refresh > 0 else -1
     for k in range(N):
         if k == N - 1:
             copy2(P, P_last)
-        s = _sw_step(x, P, Hm[k], Z[k], Rv[k if r_each else 0], wH, wZ, wR, ist, refresh,
+        to_refresh -= 1
+        refreshing = to_refresh == 0
+        if refreshing:
+            to_refresh = refresh
+        s = _sw_step(x, P, Hm[k], Z[k], Rv[k if r_each else 0], wH, wZ, wR, ist, refreshing,
                      Lt, Ltx0, ga, gb, y, K, Hm[min(k + 1, N - 1)])
         if countdown > 0:
             countdown -= 1
