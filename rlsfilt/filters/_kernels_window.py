@@ -342,35 +342,54 @@ def window_lstsq(wH, wZ, wR, nw, Lt, Ltx0, n_prior, x, P):
     f = np.empty(n + m)
     for j in range(n):
         norm2 = 0.0
-        for i in range(j, rows):
-            norm2 += A[i, j] * A[i, j]
+        for i in range(j, rows):               # v = A[j:, j] (below the diagonal,
+            a = A[i, j]                        # column j is not read again)
+            v[i] = a
+            norm2 += a * a
         norm = math.sqrt(norm2)
         if norm == 0.0:
             continue
         alpha = -norm if A[j, j] >= 0.0 else norm
-        for i in range(j, rows):
-            v[i] = A[i, j]
         v[j] -= alpha
         vnorm2 = norm2 - A[j, j] * A[j, j] + v[j] * v[j]
         A[j, j] = alpha
-        for i in range(j + 1, rows):
-            A[i, j] = 0.0
         if vnorm2 == 0.0:
             continue
         for col in range(j + 1, n + m):
             f[col] = 0.0
-        for i in range(j, rows):               # f = A^T v
+        i = j
+        while i + 4 <= rows:                   # f = A^T v, four rows at a time
+            v0, v1, v2, v3 = v[i], v[i + 1], v[i + 2], v[i + 3]
+            a0, a1, a2, a3 = A[i], A[i + 1], A[i + 2], A[i + 3]
+            for col in range(j + 1, n + m):
+                f[col] = (((f[col] + v0 * a0[col]) + v1 * a1[col]) + v2 * a2[col]
+                          + v3 * a3[col])
+            i += 4
+        while i < rows:
             vi = v[i]
             row = A[i]
             for col in range(j + 1, n + m):
                 f[col] += vi * row[col]
+            i += 1
         for col in range(j + 1, n + m):
             f[col] = 2.0 * f[col] / vnorm2
-        for i in range(j, rows):               # A -= v (2 A^T v / |v|^2)^T
+        i = j
+        while i + 4 <= rows:                   # A -= v (2 A^T v / |v|^2)^T
+            v0, v1, v2, v3 = v[i], v[i + 1], v[i + 2], v[i + 3]
+            a0, a1, a2, a3 = A[i], A[i + 1], A[i + 2], A[i + 3]
+            for col in range(j + 1, n + m):
+                fc = f[col]
+                a0[col] -= fc * v0
+                a1[col] -= fc * v1
+                a2[col] -= fc * v2
+                a3[col] -= fc * v3
+            i += 4
+        while i < rows:
             vi = v[i]
             row = A[i]
             for col in range(j + 1, n + m):
                 row[col] -= f[col] * vi
+            i += 1
     Rf = np.empty((n, n))
     fro2 = 0.0
     for i in range(n):
