@@ -100,14 +100,20 @@ def _back_solve_inv(U, dinv, b, v):
         v[i] = (b[i] - _dot_from(U[i], v, i + 1, n)) * dinv[i]
 
 
-@njit(cache=True, error_model="numpy")
-def _sr_step(U, d, x, phi, z, r, w, y, K, gain, a, b, xc):
+@njit(cache=True, error_model="numpy", inline="always")
+def _sr_step(U, d, x, phi, z, r, w, y, K, gain, a, b, xc, c, c0, want_y):
     """One measurement update of the information square root, in place.
 
-    Writes ``y`` (m,) and, when `gain`, ``K`` (n,) (NaN and zero when `z`
-    holds a NaN) and returns ``s = H P H^T + R``. ``w``, ``a`` (n,), ``b``
-    (m,) and ``xc`` (n,) are workspace. The gain is not needed to update
-    ``U`` and ``d``: the batch kernel forms it for the last step only.
+    Writes ``y`` (m,) when `want_y` and, when `gain`, ``K`` (n,) (NaN and
+    zero when `z` holds a NaN) and returns ``s = H P H^T + R``. ``w``, ``a``
+    (n,), ``b`` (m,) and ``xc`` (n,) are workspace; ``c0 = 1 / sqrt(r)``.
+    The gain is not needed to update ``U`` and ``d``, nor the residual: the
+    batch kernel forms them for the last step only.
+
+    ``c`` is the factor of a time update not yet applied (`sr_predict`; 1.0:
+    none): each row of ``U`` and ``d`` is multiplied by it as its rotation
+    reads it, the numbers `sr_predict` then the rotations give (the batch
+    loop saves a pass over ``U``). A missing `z` or `gain` needs ``c = 1``.
 
     ``s`` comes from the rotations: they keep ``det(U)`` times the
     determinant of the appended row's part, so ``prod_i (rho_i / U_ii)^2 =
@@ -117,7 +123,7 @@ def _sr_step(U, d, x, phi, z, r, w, y, K, gain, a, b, xc):
     """
     n, m = d.shape
     missing = any_nan(z)
-    if missing or gain:
+    if missing or gain:                        # (the caller applied the time update)
         for i in range(n):                     # U^T w = phi: forward, column by column
             w[i] = phi[i]
         for k in range(n):
@@ -137,13 +143,13 @@ def _sr_step(U, d, x, phi, z, r, w, y, K, gain, a, b, xc):
         return s
     if gain:
         _back_solve(U, w, K)                   # U v = w (the old U); K = v / s below
-    for j in range(m):                         # y = z - phi x
-        acc = 0.0
-        for i in range(n):
-            acc += phi[i] * x[i, j]
-        y[j] = z[j] - acc
+    if want_y:
+        for j in range(m):                     # y = z - phi x
+            acc = 0.0
+            for i in range(n):
+                acc += phi[i] * x[i, j]
+            y[j] = z[j] - acc
     # fold the row [phi, z^T] / sqrt(r) into [U, d] with Givens rotations
-    c0 = 1.0 / math.sqrt(r)
     for i in range(n):
         a[i] = phi[i] * c0
     for j in range(m):
@@ -152,10 +158,16 @@ def _sr_step(U, d, x, phi, z, r, w, y, K, gain, a, b, xc):
     scaled = 0
     for i in range(n):
         ai = a[i]
+        row = U[i]
+        uii = row[i] * c                       # (the pending time update, row by row)
         if ai == 0.0:
-            w[i] = 1.0 / U[i, i]               # w: the reciprocals of the new diagonal
+            if c != 1.0:
+                for j in range(i, n):
+                    row[j] = row[j] * c
+                for j in range(m):
+                    d[i, j] = d[i, j] * c
+            w[i] = 1.0 / uii                   # w: the reciprocals of the new diagonal
             continue
-        uii = U[i, i]
         big = max(abs(uii), abs(ai))
         if 1e-150 < big < 1e150:               # no overflow or underflow: sqrt, not hypot
             rho = math.sqrt(uii * uii + ai * ai)
@@ -169,15 +181,14 @@ def _sr_step(U, d, x, phi, z, r, w, y, K, gain, a, b, xc):
         if prod < 1e-150:                      # keep it normal (an exact power of two)
             prod *= 2.0 ** 500
             scaled += 1
-        U[i, i] = rho
-        row = U[i]
+        row[i] = rho
         for j in range(i + 1, n):
-            t = row[j]
+            t = row[j] * c
             aj = a[j]
             row[j] = cs * t + sn * aj
             a[j] = cs * aj - sn * t
         for j in range(m):
-            t = d[i, j]
+            t = d[i, j] * c
             bj = b[j]
             d[i, j] = cs * t + sn * bj
             b[j] = cs * bj - sn * t
@@ -205,7 +216,8 @@ def sr_update_kernel(U, d, x, phi, z, r, y, K):
     """
     n, m = d.shape
     w = np.empty(n)
-    s = _sr_step(U, d, x, phi, z, r, w, y, K, n > 0, np.empty(n), np.empty(m), np.empty(n))
+    s = _sr_step(U, d, x, phi, z, r, w, y, K, n > 0, np.empty(n), np.empty(m), np.empty(n), 1.0,
+                 1.0 / math.sqrt(r), True)
     return s, diagonal_bad(U)
 
 
@@ -238,28 +250,37 @@ def sr_batch_kernel(U, d, x, Z, Hm, Rv, c, update_first, means, covs, covs_p,
     n, m = x.shape
     store = covs.shape[0] == N and N > 0
     r_each = Rv.shape[0] == N
+    c0 = 1.0 / math.sqrt(Rv[0]) if Rv.shape[0] else 1.0
     w = np.empty(n)
     a = np.empty(n)
     b = np.empty(m)
     xc = np.empty(n)
     s = np.nan
     k_fail = -1
+    pending = 1.0           # a time update not yet applied to U, d (see _sr_step)
     # steps to the next full health check (a countdown: no division per step)
     countdown = check_every - step0 % check_every if check_every > 0 else -1
     for k in range(N):
+        last = k == N - 1
+        zk = Z[k]
+        if not update_first and c != 1.0:
+            pending = c
+        if pending != 1.0 and (store or last or any_nan(zk)):
+            sr_predict(U, d, pending)          # needed as it is: apply it now
+            pending = 1.0
         if not update_first:
-            if c != 1.0:
-                sr_predict(U, d, c)
             if store:
                 upper_inverse_gram(U, covs_p[k])
-            if k == N - 1:
+            if last:
                 copy2(x, x_prior)
                 if store:
                     copy2(covs_p[k], P_prior)
                 else:
                     upper_inverse_gram(U, P_prior)
-        s = _sr_step(U, d, x, Hm[k], Z[k], Rv[k if r_each else 0], w, y, K, k == N - 1, a, b,
-                     xc)
+        r = Rv[k if r_each else 0]
+        s = _sr_step(U, d, x, Hm[k], zk, r, w, y, K, last, a, b, xc, pending,
+                     1.0 / math.sqrt(r) if r_each else c0, last)
+        pending = 1.0
         if countdown > 0:
             countdown -= 1
             full = countdown == 0
@@ -272,17 +293,20 @@ def sr_batch_kernel(U, d, x, Z, Hm, Rv, c, update_first, means, covs, covs_p,
         copy2(x, means[k])
         if store:
             upper_inverse_gram(U, covs[k])
-        if k == N - 1:
+        if last:
             if store:
                 copy2(covs[k], P_post)
             else:
                 upper_inverse_gram(U, P_post)
         if update_first:
             if c != 1.0:
-                sr_predict(U, d, c)
+                if store or last:
+                    sr_predict(U, d, c)
+                else:
+                    pending = c                # applied by the next step's rotations
             if store:
                 upper_inverse_gram(U, covs_p[k])
-            if k == N - 1:
+            if last:
                 copy2(x, x_prior)
                 if store:
                     copy2(covs_p[k], P_prior)
