@@ -93,11 +93,19 @@ def _back_solve(U, b, v):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _back_solve_inv(U, dinv, b, v):
-    """`_back_solve` with the reciprocals ``dinv`` of the diagonal of `U` known
-    (a multiply, not a division, on the chain from row to row)."""
+    """`_back_solve` with the reciprocals ``dinv`` of the diagonal of `U` known,
+    by columns: once ``v_i`` is known it is taken off every row above,
+    ``b_k <- b_k - U_ki v_i``. The chain from ``v_{i+1}`` to ``v_i`` is then a
+    multiply, a subtraction and a multiply (the row form waits for a dot
+    product); `v` may be `b`."""
     n = U.shape[0]
+    for k in range(n):
+        v[k] = b[k]
     for i in range(n - 1, -1, -1):
-        v[i] = (b[i] - _dot_from(U[i], v, i + 1, n)) * dinv[i]
+        vi = v[i] * dinv[i]
+        v[i] = vi
+        for k in range(i):
+            v[k] -= U[k, i] * vi
 
 
 @njit(cache=True, error_model="numpy", inline="always")
