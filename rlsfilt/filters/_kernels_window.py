@@ -515,116 +515,21 @@ def _sw_refit_due(ist, window, refreshing):
     return refreshing or (nw == window and not ist[EXACT] and ist[COUNT] + 1 >= ist[NEXT_EXACT])
 
 
-@njit(cache=True, error_model="numpy", inline="always")
-def _sw_step(x, P, phi, z, r, wH, wZ, wR, ist, refreshing, Lt, Ltx0, ga, gb, y, K, hn):
-    """One `SlidingWindowRLS` update (add, slide the ring buffer, downdate, refit
-    when due), in place on ``x``, ``P``, the buffer and ``ist``.
-
-    `ga` holds ``P phi`` on entry (its bits as `_sym_gain` sums them) and ``P
-    hn`` of the new ``P`` on exit: the batch loop passes the next regressor as
-    `hn`, so that each step's two passes over ``P`` also give the next step's
-    gain. The passes (`_sym_sweep`): ``P' = P - g g^T / s`` accumulating the
-    downdate's gain ``gb = P' h`` (or, with nothing leaving, ``P' hn``), then
-    ``P'' = P' + gb gb^T / d`` accumulating ``P'' hn``: the operations of
-    update, gain, downdate, gain one after the other, in two passes. A step
-    that ends with a refit (`window_lstsq` replaces ``x`` and ``P``) skips
-    them. `refreshing`: the step ends a ``refresh`` period (the caller counts).
-    Writes ``y`` (m,) and ``K`` (n,) (NaN and zero for a missing `z`) and
-    returns ``s``.
-    """
-    n, m = x.shape
-    window = wH.shape[0]
-    s = r
-    acc = 0.0
-    for i in range(n):                         # (two independent sums in one loop)
-        s += phi[i] * ga[i]                    # s = phi P phi^T + r
-        acc += phi[i] * x[i, 0]                # phi x, first output
-    missing = any_nan(z)
-    c = 0.0
-    if missing:
-        for j in range(m):
-            y[j] = np.nan
-        for i in range(n):
-            K[i] = 0.0
-    else:
-        y[0] = z[0] - acc                      # y = z - phi x
-        for j in range(1, m):
-            acc = 0.0
-            for i in range(n):
-                acc += phi[i] * x[i, j]
-            y[j] = z[j] - acc
-        c = 1.0 / s
-        for i in range(n):
-            K[i] = ga[i] * c                   # K = P phi^T / s
-        for j in range(m):
-            yj = y[j]
-            for i in range(n):
-                x[i, j] = x[i, j] + K[i] * yj
-    # ring buffer: slot `head` holds the oldest sample once the window is full
-    h = ist[HEAD]
-    leaving = ist[NW] == window and not any_nan(wZ[h])
-    refit = _sw_refit_due(ist, window, refreshing)
-    if not refit:
-        if leaving:                            # downdate with the leaving sample
-            hl = wH[h]
-            rl = wR[h]
-            if missing:
-                _sym_gain(P, hl, gb)           # gb = P h^T
-            else:                              # P = P - g g^T / s, gb = P h^T
-                _sym_sweep(P, ga, c, hl, gb)
-            dd = rl
-            for i in range(n):
-                dd -= hl[i] * gb[i]            # d = R - h P h^T
-            if dd > 1e-8 * rl:
-                cd = 1.0 / dd
-                for j in range(m):
-                    acc = 0.0
-                    for i in range(n):
-                        acc += hl[i] * x[i, j]
-                    e = wZ[h, j] - acc         # residual of the leaving sample
-                    for i in range(n):
-                        x[i, j] = x[i, j] - (gb[i] * cd) * e
-                _sym_sweep(P, gb, -cd, hn, ga)  # P = P + gb gb^T / d, ga = P hn^T
-            else:
-                refit = True
-        elif not missing:
-            _sym_sweep(P, ga, c, hn, gb)       # P = P - g g^T / s, ga = P hn^T
-            for i in range(n):
-                ga[i] = gb[i]
-        else:
-            _sym_gain(P, hn, ga)
-    for j in range(n):
-        wH[h, j] = phi[j]
-    for j in range(m):
-        wZ[h, j] = np.nan if missing else z[j]
-    wR[h] = r
-    ist[HEAD] = h + 1 if h + 1 < window else 0
-    ist[NW] = min(ist[NW] + 1, window)
-    ist[COUNT] += 1
-    if refit:
-        nw = ist[NW]
-        if window_lstsq(wH, wZ, wR, nw, Lt, Ltx0, n - n, x, P):   # (n - n: one typing)
-            ist[EXACT] = 1
-        else:
-            ist[EXACT] = 0
-            ist[NEXT_EXACT] = ist[COUNT] + window
-            window_lstsq(wH, wZ, wR, nw, Lt, Ltx0, n, x, P)
-        _sym_gain(P, hn, ga)
-    return s
-
-
 @njit(cache=True, error_model="numpy")
 def sw_update_kernel(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, y, K):
-    """Streaming :meth:`SlidingWindowRLS.update`: `_sw_step` on the given arrays.
+    """Streaming :meth:`SlidingWindowRLS.update`: `sw_batch_kernel` on a record of
+    one sample (the one implementation of the step: streaming and batch agree
+    bit for bit; the caller runs the health check).
 
     Returns ``s`` and whether the diagonal of the new ``P`` fails the cheap
     health check (``diagonal_bad``).
     """
-    n = x.shape[0]
-    ga, gb = np.empty(n), np.empty(n)
-    _sym_gain(P, phi, ga)                      # g = P phi^T
-    refreshing = refresh > 0 and (ist[COUNT] + 1) % refresh == 0
-    s = _sw_step(x, P, phi, z, r, wH, wZ, wR, ist, refreshing, Lt, Ltx0, ga, gb, y, K, phi)
+    n, m = x.shape
+    Rv = np.empty(1)
+    Rv[0] = r
+    s, _ = sw_batch_kernel(x, P, z.reshape((1, m)), phi.reshape((1, n)), Rv, wH, wZ, wR, ist,
+                           refresh, Lt, Ltx0, np.empty((1, n, m)), np.empty((0, n, n)), y, K,
+                           np.empty((n, n)), 0, 0, 1.0, np.empty((n, n)))
     return s, diagonal_bad(P)
 
 
@@ -637,6 +542,17 @@ def sw_batch_kernel(x, P, Z, Hm, Rv, wH, wZ, wR, ist, refresh, Lt, Ltx0, means, 
     is N. ``y`` and ``K`` are the last step's, ``P_last`` is ``P`` before
     the last step. (The window has no time update: the caller builds the
     predicted histories from these.)
+
+    Each step updates with the new sample, slides the ring buffer, downdates
+    with the leaving sample and refits when due, in place on ``x``, ``P``,
+    the buffer and ``ist``, in two passes over ``P`` (`_sym_sweep`): ``P' =
+    P - g g^T / s`` summing the downdate's gain ``gb = P' h`` (or, with
+    nothing leaving, the next step's gain ``P' hn``), then ``P'' = P' + gb
+    gb^T / d`` summing the next step's gain ``g = P'' hn``: the operations of
+    update, gain, downdate, gain one after the other (the same bits), in two
+    passes. ``g = P phi`` is summed once before the first step. A step that
+    ends with a refit (`window_lstsq` replaces ``x`` and ``P``) skips the
+    passes.
 
     The health check runs after every update as
     :meth:`SlidingWindowRLS.update` runs it: the cheap diagonal test each
@@ -654,7 +570,8 @@ def sw_batch_kernel(x, P, Z, Hm, Rv, wH, wZ, wR, ist, refresh, Lt, Ltx0, means, 
     N = Z.shape[0]
     store = covs.shape[0] == N and N > 0
     r_each = Rv.shape[0] == N
-    n = x.shape[0]
+    n, m = x.shape
+    window = wH.shape[0]
     ga, gb = np.empty(n), np.empty(n)
     if N:
         _sym_gain(P, Hm[0], ga)                # g = P phi^T; later steps leave it
@@ -671,8 +588,89 @@ def sw_batch_kernel(x, P, Z, Hm, Rv, wH, wZ, wR, ist, refresh, Lt, Ltx0, means, 
         refreshing = to_refresh == 0
         if refreshing:
             to_refresh = refresh
-        s = _sw_step(x, P, Hm[k], Z[k], Rv[k if r_each else 0], wH, wZ, wR, ist, refreshing,
-                     Lt, Ltx0, ga, gb, y, K, Hm[min(k + 1, N - 1)])
+        # one step (see the module; written out here, not in a function: a call
+        # that takes arrays costs reference counting that is most of a small
+        # step's bookkeeping)
+        phi = Hm[k]
+        z = Z[k]
+        r = Rv[k if r_each else 0]
+        hn = Hm[min(k + 1, N - 1)]                 # the next regressor
+        s = r
+        acc = 0.0
+        for i in range(n):                         # (two independent sums in one loop)
+            s += phi[i] * ga[i]                    # s = phi P phi^T + r
+            acc += phi[i] * x[i, 0]                # phi x, first output
+        missing = any_nan(z)
+        c = 0.0
+        if missing:
+            for j in range(m):
+                y[j] = np.nan
+            for i in range(n):
+                K[i] = 0.0
+        else:
+            y[0] = z[0] - acc                      # y = z - phi x
+            for j in range(1, m):
+                acc = 0.0
+                for i in range(n):
+                    acc += phi[i] * x[i, j]
+                y[j] = z[j] - acc
+            c = 1.0 / s
+            for i in range(n):
+                K[i] = ga[i] * c                   # K = P phi^T / s
+            for j in range(m):
+                yj = y[j]
+                for i in range(n):
+                    x[i, j] = x[i, j] + K[i] * yj
+        # ring buffer: slot `head` holds the oldest sample once the window is full
+        h = ist[HEAD]
+        leaving = ist[NW] == window and not any_nan(wZ[h])
+        refit = _sw_refit_due(ist, window, refreshing)
+        if not refit:
+            if leaving:                            # downdate with the leaving sample
+                hl = wH[h]
+                rl = wR[h]
+                if missing:
+                    _sym_gain(P, hl, gb)           # gb = P h^T
+                else:                              # P = P - g g^T / s, gb = P h^T
+                    _sym_sweep(P, ga, c, hl, gb)
+                dd = rl
+                for i in range(n):
+                    dd -= hl[i] * gb[i]            # d = R - h P h^T
+                if dd > 1e-8 * rl:
+                    cd = 1.0 / dd
+                    for j in range(m):
+                        acc = 0.0
+                        for i in range(n):
+                            acc += hl[i] * x[i, j]
+                        e = wZ[h, j] - acc         # residual of the leaving sample
+                        for i in range(n):
+                            x[i, j] = x[i, j] - (gb[i] * cd) * e
+                    _sym_sweep(P, gb, -cd, hn, ga)  # P = P + gb gb^T / d, ga = P hn^T
+                else:
+                    refit = True
+            elif not missing:
+                _sym_sweep(P, ga, c, hn, gb)       # P = P - g g^T / s, ga = P hn^T
+                for i in range(n):
+                    ga[i] = gb[i]
+            else:
+                _sym_gain(P, hn, ga)
+        for j in range(n):
+            wH[h, j] = phi[j]
+        for j in range(m):
+            wZ[h, j] = np.nan if missing else z[j]
+        wR[h] = r
+        ist[HEAD] = h + 1 if h + 1 < window else 0
+        ist[NW] = min(ist[NW] + 1, window)
+        ist[COUNT] += 1
+        if refit:
+            nw = ist[NW]
+            if window_lstsq(wH, wZ, wR, nw, Lt, Ltx0, n - n, x, P):   # (n - n: one typing)
+                ist[EXACT] = 1
+            else:
+                ist[EXACT] = 0
+                ist[NEXT_EXACT] = ist[COUNT] + window
+                window_lstsq(wH, wZ, wR, nw, Lt, Ltx0, n, x, P)
+            _sym_gain(P, hn, ga)
         if countdown > 0:
             countdown -= 1
             full = countdown == 0
