@@ -54,18 +54,24 @@ def _diagnostic(i, doc):
     arrays of the last update: ``x, P, buffer, y, K, S, SI, H, z, x_post,
     P_post, ...``). Reading it marks the arrays as handed out; assigning it
     replaces it and takes those arrays out of reuse (``None`` for ``x``, ``P``
-    and the buffer: the quick test of `update` then fails)."""
+    and the buffer, marked as handed out)."""
 
     def get(self):
-        self._handed = True
+        self._handed = _VIEWS
         return self._last_update[i]
 
     def put(self, value):
         lu = self._last_update
         self._last_update = (None, None, None) + lu[3:i] + (value,) + lu[i + 1:]
+        self._handed = _VIEWS         # (not a block any more: never recycled)
 
     return property(get, put, doc=doc)
 
+
+#: What ``_handed`` records of the arrays of the current update, for the step that
+#: recycles them: nothing was read (no test needed), ``x`` or ``P`` (their
+#: reference counts tell), a view of the block (every array is tested).
+_NOTHING, _STATE, _VIEWS = 0, 1, 2
 
 _SKIPPED = ("update() was called twice without predict() in between, so the forgetting "
             "(lam < 1) or random walk (Q > 0) of this step was skipped; call predict() "
@@ -329,9 +335,9 @@ class RecursiveLeastSquares(_FilterBase):
     # that changes the state) before that runs it first, exactly as ``predict()``
     # would have (`_materialize`). The diagnostics of the last update (``y``, ``K``,
     # ``S``, ``SI``, ``H``, ``z``, ``x_post``, ``P_post``) are read from
-    # ``_last_update``, the arrays the step wrote; ``_handed`` records that one of
-    # them was handed out (read through its property), so that the step that reuses
-    # those arrays tests every one of them, not only ``x``, ``P`` and the buffer.
+    # ``_last_update``, the arrays the step wrote; ``_handed`` records what of them
+    # was handed out (read through a property: _NOTHING, _STATE, _VIEWS), so that the
+    # step that recycles those arrays tests what may be held, and no more.
     __slots__ = ("_x", "_P", "_cfg", "_last_predict", "_spare_predict", "_last_update",
                  "_spare_update", "_pending", "_deferred", "_x_prior", "_P_prior",
                  "_handed", "_handed_spare")
@@ -364,7 +370,7 @@ class RecursiveLeastSquares(_FilterBase):
         self._null_basis = None      # orthonormal basis of null(A), for the health check
         self._last_predict = self._spare_predict = None
         self._last_update, self._spare_update = (None,) * len(_NO_BLOCK), None
-        self._handed = self._handed_spare = False
+        self._handed, self._handed_spare = _VIEWS, _NOTHING   # (_NO_BLOCK: no arrays)
         self._pending = self._x_prior = self._P_prior = None
         self._lam_t_at = _streaming.lam_t_at(self.dim_x, self.dim_z)
         self.reset()
@@ -375,6 +381,8 @@ class RecursiveLeastSquares(_FilterBase):
     @property
     def x(self):
         """Parameter estimate, ``(dim_x, dim_z)``; assigning copies the value."""
+        if not self._handed:
+            self._handed = _STATE
         return self._x
 
     @x.setter
@@ -390,6 +398,8 @@ class RecursiveLeastSquares(_FilterBase):
         """Covariance of the estimate, ``(dim_x, dim_x)``; assigning copies the value."""
         if self._pending is not None:
             self._materialize()
+        if not self._handed:
+            self._handed = _STATE
         return self._P
 
     @P.setter
@@ -406,7 +416,7 @@ class RecursiveLeastSquares(_FilterBase):
         """Estimate after the last :meth:`predict`, ``(dim_x, dim_z)`` (as filterpy's)."""
         if self._pending is not None:
             self._materialize()
-        self._handed = True
+        self._handed = _VIEWS
         return self._x_prior
 
     @x_prior.setter
@@ -420,7 +430,7 @@ class RecursiveLeastSquares(_FilterBase):
         """Covariance after the last :meth:`predict`, ``(dim_x, dim_x)`` (as filterpy's)."""
         if self._pending is not None:
             self._materialize()
-        self._handed = True
+        self._handed = _VIEWS
         return self._P_prior
 
     @P_prior.setter
@@ -580,11 +590,14 @@ class RecursiveLeastSquares(_FilterBase):
         else:                                         # the deferred predict() runs first
             il, Q = pending
             x, P = self._x, self._P
-        # the arrays of the step before last, when nobody else holds them
-        # (_streaming.update's test, written out: this is the hot path)
+        # the arrays of the step before last, when nobody else holds them (nothing
+        # of them was handed out, or the reference counts of x and P say so; the test
+        # of _streaming.update, written out: this is the hot path)
         spare = self._spare_update
-        if (spare is None or self._handed_spare
-                or _rc(spare[0]) + _rc(spare[1]) != _streaming._FREE_UPDATE):
+        handed = self._handed_spare
+        free = _streaming._FREE_UPDATE               # (negative: reuse is off)
+        if spare is None or free < 0 or (handed and (
+                handed == _VIEWS or _rc(spare[0]) + _rc(spare[1]) != free)):
             spare = _streaming.renew(spare, *x.shape)
         if zmode == 0:
             spare[8][:] = z                           # the block's z
@@ -610,13 +623,14 @@ class RecursiveLeastSquares(_FilterBase):
         if pending is None:
             # x_prior, P_prior may still be views of the outgoing arrays (when the
             # update before ran a deferred predict): then test them all before reuse
-            self._handed_spare = self._handed or self._spare_update[11] is self._x_prior
-            self._handed = False
+            self._handed_spare = (_VIEWS if self._spare_update[11] is self._x_prior
+                                  else self._handed)
+            self._handed = _NOTHING
             self._updates_since_predict += 1
             if self._recheck:
                 self._recheck = self._efra_pending = False
         else:
-            self._handed_spare, self._handed = self._handed, False
+            self._handed_spare, self._handed = self._handed, _NOTHING
             self._x_prior, self._P_prior = spare[11], spare[12]
             self._pending = None
             self._updates_since_predict = 1
@@ -1046,8 +1060,8 @@ class RecursiveLeastSquares(_FilterBase):
         # the diagnostics of the last update without its block (a copy's own arrays)
         last = (None, None, None) + self._last_update[3:11] + (None, None)
         slots.update(_last_predict=None, _spare_predict=None, _last_update=last,
-                     _spare_update=None, _handed=False, _handed_spare=False)
-        self._handed = True           # copy.copy shares the diagnostics: never reuse them
+                     _spare_update=None, _handed=_VIEWS, _handed_spare=_NOTHING)
+        self._handed = _VIEWS         # copy.copy shares the arrays: never reuse them
         return self.__dict__.copy(), slots
 
     def __repr__(self):
