@@ -40,8 +40,12 @@ are winding up). Then the time update leaves ``P`` (and adds ``Q``) and the
 next update forgets along its regressor only (``_reference.windup_cap``).
 
 ``batch_filter`` runs ``time_update`` and ``measurement_update`` once per
-sample (`step_batch`), and the streaming ``predict_kernel`` and
-``update_kernel`` run the same two: streaming and batch agree bit for bit.
+sample (`step_batch`), and the streaming ``update_kernel`` runs the same
+two (``predict_kernel`` the first alone, when a deferred ``predict()`` is
+read before the next update): streaming and batch agree bit for bit.
+``update_kernel`` is compiled without numba's reference counting
+(``_nrt=False``: it allocates nothing, and the counting of its views cost
+more than the arithmetic of a small step).
 The default configuration with one output (ARX fits, long records) runs
 `exponential_batch` instead: one sweep over ``P``
 per sample applies the update, the next time update and the next gain

@@ -6,8 +6,10 @@ The same recursions in readable NumPy are in :mod:`rlsfilt.filters._reference`
 (``SlidingWindow``, ``square_root_update``: the same Givens rotations);
 ``tests/test_kernels_window.py`` holds the two equal step by step to 1e-12.
 As in :mod:`rlsfilt.filters._kernels`, every function is ``njit(cache=True)``
-and one step function serves both the batch kernel and the streaming
-``update``, so the two agree bit for bit.
+and one implementation of a step serves both the batch kernel and the
+streaming ``update`` (the square root's step function; the sliding window's
+batch loop, which the streaming update runs on one sample), so the two agree
+bit for bit.
 
 Sliding window, one step (Haykin 2002, sec. 9)::
 
@@ -19,13 +21,23 @@ Sliding window, one step (Haykin 2002, sec. 9)::
     refit by Householder QR of the stored window when d is not clearly
     positive, when the window first fills, and every `refresh` steps
 
+The batch loop makes two passes over ``P`` per sample (`_sym_sweep`, four
+rows at a time): the update summing the downdate's gain ``P' h``, then the
+downdate summing the next sample's gain ``P'' phi_next``, the numbers of
+the four steps above one after the other. A full-rank refit is certified by
+``cond(R) <= ||R||_F ||R^-1||_F`` before it would need the SVD.
+
 Square root (QR, information form), one step::
 
     U <- sqrt(lam) U, d <- sqrt(lam) d      predict
     [U d; phi/sqrt(r) z^T/sqrt(r)] -> [U' d'; 0 e]   by n Givens rotations
     s = r / prod_i c_i^2 (the rotations' cosines: = |U^-T phi|^2 + r)
     K = U^-1 w / s, w = U^-T phi (only when the gain is kept)
-    x = U'^-1 d'
+    x = U'^-1 d'                              by columns of U'
+
+The batch loop applies the time update inside the rotations (each row of
+``U`` and ``d`` is multiplied by ``sqrt(lam)`` as its rotation reads it: the
+numbers of `sr_predict` then the rotations, without the pass over ``U``).
 
 The Givens rotations keep the diagonal of ``U`` positive by construction
 (``U_ii <- hypot(U_ii, a_i)``).

@@ -3,14 +3,23 @@ packing and array reuse around its compiled steps.
 
 A streaming step is one Python call, so at small ``dim_x`` its cost is the
 call overhead, not the arithmetic: validating the inputs, handing arrays to
-the compiled ``predict_kernel`` / ``update_kernel``
-(:mod:`rlsfilt.filters._kernels`) and allocating the arrays a step produces
-(``x, P, y, K, S, SI, H, z, x_post, P_post`` for an update, ``P, x_prior,
-P_prior`` for a predict). Three things keep that small:
+the compiled ``update_kernel`` (:mod:`rlsfilt.filters._kernels`) and
+allocating the arrays a step produces (``x, P, y, K, S, SI, H, z, x_post,
+P_post, x_prior, P_prior``). Four things keep that small:
+
+**One compiled call per step.** ``predict()`` only records its time update;
+the next ``update()`` runs it and the measurement update in one call of
+``update_kernel`` (the same operations as ``predict_kernel`` then the
+update, so the same bits), which writes ``x_prior`` and ``P_prior`` too.
+Reading ``P``, ``x_prior`` or ``P_prior`` in between runs the time update at
+once with ``predict_kernel`` (see `RecursiveLeastSquares.predict`). The
+kernel returns one integer of flags and is compiled without numba's
+reference counting (it allocates nothing; the counting of its views cost
+more than a small step's arithmetic).
 
 **Blocks.** The diagnostics of a step are views of one buffer (a *block*,
 made by `_block`), so the kernel takes the buffer as one argument, not
-eight; the new ``x`` and ``P`` are arrays of their own, because callers keep
+ten; the new ``x`` and ``P`` are arrays of their own, because callers keep
 them (a list of estimates, filterpy's ``Saver``) and that should not cost
 the rest.
 
@@ -18,24 +27,30 @@ the rest.
 them the filter's attributes, so a step never changes an array a caller
 holds (``history.append(rls.x)`` works as with filterpy), and a step that
 raises, or whose warning is turned into an error, leaves the filter as it
-was. The arrays a step replaced become the spares of the step after next;
-when nobody else holds them (``sys.getrefcount`` shows only the filter's
-tuple; the buffer's count also shows any view of a view) that step writes
-into them instead of allocating, and any part someone holds is made anew.
+was. The arrays a step replaced become the spares of the step after next.
+The filter records which of its arrays it handed out while they were
+current (its properties do: nothing, ``x`` or ``P``, or a view of the
+block); a step recycles the spares without a test when nothing was handed
+out, when only ``x`` or ``P`` was and their reference counts show nobody
+else holds them (`quick_count`), and otherwise after testing every array
+(`renew`: ``sys.getrefcount`` shows only the filter's tuple; the buffer's
+count also shows any view of a view), making anew any part someone holds.
 Reuse is off where counts cannot be trusted (no ``sys.getrefcount``,
 free-threaded builds).
 
 **Entry points.** Calling a numba dispatcher first types every argument to
 choose the compiled version. The steps here always pass the same types
-(C-contiguous float64 arrays, floats, ints), so after the first call they
+(C-contiguous float64 arrays, floats, ints; the regressor row of any
+layout: the update kernel is compiled for it), so after the first call they
 call the compiled version's entry point (numba's
 ``overloads[signature].entry_point``) directly; the dispatcher serves if
 numba does not expose it.
 
-Both tricks pay (``python benchmarks/bench_rls.py --streaming-ablation``,
-CPU time per ``predict()`` + ``update()``, measured on a shared 2-core
-machine): at ``dim_x = 5`` 3.0 us as shipped, 9.2 us with fresh arrays every
-step, 3.4 us through the dispatcher; at ``dim_x = 20`` 3.7, 10.5 and 4.2 us.
+The reuse and the entry points pay (``python benchmarks/bench_rls.py
+--streaming-ablation``, CPU time per ``predict()`` + ``update()``, measured
+on a shared 2-core machine): at ``dim_x = 5`` 1.5 us as shipped, 6.5 us
+with fresh arrays every step, 1.8 us through the dispatcher; at ``dim_x =
+20`` 1.9, 7.3 and 2.2 us.
 """
 
 import sys

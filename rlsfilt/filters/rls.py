@@ -525,6 +525,14 @@ class RecursiveLeastSquares(_FilterBase):
         forgetting needs the regressor and happens in :meth:`update`); only
         ``Q`` is added.
 
+        The arithmetic is deferred: the next :meth:`update` runs it in the
+        same compiled call as the measurement update, and reading ``P``,
+        ``x_prior`` or ``P_prior`` (or anything that uses or replaces the
+        state: an assignment, :meth:`batch_filter`, a copy) before that runs
+        it at once. Either way every attribute has the bits an immediate
+        time update gives; the deferral only saves a compiled call per step
+        (``docs/performance.md``).
+
         Parameters
         ----------
         Q : float or array_like, optional
