@@ -216,14 +216,26 @@ def test_renew_keeps_what_is_free(rng):
     assert again[0] is not held and again[2:] == spare[2:]
     del spare, held
     row = again[3][0]                              # a caller keeps a row of y: the buffer
-    _, third = _streaming.update(x, P, np.ones(n), None, 1.0, cfg, 1.0, again, handed=True)
+    _, third = _streaming.update(x, P, np.ones(n), None, 1.0, cfg, 1.0, again,
+                                 handed=_streaming.VIEWS)
     assert third[:2] == again[:2] and third[2] is not again[2]
     del row, again
     view = third[4]                                # a caller keeps K itself
     ids = [id(a) for a in third]
-    _, fourth = _streaming.update(x, P, np.ones(n), None, 1.0, cfg, 1.0, third, handed=True)
+    _, fourth = _streaming.update(x, P, np.ones(n), None, 1.0, cfg, 1.0, third,
+                                  handed=_streaming.VIEWS)
     assert [id(a) for a in fourth[:2]] == ids[:2] and id(fourth[2]) != ids[2]
     del view, third
     ids = [id(a) for a in fourth]
-    _, fifth = _streaming.update(x, P, np.ones(n), None, 1.0, cfg, 1.0, fourth, handed=False)
+    _, fifth = _streaming.update(x, P, np.ones(n), None, 1.0, cfg, 1.0, fourth,
+                                 handed=_streaming.STATE)
     assert [id(a) for a in fifth] == ids           # nobody holds anything: all reused
+    held = fifth[0]
+    _, sixth = _streaming.update(x, P, np.ones(n), None, 1.0, cfg, 1.0, fifth,
+                                 handed=_streaming.STATE)
+    assert sixth[0] is not held and sixth[2:] == fifth[2:]   # x held: x, P made anew
+    del held, fifth
+    ids = [id(a) for a in sixth]
+    _, seventh = _streaming.update(x, P, np.ones(n), None, 1.0, cfg, 1.0, sixth,
+                                   handed=_streaming.NOTHING)
+    assert [id(a) for a in seventh] == ids         # nothing handed out: no test at all

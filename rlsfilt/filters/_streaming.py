@@ -167,6 +167,13 @@ _getrefcount = getattr(sys, "getrefcount", lambda a: 0)
 #: The empty (0, 0) array the kernels take for an absent ``Q`` or projector.
 EMPTY = np.zeros((0, 0))
 
+#: What a filter handed out of the arrays of an update while they were current (its
+#: properties record it): nothing (they are recycled without a test), ``x`` or ``P``
+#: (their reference counts decide, `quick_count`), a view of the block (every array
+#: is tested, `renew`).
+NOTHING, STATE, VIEWS = 0, 1, 2
+
+
 def quick_count(spare):
     """The reference counts of ``x`` and ``P`` of an update's `spare`, summed: the
     quick test of `update` (written out the same way in
@@ -208,7 +215,7 @@ def measurement(z):
     return z, 1
 
 
-def update(x, P, phi, z, r, cfg, w, spare, handed=True, il=0.0, Q=EMPTY):
+def update(x, P, phi, z, r, cfg, w, spare, handed=VIEWS, il=0.0, Q=EMPTY):
     """One measurement update into new arrays (those of `spare` where they are free).
 
     `phi` is the regressor row, a float64 array (n,) of any layout (the kernel
@@ -216,15 +223,17 @@ def update(x, P, phi, z, r, cfg, w, spare, handed=True, il=0.0, Q=EMPTY):
     (m, 1) or None (missing); `w` is ``1 / lam`` when the last predict held
     the forgetting back (the windup cap) and 1 otherwise; ``il > 0`` (with
     `Q`) runs a pending predict first (``update_kernel``). `spare` is None or
-    the ``arrays`` of an earlier call; `handed`: a view of its block (or the
-    buffer) may be held by someone (then every array is tested, not only
-    ``x`` and ``P``). Returns ``flags, arrays``: ``flags`` as ``update_kernel``'s,
+    the ``arrays`` of an earlier call; `handed` what of them was handed out
+    (`NOTHING`, `STATE`, `VIEWS`: the test they need before they are
+    recycled). ``RecursiveLeastSquares.update`` runs the same steps written
+    out (its hot path). Returns ``flags, arrays``: ``flags`` as ``update_kernel``'s,
     ``arrays = (x, P, buffer, y, K, S, SI, H, z, x_post, P_post, x_prior,
     P_prior)``, the new estimate and covariance (arrays of their own: a caller
     who keeps them, as a list of estimates or a ``Saver`` does, leaves the
     rest reusable) and the block of the diagnostics.
     """
-    if spare is None or handed or quick_count(spare) != _FREE_UPDATE:
+    if spare is None or _FREE_UPDATE < 0 or (handed and (
+            handed == VIEWS or quick_count(spare) != _FREE_UPDATE)):
         spare = renew(spare, *x.shape)
     z0, zmode = measurement(z)
     if zmode == 0:

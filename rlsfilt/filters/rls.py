@@ -69,9 +69,8 @@ def _diagnostic(i, doc):
 
 
 #: What ``_handed`` records of the arrays of the current update, for the step that
-#: recycles them: nothing was read (no test needed), ``x`` or ``P`` (their
-#: reference counts tell), a view of the block (every array is tested).
-_NOTHING, _STATE, _VIEWS = 0, 1, 2
+#: recycles them (``_streaming.NOTHING``, ``STATE``, ``VIEWS``)
+_NOTHING, _STATE, _VIEWS = _streaming.NOTHING, _streaming.STATE, _streaming.VIEWS
 
 _SKIPPED = ("update() was called twice without predict() in between, so the forgetting "
             "(lam < 1) or random walk (Q > 0) of this step was skipped; call predict() "
