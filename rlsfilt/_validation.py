@@ -5,6 +5,7 @@ was expected, and what was received, for example
 "`lam` must be in (0, 1]; got 1.5".
 """
 
+import math
 import numbers
 
 import numpy as np
@@ -41,11 +42,17 @@ def check_length(value, name, minimum=1, bytes_per_item=64):
     return n
 
 
+#: Sizes (bytes) below which `check_dimension` does not ask the system for its memory
+#: (a filter of up to about 90 parameters: reading /proc would cost more than the filter)
+_SMALL = 1 << 20
+
+
 def check_dimension(value, name, minimum=1):
     """A matrix dimension ``n``: an ``int >= minimum`` whose ``(n, n)`` matrices fit in memory
     (a filter keeps about a dozen of them)."""
     n = check_int(value, name, minimum=minimum)
-    check_memory(16 * 8 * n * n, f"`{name}` = {n} ({n} x {n} covariance matrices)")
+    if 16 * 8 * n * n > _SMALL:       # reading the system's limits costs more than these
+        check_memory(16 * 8 * n * n, f"`{name}` = {n} ({n} x {n} covariance matrices)")
     return n
 
 
@@ -163,6 +170,16 @@ def check_covariance(C, n, name, definite=False):
     arr = as_float_array(C, name)
     if arr.size == 1 and arr.ndim <= 2 and arr.shape != (n, n):
         c = float(arr.reshape(()))
+        if math.isfinite(c) and abs(c) <= COVARIANCE_MAX and n:
+            # c I: finite, symmetric, its eigenvalues are its diagonal; the checks
+            # below, in O(n^2) instead of O(n^3), with the same numbers and messages
+            v = 0.5 * c + 0.5 * c
+            tol = n * np.finfo(float).eps * max(abs(c), np.finfo(float).tiny)
+            if (definite and v <= 0.0) or v < -tol:
+                kind = "definite" if definite and v <= 0.0 else "semidefinite"
+                raise ValueError(f"`{name}` must be positive {kind}; got smallest "
+                                 f"eigenvalue {v:.3g}")
+            return v * np.eye(n)
         arr = c * np.eye(n)
     elif arr.shape != (n, n):
         raise ValueError(f"`{name}` must be a scalar or have shape ({n}, {n}); got {arr.shape}")

@@ -40,8 +40,12 @@ are winding up). Then the time update leaves ``P`` (and adds ``Q``) and the
 next update forgets along its regressor only (``_reference.windup_cap``).
 
 ``batch_filter`` runs ``time_update`` and ``measurement_update`` once per
-sample (`step_batch`), and the streaming ``predict_kernel`` and
-``update_kernel`` run the same two: streaming and batch agree bit for bit.
+sample (`step_batch`), and the streaming ``update_kernel`` runs the same
+two (``predict_kernel`` the first alone, when a deferred ``predict()`` is
+read before the next update): streaming and batch agree bit for bit.
+``update_kernel`` is compiled without numba's reference counting
+(``_nrt=False``: it allocates nothing, and the counting of its views cost
+more than the arithmetic of a small step).
 The default configuration with one output (ARX fits, long records) runs
 `exponential_batch` instead: one sweep over ``P``
 per sample applies the update, the next time update and the next gain
@@ -350,14 +354,17 @@ def measurement_update(x, P, phi, z, missing, r, cfg, Pi, g, y, K, T, w, xn, Pn)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _exponential_update_into(x, P, phi, z, missing, r, cfg, g, y, K, w, xn, Pn, xp, Pp):
+def _exponential_update_into(x, P, phi, z, missing, r, cfg, g, y, K, w, xn, Pn, xp, Pp,
+                             g_ready):
     """`measurement_update` in the exponential mode without constraints, reading
     ``x``, ``P`` and writing the updated ones to ``xn``, ``Pn`` and the copies
     ``xp``, ``Pp`` in one pass: the same operations in the same order, so the
-    same numbers (the streaming ``update``'s path)."""
+    same numbers (the streaming ``update``'s path). With `g_ready` the gain
+    ``g = P phi`` is already in `g` (summed as `gain` sums it)."""
     n, m = x.shape
     lam = cfg[CFG_LAM]
-    gain(P, phi, g)                          # g = P H^T
+    if not g_ready:
+        gain(P, phi, g)                      # g = P H^T
     q = 0.0
     for i in range(n):
         q += phi[i] * g[i]
@@ -397,6 +404,30 @@ def _exponential_update_into(x, P, phi, z, missing, r, cfg, g, y, K, w, xn, Pn, 
     hph = q * r * (w * (1.0 / s)) if updated else q * w    # phi P phi^T after the update
     tr, spread, _ = _diagonal_stats(Pn, g, 0.0, phi)
     return s, lam, gated, windup_cap(tr, spread, hph, 1.0 / lam, cfg)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _time_update_gain(P, il, Q, phi, Pm, g):
+    """``Pm = P il + Q`` (`Q` (0, 0) when absent; the numbers of `time_update`
+    without constraints) and the gain ``g = Pm phi`` of the result in the same
+    pass (summed as `gain` sums it)."""
+    n = P.shape[0]
+    for j in range(n):
+        g[j] = 0.0
+    if Q.shape[0]:
+        for i in range(n):
+            hi = phi[i]
+            for j in range(n):
+                v = P[i, j] * il + Q[i, j]
+                Pm[i, j] = v
+                g[j] += v * hi
+    else:
+        for i in range(n):
+            hi = phi[i]
+            for j in range(n):
+                v = P[i, j] * il
+                Pm[i, j] = v
+                g[j] += v * hi
 
 
 # ----------------------------------------------------------------------
@@ -443,55 +474,94 @@ def predict_kernel(x, P, il, Q, cfg, out):
     copy2(Pn, P_prior)
 
 
-@njit(cache=True, error_model="numpy")
-def update_kernel(x, P, phi, z0, zmode, r, cfg, w, xn, Pn, out):
-    """Streaming ``update``: `measurement_update` of ``x``, ``P`` into new arrays.
+#: The flags `update_kernel` returns, added: a regressor with NaN or inf (nothing
+#: written), a diagonal of the new ``P`` that is not positive and finite (the cheap
+#: health check; without constraints only), a gated sample, and the windup cap's
+#: decision for the next time update.
+BAD_ROW, BAD_DIAGONAL, GATED, CAP = 1, 2, 4, 8
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def update_kernel(x, P, phi, z0, zmode, r, cfg, w, il, Q, xn, Pn, out):
+    """Streaming ``update``, with the time update of a pending ``predict`` fused in.
+
+    With ``il > 0`` the ``predict()`` before this update was deferred (see
+    ``RecursiveLeastSquares.predict``): ``P^- = P il + Q`` (`time_update`, `Q`
+    (0, 0) when absent, projected under constraints) is computed first, with
+    the gain in the same pass when there are no constraints, and written to
+    the block's ``P_prior`` (with ``x_prior = x``); the update then reads it.
+    With ``il = 0`` ``P`` is the prior (``predict_kernel`` ran, or no predict).
+    Either way the numbers are those of ``predict_kernel`` then
+    `measurement_update`, operation by operation.
 
     Writes the new estimate ``xn`` (n, m) and covariance ``Pn`` (n, n), and
-    into the block `out` (``_streaming.update_shapes``, then ``n + n^2`` of
-    work space) ``y`` (m, 1), ``K`` (n, 1), ``S = s I`` and ``SI = I / s``
+    into the block `out` (``_streaming.update_shapes``, then ``n + 1 + n^2``
+    of work space) ``y`` (m, 1), ``K`` (n, 1), ``S = s I`` and ``SI = I / s``
     (m, m), the copy ``H`` (1, n) of the regressor ``phi`` (n,), the
-    measurement ``z`` (m, 1; NaN when missing) and the copies ``x_post``,
-    ``P_post``. With ``zmode`` 0 the caller has written the measurement into
-    the block's ``z``; with 1 it is the scalar ``z0``; with 2 it is missing.
-    `w` as in `measurement_update`.
+    measurement ``z`` (m, 1; NaN when missing), the copies ``x_post``,
+    ``P_post``, then ``x_prior``, ``P_prior`` (only with ``il > 0``), and the
+    step's forgetting factor ``lam_t`` after the gain in the work space. With
+    ``zmode`` 0 the caller has written the measurement into the block's
+    ``z``; with 1 it is the scalar ``z0``; with 2 it is missing. `w` as in
+    `measurement_update`.
 
     Returns
     -------
-    code : int
-        0; 1 when ``phi`` holds NaN or inf (nothing is written then); 2 when
-        the diagonal of the new ``P`` is not positive and finite (checked
-        without constraints only: under them ``P`` is singular by design).
-    s, lam_t : float
-    gated, cap : bool
+    flags : int
+        The sum of `BAD_ROW` (``phi`` holds NaN or inf: nothing is written),
+        `BAD_DIAGONAL` (the cheap check of the new ``P``; without constraints
+        only: under them ``P`` is singular by design), `GATED` and `CAP` (the
+        next time update must hold the forgetting back); 0 for an ordinary
+        step.
     """
     n, m = x.shape
     for i in range(n):
         v = phi[i]
         if v - v != 0.0:                     # NaN or inf
-            return 1, np.nan, np.nan, False, False
-    y, K = out[:m], out[m:m + n]             # the block: y K S SI H z x_post P_post | g T
-    o = m + n
-    S, SI, Hz = out[o:o + m * m], out[o + m * m:o + 2 * m * m], out[o + 2 * m * m:]
-    for i in range(n):
-        Hz[i] = phi[i]                       # H
-    for j in range(m):
-        if zmode != 0:
-            Hz[n + j] = z0 if zmode == 1 else np.nan     # z
-    o += 2 * m * m + n + m                   # x_post, P_post, then the work space
+            return BAD_ROW
+    # the block: y K S SI H z x_post P_post x_prior P_prior | g lam_t T (the 2-D views
+    # made where they are used: a reshape costs as much as a small step's arithmetic)
     nx, nP = n * m, n * n
-    g = out[o + nx + nP:o + nx + nP + n]
+    y, o = out[:m], m
+    K, o = out[o:o + n], o + n
+    S, o = out[o:o + m * m], o + m * m
+    SI, o = out[o:o + m * m], o + m * m
+    Hb, o = out[o:o + n], o + n
+    zb, o = out[o:o + m], o + m
+    post, prior, o = o, o + nx + nP, o + 2 * (nx + nP)
+    g, o = out[o:o + n], o + n
+    lam_out, o = out[o:o + 1], o + 1
     k = n if Pi_or_efra(cfg) else 0
-    T = out[o + nx + nP + n:o + nx + nP + n + k * k].reshape((k, k))
-    xp = out[o:o + nx].reshape((n, m))
-    Pp = out[o + nx:o + nx + nP].reshape((n, n))
-    if int(cfg[CFG_MODE]) == EXPONENTIAL and cfg.shape[0] == CFG_PI:
+    for i in range(n):
+        Hb[i] = phi[i]                       # H
+    if zmode != 0:
+        for j in range(m):
+            zb[j] = z0 if zmode == 1 else np.nan     # z
+    plain = cfg.shape[0] == CFG_PI           # no constraints
+    g_ready = False
+    Pm = P
+    if il > 0.0:                             # the pending predict: P^- = P il + Q
+        x_prior = out[prior:prior + nx].reshape((n, m))
+        P_prior = out[prior + nx:prior + nx + nP].reshape((n, n))
+        copy2(x, x_prior)
+        if plain:
+            _time_update_gain(P, il, Q, phi, P_prior, g)
+            g_ready = True
+        else:
+            time_update(P, il, Q, projector(cfg, n), out[o:o + k * k].reshape((k, k)),
+                        P_prior)
+        Pm = P_prior
+    xp = out[post:post + nx].reshape((n, m))
+    Pp = out[post + nx:post + nx + nP].reshape((n, n))
+    if int(cfg[CFG_MODE]) == EXPONENTIAL and plain:
         # the default: x, P read once, the new ones written twice (x, x_post; P, P_post)
-        s, lam_t, gated, cap = _exponential_update_into(x, P, phi, Hz[n:n + m], zmode == 2, r,
-                                                        cfg, g, y, K, w, xn, Pn, xp, Pp)
+        s, lam_t, gated, cap = _exponential_update_into(x, Pm, phi, zb, zmode == 2, r, cfg, g,
+                                                        y, K, w, xn, Pn, xp, Pp, g_ready)
     else:
-        s, lam_t, gated, cap = measurement_update(x, P, phi, Hz[n:n + m], zmode == 2, r, cfg,
-                                                  projector(cfg, n), g, y, K, T, w, xn, Pn)
+        s, lam_t, gated, cap = measurement_update(x, Pm, phi, zb, zmode == 2, r, cfg,
+                                                  projector(cfg, n),
+                                                  g, y, K, out[o:o + k * k].reshape((k, k)), w,
+                                                  xn, Pn)
         copy2(xn, xp)
         copy2(Pn, Pp)
     for i in range(m * m):
@@ -500,8 +570,12 @@ def update_kernel(x, P, phi, z0, zmode, r, cfg, w, xn, Pn, out):
     for i in range(m):
         S[i * m + i] = s
         SI[i * m + i] = 1.0 / s
+    lam_out[0] = lam_t
+    flags = (GATED if gated else 0) + (CAP if cap else 0)
     # the cheap check (without constraints: under them P is singular by design)
-    return (2 if cfg.shape[0] == CFG_PI and diagonal_bad(Pn) else 0), s, lam_t, gated, cap
+    if plain and diagonal_bad(Pn):
+        flags += BAD_DIAGONAL
+    return flags
 
 
 # ----------------------------------------------------------------------

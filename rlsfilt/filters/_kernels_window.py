@@ -6,8 +6,10 @@ The same recursions in readable NumPy are in :mod:`rlsfilt.filters._reference`
 (``SlidingWindow``, ``square_root_update``: the same Givens rotations);
 ``tests/test_kernels_window.py`` holds the two equal step by step to 1e-12.
 As in :mod:`rlsfilt.filters._kernels`, every function is ``njit(cache=True)``
-and one step function serves both the batch kernel and the streaming
-``update``, so the two agree bit for bit.
+and one implementation of a step serves both the batch kernel and the
+streaming ``update`` (the square root's step function; the sliding window's
+batch loop, which the streaming update runs on one sample), so the two agree
+bit for bit.
 
 Sliding window, one step (Haykin 2002, sec. 9)::
 
@@ -19,13 +21,23 @@ Sliding window, one step (Haykin 2002, sec. 9)::
     refit by Householder QR of the stored window when d is not clearly
     positive, when the window first fills, and every `refresh` steps
 
+The batch loop makes two passes over ``P`` per sample (`_sym_sweep`, four
+rows at a time): the update summing the downdate's gain ``P' h``, then the
+downdate summing the next sample's gain ``P'' phi_next``, the numbers of
+the four steps above one after the other. A full-rank refit is certified by
+``cond(R) <= ||R||_F ||R^-1||_F`` before it would need the SVD.
+
 Square root (QR, information form), one step::
 
     U <- sqrt(lam) U, d <- sqrt(lam) d      predict
     [U d; phi/sqrt(r) z^T/sqrt(r)] -> [U' d'; 0 e]   by n Givens rotations
     s = r / prod_i c_i^2 (the rotations' cosines: = |U^-T phi|^2 + r)
     K = U^-1 w / s, w = U^-T phi (only when the gain is kept)
-    x = U'^-1 d'
+    x = U'^-1 d'                              by columns of U'
+
+The batch loop applies the time update inside the rotations (each row of
+``U`` and ``d`` is multiplied by ``sqrt(lam)`` as its rotation reads it: the
+numbers of `sr_predict` then the rotations, without the pass over ``U``).
 
 The Givens rotations keep the diagonal of ``U`` positive by construction
 (``U_ii <- hypot(U_ii, a_i)``).
@@ -93,21 +105,35 @@ def _back_solve(U, b, v):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _back_solve_inv(U, dinv, b, v):
-    """`_back_solve` with the reciprocals ``dinv`` of the diagonal of `U` known
-    (a multiply, not a division, on the chain from row to row)."""
+    """`_back_solve` with the reciprocals ``dinv`` of the diagonal of `U` known,
+    by columns: once ``v_i`` is known it is taken off every row above,
+    ``b_k <- b_k - U_ki v_i``. The chain from ``v_{i+1}`` to ``v_i`` is then a
+    multiply, a subtraction and a multiply (the row form waits for a dot
+    product); `v` may be `b`."""
     n = U.shape[0]
+    for k in range(n):
+        v[k] = b[k]
     for i in range(n - 1, -1, -1):
-        v[i] = (b[i] - _dot_from(U[i], v, i + 1, n)) * dinv[i]
+        vi = v[i] * dinv[i]
+        v[i] = vi
+        for k in range(i):
+            v[k] -= U[k, i] * vi
 
 
-@njit(cache=True, error_model="numpy")
-def _sr_step(U, d, x, phi, z, r, w, y, K, gain, a, b, xc):
+@njit(cache=True, error_model="numpy", inline="always")
+def _sr_step(U, d, x, phi, z, r, w, y, K, gain, a, b, xc, c, c0, want_y):
     """One measurement update of the information square root, in place.
 
-    Writes ``y`` (m,) and, when `gain`, ``K`` (n,) (NaN and zero when `z`
-    holds a NaN) and returns ``s = H P H^T + R``. ``w``, ``a`` (n,), ``b``
-    (m,) and ``xc`` (n,) are workspace. The gain is not needed to update
-    ``U`` and ``d``: the batch kernel forms it for the last step only.
+    Writes ``y`` (m,) when `want_y` and, when `gain`, ``K`` (n,) (NaN and
+    zero when `z` holds a NaN) and returns ``s = H P H^T + R``. ``w``, ``a``
+    (n,), ``b`` (m,) and ``xc`` (n,) are workspace; ``c0 = 1 / sqrt(r)``.
+    The gain is not needed to update ``U`` and ``d``, nor the residual: the
+    batch kernel forms them for the last step only.
+
+    ``c`` is the factor of a time update not yet applied (`sr_predict`; 1.0:
+    none): each row of ``U`` and ``d`` is multiplied by it as its rotation
+    reads it, the numbers `sr_predict` then the rotations give (the batch
+    loop saves a pass over ``U``). A missing `z` or `gain` needs ``c = 1``.
 
     ``s`` comes from the rotations: they keep ``det(U)`` times the
     determinant of the appended row's part, so ``prod_i (rho_i / U_ii)^2 =
@@ -117,7 +143,7 @@ def _sr_step(U, d, x, phi, z, r, w, y, K, gain, a, b, xc):
     """
     n, m = d.shape
     missing = any_nan(z)
-    if missing or gain:
+    if missing or gain:                        # (the caller applied the time update)
         for i in range(n):                     # U^T w = phi: forward, column by column
             w[i] = phi[i]
         for k in range(n):
@@ -137,13 +163,13 @@ def _sr_step(U, d, x, phi, z, r, w, y, K, gain, a, b, xc):
         return s
     if gain:
         _back_solve(U, w, K)                   # U v = w (the old U); K = v / s below
-    for j in range(m):                         # y = z - phi x
-        acc = 0.0
-        for i in range(n):
-            acc += phi[i] * x[i, j]
-        y[j] = z[j] - acc
+    if want_y:
+        for j in range(m):                     # y = z - phi x
+            acc = 0.0
+            for i in range(n):
+                acc += phi[i] * x[i, j]
+            y[j] = z[j] - acc
     # fold the row [phi, z^T] / sqrt(r) into [U, d] with Givens rotations
-    c0 = 1.0 / math.sqrt(r)
     for i in range(n):
         a[i] = phi[i] * c0
     for j in range(m):
@@ -152,10 +178,16 @@ def _sr_step(U, d, x, phi, z, r, w, y, K, gain, a, b, xc):
     scaled = 0
     for i in range(n):
         ai = a[i]
+        row = U[i]
+        uii = row[i] * c                       # (the pending time update, row by row)
         if ai == 0.0:
-            w[i] = 1.0 / U[i, i]               # w: the reciprocals of the new diagonal
+            if c != 1.0:
+                for j in range(i, n):
+                    row[j] = row[j] * c
+                for j in range(m):
+                    d[i, j] = d[i, j] * c
+            w[i] = 1.0 / uii                   # w: the reciprocals of the new diagonal
             continue
-        uii = U[i, i]
         big = max(abs(uii), abs(ai))
         if 1e-150 < big < 1e150:               # no overflow or underflow: sqrt, not hypot
             rho = math.sqrt(uii * uii + ai * ai)
@@ -169,15 +201,14 @@ def _sr_step(U, d, x, phi, z, r, w, y, K, gain, a, b, xc):
         if prod < 1e-150:                      # keep it normal (an exact power of two)
             prod *= 2.0 ** 500
             scaled += 1
-        U[i, i] = rho
-        row = U[i]
+        row[i] = rho
         for j in range(i + 1, n):
-            t = row[j]
+            t = row[j] * c
             aj = a[j]
             row[j] = cs * t + sn * aj
             a[j] = cs * aj - sn * t
         for j in range(m):
-            t = d[i, j]
+            t = d[i, j] * c
             bj = b[j]
             d[i, j] = cs * t + sn * bj
             b[j] = cs * bj - sn * t
@@ -205,7 +236,8 @@ def sr_update_kernel(U, d, x, phi, z, r, y, K):
     """
     n, m = d.shape
     w = np.empty(n)
-    s = _sr_step(U, d, x, phi, z, r, w, y, K, n > 0, np.empty(n), np.empty(m), np.empty(n))
+    s = _sr_step(U, d, x, phi, z, r, w, y, K, n > 0, np.empty(n), np.empty(m), np.empty(n), 1.0,
+                 1.0 / math.sqrt(r), True)
     return s, diagonal_bad(U)
 
 
@@ -238,28 +270,37 @@ def sr_batch_kernel(U, d, x, Z, Hm, Rv, c, update_first, means, covs, covs_p,
     n, m = x.shape
     store = covs.shape[0] == N and N > 0
     r_each = Rv.shape[0] == N
+    c0 = 1.0 / math.sqrt(Rv[0]) if Rv.shape[0] else 1.0
     w = np.empty(n)
     a = np.empty(n)
     b = np.empty(m)
     xc = np.empty(n)
     s = np.nan
     k_fail = -1
+    pending = 1.0           # a time update not yet applied to U, d (see _sr_step)
     # steps to the next full health check (a countdown: no division per step)
     countdown = check_every - step0 % check_every if check_every > 0 else -1
     for k in range(N):
+        last = k == N - 1
+        zk = Z[k]
+        if not update_first and c != 1.0:
+            pending = c
+        if pending != 1.0 and (store or last or any_nan(zk)):
+            sr_predict(U, d, pending)          # needed as it is: apply it now
+            pending = 1.0
         if not update_first:
-            if c != 1.0:
-                sr_predict(U, d, c)
             if store:
                 upper_inverse_gram(U, covs_p[k])
-            if k == N - 1:
+            if last:
                 copy2(x, x_prior)
                 if store:
                     copy2(covs_p[k], P_prior)
                 else:
                     upper_inverse_gram(U, P_prior)
-        s = _sr_step(U, d, x, Hm[k], Z[k], Rv[k if r_each else 0], w, y, K, k == N - 1, a, b,
-                     xc)
+        r = Rv[k if r_each else 0]
+        s = _sr_step(U, d, x, Hm[k], zk, r, w, y, K, last, a, b, xc, pending,
+                     1.0 / math.sqrt(r) if r_each else c0, last)
+        pending = 1.0
         if countdown > 0:
             countdown -= 1
             full = countdown == 0
@@ -272,17 +313,20 @@ def sr_batch_kernel(U, d, x, Z, Hm, Rv, c, update_first, means, covs, covs_p,
         copy2(x, means[k])
         if store:
             upper_inverse_gram(U, covs[k])
-        if k == N - 1:
+        if last:
             if store:
                 copy2(covs[k], P_post)
             else:
                 upper_inverse_gram(U, P_post)
         if update_first:
             if c != 1.0:
-                sr_predict(U, d, c)
+                if store or last:
+                    sr_predict(U, d, c)
+                else:
+                    pending = c                # applied by the next step's rotations
             if store:
                 upper_inverse_gram(U, covs_p[k])
-            if k == N - 1:
+            if last:
                 copy2(x, x_prior)
                 if store:
                     copy2(covs_p[k], P_prior)
@@ -334,46 +378,87 @@ def window_lstsq(wH, wZ, wR, nw, Lt, Ltx0, n_prior, x, P):
         for j in range(m):
             A[i, n + j] = wZ[k, j] * wk
         i += 1
-    # Householder QR of the first n columns, applied to all n + m columns
+    # Householder QR of the first n columns, applied to all n + m columns; the
+    # reflection of the columns right of j runs along the rows (each column's sum
+    # in row order, as a column-by-column loop would add it: contiguous, and the
+    # columns' sums are independent chains)
     v = np.empty(rows)
+    f = np.empty(n + m)
     for j in range(n):
         norm2 = 0.0
-        for i in range(j, rows):
-            norm2 += A[i, j] * A[i, j]
+        for i in range(j, rows):               # v = A[j:, j] (below the diagonal,
+            a = A[i, j]                        # column j is not read again)
+            v[i] = a
+            norm2 += a * a
         norm = math.sqrt(norm2)
         if norm == 0.0:
             continue
         alpha = -norm if A[j, j] >= 0.0 else norm
-        for i in range(j, rows):
-            v[i] = A[i, j]
         v[j] -= alpha
         vnorm2 = norm2 - A[j, j] * A[j, j] + v[j] * v[j]
         A[j, j] = alpha
-        for i in range(j + 1, rows):
-            A[i, j] = 0.0
         if vnorm2 == 0.0:
             continue
         for col in range(j + 1, n + m):
-            acc = 0.0
-            for i in range(j, rows):
-                acc += v[i] * A[i, col]
-            f = 2.0 * acc / vnorm2
-            for i in range(j, rows):
-                A[i, col] -= f * v[i]
+            f[col] = 0.0
+        i = j
+        while i + 4 <= rows:                   # f = A^T v, four rows at a time
+            v0, v1, v2, v3 = v[i], v[i + 1], v[i + 2], v[i + 3]
+            a0, a1, a2, a3 = A[i], A[i + 1], A[i + 2], A[i + 3]
+            for col in range(j + 1, n + m):
+                f[col] = (((f[col] + v0 * a0[col]) + v1 * a1[col]) + v2 * a2[col]
+                          + v3 * a3[col])
+            i += 4
+        while i < rows:
+            vi = v[i]
+            row = A[i]
+            for col in range(j + 1, n + m):
+                f[col] += vi * row[col]
+            i += 1
+        for col in range(j + 1, n + m):
+            f[col] = 2.0 * f[col] / vnorm2
+        i = j
+        while i + 4 <= rows:                   # A -= v (2 A^T v / |v|^2)^T
+            v0, v1, v2, v3 = v[i], v[i + 1], v[i + 2], v[i + 3]
+            a0, a1, a2, a3 = A[i], A[i + 1], A[i + 2], A[i + 3]
+            for col in range(j + 1, n + m):
+                fc = f[col]
+                a0[col] -= fc * v0
+                a1[col] -= fc * v1
+                a2[col] -= fc * v2
+                a3[col] -= fc * v3
+            i += 4
+        while i < rows:
+            vi = v[i]
+            row = A[i]
+            for col in range(j + 1, n + m):
+                row[col] -= f[col] * vi
+            i += 1
     Rf = np.empty((n, n))
+    fro2 = 0.0
     for i in range(n):
         for j in range(n):
             Rf[i, j] = A[i, j] if j >= i else 0.0
+            fro2 += Rf[i, j] * Rf[i, j]
+    Pt = np.empty((n, n))
+    upper_inverse_gram(Rf, Pt)                     # (R^T R)^-1
     if n_prior == 0:
-        smin, smax = singular_range(Rf)
-        if not smin > smax * max(rows, n) * _EPS:
-            return False
+        # full rank when s_min > s_max tol; cond(R) <= ||R||_F ||R^-1||_F =
+        # sqrt(||R||_F^2 trace(P)) settles the clear case without the SVD
+        tol = max(rows, n) * _EPS
+        tr = 0.0
+        for i in range(n):
+            tr += Pt[i, i]
+        if not fro2 * tr * tol * tol < 1.0:
+            smin, smax = singular_range(Rf)
+            if not smin > smax * tol:
+                return False
     QtB = np.empty((n, m))
     for i in range(n):
         for j in range(m):
             QtB[i, j] = A[i, n + j]
     back_substitute(Rf, QtB, x)
-    upper_inverse_gram(Rf, P)
+    copy2(Pt, P)
     return True
 
 
@@ -391,102 +476,72 @@ def _sym_gain(P, h, g):
             g[j] += row[j] * hi
 
 
-@njit(cache=True, error_model="numpy")
-def _sw_step(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, g, y, K):
-    """One `SlidingWindowRLS` update (add, slide the ring buffer, downdate,
-    refit when due), in place on ``x``, ``P``, the buffer and ``ist``.
+@njit(cache=True, error_model="numpy", inline="always")
+def _sym_sweep(P, g, cu, h, gn):
+    """``P <- P - (g g^T) cu`` (every entry from the symmetric product ``g_i g_j``:
+    ``P`` stays exactly symmetric), accumulating ``gn = P h`` of the result on the
+    way, four rows at a time.
 
-    Writes ``y`` (m,) and ``K`` (n,) (NaN and zero for a missing `z`) and
-    returns ``s``. ``g`` (n,) is workspace.
+    The contributions to ``gn_j`` are added in row order, so ``gn`` has the bits
+    of `_sym_gain` on the new ``P``; ``cu = -c`` adds ``(g g^T) c`` with the bits
+    of ``P + (g g^T) c`` (negation is exact). One pass over ``P`` instead of two.
     """
-    n, m = x.shape
-    window = wH.shape[0]
-    _sym_gain(P, phi, g)                       # g = P phi^T
-    s = r
-    for i in range(n):
-        s += phi[i] * g[i]                     # s = phi P phi^T + r
-    missing = any_nan(z)
-    if missing:
-        for j in range(m):
-            y[j] = np.nan
-        for i in range(n):
-            K[i] = 0.0
-    else:
-        for j in range(m):                     # y = z - phi x
-            acc = 0.0
-            for i in range(n):
-                acc += phi[i] * x[i, j]
-            y[j] = z[j] - acc
-        c = 1.0 / s
-        for i in range(n):
-            ki = g[i] * c                      # K = P phi^T / s
-            K[i] = ki
-            for j in range(m):
-                x[i, j] = x[i, j] + ki * y[j]
-        for i in range(n):                     # P = P - g g^T / s (symmetric products)
-            gi = g[i]
-            row = P[i]
-            for j in range(n):
-                row[j] = row[j] - (gi * g[j]) * c
-    # ring buffer: slot `head` holds the oldest sample once the window is full
-    h = ist[HEAD]
-    leaving = ist[NW] == window and not any_nan(wZ[h])
-    refit = False
-    if leaving:                                # downdate with the leaving sample
-        hl = wH[h]
-        rl = wR[h]
-        _sym_gain(P, hl, g)                    # g = P h^T
-        dd = rl
-        for i in range(n):
-            dd -= hl[i] * g[i]                 # d = R - h P h^T
-        if dd > 1e-8 * rl:
-            cd = 1.0 / dd
-            for j in range(m):
-                acc = 0.0
-                for i in range(n):
-                    acc += hl[i] * x[i, j]
-                e = wZ[h, j] - acc             # residual of the leaving sample
-                for i in range(n):
-                    x[i, j] = x[i, j] - (g[i] * cd) * e
-            for i in range(n):                 # P = P + g g^T / d (symmetric products)
-                gi = g[i]
-                row = P[i]
-                for j in range(n):
-                    row[j] = row[j] + (gi * g[j]) * cd
-        else:
-            refit = True
+    n = P.shape[0]
     for j in range(n):
-        wH[h, j] = phi[j]
-    for j in range(m):
-        wZ[h, j] = np.nan if missing else z[j]
-    wR[h] = r
-    ist[HEAD] = (h + 1) % window
-    ist[NW] = min(ist[NW] + 1, window)
-    ist[COUNT] += 1
-    if ist[NW] == window and not ist[EXACT]:
-        refit = refit or ist[COUNT] >= ist[NEXT_EXACT]
-    if refresh and ist[COUNT] % refresh == 0:
-        refit = True
-    if refit:
-        nw = ist[NW]
-        if window_lstsq(wH, wZ, wR, nw, Lt, Ltx0, n - n, x, P):   # (n - n: one typing)
-            ist[EXACT] = 1
-        else:
-            ist[EXACT] = 0
-            ist[NEXT_EXACT] = ist[COUNT] + window
-            window_lstsq(wH, wZ, wR, nw, Lt, Ltx0, n, x, P)
-    return s
+        gn[j] = 0.0
+    i = 0
+    while i + 4 <= n:
+        r0, r1, r2, r3 = P[i], P[i + 1], P[i + 2], P[i + 3]
+        a0, a1, a2, a3 = g[i], g[i + 1], g[i + 2], g[i + 3]
+        h0, h1, h2, h3 = h[i], h[i + 1], h[i + 2], h[i + 3]
+        for j in range(n):
+            gj = g[j]
+            v0 = r0[j] - (a0 * gj) * cu
+            v1 = r1[j] - (a1 * gj) * cu
+            v2 = r2[j] - (a2 * gj) * cu
+            v3 = r3[j] - (a3 * gj) * cu
+            r0[j] = v0
+            r1[j] = v1
+            r2[j] = v2
+            r3[j] = v3
+            gn[j] = (((gn[j] + v0 * h0) + v1 * h1) + v2 * h2) + v3 * h3
+        i += 4
+    while i < n:
+        ri = P[i]
+        ai = g[i]
+        hi = h[i]
+        for j in range(n):
+            v = ri[j] - (ai * g[j]) * cu
+            ri[j] = v
+            gn[j] += v * hi
+        i += 1
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _sw_refit_due(ist, window, refreshing):
+    """Whether the step that is about to add a sample ends with a refit, whatever
+    its downdate gives: the window fills without the exact solution due, or the
+    step ends a `refresh` period (`refreshing`; the counters as the step leaves
+    them)."""
+    nw = min(ist[NW] + 1, window)
+    return refreshing or (nw == window and not ist[EXACT] and ist[COUNT] + 1 >= ist[NEXT_EXACT])
 
 
 @njit(cache=True, error_model="numpy")
 def sw_update_kernel(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, y, K):
-    """Streaming :meth:`SlidingWindowRLS.update`: `_sw_step` on the given arrays.
+    """Streaming :meth:`SlidingWindowRLS.update`: `sw_batch_kernel` on a record of
+    one sample (the one implementation of the step: streaming and batch agree
+    bit for bit; the caller runs the health check).
 
     Returns ``s`` and whether the diagonal of the new ``P`` fails the cheap
     health check (``diagonal_bad``).
     """
-    g = np.empty(x.shape[0])
-    s = _sw_step(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, g, y, K)
+    n, m = x.shape
+    Rv = np.empty(1)
+    Rv[0] = r
+    s, _ = sw_batch_kernel(x, P, z.reshape((1, m)), phi.reshape((1, n)), Rv, wH, wZ, wR, ist,
+                           refresh, Lt, Ltx0, np.empty((1, n, m)), np.empty((0, n, n)), y, K,
+                           np.empty((n, n)), 0, 0, 1.0, np.empty((n, n)))
     return s, diagonal_bad(P)
 
 
@@ -499,6 +554,17 @@ def sw_batch_kernel(x, P, Z, Hm, Rv, wH, wZ, wR, ist, refresh, Lt, Ltx0, means, 
     is N. ``y`` and ``K`` are the last step's, ``P_last`` is ``P`` before
     the last step. (The window has no time update: the caller builds the
     predicted histories from these.)
+
+    Each step updates with the new sample, slides the ring buffer, downdates
+    with the leaving sample and refits when due, in place on ``x``, ``P``,
+    the buffer and ``ist``, in two passes over ``P`` (`_sym_sweep`): ``P' =
+    P - g g^T / s`` summing the downdate's gain ``gb = P' h`` (or, with
+    nothing leaving, the next step's gain ``P' hn``), then ``P'' = P' + gb
+    gb^T / d`` summing the next step's gain ``g = P'' hn``: the operations of
+    update, gain, downdate, gain one after the other (the same bits), in two
+    passes. ``g = P phi`` is summed once before the first step. A step that
+    ends with a refit (`window_lstsq` replaces ``x`` and ``P``) skips the
+    passes.
 
     The health check runs after every update as
     :meth:`SlidingWindowRLS.update` runs it: the cheap diagonal test each
@@ -516,16 +582,107 @@ def sw_batch_kernel(x, P, Z, Hm, Rv, wH, wZ, wR, ist, refresh, Lt, Ltx0, means, 
     N = Z.shape[0]
     store = covs.shape[0] == N and N > 0
     r_each = Rv.shape[0] == N
-    g = np.empty(x.shape[0])
+    n, m = x.shape
+    window = wH.shape[0]
+    ga, gb = np.empty(n), np.empty(n)
+    if N:
+        _sym_gain(P, Hm[0], ga)                # g = P phi^T; later steps leave it
     s = np.nan
     k_fail = -1
-    # steps to the next full health check (a countdown: no division per step)
+    # steps to the next full health check and to the end of a refresh period
+    # (countdowns: no division per step)
     countdown = check_every - step0 % check_every if check_every > 0 else -1
+    to_refresh = refresh - ist[COUNT] % refresh if refresh > 0 else -1
     for k in range(N):
         if k == N - 1:
             copy2(P, P_last)
-        s = _sw_step(x, P, Hm[k], Z[k], Rv[k if r_each else 0], wH, wZ, wR, ist, refresh,
-                     Lt, Ltx0, g, y, K)
+        to_refresh -= 1
+        refreshing = to_refresh == 0
+        if refreshing:
+            to_refresh = refresh
+        # one step (see the module; written out here, not in a function: a call
+        # that takes arrays costs reference counting that is most of a small
+        # step's bookkeeping)
+        phi = Hm[k]
+        z = Z[k]
+        r = Rv[k if r_each else 0]
+        hn = Hm[min(k + 1, N - 1)]                 # the next regressor
+        s = r
+        acc = 0.0
+        for i in range(n):                         # (two independent sums in one loop)
+            s += phi[i] * ga[i]                    # s = phi P phi^T + r
+            acc += phi[i] * x[i, 0]                # phi x, first output
+        missing = any_nan(z)
+        c = 0.0
+        if missing:
+            for j in range(m):
+                y[j] = np.nan
+            for i in range(n):
+                K[i] = 0.0
+        else:
+            y[0] = z[0] - acc                      # y = z - phi x
+            for j in range(1, m):
+                acc = 0.0
+                for i in range(n):
+                    acc += phi[i] * x[i, j]
+                y[j] = z[j] - acc
+            c = 1.0 / s
+            for i in range(n):
+                K[i] = ga[i] * c                   # K = P phi^T / s
+            for j in range(m):
+                yj = y[j]
+                for i in range(n):
+                    x[i, j] = x[i, j] + K[i] * yj
+        # ring buffer: slot `head` holds the oldest sample once the window is full
+        h = ist[HEAD]
+        leaving = ist[NW] == window and not any_nan(wZ[h])
+        refit = _sw_refit_due(ist, window, refreshing)
+        if not refit:
+            if leaving:                            # downdate with the leaving sample
+                hl = wH[h]
+                rl = wR[h]
+                if missing:
+                    _sym_gain(P, hl, gb)           # gb = P h^T
+                else:                              # P = P - g g^T / s, gb = P h^T
+                    _sym_sweep(P, ga, c, hl, gb)
+                dd = rl
+                for i in range(n):
+                    dd -= hl[i] * gb[i]            # d = R - h P h^T
+                if dd > 1e-8 * rl:
+                    cd = 1.0 / dd
+                    for j in range(m):
+                        acc = 0.0
+                        for i in range(n):
+                            acc += hl[i] * x[i, j]
+                        e = wZ[h, j] - acc         # residual of the leaving sample
+                        for i in range(n):
+                            x[i, j] = x[i, j] - (gb[i] * cd) * e
+                    _sym_sweep(P, gb, -cd, hn, ga)  # P = P + gb gb^T / d, ga = P hn^T
+                else:
+                    refit = True
+            elif not missing:
+                _sym_sweep(P, ga, c, hn, gb)       # P = P - g g^T / s, ga = P hn^T
+                for i in range(n):
+                    ga[i] = gb[i]
+            else:
+                _sym_gain(P, hn, ga)
+        for j in range(n):
+            wH[h, j] = phi[j]
+        for j in range(m):
+            wZ[h, j] = np.nan if missing else z[j]
+        wR[h] = r
+        ist[HEAD] = h + 1 if h + 1 < window else 0
+        ist[NW] = min(ist[NW] + 1, window)
+        ist[COUNT] += 1
+        if refit:
+            nw = ist[NW]
+            if window_lstsq(wH, wZ, wR, nw, Lt, Ltx0, n - n, x, P):   # (n - n: one typing)
+                ist[EXACT] = 1
+            else:
+                ist[EXACT] = 0
+                ist[NEXT_EXACT] = ist[COUNT] + window
+                window_lstsq(wH, wZ, wR, nw, Lt, Ltx0, n, x, P)
+            _sym_gain(P, hn, ga)
         if countdown > 0:
             countdown -= 1
             full = countdown == 0

@@ -313,7 +313,12 @@ class SlidingWindowRLS(_FilterBase):
     def batch_filter(self, zs, Hs, Rs=None, update_first=False, saver=None,
                      store_covariances=True):
         """Run the filter over a record; same arguments and returns as
-        :meth:`RecursiveLeastSquares.batch_filter`."""
+        :meth:`RecursiveLeastSquares.batch_filter`.
+
+        The window has no time update, so the predicted histories are the
+        updated ones shifted by one step (equal to them with `update_first`):
+        `means_p` and `covariances_p` are read-only views of the arrays
+        `means` and `covariances` share, not copies."""
         return self._batch(zs, Hs, Rs, update_first, saver, store_covariances)
 
     def _batch_compiled(self, Z, Hm, Rv, update_first, store_covariances):
@@ -325,8 +330,16 @@ class SlidingWindowRLS(_FilterBase):
         P_start = np.array(self._checked_P(), dtype=np.float64, order="C")
         x, P = x_start.copy(), P_start.copy()
         wH, wZ, wR = self._wH.copy(), self._wZ.copy(), self._wR.copy()
-        means = np.empty((N, n, m))
-        covs = np.empty((N, n, n)) if store_covariances else np.empty((0, n, n))
+        # one buffer per history: row 0 the state before the record, row k + 1 the
+        # state after update k; the window has no time update, so the predicted
+        # histories are read-only views of the same buffers (shifted by one step
+        # unless update_first): no copies of the record's histories
+        means_buf = np.empty((N + 1, n, m))
+        means_buf[0] = x_start
+        means = means_buf[1:]
+        covs_buf = np.empty((N + 1 if store_covariances else 1, n, n))
+        covs_buf[0] = P_start
+        covs = covs_buf[1:]
         y, K, P_last = np.empty(m), np.empty(n), np.empty((n, n))
         kern = _streaming.window_kernels()
         Rv = c_array(Rv[:1] if Rv.strides[0] == 0 else Rv)   # one variance: a length-1 array
@@ -351,19 +364,15 @@ class SlidingWindowRLS(_FilterBase):
         self._wH, self._wZ, self._wR = wH, wZ, wR
         self._set_int_state(ist)
         # the window has no time update: the priors are the previous posteriors
+        means_p = (means if update_first else means_buf[:-1]).view()
+        means_p.flags.writeable = False
+        covs_p = None
+        if store_covariances:
+            covs_p = (covs if update_first else covs_buf[:-1]).view()
+            covs_p.flags.writeable = False
         if update_first:
-            means_p = means.copy()
-            covs_p = covs.copy() if store_covariances else None
             self.x_prior, self.P_prior = x.copy(), P.copy()
         else:
-            means_p = np.empty((N, n, m))
-            means_p[0] = x_start
-            means_p[1:] = means[:-1]
-            covs_p = None
-            if store_covariances:
-                covs_p = np.empty((N, n, n))
-                covs_p[0] = P_start
-                covs_p[1:] = covs[:-1]
             self.x_prior = means_p[-1].copy()
             self.P_prior = covs_p[-1].copy() if store_covariances else P_last
         self._clear_lazy()
