@@ -74,7 +74,7 @@ def _same(a, b, names=STATE):
 def _eager_predict(f, **kw):
     """``predict()`` whose time update runs at once (reading ``P`` runs it)."""
     f.predict(**kw)
-    f.P
+    _ = f.P                                    # reading P runs the pending time update
     assert f._pending is None
 
 

@@ -15,7 +15,7 @@ from numpy.testing import assert_allclose, assert_array_equal
 
 from rlsfilt.filters import _reference as ref
 from rlsfilt.filters import _streaming
-from rlsfilt.filters._kernels import BAD_DIAGONAL, BAD_ROW, CAP, GATED
+from rlsfilt.filters._kernels import BAD_DIAGONAL, BAD_ROW, GATED
 from rlsfilt.filters.forgetting import DIRECTIONAL, EXPONENTIAL, kernel_config
 
 n, m = 4, 2
