@@ -1220,7 +1220,9 @@ def _hand_over(rls, user, theta, units, r):
             user.P = units.P_from_unit(rls.P, r=r)
             user._cap, user._w = rls._cap, rls._w      # the windup cap's pending decision
         for name, f in maps.items():
-            value = rls.__dict__.get(name)
+            # the diagnostics are properties over the last update's arrays (RLS) or
+            # plain attributes (the square-root form): read them as a user would
+            value = getattr(rls, name, None)
             if value is not None:
                 setattr(user, name, f(value))
     for name in ("n_updates", "n_gated", "n_capped", "lam_t", "gated", "_warned_health",
