@@ -557,10 +557,12 @@ class RLSBank:
             raise TypeError(f"`saver` must be None or have a save() method (filterpy's Saver); "
                             f"got {type(saver).__name__}")
         Z = self._measurements(zs, "zs", None, f"(N, {C}) (one column per channel)", ndim=2,
-                               finite=False)
+                               finite=False, strided=True)
         if Z.shape[1] != C:
             raise ValueError(f"`zs` must have shape (N, {C}) (one column per channel, "
                              f"n_channels = {C}); got {Z.shape}")
+        if Z.strides[1] != Z.itemsize:       # rows of adjacent channels are read in place
+            Z = np.ascontiguousarray(Z)      # (fit_many's column block of a record)
         N = Z.shape[0]
         Hm = self._measurements(Hs, "Hs", (N, C, n),
                                 f"({N}, {C}, {n}) (N = len(zs) steps, n_channels = {C}, "
