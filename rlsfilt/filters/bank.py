@@ -493,7 +493,8 @@ class RLSBank:
 
     @_atomic
     def batch_filter(self, zs, Hs, Rs=None, update_first=False, saver=None,
-                     store_covariances=True, store_means=True, store_residuals=True):
+                     store_covariances=True, store_means=True, store_residuals=True, *,
+                     _residuals=None):
         r"""Run every channel over a record in one compiled call.
 
         Parameters
@@ -524,6 +525,11 @@ class RLSBank:
             last step's ``y``, ``S``), in ``O(C dim_x^2)`` memory, and saves
             writing two ``(N, C)`` arrays (a fifth of the run time of 10,000
             channels x 1,000 samples at 4 parameters; ``docs/performance.md``).
+        _residuals : ndarray of shape (N, C), optional
+            Private (for `fit_many`): a float64 array, possibly a strided view
+            of a larger one, that receives the residual histories instead of
+            a new array (no copy afterwards); with `store_residuals` and no
+            `saver` only.
 
         Returns
         -------
@@ -551,10 +557,12 @@ class RLSBank:
             raise TypeError(f"`saver` must be None or have a save() method (filterpy's Saver); "
                             f"got {type(saver).__name__}")
         Z = self._measurements(zs, "zs", None, f"(N, {C}) (one column per channel)", ndim=2,
-                               finite=False)
+                               finite=False, strided=True)
         if Z.shape[1] != C:
             raise ValueError(f"`zs` must have shape (N, {C}) (one column per channel, "
                              f"n_channels = {C}); got {Z.shape}")
+        if Z.strides[1] != Z.itemsize:       # rows of adjacent channels are read in place
+            Z = np.ascontiguousarray(Z)      # (fit_many's column block of a record)
         N = Z.shape[0]
         Hm = self._measurements(Hs, "Hs", (N, C, n),
                                 f"({N}, {C}, {n}) (N = len(zs) steps, n_channels = {C}, "
@@ -575,6 +583,8 @@ class RLSBank:
         covs_p = np.empty_like(covs)
         rows = N if store_residuals else min(N, 1)   # else the last step's only
         ys, ss = np.empty((rows, C)), np.empty((rows, C))
+        if _residuals is not None and store_residuals:
+            ys = _residuals                       # (N, C) float64, checked by the caller
         x_prior, P_prior = np.empty((n, C)), np.empty((n, n, C))
         x_post, P_post = np.empty((n, C)), np.empty((n, n, C))
         K, lam_t = np.zeros((n, C)), self._lam.copy()

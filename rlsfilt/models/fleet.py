@@ -30,7 +30,7 @@ from .._scale import unit_columns
 from .._validation import as_float_array, check_dt, check_int, check_probability
 from ..exceptions import NumericalWarning
 from ..filters._health import warn_at_caller as _warn_at_caller
-from ..filters.bank import RLSBank
+from ..filters.bank import RLSBank, _full_rank
 from .regressors import _full_rank_rows, arx_structure
 
 __all__ = ["ARXBank", "fit_many"]
@@ -659,20 +659,21 @@ def _recursive(cs, Phi, target, norms, opts, k0, labels, on_error, out):
         group = _run_group(cs, group, int(kv), Phi, target, opts, labels, on_error, out)
         if group is None:
             continue
-        g, bank, residuals = group
+        g, bank = group
         theta[g] = bank.x
         cov[g] = bank.P / bank.R[:, None, None]
         _, sel = _as_slice(cs[g])
         out.k0[sel] = kv
         out.rec[:kv, sel] = np.nan                       # the rows of the batch start
-        out.rec[kv:, sel] = residuals
         out.healthy[sel] = ~np.isin(np.arange(len(g)), bank.failed_channels)
         ok[np.setdiff1d(np.flatnonzero(k0s == kv), g)] = False
     return ok, theta, cov
 
 
 def _run_group(cs, g, k0, Phi, target, opts, labels, on_error, out):
-    """Batch start on ``k0`` rows and the filter over the rest, for channels `g`."""
+    """Batch start on ``k0`` rows and the filter over the rest, for channels `g`:
+    their recursive residuals are written into ``out.rec``; returns the channels
+    that were started (``g`` or fewer) and their bank."""
     rows = Phi.shape[0]
 
     def make(channels):                 # the fleet's bank, validated once, cut to `channels`
@@ -698,14 +699,19 @@ def _run_group(cs, g, k0, Phi, target, opts, labels, on_error, out):
             g = g_sel = np.array(good)
             bank = make(g)
             bank.initialize(target[:k0, g], Phi[:k0, g])
-    residuals = np.empty((0, len(g)))
     if k0 < rows:
+        # the recursive residuals go straight into the result when the channels
+        # are consecutive (a strided view of `out.rec`), else through a copy
+        _, sel = _as_slice(cs[g])
+        into = out.rec[k0:, sel] if isinstance(sel, slice) else None
         with warnings.catch_warnings():       # one warning for the fleet, by label
             warnings.simplefilter("ignore", NumericalWarning)
             hist = bank.batch_filter(target[k0:, g_sel], Phi[k0:, g_sel],
-                                     store_covariances=False, store_means=False)
-        residuals = hist.residuals
-    return g, bank, residuals
+                                     store_covariances=False, store_means=False,
+                                     _residuals=into)
+        if into is None:
+            out.rec[k0:, sel] = hist.residuals
+    return g, bank
 
 
 def _as_slice(cs):
@@ -723,7 +729,9 @@ def _batch_start_rows(Phi, norms):
     rows, c, n = Phi.shape
     Ps = Phi[:n].transpose(1, 0, 2) / np.where(norms > 0, norms, 1.0)[:, None, :]
     k0s = np.full(c, n)
-    for j in np.flatnonzero(np.linalg.matrix_rank(Ps) < n):
+    # the ranks of np.linalg.matrix_rank(Ps), most settled by a QR (bank._full_rank)
+    rank, _ = _full_rank(Ps, np.linalg.qr(Ps, mode="r"))
+    for j in np.flatnonzero(rank < n):
         k = _full_rank_rows(Phi[:, j])
         k0s[j] = -1 if k is None else k
     return k0s
