@@ -989,7 +989,7 @@ class RLSBank:
             return
         self.failed_channels = np.union1d(self.failed_channels, new)
         c = int(new[0])
-        problem = (_health.symmetric_problem(self.P[c], self.cond_max)
+        problem = (_health.symmetric_problem(self._P[c], self.cond_max)   # (after updates)
                    or "`P` failed the health check")
         _health.warn_at_caller(
             f"`P` failed the health check in {new.size} of {self.n_channels} channel(s) "
