@@ -853,8 +853,9 @@ def _script(Z, H, rng, C, n):
     """Calls on a bank: predicts (twice in a row, with a one-off Q), updates with
     missing data, a batch_filter after a predict, an assigned asymmetric P."""
     Q1 = rng.uniform(0.0, 1e-3, C)
-    P_asym = np.tile(np.eye(n) * 50.0, (C, 1, 1))
-    P_asym[:, 0, 1] += 1e-3                          # (stored as given: not symmetric)
+    A = rng.standard_normal((C, n, n))
+    P_asym = A @ A.transpose(0, 2, 1) + np.eye(n)
+    P_asym[:, 0, 1] += rng.uniform(1e-9, 1e-3, C)   # (stored as given: not symmetric)
     return [
         lambda b: b.predict(), lambda b: b.update(Z[0], H[0]),
         lambda b: b.predict(), lambda b: b.update(Z[1], H[1], R=2.0),
@@ -880,7 +881,8 @@ def test_deferred_predict_equals_the_eager_one_bit_for_bit_after_every_call(rng,
     C, n = 130, 3
     Z, H = _record(rng, N=12, C=C, n=n)
     opts = _options(rng, C, mode)
-    opts["Q"] = rng.uniform(0.0, 1e-3, (C,))
+    A = rng.standard_normal((C, n, n))
+    opts["Q"] = 1e-3 * (A @ A.transpose(0, 2, 1))   # full matrices, off-diagonal terms
     script = _script(Z, H, np.random.default_rng(1), C, n)
     eager = _eager(RLSBank(C, n, check_every=0, **opts))
     deferred_seen = 0
@@ -1014,10 +1016,18 @@ def test_arrays_handed_out_are_not_lazy_sources(rng):
     eager.predict()
     eager.update(Z[1], H[1])
     _assert_same_bits(bank, eager, "held before the predict")
+    for b in (bank, eager):                  # (nothing handed out since this update)
+        b.predict()
+        b.update(Z[2], H[2])
     bank.predict()
     x_now = bank.x                           # held between predict and update
-    bank.update(Z[2], H[2])
+    bank.update(Z[3], H[3])
     x_now[...] = -1.0
-    eager.predict()
-    eager.update(Z[2], H[2])
+    P_now = bank.P                           # held after the update
+    bank.predict()
+    P_now[...] = -2.0
+    for b in (eager,):
+        b.predict()
+        b.update(Z[3], H[3])
+        b.predict()
     _assert_same_bits(bank, eager, "held after the predict")
