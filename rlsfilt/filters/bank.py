@@ -512,6 +512,12 @@ class RLSBank:
         modes only ``Q`` is added (their forgetting happens in
         :meth:`update`), as in `RecursiveLeastSquares`.
 
+        As in `RecursiveLeastSquares`, the arithmetic is deferred: the next
+        :meth:`update` applies it in its compiled call, and reading ``P`` or
+        ``P_prior`` (or assigning the state, :meth:`batch_filter`,
+        :meth:`channel`, another ``predict()``) before that runs it at once.
+        Every attribute has the bits an immediate time update gives.
+
         Parameters
         ----------
         Q : float or array_like, optional
