@@ -818,3 +818,216 @@ def test_benchmark_script_runs_in_smoke_mode(tmp_path):
     for row in ("batch (bank)", "handwritten", "loop batch_filter", "prange 2 threads",
                 "fit_many rls", "update (bank)", "loop predict+update"):
         assert row in proc.stdout, row
+
+
+# ----------------------------------------------------------------------
+# the deferred predict() and the lazy copies: the bits of the eager recursion
+# ----------------------------------------------------------------------
+_STATE = ("x", "P", "x_prior", "P_prior", "x_post", "P_post", "y", "S", "SI", "K", "lam_t",
+          "z", "H")
+
+
+def _assert_same_bits(a, b, where, order=_STATE):
+    """Every attribute of bank `a` equals that of `b` bit for bit (NaN at the same places)."""
+    for name in order:
+        u, v = getattr(a, name), getattr(b, name)
+        assert u.shape == v.shape, (where, name)
+        assert_array_equal(u.view(np.int64), v.view(np.int64), err_msg=f"{where}: {name}")
+    assert a.n_updates == b.n_updates, where
+
+
+def _eager(bank):
+    """`bank` whose every predict() runs at once: reading ``P`` after it runs
+    the time update (`bank_predict`, then an update without a pending one)."""
+    predict = bank.predict
+
+    def eager_predict(Q=None):
+        predict(Q)
+        bank.P                                       # noqa: B018 (runs it now)
+        assert bank._pending is None
+    bank.predict = eager_predict
+    return bank
+
+
+def _script(Z, H, rng, C, n):
+    """Calls on a bank: predicts (twice in a row, with a one-off Q), updates with
+    missing data, a batch_filter after a predict, an assigned asymmetric P."""
+    Q1 = rng.uniform(0.0, 1e-3, C)
+    A = rng.standard_normal((C, n, n))
+    P_asym = A @ A.transpose(0, 2, 1) + np.eye(n)
+    P_asym[:, 0, 1] += rng.uniform(1e-9, 1e-3, C)   # (stored as given: not symmetric)
+    return [
+        lambda b: b.predict(), lambda b: b.update(Z[0], H[0]),
+        lambda b: b.predict(), lambda b: b.update(Z[1], H[1], R=2.0),
+        lambda b: b.predict(), lambda b: b.predict(Q1), lambda b: b.update(Z[2], H[2]),
+        lambda b: b.predict(), lambda b: b.batch_filter(Z[3:8], H[3:8]),
+        lambda b: b.predict(), lambda b: b.predict_update(Z[8], H[8]),
+        lambda b: b.predict(), lambda b: setattr(b, "P", P_asym),
+        lambda b: b.update(Z[9], H[9]),
+        lambda b: setattr(b, "P", P_asym), lambda b: b.predict(),
+        lambda b: b.update(Z[10], H[10]), lambda b: b.predict(),
+        lambda b: b.update(Z[11], H[11]),
+    ]
+
+
+@pytest.mark.parametrize("mode", MODES)
+def test_deferred_predict_equals_the_eager_one_bit_for_bit_after_every_call(rng, mode):
+    """After every prefix of a script of calls, run without reading anything
+    (so every predict() stays deferred and is fused into the next update's
+    kernel, and no copy is made before it is read), every attribute has the
+    bits of a bank whose predict() runs at once. 130 channels: two blocks of
+    the streaming kernel. Read in two orders (a lazy copy read before or after
+    the state that settles it)."""
+    C, n = 130, 3
+    Z, H = _record(rng, N=12, C=C, n=n)
+    opts = _options(rng, C, mode)
+    A = rng.standard_normal((C, n, n))
+    opts["Q"] = 1e-3 * (A @ A.transpose(0, 2, 1))   # full matrices, off-diagonal terms
+    script = _script(Z, H, np.random.default_rng(1), C, n)
+    eager = _eager(RLSBank(C, n, check_every=0, **opts))
+    deferred_seen = 0
+    for k, call in enumerate(script):
+        call(eager)
+        lazy = RLSBank(C, n, check_every=0, **opts)
+        for done in script[:k + 1]:
+            done(lazy)
+        deferred_seen += lazy._pending is not None
+        order = _STATE if k % 2 else _STATE[::-1]
+        _assert_same_bits(lazy, eager, f"after call {k}", order)
+    assert deferred_seen >= 6                        # the deferral was exercised
+
+
+def test_deferred_predict_matches_separate_filters(rng):
+    """Streaming predict()/update() pairs equal one RecursiveLeastSquares per
+    channel bit for bit (the oracle of the whole module), x_prior and P_post too."""
+    C, n = 9, 3
+    Z, H = _record(rng, N=30, C=C, n=n, missing=0.0, bad_rows=0.0)
+    opts = _options(rng, C, "exponential")
+    bank = RLSBank(C, n, **opts)
+    filters = [RecursiveLeastSquares(n, lam=opts["lam"][c], R=opts["R"][c], Q=opts["Q"][c],
+                                     P0=opts["P0"][c]) for c in range(C)]
+    for k in range(30):
+        bank.predict()
+        bank.update(Z[k], H[k])
+        for c, f in enumerate(filters):
+            f.predict()
+            f.update(Z[k, c], H[k, c])
+    for c, f in enumerate(filters):
+        assert_array_equal(bank.P_prior[c], f.P_prior)
+        assert_array_equal(bank.x_prior[c], f.x_prior[:, 0])
+        assert_array_equal(bank.P_post[c], f.P_post)
+        assert_array_equal(bank.x[c], f.x[:, 0])
+        assert_array_equal(bank.P[c], f.P)
+
+
+@pytest.mark.parametrize("how", ["copy", "deepcopy", "pickle"])
+def test_copies_carry_a_pending_predict(rng, how):
+    C, n = 7, 3
+    Z, H = _record(rng, N=6, C=C, n=n)
+    opts = _options(rng, C, "exponential")
+    bank, eager = RLSBank(C, n, **opts), _eager(RLSBank(C, n, **opts))
+    for b in (bank, eager):
+        b.batch_filter(Z[:3], H[:3])
+        b.predict()
+    assert bank._pending is not None
+    twin = {"copy": bank.copy, "deepcopy": lambda: copy.deepcopy(bank),
+            "pickle": lambda: pickle.loads(pickle.dumps(bank))}[how]()
+    assert twin._pending is not None
+    _assert_same_bits(twin, eager, "the copy, pending")
+    for b in (bank, twin, eager):
+        b.update(Z[3], H[3])
+        b.predict()
+        b.update(Z[4], H[4])
+    _assert_same_bits(twin, eager, "the copy")
+    _assert_same_bits(bank, eager, "the original")
+
+
+def test_P_assigned_over_a_pending_predict(rng):
+    """predict(); P = V; update(): the update starts from V (the time update
+    is not applied on top of it), and P_prior is that of the predict."""
+    C, n = 5, 2
+    Z, H = _record(rng, N=4, C=C, n=n, missing=0.0, bad_rows=0.0)
+    bank = RLSBank(C, n, lam=0.9, Q=1e-3, P0=100.0)
+    bank.update(Z[0], H[0])
+    P_before = bank.P.copy()
+    bank.predict()
+    V = np.tile(np.diag([3.0, 4.0]), (C, 1, 1))
+    bank.P = V
+    assert_array_equal(bank.P_prior, P_before * (1.0 / 0.9) + 1e-3 * np.eye(n))  # P il + Q
+    bank.update(Z[1], H[1])
+    fresh = RLSBank(C, n, lam=0.9, Q=1e-3, P0=V, x0=bank.x_prior)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ForgettingSkippedWarning)
+        fresh.update(Z[1], H[1])
+    assert_array_equal(bank.P, fresh.P)
+    assert_array_equal(bank.x, fresh.x)
+
+
+def test_a_failed_update_leaves_the_predict_pending(rng):
+    """A rejected update (an infinite regressor, a bad R, a warning turned into
+    an error) leaves the time update pending; the next update then equals the
+    eager bank's."""
+    C, n = 6, 3
+    Z, H = _record(rng, N=4, C=C, n=n, missing=0.0, bad_rows=0.0)
+    opts = _options(rng, C, "exponential")
+    bank, eager = RLSBank(C, n, **opts), _eager(RLSBank(C, n, **opts))
+    for b in (bank, eager):
+        b.update(Z[0], H[0])
+        b.predict()
+    bad_H = H[1].copy()
+    bad_H[2, 1] = np.inf
+    with pytest.raises(ValueError, match="`H` must be finite"):
+        bank.update(Z[1], bad_H)
+    assert bank._pending is not None
+    with pytest.raises(ValueError, match="`R` must be a positive"):
+        bank.update(Z[1], H[1], R=-1.0)
+    assert bank._pending is not None
+    strict = RLSBank(C, n, check_every=1, cond_max=1.0 + 1e-9, **opts)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", NumericalWarning)
+        strict.update(Z[0], H[0])
+    strict.failed_channels = np.zeros(0, dtype=np.int64)   # (warn again at the next)
+    strict.predict()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(NumericalWarning):
+            strict.update(Z[1], H[1])
+    assert strict._pending is not None
+    for b in (bank, eager):
+        b.update(Z[1], H[1])
+    _assert_same_bits(bank, eager, "after the failed calls")
+
+
+def test_arrays_handed_out_are_not_lazy_sources(rng):
+    """A user who holds ``bank.x`` or ``bank.P`` may write into them: the
+    copies x_prior, P_prior, x_post, P_post keep the values of the eager bank."""
+    C, n = 4, 3
+    Z, H = _record(rng, N=4, C=C, n=n, missing=0.0, bad_rows=0.0)
+    opts = _options(rng, C, "exponential")
+    bank, eager = RLSBank(C, n, **opts), _eager(RLSBank(C, n, **opts))
+    for b in (bank, eager):
+        b.predict()
+        b.update(Z[0], H[0])
+    x_held, P_held = bank.x, bank.P         # before the predict: its sources
+    bank.predict()
+    bank.update(Z[1], H[1])
+    x_held[...] = 7.0
+    P_held[...] = 9.0
+    eager.predict()
+    eager.update(Z[1], H[1])
+    _assert_same_bits(bank, eager, "held before the predict")
+    for b in (bank, eager):                  # (nothing handed out since this update)
+        b.predict()
+        b.update(Z[2], H[2])
+    bank.predict()
+    x_now = bank.x                           # held between predict and update
+    bank.update(Z[3], H[3])
+    x_now[...] = -1.0
+    P_now = bank.P                           # held after the update
+    bank.predict()
+    P_now[...] = -2.0
+    for b in (eager,):
+        b.predict()
+        b.update(Z[3], H[3])
+        b.predict()
+    _assert_same_bits(bank, eager, "held after the predict")

@@ -139,6 +139,33 @@ def _load(xt, Pt, Qt, q_zero, c0, nb, xb, Pb, Qb, iu, ju):
 
 
 @njit(inline="always", **_JIT)
+def _load_predicted(xt, Pt, il, Qt, q_zero, c0, nb, xb, Pb, iu, ju):
+    """`_load` of the state after the time update ``P <- P * il + Q``, in one pass.
+
+    The entries are those `bank_predict` then `_load` give, bit for bit:
+    ``P[c, i, j] * il + Q[c, i, j]`` for each of the two triangles (``Q``
+    as stored, ``il`` per channel), then their mean.
+    """
+    n = xt.shape[0]
+    c1 = c0 + nb
+    for i in range(n):
+        src, dst = xt[i, c0:c1], xb[i]
+        for b in range(nb):
+            dst[b] = src[b]
+    ilb = il[c0:c1]
+    for t in range(iu.shape[0]):
+        i, j = iu[t], ju[t]
+        u, v, dst = Pt[j, i, c0:c1], Pt[i, j, c0:c1], Pb[t]
+        if q_zero:
+            for b in range(nb):
+                dst[b] = 0.5 * (u[b] * ilb[b] + v[b] * ilb[b])
+        else:
+            qu, qv = Qt[j, i, c0:c1], Qt[i, j, c0:c1]
+            for b in range(nb):
+                dst[b] = 0.5 * ((u[b] * ilb[b] + qu[b]) + (v[b] * ilb[b] + qv[b]))
+
+
+@njit(inline="always", **_JIT)
 def _store(xb, Pb, xt, Pt, c0, nb, iu, ju):
     """``x[c], P[c]`` (both triangles) from the block, into the transposes
     ``xt`` (n, C) and ``Pt`` (n, n, C), as `_load` reads them."""
@@ -756,13 +783,16 @@ def bank_predict(Pt, il, Qt, q_zero, Pn, P_prior):
 
 
 @njit(**_JIT)
-def bank_update(xt, Pt, z, H, r, lam, mode, params, xn, Pn, x_post, P_post, y, S, SI, K,
-                lam_t):
+def bank_update(xt, Pt, z, H, r, lam, mode, params, pending, il, Qt, q_zero, xn, Pn, y, S,
+                SI, K, lam_t):
     """One measurement update of every channel: the arithmetic of `bank_batch`.
 
     Reads the state ``xt`` (n, C), ``Pt`` (n, n, C) (the bank's layout, see
-    `_load`), ``z`` (C,), ``H`` (C, n), ``r`` (C,); writes the new state
-    ``xn``, ``Pn`` and the same values in `x_post`, `P_post` (same layout),
+    `_load`), ``z`` (C,), ``H`` (C, n), ``r`` (C,). With `pending` the time
+    update ``P <- P * il + Q`` (``Qt`` (n, n, C), ignored when `q_zero`)
+    of a deferred `bank_predict` is applied first, as the block is loaded
+    (`_load_predicted`: the same bits as `bank_predict` then this kernel).
+    Writes the new state ``xn``, ``Pn`` (same layout),
     the residuals ``y`` (NaN where skipped), ``S`` and ``SI = 1 / S`` (NaN
     where the regressor holds NaN), the gains ``K`` (n, C; zero where
     skipped) and ``lam_t``; `STREAM_BLOCK` channels at a time.
@@ -803,7 +833,10 @@ def bank_update(xt, Pt, z, H, r, lam, mode, params, xn, Pn, x_post, P_post, y, S
     for c0 in range(0, C, B):
         nb = min(B, C - c0)
         c1 = c0 + nb
-        _load(xt, Pt, Pt, True, c0, nb, xb, Pb, Qb, iu, ju)
+        if pending:
+            _load_predicted(xt, Pt, il, Qt, q_zero, c0, nb, xb, Pb, iu, ju)
+        else:
+            _load(xt, Pt, Pt, True, c0, nb, xb, Pb, Qb, iu, ju)
         for j in range(n):                   # the regressors, one row per channel
             src, dst = H[c0:c1, j], h[j]
             for b in range(nb):
@@ -856,7 +889,6 @@ def bank_update(xt, Pt, z, H, r, lam, mode, params, xn, Pn, x_post, P_post, y, S
         for b in range(nb):
             bad += fin[b] > 0.0
         _store(xb, Pb, xn, Pn, c0, nb, iu, ju)
-        _store(xb, Pb, x_post, P_post, c0, nb, iu, ju)
         for i in range(n):
             src, dst = Kb[i], K[i, c0:c1]
             for b in range(nb):

@@ -14,6 +14,18 @@ varying fastest: their transposes (``x.T`` is ``(dim_x, C)``) are the
 C-contiguous arrays the kernels read and write along the channels, with no
 copy or transposition per call. An array assigned in another layout is
 copied into this one once, at its next use.
+
+A streaming step does no work it need not do. :meth:`RLSBank.predict`
+only records the time update (``_pending``); the next
+:meth:`RLSBank.update` applies it as its compiled call loads the state
+(one pass instead of two), and reading ``P`` or ``P_prior``, assigning
+the state, :meth:`RLSBank.batch_filter`, a second ``predict()`` or
+:meth:`RLSBank.channel` runs it before, exactly as an immediate time update
+would. The copies ``x_prior``, ``P_prior``, ``x_post``, ``P_post`` are
+made when they are first read (`_Lazy`), from arrays the bank never
+writes into; an array the bank has handed out (through ``x`` or ``P``)
+may be written into by its holder, so every copy still pending on it is
+made first. Every attribute read has the bits of the eager recursion.
 """
 
 import copy
@@ -74,6 +86,45 @@ def _atomic(method):
             self.__dict__.update(before)
             raise
     return run
+
+
+class _Lazy:
+    """A state copy of the bank (``x_prior``, ``P_prior``, ``x_post``,
+    ``P_post``) made when it is first read: the attribute ``_<name>`` holds
+    either the array or the ``(source, il, Qt, q_zero)`` it is made from, the
+    source an array of the bank's layout that nobody writes into; the copy
+    is ``source`` itself (``il`` None) or its time update ``source * il +
+    Q`` (by `bank_predict`, as :meth:`RLSBank.predict` makes it)."""
+
+    def __init__(self, doc):
+        self.__doc__ = doc
+
+    def __set_name__(self, owner, name):
+        self.key = "_" + name
+
+    def __get__(self, bank, owner=None):
+        if bank is None:
+            return self
+        value = bank.__dict__[self.key]
+        if type(value) is tuple:
+            value = _made(value)
+            bank.__dict__[self.key] = value
+        return value
+
+    def __set__(self, bank, value):
+        bank._settle_pending()   # the predict before keeps its P_prior, as if it had run
+        bank.__dict__[self.key] = value
+
+
+def _made(lazy):
+    """The array a `_Lazy` entry ``(source, il, Qt, q_zero)`` stands for."""
+    src, il, Qt, q_zero = lazy
+    if il is None:
+        return src.copy(order="F")
+    Pt = _t(src)
+    Pn, P_prior = np.empty_like(Pt), np.empty_like(Pt)
+    (_kernels or _get_kernels()).bank_predict(Pt, il, Qt, q_zero, Pn, P_prior)
+    return P_prior.T
 
 
 def _supported_params(forgetting, params):
@@ -287,9 +338,15 @@ class RLSBank:
            [-0.3,  0.5]])
     """
 
+    x_prior = _Lazy("Estimates after the last :meth:`predict`, ``(C, dim_x)``.")
+    P_prior = _Lazy("Covariances after the last :meth:`predict`, ``(C, dim_x, dim_x)``.")
+    x_post = _Lazy("Estimates after the last :meth:`update`, ``(C, dim_x)``.")
+    P_post = _Lazy("Covariances after the last :meth:`update`, ``(C, dim_x, dim_x)``.")
+
     def __init__(self, n_channels, dim_x, lam=1.0, *, Q=0.0, R=1.0, P0=1e4, x0=None,
                  forgetting="exponential", forgetting_params=None, check_every=100,
                  cond_max=1e12, parallel=False):
+        self._pending = None
         self.dim_x = check_dimension(dim_x, "dim_x")
         # per channel: x, P and their priors, posteriors and the batch's work arrays
         self.n_channels = check_length(n_channels, "n_channels",
@@ -323,21 +380,57 @@ class RLSBank:
     def x(self):
         """Estimates, ``(C, dim_x)``; assigning stores a copy (the shape is checked
         where it is used, so that the error names the method)."""
+        self._hand_out(self._x)
         return self._x
 
     @x.setter
     def x(self, value):
-        self._x = np.array(as_float_array(value, "x"), dtype=np.float64, order="F")
+        x = np.array(as_float_array(value, "x"), dtype=np.float64, order="F")
+        self._settle_pending()
+        self._x, self._x_out = x, False
 
     @property
     def P(self):
         """Covariances, ``(C, dim_x, dim_x)``; assigning stores a copy (the shape is
         checked where it is used)."""
+        self._settle_pending()
+        self._hand_out(self._P)
         return self._P
 
     @P.setter
     def P(self, value):
-        self._P = np.array(as_float_array(value, "P"), dtype=np.float64, order="F")
+        P = np.array(as_float_array(value, "P"), dtype=np.float64, order="F")
+        self._settle_pending()
+        self._P, self._P_out = P, False
+
+    # ------------------------------------------------------------------
+    # the deferred time update and the lazy copies (see the module docstring)
+    # ------------------------------------------------------------------
+    def _settle_pending(self):
+        """Run the time update a :meth:`predict` deferred, as it would have run."""
+        pending = self._pending
+        if pending is None:
+            return
+        il, Qt, q_zero = pending
+        Pt = self._checked_P()
+        Pn, P_prior = np.empty_like(Pt), np.empty_like(Pt)
+        (_kernels or _get_kernels()).bank_predict(Pt, il, Qt, q_zero, Pn, P_prior)
+        self._P, self._P_out = Pn.T, False
+        self.__dict__["_P_prior"] = P_prior.T
+        self._pending = None
+
+    def _hand_out(self, arr):
+        """Before `arr` (the bank's ``x`` or ``P``) is handed out, where its holder
+        may write into it: make the lazy copies still pending on it."""
+        d = self.__dict__
+        for key in ("_x_prior", "_P_prior", "_x_post", "_P_post"):
+            lazy = d[key]
+            if type(lazy) is tuple and lazy[0] is arr:
+                d[key] = _made(lazy)
+        if arr is self._x:
+            self._x_out = True
+        else:
+            self._P_out = True
 
     @property
     def lam(self):
@@ -419,6 +512,12 @@ class RLSBank:
         modes only ``Q`` is added (their forgetting happens in
         :meth:`update`), as in `RecursiveLeastSquares`.
 
+        As in `RecursiveLeastSquares`, the arithmetic is deferred: the next
+        :meth:`update` applies it in its compiled call, and reading ``P`` or
+        ``P_prior`` (or assigning the state, :meth:`batch_filter`,
+        :meth:`channel`, another ``predict()``) before that runs it at once.
+        Every attribute has the bits an immediate time update gives.
+
         Parameters
         ----------
         Q : float or array_like, optional
@@ -430,12 +529,16 @@ class RLSBank:
         else:
             Q = self._covariances(Q, "Q")
             Q_is_zero = not Q.any()
-        xt, Pt = self._checked_x(), self._checked_P()          # (n, C), (n, n, C)
-        Pn, P_prior = np.empty_like(Pt), np.empty_like(Pt)
-        (_kernels or _get_kernels()).bank_predict(Pt, self._il, _t(Q), Q_is_zero, Pn, P_prior)
-        self._P = Pn.T
-        self.x_prior = xt.copy().T
-        self.P_prior = P_prior.T
+        self._settle_pending()                                 # predict() twice
+        self._checked_x(), self._checked_P()                   # (the shapes)
+        # P^- = P / lam + Q, deferred: run by the next update's compiled call,
+        # or by `_settle_pending` when something needs P before; x^- = x
+        self._pending = (self._il, _t(Q), Q_is_zero)
+        x, P = self._x, self._P
+        self.__dict__["_x_prior"] = x.copy(order="F") if self._x_out else (x, None, None, None)
+        self.__dict__["_P_prior"] = (P, *self._pending)
+        if self._P_out:                      # its holder may write into P: not deferred
+            self._settle_pending()
         self._updates_since_predict = 0
 
     @_atomic
@@ -463,18 +566,23 @@ class RLSBank:
                                                  "{n} per channel)", finite=False)
         r = self._R if R is None else self._per_channel_positive(R, "R")
         xt, Pt = self._checked_x(), self._checked_P()          # (n, C), (n, n, C)
-        xn, x_post, K = np.empty((n, C)), np.empty((n, C)), np.empty((n, C))
-        Pn, P_post = np.empty((n, n, C)), np.empty((n, n, C))
+        xn, K = np.empty((n, C)), np.empty((n, C))
+        Pn = np.empty((n, n, C))
         y, S, SI, lam_t = np.empty(C), np.empty(C), np.empty(C), np.empty(C)
+        pending = self._pending
+        il, Qt, q_zero = pending if pending is not None else (self._il, Pt, True)
         bad = (_kernels or _get_kernels()).bank_update(
-            xt, Pt, zz, Hm, r, self._lam, self._mode, self._params, xn, Pn, x_post, P_post, y,
-            S, SI, K, lam_t)
+            xt, Pt, zz, Hm, r, self._lam, self._mode, self._params, pending is not None, il,
+            Qt, q_zero, xn, Pn, y, S, SI, K, lam_t)
         if bad < 0:                          # an infinite value: name the first one
             for name, arr in (("z", zz), ("H", Hm)):
                 self._measurements(arr, name, None, None)
         self._note_update()
+        self._pending = None                 # (applied by the kernel)
         self._x, self._P = xn.T, Pn.T
-        self.x_post, self.P_post = x_post.T, P_post.T
+        self._x_out = self._P_out = False
+        d = self.__dict__                    # x_post, P_post: copies of x, P when read
+        d["_x_post"], d["_P_post"] = (self._x, None, None, None), (self._P, None, None, None)
         self.z, self.H = zz.copy(), Hm.copy()
         self.y, self.S, self.SI, self.K, self.lam_t = y, S, SI, K.T, lam_t
         self.n_updates += 1
@@ -576,6 +684,7 @@ class RLSBank:
         if saver is not None:
             return self._batch_stepwise(Z, Hm, Rv, update_first, saver, store_covariances,
                                         store_means, store_residuals)
+        self._settle_pending()                 # a predict() before runs first
         x0t = self._checked_x()
         xt, Pt = x0t.copy(), self._checked_P().copy()     # (n, C), (n, n, C), overwritten
         means = np.empty((N if store_means else 0, C, n))
@@ -604,6 +713,7 @@ class RLSBank:
                 [x0t.T[None], means[:-1]]) if N else means.copy()
         step0 = self.n_updates
         self._x, self._P = xt.T, Pt.T
+        self._x_out = self._P_out = False
         if N:
             self.x_prior, self.P_prior = x_prior.T, P_prior.T
             self.x_post, self.P_post = x_post.T, P_post.T
@@ -725,8 +835,10 @@ class RLSBank:
         x = (Rinv @ (Qf.transpose(0, 2, 1) @ B))[:, :, 0] / d
         Rinv = Rinv / d[:, :, None]                       # D^-1 R_s^-1
         P = self._R[:, None, None] * (Rinv @ Rinv.transpose(0, 2, 1))
+        self._pending = None                  # (overwritten: P, the priors)
         self._x = np.asfortranarray(x)
         self._P = np.asfortranarray(0.5 * (P + P.transpose(0, 2, 1)))
+        self._x_out = self._P_out = False
         self.x_prior, self.x_post = self._x.copy(order="F"), self._x.copy(order="F")
         self.P_prior, self.P_post = self._P.copy(order="F"), self._P.copy(order="F")
         self._updates_since_predict = 0
@@ -760,6 +872,7 @@ class RLSBank:
         if not -C <= i < C:
             raise ValueError(f"`i` must be a channel index in [{-C}, {C}); got {i}")
         i %= C
+        self._settle_pending()
         f = RecursiveLeastSquares(
             n, lam=float(self._lam[i]), P0=self._P0[i], x0=self._x0[i], R=float(self._R[i]),
             Q=self._Q[i], forgetting=self.forgetting,
@@ -810,8 +923,10 @@ class RLSBank:
         ``lam``, ``R``, ``Q`` and the forgetting mode are kept.
         """
         C, n = self.n_channels, self.dim_x
+        self._pending = None
         self._x = self._x0.copy(order="F")
         self._P = self._P0.copy(order="F")
+        self._x_out = self._P_out = False
         self.x_prior, self.P_prior = self._x.copy(order="F"), self._P.copy(order="F")
         self.x_post, self.P_post = self._x.copy(order="F"), self._P.copy(order="F")
         self.H = np.zeros((C, n))
@@ -890,7 +1005,7 @@ class RLSBank:
             return
         self.failed_channels = np.union1d(self.failed_channels, new)
         c = int(new[0])
-        problem = (_health.symmetric_problem(self.P[c], self.cond_max)
+        problem = (_health.symmetric_problem(self._P[c], self.cond_max)   # (after updates)
                    or "`P` failed the health check")
         _health.warn_at_caller(
             f"`P` failed the health check in {new.size} of {self.n_channels} channel(s) "
@@ -1047,7 +1162,7 @@ class RLSBank:
 
     def _checked_x(self):
         """``x`` in the kernels' layout, ``x^T`` of shape (dim_x, C) (`_t`)."""
-        x = self.x
+        x = self._x
         C, n = self.n_channels, self.dim_x
         if not isinstance(x, np.ndarray) or x.shape != (C, n):
             raise ValueError(f"`x` must be an array of shape ({C}, {n}); got "
@@ -1056,7 +1171,7 @@ class RLSBank:
 
     def _checked_P(self):
         """``P`` in the kernels' layout, ``P^T`` of shape (dim_x, dim_x, C) (`_t`)."""
-        P = self.P
+        P = self._P
         C, n = self.n_channels, self.dim_x
         if not isinstance(P, np.ndarray) or P.shape != (C, n, n):
             raise ValueError(f"`P` must be an array of shape ({C}, {n}, {n}); got "
