@@ -142,8 +142,9 @@ def gain(P, phi, g):
         g[j] = 0.0
     for i in range(n):
         hi = phi[i]
+        row = P[i]                           # a 1-d row view: the loop vectorizes
         for j in range(n):
-            g[j] += P[i, j] * hi
+            g[j] += row[j] * hi
 
 
 @njit(cache=True, error_model="numpy", inline="always")

@@ -21,8 +21,8 @@ Sliding window, one step (Haykin 2002, sec. 9)::
     refit by Householder QR of the stored window when d is not clearly
     positive, when the window first fills, and every `refresh` steps
 
-The batch loop makes two passes over ``P`` per sample (`_sym_sweep`, four
-rows at a time): the update summing the downdate's gain ``P' h``, then the
+The batch loop makes two passes over ``P`` per sample (`_kernels._sweep_rows`
+with ``il = 1``, four rows at a time): the update summing the downdate's gain ``P' h``, then the
 downdate summing the next sample's gain ``P'' phi_next``, the numbers of
 the four steps above one after the other. A full-rank refit is certified by
 ``cond(R) <= ||R||_F ||R^-1||_F`` before it would need the SVD.
@@ -48,6 +48,7 @@ import math
 import numpy as np
 
 from .._numba import njit  # numba.njit, uncached where no cache directory is writable
+from ._kernels import _sweep_rows, gain
 from ._kernels_shared import (
     _EPS,
     any_nan,
@@ -463,61 +464,6 @@ def window_lstsq(wH, wZ, wR, nw, Lt, Ltx0, n_prior, x, P):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _sym_gain(P, h, g):
-    """``g = P h`` for the symmetric ``P``, accumulated row by row (``g_j += P_ij
-    h_i``: contiguous, vectorizable loops, no chain of dependent additions)."""
-    n = P.shape[0]
-    for j in range(n):
-        g[j] = 0.0
-    for i in range(n):
-        hi = h[i]
-        row = P[i]
-        for j in range(n):
-            g[j] += row[j] * hi
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _sym_sweep(P, g, cu, h, gn):
-    """``P <- P - (g g^T) cu`` (every entry from the symmetric product ``g_i g_j``:
-    ``P`` stays exactly symmetric), accumulating ``gn = P h`` of the result on the
-    way, four rows at a time.
-
-    The contributions to ``gn_j`` are added in row order, so ``gn`` has the bits
-    of `_sym_gain` on the new ``P``; ``cu = -c`` adds ``(g g^T) c`` with the bits
-    of ``P + (g g^T) c`` (negation is exact). One pass over ``P`` instead of two.
-    """
-    n = P.shape[0]
-    for j in range(n):
-        gn[j] = 0.0
-    i = 0
-    while i + 4 <= n:
-        r0, r1, r2, r3 = P[i], P[i + 1], P[i + 2], P[i + 3]
-        a0, a1, a2, a3 = g[i], g[i + 1], g[i + 2], g[i + 3]
-        h0, h1, h2, h3 = h[i], h[i + 1], h[i + 2], h[i + 3]
-        for j in range(n):
-            gj = g[j]
-            v0 = r0[j] - (a0 * gj) * cu
-            v1 = r1[j] - (a1 * gj) * cu
-            v2 = r2[j] - (a2 * gj) * cu
-            v3 = r3[j] - (a3 * gj) * cu
-            r0[j] = v0
-            r1[j] = v1
-            r2[j] = v2
-            r3[j] = v3
-            gn[j] = (((gn[j] + v0 * h0) + v1 * h1) + v2 * h2) + v3 * h3
-        i += 4
-    while i < n:
-        ri = P[i]
-        ai = g[i]
-        hi = h[i]
-        for j in range(n):
-            v = ri[j] - (ai * g[j]) * cu
-            ri[j] = v
-            gn[j] += v * hi
-        i += 1
-
-
-@njit(cache=True, error_model="numpy", inline="always")
 def _sw_refit_due(ist, window, refreshing):
     """Whether the step that is about to add a sample ends with a refit, whatever
     its downdate gives: the window fills without the exact solution due, or the
@@ -557,8 +503,8 @@ def sw_batch_kernel(x, P, Z, Hm, Rv, wH, wZ, wR, ist, refresh, Lt, Ltx0, means, 
 
     Each step updates with the new sample, slides the ring buffer, downdates
     with the leaving sample and refits when due, in place on ``x``, ``P``,
-    the buffer and ``ist``, in two passes over ``P`` (`_sym_sweep`): ``P' =
-    P - g g^T / s`` summing the downdate's gain ``gb = P' h`` (or, with
+    the buffer and ``ist``, in two passes over ``P`` (`_kernels._sweep_rows`
+    with ``il = 1``): ``P' = P - g g^T / s`` summing the downdate's gain ``gb = P' h`` (or, with
     nothing leaving, the next step's gain ``P' hn``), then ``P'' = P' + gb
     gb^T / d`` summing the next step's gain ``g = P'' hn``: the operations of
     update, gain, downdate, gain one after the other (the same bits), in two
@@ -586,7 +532,7 @@ def sw_batch_kernel(x, P, Z, Hm, Rv, wH, wZ, wR, ist, refresh, Lt, Ltx0, means, 
     window = wH.shape[0]
     ga, gb = np.empty(n), np.empty(n)
     if N:
-        _sym_gain(P, Hm[0], ga)                # g = P phi^T; later steps leave it
+        gain(P, Hm[0], ga)                     # g = P phi^T; later steps leave it
     s = np.nan
     k_fail = -1
     # steps to the next full health check and to the end of a refresh period
@@ -642,9 +588,9 @@ def sw_batch_kernel(x, P, Z, Hm, Rv, wH, wZ, wR, ist, refresh, Lt, Ltx0, means, 
                 hl = wH[h]
                 rl = wR[h]
                 if missing:
-                    _sym_gain(P, hl, gb)           # gb = P h^T
+                    gain(P, hl, gb)           # gb = P h^T
                 else:                              # P = P - g g^T / s, gb = P h^T
-                    _sym_sweep(P, ga, c, hl, gb)
+                    _sweep_rows(P, ga, c, 1.0, hl, gb)
                 dd = rl
                 for i in range(n):
                     dd -= hl[i] * gb[i]            # d = R - h P h^T
@@ -657,15 +603,15 @@ def sw_batch_kernel(x, P, Z, Hm, Rv, wH, wZ, wR, ist, refresh, Lt, Ltx0, means, 
                         e = wZ[h, j] - acc         # residual of the leaving sample
                         for i in range(n):
                             x[i, j] = x[i, j] - (gb[i] * cd) * e
-                    _sym_sweep(P, gb, -cd, hn, ga)  # P = P + gb gb^T / d, ga = P hn^T
+                    _sweep_rows(P, gb, -cd, 1.0, hn, ga)  # P = P + gb gb^T / d, ga = P hn^T
                 else:
                     refit = True
             elif not missing:
-                _sym_sweep(P, ga, c, hn, gb)       # P = P - g g^T / s, ga = P hn^T
+                _sweep_rows(P, ga, c, 1.0, hn, gb)       # P = P - g g^T / s, ga = P hn^T
                 for i in range(n):
                     ga[i] = gb[i]
             else:
-                _sym_gain(P, hn, ga)
+                gain(P, hn, ga)
         for j in range(n):
             wH[h, j] = phi[j]
         for j in range(m):
@@ -682,7 +628,7 @@ def sw_batch_kernel(x, P, Z, Hm, Rv, wH, wZ, wR, ist, refresh, Lt, Ltx0, means, 
                 ist[EXACT] = 0
                 ist[NEXT_EXACT] = ist[COUNT] + window
                 window_lstsq(wH, wZ, wR, nw, Lt, Ltx0, n, x, P)
-            _sym_gain(P, hn, ga)
+            gain(P, hn, ga)
         if countdown > 0:
             countdown -= 1
             full = countdown == 0
