@@ -199,6 +199,30 @@ def windup_cap(d_trace, d_spread, hph, il, cfg):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def _innovation(x, phi, z, missing, r, w, gate, g, y):
+    """``q = phi g`` (``g = P phi``), ``s = w q + r`` and the residual ``y`` (NaN when
+    `missing`) with the outlier gate: ``(q, s, yy, updated, gated)``, ``yy = y^T y``."""
+    n, m = x.shape
+    q = 0.0
+    for i in range(n):
+        q += phi[i] * g[i]
+    s = w * q + r                            # S = H P H^T + R
+    if missing:
+        for j in range(m):
+            y[j] = np.nan
+        return q, s, 0.0, False, False
+    yy = 0.0
+    for j in range(m):                       # y = z - H x
+        acc = 0.0
+        for i in range(n):
+            acc += phi[i] * x[i, j]
+        y[j] = z[j] - acc
+        yy += y[j] * y[j]
+    gated = yy > gate * gate * s             # sqrt(y'y / S) > gate
+    return q, s, yy, not gated, gated
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def measurement_update(x, P, phi, z, missing, r, cfg, Pi, g, y, K, T, w, xn, Pn):
     """One measurement update of any mode with the gate and the constraints.
 
@@ -226,27 +250,8 @@ def measurement_update(x, P, phi, z, missing, r, cfg, Pi, g, y, K, T, w, xn, Pn)
     mode = int(cfg[CFG_MODE])
     lam = cfg[CFG_LAM]
     gain(P, phi, g)                          # g = P H^T
-    q = 0.0
-    for i in range(n):
-        q += phi[i] * g[i]
-    s = w * q + r                            # S = H P H^T + R
+    q, s, yy, updated, gated = _innovation(x, phi, z, missing, r, w, cfg[CFG_GATE], g, y)
     lam_skip = lam if mode == EXPONENTIAL else 1.0
-    updated = not missing
-    gated = False
-    if missing:
-        for j in range(m):
-            y[j] = np.nan
-    else:
-        yy = 0.0
-        for j in range(m):                   # y = z - H x
-            acc = 0.0
-            for i in range(n):
-                acc += phi[i] * x[i, j]
-            y[j] = z[j] - acc
-            yy += y[j] * y[j]
-        gate = cfg[CFG_GATE]
-        gated = yy > gate * gate * s         # sqrt(y'y / S) > gate
-        updated = not gated
     if not updated:
         for i in range(n):
             K[i] = 0.0
@@ -366,26 +371,7 @@ def _exponential_update_into(x, P, phi, z, missing, r, cfg, g, y, K, w, xn, Pn, 
     lam = cfg[CFG_LAM]
     if not g_ready:
         gain(P, phi, g)                      # g = P H^T
-    q = 0.0
-    for i in range(n):
-        q += phi[i] * g[i]
-    s = w * q + r                            # S = H P H^T + R
-    updated = not missing
-    gated = False
-    yy = 0.0
-    if missing:
-        for j in range(m):
-            y[j] = np.nan
-    else:
-        for j in range(m):                   # y = z - H x
-            acc = 0.0
-            for i in range(n):
-                acc += phi[i] * x[i, j]
-            y[j] = z[j] - acc
-            yy += y[j] * y[j]
-        gate = cfg[CFG_GATE]
-        gated = yy > gate * gate * s         # sqrt(y'y / S) > gate
-        updated = not gated
+    q, s, _, updated, gated = _innovation(x, phi, z, missing, r, w, cfg[CFG_GATE], g, y)
     c = 1.0 / s
     cu = exponential_coefficient(q, c, w, updated)
     kc = w * c

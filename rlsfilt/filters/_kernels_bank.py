@@ -336,6 +336,24 @@ def _measure(xb, Pb, h, zb, rb, hok, ok, g, sb, yb, acc, nb, iu, ju):
 
 
 @njit(inline="always", **_JIT)
+def _exponential_sweep(Pb, g, w, nb, iu, ju, fuse, ilb, Qb, q_zero):
+    """``P = P - (g g^T) c`` over the packed triangle ``Pb`` (``c = w``, zero where a
+    channel does not update); with `fuse` also the next time update ``P / lam (+ Q)``."""
+    for t in range(Pb.shape[0]):
+        p, gi, gj = Pb[t], g[iu[t]], g[ju[t]]
+        if not fuse:
+            for b in range(nb):                             # P = P - (g g^T) c
+                p[b] = p[b] - (gi[b] * gj[b]) * w[b]
+        elif q_zero:
+            for b in range(nb):                             # ... then P = P / lam
+                p[b] = (p[b] - (gi[b] * gj[b]) * w[b]) * ilb[b]
+        else:
+            q = Qb[t]
+            for b in range(nb):                             # ... then P = P / lam + Q
+                p[b] = (p[b] - (gi[b] * gj[b]) * w[b]) * ilb[b] + q[b]
+
+
+@njit(inline="always", **_JIT)
 def _update_exponential(xb, Pb, g, Kb, sb, yb, w, nb, iu, ju, fuse, ilb, Qb, q_zero, store_k):
     """The exponential measurement update of `_update` when every channel of the
     block updates: the same operations, no selects. The gain is written to
@@ -354,18 +372,7 @@ def _update_exponential(xb, Pb, g, Kb, sb, yb, w, nb, iu, ju, fuse, ilb, Qb, q_z
         else:
             for b in range(nb):
                 xi[b] = xi[b] + (gi[b] * w[b]) * yb[b]
-    for t in range(Pb.shape[0]):
-        p, gi, gj = Pb[t], g[iu[t]], g[ju[t]]
-        if not fuse:
-            for b in range(nb):                             # P = P - (g g^T) c
-                p[b] = p[b] - (gi[b] * gj[b]) * w[b]
-        elif q_zero:
-            for b in range(nb):                             # ... then P = P / lam
-                p[b] = (p[b] - (gi[b] * gj[b]) * w[b]) * ilb[b]
-        else:
-            q = Qb[t]
-            for b in range(nb):                             # ... then P = P / lam + Q
-                p[b] = (p[b] - (gi[b] * gj[b]) * w[b]) * ilb[b] + q[b]
+    _exponential_sweep(Pb, g, w, nb, iu, ju, fuse, ilb, Qb, q_zero)
 
 
 @njit(inline="always", **_JIT)
@@ -392,18 +399,7 @@ def _update(xb, Pb, g, Kb, sb, yb, rb, ok, lamb, p0, p1, mode, lt, w, d, nb, iu,
                 k = gi[b] * w[b]                            # K = g c
                 ki[b] = k
                 xi[b] = xi[b] + k * d[b]                    # x = x + K y
-        for t in range(nt):
-            p, gi, gj = Pb[t], g[iu[t]], g[ju[t]]
-            if not fuse:
-                for b in range(nb):                         # P = P - (g g^T) c
-                    p[b] = p[b] - (gi[b] * gj[b]) * w[b]
-            elif q_zero:
-                for b in range(nb):                         # ... then P = P / lam
-                    p[b] = (p[b] - (gi[b] * gj[b]) * w[b]) * ilb[b]
-            else:
-                q = Qb[t]
-                for b in range(nb):                         # ... then P = P / lam + Q
-                    p[b] = (p[b] - (gi[b] * gj[b]) * w[b]) * ilb[b] + q[b]
+        _exponential_sweep(Pb, g, w, nb, iu, ju, fuse, ilb, Qb, q_zero)
         return
     if mode == DIRECTIONAL:
         for b in range(nb):
