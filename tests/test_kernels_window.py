@@ -241,7 +241,8 @@ def test_square_root_streaming_compiled_equals_reference(rng):
     """Each predict and update against the Givens reference, step by step."""
     Hs, zs = _record(rng, 200, dim_z=2, missing=(5, 60))
     a = SquareRootRLS(4, 2, lam=0.98, R=0.4)
-    U, d = a.U, a._d.copy()
+    U = a.U
+    d = U @ a.x
     for k in range(len(zs)):
         a.predict()
         U, d = _reference.square_root_predict(U, d, a.lam)

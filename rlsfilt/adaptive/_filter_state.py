@@ -40,17 +40,18 @@ def _rls_set(f, parts):
 
 
 def _sr_fields(f):
+    # the square-root-free factors U = Delta^-1/2 W and v = W x, as the filter keeps them
     n, m = f.dim_x, f.dim_z
-    return [("x", (n, m)), ("U", (n, n)), ("d", (n, m)), ("n_updates", ())]
+    return [("x", (n, m)), ("W", (n, n)), ("delta", (n,)), ("v", (n, m)), ("n_updates", ())]
 
 
 def _sr_get(f):
-    return [f._x, f._U, f._d, f.n_updates]
+    return [f._x, f._W, f._delta, f._v, f.n_updates]
 
 
 def _sr_set(f, parts):
-    x, U, d, nu = parts
-    f._x, f._U, f._d = x.copy(), U.copy(), d.copy()
+    x, W, delta, v, nu = parts
+    f._x, f._W, f._delta, f._v = x.copy(), W.copy(), delta.copy(), v.copy()
     f.n_updates = int(nu)
 
 
