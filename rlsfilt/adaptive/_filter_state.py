@@ -46,12 +46,13 @@ def _sr_fields(f):
 
 
 def _sr_get(f):
-    return [f._x, f._W, f._delta, f._v, f.n_updates]
+    n = f.dim_x
+    return [f._x, f._Wv[:, :n], f._delta, f._Wv[:, n:], f.n_updates]
 
 
 def _sr_set(f, parts):
     x, W, delta, v, nu = parts
-    f._x, f._W, f._delta, f._v = x.copy(), W.copy(), delta.copy(), v.copy()
+    f._set_factors(W, delta, v=v, x=x)
     f.n_updates = int(nu)
 
 

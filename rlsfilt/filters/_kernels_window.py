@@ -47,10 +47,12 @@ These are the numbers of the Givens rotations of ``[U d; phi/sqrt(r)
 z^T/sqrt(r)]`` (``delta_i = 1 / U_ii^2``, ``delta_i eta_i / eta_{i+1}`` is
 the squared cosine) without their square roots (Gentleman 1973): the
 entries ``a_i`` after the eliminations are ``W^-T phi``, and each row costs
-one division and two multiply-adds per entry. The chain from one row to
-the next is a multiply-add (``a``) and an addition (``eta``); the divisions
-hang off it. ``tests/test_kernels_window.py`` holds the kernels to the
-Givens reference (``_reference.square_root_update``) at 1e-12.
+one division and two multiply-adds per entry. ``[W | v]`` is stored as one
+array, so that ``v`` is rotated by the same loop as ``W``; the loop takes
+two rows per pass over the columns (three memory accesses per entry and
+row instead of four), and ``x = W^-1 v`` four columns at a time.
+``tests/test_kernels_window.py`` holds the kernels to the Givens reference
+(``_reference.square_root_update``) at 1e-12.
 """
 
 import math
@@ -83,33 +85,56 @@ def sr_predict(delta, ilam):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _unit_back_solve(W, v):
-    """``W v_new = v`` in place for the unit upper-triangular `W`, by columns:
-    once ``v_i`` is known it is taken off every row above (``v_k <- v_k -
-    W_ki v_i``), so the chain from ``v_{i+1}`` to ``v_i`` is one multiply-add."""
-    n = W.shape[0]
-    for i in range(n - 1, -1, -1):
-        vi = v[i]
-        for k in range(i):
-            v[k] -= W[k, i] * vi
+def _unit_back_solve(Wv, c, xw):
+    """``x = W^-1 v_c`` into ``xw`` (n,) for the unit upper-triangular ``W =
+    Wv[:, :n]`` and column ``c`` of ``v = Wv[:, n:]``.
+
+    By columns (once ``x_i`` is known it is taken off every row above, ``v_q
+    <- v_q - W_qi x_i``), four columns at a time: the 4 x 4 block on the
+    diagonal first, then each row above reads its four contiguous entries
+    ``W[q, i-3:i+1]``. The subtractions are those of the column-by-column
+    loop, in its order.
+    """
+    n = Wv.shape[0]
+    for q in range(n):
+        xw[q] = Wv[q, n + c]
+    i = n - 1
+    while i >= 3:
+        x3 = xw[i]
+        x2 = xw[i - 1] - Wv[i - 1, i] * x3
+        x1 = (xw[i - 2] - Wv[i - 2, i] * x3) - Wv[i - 2, i - 1] * x2
+        x0 = ((xw[i - 3] - Wv[i - 3, i] * x3) - Wv[i - 3, i - 1] * x2) - Wv[i - 3, i - 2] * x1
+        xw[i - 1] = x2
+        xw[i - 2] = x1
+        xw[i - 3] = x0
+        for q in range(i - 3):
+            row = Wv[q]
+            xw[q] = (((xw[q] - row[i] * x3) - row[i - 1] * x2) - row[i - 2] * x1
+                     - row[i - 3] * x0)
+        i -= 4
+    while i >= 1:
+        xi = xw[i]
+        for q in range(i):
+            xw[q] -= Wv[q, i] * xi
+        i -= 1
 
 
 @njit(cache=True, error_model="numpy")
-def sr_covariance(W, delta, P):
-    """``P = W^-1 Delta W^-T`` for the unit upper-triangular `W`.
+def sr_covariance(Wv, delta, P):
+    """``P = W^-1 Delta W^-T`` for the unit upper-triangular ``W = Wv[:, :n]``.
 
     ``V = W^-1`` by back substitution, column by column; then ``P_ij =
     sum_{k >= max(i, j)} V_ik delta_k V_jk`` for ``i <= j``, mirrored, so
     ``P`` is exactly symmetric.
     """
-    n = W.shape[0]
+    n = delta.shape[0]
     V = np.zeros((n, n))
     for j in range(n):
         V[j, j] = 1.0
         for i in range(j - 1, -1, -1):
             acc = 0.0
             for k in range(i + 1, j + 1):
-                acc += W[i, k] * V[k, j]
+                acc += Wv[i, k] * V[k, j]
             V[i, j] = -acc
     for i in range(n):
         for j in range(i, n):
@@ -121,26 +146,26 @@ def sr_covariance(W, delta, P):
 
 
 @njit(cache=True, error_model="numpy")
-def sr_factor(W, delta, U):
+def sr_factor(Wv, delta, U):
     """The information square root ``U = Delta^-1/2 W`` (``U^T U = P^-1``).
 
     A row whose ``delta_i`` is not positive gets the diagonal entry
     ``-1 / sqrt(-delta_i)`` (or an infinite or NaN one), so that the health
     check's test of ``U``'s diagonal reports it.
     """
-    n = W.shape[0]
+    n = delta.shape[0]
     for i in range(n):
         di = delta[i]
         f = 1.0 / math.sqrt(di) if di > 0.0 else -1.0 / math.sqrt(-di)
         for j in range(n):
-            U[i, j] = W[i, j] * f if j > i else 0.0
+            U[i, j] = Wv[i, j] * f if j > i else 0.0
         U[i, i] = f
 
 
 @njit(cache=True, error_model="numpy")
-def sr_unhealthy(W, delta, cond_max, U):
+def sr_unhealthy(Wv, delta, cond_max, U):
     """``factor_unhealthy`` of ``U = Delta^-1/2 W`` (formed in the workspace `U`)."""
-    sr_factor(W, delta, U)
+    sr_factor(Wv, delta, U)
     return factor_unhealthy(U, cond_max)
 
 
@@ -156,16 +181,37 @@ def _delta_bad(delta):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _sr_step(W, delta, v, x, phi, z, r, y, K, gain, a, b, want_y):
-    """One measurement update of the square-root-free factors, in place.
+def _rotate(delta, i, ai, eta):
+    """Row ``i``'s numbers: ``delta_i <- delta_i eta_i / eta_{i+1}`` in place;
+    returns ``k_i = a_i delta_i / eta_{i+1}`` and ``eta_{i+1}`` (``k_i = 0``
+    and nothing changed when ``a_i = 0``)."""
+    if ai == 0.0:
+        return 0.0, eta
+    g = ai * delta[i]
+    eta_new = eta + g * ai                     # eta_{i+1} = eta_i + a_i^2 delta_i
+    inv = 1.0 / eta_new
+    delta[i] = delta[i] * (eta * inv)
+    return g * inv, eta_new
 
-    Writes ``y`` (m,) when `want_y` and, when `gain`, ``K`` (n,) (NaN and
-    zero when `z` holds a NaN) and returns ``s = H P H^T + R``. ``a`` (n,)
-    and ``b`` (m,) are workspace. The gain is not needed to update the
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _sr_step(Wv, delta, x, phi, z, r, y, K, gain, a, want_y):
+    """One measurement update of the square-root-free factors ``[W | v] = Wv``
+    and ``delta``, in place.
+
+    Writes ``x`` (n, m), ``y`` (m,) when `want_y` and, when `gain`, ``K``
+    (n,) (NaN and zero when `z` holds a NaN) and returns ``s = H P H^T +
+    R``. ``a`` (n + m,) is workspace. The gain is not needed to update the
     factors, nor the residual: the batch kernel forms them for the last step
     only. A missing sample changes nothing.
+
+    The rows of ``[W | v]`` are rotated two at a time: one pass over the
+    columns right of the pair applies both (row ``i``'s new entries, then
+    row ``i + 1``'s from them), the numbers of two single-row passes.
     """
-    n, m = v.shape
+    n = delta.shape[0]
+    L = Wv.shape[1]
+    m = L - n
     missing = any_nan(z)
     if want_y:
         for j in range(m):                     # y = z - phi x
@@ -184,7 +230,7 @@ def _sr_step(W, delta, v, x, phi, z, r, y, K, gain, a, b, want_y):
             g = ai * delta[i]
             K[i] = g
             s += g * ai
-            row = W[i]
+            row = Wv[i]
             for j in range(i + 1, n):
                 a[j] -= ai * row[j]
         if missing:
@@ -193,60 +239,68 @@ def _sr_step(W, delta, v, x, phi, z, r, y, K, gain, a, b, want_y):
             for i in range(n):
                 K[i] = 0.0
             return s
-        _unit_back_solve(W, K)                 # K = W^-1 Delta W^-T phi (/ s below)
-    for i in range(n):
+        for i in range(n - 1, 0, -1):          # K = W^-1 Delta W^-T phi (/ s below)
+            ki = K[i]
+            for q in range(i):
+                K[q] -= Wv[q, i] * ki
+    for i in range(n):                         # the new row [phi | z^T], weight 1 / r
         a[i] = phi[i]
     for j in range(m):
-        b[j] = z[j]
-    eta = r                                    # the weight of the new row is 1 / eta
-    for i in range(n):
-        ai = a[i]
-        if ai == 0.0:
-            continue                           # nothing to eliminate in row i
-        row = W[i]
-        g = ai * delta[i]
-        eta_new = eta + g * ai                 # eta_{i+1} = eta_i + a_i^2 delta_i
-        inv = 1.0 / eta_new
-        delta[i] = delta[i] * (eta * inv)      # delta_i <- delta_i eta_i / eta_{i+1}
-        k = g * inv                            # k_i = a_i delta_i / eta_{i+1}
-        for j in range(i + 1, n):
-            aj = a[j] - ai * row[j]            # a_j <- a_j - a_i W_ij
-            a[j] = aj
-            row[j] += k * aj                   # W_ij <- W_ij + k_i a_j
-        vi = v[i]
-        for j in range(m):
-            bj = b[j] - ai * vi[j]
-            b[j] = bj
-            vi[j] += k * bj
-        eta = eta_new
+        a[n + j] = z[j]
+    eta = r
+    i = 0
+    while i + 1 < n:                           # rows i and i + 1
+        r0, r1 = Wv[i], Wv[i + 1]
+        a0 = a[i]
+        k0, eta = _rotate(delta, i, a0, eta)
+        t = r0[i + 1]
+        a1 = a[i + 1] - a0 * t                 # a_{i+1} <- a_{i+1} - a_i W_{i,i+1}
+        r0[i + 1] = t + k0 * a1                # W_{i,i+1} <- W_{i,i+1} + k_i a_{i+1}
+        k1, eta = _rotate(delta, i + 1, a1, eta)
+        for j in range(i + 2, L):
+            w0 = r0[j]
+            w1 = r1[j]
+            t = a[j] - a0 * w0                 # a_j <- a_j - a_i W_ij
+            r0[j] = w0 + k0 * t                # W_ij <- W_ij + k_i a_j
+            u = t - a1 * w1                    # then row i + 1
+            r1[j] = w1 + k1 * u
+            a[j] = u
+        i += 2
+    if i < n:                                  # the last row of an odd n
+        r0 = Wv[i]
+        a0 = a[i]
+        k0, eta = _rotate(delta, i, a0, eta)
+        for j in range(i + 1, L):
+            w0 = r0[j]
+            t = a[j] - a0 * w0
+            r0[j] = w0 + k0 * t
+            a[j] = t
     s = eta                                    # S = H P H^T + R
     if gain:
         for i in range(n):
             K[i] = K[i] / s                    # K = P H^T / S
-    for j in range(m):                         # x = W^-1 v, column by column
+    for c in range(m):                         # x = W^-1 v, column by column
+        _unit_back_solve(Wv, c, a)
         for i in range(n):
-            a[i] = v[i, j]
-        _unit_back_solve(W, a)
-        for i in range(n):
-            x[i, j] = a[i]
+            x[i, c] = a[i]
     return s
 
 
 @njit(cache=True, error_model="numpy")
-def sr_update_kernel(W, delta, v, x, phi, z, r, y, K):
+def sr_update_kernel(Wv, delta, x, phi, z, r, y, K):
     """Streaming :meth:`SquareRootRLS.update`: `_sr_step` on the given arrays.
 
     Returns ``s`` and whether the new ``delta`` fails the cheap health check.
     """
-    n, m = v.shape
-    s = _sr_step(W, delta, v, x, phi, z, r, y, K, n > 0, np.empty(n), np.empty(m), True)
+    s = _sr_step(Wv, delta, x, phi, z, r, y, K, delta.shape[0] > 0, np.empty(Wv.shape[1]),
+                 True)
     return s, _delta_bad(delta)
 
 
 @njit(cache=True, error_model="numpy")
-def sr_batch_kernel(W, delta, v, x, Z, Hm, Rv, ilam, update_first, means, covs, covs_p,
+def sr_batch_kernel(Wv, delta, x, Z, Hm, Rv, ilam, update_first, means, covs, covs_p,
                     x_prior, P_prior, P_post, y, K, check_every, step0, cond_max, U_fail):
-    """Run `SquareRootRLS` over a record, in place on ``W``, ``delta``, ``v``, ``x``.
+    """Run `SquareRootRLS` over a record, in place on ``Wv``, ``delta`` and ``x``.
 
     ``ilam = 1 / lam`` (1.0: no time update). ``Rv`` has length N or 1 (one
     variance for all steps). ``covs``, ``covs_p`` (N, n, n) are written when
@@ -270,11 +324,9 @@ def sr_batch_kernel(W, delta, v, x, Z, Hm, Rv, ilam, update_first, means, covs, 
         Step of the first failed health check, or -1.
     """
     N = Z.shape[0]
-    n, m = x.shape
     store = covs.shape[0] == N and N > 0
     r_each = Rv.shape[0] == N
-    a = np.empty(n)
-    b = np.empty(m)
+    a = np.empty(Wv.shape[1])
     s = np.nan
     k_fail = -1
     # steps to the next full health check (a countdown: no division per step)
@@ -285,43 +337,42 @@ def sr_batch_kernel(W, delta, v, x, Z, Hm, Rv, ilam, update_first, means, covs, 
             if ilam != 1.0:
                 sr_predict(delta, ilam)
             if store:
-                sr_covariance(W, delta, covs_p[k])
+                sr_covariance(Wv, delta, covs_p[k])
             if last:
                 copy2(x, x_prior)
                 if store:
                     copy2(covs_p[k], P_prior)
                 else:
-                    sr_covariance(W, delta, P_prior)
-        s = _sr_step(W, delta, v, x, Hm[k], Z[k], Rv[k if r_each else 0], y, K, last, a, b,
-                     last)
+                    sr_covariance(Wv, delta, P_prior)
+        s = _sr_step(Wv, delta, x, Hm[k], Z[k], Rv[k if r_each else 0], y, K, last, a, last)
         if countdown > 0:
             countdown -= 1
             full = countdown == 0
             if full:
                 countdown = check_every
-            if _delta_bad(delta) or (full and sr_unhealthy(W, delta, cond_max, U_fail)):
+            if _delta_bad(delta) or (full and sr_unhealthy(Wv, delta, cond_max, U_fail)):
                 k_fail = k
                 countdown = -1
-                sr_factor(W, delta, U_fail)
+                sr_factor(Wv, delta, U_fail)
         copy2(x, means[k])
         if store:
-            sr_covariance(W, delta, covs[k])
+            sr_covariance(Wv, delta, covs[k])
         if last:
             if store:
                 copy2(covs[k], P_post)
             else:
-                sr_covariance(W, delta, P_post)
+                sr_covariance(Wv, delta, P_post)
         if update_first:
             if ilam != 1.0:
                 sr_predict(delta, ilam)
             if store:
-                sr_covariance(W, delta, covs_p[k])
+                sr_covariance(Wv, delta, covs_p[k])
             if last:
                 copy2(x, x_prior)
                 if store:
                     copy2(covs_p[k], P_prior)
                 else:
-                    sr_covariance(W, delta, P_prior)
+                    sr_covariance(Wv, delta, P_prior)
     return s, k_fail
 
 

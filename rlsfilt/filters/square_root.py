@@ -187,14 +187,14 @@ class SquareRootRLS(_FilterBase):
 
     @x.setter
     def x(self, value):
-        self._x = self._as_state(value, "x")
-        self._v = self._W @ self._x
+        x = self._as_state(value, "x")
+        self._set_factors(self._Wv[:, :self.dim_x], self._delta, x=x)
 
     @property
     def P(self):
         """Covariance ``U^-1 U^-T = W^-1 Delta W^-T`` (a new array on every access)."""
         P = np.empty((self.dim_x, self.dim_x))
-        _streaming.window_kernels().sr_covariance(self._W, self._delta, P)
+        _streaming.window_kernels().sr_covariance(self._Wv, self._delta, P)
         return P
 
     @P.setter
@@ -203,16 +203,27 @@ class SquareRootRLS(_FilterBase):
         P = check_covariance(value, self.dim_x, "P", definite=True)
         info = cho_solve(cho_factor(P, lower=True), np.eye(self.dim_x))
         # P^-1 = U^T U (Cholesky), U = Delta^-1/2 W
-        self._W, self._delta = _unit_factor(np.linalg.cholesky(0.5 * (info + info.T)).T)
-        self._v = self._W @ self._x
+        self._set_factors(*_unit_factor(np.linalg.cholesky(0.5 * (info + info.T)).T), x=self._x)
 
     @property
     def U(self):
         """Upper-triangular information square root ``Delta^-1/2 W``, ``U^T U = P^-1``
         (a new array on every access)."""
         U = np.empty((self.dim_x, self.dim_x))
-        _streaming.window_kernels().sr_factor(self._W, self._delta, U)
+        _streaming.window_kernels().sr_factor(self._Wv, self._delta, U)
         return U
+
+    def _set_factors(self, W, delta, v=None, x=None):
+        """Set the state ``W``, ``delta`` and ``v = W x`` (from `v`, or from `x`) and
+        ``x = W^-1 v``; ``[W | v]`` is kept as one C-ordered array."""
+        from scipy.linalg import solve_triangular  # lazy: keeps `import rlsfilt` light
+        W = np.asarray(W, dtype=np.float64)
+        if v is None:
+            v = W @ x
+        self._Wv = np.ascontiguousarray(np.hstack([W, v]), dtype=np.float64)
+        self._delta = np.array(delta, dtype=np.float64)
+        self._x = (np.array(x, dtype=np.float64) if x is not None
+                   else solve_triangular(W, v, unit_diagonal=True))
 
     # ------------------------------------------------------------------
     # the recursion
@@ -234,8 +245,7 @@ class SquareRootRLS(_FilterBase):
         r = self._R if R is None else check_variance(R, "R")
         zc = self._as_measurement(z, "z")
         n, m = self.dim_x, self.dim_z
-        W, delta, v = self._W.copy(), self._delta.copy(), self._v.copy()
-        x = self._x.copy()
+        Wv, delta, x = self._Wv.copy(), self._delta.copy(), self._x.copy()
         y, K = np.empty((m, 1)), np.empty((n, 1))
         zrow = np.full(m, np.nan) if zc is None else zc[:, 0]
         # one compiled step (sr_update_kernel), on copies of the state:
@@ -245,13 +255,13 @@ class SquareRootRLS(_FilterBase):
         #                                                   without square roots (W, Delta, v)
         #   x = W'^-1 v'
         kern = _streaming.window_kernels()
-        s, bad = kern.sr_update_kernel(W, delta, v, x, phi[0], zrow, r, y[:, 0], K[:, 0])
+        s, bad = kern.sr_update_kernel(Wv, delta, x, phi[0], zrow, r, y[:, 0], K[:, 0])
         n_updates = self.n_updates + 1
         problem = None
         U = np.empty((n, n))
         if self._health_due(n_updates, bad) and (
-                bad or kern.sr_unhealthy(W, delta, self.cond_max, U)):
-            kern.sr_factor(W, delta, U)
+                bad or kern.sr_unhealthy(Wv, delta, self.cond_max, U)):
+            kern.sr_factor(Wv, delta, U)
             problem = ((_health.factor_problem(U, self.cond_max) or "`P` failed the health check")
                        + _health.at_update(n_updates, self._batch_start))
         self._warn_health(problem)                           # before the state changes
@@ -261,7 +271,7 @@ class SquareRootRLS(_FilterBase):
         self.z, self.y, self.K = zrow.reshape(m, 1), y, K
         if zc is None:
             self._lazy = MISSING_DIAGNOSTICS
-        self._W, self._delta, self._v, self._x = W, delta, v, x
+        self._Wv, self._delta, self._x = Wv, delta, x
         self.n_updates = n_updates
         self.x_post = x.copy()
         self.P_post = self.P
@@ -278,7 +288,6 @@ class SquareRootRLS(_FilterBase):
         ValueError
             If the rows do not determine every parameter.
         """
-        from scipy.linalg import solve_triangular  # lazy: keeps `import rlsfilt` light
         Z, Hm = self._as_batch(zs, Hs)
         keep = ~np.isnan(Z).any(axis=1)
         w = self._lam ** (0.5 * np.arange(len(Z) - 1, -1, -1.0)) / math.sqrt(self._R)
@@ -292,9 +301,7 @@ class SquareRootRLS(_FilterBase):
         Rf = np.linalg.qr(np.hstack([A, B]), mode="r")
         U, d = Rf[:self.dim_x, :self.dim_x], Rf[:self.dim_x, self.dim_x:]
         # U = Delta^-1/2 W, d = U x = Delta^-1/2 v  (the signs of Q's rows: diag(U) > 0)
-        self._W, self._delta = _unit_factor(U)
-        self._v = d / np.diagonal(U)[:, None]
-        self._x = solve_triangular(self._W, self._v, unit_diagonal=True)
+        self._set_factors(*_unit_factor(U), v=d / np.diagonal(U)[:, None])
         self.x_prior, self.x_post = self._x.copy(), self._x.copy()
         self.P_prior = self.P_post = self.P
 
@@ -310,8 +317,7 @@ class SquareRootRLS(_FilterBase):
         the same health check, reported with its step), and changes nothing
         if it raises."""
         N, n, m = len(Z), self.dim_x, self.dim_z
-        W, delta, v = self._W.copy(), self._delta.copy(), self._v.copy()
-        x = self._x.copy()
+        Wv, delta, x = self._Wv.copy(), self._delta.copy(), self._x.copy()
         means = np.empty((N, n, m))
         if store_covariances:
             covs, covs_p = np.empty((N, n, n)), np.empty((N, n, n))
@@ -324,7 +330,7 @@ class SquareRootRLS(_FilterBase):
         step0 = self.n_updates
         U_fail = np.empty((n, n))
         s, k_fail = kern.sr_batch_kernel(
-            W, delta, v, x, c_array(Z), c_array(Hm), Rv, 1.0 / self._lam, bool(update_first),
+            Wv, delta, x, c_array(Z), c_array(Hm), Rv, 1.0 / self._lam, bool(update_first),
             means, covs, covs_p, x_prior, P_prior, P_post, y, K,
             0 if self._warned_health else self.check_every, step0, float(self.cond_max),
             U_fail)
@@ -335,7 +341,7 @@ class SquareRootRLS(_FilterBase):
                        + _health.at_step(k_fail, step0 + k_fail + 1))
         elif not self._warned_health and self.check_every:    # the end-of-batch check
             U = np.empty((n, n))
-            kern.sr_factor(W, delta, U)
+            kern.sr_factor(Wv, delta, U)
             problem = _health.factor_problem(U, self.cond_max)
             if problem is not None:
                 problem += _health.at_update(step0 + N)
@@ -348,7 +354,7 @@ class SquareRootRLS(_FilterBase):
             means_p[0] = self._x
             means_p[1:] = means[:-1]
         self.n_updates = step0 + N
-        self._W, self._delta, self._v, self._x = W, delta, v, x
+        self._Wv, self._delta, self._x = Wv, delta, x
         self._clear_lazy()
         self.H = Hm[-1].reshape(1, n).copy()
         self.S, self.SI = s * self._I_z, self._I_z / s
@@ -384,7 +390,6 @@ class SquareRootRLS(_FilterBase):
     def reset(self):
         """Return to ``x0``, ``P0``; ``lam`` and ``R`` are kept. Re-arms the
         health warning."""
-        n = self.dim_x
         self.n_updates = 0
         self._warned_health = False
         self._x = self._x0.copy()
@@ -416,4 +421,4 @@ def _unit_factor(U):
     u = np.diagonal(U).copy()
     W = np.triu(U / u[:, None])
     np.fill_diagonal(W, 1.0)
-    return c_array(W), 1.0 / (u * u)
+    return W, 1.0 / (u * u)

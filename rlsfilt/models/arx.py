@@ -1213,10 +1213,12 @@ def _hand_over(rls, user, theta, units, r):
             # the information square root (U^T U = P^-1) maps exactly, U = 2^(r/2) U~ 2^c,
             # and so do its factors U = Delta^-1/2 W: W = 2^-c W~ 2^c,
             # Delta = 2^(-r - 2c) Delta~, and v = W x = 2^(e_y - c) v~
-            user._W = np.ldexp(rls._W, c[None, :] - c[:, None])
-            user._delta = np.ldexp(rls._delta, -r - 2 * c)
-            user._x = np.array(theta, dtype=float)
-            user._v = np.ldexp(rls._v, units.output_exponents[None, :] - c[:, None])
+            n = rls.dim_x
+            user._set_factors(np.ldexp(rls._Wv[:, :n], c[None, :] - c[:, None]),
+                              np.ldexp(rls._delta, -r - 2 * c),
+                              v=np.ldexp(rls._Wv[:, n:],
+                                         units.output_exponents[None, :] - c[:, None]),
+                              x=theta)
         else:
             user.x = theta
             user.P = units.P_from_unit(rls.P, r=r)
