@@ -49,8 +49,8 @@ the squared cosine) without their square roots (Gentleman 1973): the
 entries ``a_i`` after the eliminations are ``W^-T phi``, and each row costs
 one division and two multiply-adds per entry. ``[W | v]`` is stored as one
 array, so that ``v`` is rotated by the same loop as ``W``; the loop takes
-two rows per pass over the columns (three memory accesses per entry and
-row instead of four), and ``x = W^-1 v`` four columns at a time.
+four rows per pass over the columns (2.5 memory accesses per entry and row
+instead of four), and ``x = W^-1 v`` four columns at a time.
 ``tests/test_kernels_window.py`` holds the kernels to the Givens reference
 (``_reference.square_root_update``) at 1e-12.
 """
@@ -205,9 +205,10 @@ def _sr_step(Wv, delta, x, phi, z, r, y, K, gain, a, want_y):
     factors, nor the residual: the batch kernel forms them for the last step
     only. A missing sample changes nothing.
 
-    The rows of ``[W | v]`` are rotated two at a time: one pass over the
-    columns right of the pair applies both (row ``i``'s new entries, then
-    row ``i + 1``'s from them), the numbers of two single-row passes.
+    The rows of ``[W | v]`` are rotated four at a time: after the 4 x 4
+    block on the diagonal, one pass over the columns right of the block
+    applies the four rows (row ``i``'s new entries, then row ``i + 1``'s
+    from them, ...), the numbers of four single-row passes.
     """
     n = delta.shape[0]
     L = Wv.shape[1]
@@ -249,24 +250,47 @@ def _sr_step(Wv, delta, x, phi, z, r, y, K, gain, a, want_y):
         a[n + j] = z[j]
     eta = r
     i = 0
-    while i + 1 < n:                           # rows i and i + 1
-        r0, r1 = Wv[i], Wv[i + 1]
+    while i + 3 < n:                           # rows i, ..., i + 3
+        r0, r1, r2, r3 = Wv[i], Wv[i + 1], Wv[i + 2], Wv[i + 3]
+        # the 4 x 4 block on the diagonal, row by row: a_j <- a_j - a_i W_ij and
+        # W_ij <- W_ij + k_i a_j for the block's columns j right of row i
         a0 = a[i]
         k0, eta = _rotate(delta, i, a0, eta)
-        t = r0[i + 1]
-        a1 = a[i + 1] - a0 * t                 # a_{i+1} <- a_{i+1} - a_i W_{i,i+1}
-        r0[i + 1] = t + k0 * a1                # W_{i,i+1} <- W_{i,i+1} + k_i a_{i+1}
+        w = r0[i + 1]
+        a1 = a[i + 1] - a0 * w
+        r0[i + 1] = w + k0 * a1
+        w = r0[i + 2]
+        a2 = a[i + 2] - a0 * w
+        r0[i + 2] = w + k0 * a2
+        w = r0[i + 3]
+        a3 = a[i + 3] - a0 * w
+        r0[i + 3] = w + k0 * a3
         k1, eta = _rotate(delta, i + 1, a1, eta)
-        for j in range(i + 2, L):
-            w0 = r0[j]
-            w1 = r1[j]
+        w = r1[i + 2]
+        a2 = a2 - a1 * w
+        r1[i + 2] = w + k1 * a2
+        w = r1[i + 3]
+        a3 = a3 - a1 * w
+        r1[i + 3] = w + k1 * a3
+        k2, eta = _rotate(delta, i + 2, a2, eta)
+        w = r2[i + 3]
+        a3 = a3 - a2 * w
+        r2[i + 3] = w + k2 * a3
+        k3, eta = _rotate(delta, i + 3, a3, eta)
+        # the columns right of the block: the four rows' passes in one
+        for j in range(i + 4, L):
+            w0, w1, w2, w3 = r0[j], r1[j], r2[j], r3[j]
             t = a[j] - a0 * w0                 # a_j <- a_j - a_i W_ij
             r0[j] = w0 + k0 * t                # W_ij <- W_ij + k_i a_j
-            u = t - a1 * w1                    # then row i + 1
-            r1[j] = w1 + k1 * u
-            a[j] = u
-        i += 2
-    if i < n:                                  # the last row of an odd n
+            t = t - a1 * w1                    # then rows i + 1, i + 2, i + 3
+            r1[j] = w1 + k1 * t
+            t = t - a2 * w2
+            r2[j] = w2 + k2 * t
+            t = t - a3 * w3
+            r3[j] = w3 + k3 * t
+            a[j] = t
+        i += 4
+    while i < n:                               # the last rows, one at a time
         r0 = Wv[i]
         a0 = a[i]
         k0, eta = _rotate(delta, i, a0, eta)
@@ -275,6 +299,7 @@ def _sr_step(Wv, delta, x, phi, z, r, y, K, gain, a, want_y):
             t = a[j] - a0 * w0
             r0[j] = w0 + k0 * t
             a[j] = t
+        i += 1
     s = eta                                    # S = H P H^T + R
     if gain:
         for i in range(n):
