@@ -421,4 +421,8 @@ def _unit_factor(U):
     u = np.diagonal(U).copy()
     W = np.triu(U / u[:, None])
     np.fill_diagonal(W, 1.0)
-    return W, 1.0 / (u * u)
+    with np.errstate(over="ignore", under="ignore"):
+        # beyond the double range (|u| outside about 1e-154...1e154) delta is 0 or inf,
+        # and the health check reports P as it is: not representable
+        r = 1.0 / u
+        return W, r * r
