@@ -87,7 +87,8 @@ def rls_run(f, zs, Hs, Rs=None, update_first=False):
 def square_root_run(f, zs, Hs, Rs=None, update_first=False):
     """`SquareRootRLS`: Givens rotations on the information square root."""
     Z, Hm, Rv = _record(zs, Hs, Rs, f.R, f.dim_z)
-    U, d, x = f.U, f._d.copy(), f.x.copy()
+    U, x = f.U, f.x.copy()
+    d = U @ x                                         # d = U x
     h = _History()
 
     def predict(U, d):

@@ -159,7 +159,7 @@ def test_end_of_batch_check_catches_a_windup_between_periodic_checks():
 def test_corrupted_factor_is_caught_by_the_cheap_check():
     # e.g. a state corrupted by hand: a NaN on the diagonal of the factor
     f = SquareRootRLS(2, check_every=1000)
-    f._U[1, 1] = np.nan
+    f._delta[1] = np.nan
     with pytest.warns(NumericalWarning, match=r"`P` has non-finite entries at update 1 since "
                                               r"reset"):
         f.update(1.0, [1.0, 0.0])

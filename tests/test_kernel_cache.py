@@ -22,8 +22,8 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 # the entry points called from Python (their callees are compiled into them)
 RLS = ("predict_kernel", "update_kernel", "step_batch", "exponential_batch", "project")
 WINDOW = ("sw_batch_kernel", "sw_update_kernel", "window_lstsq", "sr_batch_kernel",
-          "sr_update_kernel", "sr_predict")
-SHARED = ("upper_inverse_gram", "unhealthy_on", "unhealthy", "factor_unhealthy")
+          "sr_update_kernel", "sr_predict", "sr_covariance", "sr_factor", "sr_unhealthy")
+SHARED = ("unhealthy_on", "unhealthy")
 
 JOB = r"""
 import json
@@ -52,6 +52,7 @@ sq = rlsfilt.SquareRootRLS(3, lam=0.99, check_every=7)
 sq.batch_filter(z, H)
 sq.predict()
 sq.update(1.0, H[0])                                    # update 21: the periodic check
+sq.U
 from rlsfilt.filters import _kernels, _kernels_shared, _kernels_window
 stats = {}
 for module, names in ((_kernels, RLS), (_kernels_window, WINDOW), (_kernels_shared, SHARED)):

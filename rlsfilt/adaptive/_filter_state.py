@@ -40,17 +40,19 @@ def _rls_set(f, parts):
 
 
 def _sr_fields(f):
+    # the square-root-free factors U = Delta^-1/2 W and v = W x, as the filter keeps them
     n, m = f.dim_x, f.dim_z
-    return [("x", (n, m)), ("U", (n, n)), ("d", (n, m)), ("n_updates", ())]
+    return [("x", (n, m)), ("W", (n, n)), ("delta", (n,)), ("v", (n, m)), ("n_updates", ())]
 
 
 def _sr_get(f):
-    return [f._x, f._U, f._d, f.n_updates]
+    n = f.dim_x
+    return [f._x, f._Wv[:, :n], f._delta, f._Wv[:, n:], f.n_updates]
 
 
 def _sr_set(f, parts):
-    x, U, d, nu = parts
-    f._x, f._U, f._d = x.copy(), U.copy(), d.copy()
+    x, W, delta, v, nu = parts
+    f._set_factors(W, delta, v=v, x=x)
     f.n_updates = int(nu)
 
 

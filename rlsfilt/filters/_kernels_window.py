@@ -3,7 +3,8 @@ production path.
 
 Every public method of the two filters that runs the recursion calls these.
 The same recursions in readable NumPy are in :mod:`rlsfilt.filters._reference`
-(``SlidingWindow``, ``square_root_update``: the same Givens rotations);
+(``SlidingWindow``; ``square_root_update``, the Givens rotations whose numbers
+the square root's kernel computes without square roots);
 ``tests/test_kernels_window.py`` holds the two equal step by step to 1e-12.
 As in :mod:`rlsfilt.filters._kernels`, every function is ``njit(cache=True)``
 and one implementation of a step serves both the batch kernel and the
@@ -27,20 +28,31 @@ downdate summing the next sample's gain ``P'' phi_next``, the numbers of
 the four steps above one after the other. A full-rank refit is certified by
 ``cond(R) <= ||R||_F ||R^-1||_F`` before it would need the SVD.
 
-Square root (QR, information form), one step::
+Square root (information form, Gentleman's rotations without square roots)::
 
-    U <- sqrt(lam) U, d <- sqrt(lam) d      predict
-    [U d; phi/sqrt(r) z^T/sqrt(r)] -> [U' d'; 0 e]   by n Givens rotations
-    s = r / prod_i c_i^2 (the rotations' cosines: = |U^-T phi|^2 + r)
-    K = U^-1 w / s, w = U^-T phi (only when the gain is kept)
-    x = U'^-1 d'                              by columns of U'
+    U = Delta^-1/2 W,  v = W x      the state: W unit upper triangular, Delta
+                                    diagonal positive, so P = W^-1 Delta W^-T
+    Delta <- Delta / lam            predict (U <- sqrt(lam) U; W, v unchanged)
+    fold the row [phi | z^T] of weight 1/r into [W | v], row i of W at a time:
+        a_i: the new row's entry i, eta_0 = r
+        eta_{i+1} = eta_i + a_i^2 delta_i
+        delta_i <- delta_i eta_i / eta_{i+1},   k_i = a_i delta_i / eta_{i+1}
+        a_j <- a_j - a_i W_ij,   W_ij <- W_ij + k_i a_j        (j > i)
+        b   <- b - a_i v_i,      v_i  <- v_i + k_i b           (b: the z part)
+    s = eta_n = phi P phi^T + r
+    K = W^-1 (a o delta) / s        (the old factors; only when the gain is kept)
+    x = W^-1 v                      unit triangular: no division
 
-The batch loop applies the time update inside the rotations (each row of
-``U`` and ``d`` is multiplied by ``sqrt(lam)`` as its rotation reads it: the
-numbers of `sr_predict` then the rotations, without the pass over ``U``).
-
-The Givens rotations keep the diagonal of ``U`` positive by construction
-(``U_ii <- hypot(U_ii, a_i)``).
+These are the numbers of the Givens rotations of ``[U d; phi/sqrt(r)
+z^T/sqrt(r)]`` (``delta_i = 1 / U_ii^2``, ``delta_i eta_i / eta_{i+1}`` is
+the squared cosine) without their square roots (Gentleman 1973): the
+entries ``a_i`` after the eliminations are ``W^-T phi``, and each row costs
+one division and two multiply-adds per entry. ``[W | v]`` is stored as one
+array, so that ``v`` is rotated by the same loop as ``W``; the loop takes
+four rows per pass over the columns (2.5 memory accesses per entry and row
+instead of four), and ``x = W^-1 v`` four columns at a time.
+``tests/test_kernels_window.py`` holds the kernels to the Givens reference
+(``_reference.square_root_update``) at 1e-12.
 """
 
 import math
@@ -65,189 +77,257 @@ __all__ = []
 
 
 @njit(cache=True, error_model="numpy")
-def sr_predict(U, d, c):
-    """``U <- c U``, ``d <- c d`` in place (``c = sqrt(lam)``)."""
-    n, m = d.shape
-    for i in range(n):
-        for j in range(n):
-            U[i, j] = U[i, j] * c
-        for j in range(m):
-            d[i, j] = d[i, j] * c
+def sr_predict(delta, ilam):
+    """``Delta <- Delta / lam`` in place (``ilam = 1 / lam``): ``P <- P / lam``
+    with ``W`` and ``v = W x`` unchanged."""
+    for i in range(delta.shape[0]):
+        delta[i] = delta[i] * ilam
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _dot_from(u, v, lo, hi):
-    """``sum_{k=lo}^{hi-1} u_k v_k`` in four interleaved partial sums (added as
-    ``(s0 + s1) + (s2 + s3)``, then the tail): four independent chains of
-    additions instead of one, the same bits on every machine."""
-    s0 = s1 = s2 = s3 = 0.0
-    k = lo
-    while k + 4 <= hi:
-        s0 += u[k] * v[k]
-        s1 += u[k + 1] * v[k + 1]
-        s2 += u[k + 2] * v[k + 2]
-        s3 += u[k + 3] * v[k + 3]
-        k += 4
-    acc = (s0 + s1) + (s2 + s3)
-    while k < hi:
-        acc += u[k] * v[k]
-        k += 1
-    return acc
+def _unit_back_solve(Wv, c, xw):
+    """``x = W^-1 v_c`` into ``xw`` (n,) for the unit upper-triangular ``W =
+    Wv[:, :n]`` and column ``c`` of ``v = Wv[:, n:]``.
 
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _back_solve(U, b, v):
-    """``U v = b`` for the upper-triangular `U` (row by row from the last, the dot
-    products by `_dot_from`); `v` may be `b`."""
-    n = U.shape[0]
-    for i in range(n - 1, -1, -1):
-        v[i] = (b[i] - _dot_from(U[i], v, i + 1, n)) / U[i, i]
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _back_solve_inv(U, dinv, b, v):
-    """`_back_solve` with the reciprocals ``dinv`` of the diagonal of `U` known,
-    by columns: once ``v_i`` is known it is taken off every row above,
-    ``b_k <- b_k - U_ki v_i``. The chain from ``v_{i+1}`` to ``v_i`` is then a
-    multiply, a subtraction and a multiply (the row form waits for a dot
-    product); `v` may be `b`."""
-    n = U.shape[0]
-    for k in range(n):
-        v[k] = b[k]
-    for i in range(n - 1, -1, -1):
-        vi = v[i] * dinv[i]
-        v[i] = vi
-        for k in range(i):
-            v[k] -= U[k, i] * vi
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _sr_step(U, d, x, phi, z, r, w, y, K, gain, a, b, xc, c, c0, want_y):
-    """One measurement update of the information square root, in place.
-
-    Writes ``y`` (m,) when `want_y` and, when `gain`, ``K`` (n,) (NaN and
-    zero when `z` holds a NaN) and returns ``s = H P H^T + R``. ``w``, ``a``
-    (n,), ``b`` (m,) and ``xc`` (n,) are workspace; ``c0 = 1 / sqrt(r)``.
-    The gain is not needed to update ``U`` and ``d``, nor the residual: the
-    batch kernel forms them for the last step only.
-
-    ``c`` is the factor of a time update not yet applied (`sr_predict`; 1.0:
-    none): each row of ``U`` and ``d`` is multiplied by it as its rotation
-    reads it, the numbers `sr_predict` then the rotations give (the batch
-    loop saves a pass over ``U``). A missing `z` or `gain` needs ``c = 1``.
-
-    ``s`` comes from the rotations: they keep ``det(U)`` times the
-    determinant of the appended row's part, so ``prod_i (rho_i / U_ii)^2 =
-    1 + |U^-T phi|^2 / r`` and ``s = r / prod_i c_i^2`` with the cosines
-    ``c_i = U_ii / rho_i`` (no triangular solve; a missing sample, which
-    rotates nothing, takes ``s = |U^-T phi|^2 + r``).
+    By columns (once ``x_i`` is known it is taken off every row above, ``v_q
+    <- v_q - W_qi x_i``), four columns at a time: the 4 x 4 block on the
+    diagonal first, then each row above reads its four contiguous entries
+    ``W[q, i-3:i+1]``. The subtractions are those of the column-by-column
+    loop, in its order.
     """
-    n, m = d.shape
+    n = Wv.shape[0]
+    for q in range(n):
+        xw[q] = Wv[q, n + c]
+    i = n - 1
+    while i >= 3:
+        x3 = xw[i]
+        x2 = xw[i - 1] - Wv[i - 1, i] * x3
+        x1 = (xw[i - 2] - Wv[i - 2, i] * x3) - Wv[i - 2, i - 1] * x2
+        x0 = ((xw[i - 3] - Wv[i - 3, i] * x3) - Wv[i - 3, i - 1] * x2) - Wv[i - 3, i - 2] * x1
+        xw[i - 1] = x2
+        xw[i - 2] = x1
+        xw[i - 3] = x0
+        for q in range(i - 3):
+            row = Wv[q]
+            xw[q] = (((xw[q] - row[i] * x3) - row[i - 1] * x2) - row[i - 2] * x1
+                     - row[i - 3] * x0)
+        i -= 4
+    while i >= 1:
+        xi = xw[i]
+        for q in range(i):
+            xw[q] -= Wv[q, i] * xi
+        i -= 1
+
+
+@njit(cache=True, error_model="numpy")
+def sr_covariance(Wv, delta, P):
+    """``P = W^-1 Delta W^-T`` for the unit upper-triangular ``W = Wv[:, :n]``.
+
+    ``V = W^-1`` by back substitution, column by column; then ``P_ij =
+    sum_{k >= max(i, j)} V_ik delta_k V_jk`` for ``i <= j``, mirrored, so
+    ``P`` is exactly symmetric.
+    """
+    n = delta.shape[0]
+    V = np.zeros((n, n))
+    for j in range(n):
+        V[j, j] = 1.0
+        for i in range(j - 1, -1, -1):
+            acc = 0.0
+            for k in range(i + 1, j + 1):
+                acc += Wv[i, k] * V[k, j]
+            V[i, j] = -acc
+    for i in range(n):
+        for j in range(i, n):
+            acc = 0.0
+            for k in range(j, n):
+                acc += V[i, k] * delta[k] * V[j, k]
+            P[i, j] = acc
+            P[j, i] = acc
+
+
+@njit(cache=True, error_model="numpy")
+def sr_factor(Wv, delta, U):
+    """The information square root ``U = Delta^-1/2 W`` (``U^T U = P^-1``).
+
+    A row whose ``delta_i`` is not positive gets the diagonal entry
+    ``-1 / sqrt(-delta_i)`` (or an infinite or NaN one), so that the health
+    check's test of ``U``'s diagonal reports it.
+    """
+    n = delta.shape[0]
+    for i in range(n):
+        di = delta[i]
+        f = 1.0 / math.sqrt(di) if di > 0.0 else -1.0 / math.sqrt(-di)
+        for j in range(n):
+            U[i, j] = Wv[i, j] * f if j > i else 0.0
+        U[i, i] = f
+
+
+@njit(cache=True, error_model="numpy")
+def sr_unhealthy(Wv, delta, cond_max, U):
+    """``factor_unhealthy`` of ``U = Delta^-1/2 W`` (formed in the workspace `U`)."""
+    sr_factor(Wv, delta, U)
+    return factor_unhealthy(U, cond_max)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _delta_bad(delta):
+    """The cheap health check: a ``delta_i`` that is not positive and finite (``P``
+    is positive definite exactly when every ``delta_i`` is positive)."""
+    for i in range(delta.shape[0]):
+        di = delta[i]
+        if not (di > 0.0 and di < np.inf):
+            return True
+    return False
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _rotate(delta, i, ai, eta):
+    """Row ``i``'s numbers: ``delta_i <- delta_i eta_i / eta_{i+1}`` in place;
+    returns ``k_i = a_i delta_i / eta_{i+1}`` and ``eta_{i+1}`` (``k_i = 0``
+    and nothing changed when ``a_i = 0``)."""
+    if ai == 0.0:
+        return 0.0, eta
+    g = ai * delta[i]
+    eta_new = eta + g * ai                     # eta_{i+1} = eta_i + a_i^2 delta_i
+    inv = 1.0 / eta_new
+    delta[i] = delta[i] * (eta * inv)
+    return g * inv, eta_new
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _sr_step(Wv, delta, x, phi, z, r, y, K, gain, a, want_y):
+    """One measurement update of the square-root-free factors ``[W | v] = Wv``
+    and ``delta``, in place.
+
+    Writes ``x`` (n, m), ``y`` (m,) when `want_y` and, when `gain`, ``K``
+    (n,) (NaN and zero when `z` holds a NaN) and returns ``s = H P H^T +
+    R``. ``a`` (n + m,) is workspace. The gain is not needed to update the
+    factors, nor the residual: the batch kernel forms them for the last step
+    only. A missing sample changes nothing.
+
+    The rows of ``[W | v]`` are rotated four at a time: after the 4 x 4
+    block on the diagonal, one pass over the columns right of the block
+    applies the four rows (row ``i``'s new entries, then row ``i + 1``'s
+    from them, ...), the numbers of four single-row passes.
+    """
+    n = delta.shape[0]
+    L = Wv.shape[1]
+    m = L - n
     missing = any_nan(z)
-    if missing or gain:                        # (the caller applied the time update)
-        for i in range(n):                     # U^T w = phi: forward, column by column
-            w[i] = phi[i]
-        for k in range(n):
-            wk = w[k] / U[k, k]
-            w[k] = wk
-            row = U[k]
-            for i in range(k + 1, n):
-                w[i] -= row[i] * wk
-    if missing:
-        s = r
-        for i in range(n):
-            s += w[i] * w[i]                   # s = |U^-T phi|^2 + r
-        for j in range(m):
-            y[j] = np.nan
-        for i in range(n):
-            K[i] = 0.0
-        return s
-    if gain:
-        _back_solve(U, w, K)                   # U v = w (the old U); K = v / s below
     if want_y:
         for j in range(m):                     # y = z - phi x
             acc = 0.0
             for i in range(n):
                 acc += phi[i] * x[i, j]
             y[j] = z[j] - acc
-    # fold the row [phi, z^T] / sqrt(r) into [U, d] with Givens rotations
-    for i in range(n):
-        a[i] = phi[i] * c0
+    if missing or gain:
+        # the eliminations alone (W^T a = phi): a_i delta_i = (Delta W^-T phi)_i, and
+        # s = r + sum_i a_i^2 delta_i, in the order the update below adds them
+        for i in range(n):
+            a[i] = phi[i]
+        s = r
+        for i in range(n):
+            ai = a[i]
+            g = ai * delta[i]
+            K[i] = g
+            s += g * ai
+            row = Wv[i]
+            for j in range(i + 1, n):
+                a[j] -= ai * row[j]
+        if missing:
+            for j in range(m):
+                y[j] = np.nan
+            for i in range(n):
+                K[i] = 0.0
+            return s
+        for i in range(n - 1, 0, -1):          # K = W^-1 Delta W^-T phi (/ s below)
+            ki = K[i]
+            for q in range(i):
+                K[q] -= Wv[q, i] * ki
+    for i in range(n):                         # the new row [phi | z^T], weight 1 / r
+        a[i] = phi[i]
     for j in range(m):
-        b[j] = z[j] * c0
-    prod = 1.0                                 # prod_i c_i, times 2^(500 scaled)
-    scaled = 0
-    for i in range(n):
-        ai = a[i]
-        row = U[i]
-        uii = row[i] * c                       # (the pending time update, row by row)
-        if ai == 0.0:
-            if c != 1.0:
-                for j in range(i, n):
-                    row[j] = row[j] * c
-                for j in range(m):
-                    d[i, j] = d[i, j] * c
-            w[i] = 1.0 / uii                   # w: the reciprocals of the new diagonal
-            continue
-        big = max(abs(uii), abs(ai))
-        if 1e-150 < big < 1e150:               # no overflow or underflow: sqrt, not hypot
-            rho = math.sqrt(uii * uii + ai * ai)
-        else:
-            rho = math.hypot(uii, ai)
-        inv = 1.0 / rho
-        w[i] = inv
-        cs = uii * inv
-        sn = ai * inv
-        prod *= cs
-        if prod < 1e-150:                      # keep it normal (an exact power of two)
-            prod *= 2.0 ** 500
-            scaled += 1
-        row[i] = rho
-        for j in range(i + 1, n):
-            t = row[j] * c
-            aj = a[j]
-            row[j] = cs * t + sn * aj
-            a[j] = cs * aj - sn * t
-        for j in range(m):
-            t = d[i, j] * c
-            bj = b[j]
-            d[i, j] = cs * t + sn * bj
-            b[j] = cs * bj - sn * t
-    s = r / (prod * prod)                      # S = H P H^T + R
-    for _ in range(scaled):
-        s *= 2.0 ** 1000
+        a[n + j] = z[j]
+    eta = r
+    i = 0
+    while i + 3 < n:                           # rows i, ..., i + 3
+        r0, r1, r2, r3 = Wv[i], Wv[i + 1], Wv[i + 2], Wv[i + 3]
+        # the 4 x 4 block on the diagonal, row by row: a_j <- a_j - a_i W_ij and
+        # W_ij <- W_ij + k_i a_j for the block's columns j right of row i
+        a0 = a[i]
+        k0, eta = _rotate(delta, i, a0, eta)
+        w = r0[i + 1]
+        a1 = a[i + 1] - a0 * w
+        r0[i + 1] = w + k0 * a1
+        w = r0[i + 2]
+        a2 = a[i + 2] - a0 * w
+        r0[i + 2] = w + k0 * a2
+        w = r0[i + 3]
+        a3 = a[i + 3] - a0 * w
+        r0[i + 3] = w + k0 * a3
+        k1, eta = _rotate(delta, i + 1, a1, eta)
+        w = r1[i + 2]
+        a2 = a2 - a1 * w
+        r1[i + 2] = w + k1 * a2
+        w = r1[i + 3]
+        a3 = a3 - a1 * w
+        r1[i + 3] = w + k1 * a3
+        k2, eta = _rotate(delta, i + 2, a2, eta)
+        w = r2[i + 3]
+        a3 = a3 - a2 * w
+        r2[i + 3] = w + k2 * a3
+        k3, eta = _rotate(delta, i + 3, a3, eta)
+        # the columns right of the block: the four rows' passes in one
+        for j in range(i + 4, L):
+            w0, w1, w2, w3 = r0[j], r1[j], r2[j], r3[j]
+            t = a[j] - a0 * w0                 # a_j <- a_j - a_i W_ij
+            r0[j] = w0 + k0 * t                # W_ij <- W_ij + k_i a_j
+            t = t - a1 * w1                    # then rows i + 1, i + 2, i + 3
+            r1[j] = w1 + k1 * t
+            t = t - a2 * w2
+            r2[j] = w2 + k2 * t
+            t = t - a3 * w3
+            r3[j] = w3 + k3 * t
+            a[j] = t
+        i += 4
+    while i < n:                               # the last rows, one at a time
+        r0 = Wv[i]
+        a0 = a[i]
+        k0, eta = _rotate(delta, i, a0, eta)
+        for j in range(i + 1, L):
+            w0 = r0[j]
+            t = a[j] - a0 * w0
+            r0[j] = w0 + k0 * t
+            a[j] = t
+        i += 1
+    s = eta                                    # S = H P H^T + R
     if gain:
         for i in range(n):
             K[i] = K[i] / s                    # K = P H^T / S
-    for j in range(m):                         # x = U^-1 d, column by column
+    for c in range(m):                         # x = W^-1 v, column by column
+        _unit_back_solve(Wv, c, a)
         for i in range(n):
-            xc[i] = d[i, j]
-        _back_solve_inv(U, w, xc, xc)
-        for i in range(n):
-            x[i, j] = xc[i]
+            x[i, c] = a[i]
     return s
 
 
 @njit(cache=True, error_model="numpy")
-def sr_update_kernel(U, d, x, phi, z, r, y, K):
+def sr_update_kernel(Wv, delta, x, phi, z, r, y, K):
     """Streaming :meth:`SquareRootRLS.update`: `_sr_step` on the given arrays.
 
-    Returns ``s`` and whether the diagonal of the new ``U`` fails the cheap
-    health check (``diagonal_bad``).
+    Returns ``s`` and whether the new ``delta`` fails the cheap health check.
     """
-    n, m = d.shape
-    w = np.empty(n)
-    s = _sr_step(U, d, x, phi, z, r, w, y, K, n > 0, np.empty(n), np.empty(m), np.empty(n), 1.0,
-                 1.0 / math.sqrt(r), True)
-    return s, diagonal_bad(U)
+    s = _sr_step(Wv, delta, x, phi, z, r, y, K, delta.shape[0] > 0, np.empty(Wv.shape[1]),
+                 True)
+    return s, _delta_bad(delta)
 
 
 @njit(cache=True, error_model="numpy")
-def sr_batch_kernel(U, d, x, Z, Hm, Rv, c, update_first, means, covs, covs_p,
+def sr_batch_kernel(Wv, delta, x, Z, Hm, Rv, ilam, update_first, means, covs, covs_p,
                     x_prior, P_prior, P_post, y, K, check_every, step0, cond_max, U_fail):
-    """Run `SquareRootRLS` over a record, in place on ``U``, ``d``, ``x``.
+    """Run `SquareRootRLS` over a record, in place on ``Wv``, ``delta`` and ``x``.
 
-    ``c = sqrt(lam)`` (1.0: no time update). ``Rv`` has length N or 1 (one
+    ``ilam = 1 / lam`` (1.0: no time update). ``Rv`` has length N or 1 (one
     variance for all steps). ``covs``, ``covs_p`` (N, n, n) are written when
     their length is N. Leaves the last predict's ``x_prior``, ``P_prior``
     and the last update's ``P_post``, ``y`` and ``K`` (the last
@@ -255,10 +335,11 @@ def sr_batch_kernel(U, d, x, Z, Hm, Rv, c, update_first, means, covs, covs_p,
     as the streaming step does).
 
     The health check of ``P`` runs after every update as
-    :meth:`SquareRootRLS.update` runs it: the cheap diagonal test of ``U``
-    each step and ``factor_unhealthy`` when the update count ``step0 + k + 1`` is
-    a multiple of ``check_every`` (0 disables both). The first failing ``U``
-    is copied to ``U_fail`` and no further checks run.
+    :meth:`SquareRootRLS.update` runs it: the cheap test of ``delta`` each
+    step and ``factor_unhealthy`` of ``U = Delta^-1/2 W`` when the update
+    count ``step0 + k + 1`` is a multiple of ``check_every`` (0 disables
+    both). The first failing ``U`` is written to ``U_fail`` and no further
+    checks run.
 
     Returns
     -------
@@ -268,71 +349,55 @@ def sr_batch_kernel(U, d, x, Z, Hm, Rv, c, update_first, means, covs, covs_p,
         Step of the first failed health check, or -1.
     """
     N = Z.shape[0]
-    n, m = x.shape
     store = covs.shape[0] == N and N > 0
     r_each = Rv.shape[0] == N
-    c0 = 1.0 / math.sqrt(Rv[0]) if Rv.shape[0] else 1.0
-    w = np.empty(n)
-    a = np.empty(n)
-    b = np.empty(m)
-    xc = np.empty(n)
+    a = np.empty(Wv.shape[1])
     s = np.nan
     k_fail = -1
-    pending = 1.0           # a time update not yet applied to U, d (see _sr_step)
     # steps to the next full health check (a countdown: no division per step)
     countdown = check_every - step0 % check_every if check_every > 0 else -1
     for k in range(N):
         last = k == N - 1
-        zk = Z[k]
-        if not update_first and c != 1.0:
-            pending = c
-        if pending != 1.0 and (store or last or any_nan(zk)):
-            sr_predict(U, d, pending)          # needed as it is: apply it now
-            pending = 1.0
         if not update_first:
+            if ilam != 1.0:
+                sr_predict(delta, ilam)
             if store:
-                upper_inverse_gram(U, covs_p[k])
+                sr_covariance(Wv, delta, covs_p[k])
             if last:
                 copy2(x, x_prior)
                 if store:
                     copy2(covs_p[k], P_prior)
                 else:
-                    upper_inverse_gram(U, P_prior)
-        r = Rv[k if r_each else 0]
-        s = _sr_step(U, d, x, Hm[k], zk, r, w, y, K, last, a, b, xc, pending,
-                     1.0 / math.sqrt(r) if r_each else c0, last)
-        pending = 1.0
+                    sr_covariance(Wv, delta, P_prior)
+        s = _sr_step(Wv, delta, x, Hm[k], Z[k], Rv[k if r_each else 0], y, K, last, a, last)
         if countdown > 0:
             countdown -= 1
             full = countdown == 0
             if full:
                 countdown = check_every
-            if diagonal_bad(U) or (full and factor_unhealthy(U, cond_max)):
+            if _delta_bad(delta) or (full and sr_unhealthy(Wv, delta, cond_max, U_fail)):
                 k_fail = k
                 countdown = -1
-                copy2(U, U_fail)
+                sr_factor(Wv, delta, U_fail)
         copy2(x, means[k])
         if store:
-            upper_inverse_gram(U, covs[k])
+            sr_covariance(Wv, delta, covs[k])
         if last:
             if store:
                 copy2(covs[k], P_post)
             else:
-                upper_inverse_gram(U, P_post)
+                sr_covariance(Wv, delta, P_post)
         if update_first:
-            if c != 1.0:
-                if store or last:
-                    sr_predict(U, d, c)
-                else:
-                    pending = c                # applied by the next step's rotations
+            if ilam != 1.0:
+                sr_predict(delta, ilam)
             if store:
-                upper_inverse_gram(U, covs_p[k])
+                sr_covariance(Wv, delta, covs_p[k])
             if last:
                 copy2(x, x_prior)
                 if store:
                     copy2(covs_p[k], P_prior)
                 else:
-                    upper_inverse_gram(U, P_prior)
+                    sr_covariance(Wv, delta, P_prior)
     return s, k_fail
 
 

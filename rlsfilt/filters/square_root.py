@@ -25,8 +25,10 @@ class SquareRootRLS(_FilterBase):
     Same estimates as :class:`~rlsfilt.RecursiveLeastSquares` with
     exponential forgetting, computed without ever forming ``P`` or its
     inverse: the filter keeps the upper-triangular square root ``U`` of the
-    information matrix (:math:`U^T U = P^{-1}`) and ``d = U x``, and folds
-    each new row in with orthogonal (Givens) rotations. Its
+    information matrix (:math:`U^T U = P^{-1}`), in the square-root-free
+    form :math:`U = \Delta^{-1/2} W` (``W`` unit upper triangular,
+    :math:`\Delta` diagonal), and folds each new row in with orthogonal
+    (Givens) rotations, computed without square roots. Its
     round-off grows with ``cond(U) = sqrt(cond(P))`` where the covariance
     form's grows with ``cond(P)``, and ``P`` is positive definite by
     construction (it still loses accuracy, and the filter warns, when
@@ -46,7 +48,7 @@ class SquareRootRLS(_FilterBase):
     lam : float, default 1.0
         Forgetting factor in (0, 1], applied by :meth:`predict`
         (:math:`U \leftarrow \sqrt{\lambda} U`, i.e. :math:`P \leftarrow
-        P / \lambda`).
+        P / \lambda`: :math:`\Delta \leftarrow \Delta / \lambda`).
     P0 : float or array_like, default 1e4
         Initial covariance (symmetric positive definite).
     x0 : array_like, optional
@@ -72,12 +74,13 @@ class SquareRootRLS(_FilterBase):
     Attributes
     ----------
     x : ndarray, shape (dim_x, dim_z)
-        Estimate (assigning it sets ``d = U x``).
+        Estimate (assigning it sets ``v = W x``).
     P : ndarray, shape (dim_x, dim_x)
         Covariance :math:`U^{-1} U^{-T}`, computed on access; assigning it
         refactors.
     U : ndarray, shape (dim_x, dim_x)
-        Upper-triangular information square root (a copy).
+        Upper-triangular information square root
+        :math:`\Delta^{-1/2} W`, computed on access.
     n_updates : int
         Measurement updates since the last :meth:`reset` (the count the
         health warning names).
@@ -97,14 +100,25 @@ class SquareRootRLS(_FilterBase):
 
     which is the recursive form of least squares by orthogonal
     transformations (Gentleman 1973; McWhirter 1983; Haykin 2002, ch. 13).
+    The filter stores the factors of :math:`U = \Delta^{-1/2} W` and
+    :math:`v = W x` (so :math:`d = \Delta^{-1/2} v`, :math:`P = W^{-1}
+    \Delta W^{-T}`) and applies Gentleman's rotations without square roots:
+    the same rotations, one division and two multiply-adds per entry of
+    ``W`` (row ``i``: :math:`\eta_{i+1} = \eta_i + a_i^2 \delta_i`,
+    :math:`\delta_i \leftarrow \delta_i \eta_i / \eta_{i+1}`,
+    :math:`a_j \leftarrow a_j - a_i W_{ij}`, :math:`W_{ij} \leftarrow
+    W_{ij} + a_i \delta_i a_j / \eta_{i+1}`, from :math:`\eta_0 = R` and
+    the new row :math:`a = H`; then :math:`S = \eta_n`). The time update
+    scales :math:`\Delta` only.
     ``y``, ``S`` and ``K`` are reported as in the covariance form
     (:math:`S = \lVert U^{-T} H^T \rVert^2 + R`, :math:`K = U^{-1} U^{-T} H^T
     / S`). A parameter random walk ``Q`` has no cheap information-form
     update and is not offered; use :class:`~rlsfilt.RecursiveLeastSquares`
-    for it. The cost per step is ``dim_x`` Givens rotations (one per row
-    of ``U``, each keeping its diagonal entry positive) and three triangular
-    solves, :math:`O(n^2)`; ``P`` costs :math:`O(n^3)` and is formed only
-    when it is read or stored. :meth:`predict`, :meth:`update` and
+    for it. The cost per step is ``dim_x`` rotations (one per row of
+    ``U``; about :math:`2 n^2` flops, ``n`` divisions and no square root)
+    and a unit triangular solve for ``x`` (:math:`n^2` flops); the gain, when
+    it is reported, costs two more triangular solves. ``P`` costs
+    :math:`O(n^3)` and is formed only when it is read or stored. :meth:`predict`, :meth:`update` and
     :meth:`batch_filter` run compiled (numba) and give the same numbers bit
     for bit.
 
@@ -173,14 +187,14 @@ class SquareRootRLS(_FilterBase):
 
     @x.setter
     def x(self, value):
-        self._x = self._as_state(value, "x")
-        self._d = self._U @ self._x
+        x = self._as_state(value, "x")
+        self._set_factors(self._Wv[:, :self.dim_x], self._delta, x=x)
 
     @property
     def P(self):
-        """Covariance ``U^-1 U^-T`` (a new array on every access)."""
+        """Covariance ``U^-1 U^-T = W^-1 Delta W^-T`` (a new array on every access)."""
         P = np.empty((self.dim_x, self.dim_x))
-        _streaming.window_kernels().upper_inverse_gram(c_array(self._U), P)
+        _streaming.window_kernels().sr_covariance(self._Wv, self._delta, P)
         return P
 
     @P.setter
@@ -188,24 +202,39 @@ class SquareRootRLS(_FilterBase):
         from scipy.linalg import cho_factor, cho_solve  # lazy: keeps `import rlsfilt` light
         P = check_covariance(value, self.dim_x, "P", definite=True)
         info = cho_solve(cho_factor(P, lower=True), np.eye(self.dim_x))
-        self._U = np.linalg.cholesky(0.5 * (info + info.T)).T
-        self._d = self._U @ self._x
+        # P^-1 = U^T U (Cholesky), U = Delta^-1/2 W
+        self._set_factors(*_unit_factor(np.linalg.cholesky(0.5 * (info + info.T)).T), x=self._x)
 
     @property
     def U(self):
-        """Upper-triangular information square root, ``U^T U = P^-1`` (a copy)."""
-        return self._U.copy()
+        """Upper-triangular information square root ``Delta^-1/2 W``, ``U^T U = P^-1``
+        (a new array on every access)."""
+        U = np.empty((self.dim_x, self.dim_x))
+        _streaming.window_kernels().sr_factor(self._Wv, self._delta, U)
+        return U
+
+    def _set_factors(self, W, delta, v=None, x=None):
+        """Set the state ``W``, ``delta`` and ``v = W x`` (from `v`, or from `x`) and
+        ``x = W^-1 v``; ``[W | v]`` is kept as one C-ordered array."""
+        from scipy.linalg import solve_triangular  # lazy: keeps `import rlsfilt` light
+        W = np.asarray(W, dtype=np.float64)
+        if v is None:
+            v = W @ x
+        self._Wv = np.ascontiguousarray(np.hstack([W, v]), dtype=np.float64)
+        self._delta = np.array(delta, dtype=np.float64)
+        self._x = (np.array(x, dtype=np.float64) if x is not None
+                   else solve_triangular(W, v, unit_diagonal=True))
 
     # ------------------------------------------------------------------
     # the recursion
     # ------------------------------------------------------------------
     def predict(self):
         r"""Time update :math:`U \leftarrow \sqrt{\lambda} U` (:math:`P \leftarrow P/\lambda`)."""
-        U, d = np.array(self._U, order="C"), np.array(self._d, order="C")
+        delta = self._delta.copy()
         if self._lam != 1.0:
-            # U <- sqrt(lam) U,  d <- sqrt(lam) d     (P <- P / lam, x unchanged)
-            _streaming.window_kernels().sr_predict(U, d, math.sqrt(self._lam))
-        self._U, self._d = U, d
+            # Delta <- Delta / lam     (U <- sqrt(lam) U, P <- P / lam; W, v and x unchanged)
+            _streaming.window_kernels().sr_predict(delta, 1.0 / self._lam)
+        self._delta = delta
         self.x_prior = self._x.copy()
         self.P_prior = self.P
 
@@ -216,19 +245,23 @@ class SquareRootRLS(_FilterBase):
         r = self._R if R is None else check_variance(R, "R")
         zc = self._as_measurement(z, "z")
         n, m = self.dim_x, self.dim_z
-        U, d, x = c_array(self._U.copy()), c_array(self._d.copy()), c_array(self._x.copy())
+        Wv, delta, x = self._Wv.copy(), self._delta.copy(), self._x.copy()
         y, K = np.empty((m, 1)), np.empty((n, 1))
         zrow = np.full(m, np.nan) if zc is None else zc[:, 0]
         # one compiled step (sr_update_kernel), on copies of the state:
-        #   w = U^-T H^T,  S = w^T w + R,  K = U^-1 w / S     (K = P H^T / S)
+        #   a = W^-T H^T,  S = R + sum_i a_i^2 delta_i,  K = W^-1 Delta a / S   (= P H^T / S)
         #   y = z - H x
-        #   [U d; H/sqrt(R) z^T/sqrt(R)] -> [U' d'; 0 e]      Givens rotations, one per row
-        #   x = U'^-1 d'
+        #   [U d; H/sqrt(R) z^T/sqrt(R)] -> [U' d'; 0 e]   Givens rotations, one per row,
+        #                                                   without square roots (W, Delta, v)
+        #   x = W'^-1 v'
         kern = _streaming.window_kernels()
-        s, bad = kern.sr_update_kernel(U, d, x, phi[0], zrow, r, y[:, 0], K[:, 0])
+        s, bad = kern.sr_update_kernel(Wv, delta, x, phi[0], zrow, r, y[:, 0], K[:, 0])
         n_updates = self.n_updates + 1
         problem = None
-        if self._health_due(n_updates, bad) and (bad or kern.factor_unhealthy(U, self.cond_max)):
+        U = np.empty((n, n))
+        if self._health_due(n_updates, bad) and (
+                bad or kern.sr_unhealthy(Wv, delta, self.cond_max, U)):
+            kern.sr_factor(Wv, delta, U)
             problem = ((_health.factor_problem(U, self.cond_max) or "`P` failed the health check")
                        + _health.at_update(n_updates, self._batch_start))
         self._warn_health(problem)                           # before the state changes
@@ -238,7 +271,7 @@ class SquareRootRLS(_FilterBase):
         self.z, self.y, self.K = zrow.reshape(m, 1), y, K
         if zc is None:
             self._lazy = MISSING_DIAGNOSTICS
-        self._U, self._d, self._x = U, d, x
+        self._Wv, self._delta, self._x = Wv, delta, x
         self.n_updates = n_updates
         self.x_post = x.copy()
         self.P_post = self.P
@@ -255,7 +288,6 @@ class SquareRootRLS(_FilterBase):
         ValueError
             If the rows do not determine every parameter.
         """
-        from scipy.linalg import solve_triangular  # lazy: keeps `import rlsfilt` light
         Z, Hm = self._as_batch(zs, Hs)
         keep = ~np.isnan(Z).any(axis=1)
         w = self._lam ** (0.5 * np.arange(len(Z) - 1, -1, -1.0)) / math.sqrt(self._R)
@@ -267,9 +299,9 @@ class SquareRootRLS(_FilterBase):
                 f"`Hs` is rank-deficient: found {rank} linearly independent rows in "
                 f"{len(A)} usable samples; need {self.dim_x} (one per parameter)")
         Rf = np.linalg.qr(np.hstack([A, B]), mode="r")
-        self._U, self._d = _positive_diagonal(Rf[:self.dim_x, :self.dim_x],
-                                              Rf[:self.dim_x, self.dim_x:])
-        self._x = solve_triangular(self._U, self._d)
+        U, d = Rf[:self.dim_x, :self.dim_x], Rf[:self.dim_x, self.dim_x:]
+        # U = Delta^-1/2 W, d = U x = Delta^-1/2 v  (the signs of Q's rows: diag(U) > 0)
+        self._set_factors(*_unit_factor(U), v=d / np.diagonal(U)[:, None])
         self.x_prior, self.x_post = self._x.copy(), self._x.copy()
         self.P_prior = self.P_post = self.P
 
@@ -285,9 +317,7 @@ class SquareRootRLS(_FilterBase):
         the same health check, reported with its step), and changes nothing
         if it raises."""
         N, n, m = len(Z), self.dim_x, self.dim_z
-        U = np.array(self._U, dtype=np.float64, order="C")
-        d = np.array(self._d, dtype=np.float64, order="C")
-        x = np.array(self._x, dtype=np.float64, order="C")
+        Wv, delta, x = self._Wv.copy(), self._delta.copy(), self._x.copy()
         means = np.empty((N, n, m))
         if store_covariances:
             covs, covs_p = np.empty((N, n, n)), np.empty((N, n, n))
@@ -300,7 +330,7 @@ class SquareRootRLS(_FilterBase):
         step0 = self.n_updates
         U_fail = np.empty((n, n))
         s, k_fail = kern.sr_batch_kernel(
-            U, d, x, c_array(Z), c_array(Hm), Rv, math.sqrt(self._lam), bool(update_first),
+            Wv, delta, x, c_array(Z), c_array(Hm), Rv, 1.0 / self._lam, bool(update_first),
             means, covs, covs_p, x_prior, P_prior, P_post, y, K,
             0 if self._warned_health else self.check_every, step0, float(self.cond_max),
             U_fail)
@@ -310,6 +340,8 @@ class SquareRootRLS(_FilterBase):
                         or "`P` failed the health check")
                        + _health.at_step(k_fail, step0 + k_fail + 1))
         elif not self._warned_health and self.check_every:    # the end-of-batch check
+            U = np.empty((n, n))
+            kern.sr_factor(Wv, delta, U)
             problem = _health.factor_problem(U, self.cond_max)
             if problem is not None:
                 problem += _health.at_update(step0 + N)
@@ -322,7 +354,7 @@ class SquareRootRLS(_FilterBase):
             means_p[0] = self._x
             means_p[1:] = means[:-1]
         self.n_updates = step0 + N
-        self._U, self._d, self._x = U, d, x
+        self._Wv, self._delta, self._x = Wv, delta, x
         self._clear_lazy()
         self.H = Hm[-1].reshape(1, n).copy()
         self.S, self.SI = s * self._I_z, self._I_z / s
@@ -351,18 +383,16 @@ class SquareRootRLS(_FilterBase):
         """The full check at the end of a step-by-step `batch_filter`."""
         if self._warned_health or not self.check_every:
             return
-        problem = _health.factor_problem(self._U, self.cond_max)
+        problem = _health.factor_problem(self.U, self.cond_max)
         if problem is not None:
             self._warn_health(problem + _health.at_update(self.n_updates))
 
     def reset(self):
         """Return to ``x0``, ``P0``; ``lam`` and ``R`` are kept. Re-arms the
         health warning."""
-        n = self.dim_x
         self.n_updates = 0
         self._warned_health = False
         self._x = self._x0.copy()
-        self._U = np.eye(n)
         self.P = self._P0
         self.x_prior, self.x_post = self._x.copy(), self._x.copy()
         self.P_prior, self.P_post = self._P0.copy(), self._P0.copy()
@@ -375,7 +405,7 @@ class SquareRootRLS(_FilterBase):
             pretty_str("dim_z", self.dim_z),
             pretty_str("lam", self._lam),
             pretty_str("x", self._x),
-            pretty_str("U", self._U),
+            pretty_str("U", self.U),
             pretty_str("P", self.P),
             pretty_str("R", self._R),
             pretty_str("y", self.y),
@@ -384,7 +414,15 @@ class SquareRootRLS(_FilterBase):
         ])
 
 
-def _positive_diagonal(U, d):
-    """Flip row signs so that ``diag(U) > 0`` (the unique factor)."""
-    sg = np.where(np.diag(U) < 0.0, -1.0, 1.0)
-    return U * sg[:, None], d * sg[:, None]
+def _unit_factor(U):
+    """``W``, ``delta`` of ``U = Delta^-1/2 W`` (``W`` unit upper triangular) for an
+    upper-triangular ``U`` with a nonzero diagonal: ``delta_i = 1 / U_ii^2``,
+    ``W = diag(U)^-1 U``, both independent of the signs of ``U``'s rows."""
+    u = np.diagonal(U).copy()
+    W = np.triu(U / u[:, None])
+    np.fill_diagonal(W, 1.0)
+    with np.errstate(over="ignore", under="ignore"):
+        # beyond the double range (|u| outside about 1e-154...1e154) delta is 0 or inf,
+        # and the health check reports P as it is: not representable
+        r = 1.0 / u
+        return W, r * r

@@ -1211,10 +1211,14 @@ def _hand_over(rls, user, theta, units, r):
     with np.errstate(over="ignore", under="ignore"):
         if isinstance(rls, SquareRootRLS):
             # the information square root (U^T U = P^-1) maps exactly, U = 2^(r/2) U~ 2^c,
-            # and so does d = U x = 2^(r/2 + e_y) d~
-            user._U = np.ldexp(rls._U, c[None, :] + r // 2)
-            user._x = np.array(theta, dtype=float)
-            user._d = np.ldexp(rls._d, units.output_exponents[None, :] + r // 2)
+            # and so do its factors U = Delta^-1/2 W: W = 2^-c W~ 2^c,
+            # Delta = 2^(-r - 2c) Delta~, and v = W x = 2^(e_y - c) v~
+            n = rls.dim_x
+            user._set_factors(np.ldexp(rls._Wv[:, :n], c[None, :] - c[:, None]),
+                              np.ldexp(rls._delta, -r - 2 * c),
+                              v=np.ldexp(rls._Wv[:, n:],
+                                         units.output_exponents[None, :] - c[:, None]),
+                              x=theta)
         else:
             user.x = theta
             user.P = units.P_from_unit(rls.P, r=r)
