@@ -46,8 +46,8 @@ def _sr_fields(f):
 
 
 def _sr_get(f):
-    n = f.dim_x
-    return [f._x, f._Wv[:, :n], f._delta, f._Wv[:, n:], f.n_updates]
+    n, m = f.dim_x, f.dim_z
+    return [f._x, f._Wv[:, :n], f._delta, f._Wv[:, n:n + m], f.n_updates]
 
 
 def _sr_set(f, parts):

@@ -76,6 +76,11 @@ from ._kernels_shared import (
 __all__ = []
 
 
+def padded_width(n, m):
+    """Row length of the stored ``[W | v]``: ``n + m`` rounded up to a multiple of 8."""
+    return -(-(n + m) // 8) * 8
+
+
 @njit(cache=True, error_model="numpy")
 def sr_predict(delta, ilam):
     """``Delta <- Delta / lam`` in place (``ilam = 1 / lam``): ``P <- P / lam``
@@ -201,18 +206,22 @@ def _sr_step(Wv, delta, x, phi, z, r, y, K, gain, a, want_y):
 
     Writes ``x`` (n, m), ``y`` (m,) when `want_y` and, when `gain`, ``K``
     (n,) (NaN and zero when `z` holds a NaN) and returns ``s = H P H^T +
-    R``. ``a`` (n + m,) is workspace. The gain is not needed to update the
+    R``. The rows of ``Wv`` are padded with zeros to a multiple of 8
+    entries (`padded_width`), and ``a`` (as long as a row) is zero past
+    ``n + m``: the padding stays zero. The gain is not needed to update the
     factors, nor the residual: the batch kernel forms them for the last step
     only. A missing sample changes nothing.
 
     The rows of ``[W | v]`` are rotated four at a time: after the 4 x 4
     block on the diagonal, one pass over the columns right of the block
     applies the four rows (row ``i``'s new entries, then row ``i + 1``'s
-    from them, ...), the numbers of four single-row passes.
+    from them, ...), the numbers of four single-row passes. The block's
+    pass starts at a multiple of 4 and ends at the padded width, and its
+    indices are unsigned (``np.uint64``: no negative-index fix-up), so that
+    the compiler vectorizes it.
     """
     n = delta.shape[0]
-    L = Wv.shape[1]
-    m = L - n
+    m = x.shape[1]
     missing = any_nan(z)
     if want_y:
         for j in range(m):                     # y = z - phi x
@@ -249,57 +258,58 @@ def _sr_step(Wv, delta, x, phi, z, r, y, K, gain, a, want_y):
     for j in range(m):
         a[n + j] = z[j]
     eta = r
-    i = 0
-    while i + 3 < n:                           # rows i, ..., i + 3
-        r0, r1, r2, r3 = Wv[i], Wv[i + 1], Wv[i + 2], Wv[i + 3]
+    L, un = np.uint64(Wv.shape[1]), np.uint64(n)
+    one = np.uint64(1)
+    i = np.uint64(0)
+    while i + np.uint64(3) < un:               # rows i, ..., i + 3
+        i1, i2, i3 = i + one, i + np.uint64(2), i + np.uint64(3)
         # the 4 x 4 block on the diagonal, row by row: a_j <- a_j - a_i W_ij and
         # W_ij <- W_ij + k_i a_j for the block's columns j right of row i
         a0 = a[i]
         k0, eta = _rotate(delta, i, a0, eta)
-        w = r0[i + 1]
-        a1 = a[i + 1] - a0 * w
-        r0[i + 1] = w + k0 * a1
-        w = r0[i + 2]
-        a2 = a[i + 2] - a0 * w
-        r0[i + 2] = w + k0 * a2
-        w = r0[i + 3]
-        a3 = a[i + 3] - a0 * w
-        r0[i + 3] = w + k0 * a3
-        k1, eta = _rotate(delta, i + 1, a1, eta)
-        w = r1[i + 2]
+        w = Wv[i, i1]
+        a1 = a[i1] - a0 * w
+        Wv[i, i1] = w + k0 * a1
+        w = Wv[i, i2]
+        a2 = a[i2] - a0 * w
+        Wv[i, i2] = w + k0 * a2
+        w = Wv[i, i3]
+        a3 = a[i3] - a0 * w
+        Wv[i, i3] = w + k0 * a3
+        k1, eta = _rotate(delta, i1, a1, eta)
+        w = Wv[i1, i2]
         a2 = a2 - a1 * w
-        r1[i + 2] = w + k1 * a2
-        w = r1[i + 3]
+        Wv[i1, i2] = w + k1 * a2
+        w = Wv[i1, i3]
         a3 = a3 - a1 * w
-        r1[i + 3] = w + k1 * a3
-        k2, eta = _rotate(delta, i + 2, a2, eta)
-        w = r2[i + 3]
+        Wv[i1, i3] = w + k1 * a3
+        k2, eta = _rotate(delta, i2, a2, eta)
+        w = Wv[i2, i3]
         a3 = a3 - a2 * w
-        r2[i + 3] = w + k2 * a3
-        k3, eta = _rotate(delta, i + 3, a3, eta)
+        Wv[i2, i3] = w + k2 * a3
+        k3, eta = _rotate(delta, i3, a3, eta)
         # the columns right of the block: the four rows' passes in one
-        for j in range(i + 4, L):
-            w0, w1, w2, w3 = r0[j], r1[j], r2[j], r3[j]
+        for j in range(i + np.uint64(4), L):
+            w0, w1, w2, w3 = Wv[i, j], Wv[i1, j], Wv[i2, j], Wv[i3, j]
             t = a[j] - a0 * w0                 # a_j <- a_j - a_i W_ij
-            r0[j] = w0 + k0 * t                # W_ij <- W_ij + k_i a_j
+            Wv[i, j] = w0 + k0 * t             # W_ij <- W_ij + k_i a_j
             t = t - a1 * w1                    # then rows i + 1, i + 2, i + 3
-            r1[j] = w1 + k1 * t
+            Wv[i1, j] = w1 + k1 * t
             t = t - a2 * w2
-            r2[j] = w2 + k2 * t
+            Wv[i2, j] = w2 + k2 * t
             t = t - a3 * w3
-            r3[j] = w3 + k3 * t
+            Wv[i3, j] = w3 + k3 * t
             a[j] = t
-        i += 4
-    while i < n:                               # the last rows, one at a time
-        r0 = Wv[i]
+        i += np.uint64(4)
+    while i < un:                              # the last rows, one at a time
         a0 = a[i]
         k0, eta = _rotate(delta, i, a0, eta)
-        for j in range(i + 1, L):
-            w0 = r0[j]
+        for j in range(i + one, L):
+            w0 = Wv[i, j]
             t = a[j] - a0 * w0
-            r0[j] = w0 + k0 * t
+            Wv[i, j] = w0 + k0 * t
             a[j] = t
-        i += 1
+        i += one
     s = eta                                    # S = H P H^T + R
     if gain:
         for i in range(n):
@@ -317,7 +327,7 @@ def sr_update_kernel(Wv, delta, x, phi, z, r, y, K):
 
     Returns ``s`` and whether the new ``delta`` fails the cheap health check.
     """
-    s = _sr_step(Wv, delta, x, phi, z, r, y, K, delta.shape[0] > 0, np.empty(Wv.shape[1]),
+    s = _sr_step(Wv, delta, x, phi, z, r, y, K, delta.shape[0] > 0, np.zeros(Wv.shape[1]),
                  True)
     return s, _delta_bad(delta)
 
@@ -351,7 +361,7 @@ def sr_batch_kernel(Wv, delta, x, Z, Hm, Rv, ilam, update_first, means, covs, co
     N = Z.shape[0]
     store = covs.shape[0] == N and N > 0
     r_each = Rv.shape[0] == N
-    a = np.empty(Wv.shape[1])
+    a = np.zeros(Wv.shape[1])
     s = np.nan
     k_fail = -1
     # steps to the next full health check (a countdown: no division per step)

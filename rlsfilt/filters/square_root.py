@@ -220,7 +220,10 @@ class SquareRootRLS(_FilterBase):
         W = np.asarray(W, dtype=np.float64)
         if v is None:
             v = W @ x
-        self._Wv = np.ascontiguousarray(np.hstack([W, v]), dtype=np.float64)
+        n, m = v.shape
+        # [W | v] in one C-ordered array, its rows padded with zeros (see the kernels)
+        self._Wv = np.zeros((n, _streaming.window_kernels().padded_width(n, m)))
+        self._Wv[:, :n], self._Wv[:, n:n + m] = W, v
         self._delta = np.array(delta, dtype=np.float64)
         self._x = (np.array(x, dtype=np.float64) if x is not None
                    else solve_triangular(W, v, unit_diagonal=True))

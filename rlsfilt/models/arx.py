@@ -1216,7 +1216,7 @@ def _hand_over(rls, user, theta, units, r):
             n = rls.dim_x
             user._set_factors(np.ldexp(rls._Wv[:, :n], c[None, :] - c[:, None]),
                               np.ldexp(rls._delta, -r - 2 * c),
-                              v=np.ldexp(rls._Wv[:, n:],
+                              v=np.ldexp(rls._Wv[:, n:n + rls.dim_z],
                                          units.output_exponents[None, :] - c[:, None]),
                               x=theta)
         else:
