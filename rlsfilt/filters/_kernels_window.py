@@ -514,8 +514,12 @@ def _sw_pass(W, V, oa, ob, ca, cb, h1, h2, o1, o2, two, n, npad):
     from 0): the numbers `_kernels.gain` gives on the new ``P``. The new
     ``P`` is exactly symmetric when the old one is (``a_i a_j = a_j a_i`` in
     floating point).
+
+    Returns whether the new diagonal is positive and finite (the cheap health
+    check, `diagonal_bad`, read as the rows are done).
     """
     one = np.uint64(1)
+    ok = True
     for j in range(npad):
         V[o1 + j] = 0.0
         V[o2 + j] = 0.0
@@ -545,6 +549,8 @@ def _sw_pass(W, V, oa, ob, ca, cb, h1, h2, o1, o2, two, n, npad):
                 W[r0 + j] = w0
                 W[r1 + j] = w1
                 V[o1 + j] = (V[o1 + j] + w0 * p0) + w1 * p1
+        d0, d1 = W[r0 + i], W[r1 + i + one]
+        ok = ok & (d0 > 0.0) & (d0 < np.inf) & (d1 > 0.0) & (d1 < np.inf)
         i += np.uint64(2)
     if i < n:                                  # (n odd) the last row
         r0 = i * npad
@@ -554,6 +560,9 @@ def _sw_pass(W, V, oa, ob, ca, cb, h1, h2, o1, o2, two, n, npad):
             W[r0 + j] = w0
             V[o1 + j] += w0 * p0
             V[o2 + j] += w0 * q0
+        d0 = W[r0 + i]
+        ok = ok & (d0 > 0.0) & (d0 < np.inf)
+    return ok
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -738,19 +747,20 @@ def sw_batch_kernel(x, P, Z, Hm, Rv, wH, wZ, wR, ist, refresh, Lt, Ltx0, means, 
             gain(P, hn, V[on:on + n])
             if leaving:
                 gain(P, wH[h], V[on + npad:on + npad + n])
+            healthy = not diagonal_bad(P)
         else:                                      # P'' and the next step's gains
             if cd == 0.0:
                 for i in range(n):
                     gb[i] = 0.0
-            _sw_pass(W, V, np.uint64(og), np.uint64(ol), -c, cd, hn, wH[h], np.uint64(on),
-                     np.uint64(on + npad), leaving, un, unpad)
+            healthy = _sw_pass(W, V, np.uint64(og), np.uint64(ol), -c, cd, hn, wH[h],
+                               np.uint64(on), np.uint64(on + npad), leaving, un, unpad)
         if countdown > 0:
             countdown -= 1
             full = countdown == 0
             if full:
                 countdown = check_every
                 _sw_store(W, npad, P)
-            if diagonal_bad(W.reshape((n, npad))) or (full and unhealthy(P, cond_max)):
+            if not healthy or (full and unhealthy(P, cond_max)):
                 k_fail = k
                 countdown = -1
                 _sw_store(W, npad, P_fail)
