@@ -634,6 +634,8 @@ def sw_batch_kernel(x, P, Z, Hm, Rv, wH, wZ, wR, ist, refresh, Lt, Ltx0, means, 
     un, unpad = np.uint64(n), np.uint64(npad)
     W = np.zeros(n * npad)
     V = np.zeros(4 * npad)
+    xflat = x.reshape(n * m)                   # (views of the same numbers)
+    mflat = means.reshape((N, n * m))
     _sw_load(P, W, npad)
     cur = 0
     h = ist[HEAD]
@@ -764,7 +766,9 @@ def sw_batch_kernel(x, P, Z, Hm, Rv, wH, wZ, wR, ist, refresh, Lt, Ltx0, means, 
                 k_fail = k
                 countdown = -1
                 _sw_store(W, npad, P_fail)
-        copy2(x, means[k])
+        mk = mflat[k]                              # means[k] = x (flat: one loop)
+        for i in range(n * m):
+            mk[i] = xflat[i]
         if store:
             _sw_store(W, npad, covs[k])
     _sw_store(W, npad, P)
