@@ -498,10 +498,9 @@ def sw_update_kernel(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, y, K):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _sw_pass(W, V, oa, ob, ca, cb, h1, h2, o1, o2, two, n, npad):
+def _sw_pass(W, V, oa, ob, ca, cb, h1, h2, o1, o2, n, npad):
     """``P <- (P + (a a^T) ca) + (b b^T) cb`` in one pass, rows two at a time,
-    summing the gains ``g1 = P h1`` and, when `two`, ``g2 = P h2`` of the new
-    ``P``.
+    summing the gains ``g1 = P h1`` and ``g2 = P h2`` of the new ``P``.
 
     ``P`` is row ``i`` of `W` at ``i npad``; ``a``, ``b``, ``g1``, ``g2`` are
     the `npad` entries of `V` at ``oa``, ``ob``, ``o1``, ``o2`` (the entries
@@ -529,26 +528,16 @@ def _sw_pass(W, V, oa, ob, ca, cb, h1, h2, o1, o2, two, n, npad):
         r1 = r0 + npad
         a0, a1, b0, b1 = V[oa + i], V[oa + i + one], V[ob + i], V[ob + i + one]
         p0, p1 = h1[i], h1[i + one]
-        if two:
-            q0, q1 = h2[i], h2[i + one]
-            for j in range(npad):
-                aj = V[oa + j]
-                bj = V[ob + j]
-                w0 = (W[r0 + j] + (a0 * aj) * ca) + (b0 * bj) * cb
-                w1 = (W[r1 + j] + (a1 * aj) * ca) + (b1 * bj) * cb
-                W[r0 + j] = w0
-                W[r1 + j] = w1
-                V[o1 + j] = (V[o1 + j] + w0 * p0) + w1 * p1
-                V[o2 + j] = (V[o2 + j] + w0 * q0) + w1 * q1
-        else:
-            for j in range(npad):
-                aj = V[oa + j]
-                bj = V[ob + j]
-                w0 = (W[r0 + j] + (a0 * aj) * ca) + (b0 * bj) * cb
-                w1 = (W[r1 + j] + (a1 * aj) * ca) + (b1 * bj) * cb
-                W[r0 + j] = w0
-                W[r1 + j] = w1
-                V[o1 + j] = (V[o1 + j] + w0 * p0) + w1 * p1
+        q0, q1 = h2[i], h2[i + one]
+        for j in range(npad):
+            aj = V[oa + j]
+            bj = V[ob + j]
+            w0 = (W[r0 + j] + (a0 * aj) * ca) + (b0 * bj) * cb
+            w1 = (W[r1 + j] + (a1 * aj) * ca) + (b1 * bj) * cb
+            W[r0 + j] = w0
+            W[r1 + j] = w1
+            V[o1 + j] = (V[o1 + j] + w0 * p0) + w1 * p1
+            V[o2 + j] = (V[o2 + j] + w0 * q0) + w1 * q1
         d0, d1 = W[r0 + i], W[r1 + i + one]
         ok = ok & (d0 > 0.0) & (d0 < np.inf) & (d1 > 0.0) & (d1 < np.inf)
         i += np.uint64(2)
@@ -755,7 +744,7 @@ def sw_batch_kernel(x, P, Z, Hm, Rv, wH, wZ, wR, ist, refresh, Lt, Ltx0, means, 
                 for i in range(n):
                     gb[i] = 0.0
             healthy = _sw_pass(W, V, np.uint64(og), np.uint64(ol), -c, cd, hn, wH[h],
-                               np.uint64(on), np.uint64(on + npad), leaving, un, unpad)
+                               np.uint64(on), np.uint64(on + npad), un, unpad)
         if countdown > 0:
             countdown -= 1
             full = countdown == 0
