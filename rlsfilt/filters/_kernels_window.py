@@ -499,7 +499,7 @@ def sw_update_kernel(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, y, K):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _sw_pass(W, V, oa, ob, ca, cb, h1, h2, o1, o2, n, npad):
-    """``P <- (P + (a a^T) ca) + (b b^T) cb`` in one pass, rows two at a time,
+    """``P <- (P + (a a^T) ca) + (b b^T) cb`` in one pass, rows four at a time,
     summing the gains ``g1 = P h1`` and ``g2 = P h2`` of the new ``P``.
 
     ``P`` is row ``i`` of `W` at ``i npad``; ``a``, ``b``, ``g1``, ``g2`` are
@@ -523,25 +523,32 @@ def _sw_pass(W, V, oa, ob, ca, cb, h1, h2, o1, o2, n, npad):
         V[o1 + j] = 0.0
         V[o2 + j] = 0.0
     i = np.uint64(0)
-    while i + one < n:
+    while i + np.uint64(3) < n:                # four rows at a time
+        i1, i2, i3 = i + one, i + np.uint64(2), i + np.uint64(3)
         r0 = i * npad
-        r1 = r0 + npad
-        a0, a1, b0, b1 = V[oa + i], V[oa + i + one], V[ob + i], V[ob + i + one]
-        p0, p1 = h1[i], h1[i + one]
-        q0, q1 = h2[i], h2[i + one]
+        r1, r2, r3 = r0 + npad, r0 + np.uint64(2) * npad, r0 + np.uint64(3) * npad
+        a0, a1, a2, a3 = V[oa + i], V[oa + i1], V[oa + i2], V[oa + i3]
+        b0, b1, b2, b3 = V[ob + i], V[ob + i1], V[ob + i2], V[ob + i3]
+        p0, p1, p2, p3 = h1[i], h1[i1], h1[i2], h1[i3]
+        q0, q1, q2, q3 = h2[i], h2[i1], h2[i2], h2[i3]
         for j in range(npad):
             aj = V[oa + j]
             bj = V[ob + j]
             w0 = (W[r0 + j] + (a0 * aj) * ca) + (b0 * bj) * cb
             w1 = (W[r1 + j] + (a1 * aj) * ca) + (b1 * bj) * cb
+            w2 = (W[r2 + j] + (a2 * aj) * ca) + (b2 * bj) * cb
+            w3 = (W[r3 + j] + (a3 * aj) * ca) + (b3 * bj) * cb
             W[r0 + j] = w0
             W[r1 + j] = w1
-            V[o1 + j] = (V[o1 + j] + w0 * p0) + w1 * p1
-            V[o2 + j] = (V[o2 + j] + w0 * q0) + w1 * q1
-        d0, d1 = W[r0 + i], W[r1 + i + one]
-        ok = ok & (d0 > 0.0) & (d0 < np.inf) & (d1 > 0.0) & (d1 < np.inf)
-        i += np.uint64(2)
-    if i < n:                                  # (n odd) the last row
+            W[r2 + j] = w2
+            W[r3 + j] = w3
+            V[o1 + j] = (((V[o1 + j] + w0 * p0) + w1 * p1) + w2 * p2) + w3 * p3
+            V[o2 + j] = (((V[o2 + j] + w0 * q0) + w1 * q1) + w2 * q2) + w3 * q3
+        d0, d1, d2, d3 = W[r0 + i], W[r1 + i1], W[r2 + i2], W[r3 + i3]
+        ok = (ok & (d0 > 0.0) & (d0 < np.inf) & (d1 > 0.0) & (d1 < np.inf)
+              & (d2 > 0.0) & (d2 < np.inf) & (d3 > 0.0) & (d3 < np.inf))
+        i += np.uint64(4)
+    while i < n:                               # the last rows, one at a time
         r0 = i * npad
         a0, b0, p0, q0 = V[oa + i], V[ob + i], h1[i], h2[i]
         for j in range(npad):
@@ -551,6 +558,7 @@ def _sw_pass(W, V, oa, ob, ca, cb, h1, h2, o1, o2, n, npad):
             V[o2 + j] += w0 * q0
         d0 = W[r0 + i]
         ok = ok & (d0 > 0.0) & (d0 < np.inf)
+        i += one
     return ok
 
 
