@@ -687,9 +687,12 @@ def sw_batch_kernel(x, P, Z, Hm, Rv, wH, wZ, wR, ist, refresh, Lt, Ltx0, means, 
                     acc += phi[i] * x[i, j]
                 y[j] = z[j] - acc
             c = 1.0 / s
+            y0 = y[0]
             for i in range(n):
-                K[i] = ga[i] * c                   # K = P phi^T / s
-            for j in range(m):
+                ki = ga[i] * c                     # K = P phi^T / s
+                K[i] = ki
+                x[i, 0] = x[i, 0] + ki * y0        # x = x + K y^T
+            for j in range(1, m):
                 yj = y[j]
                 for i in range(n):
                     x[i, j] = x[i, j] + K[i] * yj
@@ -700,12 +703,12 @@ def sw_batch_kernel(x, P, Z, Hm, Rv, wH, wZ, wR, ist, refresh, Lt, Ltx0, means, 
             hl = wH[h]
             rl = wR[h]
             tc = t * c
-            for i in range(n):
-                gb[i] = gb[i] - ga[i] * tc         # h = P' psi^T = gl - g (phi gl) / s
             dd = rl
             acc = 0.0
             for i in range(n):
-                dd -= hl[i] * gb[i]                # d = R - psi P' psi^T
+                hi = gb[i] - ga[i] * tc            # h = P' psi^T = gl - g (phi gl) / s
+                gb[i] = hi
+                dd -= hl[i] * hi                   # d = R - psi P' psi^T
                 acc += hl[i] * x[i, 0]
             if dd > 1e-8 * rl:
                 cd = 1.0 / dd
