@@ -26,11 +26,13 @@ starts with both gains ``g = P phi`` and ``gl = P h`` (of the leaving row
 ``h``), which the previous pass summed; the downdate's gain on the updated
 ``P`` is ``P' h = gl - g (phi gl) / s`` (O(n)), and the pass applies the
 update and the downdate together, ``P <- P - g g^T / s + g' g'^T / d``,
-while it sums the next step's two gains: about ``10 n^2`` flops (the
-rank-two update ``6 n^2``, each entry's products ``(g_i g_j) / s`` formed as
-the reference forms them, which keeps ``P`` exactly symmetric; the two gains
-``4 n^2``) against ``10 n^2`` in two passes before, with half the loads and
-stores. A full-rank refit is certified by ``cond(R) <= ||R||_F ||R^-1||_F``
+while it sums the next step's two gains and reads the new diagonal (the
+cheap health check). That is ``10 n^2 + O(n)`` flops per step (the
+rank-two update ``6 n^2``: each entry's products ``(g_i g_j) / s`` are
+formed as the reference forms them, which keeps ``P`` exactly symmetric and
+its round-off that of the reference; the two gains ``4 n^2``), as many as
+the two passes of update then downdate, with half their loads and stores of
+``P``. A full-rank refit is certified by ``cond(R) <= ||R||_F ||R^-1||_F``
 before it would need the SVD.
 
 Square root (QR, information form), one step::
