@@ -22,11 +22,19 @@ Sliding window, one step (Haykin 2002, sec. 9)::
     refit by Householder QR of the stored window when d is not clearly
     positive, when the window first fills, and every `refresh` steps
 
-The batch loop makes two passes over ``P`` per sample (`_kernels._sweep_rows`
-with ``il = 1``, four rows at a time): the update summing the downdate's gain ``P' h``, then the
-downdate summing the next sample's gain ``P'' phi_next``, the numbers of
-the four steps above one after the other. A full-rank refit is certified by
-``cond(R) <= ||R||_F ||R^-1||_F`` before it would need the SVD.
+The batch loop makes one pass over ``P`` per sample (`_sw_pass`): a step
+starts with both gains ``g = P phi`` and ``gl = P h`` (of the leaving row
+``h``), which the previous pass summed; the downdate's gain on the updated
+``P`` is ``P' h = gl - g (phi gl) / s`` (O(n)), and the pass applies the
+update and the downdate together, ``P <- P - g g^T / s + g' g'^T / d``,
+while it sums the next step's two gains and reads the new diagonal (the
+cheap health check). That is ``10 n^2 + O(n)`` flops per step (the
+rank-two update ``6 n^2``: each entry's products ``(g_i g_j) / s`` are
+formed as the reference forms them, which keeps ``P`` exactly symmetric and
+its round-off that of the reference; the two gains ``4 n^2``), as many as
+the two passes of update then downdate, with half their loads and stores of
+``P``. A full-rank refit is certified by ``cond(R) <= ||R||_F ||R^-1||_F``
+before it would need the SVD.
 
 Square root (information form, Gentleman's rotations without square roots)::
 
@@ -60,7 +68,7 @@ import math
 import numpy as np
 
 from .._numba import njit  # numba.njit, uncached where no cache directory is writable
-from ._kernels import _sweep_rows, gain
+from ._kernels import gain
 from ._kernels_shared import (
     _EPS,
     any_nan,
@@ -566,6 +574,93 @@ def sw_update_kernel(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, y, K):
     return s, diagonal_bad(P)
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _sw_pass(W, V, oa, ob, ca, cb, h1, h2, o1, o2, n, npad):
+    """``P <- (P + (a a^T) ca) + (b b^T) cb`` in one pass, rows four at a time,
+    summing the gains ``g1 = P h1`` and ``g2 = P h2`` of the new ``P``.
+
+    ``P`` is row ``i`` of `W` at ``i npad``; ``a``, ``b``, ``g1``, ``g2`` are
+    the `npad` entries of `V` at ``oa``, ``ob``, ``o1``, ``o2`` (the entries
+    past ``n`` are zero and stay zero). Every index is unsigned (``np.uint64``)
+    and the rows are padded to a multiple of 8: the compiler vectorizes the
+    inner loop with no scalar remainder and no negative-index fix-up, and no
+    row views (their reference counts) are made.
+
+    Each gain is summed in row order (``g_j += P_ij h_i``, ``i`` ascending,
+    from 0): the numbers `_kernels.gain` gives on the new ``P``. The new
+    ``P`` is exactly symmetric when the old one is (``a_i a_j = a_j a_i`` in
+    floating point).
+
+    Returns whether the new diagonal is positive and finite (the cheap health
+    check, `diagonal_bad`, read as the rows are done).
+    """
+    one = np.uint64(1)
+    ok = True
+    for j in range(npad):
+        V[o1 + j] = 0.0
+        V[o2 + j] = 0.0
+    i = np.uint64(0)
+    while i + np.uint64(3) < n:                # four rows at a time
+        i1, i2, i3 = i + one, i + np.uint64(2), i + np.uint64(3)
+        r0 = i * npad
+        r1, r2, r3 = r0 + npad, r0 + np.uint64(2) * npad, r0 + np.uint64(3) * npad
+        a0, a1, a2, a3 = V[oa + i], V[oa + i1], V[oa + i2], V[oa + i3]
+        b0, b1, b2, b3 = V[ob + i], V[ob + i1], V[ob + i2], V[ob + i3]
+        p0, p1, p2, p3 = h1[i], h1[i1], h1[i2], h1[i3]
+        q0, q1, q2, q3 = h2[i], h2[i1], h2[i2], h2[i3]
+        for j in range(npad):
+            aj = V[oa + j]
+            bj = V[ob + j]
+            w0 = (W[r0 + j] + (a0 * aj) * ca) + (b0 * bj) * cb
+            w1 = (W[r1 + j] + (a1 * aj) * ca) + (b1 * bj) * cb
+            w2 = (W[r2 + j] + (a2 * aj) * ca) + (b2 * bj) * cb
+            w3 = (W[r3 + j] + (a3 * aj) * ca) + (b3 * bj) * cb
+            W[r0 + j] = w0
+            W[r1 + j] = w1
+            W[r2 + j] = w2
+            W[r3 + j] = w3
+            V[o1 + j] = (((V[o1 + j] + w0 * p0) + w1 * p1) + w2 * p2) + w3 * p3
+            V[o2 + j] = (((V[o2 + j] + w0 * q0) + w1 * q1) + w2 * q2) + w3 * q3
+        d0, d1, d2, d3 = W[r0 + i], W[r1 + i1], W[r2 + i2], W[r3 + i3]
+        ok = (ok & (d0 > 0.0) & (d0 < np.inf) & (d1 > 0.0) & (d1 < np.inf)
+              & (d2 > 0.0) & (d2 < np.inf) & (d3 > 0.0) & (d3 < np.inf))
+        i += np.uint64(4)
+    while i < n:                               # the last rows, one at a time
+        r0 = i * npad
+        a0, b0, p0, q0 = V[oa + i], V[ob + i], h1[i], h2[i]
+        for j in range(npad):
+            w0 = (W[r0 + j] + (a0 * V[oa + j]) * ca) + (b0 * V[ob + j]) * cb
+            W[r0 + j] = w0
+            V[o1 + j] += w0 * p0
+            V[o2 + j] += w0 * q0
+        d0 = W[r0 + i]
+        ok = ok & (d0 > 0.0) & (d0 < np.inf)
+        i += one
+    return ok
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _sw_load(P, W, npad):
+    """Row ``i`` of `P` into `W` at ``i npad`` (the padding stays zero)."""
+    n = P.shape[0]
+    for i in range(n):
+        row = P[i]
+        o = i * npad
+        for j in range(n):
+            W[o + j] = row[j]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _sw_store(W, npad, P):
+    """`P` from the padded rows of `W` (the inverse of `_sw_load`)."""
+    n = P.shape[0]
+    for i in range(n):
+        row = P[i]
+        o = i * npad
+        for j in range(n):
+            row[j] = W[o + j]
+
+
 @njit(cache=True, error_model="numpy")
 def sw_batch_kernel(x, P, Z, Hm, Rv, wH, wZ, wR, ist, refresh, Lt, Ltx0, means, covs, y, K,
                     P_last, check_every, step0, cond_max, P_fail):
@@ -578,14 +673,16 @@ def sw_batch_kernel(x, P, Z, Hm, Rv, wH, wZ, wR, ist, refresh, Lt, Ltx0, means, 
 
     Each step updates with the new sample, slides the ring buffer, downdates
     with the leaving sample and refits when due, in place on ``x``, ``P``,
-    the buffer and ``ist``, in two passes over ``P`` (`_kernels._sweep_rows`
-    with ``il = 1``): ``P' = P - g g^T / s`` summing the downdate's gain ``gb = P' h`` (or, with
-    nothing leaving, the next step's gain ``P' hn``), then ``P'' = P' + gb
-    gb^T / d`` summing the next step's gain ``g = P'' hn``: the operations of
-    update, gain, downdate, gain one after the other (the same bits), in two
-    passes. ``g = P phi`` is summed once before the first step. A step that
-    ends with a refit (`window_lstsq` replaces ``x`` and ``P``) skips the
-    passes.
+    the buffer and ``ist``, in one pass over ``P`` (`_sw_pass`). A step
+    starts with the gains ``g = P phi`` of its sample and ``gl = P psi`` of
+    the leaving one, both summed by the previous step's pass; the downdate's
+    gain is ``h = P' psi = gl - g (phi gl) / s`` (``P' = P - g g^T / s``),
+    and the pass applies ``P'' = P - g g^T / s + h h^T / d`` while it sums
+    the next step's two gains. ``P`` lives in padded rows for the pass
+    (`_sw_load`, `_sw_store` at the start, the end and where ``P`` itself is
+    needed). A step that ends with a refit (`window_lstsq` replaces ``x``
+    and ``P``) or changes nothing (a missing sample, nothing leaving) skips
+    the pass; `_kernels.gain` then sums the gains of its ``P``.
 
     The health check runs after every update as
     :meth:`SlidingWindowRLS.update` runs it: the cheap diagonal test each
@@ -605,9 +702,22 @@ def sw_batch_kernel(x, P, Z, Hm, Rv, wH, wZ, wR, ist, refresh, Lt, Ltx0, means, 
     r_each = Rv.shape[0] == N
     n, m = x.shape
     window = wH.shape[0]
-    ga, gb = np.empty(n), np.empty(n)
+    # P in padded rows (`_sw_pass`); the gains g = P phi and gl = P psi (then
+    # h) of this step in V at og, ol, the next step's at the other two slots
+    npad = (n + 7) // 8 * 8
+    un, unpad = np.uint64(n), np.uint64(npad)
+    W = np.zeros(n * npad)
+    V = np.zeros(4 * npad)
+    xflat = x.reshape(n * m)                   # (views of the same numbers)
+    mflat = means.reshape((N, n * m))
+    _sw_load(P, W, npad)
+    cur = 0
+    h = ist[HEAD]
+    leaving = ist[NW] == window and not any_nan(wZ[h])   # a sample leaves at this step
     if N:
-        gain(P, Hm[0], ga)                     # g = P phi^T; later steps leave it
+        gain(P, Hm[0], V[0:n])                 # later steps' gains come from the pass
+        if leaving:
+            gain(P, wH[h], V[npad:npad + n])
     s = np.nan
     k_fail = -1
     # steps to the next full health check and to the end of a refresh period
@@ -616,7 +726,7 @@ def sw_batch_kernel(x, P, Z, Hm, Rv, wH, wZ, wR, ist, refresh, Lt, Ltx0, means, 
     to_refresh = refresh - ist[COUNT] % refresh if refresh > 0 else -1
     for k in range(N):
         if k == N - 1:
-            copy2(P, P_last)
+            _sw_store(W, npad, P_last)
         to_refresh -= 1
         refreshing = to_refresh == 0
         if refreshing:
@@ -628,10 +738,16 @@ def sw_batch_kernel(x, P, Z, Hm, Rv, wH, wZ, wR, ist, refresh, Lt, Ltx0, means, 
         z = Z[k]
         r = Rv[k if r_each else 0]
         hn = Hm[min(k + 1, N - 1)]                 # the next regressor
+        og = 2 * cur * npad
+        ol = og + npad
+        ga = V[og:og + n]
+        gb = V[ol:ol + n]
         s = r
+        t = 0.0
         acc = 0.0
-        for i in range(n):                         # (two independent sums in one loop)
+        for i in range(n):                         # (independent sums in one loop)
             s += phi[i] * ga[i]                    # s = phi P phi^T + r
+            t += phi[i] * gb[i]                    # t = phi P psi^T
             acc += phi[i] * x[i, 0]                # phi x, first output
         missing = any_nan(z)
         c = 0.0
@@ -648,72 +764,89 @@ def sw_batch_kernel(x, P, Z, Hm, Rv, wH, wZ, wR, ist, refresh, Lt, Ltx0, means, 
                     acc += phi[i] * x[i, j]
                 y[j] = z[j] - acc
             c = 1.0 / s
+            y0 = y[0]
             for i in range(n):
-                K[i] = ga[i] * c                   # K = P phi^T / s
-            for j in range(m):
+                ki = ga[i] * c                     # K = P phi^T / s
+                K[i] = ki
+                x[i, 0] = x[i, 0] + ki * y0        # x = x + K y^T
+            for j in range(1, m):
                 yj = y[j]
                 for i in range(n):
                     x[i, j] = x[i, j] + K[i] * yj
-        # ring buffer: slot `head` holds the oldest sample once the window is full
-        h = ist[HEAD]
-        leaving = ist[NW] == window and not any_nan(wZ[h])
+        # ring buffer: slot `h` holds the oldest sample once the window is full
         refit = _sw_refit_due(ist, window, refreshing)
-        if not refit:
-            if leaving:                            # downdate with the leaving sample
-                hl = wH[h]
-                rl = wR[h]
-                if missing:
-                    gain(P, hl, gb)           # gb = P h^T
-                else:                              # P = P - g g^T / s, gb = P h^T
-                    _sweep_rows(P, ga, c, 1.0, hl, gb)
-                dd = rl
-                for i in range(n):
-                    dd -= hl[i] * gb[i]            # d = R - h P h^T
-                if dd > 1e-8 * rl:
-                    cd = 1.0 / dd
-                    for j in range(m):
+        cd = 0.0
+        if leaving and not refit:                  # downdate with the leaving sample
+            hl = wH[h]
+            rl = wR[h]
+            tc = t * c
+            dd = rl
+            acc = 0.0
+            for i in range(n):
+                hi = gb[i] - ga[i] * tc            # h = P' psi^T = gl - g (phi gl) / s
+                gb[i] = hi
+                dd -= hl[i] * hi                   # d = R - psi P' psi^T
+                acc += hl[i] * x[i, 0]
+            if dd > 1e-8 * rl:
+                cd = 1.0 / dd
+                for j in range(m):
+                    if j:
                         acc = 0.0
                         for i in range(n):
                             acc += hl[i] * x[i, j]
-                        e = wZ[h, j] - acc         # residual of the leaving sample
-                        for i in range(n):
-                            x[i, j] = x[i, j] - (gb[i] * cd) * e
-                    _sweep_rows(P, gb, -cd, 1.0, hn, ga)  # P = P + gb gb^T / d, ga = P hn^T
-                else:
-                    refit = True
-            elif not missing:
-                _sweep_rows(P, ga, c, 1.0, hn, gb)       # P = P - g g^T / s, ga = P hn^T
-                for i in range(n):
-                    ga[i] = gb[i]
+                    e = wZ[h, j] - acc             # residual of the leaving sample
+                    for i in range(n):
+                        x[i, j] = x[i, j] - (gb[i] * cd) * e
             else:
-                gain(P, hn, ga)
+                refit = True
         for j in range(n):
             wH[h, j] = phi[j]
         for j in range(m):
             wZ[h, j] = np.nan if missing else z[j]
         wR[h] = r
-        ist[HEAD] = h + 1 if h + 1 < window else 0
+        h = h + 1 if h + 1 < window else 0
+        ist[HEAD] = h
         ist[NW] = min(ist[NW] + 1, window)
         ist[COUNT] += 1
-        if refit:
-            nw = ist[NW]
-            if window_lstsq(wH, wZ, wR, nw, Lt, Ltx0, n - n, x, P):   # (n - n: one typing)
-                ist[EXACT] = 1
+        leaving = ist[NW] == window and not any_nan(wZ[h])   # at the next step
+        cur = 1 - cur
+        on = 2 * cur * npad                        # the next step's gains
+        if refit or (missing and cd == 0.0):       # P from the refit, or unchanged
+            if refit:
+                nw = ist[NW]
+                if window_lstsq(wH, wZ, wR, nw, Lt, Ltx0, n - n, x, P):   # (n - n: one typing)
+                    ist[EXACT] = 1
+                else:
+                    ist[EXACT] = 0
+                    ist[NEXT_EXACT] = ist[COUNT] + window
+                    window_lstsq(wH, wZ, wR, nw, Lt, Ltx0, n, x, P)
+                _sw_load(P, W, npad)
             else:
-                ist[EXACT] = 0
-                ist[NEXT_EXACT] = ist[COUNT] + window
-                window_lstsq(wH, wZ, wR, nw, Lt, Ltx0, n, x, P)
-            gain(P, hn, ga)
+                _sw_store(W, npad, P)
+            gain(P, hn, V[on:on + n])
+            if leaving:
+                gain(P, wH[h], V[on + npad:on + npad + n])
+            healthy = not diagonal_bad(P)
+        else:                                      # P'' and the next step's gains
+            if cd == 0.0:
+                for i in range(n):
+                    gb[i] = 0.0
+            healthy = _sw_pass(W, V, np.uint64(og), np.uint64(ol), -c, cd, hn, wH[h],
+                               np.uint64(on), np.uint64(on + npad), un, unpad)
         if countdown > 0:
             countdown -= 1
             full = countdown == 0
             if full:
                 countdown = check_every
-            if diagonal_bad(P) or (full and unhealthy(P, cond_max)):
+                _sw_store(W, npad, P)
+            if not healthy or (full and unhealthy(P, cond_max)):
                 k_fail = k
                 countdown = -1
-                copy2(P, P_fail)
-        copy2(x, means[k])
+                _sw_store(W, npad, P_fail)
+        mk = mflat[k]                              # means[k] = x (flat: one loop)
+        for i in range(n * m):
+            mk[i] = xflat[i]
         if store:
-            copy2(P, covs[k])
+            _sw_store(W, npad, covs[k])
+    _sw_store(W, npad, P)
     return s, k_fail
