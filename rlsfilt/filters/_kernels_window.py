@@ -370,6 +370,9 @@ def sr_batch_kernel(Wv, delta, x, Z, Hm, Rv, ilam, update_first, means, covs, co
     store = covs.shape[0] == N and N > 0
     r_each = Rv.shape[0] == N
     a = np.zeros(Wv.shape[1])
+    nm = x.shape[0] * x.shape[1]
+    xflat = x.reshape(nm)                      # (views of the same numbers)
+    mflat = means.reshape((N, nm))
     s = np.nan
     k_fail = -1
     # steps to the next full health check (a countdown: no division per step)
@@ -397,7 +400,9 @@ def sr_batch_kernel(Wv, delta, x, Z, Hm, Rv, ilam, update_first, means, covs, co
                 k_fail = k
                 countdown = -1
                 sr_factor(Wv, delta, U_fail)
-        copy2(x, means[k])
+        mk = mflat[k]                          # means[k] = x (flat: one loop)
+        for i in range(nm):
+            mk[i] = xflat[i]
         if store:
             sr_covariance(Wv, delta, covs[k])
         if last:
