@@ -129,7 +129,7 @@ def estimate_in_units(theta, g, of_output=None):
                      "2^1024): scale `y` down or `u` up")
 
 
-def _energy(X, e):
+def _sum_squares(X, e):
     """``sum((X 2^-e)^2, axis=0)``: the sum of squares of each column in the scaled units."""
     Xs = times_pow2(X, -e)
     return np.sum(np.square(Xs, out=Xs), axis=0)
@@ -200,10 +200,15 @@ class RecordUnits:
             s, self.input_exponents, self.output_exponents, intercept)
         g = self.output_exponents[None, :] - self.column_exponents[:, None]
         self.theta_exponents = g[:, 0] if self._y_1d else g
-        # sum of squares of each regressor column's signal in the scaled units (the ones of
-        # an intercept: the number of samples): a bound of the information the data carry
-        energy_u, energy_y = _energy(U, self.input_exponents), _energy(Y, self.output_exponents)
-        self._energy = _column_values(s, energy_u, energy_y, float(len(Y)), intercept)
+        self._signals = (U, Y, s, intercept)       # read (not copied) by `_energy`
+
+    def _energy(self):
+        """The sum of squares of each regressor column's signal in the scaled units (the
+        ones of an intercept: the number of samples): a bound of the information the data
+        carry. Only a prior start from the default ``P0`` needs it."""
+        U, Y, s, intercept = self._signals
+        return _column_values(s, _sum_squares(U, self.input_exponents),
+                              _sum_squares(Y, self.output_exponents), float(len(Y)), intercept)
 
     def unscaled(self):
         """The same record in its own units (every exponent 0): the identity map, for a
@@ -403,7 +408,7 @@ class RecordUnits:
         if np.all(d >= np.finfo(float).tiny):
             out["P0"] = P
             info = out["R"] / d                          # the prior's information, scaled
-            if default_P0 and np.any(info > 1e-2 * self._energy):
+            if default_P0 and np.any(info > 1e-2 * self._energy()):
                 _warn_prior(what, rel, self._scale_text(), stacklevel + 1)
             return out
         _warn_prior(what, rel, self._scale_text(), stacklevel + 1)

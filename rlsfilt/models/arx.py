@@ -19,7 +19,7 @@ import warnings
 import numpy as np
 
 from .._resources import check_memory
-from .._scale import pow2_exponent, pow2_scale, safe_norm
+from .._scale import pow2_exponent, safe_norm, times_pow2
 from .._serialize import jsonable
 from .._validation import (
     as_float_array,
@@ -1405,10 +1405,10 @@ def _qr_least_squares(Phi, target, of_output=None):
     from scipy.linalg import lapack, solve_triangular  # lazy: keeps `import rlsfilt` light
     rows, n = Phi.shape
     ce, te = pow2_exponent(Phi, axis=0), pow2_exponent(target, axis=0)
-    c, t = np.ldexp(1.0, ce), np.ldexp(1.0, te)
+    c = np.ldexp(1.0, ce)
     A = np.empty((rows, n + target.shape[1]), order="F")
-    np.divide(Phi, c, out=A[:, :n])
-    np.divide(target, t, out=A[:, n:])
+    times_pow2(Phi, -ce, out=A[:, :n])                  # Phi / c and target / t, exactly
+    times_pow2(target, -te, out=A[:, n:])
     qr, _, _, _ = lapack.dgeqrf(A, overwrite_a=True)
     Rf = np.triu(qr[:n, :n])
     rhs = qr[:n, n:]
@@ -1445,8 +1445,9 @@ def _noise_and_covariance(resid, dof, inv_scaled, c):
     if dof <= 0:
         nan = np.full(ny, np.nan)
         return nan, np.full((ny, n, n), np.nan), np.full((ny, ny), np.nan)
-    t = pow2_scale(resid, axis=0)
-    rs = resid / t
+    te = pow2_exponent(resid, axis=0)
+    t = np.ldexp(1.0, te)
+    rs = times_pow2(resid, -te)                          # resid / t, exactly
     noise_s = rs.T @ rs / dof
     sigma2_s = np.diag(noise_s).copy()
     with np.errstate(over="ignore", under="ignore"):
