@@ -1334,12 +1334,12 @@ def _condition_numbers(Phi):
 
     The bounds come from the Gram matrix :math:`G = \Phi^T\Phi` (one BLAS call,
     :math:`N n^2` flops): computed in floating point it is :math:`G + E` with
-    :math:`|E_{ij}| \le \gamma_N \|\varphi_i\| \|\varphi_j\|` (Higham 2002, sec.
-    3.1; :math:`\gamma_N = N u / (1 - N u)`), so :math:`\|E\|_2 \le \gamma_N
+    :math:`|E_{ij}| \le \gamma_N \|\varphi_i\| \|\varphi_j\|` (Higham 2002, ch.
+    3; :math:`\gamma_N = N u / (1 - N u)`), so :math:`\|E\|_2 \le \gamma_N
     \operatorname{tr} G` and, by Weyl's theorem, every eigenvalue is within
     :math:`\delta = \gamma_N \operatorname{tr} G` of its exact value;
     :math:`\kappa(\Phi)^2 = \kappa(G) \le (\lambda_{max} + \delta) /
-    (\lambda_{min} - \delta)`. Here :math:`\delta` is taken 8 times larger, which also
+    (\lambda_{min} - \delta)`. Here :math:`\delta` is taken at least 8 times larger, which also
     covers the rounding of the unit scaling, of the eigenvalues and of products in
     the subnormal range. Otherwise (a condition number near or above ``_COND_AUTO``,
     or a Gram matrix that over- or underflows) the exact values come from the QR
