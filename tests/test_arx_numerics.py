@@ -86,3 +86,63 @@ def test_form_errors():
         ARX(2, 2, 1).fit(u, y, method="rls", form="square_root", forgetting="directional")
     with pytest.raises(TypeError, match="`form` only applies to method='rls'"):
         ARX(2, 2, 1).fit(u, y, form="square_root")
+
+
+def _conditioned_rows(rng, rows, n, cond):
+    """Rows ``U diag(s) V^T`` with singular values from 1 down to 1/cond, then columns
+    multiplied by factors up to 1e3 apart (so the raw and the unit-column condition
+    numbers differ)."""
+    U, _ = np.linalg.qr(rng.standard_normal((rows, n)))
+    V, _ = np.linalg.qr(rng.standard_normal((n, n)))
+    s = np.geomspace(1.0, 1.0 / cond, n)
+    return (U * s) @ V.T * 10.0 ** rng.uniform(-1.5, 1.5, n)
+
+
+def _decisions(cond, cond_raw):
+    """Everything `_choose_form` and `_fit_rls` decide from the condition numbers: the
+    thresholds of the form and of both warnings, and the health check's `cond_max`."""
+    from rlsfilt.models.arx import _COND_ANY, _COND_AUTO, _COND_COVARIANCE
+    return (cond > _COND_AUTO, cond > _COND_COVARIANCE, cond > _COND_ANY,
+            max(1e12, 1e4 * cond_raw ** 2))
+
+
+@pytest.mark.parametrize("n", [2, 4, 9])
+def test_gram_condition_bound_takes_the_decisions_of_the_exact_qr(n):
+    """The Gram matrix bound of `_condition_numbers` (the fast path of every recursive fit)
+    against the exact condition numbers from QR, over records with condition numbers
+    from 1 to 1e12 (dense around the thresholds 5e3 .. 1e4 and 1e6, 1e10): the same
+    decisions; where the bound is used it is an upper bound within 1 % of the exact value,
+    else the exact values themselves are returned."""
+    from rlsfilt.models.arx import _condition_numbers, _exact_condition_numbers
+    rng = np.random.default_rng(12)
+    conds = np.r_[np.geomspace(1.0, 1e12, 60), np.geomspace(2e3, 2e4, 40),
+                  np.geomspace(5e5, 2e6, 10), np.geomspace(5e9, 2e10, 10)]
+    fast = 0
+    for cond in conds:
+        for scale in (1.0, 2.0 ** -600, 2.0 ** 530):   # a Gram under- or overflowing
+            Phi = _conditioned_rows(rng, 600, n, cond) * scale
+            got, exact = _condition_numbers(Phi), _exact_condition_numbers(Phi)
+            assert _decisions(*got) == _decisions(*exact), (cond, got, exact)
+            if got != exact:
+                fast += 1
+                assert max(got) <= 5e3 and scale == 1.0
+                np.testing.assert_array_less(exact, np.array(got) * (1 + 1e-12))
+                np.testing.assert_allclose(got, exact, rtol=1e-2)
+            elif scale == 1.0:     # the bound decides every record well below the threshold
+                assert max(exact) > 4.9e3, (cond, exact)
+    assert fast >= 5
+
+
+def test_gram_condition_bound_of_degenerate_rows():
+    """A zero column, a single row and rows in the signals' units without scaling take the
+    exact path (infinite condition numbers where QR finds them)."""
+    from rlsfilt.models.arx import _condition_numbers, _exact_condition_numbers
+    rng = np.random.default_rng(3)
+    Phi = rng.standard_normal((50, 3))
+    Phi[:, 1] = 0.0
+    assert _condition_numbers(Phi) == _exact_condition_numbers(Phi)
+    assert _condition_numbers(Phi)[0] == np.inf
+    one = rng.standard_normal((1, 3))
+    assert _condition_numbers(one) == _exact_condition_numbers(one)
+    wide = rng.standard_normal((50, 3)) * np.array([1e-3, 1.0, 1e3])   # cond_raw ~ 1e6
+    assert _condition_numbers(wide) == _exact_condition_numbers(wide)

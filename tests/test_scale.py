@@ -169,3 +169,51 @@ def test_cusum_accepts_any_level_in_the_open_interval(record):
                             math.log(alpha), rtol=1e-9)
         widths.append(res.critical_value)
     assert np.all(np.diff(widths) > 0)
+
+
+def _bits(x):
+    return np.ascontiguousarray(x, dtype=float).view(np.uint64)
+
+
+def _wide_doubles(rng, size):
+    """Doubles over the whole range: normal numbers of every exponent, subnormals, both
+    zeros, both infinities, NaN."""
+    x = rng.uniform(0.5, 1.0, size) * rng.choice([-1.0, 1.0], size)
+    x = np.ldexp(x, rng.integers(-1075, 1025, size))
+    special = [0.0, -0.0, np.inf, -np.inf, np.nan, 5e-324, -5e-324, np.finfo(float).max,
+               np.finfo(float).tiny, 1.0, -1.5]
+    x[:len(special)] = special
+    return x
+
+
+@pytest.mark.parametrize("lo, hi", [(-60, 60), (-1074, 1023), (-2200, 2200)])
+def test_times_pow2_equals_ldexp_bit_for_bit(lo, hi):
+    """`times_pow2` (a multiplication by 2^e where that is a double, else ldexp) against
+    np.ldexp: the same bits for results that round to subnormals, overflow to inf, and
+    exponents beyond the double range (the fallback), in place too."""
+    from rlsfilt._scale import times_pow2
+    rng = np.random.default_rng(7)
+    x = _wide_doubles(rng, 20000)
+    e = rng.integers(lo, hi + 1, x.size)
+    with np.errstate(over="ignore", under="ignore"):
+        expected = np.ldexp(x, e)
+        np.testing.assert_array_equal(_bits(times_pow2(x, e)), _bits(expected))
+        # broadcast exponents per column, as the units map a record's columns
+        X = x.reshape(-1, 4)
+        ec = rng.integers(lo, hi + 1, 4)
+        np.testing.assert_array_equal(_bits(times_pow2(X, ec)), _bits(np.ldexp(X, ec)))
+        Y = X.copy()
+        assert times_pow2(Y, ec, out=Y) is Y
+        np.testing.assert_array_equal(_bits(Y), _bits(np.ldexp(X, ec)))
+    assert np.isinf(expected).any() or hi < 100
+    assert (np.abs(expected[np.isfinite(expected)]) < np.finfo(float).tiny).sum() > 100
+
+
+def test_times_pow2_rounds_subnormal_results_as_ldexp():
+    """Every exponent from -1100 to 1030 on numbers whose scaled values round (ties
+    included): the subnormal range is where a multiplication rounds."""
+    from rlsfilt._scale import times_pow2
+    x = np.array([1.0, 1.5, 1.25, 1.75, 1.0 + 2.0 ** -52, 3.0 - 2.0 ** -51, -1.375])
+    for e in range(-1100, 1031):
+        with np.errstate(over="ignore", under="ignore"):
+            np.testing.assert_array_equal(_bits(times_pow2(x, e)), _bits(np.ldexp(x, e)))

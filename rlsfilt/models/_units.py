@@ -56,9 +56,9 @@ the scaled units (the default for signals around 1e160, about 1e320 times
 too diffuse: the first update would lose every digit of ``P`` in any units)
 is a ValueError naming it.
 
-Every conversion is an ``ldexp``: exact unless its result over- or
-underflows (then ``inf`` or a subnormal number, as the product in exact
-arithmetic would round).
+Every conversion is an ``ldexp`` (on long records `times_pow2`, the same
+bits): exact unless its result over- or underflows (then ``inf`` or a
+subnormal number, as the product in exact arithmetic would round).
 """
 
 import math
@@ -66,7 +66,7 @@ import warnings
 
 import numpy as np
 
-from .._scale import pow2_exponent
+from .._scale import pow2_exponent, times_pow2
 from .._validation import COVARIANCE_MAX, VARIANCE_RANGE
 from ..exceptions import NumericalWarning
 
@@ -129,6 +129,12 @@ def estimate_in_units(theta, g, of_output=None):
                      "2^1024): scale `y` down or `u` up")
 
 
+def _sum_squares(X, e):
+    """``sum((X 2^-e)^2, axis=0)``: the sum of squares of each column in the scaled units."""
+    Xs = times_pow2(X, -e)
+    return np.sum(np.square(Xs, out=Xs), axis=0)
+
+
 def _column_values(s, per_input, per_output, ones, intercept):
     """A value per regressor column from one per signal (`ones` for the intercept)."""
     v = np.full(s.n_params, per_output[0], dtype=float)
@@ -182,8 +188,9 @@ class RecordUnits:
     """
 
     def __init__(self, records, s, intercept=False):
-        U = np.vstack([U for U, _ in records])
-        Y = np.concatenate([np.asarray(Y).reshape(len(Y), -1) for _, Y in records])
+        U = records[0][0] if len(records) == 1 else np.vstack([U for U, _ in records])
+        Ys = [np.asarray(Y).reshape(len(Y), -1) for _, Y in records]
+        Y = Ys[0] if len(Ys) == 1 else np.concatenate(Ys)
         self._y_1d = np.ndim(records[0][1]) == 1
         self.input_exponents = (np.asarray(pow2_exponent(U, axis=0), dtype=int) if U.shape[1]
                                 else np.zeros(0, dtype=int))
@@ -193,11 +200,15 @@ class RecordUnits:
             s, self.input_exponents, self.output_exponents, intercept)
         g = self.output_exponents[None, :] - self.column_exponents[:, None]
         self.theta_exponents = g[:, 0] if self._y_1d else g
-        # sum of squares of each regressor column's signal in the scaled units (the ones of
-        # an intercept: the number of samples): a bound of the information the data carry
-        energy_u = np.sum(np.ldexp(U, -self.input_exponents) ** 2, axis=0)
-        energy_y = np.sum(np.ldexp(Y, -self.output_exponents) ** 2, axis=0)
-        self._energy = _column_values(s, energy_u, energy_y, float(len(Y)), intercept)
+        self._signals = (U, Y, s, intercept)       # read (not copied) by `_energy`
+
+    def _energy(self):
+        """The sum of squares of each regressor column's signal in the scaled units (the
+        ones of an intercept: the number of samples): a bound of the information the data
+        carry. Only a prior start from the default ``P0`` needs it."""
+        U, Y, s, intercept = self._signals
+        return _column_values(s, _sum_squares(U, self.input_exponents),
+                              _sum_squares(Y, self.output_exponents), float(len(Y)), intercept)
 
     def unscaled(self):
         """The same record in its own units (every exponent 0): the identity map, for a
@@ -218,19 +229,20 @@ class RecordUnits:
     def scale_records(self, records):
         """The records in the scaled units (new arrays; the caller's are not touched)."""
         ey = self.output_exponent if self._y_1d else self.output_exponents
-        return [(np.ldexp(U, -self.input_exponents), np.ldexp(Y, -ey)) for U, Y in records]
+        return [(times_pow2(U, -self.input_exponents), times_pow2(Y, -ey)) for U, Y in records]
 
     def scale_rows(self, Phi, target):
         """Regressor rows ``(rows, n)`` and targets ``(rows, ny)`` in the scaled units."""
-        return (np.ldexp(Phi, -self.column_exponents),
-                np.ldexp(target, -self.output_exponents))
+        return (times_pow2(Phi, -self.column_exponents),
+                times_pow2(target, -self.output_exponents))
 
-    def output_from_unit(self, x, power=1):
+    def output_from_unit(self, x, power=1, out=None):
         """Outputs (``power=1``; time on axis 0, one column per output, or 1-D for one)
-        or variances of them (``power=2``) -> the user's units."""
+        or variances of them (``power=2``) -> the user's units (into `out`, which may be
+        `x`, when given)."""
         ey = self.output_exponent if np.ndim(x) < 2 else self.output_exponents
         with np.errstate(over="ignore", under="ignore"):
-            return np.ldexp(x, power * ey)
+            return times_pow2(x, power * ey, out=out)
 
     # ------------------------------------------------------------------
     # parameters and their covariance
@@ -243,12 +255,13 @@ class RecordUnits:
         """Parameters ``(n,)`` or ``(n, ny)`` (or histories ``(..., n[, ny])``) in the user's
         units -> the scaled units."""
         with np.errstate(over="ignore", under="ignore"):
-            return np.ldexp(theta, -self._g(theta))
+            return times_pow2(theta, -self._g(theta))
 
-    def theta_from_unit(self, theta):
-        """Parameters (or histories of them) in the scaled units -> the user's units."""
+    def theta_from_unit(self, theta, out=None):
+        """Parameters (or histories of them) in the scaled units -> the user's units (into
+        `out`, which may be `theta`, when given)."""
         with np.errstate(over="ignore", under="ignore"):
-            return np.ldexp(theta, self._g(theta))
+            return times_pow2(theta, self._g(theta), out=out)
 
     def estimate_from_unit(self, theta):
         """`theta_from_unit` of an estimate, or a ValueError naming `u` and `y` when a
@@ -395,7 +408,7 @@ class RecordUnits:
         if np.all(d >= np.finfo(float).tiny):
             out["P0"] = P
             info = out["R"] / d                          # the prior's information, scaled
-            if default_P0 and np.any(info > 1e-2 * self._energy):
+            if default_P0 and np.any(info > 1e-2 * self._energy()):
                 _warn_prior(what, rel, self._scale_text(), stacklevel + 1)
             return out
         _warn_prior(what, rel, self._scale_text(), stacklevel + 1)

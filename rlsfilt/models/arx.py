@@ -19,7 +19,7 @@ import warnings
 import numpy as np
 
 from .._resources import check_memory
-from .._scale import pow2_exponent, pow2_scale, safe_norm
+from .._scale import pow2_exponent, safe_norm, times_pow2
 from .._serialize import jsonable
 from .._validation import (
     as_float_array,
@@ -285,6 +285,8 @@ class ARX(IdentifiedModel):
                 Phi = np.hstack([Phi, np.ones((len(Phi), 1))])
             Phis.append(Phi)
             targets.append(Y[s.max_lag:])
+        if len(Phis) == 1:           # Phi is a new array already; the target may be a view
+            return Phis[0], targets[0].copy()
         return np.vstack(Phis), np.vstack(targets)
 
     # ------------------------------------------------------------------
@@ -1185,8 +1187,9 @@ def _fit_rls(Phi, target, s, opts, units):
     theta, C, rls, history, prior = _run_rls(rls, *rows_in, k0)
     theta = units.estimate_from_unit(theta)
     _hand_over(rls, user, theta, units, r)
-    return (theta, C, user, units.theta_from_unit(history), units.output_from_unit(prior),
-            np.ldexp(1.0, units.column_exponents), k0)
+    # history and prior are the run's own arrays: mapped back in place
+    return (theta, C, user, units.theta_from_unit(history, out=history),
+            units.output_from_unit(prior, out=prior), np.ldexp(1.0, units.column_exponents), k0)
 
 
 def _hand_over(rls, user, theta, units, r):
@@ -1304,9 +1307,7 @@ def _choose_form(Phi, opts):
     if form == "square_root" and blocked:
         raise TypeError(f"form='square_root' (SquareRootRLS) takes lam, P0, x0, R, check_every "
                         f"and cond_max only; got `{blocked[0]}`")
-    norms = safe_norm(Phi, axis=0)
-    R = np.linalg.qr(Phi / np.where(norms > 0, norms, 1.0), mode="r")
-    cond, cond_raw = (_cond(M) for M in (R, R * norms))  # R D is the factor of Phi itself
+    cond, cond_raw = _condition_numbers(Phi)
     if form == "auto":
         form = "square_root" if cond > _COND_AUTO and not blocked else "covariance"
     if form == "covariance" and cond > _COND_COVARIANCE:
@@ -1323,6 +1324,58 @@ def _choose_form(Phi, opts):
                       "signals, lower the orders or use a richer input", NumericalWarning,
                       stacklevel=4)
     return form, cond_raw
+
+
+def _condition_numbers(Phi):
+    r"""``(cond, cond_raw)``: the condition numbers of `Phi` with its columns scaled to unit
+    norm and as it is, or upper bounds of both when those prove them below
+    ``_COND_AUTO / 2`` (where every decision of `_choose_form` is the same as with the
+    exact values).
+
+    The bounds come from the Gram matrix :math:`G = \Phi^T\Phi` (one BLAS call,
+    :math:`N n^2` flops): computed in floating point it is :math:`G + E` with
+    :math:`|E_{ij}| \le \gamma_N \|\varphi_i\| \|\varphi_j\|` (Higham 2002, ch.
+    3; :math:`\gamma_N = N u / (1 - N u)`), so :math:`\|E\|_2 \le \gamma_N
+    \operatorname{tr} G` and, by Weyl's theorem, every eigenvalue is within
+    :math:`\delta = \gamma_N \operatorname{tr} G` of its exact value;
+    :math:`\kappa(\Phi)^2 = \kappa(G) \le (\lambda_{max} + \delta) /
+    (\lambda_{min} - \delta)`. Here :math:`\delta` is taken at least 8 times larger, which also
+    covers the rounding of the unit scaling, of the eigenvalues and of products in
+    the subnormal range. Otherwise (a condition number near or above ``_COND_AUTO``,
+    or a Gram matrix that over- or underflows) the exact values come from the QR
+    factor of `Phi` with unit columns: the Gram matrix squares the condition number
+    and cannot tell 1e6 from 1e7.
+    """
+    rows, n = Phi.shape
+    if rows and n:
+        with np.errstate(all="ignore"):         # inf or NaN: the exact path below
+            G = Phi.T @ Phi
+        d = np.diagonal(G)
+        if np.isfinite(G).all() and d.min() > _GRAM_TINY * rows:
+            s = 1.0 / np.sqrt(d)
+            bounds = [_cond_bound(M, rows) for M in (G * s[:, None] * s[None, :], G)]
+            if max(bounds) <= _COND_AUTO / 2:
+                return bounds[0], bounds[1]
+    return _exact_condition_numbers(Phi)
+
+
+def _exact_condition_numbers(Phi):
+    """`_condition_numbers` from the QR factor of `Phi` with unit columns (the whole
+    record read twice more and copied once)."""
+    norms = safe_norm(Phi, axis=0)
+    R = np.linalg.qr(Phi / np.where(norms > 0, norms, 1.0), mode="r")
+    return tuple(_cond(M) for M in (R, R * norms))  # R D is the factor of Phi itself
+
+
+_GRAM_TINY = 2.0 ** -900   # a Gram column with less than this per row: the exact path
+
+
+def _cond_bound(G, rows):
+    """An upper bound of the condition number of the matrix whose Gram matrix is `G` (see
+    `_condition_numbers`), ``inf`` when the rounding hides its smallest eigenvalue."""
+    lam = np.linalg.eigvalsh(G)
+    delta = 8.0 * (rows + len(G)) * np.finfo(float).eps * np.trace(G)
+    return float(np.sqrt((lam[-1] + delta) / (lam[0] - delta))) if lam[0] > delta else np.inf
 
 
 def _cond(R):
@@ -1352,10 +1405,10 @@ def _qr_least_squares(Phi, target, of_output=None):
     from scipy.linalg import lapack, solve_triangular  # lazy: keeps `import rlsfilt` light
     rows, n = Phi.shape
     ce, te = pow2_exponent(Phi, axis=0), pow2_exponent(target, axis=0)
-    c, t = np.ldexp(1.0, ce), np.ldexp(1.0, te)
+    c = np.ldexp(1.0, ce)
     A = np.empty((rows, n + target.shape[1]), order="F")
-    np.divide(Phi, c, out=A[:, :n])
-    np.divide(target, t, out=A[:, n:])
+    times_pow2(Phi, -ce, out=A[:, :n])                  # Phi / c and target / t, exactly
+    times_pow2(target, -te, out=A[:, n:])
     qr, _, _, _ = lapack.dgeqrf(A, overwrite_a=True)
     Rf = np.triu(qr[:n, :n])
     rhs = qr[:n, n:]
@@ -1392,8 +1445,9 @@ def _noise_and_covariance(resid, dof, inv_scaled, c):
     if dof <= 0:
         nan = np.full(ny, np.nan)
         return nan, np.full((ny, n, n), np.nan), np.full((ny, ny), np.nan)
-    t = pow2_scale(resid, axis=0)
-    rs = resid / t
+    te = pow2_exponent(resid, axis=0)
+    t = np.ldexp(1.0, te)
+    rs = times_pow2(resid, -te)                          # resid / t, exactly
     noise_s = rs.T @ rs / dof
     sigma2_s = np.diag(noise_s).copy()
     with np.errstate(over="ignore", under="ignore"):
