@@ -1328,9 +1328,9 @@ def _choose_form(Phi, opts):
 
 def _condition_numbers(Phi):
     r"""``(cond, cond_raw)``: the condition numbers of `Phi` with its columns scaled to unit
-    norm and as it is, or upper bounds of both when those prove them below
-    ``_COND_AUTO / 2`` (where every decision of `_choose_form` is the same as with the
-    exact values).
+    norm and as it is, or upper bounds of both when those prove ``cond <= _COND_AUTO / 2``
+    and ``cond_raw <= 1e4`` (where every decision of `_choose_form` and the health
+    check's ``cond_max`` are the same as with the exact values).
 
     The bounds come from the Gram matrix :math:`G = \Phi^T\Phi` (one BLAS call,
     :math:`N n^2` flops): computed in floating point it is :math:`G + E` with
@@ -1353,9 +1353,11 @@ def _condition_numbers(Phi):
         d = np.diagonal(G)
         if np.isfinite(G).all() and d.min() > _GRAM_TINY * rows:
             s = 1.0 / np.sqrt(d)
-            bounds = [_cond_bound(M, rows) for M in (G * s[:, None] * s[None, :], G)]
-            if max(bounds) <= _COND_AUTO / 2:
-                return bounds[0], bounds[1]
+            cond, cond_raw = (_cond_bound(M, rows) for M in (G * s[:, None] * s[None, :], G))
+            # the form and the warnings read cond, the health check's cond_max =
+            # max(1e12, 1e4 cond_raw^2) is 1e12 for any cond_raw <= 1e4
+            if cond <= _COND_AUTO / 2 and cond_raw <= _COND_RAW_FAST:
+                return cond, cond_raw
     return _exact_condition_numbers(Phi)
 
 
@@ -1368,6 +1370,7 @@ def _exact_condition_numbers(Phi):
 
 
 _GRAM_TINY = 2.0 ** -900   # a Gram column with less than this per row: the exact path
+_COND_RAW_FAST = 1e4       # cond_max = max(1e12, 1e4 cond_raw^2) is 1e12 up to here
 
 
 def _cond_bound(G, rows):
