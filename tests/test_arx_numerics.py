@@ -127,7 +127,8 @@ def test_gram_condition_bound_takes_the_decisions_of_the_exact_qr(n):
                 fast += 1
                 assert got[0] <= 5e3 and got[1] <= 1e4 and scale == 1.0
                 np.testing.assert_array_less(exact, np.array(got) * (1 + 1e-12))
-                np.testing.assert_allclose(got, exact, rtol=1e-2)
+                # the bound's slack: 8 (rows + n) eps n cond^2 <= 5e-4 on the fast path
+                np.testing.assert_allclose(got, exact, rtol=1e-3)
             elif scale == 1.0:     # the bound decides every record well below the thresholds
                 assert exact[0] > 4.9e3 or exact[1] > 0.99e4, (cond, exact)
     assert fast >= 5
@@ -150,4 +151,4 @@ def test_gram_condition_bound_of_degenerate_rows():
     apart = rng.standard_normal((500, 3)) * np.array([1.0, 30.0, 0.3])
     got, exact = _condition_numbers(apart), _exact_condition_numbers(apart)
     assert got != exact and got[1] <= 1e4
-    np.testing.assert_allclose(got, exact, rtol=1e-2)
+    np.testing.assert_allclose(got, exact, rtol=1e-3)

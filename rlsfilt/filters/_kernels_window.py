@@ -98,19 +98,17 @@ def sr_predict(delta, ilam):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _unit_back_solve(Wv, c, xw):
-    """``x = W^-1 v_c`` into ``xw`` (n,) for the unit upper-triangular ``W =
-    Wv[:, :n]`` and column ``c`` of ``v = Wv[:, n:]``.
+def _unit_back_solve(Wv, xw):
+    """``W xw_new = xw`` in place (the first n entries of `xw`) for the unit
+    upper-triangular ``W = Wv[:, :n]``.
 
-    By columns (once ``x_i`` is known it is taken off every row above, ``v_q
-    <- v_q - W_qi x_i``), four columns at a time: the 4 x 4 block on the
+    By columns (once ``xw_i`` is solved it is taken off every row above,
+    ``xw_q <- xw_q - W_qi xw_i``), four columns at a time: the 4 x 4 block on the
     diagonal first, then each row above reads its four contiguous entries
     ``W[q, i-3:i+1]``. The subtractions are those of the column-by-column
     loop, in its order.
     """
     n = Wv.shape[0]
-    for q in range(n):
-        xw[q] = Wv[q, n + c]
     i = n - 1
     while i >= 3:
         x3 = xw[i]
@@ -257,10 +255,7 @@ def _sr_step(Wv, delta, x, phi, z, r, y, K, gain, a, want_y):
             for i in range(n):
                 K[i] = 0.0
             return s
-        for i in range(n - 1, 0, -1):          # K = W^-1 Delta W^-T phi (/ s below)
-            ki = K[i]
-            for q in range(i):
-                K[q] -= Wv[q, i] * ki
+        _unit_back_solve(Wv, K)                # K = W^-1 Delta W^-T phi (/ s below)
     for i in range(n):                         # the new row [phi | z^T], weight 1 / r
         a[i] = phi[i]
     for j in range(m):
@@ -323,7 +318,9 @@ def _sr_step(Wv, delta, x, phi, z, r, y, K, gain, a, want_y):
         for i in range(n):
             K[i] = K[i] / s                    # K = P H^T / S
     for c in range(m):                         # x = W^-1 v, column by column
-        _unit_back_solve(Wv, c, a)
+        for i in range(n):
+            a[i] = Wv[i, n + c]
+        _unit_back_solve(Wv, a)
         for i in range(n):
             x[i, c] = a[i]
     return s

@@ -261,12 +261,13 @@ class SquareRootRLS(_FilterBase):
         s, bad = kern.sr_update_kernel(Wv, delta, x, phi[0], zrow, r, y[:, 0], K[:, 0])
         n_updates = self.n_updates + 1
         problem = None
-        U = np.empty((n, n))
-        if self._health_due(n_updates, bad) and (
-                bad or kern.sr_unhealthy(Wv, delta, self.cond_max, U)):
-            kern.sr_factor(Wv, delta, U)
-            problem = ((_health.factor_problem(U, self.cond_max) or "`P` failed the health check")
-                       + _health.at_update(n_updates, self._batch_start))
+        if self._health_due(n_updates, bad):
+            U = np.empty((n, n))                         # U = Delta^-1/2 W, for the check
+            if bad or kern.sr_unhealthy(Wv, delta, self.cond_max, U):
+                kern.sr_factor(Wv, delta, U)
+                problem = ((_health.factor_problem(U, self.cond_max)
+                            or "`P` failed the health check")
+                           + _health.at_update(n_updates, self._batch_start))
         self._warn_health(problem)                           # before the state changes
         self._clear_lazy()
         self.H = phi
