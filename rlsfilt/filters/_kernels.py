@@ -810,8 +810,9 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
     N = Z.shape[0]
     n = x.shape[0]
     scaled = hsc.shape[0] > 0
-    ha = np.empty(n)                                 # the scaled rows k and k + 1
-    hb = np.empty(n)
+    # scaled rows, _SCALED_BLOCK at a time (and the next block's first): written well
+    # before they are read (loads of a row stored just before stall)
+    Hb = np.empty((_SCALED_BLOCK + 1 if scaled else 0, n))
     r_each = Rv.shape[0] == N
     every_y = ys.shape[0] == N
     hasq = Q.shape[0] > 0
@@ -828,9 +829,8 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
     countdown = check_every - step0 % check_every if check_every > 0 else -1
     h = Hm[0]
     if scaled:
-        for i in range(n):
-            ha[i] = Hm[0, i] * hsc[i]
-        h = ha
+        _scale_block(Hm, 0, hsc, Hb)
+        h = Hb[0]
     if update_first:                                 # the gain of P
         _sweep_rows(P, g, 0.0, 1.0, h, gn)
     else:                                            # P^- and its gain
@@ -846,11 +846,13 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
     yk = np.nan
     for k in range(N):
         zk = Z[k, 0] * zsc
-        hn = Hm[min(k + 1, N - 1)]                   # the next row (scaled: off the critical path)
+        hn = Hm[min(k + 1, N - 1)]                   # the next row
         if scaled:
-            for i in range(n):
-                hb[i] = hn[i] * hsc[i]
-            hn = hb
+            b = k % _SCALED_BLOCK
+            if b == 0 and k > 0:                     # the next block (row k: the same bits)
+                _scale_block(Hm, k, hsc, Hb)
+                h = Hb[0]
+            hn = Hb[b + 1 if k + 1 < N else b]
         q = 0.0
         acc = 0.0
         for i in range(n):
@@ -913,8 +915,6 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
                         P_fail, W, X)
         g, gn = gn, g
         h = hn
-        if scaled:
-            ha, hb = hb, ha
         if k == N - 2 and not update_first:
             x[:, 0] = th
             copy2(x, x_prior)
@@ -927,6 +927,20 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
     state[3] = 1 if cap else 0
     state[4] = w
     return s
+
+
+_SCALED_BLOCK = 256   # rows `exponential_batch` scales at a time
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _scale_block(Hm, k, hsc, Hb):
+    """``Hb[r] = Hm[k + r] * hsc`` for the rows of the block from row `k` (and the next
+    block's first row) that exist."""
+    rows = min(Hb.shape[0], Hm.shape[0] - k)
+    n = hsc.shape[0]
+    for r in range(rows):
+        for i in range(n):
+            Hb[r, i] = Hm[k + r, i] * hsc[i]
 
 
 @njit(cache=True, error_model="numpy")
