@@ -112,10 +112,30 @@ def times_pow2(x, e, out=None):
     >>> times_pow2(np.array([3.0, 5e-324]), np.array([-1, 1]))
     array([1.5e+000, 9.9e-324])
     """
+    factors = pow2_factors(e)
+    if factors is not None:
+        return np.multiply(x, factors, out=out)
+    return np.ldexp(x, e, out=out)
+
+
+def pow2_factors(e):
+    """The doubles ``2^e`` by which `times_pow2` multiplies, or None where one of them is
+    not a double (there `times_pow2` calls ``np.ldexp``).
+
+    A compiled loop that multiplies by them gives the bits of `times_pow2`.
+
+    Parameters
+    ----------
+    e : int or ndarray of int
+
+    Returns
+    -------
+    ndarray or None
+    """
     e = np.asarray(e)
     if e.size == 0 or (e.min() >= _EXP_MIN and e.max() <= _EXP_MAX):
-        return np.multiply(x, np.ldexp(1.0, e), out=out)
-    return np.ldexp(x, e, out=out)
+        return np.ldexp(1.0, e)
+    return None
 
 
 _EXP_MIN, _EXP_MAX = -1074, 1023   # 2^e is a double (subnormal below -1022)

@@ -204,6 +204,38 @@ def test_fused_loop_equals_step_loop_bit_for_bit(rng, update_first, store):
             assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
 
 
+@pytest.mark.parametrize("update_first", [False, True])
+@pytest.mark.parametrize("gate, Q, dim_z", [(None, 0.0, 1), (None, 1e-5, 1), (1e300, 0.0, 1),
+                                            (None, 0.0, 2)],
+                         ids=["fused", "fused-Q", "step-loop", "two-outputs"])
+def test_scaled_run_equals_run_on_scaled_copies_bit_for_bit(rng, update_first, gate, Q, dim_z):
+    """``_run_batch(scales=...)`` (``ARX.fit``'s recursion in scaled units, on the rows as
+    they are) gives the bits of the run on copies scaled by the same powers of two, its
+    histories mapped back by them: estimates, residuals written into the caller's array,
+    and the filter's state (which stays in the scaled units)."""
+    Hs, zs = _record(rng, 700, dim_z=dim_z, missing=(5, 256, 699))  # blocks of 256 rows
+    zs = zs.reshape(len(zs), -1)
+    c, ey = np.array([3, -2, 0, 7]), np.array([-5, 4])[:dim_z]
+    hsc, zsc = np.ldexp(1.0, -c), np.ldexp(1.0, -ey)
+    msc, ysc = np.ldexp(1.0, ey[None, :] - c[:, None]), np.ldexp(1.0, ey)
+    kw = dict(dim_z=dim_z, lam=0.98, Q=Q, gate=gate, check_every=7)
+    a, b = RecursiveLeastSquares(4, **kw), RecursiveLeastSquares(4, **kw)
+    Rv = a._as_batch_variances(None, len(zs))
+    resid = np.full_like(zs, 7.0)
+    Hs0, zs0 = Hs.copy(), zs.copy()
+    out = a._run_batch(zs, Hs, Rv, update_first, False, lead=3, residuals=resid,
+                       scales=(hsc, zsc, msc, ysc))
+    ref = b._run_batch(zs * zsc, Hs * hsc, Rv, update_first, False, lead=3, residuals=True)
+    assert_array_equal(Hs, Hs0)                   # the caller's record is read, not written
+    assert_array_equal(zs, zs0)
+    assert out.ys is resid
+    assert_array_equal(resid, ref.ys * ysc)
+    assert_array_equal(out.buffer[:3], np.full((3, 4, dim_z), np.nan))
+    assert_array_equal(out.buffer, ref.buffer * msc)
+    for name in STATE:
+        assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+
+
 def test_compiled_covariance_is_exactly_symmetric(rng):
     Hs, zs = _record(rng, 3000)
     rls = RecursiveLeastSquares(4, lam=0.95, Q=1e-6)

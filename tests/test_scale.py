@@ -217,3 +217,16 @@ def test_times_pow2_rounds_subnormal_results_as_ldexp():
     for e in range(-1100, 1031):
         with np.errstate(over="ignore", under="ignore"):
             np.testing.assert_array_equal(_bits(times_pow2(x, e)), _bits(np.ldexp(x, e)))
+
+
+def test_pow2_factors_are_the_exact_doubles_or_none():
+    """`pow2_factors`: ``2^e`` exactly (subnormal factors included) while every exponent is
+    in [-1074, 1023], None as soon as one is not (where `times_pow2` calls ldexp)."""
+    from rlsfilt._scale import pow2_factors
+    e = np.arange(-1074, 1024)
+    f = pow2_factors(e)
+    np.testing.assert_array_equal(f, np.ldexp(1.0, e))
+    assert f[0] == 5e-324 and f[-1] == 2.0 ** 1023
+    assert pow2_factors(np.array([3, 1024])) is None
+    assert pow2_factors(np.array([-1075, 0])) is None
+    assert pow2_factors(np.zeros((2, 0), dtype=int)).shape == (2, 0)

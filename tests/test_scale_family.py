@@ -477,3 +477,43 @@ def test_a_gate_on_outputs_in_different_units_runs_in_the_signals_units():
     means = f.batch_filter(target[m.k0_:], Phi[m.k0_:])[0]
     assert_array_equal(m.theta_history_[m.k0_:], means)
     assert m.filter_ is not None and m.filter_.n_gated == f.n_gated
+
+
+@pytest.mark.parametrize("options", [dict(), dict(lam=0.99, k0=0, P0=100.0, R=0.25)],
+                         ids=["batch-start", "prior"])
+def test_rls_on_the_rows_as_they_are_equals_the_run_on_scaled_copies(monkeypatch, options):
+    """The covariance-form fit runs on the rows as they are, the powers of two of the
+    scaled units applied on the fly (`_scales`); where one of them is not a double it
+    scales copies of the rows instead. Both ways give the same bits (forced onto the
+    copies, u and y in different units here)."""
+    from rlsfilt.models import arx as arx_module
+    u, y = _record()
+    u = u / 8
+    fast = _fit(lambda: ARX(2, 2), u, y, method="rls", **options)
+    monkeypatch.setattr(arx_module, "_scales", lambda units: None)
+    copies = _fit(lambda: ARX(2, 2), u, y, method="rls", **options)
+    for name in ("theta_", "theta_history_", "recursive_residuals_", "residuals_",
+                 "noise_variance_", "theta_cov_"):
+        assert_array_equal(getattr(fast, name), getattr(copies, name), err_msg=name)
+    for name in ("x", "P", "K", "y", "S", "H", "z"):
+        assert_array_equal(getattr(fast.filter_, name), getattr(copies.filter_, name),
+                           err_msg=name)
+
+
+def test_rls_near_the_subnormal_range_runs_on_scaled_copies(monkeypatch):
+    """A record around 2^-1030 (its scale factor 2^1030 is not a double) runs on scaled
+    copies of its rows, and gives the numbers of the same record at unit scale (only its
+    bits that survived the scaling): the a and b coefficients (no units when u and y share
+    theirs) bit for bit, the residuals mapped by ldexp."""
+    from rlsfilt.models import arx as arx_module
+    u, y = _record()
+    e = -1030
+    us, ys = scaled_by(u, 2.0 ** e), scaled_by(y, 2.0 ** e)   # subnormal: low bits rounded
+    ref = _fit(lambda: ARX(2, 2), np.ldexp(us, -e), np.ldexp(ys, -e), method="rls")
+    calls, run = [], arx_module._run_on_copies
+    monkeypatch.setattr(arx_module, "_run_on_copies", lambda *a: calls.append(1) or run(*a))
+    tiny = _fit(lambda: ARX(2, 2), us, ys, method="rls")
+    assert calls
+    assert_array_equal(tiny.theta_history_, ref.theta_history_)
+    with np.errstate(under="ignore"):
+        assert_array_equal(tiny.recursive_residuals_, np.ldexp(ref.recursive_residuals_, e))

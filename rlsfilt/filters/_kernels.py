@@ -790,7 +790,7 @@ def _sweep_q(P, g, cu, il, Q, h, gn):
 @njit(cache=True, error_model="numpy")
 def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, covs_p, ys,
                       ss, x_prior, P_prior, x_post, P_post, K, check_every, step0, cond_max,
-                      state, episodes, P_fail, symmetric):
+                      state, episodes, P_fail, symmetric, hsc, zsc, msc, ysc):
     """`step_batch` of the default configuration with one output, fused (see the module).
 
     Exponential forgetting, no gate, no constraints, ``m = 1``: ``ss`` has
@@ -799,9 +799,20 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
     step's sweep runs in its two halves, ``P`` written after each. Arguments
     and returns otherwise as `step_batch` (``means_p`` is ``means`` shifted
     by one step; the caller builds it), but for ``lam_t``.
+
+    Scaled units (``ARX.fit``, :mod:`rlsfilt.models._units`): the recursion
+    runs on the rows ``Hm[k] * hsc`` and targets ``Z[k] * zsc`` (``hsc`` of
+    length n; length 0: the rows as they are), and writes ``means[k] =
+    x * msc`` and ``ys[k] = y * ysc``. The factors are powers of two, so the
+    products are exact (in range) and the numbers those of a run on scaled
+    copies of the record mapped back, without the copies.
     """
     N = Z.shape[0]
     n = x.shape[0]
+    scaled = hsc.shape[0] > 0
+    # scaled rows, _SCALED_BLOCK at a time (and the next block's first): written well
+    # before they are read (loads of a row stored just before stall)
+    Hb = np.empty((_SCALED_BLOCK + 1 if scaled else 0, n))
     r_each = Rv.shape[0] == N
     every_y = ys.shape[0] == N
     hasq = Q.shape[0] > 0
@@ -816,11 +827,15 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
     n_capped = 0
     w = state[4]
     countdown = check_every - step0 % check_every if check_every > 0 else -1
+    h = Hm[0]
+    if scaled:
+        _scale_block(Hm, 0, hsc, Hb)
+        h = Hb[0]
     if update_first:                                 # the gain of P
-        _sweep_rows(P, g, 0.0, 1.0, Hm[0], gn)
+        _sweep_rows(P, g, 0.0, 1.0, h, gn)
     else:                                            # P^- and its gain
         w = il if cap else 1.0
-        _sweep(P, g, 0.0, 1.0 if cap else il, Q, Hm[0], gn)
+        _sweep(P, g, 0.0, 1.0 if cap else il, Q, h, gn)
         if store:
             copy2(P, covs_p[0])
     g, gn = gn, g
@@ -830,8 +845,14 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
     s = np.nan
     yk = np.nan
     for k in range(N):
-        h = Hm[k]
-        zk = Z[k, 0]
+        zk = Z[k, 0] * zsc
+        hn = Hm[min(k + 1, N - 1)]                   # the next row
+        if scaled:
+            b = k % _SCALED_BLOCK
+            if b == 0 and k > 0:                     # the next block (row k: the same bits)
+                _scale_block(Hm, k, hsc, Hb)
+                h = Hb[0]
+            hn = Hb[b + 1 if k + 1 < N else b]
         q = 0.0
         acc = 0.0
         for i in range(n):
@@ -849,15 +870,15 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
             yk = zk - acc                            # y = z - H x
             for i in range(n):
                 th[i] = th[i] + (g[i] * kc) * yk     # x = x + K y,  K = P H^T / S
-                means[k, i, 0] = th[i]
+                means[k, i, 0] = th[i] * msc[i]
             hph = q * r * kc                         # H P H^T after the update
         else:
             yk = np.nan
             for i in range(n):
-                means[k, i, 0] = th[i]
+                means[k, i, 0] = th[i] * msc[i]
             hph = q * w
         if every_y:
-            ys[k, 0] = yk
+            ys[k, 0] = yk * ysc
         # the diagonal of the updated P: the cheap check and the windup cap
         tr, spread, dmin = _diagonal_stats(P, g, cu, h)
         cheap_bad = not (dmin > 0.0 and tr < np.inf)
@@ -880,19 +901,20 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
         # update_first, and otherwise P / lam, whose definiteness and condition
         # number are those of P (with Q the two halves run apart)
         if last or cap or store or (check and hasq and not update_first):
-            _unfused_step(x, P, g, gn, cu, 1.0 if cap else il, Q, Hm[min(k + 1, N - 1)], k,
+            _unfused_step(x, P, g, gn, cu, 1.0 if cap else il, Q, hn, k,
                           last, check, update_first, due, cheap_bad, cond_max, state,
                           episodes, P_fail, W, X, none, symmetric, x_prior, P_prior, x_post,
                           P_post, covs, covs_p)
         else:
             if hasq:
-                _sweep_q(P, g, cu, il, Q, Hm[k + 1], gn)
+                _sweep_q(P, g, cu, il, Q, hn, gn)
             else:
-                _sweep_rows(P, g, cu, il, Hm[k + 1], gn)
+                _sweep_rows(P, g, cu, il, hn, gn)
             if check:
                 _health(P, none, symmetric, cond_max, k, due, cheap_bad, state, episodes,
                         P_fail, W, X)
         g, gn = gn, g
+        h = hn
         if k == N - 2 and not update_first:
             x[:, 0] = th
             copy2(x, x_prior)
@@ -901,10 +923,24 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
         w = 1.0                                      # no time update after the last update
     state[2] += n_capped
     ss[0] = s
-    ys[ys.shape[0] - 1, 0] = yk
+    ys[ys.shape[0] - 1, 0] = yk * ysc
     state[3] = 1 if cap else 0
     state[4] = w
     return s
+
+
+_SCALED_BLOCK = 256   # rows `exponential_batch` scales at a time
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _scale_block(Hm, k, hsc, Hb):
+    """``Hb[r] = Hm[k + r] * hsc`` for the rows of the block from row `k` (and the next
+    block's first row) that exist."""
+    rows = min(Hb.shape[0], Hm.shape[0] - k)
+    n = hsc.shape[0]
+    for r in range(rows):
+        for i in range(n):
+            Hb[r, i] = Hm[k + r, i] * hsc[i]
 
 
 @njit(cache=True, error_model="numpy")
@@ -945,11 +981,11 @@ class BatchResult:
 
     __slots__ = ("buffer", "means", "covariances", "means_p", "covariances_p", "ys", "ss",
                  "gated", "x", "P", "x_prior", "P_prior", "x_post", "P_post", "K_last", "s_last",
-                 "lam_t_last", "state", "episodes", "P_fail")
+                 "lam_t_last", "state", "episodes", "P_fail", "H_last", "z_last", "y_last")
 
 
 def run_batch(x, P, Z, Hm, Rv, cfg, Q, basis, update_first, store_covariances,
-              check_every, step0, cond_max, state, lead=0, residuals=False):
+              check_every, step0, cond_max, state, lead=0, residuals=False, scales=None):
     """Run `RecursiveLeastSquares` over a validated record; `x`, `P` are not modified.
 
     `cfg` is ``forgetting.kernel_config``; `Q` None when absent; `basis`
@@ -958,15 +994,28 @@ def run_batch(x, P, Z, Hm, Rv, cfg, Q, basis, update_first, store_covariances,
     returned in the result). Chooses `exponential_batch` for the default
     configuration with one output, `step_batch` otherwise. Returns a
     `BatchResult` (``ss``, ``gated`` hold the last step only after
-    `exponential_batch`, and ``ys`` too unless `residuals`). The
+    `exponential_batch`, and ``ys`` too unless `residuals`; ``H_last``,
+    ``z_last``, ``y_last``: the last row, target and residual as the filter
+    saw them). The
     estimate histories share one buffer, ``buffer``: `lead` rows of NaN (room
     for what a caller puts before the run), the estimate before the first
     update, then the estimate after each update (``means``); ``means_p`` is a
     read-only view of it (the estimate before each update is the one after
     the update before), so memory stays one ``N x dim_x x dim_z`` array.
+
+    `residuals` may be an array ``(N, m)``: every residual is written there
+    (``ys`` is that array). `scales` (``ARX.fit``): powers of two ``(hsc,
+    zsc, msc, ysc)``, arrays of shape ``(n,)``, ``(m,)``, ``(n, m)``,
+    ``(m,)``; the recursion then runs on ``Hm * hsc`` and ``Z * zsc`` (`x`
+    and `P` are in those units) and the histories are written mapped back,
+    ``means = x * msc`` (``buffer`` too) and ``ys = y * ysc``: the numbers of
+    a run on scaled copies of the record, mapped back after, bit for bit
+    (see `exponential_batch`, which applies them on the fly).
     """
     N = len(Z)
     n, m = x.shape
+    if scales is not None:
+        hsc, zsc, msc, ysc = (np.ascontiguousarray(a, dtype=np.float64) for a in scales)
     mode, lam, gate = int(cfg[CFG_MODE]), cfg[CFG_LAM], cfg[CFG_GATE]
     il = 1.0 / lam if mode == EXPONENTIAL else 1.0
     empty = np.zeros((0, 0))
@@ -984,7 +1033,7 @@ def run_batch(x, P, Z, Hm, Rv, cfg, Q, basis, update_first, store_covariances,
     # update k, row 0 the estimate before the first (x does not change in a predict)
     buf = np.empty((lead + N + 1, n, m))
     buf[:lead] = np.nan
-    buf[lead] = x
+    buf[lead] = x if scales is None else x * msc
     out.buffer = buf
     out.means = buf[lead + 1:]
     means_p = buf[lead + 1:] if update_first else buf[lead:-1]
@@ -1000,16 +1049,22 @@ def run_batch(x, P, Z, Hm, Rv, cfg, Q, basis, update_first, store_covariances,
     covs_p = np.empty((N if store_covariances else 0, n, n))
     out.covariances = covs if store_covariances else None
     out.covariances_p = covs_p if store_covariances else None
+    given = isinstance(residuals, np.ndarray)
     if fused:
-        out.ys, out.ss = np.empty((N if residuals else 1, 1)), np.empty(1)
+        out.ys = residuals if given else np.empty((N if residuals else 1, 1))
+        out.ss = np.empty(1)
+        if scales is None:
+            hsc, zsc, msc, ysc = np.zeros(0), np.ones(1), np.ones((n, 1)), np.ones(1)
         out.s_last = exponential_batch(
             out.x, out.P, Zc, Hc, Rv, il, Qa, cfg, bool(update_first), out.means, covs, covs_p,
             out.ys, out.ss, out.x_prior, out.P_prior, out.x_post, out.P_post, K,
             int(check_every), int(step0), float(cond_max), out.state, out.episodes,
-            out.P_fail, symmetric)
+            out.P_fail, symmetric, hsc, zsc[0], msc[:, 0].copy(), ysc[0])
         out.gated = np.zeros(1, dtype=np.bool_)
         out.lam_t_last = lam
     else:
+        if scales is not None:                        # scaled copies, the histories mapped after
+            Hc, Zc = Hm * hsc, Z * zsc
         out.ys, out.ss = np.empty((N, m)), np.empty(N)
         out.gated = np.zeros(N, dtype=np.bool_)
         out.s_last, out.lam_t_last = step_batch(
@@ -1018,6 +1073,17 @@ def run_batch(x, P, Z, Hm, Rv, cfg, Q, basis, update_first, store_covariances,
             out.x_prior, out.P_prior, out.x_post, out.P_post, K,
             int(check_every), int(step0), float(cond_max), out.state, out.episodes,
             out.P_fail, symmetric)
+        if scales is not None:
+            np.multiply(out.means, msc, out=out.means)
+            np.multiply(out.ys, ysc, out=out.ys)
+        if given:
+            residuals[...] = out.ys
+            out.ys = residuals
+    if N:                                             # the last step as the filter saw it
+        out.H_last, out.z_last = Hc[-1], Zc[-1]
+        out.y_last = out.ys[-1]
+        if scales is not None:
+            out.H_last, out.z_last, out.y_last = Hm[-1] * hsc, Z[-1] * zsc, out.ys[-1] / ysc
     if N and np.isnan(Z[-1]).any():                   # the last sample was missing: no gain
         K[:] = 0.0
     out.K_last = K.reshape(n, 1)

@@ -831,11 +831,12 @@ class RecursiveLeastSquares(_FilterBase):
         out = self._run_batch(Z, Hm, Rv, update_first, store_covariances)
         return out.means, out.covariances, out.means_p, out.covariances_p
 
-    def _run_batch(self, Z, Hm, Rv, update_first, store_covariances, lead=0, residuals=False):
+    def _run_batch(self, Z, Hm, Rv, update_first, store_covariances, lead=0, residuals=False,
+                   scales=None):
         """`_batch_compiled` on a validated record ``Z`` (N, dim_z), ``Hm`` (N, dim_x),
-        ``Rv`` (N,); returns the kernel's `BatchResult`. `lead` and `residuals` as
-        in `_kernels.run_batch` (``ARX.fit`` writes its histories into the result's
-        buffer and takes every a-priori residual from it)."""
+        ``Rv`` (N,); returns the kernel's `BatchResult`. `lead`, `residuals` and `scales`
+        as in `_kernels.run_batch` (``ARX.fit`` runs in scaled units on its rows as they
+        are, and takes the histories and every a-priori residual from the result)."""
         P = self._checked_P()
         if self._efra_pending:
             P = self._efra_start(P)
@@ -845,7 +846,7 @@ class RecursiveLeastSquares(_FilterBase):
             self._checked_x(), P, Z, Hm, Rv, self._cfg,
             None if self._Q_kernel is _EMPTY else self._Q, self._null_basis, update_first,
             store_covariances, self.check_every, self.n_updates, self.cond_max, state, lead,
-            residuals)
+            residuals, scales)
         N, problems = len(Z), []
         armed, episodes = out.state[0] == 1.0, int(out.state[1])
         for e, k in enumerate(out.episodes[:min(episodes, kern.MAX_EPISODES)]):
@@ -871,7 +872,7 @@ class RecursiveLeastSquares(_FilterBase):
         self.x_prior, self.P_prior, self.x_post, self.P_post = (out.x_prior, out.P_prior,
                                                                 out.x_post, out.P_post)
         self._clear_lazy()
-        self.H = Hm[-1].reshape(1, -1).copy()
+        self.H = out.H_last.reshape(1, -1).copy()
         self.S, self.SI = out.s_last * self._I_z, self._I_z / out.s_last
         self.K = out.K_last
         if np.isnan(Z[-1]).any():
@@ -879,8 +880,8 @@ class RecursiveLeastSquares(_FilterBase):
             self.y = np.full((self.dim_z, 1), np.nan)
             self._lazy = MISSING_DIAGNOSTICS
         else:
-            self.z = Z[-1].reshape(-1, 1).copy()
-            self.y = out.ys[-1].reshape(-1, 1).copy()
+            self.z = out.z_last.reshape(-1, 1).copy()
+            self.y = out.y_last.reshape(-1, 1).copy()
         self._updates_since_predict = 0 if update_first else 1
         self.n_updates += N
         self.n_gated += int(out.gated.sum())

@@ -19,7 +19,7 @@ import warnings
 import numpy as np
 
 from .._resources import check_memory
-from .._scale import pow2_exponent, safe_norm, times_pow2
+from .._scale import pow2_exponent, pow2_factors, safe_norm, times_pow2
 from .._serialize import jsonable
 from .._validation import (
     as_float_array,
@@ -1163,8 +1163,7 @@ def _fit_rls(Phi, target, s, opts, units):
     scaled = equivariant_forgetting(extra.get("forgetting", "exponential"),
                                     extra.get("forgetting_params")) and not (
         extra.get("gate") is not None and len(set(units.output_exponents)) > 1)
-    rows_in = units.scale_rows(Phi, target) if scaled else (Phi, target)
-    form, cond_raw = _choose_form(rows_in[0], opts)
+    form, cond_raw = _choose_form(Phi, opts, -units.column_exponents if scaled else None)
     # cond(P) = cond(Phi)^2 (in the units the recursion runs in) is what the data give (and
     # more on the first rows), and _choose_form has said so: the health check watches for
     # windup beyond
@@ -1184,12 +1183,10 @@ def _fit_rls(Phi, target, s, opts, units):
     start["x0"] = x0
     rls = cls(n, dim_z=s.n_outputs, lam=lam, **{k: v for k, v in start.items() if v is not None},
               **extra)
-    theta, C, rls, history, prior = _run_rls(rls, *rows_in, k0)
+    theta, C, rls, history, prior = _run_rls(rls, Phi, target, k0, units)
     theta = units.estimate_from_unit(theta)
     _hand_over(rls, user, theta, units, r)
-    # history and prior are the run's own arrays: mapped back in place
-    return (theta, C, user, units.theta_from_unit(history, out=history),
-            units.output_from_unit(prior, out=prior), np.ldexp(1.0, units.column_exponents), k0)
+    return (theta, C, user, history, prior, np.ldexp(1.0, units.column_exponents), k0)
 
 
 def _hand_over(rls, user, theta, units, r):
@@ -1240,29 +1237,59 @@ def _hand_over(rls, user, theta, units, r):
         user._lazy = rls._lazy if rls._lazy == MISSING_DIAGNOSTICS else None
 
 
-def _run_rls(rls, Phi, target, k0):
+def _run_rls(rls, Phi, target, k0, units=None):
     """Run `rls` over the rows: ``(theta, P / R, rls, history, prior)`` (see `_fit_rls`).
 
+    With `units` (a `RecordUnits`), `rls` runs in its scaled units and ``history`` and
+    ``prior`` come back in the signals' units; ``theta`` and ``P / R`` stay scaled.
+
     The rows come from validated signals, so the covariance-form filter runs
-    them without validating them again, writing the estimates straight into
-    ``history`` and every residual into ``prior`` (no copies of the record).
+    them without validating them again, on the rows as they are (with the
+    powers of two of the scaled units applied on the fly), writing the
+    estimates straight into ``history`` and every residual into ``prior``, in
+    the signals' units (no copies of the record).
     """
-    if isinstance(rls, SquareRootRLS):
-        return _fit_square_root(rls, Phi, target, k0)
+    scales = None if units is None else _scales(units)
+    if isinstance(rls, SquareRootRLS) or (units is not None and scales is None):
+        return _run_on_copies(rls, Phi, target, k0, units)
     rows, n = Phi.shape
-    prior = np.full((rows, target.shape[1]), np.nan)
+    prior = np.empty((rows, target.shape[1]))
+    prior[:k0] = np.nan
     if k0 > 0:
-        rls.initialize(target[:k0], Phi[:k0])
+        start = (Phi[:k0], target[:k0]) if units is None else units.scale_rows(Phi[:k0],
+                                                                               target[:k0])
+        rls.initialize(start[1], start[0])
     if k0 < rows:
         Z, Hm = target[k0:], Phi[k0:]
         out = rls._run_batch(Z, Hm, rls._as_batch_variances(None, len(Z)), False, False,
-                             lead=max(k0 - 1, 0), residuals=True)
+                             lead=max(k0 - 1, 0), residuals=prior[k0:], scales=scales)
         history = out.buffer[1:] if k0 == 0 else out.buffer
-        prior[k0:] = out.ys
     else:                                   # the batch start used every row
         history = np.full((rows, n, target.shape[1]), np.nan)
-        history[k0 - 1] = rls.x
+        history[k0 - 1] = rls.x if units is None else units.theta_from_unit(rls.x)
     return rls.x.copy(), rls.P / rls.R, rls, history, prior
+
+
+def _scales(units):
+    """The powers of two ``(hsc, zsc, msc, ysc)`` that `_kernels.run_batch` applies on the
+    fly for a run in the scaled units of `units`, or None where one of them is not a
+    double (exponents beyond ``times_pow2``'s multiplication: the run then scales copies)."""
+    c, ey = units.column_exponents, units.output_exponents
+    scales = [pow2_factors(e) for e in (-c, -ey, ey[None, :] - c[:, None], ey)]
+    return None if any(f is None for f in scales) else tuple(scales)
+
+
+def _run_on_copies(rls, Phi, target, k0, units):
+    """`_run_rls` on copies of the rows scaled by `units` (when given), the histories
+    mapped back after: the square-root form, and exponents beyond `_scales`."""
+    if units is not None:
+        Phi, target = units.scale_rows(Phi, target)
+    run = _fit_square_root if isinstance(rls, SquareRootRLS) else _run_rls
+    theta, C, rls, history, prior = run(rls, Phi, target, k0)
+    if units is not None:       # history and prior are the run's own arrays: mapped in place
+        units.theta_from_unit(history, out=history)
+        units.output_from_unit(prior, out=prior)
+    return theta, C, rls, history, prior
 
 
 def _fit_square_root(rls, Phi, target, k0):
@@ -1292,9 +1319,10 @@ _COND_COVARIANCE = 1e6  # the covariance form warns above this
 _COND_ANY = 1e10        # any recursion warns above this
 
 
-def _choose_form(Phi, opts):
+def _choose_form(Phi, opts, exponents=None):
     """``(form, cond_raw)``: the recursion to run, and the condition number of the rows in the
-    signals' units (the choice itself uses the rows scaled to unit columns).
+    units the recursion runs in, ``Phi`` times ``2^exponents`` column by column (the choice
+    itself uses the rows scaled to unit columns).
 
     The covariance update's round-off grows with cond(P) = cond(Phi)^2, the square-root
     (QR) update's with cond(Phi) (NUMERICS.md; Haykin 2002, ch. 14).
@@ -1307,7 +1335,7 @@ def _choose_form(Phi, opts):
     if form == "square_root" and blocked:
         raise TypeError(f"form='square_root' (SquareRootRLS) takes lam, P0, x0, R, check_every "
                         f"and cond_max only; got `{blocked[0]}`")
-    cond, cond_raw = _condition_numbers(Phi)
+    cond, cond_raw = _condition_numbers(Phi, exponents)
     if form == "auto":
         form = "square_root" if cond > _COND_AUTO and not blocked else "covariance"
     if form == "covariance" and cond > _COND_COVARIANCE:
@@ -1326,11 +1354,13 @@ def _choose_form(Phi, opts):
     return form, cond_raw
 
 
-def _condition_numbers(Phi):
+def _condition_numbers(Phi, exponents=None):
     r"""``(cond, cond_raw)``: the condition numbers of `Phi` with its columns scaled to unit
     norm and as it is, or upper bounds of both when those prove ``cond <= _COND_AUTO / 2``
     and ``cond_raw <= 1e4`` (where every decision of `_choose_form` and the health
-    check's ``cond_max`` are the same as with the exact values).
+    check's ``cond_max`` are the same as with the exact values). With `exponents`, those
+    of ``Phi 2^exponents`` (column by column), the rows a recursion in scaled units
+    runs on, without a scaled copy of the record.
 
     The bounds come from the Gram matrix :math:`G = \Phi^T\Phi` (one BLAS call,
     :math:`N n^2` flops): computed in floating point it is :math:`G + E` with
@@ -1352,13 +1382,19 @@ def _condition_numbers(Phi):
             G = Phi.T @ Phi
         d = np.diagonal(G)
         if np.isfinite(G).all() and d.min() > _GRAM_TINY * rows:
+            if exponents is not None:
+                # the Gram matrix of the scaled columns: G_ij 2^(e_i + e_j), exact but for
+                # entries far below the rounding bound (each diagonal entry is >= 1/4)
+                with np.errstate(under="ignore"):
+                    G = np.ldexp(G, exponents[:, None] + exponents[None, :])
+                d = np.diagonal(G)
             s = 1.0 / np.sqrt(d)
             cond, cond_raw = (_cond_bound(M, rows) for M in (G * s[:, None] * s[None, :], G))
             # the form and the warnings read cond, the health check's cond_max =
             # max(1e12, 1e4 cond_raw^2) is 1e12 for any cond_raw <= 1e4
             if cond <= _COND_AUTO / 2 and cond_raw <= _COND_RAW_FAST:
                 return cond, cond_raw
-    return _exact_condition_numbers(Phi)
+    return _exact_condition_numbers(Phi if exponents is None else times_pow2(Phi, exponents))
 
 
 def _exact_condition_numbers(Phi):
