@@ -17,6 +17,18 @@ __all__ = []
 _EPS = float(np.finfo(np.float64).eps)
 
 
+def padded_width(n, m):
+    """Row length of a padded work array: ``n + m`` rounded up to a multiple of 8.
+
+    The kernels that sweep a matrix row by row keep it in rows of this length,
+    zero past its ``n + m`` columns (``[W | v]`` of the square-root filter, the
+    covariance of `RecursiveLeastSquares`'s fused batch loop): the inner loops
+    then run over a multiple of 8 entries, which the compiler vectorizes with no
+    scalar remainder.
+    """
+    return -(-(n + m) // 8) * 8
+
+
 @njit(cache=True, error_model="numpy", inline="always")
 def copy2(a, b):
     """``b[:] = a`` for 2-D arrays."""
