@@ -65,6 +65,7 @@ import numpy as np
 
 from .._numba import njit  # numba.njit, uncached where no cache directory is writable
 from ._kernels_shared import (
+    aligned_zeros,
     any_nan,
     copy2,
     diagonal_bad,
@@ -173,14 +174,15 @@ def exponential_coefficient(q, c, w, updated):
 @njit(cache=True, error_model="numpy", inline="always")
 def _diagonal_stats(P, g, cu, h):
     """``trace``, ``sum_i d_i h_i^2`` and ``min_i d_i`` of ``d_i = P_ii - (g_i g_i) cu``,
-    the diagonal of ``P - (g g^T) cu`` (the updated ``P``), without forming it.
+    the diagonal of ``P - (g g^T) cu`` (the updated ``P``), without forming it
+    (``i`` below the length of ``h``: ``P`` may be a padded work array).
 
     (``min`` skips NaN; NaN or inf then shows in the trace.)
     """
     tr = 0.0
     spread = 0.0
     dmin = np.inf
-    for i in range(P.shape[0]):
+    for i in range(h.shape[0]):
         d = P[i, i] - (g[i] * g[i]) * cu
         tr += d
         spread += (d * h[i]) * h[i]
@@ -729,9 +731,10 @@ def _sweep(P, g, cu, il, Q, h, gn):
 def _sweep_rows(P, g, cu, il, h, gn):
     """`_sweep` without ``Q``, four rows at a time.
 
-    ``P`` is (n, L) with ``L >= n`` (the padded work array of
-    `exponential_batch`, zero past column ``n``), ``g`` and ``gn`` have
-    length ``L`` (``g`` zero past ``n``: the padding stays zero). Each
+    ``n`` is the length of ``h``; ``P`` has at least ``n`` rows of ``L >= n``
+    entries (the padded work array of `exponential_batch`, zero past column
+    ``n``; only its first ``n`` rows are swept), ``g`` and ``gn`` have length
+    ``L`` (``g`` zero past ``n``: the padding stays zero). Each
     ``g_j``, ``gn_j`` is loaded once for four rows and the four contributions
     are added to ``gn_j`` in row order, so the numbers are those of the
     row-by-row loop. The indices are unsigned (``np.uint64``: no
@@ -739,7 +742,7 @@ def _sweep_rows(P, g, cu, il, h, gn):
     ``L`` a multiple of 8 the compiler vectorizes the inner loop with no
     scalar remainder.
     """
-    n = P.shape[0]
+    n = h.shape[0]
     if n == 2:                       # the same operations, written out (no loop overhead)
         g0, g1 = g[0], g[1]
         h0, h1 = h[0], h[1]
@@ -787,9 +790,10 @@ def _sweep_rows(P, g, cu, il, h, gn):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _sweep_q(P, g, cu, il, Q, h, gn):
-    """`_sweep` with ``Q``, row by row (over the first ``n`` columns of a padded
-    ``P``; ``gn`` is zeroed over its whole length: its padding stays zero)."""
-    n = P.shape[0]
+    """`_sweep` with ``Q``, row by row (``n`` the length of ``h``: over the first
+    ``n`` rows and columns of a padded ``P``; ``gn`` is zeroed over its whole
+    length: its padding stays zero)."""
+    n = h.shape[0]
     for j in range(gn.shape[0]):
         gn[j] = 0.0
     for i in range(n):
@@ -815,9 +819,11 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
     and returns otherwise as `step_batch` (``means_p`` is ``means`` shifted
     by one step; the caller builds it), but for ``lam_t``.
 
-    ``Pw`` is (n, L) work space, ``L = padded_width(n, 0)``: the loop keeps
-    ``P`` in its first ``n`` columns, zero past them (see `_sweep_rows`), and
-    writes it back to ``P`` at the end.
+    ``Pw`` is (n + 2, L) work space of zeros, ``L = padded_width(n, 0)``,
+    from `aligned_zeros`: the loop keeps ``P`` in the first ``n`` columns of
+    its first ``n`` rows (see `_sweep_rows`) and the gains ``g``, ``gn`` in
+    its last two rows, every row on a cache line, and writes ``P`` back at the
+    end.
     """
     N = Z.shape[0]
     n = x.shape[0]
@@ -826,12 +832,12 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
     hasq = Q.shape[0] > 0
     store = covs.shape[0] > 0
     th = x[:, 0].copy()                              # local: no aliasing in the loop
-    Pv = Pw[:, :n]                                   # P in padded rows
+    Pv = Pw[:n, :n]                                  # P in padded rows
     for i in range(n):
         for j in range(Pw.shape[1]):
             Pw[i, j] = P[i, j] if j < n else 0.0
-    g = np.zeros(Pw.shape[1])
-    gn = np.zeros(Pw.shape[1])
+    g = Pw[n]                                        # the gains: rows n, n + 1
+    gn = Pw[n + 1]
     W = np.empty((n, n))
     X = np.empty((n, n))
     none = np.zeros((n, 0))
@@ -1031,7 +1037,7 @@ def run_batch(x, P, Z, Hm, Rv, cfg, Q, basis, update_first, store_covariances,
             out.x, out.P, Zc, Hc, Rv, il, Qa, cfg, bool(update_first), out.means, covs, covs_p,
             out.ys, out.ss, out.x_prior, out.P_prior, out.x_post, out.P_post, K,
             int(check_every), int(step0), float(cond_max), out.state, out.episodes,
-            out.P_fail, symmetric, np.zeros((n, padded_width(n, 0))))
+            out.P_fail, symmetric, aligned_zeros((n + 2, padded_width(n, 0))))
         out.gated = np.zeros(1, dtype=np.bool_)
         out.lam_t_last = lam
     else:

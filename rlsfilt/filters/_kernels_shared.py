@@ -29,6 +29,21 @@ def padded_width(n, m):
     return -(-(n + m) // 8) * 8
 
 
+def aligned_zeros(shape, align=64):
+    """A C-contiguous float64 array of zeros whose data start at a multiple of
+    `align` bytes (a cache line).
+
+    With rows of `padded_width` entries every row then starts on a cache
+    line, and no vector load or store of a sweep straddles two lines (where
+    ``numpy.zeros`` puts the data depends on the allocator's state: the same
+    loop ran up to 20 % slower in some processes than in others).
+    """
+    size = int(np.prod(shape)) * 8
+    raw = np.zeros(size + align, dtype=np.uint8)
+    start = -raw.ctypes.data % align
+    return raw[start:start + size].view(np.float64).reshape(shape)
+
+
 @njit(cache=True, error_model="numpy", inline="always")
 def copy2(a, b):
     """``b[:] = a`` for 2-D arrays."""
