@@ -64,7 +64,16 @@ next failure warns again.
 import numpy as np
 
 from .._numba import njit  # numba.njit, uncached where no cache directory is writable
-from ._kernels_shared import any_nan, copy2, diagonal_bad, unhealthy, unhealthy_on, unhealthy_sym
+from ._kernels_shared import (
+    aligned_zeros,
+    any_nan,
+    copy2,
+    diagonal_bad,
+    padded_width,
+    unhealthy,
+    unhealthy_on,
+    unhealthy_sym,
+)
 from .forgetting import (
     CFG_GATE,
     CFG_LAM,
@@ -165,14 +174,15 @@ def exponential_coefficient(q, c, w, updated):
 @njit(cache=True, error_model="numpy", inline="always")
 def _diagonal_stats(P, g, cu, h):
     """``trace``, ``sum_i d_i h_i^2`` and ``min_i d_i`` of ``d_i = P_ii - (g_i g_i) cu``,
-    the diagonal of ``P - (g g^T) cu`` (the updated ``P``), without forming it.
+    the diagonal of ``P - (g g^T) cu`` (the updated ``P``), without forming it
+    (``i`` below the length of ``h``: ``P`` may be a padded work array).
 
     (``min`` skips NaN; NaN or inf then shows in the trace.)
     """
     tr = 0.0
     spread = 0.0
     dmin = np.inf
-    for i in range(P.shape[0]):
+    for i in range(h.shape[0]):
         d = P[i, i] - (g[i] * g[i]) * cu
         tr += d
         spread += (d * h[i]) * h[i]
@@ -721,11 +731,18 @@ def _sweep(P, g, cu, il, Q, h, gn):
 def _sweep_rows(P, g, cu, il, h, gn):
     """`_sweep` without ``Q``, four rows at a time.
 
-    Each ``g_j``, ``gn_j`` is loaded once for four rows and the four
-    contributions are added to ``gn_j`` in row order, so the numbers are those
-    of the row-by-row loop.
+    ``n`` is the length of ``h``; ``P`` has at least ``n`` rows of ``L >= n``
+    entries (the padded work array of `exponential_batch`, zero past column
+    ``n``; only its first ``n`` rows are swept), ``g`` and ``gn`` have length
+    ``L`` (``g`` zero past ``n``: the padding stays zero). Each
+    ``g_j``, ``gn_j`` is loaded once for four rows and the four contributions
+    are added to ``gn_j`` in row order, so the numbers are those of the
+    row-by-row loop. The indices are unsigned (``np.uint64``: no
+    negative-index fix-up) and ``P`` is indexed directly (no row views): with
+    ``L`` a multiple of 8 the compiler vectorizes the inner loop with no
+    scalar remainder.
     """
-    n = P.shape[0]
+    n = h.shape[0]
     if n == 2:                       # the same operations, written out (no loop overhead)
         g0, g1 = g[0], g[1]
         h0, h1 = h[0], h[1]
@@ -740,57 +757,59 @@ def _sweep_rows(P, g, cu, il, h, gn):
         gn[0] = (0.0 + v00 * h0) + v10 * h1
         gn[1] = (0.0 + v01 * h0) + v11 * h1
         return
-    for j in range(n):
+    L, un = np.uint64(P.shape[1]), np.uint64(n)
+    one = np.uint64(1)
+    for j in range(L):
         gn[j] = 0.0
-    i = 0
-    while i + 4 <= n:
-        r0, r1, r2, r3 = P[i], P[i + 1], P[i + 2], P[i + 3]
-        a0, a1, a2, a3 = g[i], g[i + 1], g[i + 2], g[i + 3]
-        h0, h1, h2, h3 = h[i], h[i + 1], h[i + 2], h[i + 3]
-        for j in range(n):
+    i = np.uint64(0)
+    while i + np.uint64(3) < un:               # rows i, ..., i + 3
+        i1, i2, i3 = i + one, i + np.uint64(2), i + np.uint64(3)
+        a0, a1, a2, a3 = g[i], g[i1], g[i2], g[i3]
+        h0, h1, h2, h3 = h[i], h[i1], h[i2], h[i3]
+        for j in range(L):
             gj = g[j]
-            v0 = (r0[j] - (a0 * gj) * cu) * il
-            v1 = (r1[j] - (a1 * gj) * cu) * il
-            v2 = (r2[j] - (a2 * gj) * cu) * il
-            v3 = (r3[j] - (a3 * gj) * cu) * il
-            r0[j] = v0
-            r1[j] = v1
-            r2[j] = v2
-            r3[j] = v3
+            v0 = (P[i, j] - (a0 * gj) * cu) * il
+            v1 = (P[i1, j] - (a1 * gj) * cu) * il
+            v2 = (P[i2, j] - (a2 * gj) * cu) * il
+            v3 = (P[i3, j] - (a3 * gj) * cu) * il
+            P[i, j] = v0
+            P[i1, j] = v1
+            P[i2, j] = v2
+            P[i3, j] = v3
             gn[j] = (((gn[j] + v0 * h0) + v1 * h1) + v2 * h2) + v3 * h3
-        i += 4
-    while i < n:
-        ri = P[i]
+        i += np.uint64(4)
+    while i < un:                              # the last rows, one at a time
         ai = g[i]
         hi = h[i]
-        for j in range(n):
-            v = (ri[j] - (ai * g[j]) * cu) * il
-            ri[j] = v
+        for j in range(L):
+            v = (P[i, j] - (ai * g[j]) * cu) * il
+            P[i, j] = v
             gn[j] += v * hi
-        i += 1
+        i += one
 
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _sweep_q(P, g, cu, il, Q, h, gn):
-    """`_sweep` with ``Q``, row by row."""
-    n = P.shape[0]
-    for j in range(n):
+    """`_sweep` with ``Q``, row by row (``n`` the length of ``h``: over the first
+    ``n`` rows and columns of a padded ``P``; ``gn`` is zeroed over its whole
+    length: its padding stays zero)."""
+    n = h.shape[0]
+    for j in range(gn.shape[0]):
         gn[j] = 0.0
     for i in range(n):
-        ri = P[i]
         qi = Q[i]
         ai = g[i]
         hi = h[i]
         for j in range(n):
-            v = (ri[j] - (ai * g[j]) * cu) * il + qi[j]
-            ri[j] = v
+            v = (P[i, j] - (ai * g[j]) * cu) * il + qi[j]
+            P[i, j] = v
             gn[j] += v * hi
 
 
 @njit(cache=True, error_model="numpy")
 def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, covs_p, ys,
                       ss, x_prior, P_prior, x_post, P_post, K, check_every, step0, cond_max,
-                      state, episodes, P_fail, symmetric, hsc, zsc, msc, ysc):
+                      state, episodes, P_fail, symmetric, Pw, hsc, zsc, msc, ysc):
     """`step_batch` of the default configuration with one output, fused (see the module).
 
     Exponential forgetting, no gate, no constraints, ``m = 1``: ``ss`` has
@@ -799,6 +818,12 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
     step's sweep runs in its two halves, ``P`` written after each. Arguments
     and returns otherwise as `step_batch` (``means_p`` is ``means`` shifted
     by one step; the caller builds it), but for ``lam_t``.
+
+    ``Pw`` is (n + 2, L) work space of zeros, ``L = padded_width(n, 0)``,
+    from `aligned_zeros`: the loop keeps ``P`` in the first ``n`` columns of
+    its first ``n`` rows (see `_sweep_rows`) and the gains ``g``, ``gn`` in
+    its last two rows, every row on a cache line, and writes ``P`` back at the
+    end.
 
     Scaled units (``ARX.fit``, :mod:`rlsfilt.models._units`): the recursion
     runs on the rows ``Hm[k] * hsc`` and targets ``Z[k] * zsc`` (``hsc`` of
@@ -818,8 +843,12 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
     hasq = Q.shape[0] > 0
     store = covs.shape[0] > 0
     th = x[:, 0].copy()                              # local: no aliasing in the loop
-    g = np.zeros(n)
-    gn = np.empty(n)
+    Pv = Pw[:n, :n]                                  # P in padded rows
+    for i in range(n):
+        for j in range(Pw.shape[1]):
+            Pw[i, j] = P[i, j] if j < n else 0.0
+    g = Pw[n]                                        # the gains: rows n, n + 1
+    gn = Pw[n + 1]
     W = np.empty((n, n))
     X = np.empty((n, n))
     none = np.zeros((n, 0))
@@ -832,16 +861,16 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
         _scale_block(Hm, 0, hsc, Hb)
         h = Hb[0]
     if update_first:                                 # the gain of P
-        _sweep_rows(P, g, 0.0, 1.0, h, gn)
+        _sweep_rows(Pw, g, 0.0, 1.0, h, gn)
     else:                                            # P^- and its gain
         w = il if cap else 1.0
-        _sweep(P, g, 0.0, 1.0 if cap else il, Q, h, gn)
+        _sweep(Pw, g, 0.0, 1.0 if cap else il, Q, h, gn)
         if store:
-            copy2(P, covs_p[0])
+            copy2(Pv, covs_p[0])
     g, gn = gn, g
     if not update_first and N == 1:
         copy2(x, x_prior)
-        copy2(P, P_prior)
+        copy2(Pv, P_prior)
     s = np.nan
     yk = np.nan
     for k in range(N):
@@ -880,7 +909,7 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
         if every_y:
             ys[k, 0] = yk * ysc
         # the diagonal of the updated P: the cheap check and the windup cap
-        tr, spread, dmin = _diagonal_stats(P, g, cu, h)
+        tr, spread, dmin = _diagonal_stats(Pw, g, cu, h)
         cheap_bad = not (dmin > 0.0 and tr < np.inf)
         cap = windup_cap(tr, spread, hph, il, cfg)
         w = il if cap else 1.0                       # the next update's w
@@ -901,24 +930,25 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
         # update_first, and otherwise P / lam, whose definiteness and condition
         # number are those of P (with Q the two halves run apart)
         if last or cap or store or (check and hasq and not update_first):
-            _unfused_step(x, P, g, gn, cu, 1.0 if cap else il, Q, hn, k,
+            _unfused_step(x, Pw, Pv, g, gn, cu, 1.0 if cap else il, Q, hn, k,
                           last, check, update_first, due, cheap_bad, cond_max, state,
                           episodes, P_fail, W, X, none, symmetric, x_prior, P_prior, x_post,
                           P_post, covs, covs_p)
         else:
             if hasq:
-                _sweep_q(P, g, cu, il, Q, hn, gn)
+                _sweep_q(Pw, g, cu, il, Q, hn, gn)
             else:
-                _sweep_rows(P, g, cu, il, hn, gn)
+                _sweep_rows(Pw, g, cu, il, hn, gn)
             if check:
-                _health(P, none, symmetric, cond_max, k, due, cheap_bad, state, episodes,
+                _health(Pv, none, symmetric, cond_max, k, due, cheap_bad, state, episodes,
                         P_fail, W, X)
         g, gn = gn, g
         h = hn
         if k == N - 2 and not update_first:
             x[:, 0] = th
             copy2(x, x_prior)
-            copy2(P, P_prior)
+            copy2(Pv, P_prior)
+    copy2(Pv, P)
     if not update_first:
         w = 1.0                                      # no time update after the last update
     state[2] += n_capped
@@ -944,7 +974,7 @@ def _scale_block(Hm, k, hsc, Hb):
 
 
 @njit(cache=True, error_model="numpy")
-def _unfused_step(x, P, g, gn, cu, il, Q, h, k, last, check, update_first, due, cheap_bad,
+def _unfused_step(x, Pw, P, g, gn, cu, il, Q, h, k, last, check, update_first, due, cheap_bad,
                   cond_max, state, episodes, P_fail, W, X, none, symmetric, x_prior, P_prior,
                   x_post, P_post, covs, covs_p):
     """The rare steps of `exponential_batch` (not inlined, so that they stay out of
@@ -952,12 +982,13 @@ def _unfused_step(x, P, g, gn, cu, il, Q, h, k, last, check, update_first, due, 
     is then 1), and a step whose updated ``P`` is checked, kept (the last) or
     stored (``covs``, ``covs_p`` of length N), whose sweep runs in two halves:
     the update, then the time update with the next gain (after the last
-    update only with `update_first`)."""
+    update only with `update_first`). The sweeps run on the padded ``Pw``, the
+    copies and the checks read its view ``P``."""
     store = covs.shape[0] > 0
     if not (check or last or store):
-        _sweep(P, g, cu, il, Q, h, gn)
+        _sweep(Pw, g, cu, il, Q, h, gn)
         return
-    _sweep_rows(P, g, cu, 1.0, h, gn)
+    _sweep_rows(Pw, g, cu, 1.0, h, gn)
     if store:
         copy2(P, covs[k])
     if last:
@@ -966,7 +997,7 @@ def _unfused_step(x, P, g, gn, cu, il, Q, h, k, last, check, update_first, due, 
     if check and not update_first:
         _health(P, none, symmetric, cond_max, k, due, cheap_bad, state, episodes, P_fail, W, X)
     if not last or update_first:
-        _sweep(P, g, 0.0, il, Q, h, gn)
+        _sweep(Pw, g, 0.0, il, Q, h, gn)
         if store:
             copy2(P, covs_p[k if update_first else k + 1])
     if check and update_first:
@@ -1059,7 +1090,8 @@ def run_batch(x, P, Z, Hm, Rv, cfg, Q, basis, update_first, store_covariances,
             out.x, out.P, Zc, Hc, Rv, il, Qa, cfg, bool(update_first), out.means, covs, covs_p,
             out.ys, out.ss, out.x_prior, out.P_prior, out.x_post, out.P_post, K,
             int(check_every), int(step0), float(cond_max), out.state, out.episodes,
-            out.P_fail, symmetric, hsc, zsc[0], msc[:, 0].copy(), ysc[0])
+            out.P_fail, symmetric, aligned_zeros((n + 2, padded_width(n, 0))), hsc,
+            zsc[0], msc[:, 0].copy(), ysc[0])
         out.gated = np.zeros(1, dtype=np.bool_)
         out.lam_t_last = lam
     else:

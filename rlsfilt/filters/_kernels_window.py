@@ -76,17 +76,13 @@ from ._kernels_shared import (
     copy2,
     diagonal_bad,
     factor_unhealthy,
+    padded_width,  # noqa: F401  (SquareRootRLS reads it from here)
     singular_range,
     unhealthy,
     upper_inverse_gram,
 )
 
 __all__ = []
-
-
-def padded_width(n, m):
-    """Row length of the stored ``[W | v]``: ``n + m`` rounded up to a multiple of 8."""
-    return -(-(n + m) // 8) * 8
 
 
 @njit(cache=True, error_model="numpy")
