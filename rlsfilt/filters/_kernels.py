@@ -809,7 +809,7 @@ def _sweep_q(P, g, cu, il, Q, h, gn):
 @njit(cache=True, error_model="numpy")
 def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, covs_p, ys,
                       ss, x_prior, P_prior, x_post, P_post, K, check_every, step0, cond_max,
-                      state, episodes, P_fail, symmetric, Pw, hsc, zsc, msc, ysc):
+                      state, episodes, P_fail, symmetric, Pw, scales):
     """`step_batch` of the default configuration with one output, fused (see the module).
 
     Exponential forgetting, no gate, no constraints, ``m = 1``: ``ss`` has
@@ -825,19 +825,21 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
     its last two rows, every row on a cache line, and writes ``P`` back at the
     end.
 
-    Scaled units (``ARX.fit``, :mod:`rlsfilt.models._units`): the recursion
-    runs on the rows ``Hm[k] * hsc`` and targets ``Z[k] * zsc`` (``hsc`` of
-    length n; length 0: the rows as they are), and writes ``means[k] =
-    x * msc`` and ``ys[k] = y * ysc``. The factors are powers of two, so the
-    products are exact (in range) and the numbers those of a run on scaled
-    copies of the record mapped back, without the copies.
+    ``scales``: None, or scaled units (``ARX.fit``,
+    :mod:`rlsfilt.models._units`), ``(hsc, zsc, msc, ysc, Hb)``: the recursion
+    then runs on the rows ``Hm[k] * hsc`` and targets ``Z[k] * zsc`` and
+    writes ``means[k] = x * msc`` and ``ys[k] = y * ysc``. The factors are
+    powers of two, so the products are exact (in range) and the numbers those
+    of a run on scaled copies of the record mapped back, without the copies.
+    The scaled rows go through ``Hb`` (``(_SCALED_BLOCK + 1, n)``) a block at a
+    time, written well before they are read (a row stored just before its
+    loads stalls them). numba compiles the two cases apart (``scales is
+    None`` is decided at compile time, the branches pruned), so the plain loop
+    carries none of this; each step takes its rows afresh (a row view carried
+    from one step to the next cost the scaled loop 10 %).
     """
     N = Z.shape[0]
     n = x.shape[0]
-    scaled = hsc.shape[0] > 0
-    # scaled rows, _SCALED_BLOCK at a time (and the next block's first): written well
-    # before they are read (loads of a row stored just before stall)
-    Hb = np.empty((_SCALED_BLOCK + 1 if scaled else 0, n))
     r_each = Rv.shape[0] == N
     every_y = ys.shape[0] == N
     hasq = Q.shape[0] > 0
@@ -857,7 +859,8 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
     w = state[4]
     countdown = check_every - step0 % check_every if check_every > 0 else -1
     h = Hm[0]
-    if scaled:
+    if scales is not None:
+        hsc, zsc, msc, ysc, Hb = scales
         _scale_block(Hm, 0, hsc, Hb)
         h = Hb[0]
     if update_first:                                 # the gain of P
@@ -874,14 +877,17 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
     s = np.nan
     yk = np.nan
     for k in range(N):
-        zk = Z[k, 0] * zsc
-        hn = Hm[min(k + 1, N - 1)]                   # the next row
-        if scaled:
+        zk = Z[k, 0]
+        if scales is not None:
+            zk *= zsc
             b = k % _SCALED_BLOCK
             if b == 0 and k > 0:                     # the next block (row k: the same bits)
                 _scale_block(Hm, k, hsc, Hb)
-                h = Hb[0]
-            hn = Hb[b + 1 if k + 1 < N else b]
+            h = Hb[b]
+            hn = Hb[b + 1 if k + 1 < N else b]       # the next row
+        else:
+            h = Hm[k]
+            hn = Hm[min(k + 1, N - 1)]
         q = 0.0
         acc = 0.0
         for i in range(n):
@@ -899,15 +905,20 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
             yk = zk - acc                            # y = z - H x
             for i in range(n):
                 th[i] = th[i] + (g[i] * kc) * yk     # x = x + K y,  K = P H^T / S
-                means[k, i, 0] = th[i] * msc[i]
             hph = q * r * kc                         # H P H^T after the update
         else:
             yk = np.nan
+            hph = q * w
+        if scales is not None:
             for i in range(n):
                 means[k, i, 0] = th[i] * msc[i]
-            hph = q * w
-        if every_y:
-            ys[k, 0] = yk * ysc
+            if every_y:
+                ys[k, 0] = yk * ysc
+        else:
+            for i in range(n):
+                means[k, i, 0] = th[i]
+            if every_y:
+                ys[k, 0] = yk
         # the diagonal of the updated P: the cheap check and the windup cap
         tr, spread, dmin = _diagonal_stats(Pw, g, cu, h)
         cheap_bad = not (dmin > 0.0 and tr < np.inf)
@@ -943,7 +954,6 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
                 _health(Pv, none, symmetric, cond_max, k, due, cheap_bad, state, episodes,
                         P_fail, W, X)
         g, gn = gn, g
-        h = hn
         if k == N - 2 and not update_first:
             x[:, 0] = th
             copy2(x, x_prior)
@@ -953,7 +963,9 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
         w = 1.0                                      # no time update after the last update
     state[2] += n_capped
     ss[0] = s
-    ys[ys.shape[0] - 1, 0] = yk * ysc
+    if scales is not None:
+        yk *= ysc
+    ys[ys.shape[0] - 1, 0] = yk
     state[3] = 1 if cap else 0
     state[4] = w
     return s
@@ -1084,14 +1096,13 @@ def run_batch(x, P, Z, Hm, Rv, cfg, Q, basis, update_first, store_covariances,
     if fused:
         out.ys = residuals if given else np.empty((N if residuals else 1, 1))
         out.ss = np.empty(1)
-        if scales is None:
-            hsc, zsc, msc, ysc = np.zeros(0), np.ones(1), np.ones((n, 1)), np.ones(1)
         out.s_last = exponential_batch(
             out.x, out.P, Zc, Hc, Rv, il, Qa, cfg, bool(update_first), out.means, covs, covs_p,
             out.ys, out.ss, out.x_prior, out.P_prior, out.x_post, out.P_post, K,
             int(check_every), int(step0), float(cond_max), out.state, out.episodes,
-            out.P_fail, symmetric, aligned_zeros((n + 2, padded_width(n, 0))), hsc,
-            zsc[0], msc[:, 0].copy(), ysc[0])
+            out.P_fail, symmetric, aligned_zeros((n + 2, padded_width(n, 0))),
+            None if scales is None else (hsc, zsc[0], msc[:, 0].copy(), ysc[0],
+                                         aligned_zeros((_SCALED_BLOCK + 1, n))))
         out.gated = np.zeros(1, dtype=np.bool_)
         out.lam_t_last = lam
     else:
