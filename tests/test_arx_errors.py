@@ -26,6 +26,20 @@ def test_nonfinite_data_names_first_bad_index(data, which, index, value):
         ARX(2, 2).fit(u, y)
 
 
+def test_finite_data_whose_sum_overflows_is_accepted_and_bad_entries_still_named(data):
+    """The summation that screens a record for NaN and inf overflows on finite entries near
+    the largest double: the exact test then decides (no false alarm, no warning), and an
+    inf beside them is still named with its index."""
+    from rlsfilt._validation import check_finite
+    big = np.full(10, 1e308)
+    assert check_finite(big, "y") is big
+    big[6] = np.inf
+    with pytest.raises(ValueError, match=r"`y` must be finite; got inf at index 6$"):
+        check_finite(big, "y")
+    with pytest.raises(ValueError, match=r"`u` must be finite; got -inf at index 2$"):
+        check_finite(np.array([1.0, 2.0, -np.inf, np.inf]), "u")  # the sum is NaN
+
+
 def test_nonfinite_multichannel_index(data):
     u = np.column_stack([data[0], data[0]])
     u[5, 1] = np.nan

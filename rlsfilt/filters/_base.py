@@ -319,10 +319,9 @@ class _FilterBase:
         if len(Hm) != len(Z):
             raise ValueError(f"`zs` and `Hs` must have the same length; got {len(Z)} measurements "
                              f"and {len(Hm)} regressor rows")
-        # one summation pass screens long records; the exact checks run only
-        # when the sum is not finite (a bad entry, or an overflow)
-        if not np.isfinite(Hm.sum()):
-            check_finite(Hm, "Hs")
+        # one summation pass screens long records (check_finite); NaN in zs marks
+        # a missing sample, so only inf is an error there
+        check_finite(Hm, "Hs")
         if not np.isfinite(Z.sum()) and np.isinf(Z).any():
             check_finite(np.where(np.isnan(Z), 0.0, Z), "zs")
         return Z, Hm                    # read only below: no copies of long records
