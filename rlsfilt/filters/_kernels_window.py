@@ -71,6 +71,7 @@ from .._numba import njit  # numba.njit, uncached where no cache directory is wr
 from ._kernels import gain
 from ._kernels_shared import (
     _EPS,
+    aligned_work,
     any_nan,
     back_substitute,
     copy2,
@@ -704,8 +705,8 @@ def sw_batch_kernel(x, P, Z, Hm, Rv, wH, wZ, wR, ist, refresh, Lt, Ltx0, means, 
     # h) of this step in V at og, ol, the next step's at the other two slots
     npad = (n + 7) // 8 * 8
     un, unpad = np.uint64(n), np.uint64(npad)
-    W = np.zeros(n * npad)
-    V = np.zeros(4 * npad)
+    W = aligned_work(n * npad)                 # every row on a cache line
+    V = aligned_work(4 * npad)
     xflat = x.reshape(n * m)                   # (views of the same numbers)
     mflat = means.reshape((N, n * m))
     _sw_load(P, W, npad)
