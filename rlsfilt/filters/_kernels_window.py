@@ -105,26 +105,26 @@ def _unit_back_solve(Wv, xw):
     ``W[q, i-3:i+1]``. The subtractions are those of the column-by-column
     loop, in its order.
     """
-    n = Wv.shape[0]
-    i = n - 1
-    while i >= 3:
-        x3 = xw[i]
-        x2 = xw[i - 1] - Wv[i - 1, i] * x3
-        x1 = (xw[i - 2] - Wv[i - 2, i] * x3) - Wv[i - 2, i - 1] * x2
-        x0 = ((xw[i - 3] - Wv[i - 3, i] * x3) - Wv[i - 3, i - 1] * x2) - Wv[i - 3, i - 2] * x1
-        xw[i - 1] = x2
-        xw[i - 2] = x1
-        xw[i - 3] = x0
-        for q in range(i - 3):
-            row = Wv[q]
-            xw[q] = (((xw[q] - row[i] * x3) - row[i - 1] * x2) - row[i - 2] * x1
-                     - row[i - 3] * x0)
-        i -= 4
-    while i >= 1:
+    one = np.uint64(1)
+    i = np.uint64(Wv.shape[0])                 # one past the column being solved
+    while i >= np.uint64(4):                   # columns i - 1, ..., i - 4
+        i0, i1, i2, i3 = i - np.uint64(4), i - np.uint64(3), i - np.uint64(2), i - one
+        x3 = xw[i3]
+        x2 = xw[i2] - Wv[i2, i3] * x3
+        x1 = (xw[i1] - Wv[i1, i3] * x3) - Wv[i1, i2] * x2
+        x0 = ((xw[i0] - Wv[i0, i3] * x3) - Wv[i0, i2] * x2) - Wv[i0, i1] * x1
+        xw[i2] = x2
+        xw[i1] = x1
+        xw[i0] = x0
+        for q in range(i0):
+            xw[q] = (((xw[q] - Wv[q, i3] * x3) - Wv[q, i2] * x2) - Wv[q, i1] * x1
+                     - Wv[q, i0] * x0)
+        i = i0
+    while i >= np.uint64(2):
+        i -= one
         xi = xw[i]
         for q in range(i):
             xw[q] -= Wv[q, i] * xi
-        i -= 1
 
 
 @njit(cache=True, error_model="numpy")
