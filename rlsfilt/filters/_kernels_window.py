@@ -181,11 +181,11 @@ def sr_unhealthy(Wv, delta, cond_max, U):
 def _delta_bad(delta):
     """The cheap health check: a ``delta_i`` that is not positive and finite (``P``
     is positive definite exactly when every ``delta_i`` is positive)."""
-    for i in range(delta.shape[0]):
+    ok = True
+    for i in range(delta.shape[0]):            # (no early exit: the loop vectorizes)
         di = delta[i]
-        if not (di > 0.0 and di < np.inf):
-            return True
-    return False
+        ok = ok & (di > 0.0) & (di < np.inf)
+    return not ok
 
 
 @njit(cache=True, error_model="numpy", inline="always")
