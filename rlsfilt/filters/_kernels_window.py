@@ -363,7 +363,14 @@ def sr_batch_kernel(Wv, delta, x, Z, Hm, Rv, ilam, update_first, means, covs, co
     N = Z.shape[0]
     store = covs.shape[0] == N and N > 0
     r_each = Rv.shape[0] == N
-    a = np.zeros(Wv.shape[1])
+    # work copies of the factors whose rows start on cache lines (written back
+    # at the end); a (the new row) likewise
+    a = aligned_work(Wv.shape[1])
+    Wu, du = Wv, delta
+    Wv = aligned_work(Wu.shape[0] * Wu.shape[1]).reshape(Wu.shape)
+    copy2(Wu, Wv)
+    delta = aligned_work(du.shape[0])
+    delta[:] = du
     nm = x.shape[0] * x.shape[1]
     xflat = x.reshape(nm)                      # (views of the same numbers)
     mflat = means.reshape((N, nm))
@@ -415,6 +422,8 @@ def sr_batch_kernel(Wv, delta, x, Z, Hm, Rv, ilam, update_first, means, covs, co
                     copy2(covs_p[k], P_prior)
                 else:
                     sr_covariance(Wv, delta, P_prior)
+    copy2(Wv, Wu)
+    du[:] = delta
     return s, k_fail
 
 
