@@ -583,7 +583,7 @@ def sw_update_kernel(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, y, K):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _sw_pass(W, V, oa, ob, ca, cb, h1, h2, o1, o2, n, npad):
+def _sw_pass(W, V, oa, ob, ca, cb, H1, k1, H2, k2, o1, o2, n, npad):
     """``P <- (P + (a a^T) ca) + (b b^T) cb`` in one pass, rows four at a time,
     summing the gains ``g1 = P h1`` and ``g2 = P h2`` of the new ``P``.
 
@@ -614,8 +614,8 @@ def _sw_pass(W, V, oa, ob, ca, cb, h1, h2, o1, o2, n, npad):
         r1, r2, r3 = r0 + npad, r0 + np.uint64(2) * npad, r0 + np.uint64(3) * npad
         a0, a1, a2, a3 = V[oa + i], V[oa + i1], V[oa + i2], V[oa + i3]
         b0, b1, b2, b3 = V[ob + i], V[ob + i1], V[ob + i2], V[ob + i3]
-        p0, p1, p2, p3 = h1[i], h1[i1], h1[i2], h1[i3]
-        q0, q1, q2, q3 = h2[i], h2[i1], h2[i2], h2[i3]
+        p0, p1, p2, p3 = H1[k1, i], H1[k1, i1], H1[k1, i2], H1[k1, i3]
+        q0, q1, q2, q3 = H2[k2, i], H2[k2, i1], H2[k2, i2], H2[k2, i3]
         for j in range(npad):
             aj = V[oa + j]
             bj = V[ob + j]
@@ -635,7 +635,7 @@ def _sw_pass(W, V, oa, ob, ca, cb, h1, h2, o1, o2, n, npad):
         i += np.uint64(4)
     while i < n:                               # the last rows, one at a time
         r0 = i * npad
-        a0, b0, p0, q0 = V[oa + i], V[ob + i], h1[i], h2[i]
+        a0, b0, p0, q0 = V[oa + i], V[ob + i], H1[k1, i], H2[k2, i]
         for j in range(npad):
             w0 = (W[r0 + j] + (a0 * V[oa + j]) * ca) + (b0 * V[ob + j]) * cb
             W[r0 + j] = w0
@@ -742,22 +742,21 @@ def sw_batch_kernel(x, P, Z, Hm, Rv, wH, wZ, wR, ist, refresh, Lt, Ltx0, means, 
         # one step (see the module; written out here, not in a function: a call
         # that takes arrays costs reference counting that is most of a small
         # step's bookkeeping)
-        phi = Hm[k]
-        z = Z[k]
         r = Rv[k if r_each else 0]
-        hn = Hm[min(k + 1, N - 1)]                 # the next regressor
+        kn = min(k + 1, N - 1)                     # the next regressor's row
         og = 2 * cur * npad
         ol = og + npad
-        ga = V[og:og + n]
-        gb = V[ol:ol + n]
         s = r
         t = 0.0
         acc = 0.0
         for i in range(n):                         # (independent sums in one loop)
-            s += phi[i] * ga[i]                    # s = phi P phi^T + r
-            t += phi[i] * gb[i]                    # t = phi P psi^T
-            acc += phi[i] * x[i, 0]                # phi x, first output
-        missing = any_nan(z)
+            s += Hm[k, i] * V[og + i]              # s = phi P phi^T + r
+            t += Hm[k, i] * V[ol + i]              # t = phi P psi^T
+            acc += Hm[k, i] * x[i, 0]              # phi x, first output
+        missing = False
+        for j in range(m):
+            zj = Z[k, j]
+            missing |= zj != zj
         c = 0.0
         if missing:
             for j in range(m):
@@ -765,16 +764,16 @@ def sw_batch_kernel(x, P, Z, Hm, Rv, wH, wZ, wR, ist, refresh, Lt, Ltx0, means, 
             for i in range(n):
                 K[i] = 0.0
         else:
-            y[0] = z[0] - acc                      # y = z - phi x
+            y[0] = Z[k, 0] - acc                   # y = z - phi x
             for j in range(1, m):
                 acc = 0.0
                 for i in range(n):
-                    acc += phi[i] * x[i, j]
-                y[j] = z[j] - acc
+                    acc += Hm[k, i] * x[i, j]
+                y[j] = Z[k, j] - acc
             c = 1.0 / s
             y0 = y[0]
             for i in range(n):
-                ki = ga[i] * c                     # K = P phi^T / s
+                ki = V[og + i] * c                 # K = P phi^T / s
                 K[i] = ki
                 x[i, 0] = x[i, 0] + ki * y0        # x = x + K y^T
             for j in range(1, m):
@@ -785,38 +784,40 @@ def sw_batch_kernel(x, P, Z, Hm, Rv, wH, wZ, wR, ist, refresh, Lt, Ltx0, means, 
         refit = _sw_refit_due(ist, window, refreshing)
         cd = 0.0
         if leaving and not refit:                  # downdate with the leaving sample
-            hl = wH[h]
             rl = wR[h]
             tc = t * c
             dd = rl
             acc = 0.0
             for i in range(n):
-                hi = gb[i] - ga[i] * tc            # h = P' psi^T = gl - g (phi gl) / s
-                gb[i] = hi
-                dd -= hl[i] * hi                   # d = R - psi P' psi^T
-                acc += hl[i] * x[i, 0]
+                hi = V[ol + i] - V[og + i] * tc    # h = P' psi^T = gl - g (phi gl) / s
+                V[ol + i] = hi
+                dd -= wH[h, i] * hi                # d = R - psi P' psi^T
+                acc += wH[h, i] * x[i, 0]
             if dd > 1e-8 * rl:
                 cd = 1.0 / dd
                 for j in range(m):
                     if j:
                         acc = 0.0
                         for i in range(n):
-                            acc += hl[i] * x[i, j]
+                            acc += wH[h, i] * x[i, j]
                     e = wZ[h, j] - acc             # residual of the leaving sample
                     for i in range(n):
-                        x[i, j] = x[i, j] - (gb[i] * cd) * e
+                        x[i, j] = x[i, j] - (V[ol + i] * cd) * e
             else:
                 refit = True
         for j in range(n):
-            wH[h, j] = phi[j]
+            wH[h, j] = Hm[k, j]
         for j in range(m):
-            wZ[h, j] = np.nan if missing else z[j]
+            wZ[h, j] = np.nan if missing else Z[k, j]
         wR[h] = r
         h = h + 1 if h + 1 < window else 0
         ist[HEAD] = h
         ist[NW] = min(ist[NW] + 1, window)
         ist[COUNT] += 1
-        leaving = ist[NW] == window and not any_nan(wZ[h])   # at the next step
+        leaving = ist[NW] == window                # at the next step
+        for j in range(m):
+            zj = wZ[h, j]
+            leaving &= zj == zj
         cur = 1 - cur
         on = 2 * cur * npad                        # the next step's gains
         if refit or (missing and cd == 0.0):       # P from the refit, or unchanged
@@ -831,15 +832,15 @@ def sw_batch_kernel(x, P, Z, Hm, Rv, wH, wZ, wR, ist, refresh, Lt, Ltx0, means, 
                 _sw_load(P, W, npad)
             else:
                 _sw_store(W, npad, P)
-            gain(P, hn, V[on:on + n])
+            gain(P, Hm[kn], V[on:on + n])
             if leaving:
                 gain(P, wH[h], V[on + npad:on + npad + n])
             healthy = not diagonal_bad(P)
         else:                                      # P'' and the next step's gains
             if cd == 0.0:
                 for i in range(n):
-                    gb[i] = 0.0
-            healthy = _sw_pass(W, V, np.uint64(og), np.uint64(ol), -c, cd, hn, wH[h],
+                    V[ol + i] = 0.0
+            healthy = _sw_pass(W, V, np.uint64(og), np.uint64(ol), -c, cd, Hm, kn, wH, h,
                                np.uint64(on), np.uint64(on + npad), un, unpad)
         if countdown > 0:
             countdown -= 1
@@ -851,9 +852,8 @@ def sw_batch_kernel(x, P, Z, Hm, Rv, wH, wZ, wR, ist, refresh, Lt, Ltx0, means, 
                 k_fail = k
                 countdown = -1
                 _sw_store(W, npad, P_fail)
-        mk = mflat[k]                              # means[k] = x (flat: one loop)
-        for i in range(n * m):
-            mk[i] = xflat[i]
+        for i in range(n * m):                     # means[k] = x (flat: one loop)
+            mflat[k, i] = xflat[i]
         if store:
             _sw_store(W, npad, covs[k])
     _sw_store(W, npad, P)
