@@ -585,7 +585,8 @@ def sw_update_kernel(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, y, K):
 @njit(cache=True, error_model="numpy", inline="always")
 def _sw_pass(W, V, oa, ob, ca, cb, H1, k1, H2, k2, o1, o2, n, npad):
     """``P <- (P + (a a^T) ca) + (b b^T) cb`` in one pass, rows four at a time,
-    summing the gains ``g1 = P h1`` and ``g2 = P h2`` of the new ``P``.
+    summing the gains ``g1 = P h1`` and ``g2 = P h2`` of the new ``P``, where
+    ``h1 = H1[k1]`` and ``h2 = H2[k2]`` (rows of their arrays, read in place).
 
     ``P`` is row ``i`` of `W` at ``i npad``; ``a``, ``b``, ``g1``, ``g2`` are
     the `npad` entries of `V` at ``oa``, ``ob``, ``o1``, ``o2`` (the entries
