@@ -44,6 +44,19 @@ def aligned_zeros(shape, align=64):
     return raw[start:start + size].view(np.float64).reshape(shape)
 
 
+@njit(cache=True, error_model="numpy")
+def aligned_work(size):
+    """`aligned_zeros` inside compiled code: ``size`` float64 zeros whose data
+    start on a cache line (64 bytes; numba's allocator gives 32).
+
+    The work arrays of the window kernels' sweeps come from here: a row of
+    `padded_width` entries then never straddles two cache lines.
+    """
+    raw = np.zeros(size + 8)
+    off = (-raw.ctypes.data % 64) // 8
+    return raw[off:off + size]
+
+
 @njit(cache=True, error_model="numpy", inline="always")
 def copy2(a, b):
     """``b[:] = a`` for 2-D arrays."""

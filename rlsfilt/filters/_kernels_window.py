@@ -71,6 +71,7 @@ from .._numba import njit  # numba.njit, uncached where no cache directory is wr
 from ._kernels import gain
 from ._kernels_shared import (
     _EPS,
+    aligned_work,
     any_nan,
     back_substitute,
     copy2,
@@ -104,26 +105,26 @@ def _unit_back_solve(Wv, xw):
     ``W[q, i-3:i+1]``. The subtractions are those of the column-by-column
     loop, in its order.
     """
-    n = Wv.shape[0]
-    i = n - 1
-    while i >= 3:
-        x3 = xw[i]
-        x2 = xw[i - 1] - Wv[i - 1, i] * x3
-        x1 = (xw[i - 2] - Wv[i - 2, i] * x3) - Wv[i - 2, i - 1] * x2
-        x0 = ((xw[i - 3] - Wv[i - 3, i] * x3) - Wv[i - 3, i - 1] * x2) - Wv[i - 3, i - 2] * x1
-        xw[i - 1] = x2
-        xw[i - 2] = x1
-        xw[i - 3] = x0
-        for q in range(i - 3):
-            row = Wv[q]
-            xw[q] = (((xw[q] - row[i] * x3) - row[i - 1] * x2) - row[i - 2] * x1
-                     - row[i - 3] * x0)
-        i -= 4
-    while i >= 1:
+    one = np.uint64(1)
+    i = np.uint64(Wv.shape[0])                 # one past the column being solved
+    while i >= np.uint64(4):                   # columns i - 1, ..., i - 4
+        i0, i1, i2, i3 = i - np.uint64(4), i - np.uint64(3), i - np.uint64(2), i - one
+        x3 = xw[i3]
+        x2 = xw[i2] - Wv[i2, i3] * x3
+        x1 = (xw[i1] - Wv[i1, i3] * x3) - Wv[i1, i2] * x2
+        x0 = ((xw[i0] - Wv[i0, i3] * x3) - Wv[i0, i2] * x2) - Wv[i0, i1] * x1
+        xw[i2] = x2
+        xw[i1] = x1
+        xw[i0] = x0
+        for q in range(i0):
+            xw[q] = (((xw[q] - Wv[q, i3] * x3) - Wv[q, i2] * x2) - Wv[q, i1] * x1
+                     - Wv[q, i0] * x0)
+        i = i0
+    while i >= np.uint64(2):
+        i -= one
         xi = xw[i]
         for q in range(i):
             xw[q] -= Wv[q, i] * xi
-        i -= 1
 
 
 @njit(cache=True, error_model="numpy")
@@ -180,11 +181,11 @@ def sr_unhealthy(Wv, delta, cond_max, U):
 def _delta_bad(delta):
     """The cheap health check: a ``delta_i`` that is not positive and finite (``P``
     is positive definite exactly when every ``delta_i`` is positive)."""
-    for i in range(delta.shape[0]):
+    ok = True
+    for i in range(delta.shape[0]):            # (no early exit: the loop vectorizes)
         di = delta[i]
-        if not (di > 0.0 and di < np.inf):
-            return True
-    return False
+        ok = ok & (di > 0.0) & (di < np.inf)
+    return not ok
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -362,7 +363,14 @@ def sr_batch_kernel(Wv, delta, x, Z, Hm, Rv, ilam, update_first, means, covs, co
     N = Z.shape[0]
     store = covs.shape[0] == N and N > 0
     r_each = Rv.shape[0] == N
-    a = np.zeros(Wv.shape[1])
+    # work copies of the factors whose rows start on cache lines (written back
+    # at the end); a (the new row) likewise
+    a = aligned_work(Wv.shape[1])
+    Wu, du = Wv, delta
+    Wv = aligned_work(Wu.shape[0] * Wu.shape[1]).reshape(Wu.shape)
+    copy2(Wu, Wv)
+    delta = aligned_work(du.shape[0])
+    delta[:] = du
     nm = x.shape[0] * x.shape[1]
     xflat = x.reshape(nm)                      # (views of the same numbers)
     mflat = means.reshape((N, nm))
@@ -414,6 +422,8 @@ def sr_batch_kernel(Wv, delta, x, Z, Hm, Rv, ilam, update_first, means, covs, co
                     copy2(covs_p[k], P_prior)
                 else:
                     sr_covariance(Wv, delta, P_prior)
+    copy2(Wv, Wu)
+    du[:] = delta
     return s, k_fail
 
 
@@ -573,9 +583,10 @@ def sw_update_kernel(x, P, phi, z, r, wH, wZ, wR, ist, refresh, Lt, Ltx0, y, K):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _sw_pass(W, V, oa, ob, ca, cb, h1, h2, o1, o2, n, npad):
+def _sw_pass(W, V, oa, ob, ca, cb, H1, k1, H2, k2, o1, o2, n, npad):
     """``P <- (P + (a a^T) ca) + (b b^T) cb`` in one pass, rows four at a time,
-    summing the gains ``g1 = P h1`` and ``g2 = P h2`` of the new ``P``.
+    summing the gains ``g1 = P h1`` and ``g2 = P h2`` of the new ``P``, where
+    ``h1 = H1[k1]`` and ``h2 = H2[k2]`` (rows of their arrays, read in place).
 
     ``P`` is row ``i`` of `W` at ``i npad``; ``a``, ``b``, ``g1``, ``g2`` are
     the `npad` entries of `V` at ``oa``, ``ob``, ``o1``, ``o2`` (the entries
@@ -604,8 +615,8 @@ def _sw_pass(W, V, oa, ob, ca, cb, h1, h2, o1, o2, n, npad):
         r1, r2, r3 = r0 + npad, r0 + np.uint64(2) * npad, r0 + np.uint64(3) * npad
         a0, a1, a2, a3 = V[oa + i], V[oa + i1], V[oa + i2], V[oa + i3]
         b0, b1, b2, b3 = V[ob + i], V[ob + i1], V[ob + i2], V[ob + i3]
-        p0, p1, p2, p3 = h1[i], h1[i1], h1[i2], h1[i3]
-        q0, q1, q2, q3 = h2[i], h2[i1], h2[i2], h2[i3]
+        p0, p1, p2, p3 = H1[k1, i], H1[k1, i1], H1[k1, i2], H1[k1, i3]
+        q0, q1, q2, q3 = H2[k2, i], H2[k2, i1], H2[k2, i2], H2[k2, i3]
         for j in range(npad):
             aj = V[oa + j]
             bj = V[ob + j]
@@ -625,7 +636,7 @@ def _sw_pass(W, V, oa, ob, ca, cb, h1, h2, o1, o2, n, npad):
         i += np.uint64(4)
     while i < n:                               # the last rows, one at a time
         r0 = i * npad
-        a0, b0, p0, q0 = V[oa + i], V[ob + i], h1[i], h2[i]
+        a0, b0, p0, q0 = V[oa + i], V[ob + i], H1[k1, i], H2[k2, i]
         for j in range(npad):
             w0 = (W[r0 + j] + (a0 * V[oa + j]) * ca) + (b0 * V[ob + j]) * cb
             W[r0 + j] = w0
@@ -704,8 +715,8 @@ def sw_batch_kernel(x, P, Z, Hm, Rv, wH, wZ, wR, ist, refresh, Lt, Ltx0, means, 
     # h) of this step in V at og, ol, the next step's at the other two slots
     npad = (n + 7) // 8 * 8
     un, unpad = np.uint64(n), np.uint64(npad)
-    W = np.zeros(n * npad)
-    V = np.zeros(4 * npad)
+    W = aligned_work(n * npad)                 # every row on a cache line
+    V = aligned_work(4 * npad)
     xflat = x.reshape(n * m)                   # (views of the same numbers)
     mflat = means.reshape((N, n * m))
     _sw_load(P, W, npad)
@@ -732,22 +743,21 @@ def sw_batch_kernel(x, P, Z, Hm, Rv, wH, wZ, wR, ist, refresh, Lt, Ltx0, means, 
         # one step (see the module; written out here, not in a function: a call
         # that takes arrays costs reference counting that is most of a small
         # step's bookkeeping)
-        phi = Hm[k]
-        z = Z[k]
         r = Rv[k if r_each else 0]
-        hn = Hm[min(k + 1, N - 1)]                 # the next regressor
+        kn = min(k + 1, N - 1)                     # the next regressor's row
         og = 2 * cur * npad
         ol = og + npad
-        ga = V[og:og + n]
-        gb = V[ol:ol + n]
         s = r
         t = 0.0
         acc = 0.0
         for i in range(n):                         # (independent sums in one loop)
-            s += phi[i] * ga[i]                    # s = phi P phi^T + r
-            t += phi[i] * gb[i]                    # t = phi P psi^T
-            acc += phi[i] * x[i, 0]                # phi x, first output
-        missing = any_nan(z)
+            s += Hm[k, i] * V[og + i]              # s = phi P phi^T + r
+            t += Hm[k, i] * V[ol + i]              # t = phi P psi^T
+            acc += Hm[k, i] * x[i, 0]              # phi x, first output
+        missing = False
+        for j in range(m):
+            zj = Z[k, j]
+            missing |= zj != zj
         c = 0.0
         if missing:
             for j in range(m):
@@ -755,16 +765,16 @@ def sw_batch_kernel(x, P, Z, Hm, Rv, wH, wZ, wR, ist, refresh, Lt, Ltx0, means, 
             for i in range(n):
                 K[i] = 0.0
         else:
-            y[0] = z[0] - acc                      # y = z - phi x
+            y[0] = Z[k, 0] - acc                   # y = z - phi x
             for j in range(1, m):
                 acc = 0.0
                 for i in range(n):
-                    acc += phi[i] * x[i, j]
-                y[j] = z[j] - acc
+                    acc += Hm[k, i] * x[i, j]
+                y[j] = Z[k, j] - acc
             c = 1.0 / s
             y0 = y[0]
             for i in range(n):
-                ki = ga[i] * c                     # K = P phi^T / s
+                ki = V[og + i] * c                 # K = P phi^T / s
                 K[i] = ki
                 x[i, 0] = x[i, 0] + ki * y0        # x = x + K y^T
             for j in range(1, m):
@@ -775,38 +785,40 @@ def sw_batch_kernel(x, P, Z, Hm, Rv, wH, wZ, wR, ist, refresh, Lt, Ltx0, means, 
         refit = _sw_refit_due(ist, window, refreshing)
         cd = 0.0
         if leaving and not refit:                  # downdate with the leaving sample
-            hl = wH[h]
             rl = wR[h]
             tc = t * c
             dd = rl
             acc = 0.0
             for i in range(n):
-                hi = gb[i] - ga[i] * tc            # h = P' psi^T = gl - g (phi gl) / s
-                gb[i] = hi
-                dd -= hl[i] * hi                   # d = R - psi P' psi^T
-                acc += hl[i] * x[i, 0]
+                hi = V[ol + i] - V[og + i] * tc    # h = P' psi^T = gl - g (phi gl) / s
+                V[ol + i] = hi
+                dd -= wH[h, i] * hi                # d = R - psi P' psi^T
+                acc += wH[h, i] * x[i, 0]
             if dd > 1e-8 * rl:
                 cd = 1.0 / dd
                 for j in range(m):
                     if j:
                         acc = 0.0
                         for i in range(n):
-                            acc += hl[i] * x[i, j]
+                            acc += wH[h, i] * x[i, j]
                     e = wZ[h, j] - acc             # residual of the leaving sample
                     for i in range(n):
-                        x[i, j] = x[i, j] - (gb[i] * cd) * e
+                        x[i, j] = x[i, j] - (V[ol + i] * cd) * e
             else:
                 refit = True
         for j in range(n):
-            wH[h, j] = phi[j]
+            wH[h, j] = Hm[k, j]
         for j in range(m):
-            wZ[h, j] = np.nan if missing else z[j]
+            wZ[h, j] = np.nan if missing else Z[k, j]
         wR[h] = r
         h = h + 1 if h + 1 < window else 0
         ist[HEAD] = h
         ist[NW] = min(ist[NW] + 1, window)
         ist[COUNT] += 1
-        leaving = ist[NW] == window and not any_nan(wZ[h])   # at the next step
+        leaving = ist[NW] == window                # at the next step
+        for j in range(m):
+            zj = wZ[h, j]
+            leaving &= zj == zj
         cur = 1 - cur
         on = 2 * cur * npad                        # the next step's gains
         if refit or (missing and cd == 0.0):       # P from the refit, or unchanged
@@ -821,15 +833,15 @@ def sw_batch_kernel(x, P, Z, Hm, Rv, wH, wZ, wR, ist, refresh, Lt, Ltx0, means, 
                 _sw_load(P, W, npad)
             else:
                 _sw_store(W, npad, P)
-            gain(P, hn, V[on:on + n])
+            gain(P, Hm[kn], V[on:on + n])
             if leaving:
                 gain(P, wH[h], V[on + npad:on + npad + n])
             healthy = not diagonal_bad(P)
         else:                                      # P'' and the next step's gains
             if cd == 0.0:
                 for i in range(n):
-                    gb[i] = 0.0
-            healthy = _sw_pass(W, V, np.uint64(og), np.uint64(ol), -c, cd, hn, wH[h],
+                    V[ol + i] = 0.0
+            healthy = _sw_pass(W, V, np.uint64(og), np.uint64(ol), -c, cd, Hm, kn, wH, h,
                                np.uint64(on), np.uint64(on + npad), un, unpad)
         if countdown > 0:
             countdown -= 1
@@ -841,9 +853,8 @@ def sw_batch_kernel(x, P, Z, Hm, Rv, wH, wZ, wR, ist, refresh, Lt, Ltx0, means, 
                 k_fail = k
                 countdown = -1
                 _sw_store(W, npad, P_fail)
-        mk = mflat[k]                              # means[k] = x (flat: one loop)
-        for i in range(n * m):
-            mk[i] = xflat[i]
+        for i in range(n * m):                     # means[k] = x (flat: one loop)
+            mflat[k, i] = xflat[i]
         if store:
             _sw_store(W, npad, covs[k])
     _sw_store(W, npad, P)
