@@ -1116,9 +1116,10 @@ def run_batch(x, P, Z, Hm, Rv, cfg, Q, basis, update_first, store_covariances,
             out.x_prior, out.P_prior, out.x_post, out.P_post, K,
             int(check_every), int(step0), float(cond_max), out.state, out.episodes,
             out.P_fail, symmetric)
-        if scales is not None:
-            np.multiply(out.means, msc, out=out.means)
-            np.multiply(out.ys, ysc, out=out.ys)
+        if scales is not None:                        # inf where beyond the double range
+            with np.errstate(over="ignore", under="ignore"):
+                np.multiply(out.means, msc, out=out.means)
+                np.multiply(out.ys, ysc, out=out.ys)
         if given:
             residuals[...] = out.ys
             out.ys = residuals
