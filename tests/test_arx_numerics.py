@@ -152,3 +152,23 @@ def test_gram_condition_bound_of_degenerate_rows():
     got, exact = _condition_numbers(apart), _exact_condition_numbers(apart)
     assert got != exact and got[1] <= 1e4
     np.testing.assert_allclose(got, exact, rtol=1e-3)
+
+
+def test_gram_condition_bound_with_exponents_is_that_of_the_scaled_rows():
+    """With `exponents` the bound is that of ``Phi 2^exponents`` without the scaled copy:
+    the same decision as on the copy, and a column whose scaled Gram entry underflows
+    (far below its signal's size) takes the exact path on the copy, not a NaN bound."""
+    from rlsfilt._scale import times_pow2
+    from rlsfilt.models.arx import _condition_numbers, _exact_condition_numbers
+    rng = np.random.default_rng(5)
+    Phi = rng.standard_normal((400, 3)) * np.array([2.0 ** 40, 1.0, 2.0 ** -30])
+    e = np.array([-41, 0, 29])
+    got, on_copy = _condition_numbers(Phi, e), _condition_numbers(times_pow2(Phi, e))
+    assert got[1] <= 1e4 and got != _exact_condition_numbers(times_pow2(Phi, e))
+    np.testing.assert_allclose(got, on_copy, rtol=1e-12)
+    tiny = rng.standard_normal((400, 3)) * np.array([1.0, 1e-100, 1.0])
+    e = np.array([0, -1000, 0])           # the column's signal around 2^1000: its entry underflows
+    with np.errstate(under="ignore"):
+        expected = _exact_condition_numbers(times_pow2(tiny, e))
+        assert _condition_numbers(tiny, e) == expected
+    assert expected[0] == np.inf

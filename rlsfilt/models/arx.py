@@ -1380,14 +1380,16 @@ def _condition_numbers(Phi, exponents=None):
     if rows and n:
         with np.errstate(all="ignore"):         # inf or NaN: the exact path below
             G = Phi.T @ Phi
-        d = np.diagonal(G)
-        if np.isfinite(G).all() and d.min() > _GRAM_TINY * rows:
-            if exponents is not None:
-                # the Gram matrix of the scaled columns: G_ij 2^(e_i + e_j), exact but for
-                # entries far below the rounding bound (each diagonal entry is >= 1/4)
-                with np.errstate(under="ignore"):
-                    G = np.ldexp(G, exponents[:, None] + exponents[None, :])
-                d = np.diagonal(G)
+        ok = np.isfinite(G).all() and np.diagonal(G).min() > _GRAM_TINY * rows
+        if ok and exponents is not None:
+            # the Gram matrix of the scaled columns, G_ij 2^(e_i + e_j): exact, but for
+            # off-diagonal entries that underflow (errors of 2^-1074, far below the
+            # rounding bound while the scaled diagonal passes the same test)
+            with np.errstate(under="ignore"):
+                G = np.ldexp(G, exponents[:, None] + exponents[None, :])
+            ok = np.diagonal(G).min() > _GRAM_TINY * rows
+        if ok:
+            d = np.diagonal(G)
             s = 1.0 / np.sqrt(d)
             cond, cond_raw = (_cond_bound(M, rows) for M in (G * s[:, None] * s[None, :], G))
             # the form and the warnings read cond, the health check's cond_max =
