@@ -64,6 +64,7 @@ next failure warns again.
 import numpy as np
 
 from .._numba import njit  # numba.njit, uncached where no cache directory is writable
+from ._kernels_lagged import lag_rows
 from ._kernels_shared import (
     aligned_zeros,
     any_nan,
@@ -74,7 +75,6 @@ from ._kernels_shared import (
     unhealthy_on,
     unhealthy_sym,
 )
-from ._kernels_lagged import lag_rows
 from .forgetting import (
     CFG_GATE,
     CFG_LAM,

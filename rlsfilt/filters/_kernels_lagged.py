@@ -22,6 +22,7 @@ The entries are the numbers a regressor matrix built from the same signals holds
 """
 
 import numpy as np
+
 from .._numba import njit  # numba.njit, uncached where no cache directory is writable
 
 __all__ = ["lag_rows", "lag_gram", "lag_residuals"]
@@ -99,10 +100,29 @@ def lag_gram(lags, scale, G):
 
 
 @njit(cache=True, error_model="numpy")
-def lag_residuals(lags, theta, out):
+def _max_abs(x, rows, top):
+    """``max(top, max|x[:rows]|)`` (four running maxima; NaN entries are passed over)."""
+    m0 = m1 = m2 = m3 = top
+    r = 0
+    while r + 4 <= rows:
+        m0 = max(m0, abs(x[r]))
+        m1 = max(m1, abs(x[r + 1]))
+        m2 = max(m2, abs(x[r + 2]))
+        m3 = max(m3, abs(x[r + 3]))
+        r += 4
+    while r < rows:
+        m0 = max(m0, abs(x[r]))
+        r += 1
+    return max(max(m0, m1), max(m2, m3))
+
+
+@njit(cache=True, error_model="numpy")
+def lag_residuals(lags, theta, out, top):
     r"""``out[k, i] = Y[t, i] - phi(k) . theta[:, i]`` for every row (the residuals of
     the estimate `theta` (n, m), in the signals' units; ``Y``'s first ``m``
-    channels are the outputs), the products summed in column order."""
+    channels are the outputs), the products summed in column order;
+    ``top[i] = max_k |out[k, i]|`` (of the numbers among them: a NaN residual
+    makes every sum over them NaN whatever the scale)."""
     n, m = theta.shape
     Bt = np.empty((n, _BLOCK))
     acc = np.empty(_BLOCK)
@@ -110,6 +130,7 @@ def lag_residuals(lags, theta, out):
     total = seg_rows[-1]
     for i in range(m):
         th = theta[:, i].copy()
+        top[i] = 0.0
         for k in range(0, total, _BLOCK):
             rows = lag_rows(lags, k, th, Bt.T)      # the products phi_j(t) theta_j
             w = np.uint64(rows)
@@ -128,5 +149,7 @@ def lag_residuals(lags, theta, out):
                 run = min(rows - r0, seg_rows[s + 1] - kr)
                 t, o, c = np.uint64(seg_t0[s] + kr - seg_rows[s]), np.uint64(r0), np.uint64(i)
                 for r in range(np.uint64(run)):
-                    out[np.uint64(kr) + r, c] = Y[t + r, c] - acc[o + r]
+                    acc[o + r] = Y[t + r, c] - acc[o + r]
+                    out[np.uint64(kr) + r, c] = acc[o + r]
                 r0 += run
+            top[i] = _max_abs(acc, rows, top[i])

@@ -47,8 +47,10 @@ class LagRows:
             U, Y = records[0]
         else:
             U, Y = (np.concatenate([r[i] for r in records]) for i in (0, 1))
-        self.Y = np.ascontiguousarray(Y, dtype=np.float64)
-        self.U = np.ascontiguousarray(U, dtype=np.float64)
+        # C-ordered, writable float64 (the layout the kernels are compiled for; they never
+        # write into it): the caller's arrays as they are when they already are
+        self.Y, self.U = (np.ascontiguousarray(X, dtype=np.float64) for X in (Y, U))
+        self.Y, self.U = (X if X.flags.writeable else X.copy() for X in (self.Y, self.U))
         self.seg_rows = np.concatenate([[0], np.cumsum(counts[keep])]).astype(np.int64)
         self.seg_t0 = t_first[keep].astype(np.int64)
         cols = [(0, i, k) for i in range(s.n_outputs) for k in range(1, s.na + 1)]
@@ -122,12 +124,14 @@ class LagRows:
         return G
 
     def residuals(self, theta):
-        """``target - Phi theta`` (rows, ny) for `theta` (n, ny)."""
+        """``(target - Phi theta, max_abs)``: the residuals (rows, ny) of `theta` (n, ny),
+        and the largest magnitude in each column (`lag_residuals`)."""
         from ..filters._kernels_lagged import lag_residuals
 
         out = np.empty((self.shape[0], self.n_outputs))
-        lag_residuals(self.lags(), np.ascontiguousarray(theta, dtype=np.float64), out)
-        return out
+        top = np.empty(self.n_outputs)
+        lag_residuals(self.lags(), np.ascontiguousarray(theta, dtype=np.float64), out, top)
+        return out, top
 
 
 class MatrixRows:

@@ -416,7 +416,8 @@ class ARX(IdentifiedModel):
         else:
             _check_filter_options(filter_options)
         opts["extra"] = filter_options
-        records, info = as_records(u, y)
+        # the recursive fit only reads the record: no copy of it
+        records, info = as_records(u, y, copy=method != "rls")
         s = self._structure(records[0][0].shape[1], records[0][1].shape[1])
         n_params = s.n_params + (_offset_mode(self.offset) == "intercept")
         rows = sum(max(len(U) - s.max_lag, 0) for U, _ in records)
@@ -464,9 +465,12 @@ class ARX(IdentifiedModel):
                      "noise_covariance_", "intercept_", "instruments_", "trend_"):
             self.__dict__.pop(name, None)
         self.__dict__.update(recursive)
-        resid = lagged.residuals(theta) if method == "rls" else target - Phi @ theta
+        if method == "rls":          # with the largest residuals (their scale, below)
+            resid, top = lagged.residuals(theta)
+        else:
+            resid, top = target - Phi @ theta, None
         dof = rows - n_params
-        sigma2, cov, noise_cov = _noise_and_covariance(resid, dof, inv_scaled, col_scale)
+        sigma2, cov, noise_cov = _noise_and_covariance(resid, dof, inv_scaled, col_scale, top)
         self._store(theta, s, info)
         self._set_operating_point(records, op)
         cov = cov if cov_iv is None else cov_iv
@@ -1489,7 +1493,7 @@ def _qr_least_squares(Phi, target, of_output=None):
     return theta, 0.5 * (cov + cov.T), c
 
 
-def _noise_and_covariance(resid, dof, inv_scaled, c):
+def _noise_and_covariance(resid, dof, inv_scaled, c, top=None):
     r"""Noise variances, parameter covariances and (several outputs) the noise covariance.
 
     With :math:`(\Phi^T\Phi)^{-1} = C / (c c^T)` and each residual column
@@ -1498,16 +1502,26 @@ def _noise_and_covariance(resid, dof, inv_scaled, c):
     no intermediate overflows or underflows, so a record in any units gives
     the covariance of its parameters wherever that is representable.
     ``inv_scaled`` None (instrumental variables, whose covariance is their
-    own) gives no parameter covariance.
+    own) gives no parameter covariance. `top`: ``max|resid|`` per column, when
+    known.
+
+    Where every :math:`t_i` is within :math:`2^{\pm 300}` the products of the
+    residuals themselves neither overflow nor leave the normal range (but for
+    terms below :math:`2^{-1022}`, negligible next to :math:`t_i t_j`), and are
+    those of the divided residuals times :math:`t_i t_j`, exactly: they are
+    summed without the divided copy.
     """
     ny, n = resid.shape[1], len(c)
     if dof <= 0:
         nan = np.full(ny, np.nan)
         return nan, np.full((ny, n, n), np.nan), np.full((ny, ny), np.nan)
-    te = pow2_exponent(resid, axis=0)
+    te = pow2_exponent(resid, axis=0) if top is None else np.frexp(top)[1]
     t = np.ldexp(1.0, te)
-    rs = times_pow2(resid, -te)                          # resid / t, exactly
-    noise_s = rs.T @ rs / dof
+    if np.abs(te).max() <= 300:
+        noise_s = np.ldexp(resid.T @ resid, -(te[:, None] + te[None, :])) / dof
+    else:
+        rs = times_pow2(resid, -te)                      # resid / t, exactly
+        noise_s = rs.T @ rs / dof
     sigma2_s = np.diag(noise_s).copy()
     with np.errstate(over="ignore", under="ignore"):
         g = t[:, None] / c[None, :]                      # (ny, n)
