@@ -71,10 +71,11 @@ def lag_rows(lags, k, scale, out):
     return rows
 
 
-@njit(cache=True, error_model="numpy", fastmath={"reassoc"})
+@njit(cache=True, error_model="numpy", fastmath={"reassoc", "contract"})
 def _dot(a, b, rows):
-    """``a[:rows] . b[:rows]`` in any order (vectorized: the Gram bound of
-    ``ARX.fit`` holds for every summation order)."""
+    """``a[:rows] . b[:rows]`` in any order, with fused multiply-adds (vectorized: the
+    Gram bound of ``ARX.fit`` holds for every summation order, and a fused
+    multiply-add rounds once where a product and a sum round twice)."""
     acc = 0.0
     for r in range(rows):
         acc += a[r] * b[r]
