@@ -64,6 +64,7 @@ next failure warns again.
 import numpy as np
 
 from .._numba import njit  # numba.njit, uncached where no cache directory is writable
+from ._kernels_lagged import lag_rows
 from ._kernels_shared import (
     aligned_zeros,
     any_nan,
@@ -809,7 +810,7 @@ def _sweep_q(P, g, cu, il, Q, h, gn):
 @njit(cache=True, error_model="numpy")
 def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, covs_p, ys,
                       ss, x_prior, P_prior, x_post, P_post, K, check_every, step0, cond_max,
-                      state, episodes, P_fail, symmetric, Pw, scales):
+                      state, episodes, P_fail, symmetric, Pw, scales, lags):
     """`step_batch` of the default configuration with one output, fused (see the module).
 
     Exponential forgetting, no gate, no constraints, ``m = 1``: ``ss`` has
@@ -837,6 +838,10 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
     None`` is decided at compile time, the branches pruned), so the plain loop
     carries none of this; each step takes its rows afresh (a row view carried
     from one step to the next cost the scaled loop 10 %).
+
+    ``lags``: None, or (with `scales`) the rows' lagged signals
+    (:mod:`rlsfilt.filters._kernels_lagged`): the blocks are then filled from
+    the signals (``Hm`` is not read), so no regressor matrix need exist.
     """
     N = Z.shape[0]
     n = x.shape[0]
@@ -858,11 +863,12 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
     n_capped = 0
     w = state[4]
     countdown = check_every - step0 % check_every if check_every > 0 else -1
-    h = Hm[0]
     if scales is not None:
         hsc, zsc, msc, ysc, Hb = scales
-        _scale_block(Hm, 0, hsc, Hb)
+        _fill_block(Hm, lags, 0, hsc, Hb)
         h = Hb[0]
+    else:
+        h = Hm[0]
     if update_first:                                 # the gain of P
         _sweep_rows(Pw, g, 0.0, 1.0, h, gn)
     else:                                            # P^- and its gain
@@ -882,7 +888,7 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
             zk *= zsc
             b = k % _SCALED_BLOCK
             if b == 0 and k > 0:                     # the next block (row k: the same bits)
-                _scale_block(Hm, k, hsc, Hb)
+                _fill_block(Hm, lags, k, hsc, Hb)
             h = Hb[b]
             hn = Hb[b + 1 if k + 1 < N else b]       # the next row
         else:
@@ -974,6 +980,16 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
 _SCALED_BLOCK = 256   # rows `exponential_batch` scales at a time
 
 
+@njit(cache=True, error_model="numpy")
+def _fill_block(Hm, lags, k, hsc, Hb):
+    """The block of scaled rows from row `k`: from `Hm` (`_scale_block`), or read from the
+    lagged signals `lags` (`_kernels_lagged.lag_rows`; ``Hm`` is then not read)."""
+    if lags is None:
+        _scale_block(Hm, k, hsc, Hb)
+    else:
+        lag_rows(lags, k, hsc, Hb)
+
+
 @njit(cache=True, error_model="numpy", inline="always")
 def _scale_block(Hm, k, hsc, Hb):
     """``Hb[r] = Hm[k + r] * hsc`` for the rows of the block from row `k` (and the next
@@ -1028,7 +1044,8 @@ class BatchResult:
 
 
 def run_batch(x, P, Z, Hm, Rv, cfg, Q, basis, update_first, store_covariances,
-              check_every, step0, cond_max, state, lead=0, residuals=False, scales=None):
+              check_every, step0, cond_max, state, lead=0, residuals=False, scales=None,
+              lags=None):
     """Run `RecursiveLeastSquares` over a validated record; `x`, `P` are not modified.
 
     `cfg` is ``forgetting.kernel_config``; `Q` None when absent; `basis`
@@ -1054,9 +1071,18 @@ def run_batch(x, P, Z, Hm, Rv, cfg, Q, basis, update_first, store_covariances,
     ``means = x * msc`` (``buffer`` too) and ``ys = y * ysc``: the numbers of
     a run on scaled copies of the record, mapped back after, bit for bit
     (see `exponential_batch`, which applies them on the fly).
+
+    `lags` (``ARX.fit``): the rows as lagged signals
+    (:mod:`rlsfilt.filters._kernels_lagged`) instead of `Hm` (None then): the
+    fused loop reads them from the signals, the other loop from a matrix built
+    here.
     """
     N = len(Z)
     n, m = x.shape
+    if lags is not None:
+        if scales is None:                            # unit factors: the same numbers
+            scales = (np.ones(n), np.ones(m), np.ones((n, m)), np.ones(m))
+        Hm = np.empty((0, n))
     if scales is not None:
         hsc, zsc, msc, ysc = (np.ascontiguousarray(a, dtype=np.float64) for a in scales)
     mode, lam, gate = int(cfg[CFG_MODE]), cfg[CFG_LAM], cfg[CFG_GATE]
@@ -1088,6 +1114,10 @@ def run_batch(x, P, Z, Hm, Rv, cfg, Q, basis, update_first, store_covariances,
     out.episodes = np.zeros(MAX_EPISODES, dtype=np.int64)
     out.P_fail = np.empty((MAX_EPISODES, n, n))
     fused = mode == EXPONENTIAL and gate == np.inf and len(cfg) == CFG_PI and m == 1 and N > 0
+    if lags is not None and not fused:                # the step loop reads a matrix
+        Hm = np.empty((N, n))
+        lag_rows(lags, 0, np.ones(n), Hm)
+        Hc, lags = Hm, None
     covs = np.empty((N if store_covariances else 0, n, n))
     covs_p = np.empty((N if store_covariances else 0, n, n))
     out.covariances = covs if store_covariances else None
@@ -1102,7 +1132,7 @@ def run_batch(x, P, Z, Hm, Rv, cfg, Q, basis, update_first, store_covariances,
             int(check_every), int(step0), float(cond_max), out.state, out.episodes,
             out.P_fail, symmetric, aligned_zeros((n + 2, padded_width(n, 0))),
             None if scales is None else (hsc, zsc[0], msc[:, 0].copy(), ysc[0],
-                                         aligned_zeros((_SCALED_BLOCK + 1, n))))
+                                         aligned_zeros((_SCALED_BLOCK + 1, n))), lags)
         out.gated = np.zeros(1, dtype=np.bool_)
         out.lam_t_last = lam
     else:
@@ -1124,10 +1154,14 @@ def run_batch(x, P, Z, Hm, Rv, cfg, Q, basis, update_first, store_covariances,
             residuals[...] = out.ys
             out.ys = residuals
     if N:                                             # the last step as the filter saw it
-        out.H_last, out.z_last = Hc[-1], Zc[-1]
-        out.y_last = out.ys[-1]
-        if scales is not None:
+        if lags is not None:                          # the last row, read as the loop read it
+            out.H_last = np.empty((1, n))
+            lag_rows(lags, N - 1, hsc, out.H_last)
+            out.H_last, out.z_last, out.y_last = out.H_last[0], Z[-1] * zsc, out.ys[-1] / ysc
+        elif scales is not None:
             out.H_last, out.z_last, out.y_last = Hm[-1] * hsc, Z[-1] * zsc, out.ys[-1] / ysc
+        else:
+            out.H_last, out.z_last, out.y_last = Hc[-1], Zc[-1], out.ys[-1]
     if N and np.isnan(Z[-1]).any():                   # the last sample was missing: no gain
         K[:] = 0.0
     out.K_last = K.reshape(n, 1)

@@ -832,11 +832,12 @@ class RecursiveLeastSquares(_FilterBase):
         return out.means, out.covariances, out.means_p, out.covariances_p
 
     def _run_batch(self, Z, Hm, Rv, update_first, store_covariances, lead=0, residuals=False,
-                   scales=None):
+                   scales=None, lags=None):
         """`_batch_compiled` on a validated record ``Z`` (N, dim_z), ``Hm`` (N, dim_x),
-        ``Rv`` (N,); returns the kernel's `BatchResult`. `lead`, `residuals` and `scales`
-        as in `_kernels.run_batch` (``ARX.fit`` runs in scaled units on its rows as they
-        are, and takes the histories and every a-priori residual from the result)."""
+        ``Rv`` (N,); returns the kernel's `BatchResult`. `lead`, `residuals`, `scales` and
+        `lags` as in `_kernels.run_batch` (``ARX.fit`` runs in scaled units on rows read
+        from its signals, ``Hm`` None, and takes the histories and every a-priori
+        residual from the result)."""
         P = self._checked_P()
         if self._efra_pending:
             P = self._efra_start(P)
@@ -846,7 +847,7 @@ class RecursiveLeastSquares(_FilterBase):
             self._checked_x(), P, Z, Hm, Rv, self._cfg,
             None if self._Q_kernel is _EMPTY else self._Q, self._null_basis, update_first,
             store_covariances, self.check_every, self.n_updates, self.cond_max, state, lead,
-            residuals, scales)
+            residuals, scales, lags)
         N, problems = len(Z), []
         armed, episodes = out.state[0] == 1.0, int(out.state[1])
         for e, k in enumerate(out.episodes[:min(episodes, kern.MAX_EPISODES)]):

@@ -35,6 +35,7 @@ from . import _conversion
 from ._arx_iv import check_options as check_iv_options
 from ._arx_iv import fit_arx_iv
 from ._base import IdentifiedModel, Polynomials
+from ._lag_rows import LagRows, MatrixRows
 from ._summary import EQUATION_STYLES, ModelSummary
 from ._units import RecordUnits, equivariant_forgetting, estimate_in_units
 from .regressors import (
@@ -415,7 +416,8 @@ class ARX(IdentifiedModel):
         else:
             _check_filter_options(filter_options)
         opts["extra"] = filter_options
-        records, info = as_records(u, y)
+        # the recursive fit only reads the record: no copy of it
+        records, info = as_records(u, y, copy=method != "rls")
         s = self._structure(records[0][0].shape[1], records[0][1].shape[1])
         n_params = s.n_params + (_offset_mode(self.offset) == "intercept")
         rows = sum(max(len(U) - s.max_lag, 0) for U, _ in records)
@@ -431,10 +433,11 @@ class ARX(IdentifiedModel):
                      f"ARX.fit(method={method!r}) with {n_params} parameters on `u`, `y` of "
                      f"{sum(len(U) for U, _ in records)} samples")
         op = _means(records) if _offset_mode(self.offset) == "mean" else None
-        Phi, target = self._design(records, s, op)
         # compute everything first: a fit that raises leaves the model as it was
         recursive, cov_iv = {}, None
-        inv_scaled, col_scale = None, np.ones(Phi.shape[1])
+        inv_scaled, col_scale = None, np.ones(n_params)
+        if method != "rls":
+            Phi, target = self._design(records, s, op)
         if method == "ls":
             theta, inv_scaled, col_scale = _qr_least_squares(Phi, target,
                                                              _output_lags(s, Phi.shape[1]))
@@ -445,9 +448,12 @@ class ARX(IdentifiedModel):
                 intercept=_offset_mode(self.offset) == "intercept")
         else:
             dev = records if op is None else [(U - op[0], Y - op[1]) for U, Y in records]
-            units = RecordUnits(dev, s, intercept=_offset_mode(self.offset) == "intercept")
-            theta, inv_scaled, rls, history, prior, col_scale, k0 = _fit_rls(Phi, target, s,
-                                                                             opts, units)
+            intercept = _offset_mode(self.offset) == "intercept"
+            units = RecordUnits(dev, s, intercept=intercept)
+            # the rows read from the signals: the regressor matrix only where a path needs it
+            lagged = LagRows(dev, s, intercept, lambda: self._design(records, s, op))
+            theta, inv_scaled, rls, history, prior, col_scale, k0 = _fit_rls(lagged, s, opts,
+                                                                             units)
             # prior: the a-priori (recursive) residuals y(t) - phi(t) theta(t-1) after
             # the batch start
             recursive = {"filter_": rls, "k0_": k0, "lam_": float(rls.lam),
@@ -459,9 +465,12 @@ class ARX(IdentifiedModel):
                      "noise_covariance_", "intercept_", "instruments_", "trend_"):
             self.__dict__.pop(name, None)
         self.__dict__.update(recursive)
-        resid = target - Phi @ theta
+        if method == "rls":          # with the largest residuals (their scale, below)
+            resid, top = lagged.residuals(theta)
+        else:
+            resid, top = target - Phi @ theta, None
         dof = rows - n_params
-        sigma2, cov, noise_cov = _noise_and_covariance(resid, dof, inv_scaled, col_scale)
+        sigma2, cov, noise_cov = _noise_and_covariance(resid, dof, inv_scaled, col_scale, top)
         self._store(theta, s, info)
         self._set_operating_point(records, op)
         cov = cov if cov_iv is None else cov_iv
@@ -1122,8 +1131,10 @@ def _fit_bytes(rows, n, s, method):
     return 8 * rows * per_row
 
 
-def _fit_rls(Phi, target, s, opts, units):
+def _fit_rls(rows, s, opts, units):
     """Recursive least squares over the rows: ``(theta, C, filter, history, prior, c, k0)``.
+
+    `rows` is a `LagRows` (the regressor matrix is built only where a path needs it).
 
     :math:`P / R = C / (c c^T)` as in `_qr_least_squares` (``c`` the powers of two of
     the columns, ones when the recursion ran in the signals' units). ``history``
@@ -1139,16 +1150,16 @@ def _fit_rls(Phi, target, s, opts, units):
     ``trace(P)`` or its eigenvalues, and a default prior that outweighs the data (warned
     about), run in the signals' units.
     """
-    n, rows = Phi.shape[1], len(Phi)  # an intercept adds a column to the structure's
+    n, n_rows = rows.shape[1], len(rows)  # an intercept adds a column to the structure's
     prior = opts["P0"] is not None or opts["x0"] is not None
     if opts["k0"] is not None:
         k0 = check_int(opts["k0"], "k0", minimum=0)
     else:  # a given prior means a prior start (MATLAB rarx); else the notes' batch start
-        k0 = 0 if prior else _full_rank_rows(Phi)
+        k0 = 0 if prior else _full_rank_rows(rows)
         if k0 is None:  # not even all rows determine theta
-            _qr_least_squares(Phi, target)  # raises with the rank in the message
-    if k0 > rows:
-        raise ValueError(f"`k0` must be <= the number of regressor rows ({rows}); got {k0}")
+            _qr_least_squares(*rows.matrix())  # raises with the rank in the message
+    if k0 > n_rows:
+        raise ValueError(f"`k0` must be <= the number of regressor rows ({n_rows}); got {k0}")
     if k0 > 0:
         given = [key for key in ("P0", "x0") if opts[key] is not None]
         if given:
@@ -1163,7 +1174,7 @@ def _fit_rls(Phi, target, s, opts, units):
     scaled = equivariant_forgetting(extra.get("forgetting", "exponential"),
                                     extra.get("forgetting_params")) and not (
         extra.get("gate") is not None and len(set(units.output_exponents)) > 1)
-    form, cond_raw = _choose_form(Phi, opts, -units.column_exponents if scaled else None)
+    form, cond_raw = _choose_form(rows, opts, -units.column_exponents if scaled else None)
     # cond(P) = cond(Phi)^2 (in the units the recursion runs in) is what the data give (and
     # more on the first rows), and _choose_form has said so: the health check watches for
     # windup beyond
@@ -1179,11 +1190,11 @@ def _fit_rls(Phi, target, s, opts, units):
                                   prior=k0 == 0, default_P0=opts["P0"] is None,
                                   stacklevel=5) if scaled else None
     if start is None:       # the signals' units (a prior the data cannot bear was warned about)
-        return (*_run_rls(user, Phi, target, k0), np.ones(n), k0)
+        return (*_run_rls(user, rows, k0), np.ones(n), k0)
     start["x0"] = x0
     rls = cls(n, dim_z=s.n_outputs, lam=lam, **{k: v for k, v in start.items() if v is not None},
               **extra)
-    theta, C, rls, history, prior = _run_rls(rls, Phi, target, k0, units)
+    theta, C, rls, history, prior = _run_rls(rls, rows, k0, units)
     theta = units.estimate_from_unit(theta)
     _hand_over(rls, user, theta, units, r)
     return (theta, C, user, history, prior, np.ldexp(1.0, units.column_exponents), k0)
@@ -1237,35 +1248,40 @@ def _hand_over(rls, user, theta, units, r):
         user._lazy = rls._lazy if rls._lazy == MISSING_DIAGNOSTICS else None
 
 
-def _run_rls(rls, Phi, target, k0, units=None):
-    """Run `rls` over the rows: ``(theta, P / R, rls, history, prior)`` (see `_fit_rls`).
+def _run_rls(rls, rows, k0, units=None):
+    """Run `rls` over `rows` (a `LagRows`): ``(theta, P / R, rls, history, prior)`` (see
+    `_fit_rls`).
 
     With `units` (a `RecordUnits`), `rls` runs in its scaled units and ``history`` and
     ``prior`` come back in the signals' units; ``theta`` and ``P / R`` stay scaled.
 
     The rows come from validated signals, so the covariance-form filter runs
-    them without validating them again, on the rows as they are (with the
+    them without validating them again, reading them from the signals (with the
     powers of two of the scaled units applied on the fly), writing the
     estimates straight into ``history`` and every residual into ``prior``, in
-    the signals' units (no copies of the record).
+    the signals' units (no regressor matrix, no copies of the record).
     """
     scales = None if units is None else _scales(units)
     if isinstance(rls, SquareRootRLS) or (units is not None and scales is None):
-        return _run_on_copies(rls, Phi, target, k0, units)
-    rows, n = Phi.shape
-    prior = np.empty((rows, target.shape[1]))
+        return _run_on_copies(rls, *rows.matrix(), k0, units)
+    n_rows, n = rows.shape
+    ny = rows.n_outputs
+    prior = np.empty((n_rows, ny))
     prior[:k0] = np.nan
     if k0 > 0:
-        start = (Phi[:k0], target[:k0]) if units is None else units.scale_rows(Phi[:k0],
-                                                                               target[:k0])
+        start = (rows[:k0], rows.target(0, k0))
+        if units is not None:
+            start = units.scale_rows(*start)
         rls.initialize(start[1], start[0])
-    if k0 < rows:
-        Z, Hm = target[k0:], Phi[k0:]
+    if k0 < n_rows:
+        Z = rows.target(k0, n_rows)
+        Hm, lags = rows.source(k0)
         out = rls._run_batch(Z, Hm, rls._as_batch_variances(None, len(Z)), False, False,
-                             lead=max(k0 - 1, 0), residuals=prior[k0:], scales=scales)
+                             lead=max(k0 - 1, 0), residuals=prior[k0:], scales=scales,
+                             lags=lags)
         history = out.buffer[1:] if k0 == 0 else out.buffer
     else:                                   # the batch start used every row
-        history = np.full((rows, n, target.shape[1]), np.nan)
+        history = np.full((n_rows, n, ny), np.nan)
         history[k0 - 1] = rls.x if units is None else units.theta_from_unit(rls.x)
     return rls.x.copy(), rls.P / rls.R, rls, history, prior
 
@@ -1284,8 +1300,10 @@ def _run_on_copies(rls, Phi, target, k0, units):
     mapped back after: the square-root form, and exponents beyond `_scales`."""
     if units is not None:
         Phi, target = units.scale_rows(Phi, target)
-    run = _fit_square_root if isinstance(rls, SquareRootRLS) else _run_rls
-    theta, C, rls, history, prior = run(rls, Phi, target, k0)
+    if isinstance(rls, SquareRootRLS):
+        theta, C, rls, history, prior = _fit_square_root(rls, Phi, target, k0)
+    else:
+        theta, C, rls, history, prior = _run_rls(rls, MatrixRows(Phi, target), k0)
     if units is not None:       # history and prior are the run's own arrays: mapped in place
         units.theta_from_unit(history, out=history)
         units.output_from_unit(prior, out=prior)
@@ -1377,11 +1395,13 @@ def _condition_numbers(Phi, exponents=None):
     and cannot tell 1e6 from 1e7.
     """
     rows, n = Phi.shape
+    lagged = isinstance(Phi, LagRows)
     if rows and n:
         with np.errstate(all="ignore"):         # inf or NaN: the exact path below
-            G = Phi.T @ Phi
+            # (rows read from the signals: the Gram matrix of the scaled rows at once)
+            G = Phi.gram(exponents) if lagged else Phi.T @ Phi
         ok = np.isfinite(G).all() and np.diagonal(G).min() > _GRAM_TINY * rows
-        if ok and exponents is not None:
+        if ok and exponents is not None and not lagged:
             # the Gram matrix of the scaled columns, G_ij 2^(e_i + e_j): exact, but for
             # off-diagonal entries that underflow (errors of 2^-1074, far below the
             # rounding bound while the scaled diagonal passes the same test)
@@ -1396,6 +1416,8 @@ def _condition_numbers(Phi, exponents=None):
             # max(1e12, 1e4 cond_raw^2) is 1e12 for any cond_raw <= 1e4
             if cond <= _COND_AUTO / 2 and cond_raw <= _COND_RAW_FAST:
                 return cond, cond_raw
+    if lagged:
+        Phi = Phi.matrix()[0]
     return _exact_condition_numbers(Phi if exponents is None else times_pow2(Phi, exponents))
 
 
@@ -1471,7 +1493,7 @@ def _qr_least_squares(Phi, target, of_output=None):
     return theta, 0.5 * (cov + cov.T), c
 
 
-def _noise_and_covariance(resid, dof, inv_scaled, c):
+def _noise_and_covariance(resid, dof, inv_scaled, c, top=None):
     r"""Noise variances, parameter covariances and (several outputs) the noise covariance.
 
     With :math:`(\Phi^T\Phi)^{-1} = C / (c c^T)` and each residual column
@@ -1480,16 +1502,26 @@ def _noise_and_covariance(resid, dof, inv_scaled, c):
     no intermediate overflows or underflows, so a record in any units gives
     the covariance of its parameters wherever that is representable.
     ``inv_scaled`` None (instrumental variables, whose covariance is their
-    own) gives no parameter covariance.
+    own) gives no parameter covariance. `top`: ``max|resid|`` per column, when
+    known.
+
+    Where every :math:`t_i` is within :math:`2^{\pm 300}` the products of the
+    residuals themselves neither overflow nor leave the normal range (but for
+    terms below :math:`2^{-1022}`, negligible next to :math:`t_i t_j`), and are
+    those of the divided residuals times :math:`t_i t_j`, exactly: they are
+    summed without the divided copy.
     """
     ny, n = resid.shape[1], len(c)
     if dof <= 0:
         nan = np.full(ny, np.nan)
         return nan, np.full((ny, n, n), np.nan), np.full((ny, ny), np.nan)
-    te = pow2_exponent(resid, axis=0)
+    te = pow2_exponent(resid, axis=0) if top is None else np.frexp(top)[1]
     t = np.ldexp(1.0, te)
-    rs = times_pow2(resid, -te)                          # resid / t, exactly
-    noise_s = rs.T @ rs / dof
+    if np.abs(te).max() <= 300:
+        noise_s = np.ldexp(resid.T @ resid, -(te[:, None] + te[None, :])) / dof
+    else:
+        rs = times_pow2(resid, -te)                      # resid / t, exactly
+        noise_s = rs.T @ rs / dof
     sigma2_s = np.diag(noise_s).copy()
     with np.errstate(over="ignore", under="ignore"):
         g = t[:, None] / c[None, :]                      # (ny, n)

@@ -135,11 +135,12 @@ def arx_structure(na, nb, nk=1, n_inputs=1, n_outputs=1):
     return ARXStructure(na, nb, nk, n_inputs, n_outputs)
 
 
-def _as_signal(x, name):
+def _as_signal(x, name, copy=True):
     """Return ``(array of shape (N, n), was_1d, names)`` from array-like or pandas.
 
     A mapping of names to 1-D signals (``{"volts": v, "amps": i}``) is read
-    like a DataFrame: one column per entry, named by its key.
+    like a DataFrame: one column per entry, named by its key. ``copy=False``
+    may return a view of the caller's array (for a caller that only reads it).
     """
     names = None
     if isinstance(x, Mapping):
@@ -175,19 +176,20 @@ def _as_signal(x, name):
     if arr.shape[1] == 0:
         raise ValueError(f"`{name}` must have at least one column; got shape {arr.shape}")
     check_finite(arr if not was_1d else arr[:, 0], name)
-    return arr.copy(), was_1d, names
+    return (arr.copy() if copy else arr), was_1d, names
 
 
-def as_io_data(u, y, names=("u", "y")):
+def as_io_data(u, y, names=("u", "y"), copy=True):
     """Validate an input/output record: ``U (N, nu)``, ``Y (N, ny)`` and metadata.
 
     Returns ``(U, Y, info)`` with ``info`` a dict holding ``u_1d``, ``y_1d``,
     ``u_names`` and ``y_names`` (from pandas, or None). `names` are the
-    argument names used in error messages.
+    argument names used in error messages. ``copy=False``: ``U`` and ``Y`` may
+    be views of the caller's arrays, for a caller that only reads them.
     """
     uname, yname = names
-    U, u_1d, u_names = _as_signal(u, uname)
-    Y, y_1d, y_names = _as_signal(y, yname)
+    U, u_1d, u_names = _as_signal(u, uname, copy)
+    Y, y_1d, y_names = _as_signal(y, yname, copy)
     if len(U) != len(Y):
         raise ValueError(f"`{uname}` and `{yname}` must have the same length; got {len(U)} "
                          f"input samples and {len(Y)} output samples")
@@ -200,7 +202,7 @@ def is_listed(x):
         isinstance(v, np.ndarray) or hasattr(v, "to_numpy") for v in x)
 
 
-def as_records(u, y=None, names=("u", "y")):
+def as_records(u, y=None, names=("u", "y"), copy=True):
     """Validate one or several experiments: ``([(U, Y), ...], info)``.
 
     `u` may be an :class:`~rlsfilt.data.IOData` (then `y` is omitted), lists
@@ -208,7 +210,9 @@ def as_records(u, y=None, names=("u", "y")):
     :func:`as_io_data` takes it. ``U`` is ``(N_i, nu)`` and ``Y`` is
     ``(N_i, ny)`` per experiment; ``info`` is the dict of :func:`as_io_data`
     (for an `IOData`: its signal names and units, one signal counting as
-    1-D) with ``"n_experiments"`` added.
+    1-D) with ``"n_experiments"`` added. ``copy=False``: one record's ``U``
+    and ``Y`` may be views of the caller's arrays (for a caller that only
+    reads them).
     """
     from ..data.iodata import IOData, as_iodata
 
@@ -222,7 +226,7 @@ def as_records(u, y=None, names=("u", "y")):
         return data.arrays(), info
     if y is None:
         raise TypeError(f"`{names[1]}` is required unless `{names[0]}` is an IOData")
-    U, Y, info = as_io_data(u, y, names=names)
+    U, Y, info = as_io_data(u, y, names=names, copy=copy)
     info["n_experiments"] = 1
     return [(U, Y)], info
 

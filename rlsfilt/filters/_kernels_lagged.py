@@ -1,0 +1,156 @@
+"""Compiled (numba) regressor rows read from lagged signals, without a regressor matrix.
+
+An ARX fit's row ``t`` is :math:`\\varphi(t) = [-y(t-1) \\dots -y(t-n_a),\\ u(t-n_k)
+\\dots,\\ 1]`: a few entries of the record itself. Writing the rows out as a matrix costs
+``8 n`` bytes per sample of fresh memory, more than the recursion that reads them
+(``ARX.fit(method="rls")``). These functions read them from the signals instead:
+
+``lags = (Y, U, cols, seg_rows, seg_t0)``
+
+- ``Y`` (T, ny), ``U`` (T, nu): the signals, float64, C order (several experiments
+  one after the other);
+- ``cols`` (n, 3) int64: column ``j`` is ``kind, channel, lag``, with kind 0 for
+  ``-Y[t - lag, channel]``, 1 for ``U[t - lag, channel]`` and 2 for the constant 1;
+- ``seg_rows`` (n_seg + 1,) int64: the first row of each experiment, then the number
+  of rows; ``seg_t0`` (n_seg,) int64: the time (index into ``Y`` and ``U``) of each
+  experiment's first row. Row ``k`` of segment ``s`` is time
+  ``seg_t0[s] + k - seg_rows[s]``.
+
+The entries are the numbers a regressor matrix built from the same signals holds
+(a negation is exact), so everything computed on them is what the matrix gives.
+`exponential_batch` fills its blocks of scaled rows with `lag_rows`.
+"""
+
+import numpy as np
+
+from .._numba import njit  # numba.njit, uncached where no cache directory is writable
+
+__all__ = ["lag_rows", "lag_gram", "lag_residuals"]
+
+_BLOCK = 1024   # rows `lag_gram` and `lag_residuals` build at a time
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def lag_rows(lags, k, scale, out):
+    """``out[r, j] = phi_j(k + r) * scale[j]`` for the rows from row `k` that exist (at
+    most ``len(out)``); returns how many were written.
+
+    Column by column over each experiment's run of rows (a strided copy of one
+    signal, times one factor: ``-y * f`` is ``y * (-f)``, bit for bit). `out`
+    may be a transposed (F-order) view: the columns are then contiguous.
+    """
+    Y, U, cols, seg_rows, seg_t0 = lags
+    rows = min(out.shape[0], seg_rows[-1] - k)
+    n = cols.shape[0]
+    s = np.searchsorted(seg_rows, k, side="right") - 1
+    r0 = 0
+    while r0 < rows:
+        kr = k + r0
+        while kr >= seg_rows[s + 1]:
+            s += 1
+        run = min(rows - r0, seg_rows[s + 1] - kr)
+        t = seg_t0[s] + kr - seg_rows[s]
+        # unsigned indices: no wraparound test, so the copies vectorize
+        o, m = np.uint64(r0), np.uint64(run)
+        for j in range(n):
+            kind, ch, jj = cols[j, 0], np.uint64(cols[j, 1]), np.uint64(j)
+            base = np.uint64(t - cols[j, 2])
+            if kind == 0:
+                f = -scale[j]
+                for r in range(m):
+                    out[o + r, jj] = Y[base + r, ch] * f
+            elif kind == 1:
+                f = scale[j]
+                for r in range(m):
+                    out[o + r, jj] = U[base + r, ch] * f
+            else:
+                f = scale[j]
+                for r in range(m):
+                    out[o + r, jj] = f
+        r0 += run
+    return rows
+
+
+@njit(cache=True, error_model="numpy", fastmath={"reassoc", "contract"})
+def _dot(a, b, rows):
+    """``a[:rows] . b[:rows]`` in any order, with fused multiply-adds (vectorized: the
+    Gram bound of ``ARX.fit`` holds for every summation order, and a fused
+    multiply-add rounds once where a product and a sum round twice)."""
+    acc = 0.0
+    for r in range(rows):
+        acc += a[r] * b[r]
+    return acc
+
+
+@njit(cache=True, error_model="numpy")
+def lag_gram(lags, scale, G):
+    r"""``G = Phi_s^T Phi_s`` of the rows scaled column by column by `scale` (all rows),
+    built a block of columns at a time in cache; `G` (n, n) is overwritten."""
+    n = G.shape[0]
+    Bt = np.empty((n, _BLOCK))
+    G[:, :] = 0.0
+    total = lags[3][-1]
+    for k in range(0, total, _BLOCK):
+        rows = lag_rows(lags, k, scale, Bt.T)
+        for i in range(n):
+            for j in range(i, n):
+                G[i, j] += _dot(Bt[i], Bt[j], rows)
+    for i in range(n):
+        for j in range(i):
+            G[i, j] = G[j, i]
+
+
+@njit(cache=True, error_model="numpy")
+def _max_abs(x, rows, top):
+    """``max(top, max|x[:rows]|)`` (four running maxima; NaN entries are passed over)."""
+    m0 = m1 = m2 = m3 = top
+    r = 0
+    while r + 4 <= rows:
+        m0 = max(m0, abs(x[r]))
+        m1 = max(m1, abs(x[r + 1]))
+        m2 = max(m2, abs(x[r + 2]))
+        m3 = max(m3, abs(x[r + 3]))
+        r += 4
+    while r < rows:
+        m0 = max(m0, abs(x[r]))
+        r += 1
+    return max(max(m0, m1), max(m2, m3))
+
+
+@njit(cache=True, error_model="numpy")
+def lag_residuals(lags, theta, out, top):
+    r"""``out[k, i] = Y[t, i] - phi(k) . theta[:, i]`` for every row (the residuals of
+    the estimate `theta` (n, m), in the signals' units; ``Y``'s first ``m``
+    channels are the outputs), the products summed in column order;
+    ``top[i] = max_k |out[k, i]|`` (of the numbers among them: a NaN residual
+    makes every sum over them NaN whatever the scale)."""
+    n, m = theta.shape
+    Bt = np.empty((n, _BLOCK))
+    acc = np.empty(_BLOCK)
+    Y, seg_rows, seg_t0 = lags[0], lags[3], lags[4]
+    total = seg_rows[-1]
+    for i in range(m):
+        th = theta[:, i].copy()
+        top[i] = 0.0
+        for k in range(0, total, _BLOCK):
+            rows = lag_rows(lags, k, th, Bt.T)      # the products phi_j(t) theta_j
+            w = np.uint64(rows)
+            for r in range(w):
+                acc[r] = Bt[0, r]
+            for j in range(1, n):
+                jj = np.uint64(j)
+                for r in range(w):
+                    acc[r] += Bt[jj, r]
+            s = np.searchsorted(seg_rows, k, side="right") - 1
+            r0 = 0
+            while r0 < rows:                      # y(t) on each experiment's run of rows
+                kr = k + r0
+                while kr >= seg_rows[s + 1]:
+                    s += 1
+                run = min(rows - r0, seg_rows[s + 1] - kr)
+                t, o, c = np.uint64(seg_t0[s] + kr - seg_rows[s]), np.uint64(r0), np.uint64(i)
+                for r in range(np.uint64(run)):
+                    acc[o + r] = Y[t + r, c] - acc[o + r]
+                    out[np.uint64(kr) + r, c] = acc[o + r]
+                r0 += run
+            top[i] = _max_abs(acc, rows, top[i])
