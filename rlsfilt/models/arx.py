@@ -1378,10 +1378,13 @@ def _condition_numbers(Phi, exponents=None):
     and ``cond_raw <= 1e4`` (where every decision of `_choose_form` and the health
     check's ``cond_max`` are the same as with the exact values). With `exponents`, those
     of ``Phi 2^exponents`` (column by column), the rows a recursion in scaled units
-    runs on, without a scaled copy of the record.
+    runs on, without a scaled copy of the record. `Phi` may be a `LagRows` (the rows
+    read from the signals): the Gram matrix of the scaled rows then comes from one
+    pass over the signals (`LagRows.gram`), and the exact path builds the matrix.
 
-    The bounds come from the Gram matrix :math:`G = \Phi^T\Phi` (one BLAS call,
-    :math:`N n^2` flops): computed in floating point it is :math:`G + E` with
+    The bounds come from the Gram matrix :math:`G = \Phi^T\Phi` (one BLAS call, or one
+    pass over the signals, :math:`N n^2` flops): computed in floating point, summed in
+    any order, it is :math:`G + E` with
     :math:`|E_{ij}| \le \gamma_N \|\varphi_i\| \|\varphi_j\|` (Higham 2002, ch.
     3; :math:`\gamma_N = N u / (1 - N u)`), so :math:`\|E\|_2 \le \gamma_N
     \operatorname{tr} G` and, by Weyl's theorem, every eigenvalue is within
