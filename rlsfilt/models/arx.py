@@ -461,16 +461,17 @@ class ARX(IdentifiedModel):
                          else "covariance",
                          "theta_history_": history[:, :, 0] if info["y_1d"] else history,
                          "recursive_residuals_": prior[:, 0] if info["y_1d"] else prior}
-        for name in ("theta_history_", "filter_", "k0_", "lam_", "form_", "recursive_residuals_",
-                     "noise_covariance_", "intercept_", "instruments_", "trend_"):
-            self.__dict__.pop(name, None)
-        self.__dict__.update(recursive)
         if method == "rls":          # with the largest residuals (their scale, below)
             resid, top = lagged.residuals(theta)
         else:
             resid, top = target - Phi @ theta, None
         dof = rows - n_params
         sigma2, cov, noise_cov = _noise_and_covariance(resid, dof, inv_scaled, col_scale, top)
+        # everything is computed: only now the model changes
+        for name in ("theta_history_", "filter_", "k0_", "lam_", "form_", "recursive_residuals_",
+                     "noise_covariance_", "intercept_", "instruments_", "trend_"):
+            self.__dict__.pop(name, None)
+        self.__dict__.update(recursive)
         self._store(theta, s, info)
         self._set_operating_point(records, op)
         cov = cov if cov_iv is None else cov_iv
