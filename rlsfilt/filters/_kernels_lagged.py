@@ -123,34 +123,34 @@ def lag_residuals(lags, theta, out, top):
     the estimate `theta` (n, m), in the signals' units; ``Y``'s first ``m``
     channels are the outputs), the products summed in column order;
     ``top[i] = max_k |out[k, i]|`` (of the numbers among them: a NaN residual
-    makes every sum over them NaN whatever the scale)."""
+    makes every sum over them NaN whatever the scale).
+
+    The target is one more column for `lag_rows`, ``-Y[t - 0, i]`` times -1 (exactly
+    ``y(t)``), beside the products ``phi_j(t) theta_j``."""
+    Y, U, cols, seg_rows, seg_t0 = lags
     n, m = theta.shape
-    Bt = np.empty((n, _BLOCK))
+    with_target = np.empty((n + 1, 3), dtype=np.int64)
+    with_target[:n] = cols
+    scale = np.empty(n + 1)
+    scale[n] = -1.0
+    Bt = np.empty((n + 1, _BLOCK))
     acc = np.empty(_BLOCK)
-    Y, seg_rows, seg_t0 = lags[0], lags[3], lags[4]
     total = seg_rows[-1]
     for i in range(m):
-        th = theta[:, i].copy()
+        with_target[n, 0], with_target[n, 1], with_target[n, 2] = 0, i, 0
+        scale[:n] = theta[:, i]
+        rows_lags = (Y, U, with_target, seg_rows, seg_t0)
         top[i] = 0.0
         for k in range(0, total, _BLOCK):
-            rows = lag_rows(lags, k, th, Bt.T)      # the products phi_j(t) theta_j
-            w = np.uint64(rows)
-            for r in range(w):
+            rows = lag_rows(rows_lags, k, scale, Bt.T)
+            w, un, c, o = np.uint64(rows), np.uint64(n), np.uint64(i), np.uint64(k)
+            for r in range(w):                    # y(t) - sum_j phi_j(t) theta_j, in order
                 acc[r] = Bt[0, r]
             for j in range(1, n):
                 jj = np.uint64(j)
                 for r in range(w):
                     acc[r] += Bt[jj, r]
-            s = np.searchsorted(seg_rows, k, side="right") - 1
-            r0 = 0
-            while r0 < rows:                      # y(t) on each experiment's run of rows
-                kr = k + r0
-                while kr >= seg_rows[s + 1]:
-                    s += 1
-                run = min(rows - r0, seg_rows[s + 1] - kr)
-                t, o, c = np.uint64(seg_t0[s] + kr - seg_rows[s]), np.uint64(r0), np.uint64(i)
-                for r in range(np.uint64(run)):
-                    acc[o + r] = Y[t + r, c] - acc[o + r]
-                    out[np.uint64(kr) + r, c] = acc[o + r]
-                r0 += run
+            for r in range(w):
+                acc[r] = Bt[un, r] - acc[r]
+                out[o + r, c] = acc[r]
             top[i] = _max_abs(acc, rows, top[i])
