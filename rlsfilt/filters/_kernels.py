@@ -52,6 +52,9 @@ per sample applies the update, the next time update and the next gain
 together (reading and writing ``P`` once, four rows at a time). Its
 arithmetic is, element by element, that of the two steps (the same products
 summed in the same order; no ``fastmath``), so it gives the same bits, faster.
+Its usual steps run in `_usual_steps`, a loop that makes no call (the rare
+steps return to `exponential_batch`), compiled with the dimension as a
+constant up to `_UNROLLED_MAX` parameters (`_dimension_witness`).
 
 **The health check** runs in two tiers: every update tests the diagonal of
 ``P`` (positive and finite, O(n)); every ``check_every`` updates (and at once
@@ -734,10 +737,10 @@ def _sweep_rows(P, g, cu, il, h, gn, n, L):
 
     ``n`` is the length of ``h`` (an argument: a compile-time constant where
     the caller has one, see `exponential_batch`); ``P`` has at least ``n``
-    rows of ``L >= n`` entries (the padded work array of `exponential_batch`, zero past column
-    ``n``; only its first ``n`` rows are swept), ``g`` and ``gn`` have length
-    ``L`` (``g`` zero past ``n``: the padding stays zero). Each
-    ``g_j``, ``gn_j`` is loaded once for four rows and the four contributions
+    rows of ``L >= n`` entries (the padded work array of `exponential_batch`,
+    zero past column ``n``; only its first ``n`` rows are swept), ``g`` and
+    ``gn`` have length ``L`` (``g`` zero past ``n``: the padding stays zero).
+    Each ``g_j``, ``gn_j`` is loaded once for four rows and the four contributions
     are added to ``gn_j`` in row order, so the numbers are those of the
     row-by-row loop. The indices are unsigned (``np.uint64``: no
     negative-index fix-up) and ``P`` is indexed directly (no row views): with
@@ -951,7 +954,7 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
 def _usual_steps(k, N, Z, H, off, Rv, il, Q, cfg, means, ys, th, Pw, g, gn, w, countdown,
                  n_capped, check_every, state, store, scales, dims):
     """The steps of `exponential_batch` from step `k` on, up to the first that is not
-    a usual one (see the module), whose sweep it leaves to the caller.
+    a usual one, whose sweep it leaves to the caller.
 
     A usual step is followed by the fused sweep alone: it is not the last
     step or the one before, nor the last of a block of rows ``H`` (row ``k -
@@ -959,7 +962,7 @@ def _usual_steps(k, N, Z, H, off, Rv, il, Q, cfg, means, ys, th, Pw, g, gn, w, c
     does not hold its forgetting back, no health check is due or called for,
     no covariance is stored. This loop makes no call, so its values stay in
     registers (a call in the loop, even on a branch not taken, made the
-    compiler keep them on the stack: 15 % of the time at 4 parameters).
+    compiler keep them on the stack: 13 % of the time at 4 parameters).
 
     Returns the step it stopped at, its values the caller needs (``cu``,
     ``kc``, ``updated``, ``cap``, ``check``, ``due``, ``cheap_bad``, ``s``,
