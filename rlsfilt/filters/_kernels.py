@@ -716,9 +716,10 @@ def _time_step(x, P, il, Q, Pi, T, k, N, means_p, covs_p, x_prior, P_prior):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _sweep(P, g, cu, il, Q, h, gn):
+def _sweep(P, g, cu, il, Q, h, gn, n, L):
     """One sweep over ``P``: ``P <- (P - (g g^T) cu) il + Q``, accumulating the next
-    gain ``gn = P h`` on the way (row by row, as `gain` does).
+    gain ``gn = P h`` on the way (row by row, as `gain` does); ``n``, ``L`` as in
+    `_sweep_rows`.
 
     ``cu = 0`` is a time update alone (``P - 0 = P`` exactly), ``il = 1``
     (without ``Q``) an update alone. The two loops (with and without ``Q``)
@@ -728,7 +729,7 @@ def _sweep(P, g, cu, il, Q, h, gn):
     if Q.shape[0]:
         _sweep_q(P, g, cu, il, Q, h, gn)
     else:
-        _sweep_rows(P, g, cu, il, h, gn, h.shape[0], P.shape[1])
+        _sweep_rows(P, g, cu, il, h, gn, n, L)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -885,7 +886,7 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
         _sweep_rows(Pw, g, 0.0, 1.0, h, gn, n, L)
     else:                                            # P^- and its gain
         w = il if cap else 1.0
-        _sweep(Pw, g, 0.0, 1.0 if cap else il, Q, h, gn)
+        _sweep(Pw, g, 0.0, 1.0 if cap else il, Q, h, gn, n, L)
         if store:
             copy2(Pv, covs_p[0])
     g, gn = gn, g
@@ -920,10 +921,7 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
                           episodes, P_fail, W, X, none, symmetric, x_prior, P_prior, x_post,
                           P_post, covs, covs_p)
         else:
-            if hasq:
-                _sweep_q(Pw, g, cu, il, Q, hn, gn)
-            else:
-                _sweep_rows(Pw, g, cu, il, hn, gn, n, L)
+            _sweep(Pw, g, cu, il, Q, hn, gn, n, L)
             if check:
                 _health(Pv, none, symmetric, cond_max, k, due, cheap_bad, state, episodes,
                         P_fail, W, X)
@@ -973,7 +971,6 @@ def _usual_steps(k, N, Z, H, off, Rv, il, Q, cfg, means, ys, th, Pw, g, gn, w, c
     L = Pw.shape[1]
     r_each = Rv.shape[0] == N
     every_y = ys.shape[0] == N
-    hasq = Q.shape[0] > 0
     rows = H.shape[0]
     odd = False
     while True:
@@ -1026,10 +1023,7 @@ def _usual_steps(k, N, Z, H, off, Rv, il, Q, cfg, means, ys, th, Pw, g, gn, w, c
         if cap or check or store or k + 2 >= N or kr + 2 >= rows:
             return (k, cu, kc, updated, cap, check, due, cheap_bad, s, yk, w, countdown,
                     n_capped, odd)
-        if hasq:
-            _sweep_q(Pw, g, cu, il, Q, H[kr + 1], gn)
-        else:
-            _sweep_rows(Pw, g, cu, il, H[kr + 1], gn, n, L)
+        _sweep(Pw, g, cu, il, Q, H[kr + 1], gn, n, L)
         g, gn = gn, g
         odd = not odd
         k += 1
@@ -1081,7 +1075,7 @@ def _unfused_step(x, Pw, P, g, gn, cu, il, Q, h, k, last, check, update_first, d
     copies and the checks read its view ``P``."""
     store = covs.shape[0] > 0
     if not (check or last or store):
-        _sweep(Pw, g, cu, il, Q, h, gn)
+        _sweep(Pw, g, cu, il, Q, h, gn, h.shape[0], Pw.shape[1])
         return
     _sweep_rows(Pw, g, cu, 1.0, h, gn, h.shape[0], Pw.shape[1])
     if store:
@@ -1092,7 +1086,7 @@ def _unfused_step(x, Pw, P, g, gn, cu, il, Q, h, k, last, check, update_first, d
     if check and not update_first:
         _health(P, none, symmetric, cond_max, k, due, cheap_bad, state, episodes, P_fail, W, X)
     if not last or update_first:
-        _sweep(Pw, g, 0.0, il, Q, h, gn)
+        _sweep(Pw, g, 0.0, il, Q, h, gn, h.shape[0], Pw.shape[1])
         if store:
             copy2(P, covs_p[k if update_first else k + 1])
     if check and update_first:
