@@ -747,8 +747,8 @@ class RecursiveLeastSquares(_FilterBase):
                 f"`Hs` (largest entry {np.abs(Hm).max():.3g}) gives a covariance "
                 "R (Hs^T Hs)^-1 outside the range of double precision; scale the regressors")
         self._pending = None          # a predict() before is overwritten with the rest
-        self._x = x
-        self._P = 0.5 * (P + P.T)
+        self._x = np.ascontiguousarray(x)
+        self._P = np.ascontiguousarray(0.5 * (P + P.T))
         self._efra_pending = self._mode == _fg.EFRA
         self._recheck = True
         if self.constraints is not None:   # keep the constraints given earlier
@@ -869,7 +869,7 @@ class RecursiveLeastSquares(_FilterBase):
         self._pending = None          # P read above included a deferred predict()
         self._cap, self._w = out.state[3] == 1.0, float(out.state[4])
         self.n_capped += int(out.state[2])
-        self._x, self._P = out.x, out.P
+        self._x, self._P = np.ascontiguousarray(out.x), np.ascontiguousarray(out.P)
         self.x_prior, self.P_prior, self.x_post, self.P_post = (out.x_prior, out.P_prior,
                                                                 out.x_post, out.P_post)
         self._clear_lazy()
@@ -1016,7 +1016,7 @@ class RecursiveLeastSquares(_FilterBase):
         P_new = self._projected(P - W @ PA.T, Pi)      # P <- P - W A P, then Pi P Pi
         if self._pending is not None:
             self._materialize()       # x_prior, P_prior of the predict() before stay
-        self._x, self._P = x_new, P_new
+        self._x, self._P = np.ascontiguousarray(x_new), np.ascontiguousarray(P_new)
         self._Pi = Pi
         self._configure()
         self._null_basis = basis
@@ -1116,8 +1116,11 @@ class RecursiveLeastSquares(_FilterBase):
     def _state(self):
         """``(x, P)`` after an assignment or a (re)start: checked for their shapes,
         ``P`` clipped for EFRA's first step (a new array)."""
+        # C order: the compiled step's entry point is typed for C-contiguous arrays
+        # (an F-ordered (n, m) estimate from a QR solve was read with the wrong strides)
         x, P = self._checked_x(), self._checked_P()
-        return x, (self._efra_start(P) if self._efra_pending else P)
+        P = self._efra_start(P) if self._efra_pending else P
+        return np.ascontiguousarray(x), np.ascontiguousarray(P)
 
     def _configure(self):
         """The configuration array the kernels take (mode, lam, gate, constants, Pi)."""
