@@ -242,6 +242,12 @@ def as_float_array(value, name):
         if arr.dtype.kind in "USV":
             shown = repr(value) if len(repr(value)) <= 40 else repr(value)[:37] + "..."
             raise TypeError(f"`{name}` must be numeric array-like; got text {shown}")
+        if arr.dtype.kind in "mM":
+            # numpy would read them as counts of their unit (seconds since 1970, ...)
+            raise TypeError(
+                f"`{name}` must be numeric array-like; got {arr.dtype} values (dates or "
+                "durations, not signal samples): pass the time stamps as `dt` or the "
+                "index of a DataFrame, and the signal's numbers here")
         if not complex_values:
             arr = np.asarray(arr, dtype=float)
     except (TypeError, ValueError) as exc:

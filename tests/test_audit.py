@@ -76,7 +76,8 @@ ERROR, SAME, AS_FLOAT, EITHER, OK, WARNS = "error", "same", "as_float", "either"
 HUGE, TINY = 1e160, 1e-160
 
 ARRAY_KINDS = ("shape", "nan", "inf", "none", "list", "pandas", "0d", "complex", "object",
-               "bool", "int", "readonly", "strided", "huge", "tiny")
+               "bool", "int", "readonly", "strided", "huge", "tiny", "datetime64", "timedelta",
+               "nullable", "categorical", "decimal")
 SCALAR_KINDS = ("shape", "nan", "inf", "none", "list", "0d", "complex", "object", "bool",
                 "int", "text", "huge", "tiny")
 INT_KINDS = ("float", "bool", "none", "negative", "huge", "numpy", "0d", "complex", "text")
@@ -84,7 +85,12 @@ INT_KINDS = ("float", "bool", "none", "negative", "huge", "numpy", "0d", "comple
 DEFAULT = {"shape": ERROR, "nan": ERROR, "inf": ERROR, "none": ERROR, "list": SAME,
            "pandas": SAME, "0d": ERROR, "complex": ERROR, "object": ERROR, "bool": EITHER,
            "int": AS_FLOAT, "readonly": SAME, "strided": SAME, "huge": EITHER, "tiny": EITHER,
-           "text": ERROR, "float": ERROR, "negative": ERROR, "numpy": SAME}
+           "text": ERROR, "float": ERROR, "negative": ERROR, "numpy": SAME,
+           # dates and durations are not samples (numpy would read seconds since 1970);
+           # pandas' nullable floats, a categorical of numbers and Decimal objects are
+           # the same numbers
+           "datetime64": ERROR, "timedelta": ERROR, "nullable": SAME, "categorical": SAME,
+           "decimal": SAME}
 SCALAR_DEFAULT = {**DEFAULT, "list": SAME, "0d": SAME, "bool": ERROR}
 INT_DEFAULT = {**DEFAULT, "0d": SAME}
 
@@ -138,7 +144,22 @@ def _variants(entry):
             "pandas": pd.Series(a) if a.ndim == 1 else pd.DataFrame(a) if a.ndim == 2 else a,
             "0d": np.array(flat[0]), "complex": a + 0.0j, "object": obj,
             "bool": a > np.median(a), "int": np.round(4.0 * a).astype(np.int64),
-            "readonly": readonly, "strided": strided, "huge": a * HUGE, "tiny": a * TINY}
+            "readonly": readonly, "strided": strided, "huge": a * HUGE, "tiny": a * TINY,
+            "datetime64": (np.round(1e3 * a).astype(np.int64)
+                           + np.int64(1_700_000_000_000)).astype("datetime64[ms]"),
+            "timedelta": np.round(1e3 * a).astype(np.int64).astype("timedelta64[ms]"),
+            "nullable": (pd.array(a, dtype="Float64") if a.ndim == 1
+                         else pd.DataFrame(a).astype("Float64") if a.ndim == 2 else a),
+            "categorical": pd.Series(pd.Categorical(a)) if a.ndim == 1 else a,
+            "decimal": _decimals(a)}
+
+
+def _decimals(a):
+    """`a` as an object array of `decimal.Decimal` (each the exact value of its double)."""
+    from decimal import Decimal
+    out = np.empty(a.shape, dtype=object)
+    out.reshape(-1)[:] = [Decimal(v) for v in a.reshape(-1)]
+    return out
 
 
 def _as_float(value):
