@@ -39,6 +39,7 @@ To cover a new entry point, add its `Entry` lines to `ENTRIES`.
 
 import os
 import pickle
+import re
 import subprocess
 import sys
 import warnings
@@ -609,3 +610,58 @@ print("ok")
                           timeout=1200)
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert proc.stdout.strip().endswith("ok")
+
+
+# ----------------------------------------------------------------------
+# the second audit (#27): records
+# ----------------------------------------------------------------------
+def _frame(columns, n=12):
+    rng = np.random.default_rng(27)
+    return pd.DataFrame(rng.standard_normal((n, len(columns))), columns=columns)
+
+
+RECORD_CASES = {
+    "duplicated column names": (
+        lambda: IOData.from_dataframe(_frame(["u", "y", "y"]), inputs="u", outputs="y"),
+        ValueError, "`outputs`"),
+    "missing experiment label": (
+        lambda: IOData.from_dataframe(
+            _frame(["u", "y"], 6).assign(e=["a", "a", None, "b", "b", "b"]),
+            inputs="u", outputs="y", experiment="e"),
+        ValueError, "`experiment`"),
+    "NaN experiment label": (
+        lambda: IOData.from_dataframe(
+            _frame(["u", "y"], 6).assign(e=[1.0, 1.0, np.nan, 2.0, 2.0, 2.0]),
+            inputs="u", outputs="y", experiment="e"),
+        ValueError, "row 2"),
+    "an experiment picked twice": (
+        lambda: IOData([U[:50], U[50:100]], [Y[:50], Y[50:100]]).getexp([0, 0]),
+        ValueError, "`which`"),
+    "one name for an input and an output": (
+        lambda: IOData(U, Y, input_names=["flow"], output_names=["flow"]),
+        ValueError, "`input_names` and `output_names`"),
+}
+
+
+@pytest.mark.parametrize("case", list(RECORD_CASES))
+def test_record_cases_give_clear_errors(case):
+    run, error, words = RECORD_CASES[case]
+    with pytest.raises(error, match=re.escape(words)):
+        run()
+
+
+def test_integer_column_labels_are_read():
+    df = pd.DataFrame({0: U, 1: Y})
+    data = IOData.from_dataframe(df, inputs=0, outputs=[1])
+    assert data.input_names == ("0",) and data.output_names == ("1",)
+    assert_array_equal(data.u, U)
+    assert_array_equal(data.y, Y)
+
+
+@pytest.mark.parametrize("index", [
+    pd.date_range("2026-01-01", periods=N, freq="80ms"),
+    pd.timedelta_range(0, periods=N, freq="80ms"),
+])
+def test_a_time_index_gives_the_sampling_period(index):
+    data = IOData.from_dataframe(pd.DataFrame({"u": U, "y": Y}, index=index), "u", "y")
+    assert data.dt == pytest.approx(0.08, rel=1e-12)

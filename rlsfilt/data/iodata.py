@@ -124,6 +124,10 @@ class IOData:
         nu, ny, ne = U[0].shape[1], Y[0].shape[1], len(U)
         in_names = _names(input_names, "input_names", nu, u_pd, "u")
         out_names = _names(output_names, "output_names", ny, y_pd, "y")
+        both = sorted(set(in_names) & set(out_names))
+        if both:
+            raise ValueError(f"`input_names` and `output_names` must be distinct; {both[0]!r} "
+                             "names an input and an output")
         in_units = _units(input_units, "input_units", nu)
         out_units = _units(output_units, "output_units", ny)
         exp_names = _exp_names(experiment_names, ne)
@@ -223,8 +227,8 @@ class IOData:
 
         if not isinstance(df, pd.DataFrame):
             raise TypeError(f"`df` must be a pandas DataFrame; got {type(df).__name__}")
-        in_cols = _columns(inputs, "inputs", df)
-        out_cols = _columns(outputs, "outputs", df)
+        in_labels, in_cols = _columns(inputs, "inputs", df)
+        out_labels, out_cols = _columns(outputs, "outputs", df)
         if units is not None and not isinstance(units, dict):
             raise TypeError(f"`units` must be a dict {{column: unit}}; got {type(units).__name__}")
         units = dict(units or {})
@@ -237,6 +241,10 @@ class IOData:
                 raise ValueError(f"`experiment` must be a column of `df`; got {experiment!r} "
                                  f"(columns: {list(map(str, df.columns))})")
             labels = df[experiment].to_numpy()
+            missing = pd.isna(labels)
+            if missing.any():
+                raise ValueError(f"`experiment` column {experiment!r} must label every row; "
+                                 f"got a missing label at row {df.index[missing.argmax()]!r}")
             order = list(dict.fromkeys(labels.tolist()))
             groups = [np.flatnonzero(labels == lab) for lab in order]
             exp_names = [str(lab) for lab in order]
@@ -248,12 +256,15 @@ class IOData:
         times = None
         if time is not None:
             times = _time_values(df, time)
+        elif isinstance(df.index, (pd.DatetimeIndex, pd.TimedeltaIndex)) and len(df) > 1:
+            times = _time_values(df.set_axis(df.index.rename("__index__")), "__index__")
+            time = "index"
         us, ys, tstart, steps = [], [], [], []
         for k, rows in enumerate(groups):
             sub = df.iloc[rows]
             label = f" in experiment {exp_names[k]!r}" if exp_names else ""
-            us.append(_frame_block(sub, in_cols, label))
-            ys.append(_frame_block(sub, out_cols, label))
+            us.append(_frame_block(sub, in_labels, label))
+            ys.append(_frame_block(sub, out_labels, label))
             if times is not None:
                 tk = times[rows]
                 tstart.append(float(tk[0]))
@@ -391,6 +402,11 @@ class IOData:
             With the chosen experiments, in the order given.
         """
         picks = _exp_indices(which, self._experiment_names)
+        if len(set(picks)) != len(picks):
+            twice = next(self._experiment_names[k] for k in picks if picks.count(k) > 1)
+            raise ValueError(f"`which` picks experiment {twice!r} more than once; an "
+                             "experiment's samples are one record (concatenate copies with "
+                             "merge() under new names instead)")
         return self._derive([self._U[i] for i in picks], [self._Y[i] for i in picks],
                             experiment_names=[self._experiment_names[i] for i in picks],
                             tstart=[self._tstart[i] for i in picks])
@@ -750,7 +766,9 @@ def _same_dt(a, b):
 
 
 def _columns(value, name, df):
-    cols = [value] if isinstance(value, str) else value
+    """The column labels `value` names (one label, or a list of them) as ``(labels,
+    names)``: the labels as `df` has them (text, integers, ...) and their text."""
+    cols = [value] if isinstance(value, (str, numbers.Integral)) else value
     try:
         cols = list(cols)
     except TypeError:
@@ -762,7 +780,12 @@ def _columns(value, name, df):
     if missing:
         raise ValueError(f"`{name}` names columns that are not in `df`: {missing!r} "
                          f"(columns: {list(map(str, df.columns))})")
-    return [str(c) for c in cols]
+    repeated = [c for c in cols if np.count_nonzero(df.columns == c) > 1]
+    if repeated:
+        raise ValueError(f"`{name}` names {repeated[0]!r}, which `df` has "
+                         f"{np.count_nonzero(df.columns == repeated[0])} columns of; rename "
+                         "them so that each signal has one column")
+    return cols, [str(c) for c in cols]
 
 
 def _frame_block(sub, cols, label):
@@ -792,6 +815,8 @@ def _time_values(df, time):
     else:
         raise ValueError(f"`time` must be a column of `df` or the name of its index; got "
                          f"{time!r} (columns: {list(map(str, df.columns))})")
+    if time == "__index__":                 # a DatetimeIndex or TimedeltaIndex
+        time = "index"
     if pd.api.types.is_datetime64_any_dtype(col):
         col = (col - col.iloc[0]).dt.total_seconds()
     elif pd.api.types.is_timedelta64_dtype(col):
