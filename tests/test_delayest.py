@@ -139,3 +139,40 @@ def test_errors(rng):
         delayest(u)
     with pytest.raises(ValueError, match="`na` must be >= 0"):
         delayest(u, y, na=-1)
+
+
+def test_ties_go_to_the_shortest_delay_with_a_significant_leading_coefficient():
+    """Truth nk = 4 with one input coefficient (the model's nb = 2 exceeds it), SNR 19:
+    nk = 3 ties but its leading coefficient is zero, nk = 5 can tie through noise."""
+    from scipy.signal import lfilter
+
+    found = []
+    for seed in range(40):
+        r = np.random.default_rng(seed)
+        u = r.standard_normal(300)
+        y = lfilter([0] * 4 + [0.3], [1, -0.8], u)
+        found.append(delayest(u, y + r.standard_normal(300) * y.std() / np.sqrt(19)))
+    assert found.count(4) >= 38, np.bincount(found)
+
+
+@pytest.mark.parametrize("scale", [1e-160, 1e150, 1e160])
+def test_delay_does_not_depend_on_the_units(scale):
+    from scipy.signal import lfilter
+
+    r = np.random.default_rng(7)
+    u = r.standard_normal(1000)
+    y = lfilter([0] * 7 + [1.0, 0.5], [1, -1.5, 0.7], u) + 0.1 * r.standard_normal(1000)
+    assert delayest(u * scale, y * scale) == delayest(u, y) == 7
+    assert delayest(u, y * scale) == 7
+
+
+def test_a_huge_nk_max_is_refused_at_once(monkeypatch):
+    from rlsfilt.validation import delay
+
+    calls = []
+    rows = delay._rows
+    monkeypatch.setattr(delay, "_rows", lambda *a: calls.append(1) or rows(*a))
+    r = np.random.default_rng(1)
+    with pytest.raises(ValueError, match=r"at most nk_max=497 fits"):
+        delayest(r.standard_normal(1000), r.standard_normal(1000), nk_max=10**9)
+    assert len(calls) < 100      # bisection, not one step per candidate delay

@@ -19,6 +19,7 @@ from collections import namedtuple
 
 import numpy as np
 
+from .._scale import pow2_scale
 from .._validation import check_int
 from ..data.iodata import as_iodata
 from ..exceptions import OrderSelectionWarning
@@ -100,10 +101,12 @@ def delayest(u, y=None, na=2, nb=2, nk_min=0, nk_max=None, *, full_output=False)
     -----
     Candidates whose loss :math:`V` lies within the noise of the best,
     :math:`V \le V_{min}\,(1 + F_{0.95}(1, n_{dof}) / n_{dof})`, count as
-    ties, and the largest tied delay is returned: a model whose extra
-    leading coefficient is zero (``nb`` larger than the plant's) fits as
-    well as the one with the true delay, and a delay means exactly that the
-    first coefficients vanish.
+    ties. Among them the shortest delay whose leading input coefficient
+    differs significantly from zero (a t-test at the 5 % level) is
+    returned: a longer delay ties with the true one when noise hides the
+    first coefficient, and a shorter one ties when the model's ``nb``
+    exceeds the plant's (its leading coefficient is then zero: a delay means
+    exactly that the first coefficients vanish).
 
     One Householder QR factorization of :math:`[\Psi\;y]`, accumulated over
     blocks of rows (:math:`R \leftarrow \mathrm{qr}([R;\,\text{block}])`,
@@ -151,15 +154,18 @@ def delayest(u, y=None, na=2, nb=2, nk_min=0, nk_max=None, *, full_output=False)
     n_cols = na + sum(len(lag) for lag in lags)
     rows = _rows(data.lengths, na, nb, nk_max)
     if rows <= n_cols:
-        fits = [k for k in range(max(nk_min), max(nk_max))
-                if _rows(data.lengths, na, nb, (k,) * nu) > na + sum(k - lo + b for lo, b in
-                                                                     zip(nk_min, nb))]
-        hint = f" (at most nk_max={fits[-1]} fits)" if fits and len(set(nk_max)) == 1 else ""
+        def fits(k):       # rows for the columns of a common nk_max = k (fewer as k grows)
+            return _rows(data.lengths, na, nb, (k,) * nu) > na + sum(
+                k - lo + b for lo, b in zip(nk_min, nb))
+
+        largest = _last_true(fits, max(nk_min), max(nk_max))
+        hint = (f" (at most nk_max={largest} fits)" if largest is not None
+                and len(set(nk_max)) == 1 else "")
         raise ValueError(
             f"the record is too short for delays up to nk_max={_fmt(nk_max)}: {data.n_samples} "
             f"samples leave {rows} aligned rows for {n_cols} regressor columns (the largest lag "
             f"is {t_max}); lower `nk_max`{hint} or give a longer record")
-    R = _triangular_factor(data, na, lags, t_max)
+    R, y_unit = _triangular_factor(data, na, lags, t_max)
     scale = np.linalg.norm(R[:, :-1], axis=0)  # = column norms of Psi (Q is orthogonal)
     Rs = R[:, :-1] / np.where(scale > 0, scale, 1.0)
     r_y = R[:, -1]
@@ -167,23 +173,48 @@ def delayest(u, y=None, na=2, nb=2, nk_min=0, nk_max=None, *, full_output=False)
     dof = rows - n_params
     from scipy import stats  # lazy: keeps `import rlsfilt` light
     tie = 1.0 + (stats.f.ppf(0.95, 1, dof) / dof if dof > 0 else 0.0)
+    t_crit = float(stats.t.ppf(0.975, max(dof, 1)))
     offsets = np.cumsum([na] + [len(lag) for lag in lags])[:-1]
 
     def columns(j, k):
         start = offsets[j] + (k - nk_min[j])
         return list(range(start, start + nb[j]))
 
-    def loss(delays, inputs):
+    def fit(delays, inputs):
         S = list(range(na)) + [c for j in inputs for c in columns(j, delays[j])]
         M = Rs[:, S]
-        res = r_y - M @ np.linalg.lstsq(M, r_y, rcond=None)[0]
-        return float(res @ res) / rows
+        b = np.linalg.lstsq(M, r_y, rcond=None)[0]
+        res = r_y - M @ b
+        return float(res @ res) / rows, M, b
+
+    def loss(delays, inputs):
+        return fit(delays, inputs)[0]
+
+    def leading_significant(j, delays, inputs):
+        # the first coefficient of input j (at the delay tried) differs from zero at
+        # the 5 % level: t = b / se(b), se from sigma^2 (M^T M)^-1
+        v, M, b = fit(delays, inputs)
+        at = na + sum(nb[i] for i in inputs if i < j)
+        sigma2 = v * rows / max(dof, 1)
+        try:
+            cov = sigma2 * np.linalg.inv(M.T @ M)
+        except np.linalg.LinAlgError:
+            return False
+        se = np.sqrt(max(cov[at, at], 0.0))
+        return se > 0 and abs(b[at]) / se > t_crit
 
     def best_for(j, delays, inputs):
         ks = range(nk_min[j], nk_max[j] + 1)
         curve = np.array([loss({**delays, j: k}, inputs) for k in ks])
         ok = np.flatnonzero(curve <= curve.min() * tie)
-        return ks[int(ok[-1])], curve
+        # among the delays whose loss ties with the best, the shortest whose leading
+        # coefficient is significant: a longer delay ties when noise hides the first
+        # coefficient, a shorter one when the model's nb exceeds the plant's (its
+        # leading coefficient is then zero)
+        for i in ok:
+            if leading_significant(j, {**delays, j: ks[int(i)]}, inputs):
+                return ks[int(i)], curve
+        return ks[int(np.argmin(curve))], curve
 
     delays = {j: nk_min[j] for j in range(nu)}
     for j in range(nu):  # each input alone: a start that does not depend on input order
@@ -206,7 +237,9 @@ def delayest(u, y=None, na=2, nb=2, nk_min=0, nk_max=None, *, full_output=False)
                               f"the edge of the range tried; widen `{bound}`",
                               OrderSelectionWarning, stacklevel=2)
     nk = delays[0] if nu == 1 else tuple(delays[j] for j in range(nu))
-    if full_output:
+    if full_output:   # the losses in the units of y (inf where their squares overflow)
+        with np.errstate(over="ignore"):
+            curves = [c * y_unit * y_unit for c in curves]
         return DelayEstimate(nk, curves, [range(nk_min[j], nk_max[j] + 1) for j in range(nu)],
                              rows)
     return nk
@@ -231,15 +264,33 @@ def _rows(lengths, na, nb, nk_max):
     return sum(max(n - t_max, 0) for n in lengths)
 
 
+def _last_true(predicate, lo, hi):
+    """The largest ``k`` in ``[lo, hi)`` with ``predicate(k)`` true, for a predicate true up
+    to some point and false after it (bisection: O(log(hi - lo)) calls); None if none."""
+    if hi <= lo or not predicate(lo):
+        return None
+    while hi - lo > 1:               # predicate(lo) holds, hi is past the range or fails
+        mid = (lo + hi) // 2
+        lo, hi = (mid, hi) if predicate(mid) else (lo, mid)
+    return lo
+
+
 def _fmt(values):
     return values[0] if len(set(values)) == 1 else list(values)
 
 
 def _triangular_factor(data, na, lags, t_max):
-    """``R`` of ``[Psi y] = Q R``, rows of every experiment, accumulated by blocks."""
+    """``R`` of ``[Psi y] = Q R``, rows of every experiment, accumulated by blocks, with
+    the signals in units of powers of two; and the unit of ``y``."""
     n_cols = na + sum(len(lag) for lag in lags) + 1
     R = np.zeros((0, n_cols))
-    for U, Y in data.arrays():
+    # the signals in units of a power of two near their largest magnitude (exact: the
+    # losses only change by a common factor, the estimate not at all), so that records
+    # near 1e160 or 1e-160 neither overflow nor underflow in the squares below
+    arrays = list(data.arrays())
+    su = pow2_scale(np.vstack([U for U, _ in arrays]), axis=0)
+    sy = pow2_scale(np.vstack([Y for _, Y in arrays]), axis=0)
+    for U, Y in ((U / su, Y / sy) for U, Y in arrays):
         N = len(Y)
         for start in range(t_max, N, _BLOCK_ROWS):
             stop = min(start + _BLOCK_ROWS, N)
@@ -254,4 +305,5 @@ def _triangular_factor(data, na, lags, t_max):
                     c += 1
             block[:, c] = Y[start:stop, 0]
             R = np.linalg.qr(np.vstack([R, block]), mode="r")
-    return R  # square: the caller checked that there are more rows than columns
+    # square: the caller checked that there are more rows than columns
+    return R, float(sy[0])
