@@ -11,6 +11,7 @@ disk cache instead (correct, only slower at first use in each process) and
 says so in one warning, once per process.
 """
 
+import os
 import warnings
 
 import numba
@@ -18,6 +19,14 @@ import numba
 __all__ = []
 
 _warned = False
+
+# The threading layer of the parallel kernels (``RLSBank(parallel=True)``): numba's
+# default picks GNU OpenMP where it is installed, after which a fork-based
+# ``multiprocessing`` worker aborts ("fork() called from a process already using GNU
+# OpenMP") and its pool never returns. "forksafe" picks TBB, a non-GNU OpenMP or numba's
+# own work queue; a layer the user chose (NUMBA_THREADING_LAYER) is kept.
+if "NUMBA_THREADING_LAYER" not in os.environ and numba.config.THREADING_LAYER == "default":
+    numba.config.THREADING_LAYER = "forksafe"
 
 
 def njit(*args, **options):
