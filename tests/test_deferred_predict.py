@@ -21,7 +21,7 @@ import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
 from rlsfilt import ForgettingSkippedWarning, RecursiveLeastSquares
-from rlsfilt.adaptive import _filter_state
+from rlsfilt.filters import _filter_state
 from rlsfilt.filters import _reference as ref
 
 STATE = ("x", "P", "x_prior", "P_prior", "x_post", "P_post", "y", "K", "S", "SI", "z", "H")
