@@ -25,8 +25,8 @@ python-control is imported only when a function needs it, so ``import
 rlsfilt`` stays light.
 """
 
-from ..models._kalman import to_kalman
 from ..filters._estimator_io import estimator_iosystem
+from ..models._kalman import to_kalman
 from .innovations import InnovationsModel, from_kalman
 from .minimum_variance import (
     MinimumVarianceController,

@@ -13,8 +13,8 @@ from .._validation import (
 )
 from . import _health, _streaming
 from ._base import MISSING_DIAGNOSTICS, _FilterBase, own_array
-from .contract import check_state
 from ._streaming import c_array
+from .contract import check_state
 
 __all__ = ["SlidingWindowRLS"]
 
