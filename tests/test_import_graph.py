@@ -3,9 +3,10 @@
 Every module of rlsfilt is parsed with ``ast``; each ``import`` and ``from ...
 import`` of an rlsfilt module, at module level or inside a function (a lazy
 import is still a dependency), becomes an edge of the intra-package import
-graph, which must be acyclic. A call ``lazy_module("rlsfilt.x.y")`` (the one lazy kernel
-loader, ``rlsfilt/_lazy.py``) is an import of ``rlsfilt.x.y`` too. The cycle finder itself is checked on graphs
-with and without a cycle, so the test can fail.
+graph, which must be acyclic. A call ``lazy_module("rlsfilt.x.y")`` (the one
+lazy kernel loader, ``rlsfilt/_lazy.py``) is an import of ``rlsfilt.x.y`` too.
+The cycle finder itself is checked on graphs with and without a cycle, so the
+test can fail.
 """
 
 import ast

@@ -1,7 +1,7 @@
 """The compiled kernels of `RecursiveLeastSquares` against the textbook reference.
 
 Every public method runs the compiled kernels (``rlsfilt.filters._kernels``);
-the readable recursion is ``rlsfilt.filters._reference``. The two must agree
+the readable recursion is ``tests/_reference.py``. The two must agree
 to 1e-12 (relative to each step's largest entry), step by step, on
 well-conditioned data for every forgetting mode with and without the gate,
 the constraints, a random walk ``Q``, per-sample ``Rs``, missing samples,

@@ -11,7 +11,7 @@ state ``x`` and ``P``, diagnostics ``y``, ``K``, ``S``, ``SI`` and the lazy
 
 Every step runs compiled (:mod:`rlsfilt.filters._kernels`; the streaming
 calls through :mod:`rlsfilt.filters._streaming`); the same recursion in
-textbook NumPy is :mod:`rlsfilt.filters._reference`.
+textbook NumPy is ``tests/_reference.py``.
 """
 
 import math
