@@ -1,7 +1,7 @@
 """Time the compiled SlidingWindowRLS and SquareRootRLS against their NumPy reference.
 
 Both filters run their recursion in compiled code (``_kernels_window``);
-the same recursion in textbook NumPy is ``rlsfilt.filters._reference``
+the same recursion in textbook NumPy is ``tests/_reference.py``
 (``SlidingWindow``, ``square_root_update``). This script times, per sample
 and on the same ARX data as ``bench_rls.py``:
 
@@ -34,11 +34,14 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+# the textbook recursions live with the tests (not installed with the package)
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
+                                "tests"))
 
+import _reference  # noqa: E402
 from bench_rls import arx_data  # noqa: E402
 
 import rlsfilt  # noqa: E402
-from rlsfilt.filters import _reference  # noqa: E402
 
 LAM = 0.99
 P0 = 1e4

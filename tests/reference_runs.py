@@ -1,4 +1,4 @@
-"""Run the textbook recursions of ``rlsfilt.filters._reference`` over a record.
+"""Run the textbook recursions of ``tests/_reference.py`` over a record.
 
 Each runner starts from the state of a filter (which it does not modify) and
 returns what ``batch_filter`` returns, step by step, computed by the plain
@@ -10,9 +10,9 @@ whether the windup cap held each step's forgetting back (``capped``). The
 kernel tests hold the compiled filters equal to these step by step.
 """
 
+import _reference as ref
 import numpy as np
 
-from rlsfilt.filters import _reference as ref
 from rlsfilt.filters.forgetting import EXPONENTIAL, clip_eigenvalues, efra_bounds
 
 

@@ -8,7 +8,8 @@ import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
 from rlsfilt import RecursiveLeastSquares, SlidingWindowRLS, SquareRootRLS
-from rlsfilt.adaptive import SelfTuningRegulator, _filter_state, estimator_iosystem
+from rlsfilt.adaptive import SelfTuningRegulator, estimator_iosystem
+from rlsfilt.filters import _filter_state
 
 A = np.array([1.0, -1.5, 0.7])
 B = np.array([0.0, 1.0, 0.5])

@@ -1,7 +1,7 @@
 """RLSBank: C channels in one compiled call equal C separate RecursiveLeastSquares.
 
 Oracles: one `RecursiveLeastSquares` per channel (run step by step), the
-NumPy textbook recursion of `rlsfilt.filters._reference_bank`, and
+NumPy textbook recursion of `tests/_reference_bank.py`, and
 `RecursiveLeastSquares.initialize` for the batch start. Tolerance 1e-12
 relative (the arithmetic is the same, operation by operation, so in
 practice the numbers agree bit for bit, which some tests pin).
@@ -15,13 +15,13 @@ import warnings
 
 import numpy as np
 import pytest
+from _reference_bank import bank_batch_reference
 from conftest import assert_close_steps
 from numpy.testing import assert_allclose, assert_array_equal
 
 import rlsfilt
 from rlsfilt import ForgettingSkippedWarning, NumericalWarning, RecursiveLeastSquares, RLSBank
 from rlsfilt.filters import _kernels_bank
-from rlsfilt.filters._reference_bank import bank_batch_reference
 
 MODES = ["exponential", "directional", "constant_trace"]
 

@@ -54,6 +54,7 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 from contract import parametrize_with_checks
+from example_filter import NLMS
 from filterpy.common import Saver
 from numpy.testing import assert_allclose, assert_array_equal
 
@@ -266,6 +267,7 @@ FILTERS = [
                _ones),
     FilterCase("SlidingWindowRLS-window40", lambda **kw: SlidingWindowRLS(DIM_X, 40, **kw),
                _window(40)),
+    FilterCase("NLMS-example", lambda **kw: NLMS(DIM_X, **kw)),
     FilterCase("RLSBank", lambda **kw: BankAdapter(DIM_X, **kw), _ones, True),
     FilterCase("RLSBank-lam0.95", lambda **kw: BankAdapter(DIM_X, lam=0.95, **kw),
                _exponential(0.95), True),
@@ -297,13 +299,19 @@ def _frozen(*arrays):
     return out
 
 
+def _has_P(f):
+    """The filter keeps a covariance ``P`` and checks its health (the contract's
+    ``has_covariance``; the bank's adapter does)."""
+    return getattr(f, "has_covariance", True)
+
+
 def _state(f):
     """Everything the filter holds, as bytes (equal bytes: a bit-identical state)."""
     return pickle.dumps(f)
 
 
 def _same_state(a, b):
-    for name in STATE:
+    for name in STATE if _has_P(a) else [n for n in STATE if not n.startswith("P")]:
         assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
     assert a.n_updates == b.n_updates
     if isinstance(a, BankAdapter):       # every channel, not only the one the checks read
@@ -346,19 +354,22 @@ def check_saver_round_trip(case):
         f.predict_update(zs[k], Hs[k])
         saver.save()
         xs.append(f.x.copy())
-        Ps.append(f.P.copy())
+        if _has_P(f):
+            Ps.append(f.P.copy())
         ys.append(f.y.copy())
     saver.to_array()
     assert len(saver) == 40
     assert_array_equal(saver.x, np.array(xs))
-    assert_array_equal(saver.P, np.array(Ps))
+    if _has_P(f):
+        assert_array_equal(saver.P, np.array(Ps))
     assert_array_equal(saver.y, np.array(ys))
     g = case.make()
     batch_saver = Saver(g)
     means, covs, _, _ = g.batch_filter(zs[:40], Hs[:40], saver=batch_saver)
     batch_saver.to_array()
     assert_array_equal(batch_saver.x, means)
-    assert_array_equal(batch_saver.P, covs)
+    if _has_P(g):
+        assert_array_equal(batch_saver.P, covs)
     assert_array_equal(means, np.array(xs))
 
 
@@ -368,7 +379,7 @@ def check_no_caller_array_is_written(case):
     x0, P0 = _frozen(np.full(DIM_X, 0.1), 50.0 * np.eye(DIM_X))
     zf, Hf, Rs, R = _frozen(zs, Hs, np.full(N, 0.5), 0.5)
     keep = [a.copy() for a in (x0, P0, zf, Hf, Rs, R)]
-    f = case.make(x0=x0, P0=P0)
+    f = case.make(x0=x0, P0=P0) if _has_P(case.make()) else case.make(x0=x0)
     f.initialize(zf[:K0], Hf[:K0])
     for k in range(K0, 30):
         f.predict_update(zf[k:k + 1], Hf[k], R)
@@ -379,7 +390,8 @@ def check_no_caller_array_is_written(case):
                    store_covariances=False)
     X, P = np.full((DIM_X, 1), 0.2), 20.0 * np.eye(DIM_X)
     f.x = X.reshape(-1, 1)                   # a view of the caller's array (#18 item 1)
-    f.P = P
+    if _has_P(f):
+        f.P = P
     for k in range(90, N):
         f.predict()
         f.update(zs[k], Hs[k])
@@ -439,10 +451,13 @@ def check_assignment_copies(case):
     f = case.make()
     f.batch_filter(zs[:20], Hs[:20])
     X, P, R = np.full((DIM_X, 1), 0.2), 20.0 * np.eye(DIM_X), np.array([[0.5]])
-    f.x, f.P, f.R = X, P, R
+    f.x, f.R = X, R
+    if _has_P(f):
+        f.P = P
     X[:], P[:], R[:] = 7.0, 9.0, 3.0
     assert_array_equal(f.x, 0.2)
-    assert_allclose(f.P, 20.0 * np.eye(DIM_X), rtol=1e-12)
+    if _has_P(f):
+        assert_allclose(f.P, 20.0 * np.eye(DIM_X), rtol=1e-12)
     assert f.R == 0.5
     view = np.frombuffer(np.full(DIM_X, 0.1).tobytes())   # read-only memory of bytes
     f.x = view.reshape(-1, 1)
@@ -462,6 +477,8 @@ def check_bad_arguments_are_named(case):
         ("P0", lambda: case.make(P0=1e308)),
         ("x0", lambda: case.make(x0=np.full(DIM_X, 1.0j))),
     ]
+    if not _has_P(case.make()):              # no covariance: no P0 to refuse
+        constructions = [c for c in constructions if c[0] != "P0"]
     for name, call in constructions:
         with pytest.raises((ValueError, TypeError), match=f"`{name}`"):
             call()
@@ -496,14 +513,16 @@ def check_warning_turned_error_changes_nothing(case):
     ``predict_update`` and ``batch_filter`` (compiled and with a Saver), and
     ``ForgettingSkippedWarning`` from a second ``update`` without ``predict``."""
     zs, Hs = _record()
-    f = case.make(check_every=1, cond_max=1.0 + 1e-9)   # fails the check at once
-    f.predict()                                         # (predict itself checks nothing)
-    calls = [lambda: f.update(zs[0], Hs[0]),
+    has_P = _has_P(case.make())
+    f = case.make(check_every=1, cond_max=1.0 + 1e-9) if has_P else None  # fails at once
+    calls = [] if f is None else [lambda: f.update(zs[0], Hs[0]),
              lambda: f.predict_update(zs[0], Hs[0]),
              lambda: f.batch_filter(zs[:5], Hs[:5]),
              lambda: f.batch_filter(zs[:5], Hs[:5], store_covariances=False),
              lambda: f.batch_filter(zs[:5], Hs[:5], update_first=True),
              lambda: f.batch_filter(zs[:5], Hs[:5], saver=Saver(f))]
+    if f is not None:
+        f.predict()                                     # (predict itself checks nothing)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         for i, call in enumerate(calls):
@@ -522,7 +541,7 @@ def check_warning_turned_error_changes_nothing(case):
         except ForgettingSkippedWarning:
             assert _state(g) == before
         else:                                       # nothing skipped: no warning is due
-            assert not getattr(g, "_forgets", False)
+            assert not getattr(g, "forgets", False)
 
 
 def _resume(case, copier):
@@ -582,13 +601,16 @@ def check_streaming_equals_batch(case):
             if not update_first:
                 b.predict()
                 assert_array_equal(b.x, means_p[k])
-                assert_array_equal(b.P, covs_p[k])
+                if _has_P(b):
+                    assert_array_equal(b.P, covs_p[k])
             b.update(zs[k], Hs[k], Rs[k])
             assert_array_equal(b.x, means[k])
-            assert_array_equal(b.P, covs[k])
+            if _has_P(b):
+                assert_array_equal(b.P, covs[k])
             if update_first:
                 b.predict()
-                assert_array_equal(b.P, covs_p[k])
+                if _has_P(b):
+                    assert_array_equal(b.P, covs_p[k])
         _same_state(a, b)
         assert a.log_likelihood == b.log_likelihood
 
@@ -613,6 +635,8 @@ def check_health_warning_points_at_the_caller(case):
         assert len(record) == 1
         return record[0]
 
+    if not _has_P(case.make()):
+        pytest.skip("no covariance: no health check to warn")
     for how in ("update", "predict_update", "batch_filter", "saver"):
         warning = run(how)
         assert warning.filename == __file__, (how, warning.filename)
@@ -633,7 +657,11 @@ CHECKS = [
     check_health_warning_points_at_the_caller,
 ]
 
-EXPECTED_FAILURES = {}
+EXPECTED_FAILURES = {
+    ("SquareRootRLS-lam0.97", "check_warning_turned_error_changes_nothing"):
+        "SquareRootRLS forgets (lam < 1) but does not warn (ForgettingSkippedWarning) when "
+        "update() follows update() without predict(): the skipped time update is silent (#26)",
+}
 
 
 @parametrize_with_checks(FILTERS, CHECKS, EXPECTED_FAILURES)

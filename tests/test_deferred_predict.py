@@ -16,13 +16,13 @@ import copy
 import pickle
 import warnings
 
+import _reference as ref
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
 from rlsfilt import ForgettingSkippedWarning, RecursiveLeastSquares
-from rlsfilt.adaptive import _filter_state
-from rlsfilt.filters import _reference as ref
+from rlsfilt.filters import _filter_state
 
 STATE = ("x", "P", "x_prior", "P_prior", "x_post", "P_post", "y", "K", "S", "SI", "z", "H")
 COUNTERS = ("n_updates", "n_gated", "n_capped", "gated", "lam_t")

@@ -264,3 +264,42 @@ def test_notebook_mentions_link_to_the_notebooks():
             if not m.group("post") or stem is None or not target.startswith(stem):
                 bad.append(f"{where}: {text[max(0, m.start() - 20):m.end() + 20]!r}")
     assert not bad, "unlinked notebook mentions:\n" + "\n".join(bad)
+
+
+def _unnamed_modules(doc, package=ROOT / "rlsfilt"):
+    """The module files of `package` that `doc` does not name: by their path inside the
+    package (``filters/rls.py``) or, when no other module has that file name, by the name
+    alone (``rls.py``, as the tables of a subpackage write it). A package is named by its
+    directory (``filters/``)."""
+    files = sorted(package.rglob("*.py"))
+    count = {}
+    for p in files:
+        count[p.name] = count.get(p.name, 0) + 1
+    missing = []
+    for p in files:
+        rel = p.relative_to(package).as_posix()
+        if p.name == "__init__.py":
+            named = rel == "__init__.py" or f"{p.parent.name}/" in doc
+        else:
+            bare = re.search(rf"(?<![\w/.]){re.escape(p.name)}", doc) and count[p.name] == 1
+            named = re.search(rf"(?<![\w.]){re.escape(rel)}", doc) or bare
+        if not named:
+            missing.append(rel)
+    return missing
+
+
+def test_develop_md_names_every_module():
+    """docs/develop.md is the package map: every module of rlsfilt/ is in it."""
+    missing = _unnamed_modules((DOCS / "develop.md").read_text())
+    assert not missing, f"modules docs/develop.md does not name: {missing}"
+
+
+def test_unnamed_modules_finds_a_missing_module(tmp_path):
+    pkg = tmp_path / "pkg"
+    (pkg / "a").mkdir(parents=True)
+    (pkg / "b").mkdir()
+    for name in ("__init__.py", "a/__init__.py", "a/x.py", "a/_base.py", "b/__init__.py",
+                 "b/_base.py", "b/y.py"):
+        (pkg / name).write_text("")
+    doc = "`a/` holds `x.py`, `a/_base.py`; `b/`: `_base.py`"
+    assert _unnamed_modules(doc, pkg) == ["b/_base.py", "b/y.py"]

@@ -9,13 +9,13 @@ structure against plain recursive least squares on the per-experiment rows.
 
 import numpy as np
 import pytest
+from _reference_rpem import rpem_reference
 from scipy.optimize import minimize
 from scipy.signal import lfilter
 
 from rlsfilt import AR, ARMA, ARMAX, BJ, OE, IOData, RecursiveARMAX, RecursiveLeastSquares
 from rlsfilt.models import arx_regressors
 from rlsfilt.models._family import split_theta
-from rlsfilt.models._recursive_reference import rpem_reference
 from rlsfilt.validation import select_structure
 
 

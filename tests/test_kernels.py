@@ -1,7 +1,7 @@
 """The compiled kernels of `RecursiveLeastSquares` against the textbook reference.
 
 Every public method runs the compiled kernels (``rlsfilt.filters._kernels``);
-the readable recursion is ``rlsfilt.filters._reference``. The two must agree
+the readable recursion is ``tests/_reference.py``. The two must agree
 to 1e-12 (relative to each step's largest entry), step by step, on
 well-conditioned data for every forgetting mode with and without the gate,
 the constraints, a random walk ``Q``, per-sample ``Rs``, missing samples,
@@ -22,10 +22,10 @@ from numpy.testing import assert_allclose, assert_array_equal
 from reference_runs import rls_run
 
 from rlsfilt import NumericalWarning, RecursiveLeastSquares
-from rlsfilt.filters import _health, _kernels_shared, _streaming
+from rlsfilt.filters import _health, _kernels_shared, _streaming, forgetting
 
 STATE = ("x", "P", "x_prior", "P_prior", "x_post", "P_post", "y", "K", "S", "SI", "z", "H")
-MODES = ["exponential", "directional", "constant_trace", "efra", "variable"]
+MODES = list(forgetting.MODES)      # derived: a new mode is covered without editing this file
 A_C = np.array([[1.0, 1.0, 0.0, 0.0]])      # a1 + a2 = -0.8, true for arx_record's plant
 B_C = np.array([-0.8])
 OUTLIERS = (40, 90, 91)

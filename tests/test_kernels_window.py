@@ -2,13 +2,14 @@
 
 ``predict``, ``update``, ``initialize`` and ``batch_filter`` run the numba
 kernels of ``rlsfilt.filters._kernels_window``; the readable recursions are
-in ``rlsfilt.filters._reference`` (the sliding window's update, downdate and
+in ``tests/_reference.py`` (the sliding window's update, downdate and
 refit; the square root's Givens rotations, the same algorithm as its
 kernel). The two must agree to 1e-12 step by step on well-conditioned data
 for every option, and the streaming ``update`` must reproduce
 ``batch_filter`` bit for bit (both run the same compiled step).
 """
 
+import _reference
 import numpy as np
 import pytest
 from conftest import arx_record
@@ -17,7 +18,6 @@ from numpy.testing import assert_array_equal
 from reference_runs import sliding_window_run, square_root_run
 
 from rlsfilt import RecursiveLeastSquares, SlidingWindowRLS, SquareRootRLS
-from rlsfilt.filters import _reference
 
 STATE = ("x", "P", "x_prior", "P_prior", "x_post", "P_post", "y", "K", "S", "SI", "z", "H",
          "n_updates")

@@ -10,6 +10,7 @@ import warnings
 
 import numpy as np
 import pytest
+from _reference_rpem import rpem_reference
 from scipy.signal import lfilter
 
 from rlsfilt import NumericalWarning, RecursiveLeastSquares
@@ -22,7 +23,6 @@ from rlsfilt.models._recursive_pem import (
     positive_real_margins,
     recursive_pem,
 )
-from rlsfilt.models._recursive_reference import rpem_reference
 from rlsfilt.models._stability import is_stable, reflect
 
 STRUCTURES = {

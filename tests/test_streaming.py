@@ -9,11 +9,11 @@ the dispatcher's results, and the dispatcher serves when numba hides them.
 
 import sys
 
+import _reference as ref
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
-from rlsfilt.filters import _reference as ref
 from rlsfilt.filters import _streaming
 from rlsfilt.filters._kernels import BAD_DIAGONAL, BAD_ROW, GATED
 from rlsfilt.filters.forgetting import DIRECTIONAL, EXPONENTIAL, kernel_config

@@ -223,7 +223,7 @@ def test_a_state_restored_while_capped_continues_bit_for_bit(after_predict):
     (``rlsfilt.adaptive``): a filter restored after an ``update`` that set the cap
     (or after the ``predict`` that held the forgetting back) forgets as the original
     does."""
-    from rlsfilt.adaptive import _filter_state
+    from rlsfilt.filters import _filter_state
     rng = np.random.default_rng(3)
     Hs = np.r_[rng.standard_normal((100, 2)), np.zeros((3000, 2)), rng.standard_normal((50, 2))]
     zs = Hs @ np.array([1.0, -2.0]) + 0.01 * rng.standard_normal(len(Hs))

@@ -25,9 +25,9 @@ python-control is imported only when a function needs it, so ``import
 rlsfilt`` stays light.
 """
 
-from .estimator_io import estimator_iosystem
+from ..filters._estimator_io import estimator_iosystem
+from ..models._kalman import to_kalman
 from .innovations import InnovationsModel, from_kalman
-from .kalman import to_kalman
 from .minimum_variance import (
     MinimumVarianceController,
     generalized_minimum_variance,

@@ -20,12 +20,12 @@ Polynomials are coefficient arrays of ascending powers of :math:`q^{-1}`
 import numpy as np
 
 from .._validation import check_dt, check_int
+from ..models._polynomials import model_dt
 from ._polynomials import (
     as_poly,
     check_stable,
     fmt_complex,
     format_poly,
-    model_dt,
     model_polynomials,
     padd,
     roots,

@@ -20,6 +20,7 @@ Polynomials are coefficient arrays of ascending powers of :math:`q^{-1}`
 import numpy as np
 
 from .._validation import check_dt, check_real
+from ..models._polynomials import model_dt, observer_form
 from ._polynomials import (
     as_poly,
     check_stable,
@@ -28,9 +29,7 @@ from ._polynomials import (
     degree,
     fmt_complex,
     format_poly,
-    model_dt,
     model_polynomials,
-    observer_form,
     pad,
     padd,
     roots,

@@ -23,10 +23,10 @@ import warnings
 
 import numpy as np
 
+from .._iosystem import call_capturing, make_iosystem, push
 from .._validation import check_dt, check_int, check_real, check_scalar
 from ..exceptions import ExcitationWarning
-from . import _filter_state
-from ._iosystem import call_capturing, make_iosystem, push
+from ..filters import _filter_state
 from ._polynomials import coprimeness
 from .rst import RSTController, rst_design
 

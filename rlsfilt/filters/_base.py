@@ -22,6 +22,7 @@ from .._validation import (
     check_variance,
 )
 from . import _health
+from .contract import Filter
 
 __all__ = []
 
@@ -30,12 +31,15 @@ _TINY = float(np.finfo(float).tiny)
 #: The diagnostics of a missing measurement: it adds nothing to the log-likelihood,
 #: and there is no residual to measure.
 MISSING_DIAGNOSTICS = (0.0, 1.0, math.nan)
+#: The diagnostics of the last update that `set_diagnostics` assigns.
+_DIAGNOSTICS = ("x_prior", "P_prior", "x_post", "P_post", "H", "K", "S", "SI", "z", "y")
 
 
-class _FilterBase:
+class _FilterBase(Filter):
     """Validation helpers and diagnostics shared by the filters.
 
-    Subclasses set ``dim_x``, ``dim_z``, ``_R`` and provide ``x`` and ``P``.
+    Subclasses set ``dim_x``, ``dim_z``, ``_R`` and provide ``x`` (and ``P`` when
+    ``has_covariance``) and the abstract members of `rlsfilt.filters.contract.Filter`.
     """
 
     def _repr_html_(self):
@@ -80,6 +84,21 @@ class _FilterBase:
         """Mahalanobis distance ``sqrt(y^T S^-1 y)`` of the last residual."""
         return self._diagnostics()[2]
 
+    def set_diagnostics(self, **values):
+        """Assign the diagnostics of the last update (``H``, ``z``, ``y``, ``K``, ``S``,
+        ``SI``, ``x_prior``, ``P_prior``, ``x_post``, ``P_post``), as a filter handed a
+        run over from another one (``ARX.fit``) does; ``log_likelihood`` and its
+        relatives are computed from them on first use (a NaN ``z``: a missing sample)."""
+        unknown = sorted(set(values) - set(_DIAGNOSTICS))
+        if unknown:
+            raise TypeError(f"`{unknown[0]}` is not a diagnostic; expected one of "
+                            f"{', '.join(_DIAGNOSTICS)}")
+        for name, value in values.items():
+            setattr(self, name, value)
+        z = values.get("z", getattr(self, "z", None))
+        self._lazy = (MISSING_DIAGNOSTICS if z is not None and np.isnan(z).any()
+                      else None)
+
     def _diagnostics(self):
         """``(log_likelihood, likelihood, mahalanobis)``, computed on first use after
         an update (``_lazy`` is None until then)."""
@@ -117,7 +136,7 @@ class _FilterBase:
 
     def as_iosystem(self, regressor, dt=True):
         """This filter as a python-control system: `rlsfilt.adaptive.estimator_iosystem`."""
-        from ..adaptive.estimator_io import estimator_iosystem
+        from ._estimator_io import estimator_iosystem
         return estimator_iosystem(self, regressor, dt)
 
     def predict_update(self, z, H, R=None):

@@ -3,7 +3,7 @@
 Every public method of the filter that runs the recursion calls these
 (``predict``, ``update``, ``predict_update``, ``batch_filter``,
 ``get_prediction``, the projection of ``constrain``). The same recursion in
-readable NumPy is :mod:`rlsfilt.filters._reference` (``rls_predict``,
+readable NumPy is ``tests/_reference.py`` (``rls_predict``,
 ``rls_update``, ``update_<mode>``, ``windup_cap``); ``tests/test_kernels.py``
 holds the two equal step by step to 1e-12 for every mode and option. Every
 function is ``njit(cache=True)``: compiled on first use, then loaded from the

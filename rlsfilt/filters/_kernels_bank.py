@@ -1,7 +1,7 @@
 """Compiled (numba) kernels of `RLSBank`: many independent RLS filters at once.
 
 The readable NumPy version of the same recursion is
-:mod:`rlsfilt.filters._reference_bank`; the tests hold the two equal to
+``tests/_reference_bank.py``; the tests hold the two equal to
 1e-12, and every channel equal (bit for bit, in practice) to its own
 `RecursiveLeastSquares`.
 

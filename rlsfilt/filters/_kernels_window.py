@@ -2,7 +2,7 @@
 production path.
 
 Every public method of the two filters that runs the recursion calls these.
-The same recursions in readable NumPy are in :mod:`rlsfilt.filters._reference`
+The same recursions in readable NumPy are in ``tests/_reference.py``
 (``SlidingWindow``; ``square_root_update``, the Givens rotations whose numbers
 the square root's kernel computes without square roots);
 ``tests/test_kernels_window.py`` holds the two equal step by step to 1e-12.

@@ -58,30 +58,14 @@ import sysconfig
 
 import numpy as np
 
+from .._lazy import lazy_module
+
 __all__ = []
 
-_kernels = None
-_window_kernels = None
-
-
-def kernels():
-    """The compiled kernels of `RecursiveLeastSquares`, imported on first use
-    (``import rlsfilt`` does not load numba)."""
-    global _kernels
-    if _kernels is None:
-        from . import _kernels as k
-        _kernels = k
-    return _kernels
-
-
-def window_kernels():
-    """The compiled kernels of `SlidingWindowRLS` and `SquareRootRLS`, imported on
-    first use."""
-    global _window_kernels
-    if _window_kernels is None:
-        from . import _kernels_window as k
-        _window_kernels = k
-    return _window_kernels
+#: The compiled kernels of `RecursiveLeastSquares`, imported on first use.
+kernels = lazy_module("rlsfilt.filters._kernels")
+#: The compiled kernels of `SlidingWindowRLS` and `SquareRootRLS`, imported on first use.
+window_kernels = lazy_module("rlsfilt.filters._kernels_window")
 
 
 def c_array(a):
@@ -277,7 +261,7 @@ def _predict_kernel(*args):
     """The first call: run ``predict_kernel``, then call its entry point directly."""
     global _predict_kernel
     kernels().predict_kernel(*args)
-    _predict_kernel = _entry_point(_kernels.predict_kernel, args)
+    _predict_kernel = _entry_point(kernels().predict_kernel, args)
 
 
 def _update_kernel(x, P, phi, z0, zmode, r, cfg, w, il, Q, xn, Pn, out):

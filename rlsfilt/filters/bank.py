@@ -35,6 +35,7 @@ import math
 import numpy as np
 
 from .._display import pretty_str
+from .._lazy import lazy_module
 from .._validation import (
     COVARIANCE_MAX,
     VARIANCE_RANGE,
@@ -58,16 +59,7 @@ _SUPPORTED_PARAMS = {"exponential": (), "directional": ("eps",),
                      "constant_trace": ("trace", "ratio")}
 _LOG_2PI = math.log(2.0 * math.pi)
 _TINY = np.finfo(float).tiny
-_kernels = None
-
-
-def _get_kernels():
-    """Import the numba kernels on first use, so that ``import rlsfilt`` stays light."""
-    global _kernels
-    if _kernels is None:
-        from . import _kernels_bank
-        _kernels = _kernels_bank
-    return _kernels
+_get_kernels = lazy_module("rlsfilt.filters._kernels_bank")
 
 
 def _atomic(method):
@@ -123,7 +115,7 @@ def _made(lazy):
         return src.copy(order="F")
     Pt = _t(src)
     Pn, P_prior = np.empty_like(Pt), np.empty_like(Pt)
-    (_kernels or _get_kernels()).bank_predict(Pt, il, Qt, q_zero, Pn, P_prior)
+    _get_kernels().bank_predict(Pt, il, Qt, q_zero, Pn, P_prior)
     return P_prior.T
 
 
@@ -414,7 +406,7 @@ class RLSBank:
         il, Qt, q_zero = pending
         Pt = self._checked_P()
         Pn, P_prior = np.empty_like(Pt), np.empty_like(Pt)
-        (_kernels or _get_kernels()).bank_predict(Pt, il, Qt, q_zero, Pn, P_prior)
+        _get_kernels().bank_predict(Pt, il, Qt, q_zero, Pn, P_prior)
         self._P, self._P_out = Pn.T, False
         self.__dict__["_P_prior"] = P_prior.T
         self._pending = None
@@ -571,7 +563,7 @@ class RLSBank:
         y, S, SI, lam_t = np.empty(C), np.empty(C), np.empty(C), np.empty(C)
         pending = self._pending
         il, Qt, q_zero = pending if pending is not None else (self._il, Pt, True)
-        bad = (_kernels or _get_kernels()).bank_update(
+        bad = _get_kernels().bank_update(
             xt, Pt, zz, Hm, r, self._lam, self._mode, self._params, pending is not None, il,
             Qt, q_zero, xn, Pn, y, S, SI, K, lam_t)
         if bad < 0:                          # an infinite value: name the first one

@@ -12,7 +12,7 @@ This module is the one home of the modes' configuration: their names
 validation and defaults of ``forgetting_params``, EFRA's invariant interval,
 and the layout of the configuration array the kernels receive
 (:func:`kernel_config`). The arithmetic of each mode is written once as
-NumPy in :mod:`rlsfilt.filters._reference` (``update_<mode>``, the
+NumPy in ``tests/_reference.py`` (``update_<mode>``, the
 textbook) and once compiled in :mod:`rlsfilt.filters._kernels`
 (``measurement_update``, the production path); the tests hold the two equal
 step by step.

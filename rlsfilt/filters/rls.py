@@ -11,7 +11,7 @@ state ``x`` and ``P``, diagnostics ``y``, ``K``, ``S``, ``SI`` and the lazy
 
 Every step runs compiled (:mod:`rlsfilt.filters._kernels`; the streaming
 calls through :mod:`rlsfilt.filters._streaming`); the same recursion in
-textbook NumPy is :mod:`rlsfilt.filters._reference`.
+textbook NumPy is ``tests/_reference.py``.
 """
 
 import math
@@ -34,6 +34,7 @@ from ..exceptions import ForgettingSkippedWarning
 from . import _health, _streaming
 from . import forgetting as _fg
 from ._base import MISSING_DIAGNOSTICS, _FilterBase, own_array
+from .contract import check_state
 
 _rc = _streaming._getrefcount
 
@@ -1028,6 +1029,53 @@ class RecursiveLeastSquares(_FilterBase):
     # ------------------------------------------------------------------
     # filterpy helpers
     # ------------------------------------------------------------------
+    # ------------------------------------------------------------------
+    # the filter contract (rlsfilt.filters.contract.Filter)
+    # ------------------------------------------------------------------
+    supports_constraints = True
+
+    @property
+    def forgets(self):
+        """Whether :meth:`predict` changes ``P`` (``lam < 1`` in the time update, or ``Q``)."""
+        return self._forgets
+
+    def get_state(self):
+        """Copies of the state a resumed run needs: ``x``, ``P``, the counters, the
+        windup cap's decision for the next time update (``cap``, ``w``), EFRA's
+        pending start and the health check's memory (see `rlsfilt.filters.contract`).
+        A pending :meth:`predict` is included in ``P``."""
+        return {"x": self.x.copy(), "P": self.P.copy(), "n_updates": int(self.n_updates),
+                "efra_pending": bool(self._efra_pending), "n_capped": int(self.n_capped),
+                "cap": bool(self._cap), "w": float(self._w), "n_gated": int(self.n_gated),
+                "gated": bool(self.gated), "lam_t": float(self.lam_t),
+                "warned_health": bool(self._warned_health),
+                "updates_since_predict": int(self._updates_since_predict),
+                "recheck": bool(self._recheck)}
+
+    def set_state(self, state):
+        """Continue from `state`, a dict from :meth:`get_state` (copied)."""
+        s = check_state(self, state)
+        self.x, self.P = s["x"], s["P"]
+        self.n_updates, self.n_capped, self.n_gated = s["n_updates"], s["n_capped"], s["n_gated"]
+        self._efra_pending, self._cap, self._w = s["efra_pending"], s["cap"], s["w"]
+        self.gated, self.lam_t = s["gated"], s["lam_t"]
+        self._warned_health = s["warned_health"]
+        self._updates_since_predict = s["updates_since_predict"]
+        self._recheck = s["recheck"]
+
+    def run_record(self, Z, Hm, *, lead=0, residuals=False, scales=None, lags=None):
+        """`batch_filter` on a record the caller has validated, for the models.
+
+        ``Z`` (N, dim_z) and ``Hm`` (N, dim_x) (or ``Hm`` None with `lags`: the
+        rows read from the signals), the filter's ``R`` for every sample, no
+        covariance history; `lead`, `residuals`, `scales` and `lags` as in
+        `rlsfilt.filters._kernels.run_batch`. Returns the kernel's
+        ``BatchResult`` (the histories ``ARX.fit`` keeps) and leaves the filter
+        as ``batch_filter`` would.
+        """
+        return self._run_batch(Z, Hm, self._as_batch_variances(None, len(Z)), False, False,
+                               lead=lead, residuals=residuals, scales=scales, lags=lags)
+
     def get_prediction(self):
         """Return ``(x, P)`` after a :meth:`predict`, without changing the filter."""
         P = self._checked_P()

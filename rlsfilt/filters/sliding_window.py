@@ -14,6 +14,7 @@ from .._validation import (
 from . import _health, _streaming
 from ._base import MISSING_DIAGNOSTICS, _FilterBase, own_array
 from ._streaming import c_array
+from .contract import check_state
 
 __all__ = ["SlidingWindowRLS"]
 
@@ -393,6 +394,28 @@ class SlidingWindowRLS(_FilterBase):
     def get_prediction(self):
         """Return ``(x, P)`` after a :meth:`predict` (unchanged: no time update)."""
         return self._checked_x().copy(), self._checked_P().copy()
+
+    # ------------------------------------------------------------------
+    # the filter contract (rlsfilt.filters.contract.Filter)
+    # ------------------------------------------------------------------
+    def get_state(self):
+        """Copies of the state a resumed run needs: ``x``, ``P``, the window (rows,
+        measurements, variances, oldest not first: a ring buffer from ``head``), its
+        counters and the health check's memory (see `rlsfilt.filters.contract`)."""
+        return {"x": self.x.copy(), "P": self.P.copy(), "window_H": self._wH.copy(),
+                "window_z": self._wZ.copy(), "window_R": self._wR.copy(),
+                "head": int(self._head), "n_samples": int(self._nw),
+                "n_updates": int(self._count), "next_exact_try": int(self._next_exact_try),
+                "exact": bool(self.exact), "warned_health": bool(self._warned_health)}
+
+    def set_state(self, state):
+        """Continue from `state`, a dict from :meth:`get_state` (copied)."""
+        s = check_state(self, state)
+        self.x, self.P = s["x"], s["P"]
+        self._wH, self._wZ, self._wR = s["window_H"], s["window_z"], s["window_R"]
+        self._head, self._nw, self._count = s["head"], s["n_samples"], s["n_updates"]
+        self._next_exact_try, self.exact = s["next_exact_try"], s["exact"]
+        self._warned_health = s["warned_health"]
 
     # ------------------------------------------------------------------
     # health of P

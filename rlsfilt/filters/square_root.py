@@ -16,6 +16,7 @@ from .._validation import (
 from . import _health, _streaming
 from ._base import MISSING_DIAGNOSTICS, _FilterBase
 from ._streaming import c_array
+from .contract import check_state
 
 __all__ = ["SquareRootRLS"]
 
@@ -379,6 +380,29 @@ class SquareRootRLS(_FilterBase):
     def get_prediction(self):
         """Return ``(x, P)`` after a :meth:`predict`, without changing the filter."""
         return self._x.copy(), self.P / self._lam
+
+    # ------------------------------------------------------------------
+    # the filter contract (rlsfilt.filters.contract.Filter)
+    # ------------------------------------------------------------------
+    @property
+    def forgets(self):
+        """Whether :meth:`predict` changes the factor (``lam < 1``)."""
+        return self._lam != 1.0
+
+    def get_state(self):
+        """Copies of the state a resumed run needs: ``x`` and the square-root-free
+        factors as the filter keeps them (``U = Delta^-1/2 W``, ``v = W x``), the
+        update count and the health check's memory (see `rlsfilt.filters.contract`)."""
+        n, m = self.dim_x, self.dim_z
+        return {"x": self._x.copy(), "W": self._Wv[:, :n].copy(), "delta": self._delta.copy(),
+                "v": self._Wv[:, n:n + m].copy(), "n_updates": int(self.n_updates),
+                "warned_health": bool(self._warned_health)}
+
+    def set_state(self, state):
+        """Continue from `state`, a dict from :meth:`get_state` (copied)."""
+        s = check_state(self, state)
+        self._set_factors(s["W"], s["delta"], v=s["v"], x=s["x"])
+        self.n_updates, self._warned_health = s["n_updates"], s["warned_health"]
 
     # ------------------------------------------------------------------
     # health of P

@@ -597,7 +597,7 @@ class IdentifiedModel(abc.ABC):
 
     def to_kalman(self):
         """The model as a filterpy ``KalmanFilter``: `rlsfilt.adaptive.to_kalman`."""
-        from ..adaptive.kalman import to_kalman
+        from ._kalman import to_kalman
         return to_kalman(self)
 
     def frequency_response(self, omega, theta=None, noise=False):

@@ -54,6 +54,7 @@ import warnings
 
 import numpy as np
 
+from .._lazy import lazy_module
 from .._lazy_scipy import lfilter
 from .._scale import safe_norm
 from ..exceptions import NumericalWarning
@@ -63,15 +64,7 @@ from .regressors import _build
 
 __all__ = []
 
-_kernels = None
-
-
-def _get_kernels():
-    global _kernels
-    if _kernels is None:
-        from . import _recursive_kernels as k
-        _kernels = k
-    return _kernels
+_get_kernels = lazy_module("rlsfilt.models._recursive_kernels")
 
 
 def _shift(x, k):

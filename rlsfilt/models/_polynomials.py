@@ -90,3 +90,50 @@ def evaluate(p, zinv):
     for c in np.asarray(p)[::-1]:   # Horner in z^-1
         out = out * zinv + c
     return out
+
+
+def observer_form(A, B):
+    r"""Observer-canonical realization of :math:`A(q^{-1}) y = B(q^{-1}) u`.
+
+    Parameters
+    ----------
+    A : ndarray, shape (ny, ny, na + 1)
+        Matrix polynomial with ``A[:, :, 0] = I``.
+    B : ndarray, shape (ny, nu, nb + 1)
+        Matrix polynomial (``B[:, :, 0]`` is the feed-through).
+
+    Returns
+    -------
+    F, G, H, D : ndarray
+        ``x(t+1) = F x(t) + G u(t)``, ``y(t) = H x(t) + D u(t)`` with
+        ``ny * n`` states, ``n = max(na, nb)``; block ``i`` of the state is
+        the part of :math:`y(t+i)` that the past already determines,
+
+        .. math::
+
+            x_i(t+1) = x_{i+1}(t) - A_i y(t) + B_i u(t), \qquad
+            y(t) = x_1(t) + B_0 u(t).
+    """
+    ny, nu = A.shape[0], B.shape[1]
+    n = max(A.shape[2], B.shape[2]) - 1
+    Ak = [A[:, :, k] if k < A.shape[2] else np.zeros((ny, ny)) for k in range(n + 1)]
+    Bk = [B[:, :, k] if k < B.shape[2] else np.zeros((ny, nu)) for k in range(n + 1)]
+    D = Bk[0].copy()
+    F = np.zeros((n * ny, n * ny))
+    G = np.zeros((n * ny, nu))
+    for i in range(n):
+        blk = slice(i * ny, (i + 1) * ny)
+        F[blk, :ny] = -Ak[i + 1]
+        if i + 1 < n:
+            F[blk, (i + 1) * ny:(i + 2) * ny] = np.eye(ny)
+        G[blk] = Bk[i + 1] - Ak[i + 1] @ D
+    H = np.zeros((ny, n * ny))
+    if n:
+        H[:, :ny] = np.eye(ny)
+    return F, G, H, D
+
+
+def model_dt(obj, default=True):
+    """The sampling period of a model (its ``dt``), or `default`."""
+    dt = getattr(obj, "dt", default)
+    return default if dt is None else dt

@@ -38,6 +38,7 @@ import warnings
 
 import numpy as np
 
+from .._lazy import lazy_module
 from .._validation import check_covariance, check_int, check_lam, check_scalar, check_variance
 from ..exceptions import NumericalWarning
 from ..filters import _health
@@ -48,16 +49,7 @@ from ._stability import stabilize_theta
 __all__ = []
 
 METHODS = ("rpem", "rplr")
-_kernels = None
-
-
-def _get_kernels():
-    """Import the numba kernels on first use, so ``import rlsfilt`` stays light."""
-    global _kernels
-    if _kernels is None:
-        from . import _recursive_kernels as k
-        _kernels = k
-    return _kernels
+_get_kernels = lazy_module("rlsfilt.models._recursive_kernels")
 
 
 def _check_positive(value, name):

@@ -30,7 +30,6 @@ from .._validation import (
 )
 from ..exceptions import InsufficientDataError, NumericalWarning
 from ..filters import RecursiveLeastSquares, SquareRootRLS
-from ..filters._base import MISSING_DIAGNOSTICS
 from . import _conversion
 from ._arx_iv import check_options as check_iv_options
 from ._arx_iv import fit_arx_iv
@@ -1220,33 +1219,23 @@ def _hand_over(rls, user, theta, units, r):
             "P_post": lambda P: units.P_from_unit(P, r=r), "H": cols, "K": gain,
             "S": lambda S: np.ldexp(S, -r), "SI": lambda S: np.ldexp(S, r),
             "z": lambda z: np.ldexp(z, ey), "y": lambda y: np.ldexp(y, ey)}
+    state = rls.get_state()                        # the counters and pending decisions
     with np.errstate(over="ignore", under="ignore"):
         if isinstance(rls, SquareRootRLS):
             # the information square root (U^T U = P^-1) maps exactly, U = 2^(r/2) U~ 2^c,
             # and so do its factors U = Delta^-1/2 W: W = 2^-c W~ 2^c,
             # Delta = 2^(-r - 2c) Delta~, and v = W x = 2^(e_y - c) v~
-            n = rls.dim_x
-            user._set_factors(np.ldexp(rls._Wv[:, :n], c[None, :] - c[:, None]),
-                              np.ldexp(rls._delta, -r - 2 * c),
-                              v=np.ldexp(rls._Wv[:, n:n + rls.dim_z],
-                                         units.output_exponents[None, :] - c[:, None]),
-                              x=theta)
+            state["W"] = np.ldexp(state["W"], c[None, :] - c[:, None])
+            state["delta"] = np.ldexp(state["delta"], -r - 2 * c)
+            state["v"] = np.ldexp(state["v"], units.output_exponents[None, :] - c[:, None])
         else:
-            user.x = theta
-            user.P = units.P_from_unit(rls.P, r=r)
-            user._cap, user._w = rls._cap, rls._w      # the windup cap's pending decision
-        for name, f in maps.items():
-            # the diagnostics are properties over the last update's arrays (RLS) or
-            # plain attributes (the square-root form): read them as a user would
-            value = getattr(rls, name, None)
-            if value is not None:
-                setattr(user, name, f(value))
-    for name in ("n_updates", "n_gated", "n_capped", "lam_t", "gated", "_warned_health",
-                 "_updates_since_predict", "_recheck", "_efra_pending"):
-        if name in rls.__dict__:
-            setattr(user, name, rls.__dict__[name])
-    if "_lazy" in rls.__dict__:                 # a missing last sample's marker, else lazy
-        user._lazy = rls._lazy if rls._lazy == MISSING_DIAGNOSTICS else None
+            state["P"] = units.P_from_unit(state["P"], r=r)
+        state["x"] = theta
+        user.set_state(state)
+        # the diagnostics are properties over the last update's arrays (RLS) or
+        # plain attributes (the square-root form): read them as a user would
+        user.set_diagnostics(**{name: f(getattr(rls, name)) for name, f in maps.items()
+                                if getattr(rls, name, None) is not None})
 
 
 def _run_rls(rls, rows, k0, units=None):
@@ -1277,9 +1266,8 @@ def _run_rls(rls, rows, k0, units=None):
     if k0 < n_rows:
         Z = rows.target(k0, n_rows)
         Hm, lags = rows.source(k0)
-        out = rls._run_batch(Z, Hm, rls._as_batch_variances(None, len(Z)), False, False,
-                             lead=max(k0 - 1, 0), residuals=prior[k0:], scales=scales,
-                             lags=lags)
+        out = rls.run_record(Z, Hm, lead=max(k0 - 1, 0), residuals=prior[k0:],
+                             scales=scales, lags=lags)
         history = out.buffer[1:] if k0 == 0 else out.buffer
     else:                                   # the batch start used every row
         history = np.full((n_rows, n, ny), np.nan)

@@ -584,7 +584,7 @@ def _fit_chunk(cs, U, Y, s, method, per_channel, k0, max_lag, tests, on_error, l
     out.cov[sel] = sigma2[:, None, None] * cov
     out.pred_fit[sel], out.sim_fit[sel] = pred_fit, sim_fit
     if tests:
-        from ..validation._many import input_lag_test_many, ljung_box_many
+        from ._residual_tests import input_lag_test_many, ljung_box_many
 
         start = s.max_lag
         resid = np.ascontiguousarray(resid.T)                  # one row per channel

@@ -5,6 +5,7 @@ import warnings
 
 import numpy as np
 
+from .._lazy import lazy_module
 from .._validation import (
     as_float_array,
     check_covariance,
@@ -20,15 +21,7 @@ from .regressors import arx_structure
 
 __all__ = ["RecursiveIV"]
 
-_kernels = None
-
-
-def _get_kernels():
-    global _kernels
-    if _kernels is None:
-        from . import _recursive_kernels as k
-        _kernels = k
-    return _kernels
+_get_kernels = lazy_module("rlsfilt.models._recursive_kernels")
 
 
 class RecursiveIV:

@@ -8,10 +8,10 @@ MATLAB's ``resid`` and Ljung (1999, sec. 16.6).
 
 import numpy as np
 
-from .._resources import check_memory
 from .._scale import pow2_scale
 from .._validation import check_int, check_probability
 from ..exceptions import ExactFitError, InsufficientDataError
+from ..models._residual_tests import input_lag_test
 from ..models.regressors import _as_signal
 from ..plotting import plot_autocorrelation, plot_cross_correlation, plot_residuals
 from ._model import one_step_records
@@ -308,7 +308,7 @@ def _residual_analysis(Phi, E, u, max_lag, alpha, output=0, model_df=0):
 
     # joint LM / F test of the lagged inputs given the regressors (none without an input)
     if nu:
-        F, q, p_indep = _input_lag_test(es, Phi, Us, t0, max_lag)
+        F, q, p_indep = input_lag_test(es, Phi, Us, t0, max_lag)
         independent = bool(p_indep > alpha)
     else:
         F, q, p_indep, independent = np.nan, 0, np.nan, None
@@ -319,98 +319,3 @@ def _residual_analysis(Phi, E, u, max_lag, alpha, output=0, model_df=0):
         f_statistic=F, df_independent=q, pvalue_independent=p_indep,
         is_white=bool(p_white > alpha), is_independent=independent,
         alpha=alpha, max_lag=max_lag, output=output)
-
-
-def _input_lag_test(e, Phi, U, t0, M, block=8192):
-    r"""F test that lagged inputs u(t - tau), |tau| <= M, do not explain `e`.
-
-    The regression of `e` on ``X0 = [1, Phi]`` and on ``[X0, L]`` (``L`` the
-    lagged inputs) needs only the inner products of the columns of
-    ``A = [X0, L, e]``. They are taken from the triangular factor ``R`` of
-    ``A = Q R``, accumulated over blocks of `block` rows (tall-skinny QR:
-    the ``R`` so far stacked on the next block is factored again), so the
-    memory is ``O(block * cols)`` instead of a dense ``(n, cols)`` matrix and
-    its orthogonal factor (Golub & Van Loan 2013, sec. 5.2; Demmel et al.
-    2012). Since ``A^T A = R^T R``, every projection below is computed on the
-    columns of ``R`` exactly as it would be on the columns of ``A``.
-    """
-    from scipy.stats import f  # lazy: keeps `import rlsfilt` light
-    n = len(e)
-    N = len(U)
-    nu = U.shape[1]
-    lo, hi = max(0, M - t0), min(n, N - M - t0)   # rows where every lag u(t -+ M) exists
-    n_rows = max(hi - lo, 0)
-    p = Phi.shape[1]
-    n_x0 = 1 + p
-    n_l = nu * (2 * M + 1)
-    K = n_x0 + n_l + 1
-    block = max(block, K)
-    # R stacked on a block, and LAPACK's copy of it
-    check_memory(16 * (block + K) * K, f"the independence test with `max_lag` = {M} "
-                 f"({K} columns: {nu} input(s) at {2 * M + 1} lags and {n_x0} regressors)")
-    # powers of two per column keep the squares of any record in range (exact)
-    phi_scale = pow2_scale(Phi[lo:hi], axis=0) if n_rows else np.ones(p)
-    R = np.zeros((0, K))
-    for b0 in range(lo, hi, block):
-        b1 = min(b0 + block, hi)
-        t = t0 + np.arange(b0, b1)
-        A = np.empty((b1 - b0, K))
-        A[:, 0] = 1.0
-        A[:, 1:n_x0] = Phi[b0:b1] / phi_scale
-        col = n_x0
-        for j in range(nu):
-            for tau in range(-M, M + 1):
-                A[:, col] = U[t[0] - tau:t[-1] - tau + 1, j]
-                col += 1
-        A[:, -1] = e[b0:b1]
-        R = np.linalg.qr(np.vstack([R, A]), mode="r")
-    # unit columns, so that which directions count as "already a regressor" does not
-    # depend on the units of u and y (the F statistic itself is scale-invariant)
-    X0 = _unit_norm(R[:, :n_x0])
-    L = _unit_norm(R[:, n_x0:n_x0 + n_l])
-    er = R[:, -1]
-    Q0 = _orthonormal_basis(X0, n_rows)
-    e0 = er - Q0 @ (Q0.T @ er)              # residual of the restricted regression
-    L0 = L - Q0 @ (Q0.T @ L)                # lagged inputs orthogonal to the regressors
-    col = np.linalg.norm(L, axis=0)
-    keep = np.linalg.norm(L0, axis=0) > 1e-8 * np.where(col > 0, col, 1.0)
-    Q1 = _orthonormal_basis(L0[:, keep], n_rows) if keep.any() else np.zeros((len(er), 0))
-    q = Q1.shape[1]
-    rss0 = float(er @ er) if Q0.shape[1] == 0 else float(e0 @ e0)
-    gain = float(np.sum((Q1.T @ e0) ** 2))
-    rss1 = rss0 - gain
-    dfd = n_rows - Q0.shape[1] - q
-    if q == 0:  # every lagged input is already a regressor: nothing left to test
-        return 0.0, 0, 1.0
-    if dfd <= 0:
-        raise InsufficientDataError(f"`max_lag` = {M} leaves too few rows ({n_rows}) for the "
-                         f"independence test with {Q0.shape[1] + q} regressors; use a "
-                         "smaller max_lag or more data")
-    if rss1 <= 0.0:
-        return np.inf, q, 0.0
-    F = (gain / q) / (rss1 / dfd)
-    return float(F), q, float(f.sf(F, q, dfd))
-
-
-def _unit_norm(X):
-    """Columns of a small matrix scaled to unit 2-norm (zero columns left as they are)."""
-    norms = np.linalg.norm(X, axis=0)
-    return X / np.where(norms > 0, norms, 1.0)
-
-
-def _orthonormal_basis(X, n_rows=None):
-    """Orthonormal basis of the column space of `X` (Householder QR), with rank detection.
-
-    Columns whose diagonal entry of ``R`` is negligible against the largest
-    are dropped (the tolerance counts `n_rows`, the rows of the tall matrix
-    that `X` stands for, when given); the callers pass matrices whose
-    dependent columns were already removed, so this only guards against
-    exact collinearity.
-    """
-    if X.shape[1] == 0:
-        return np.zeros((X.shape[0], 0))
-    Qf, R = np.linalg.qr(X)
-    d = np.abs(np.diag(R))
-    rows = max(X.shape[0] if n_rows is None else n_rows, X.shape[1])
-    tol = rows * np.finfo(float).eps * max(float(d.max()), np.finfo(float).tiny)
-    return Qf[:, d > tol]

@@ -13,9 +13,9 @@ import numbers
 
 import numpy as np
 
+from .._iosystem import call_capturing, make_iosystem, push
 from .._validation import check_dt, check_int
 from . import _filter_state
-from ._iosystem import call_capturing, make_iosystem, push
 
 __all__ = ["estimator_iosystem"]
 

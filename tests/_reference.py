@@ -21,7 +21,7 @@ import numpy as np
 from scipy.linalg import solve_triangular
 from scipy.linalg.lapack import dtrtri
 
-from .forgetting import CONSTANT_TRACE, DIRECTIONAL, EFRA, EXPONENTIAL, VARIABLE
+from rlsfilt.filters.forgetting import CONSTANT_TRACE, DIRECTIONAL, EFRA, EXPONENTIAL, VARIABLE
 
 __all__ = []
 
