@@ -329,7 +329,7 @@ class _FilterBase:
     def _as_measurement(self, z, name):
         """Return `z` as a new ``(dim_z, 1)`` column, or None when missing."""
         if isinstance(z, float) and self.dim_z == 1 and z - z == 0.0:   # a finite float
-            return np.array([[z]], dtype=np.float64)
+            return np.array(z, ndmin=2)
         if z is None:
             return None
         zz = as_float_array(z, name)

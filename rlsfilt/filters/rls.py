@@ -421,7 +421,8 @@ class RecursiveLeastSquares(_FilterBase):
             Random-walk covariance for this call only; ``self.Q`` if omitted.
         """
         # validate
-        self._refuse_control(u, B, F)
+        if u is not None or B is not None or F is not None:
+            self._refuse_control(u, B, F)             # filterpy's arguments: raise
         Q = self._Q_kernel if Q is None else self._random_walk(Q)
         x, P = self._state() if self._recheck else (self._x, self._P)
         # one compiled step (_kernels.predict_kernel) into a new array:
@@ -925,9 +926,9 @@ class RecursiveLeastSquares(_FilterBase):
         """`H` (``self.H`` when None) as a new float64 row ``(1, dim_x)``. Its
         finiteness is tested by the compiled step (cheaper than ``np.isfinite`` here)."""
         H = self.H if H is None else H
-        if type(H) is np.ndarray and H.dtype == _F8 and H.size == self.dim_x and (
-                H.ndim == 1 or H.shape == (1, self.dim_x)):
-            return H.reshape(1, -1).copy()
+        if (type(H) is np.ndarray and H.dtype == _F8 and 0 < H.ndim <= 2
+                and H.shape[-1] == H.size == self.dim_x):        # (dim_x,) or (1, dim_x)
+            return np.array(H, ndmin=2)
         return self._as_regressor(H, "H")
 
     def _state(self):
