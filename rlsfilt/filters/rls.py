@@ -500,7 +500,7 @@ class RecursiveLeastSquares(_FilterBase):
         forgetting or a failed health check; all before the state changes (a
         warning turned into an error leaves the filter as it was)."""
         if flags & _BAD_ROW:
-            check_finite(H, "H")                      # raises
+            check_finite(H[0], "H")                   # raises
         bad = (flags & _BAD_DIAGONAL) != 0
         skipped = (self._updates_since_predict and not self._warned_skip and self._forgets)
         every = self._check_every
