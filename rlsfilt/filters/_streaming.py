@@ -6,14 +6,22 @@ use. The streaming ``predict()``/``update()`` of every filter call their
 compiled step through numba's ordinary dispatcher, on arrays the step
 allocates (see ``RecursiveLeastSquares.update``).
 
-Until version 0.9 this module held a faster streaming machinery for
+Until issue #26 this module also held a faster streaming machinery for
 `RecursiveLeastSquares`: a deferred ``predict()`` fused into the next
 ``update()``, blocks of arrays recycled by reference count, and direct calls
-of the compiled entry points. It was removed because it did not pay its
-weight: ``python benchmarks/bench_rls.py --streaming-ablation`` measured the
-plain step within 1.5x of it (see ``docs/performance.md``), and it caused
-the multi-output streaming bug of issue #26 (an entry point typed for
-C-contiguous arrays read an F-ordered estimate with the wrong strides).
+of the compiled entry points. Together they made a ``predict()`` +
+``update()`` pair cost 1.1 us instead of the plain step's 4.7 us at
+``dim_x = 5`` (thread CPU time, shared 2-core machine); they went because
+they made the filter unreadable (59 lines of ``update``, 13 slots, a deferred
+state behind every property) and caused the multi-output streaming bug of
+#26 (an entry point typed for C-contiguous arrays read an F-ordered estimate
+with the wrong strides). What one of them alone would bring to the plain
+step, measured by ``python benchmarks/bench_rls.py --streaming-ablation``:
+the entry points 0.3 us of 4.7 (1.06x; not kept), the reuse and the
+deferral at most the Python work outside the compiled calls, which is
+mostly validation and the filterpy attributes every step must produce.
+Who needs more streams many filters through `RLSBank` or a record through
+``batch_filter``.
 """
 
 import numpy as np
