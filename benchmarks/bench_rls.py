@@ -309,43 +309,58 @@ def streaming_vs_filterpy(results):
 
 
 def streaming_ablation(dims, n_samples=5000, rounds=7, rng=0, log=print):
-    """Time the streaming pair with each trick of ``rlsfilt.filters._streaming`` off.
+    """Time the streaming pair against the floors a trick could bring it to.
 
-    ``as shipped``; ``no reuse``: a fresh block of arrays every step (what a
-    caller who keeps every array would cost); ``dispatcher``: numba's
-    dispatcher instead of the compiled entry points. CPU time per sample
-    (``time.process_time``: steadier than wall time on a busy machine);
-    returns ``{dim_x: {variant: seconds}}``.
+    ``as shipped``: ``predict()`` then ``update()``; ``kernels alone``: the
+    two compiled calls they make (``predict_kernel``, ``update_kernel``)
+    through numba's dispatcher on arrays allocated once, so no validation,
+    no new arrays and no commit: the floor of any Python-side trick (the
+    recycled arrays and the deferred predict of versions before 0.9);
+    ``entry points``: the same two calls through the compiled entry points
+    (what the direct calls of before 0.9 saved at most). Thread CPU time per
+    sample (``time.thread_time``: steadier than wall time on a busy
+    machine); returns ``{dim_x: {variant: seconds}}``.
     """
-    from rlsfilt.filters import _streaming as S
+    from numba import typeof
 
-    S.kernels()
-    run_stream(*arx_data(5, 50, np.random.default_rng(0)))      # resolve the entry points
-    shipped = {name: getattr(S, name) for name in ("_predict_kernel", "_update_kernel",
-                                                   "_FREE_PREDICT", "_FREE_UPDATE", "_FREE_EACH")}
-    changes = {"as shipped": {},
-               "no reuse": {"_FREE_PREDICT": -1, "_FREE_UPDATE": -1, "_FREE_EACH": None},
-               "dispatcher": {"_predict_kernel": S._kernels.predict_kernel,
-                              "_update_kernel": S._kernels.update_kernel}}
+    from rlsfilt.filters import _streaming
+
+    kern = _streaming.kernels()
     rng = np.random.default_rng(rng)
     results = {}
-    try:
-        for n in dims:
-            Hs, zs = arx_data(n, n_samples, rng)
-            best = dict.fromkeys(changes, np.inf)
-            for _ in range(rounds):
-                for name, change in changes.items():
-                    for attr, value in {**shipped, **change}.items():
-                        setattr(S, attr, value)
-                    t0 = time.process_time()
-                    run_stream(Hs, zs)
-                    best[name] = min(best[name], (time.process_time() - t0) / n_samples)
-            results[n] = best
-            log(f"dim_x = {n:3d}, predict+update: " + ", ".join(
-                f"{k} {v * 1e6:.2f} us" for k, v in best.items()))
-    finally:
-        for attr, value in shipped.items():
-            setattr(S, attr, value)
+    for n in dims:
+        Hs, zs = arx_data(n, n_samples, rng)
+        rls = rlsfilt.RecursiveLeastSquares(n, lam=LAM, P0=P0)
+        x, P, cfg, Q = rls.x, rls.P, rls._cfg, np.zeros((0, 0))
+        rows, cols = Hs.reshape(-1, 1, n).copy(), zs.reshape(-1, 1, 1).copy()
+        outs = (np.empty((n, 1)), np.empty((n, n)), np.empty((1, 1)), np.empty((n, 1)),
+                np.empty((1, 1)), np.empty((1, 1)))
+        Pm = np.empty((n, n))
+        args_p = (P, 1.0 / LAM, Q, cfg, Pm)
+        args_u = (x, Pm, rows[0], cols[0], 1.0, cfg, 1.0) + outs
+        kern.predict_kernel(*args_p)
+        kern.update_kernel(*args_u)
+        entry_p = kern.predict_kernel.overloads[tuple(map(typeof, args_p))].entry_point
+        entry_u = kern.update_kernel.overloads[tuple(map(typeof, args_u))].entry_point
+
+        def kernels_alone(predict_kernel, update_kernel):
+            for k in range(n_samples):
+                predict_kernel(P, 1.0 / LAM, Q, cfg, Pm)
+                update_kernel(x, Pm, rows[k], cols[k], 1.0, cfg, 1.0, *outs)
+
+        variants = {"as shipped": lambda: run_stream(Hs, zs),
+                    "kernels alone": lambda: kernels_alone(kern.predict_kernel,
+                                                           kern.update_kernel),
+                    "entry points": lambda: kernels_alone(entry_p, entry_u)}
+        best = dict.fromkeys(variants, np.inf)
+        for _ in range(rounds):
+            for name, run in variants.items():
+                t0 = time.thread_time()
+                run()
+                best[name] = min(best[name], (time.thread_time() - t0) / n_samples)
+        results[n] = best
+        log(f"dim_x = {n:3d}, predict+update: " + ", ".join(
+            f"{k} {v * 1e6:.2f} us" for k, v in best.items()))
     return results
 
 
@@ -393,7 +408,7 @@ def main(argv=None):
                         help="wall: time.perf_counter (default); cpu: time.process_time, the "
                              "process's CPU time, steadier on a machine other jobs load")
     parser.add_argument("--streaming-ablation", action="store_true",
-                        help="only time predict+update with array reuse and entry points off")
+                        help="only time predict+update against its compiled calls alone")
     parser.add_argument("--json", metavar="PATH",
                         help="also save the times (seconds per sample) as JSON")
     parser.add_argument("--replot", metavar="JSON",

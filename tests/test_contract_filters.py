@@ -495,7 +495,7 @@ def check_bad_arguments_are_named(case):
         ("z", lambda: f.update(1.0j, Hs[20])),
         ("z", lambda: f.update("1.0", Hs[20])),
         ("H", lambda: f.update(zs[20], Hs[20] * 1.0j)),
-        ("H", lambda: f.update(zs[20], None)),
+        ("H", lambda: f.update(zs[20], "a")),           # (None: self.H, as filterpy)
         ("Rs", lambda: f.batch_filter(zs[:5], Hs[:5], Rs=np.full(5, 1.0j))),
     ]
     if hasattr(f, "Q"):

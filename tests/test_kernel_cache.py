@@ -38,7 +38,7 @@ for k in range(14):                                     # update 14: the periodi
     rls.predict()
     rls.update(1.0, H[k])
 rls.predict()
-rls.P                                  # reading P runs the deferred predict (predict_kernel)
+rls.P
 robust = rlsfilt.RecursiveLeastSquares(3, lam=0.99, forgetting="directional", gate=4.0)
 robust.constrain([1.0, 1.0, 0.0], -1.0)
 robust.batch_filter(z, H, store_covariances=False)

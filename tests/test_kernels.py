@@ -22,7 +22,7 @@ from numpy.testing import assert_allclose, assert_array_equal
 from reference_runs import rls_run
 
 from rlsfilt import NumericalWarning, RecursiveLeastSquares
-from rlsfilt.filters import _health, _kernels_shared, _streaming, forgetting
+from rlsfilt.filters import _health, _kernels_shared, forgetting
 
 STATE = ("x", "P", "x_prior", "P_prior", "x_post", "P_post", "y", "K", "S", "SI", "z", "H")
 MODES = list(forgetting.MODES)      # derived: a new mode is covered without editing this file
@@ -449,18 +449,13 @@ def test_streaming_keeps_counters_and_health_check_with_and_without_gate(rng):
     assert caught[0] == caught[1]
 
 
-def test_streaming_reuses_only_arrays_nobody_else_holds(rng):
-    """Arrays held by the caller (directly, in a list, as a view) are never overwritten;
-    the arrays of the step before last are reused when nobody holds them."""
+def test_streaming_never_overwrites_arrays_anybody_holds(rng):
+    """Arrays held by the caller (directly, in a list, as a view) are never overwritten:
+    every step writes new arrays."""
     Hs, zs = _record(rng, 40)
     rls = RecursiveLeastSquares(4, lam=0.95, Q=1e-4)
-    for k in range(2):
+    for k in range(4):
         rls.predict_update(zs[k], Hs[k])
-    if _streaming._FREE_UPDATE > 0:          # reuse is on: step k + 2 writes step k's arrays
-        ids = {name: id(getattr(rls, name)) for name in STATE}
-        rls.predict_update(zs[2], Hs[2])
-        rls.predict_update(zs[3], Hs[3])
-        assert ids == {name: id(getattr(rls, name)) for name in STATE}
     held = {"x": rls.x, "P_post": rls.P_post, "K": rls.K, "y": rls.y, "P_prior": rls.P_prior}
     snapshot = {k: v.copy() for k, v in held.items()}
     row_view = rls.P[0]
@@ -482,29 +477,6 @@ def test_streaming_reuses_only_arrays_nobody_else_holds(rng):
     ref.batch_filter(zs, Hs)
     assert_array_equal(rls.x, ref.x)
     assert_array_equal(rls.P, ref.P)
-
-
-def test_streaming_without_reuse_is_identical(rng, monkeypatch):
-    """With reuse off (as where reference counts cannot be trusted) nothing changes."""
-    Hs, zs = _record(rng, 60, missing=(7,))
-    a = RecursiveLeastSquares(4, lam=0.95)
-    for k in range(len(zs)):
-        a.predict_update(zs[k], Hs[k])
-    monkeypatch.setattr(_streaming, "_FREE_UPDATE", -1)
-    monkeypatch.setattr(_streaming, "_FREE_PREDICT", -1)
-    monkeypatch.setattr(_streaming, "_FREE_EACH", None)
-    made = []
-    block = _streaming._block
-    monkeypatch.setattr(_streaming, "_block", lambda *a: made.append(1) or block(*a))
-    b = RecursiveLeastSquares(4, lam=0.95)
-    for k in range(len(zs)):
-        b.predict_update(zs[k], Hs[k])
-    # fresh arrays every step: one block per update (each predict() is deferred into
-    # the next update's compiled call), and one for the first predict(), which checks
-    # the new filter's state at once
-    assert len(made) == len(zs) + 1
-    for name in STATE:
-        assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
 
 
 def test_assigned_state_is_copied_never_written(rng):

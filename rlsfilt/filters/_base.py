@@ -9,6 +9,7 @@ the small filterpy helpers live here once.
 
 import copy
 import math
+import warnings
 
 import numpy as np
 
@@ -19,6 +20,7 @@ from .._validation import (
     check_bool,
     check_finite,
     check_int,
+    check_scalar,
     check_variance,
 )
 from . import _health
@@ -139,7 +141,79 @@ class _FilterBase(Filter):
         from ._estimator_io import estimator_iosystem
         return estimator_iosystem(self, regressor, dt)
 
-    def predict_update(self, z, H, R=None):
+    # ------------------------------------------------------------------
+    # filterpy's KalmanFilter names that least squares does not use
+    # ------------------------------------------------------------------
+    @property
+    def F(self):
+        """State transition: the identity (constant parameters); read-only."""
+        return np.eye(self.dim_x)
+
+    @F.setter
+    def F(self, value):
+        raise AttributeError(_refused("F", "the state transition of least squares is the "
+                                           "identity (constant parameters); model drift with Q"))
+
+    @property
+    def B(self):
+        """Control matrix: None (least squares has no control input); read-only."""
+        return None
+
+    @B.setter
+    def B(self, value):
+        raise AttributeError(_refused("B", "least squares has no control input"))
+
+    @property
+    def inv(self):
+        """filterpy's matrix inverse: `numpy.linalg.inv`, unused (the filters never
+        invert ``S`` or ``P``); read-only."""
+        return np.linalg.inv
+
+    @inv.setter
+    def inv(self, value):
+        raise AttributeError(_refused("inv", "the filters never invert a matrix (S is a "
+                                             "scalar times I)"))
+
+    @property
+    def alpha(self):
+        """filterpy's fading-memory factor, ``alpha**2 = 1 / lam`` (1 without
+        forgetting); assigning it sets `lam` to ``1 / alpha**2``."""
+        return 1.0 / math.sqrt(getattr(self, "lam", 1.0))
+
+    @alpha.setter
+    def alpha(self, value):
+        if not hasattr(type(self), "lam"):
+            raise AttributeError(_refused("alpha", f"{type(self).__name__} forgets by its "
+                                                   "window, not by a fading-memory factor"))
+        alpha = check_scalar(value, "alpha")
+        if not (math.isfinite(alpha) and alpha >= 1.0):
+            raise ValueError("`alpha` must be a finite number >= 1 (filterpy's fading memory, "
+                             f"alpha**2 = 1 / lam with lam in (0, 1]); got {alpha}")
+        self.lam = 1.0 / (alpha * alpha)
+
+    def _refuse_control(self, u, B, F):
+        """Raise for filterpy's `u`, `B`, `F` arguments of ``predict`` (any but None)."""
+        for name, value in (("u", u), ("B", B), ("F", F)):
+            if value is not None:
+                raise TypeError(
+                    f"`{name}` is not an argument {type(self).__name__}.predict() uses: least "
+                    "squares has F = I and no control input (filterpy's predict(u, B, F)); "
+                    f"got {name}={value!r}. A random walk is predict(Q=...)")
+
+    def get_update(self, z, H=None, R=None):
+        """Return ``(x, P)`` after an :meth:`update` with `z`, `H` (``self.H`` if
+        omitted) and `R`, without changing the filter (filterpy's ``get_update``).
+
+        Runs the update on a copy of the filter, so the numbers are those of
+        :meth:`update` bit for bit; its warnings are not issued.
+        """
+        twin = copy.deepcopy(self)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            twin.update(z, H, R)
+        return twin.x, twin.P
+
+    def predict_update(self, z, H=None, R=None):
         """One textbook step: :meth:`predict` then :meth:`update`.
 
         If :meth:`update` rejects its input (or its warning is turned into an
@@ -274,7 +348,7 @@ class _FilterBase(Filter):
     def _as_measurement(self, z, name):
         """Return `z` as a new ``(dim_z, 1)`` column, or None when missing."""
         if isinstance(z, float) and self.dim_z == 1 and z - z == 0.0:   # a finite float
-            return np.array([[z]], dtype=np.float64)
+            return np.array(z, ndmin=2)
         if z is None:
             return None
         zz = as_float_array(z, name)
@@ -378,6 +452,11 @@ def own_array(value, name):
     array is used, so that the error names the method that cannot use it.
     """
     return np.array(as_float_array(value, name), dtype=np.float64, order="C")
+
+
+def _refused(name, why):
+    """The message of an assignment to a filterpy attribute the filters do not use."""
+    return f"`{name}` cannot be assigned: {why}"
 
 
 def _has_none(values):

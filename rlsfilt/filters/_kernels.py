@@ -40,12 +40,9 @@ are winding up). Then the time update leaves ``P`` (and adds ``Q``) and the
 next update forgets along its regressor only (``_reference.windup_cap``).
 
 ``batch_filter`` runs ``time_update`` and ``measurement_update`` once per
-sample (`step_batch`), and the streaming ``update_kernel`` runs the same
-two (``predict_kernel`` the first alone, when a deferred ``predict()`` is
-read before the next update): streaming and batch agree bit for bit.
-``update_kernel`` is compiled without numba's reference counting
-(``_nrt=False``: it allocates nothing, and the counting of its views cost
-more than the arithmetic of a small step).
+sample (`step_batch`), and the streaming ``predict_kernel`` and
+``update_kernel`` run the same two, one each: streaming and batch agree bit
+for bit.
 The default configuration with one output (ARX fits, long records) runs
 `exponential_batch` instead: one sweep over ``P``
 per sample applies the update, the next time update and the next gain
@@ -373,106 +370,16 @@ def measurement_update(x, P, phi, z, missing, r, cfg, Pi, g, y, K, T, w, xn, Pn)
     return s, lam_t, gated, cap
 
 
-@njit(cache=True, error_model="numpy", inline="always")
-def _exponential_update_into(x, P, phi, z, missing, r, cfg, g, y, K, w, xn, Pn, xp, Pp,
-                             g_ready):
-    """`measurement_update` in the exponential mode without constraints, reading
-    ``x``, ``P`` and writing the updated ones to ``xn``, ``Pn`` and the copies
-    ``xp``, ``Pp`` in one pass: the same operations in the same order, so the
-    same numbers (the streaming ``update``'s path). With `g_ready` the gain
-    ``g = P phi`` is already in `g` (summed as `gain` sums it)."""
-    n, m = x.shape
-    lam = cfg[CFG_LAM]
-    if not g_ready:
-        gain(P, phi, g)                      # g = P H^T
-    q, s, _, updated, gated = _innovation(x, phi, z, missing, r, w, cfg[CFG_GATE], g, y)
-    c = 1.0 / s
-    cu = exponential_coefficient(q, c, w, updated)
-    kc = w * c
-    for i in range(n):
-        K[i] = g[i] * kc if updated else 0.0             # K = P H^T / S
-    for i in range(n):
-        gi = g[i]
-        for j in range(n):
-            v = P[i, j] - (gi * g[j]) * cu                # P = P - g g^T / S
-            Pn[i, j] = v
-            Pp[i, j] = v
-        ki = K[i]
-        for j in range(m):
-            v = x[i, j] + ki * y[j] if updated else x[i, j]   # x = x + K y^T
-            xn[i, j] = v
-            xp[i, j] = v
-    hph = q * r * (w * (1.0 / s)) if updated else q * w    # phi P phi^T after the update
-    tr, spread, _ = _diagonal_stats(Pn, g, 0.0, phi, phi.shape[0])
-    return s, lam, gated, windup_cap(tr, spread, hph, 1.0 / lam, cfg)
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _time_update_gain(P, il, Q, phi, Pm, g):
-    """``Pm = P il + Q`` (`Q` (0, 0) when absent; the numbers of `time_update`
-    without constraints) and the gain ``g = Pm phi`` of the result in the same
-    pass (summed as `gain` sums it)."""
-    n = P.shape[0]
-    for j in range(n):
-        g[j] = 0.0
-    if Q.shape[0]:
-        for i in range(n):
-            hi = phi[i]
-            for j in range(n):
-                v = P[i, j] * il + Q[i, j]
-                Pm[i, j] = v
-                g[j] += v * hi
-    else:
-        for i in range(n):
-            hi = phi[i]
-            for j in range(n):
-                v = P[i, j] * il
-                Pm[i, j] = v
-                g[j] += v * hi
-
-
 # ----------------------------------------------------------------------
-# the streaming steps (arguments packed by _streaming)
+# the streaming steps: RecursiveLeastSquares.predict and .update
 # ----------------------------------------------------------------------
-@njit(cache=True, error_model="numpy", inline="always")
-def _view(out, o, r, c):
-    """The (r, c) array at offset `o` of the flat block `out`, and the next offset."""
-    return out[o:o + r * c].reshape((r, c)), o + r * c
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def Pi_or_efra(cfg):
-    """Whether a step needs the (n, n) work space: constraints or EFRA."""
-    return cfg.shape[0] > CFG_PI or int(cfg[CFG_MODE]) == EFRA
-
-
 @njit(cache=True, error_model="numpy")
-def predict_kernel(x, P, il, Q, cfg, out):
-    """Streaming ``predict`` into the block `out` (``_streaming.predict_shapes``, then
-    ``n^2`` of work space): ``P^-`` = `time_update` of ``P``, and the copies
-    ``x_prior = x``, ``P_prior = P^-``."""
-    n, m = x.shape
-    Pn, o = _view(out, 0, n, n)              # the block: P^- x_prior P_prior | T
-    x_prior, o = _view(out, o, n, m)
-    P_prior, o = _view(out, o, n, n)
-    copy2(x, x_prior)
-    if cfg.shape[0] == CFG_PI:               # no constraints: one pass, two copies
-        if Q.shape[0]:                       # time_update's numbers
-            for i in range(n):
-                for j in range(n):
-                    v = P[i, j] * il + Q[i, j]
-                    Pn[i, j] = v
-                    P_prior[i, j] = v
-        else:
-            for i in range(n):
-                for j in range(n):
-                    v = P[i, j] * il
-                    Pn[i, j] = v
-                    P_prior[i, j] = v
-        return
-    T, o = _view(out, o, n, n)               # work space of the projection
-    time_update(P, il, Q, projector(cfg, n), T, Pn)
-    copy2(Pn, P_prior)
+def predict_kernel(P, il, Q, cfg, Pn):
+    """Streaming ``predict``: ``Pn = P il + Q`` then ``Pn <- Pi Pn Pi`` (`time_update`,
+    `Q` (0, 0) when absent, ``Pi`` the projector of the configuration `cfg`)."""
+    n = P.shape[0]
+    k = n if cfg.shape[0] > CFG_PI else 0
+    time_update(P, il, Q, projector(cfg, n), np.empty((k, k)), Pn)
 
 
 #: The flags `update_kernel` returns, added: a regressor with NaN or inf (nothing
@@ -482,101 +389,47 @@ def predict_kernel(x, P, il, Q, cfg, out):
 BAD_ROW, BAD_DIAGONAL, GATED, CAP = 1, 2, 4, 8
 
 
-@njit(cache=True, error_model="numpy", _nrt=False)
-def update_kernel(x, P, phi, z0, zmode, r, cfg, w, il, Q, xn, Pn, out):
-    """Streaming ``update``, with the time update of a pending ``predict`` fused in.
+@njit(cache=True, error_model="numpy")
+def update_kernel(x, P, H, z, r, cfg, w, xn, Pn, y, K, S, SI):
+    """Streaming ``update``: `measurement_update` of ``x`` (n, m), ``P`` (n, n) with
+    the regressor row ``H`` (1, n) and the measurement column ``z`` (m, 1; any NaN:
+    missing), written into new arrays.
 
-    With ``il > 0`` the ``predict()`` before this update was deferred (see
-    ``RecursiveLeastSquares.predict``): ``P^- = P il + Q`` (`time_update`, `Q`
-    (0, 0) when absent, projected under constraints) is computed first, with
-    the gain in the same pass when there are no constraints, and written to
-    the block's ``P_prior`` (with ``x_prior = x``); the update then reads it.
-    With ``il = 0`` ``P`` is the prior (``predict_kernel`` ran, or no predict).
-    Either way the numbers are those of ``predict_kernel`` then
-    `measurement_update`, operation by operation.
-
-    Writes the new estimate ``xn`` (n, m) and covariance ``Pn`` (n, n), and
-    into the block `out` (``_streaming.update_shapes``, then ``n + 1 + n^2``
-    of work space) ``y`` (m, 1), ``K`` (n, 1), ``S = s I`` and ``SI = I / s``
-    (m, m), the copy ``H`` (1, n) of the regressor ``phi`` (n,), the
-    measurement ``z`` (m, 1; NaN when missing), the copies ``x_post``,
-    ``P_post``, then ``x_prior``, ``P_prior`` (only with ``il > 0``), and the
-    step's forgetting factor ``lam_t`` after the gain in the work space. With
-    ``zmode`` 0 the caller has written the measurement into the block's
-    ``z``; with 1 it is the scalar ``z0``; with 2 it is missing. `w` as in
-    `measurement_update`.
+    Writes the new estimate ``xn`` (n, m) and covariance ``Pn`` (n, n), the
+    residual ``y`` (m, 1), the gain ``K`` (n, 1), ``S = s I`` and ``SI = I / s``
+    (m, m). `w` as in `measurement_update`. The same operations as one step of
+    `step_batch`, so streaming and ``batch_filter`` agree bit for bit.
 
     Returns
     -------
     flags : int
-        The sum of `BAD_ROW` (``phi`` holds NaN or inf: nothing is written),
+        The sum of `BAD_ROW` (``H`` holds NaN or inf: nothing is written; tested
+        here because it is cheaper than ``np.isfinite`` on a small row),
         `BAD_DIAGONAL` (the cheap check of the new ``P``; without constraints
         only: under them ``P`` is singular by design), `GATED` and `CAP` (the
-        next time update must hold the forgetting back); 0 for an ordinary
-        step.
+        next time update must hold the forgetting back); 0 for an ordinary step.
+    lam_t : float
+        The forgetting factor the step applied.
     """
     n, m = x.shape
+    phi = H[0]
     for i in range(n):
         v = phi[i]
         if v - v != 0.0:                     # NaN or inf
-            return BAD_ROW
-    # the block: y K S SI H z x_post P_post x_prior P_prior | g lam_t T (the 2-D views
-    # made where they are used: a reshape costs as much as a small step's arithmetic)
-    nx, nP = n * m, n * n
-    y, o = out[:m], m
-    K, o = out[o:o + n], o + n
-    S, o = out[o:o + m * m], o + m * m
-    SI, o = out[o:o + m * m], o + m * m
-    Hb, o = out[o:o + n], o + n
-    zb, o = out[o:o + m], o + m
-    post, prior, o = o, o + nx + nP, o + 2 * (nx + nP)
-    g, o = out[o:o + n], o + n
-    lam_out, o = out[o:o + 1], o + 1
-    k = n if Pi_or_efra(cfg) else 0
-    for i in range(n):
-        Hb[i] = phi[i]                       # H
-    if zmode != 0:
-        for j in range(m):
-            zb[j] = z0 if zmode == 1 else np.nan     # z
+            return BAD_ROW, np.nan
     plain = cfg.shape[0] == CFG_PI           # no constraints
-    g_ready = False
-    Pm = P
-    if il > 0.0:                             # the pending predict: P^- = P il + Q
-        x_prior = out[prior:prior + nx].reshape((n, m))
-        P_prior = out[prior + nx:prior + nx + nP].reshape((n, n))
-        copy2(x, x_prior)
-        if plain:
-            _time_update_gain(P, il, Q, phi, P_prior, g)
-            g_ready = True
-        else:
-            time_update(P, il, Q, projector(cfg, n), out[o:o + k * k].reshape((k, k)),
-                        P_prior)
-        Pm = P_prior
-    xp = out[post:post + nx].reshape((n, m))
-    Pp = out[post + nx:post + nx + nP].reshape((n, n))
-    if int(cfg[CFG_MODE]) == EXPONENTIAL and plain:
-        # the default: x, P read once, the new ones written twice (x, x_post; P, P_post)
-        s, lam_t, gated, cap = _exponential_update_into(x, Pm, phi, zb, zmode == 2, r, cfg, g,
-                                                        y, K, w, xn, Pn, xp, Pp, g_ready)
-    else:
-        s, lam_t, gated, cap = measurement_update(x, Pm, phi, zb, zmode == 2, r, cfg,
-                                                  projector(cfg, n),
-                                                  g, y, K, out[o:o + k * k].reshape((k, k)), w,
-                                                  xn, Pn)
-        copy2(xn, xp)
-        copy2(Pn, Pp)
-    for i in range(m * m):
-        S[i] = 0.0
-        SI[i] = 0.0
+    k = 0 if plain and int(cfg[CFG_MODE]) != EFRA else n     # (n, n) work: Pi P Pi, EFRA
+    s, lam_t, gated, cap = measurement_update(x, P, phi, z[:, 0], any_nan(z[:, 0]), r, cfg,
+                                              projector(cfg, n), np.empty(n), y[:, 0],
+                                              K[:, 0], np.empty((k, k)), w, xn, Pn)
     for i in range(m):
-        S[i * m + i] = s
-        SI[i * m + i] = 1.0 / s
-    lam_out[0] = lam_t
+        for j in range(m):
+            S[i, j] = s if i == j else 0.0
+            SI[i, j] = 1.0 / s if i == j else 0.0
     flags = (GATED if gated else 0) + (CAP if cap else 0)
-    # the cheap check (without constraints: under them P is singular by design)
     if plain and diagonal_bad(Pn):
         flags += BAD_DIAGONAL
-    return flags
+    return flags, lam_t
 
 
 # ----------------------------------------------------------------------

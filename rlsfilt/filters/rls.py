@@ -9,9 +9,9 @@ meaning is the same: ``predict()`` / ``update(z, H)`` / ``batch_filter``,
 state ``x`` and ``P``, diagnostics ``y``, ``K``, ``S``, ``SI`` and the lazy
 ``log_likelihood``, ``likelihood`` and ``mahalanobis``.
 
-Every step runs compiled (:mod:`rlsfilt.filters._kernels`; the streaming
-calls through :mod:`rlsfilt.filters._streaming`); the same recursion in
-textbook NumPy is ``tests/_reference.py``.
+Every step runs compiled (:mod:`rlsfilt.filters._kernels`, one compiled call
+per ``predict()`` and per ``update()``); the same recursion in textbook NumPy
+is ``tests/_reference.py``.
 """
 
 import math
@@ -36,42 +36,11 @@ from . import forgetting as _fg
 from ._base import MISSING_DIAGNOSTICS, _FilterBase, own_array
 from .contract import check_state
 
-_rc = _streaming._getrefcount
-
 __all__ = ["RecursiveLeastSquares"]
 
 _EMPTY = np.zeros((0, 0))          # an absent Q or projector, as the kernels take it
 _F8 = np.dtype(np.float64)
-_NDARRAY = np.ndarray
-_EXPONENTIAL = _fg.EXPONENTIAL
 _BAD_ROW, _BAD_DIAGONAL, _GATED, _CAP = 1, 2, 4, 8   # the flags of _kernels.update_kernel
-_NOT_FINE = _BAD_ROW | _BAD_DIAGONAL
-#: ``_last_update`` before any update: no arrays written by a step (and no block)
-_NO_BLOCK = (None,) * (3 + len(_streaming.update_shapes(1, 1)))
-
-
-def _diagnostic(i, doc):
-    """The property of the diagnostic at position `i` of ``_last_update`` (the
-    arrays of the last update: ``x, P, buffer, y, K, S, SI, H, z, x_post,
-    P_post, ...``). Reading it marks the arrays as handed out; assigning it
-    replaces it and takes those arrays out of reuse (``None`` for ``x``, ``P``
-    and the buffer, marked as handed out)."""
-
-    def get(self):
-        self._handed = _VIEWS
-        return self._last_update[i]
-
-    def put(self, value):
-        lu = self._last_update
-        self._last_update = (None, None, None) + lu[3:i] + (value,) + lu[i + 1:]
-        self._handed = _VIEWS         # (not a block any more: never recycled)
-
-    return property(get, put, doc=doc)
-
-
-#: What ``_handed`` records of the arrays of the current update, for the step that
-#: recycles them (``_streaming.NOTHING``, ``STATE``, ``VIEWS``)
-_NOTHING, _STATE, _VIEWS = _streaming.NOTHING, _streaming.STATE, _streaming.VIEWS
 
 _SKIPPED = ("update() was called twice without predict() in between, so the forgetting "
             "(lam < 1) or random walk (Q > 0) of this step was skipped; call predict() "
@@ -165,7 +134,13 @@ class RecursiveLeastSquares(_FilterBase):
     x_post, P_post : ndarray
         Copies of ``x`` and ``P`` after the last :meth:`update`.
     H : ndarray, shape (1, dim_x)
-        Regressor row used by the last update.
+        Regressor row: the one :meth:`update` uses when its `H` is omitted
+        (filterpy's convention; assign it, e.g. for filterpy's
+        ``IMMEstimator``), and after each update the row that update used.
+        Zeros after construction and :meth:`reset`.
+    alpha : float
+        filterpy's fading-memory factor, ``alpha**2 = 1 / lam``; assigning it
+        sets `lam`.
     z : ndarray, shape (dim_z, 1)
         Last measurement (NaN when it was missing).
     y : ndarray, shape (dim_z, 1)
@@ -325,22 +300,9 @@ class RecursiveLeastSquares(_FilterBase):
     array([0.8, 0.5])
     """
 
-    # The filter's own x and P and the arrays the streaming steps reuse live
-    # in slots, outside ``__dict__``: filterpy's Saver deep-copies
-    # ``__dict__`` and reads ``x`` and ``P`` through their properties.
-    #
-    # ``predict()`` in the common case only records the time update (``_pending``:
-    # ``(il, Q)``); the next ``update()`` runs it fused with the measurement update in
-    # one compiled call, and reading ``P``, ``x_prior`` or ``P_prior`` (or any call
-    # that changes the state) before that runs it first, exactly as ``predict()``
-    # would have (`_materialize`). The diagnostics of the last update (``y``, ``K``,
-    # ``S``, ``SI``, ``H``, ``z``, ``x_post``, ``P_post``) are read from
-    # ``_last_update``, the arrays the step wrote; ``_handed`` records what of them
-    # was handed out (read through a property: _NOTHING, _STATE, _VIEWS), so that the
-    # step that recycles those arrays tests what may be held, and no more.
-    __slots__ = ("_x", "_P", "_cfg", "_last_predict", "_spare_predict", "_last_update",
-                 "_spare_update", "_pending", "_deferred", "_x_prior", "_P_prior",
-                 "_handed", "_handed_spare")
+    # The filter's own x and P live in slots, outside ``__dict__``: filterpy's Saver
+    # deep-copies ``__dict__`` and reads ``x`` and ``P`` through their properties.
+    __slots__ = ("_x", "_P", "_cfg")
 
     _HEALTH_ADVICE = ("The estimate may be unreliable: use a forgetting mode that bounds P "
                       "(forgetting='directional', 'efra', ...), SquareRootRLS, or more "
@@ -351,7 +313,6 @@ class RecursiveLeastSquares(_FilterBase):
                  check_every=None, cond_max=1e12):
         self.dim_x = check_dimension(dim_x, "dim_x")
         self.dim_z = check_int(dim_z, "dim_z", minimum=1)
-        self._row_shape = (self.dim_x,)
         self._mode = _fg.mode_code(forgetting)
         self._forgetting_params_in = forgetting_params
         self._gate = None
@@ -368,11 +329,6 @@ class RecursiveLeastSquares(_FilterBase):
         self._batch_start = None     # n_updates when a step-by-step batch_filter started
         self.constraints = None
         self._null_basis = None      # orthonormal basis of null(A), for the health check
-        self._last_predict = self._spare_predict = None
-        self._last_update, self._spare_update = (None,) * len(_NO_BLOCK), None
-        self._handed, self._handed_spare = _VIEWS, _NOTHING   # (_NO_BLOCK: no arrays)
-        self._pending = self._x_prior = self._P_prior = None
-        self._lam_t_at = _streaming.lam_t_at(self.dim_x, self.dim_z)
         self.reset()
 
     # ------------------------------------------------------------------
@@ -381,90 +337,23 @@ class RecursiveLeastSquares(_FilterBase):
     @property
     def x(self):
         """Parameter estimate, ``(dim_x, dim_z)``; assigning copies the value."""
-        if not self._handed:
-            self._handed = _STATE
         return self._x
 
     @x.setter
     def x(self, value):
-        x = own_array(value, "x")
-        if self._pending is not None:
-            self._materialize()               # the predict before keeps its x_prior, P_prior
-        self._x = x
+        self._x = own_array(value, "x")
         self._recheck = True
 
     @property
     def P(self):
         """Covariance of the estimate, ``(dim_x, dim_x)``; assigning copies the value."""
-        if self._pending is not None:
-            self._materialize()
-        if not self._handed:
-            self._handed = _STATE
         return self._P
 
     @P.setter
     def P(self, value):
-        P = own_array(value, "P")
-        if self._pending is not None:
-            self._materialize()
-        self._P = P
+        self._P = own_array(value, "P")
         self._recheck = True
         self._cap, self._w = False, 1.0     # the windup cap decides again from the new P
-
-    @property
-    def x_prior(self):
-        """Estimate after the last :meth:`predict`, ``(dim_x, dim_z)`` (as filterpy's)."""
-        if self._pending is not None:
-            self._materialize()
-        self._handed = _VIEWS
-        return self._x_prior
-
-    @x_prior.setter
-    def x_prior(self, value):
-        if self._pending is not None:
-            self._materialize()
-        self._x_prior = value
-
-    @property
-    def P_prior(self):
-        """Covariance after the last :meth:`predict`, ``(dim_x, dim_x)`` (as filterpy's)."""
-        if self._pending is not None:
-            self._materialize()
-        self._handed = _VIEWS
-        return self._P_prior
-
-    @P_prior.setter
-    def P_prior(self, value):
-        if self._pending is not None:
-            self._materialize()
-        self._P_prior = value
-
-    y = _diagnostic(3, "Residual ``z - H x^-`` of the last update, ``(dim_z, 1)``.")
-    K = _diagnostic(4, "Gain of the last update, ``(dim_x, 1)``.")
-    S = _diagnostic(5, "Innovation variance ``S = H P^- H^T + R`` of the last update, "
-                       "``(dim_z, dim_z)``.")
-    SI = _diagnostic(6, "``S^-1`` of the last update, ``(dim_z, dim_z)``.")
-    H = _diagnostic(7, "Regressor row of the last update, ``(1, dim_x)``.")
-    z = _diagnostic(8, "Measurement of the last update, ``(dim_z, 1)`` (NaN when missing).")
-    x_post = _diagnostic(9, "Estimate after the last update, ``(dim_x, dim_z)``.")
-    P_post = _diagnostic(10, "Covariance after the last update, ``(dim_x, dim_x)``.")
-
-    def _materialize(self):
-        """Run the pending time update now, as :meth:`predict` would have run it
-        (the same compiled step, the same arrays)."""
-        il, Q = self._pending
-        out = _streaming.predict(self._x, self._P, il, Q, self._cfg, self._spare_predict)
-        self._spare_predict, self._last_predict = self._last_predict, out
-        _, self._P, self._x_prior, self._P_prior = out
-        self._pending = None
-
-    def _checked_P(self):
-        """``P`` as the next step reads it, without running a pending time update
-        (a call that fails then leaves the filter exactly as it was)."""
-        if self._pending is not None:
-            il, Q = self._pending
-            return _streaming.predict(self._x, self._P, il, Q, self._cfg, None)[1]
-        return super()._checked_P()
 
     @property
     def lam(self):
@@ -478,7 +367,6 @@ class RecursiveLeastSquares(_FilterBase):
                                  self._R, float(np.trace(self._P0)))
         self._lam, self._params = lam, params
         self._il = 1.0 / lam if self._mode == _fg.EXPONENTIAL else 1.0   # predict: P / lam
-        self._deferred = (self._il, getattr(self, "_Q_kernel", _EMPTY))   # predict()'s default
         self._configure()
 
     @property
@@ -510,12 +398,11 @@ class RecursiveLeastSquares(_FilterBase):
     def Q(self, value):
         self._Q = check_covariance(value, self.dim_x, "Q")
         self._Q_kernel = self._Q if self._Q.any() else _EMPTY
-        self._deferred = (self._il, self._Q_kernel)
 
     # ------------------------------------------------------------------
     # the recursion
     # ------------------------------------------------------------------
-    def predict(self, Q=None):
+    def predict(self, u=None, B=None, F=None, Q=None):
         r"""Time update :math:`P \leftarrow P / \lambda + Q`.
 
         The estimate ``x`` is unchanged (constant or random-walk
@@ -525,47 +412,36 @@ class RecursiveLeastSquares(_FilterBase):
         forgetting needs the regressor and happens in :meth:`update`); only
         ``Q`` is added.
 
-        The arithmetic is deferred: the next :meth:`update` runs it in the
-        same compiled call as the measurement update, and reading ``P``,
-        ``x_prior`` or ``P_prior`` (or anything that uses or replaces the
-        state: an assignment, :meth:`batch_filter`, a copy) before that runs
-        it at once. Either way every attribute has the bits an immediate
-        time update gives; the deferral only saves a compiled call per step
-        (``docs/performance.md``).
-
         Parameters
         ----------
+        u, B, F : None
+            filterpy's control input, control matrix and state transition:
+            not used by least squares (``F = I``, no control input), so any
+            value raises a `TypeError` (a positional argument is `u`, not `Q`).
         Q : float or array_like, optional
             Random-walk covariance for this call only; ``self.Q`` if omitted.
         """
-        if Q is not None:
-            Q = self._random_walk(Q)
-        # P^- = P / lam + Q      (exponential mode: filterpy's fading memory)
-        # P^- <- Pi P^- Pi       (constraints: keep A P = 0)
-        # x^- = x                (constant, or random-walk, parameters)
-        # the windup cap (exponential mode): hold the forgetting back, the next
-        # update forgets along its regressor only
-        if self._recheck:                 # a new state: checked (and EFRA's start) now
-            x, P = self._state()
-            Q = self._Q_kernel if Q is None else Q
-            il, self._w = (1.0, self._il) if self._cap else (self._il, 1.0)
-            out = _streaming.predict(x, P, il, Q, self._cfg, self._spare_predict)
-            self._spare_predict, self._last_predict = self._last_predict, out
-            _, self._P, self._x_prior, self._P_prior = out
-            self._recheck = self._efra_pending = False
-        else:
-            # deferred: the next update() runs it in its compiled call, reading P,
-            # x_prior or P_prior first runs it here (_materialize); the same numbers
-            if self._pending is not None:
-                self._materialize()       # predict() twice: the first one happens now
-            if self._cap:
-                self._pending = (1.0, self._Q_kernel if Q is None else Q)
-                self._w = self._il
-            else:                         # (_w is 1 after every update when _cap is off)
-                self._pending = self._deferred if Q is None else (self._il, Q)
+        # validate
+        if u is not None or B is not None or F is not None:
+            self._refuse_control(u, B, F)             # filterpy's arguments: raise
+        Q = self._Q_kernel if Q is None else self._random_walk(Q)
+        x, P = self._state() if self._recheck else (self._x, self._P)
+        # one compiled step (_kernels.predict_kernel) into a new array:
+        #   x^- = x               (constant, or random-walk, parameters)
+        #   P^- = P / lam + Q     (exponential mode: filterpy's fading memory; the windup
+        #                          cap holds 1 / lam back, the next update forgets along H)
+        #   P^- <- Pi P^- Pi      (constraints: keep A P = 0)
+        il = 1.0 if self._cap else self._il
+        P_prior = np.empty_like(P)
+        _streaming.kernels().predict_kernel(P, il, Q, self._cfg, P_prior)
+        # commit
+        self._x, self._P = x, P_prior
+        self.x_prior, self.P_prior = x.copy(), P_prior.copy()
+        self._w = self._il if self._cap else 1.0      # 1 / lam held back for the update
         self._updates_since_predict = 0
+        self._recheck = self._efra_pending = False
 
-    def update(self, z, H, R=None):
+    def update(self, z, H=None, R=None):
         r"""Measurement update with regressor row `H`.
 
         For the forgetting modes other than ``"exponential"`` this includes
@@ -578,85 +454,46 @@ class RecursiveLeastSquares(_FilterBase):
         z : float, array_like of shape (dim_z,), or None
             Measurement. ``None`` or any NaN marks it missing: the estimate
             is kept (posterior = prior).
-        H : array_like, shape (dim_x,) or (1, dim_x)
-            Regressor row (the notes' :math:`\phi_k`).
+        H : array_like, shape (dim_x,) or (1, dim_x), optional
+            Regressor row (the notes' :math:`\phi_k`); ``self.H`` if omitted
+            (filterpy's convention). The row used is stored in ``self.H``.
         R : float, optional
             Measurement-noise variance for this call only.
         """
-        if not (type(H) is _NDARRAY and H.dtype is _F8 and H.shape == self._row_shape):
-            H = self._row(H)                          # the row as a float64 (dim_x,) array
+        # validate (the row's finiteness: by the compiled step, flag _BAD_ROW)
+        H = self._row(H)                              # a new (1, dim_x) row
+        z = self._as_measurement(z, "z")              # a new (dim_z, 1) column, or None
+        missing = z is None
+        z = np.full((self.dim_z, 1), np.nan) if missing else z
         r = self._R if R is None else check_variance(R, "R")
-        if isinstance(z, float) and self.dim_z == 1 and z - z == 0.0:   # a finite float
-            z0, zmode = z, 1
-        else:
-            z = self._as_measurement(z, "z")          # a new column, or None when missing
-            z0, zmode = 0.0, (2 if z is None else 0)
-        pending = self._pending
-        if pending is None:                           # P is the prior
-            il, Q = 0.0, _EMPTY
-            x, P = (self._x, self._P) if not self._recheck else self._state()
-        else:                                         # the deferred predict() runs first
-            il, Q = pending
-            x, P = self._x, self._P
-        # the arrays of the step before last, when nobody else holds them (nothing
-        # of them was handed out, or the reference counts of x and P say so; the test
-        # of _streaming.update, written out: this is the hot path)
-        spare = self._spare_update
-        handed = self._handed_spare
-        free = _streaming._FREE_UPDATE               # (negative: reuse is off)
-        if spare is None or free < 0 or (handed and (
-                handed == _VIEWS or _rc(spare[0]) + _rc(spare[1]) != free)):
-            spare = _streaming.renew(spare, *x.shape)
-        if zmode == 0:
-            spare[8][:] = z                           # the block's z
-        # one compiled step, into those arrays:
-        #   P^- = P il + Q           (il > 0: the deferred predict(), as it would have run)
-        #   y = z - H x^-            a-priori residual
-        #   S = H P^- H^T + R        innovation variance
-        #   K = P^- H^T / S          gain
-        #   x = x^- + K y^T          (missing or gated: x = x^-, K = 0)
-        #   P = P^- - K S K^T        (the other forgetting modes: their update)
+        x, P = self._state() if self._recheck else (self._x, self._P)
+        n, m = self.dim_x, self.dim_z
+        xn, Pn, y, K = np.empty((n, m)), np.empty((n, n)), np.empty((m, 1)), np.empty((n, 1))
+        S, SI = np.empty((m, m)), np.empty((m, m))
+        # one compiled step (_kernels.update_kernel) into those new arrays:
+        #   y = z - H x              a-priori residual
+        #   S = H P H^T + R          innovation variance
+        #   K = P H^T / S            gain
+        #   x = x + K y^T            (missing or gated: x unchanged, K = 0)
+        #   P = P - K S K^T          (the other forgetting modes: their update)
         #   P <- Pi P Pi             (constraints)
-        w = self._w
-        flags = _streaming._update_kernel(x, P, H, z0, zmode, r, self._cfg, w, il, Q,
-                                          spare[0], spare[1], spare[2])
+        flags, lam_t = _streaming.kernels().update_kernel(x, P, H, z, r, self._cfg, self._w,
+                                                          xn, Pn, y, K, S, SI)
         n_updates = self.n_updates + 1
-        every = self._check_every
-        if (flags & _NOT_FINE or (every and not n_updates % every)
-                or (pending is None and self._updates_since_predict
-                    and not self._warned_skip)):
-            self._check_step(flags, H, spare[1], n_updates)   # raises or warns: no change yet
+        self._check_step(flags, H, Pn, n_updates)    # raises or warns: nothing changed yet
         # commit
-        self._spare_update, self._last_update = self._last_update, spare
-        if pending is None:
-            # x_prior, P_prior may still be views of the outgoing arrays (when the
-            # update before ran a deferred predict): then test them all before reuse
-            self._handed_spare = (_VIEWS if self._spare_update[11] is self._x_prior
-                                  else self._handed)
-            self._handed = _NOTHING
-            self._updates_since_predict += 1
-            if self._recheck:
-                self._recheck = self._efra_pending = False
-        else:
-            self._handed_spare, self._handed = self._handed, _NOTHING
-            self._x_prior, self._P_prior = spare[11], spare[12]
-            self._pending = None
-            self._updates_since_predict = 1
-        self._x, self._P = spare[0], spare[1]
-        self._lazy = None if zmode != 2 else MISSING_DIAGNOSTICS
-        if flags:
-            self.gated, self._cap = (flags & _GATED) != 0, (flags & _CAP) != 0
-            if flags & _GATED:
-                self.n_gated += 1
-        else:
-            self.gated = self._cap = False
-        # (the exponential mode applies lam itself; the others say what they did)
-        self.lam_t = self._lam if self._mode == _EXPONENTIAL else float(
-            spare[2][self._lam_t_at])
+        self._x, self._P = xn, Pn
+        self.x_post, self.P_post = xn.copy(), Pn.copy()
+        self.H, self.z, self.y, self.K, self.S, self.SI = H, z, y, K, S, SI
+        self._lazy = MISSING_DIAGNOSTICS if missing else None
+        self.gated = (flags & _GATED) != 0
+        self.n_gated += self.gated
+        self.n_capped += self._w != 1.0
+        self._cap, self._w = (flags & _CAP) != 0, 1.0
+        self.lam_t = lam_t
         self.n_updates = n_updates
-        self._w = 1.0
-        if w != 1.0:
-            self.n_capped += 1
+        self._updates_since_predict += 1
+        self._recheck = self._efra_pending = False
 
     def _check_step(self, flags, H, P, n_updates):
         """The decisions of `update` before it commits (`flags` of ``update_kernel``,
@@ -664,10 +501,9 @@ class RecursiveLeastSquares(_FilterBase):
         forgetting or a failed health check; all before the state changes (a
         warning turned into an error leaves the filter as it was)."""
         if flags & _BAD_ROW:
-            check_finite(H, "H")                      # raises
+            check_finite(H[0], "H")                   # raises
         bad = (flags & _BAD_DIAGONAL) != 0
-        skipped = (self._pending is None and self._updates_since_predict
-                   and not self._warned_skip and self._forgets)
+        skipped = (self._updates_since_predict and not self._warned_skip and self._forgets)
         every = self._check_every
         due = every and not n_updates % every
         checked = due or (every and bad and not self._warned_health)
@@ -747,7 +583,6 @@ class RecursiveLeastSquares(_FilterBase):
             raise ValueError(
                 f"`Hs` (largest entry {np.abs(Hm).max():.3g}) gives a covariance "
                 "R (Hs^T Hs)^-1 outside the range of double precision; scale the regressors")
-        self._pending = None          # a predict() before is overwritten with the rest
         self._x = np.ascontiguousarray(x)
         self._P = np.ascontiguousarray(0.5 * (P + P.T))
         self._efra_pending = self._mode == _fg.EFRA
@@ -867,7 +702,6 @@ class RecursiveLeastSquares(_FilterBase):
         for problem in problems:                      # before the state changes
             _health.warn(problem, self._HEALTH_ADVICE)
         self._warned_health = not armed
-        self._pending = None          # P read above included a deferred predict()
         self._cap, self._w = out.state[3] == 1.0, float(out.state[4])
         self.n_capped += int(out.state[2])
         self._x, self._P = np.ascontiguousarray(out.x), np.ascontiguousarray(out.P)
@@ -1015,8 +849,6 @@ class RecursiveLeastSquares(_FilterBase):
         Pi = np.ascontiguousarray(basis @ basis.T)
         x_new = x + W @ (bb - A @ x)                   # x <- x + W (b - A x)
         P_new = self._projected(P - W @ PA.T, Pi)      # P <- P - W A P, then Pi P Pi
-        if self._pending is not None:
-            self._materialize()       # x_prior, P_prior of the predict() before stay
         self._x, self._P = np.ascontiguousarray(x_new), np.ascontiguousarray(P_new)
         self._Pi = Pi
         self._configure()
@@ -1078,12 +910,11 @@ class RecursiveLeastSquares(_FilterBase):
 
     def get_prediction(self):
         """Return ``(x, P)`` after a :meth:`predict`, without changing the filter."""
-        P = self._checked_P()
-        if self._efra_pending:
-            P = self._efra_start(P)
-        _, _, x, P = _streaming.predict(self._checked_x(), P, 1.0 if self._cap else self._il,
-                                        self._Q_kernel, self._cfg, None)
-        return x, P
+        x, P = self._state()
+        P_prior = np.empty_like(P)
+        _streaming.kernels().predict_kernel(P, 1.0 if self._cap else self._il, self._Q_kernel,
+                                            self._cfg, P_prior)
+        return x.copy(), P_prior
 
     def reset(self):
         """Return to the state given at construction (``x0``, ``P0``).
@@ -1092,7 +923,6 @@ class RecursiveLeastSquares(_FilterBase):
         diagnostics and counters are cleared. Constraints given to
         :meth:`constrain` are applied again to ``x0`` and ``P0``.
         """
-        self._pending = None
         self._x, self._P = self._x0.copy(), self._P0.copy()
         self.x_prior, self.P_prior = self._x0.copy(), self._P0.copy()
         self.x_post, self.P_post = self._x0.copy(), self._P0.copy()
@@ -1109,17 +939,6 @@ class RecursiveLeastSquares(_FilterBase):
         self._recheck = True          # check the state (and start EFRA) at the next step
         if self.constraints is not None:
             self._impose(*self.constraints, *self.constraints, fresh=True)
-
-    def __getstate__(self):
-        """The state for pickle and copy: ``__dict__`` and the slots, without the
-        blocks the streaming steps reuse (a copy makes its own)."""
-        slots = {name: getattr(self, name) for name in self.__slots__}
-        # the diagnostics of the last update without its block (a copy's own arrays)
-        last = (None, None, None) + self._last_update[3:11] + (None, None)
-        slots.update(_last_predict=None, _spare_predict=None, _last_update=last,
-                     _spare_update=None, _handed=_VIEWS, _handed_spare=_NOTHING)
-        self._handed = _VIEWS         # copy.copy shares the arrays: never reuse them
-        return self.__dict__.copy(), slots
 
     def __repr__(self):
         return "\n".join([
@@ -1152,20 +971,18 @@ class RecursiveLeastSquares(_FilterBase):
     # private helpers
     # ------------------------------------------------------------------
     def _row(self, H):
-        """`H` as the regressor row the kernels take: a writable C-contiguous float64
-        ``(dim_x,)`` (the caller's array when it is one: the kernel only reads it)."""
-        if type(H) is np.ndarray and H.dtype == _F8 and H.flags.carray:
-            if H.shape == self._row_shape:
-                return H
-            if H.shape == (1, self.dim_x):
-                return H[0]
-        return self._as_regressor(H, "H")[0]
+        """`H` (``self.H`` when None) as a new float64 row ``(1, dim_x)``. Its
+        finiteness is tested by the compiled step (cheaper than ``np.isfinite`` here)."""
+        H = self.H if H is None else H
+        if (type(H) is np.ndarray and H.dtype == _F8 and 0 < H.ndim <= 2
+                and H.shape[-1] == H.size == self.dim_x):        # (dim_x,) or (1, dim_x)
+            return np.array(H, ndmin=2)
+        return self._as_regressor(H, "H")
 
     def _state(self):
         """``(x, P)`` after an assignment or a (re)start: checked for their shapes,
         ``P`` clipped for EFRA's first step (a new array)."""
-        # C order: the compiled step's entry point is typed for C-contiguous arrays
-        # (an F-ordered (n, m) estimate from a QR solve was read with the wrong strides)
+        # C order: the layout the kernels are compiled (and cached) for
         x, P = self._checked_x(), self._checked_P()
         P = self._efra_start(P) if self._efra_pending else P
         return np.ascontiguousarray(x), np.ascontiguousarray(P)

@@ -199,13 +199,20 @@ class SlidingWindowRLS(_FilterBase):
     # ------------------------------------------------------------------
     # the recursion
     # ------------------------------------------------------------------
-    def predict(self):
-        """Record ``x_prior`` and ``P_prior`` (the window has no time update)."""
+    def predict(self, u=None, B=None, F=None):
+        """Record ``x_prior`` and ``P_prior`` (the window has no time update).
+
+        `u`, `B`, `F` are filterpy's control input, control matrix and state
+        transition: any value but None raises a `TypeError` (``F = I``, no
+        control input).
+        """
+        if u is not None or B is not None or F is not None:
+            self._refuse_control(u, B, F)
         self._checked_P()
         self.x_prior = self._checked_x().copy()
         self.P_prior = self.P.copy()
 
-    def update(self, z, H, R=None):
+    def update(self, z, H=None, R=None):
         """Add sample ``(z, H)`` to the window and drop the oldest one.
 
         Parameters
@@ -216,12 +223,13 @@ class SlidingWindowRLS(_FilterBase):
             oldest sample still leaves it, so ``x`` and ``P`` change: they
             become least squares on the samples left in the window (a
             window one valid sample shorter).
-        H : array_like, shape (dim_x,) or (1, dim_x)
-            Regressor row.
+        H : array_like, shape (dim_x,) or (1, dim_x), optional
+            Regressor row; ``self.H`` if omitted (filterpy's convention). The
+            row used is stored in ``self.H``.
         R : float, optional
             Noise variance of this sample.
         """
-        phi = self._as_regressor(H, "H")
+        phi = self._as_regressor(self.H if H is None else H, "H")   # filterpy: self.H
         r = self._R if R is None else check_variance(R, "R")
         zc = self._as_measurement(z, "z")
         n, m = self.dim_x, self.dim_z

@@ -232,8 +232,15 @@ class SquareRootRLS(_FilterBase):
     # ------------------------------------------------------------------
     # the recursion
     # ------------------------------------------------------------------
-    def predict(self):
-        r"""Time update :math:`U \leftarrow \sqrt{\lambda} U` (:math:`P \leftarrow P/\lambda`)."""
+    def predict(self, u=None, B=None, F=None):
+        r"""Time update :math:`U \leftarrow \sqrt{\lambda} U` (:math:`P \leftarrow P/\lambda`).
+
+        `u`, `B`, `F` are filterpy's control input, control matrix and state
+        transition: any value but None raises a `TypeError` (``F = I``, no
+        control input).
+        """
+        if u is not None or B is not None or F is not None:
+            self._refuse_control(u, B, F)
         delta = self._delta.copy()
         if self._lam != 1.0:
             # Delta <- Delta / lam     (U <- sqrt(lam) U, P <- P / lam; W, v and x unchanged)
@@ -242,10 +249,11 @@ class SquareRootRLS(_FilterBase):
         self.x_prior = self._x.copy()
         self.P_prior = self.P
 
-    def update(self, z, H, R=None):
-        """Measurement update with regressor row `H` (see
-        :meth:`RecursiveLeastSquares.update`; missing `z` keeps the estimate)."""
-        phi = self._as_regressor(H, "H")
+    def update(self, z, H=None, R=None):
+        """Measurement update with regressor row `H` (``self.H`` if omitted, as in
+        filterpy; see :meth:`RecursiveLeastSquares.update`; missing `z` keeps the
+        estimate)."""
+        phi = self._as_regressor(self.H if H is None else H, "H")   # filterpy: self.H
         r = self._R if R is None else check_variance(R, "R")
         zc = self._as_measurement(z, "z")
         n, m = self.dim_x, self.dim_z

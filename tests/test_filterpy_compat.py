@@ -1,0 +1,259 @@
+"""filterpy code runs unchanged on the rlsfilt filters (issue #29, item 4).
+
+filterpy's own ``IMMEstimator`` with one Kalman filter replaced by a
+`RecursiveLeastSquares` equals the IMM of Kalman filters configured the same
+way (``F = I``, the same ``Q``, ``H``, ``R``); a loop that sets ``f.H`` and
+calls ``f.update(z)`` equals ``f.update(z, H)``; ``alpha`` is filterpy's fading
+memory (``alpha**2 = 1 / lam``); ``get_update`` is filterpy's; and the filterpy
+names least squares does not use (``F``, ``B``, ``inv``, ``predict(u)``) are
+refused with an error that names them.
+"""
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose, assert_array_equal
+
+from rlsfilt import RecursiveLeastSquares, SlidingWindowRLS, SquareRootRLS
+
+filterpy = pytest.importorskip("filterpy")
+from filterpy.common import Saver  # noqa: E402
+from filterpy.kalman import IMMEstimator, KalmanFilter  # noqa: E402
+
+N_X = 3
+STATE = ("x", "P", "x_prior", "P_prior", "x_post", "P_post", "y", "K", "S", "SI", "z", "H")
+FILTERS = {
+    "rls": lambda: RecursiveLeastSquares(N_X, lam=0.98),
+    "square_root": lambda: SquareRootRLS(N_X, lam=0.98),
+    "sliding_window": lambda: SlidingWindowRLS(N_X, window=20),
+}
+
+
+def _kalman(q, r=1.0, p0=1e4, alpha=1.0):
+    """filterpy's KalmanFilter as RLS: F = I, Q = q I, H set per step, R = r."""
+    kf = KalmanFilter(dim_x=N_X, dim_z=1)
+    kf.F = np.eye(N_X)
+    kf.Q = q * np.eye(N_X)
+    kf.R = np.array([[r]])
+    kf.P = p0 * np.eye(N_X)
+    kf.alpha = alpha
+    return kf
+
+
+def _record(rng, N=120):
+    Hs = rng.standard_normal((N, N_X))
+    theta = np.where(np.arange(N)[:, None] < N // 2, [1.0, -0.5, 0.3], [0.2, 0.8, -1.0])
+    return Hs, np.einsum("ij,ij->i", Hs, theta) + 0.1 * rng.standard_normal(N)
+
+
+def _state(f):
+    return {name: np.array(getattr(f, name), copy=True) for name in STATE}
+
+
+# ----------------------------------------------------------------------
+# filterpy's IMMEstimator
+# ----------------------------------------------------------------------
+def test_imm_with_rls_equals_imm_of_kalman_filters(rng):
+    """One model of filterpy's IMM is an RLS (random walk Q, H set each step): the IMM's
+    estimate, covariance and mode probabilities equal those of the IMM of Kalman
+    filters with F = I and the same Q, to round-off."""
+    Hs, zs = _record(rng)
+    q_slow, q_fast = 1e-6, 1e-2
+    mu, M = [0.5, 0.5], np.array([[0.97, 0.03], [0.03, 0.97]])
+    rls = RecursiveLeastSquares(N_X, Q=q_slow)
+    imm_rls = IMMEstimator([rls, _kalman(q_fast)], mu, M)
+    imm_kf = IMMEstimator([_kalman(q_slow), _kalman(q_fast)], mu, M)
+    for H, z in zip(Hs, zs):
+        for imm in (imm_rls, imm_kf):
+            imm.predict()
+            for f in imm.filters:
+                f.H = H.reshape(1, -1)
+            imm.update(z)
+        assert_allclose(imm_rls.x, imm_kf.x, rtol=1e-12, atol=1e-12)
+        assert_allclose(imm_rls.P, imm_kf.P, rtol=1e-11, atol=1e-14)
+        assert_allclose(imm_rls.mu, imm_kf.mu, rtol=1e-12, atol=1e-14)
+    assert_array_equal(rls.H, Hs[-1].reshape(1, -1))
+    # the switch of the parameters shows in the mode probabilities
+    assert imm_rls.mu[1] > 0.5 or imm_rls.mu[0] > 0.5
+
+
+# ----------------------------------------------------------------------
+# update(z) with self.H
+# ----------------------------------------------------------------------
+@pytest.mark.parametrize("name", sorted(FILTERS))
+def test_update_without_H_uses_self_H(name, rng):
+    """The filterpy loop ``f.H = row; f.update(z)`` gives the bits of ``update(z, row)``,
+    and ``H`` reads as the row of the last update."""
+    Hs, zs = _record(rng, N=60)
+    a, b = FILTERS[name](), FILTERS[name]()
+    for H, z in zip(Hs, zs):
+        a.predict()
+        a.H = H.reshape(1, -1)
+        a.update(z)
+        b.predict()
+        b.update(z, H)
+        assert_array_equal(b.H, H.reshape(1, -1))
+    for key in STATE:
+        assert_array_equal(getattr(a, key), getattr(b, key), err_msg=key)
+
+
+@pytest.mark.parametrize("name", sorted(FILTERS))
+def test_H_is_zeros_before_any_update_and_a_bad_H_is_refused(name):
+    f = FILTERS[name]()
+    assert_array_equal(f.H, np.zeros((1, N_X)))
+    f.H = [1.0, 2.0]
+    before = _state(f)
+    with pytest.raises(ValueError, match=r"`H` must have shape \(3,\) or \(1, 3\)"):
+        f.update(1.0)
+    for key, value in before.items():
+        assert_array_equal(getattr(f, key), value, err_msg=key)
+
+
+def test_update_with_H_set_equals_kalman_filter(rng):
+    Hs, zs = _record(rng, N=80)
+    rls, kf = RecursiveLeastSquares(N_X, Q=1e-4), _kalman(1e-4)
+    for H, z in zip(Hs, zs):
+        for f in (rls, kf):
+            f.predict()
+            f.H = H.reshape(1, -1)
+            f.update(z)
+        assert_allclose(rls.x, kf.x, rtol=1e-12, atol=1e-12)
+        assert rls.log_likelihood == pytest.approx(kf.log_likelihood, rel=1e-12)
+
+
+def test_saver_loop_with_H_set(rng):
+    """filterpy's Saver reads every property (F, B, inv, alpha among them) each step."""
+    Hs, zs = _record(rng, N=20)
+    rls = RecursiveLeastSquares(N_X, lam=0.99)
+    saver = Saver(rls)
+    for H, z in zip(Hs, zs):
+        rls.predict()
+        rls.H = H
+        rls.update(z)
+        saver.save()
+    saver.to_array()
+    assert saver.x.shape == (20, N_X, 1)
+    assert_array_equal(saver.H[-1], Hs[-1].reshape(1, -1))
+
+
+# ----------------------------------------------------------------------
+# alpha: filterpy's fading memory
+# ----------------------------------------------------------------------
+def test_alpha_is_fading_memory(rng):
+    """``alpha = a`` sets ``lam = 1 / a**2``, and the filter then equals filterpy's
+    KalmanFilter with the same alpha."""
+    Hs, zs = _record(rng, N=100)
+    rls, kf = RecursiveLeastSquares(N_X), _kalman(0.0, alpha=1.02)
+    rls.alpha = 1.02
+    assert rls.lam == 1.0 / 1.02 ** 2
+    assert rls.alpha == pytest.approx(1.02, rel=1e-15)
+    for H, z in zip(Hs, zs):
+        for f in (rls, kf):
+            f.predict()
+            f.update(z, H=H.reshape(1, -1))
+    assert_allclose(rls.x, kf.x, rtol=1e-10, atol=1e-12)
+    assert_allclose(rls.P, kf.P, rtol=1e-9)
+    sr = SquareRootRLS(N_X)
+    sr.alpha = 2.0
+    assert sr.lam == 0.25
+    assert RecursiveLeastSquares(N_X, lam=0.25).alpha == 2.0
+
+
+@pytest.mark.parametrize("bad", [0.5, np.nan, np.inf, -1.0])
+def test_alpha_out_of_range_is_refused(bad):
+    f = RecursiveLeastSquares(N_X, lam=0.9)
+    with pytest.raises(ValueError, match=r"`alpha` must be a finite number >= 1"):
+        f.alpha = bad
+    assert f.lam == 0.9
+
+
+def test_alpha_of_the_sliding_window_is_refused():
+    f = SlidingWindowRLS(N_X, window=10)
+    assert f.alpha == 1.0
+    with pytest.raises(AttributeError, match=r"`alpha` cannot be assigned: SlidingWindowRLS "
+                                             r"forgets by its window"):
+        f.alpha = 1.1
+
+
+# ----------------------------------------------------------------------
+# F, B, inv and predict(u): refused
+# ----------------------------------------------------------------------
+@pytest.mark.parametrize("name", sorted(FILTERS))
+@pytest.mark.parametrize("attribute, match", [
+    ("F", r"`F` cannot be assigned: the state transition of least squares is the identity"),
+    ("B", r"`B` cannot be assigned: least squares has no control input"),
+    ("inv", r"`inv` cannot be assigned: the filters never invert a matrix"),
+])
+def test_assigning_F_B_inv_is_refused(name, attribute, match):
+    f = FILTERS[name]()
+    before = _state(f)
+    with pytest.raises(AttributeError, match=match):
+        setattr(f, attribute, np.eye(N_X))
+    for key, value in before.items():
+        assert_array_equal(getattr(f, key), value, err_msg=key)
+    assert_array_equal(f.F, np.eye(N_X))
+    assert f.B is None
+
+
+@pytest.mark.parametrize("name", sorted(FILTERS))
+@pytest.mark.parametrize("call, arg", [
+    (lambda f: f.predict(np.ones(1)), "u"),
+    (lambda f: f.predict(1e-4), "u"),                  # not taken as Q
+    (lambda f: f.predict(u=0.0), "u"),
+    (lambda f: f.predict(B=np.ones((N_X, 1))), "B"),
+    (lambda f: f.predict(F=np.eye(N_X)), "F"),
+])
+def test_filterpy_predict_arguments_are_refused(name, call, arg, rng):
+    f = FILTERS[name]()
+    f.predict()
+    f.update(1.0, rng.standard_normal(N_X))
+    before = _state(f)
+    with pytest.raises(TypeError, match=rf"`{arg}` is not an argument {type(f).__name__}"
+                                        r"\.predict\(\) uses: least squares has F = I and no "
+                                        r"control input"):
+        call(f)
+    for key, value in before.items():
+        assert_array_equal(getattr(f, key), value, err_msg=key)
+
+
+def test_predict_of_none_and_of_a_random_walk_still_work(rng):
+    """IMMEstimator calls ``f.predict(u)`` with ``u = None``; ``Q`` is a keyword."""
+    a, b = RecursiveLeastSquares(N_X, lam=0.97), RecursiveLeastSquares(N_X, lam=0.97)
+    a.predict(None)
+    b.predict()
+    assert_array_equal(a.P, b.P)
+    a.predict(Q=1e-3)
+    assert_array_equal(a.P, b.P / 0.97 + 1e-3 * np.eye(N_X))
+
+
+# ----------------------------------------------------------------------
+# get_update
+# ----------------------------------------------------------------------
+@pytest.mark.parametrize("name", sorted(FILTERS))
+def test_get_update_is_update_without_the_change(name, rng):
+    Hs, zs = _record(rng, N=30)
+    f = FILTERS[name]()
+    for H, z in zip(Hs[:-1], zs[:-1]):
+        f.predict_update(z, H)
+    f.predict()
+    before = _state(f)
+    f.H = Hs[-1]
+    x, P = f.get_update(zs[-1])
+    assert_array_equal(f.H, Hs[-1])
+    for key, value in before.items():
+        if key != "H":
+            assert_array_equal(getattr(f, key), value, err_msg=key)
+    f.update(zs[-1])
+    assert_array_equal(x, f.x)
+    assert_array_equal(P, f.P)
+
+
+def test_get_update_equals_kalman_filter(rng):
+    Hs, zs = _record(rng, N=10)
+    rls, kf = RecursiveLeastSquares(N_X, Q=1e-3), _kalman(1e-3)
+    for f in (rls, kf):
+        f.predict()
+        f.H = Hs[0].reshape(1, -1)
+    x, P = rls.get_update(zs[0])
+    x_kf, P_kf = kf.get_update(zs[0])
+    assert_allclose(x, x_kf, rtol=1e-12, atol=1e-12)
+    assert_allclose(P, P_kf, rtol=1e-9, atol=1e-9)
