@@ -450,7 +450,8 @@ def _split_zeros(B, radius):
     if not inside.any():
         return np.ones(1), B
     Bplus = np.atleast_1d(np.real(np.poly(zeros[inside])))
-    Bminus = np.concatenate([np.zeros(nz[0]), lead * np.atleast_1d(np.real(np.poly(zeros[~inside])))])
+    kept = np.atleast_1d(np.real(np.poly(zeros[~inside])))
+    Bminus = np.concatenate([np.zeros(nz[0]), lead * kept])
     return Bplus, Bminus
 
 
