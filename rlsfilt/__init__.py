@@ -17,6 +17,7 @@ from .exceptions import (
     NotFittedError,
     NumericalWarning,
     OperatingPointWarning,
+    RegulatorWarning,
     OrderSelectionWarning,
 )
 from .filters import RecursiveLeastSquares, RLSBank, SlidingWindowRLS, SquareRootRLS
@@ -83,6 +84,7 @@ __all__ = [
     "ForgettingSkippedWarning",
     "ExcitationWarning",
     "OperatingPointWarning",
+    "RegulatorWarning",
     "OrderSelectionWarning",
     "__version__",
 ]

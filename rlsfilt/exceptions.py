@@ -5,8 +5,8 @@ keeps working, while ``except NotFittedError`` lets a caller be precise.
 """
 
 __all__ = ["NotFittedError", "InsufficientDataError", "ExactFitError", "NumericalWarning",
-           "ForgettingSkippedWarning", "ExcitationWarning", "OperatingPointWarning",
-           "OrderSelectionWarning"]
+           "ForgettingSkippedWarning", "ExcitationWarning", "RegulatorWarning",
+           "OperatingPointWarning", "OrderSelectionWarning"]
 
 
 class NotFittedError(ValueError, AttributeError):
@@ -38,6 +38,14 @@ class ForgettingSkippedWarning(UserWarning):
 class ExcitationWarning(UserWarning):
     """An online estimator stopped learning: its regressors no longer excite
     every parameter direction, or its covariance is winding up (see
+    `rlsfilt.adaptive.SelfTuningRegulator`)."""
+
+
+class RegulatorWarning(UserWarning):
+    """A self-tuning regulator is not doing what it was asked: its designs are
+    rejected (it keeps an older controller, or has none), it designs on a
+    reduced model because the estimate nearly cancels a pole against a zero,
+    or its control saturates while the error grows (see
     `rlsfilt.adaptive.SelfTuningRegulator`)."""
 
 

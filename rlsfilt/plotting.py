@@ -1096,8 +1096,10 @@ def plot_str_history(history, fig=None, *, true_theta=None):
     ax.set_ylabel("control $u$")
     _legend_outside(ax)
     theta = np.asarray(history.theta, dtype=float)
+    offset = bool(getattr(history, "offset", False))
     names = ([rf"$\hat a_{{{i + 1}}}$" for i in range(history.na)]
-             + [rf"$\hat b_{{{i + 1}}}$" for i in range(theta.shape[1] - history.na)])
+             + [rf"$\hat b_{{{i + 1}}}$" for i in range(theta.shape[1] - history.na - offset)]
+             + [r"$\hat c$"] * offset)
     plot_parameters(theta, t=t, names=names, true_values=true_theta, ax=axes[2])
     ax = axes[3]
     trace = np.asarray(history.trace_P, dtype=float)

@@ -9,6 +9,7 @@ from numpy.testing import assert_allclose, assert_array_equal
 from rlsfilt import (
     ExcitationWarning,
     RecursiveLeastSquares,
+    RegulatorWarning,
     SlidingWindowRLS,
     SquareRootRLS,
 )
@@ -174,7 +175,7 @@ def test_excitation_monitor_warns_once_when_the_data_stop_carrying_information()
                                monitor_every=50)
     zero = np.zeros(160)
     with pytest.warns(ExcitationWarning, match=r"steps 0\.\.49 do not excite every parameter") \
-            as caught:
+            as caught, pytest.warns(RegulatorWarning, match=r"the loop is open"):
         _run(stre, 160, noise=0.0, dither=0.0, r=zero)
     assert len([w for w in caught if issubclass(w.category, ExcitationWarning)]) == 1
     assert stre.history.excitation[49] == 0.0 and np.isnan(stre.history.excitation[48])
@@ -193,7 +194,8 @@ def test_windup_warning_under_forgetting_without_excitation():
     stre = SelfTuningRegulator(RecursiveLeastSquares(4, lam=0.9, P0=1.0), DESIGN, na=2, nb=2,
                                monitor_every=0)
     with pytest.warns(ExcitationWarning, match=r"at step 65 is more than windup_ratio = 1000 "
-                                                r"times its value 4 .* winding up"):
+                                                r"times its value 4 .* winding up"), \
+            pytest.warns(RegulatorWarning, match=r"the loop is open"):
         _run(stre, 100, noise=0.0, dither=0.0, r=np.zeros(100))
     # phi = 0: P / lam each step, trace(P) after step k is 4 / 0.9^(k+1); no block was excited,
     # so the reference is trace(P0) = 4, exceeded 1e3-fold first at k + 1 = 66

@@ -55,12 +55,23 @@ class RSTController:
         nonzero (the controller is causal).
     dt : True or float, default True
         Sampling period (python-control's ``dt``).
+    Ao : array_like, optional
+        The observer polynomial of the design (monic), if known; used by
+        the anti-windup form of `SelfTuningRegulator` (Astrom & Wittenmark
+        1995, sec. 11.2). `rst_design` sets it.
+    target : array_like, optional
+        The closed-loop characteristic polynomial :math:`A R + B S` the
+        design placed (:math:`A_m A_o`, times :math:`B^+` when zeros are
+        cancelled), if known: what a self-tuning regulator checks an
+        accepted design against. `rst_design` sets it.
 
     Attributes
     ----------
     R, S, T : ndarray
         The polynomials (copies of the arguments, trailing zeros removed).
     dt : True or float
+    Ao, target : ndarray or None
+        As given (trailing zeros removed), or None.
 
     Notes
     -----
@@ -85,10 +96,12 @@ class RSTController:
     '(1 - q^-1) u(t) = (2 - q^-1) r(t) - (2 - q^-1) y(t)'
     """
 
-    def __init__(self, R, S, T, dt=True):
+    def __init__(self, R, S, T, dt=True, *, Ao=None, target=None):
         self.R = trim(as_poly(R, "R"))
         self.S = trim(as_poly(S, "S"))
         self.T = trim(as_poly(T, "T"))
+        self.Ao = None if Ao is None else trim(as_poly(Ao, "Ao", monic=True))
+        self.target = None if target is None else trim(as_poly(target, "target"))
         if self.R[0] == 0.0:
             raise ValueError(f"`R` must have R[0] != 0 (a causal controller: u(t) appears in "
                              f"R(q^-1) u(t)); got R = {self.R.tolist()}")
@@ -265,7 +278,8 @@ class ClosedLoop:
         return self.summary()
 
 
-def rst_design(A, B=None, Am=None, Ao=None, *, integral=True, dt=None, coprime_tol=COPRIME_TOL):
+def rst_design(A, B=None, Am=None, Ao=None, *, integral=True, cancel_zeros=False, dt=None,
+               coprime_tol=COPRIME_TOL):
     r"""Pole placement: solve :math:`A R + B S = A_m A_o` for an RST controller.
 
     Parameters
@@ -289,6 +303,14 @@ def rst_design(A, B=None, Am=None, Ao=None, *, integral=True, dt=None, coprime_t
         Include the integrator :math:`1 - q^{-1}` in ``R``: zero
         steady-state error to steps in the reference and to constant load
         disturbances, also under model error.
+    cancel_zeros : bool or float, default False
+        Cancel the zeros of ``B`` strictly inside the circle of this radius
+        in the z-plane (``True``: the unit circle; a float in (0, 1]: a
+        stricter radius, which keeps poorly damped zeros): they become
+        factors :math:`B^+` of ``R`` and closed-loop poles that the
+        reference does not excite (Astrom & Wittenmark 1995, sec. 3.2,
+        Examples 3.1 and 3.4). Zeros outside, and the delay, stay in
+        :math:`B^-`. ``False``: no zero is cancelled.
     dt : True or float, optional
         Sampling period of the controller; the model's ``dt`` or ``True``.
     coprime_tol : float, default 1e-8
@@ -301,7 +323,9 @@ def rst_design(A, B=None, Am=None, Ao=None, *, integral=True, dt=None, coprime_t
     Returns
     -------
     RSTController
-        ``R = (1 - q^-1) R'`` (with `integral`), ``S``, ``T = t0 Ao``.
+        ``R = (1 - q^-1) B+ R'`` (with `integral`; ``B+ = 1`` unless
+        `cancel_zeros`), ``S``, ``T = t0 Ao``; its ``Ao`` and ``target``
+        (``B+ Am Ao``) are set.
 
     Raises
     ------
@@ -330,6 +354,19 @@ def rst_design(A, B=None, Am=None, Ao=None, *, integral=True, dt=None, coprime_t
     so that :math:`y = t_0 B / A_m\, r` (the observer poles cancel from the
     reference, no plant zero is cancelled, unit static gain). Astrom &
     Wittenmark (1997), ch. 5; (1995), ch. 3.
+
+    With `cancel_zeros`, :math:`B = B^+ B^-` (:math:`B^+` monic, its zeros
+    the cancelled ones) and the equation is :math:`A_1 R' + B^- S = A_m
+    A_o` with :math:`R = (1 - q^{-1}) B^+ R'`, so that :math:`A R + B S =
+    B^+ A_m A_o` and :math:`y = t_0 B^- / A_m\, r` with :math:`t_0 =
+    A_m(1) / B^-(1)`. For a plant :math:`b_0 q^{-1} + b_1 q^{-2}` over
+    :math:`1 + a_1 q^{-1} + a_2 q^{-2}`, ``Ao = 1``, ``integral=False``,
+    this is the controller of Astrom & Wittenmark's Example 3.1, the design
+    step of the indirect self-tuner of Example 3.4: :math:`r_1 = b_1/b_0`,
+    :math:`s_0 = (a_{m1} - a_1)/b_0`, :math:`s_1 = (a_{m2} - a_2)/b_0`,
+    :math:`t_0 = (1 + a_{m1} + a_{m2})/b_0`. Cancelled zeros stay poles of
+    the loop from disturbances and of ``u``: a zero near ``z = -1`` makes
+    ``u`` ring (their Fig. 3.6), hence the radius.
 
     References
     ----------
@@ -363,14 +400,16 @@ def rst_design(A, B=None, Am=None, Ao=None, *, integral=True, dt=None, coprime_t
     check_stable(Ao, "Ao")
     if not isinstance(integral, (bool, np.bool_)):
         raise TypeError(f"`integral` must be True or False; got {integral!r}")
+    radius = _check_cancel(cancel_zeros)
     coprime_tol = check_real(coprime_tol, "coprime_tol", minimum=0)
     dt = check_dt(model_dt(model) if dt is None and model is not None else
                   (True if dt is None else dt))
     A1 = np.convolve(A, [1.0, -1.0]) if integral else A
-    n1, nb = degree(A1), degree(B)
-    if nb < 1:
+    if degree(B) < 1:
         raise ValueError(f"`B` must have degree >= 1 in q^-1 (a delay nk >= 1, or nb >= 2 "
                          f"coefficients); got B = {B.tolist()}")
+    Bplus, B = _split_zeros(B, radius)
+    n1, nb = degree(A1), degree(B)
     Acl = trim(np.convolve(Am, Ao))
     if degree(Acl) > n1 + nb - 1:
         raise ValueError(
@@ -380,14 +419,39 @@ def rst_design(A, B=None, Am=None, Ao=None, *, integral=True, dt=None, coprime_t
             "lower the degree of Ao")
     _check_coprime(A, B, A1, integral, coprime_tol)
     x = np.linalg.solve(sylvester(A1, B), pad(Acl, n1 + nb))
-    R1, S = x[:nb], x[nb:]
+    R1, S = np.convolve(Bplus, x[:nb]), x[nb:]
     R = np.convolve(R1, [1.0, -1.0]) if integral else R1
     if abs(R[0]) <= 1e-12 * np.max(np.abs(R)):
         raise ValueError(f"`B` has B(0) = {B[0]:.6g} != 0 (no delay) and the design gives "
                          "R(0) = 0: the controller cannot be causal; add a delay to the model "
                          "or change Am, Ao")
     T = Am.sum() / B.sum() * Ao
-    return RSTController(R, S, T, dt)
+    return RSTController(R, S, T, dt, Ao=Ao, target=np.convolve(Bplus, Acl))
+
+
+def _check_cancel(cancel_zeros):
+    """The radius inside which `rst_design` cancels zeros (0: none)."""
+    if isinstance(cancel_zeros, (bool, np.bool_)):
+        return 1.0 if cancel_zeros else 0.0
+    radius = check_real(cancel_zeros, "cancel_zeros", minimum=0)
+    if radius > 1.0:
+        raise ValueError(f"`cancel_zeros` must be True, False or a radius in (0, 1] (only "
+                         f"stable zeros can be cancelled); got {radius}")
+    return radius
+
+
+def _split_zeros(B, radius):
+    """``(B+, B-)``: ``B+`` monic with the zeros of `B` inside `radius`, ``B = B+ B-``."""
+    nz = np.flatnonzero(B)
+    lead = B[nz[0]] if len(nz) else 0.0
+    zeros = roots(B[nz[0]:]) if len(nz) else np.zeros(0)
+    inside = np.abs(zeros) < radius
+    if not inside.any():
+        return np.ones(1), B
+    Bplus = np.atleast_1d(np.real(np.poly(zeros[inside])))
+    kept = np.atleast_1d(np.real(np.poly(zeros[~inside])))
+    Bminus = np.concatenate([np.zeros(nz[0]), lead * kept])
+    return Bplus, Bminus
 
 
 def _plant(A, B):

@@ -25,16 +25,18 @@ import numpy as np
 
 from .._iosystem import call_capturing, make_iosystem, push
 from .._validation import check_dt, check_int, check_real, check_scalar
-from ..exceptions import ExcitationWarning
+from ..exceptions import ExcitationWarning, RegulatorWarning
 from ..filters import _filter_state
-from ._polynomials import coprimeness
+from ._polynomials import coprimeness, degree, fmt_complex, padd, roots, trim
 from .rst import RSTController, rst_design
 
 __all__ = ["SelfTuningRegulator", "STRHistory"]
 
 # names of the scalar bookkeeping entries of the state vector, in order
 _SCALARS = ("have_controller", "step", "trace_ref", "warned_excitation", "warned_windup",
-            "n_rejected")
+            "n_rejected", "rejected_run", "warned_rejected", "warned_reduced",
+            "warned_saturation", "size_last", "sat_block", "err2_block", "err2_prev")
+_I = {name: i for i, name in enumerate(_SCALARS)}
 
 
 class SelfTuningRegulator:
@@ -44,7 +46,8 @@ class SelfTuningRegulator:
     ----------
     estimator : RecursiveLeastSquares, SquareRootRLS or SlidingWindowRLS
         The filter that estimates :math:`\theta = [a_1 .. a_{n_a}, b_1 ..
-        b_{n_b}]` (``dim_x = na + nb``, ``dim_z = 1``); its forgetting
+        b_{n_b}]` (``dim_x = na + nb``, ``dim_z = 1``; with `offset`,
+        ``[.., c]`` and ``dim_x = na + nb + 1``); its forgetting
         factor, window and prior are the tuning of the estimation. The
         regulator updates it in place.
     design : callable or dict
@@ -74,16 +77,62 @@ class SelfTuningRegulator:
         ``-inf``/``inf`` allowed): after each update the estimate is
         projected (clipped) onto it, and the projected value replaces the
         estimator's ``x``. Typically used to keep the sign of ``b1``.
+    offset : bool, default False
+        Estimate a constant ``c`` too, :math:`A y = B u + c + e` (a regressor
+        ``1``, as ``ARX(offset=True)``): the model of a plant linearized
+        about an operating point far from zero (a tank, a heater). Without
+        it the estimate of ``A, B`` is biased by the operating point. The
+        control law subtracts the estimated offset's input, :math:`R (u -
+        u_c) = T r - S y` with :math:`u_c = -c / B(1)` (with integral action
+        ``R(1) = 0`` and the term vanishes: the integrator takes care of
+        it). See the guide's tank example.
     coprime_tol : float, default 1e-4
-        Keep the last controller when the estimated ``A`` and ``B`` nearly
-        share a factor: the smallest singular value of their Sylvester
-        matrix (coefficients scaled to unit norm) is below this.
+        The full-order design is not tried when the estimated ``A`` and
+        ``B`` nearly share a factor: the smallest singular value
+        :math:`\sigma` of their Sylvester matrix (coefficients scaled to
+        unit norm) is below this.
+    reduce_tol : float, default 1e-2
+        Below this :math:`\sigma` the regulator also designs on the reduced
+        model: the estimate with its closest pole/zero pair (a conjugate pair
+        of each, for complex roots) removed, as a model one order too large
+        nearly cancels its extra pole against a zero. The full design is
+        used only if it is at most `max_growth` times the size of the reduced
+        one; so no single threshold decides between a controller of size
+        ``1/sigma`` and a sane one. A `RegulatorWarning` says so the first
+        time. ``0`` switches it off.
+    max_growth : float, default 10.0
+        Every design is verified before it is used: its ``A R + B S`` on the
+        model it was designed for equals its ``target`` (``rst_design``
+        sets it) to ``1e-8`` relative to the terms; the loop closed around
+        the full estimate is stable; and its size :math:`(\|R\|_1 +
+        \|S\|_1 + \|T\|_1) / |r_0|` is at most `max_growth` times the size
+        of the controller in use. A design that fails is rejected (the
+        controller in use is kept), so a controller grows by at most this
+        factor per redesign.
+    stable_R : bool, default False
+        Also reject designs whose ``R`` has a zero outside the closed unit
+        disk (an unstable controller).
+    patience : int, default 50
+        Warn (`~rlsfilt.RegulatorWarning`, once until a design is accepted
+        again) when this many redesigns in a row are rejected, or when there
+        is still no controller after this many: the loop runs on an old
+        controller or open.
+    signal_limit : float, default 1e100
+        Largest magnitude of ``y``, ``r``, ``dither`` and the computed ``u``
+        the regulator accepts; beyond it (or at NaN or inf) :meth:`step`
+        raises a `ValueError` that names the signal and the step, and leaves
+        the regulator as it was (the estimator's products of signals would
+        otherwise overflow a few steps later, in a less clear place).
     u_limits : (float, float), optional
         Saturation of the applied control; the saturated value enters the
         regressor (and the controller's memory), the usual anti-windup of
-        RST controllers.
+        RST controllers (see Notes).
     monitor_every : int, default 200
-        Length of the excitation monitor's blocks; ``0`` switches it off.
+        Length of the blocks of the excitation monitor and of the
+        saturation watchdog; ``0`` switches both off. The watchdog warns
+        (`~rlsfilt.RegulatorWarning`, once) at the end of a block in which
+        ``u`` sat at a limit at least half the time while the RMS tracking
+        error ``r - y`` did not fall from the block before.
     excitation_tol : float, default 1e-8
         Warn (`~rlsfilt.ExcitationWarning`) when, over a block, the smallest
         eigenvalue of :math:`\sum \varphi\varphi^T` falls below this
@@ -137,6 +186,28 @@ class SelfTuningRegulator:
     design on the true plant (the certainty-equivalence principle; Astrom &
     Wittenmark 1995, ch. 3 and 6).
 
+    **Anti-windup.** The law above feeds the *applied* (saturated) ``u`` back
+    through :math:`R - r_0`. That is Astrom & Wittenmark's anti-windup form
+    :math:`A_o u = T r - S y + (A_o - R)\,\mathrm{sat}(u)` (1995, sec.
+    11.2; 1997, sec. 9.4) with :math:`A_o = r_0` (a deadbeat observer for
+    the controller's state during saturation), not with the design's
+    :math:`A_o`. Both are the same controller while ``u`` is inside the
+    limits. The regulator keeps this form because it holds for any design
+    (also callables without an observer polynomial, and redesigns that change
+    ``R`` every sample with no filter state in :math:`1/A_o` to carry over);
+    the controller state after saturation is reset in :math:`\deg R`
+    samples instead of following the observer's dynamics.
+
+    **What is accepted.** Each due redesign goes through these steps:
+    :math:`\sigma` = coprimeness of the estimated ``A, B``; the full design
+    if :math:`\sigma \ge` `coprime_tol`; the reduced-model design if
+    :math:`\sigma <` `reduce_tol`; the verification of each (`max_growth`);
+    then the full design if it verified and is at most `max_growth` times
+    the reduced one's size, else the reduced one, else the controller in use
+    is kept (``history.rejected``) and, after `patience` such steps, a
+    warning. A near-cancelling estimate thus neither leaves the controller
+    at a cliff nor installs one with gains of order ``1/sigma``.
+
     References
     ----------
     .. [1] K. J. Astrom and B. Wittenmark, *Adaptive Control*, 2nd ed.,
@@ -170,22 +241,28 @@ class SelfTuningRegulator:
     """
 
     def __init__(self, estimator, design, *, na, nb, nk=1, redesign_every=1, initial=None,
-                 dead_zone=0.0, bounds=None, coprime_tol=1e-4, u_limits=None,
-                 monitor_every=200, excitation_tol=1e-8, windup_ratio=1e3, max_order=None,
-                 dt=True):
+                 dead_zone=0.0, bounds=None, offset=False, coprime_tol=1e-4, reduce_tol=1e-2,
+                 max_growth=10.0, stable_R=False, patience=50, signal_limit=1e100,
+                 u_limits=None, monitor_every=200, excitation_tol=1e-8, windup_ratio=1e3,
+                 max_order=None, dt=True):
         self.na = check_int(na, "na", minimum=0)
         self.nb = check_int(nb, "nb", minimum=1)
         self.nk = check_int(nk, "nk", minimum=1)
-        n = self.na + self.nb
+        if not isinstance(offset, (bool, np.bool_)):
+            raise TypeError(f"`offset` must be True or False; got {offset!r}")
+        self.offset = bool(offset)
+        n = self.na + self.nb + self.offset
         for attr in ("predict", "update", "x", "P"):
             if not hasattr(estimator, attr):
                 raise TypeError(f"`estimator` must be an rlsfilt filter (predict, update, x, P); "
                                 f"got {type(estimator).__name__} without `{attr}`")
         if getattr(estimator, "dim_x", None) != n or getattr(estimator, "dim_z", 1) != 1:
-            raise ValueError(f"`estimator` must have dim_x = na + nb = {n} and dim_z = 1; got "
+            what = "na + nb + 1 (offset)" if self.offset else "na + nb"
+            raise ValueError(f"`estimator` must have dim_x = {what} = {n} and dim_z = 1; got "
                              f"dim_x = {getattr(estimator, 'dim_x', None)}, dim_z = "
                              f"{getattr(estimator, 'dim_z', None)}")
         self.estimator = estimator
+        self._design_kwargs = dict(design) if isinstance(design, dict) else None
         if isinstance(design, dict):
             design = functools.partial(rst_design, **design)
         if not callable(design):
@@ -196,6 +273,13 @@ class SelfTuningRegulator:
         self.dead_zone = check_real(dead_zone, "dead_zone", minimum=0)
         self.bounds = None if bounds is None else _check_bounds(bounds, n)
         self.coprime_tol = check_real(coprime_tol, "coprime_tol", minimum=0)
+        self.reduce_tol = check_real(reduce_tol, "reduce_tol", minimum=0)
+        self.max_growth = check_real(max_growth, "max_growth", minimum=1)
+        if not isinstance(stable_R, (bool, np.bool_)):
+            raise TypeError(f"`stable_R` must be True or False; got {stable_R!r}")
+        self.stable_R = bool(stable_R)
+        self.patience = check_int(patience, "patience", minimum=1)
+        self.signal_limit = check_real(signal_limit, "signal_limit", minimum=0, strict=True)
         self.u_limits = None if u_limits is None else _check_limits(u_limits)
         self.monitor_every = check_int(monitor_every, "monitor_every", minimum=0)
         self.excitation_tol = check_real(excitation_tol, "excitation_tol", minimum=0)
@@ -214,13 +298,15 @@ class SelfTuningRegulator:
         self._scalars = np.zeros(len(_SCALARS))
         self._scalars[2] = float(np.trace(estimator.P))   # reference trace(P)
         self._records = []
+        self._why = "no design was due yet"     # why the last design was rejected (messages)
         if initial is not None:
             self._install(initial, "initial")
         else:
-            A, B = self._polynomials(self.theta)
-            ok, ctrl, _ = self._try_design(A, B)
-            if ok:
-                self._install(ctrl, "design")
+            theta = self.theta
+            if np.all(np.isfinite(theta)):
+                ctrl, _, _ = self._try_design(*self._polynomials(theta), theta)
+                if ctrl is not None:
+                    self._install(ctrl, "design")
 
     # ------------------------------------------------------------------
     # the current estimate and controller
@@ -244,7 +330,7 @@ class SelfTuningRegulator:
 
     def _polynomials(self, theta):
         A = np.concatenate([[1.0], theta[:self.na]])
-        B = np.concatenate([np.zeros(self.nk), theta[self.na:]])
+        B = np.concatenate([np.zeros(self.nk), theta[self.na:self.na + self.nb]])
         return A, B
 
     # ------------------------------------------------------------------
@@ -268,7 +354,7 @@ class SelfTuningRegulator:
         float
             The control ``u(t)`` to apply (saturated to `u_limits`).
         """
-        y, r, v = (_finite(y, "y"), _finite(r, "r"), _finite(dither, "dither"))
+        y, r, v = (check_scalar(y, "y"), check_scalar(r, "r"), check_scalar(dither, "dither"))
         u, record, messages = self._advance(y, r, v)
         self._records.append(record)
         for message, category in messages:
@@ -288,8 +374,12 @@ class SelfTuningRegulator:
         na, nb, nk = self.na, self.nb, self.nk
         est = self.estimator
         messages = []
-        # regressor phi(t) = [-y(t-1) .. -y(t-na), u(t-nk) .. u(t-nk-nb+1)]
-        phi = np.concatenate([-self._ypast[:na], self._upast[nk - 1:nk - 1 + nb]])
+        k = int(self._scalars[1])
+        for value, name in ((y, "y"), (r, "r"), (v, "dither")):
+            self._check_signal(value, name, k)
+        # regressor phi(t) = [-y(t-1) .. -y(t-na), u(t-nk) .. u(t-nk-nb+1) (, 1)]
+        phi = np.concatenate([-self._ypast[:na], self._upast[nk - 1:nk - 1 + nb],
+                              np.ones(int(self.offset))])
         theta = self.theta
         e = y - phi @ theta                       # a-priori prediction error
         updated = self.dead_zone == 0.0 or abs(e) > self.dead_zone
@@ -297,40 +387,75 @@ class SelfTuningRegulator:
             _, caught = call_capturing(est.predict_update, y, phi)
             messages += caught
             theta = self.theta
+            if not (np.all(np.isfinite(theta)) and np.all(np.isfinite(est.P))):
+                raise ValueError(
+                    f"SelfTuningRegulator: the estimate became non-finite at step {k} (`y` = "
+                    f"{y:.6g}, largest |phi| = {np.max(np.abs(phi), initial=0.0):.6g}): the "
+                    "loop or the estimator diverged; the regulator is left as before this step")
         if self.bounds is not None:               # projection onto the box
             clipped = np.clip(theta, *self.bounds)
             if np.any(clipped != theta):
                 est.x = clipped.reshape(-1, 1)
                 theta = clipped
-        k = int(self._scalars[1])
         redesigned = k % self.redesign_every == 0
-        rejected = False
+        rejected = reduced = False
         if redesigned:
             A, B = self._polynomials(theta)
-            ok, ctrl, caught = self._try_design(A, B)
+            ctrl, kind, caught = self._try_design(A, B, theta)
             messages += caught
-            if ok:
+            if ctrl is not None:
                 self._install(ctrl, "design")
+                reduced = kind == "reduced"
+                self._scalars[_I["rejected_run"]] = 0.0
+                self._scalars[_I["warned_rejected"]] = 0.0
+                if reduced and not self._scalars[_I["warned_reduced"]]:
+                    self._scalars[_I["warned_reduced"]] = 1.0
+                    messages.append((
+                        f"SelfTuningRegulator: at step {k} the estimate nearly cancels a pole "
+                        f"against a zero ({self._why}); the controller is designed on the model "
+                        "with that pair removed (reduce_tol). The model is probably one order "
+                        "too large: consider smaller na, nb", RegulatorWarning))
             else:
                 rejected = True
                 self._scalars[5] += 1
-        # control law R u = T r - S y, with the past from the memories
+                self._scalars[_I["rejected_run"]] += 1
+        if not self._scalars[0] or rejected:
+            run = self._scalars[_I["rejected_run"]] if self._scalars[0] else k + 1
+            if run >= self.patience and not self._scalars[_I["warned_rejected"]]:
+                self._scalars[_I["warned_rejected"]] = 1.0
+                state = ("the controller designed at an earlier step is still in use" if
+                         self._scalars[0] else "there is no controller: the loop is open "
+                         "(u = dither)")
+                messages.append((
+                    f"SelfTuningRegulator: {int(run)} redesigns in a row up to step {k} were "
+                    f"rejected (the last because {self._why}); {state}. Check the model "
+                    "orders, the excitation and the design (Am, Ao)", RegulatorWarning))
+        # control law R (u - u_c) = T r - S y, with the past from the memories
         L = self._L
         if self._scalars[0]:
             R, S, T = self._ctrl
             u = (T[0] * r + T[1:] @ self._rpast[:L - 1] - S[0] * y - S[1:] @ self._ypast[:L - 1]
                  - R[1:] @ self._upast[:L - 1]) / R[0]
+            if self.offset:
+                Bsum = theta[na:na + nb].sum()
+                if abs(Bsum) > 1e-12 * np.abs(theta[na:na + nb]).sum():
+                    u += -theta[-1] / Bsum * R.sum() / R[0]     # u_c R(1) / r0
         else:
             u = 0.0
         u = u + v
+        self._check_signal(u, "u", k, computed=True)
+        saturated = False
         if self.u_limits is not None:
+            saturated = not self.u_limits[0] < u < self.u_limits[1]
             u = min(max(u, self.u_limits[0]), self.u_limits[1])
         u = float(u)
         push(self._ypast, y)
         push(self._upast, u)
         push(self._rpast, r)
-        # excitation monitor and windup check
+        # excitation monitor, windup check and saturation watchdog
         self._info += np.outer(phi, phi)
+        self._scalars[_I["sat_block"]] += saturated
+        self._scalars[_I["err2_block"]] += (r - y) ** 2
         trace = float(np.trace(est.P))
         if trace > self.windup_ratio * self._scalars[2]:
             if not self._scalars[4]:
@@ -362,23 +487,118 @@ class SelfTuningRegulator:
                 self._scalars[3] = 0.0
                 self._scalars[2] = trace        # a well-excited block: the new reference
             self._info[:] = 0.0
+            messages += self._watchdog(k)
         self._scalars[1] = k + 1
         record = (y, r, u, e, theta.copy(), trace, updated, redesigned, rejected,
-                  self._ctrl.copy(), excitation)
+                  self._ctrl.copy(), excitation, reduced)
         return u, record, messages
 
-    def _try_design(self, A, B):
-        """``(ok, controller, messages)`` for the estimate ``A, B``."""
-        if coprimeness(A, B) < self.coprime_tol:
-            return False, None, []
+    def _check_signal(self, value, name, k, computed=False):
+        """Raise a `ValueError` naming the signal if it is not finite or beyond `signal_limit`."""
+        what = f"the computed `{name}`" if computed else f"`{name}`"
+        if not np.isfinite(value):
+            raise ValueError(f"`{name}` must be finite; got {value} at step {k}"
+                             + (" (computed by the controller in use: the loop diverged)"
+                                if computed else ""))
+        if abs(value) > self.signal_limit:
+            raise ValueError(
+                f"{what} = {value:.3g} at step {k} exceeds signal_limit = "
+                f"{self.signal_limit:.3g}: the loop is diverging (or the signal is in the wrong "
+                "units); the regulator is left as before this step")
+
+    def _watchdog(self, k):
+        """At the end of a monitor block: saturation with an error that does not fall."""
+        n = self.monitor_every
+        sat = self._scalars[_I["sat_block"]] / n
+        err2, prev = self._scalars[_I["err2_block"]], self._scalars[_I["err2_prev"]]
+        self._scalars[_I["sat_block"]] = 0.0
+        self._scalars[_I["err2_block"]] = 0.0
+        self._scalars[_I["err2_prev"]] = err2
+        if sat < 0.5 or err2 < prev or self._scalars[_I["warned_saturation"]]:
+            return []
+        self._scalars[_I["warned_saturation"]] = 1.0
+        return [(f"SelfTuningRegulator: in steps {k + 1 - n}..{k} the control sat at a limit "
+                 f"{100 * sat:.0f} % of the time and the RMS error r - y grew to "
+                 f"{np.sqrt(err2 / n):.3g} (from {np.sqrt(prev / n):.3g} in the block before): "
+                 "the controller in use cannot control the plant within u_limits. Check "
+                 "history.rejected, the model orders and the design's speed (Am)",
+                 RegulatorWarning)]
+
+    def _try_design(self, A, B, theta):
+        """``(controller or None, "full" or "reduced", messages)`` for the estimate ``A, B``.
+
+        A design is used only if it passes :meth:`_verify`; near a common
+        factor the design on the reduced model competes (see the class Notes).
+        """
+        sigma = coprimeness(A, B)
+        messages = []
+        full = reduced = None
+        why = []
+        if sigma >= self.coprime_tol:
+            full, note = self._candidate(A, B, A, B, messages)
+            if full is None:
+                why.append(f"the full design {note}")
+        else:
+            why.append(f"coprimeness of A, B = {sigma:.3g} < coprime_tol = "
+                       f"{self.coprime_tol:.3g}")
+        if sigma < self.reduce_tol:
+            pair = _reduce(A, B)
+            if pair is None:
+                why.append("no real or conjugate pole/zero pair to remove")
+            else:
+                reduced, note = self._candidate(*pair[:2], A, B, messages)
+                what = f"pole {fmt_complex(pair[2])} / zero {fmt_complex(pair[3])}"
+                why.append(f"coprimeness {sigma:.3g}, closest {what}"
+                           + ("" if reduced is not None else f"; the reduced design {note}"))
+        self._why = "; ".join(why)
+        if full is not None and (reduced is None or
+                                 _size(full) <= self.max_growth * _size(reduced)):
+            return full, "full", messages
+        if reduced is not None:
+            return reduced, "reduced", messages
+        return None, None, messages
+
+    def _candidate(self, Ad, Bd, A, B, messages):
+        """Design for ``(Ad, Bd)``, verified against the estimate ``(A, B)``: ``(ctrl, why)``."""
+        design = self.design
+        if self._design_kwargs is not None and Ad is not A:
+            design = functools.partial(rst_design, **_fit_observer(self._design_kwargs, Ad, Bd))
         try:
-            ctrl, caught = call_capturing(self.design, A, B)
-        except (ValueError, np.linalg.LinAlgError):
-            return False, None, []
-        return True, ctrl, caught
+            ctrl, caught = call_capturing(design, Ad, Bd)
+        except (ValueError, np.linalg.LinAlgError) as exc:
+            return None, f"raised {type(exc).__name__}: {exc}"
+        Rc, Sc, Tc = self._rows(ctrl, "design")      # raises for a misfit controller
+        target = getattr(ctrl, "target", None)
+        if target is not None:            # A R + B S = target on the model designed for
+            char = padd(np.convolve(Ad, Rc), np.convolve(Bd, Sc))
+            scale = (np.abs(Ad).sum() * np.abs(Rc).sum() + np.abs(Bd).sum() * np.abs(Sc).sum())
+            res = np.abs(padd(char, -np.asarray(target, dtype=float))).max()
+            if not res <= 1e-8 * scale:
+                return None, (f"misses its characteristic polynomial by {res:.3g} (A R + B S "
+                              "against target)")
+        poles = roots(trim(padd(np.convolve(A, Rc), np.convolve(B, Sc))))
+        rho = float(np.max(np.abs(poles), initial=0.0))
+        if not rho < 1.0:
+            return None, f"gives an unstable loop on the estimate (largest |pole| = {rho:.4g})"
+        if self.stable_R:
+            rr = float(np.max(np.abs(roots(Rc)), initial=0.0))
+            if rr > 1.0 + 1e-9:
+                return None, f"has an unstable R (a zero at |z| = {rr:.4g}; stable_R=True)"
+        size, last = _size(ctrl), self._scalars[_I["size_last"]]
+        if self._scalars[0] and last > 0 and size > self.max_growth * last:
+            return None, (f"has size {size:.3g}, more than max_growth = {self.max_growth:g} "
+                          f"times the size {last:.3g} of the controller in use")
+        messages += caught
+        return ctrl, ""
 
     def _install(self, ctrl, what):
         """Store a controller's polynomials in the fixed-size rows of ``_ctrl``."""
+        self._ctrl[:] = self._rows(ctrl, what)
+        self._scalars[0] = 1.0
+        self._scalars[_I["size_last"]] = _size(ctrl)
+
+    def _rows(self, ctrl, what):
+        """A controller's ``R, S, T`` zero-padded to ``max_order + 1``; checks them."""
         rows = np.zeros((3, self._L))
         for i, name in enumerate(("R", "S", "T")):
             p = getattr(ctrl, name, None)
@@ -396,8 +616,7 @@ class SelfTuningRegulator:
             rows[i, :len(p)] = p
         if rows[0][0] == 0.0:
             raise ValueError(f"the {what} has R[0] = 0 (not a causal controller)")
-        self._ctrl[:] = rows
-        self._scalars[0] = 1.0
+        return rows
 
     # ------------------------------------------------------------------
     # history
@@ -405,7 +624,7 @@ class SelfTuningRegulator:
     @property
     def history(self):
         """An `STRHistory` of every :meth:`step` so far."""
-        return STRHistory(self._records, self.na, self.nb, self._L, self.dt)
+        return STRHistory(self._records, self.na, self.nb, self._L, self.dt, self.offset)
 
     # ------------------------------------------------------------------
     # the state as one vector, and python-control
@@ -438,7 +657,7 @@ class SelfTuningRegulator:
         labels += [f"r[t-{i + 1}]" for i in range(len(self._rpast))]
         labels += [f"{p}[{i}]" for p in "RST" for i in range(self._L)]
         labels += list(_SCALARS)
-        n = self.na + self.nb
+        n = self.na + self.nb + self.offset
         labels += [f"info[{i},{j}]" for i in range(n) for j in range(n)]
         return labels
 
@@ -500,7 +719,7 @@ class SelfTuningRegulator:
         >>> bool(np.sqrt(np.mean((y[-40:] - r[-40:]) ** 2)) < 0.05)     # RMS tracking error
         True
         """
-        n = self.na + self.nb
+        n = self.na + self.nb + self.offset
         outputs = ["u"] + (["e"] + [f"theta[{i}]" for i in range(n)] if extra_outputs else [])
         template = self.__class__.__new__(self.__class__)
         template.__dict__.update(self.__dict__)
@@ -536,14 +755,20 @@ class STRHistory:
         Measured output, reference and applied control.
     e : ndarray, shape (N,)
         A-priori prediction error :math:`y(t) - \\varphi(t)^T\\hat\\theta(t-1)`.
-    theta : ndarray, shape (N, na + nb)
-        Estimate after the step (after projection).
+    offset : bool
+        Whether the last column of `theta` is the estimated offset ``c``.
+    theta : ndarray, shape (N, na + nb) or (N, na + nb + 1)
+        Estimate after the step (after projection); with `offset`, ``c``
+        last.
     trace_P : ndarray, shape (N,)
         ``trace(P)`` of the estimator after the step.
     updated, redesigned, rejected : ndarray of bool, shape (N,)
         Whether the estimator was updated (outside the dead zone), a
         redesign was due, and the due redesign was rejected (the last
         controller kept).
+    reduced : ndarray of bool, shape (N,)
+        Whether the controller installed at the step was designed on the
+        reduced model (the estimate's closest pole/zero pair removed).
     R, S, T : ndarray, shape (N, max_order + 1)
         Controller in use at each step (zero-padded).
     excitation : ndarray, shape (N,)
@@ -551,11 +776,11 @@ class STRHistory:
         end of each monitor block, NaN elsewhere.
     """
 
-    def __init__(self, records, na, nb, L, dt):
-        self.na, self.nb, self.dt = na, nb, dt
-        n = na + nb
+    def __init__(self, records, na, nb, L, dt, offset=False):
+        self.na, self.nb, self.dt, self.offset = na, nb, dt, bool(offset)
+        n = na + nb + self.offset
         N = len(records)
-        cols = list(zip(*records)) if N else [()] * 11
+        cols = list(zip(*records)) if N else [()] * 12
         self.t = np.arange(N) * (1.0 if dt is True else float(dt))
         self.y, self.r, self.u, self.e = (np.array(c, dtype=float) for c in cols[:4])
         self.theta = np.array(cols[4], dtype=float).reshape(N, n)
@@ -565,6 +790,7 @@ class STRHistory:
         ctrl = np.array(cols[9], dtype=float).reshape(N, 3, L)
         self.R, self.S, self.T = ctrl[:, 0], ctrl[:, 1], ctrl[:, 2]
         self.excitation = np.array(cols[10], dtype=float)
+        self.reduced = np.array(cols[11], dtype=bool)
 
     def __len__(self):
         return len(self.t)
@@ -595,11 +821,61 @@ class STRHistory:
 
 
 
-def _finite(value, name):
-    v = check_scalar(value, name)
-    if not np.isfinite(v):
-        raise ValueError(f"`{name}` must be finite; got {v}")
-    return v
+def _size(ctrl):
+    """``(|R|_1 + |S|_1 + |T|_1) / |r0|``: how large a controller's gains are."""
+    R, S, T = (np.asarray(getattr(ctrl, n), dtype=float) for n in "RST")
+    return float((np.abs(R).sum() + np.abs(S).sum() + np.abs(T).sum()) / abs(R[0]))
+
+
+def _reduce(A, B):
+    """``(A', B', pole, zero)``: the estimate without its closest pole/zero pair, or None.
+
+    A complex pole is removed with its conjugate, and then so must the zero
+    be (a real pole pairs with a real zero); ``B'`` keeps the delay and the
+    leading coefficient of ``B``.
+    """
+    nz = np.flatnonzero(B)
+    if not len(nz):
+        return None
+    ra, rb = roots(A), roots(B[nz[0]:])
+    if not (len(ra) and len(rb)):
+        return None
+    dist = np.abs(ra[:, None] - rb[None, :])
+    i, j = np.unravel_index(int(np.argmin(dist)), dist.shape)
+    p, z = ra[i], rb[j]
+    complex_p = abs(p.imag) > 1e-9 * max(1.0, abs(p))
+    complex_z = abs(z.imag) > 1e-9 * max(1.0, abs(z))
+    if complex_p != complex_z:
+        return None
+    ra, rb = np.delete(ra, i), np.delete(rb, j)
+    if complex_p:
+        ra = np.delete(ra, int(np.argmin(np.abs(ra - np.conj(p)))))
+        rb = np.delete(rb, int(np.argmin(np.abs(rb - np.conj(z)))))
+    Ar = np.atleast_1d(np.real(np.poly(ra)))
+    Br = np.concatenate([np.zeros(nz[0]), B[nz[0]] * np.atleast_1d(np.real(np.poly(rb)))])
+    return Ar, Br, p, z
+
+
+def _fit_observer(kwargs, A, B):
+    """`rst_design` keywords with ``Ao`` of a degree the reduced model can place.
+
+    The reduced model allows ``deg A + integral + deg B - 1`` closed-loop
+    poles; ``Am`` keeps all of its own and ``Ao`` keeps its slowest roots
+    (dropping a root near ``z = 0`` changes the observer least).
+    """
+    Ao = kwargs.get("Ao")
+    if Ao is None:
+        return kwargs
+    Ao = trim(np.asarray(Ao, dtype=float))
+    room = (degree(A) + int(kwargs.get("integral", True)) + degree(B) - 1
+            - degree(np.atleast_1d(np.asarray(kwargs["Am"], dtype=float))))
+    if degree(Ao) <= room or room < 0:
+        return kwargs
+    ro = roots(Ao)
+    ro = ro[np.argsort(-np.abs(ro), kind="stable")][:room]
+    if room and abs(ro[-1].imag) > 1e-12 and not np.any(np.isclose(ro[:-1], np.conj(ro[-1]))):
+        ro = ro[:-1]                      # never split a conjugate pair
+    return dict(kwargs, Ao=np.atleast_1d(np.real(np.poly(ro))))
 
 
 def _check_bounds(bounds, n):
