@@ -416,14 +416,15 @@ def _object(value, path, allowed, required=(), owner=None):
     """A JSON object whose keys are among `allowed` and include `required`."""
     if not isinstance(value, dict):
         _fail(path, "must be a JSON object", value)
+    prefix = f"{path}." if path else ""
     for key in value:
         if key not in allowed:
             where = f" of {owner}" if owner else ""
-            raise ValueError(f"`{path}.{key}` is not a field{where} (a model file holds only "
+            raise ValueError(f"`{prefix}{key}` is not a field{where} (a model file holds only "
                              f"declared fields: {sorted(allowed)})")
     for key in required:
         if key not in value:
-            raise ValueError(f"`{path}.{key}` is missing (a required field)")
+            raise ValueError(f"`{prefix}{key}` is missing (a required field)")
     return value
 
 
@@ -688,6 +689,9 @@ def _check_structure(stored, expected, names, path="fitted.structure_"):
                 raise ValueError(f"`params.{key}` and `{path}.{key}` disagree: the orders in "
                                  f"`params` give {want} for this number of signals; the fit "
                                  f"stored {_got(got)}")
+            if key in ("n_inputs", "n_outputs"):
+                raise ValueError(f"`{path}.{key}` and `fitted.{key}_` disagree: {_got(got)} "
+                                 f"and {want}")
             _fail(f"{path}.{key}", f"must be {want} (from `params` and the number of "
                   "signals)", got)
 
@@ -758,8 +762,8 @@ def _arx_fitted(model, raw, version):
     intercept = _offset_mode(model.offset) == "intercept"
     n_params = _int(raw["n_params_"], "fitted.n_params_")
     if n_params != s.n_params + intercept:
-        _fail("fitted.n_params_", f"must be {s.n_params + intercept} (the orders in `params`"
-              f"{' and the intercept of offset=True' if intercept else ''})", n_params)
+        _fail("fitted.n_params_", f"must be {s.n_params + intercept} (the orders in `params` "
+              f"and `params.offset` = {model.offset!r})", n_params)
     theta = _array(raw["theta_"], "fitted.theta_",
                    [(n_params,), (n_params, 1)] if ny == 1 else [(n_params, ny)])
     if ny == 1 and theta.ndim == 2:
