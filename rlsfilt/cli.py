@@ -70,6 +70,7 @@ from ._cli_args import (
     int_list,
     per_input,
 )
+from ._atomic import atomic_write
 from ._resources import check_memory
 from ._version import __version__
 from .data import IOData, Trend, detrend
@@ -848,10 +849,11 @@ def _fmt_list(v):
 # writing results
 # ----------------------------------------------------------------------
 def _write_json(path, result):
+    """Write `result` as JSON, atomically (the old file stays whole if the write fails)."""
+    text = json.dumps(result, indent=2, allow_nan=False) + "\n"
     try:
-        with open(path, "w", encoding="utf-8") as fh:
-            json.dump(result, fh, indent=2, allow_nan=False)
-            fh.write("\n")
+        with atomic_write(path) as fh:
+            fh.write(text)
     except OSError as exc:
         raise CLIError(f"cannot write '{path}': {exc.strerror}") from None
 
