@@ -10,7 +10,7 @@ import pytest
 from scipy.signal import lfilter
 
 from rlsfilt import ARX, load_model
-from rlsfilt import _atomic, persistence
+from rlsfilt import _atomic, _model_file, persistence
 from rlsfilt import _cli_fleet as cli_fleet
 from rlsfilt.cli import main
 
@@ -50,7 +50,7 @@ def test_a_model_save_failing_midway_keeps_the_old_model(tmp_path, monkeypatch):
         fh.write(text[: len(text) // 2])
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr(persistence, "_write_text", half)
+    monkeypatch.setattr(_model_file, "_write_text", half)
     new = ARX.from_polynomials([-0.9], [2.0])
     with pytest.raises(OSError, match="No space left"):
         new.save(path)

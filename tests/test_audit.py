@@ -459,7 +459,7 @@ def _persistence_entries():
     import tempfile
 
     from rlsfilt import load_model
-    from rlsfilt.persistence import _document, _dumps
+    from rlsfilt._model_file import _document, _dumps
 
     folder = tempfile.mkdtemp(prefix="rlsfilt-audit-")
     base = json.loads(_dumps(_document(MODEL)))

@@ -22,7 +22,8 @@ import pytest
 from scipy.signal import lfilter
 
 from rlsfilt import AR, ARMA, ARMAX, ARX, BJ, OE, IOData, detrend, load_model
-from rlsfilt.persistence import MODEL_CLASSES, _document, _dumps
+from rlsfilt._model_file import _document, _dumps
+from rlsfilt.persistence import MODEL_CLASSES
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 V1_FILES = sorted(glob.glob(os.path.join(ROOT, "tests", "data", "model_files_v1", "*.json")))
