@@ -61,6 +61,7 @@ import warnings
 
 import numpy as np
 
+from ._atomic import atomic_write
 from ._cli_args import (
     CLIError,
     float_where,
@@ -70,7 +71,6 @@ from ._cli_args import (
     int_list,
     per_input,
 )
-from ._atomic import atomic_write
 from ._resources import check_memory
 from ._version import __version__
 from .data import IOData, Trend, detrend

@@ -9,8 +9,7 @@ import pandas as pd
 import pytest
 from scipy.signal import lfilter
 
-from rlsfilt import ARX, load_model
-from rlsfilt import _atomic, _model_file, persistence
+from rlsfilt import ARX, _atomic, _model_file, load_model, persistence
 from rlsfilt import _cli_fleet as cli_fleet
 from rlsfilt.cli import main
 

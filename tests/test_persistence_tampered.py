@@ -276,7 +276,8 @@ def test_non_finite_numbers(bad, tmp_path):
         raw = json.dumps(doc).replace('"@BIG@"', "-1e999" if bad == -1e999 else "1e999")
         _refused(tmp_path, doc, field, raw=raw)            # 1e999 parses to inf
     # NaN and Infinity literals are not JSON: the file is refused before any field is read
-    raw = json.dumps(_doc("ARX-siso")).replace('"noise_variance_": ', '"noise_variance_": NaN, "x": ')
+    raw = json.dumps(_doc("ARX-siso")).replace('"noise_variance_": ',
+                                               '"noise_variance_": NaN, "x": ')
     with pytest.raises(ValueError, match="is not a JSON file"):
         _load(tmp_path, None, raw=raw)
 

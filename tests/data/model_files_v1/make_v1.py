@@ -2,11 +2,16 @@
 
 Run from a checkout of that commit: python make_v1.py OUTDIR
 """
-import sys, os, warnings
+import os
+import sys
+import warnings
+
 import numpy as np
 from scipy.signal import lfilter
+
 import rlsfilt
-from rlsfilt import ARX, ARMAX, OE, BJ, AR, ARMA, IOData, detrend
+from rlsfilt import AR, ARMA, ARMAX, ARX, BJ, OE, IOData, detrend
+
 warnings.simplefilter("ignore")
 out = sys.argv[1]
 rng = np.random.default_rng(27)
