@@ -8,16 +8,30 @@ fits the same ARX structure to every channel with
 per channel: parameters, standard errors, fit percentages, residual tests)
 as CSV or JSON, to a file or to standard output.
 
+The CSV is safe to open in a spreadsheet: it is written by the `csv` module
+(fields holding a comma, a quote, a line feed or a carriage return are quoted;
+lines end in CRLF as RFC 4180 says), and a text cell (a channel label, an
+error message) that starts with ``=``, ``+``, ``-``, ``@``, a tab or a
+carriage return, which spreadsheets would run as a formula, is written with a
+leading single quote ``'`` (OWASP's advice for CSV injection), as is a text
+cell that itself starts with ``'``. Numbers are never escaped (``-1.5`` stays
+``-1.5``). To recover a label, remove one leading ``'`` from a text cell that
+has one (:func:`unescape_cell`). Output files are written atomically.
+
 `add_parser` adds the command to the ``rlsfilt`` parser; `run` executes it.
 Errors the user can cause raise ``ValueError`` with a one-line message,
 which the ``rlsfilt`` entry point prints (exit status 1).
 """
 
+import csv
+import io
 import json
+import numbers
 import sys
 
 import numpy as np
 
+from ._atomic import atomic_write
 from ._cli_args import forgetting_factor, fraction, int_at_least, int_list, per_input
 from .filters.bank import _MODES as BANK_MODES  # the forgetting modes RLSBank runs
 
@@ -62,7 +76,9 @@ def add_parser(subparsers):
     p.add_argument("--format", choices=("csv", "json"), default="csv",
                    help="output format (default: csv)")
     p.add_argument("-o", "--out", metavar="FILE", default=None,
-                   help="write the summary to FILE (default: standard output)")
+                   help="write the summary to FILE (default: standard output); CSV text "
+                        "cells starting with = + - @ tab, CR or ' get a leading ' (no "
+                        "spreadsheet formulas)")
     p.add_argument("--delimiter", default=None, metavar="CHAR",
                    help="field separator (default: detected among , ; tab)")
     p.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
@@ -122,14 +138,56 @@ def run(args):
     if args.out is None:
         sys.stdout.write(text)
     else:
-        with open(args.out, "w", encoding="utf-8", newline="") as fh:
+        with atomic_write(args.out, newline="") as fh:
             fh.write(text)
     return 0
 
 
+#: First characters that make a spreadsheet read a cell as a formula (OWASP), and the quote
+#: that marks an escaped cell (so that a label starting with ' round-trips too)
+FORMULA_START = ("=", "+", "-", "@", "\t", "\r", "'")
+
+
+def escape_cell(text):
+    """A text cell as a spreadsheet shows it verbatim: a leading ``'`` before a text that
+    starts with one of `FORMULA_START`."""
+    return "'" + text if text.startswith(FORMULA_START) else text
+
+
+def unescape_cell(text):
+    """The text of a cell written by `escape_cell` (one leading ``'`` removed)."""
+    return text[1:] if text.startswith("'") else text
+
+
+def _cell(value):
+    """A value as written: text escaped, numbers as Python writes them, NaN/None empty."""
+    if isinstance(value, np.generic):
+        value = value.item()
+    if value is None:
+        return ""
+    if isinstance(value, str):
+        return escape_cell(value)
+    if isinstance(value, float) and not np.isfinite(value):
+        return "" if np.isnan(value) else repr(value)
+    if isinstance(value, (bool, numbers.Number)):
+        return str(value)
+    return escape_cell(str(value))
+
+
+def _csv_text(table):
+    """The summary as CSV: the csv module's minimal quoting with CRLF line ends (so a CR
+    or LF inside a label is quoted and reads back), text cells escaped."""
+    buf = io.StringIO(newline="")
+    writer = csv.writer(buf, quoting=csv.QUOTE_MINIMAL, lineterminator="\r\n")
+    writer.writerow([_cell(table.index.name or "")] + [_cell(c) for c in table.columns])
+    for label, row in zip(table.index, table.itertuples(index=False, name=None)):
+        writer.writerow([_cell(label)] + [_cell(v) for v in row])
+    return buf.getvalue()
+
+
 def _render(table, fmt):
     if fmt == "csv":
-        return table.to_csv()
+        return _csv_text(table)
     records = []
     for label, row in table.iterrows():
         rec = {"channel": _plain(label)}

@@ -61,6 +61,7 @@ import warnings
 
 import numpy as np
 
+from ._atomic import atomic_write
 from ._cli_args import (
     CLIError,
     float_where,
@@ -848,10 +849,11 @@ def _fmt_list(v):
 # writing results
 # ----------------------------------------------------------------------
 def _write_json(path, result):
+    """Write `result` as JSON, atomically (the old file stays whole if the write fails)."""
+    text = json.dumps(result, indent=2, allow_nan=False) + "\n"
     try:
-        with open(path, "w", encoding="utf-8") as fh:
-            json.dump(result, fh, indent=2, allow_nan=False)
-            fh.write("\n")
+        with atomic_write(path) as fh:
+            fh.write(text)
     except OSError as exc:
         raise CLIError(f"cannot write '{path}': {exc.strerror}") from None
 

@@ -55,7 +55,7 @@ def test_named_offset_model_round_trip(rng, tmp_path):
     for key in ("theta_cov_", "noise_variance_", "input_offset_", "output_offset_",
                 "input_names_", "output_names_", "intercept_", "structure_"):
         assert key in doc["fitted"], key
-    assert doc["rlsfilt_version"] and doc["format_version"] == 1
+    assert doc["rlsfilt_version"] and doc["format_version"] == 2
     assert "residuals_" in doc["omitted"]
 
 

@@ -467,6 +467,82 @@ def _family_entries():
     ]
 
 
+def _persistence_entries():
+    """`load_model` (#27): fields of a model file replaced by the catalogue's bad values.
+
+    A value is written as a model file would store it (an array as ``{"__ndarray__": ...}``
+    with its dtype, a NumPy scalar as its number, a non-finite float by name); the loader
+    reads the file against its schema, so a bad value is a ValueError naming the field by
+    its JSON path (more tampered files: test_persistence_tampered.py).
+    """
+    import copy
+    import json
+    import math
+    import tempfile
+
+    from rlsfilt import load_model
+    from rlsfilt._model_file import _document, _dumps
+
+    folder = tempfile.mkdtemp(prefix="rlsfilt-audit-")
+    base = json.loads(_dumps(_document(MODEL)))
+
+    def stored(v):
+        if isinstance(v, (pd.Series, pd.DataFrame)):
+            v = v.to_numpy()
+        if isinstance(v, np.ndarray):
+            if v.ndim == 0:
+                return stored(v.item())
+            data = [x if isinstance(x, (bool, int)) or isinstance(x, float) and math.isfinite(x)
+                    else str(x) for x in v.ravel().tolist()]
+            return {"__ndarray__": {"dtype": v.dtype.str, "shape": list(v.shape), "data": data}}
+        if isinstance(v, np.generic):
+            v = v.item()
+        if isinstance(v, complex):
+            return [v.real, v.imag]
+        if isinstance(v, float) and not math.isfinite(v):
+            return {"__float__": "NaN" if math.isnan(v) else "Infinity"}
+        if isinstance(v, list):
+            return [stored(x) for x in v]
+        return v
+
+    def run(section, field, result):
+        def load(v):
+            doc = copy.deepcopy(base)
+            doc[section][field] = stored(v)
+            path = os.path.join(folder, "model.json")
+            with open(path, "w", encoding="utf-8") as fh:
+                json.dump(doc, fh)
+            return result(load_model(path))
+        return load
+
+    # a plain list is not a stored array, an int or bool array not a float one
+    array = {"list": ERROR, "int": ERROR, "bool": ERROR, "huge": OK, "tiny": OK}
+    return [
+        # scaled coefficients no longer match the stored polynomials a_, b_: refused
+        Entry("load_model", "fitted.theta_",
+              run("fitted", "theta_", lambda m: m.theta_.copy()), MODEL.theta_,
+              expect={**array, "huge": ERROR, "tiny": ERROR}),
+        Entry("load_model", "fitted.theta_cov_",
+              run("fitted", "theta_cov_", lambda m: m.std_errors_.copy()), MODEL.theta_cov_,
+              expect=array),
+        Entry("load_model", "fitted.input_offset_",
+              run("fitted", "input_offset_", lambda m: m.input_offset_.copy()),
+              MODEL.input_offset_, expect=array),
+        Entry("load_model", "fitted.noise_variance_",
+              run("fitted", "noise_variance_", lambda m: m.noise_variance_),
+              MODEL.noise_variance_, kind="scalar",
+              expect={"list": ERROR, "int": AS_FLOAT, "huge": OK, "tiny": OK}),
+        Entry("load_model", "fitted.n_samples_",
+              run("fitted", "n_samples_", lambda m: m.n_samples_), MODEL.n_samples_,
+              kind="int", expect={"huge": OK}),
+        Entry("load_model", "params.na", run("params", "na", lambda m: m.theta_.copy()), 2,
+              kind="int"),
+        Entry("load_model", "params.dt", run("params", "dt", lambda m: m.dt), 0.5,
+              kind="scalar",
+              expect={"list": ERROR, "bool": OK, "int": AS_FLOAT, "huge": OK, "tiny": OK}),
+    ]
+
+
 def _best(u, y, na=range(1, 4)):
     with warnings.catch_warnings():      # advice that the best lies at an edge of the grid
         warnings.simplefilter("ignore", OrderSelectionWarning)
@@ -474,7 +550,7 @@ def _best(u, y, na=range(1, 4)):
 
 
 ENTRIES = [e for label, make in _filters().items() for e in _filter_entries(label, make)]
-ENTRIES += _arx_entries() + _bank_entries() + _family_entries()
+ENTRIES += _arx_entries() + _bank_entries() + _family_entries() + _persistence_entries()
 CASES = [(e, kind) for e in ENTRIES
          for kind in {"array": ARRAY_KINDS, "scalar": SCALAR_KINDS, "int": INT_KINDS}[e.kind]]
 PARAMS = [pytest.param(e, kind, id=f"{e.name}-{e.arg}-{kind}",

@@ -140,3 +140,63 @@ def test_main_runs_identify_many(rng, tmp_path, capsys):
     assert main(["identify-many", str(tmp_path / "nope.csv"), "-c", "cell", "-u", "current",
                  "-y", "voltage"]) == 1
     assert "nope.csv" in capsys.readouterr().err
+
+
+# ----------------------------------------------------------------------
+# safe CSV output (#27 item 5): formula-leading text escaped, CR/LF quoted, a round trip
+# ----------------------------------------------------------------------
+LABELS = ["=HYPERLINK(\"http://x\",\"y\")", "+cmd", "-z", "@SUM(A1)", "\tTab", "\rCR",
+          "a\rb", "a\nb", "a\r\nb", 'q"uote', "com,ma", "'quoted", "''two", "-1.5", "plain",
+          "été", " lead"]
+
+
+def _table(labels):
+    a1 = -1.5 + 0.25 * np.arange(len(labels))
+    return pd.DataFrame({"a1": a1, "b1": 1e-300 * np.arange(len(labels)),
+                         "error": [None] * (len(labels) - 1) + ["=bad"]},
+                        index=pd.Index(labels, name="channel"))
+
+
+def test_csv_cells_are_escaped_and_read_back():
+    import csv
+    import io
+
+    table = _table(LABELS)
+    text = cli_fleet._render(table, "csv")
+    rows = list(csv.reader(io.StringIO(text, newline="")))
+    assert len(rows) == len(LABELS) + 1
+    assert rows[0] == ["channel", "a1", "b1", "error"]
+    for row, label, a1 in zip(rows[1:], LABELS, table["a1"]):
+        # no text cell starts a formula; numbers are written as numbers, unescaped
+        assert not row[0].startswith(("=", "+", "-", "@", "\t", "\r"))
+        assert cli_fleet.unescape_cell(row[0]) == label
+        assert row[1] == repr(float(a1)) and float(row[1]) == a1
+    assert rows[1][1] == "-1.5" and rows[-1][3] == "'=bad" and rows[1][3] == ""
+    # a bare CR inside a label is quoted (it does not end the record)
+    assert '"\rCR"' not in text and "\"'\rCR\"" in text and '"a\rb"' in text
+    # pandas reads the same labels back (as text), and the numbers exactly
+    got = pd.read_csv(io.StringIO(text, newline=""), index_col="channel",
+                      dtype={"channel": str, "error": str}, keep_default_na=False)
+    assert [cli_fleet.unescape_cell(v) for v in got.index] == LABELS
+    np.testing.assert_array_equal(got["a1"].to_numpy(), table["a1"].to_numpy())
+    np.testing.assert_array_equal(got["b1"].to_numpy(), table["b1"].to_numpy())
+
+
+def test_identify_many_escapes_formula_labels_end_to_end(rng, tmp_path):
+    labels = {"cell0": "=1+2", "cell1": "@cmd", "cell2": "+x", "cell3": "-y z", "cell4": "ok"}
+
+    def rename(frame):
+        frame["cell"] = frame["cell"].map(labels)
+        return frame
+
+    _write_csv(tmp_path / "pack.csv", rng, bad=rename)
+    out = tmp_path / "summary.csv"
+    assert _run(["identify-many", str(tmp_path / "pack.csv"), "--channel-column", "cell",
+                 "--input", "current", "--output", "voltage", "-o", str(out), "-q",
+                 "--no-residual-tests"]) == 0
+    with open(out, newline="", encoding="utf-8") as fh:
+        import csv
+        rows = list(csv.reader(fh))
+    assert [r[0] for r in rows[1:]] == ["'=1+2", "'@cmd", "'+x", "'-y z", "ok"]
+    a1 = rows[0].index("a1")
+    assert all(r[a1].startswith("-") and float(r[a1]) < 0 for r in rows[1:])  # not escaped

@@ -532,7 +532,7 @@ class IdentifiedModel(abc.ABC):
             The document written.
         """
         self._check_fitted("save")
-        from ..persistence import save_model
+        from .._model_file import save_model
 
         return save_model(self, path, include_data=include_data, trend=trend)
 
@@ -550,7 +550,7 @@ class IdentifiedModel(abc.ABC):
             Predicts, simulates and reports standard errors exactly as the
             saved one; ``trend_`` holds the trend saved with it, if any.
         """
-        from ..persistence import load_model
+        from .._model_file import load_model
 
         return load_model(path, cls=cls)
 

@@ -44,6 +44,9 @@ class AR(TimeSeriesModel):
     _ORDERS = ("na",)
     _EQUATION = "A(q) y(t) = e(t)"
 
+    # the name a model file stores (rlsfilt.persistence: a closed set, not inherited)
+    _FILE_NAME = "AR"
+
     def __init__(self, na, dt=True):
         self.na = na
         self.dt = dt

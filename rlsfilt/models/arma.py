@@ -45,6 +45,9 @@ class ARMA(TimeSeriesModel):
     _ORDERS = ("na", "nc")
     _EQUATION = "A(q) y(t) = C(q) e(t)"
 
+    # the name a model file stores (rlsfilt.persistence: a closed set, not inherited)
+    _FILE_NAME = "ARMA"
+
     def __init__(self, na, nc, dt=True):
         self.na = na
         self.nc = nc

@@ -96,6 +96,9 @@ class ARMAX(PolynomialModel):
     _ORDERS = ("na", "nb", "nc", "nk")
     _EQUATION = "A(q) y(t) = B(q) u(t) + C(q) e(t)"
 
+    # the name a model file stores (rlsfilt.persistence: a closed set, not inherited)
+    _FILE_NAME = "ARMAX"
+
     def __init__(self, na, nb, nc, nk=1, dt=True):
         self.na = na
         self.nb = nb

@@ -221,6 +221,9 @@ class ARX(IdentifiedModel):
                     "instruments_": "fit(..., method='iv' or 'riv')",
                     "noise_covariance_": "a fit on 2-D `y` (several outputs)"}
 
+    # the name a model file stores (rlsfilt.persistence: a closed set, not inherited)
+    _FILE_NAME = "ARX"
+
     def __init__(self, na, nb, nk=1, dt=True, offset=False):
         self.na = na
         self.nb = nb

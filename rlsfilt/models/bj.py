@@ -60,6 +60,9 @@ class BJ(PolynomialModel):
     _ORDERS = ("nb", "nc", "nd", "nf", "nk")
     _EQUATION = "y(t) = B(q)/F(q) u(t) + C(q)/D(q) e(t)"
 
+    # the name a model file stores (rlsfilt.persistence: a closed set, not inherited)
+    _FILE_NAME = "BJ"
+
     def __init__(self, nb, nc, nd, nf, nk=1, dt=True):
         self.nb = nb
         self.nc = nc

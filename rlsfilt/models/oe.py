@@ -62,6 +62,9 @@ class OE(PolynomialModel):
     _ORDERS = ("nb", "nf", "nk")
     _EQUATION = "y(t) = B(q)/F(q) u(t) + e(t)"
 
+    # the name a model file stores (rlsfilt.persistence: a closed set, not inherited)
+    _FILE_NAME = "OE"
+
     def __init__(self, nb, nf, nk=1, dt=True):
         self.nb = nb
         self.nf = nf
