@@ -13,6 +13,7 @@ python-control. Results are objects with named fields, ``summary()`` and
 
 from .criteria import InformationCriteria, criteria_from_loss, information_criteria
 from .cusum import CusumResult, cusum, cusum_squares, recursive_residuals
+from .compare import Comparison, compare
 from .delay import DelayEstimate, delayest
 from .metrics import fit_percent
 from .plant import PlantComparison
@@ -28,6 +29,7 @@ from .uncertainty import (
 )
 
 __all__ = [
+    "Comparison",
     "CusumResult",
     "DelayEstimate",
     "FrequencyBand",
@@ -38,6 +40,7 @@ __all__ = [
     "ResidualAnalysis",
     "StructureSelection",
     "ValidationReport",
+    "compare",
     "criteria_from_loss",
     "cusum",
     "cusum_squares",
