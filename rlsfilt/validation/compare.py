@@ -390,16 +390,16 @@ def _response(A_p, B_p, W, Y, initial):
     forced = _forced(Am, Bm, Cm, Dm, A_p, B_p, W)
     if initial == "zero" or n == 0:
         return forced, np.zeros(n), 0
-    O = _free(Am, Cm, A_p, N)                                  # (N, ny, n)
-    O2 = O.reshape(N * ny, n)
+    Ob = _free(Am, Cm, A_p, N)          # the free-response matrix O, (N, ny, n)
+    Ob2 = Ob.reshape(N * ny, n)
     with np.errstate(over="ignore", invalid="ignore"):
-        scale = np.sqrt(np.nansum(np.where(np.isfinite(O2), O2, np.nan) ** 2, axis=0))
+        scale = np.sqrt(np.nansum(np.where(np.isfinite(Ob2), Ob2, np.nan) ** 2, axis=0))
     scale[~np.isfinite(scale) | (scale == 0)] = 1.0
     rhs = (Y - forced).reshape(-1)
-    ok = np.all(np.isfinite(O2), axis=1) & np.isfinite(rhs)   # a diverging (unstable) response
-    z = np.linalg.lstsq(O2[ok] / scale, rhs[ok], rcond=None)[0]
+    ok = np.all(np.isfinite(Ob2), axis=1) & np.isfinite(rhs)   # a diverging (unstable) response
+    z = np.linalg.lstsq(Ob2[ok] / scale, rhs[ok], rcond=None)[0]
     x0 = z / scale
-    return forced + O @ x0, x0, 0
+    return forced + Ob @ x0, x0, 0
 
 
 def _forced(Am, Bm, Cm, Dm, A_p, B_p, W):
@@ -430,20 +430,20 @@ def _free(Am, Cm, A_p, N):
     from scipy.signal import lfilter
 
     ny, n = Cm.shape
-    O = np.zeros((N, ny, n))
+    Ob = np.zeros((N, ny, n))
     if ny == 1:
         a = np.zeros(n + 1)
         a[:A_p.shape[2]] = A_p[0, 0]
         for i in range(n):     # lfilter's state is the observer-form state (transposed DF II)
             zi = np.zeros(n)
             zi[i] = 1.0
-            O[:, 0, i] = lfilter(np.zeros(n + 1), a, np.zeros(N), zi=zi)[0]
-        return O
+            Ob[:, 0, i] = lfilter(np.zeros(n + 1), a, np.zeros(N), zi=zi)[0]
+        return Ob
     M = Cm.copy()
     for t in range(N):
-        O[t] = M
+        Ob[t] = M
         M = M @ Am
-    return O
+    return Ob
 
 
 def _state_from_past(A_p, B_p, Y, W, s):

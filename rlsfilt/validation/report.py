@@ -15,8 +15,8 @@ from ..models._base import check_is_fitted
 from ..models.regressors import as_records
 from ..plotting import plot_comparison, plot_report
 from ._model import model_name, n_params, one_step
-from .criteria import _from_residuals
 from .compare import _time_series_records, compare, initial_text
+from .criteria import _from_residuals
 from .plant import PlantComparison
 from .residuals import _residual_analysis
 from .uncertainty import frequency_response_band, parameter_intervals
