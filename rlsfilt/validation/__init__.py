@@ -11,9 +11,9 @@ python-control. Results are objects with named fields, ``summary()`` and
 ``plot()`` methods.
 """
 
+from .compare import Comparison, compare
 from .criteria import InformationCriteria, criteria_from_loss, information_criteria
 from .cusum import CusumResult, cusum, cusum_squares, recursive_residuals
-from .compare import Comparison, compare
 from .delay import DelayEstimate, delayest
 from .metrics import fit_percent
 from .plant import PlantComparison
