@@ -39,7 +39,14 @@ from .models import (
     fit_many,
 )
 from .persistence import load_model, save_model
-from .validation import delayest, fit_percent, select_order, select_structure, validate
+from .validation import (
+    compare,
+    delayest,
+    fit_percent,
+    select_order,
+    select_structure,
+    validate,
+)
 
 __all__ = [
     "RecursiveLeastSquares",
@@ -74,6 +81,7 @@ __all__ = [
     "datasets",
     "validation",
     "validate",
+    "compare",
     "select_order",
     "select_structure",
     "fit_percent",

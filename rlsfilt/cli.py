@@ -682,8 +682,8 @@ def _validate(model, u, y, lam, metadata, progress, plant=None):
             u = {k: v[start:] for k, v in u.items()} if isinstance(u, dict) else u[start:]
             y = y[start:]
     with progress.task("validating the model"):
-        return validate(model, u, y, plant=plant, max_lag="auto", skip_undefined=True,
-                        metadata=metadata)
+        return validate(model, u, y, plant=plant, skip_undefined=True,  # the library's
+                        metadata=metadata)                            # max_lag, initial
 
 
 def _truth_table(model, theta_true, batch, label, lam):

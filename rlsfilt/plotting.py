@@ -48,6 +48,7 @@ __all__ = [
     "plot_parameters",
     "plot_trace",
     "plot_tracking",
+    "plot_compare",
     "plot_comparison",
     "plot_autocorrelation",
     "plot_cross_correlation",
@@ -299,6 +300,58 @@ def plot_tracking(source, covariances=None, *, t=None, names=None, true_values=N
 # ----------------------------------------------------------------------
 # model output against the data
 # ----------------------------------------------------------------------
+def plot_compare(comparison, ax=None, *, window=None, output=0):
+    """Measured against simulated or predicted output of :func:`~rlsfilt.validation.compare`.
+
+    Parameters
+    ----------
+    comparison : Comparison
+        What :func:`~rlsfilt.validation.compare` returned.
+    ax : matplotlib.axes.Axes, optional
+        Axes to draw in; a new figure if omitted.
+    window : (int, int), optional
+        First and last-plus-one sample shown (default: the whole record).
+    output : int, default 0
+        Which output to show (for several outputs).
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scipy.signal import lfilter
+    >>> from rlsfilt import OE, compare
+    >>> from rlsfilt.plotting import plot_compare
+    >>> u = np.random.default_rng(0).standard_normal(300)
+    >>> y = lfilter([0, 0.5], [1, -0.8], u)
+    >>> ax = plot_compare(compare(OE(1, 1).fit(u, y), u, y))
+    >>> ax.get_title()
+    'Model output against the data: initial state estimated (least squares over the record)'
+    """
+    y = _column(comparison.y, output)
+    yh = _column(comparison.y_hat, output)
+    dt = comparison.model.dt
+    t = (1.0 if dt is True else float(dt)) * np.arange(len(y))
+    a, b = (0, len(y)) if window is None else (int(window[0]), int(window[1]))
+    if ax is None:
+        fig = _figure(None, figsize=(10, 4), layout="constrained")
+        ax = fig.subplots()
+    name, unit = _signal_label(comparison, "output", output)
+    fit = np.atleast_1d(comparison.fit)[output]
+    ax.plot(t[a:b], y[a:b], color=_BLACK, lw=3.2, alpha=0.8, solid_capstyle="butt",
+            label=f"measured {name}")
+    ax.plot(t[a:b], yh[a:b], color=COLORS[0], lw=1.1,
+            label=f"{comparison.what} (fit {fit:.1f}%)")
+    ax.set_xlabel(_time_unit(dt))
+    ax.set_ylabel(name + (f" ({unit})" if unit else ""))
+    ax.set_title(f"Model output against the data: {comparison.initial_text}")
+    ax.set_xlim(t[a], t[b - 1])
+    _legend_outside(ax)
+    return ax
+
+
 def plot_comparison(report, ax=None, *, window=None, ax_overview=None, output=0,
                     output_name=None, output_unit=None):
     """Measured, simulated and one-step predicted output (MATLAB ``compare``).
@@ -403,9 +456,9 @@ def plot_comparison(report, ax=None, *, window=None, ax_overview=None, output=0,
         ax.plot([], [], color=COLORS[0], lw=1.2, label=f"simulated: {report.stability}")
     else:
         ax.plot(*_broken(t, ys, a, b, inside), color=COLORS[0], lw=1.1,
-                label=f"simulated (fit {sf:.1f}%)")
+                label=f"simulated (fit {sf:.1f}%{_initial_tag(report)})")
     ax.plot(*_broken(t, yp, a, b, inside), color=COLORS[1], lw=1.0,
-            linestyle="--", label=f"1-step predicted (fit {pf:.1f}%)")
+            linestyle="--", label=f"1-step predicted (fit {pf:.1f}%{_initial_tag(report)})")
     for k in inside:
         ax.axvline(_seam_time(t, k), color=_GREY, lw=1.0, linestyle=":")
     ax.set_xlabel(time_label)
@@ -1232,6 +1285,14 @@ def _names(names, default, n):
     if len(names) != n:
         raise ValueError(f"`names` must have {n} entries (one per parameter); got {len(names)}")
     return names
+
+
+def _initial_tag(result):
+    """``"; x0 estimated"``: the initial condition of a comparison, for a legend entry."""
+    initial = getattr(result, "initial", None)
+    tags = {"estimate": "; x0 estimated", "zero": "; from rest",
+            "measured": "; from the measured past"}
+    return tags.get(initial, "")
 
 
 def _signal_label(report, kind, index, name=None, unit=None):

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scipy.signal import lfilter
 
-from rlsfilt import ARMAX, ARX, BJ, OE, IOData
+from rlsfilt import ARMAX, ARX, BJ, OE, IOData, compare
 from rlsfilt.cli import main
 
 U_OP, Y_OP = 40.0, 95.0
@@ -92,11 +92,12 @@ def test_split_validates_with_the_estimation_means(capsys, csv_file, record):
     model = OE(2, 2, 1, dt=1.0).fit(ue - ue.mean(), ye - ye.mean())
     res = json.loads(out)
     np.testing.assert_array_equal(res["theta"], model.theta_)
-    sim = model.simulate(u[n:] - ue.mean(), y0=(y[n:] - ye.mean())[:model.max_lag])
+    # the library's validate: the simulation from the initial state that fits best (compare)
     yv = y[n:] - ye.mean()
-    L = model.max_lag
-    fit = 100 * (1 - np.linalg.norm(yv[L:] - sim[L:]) / np.linalg.norm(yv[L:] - yv[L:].mean()))
+    c = compare(model, u[n:] - ue.mean(), yv)
+    fit = 100 * (1 - np.linalg.norm(yv - c.y_hat) / np.linalg.norm(yv - yv.mean()))
     assert res["fit_percent"] == pytest.approx(fit, rel=1e-10)
+    assert res["initial_condition"] == "estimate" and res["fit_start"] == 0
 
 
 @pytest.mark.parametrize("method", ["iv", "riv"])

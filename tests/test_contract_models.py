@@ -18,7 +18,7 @@ import pytest
 from _toy_models import FirstOrderOE
 from scipy.signal import lfilter
 
-from rlsfilt import AR, ARMA, ARMAX, ARX, BJ, OE, NotFittedError, validate
+from rlsfilt import AR, ARMA, ARMAX, ARX, BJ, OE, NotFittedError, compare, fit_percent, validate
 from rlsfilt.models import IdentifiedModel
 
 
@@ -317,3 +317,47 @@ def test_report_of_every_model_is_json_ready(case):
     out = validate(model, u, y, max_lag=10).to_dict()
     assert json.loads(json.dumps(out, allow_nan=False)) == out
     assert out["model"] == type(model).__name__ and out["theta_names"] == model.param_names_
+
+
+@cases
+def test_compare_validate_simulate_and_forced_response_agree(case):
+    """Issue #28: under the stated initial condition the simulation fit, the prediction
+    fit, ``simulate``/``predict`` and python-control's ``forced_response`` of ``to_ss()``
+    tell one story, for every registered class."""
+    model, u, y = case.fitted()
+    N = len(y)
+    dt = 1.0 if model.dt is True else model.dt
+    T = dt * np.arange(N)
+    ss = model.to_ss()
+    U = np.zeros((N, ss.ninputs)) if u is None else _two_d(u)   # a time series: no noise
+    # from rest: compare is simulate and predict
+    sim0 = compare(model, u, y, initial="zero")
+    np.testing.assert_allclose(_two_d(sim0.y_hat),
+                               _two_d(model.simulate(_sim_input(u, y))) if u is not None
+                               else np.zeros((N, 1)), rtol=1e-10, atol=1e-10)
+    for k in (1, 2):
+        np.testing.assert_allclose(compare(model, u, y, initial="zero", horizon=k).y_hat,
+                                   model.predict(u, y, horizon=k), rtol=1e-10, atol=1e-10)
+    # the estimated initial state is a state of to_ss(): forced_response reproduces it
+    sim = compare(model, u, y)
+    ref = control.forced_response(ss, T, U.T, X0=sim.x0[0]).outputs
+    np.testing.assert_allclose(_two_d(sim.y_hat), np.atleast_2d(ref).T, rtol=1e-8, atol=1e-9)
+    assert np.all(sim.fit >= sim0.fit - 1e-9)          # the least-squares state is no worse
+    # validate reports these fits, and they are fit_percent of what it holds
+    rep = validate(model, u, y, max_lag=10)
+    assert rep.initial == "estimate" and rep.start == 0
+    pred = compare(model, u, y, horizon=1)
+    np.testing.assert_array_equal(rep.prediction_fit, pred.fit)
+    np.testing.assert_allclose(rep.prediction_fit, fit_percent(y, rep.y_predicted), rtol=1e-12)
+    if u is None:
+        assert np.isnan(rep.simulation_fit)
+        return
+    np.testing.assert_array_equal(rep.simulation_fit, sim.fit)
+    np.testing.assert_allclose(rep.simulation_fit, fit_percent(y, rep.y_simulated), rtol=1e-12)
+    np.testing.assert_allclose(_two_d(rep.y_simulated), np.atleast_2d(ref).T, rtol=1e-8,
+                               atol=1e-9)
+    A, _, C, D, _ = model.polydata()
+    if np.all(A[:, :, 1:] == 0) and np.all(C[:, 1:] == 0) and np.all(D[:, 1:] == 0):
+        # no noise model (OE, FIR): the one-step prediction is the simulation
+        np.testing.assert_allclose(rep.prediction_fit, rep.simulation_fit, rtol=1e-9)
+        np.testing.assert_allclose(rep.y_predicted, rep.y_simulated, rtol=1e-9, atol=1e-9)

@@ -108,7 +108,13 @@ def test_overview_error_is_drawn_around_an_operating_point(exchanger):
 
 
 def test_predictions_from_an_assumed_past_are_not_drawn(exchanger):
-    ds, model, rep = exchanger
+    ds, model, rep_e = exchanger
+    # the default (an estimated initial state) draws every sample: nothing is assumed
+    assert rep_e.start == 0
+    ax = plot_comparison(rep_e, window=(0, 100))
+    assert np.isfinite(ax.get_lines()[2].get_ydata()).all()
+    assert "x0 estimated" in ax.get_lines()[1].get_label()
+    rep = validate(model, ds, plant=ds.plant, initial="measured")
     assert rep.start == 9                                        # max_lag of ARX(2, 2, 8)
     ax = plot_comparison(rep, window=(1100, 1300))
     predicted = ax.get_lines()[2].get_ydata()                   # NaN at the seam, then 9

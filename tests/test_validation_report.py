@@ -11,7 +11,7 @@ from matplotlib.figure import Figure  # noqa: E402
 from scipy.signal import lfilter  # noqa: E402
 
 import rlsfilt  # noqa: E402
-from rlsfilt import ARX, datasets  # noqa: E402
+from rlsfilt import ARX, compare, datasets  # noqa: E402
 from rlsfilt.validation import (  # noqa: E402
     PlantComparison,
     ValidationReport,
@@ -31,10 +31,10 @@ def motor():
 def test_report_numbers_are_the_building_blocks(motor):
     d, model = motor
     u, y = d.u[1200:], d.y[1200:]
-    rep = validate(model, u, y, plant=d.plant)
+    rep = validate(model, u, y, plant=d.plant, initial="measured")
     assert isinstance(rep, ValidationReport)
-    L = 2
-    assert rep.start == L
+    L = 2     # from the measured past: the fits start after the max_lag samples that set it
+    assert rep.start == L and rep.initial == "measured"
     y_sim = model.simulate(u, y0=y[:L])
     assert rep.simulation_fit == pytest.approx(fit_percent(y[L:], y_sim[L:]), rel=1e-12)
     Phi, target = model.regressors(u, y)
@@ -49,6 +49,12 @@ def test_report_numbers_are_the_building_blocks(motor):
     assert rep.passed
     assert rep.simulation_fit > 90 and rep.prediction_fit > rep.simulation_fit - 5
     assert rlsfilt.validate is validate
+    # the default: MATLAB compare's estimated initial state, fits over the whole record
+    rep_e = validate(model, u, y, plant=d.plant)
+    assert rep_e.start == 0 and rep_e.initial == "estimate"
+    assert rep_e.simulation_fit == compare(model, u, y).fit
+    assert rep_e.prediction_fit == compare(model, u, y, horizon=1).fit
+    assert rep_e.simulation_fit == pytest.approx(rep.simulation_fit, abs=0.1)
 
 
 def test_report_renders_text_html_and_figure(motor):

@@ -12,7 +12,7 @@ import pytest
 from scipy.signal import lfilter
 from statsmodels.stats.diagnostic import acorr_ljungbox
 
-from rlsfilt import AR, ARMA, validate
+from rlsfilt import AR, ARMA, compare, validate
 from rlsfilt.validation import fit_percent, information_criteria, residual_analysis
 
 
@@ -28,7 +28,8 @@ def test_report_of_a_time_series_has_the_whiteness_test_only(series):
     assert rep.is_time_series
     (r,) = rep.residuals
     L = model.max_lag
-    eps = series[L:] - model.predict(None, series)[L:]
+    eps_all = series - model.predict(None, series)
+    eps = eps_all[L:]
     np.testing.assert_allclose(r.residuals, eps, rtol=1e-12, atol=1e-13)
     lb = acorr_ljungbox(eps, lags=[20])
     np.testing.assert_allclose(r.q_statistic, lb["lb_stat"].iloc[0], rtol=1e-10)
@@ -38,8 +39,14 @@ def test_report_of_a_time_series_has_the_whiteness_test_only(series):
     assert rep.passed is (r.is_white is True)
     # the fits: no simulation; the one-step prediction as fit_percent computes it
     assert np.isnan(rep.simulation_fit)
-    np.testing.assert_allclose(rep.prediction_fit,
-                               fit_percent(series[L:], series[L:] - eps), rtol=1e-12)
+    # from rest, the prediction is y - eps on every sample
+    rep0 = validate(model, None, series, max_lag=20, initial="zero")
+    np.testing.assert_allclose(rep0.prediction_fit, fit_percent(series, series - eps_all),
+                               rtol=1e-12)
+    # the default estimates the predictor's initial state: compare's fit, at least as good
+    assert rep.initial == "estimate"
+    assert rep.prediction_fit == compare(model, None, series, horizon=1).fit
+    assert rep.prediction_fit >= rep0.prediction_fit
     ic = information_criteria(model, None, series)
     assert rep.criteria.bic == pytest.approx(ic.bic, rel=1e-12)
     # the same analysis called directly

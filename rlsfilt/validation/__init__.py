@@ -11,6 +11,7 @@ python-control. Results are objects with named fields, ``summary()`` and
 ``plot()`` methods.
 """
 
+from .compare import Comparison, compare
 from .criteria import InformationCriteria, criteria_from_loss, information_criteria
 from .cusum import CusumResult, cusum, cusum_squares, recursive_residuals
 from .delay import DelayEstimate, delayest
@@ -28,6 +29,7 @@ from .uncertainty import (
 )
 
 __all__ = [
+    "Comparison",
     "CusumResult",
     "DelayEstimate",
     "FrequencyBand",
@@ -38,6 +40,7 @@ __all__ = [
     "ResidualAnalysis",
     "StructureSelection",
     "ValidationReport",
+    "compare",
     "criteria_from_loss",
     "cusum",
     "cusum_squares",

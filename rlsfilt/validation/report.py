@@ -12,11 +12,11 @@ from .._version import __version__
 from ..data.trend import _offset_messages
 from ..exceptions import ExactFitError, InsufficientDataError, OperatingPointWarning
 from ..models._base import check_is_fitted
-from ..models.regressors import _as_signal, as_records, is_listed
+from ..models.regressors import as_records
 from ..plotting import plot_comparison, plot_report
 from ._model import model_name, n_params, one_step
+from .compare import _time_series_records, compare, initial_text
 from .criteria import _from_residuals
-from .metrics import fit_percent
 from .plant import PlantComparison
 from .residuals import _residual_analysis
 from .uncertainty import frequency_response_band, parameter_intervals
@@ -37,18 +37,33 @@ class ValidationReport:
     y : ndarray, shape (N,) or (N, ny)
         Measured output.
     y_simulated : ndarray
-        Free-run simulation from the input, started from the measured first
-        ``max_lag`` outputs (zeros for a time series: no input to simulate
-        from).
+        Free-run simulation from the input (:func:`compare` with an infinite
+        horizon) from the initial state :attr:`initial` (zeros for a time
+        series: no input to simulate from).
     y_predicted : ndarray
-        One-step-ahead prediction.
+        One-step-ahead prediction (:func:`compare` with ``horizon=1``) from
+        the same kind of initial state. For a model without a noise model
+        (OE) it is the simulation.
+    initial : str
+        The initial condition: ``"estimate"`` (the default, MATLAB
+        ``compare``'s ``'e'``: the state that fits the record best, by least
+        squares), ``"zero"`` (from rest) or ``"measured"``;
+        :attr:`initial_text` says it in words.
+    x0 : tuple of ndarray
+        The simulation's initial state of every experiment, a state of
+        ``model.to_ss()`` (of the predictor for a time series).
     start : int
-        ``max_lag``: the first sample the fits are computed on.
+        The first sample of every experiment the fits cover: 0, or for
+        ``initial="measured"`` the samples that set the state.
+    n_used : int
+        Number of one-step residuals (rows with a complete regressor) the
+        residual tests and criteria use.
     simulation_fit, prediction_fit : float or ndarray of shape (ny,)
         :func:`fit_percent` of the simulation and of the one-step prediction
-        on samples ``start .. N-1`` (of every experiment). NaN for the
-        simulation of an unstable model, whose simulation diverges, and of a
-        time series (no input).
+        on samples ``start .. N-1`` (of every experiment): the fits of
+        :func:`compare` under :attr:`initial`. NaN for the simulation of an
+        unstable model, whose simulation diverges, and of a time series (no
+        input).
     is_time_series : bool
         True for a model without input (`AR`, `ARMA`): the residuals get
         the whiteness test only (no cross-correlation, no independence
@@ -95,16 +110,58 @@ class ValidationReport:
         self.experiment_names = ()
         self.input_names = self.output_names = self.input_units = self.output_units = ()
         self.is_time_series = False
+        self.initial, self.x0, self.start, self.n_used = "zero", (), 0, 0
         for key, value in fields.items():
             setattr(self, key, value)
 
     @property
+    def judged_by_input(self):
+        """True when the verdict rests on the input test alone: a model without a noise
+        model (OE, FIR: ``C = D = A = 1`` in ``C/(A D)``) or an instrumental-variable fit,
+        whose residuals are not meant to be white (Ljung 1999, sec. 16.6)."""
+        return _judged_by_input(self.model) and not self.is_time_series
+
+    @property
     def passed(self):
-        """True if every residual test passed (white and independent for every output;
-        white for a time series); False when the tests were skipped."""
+        """True if the residual tests that apply to the model passed; False when the
+        tests were skipped.
+
+        White and independent of the input for every output for a model with a noise
+        model (ARX, ARMAX, BJ); white for a time series; independent of the input only
+        for a model without a noise model (OE, FIR) or an instrumental-variable fit
+        (:attr:`judged_by_input`): no order of such a model can whiten its residuals.
+        """
         if not self.residuals:
             return False
+        if self.judged_by_input:
+            return all(r.is_independent is not False for r in self.residuals)
         return all(r.is_white and r.is_independent is not False for r in self.residuals)
+
+    @property
+    def verdict(self):
+        """The verdict and the advice in one sentence (what :meth:`summary` ends with)."""
+        if not self.residuals:
+            return "residual tests skipped"
+        white = all(r.is_white for r in self.residuals)
+        independent = all(r.is_independent is not False for r in self.residuals)
+        if self.judged_by_input:
+            kind = "an instrumental-variable fit" if _is_iv(self.model) else \
+                f"{type(self.model).__name__} has no noise model"
+            if not independent:
+                return (f"input test FAILED ({kind}: judged by the residual-input "
+                        f"cross-correlation): consider other orders or delays of the input "
+                        f"model")
+            if white:
+                return f"residual tests passed ({kind}: judged by the input test)"
+            return (f"passed: residuals independent of the input ({kind}, judged by the input "
+                    f"test); they are not white, which no order of this structure changes: "
+                    f"for a noise model (and better prediction) fit BJ or ARMAX")
+        if self.passed:
+            return "residual tests passed"
+        if independent and not white:
+            return ("residual tests FAILED: residuals not white; consider other orders or a "
+                    "noise model (ARMAX, BJ)")
+        return "residual tests FAILED: consider other orders"
 
     def __repr__(self):
         return self.summary()
@@ -118,6 +175,7 @@ class ValidationReport:
                  f"Model               : {self.stability}",
                  f"Simulation fit      : {self._simulation_text()}",
                  f"1-step prediction fit: {_fmt_fit(self.prediction_fit)}",
+                 f"Initial condition   : {self.initial_text}",
                  ""]
         if self.residuals:
             r0 = self.residuals[0]
@@ -140,12 +198,7 @@ class ValidationReport:
                   self.model.summary().as_text()]
         if self.plant_comparison is not None:
             lines += ["", self.plant_comparison.summary()]
-        if self.residuals:
-            verdict = ("residual tests passed" if self.passed
-                       else "residual tests FAILED: consider other orders")
-        else:
-            verdict = "residual tests skipped"
-        lines += ["", "Verdict: " + verdict]
+        lines += ["", "Verdict: " + self.verdict]
         return "\n".join(lines)
 
     def to_dict(self):
@@ -161,7 +214,12 @@ class ValidationReport:
             and ``confidence_level`` (:attr:`intervals`); ``n_samples`` (the
             record), ``n_used`` (rows with a complete predictor);
             ``fit_percent`` (simulation; None for an unstable model) and
-            ``fit_percent_prediction``; ``stability`` (the sentence of
+            ``fit_percent_prediction``; ``initial_condition`` (``"estimate"``,
+            ``"zero"`` or ``"measured"``), ``initial_condition_text`` (in
+            words), ``initial_state`` (one list per experiment) and
+            ``fit_start``; ``passed``, ``verdict`` and ``judged_by_input``
+            (True for OE, FIR and instrumental-variable fits, judged by the
+            input test alone); ``stability`` (the sentence of
             :attr:`stability`), ``unstable`` and ``max_pole_magnitude``;
             ``experiment_lengths``; ``time_series`` (True for a model
             without input: ``fit_percent`` and the independence entries of
@@ -195,8 +253,11 @@ class ValidationReport:
         out.update(self.model.to_dict())
         out.update(
             theta_lower=ci.lower, theta_upper=ci.upper, confidence_level=ci.level,
-            n_samples=len(self.y), n_used=len(self.y) - self.start,
+            n_samples=len(self.y), n_used=self.n_used,
             fit_percent=self.simulation_fit, fit_percent_prediction=self.prediction_fit,
+            initial_condition=self.initial, initial_condition_text=self.initial_text,
+            initial_state=[np.asarray(x) for x in self.x0], fit_start=self.start,
+            judged_by_input=self.judged_by_input, passed=self.passed, verdict=self.verdict,
             stability=self.stability, unstable=self.is_unstable,
             max_pole_magnitude=self.max_pole_magnitude,
             experiment_lengths=list(self.experiment_lengths),
@@ -219,7 +280,8 @@ class ValidationReport:
         c = self.criteria
         rows = [row("model", self.stability),
                 row("simulation fit", self._simulation_text()),
-                row("1-step prediction fit", _fmt_fit(self.prediction_fit))]
+                row("1-step prediction fit", _fmt_fit(self.prediction_fit)),
+                row("initial condition", self.initial_text)]
         if not self.residuals:
             rows.append(row("residual tests", f"skipped: {self.skipped}"))
         for i, r in enumerate(self.residuals):
@@ -251,8 +313,7 @@ class ValidationReport:
             verdict = "FAIL: residual tests FAILED"
         color = "#009E73" if self.passed else "#D55E00"
         mark = "&#10004;" if self.passed else "&#10008;"
-        rows.append(row("verdict", verdict + ("" if self.passed or not self.residuals
-                                              else " (consider other orders)")))
+        rows.append(row("verdict", self.verdict))
         return (f"<div><h4>Validation of {html.escape(self._model_name())} on {len(self.y)} "
                 f"samples{html.escape(self._experiments_text())}: "
                 f"<span style='color:{color}'>{mark} {verdict}</span></h4>"
@@ -318,6 +379,11 @@ class ValidationReport:
         """
         return plot_comparison(self, ax, window=window)
 
+    @property
+    def initial_text(self):
+        """The initial condition of the simulation and prediction, in words."""
+        return initial_text(self.initial, self.start)
+
     def _model_name(self):
         return model_name(self.model)
 
@@ -333,8 +399,8 @@ class ValidationReport:
         return f" of {n} experiments" if n > 1 else ""
 
 
-def validate(model, u, y=None, plant=None, *, max_lag=25, alpha=0.01, skip_undefined=False,
-             metadata=None):
+def validate(model, u, y=None, plant=None, *, initial="estimate", max_lag="auto", alpha=0.01,
+             skip_undefined=False, metadata=None):
     """Validate a fitted model on a record (and against the true plant if known).
 
     Parameters
@@ -353,10 +419,16 @@ def validate(model, u, y=None, plant=None, *, max_lag=25, alpha=0.01, skip_undef
     plant : control.LTI, optional
         The true system, for simulated experiments (see
         :class:`PlantComparison`).
-    max_lag : int or "auto", default 25
-        Largest lag of the residual correlations. ``"auto"``: ``min(25, n //
-        4)`` for ``n`` residuals, halved while the record is too short for
-        the tests at that lag (down to 1).
+    initial : {"estimate", "zero", "measured"}, default "estimate"
+        Initial state of the simulation and the one-step prediction (see
+        :func:`compare`): ``"estimate"`` is MATLAB ``compare``'s default, so
+        the fits are those a MATLAB user gets for the same model.
+        ``"measured"`` applies to ARX only (the simulation also to ARMAX).
+    max_lag : int or "auto", default "auto"
+        Largest lag of the residual correlations. ``"auto"`` (also the
+        command line's): ``min(25, n // 4)`` for ``n`` residuals, halved
+        while the record is too short for the tests at that lag (down to 1),
+        so a short validation record (100 samples) is validated.
     alpha : float, default 0.01
         Significance level of the residual tests.
     skip_undefined : bool, default False
@@ -407,13 +479,24 @@ def validate(model, u, y=None, plant=None, *, max_lag=25, alpha=0.01, skip_undef
     ``8 (2 n_params + 12)`` bytes per sample in general.
 
 
-    The simulation starts from the measured outputs ``y[:max_lag]`` of the
-    model's largest lag and the fits are computed from there on; the
-    one-step prediction uses the measured past (:meth:`ARX.predict`), so on
-    the same rows it equals ``Phi @ theta_`` (MATLAB's ``compare`` with
-    prediction horizon 1). An unstable model is reported as such ("unstable
-    model, largest pole magnitude 1.02, simulation diverges") and its
-    simulation fit is NaN instead of a meaningless huge negative number.
+    **Fits.** The simulation and the one-step prediction are
+    :func:`compare`'s, from the initial state `initial`, and their fits
+    are MATLAB's NRMSE fits over the record: with the default
+    ``"estimate"`` the numbers MATLAB's ``compare(data, sys)`` and
+    ``compare(data, sys, 1)`` print. Every model class is simulated from a
+    consistent state (its realization ``to_ss()``), so an OE or BJ model is
+    not penalized for a start the model cannot have. For an OE model the
+    one-step prediction is the simulation, and the two fits are equal. An
+    unstable model is reported as such ("unstable model, largest pole
+    magnitude 1.02, simulation diverges") and its simulation fit is NaN
+    instead of a meaningless huge negative number.
+
+    **Verdict.** A model with a noise model (ARX, ARMAX, BJ) passes when its
+    residuals are white and independent of the input. A model without one
+    (OE, FIR) and an instrumental-variable fit are judged by the
+    input test alone (their residuals are the output disturbance, white or
+    not); when those residuals are not white, the verdict points to BJ or
+    ARMAX instead of other orders.
 
     With several experiments every experiment is simulated and predicted
     from its own start, the fits cover the rows of all of them, and the
@@ -432,6 +515,8 @@ def validate(model, u, y=None, plant=None, *, max_lag=25, alpha=0.01, skip_undef
     """
     auto = isinstance(max_lag, str) and max_lag == "auto"
     lag = None if auto else check_int(max_lag, "max_lag", minimum=1)
+    if not isinstance(initial, str) or initial not in ("estimate", "zero", "measured"):
+        raise ValueError(f"`initial` must be 'estimate', 'zero' or 'measured'; got {initial!r}")
     alpha = check_probability(alpha, "alpha")
     if metadata is not None and not isinstance(metadata, dict):
         raise TypeError(f"`metadata` must be a dict; got {type(metadata).__name__}")
@@ -465,23 +550,16 @@ def validate(model, u, y=None, plant=None, *, max_lag=25, alpha=0.01, skip_undef
                           "fit mostly describes the operating point. Detrend the data "
                           "(rlsfilt.detrend) or fit with offset=True", OperatingPointWarning,
                           stacklevel=2)
-    Phis, Es, Ys, sims, preds, glued_u, starts = [], [], [], [], [], [], []
+    Phis, Es, glued_u = [], [], []
     for k, (uk, yk) in enumerate(parts):
         Phi_k, _, E_k = one_step(model, uk, yk, "validate")   # the regressors, built once
-        Yk = np.asarray(yk, dtype=float)
-        start_k = len(Yk) - len(E_k)  # max_lag of the model
-        if time_series:               # nothing to simulate from: the zero-input response
-            sims.append(np.zeros(len(Yk)))
-        else:
-            sims.append(np.asarray(model.simulate(uk, y0=Yk[:start_k] if start_k else None),
-                                   dtype=float))
-        preds.append(np.asarray(model.predict(uk, yk, horizon=1), dtype=float))
         Phis.append(Phi_k)
         Es.append(E_k)
-        Ys.append(Yk)
         Uk = np.asarray(records[k][0], dtype=float)
-        glued_u.append(Uk if k == 0 else Uk[start_k:])    # aligns residual rows across seams
-        starts.append(start_k)
+        glued_u.append(Uk if k == 0 else Uk[len(Uk) - len(E_k):])  # residual rows across seams
+    # the simulation and the one-step prediction from the stated initial state (compare)
+    pred = compare(model, u_arg, y, initial=initial, horizon=1)
+    sim = None if time_series else compare(model, u_arg, y, initial=initial)
     Phi, E = np.vstack(Phis), np.vstack(Es)
     u = np.vstack(glued_u) if len(parts) > 1 or time_series else parts[0][0]
     n = E.shape[0]
@@ -510,34 +588,34 @@ def validate(model, u, y=None, plant=None, *, max_lag=25, alpha=0.01, skip_undef
             skipped = "the residuals are zero or constant (an exact fit)"
             residuals = ()
             break
-    Y, y_sim, y_pred = (np.concatenate(x) for x in (Ys, sims, preds))
-    offsets = np.cumsum([0] + [len(v) for v in Ys])[:-1]
-    rows = np.concatenate([off + np.arange(s0, len(Yk))
-                           for off, s0, Yk in zip(offsets, starts, Ys)])
+    Y, y_pred = pred.y, pred.y_hat
+    y_sim = np.zeros_like(Y) if time_series else sim.y_hat   # a time series: no input
+    lengths = pred.experiment_lengths
     dt = 1.0 if model.dt is True else float(model.dt)
-    tstarts = list(u_arg.tstart) if isinstance(u_arg, IOData) else [0.0] * len(Ys)
-    time = np.concatenate([t0 + dt * np.arange(len(Yk)) for t0, Yk in zip(tstarts, Ys)])
+    tstarts = list(u_arg.tstart) if isinstance(u_arg, IOData) else [0.0] * len(lengths)
+    time = np.concatenate([t0 + dt * np.arange(n_k) for t0, n_k in zip(tstarts, lengths)])
     stability = model.stability_text()
     poles = model.poles()
     r_max = float(np.max(np.abs(poles))) if len(poles) else 0.0
     unstable = r_max >= 1.0 + 1e-9
-    sim_fit = fit_percent(Y[rows], y_sim[rows])
+    sim_fit = pred.fit if time_series else sim.fit
     if unstable or time_series:  # a diverging simulation (or none) has no meaningful fit
         sim_fit = np.full(np.shape(sim_fit), np.nan)
         sim_fit = float(sim_fit) if sim_fit.ndim == 0 else sim_fit
     return ValidationReport(
         model=model, time=time, y=Y, y_simulated=y_sim, y_predicted=y_pred,
-        start=starts[0], experiment_lengths=tuple(len(v) for v in Ys),
+        start=pred.start if time_series else sim.start, experiment_lengths=lengths,
+        initial=initial, x0=pred.x0 if time_series else sim.x0, n_used=n,
         stability=stability, is_unstable=unstable, max_pole_magnitude=r_max,
         simulation_fit=sim_fit,
-        prediction_fit=fit_percent(Y[rows], y_pred[rows]),
+        prediction_fit=pred.fit,
         residuals=residuals,
         criteria=criteria,
         intervals=parameter_intervals(model),
         plant_comparison=None if plant is None else PlantComparison(model, plant),
         skipped=skipped, metadata=dict(metadata or {}), is_time_series=time_series,
         experiment_names=(tuple(u_arg.experiment_names) if isinstance(u_arg, IOData)
-                          else tuple(f"exp{k + 1}" for k in range(len(Ys)))),
+                          else tuple(f"exp{k + 1}" for k in range(len(lengths)))),
         **_signal_labels(model, info),
     )
 
@@ -560,36 +638,24 @@ def _signal_labels(model, info):
     return out
 
 
-def _time_series_records(model, u, y):
-    """``([(U (N_i, 0), Y (N_i, 1)), ...], info)`` of a time series (`u` None; `y` one
-    signal or a list of them, one per experiment)."""
-    name = type(model).__name__
-    if u is not None:
-        raise ValueError(f"`u` must be None for the time-series model {name} (it has no "
-                         f"input): call validate(model, None, y); got {type(u).__name__}")
-    if y is None:
-        raise TypeError(f"`y` is required: validate(model, None, y) for the time-series "
-                        f"model {name}")
-    listed = is_listed(y)
-    records = []
-    for i, yi in enumerate(y if listed else [y]):
-        label = f"y[{i}]" if listed else "y"
-        Y, _, names = _as_signal(yi, label)
-        if Y.shape[1] != 1:
-            raise ValueError(f"`{label}` must have shape (N,) (one signal, as in fit); got "
-                             f"{Y.shape}")
-        records.append((np.zeros((len(Y), 0)), Y))
-    info = {"u_1d": True, "y_1d": True, "u_names": [], "y_names": names,
-            "n_experiments": len(records)}
-    return records, info
-
-
 def _offset_mode(model):
     """``"none"`` unless the model handles an operating point (an ``offset`` parameter)."""
     offset = model.get_params().get("offset", False)
     if isinstance(offset, str):
         return offset
     return "intercept" if offset else "none"
+
+
+def _is_iv(model):
+    return str(getattr(model, "method_", "")) in ("iv", "riv")
+
+
+def _judged_by_input(model):
+    """No noise model (``C/(A D) = 1``: OE, FIR) or an instrumental-variable fit."""
+    if _is_iv(model):
+        return True
+    A, _, C, D, _ = model.polydata()
+    return bool(np.all(A[:, :, 1:] == 0) and np.all(C[:, 1:] == 0) and np.all(D[:, 1:] == 0))
 
 
 def _residual_dict(r):
