@@ -249,3 +249,60 @@ def test_a_state_restored_while_capped_continues_bit_for_bit(after_predict):
     assert_array_equal(g.x, f.x)
     assert_array_equal(g.P, f.P)
     assert g.n_capped == f.n_capped
+
+
+# ----------------------------------------------------------------------
+# long intermittent excitation (#27; benchmarks/bench_intermittent.py runs the
+# audit's full 4e6 samples)
+# ----------------------------------------------------------------------
+def _intermittent(n_blocks, block, excited, seed=0):
+    """Regressor ``[1, u_k, u_k-1]``; the input white for the first `excited` samples
+    of each block, then held (the audit's record, with shorter blocks)."""
+    rng = np.random.default_rng(seed)
+    N = n_blocks * block + 1
+    u = rng.standard_normal(N)
+    for b in range(n_blocks):
+        u[b * block + excited:(b + 1) * block] = u[b * block + excited - 1]
+    Hs = np.column_stack([np.ones(N - 1), u[1:], u[:-1]])
+    return Hs, Hs @ THETA + 0.1 * rng.standard_normal(N - 1)
+
+
+def test_streaming_equals_batch_through_intermittent_excitation():
+    """Where excitation returns after a capped hold, round-off can make ``S``
+    negative for a step (``P`` spread 1e15 loses a little definiteness). The
+    streaming update then rejected the sample with the default gate (``y'y >
+    inf * S`` is ``y'y > -inf``), and every later one: the estimate ran away for
+    good while batch_filter recovered. Without a gate nothing is gated."""
+    Hs, zs = _intermittent(30, 3000, 60)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", NumericalWarning)
+        batch = RecursiveLeastSquares(3, lam=0.95)
+        means = batch.batch_filter(zs, Hs, store_covariances=False)[0][:, :, 0]
+        stream = RecursiveLeastSquares(3, lam=0.95)
+        xs, S = np.empty((len(zs), 3)), np.empty(len(zs))
+        for k in range(len(zs)):
+            stream.predict_update(zs[k], Hs[k])
+            xs[k], S[k] = stream.x[:, 0], stream.S[0, 0]
+    assert (S < 0).any()                      # the mechanism is there (before: from 60003)
+    assert stream.n_gated == 0
+    assert_array_equal(xs, means)             # bit for bit, at every sample
+    assert stream.n_capped == batch.n_capped
+    # back on the plant at the end of every excited stretch (the first excited
+    # sample after a hold may burst: exponential forgetting's known transient)
+    ends = np.arange(30) * 3000 + 58
+    assert_allclose(xs[ends], np.broadcast_to(THETA, (30, 3)), atol=0.05)
+    assert_allclose(xs[-1], THETA, atol=0.05)
+
+
+def test_infinite_gate_never_gates_a_negative_innovation_variance():
+    """The kernel's gate test alone: ``S < 0`` with ``gate = inf`` updates (as the
+    NumPy reference, whose ``gate=None`` never gates); a finite gate still rejects."""
+    P = np.array([[1.0, 0.0], [0.0, -3.0]])        # indefinite on purpose
+    for gate, gated in ((None, False), (1.0, True)):
+        rls = RecursiveLeastSquares(2, R=1.0, check_every=0, gate=gate)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", NumericalWarning)
+            rls.P = P
+            rls.update(1.0, [0.0, 1.0])
+        assert rls.S[0, 0] == -2.0 and rls.gated == gated
+        assert rls.n_gated == int(gated)
