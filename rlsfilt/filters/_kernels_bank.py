@@ -31,6 +31,14 @@ one `RecursiveLeastSquares`, operation by operation:
     "constant_trace":  K = g / s, x <- x + K y, P <- P - (g g^T) / s, t = trace P,
                        P <- (c1 / t) P + c2 I
 
+The exponential mode has the windup cap of `RecursiveLeastSquares`
+(``_kernels.windup_cap``): ``s = w h . g + r`` and ``P <- P - (g g^T) cu`` with
+the coefficients of ``_kernels.exponential_coefficient`` (`_exponential_coefficients`),
+and after each update `_cap_step` decides per channel, from the diagonal of
+the updated ``P``, whether the next time update divides by ``lam`` (``w = 1``
+then; else the factor is 1 and ``w = 1 / lam``). Without the cap engaged
+``w = 1`` and the numbers are those of the plain recursion, bit for bit.
+
 (``_kernels.batch_filter_kernel`` for the exponential mode,
 ``_kernels.general_update`` for the two others). As in the exponential
 kernel of `RecursiveLeastSquares`, the exponential mode applies the next

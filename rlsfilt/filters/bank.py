@@ -232,11 +232,11 @@ class RLSBank:
         `RecursiveLeastSquares` per channel for them).
     forgetting_params : dict, optional
         Constants of the mode, as in `RecursiveLeastSquares` (defaults
-        computed per channel from its `lam` and `R`): ``eps`` for
+        computed per channel from its `lam`, `R` and `P0`): ``eps`` for
         ``"directional"``, ``trace`` and ``ratio`` for ``"constant_trace"``,
-        none for ``"exponential"``. Any other key (one that only
-        `RecursiveLeastSquares` reads, such as a windup cap) is a
-        ValueError naming it.
+        the windup cap's ``spread_max`` (1e15) and ``trace_max`` (1e12
+        ``trace(P0)``) for ``"exponential"``. Any other key (one that only
+        `RecursiveLeastSquares` reads) is a ValueError naming it.
     check_every : int, default 100
         Health check period (0 disables it): every `check_every` updates,
         and at the end of :meth:`batch_filter`, each channel's ``P`` is
@@ -275,6 +275,10 @@ class RLSBank:
         Forgetting factor each channel's last update applied.
     n_updates : int
         Measurement updates since :meth:`reset`.
+    n_capped : ndarray of int, shape (C,)
+        Updates of each channel whose forgetting the windup cap restricted
+        to the regressor's direction (exponential mode), as
+        ``RecursiveLeastSquares.n_capped``.
     failed_channels : ndarray of int
         Channels whose ``P`` failed a health check since :meth:`reset`.
     n_channels, dim_x : int
@@ -296,6 +300,18 @@ class RLSBank:
     with a separate filter to round-off (in practice bit for bit); the
     directional and constant-trace modes replace the last two lines as in
     :mod:`rlsfilt.filters.forgetting`. ``P`` is kept exactly symmetric.
+
+    **The windup cap** (exponential mode, ``lam < 1``) is that of
+    `RecursiveLeastSquares`, channel by channel and with the same
+    arithmetic: after each update a channel whose ``P`` spread far off its
+    regressor's direction (:math:`\sum_i P_{ii} H_i^2 > \text{spread\_max}\,
+    H P H^T`) or whose ``trace(P) / lam`` would exceed ``trace_max`` holds
+    its next time update's forgetting back, and its next update forgets
+    along its regressor only. A channel whose regressor stops exciting
+    therefore stays finite and recovers when excitation returns (without
+    the cap ``P`` grew like ``lam**-k`` until the channel was NaN for good),
+    and ordinary runs give the bits of the plain recursion. The state of the
+    cap is carried across calls and into :meth:`channel`.
 
     **Missing data per channel.** A NaN in ``z[c]``, or any NaN in the
     regressor ``H[c]``, skips the measurement update of channel ``c`` only

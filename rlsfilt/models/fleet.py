@@ -53,7 +53,12 @@ class ARXBank:
     Attributes
     ----------
     template : ARX
-        The (unfitted) model whose orders every channel uses.
+        The (unfitted) model every channel is fitted as (orders and offset).
+    intercept_ : ndarray, shape (C,)
+        ``offset=True`` only: the intercept ``c`` of each channel (also the
+        last column of ``theta_``).
+    input_offset_, output_offset_ : ndarray, shapes (C, n_inputs) and (C,)
+        ``offset="mean"`` only: the means removed from each channel.
     channels_ : list
         Channel labels (the columns of a pandas `y`, the `channels` given to
         :func:`fit_many`, or ``0 .. C-1``).
@@ -255,10 +260,21 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
     Parameters
     ----------
     model : ARX
-        The orders (``na``, ``nb``, ``nk``, ``dt``); not changed.
+        The model of every channel (``na``, ``nb``, ``nk``, ``dt``,
+        ``offset``); not changed. Every channel is fitted exactly as this
+        model: with ``offset=True`` the intercept ``c`` is estimated (the
+        last parameter, ``"c"``, and ``intercept_``), with ``"mean"`` each
+        channel's means are removed first (``input_offset_``,
+        ``output_offset_``). Only `ARX` is accepted (a TypeError names any
+        other class): ARMAX, OE, BJ and the other polynomial models need a
+        prediction-error fit per channel, which `fit_many` does not run;
+        fit them channel by channel with their own ``fit``.
     u : array_like, shape (N, C) or (N, C, n_inputs)
         Inputs of the ``C`` channels (time on axis 0); a pandas DataFrame
-        with one column per channel works too.
+        with one column per channel works too. When `u` and `y` are both
+        DataFrames, each channel's input is the column of `u` with the
+        label of its column in `y` (in any order; labels that do not match,
+        or indexes that differ, are a ValueError).
     y : array_like, shape (N, C)
         Outputs, one column per channel (a DataFrame's columns label the
         channels).
@@ -305,7 +321,8 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
         non-finite data, regressors without full rank), naming the channel;
         for shapes that disagree, naming the argument.
     TypeError
-        For an option that `method` does not take.
+        For an option that `method` does not take, or a `model` that is not
+        an `ARX`.
 
     Notes
     -----
@@ -313,7 +330,12 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
     method, ...)`` and of :func:`rlsfilt.validation.validate` on the same
     record: the same QR least squares, the same recursive filter arithmetic
     (:class:`~rlsfilt.RLSBank` runs each channel exactly as a
-    `RecursiveLeastSquares`), the same statistics. The regressors follow
+    `RecursiveLeastSquares`, the windup cap of exponential forgetting
+    included: a channel whose input stops exciting stays finite), the same
+    statistics. ``offset=True`` runs as one more input, constant 1, of one
+    coefficient and no delay (its regressor column is ARX's column of
+    ones); the residual tests regress on a constant and the model's
+    regressors, as :func:`~rlsfilt.validation.residual_analysis`. The regressors follow
     the convention of :func:`~rlsfilt.models.arx_regressors`, built with a
     channel axis (one shifted slice of the record per column, for all
     channels at once).
