@@ -384,7 +384,8 @@ def _exponential_coefficients(sb, qb, wq, ok, w, cub, nb):
 
 
 @njit(inline="always", **_JIT)
-def _cap_step(Pb, g, cub, h, qb, rb, w, wq, ok, ilb, p0, p1, capb, tfb, ncap, c0, nb, tri):
+def _cap_step(Pb, g, cub, h, qb, rb, w, wq, ok, ilb, p0, p1, capb, tfb, ncap, c0, nb, tri,
+              tr, spread):
     """The windup cap of each lane after its exponential update (``_kernels.windup_cap``
     on the diagonal of the updated ``P``, ``P_ii - (g_i g_i) cu``, before the sweep
     writes it): ``capb``, the next time update's factor ``tfb`` (1 where held back,
@@ -392,8 +393,9 @@ def _cap_step(Pb, g, cub, h, qb, rb, w, wq, ok, ilb, p0, p1, capb, tfb, ncap, c0
     1); ``ncap`` counts the updates that ran held back. ``p0``, ``p1`` are
     ``spread_max``, ``trace_max``; `w` the gain factors ``wq c``."""
     n = g.shape[0]
-    tr = np.zeros(nb)
-    spread = np.zeros(nb)
+    for b in range(nb):                      # (tr, spread: work arrays of the block)
+        tr[b] = 0.0
+        spread[b] = 0.0
     for i in range(n):
         p, gi, hi = Pb[tri[i, i]], g[i], h[i]
         for b in range(nb):
@@ -639,6 +641,8 @@ def _run_block(c0, nb, B, x, P, Z, H, h_last, Rv, il, lam, Q, q_zero, mode, para
     wq = np.ones(B)                        # the next update's w: 1, or 1 / lam (capped)
     qb = np.zeros(B)
     cub = np.zeros(B)
+    trw = np.empty(B)
+    spw = np.empty(B)
     for b in range(nb):
         ilb[b] = il[c0 + b]
         lamb[b] = lam[c0 + b]
@@ -714,7 +718,7 @@ def _run_block(c0, nb, B, x, P, Z, H, h_last, Rv, il, lam, Q, q_zero, mode, para
                         iu, ju, fuse, ilb, Qb, q_zero)
         if expo:                           # the windup cap, then P - (g g^T) cu (/ lam + Q)
             _cap_step(Pb, g, cub, h, qb, rb, w, wq, ok if masked else every, ilb, p0, p1,
-                      capb, tfb, ncap, c0, nb, tri)
+                      capb, tfb, ncap, c0, nb, tri, trw, spw)
             _exponential_sweep(Pb, g, cub, nb, iu, ju, fuse, tfb, Qb, q_zero)
         pending = predict and not fuse
         if store_res or last:
@@ -919,6 +923,8 @@ def bank_update(xt, Pt, z, H, r, lam, mode, params, pending, il, Qt, q_zero, xn,
     wq = np.ones(B)
     qb = np.zeros(B)
     cub = np.zeros(B)
+    trw = np.empty(B)
+    spw = np.empty(B)
     bad = 0
     for c0 in range(0, C, B):
         nb = min(B, C - c0)
@@ -960,7 +966,7 @@ def bank_update(xt, Pt, z, H, r, lam, mode, params, pending, il, Qt, q_zero, xn,
                     False, lamb, Qb, True)
             if expo:
                 _cap_step(Pb, g, cub, h, qb, rb, w, wq, ok, ilx, p0, p1, capb, tfb, ncap, c0,
-                          nb, tri)
+                          nb, tri, trw, spw)
                 _exponential_sweep(Pb, g, cub, nb, iu, ju, False, tfb, Qb, True)
             for b in range(nb):
                 yb[b] = yb[b] if ok[b] else np.nan
@@ -972,7 +978,7 @@ def bank_update(xt, Pt, z, H, r, lam, mode, params, pending, il, Qt, q_zero, xn,
                 _update_exponential(xb, Pb, g, Kb, sb, yb, w, nb, iu, ju, False, lamb, Qb,
                                     True, True)
                 _cap_step(Pb, g, cub, h, qb, rb, w, wq, every, ilx, p0, p1, capb, tfb, ncap,
-                          c0, nb, tri)
+                          c0, nb, tri, trw, spw)
                 _exponential_sweep(Pb, g, cub, nb, iu, ju, False, tfb, Qb, True)
                 for b in range(nb):
                     lt[b] = lamb[b]
