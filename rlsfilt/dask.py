@@ -144,7 +144,9 @@ def fit_many_frame(model, frame, *, channel, input, output, method="ls", client=
     Raises
     ------
     ValueError
-        When a channel appears in more than one partition (on compute).
+        When a channel has rows in more than one partition (when computed,
+        also the lazy frame of ``compute=False``: no duplicate rows of a
+        channel fitted piecewise), naming the channel and the partitions.
     """
     if isinstance(frame, pd.DataFrame):
         frame = dd.from_pandas(frame, npartitions=1)
@@ -157,15 +159,14 @@ def fit_many_frame(model, frame, *, channel, input, output, method="ls", client=
                              "fit_many_frame; got an array")
     inputs = [input] if isinstance(input, str) else list(input)
     meta = _meta(model, len(inputs), method, options, frame[channel]._meta.to_numpy())
-    fit = dask.delayed(_summary_long)
-    parts = [fit(model, part, channel, inputs, output, method, **options)
-             for part in frame.to_delayed()]
-    table = _collect(parts, meta, client, compute)
-    if compute and table.index.has_duplicates:
-        dup = table.index[table.index.duplicated()][0]
-        raise ValueError(f"channel {dup!r} appears in more than one partition of `frame`; "
-                         f"repartition by channel first, e.g. frame.shuffle({channel!r})")
-    return table
+    # each partition's task also gets the labels of every partition (small), so that
+    # a channel split over partitions is refused where it is fitted, lazy or not
+    blocks = frame.to_delayed()
+    label_sets = [dask.delayed(_labels)(part, channel) for part in blocks]
+    fit = dask.delayed(_fit_partition)
+    parts = [fit(i, label_sets, model, part, channel, inputs, output, method, options)
+             for i, part in enumerate(blocks)]
+    return _collect(parts, meta, client, compute)
 
 
 def _fit_block(model, u, y, method, labels, options):
@@ -174,6 +175,31 @@ def _fit_block(model, u, y, method, labels, options):
     if "error" not in table:
         table["error"] = None
     return table
+
+
+def _labels(part, channel):
+    """The distinct channel labels of one partition."""
+    return pd.unique(part[channel])
+
+
+def _fit_partition(i, label_sets, model, part, channel, inputs, output, method, options):
+    """One task of `fit_many_frame`: partition `i`'s summary, after checking that
+    none of its channels has rows in another partition (`label_sets`, one per
+    partition): such a channel's record would be fitted piecewise, as several
+    channels with the same label."""
+    mine = label_sets[i]
+    for j, other in enumerate(label_sets):
+        if j == i or not len(other):
+            continue
+        shared = pd.Index(mine).intersection(pd.Index(other))
+        if len(shared):
+            first, second = min(i, j), max(i, j)
+            label = shared[0].item() if isinstance(shared[0], np.generic) else shared[0]
+            raise ValueError(f"channel {label!r} has rows in partitions {first} and "
+                             f"{second} of `frame`: each channel must lie in one partition "
+                             f"(its record is fitted where it lives); repartition by channel "
+                             f"first, keeping each channel's rows in time order")
+    return _summary_long(model, part, channel, inputs, output, method, **options)
 
 
 def _split(options, lo, hi, C):

@@ -540,7 +540,7 @@ def test_update_twice_without_predict_warns():
      r"needs an explicit `forgetting_params\['trace'\]`.*\(channel 1\)"),
     ({"forgetting_params": {"eps": 1.0}}, ValueError,
      r"`forgetting_params` key 'eps' is not supported by RLSBank \(mode 'exponential'\); "
-     "supported: none"),
+     "supported: 'spread_max', 'trace_max'"),
     ({"forgetting_params": [("eps", 1.0)]}, TypeError,
      "`forgetting_params` must be a dict or None; got list"),
     ({"P0": [1.0, 1e308, 1.0]}, ValueError, "`P0` must have entries of magnitude at most "
@@ -555,8 +555,8 @@ def test_constructor_errors_name_the_argument(kwargs, exc, match):
 
 
 @pytest.mark.parametrize("mode, key, supported", [
-    ("exponential", "spread_max", "none"),            # RecursiveLeastSquares' windup caps
-    ("exponential", "trace_max", "none"),
+    ("exponential", "eps", "'spread_max', 'trace_max'"),     # (the windup cap's: read)
+    ("exponential", "lam_min", "'spread_max', 'trace_max'"),
     ("directional", "trace", "'eps'"),
     ("constant_trace", "eps", "'trace', 'ratio'"),
     ("constant_trace", "lam_min", "'trace', 'ratio'"),

@@ -105,14 +105,20 @@ def test_long_dask_dataframe_partitioned_by_channel(rng, client):
     pd.testing.assert_frame_equal(got, expected, check_exact=True, check_index_type=False)
 
 
-def test_channel_split_over_partitions_is_an_error(rng, client):
+@pytest.mark.parametrize("compute", [True, False])
+def test_channel_split_over_partitions_is_an_error(rng, client, compute):
+    """Lazy or not: the lazy frame once computed gave two rows for the split channel,
+    each a fit of part of its record."""
     u, y = _fleet(rng, C=2)
     long = pd.concat([pd.DataFrame({"ch": c, "u": u[:, c], "y": y[:, c]}) for c in range(2)],
                      ignore_index=True)
     ddf = dd.from_pandas(long, npartitions=3, sort=False)   # splits a channel
-    with pytest.raises(ValueError, match="appears in more than one partition"):
-        rdask.fit_many_frame(ARX(2, 2, 1), ddf, channel="ch", input="u", output="y",
-                             residual_tests=False, client=client)
+    with pytest.raises(ValueError, match=r"channel [01] has rows in partitions [01] and [12] of "
+                                         r"`frame`: each channel must lie in one partition"):
+        table = rdask.fit_many_frame(ARX(2, 2, 1), ddf, channel="ch", input="u", output="y",
+                                     residual_tests=False, client=client, compute=compute)
+        if not compute:
+            client.compute(table).result()
 
 
 def test_argument_errors():

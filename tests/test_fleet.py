@@ -328,3 +328,52 @@ def test_no_caller_array_is_mutated(rng):
 def test_exports():
     assert rlsfilt.fit_many is fit_many and "ARXBank" in rlsfilt.__all__
     assert rlsfilt.models.fit_many is fit_many
+
+
+# ----------------------------------------------------------------------
+# fleets fit exactly the model given (#27)
+# ----------------------------------------------------------------------
+@pytest.mark.parametrize("offset", [True, "mean"])
+@pytest.mark.parametrize("method", ["ls", "rls"])
+def test_offset_models_equal_arx_fit_and_validate(rng, offset, method):
+    """fit_many(ARX(..., offset=...)) reported the numbers of offset=False while
+    model(i) was the offset model (fit 36 % instead of 70 % in the audit)."""
+    u, y = _fleet(rng, C=4)
+    u, y = u + 1.0, y + 3.0 + 0.5 * np.arange(4)          # an operating point per channel
+    bank = fit_many(ARX(2, 2, 1, offset=offset), u, y, method)
+    plain = fit_many(ARX(2, 2, 1), u, y, method)
+    assert (bank.simulation_fit_ > plain.simulation_fit_ + 10).all()
+    for c in range(4):
+        model = ARX(2, 2, 1, offset=offset).fit(u[:, c], y[:, c], method)
+        _assert_channel_equals_arx(bank, c, model, u[:, c], y[:, c])
+        assert_allclose(bank.model(c).theta_, bank.theta_[c], rtol=1e-10)
+        if offset is True:
+            assert bank.intercept_[c] == bank.theta_[c, -1]
+            assert_allclose(bank.intercept_[c], model.intercept_, rtol=1e-10)
+        else:
+            assert_allclose(bank.output_offset_[c], model.output_offset_[0], rtol=1e-12)
+    names = ["a1", "a2", "b1", "b2"] + (["c"] if offset is True else [])
+    assert bank.param_names_ == names
+    assert list(bank.summary().columns[1:len(names) + 1]) == names
+    assert "offset=" in repr(bank)
+
+
+@pytest.mark.parametrize("cls, args", [("ARMAX", (2, 2, 1)), ("OE", (2, 2)), ("AR", (2,))])
+def test_other_model_classes_are_refused(rng, cls, args):
+    u, y = _fleet(rng, C=3, N=100)
+    with pytest.raises(TypeError, match=rf"`model` must be an ARX .*; got {cls}"):
+        fit_many(getattr(rlsfilt, cls)(*args), u, y)
+
+
+def test_pandas_inputs_are_paired_with_outputs_by_label(rng):
+    u, y = _fleet(rng, C=4)
+    labels = ["d", "a", "c", "b"]
+    U, Y = pd.DataFrame(u, columns=labels), pd.DataFrame(y, columns=labels)
+    expected = fit_many(ARX(2, 2, 1), u, y, channels=labels)
+    got = fit_many(ARX(2, 2, 1), U[["a", "b", "c", "d"]], Y)        # u in another order
+    assert got.channels_ == labels
+    assert_array_equal(got.theta_, expected.theta_)
+    with pytest.raises(ValueError, match=r"`u` lacks \['d'\], and has \['e'\] that `y` lacks"):
+        fit_many(ARX(2, 2, 1), U.rename(columns={"d": "e"}), Y)
+    with pytest.raises(ValueError, match="`u` and `y` must have the same index"):
+        fit_many(ARX(2, 2, 1), U.set_index(U.index + 1), Y)

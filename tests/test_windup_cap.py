@@ -249,3 +249,165 @@ def test_a_state_restored_while_capped_continues_bit_for_bit(after_predict):
     assert_array_equal(g.x, f.x)
     assert_array_equal(g.P, f.P)
     assert g.n_capped == f.n_capped
+
+
+# ----------------------------------------------------------------------
+# long intermittent excitation (#27; benchmarks/bench_intermittent.py runs the
+# audit's full 4e6 samples)
+# ----------------------------------------------------------------------
+def _intermittent(n_blocks, block, excited, seed=0):
+    """Regressor ``[1, u_k, u_k-1]``; the input white for the first `excited` samples
+    of each block, then held (the audit's record, with shorter blocks)."""
+    rng = np.random.default_rng(seed)
+    N = n_blocks * block + 1
+    u = rng.standard_normal(N)
+    for b in range(n_blocks):
+        u[b * block + excited:(b + 1) * block] = u[b * block + excited - 1]
+    Hs = np.column_stack([np.ones(N - 1), u[1:], u[:-1]])
+    return Hs, Hs @ THETA + 0.1 * rng.standard_normal(N - 1)
+
+
+def test_streaming_equals_batch_through_intermittent_excitation():
+    """Where excitation returns after a capped hold, round-off can make ``S``
+    negative for a step (``P`` spread 1e15 loses a little definiteness). The
+    streaming update then rejected the sample with the default gate (``y'y >
+    inf * S`` is ``y'y > -inf``), and every later one: the estimate ran away for
+    good while batch_filter recovered. Without a gate nothing is gated."""
+    Hs, zs = _intermittent(30, 3000, 60)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", NumericalWarning)
+        batch = RecursiveLeastSquares(3, lam=0.95)
+        means = batch.batch_filter(zs, Hs, store_covariances=False)[0][:, :, 0]
+        stream = RecursiveLeastSquares(3, lam=0.95)
+        xs, S = np.empty((len(zs), 3)), np.empty(len(zs))
+        for k in range(len(zs)):
+            stream.predict_update(zs[k], Hs[k])
+            xs[k], S[k] = stream.x[:, 0], stream.S[0, 0]
+    assert (S < 0).any()                      # the mechanism is there (before: from 60003)
+    assert stream.n_gated == 0
+    assert_array_equal(xs, means)             # bit for bit, at every sample
+    assert stream.n_capped == batch.n_capped
+    # back on the plant at the end of every excited stretch (the first excited
+    # sample after a hold may burst: exponential forgetting's known transient)
+    ends = np.arange(30) * 3000 + 58
+    assert_allclose(xs[ends], np.broadcast_to(THETA, (30, 3)), atol=0.05)
+    assert_allclose(xs[-1], THETA, atol=0.05)
+
+
+def test_infinite_gate_never_gates_a_negative_innovation_variance():
+    """The kernel's gate test alone: ``S < 0`` with ``gate = inf`` updates (as the
+    NumPy reference, whose ``gate=None`` never gates); a finite gate still rejects."""
+    P = np.array([[1.0, 0.0], [0.0, -3.0]])        # indefinite on purpose
+    for gate, gated in ((None, False), (1.0, True)):
+        rls = RecursiveLeastSquares(2, R=1.0, check_every=0, gate=gate)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", NumericalWarning)
+            rls.P = P
+            rls.update(1.0, [0.0, 1.0])
+        assert rls.S[0, 0] == -2.0 and rls.gated == gated
+        assert rls.n_gated == int(gated)
+
+
+# ----------------------------------------------------------------------
+# RLSBank has the same cap (#27): each channel is its own RecursiveLeastSquares
+# ----------------------------------------------------------------------
+def _bank_record(C=4, seed=0):
+    """Channels that lose and regain excitation at different times (one stays rich)."""
+    recs = [held_record(periods=2, period=3000, held=2700 - 300 * c, tail=300, seed=seed + c)
+            for c in range(C - 1)]
+    rng = np.random.default_rng(seed + 99)
+    Hr = np.column_stack([np.ones(len(recs[0][0])), rng.standard_normal((len(recs[0][0]), 2))])
+    recs.append((Hr, Hr @ THETA + 0.1 * rng.standard_normal(len(Hr))))
+    return np.stack([r[0] for r in recs], axis=1), np.stack([r[1] for r in recs], axis=1)
+
+
+@pytest.mark.parametrize("update_first", [False, True])
+def test_bank_channels_equal_capped_filters_through_lost_excitation(update_first):
+    from rlsfilt import RLSBank
+
+    Hs, zs = _bank_record()
+    zs[[10, 1500, 4000], [0, 1, 2]] = np.nan                 # missing samples, some in a hold
+    lams = np.array([0.95, 0.9, 0.99, 0.95])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", NumericalWarning)
+        bank = RLSBank(4, 3, lam=lams, Q=1e-9)
+        means, covs, _, covs_p = bank.batch_filter(zs, Hs, update_first=update_first)
+        assert np.isfinite(bank.x).all() and np.isfinite(bank.P).all()
+        for c in range(4):
+            f = RecursiveLeastSquares(3, lam=lams[c], Q=1e-9)
+            mf, cf, _, cpf = f.batch_filter(zs[:, c], Hs[:, c], update_first=update_first)
+            assert_array_equal(means[:, c], mf[:, :, 0], err_msg=f"channel {c}")
+            assert_array_equal(covs[:, c], cf, err_msg=f"channel {c}")
+            assert_array_equal(covs_p[:, c], cpf, err_msg=f"channel {c}")
+            assert bank.n_capped[c] == f.n_capped
+    assert (bank.n_capped[:2] > 1000).all() and bank.n_capped[3] == 0   # (0.99: no cap)
+    assert_allclose(bank.x, np.broadcast_to(THETA, (4, 3)), atol=0.05)   # recovered
+
+
+def test_bank_without_the_cap_goes_nan_and_with_it_recovers():
+    """The audit's case: the bank had no cap, the channel went NaN for good."""
+    from rlsfilt import RLSBank
+
+    Hs, zs = held_record(periods=1, period=14000, held=13600, tail=400)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", NumericalWarning)
+        off = RLSBank(1, 3, lam=0.95, forgetting_params=OFF)
+        off.batch_filter(zs[:, None], Hs[:, None], store_covariances=False)
+        capped = RLSBank(1, 3, lam=0.95)
+        capped.batch_filter(zs[:, None], Hs[:, None], store_covariances=False)
+    assert np.isnan(off.x).all()
+    assert_allclose(capped.x[0], THETA, atol=0.05)
+
+
+def test_bank_streaming_chunks_and_channel_continue_the_same_bits():
+    """predict/update, batch_filter in chunks, and channel(i) midway (inside a hold,
+    with the cap engaged) all continue as one batch run."""
+    from rlsfilt import RLSBank
+
+    Hs, zs = _bank_record(seed=5)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", NumericalWarning)
+        whole = RLSBank(4, 3, lam=0.9)
+        whole.batch_filter(zs, Hs, store_covariances=False)
+        chunks = RLSBank(4, 3, lam=0.9)
+        for k in range(0, len(zs), 777):
+            chunks.batch_filter(zs[k:k + 777], Hs[k:k + 777], store_covariances=False)
+        stream = RLSBank(4, 3, lam=0.9)
+        mid = 2000                                       # inside the first holds
+        for k in range(mid):
+            stream.predict_update(zs[k], Hs[k])
+        assert stream._cap[:3].all()
+        singles = [stream.channel(c) for c in range(4)]
+        for k in range(mid, len(zs)):
+            stream.predict_update(zs[k], Hs[k])
+            for c, f in enumerate(singles):
+                f.predict_update(zs[k, c], Hs[k, c])
+    for other in (chunks, stream):
+        assert_array_equal(other.x, whole.x)
+        assert_array_equal(other.P, whole.P)
+        assert_array_equal(other.n_capped, whole.n_capped)
+    for c, f in enumerate(singles):
+        assert_array_equal(f.x[:, 0], whole.x[c])
+        assert_array_equal(f.P, whole.P[c])
+        assert f.n_capped == whole.n_capped[c]
+
+
+def test_fit_many_rls_with_forgetting_survives_lost_excitation():
+    """fit_many(method="rls", lam < 1) runs the bank: a channel whose input is held
+    stays finite, as ARX.fit on it does."""
+    from rlsfilt import ARX, fit_many
+
+    rng = np.random.default_rng(4)
+    N, C = 6000, 3
+    u = rng.standard_normal((N, C))
+    u[1000:5800, 0] = u[999, 0]                          # channel 0: held for 4800 samples
+    y = np.zeros((N, C))
+    for t in range(1, N):
+        y[t] = 0.5 * y[t - 1] + u[t - 1] + 0.05 * rng.standard_normal(C)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", NumericalWarning)
+        bank = fit_many(ARX(1, 1), u, y, "rls", lam=0.95, residual_tests=False)
+        single = ARX(1, 1).fit(u[:, 0], y[:, 0], "rls", lam=0.95)
+    assert np.isfinite(bank.theta_).all()
+    assert_allclose(bank.theta_[0], single.theta_, rtol=1e-9)
+    assert_allclose(bank.theta_, np.broadcast_to([-0.5, 1.0], (C, 2)), atol=0.05)

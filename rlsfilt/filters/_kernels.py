@@ -229,7 +229,9 @@ def _innovation(x, phi, z, missing, r, w, gate, g, y):
             acc += phi[i] * x[i, j]
         y[j] = z[j] - acc
         yy += y[j] * y[j]
-    gated = yy > gate * gate * s             # sqrt(y'y / S) > gate
+    # sqrt(y'y / S) > gate; without a gate (inf) never: `inf * S` is -inf where round-off
+    # has made S negative (P indefinite), and every later sample was then rejected
+    gated = gate < np.inf and yy > gate * gate * s
     return q, s, yy, not gated, gated
 
 

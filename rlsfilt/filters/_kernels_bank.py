@@ -31,6 +31,14 @@ one `RecursiveLeastSquares`, operation by operation:
     "constant_trace":  K = g / s, x <- x + K y, P <- P - (g g^T) / s, t = trace P,
                        P <- (c1 / t) P + c2 I
 
+The exponential mode has the windup cap of `RecursiveLeastSquares`
+(``_kernels.windup_cap``): ``s = w h . g + r`` and ``P <- P - (g g^T) cu`` with
+the coefficients of ``_kernels.exponential_coefficient`` (`_exponential_coefficients`),
+and after each update `_cap_step` decides per channel, from the diagonal of
+the updated ``P``, whether the next time update divides by ``lam`` (``w = 1``
+then; else the factor is 1 and ``w = 1 / lam``). Without the cap engaged
+``w = 1`` and the numbers are those of the plain recursion, bit for bit.
+
 (``_kernels.batch_filter_kernel`` for the exponential mode,
 ``_kernels.general_update`` for the two others). As in the exponential
 kernel of `RecursiveLeastSquares`, the exponential mode applies the next
@@ -275,8 +283,10 @@ def _infinite(h, zb, flag, nb):
 
 
 @njit(inline="always", **_JIT)
-def _gain_residual(xb, Pb, h, zb, rb, g, sb, yb, acc, nb, iu, ju):
-    """``g = P h``, ``s = h . g + r`` and ``y = z - h . x`` of every lane."""
+def _gain_residual(xb, Pb, h, zb, rb, g, sb, yb, acc, nb, iu, ju, wq, qb):
+    """``g = P h``, ``q = h . g`` (into ``qb``), ``s = w q + r`` and ``y = z - h . x`` of
+    every lane (``w = wq``: ``1 / lam`` where the windup cap held the last time
+    update's forgetting back, else 1, and ``1 * q`` is ``q``)."""
     n = xb.shape[0]
     for i in range(n):
         gi = g[i]
@@ -302,7 +312,8 @@ def _gain_residual(xb, Pb, h, zb, rb, g, sb, yb, acc, nb, iu, ju):
         for b in range(nb):
             acc[b] += hi[b] * gi[b]
     for b in range(nb):
-        sb[b] = acc[b] + rb[b]                              # s = h . g + r
+        qb[b] = acc[b]
+        sb[b] = wq[b] * acc[b] + rb[b]                      # s = w h . g + r
         acc[b] = 0.0
     for i in range(n):
         hi, xi = h[i], xb[i]
@@ -313,7 +324,7 @@ def _gain_residual(xb, Pb, h, zb, rb, g, sb, yb, acc, nb, iu, ju):
 
 
 @njit(inline="always", **_JIT)
-def _measure(xb, Pb, h, zb, rb, hok, ok, g, sb, yb, acc, nb, iu, ju):
+def _measure(xb, Pb, h, zb, rb, hok, ok, g, sb, yb, acc, nb, iu, ju, wq, qb):
     """Validity, then `_gain_residual`.
 
     ``hok``: the regressor has no NaN (otherwise it is zeroed here, so that
@@ -332,7 +343,7 @@ def _measure(xb, Pb, h, zb, rb, hok, ok, g, sb, yb, acc, nb, iu, ju):
         hj = h[j]
         for b in range(nb):
             hj[b] = hj[b] if hok[b] else 0.0
-    _gain_residual(xb, Pb, h, zb, rb, g, sb, yb, acc, nb, iu, ju)
+    _gain_residual(xb, Pb, h, zb, rb, g, sb, yb, acc, nb, iu, ju, wq, qb)
 
 
 @njit(inline="always", **_JIT)
@@ -354,13 +365,65 @@ def _exponential_sweep(Pb, g, w, nb, iu, ju, fuse, ilb, Qb, q_zero):
 
 
 @njit(inline="always", **_JIT)
+def _exponential_coefficients(sb, qb, wq, ok, w, cub, nb):
+    """The gain factor ``w[b] = wq c`` (0 where not `ok`) and the rank-one coefficient
+    ``cub[b]`` of ``P <- P - (g g^T) cu`` of each lane, ``c = 1 / s``: those of
+    ``_kernels.exponential_coefficient`` (``cu = c``, or 0 where not `ok`, unless the
+    windup cap held the forgetting back, ``wq = 1 / lam``: then ``cu = wq^2 c - (wq - 1)
+    / q``, or ``-(wq - 1) / q`` where not `ok`, the forgetting along the regressor)."""
+    for b in range(nb):
+        c = 1.0 / sb[b]                                     # c = 1 / s
+        v = wq[b]
+        if v == 1.0:
+            cub[b] = c if ok[b] else 0.0
+        else:
+            q = qb[b]
+            f = (v - 1.0) / q if q > 0.0 else 0.0
+            cub[b] = v * v * c - f if ok[b] else -f
+        w[b] = v * c if ok[b] else 0.0                      # K = g (w c)
+
+
+@njit(inline="always", **_JIT)
+def _cap_step(Pb, g, cub, h, qb, rb, w, wq, ok, ilb, p0, p1, capb, tfb, ncap, c0, nb, tri,
+              tr, spread):
+    """The windup cap of each lane after its exponential update (``_kernels.windup_cap``
+    on the diagonal of the updated ``P``, ``P_ii - (g_i g_i) cu``, before the sweep
+    writes it): ``capb``, the next time update's factor ``tfb`` (1 where held back,
+    else ``1 / lam``) and the next update's ``wq`` (``1 / lam`` where held back, else
+    1); ``ncap`` counts the updates that ran held back. ``p0``, ``p1`` are
+    ``spread_max``, ``trace_max``; `w` the gain factors ``wq c``."""
+    n = g.shape[0]
+    for b in range(nb):                      # (tr, spread: work arrays of the block)
+        tr[b] = 0.0
+        spread[b] = 0.0
+    for i in range(n):
+        p, gi, hi = Pb[tri[i, i]], g[i], h[i]
+        for b in range(nb):
+            d = p[b] - (gi[b] * gi[b]) * cub[b]
+            tr[b] += d
+            spread[b] += (d * hi[b]) * hi[b]
+    for b in range(nb):
+        il = ilb[b]
+        hph = qb[b] * rb[b] * w[b] if ok[b] else qb[b] * wq[b]   # h P h^T after the update
+        if il == 1.0:
+            cap = False
+        elif tr[b] * il > p1[b]:
+            cap = True
+        else:
+            cap = p0[b] < np.inf and spread[b] > p0[b] * hph
+        ncap[c0 + b] += wq[b] != 1.0
+        capb[b] = cap
+        tfb[b] = 1.0 if cap else il
+        wq[b] = il if cap else 1.0
+
+
+@njit(inline="always", **_JIT)
 def _update_exponential(xb, Pb, g, Kb, sb, yb, w, nb, iu, ju, fuse, ilb, Qb, q_zero, store_k):
     """The exponential measurement update of `_update` when every channel of the
-    block updates: the same operations, no selects. The gain is written to
-    ``Kb`` only with `store_k` (the last step)."""
+    block updates: the same operations, no selects (``w`` holds the gain factors
+    ``wq c`` of `_exponential_coefficients`; the sweep is the caller's). The gain
+    is written to ``Kb`` only with `store_k` (the last step)."""
     n = xb.shape[0]
-    for b in range(nb):
-        w[b] = 1.0 / sb[b]                                  # c = 1 / s
     for i in range(n):
         gi, xi = g[i], xb[i]
         if store_k:
@@ -372,7 +435,6 @@ def _update_exponential(xb, Pb, g, Kb, sb, yb, w, nb, iu, ju, fuse, ilb, Qb, q_z
         else:
             for b in range(nb):
                 xi[b] = xi[b] + (gi[b] * w[b]) * yb[b]
-    _exponential_sweep(Pb, g, w, nb, iu, ju, fuse, ilb, Qb, q_zero)
 
 
 @njit(inline="always", **_JIT)
@@ -388,9 +450,8 @@ def _update(xb, Pb, g, Kb, sb, yb, rb, ok, lamb, p0, p1, mode, lt, w, d, nb, iu,
     """
     n = xb.shape[0]
     nt = Pb.shape[0]
-    if mode == EXPONENTIAL:
+    if mode == EXPONENTIAL:             # (w: the gain factors of _exponential_coefficients)
         for b in range(nb):
-            w[b] = 1.0 / sb[b] if ok[b] else 0.0           # c = 1 / s
             d[b] = yb[b] if ok[b] else 0.0
             lt[b] = lamb[b]
         for i in range(n):
@@ -399,7 +460,6 @@ def _update(xb, Pb, g, Kb, sb, yb, rb, ok, lamb, p0, p1, mode, lt, w, d, nb, iu,
                 k = gi[b] * w[b]                            # K = g c
                 ki[b] = k
                 xi[b] = xi[b] + k * d[b]                    # x = x + K y
-        _exponential_sweep(Pb, g, w, nb, iu, ju, fuse, ilb, Qb, q_zero)
         return
     if mode == DIRECTIONAL:
         for b in range(nb):
@@ -547,7 +607,7 @@ def _check_block(Pb, nb, tri, cond_max, c0, k, k_fail, W, X, tr, fin, acc, good,
 @njit(**_JIT)
 def _run_block(c0, nb, B, x, P, Z, H, h_last, Rv, il, lam, Q, q_zero, mode, params, update_first,
                means, covs, covs_p, ys, ss, x_prior, P_prior, x_post, P_post, K, lam_t,
-               check_every, step0, cond_max, k_fail, k_inf):
+               check_every, step0, cond_max, k_fail, k_inf, cap, wst, ncap):
     """Run the record on channels ``c0 .. c0 + nb - 1``, ``nb <= B`` (see `bank_batch`).
 
     Each step first loads the block's measurements and regressors and counts
@@ -575,12 +635,23 @@ def _run_block(c0, nb, B, x, P, Z, H, h_last, Rv, il, lam, Q, q_zero, mode, para
     p0 = np.zeros(B)
     p1 = np.zeros(B)
     rb = np.empty(B)
+    expo = mode == EXPONENTIAL
+    capb = np.zeros(B, dtype=np.bool_)     # the windup cap (exponential mode)
+    tfb = np.ones(B)                       # the time update's factor: 1 / lam, or 1 (capped)
+    wq = np.ones(B)                        # the next update's w: 1, or 1 / lam (capped)
+    qb = np.zeros(B)
+    cub = np.zeros(B)
+    trw = np.empty(B)
+    spw = np.empty(B)
     for b in range(nb):
         ilb[b] = il[c0 + b]
         lamb[b] = lam[c0 + b]
         p0[b] = params[c0 + b, 0]
         p1[b] = params[c0 + b, 1]
         rb[b] = Rv[0, c0 + b]
+        capb[b] = cap[c0 + b] != 0.0
+        tfb[b] = 1.0 if capb[b] else ilb[b]
+        wq[b] = wst[c0 + b]
     lt = lamb.copy()
     g = np.empty((n, B))
     h = np.empty((n, B))
@@ -609,7 +680,10 @@ def _run_block(c0, nb, B, x, P, Z, H, h_last, Rv, il, lam, Q, q_zero, mode, para
         last = k == N - 1
         if not update_first:
             if pending:
-                _predict(Pb, ilb, Qb, q_zero, nb)
+                _predict(Pb, tfb, Qb, q_zero, nb)
+                if expo:
+                    for b in range(nb):
+                        wq[b] = ilb[b] if capb[b] else 1.0
             if store_covs:
                 _store_P(Pb, covs_p, k, c0, nb, iu, ju)
             if last:
@@ -628,17 +702,24 @@ def _run_block(c0, nb, B, x, P, Z, H, h_last, Rv, il, lam, Q, q_zero, mode, para
         fuse = (mode == EXPONENTIAL and predict and not store_covs and not check
                 and not last)
         if masked:                         # missing data: skip those channels
-            _measure(xb, Pb, h, zb, rb, hok, ok, g, sb, yb, w, nb, iu, ju)
+            _measure(xb, Pb, h, zb, rb, hok, ok, g, sb, yb, w, nb, iu, ju, wq, qb)
+            if expo:
+                _exponential_coefficients(sb, qb, wq, ok, w, cub, nb)
             _update(xb, Pb, g, Kb, sb, yb, rb, ok, lamb, p0, p1, mode, lt, w, d, nb, iu, ju,
                     fuse, ilb, Qb, q_zero)
         else:                              # every channel updates: no masks
-            _gain_residual(xb, Pb, h, zb, rb, g, sb, yb, w, nb, iu, ju)
-            if mode == EXPONENTIAL:
+            _gain_residual(xb, Pb, h, zb, rb, g, sb, yb, w, nb, iu, ju, wq, qb)
+            if expo:
+                _exponential_coefficients(sb, qb, wq, every, w, cub, nb)
                 _update_exponential(xb, Pb, g, Kb, sb, yb, w, nb, iu, ju, fuse, ilb, Qb,
                                     q_zero, last)
             else:
                 _update(xb, Pb, g, Kb, sb, yb, rb, every, lamb, p0, p1, mode, lt, w, d, nb,
                         iu, ju, fuse, ilb, Qb, q_zero)
+        if expo:                           # the windup cap, then P - (g g^T) cu (/ lam + Q)
+            _cap_step(Pb, g, cub, h, qb, rb, w, wq, ok if masked else every, ilb, p0, p1,
+                      capb, tfb, ncap, c0, nb, tri, trw, spw)
+            _exponential_sweep(Pb, g, cub, nb, iu, ju, fuse, tfb, Qb, q_zero)
         pending = predict and not fuse
         if store_res or last:
             row = k if store_res else 0
@@ -660,7 +741,7 @@ def _run_block(c0, nb, B, x, P, Z, H, h_last, Rv, il, lam, Q, q_zero, mode, para
             _store(xb, Pb, x_post, P_post, c0, nb, iu, ju)
         if update_first:
             if pending:
-                _predict(Pb, ilb, Qb, q_zero, nb)
+                _predict(Pb, tfb, Qb, q_zero, nb)
             pending = False
             if store_covs:
                 _store_P(Pb, covs_p, k, c0, nb, iu, ju)
@@ -671,6 +752,9 @@ def _run_block(c0, nb, B, x, P, Z, H, h_last, Rv, il, lam, Q, q_zero, mode, para
     _store(xb, Pb, x, P, c0, nb, iu, ju)
     for b in range(nb):
         lam_t[c0 + b] = lt[b]
+        cap[c0 + b] = 1.0 if capb[b] else 0.0
+        # the next update's w: after a time update (update_first) as the cap left it
+        wst[c0 + b] = wq[b] if update_first else 1.0
     for i in range(n):
         for b in range(nb):
             K[i, c0 + b] = Kb[i, b]
@@ -679,7 +763,7 @@ def _run_block(c0, nb, B, x, P, Z, H, h_last, Rv, il, lam, Q, q_zero, mode, para
 @njit(**_JIT)
 def bank_batch(x, P, Z, H, h_last, Rv, il, lam, Q, q_zero, mode, params, update_first,
                means, covs, covs_p, ys, ss, x_prior, P_prior, x_post, P_post, K, lam_t,
-               check_every, step0, cond_max, k_fail, k_inf, block):
+               check_every, step0, cond_max, k_fail, k_inf, cap, wst, ncap, block):
     """Run the recursion of every channel over a record, one block after another.
 
     Parameters
@@ -733,20 +817,23 @@ def bank_batch(x, P, Z, H, h_last, Rv, il, lam, Q, q_zero, mode, params, update_
         c0 = blk * block
         _run_block(c0, min(block, C - c0), block, x, P, Z, H, h_last, Rv, il, lam, Q, q_zero,
                    mode, params, update_first, means, covs, covs_p, ys, ss, x_prior, P_prior,
-                   x_post, P_post, K, lam_t, check_every, step0, cond_max, k_fail, k_inf)
+                   x_post, P_post, K, lam_t, check_every, step0, cond_max, k_fail, k_inf,
+                   cap, wst, ncap)
 
 
 @njit(parallel=True, **_JIT)
 def bank_batch_parallel(x, P, Z, H, h_last, Rv, il, lam, Q, q_zero, mode, params,
                         update_first, means, covs, covs_p, ys, ss, x_prior, P_prior, x_post,
-                        P_post, K, lam_t, check_every, step0, cond_max, k_fail, k_inf, block):
+                        P_post, K, lam_t, check_every, step0, cond_max, k_fail, k_inf, cap,
+                        wst, ncap, block):
     """`bank_batch` with the blocks distributed over numba's threads (``prange``)."""
     C = x.shape[1]
     for blk in prange((C + block - 1) // block):
         c0 = blk * block
         _run_block(c0, min(block, C - c0), block, x, P, Z, H, h_last, Rv, il, lam, Q, q_zero,
                    mode, params, update_first, means, covs, covs_p, ys, ss, x_prior, P_prior,
-                   x_post, P_post, K, lam_t, check_every, step0, cond_max, k_fail, k_inf)
+                   x_post, P_post, K, lam_t, check_every, step0, cond_max, k_fail, k_inf,
+                   cap, wst, ncap)
 
 
 # ----------------------------------------------------------------------
@@ -780,7 +867,7 @@ def bank_predict(Pt, il, Qt, q_zero, Pn, P_prior):
 
 @njit(**_JIT)
 def bank_update(xt, Pt, z, H, r, lam, mode, params, pending, il, Qt, q_zero, xn, Pn, y, S,
-                SI, K, lam_t):
+                SI, K, lam_t, wst, cap, ncap):
     """One measurement update of every channel: the arithmetic of `bank_batch`.
 
     Reads the state ``xt`` (n, C), ``Pt`` (n, n, C) (the bank's layout, see
@@ -791,7 +878,11 @@ def bank_update(xt, Pt, z, H, r, lam, mode, params, pending, il, Qt, q_zero, xn,
     Writes the new state ``xn``, ``Pn`` (same layout),
     the residuals ``y`` (NaN where skipped), ``S`` and ``SI = 1 / S`` (NaN
     where the regressor holds NaN), the gains ``K`` (n, C; zero where
-    skipped) and ``lam_t``; `STREAM_BLOCK` channels at a time.
+    skipped) and ``lam_t``; `STREAM_BLOCK` channels at a time. The exponential
+    mode's windup cap: ``wst`` (C,) the update's ``w`` (``1 / lam`` where the
+    time update held the forgetting back, else 1), ``cap`` (C,) receives the
+    cap's decision for the next time update (1.0 or 0.0), ``ncap`` counts the
+    updates that ran held back.
 
     Returns
     -------
@@ -825,6 +916,15 @@ def bank_update(xt, Pt, z, H, r, lam, mode, params, pending, il, Qt, q_zero, xn,
     lt = np.empty(B)
     p0 = np.zeros(B)
     p1 = np.zeros(B)
+    expo = mode == EXPONENTIAL
+    capb = np.zeros(B, dtype=np.bool_)
+    tfb = np.ones(B)
+    ilx = np.ones(B)
+    wq = np.ones(B)
+    qb = np.zeros(B)
+    cub = np.zeros(B)
+    trw = np.empty(B)
+    spw = np.empty(B)
     bad = 0
     for c0 in range(0, C, B):
         nb = min(B, C - c0)
@@ -842,10 +942,10 @@ def bank_update(xt, Pt, z, H, r, lam, mode, params, pending, il, Qt, q_zero, xn,
             zb[b] = zs[b]
             rb[b] = rs[b]
             lamb[b] = ls[b]
-        if mode != EXPONENTIAL:
-            for b in range(nb):
-                p0[b] = params[c0 + b, 0]
-                p1[b] = params[c0 + b, 1]
+            ilx[b] = 1.0 / ls[b] if expo else 1.0     # (the bank's il, bit for bit)
+            wq[b] = wst[c0 + b]
+            p0[b] = params[c0 + b, 0]
+            p1[b] = params[c0 + b, 1]
         for b in range(nb):                  # the finiteness of the block's inputs
             fin[b] = zb[b] - zb[b]
         for j in range(n):
@@ -859,22 +959,34 @@ def bank_update(xt, Pt, z, H, r, lam, mode, params, pending, il, Qt, q_zero, xn,
                 for b in range(nb):
                     if hok[b]:
                         return -1 - (c0 + b)
-            _measure(xb, Pb, h, zb, rb, hok, ok, g, sb, yb, w, nb, iu, ju)
+            _measure(xb, Pb, h, zb, rb, hok, ok, g, sb, yb, w, nb, iu, ju, wq, qb)
+            if expo:
+                _exponential_coefficients(sb, qb, wq, ok, w, cub, nb)
             _update(xb, Pb, g, Kb, sb, yb, rb, ok, lamb, p0, p1, mode, lt, w, d, nb, iu, ju,
                     False, lamb, Qb, True)
+            if expo:
+                _cap_step(Pb, g, cub, h, qb, rb, w, wq, ok, ilx, p0, p1, capb, tfb, ncap, c0,
+                          nb, tri, trw, spw)
+                _exponential_sweep(Pb, g, cub, nb, iu, ju, False, tfb, Qb, True)
             for b in range(nb):
                 yb[b] = yb[b] if ok[b] else np.nan
                 sb[b] = sb[b] if hok[b] else np.nan
         else:
-            _gain_residual(xb, Pb, h, zb, rb, g, sb, yb, w, nb, iu, ju)
-            if mode == EXPONENTIAL:
+            _gain_residual(xb, Pb, h, zb, rb, g, sb, yb, w, nb, iu, ju, wq, qb)
+            if expo:
+                _exponential_coefficients(sb, qb, wq, every, w, cub, nb)
                 _update_exponential(xb, Pb, g, Kb, sb, yb, w, nb, iu, ju, False, lamb, Qb,
                                     True, True)
+                _cap_step(Pb, g, cub, h, qb, rb, w, wq, every, ilx, p0, p1, capb, tfb, ncap,
+                          c0, nb, tri, trw, spw)
+                _exponential_sweep(Pb, g, cub, nb, iu, ju, False, tfb, Qb, True)
                 for b in range(nb):
                     lt[b] = lamb[b]
             else:
                 _update(xb, Pb, g, Kb, sb, yb, rb, every, lamb, p0, p1, mode, lt, w, d, nb,
                         iu, ju, False, lamb, Qb, True)
+        for b in range(nb):
+            cap[c0 + b] = 1.0 if expo and capb[b] else 0.0
         for b in range(nb):                  # the cheap health check: the diagonal
             fin[b] = 0.0
         for i in range(n):

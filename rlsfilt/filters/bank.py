@@ -55,7 +55,7 @@ __all__ = ["RLSBank", "BankHistory"]
 
 _MODES = ("exponential", "directional", "constant_trace")
 # the keys of `forgetting_params` each mode of the bank reads (its kernels know no others)
-_SUPPORTED_PARAMS = {"exponential": (), "directional": ("eps",),
+_SUPPORTED_PARAMS = {"exponential": ("spread_max", "trace_max"), "directional": ("eps",),
                      "constant_trace": ("trace", "ratio")}
 _LOG_2PI = math.log(2.0 * math.pi)
 _TINY = np.finfo(float).tiny
@@ -224,11 +224,11 @@ class RLSBank:
         `RecursiveLeastSquares` per channel for them).
     forgetting_params : dict, optional
         Constants of the mode, as in `RecursiveLeastSquares` (defaults
-        computed per channel from its `lam` and `R`): ``eps`` for
+        computed per channel from its `lam`, `R` and `P0`): ``eps`` for
         ``"directional"``, ``trace`` and ``ratio`` for ``"constant_trace"``,
-        none for ``"exponential"``. Any other key (one that only
-        `RecursiveLeastSquares` reads, such as a windup cap) is a
-        ValueError naming it.
+        the windup cap's ``spread_max`` (1e15) and ``trace_max`` (1e12
+        ``trace(P0)``) for ``"exponential"``. Any other key (one that only
+        `RecursiveLeastSquares` reads) is a ValueError naming it.
     check_every : int, default 100
         Health check period (0 disables it): every `check_every` updates,
         and at the end of :meth:`batch_filter`, each channel's ``P`` is
@@ -267,6 +267,10 @@ class RLSBank:
         Forgetting factor each channel's last update applied.
     n_updates : int
         Measurement updates since :meth:`reset`.
+    n_capped : ndarray of int, shape (C,)
+        Updates of each channel whose forgetting the windup cap restricted
+        to the regressor's direction (exponential mode), as
+        ``RecursiveLeastSquares.n_capped``.
     failed_channels : ndarray of int
         Channels whose ``P`` failed a health check since :meth:`reset`.
     n_channels, dim_x : int
@@ -288,6 +292,18 @@ class RLSBank:
     with a separate filter to round-off (in practice bit for bit); the
     directional and constant-trace modes replace the last two lines as in
     :mod:`rlsfilt.filters.forgetting`. ``P`` is kept exactly symmetric.
+
+    **The windup cap** (exponential mode, ``lam < 1``) is that of
+    `RecursiveLeastSquares`, channel by channel and with the same
+    arithmetic: after each update a channel whose ``P`` spread far off its
+    regressor's direction (:math:`\sum_i P_{ii} H_i^2 > \text{spread\_max}\,
+    H P H^T`) or whose ``trace(P) / lam`` would exceed ``trace_max`` holds
+    its next time update's forgetting back, and its next update forgets
+    along its regressor only. A channel whose regressor stops exciting
+    therefore stays finite and recovers when excitation returns (without
+    the cap ``P`` grew like ``lam**-k`` until the channel was NaN for good),
+    and ordinary runs give the bits of the plain recursion. The state of the
+    cap is carried across calls and into :meth:`channel`.
 
     **Missing data per channel.** A NaN in ``z[c]``, or any NaN in the
     regressor ``H[c]``, skips the measurement update of channel ``c`` only
@@ -350,6 +366,8 @@ class RLSBank:
         self._mode = _MODES.index(forgetting)
         self._forgetting_params_in = _supported_params(forgetting, forgetting_params)
         self._R = self._per_channel_positive(R, "R")
+        # (P0 first: the windup cap's default trace_max is 1e12 trace(P0), per channel)
+        self._P0 = np.asfortranarray(self._covariances(P0, "P0", definite=True))
         self.lam = lam
         self.Q = Q
         self.check_every = check_int(check_every, "check_every", minimum=0)
@@ -360,7 +378,6 @@ class RLSBank:
         if not isinstance(parallel, (bool, np.bool_)):
             raise TypeError(f"`parallel` must be True or False; got {parallel!r}")
         self.parallel = bool(parallel)
-        self._P0 = np.asfortranarray(self._covariances(P0, "P0", definite=True))
         self._x0 = np.asfortranarray(
             self._estimates(np.zeros(self.dim_x) if x0 is None else x0, "x0"))
         self.reset()
@@ -394,6 +411,7 @@ class RLSBank:
         P = np.array(as_float_array(value, "P"), dtype=np.float64, order="F")
         self._settle_pending()
         self._P, self._P_out = P, False
+        self._uncap()                        # the windup cap decides again from the new P
 
     # ------------------------------------------------------------------
     # the deferred time update and the lazy copies (see the module docstring)
@@ -478,15 +496,16 @@ class RLSBank:
         C = self.n_channels
         params = np.zeros((C, 2))
         supported = _SUPPORTED_PARAMS[self.forgetting]
-        if not supported:            # exponential: no constants (`_supported_params`
-            return params            # refused every key)
         names = _fg._PARAM_NAMES[self._mode]
         pick = [names.index(name) for name in supported]
-        pairs, inverse = np.unique(np.column_stack([lam, R]), axis=0, return_inverse=True)
-        for k, (lam_k, r_k) in enumerate(pairs):
+        # the exponential mode's windup cap: trace_max defaults to 1e12 trace(P0)
+        traces = np.trace(self._P0, axis1=1, axis2=2)
+        pairs, inverse = np.unique(np.column_stack([lam, R, traces]), axis=0,
+                                   return_inverse=True)
+        for k, (lam_k, r_k, tr_k) in enumerate(pairs):
             try:
                 values = _fg.mode_params(self._mode, self._forgetting_params_in, self.dim_x,
-                                         float(lam_k), float(r_k))
+                                         float(lam_k), float(r_k), float(tr_k))
             except ValueError as exc:
                 c = int(np.argmax(inverse.reshape(-1) == k))
                 raise ValueError(f"{exc} (channel {c})") from None
@@ -524,8 +543,13 @@ class RLSBank:
         self._settle_pending()                                 # predict() twice
         self._checked_x(), self._checked_P()                   # (the shapes)
         # P^- = P / lam + Q, deferred: run by the next update's compiled call,
-        # or by `_settle_pending` when something needs P before; x^- = x
-        self._pending = (self._il, _t(Q), Q_is_zero)
+        # or by `_settle_pending` when something needs P before; x^- = x.
+        # The windup cap: a capped channel's time update keeps P (adds Q) and its
+        # next update forgets along its regressor only (w = 1 / lam)
+        capped = self._cap
+        tf = np.where(capped, 1.0, self._il) if capped.any() else self._il
+        self._w = np.where(capped, self._il, 1.0)
+        self._pending = (tf, _t(Q), Q_is_zero)
         x, P = self._x, self._P
         self.__dict__["_x_prior"] = x.copy(order="F") if self._x_out else (x, None, None, None)
         self.__dict__["_P_prior"] = (P, *self._pending)
@@ -563,14 +587,16 @@ class RLSBank:
         y, S, SI, lam_t = np.empty(C), np.empty(C), np.empty(C), np.empty(C)
         pending = self._pending
         il, Qt, q_zero = pending if pending is not None else (self._il, Pt, True)
+        cap, n_capped = np.empty(C), self.n_capped.copy()
         bad = _get_kernels().bank_update(
             xt, Pt, zz, Hm, r, self._lam, self._mode, self._params, pending is not None, il,
-            Qt, q_zero, xn, Pn, y, S, SI, K, lam_t)
+            Qt, q_zero, xn, Pn, y, S, SI, K, lam_t, self._w, cap, n_capped)
         if bad < 0:                          # an infinite value: name the first one
             for name, arr in (("z", zz), ("H", Hm)):
                 self._measurements(arr, name, None, None)
         self._note_update()
         self._pending = None                 # (applied by the kernel)
+        self._cap, self._w, self.n_capped = cap != 0.0, np.ones(C), n_capped
         self._x, self._P = xn.T, Pn.T
         self._x_out = self._P_out = False
         d = self.__dict__                    # x_post, P_post: copies of x, P when read
@@ -691,13 +717,14 @@ class RLSBank:
         K, lam_t = np.zeros((n, C)), self._lam.copy()
         k_fail = np.full(C, -1, dtype=np.int64)
         k_inf = np.full(C, -1, dtype=np.int64)
+        cap, w, n_capped = self._cap.astype(float), self._w.copy(), self.n_capped.copy()
         kern = _get_kernels()
         if N:
             run = kern.bank_batch_parallel if self.parallel else kern.bank_batch
             run(xt, Pt, Z, Hk, h_last, Rv, self._il, self._lam, _t(self._Q), self._Q_is_zero,
                 self._mode, self._params, update_first, means, covs, covs_p, ys, ss,
                 x_prior, P_prior, x_post, P_post, K, lam_t, self.check_every, self.n_updates,
-                self.cond_max, k_fail, k_inf, kern.block_size(n, C))
+                self.cond_max, k_fail, k_inf, cap, w, n_capped, kern.block_size(n, C))
             _raise_infinite(k_inf, Z, Hm)          # (checked in the kernel: no extra pass)
         means_p = None
         if store_means:            # the estimate is unchanged by a time update
@@ -713,6 +740,7 @@ class RLSBank:
             self.y, self.S = ys[-1].copy(), ss[-1].copy()
             self.SI, self.K, self.lam_t = 1.0 / self.S, K.T, lam_t
             self.n_updates += N
+            self._cap, self._w, self.n_capped = cap != 0.0, w, n_capped
             self._updates_since_predict = 0 if update_first else 1
             self._fresh = False
         failed = np.flatnonzero(k_fail >= 0)
@@ -834,6 +862,7 @@ class RLSBank:
         self.x_prior, self.x_post = self._x.copy(order="F"), self._x.copy(order="F")
         self.P_prior, self.P_post = self._P.copy(order="F"), self._P.copy(order="F")
         self._updates_since_predict = 0
+        self._uncap()
 
     # ------------------------------------------------------------------
     # channels, copies, reset
@@ -875,6 +904,8 @@ class RLSBank:
         f.x_prior, f.P_prior = self.x_prior[i].reshape(n, 1).copy(), self.P_prior[i].copy()
         f.x_post, f.P_post = self.x_post[i].reshape(n, 1).copy(), self.P_post[i].copy()
         f.n_updates = self.n_updates
+        f.n_capped = int(self.n_capped[i])
+        f._cap, f._w = bool(self._cap[i]), float(self._w[i])       # the windup cap's state
         f._updates_since_predict = self._updates_since_predict
         f._warned_health = bool(np.isin(i, self.failed_channels))
         if not self._fresh:
@@ -929,10 +960,18 @@ class RLSBank:
         self.K = np.zeros((C, n), order="F")
         self.lam_t = self._lam.copy()
         self.n_updates = 0
+        self.n_capped = np.zeros(C, dtype=np.int64)
+        self._uncap()
         self.failed_channels = np.zeros(0, dtype=np.int64)
         self._updates_since_predict = 0
         self._warned_skip = False
         self._fresh = True
+
+    def _uncap(self):
+        """The windup cap decides afresh from the next update (a new ``P``), as
+        `RecursiveLeastSquares` does after ``initialize`` or an assigned ``P``."""
+        self._cap = np.zeros(self.n_channels, dtype=bool)
+        self._w = np.ones(self.n_channels)
 
     def copy(self):
         """An independent deep copy of the bank."""

@@ -53,7 +53,12 @@ class ARXBank:
     Attributes
     ----------
     template : ARX
-        The (unfitted) model whose orders every channel uses.
+        The (unfitted) model every channel is fitted as (orders and offset).
+    intercept_ : ndarray, shape (C,)
+        ``offset=True`` only: the intercept ``c`` of each channel (also the
+        last column of ``theta_``).
+    input_offset_, output_offset_ : ndarray, shapes (C, n_inputs) and (C,)
+        ``offset="mean"`` only: the means removed from each channel.
     channels_ : list
         Channel labels (the columns of a pandas `y`, the `channels` given to
         :func:`fit_many`, or ``0 .. C-1``).
@@ -201,8 +206,8 @@ class ARXBank:
 
     def __repr__(self):
         t = self.template
-        lines = [f"ARXBank: {len(self)} channels of ARX(na={t.na!r}, nb={t.nb!r}, "
-                 f"nk={t.nk!r}) fitted by {self.method_!r} on {self.n_samples_} rows each"]
+        lines = [f"ARXBank: {len(self)} channels of {_describe(t.get_params())} fitted by "
+                 f"{self.method_!r} on {self.n_samples_} rows each"]
         ok = np.array([e is None for e in self.errors_])
         if ok.any():
             lines.append(f"  simulation fit: median {np.nanmedian(self.simulation_fit_[ok]):.2f}%, "
@@ -255,10 +260,21 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
     Parameters
     ----------
     model : ARX
-        The orders (``na``, ``nb``, ``nk``, ``dt``); not changed.
+        The model of every channel (``na``, ``nb``, ``nk``, ``dt``,
+        ``offset``); not changed. Every channel is fitted exactly as this
+        model: with ``offset=True`` the intercept ``c`` is estimated (the
+        last parameter, ``"c"``, and ``intercept_``), with ``"mean"`` each
+        channel's means are removed first (``input_offset_``,
+        ``output_offset_``). Only `ARX` is accepted (a TypeError names any
+        other class): ARMAX, OE, BJ and the other polynomial models need a
+        prediction-error fit per channel, which `fit_many` does not run;
+        fit them channel by channel with their own ``fit``.
     u : array_like, shape (N, C) or (N, C, n_inputs)
         Inputs of the ``C`` channels (time on axis 0); a pandas DataFrame
-        with one column per channel works too.
+        with one column per channel works too. When `u` and `y` are both
+        DataFrames, each channel's input is the column of `u` with the
+        label of its column in `y` (in any order; labels that do not match,
+        or indexes that differ, are a ValueError).
     y : array_like, shape (N, C)
         Outputs, one column per channel (a DataFrame's columns label the
         channels).
@@ -305,7 +321,8 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
         non-finite data, regressors without full rank), naming the channel;
         for shapes that disagree, naming the argument.
     TypeError
-        For an option that `method` does not take.
+        For an option that `method` does not take, or a `model` that is not
+        an `ARX`.
 
     Notes
     -----
@@ -313,7 +330,12 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
     method, ...)`` and of :func:`rlsfilt.validation.validate` on the same
     record: the same QR least squares, the same recursive filter arithmetic
     (:class:`~rlsfilt.RLSBank` runs each channel exactly as a
-    `RecursiveLeastSquares`), the same statistics. The regressors follow
+    `RecursiveLeastSquares`, the windup cap of exponential forgetting
+    included: a channel whose input stops exciting stays finite), the same
+    statistics. ``offset=True`` runs as one more input, constant 1, of one
+    coefficient and no delay (its regressor column is ARX's column of
+    ones); the residual tests regress on a constant and the model's
+    regressors, as :func:`~rlsfilt.validation.residual_analysis`. The regressors follow
     the convention of :func:`~rlsfilt.models.arx_regressors`, built with a
     channel axis (one shifted slice of the record per column, for all
     channels at once).
@@ -347,8 +369,9 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
     >>> int(table["is_white"].sum()) >= 190
     True
     """
-    params = model.get_params()
+    params = _fleet_params(model)
     na, nb, nk, dt = params["na"], params["nb"], params["nk"], params["dt"]
+    offset = _offset_mode(params["offset"])
     if method not in ("ls", "rls"):
         raise ValueError(f"`method` must be 'ls' or 'rls'; got {method!r}")
     opts = {"k0": k0, "lam": lam, "P0": P0, "R": R, "Q": Q, "x0": x0}
@@ -365,11 +388,15 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
     U, Y, labels = _fleet_data(u, y, channels)
     N, C, nu = U.shape
     s = arx_structure(na, nb, nk, nu, 1)
-    n, rows = s.n_params, N - s.max_lag
+    # what the fit runs on: the record itself, its deviations from the channels' means
+    # (offset="mean"), or the record with a constant input of one coefficient and no
+    # delay, whose column of ones is ARX's intercept column (offset=True)
+    rec = _FitRecord(U, Y, s, offset)
+    n, rows = rec.s.n_params, N - s.max_lag
     if rows < n:
         raise ValueError(
             f"`y` must have at least max_lag + n_params = {s.max_lag} + {n} = {s.max_lag + n} "
-            f"samples for ARX(na={na!r}, nb={nb!r}, nk={nk!r}); got {N}")
+            f"samples for {_describe(params)}; got {N}")
     if residual_tests and rows <= 2 * max_lag + 2:
         raise ValueError(f"`max_lag` must be small against the {rows} residuals (need n > "
                          f"2 max_lag + 2); got max_lag = {max_lag}")
@@ -395,7 +422,7 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
             for start in range(0, C, chunk):
                 cs = todo[(todo >= start) & (todo < start + chunk)]
                 if cs.size:
-                    _fit_chunk(cs, U, Y, s, method, per_channel, k0, max_lag, residual_tests,
+                    _fit_chunk(cs, rec, method, per_channel, k0, max_lag, residual_tests,
                                on_error, labels, out, buffer)
                 if bar is not None:
                     bar.update(min(chunk, C - start))
@@ -409,7 +436,7 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
                         f"check of RLSBank: {unhealthy[:10]}"
                         f"{' ...' if len(unhealthy) > 10 else ''}; their estimates may be "
                         "unreliable (see `healthy_`)", NumericalWarning)
-    names = _param_names(s)
+    names = _param_names(s) + (["c"] if offset == "intercept" else [])
     kept = {key: value for key, value in per_channel.items() if key in given}
     kept.update(filter_options)
     if "k0" in given:
@@ -427,7 +454,7 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
         k0_=out.k0, recursive_residuals_=out.rec,
         healthy_=out.healthy, errors_=list(errors), n_samples_=rows, n_params_=n,
         param_names_=names, method_=method, max_lag=max_lag, alpha=alpha,
-        _data=(U, Y), _fingerprint=sums, _options=kept)
+        **rec.operating_point(out.theta), _data=(U, Y), _fingerprint=sums, _options=kept)
 
 
 # ----------------------------------------------------------------------
@@ -481,9 +508,9 @@ def _summary_long(model, frame, channel, inputs, output, method="ls", **options)
 
 def _summary_schema(model, n_inputs, method, options):
     """``{column: dtype}`` of `ARXBank.summary` (with the ``error`` column)."""
-    params = model.get_params()
+    params = _fleet_params(model)
     s = arx_structure(params["na"], params["nb"], params["nk"], n_inputs, 1)
-    names = _param_names(s)
+    names = _param_names(s) + (["c"] if _offset_mode(params["offset"]) == "intercept" else [])
     schema = {"n_samples": "int64"}
     schema.update({name: "float64" for name in names})
     schema.update({"se_" + name: "float64" for name in names})
@@ -543,10 +570,12 @@ class _Results:
             self.rec[:, bad] = np.nan
 
 
-def _fit_chunk(cs, U, Y, s, method, per_channel, k0, max_lag, tests, on_error, labels, out,
+def _fit_chunk(cs, rec, method, per_channel, k0, max_lag, tests, on_error, labels, out,
                buffer):
-    """Fit channels `cs` of the record `U`, `Y` and write their numbers into `out`
-    (`buffer`: the memory of the chunk's regressors, reused from chunk to chunk)."""
+    """Fit channels `cs` of the record `rec` (a `_FitRecord`) and write their numbers
+    into `out` (`buffer`: the memory of the chunk's regressors, reused from chunk to
+    chunk)."""
+    U, Y, s = rec.U, rec.Y, rec.s
     cs, sel = _as_slice(cs)                                  # a view when `cs` is a range
     norms = np.empty((cs.size, s.n_params))                  # column norms of the regressors
     Phi, target = _regressors(U, Y, s, sel, buffer, norms)   # (rows, c, n), (rows, c)
@@ -590,7 +619,11 @@ def _fit_chunk(cs, U, Y, s, method, per_channel, k0, max_lag, tests, on_error, l
         resid = np.ascontiguousarray(resid.T)                  # one row per channel
         Q, _, p_white = ljung_box_many(resid, max_lag)
         out.Q[sel], out.p_white[sel] = Q, p_white
-        U = U[:, sel]
+        # the test regresses on a constant and the model's regressors (as
+        # residual_analysis): without the intercept column, the same span
+        U = rec.U_test[:, sel]
+        Phi = Phi[:, :, :rec.n_test] if rec.n_test < n else Phi
+        n = Phi.shape[2]
         nu = U.shape[2]
         width = 8 * rows * (nu * (2 * max_lag + 1) + n + 2)
         step = max(1, _TEST_BYTES // width)
@@ -714,6 +747,80 @@ def _run_group(cs, g, k0, Phi, target, opts, labels, on_error, out):
     return g, bank
 
 
+class _FitRecord:
+    """The record a fleet's fit runs on, for the `offset` of its ARX model.
+
+    ``offset=False``: the record ``U`` (N, C, nu), ``Y`` (N, C) itself.
+    ``"mean"``: the deviations from each channel's means (``ARX.fit`` removes
+    the means of the estimation record). ``"intercept"`` (``offset=True``):
+    ``U`` with one more input, constant 1, of one coefficient and no delay,
+    whose regressor column is the column of ones ``ARX`` appends (last, as
+    the intercept ``c`` is the last entry of ``theta_``); the constant input
+    adds no lag, so the rows are those of the model. ``U_test`` and
+    ``n_test`` are the inputs and the number of leading regressor columns
+    the independence test reads (``residual_analysis`` regresses on a
+    constant and the model's regressors: a second column of ones adds
+    nothing to that span).
+    """
+
+    def __init__(self, U, Y, s, offset):
+        self.offset, self.s, self.n_test = offset, s, s.n_params
+        self.U, self.Y, self.U_test = U, Y, U
+        self.means = None
+        if offset == "mean":
+            u_bar, y_bar = U.mean(axis=0), Y.mean(axis=0)           # (C, nu), (C,)
+            self.means = (u_bar, y_bar)
+            self.U = self.U_test = np.ascontiguousarray(U - u_bar)
+            self.Y = np.ascontiguousarray(Y - y_bar)
+        elif offset == "intercept":
+            N, C, nu = U.shape
+            Ua = np.empty((N, C, nu + 1))
+            Ua[:, :, :nu] = U
+            Ua[:, :, nu] = 1.0
+            self.U = Ua
+            self.s = arx_structure(s.na, list(s.nb) + [1], list(s.nk) + [0], nu + 1, 1)
+
+    def operating_point(self, theta):
+        """The fitted attributes of the offset: ``intercept_`` (C,) for
+        ``offset=True``; ``input_offset_`` (C, nu), ``output_offset_`` (C,) (the
+        channels' means) for ``"mean"``; nothing without an offset."""
+        if self.offset == "intercept":
+            return {"intercept_": theta[:, -1].copy()}
+        if self.offset == "mean":
+            return {"input_offset_": self.means[0], "output_offset_": self.means[1]}
+        return {}
+
+
+def _fleet_params(model):
+    """The constructor parameters of `model`, an `ARX` (anything else is refused: a
+    fleet fits exactly the model it is given)."""
+    from .arx import ARX
+
+    if type(model) is not ARX:
+        name = type(model).__name__
+        why = (" (its noise or output-error polynomials need a prediction-error fit per "
+               "channel: fit them one by one with its own fit method)"
+               if hasattr(model, "get_params") else "")
+        raise TypeError(f"`model` must be an ARX (fit_many fits ARX(na, nb, nk, dt, offset) "
+                        f"by least squares; it accepts no other class); got {name}{why}")
+    params = model.get_params()
+    _offset_mode(params["offset"])                       # validated (the message names it)
+    return params
+
+
+def _describe(params):
+    text = f"ARX(na={params['na']!r}, nb={params['nb']!r}, nk={params['nk']!r}"
+    if _offset_mode(params.get("offset", False)) != "none":
+        text += f", offset={params['offset']!r}"
+    return text + ")"
+
+
+def _offset_mode(offset):
+    from .arx import _offset_mode as mode
+
+    return mode(offset)
+
+
 def _as_slice(cs):
     """``(cs, selector)``: a slice when the positions `cs` are consecutive."""
     if cs.size and cs[-1] - cs[0] + 1 == cs.size:
@@ -798,6 +905,7 @@ def _fleet_data(u, y, channels):
     names = None
     if hasattr(y, "columns") and hasattr(y, "to_numpy"):
         names = list(y.columns)
+        u = _aligned_inputs(u, y)
     Y = as_float_array(y.to_numpy() if hasattr(y, "to_numpy") else y, "y")
     U = as_float_array(u.to_numpy() if hasattr(u, "to_numpy") else u, "u")
     if Y.ndim != 2:
@@ -825,6 +933,33 @@ def _fleet_data(u, y, channels):
         raise ValueError("`channels` must be distinct labels")
     # read only below: the caller's arrays when they are float64 and C-ordered (no copy)
     return np.ascontiguousarray(U), np.ascontiguousarray(Y), names
+
+
+def _aligned_inputs(u, y):
+    """`u` with its columns in the order of `y`'s labels, when both are pandas
+    DataFrames: a fleet pairs a channel's input with its output by label, never
+    by position. Labels that do not match, or time indexes that differ, are a
+    ValueError naming them."""
+    if not (hasattr(u, "columns") and hasattr(u, "to_numpy")):
+        return u                             # an array: paired by position, as documented
+    ucols, ycols = list(u.columns), list(y.columns)
+    for name, cols in (("u", ucols), ("y", ycols)):
+        if len(set(map(repr, cols))) != len(cols):
+            raise ValueError(f"the columns of `{name}` must be distinct channel labels; got "
+                             f"{cols[:10]}{' ...' if len(cols) > 10 else ''}")
+    if ucols != ycols:
+        missing = [c for c in ycols if c not in ucols]
+        extra = [c for c in ucols if c not in ycols]
+        if missing or extra:
+            raise ValueError(
+                "the columns of `u` and `y` must carry the same channel labels (a channel's "
+                f"input is paired with its output by label); `u` lacks {missing[:10]}, and "
+                f"has {extra[:10]} that `y` lacks")
+        u = u[ycols]                         # the same labels in another order
+    if hasattr(u, "index") and hasattr(y, "index") and not u.index.equals(y.index):
+        raise ValueError("`u` and `y` must have the same index (time on axis 0, sample by "
+                         "sample); got different indexes")
+    return u
 
 
 def _fingerprint(U, Y):
