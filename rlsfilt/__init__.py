@@ -17,8 +17,8 @@ from .exceptions import (
     NotFittedError,
     NumericalWarning,
     OperatingPointWarning,
-    RegulatorWarning,
     OrderSelectionWarning,
+    RegulatorWarning,
 )
 from .filters import RecursiveLeastSquares, RLSBank, SlidingWindowRLS, SquareRootRLS
 from .models import (
