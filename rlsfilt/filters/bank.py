@@ -835,6 +835,17 @@ class RLSBank:
         self.P_prior, self.P_post = self._P.copy(order="F"), self._P.copy(order="F")
         self._updates_since_predict = 0
 
+    def smooth(self, zs, Hs, Rs=None):
+        """``batch_filter(zs, Hs, Rs)``, then the Rauch-Tung-Striebel smoother of every channel.
+
+        Returns a `rlsfilt.filters.smoother.SmoothedTrajectory` whose estimates are
+        ``(N, C, dim_x)`` and covariances ``(N, C, dim_x, dim_x)``; each channel's
+        equals the smoother of its own `RecursiveLeastSquares`. The bank ends where
+        ``batch_filter`` leaves it. See `rlsfilt.filters.smoother.rts_smoother`.
+        """
+        from . import smoother
+        return smoother.smooth(self, zs, Hs, Rs)
+
     # ------------------------------------------------------------------
     # channels, copies, reset
     # ------------------------------------------------------------------
