@@ -34,6 +34,7 @@ from ..exceptions import ForgettingSkippedWarning
 from . import _health, _streaming
 from . import forgetting as _fg
 from . import smoother as _smoother
+from . import tuning as _tuning
 from ._base import MISSING_DIAGNOSTICS, _FilterBase, own_array
 from .contract import check_state
 
@@ -1048,6 +1049,14 @@ class RecursiveLeastSquares(_FilterBase):
         ``batch_filter`` leaves it. See `rlsfilt.filters.smoother.rts_smoother`.
         """
         return _smoother.smooth(self, zs, Hs, Rs)
+
+    def tune(self, zs, Hs, param="q", *, bounds=None, burn=0, apply=False):
+        """Maximum likelihood of ``lam`` or of the random walk ``Q`` (and ``R``) on a record.
+
+        Returns a `rlsfilt.filters.tuning.TuneResult`; see
+        `rlsfilt.filters.tuning.tune` for the parameters and the likelihood.
+        """
+        return _tuning.tune(self, zs, Hs, param, bounds=bounds, burn=burn, apply=apply)
 
     # ------------------------------------------------------------------
     # the filter contract (rlsfilt.filters.contract.Filter)
