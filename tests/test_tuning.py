@@ -206,3 +206,27 @@ def test_true_q_inside_its_interval_in_90_percent_of_200_seeds():
         lo, hi = fit.interval(0.95)
         inside += bool(lo <= q_true <= hi)
     assert inside >= 180, inside
+
+
+def test_compiled_terms_equal_the_innovations_of_batch_filter(rng):
+    """The likelihood kernel runs the filter's recursion: its sums equal those of
+    batch_filter's innovations y_t = z_t - H_t x^-_t, s_t = H_t P^-_t H_t^T + 1."""
+    from rlsfilt.filters._kernels_tuning import profile_terms
+
+    H, z = drifting_record(rng, N=500)
+    z[[7, 99]] = np.nan
+    Z2 = np.column_stack([z, 0.5 * z + rng.standard_normal(500)])
+    for lam, q, Z in ((1.0, 0.01, z[:, None]), (0.97, 0.0, z[:, None]), (0.99, 1e-3, Z2)):
+        m = Z.shape[1]
+        Q = q * np.diag([1.0, 2.0, 0.5])
+        x0 = np.ones((3, m))
+        rls = RecursiveLeastSquares(3, m, lam=lam, R=1.0, Q=Q, P0=20.0, x0=x0)
+        _, _, Xp, Pp = rls.batch_filter(Z, H)
+        y = Z - np.einsum("kn,knm->km", H, Xp)
+        s = np.einsum("ki,kij,kj->k", H, Pp, H) + 1.0
+        keep = ~np.isnan(y).any(axis=1)
+        keep[:4] = False
+        slog, sq, count = profile_terms(x0, 20.0 * np.eye(3), Z, H, 1.0 / lam, Q, 4)
+        assert count == keep.sum() * m
+        assert_allclose(slog, np.log(s[keep]).sum(), rtol=1e-12)
+        assert_allclose(sq, np.sum(y[keep] ** 2 / s[keep, None]), rtol=1e-12)

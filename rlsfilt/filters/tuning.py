@@ -22,7 +22,7 @@ and the profile log-likelihood of the remaining parameter is
 
 `tune` maximizes it over the forgetting factor :math:`\lambda`, a scalar random
 walk :math:`Q = q \sigma^2 I` or a diagonal one, by a bounded search on a
-transformed parameter (the likelihood of one parameter is evaluated exactly by
+transformed parameter (the likelihood at one value is evaluated exactly by
 one ``batch_filter`` run), and takes standard errors from the observed
 information (the numerical second derivative of :math:`\ell_p`).
 """
@@ -31,12 +31,14 @@ import math
 
 import numpy as np
 
+from .._lazy import lazy_module
 from .._validation import check_int
 
 __all__ = ["TuneResult", "tune"]
 
 _LOG_2PI = math.log(2.0 * math.pi)
 _PARAMS = ("lam", "q", "q_diag")
+_kernels = lazy_module("rlsfilt.filters._kernels_tuning")
 _H = 1e-3            # step of the numerical second derivative in the search variable
 
 
@@ -68,7 +70,8 @@ class TuneResult:
     n_obs : int
         Innovations in the likelihood (missing and burnt-in samples excluded).
     n_evals : int
-        Likelihood evaluations (filter runs) of the search and the standard errors.
+        Likelihood evaluations (passes over the record) of the search and the
+        standard errors.
     """
 
     def __init__(self, param, estimate, stderr, loglik, R, converged, at_bound, n_obs,
@@ -217,22 +220,22 @@ def tune(filt, zs, Hs, param="q", *, bounds=None, burn=0, apply=False):
     n, m = filt.dim_x, filt.dim_z
     evals = [0]
 
+    x_start = np.ascontiguousarray(x_start, dtype=np.float64)
+    P_rel = np.ascontiguousarray(P_rel, dtype=np.float64)
+    Zc, Hc = np.ascontiguousarray(Z, dtype=np.float64), np.ascontiguousarray(Hm, dtype=np.float64)
+    terms = _kernels().profile_terms
+
     def profile(lam, Q):
         """``(loglik, sigma2, n_obs)`` of one run (R = 1, P and Q relative to R)."""
         evals[0] += 1
-        f = type(filt)(n, m, lam=lam, P0=P_rel, x0=x_start, R=1.0, Q=Q, check_every=0)
-        _, _, Xp, Pp = f.batch_filter(Z, Hm)
-        y = Z - np.einsum("kn,knm->km", Hm, Xp)              # y_t = z_t - H_t x^-_t
-        s = np.einsum("ki,kij,kj->k", Hm, Pp, Hm) + 1.0      # s_t = H_t P^-_t H_t^T + 1
-        keep = ~np.isnan(y).any(axis=1)
-        keep[:burn] = False
-        n_obs = int(keep.sum()) * m
+        # sum log s_t, sum y_t^2 / s_t (s_t = S_t / sigma^2), compiled
+        slog, sq, n_obs = terms(x_start, P_rel, Zc, Hc, 1.0 / lam,
+                                np.ascontiguousarray(Q, dtype=np.float64), burn)
         if n_obs == 0:
             raise ValueError("`zs` has no measurement left for the likelihood (all missing "
                              "or burnt in)")
-        s, y = s[keep], y[keep]
-        sigma2 = float(np.sum(y * y / s[:, None])) / n_obs   # sigma^2 = mean(y^2 / s)
-        ll = -0.5 * (n_obs * (_LOG_2PI + math.log(sigma2) + 1.0) + m * float(np.log(s).sum()))
+        sigma2 = sq / n_obs                                  # sigma^2 = mean(y^2 / s)
+        ll = -0.5 * (n_obs * (_LOG_2PI + math.log(sigma2) + 1.0) + m * slog)
         return ll, sigma2, n_obs
 
     if param == "lam":
