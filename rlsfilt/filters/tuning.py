@@ -174,8 +174,8 @@ def tune(filt, zs, Hs, param="q", *, bounds=None, burn=0, apply=False):
     -----
     See the module docstring for the profile likelihood. The search runs on
     :math:`\lambda` itself (bounded Brent, ``scipy.optimize.minimize_scalar``)
-    or on :math:`\log q` (bounded Brent; Nelder-Mead from the scalar estimate
-    for ``"q_diag"``). The standard errors come from the observed information
+    or on :math:`\log q` (bounded Brent; for ``"q_diag"`` L-BFGS-B with
+    central-difference gradients, from the scalar estimate). The standard errors come from the observed information
     :math:`-\partial^2 \ell_p / \partial v^2` in the search variable ``v`` by
     central differences, mapped to ``q`` by the delta method.
 
@@ -268,12 +268,13 @@ def tune(filt, zs, Hs, param="q", *, bounds=None, burn=0, apply=False):
         start = minimize_scalar(lambda u: negll(np.full(n, u)), bounds=(v_lo, v_hi),
                                 method="bounded",
                                 options={"xatol": 1e-6, "maxiter": 500})
-        res = minimize(negll, np.full(n, float(start.x)), method="Nelder-Mead",
+        res = minimize(negll, np.full(n, float(start.x)), method="L-BFGS-B", jac="3-point",
                        bounds=[(v_lo, v_hi)] * n,
-                       options={"xatol": 1e-9, "fatol": 1e-12, "maxiter": 4000 * n,
-                                "maxfev": 8000 * n})
+                       options={"ftol": 1e-15, "gtol": 1e-7, "maxiter": 500})
         v = np.asarray(res.x, dtype=float)
-        converged = bool(res.success)
+        # (a line search that stops at round-off is converged when the gradient is nil:
+        # 1e-4 per unit of log q moves q by less than 1e-5 of itself at any usual curvature)
+        converged = bool(res.success) or float(np.max(np.abs(res.jac))) < 1e-4
         width = v_hi - v_lo
         at_bound = bool(np.any(np.minimum(v - v_lo, v_hi - v) < 1e-6 * width))
     ll, sigma2, n_obs = run(v)
