@@ -14,6 +14,7 @@ python-control. Results are objects with named fields, ``summary()`` and
 from .criteria import InformationCriteria, criteria_from_loss, information_criteria
 from .cusum import CusumResult, cusum, cusum_squares, recursive_residuals
 from .delay import DelayEstimate, delayest
+from .detection import ChangeDetector, cusum_threshold
 from .metrics import fit_percent
 from .plant import PlantComparison
 from .report import ValidationReport, validate
@@ -28,6 +29,7 @@ from .uncertainty import (
 )
 
 __all__ = [
+    "ChangeDetector",
     "CusumResult",
     "DelayEstimate",
     "FrequencyBand",
@@ -41,6 +43,7 @@ __all__ = [
     "criteria_from_loss",
     "cusum",
     "cusum_squares",
+    "cusum_threshold",
     "delayest",
     "fit_percent",
     "frequency_response_band",
