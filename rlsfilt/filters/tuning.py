@@ -175,9 +175,10 @@ def tune(filt, zs, Hs, param="q", *, bounds=None, burn=0, apply=False):
     See the module docstring for the profile likelihood. The search runs on
     :math:`\lambda` itself (bounded Brent, ``scipy.optimize.minimize_scalar``)
     or on :math:`\log q` (bounded Brent; for ``"q_diag"`` L-BFGS-B with
-    central-difference gradients, from the scalar estimate). The standard errors come from the observed information
-    :math:`-\partial^2 \ell_p / \partial v^2` in the search variable ``v`` by
-    central differences, mapped to ``q`` by the delta method.
+    central-difference gradients, from the scalar estimate). The standard
+    errors come from the observed information :math:`-\partial^2 \ell_p /
+    \partial v^2` in the search variable ``v`` by central differences, mapped
+    to ``q`` by the delta method.
 
     References
     ----------
