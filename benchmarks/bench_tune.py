@@ -5,7 +5,8 @@ The model: ``z_t = H_t x_t + v_t`` with three random-walk coefficients
 (three), the noise variance concentrated out, known initialization; N = 2,000
 samples per series. statsmodels runs its ``MLEModel.fit()`` (L-BFGS, its
 defaults) on the same model. Times are thread CPU time (``time.thread_time``)
-per series, the median over the series; the estimates are compared too.
+per series, the median over the series; the estimates are compared too. Last,
+``RLSBank.tune`` of 1,000 channels x 1,000 samples (``--channels``).
 
 Run from the repository root: ``PYTHONPATH=. python benchmarks/bench_tune.py``
 (``--series 5`` for a shorter run). Not a test: numbers depend on the machine
@@ -66,7 +67,7 @@ def statsmodels_model(z, H, x0, P0, diagonal):
     return RandomWalkCoefficients()
 
 
-def main(series=10):
+def main(series=10, channels=1000):
     n = 3
     x0, P0 = np.zeros(n), 100.0 * np.eye(n)
     rls = RecursiveLeastSquares(n, P0=P0, x0=x0)
@@ -88,9 +89,26 @@ def main(series=10):
               f"{1e3 * a:.2f} ms, statsmodels fit {1e3 * b:.1f} ms per series "
               f"(x{b / a:.0f}); largest relative difference of the estimates "
               f"{max(rel):.1e}")
+    # a bank: every channel tuned (scalar q), 1,000 samples per channel
+    from rlsfilt import RLSBank
+
+    rng = np.random.default_rng(1)
+    C, N = channels, 1000
+    Hs = rng.standard_normal((N, C, n))
+    x = np.cumsum(0.02 * rng.standard_normal((N, C, n)), 0) + 1.0
+    zs = np.einsum("tcn,tcn->tc", Hs, x) + 0.1 * rng.standard_normal((N, C))
+    bank = RLSBank(C, n, P0=100.0)
+    t0 = time.thread_time()
+    fits = bank.tune(zs, Hs, "q")
+    t = time.thread_time() - t0
+    print(f"RLSBank.tune, {C} channels x {N} samples, 3 coefficients: {t:.2f} s "
+          f"({1e3 * t / C:.2f} ms per channel; 10,000 channels: about {1e4 * t / C:.0f} s), "
+          f"{int(fits.converged.sum())} converged")
 
 
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--series", type=int, default=10)
-    main(parser.parse_args().series)
+    parser.add_argument("--channels", type=int, default=1000)
+    args = parser.parse_args()
+    main(args.series, args.channels)

@@ -230,3 +230,30 @@ def test_compiled_terms_equal_the_innovations_of_batch_filter(rng):
         assert count == keep.sum() * m
         assert_allclose(slog, np.log(s[keep]).sum(), rtol=1e-12)
         assert_allclose(sq, np.sum(y[keep] ** 2 / s[keep, None]), rtol=1e-12)
+
+
+@pytest.mark.parametrize("param", ["q", "lam"])
+def test_bank_channels_equal_single_filters(rng, param):
+    from rlsfilt import RLSBank
+
+    C, N, n = 3, 400, 2
+    Hs = rng.standard_normal((N, C, n))
+    x = np.cumsum(0.03 * rng.standard_normal((N, C, n)), 0) + 1.0
+    zs = np.einsum("tcn,tcn->tc", Hs, x) + 0.1 * rng.standard_normal((N, C))
+    zs[7, 1] = np.nan
+    bank = RLSBank(C, n, Q=np.array([0.0, 1e-3, 0.0]), R=np.array([1.0, 2.0, 0.5]),
+                   P0=50.0, lam=np.array([1.0, 1.0, 0.99]))
+    fits = bank.tune(zs, Hs, param)
+    assert fits.estimate.shape == (C,) and "3 channels" in repr(fits)
+    for c in range(C):
+        one = bank.channel(c).tune(zs[:, c], Hs[:, c], param)
+        assert fits.channel(c).estimate == one.estimate
+        assert fits.loglik[c] == one.loglik and fits.R[c] == one.R
+    lo, hi = fits.interval()
+    assert np.all(lo < fits.estimate) and np.all(fits.estimate < hi)
+    fits.apply(bank)
+    assert_allclose(bank.R, fits.R, rtol=0)
+    if param == "q":
+        assert_allclose(bank.Q[1], fits.estimate[1] * fits.R[1] * np.eye(n), rtol=1e-15)
+    else:
+        assert_allclose(bank.lam, fits.estimate, rtol=0)

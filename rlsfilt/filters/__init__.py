@@ -5,7 +5,8 @@ from .rls import RecursiveLeastSquares
 from .sliding_window import SlidingWindowRLS
 from .smoother import SmoothedTrajectory, rts_smoother
 from .square_root import SquareRootRLS
-from .tuning import TuneResult, tune
+from .tuning import BankTuneResult, TuneResult, tune, tune_bank
 
 __all__ = ["RecursiveLeastSquares", "SlidingWindowRLS", "SquareRootRLS", "RLSBank",
-           "rts_smoother", "SmoothedTrajectory", "tune", "TuneResult"]
+           "rts_smoother", "SmoothedTrajectory", "tune", "TuneResult", "tune_bank",
+           "BankTuneResult"]

@@ -846,6 +846,16 @@ class RLSBank:
         from . import smoother
         return smoother.smooth(self, zs, Hs, Rs)
 
+    def tune(self, zs, Hs, param="q", *, bounds=None, burn=0, apply=False):
+        """Maximum likelihood of every channel's ``lam`` or random walk ``Q`` (and ``R``).
+
+        Returns a `rlsfilt.filters.tuning.BankTuneResult`; each channel equals
+        ``bank.channel(c).tune(zs[:, c], Hs[:, c], ...)``. See
+        `rlsfilt.filters.tuning.tune_bank`.
+        """
+        from . import tuning
+        return tuning.tune_bank(self, zs, Hs, param, bounds=bounds, burn=burn, apply=apply)
+
     # ------------------------------------------------------------------
     # channels, copies, reset
     # ------------------------------------------------------------------

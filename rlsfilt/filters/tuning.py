@@ -32,9 +32,9 @@ import math
 import numpy as np
 
 from .._lazy import lazy_module
-from .._validation import check_int
+from .._validation import as_float_array, check_int
 
-__all__ = ["TuneResult", "tune"]
+__all__ = ["BankTuneResult", "TuneResult", "tune", "tune_bank"]
 
 _LOG_2PI = math.log(2.0 * math.pi)
 _PARAMS = ("lam", "q", "q_diag")
@@ -139,6 +139,58 @@ class TuneResult:
                 f"loglik={self.loglik:.4f} converged={self.converged}>")
 
 
+class BankTuneResult:
+    """What `tune_bank` (`RLSBank.tune`) returns: one `TuneResult` per channel, and their
+    fields as arrays.
+
+    Attributes
+    ----------
+    results : list of TuneResult
+        Channel by channel.
+    param : str
+        What was tuned.
+    estimate, stderr : ndarray, shape (C,) or (C, dim_x)
+    loglik, R : ndarray, shape (C,)
+    converged, at_bound : ndarray of bool, shape (C,)
+    n_obs, n_evals : ndarray of int, shape (C,)
+    """
+
+    def __init__(self, results):
+        self.results = results
+        self.param = results[0].param if results else None
+        for name in ("estimate", "stderr", "loglik", "R", "converged", "at_bound", "n_obs",
+                     "n_evals"):
+            setattr(self, name, np.array([getattr(r, name) for r in results]))
+
+    def channel(self, i):
+        """The `TuneResult` of channel `i`."""
+        return self.results[i]
+
+    def interval(self, level=0.95):
+        """Each channel's `TuneResult.interval`, as arrays ``(low, high)``."""
+        lows, highs = zip(*(r.interval(level) for r in self.results), strict=True)
+        return np.array(lows), np.array(highs)
+
+    def apply(self, bank):
+        """Set every channel's ``R`` and ``lam`` or ``Q`` to its estimate; returns `bank`."""
+        R_old, n = bank.R, bank.dim_x
+        if self.param == "lam":
+            Q_rel = bank.Q / R_old[:, None, None]
+            bank.R = self.R
+            bank.lam = self.estimate
+            bank.Q = Q_rel * self.R[:, None, None]
+        else:
+            q = np.broadcast_to(self.estimate.reshape(len(self.results), -1),
+                                (len(self.results), n))
+            bank.R = self.R
+            bank.Q = np.einsum("ci,ij->cij", q * self.R[:, None], np.eye(n))
+        return bank
+
+    def __repr__(self):
+        return (f"<BankTuneResult {self.param}: {len(self.results)} channels, "
+                f"{int(self.converged.sum())} converged>")
+
+
 def tune(filt, zs, Hs, param="q", *, bounds=None, burn=0, apply=False):
     r"""Maximum likelihood of the forgetting factor or the random walk of a filter.
 
@@ -205,8 +257,6 @@ def tune(filt, zs, Hs, param="q", *, bounds=None, burn=0, apply=False):
     >>> bool(lo < 0.04 < hi), round(fit.R, 3)
     (True, 0.01)
     """
-    from scipy.optimize import minimize, minimize_scalar  # lazy: keeps `import rlsfilt` light
-
     if param not in _PARAMS:
         raise ValueError(f"`param` must be one of {', '.join(map(repr, _PARAMS))}; got {param!r}")
     if getattr(filt, "forgetting", None) != "exponential":
@@ -214,13 +264,68 @@ def tune(filt, zs, Hs, param="q", *, bounds=None, burn=0, apply=False):
                          "(a Kalman time update P / lam + Q)")
     burn = check_int(burn, "burn", minimum=0)
     Z, Hm = filt._as_batch(zs, Hs)
-    lo, hi = _bounds(param, bounds)
+    bounds = _bounds(param, bounds)
     R0 = filt.R
-    x_start, P_rel = filt.x.copy(), filt.P / R0
-    Q_rel, lam0 = filt.Q / R0, filt.lam
-    n, m = filt.dim_x, filt.dim_z
-    evals = [0]
+    out = _tune_record(Z, Hm, filt.x, filt.P / R0, filt.Q / R0, filt.lam, param, bounds, burn)
+    if apply:
+        out.apply(filt)
+    return out
 
+
+def tune_bank(bank, zs, Hs, param="q", *, bounds=None, burn=0, apply=False):
+    r"""`tune` of every channel of an `RLSBank`: `RLSBank.tune`.
+
+    Each channel ``c`` is tuned on its own column of the record, from its own
+    state, ``R``, ``Q`` and ``lam``, exactly as `tune` tunes
+    ``bank.channel(c)`` (the same compiled passes, one channel after another).
+
+    Parameters
+    ----------
+    bank : RLSBank
+        With ``forgetting="exponential"``; left unchanged unless `apply`.
+    zs : array_like, shape (N, C)
+        Measurements; NaN skips that channel at that step.
+    Hs : array_like, shape (N, C, dim_x)
+        Regressor rows; a row holding NaN skips that channel at that step.
+    param, bounds, burn, apply
+        As for `tune` (`apply` sets every channel's ``R`` and ``lam`` or ``Q``).
+
+    Returns
+    -------
+    BankTuneResult
+    """
+    if param not in _PARAMS:
+        raise ValueError(f"`param` must be one of {', '.join(map(repr, _PARAMS))}; got {param!r}")
+    if getattr(bank, "forgetting", None) != "exponential":
+        raise ValueError("`tune` needs forgetting='exponential' (a Kalman time update "
+                         "P / lam + Q)")
+    burn = check_int(burn, "burn", minimum=0)
+    C, n = bank.n_channels, bank.dim_x
+    Z = as_float_array(zs, "zs")
+    if Z.ndim != 2 or Z.shape[1] != C:
+        raise ValueError(f"`zs` must have shape (N, {C}) (one column per channel); got {Z.shape}")
+    Hm = as_float_array(Hs, "Hs")
+    if Hm.shape != (len(Z), C, n):
+        raise ValueError(f"`Hs` must have shape ({len(Z)}, {C}, {n}); got {Hm.shape}")
+    bounds = _bounds(param, bounds)
+    x, P, Q, R, lam = bank.x, bank.P, bank.Q, bank.R, bank.lam
+    results = [_tune_record(Z[:, c:c + 1], Hm[:, c], x[c].reshape(n, 1), P[c] / R[c],
+                            Q[c] / R[c], float(lam[c]), param, bounds, burn)
+               for c in range(C)]
+    out = BankTuneResult(results)
+    if apply:
+        out.apply(bank)
+    return out
+
+
+def _tune_record(Z, Hm, x_start, P_rel, Q_rel, lam0, param, bounds, burn):
+    """`tune` on a validated record ``Z`` (N, m), ``Hm`` (N, n) from ``x_start`` (n, m),
+    with ``P`` and ``Q`` relative to ``R``; returns the `TuneResult`."""
+    from scipy.optimize import minimize, minimize_scalar  # lazy: keeps `import rlsfilt` light
+
+    lo, hi = bounds
+    n, m = x_start.shape
+    evals = [0]
     x_start = np.ascontiguousarray(x_start, dtype=np.float64)
     P_rel = np.ascontiguousarray(P_rel, dtype=np.float64)
     Zc, Hc = np.ascontiguousarray(Z, dtype=np.float64), np.ascontiguousarray(Hm, dtype=np.float64)
@@ -290,11 +395,8 @@ def tune(filt, zs, Hs, param="q", *, bounds=None, burn=0, apply=False):
     else:
         estimate = np.exp(v)
         stderr, log_se = estimate * se_v, se_v
-    out = TuneResult(param, estimate, stderr, ll, sigma2, converged and not at_bound, at_bound,
-                     n_obs, evals[0], _log_stderr=log_se)
-    if apply:
-        out.apply(filt)
-    return out
+    return TuneResult(param, estimate, stderr, ll, sigma2, converged and not at_bound, at_bound,
+                      n_obs, evals[0], _log_stderr=log_se)
 
 
 # ----------------------------------------------------------------------
