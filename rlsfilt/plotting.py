@@ -46,6 +46,7 @@ __all__ = [
     "COLORS",
     "MAX_POINTS",
     "plot_parameters",
+    "plot_smoothed",
     "plot_trace",
     "plot_tracking",
     "plot_compare",
@@ -179,6 +180,79 @@ def plot_parameters(source, covariances=None, *, t=None, names=None, true_values
     extra = []
     if truth is not None:
         extra.append(_proxy(color=_BLACK, linestyle="--", lw=0.9, label="true"))
+    _legend_outside(ax, extra=extra)
+    return ax
+
+
+def plot_smoothed(smoothed, *, t=None, names=None, true_values=None, n_std=2.0, output=0,
+                  channel=0, filtered=True, xlabel=None, ax=None):
+    r"""Plot the smoothed parameter trajectory over the filtered one, both with bands.
+
+    Parameters
+    ----------
+    smoothed : SmoothedTrajectory
+        What `rlsfilt.filters.smoother.rts_smoother` (or ``smooth()`` of a
+        filter or bank) returns.
+    t, names, true_values, n_std, output, xlabel
+        As for :func:`plot_parameters`.
+    channel : int, default 0
+        Which channel of a bank's ``(N, C, n)`` trajectory to plot.
+    filtered : bool, default True
+        Draw the filtered estimates too (dotted, with fainter bands): they
+        lag a drift and their bands are wider, the smoothed ones use the
+        data after each step as well.
+    ax : matplotlib.axes.Axes, optional
+        Axes to draw in; a new figure is made if omitted.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+
+    Examples
+    --------
+    >>> import matplotlib.pyplot as plt
+    >>> import numpy as np
+    >>> from rlsfilt import RecursiveLeastSquares
+    >>> from rlsfilt.plotting import plot_smoothed
+    >>> rng = np.random.default_rng(0)
+    >>> H = rng.standard_normal((300, 2))
+    >>> drift = np.linspace(0.0, 0.5, 300)
+    >>> z = H[:, 0] * (0.8 + drift) - 0.3 * H[:, 1] + 0.1 * rng.standard_normal(300)
+    >>> rls = RecursiveLeastSquares(2, R=0.1 ** 2, Q=1e-5)
+    >>> ax = plot_smoothed(rls.smooth(z, H), names=["a", "b"])
+    >>> ax.get_title()
+    'filtered (dotted) and smoothed estimates ($\\pm2\\sigma$ bands)'
+    """
+    means, covs = smoothed.means, smoothed.covariances
+    f_means, f_covs = smoothed.filtered_means, smoothed.filtered_covariances
+    if np.ndim(covs) == 4:                         # a bank: (N, C, n), (N, C, n, n)
+        C = covs.shape[1]
+        channel = check_int(channel, "channel", minimum=0)
+        if channel >= C:
+            raise ValueError(f"`channel` must be < {C} (the bank has {C} channels); "
+                             f"got {channel}")
+        means, covs = means[:, channel], covs[:, channel]
+        f_means, f_covs = f_means[:, channel], f_covs[:, channel]
+    ax = plot_parameters((means, covs), t=t, names=names, true_values=true_values,
+                         n_std=n_std, output=output, xlabel=xlabel, ax=ax)
+    extra = [_proxy(color=_GREY, lw=1.2, label="smoothed")]
+    if filtered:
+        ylim = ax.get_ylim()
+        theta, fc, _ = _resolve((f_means, f_covs), None, output)
+        tt = _time_axis(t, len(theta))
+        for i in range(theta.shape[1]):
+            sd = n_std * np.sqrt(np.clip(fc[:, i, i], 0.0, None))
+            ax.plot(*_decimate(tt, theta[:, i]), color=_color(i), lw=0.9, linestyle=":")
+            ax.fill_between(*_envelope(tt, theta[:, i] - sd, theta[:, i] + sd),
+                            color=_color(i), alpha=0.07, linewidth=0)
+        ax.set_ylim(*ylim)                         # the smoothed bands set the scale
+        extra.append(_proxy(color=_GREY, lw=0.9, linestyle=":", label="filtered"))
+    if true_values is not None:
+        extra.append(_proxy(color=_BLACK, linestyle="--", lw=0.9, label="true"))
+    ax.set_title(("filtered (dotted) and smoothed" if filtered else "smoothed")
+                 + rf" estimates ($\pm{n_std:g}\sigma$ bands)")
+    if ax.get_legend() is not None:
+        ax.get_legend().remove()
     _legend_outside(ax, extra=extra)
     return ax
 

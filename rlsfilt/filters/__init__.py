@@ -1,8 +1,12 @@
-"""Recursive least-squares filters."""
+"""Recursive least-squares filters, their smoother and their tuning by likelihood."""
 
 from .bank import RLSBank
 from .rls import RecursiveLeastSquares
 from .sliding_window import SlidingWindowRLS
+from .smoother import SmoothedTrajectory, rts_smoother
 from .square_root import SquareRootRLS
+from .tuning import BankTuneResult, TuneResult, tune, tune_bank
 
-__all__ = ["RecursiveLeastSquares", "SlidingWindowRLS", "SquareRootRLS", "RLSBank"]
+__all__ = ["RecursiveLeastSquares", "SlidingWindowRLS", "SquareRootRLS", "RLSBank",
+           "rts_smoother", "SmoothedTrajectory", "tune", "TuneResult", "tune_bank",
+           "BankTuneResult"]

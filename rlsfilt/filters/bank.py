@@ -864,6 +864,27 @@ class RLSBank:
         self._updates_since_predict = 0
         self._uncap()
 
+    def smooth(self, zs, Hs, Rs=None):
+        """``batch_filter(zs, Hs, Rs)``, then the Rauch-Tung-Striebel smoother of every channel.
+
+        Returns a `rlsfilt.filters.smoother.SmoothedTrajectory` whose estimates are
+        ``(N, C, dim_x)`` and covariances ``(N, C, dim_x, dim_x)``; each channel's
+        equals the smoother of its own `RecursiveLeastSquares`. The bank ends where
+        ``batch_filter`` leaves it. See `rlsfilt.filters.smoother.rts_smoother`.
+        """
+        from . import smoother
+        return smoother.smooth(self, zs, Hs, Rs)
+
+    def tune(self, zs, Hs, param="q", *, bounds=None, burn=0, apply=False):
+        """Maximum likelihood of every channel's ``lam`` or random walk ``Q`` (and ``R``).
+
+        Returns a `rlsfilt.filters.tuning.BankTuneResult`; each channel equals
+        ``bank.channel(c).tune(zs[:, c], Hs[:, c], ...)``. See
+        `rlsfilt.filters.tuning.tune_bank`.
+        """
+        from . import tuning
+        return tuning.tune_bank(self, zs, Hs, param, bounds=bounds, burn=burn, apply=apply)
+
     # ------------------------------------------------------------------
     # channels, copies, reset
     # ------------------------------------------------------------------

@@ -33,6 +33,8 @@ from .._validation import (
 from ..exceptions import ForgettingSkippedWarning
 from . import _health, _streaming
 from . import forgetting as _fg
+from . import smoother as _smoother
+from . import tuning as _tuning
 from ._base import MISSING_DIAGNOSTICS, _FilterBase, own_array
 from .contract import check_state
 
@@ -859,8 +861,35 @@ class RecursiveLeastSquares(_FilterBase):
         self.x_post, self.P_post = self._x.copy(), self._P.copy()
 
     # ------------------------------------------------------------------
-    # filterpy helpers
+    # filterpy helpers: smoothing and tuning (rlsfilt.filters.smoother, .tuning)
     # ------------------------------------------------------------------
+    def rts_smoother(self, Xs, Ps, Qs=None):
+        """filterpy's ``KalmanFilter.rts_smoother`` with ``F = I``: returns ``(x, P, K, Pp)``.
+
+        `Xs` (N, dim_x) or (N, dim_x, dim_z) and `Ps` (N, dim_x, dim_x) are the
+        posteriors of a run (``batch_filter``'s first two results); the priors
+        are ``Ps[t] / lam + Qs[t + 1]`` (``self.Q`` when `Qs` is omitted). See
+        `rlsfilt.filters.smoother.rts_smoother` for the recursion.
+        """
+        return _smoother.filter_rts_smoother(self, Xs, Ps, Qs)
+
+    def smooth(self, zs, Hs, Rs=None):
+        """``batch_filter(zs, Hs, Rs)``, then the Rauch-Tung-Striebel smoother of the run.
+
+        Returns a `rlsfilt.filters.smoother.SmoothedTrajectory` (smoothed and
+        filtered estimates and covariances, ``.plot()``); the filter ends where
+        ``batch_filter`` leaves it. See `rlsfilt.filters.smoother.rts_smoother`.
+        """
+        return _smoother.smooth(self, zs, Hs, Rs)
+
+    def tune(self, zs, Hs, param="q", *, bounds=None, burn=0, apply=False):
+        """Maximum likelihood of ``lam`` or of the random walk ``Q`` (and ``R``) on a record.
+
+        Returns a `rlsfilt.filters.tuning.TuneResult`; see
+        `rlsfilt.filters.tuning.tune` for the parameters and the likelihood.
+        """
+        return _tuning.tune(self, zs, Hs, param, bounds=bounds, burn=burn, apply=apply)
+
     # ------------------------------------------------------------------
     # the filter contract (rlsfilt.filters.contract.Filter)
     # ------------------------------------------------------------------

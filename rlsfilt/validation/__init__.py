@@ -15,6 +15,7 @@ from .compare import Comparison, compare
 from .criteria import InformationCriteria, criteria_from_loss, information_criteria
 from .cusum import CusumResult, cusum, cusum_squares, recursive_residuals
 from .delay import DelayEstimate, delayest
+from .detection import ChangeDetector, cusum_threshold
 from .metrics import fit_percent
 from .plant import PlantComparison
 from .report import ValidationReport, validate
@@ -30,6 +31,7 @@ from .uncertainty import (
 
 __all__ = [
     "Comparison",
+    "ChangeDetector",
     "CusumResult",
     "DelayEstimate",
     "FrequencyBand",
@@ -44,6 +46,7 @@ __all__ = [
     "criteria_from_loss",
     "cusum",
     "cusum_squares",
+    "cusum_threshold",
     "delayest",
     "fit_percent",
     "frequency_response_band",

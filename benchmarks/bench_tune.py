@@ -1,0 +1,114 @@
+"""Time `RecursiveLeastSquares.tune` against statsmodels' maximum likelihood of the same model.
+
+The model: ``z_t = H_t x_t + v_t`` with three random-walk coefficients
+``x_t = x_{t-1} + w_t``, ``Q = q R I`` (one hyperparameter) or ``Q = R diag(q)``
+(three), the noise variance concentrated out, known initialization; N = 2,000
+samples per series. statsmodels runs its ``MLEModel.fit()`` (L-BFGS, its
+defaults) on the same model. Times are thread CPU time (``time.thread_time``)
+per series, the median over the series; the estimates are compared too. Last,
+``RLSBank.tune`` of 1,000 channels x 1,000 samples (``--channels``).
+
+Run from the repository root: ``PYTHONPATH=. python benchmarks/bench_tune.py``
+(``--series 5`` for a shorter run). Not a test: numbers depend on the machine
+and its load.
+"""
+
+import argparse
+import time
+
+import numpy as np
+
+from rlsfilt import RecursiveLeastSquares
+
+
+def record(seed, N=2000, n=3):
+    rng = np.random.default_rng(seed)
+    H = rng.standard_normal((N, n))
+    x = np.array([1.0, -0.5, 0.3]) + np.cumsum(0.02 * rng.standard_normal((N, n)), 0)
+    z = np.sum(H * x, axis=1) + 0.1 * rng.standard_normal(N)
+    return z, H
+
+
+def statsmodels_model(z, H, x0, P0, diagonal):
+    from statsmodels.tsa.statespace.mlemodel import MLEModel
+
+    n = H.shape[1]
+
+    class RandomWalkCoefficients(MLEModel):
+        def __init__(self):
+            super().__init__(z, k_states=n, k_posdef=n, initialization="known",
+                             initial_state=x0, initial_state_cov=P0)
+            self.ssm.filter_concentrated = True
+            self["design"] = H.T[None]
+            self["transition"] = np.eye(n)
+            self["selection"] = np.eye(n)
+            self["obs_cov"] = np.array([[1.0]])
+
+        @property
+        def param_names(self):
+            return [f"q{i}" for i in range(n)] if diagonal else ["q"]
+
+        @property
+        def start_params(self):
+            return np.full(n if diagonal else 1, 0.01)
+
+        def transform_params(self, unconstrained):
+            return unconstrained ** 2
+
+        def untransform_params(self, constrained):
+            return constrained ** 0.5
+
+        def update(self, params, **kwargs):
+            params = super().update(params, **kwargs)
+            Q = np.diag(params) if diagonal else params[0] * np.eye(n)
+            self["state_cov"] = Q
+            self.ssm.initialize_known(x0, P0 + Q)
+
+    return RandomWalkCoefficients()
+
+
+def main(series=10, channels=1000):
+    n = 3
+    x0, P0 = np.zeros(n), 100.0 * np.eye(n)
+    rls = RecursiveLeastSquares(n, P0=P0, x0=x0)
+    rls.tune(*record(0, N=50), "q")                       # compile / load the kernel
+    for param, diagonal in (("q", False), ("q_diag", True)):
+        ours, theirs, rel = [], [], []
+        for seed in range(series):
+            z, H = record(seed)
+            t0 = time.thread_time()
+            fit = rls.tune(z, H, param)
+            ours.append(time.thread_time() - t0)
+            mod = statsmodels_model(z, H, x0, P0, diagonal)
+            t0 = time.thread_time()
+            res = mod.fit(disp=0)
+            theirs.append(time.thread_time() - t0)
+            rel.append(np.max(np.abs(np.atleast_1d(fit.estimate) - res.params) / res.params))
+        a, b = np.median(ours), np.median(theirs)
+        print(f"{param:7s} N = 2000, 3 coefficients, {series} series: rlsfilt tune "
+              f"{1e3 * a:.2f} ms, statsmodels fit {1e3 * b:.1f} ms per series "
+              f"(x{b / a:.0f}); largest relative difference of the estimates "
+              f"{max(rel):.1e}")
+    # a bank: every channel tuned (scalar q), 1,000 samples per channel
+    from rlsfilt import RLSBank
+
+    rng = np.random.default_rng(1)
+    C, N = channels, 1000
+    Hs = rng.standard_normal((N, C, n))
+    x = np.cumsum(0.02 * rng.standard_normal((N, C, n)), 0) + 1.0
+    zs = np.einsum("tcn,tcn->tc", Hs, x) + 0.1 * rng.standard_normal((N, C))
+    bank = RLSBank(C, n, P0=100.0)
+    t0 = time.thread_time()
+    fits = bank.tune(zs, Hs, "q")
+    t = time.thread_time() - t0
+    print(f"RLSBank.tune, {C} channels x {N} samples, 3 coefficients: {t:.2f} s "
+          f"({1e3 * t / C:.2f} ms per channel; 10,000 channels: about {1e4 * t / C:.0f} s), "
+          f"{int(fits.converged.sum())} converged")
+
+
+if __name__ == "__main__":
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--series", type=int, default=10)
+    parser.add_argument("--channels", type=int, default=1000)
+    args = parser.parse_args()
+    main(args.series, args.channels)
