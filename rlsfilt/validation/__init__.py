@@ -30,8 +30,8 @@ from .uncertainty import (
 )
 
 __all__ = [
-    "Comparison",
     "ChangeDetector",
+    "Comparison",
     "CusumResult",
     "DelayEstimate",
     "FrequencyBand",
