@@ -566,8 +566,19 @@ def _pem_unit(records, s, theta0, rows, *, ftol, xtol, gtol, max_nfev, n_starts=
                   warnings=messages, start_costs=start_costs)
 
 
+_EPS = np.finfo(float).eps
+
+#: Largest number of undamped steps that finish a converged search.
+_POLISH_STEPS = 10
+
 # status codes of the search (those of scipy's least_squares where they exist)
 _MAX_NFEV, _GTOL, _FTOL, _XTOL, _NO_DESCENT, _TIMEOUT = 0, 1, 2, 3, 4, -2
+
+
+def _stop_reason(small_f):
+    if small_f:
+        return _FTOL, "`ftol` termination condition is satisfied."
+    return _XTOL, "`xtol` termination condition is satisfied."
 
 
 class _SearchResult:
@@ -596,7 +607,8 @@ def _levenberg_marquardt(fun, jac, theta, first, s, *, ftol, xtol, gtol, max_nfe
     n_fev, n_jev, n_iter = 1, 1, 0
     d = np.linalg.norm(J, axis=0)
     d[d == 0] = 1.0
-    lam, nu = 1e-3, 2.0
+    lam, nu, lam_kept = 1e-3, 2.0, 1e-3
+    polish = None
     status, message = None, ""
     if not clock.tick(cost):
         status = _TIMEOUT
@@ -627,21 +639,38 @@ def _levenberg_marquardt(fun, jac, theta, first, s, *, ftol, xtol, gtol, max_nfe
             cost_t = np.inf if r_t is None else 0.5 * float(r_t @ r_t)
             in_time = clock.tick(min(cost, cost_t))
             step = np.linalg.norm(trial - theta)
-            if cost_t < cost:
+            if polish is None:
+                accept = cost_t < cost
+            else:       # undamped steps that shrink, the criterion level to round-off
+                accept = (not reflected and cost_t <= cost * (1.0 + 8.0 * _EPS)
+                          and (polish[2] is None or step < 0.5 * polish[2]))
+            if accept:
                 rho = (cost - cost_t) / pred if pred > 0 and not reflected else 0.5
-                lam *= max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
+                lam = (lam if lam > 0 else lam_kept) * max(1.0 / 3.0,
+                                                           1.0 - (2.0 * rho - 1.0) ** 3)
                 nu = 2.0
                 small_f = cost - cost_t <= ftol * cost
                 small_x = step <= xtol * (xtol + np.linalg.norm(theta))
                 theta, r, parts, cost = trial, r_t, parts_t, cost_t
                 J = jac(theta, parts)
                 n_jev += 1
-                if small_f:
-                    status, message = _FTOL, "`ftol` termination condition is satisfied."
-                elif small_x:
-                    status, message = _XTOL, "`xtol` termination condition is satisfied."
+                if polish is None and (small_f or small_x):
+                    # converged to the tolerance: finish with undamped (Gauss-Newton)
+                    # steps while they shrink, so that the estimate is the minimizer
+                    # to round-off, not to sqrt(ftol)
+                    polish, lam_kept = [small_f, 0, None], lam
+                    lam = 0.0
+                elif polish is not None:
+                    polish[1] += 1
+                    polish[2] = step
+                    if (step <= 4.0 * _EPS * np.linalg.norm(theta)
+                            or polish[1] >= _POLISH_STEPS):
+                        status, message = _stop_reason(polish[0])
                 break
-            lam *= nu
+            if polish is not None:        # the undamped step failed: stop where we are
+                status, message = _stop_reason(polish[0])
+                break
+            lam = lam * nu if lam > 0 else lam_kept * nu
             nu *= 2.0
             if np.linalg.norm(p) <= xtol * (xtol + np.linalg.norm(theta)):
                 status, message = _XTOL, "`xtol` termination condition is satisfied."
