@@ -36,12 +36,18 @@ with every filter):
     \psi_{d_k} = -\frac{1}{C} v(t-k),\quad
     \psi_{f_{i,k}} = -\frac{D}{C F_i} w_i(t-k).
 
-`pem` minimizes :math:`V` by ``scipy.optimize.least_squares`` (trust-region
-reflective) with this analytic Jacobian, from the consistent start of
-:mod:`rlsfilt.models._initial`. ``C``, ``D`` and ``F_i`` are kept stable: the
-start is reflected into the unit circle, and a trial step that leaves the
-stability region gets non-finite residuals, which makes the trust region
-shrink, so every iterate has a stable predictor. The covariance is
+`pem` minimizes :math:`V` by a Levenberg-Marquardt search
+(`_levenberg_marquardt`) with this analytic Jacobian, from the lowest
+criterion of the consistent starts of :mod:`rlsfilt.models._initial`
+(refined IV or Hannan-Rissanen, the ARX of the same orders, a reduced
+high-order ARX), optionally also from random stable starts. ``C``, ``D``
+and ``F_i`` are kept stable as in MATLAB's ``pem``: a start or a trial step
+that leaves the stability region has its zeros reflected inside, so every
+iterate has a stable predictor and the search is not stopped at the
+boundary. A `ConvergenceWarning` says when the result may not be the
+optimum: a zero on the boundary at the end, a limit reached, or a
+criterion above that of the ARX of the same orders. The covariance is
+The covariance is
 :math:`\hat\sigma^2 (J^T J)^{-1}` at the minimum, with
 :math:`\hat\sigma^2 = 2V / (N - t_0 - n_\theta)` (Ljung 1999, ch. 9).
 
@@ -66,6 +72,9 @@ References
    Prentice Hall, 1999, sec. 4.2, 7.2, 9.2 and 10.2.
 .. [2] T. Soderstrom and P. Stoica, *System Identification*, Prentice Hall,
    1989, ch. 7.
+.. [3] K. Madsen, H. B. Nielsen and O. Tingleff, *Methods for Non-Linear
+   Least Squares Problems*, 2nd ed., Technical University of Denmark, 2004,
+   sec. 3.2 (the damping update).
 """
 
 import contextlib
