@@ -564,10 +564,10 @@ def _pem_unit(records, s, theta0, rows, *, ftol, xtol, gtol, max_nfev, n_starts=
                             f"converging ({res.message}); raise `{what}` or start from this "
                             f"model with init_model=")
         if arx_cost is not None and cost > arx_cost * (1.0 + 1e-8):
-            messages.append(f"the prediction-error fit ended with a criterion {cost / arx_cost:.4g} "
-                            f"times that of the least-squares ARX of the same orders: it "
-                            f"stopped in a poor local minimum; try n_starts=10 or the default "
-                            f"start")
+            messages.append(f"the prediction-error fit ended with a criterion "
+                            f"{cost / arx_cost:.4g} times that of the least-squares ARX of "
+                            f"the same orders: it stopped in a poor local minimum; try "
+                            f"n_starts=10 or the default start")
     return PEMFit(theta=theta, cov=cov, noise_variance=sigma2, eps=eps, residuals=r, cost=cost,
                   theta0=theta_start, n_fev=res.n_fev, n_jev=res.n_jev, n_iter=res.n_iter,
                   status=res.status, message=res.message, converged=res.converged,
