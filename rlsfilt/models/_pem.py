@@ -577,14 +577,20 @@ def _pem_unit(records, s, theta0, rows, *, ftol, xtol, gtol, max_nfev, n_starts=
 
 _EPS = np.finfo(float).eps
 
-#: Largest number of undamped steps that finish a converged search.
+#: Largest number of undamped steps that finish a converged search, and the largest
+#: relative rise of the criterion they may make (far below any statistical meaning).
 _POLISH_STEPS = 10
+_POLISH_RISE = 1e-10
 
 # status codes of the search (those of scipy's least_squares where they exist)
 _MAX_NFEV, _GTOL, _FTOL, _XTOL, _NO_DESCENT, _TIMEOUT = 0, 1, 2, 3, 4, -2
 
 
 def _stop_reason(small_f):
+    """Status and message of a converged search: ``small_f`` True (``ftol``), False
+    (``xtol``) or None (``gtol``)."""
+    if small_f is None:
+        return _GTOL, "`gtol` termination condition is satisfied."
     if small_f:
         return _FTOL, "`ftol` termination condition is satisfied."
     return _XTOL, "`xtol` termination condition is satisfied."
@@ -627,9 +633,12 @@ def _levenberg_marquardt(fun, jac, theta, first, s, *, ftol, xtol, gtol, max_nfe
         d = np.maximum(d, np.linalg.norm(J, axis=0))
         g = J.T @ r
         rn = np.sqrt(2.0 * cost)
-        if rn == 0.0 or np.max(np.abs(g) / (d * rn)) <= gtol:
-            status, message = _GTOL, "`gtol` termination condition is satisfied."
+        if rn == 0.0:
+            status, message = _stop_reason(None)
             break
+        if polish is None and np.max(np.abs(g) / (d * rn)) <= gtol:
+            polish, lam_kept = [None, 0, None], lam     # finish with undamped steps (below)
+            lam = 0.0
         Q, R = qr(np.asfortranarray(J), mode="economic", check_finite=False)
         qtr = Q.T @ r
         rest = max(float(r @ r) - float(qtr @ qtr), 0.0)
@@ -650,8 +659,11 @@ def _levenberg_marquardt(fun, jac, theta, first, s, *, ftol, xtol, gtol, max_nfe
             step = np.linalg.norm(trial - theta)
             if polish is None:
                 accept = cost_t < cost
-            else:       # undamped steps that shrink, the criterion level to round-off
-                accept = (not reflected and cost_t <= cost * (1.0 + 8.0 * _EPS)
+            else:
+                # undamped steps while they shrink (a Gauss-Newton iteration to the
+                # stationary point: near it the criterion changes below its round-off,
+                # so it cannot judge the steps; a guard against a step that leaves it)
+                accept = (not reflected and cost_t <= cost * (1.0 + _POLISH_RISE)
                           and (polish[2] is None or step < 0.5 * polish[2]))
             if accept:
                 rho = (cost - cost_t) / pred if pred > 0 and not reflected else 0.5
