@@ -397,7 +397,7 @@ def pem_records(records, s, theta0=None, *, ftol=1e-12, xtol=1e-12, gtol=1e-12,
                   converged=fit.converged, start=fit.start, max_root=fit.max_root,
                   arx_cost=arx_cost, warnings=list(fit.warnings), n_starts=n_starts,
                   start_costs={k: float(units.output_from_unit(v, 2))
-                               for k, v in fit.start_costs.items()})
+                               for k, v in fit.start_costs.items() if np.isfinite(v)})
 
 
 #: A zero of ``F_i``, ``C`` or ``D`` with modulus above ``1 - BOUNDARY_TOL`` at the end of
