@@ -10,6 +10,7 @@ from ._version import __version__
 from .continuous import d2c
 from .data import IOData, Trend, detrend, retrend
 from .exceptions import (
+    ConvergenceWarning,
     ExactFitError,
     ExcitationWarning,
     ForgettingSkippedWarning,
@@ -94,5 +95,6 @@ __all__ = [
     "OperatingPointWarning",
     "RegulatorWarning",
     "OrderSelectionWarning",
+    "ConvergenceWarning",
     "__version__",
 ]

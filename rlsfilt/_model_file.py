@@ -743,19 +743,46 @@ def _family_fitted(model, name, raw, version):
     return out, derived
 
 
+#: What `fit_info_` of a prediction-error fit holds (the fields after ``theta0`` came with
+#: #28; files without them load).
+_FIT_INFO = ("cost", "n_fev", "n_jev", "status", "message", "theta0", "n_iter", "converged",
+             "start", "start_costs", "n_starts", "max_root", "arx_cost", "warnings")
+
+
 def _fit_info(value, n_params):
     path = "fitted.fit_info_"
-    d = _object(_tagged(value, path, "__dict__", "an object"), path,
-                ("cost", "n_fev", "n_jev", "status", "message", "theta0"),
+    d = _object(_tagged(value, path, "__dict__", "an object"), path, _FIT_INFO,
                 ("cost", "n_fev", "n_jev", "status", "message", "theta0"))
     theta0 = d["theta0"]
-    return {"cost": _number(d["cost"], f"{path}.cost", 0.0),
-            "n_fev": _int(d["n_fev"], f"{path}.n_fev", 0),
-            "n_jev": _int(d["n_jev"], f"{path}.n_jev", 0),
-            "status": _int(d["status"], f"{path}.status", -10, 10),
-            "message": _text(d["message"], f"{path}.message"),
-            "theta0": None if theta0 is None else _array(theta0, f"{path}.theta0",
-                                                         (n_params,))}
+    out = {"cost": _number(d["cost"], f"{path}.cost", 0.0),
+           "n_fev": _int(d["n_fev"], f"{path}.n_fev", 0),
+           "n_jev": _int(d["n_jev"], f"{path}.n_jev", 0),
+           "status": _int(d["status"], f"{path}.status", -10, 10),
+           "message": _text(d["message"], f"{path}.message"),
+           "theta0": None if theta0 is None else _array(theta0, f"{path}.theta0",
+                                                        (n_params,))}
+    for key in ("n_iter", "n_starts"):
+        if key in d:
+            out[key] = _int(d[key], f"{path}.{key}", 0)
+    if "converged" in d:
+        if type(d["converged"]) is not bool:
+            _fail(f"{path}.converged", "must be true or false", d["converged"])
+        out["converged"] = d["converged"]
+    if "start" in d:
+        out["start"] = _text(d["start"], f"{path}.start")
+    if "max_root" in d:
+        out["max_root"] = _number(d["max_root"], f"{path}.max_root", 0.0)
+    if "arx_cost" in d:
+        out["arx_cost"] = (None if d["arx_cost"] is None
+                           else _number(d["arx_cost"], f"{path}.arx_cost", 0.0))
+    if "start_costs" in d:
+        costs = _tagged(d["start_costs"], f"{path}.start_costs", "__dict__", "an object")
+        out["start_costs"] = {_text(k, f"{path}.start_costs"): _number(
+            v, f"{path}.start_costs.{k}", 0.0) for k, v in costs.items()}
+    if "warnings" in d:
+        out["warnings"] = [_text(w, f"{path}.warnings[{i}]")
+                           for i, w in enumerate(_list(d["warnings"], f"{path}.warnings"))]
+    return out
 
 
 def _margins(value):

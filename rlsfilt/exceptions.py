@@ -6,7 +6,7 @@ keeps working, while ``except NotFittedError`` lets a caller be precise.
 
 __all__ = ["NotFittedError", "InsufficientDataError", "ExactFitError", "NumericalWarning",
            "ForgettingSkippedWarning", "ExcitationWarning", "RegulatorWarning",
-           "OperatingPointWarning", "OrderSelectionWarning"]
+           "OperatingPointWarning", "OrderSelectionWarning", "ConvergenceWarning"]
 
 
 class NotFittedError(ValueError, AttributeError):
@@ -59,3 +59,10 @@ class OperatingPointWarning(UserWarning):
 class OrderSelectionWarning(UserWarning):
     """The best structure (or delay) found lies at the edge of the range that
     was searched; the message names the bound to widen."""
+
+
+class ConvergenceWarning(UserWarning):
+    """An iterative estimate may not be the optimum: a prediction-error search
+    ended on the stability boundary, stopped at its evaluation or time limit,
+    or ended with a larger criterion than the least-squares ARX of the same
+    orders."""

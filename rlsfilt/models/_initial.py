@@ -186,3 +186,134 @@ def initial_estimate(U, y, s):
     C, D = arma_start(v, s.nd, s.nc, L)
     theta = join_theta(s, A=A, B=B, C=C, D=D, F=F)
     return stabilize_theta(theta, s)[0]
+
+
+def _pad(p, n):
+    """``p`` cut or zero-padded to ``n + 1`` coefficients."""
+    out = np.zeros(n + 1)
+    p = np.asarray(p, dtype=float)[:n + 1]
+    out[:len(p)] = p
+    return out
+
+
+def _arx_least_squares(U, y, na, nb, nk):
+    """``(A, B list)`` of the least-squares ARX(``na``, ``nb``, ``nk``) on the rows ``t >= t0``."""
+    nu = U.shape[1]
+    cols = [-_lags(y, range(1, na + 1))]
+    for i in range(nu):
+        cols.append(_lags(U[:, i], range(nk[i], nk[i] + nb[i])))
+    Phi = np.hstack(cols)
+    t0 = max([na] + [k + b - 1 for k, b in zip(nk, nb)])
+    theta = np.linalg.lstsq(Phi[t0:], y[t0:], rcond=None)[0]
+    A = np.concatenate([[1.0], theta[:na]])
+    B, start = [], na
+    for i in range(nu):
+        B.append(np.concatenate([np.zeros(nk[i]), theta[start:start + nb[i]]]))
+        start += nb[i]
+    return A, B
+
+
+def _noise_part(U, y, s, A, B, F, L):
+    """``theta`` of the structure with the deterministic part given and ``C, D`` by
+    Hannan-Rissanen on the disturbance estimate (stabilized)."""
+    N = len(y)
+    v = lfilter(A, [1.0], y) - sum((lfilter(B[i], F[i], U[:, i]) for i in range(s.n_inputs)),
+                                   np.zeros(N))
+    C, D = arma_start(v, s.nd, s.nc, L)
+    theta = join_theta(s, A=_pad(A, s.na), B=B, C=_pad(C, s.nc), D=_pad(D, s.nd),
+                       F=[_pad(F[i], s.nf[i]) for i in range(s.n_inputs)])
+    return stabilize_theta(theta, s)[0]
+
+
+def arx_in_structure(U, y, s):
+    """The least-squares ARX of the same orders written as a point of the structure `s`.
+
+    ``A y = B u + e`` is the structure's predictor when ``F_i = A`` (OE, BJ:
+    ``na = 0``, every ``nf_i`` equal) with ``D = A``, ``C = 1`` (BJ with
+    ``nd = nf``), or when there are no ``F_i`` (ARMAX, ARMA: ``C = D = 1``).
+    Returns ``(theta, exact)``: ``exact`` when the structure's criterion at
+    ``theta`` is the ARX loss (the noise part is otherwise the Hannan-Rissanen
+    fit of the ARX's output error), or ``(None, False)`` when the ARX does not
+    fit into `s` (``A`` and ``F`` both estimated, or unequal ``nf_i``).
+    """
+    nu = s.n_inputs
+    if not any(s.nf):
+        if s.na == 0:
+            return None, False
+        A, B = _arx_least_squares(U, y, s.na, s.nb, s.nk)
+        theta = join_theta(s, A=A, B=B, F=[np.ones(1)] * nu)
+        return stabilize_theta(theta, s)[0], True
+    if s.na or len(set(s.nf)) != 1:
+        return None, False
+    m = s.nf[0]
+    A, B = _arx_least_squares(U, y, m, s.nb, s.nk)
+    F = [reflect(A)] * nu
+    if s.nd == m:
+        theta = join_theta(s, B=B, D=F[0], F=F)
+        return theta, bool(np.array_equal(F[0], A))
+    if not s.has_noise_model:
+        return join_theta(s, B=B, F=F), bool(np.array_equal(F[0], A))
+    return _noise_part(U, y, s, np.ones(1), B, F, long_order(len(y), s)), False
+
+
+def arx_reduced(U, y, s):
+    """Start of a structure with ``F_i`` (and no ``A``): a high-order ARX, each input's path
+    ``B_i^L/A^L u_i`` simulated from it, then reduced to ``B_i/F_i`` by simplified refined
+    IV on that (nearly noise-free) path, so that correlated inputs do not bias each other's
+    start; ``C, D`` from the disturbance left. ``None`` for other structures."""
+    if not any(s.nf) or s.na:
+        return None
+    N, nu = len(y), s.n_inputs
+    L = int(min(max(10, 2 * max(s.nf) + 4, max(s.nb) + 2), max((N // 10) // (nu + 1), 1)))
+    if L < max(s.nf):
+        return None
+    nb_long = [max(L, b) for b in s.nb]
+    A_L, B_L = _arx_least_squares(U, y, L, nb_long, s.nk)
+    A_L = reflect(A_L)
+    B, F = [], []
+    for i in range(nu):
+        w = lfilter(B_L[i], A_L, U[:, i])
+        Bi, Fi = _oe_path(U[:, i], w, s.nb[i], s.nf[i], s.nk[i])
+        B.append(Bi)
+        F.append(Fi)
+    return _noise_part(U, y, s, np.ones(1), B, F, long_order(N, s))
+
+
+def random_start(U, y, s, theta_ref, rng):
+    """A random stable start for a multistart search.
+
+    With ``F_i``: random stable ``F_i`` (zeros of radius 0.2 to 0.97, real or in
+    conjugate pairs), then ``A`` and ``B_i`` by least squares on the inputs
+    filtered by ``1/F_i`` (the criterion is quadratic in them for fixed ``F_i``),
+    and ``C, D`` by Hannan-Rissanen. Without: `theta_ref` perturbed by 30 %
+    (``C``, ``D`` reflected).
+    """
+    nu, N = s.n_inputs, len(y)
+    if not any(s.nf):
+        theta = theta_ref * (1.0 + 0.3 * rng.standard_normal(theta_ref.shape))
+        theta += 0.05 * rng.standard_normal(theta_ref.shape)
+        return stabilize_theta(theta, s)[0]
+    F = []
+    for i in range(nu):
+        roots, n = [], s.nf[i]
+        while len(roots) < n:
+            r = rng.uniform(0.2, 0.97)
+            if n - len(roots) >= 2 and rng.random() < 0.5:
+                phi = rng.uniform(0.05, np.pi - 0.05)
+                roots += [r * np.exp(1j * phi), r * np.exp(-1j * phi)]
+            else:
+                roots.append(r * rng.choice([-1.0, 1.0]) if rng.random() < 0.2 else r)
+        F.append(np.real(np.poly(roots)) if n else np.ones(1))
+    cols = [-_lags(y, range(1, s.na + 1))]
+    for i in range(nu):
+        uf = lfilter([1.0], F[i], U[:, i])
+        cols.append(_lags(uf, range(s.nk[i], s.nk[i] + s.nb[i])))
+    Phi = np.hstack(cols)
+    t0 = s.t0
+    theta = np.linalg.lstsq(Phi[t0:], y[t0:], rcond=None)[0]
+    A = np.concatenate([[1.0], theta[:s.na]])
+    B, start = [], s.na
+    for i in range(nu):
+        B.append(np.concatenate([np.zeros(s.nk[i]), theta[start:start + s.nb[i]]]))
+        start += s.nb[i]
+    return _noise_part(U, y, s, A, B, F, long_order(N, s))

@@ -36,7 +36,8 @@ from .regressors import _as_signal, as_records, is_listed
 __all__ = []
 
 #: Options of the batch and recursive fits (anything else is a TypeError).
-PEM_OPTIONS = ("theta0", "ftol", "xtol", "gtol", "max_nfev")
+PEM_OPTIONS = ("theta0", "init_model", "ftol", "xtol", "gtol", "max_nfev", "n_starts", "rng",
+               "progress", "max_time")
 RECURSIVE_OPTIONS = ("lam", "lam_start", "lam_rate", "P0", "x0", "R", "Q", "forgetting",
                      "forgetting_params", "gate", "project", "check_every", "cond_max")
 METHODS = ("pem", "rpem", "rplr")
@@ -95,20 +96,18 @@ class PolynomialModel(IdentifiedModel):
                              f"{N}")
         learned = {"method_": method}
         if method == "pem":
-            theta0 = options.get("theta0")
-            if theta0 is not None:
-                theta0 = np.array(theta0, dtype=float).reshape(-1)
-                if theta0.shape != (s.n_params,) or not np.isfinite(theta0).all():
-                    raise ValueError(f"`theta0` must hold n_params = {s.n_params} finite "
-                                     f"values; got shape {theta0.shape}")
-            tol = {k: options[k] for k in ("ftol", "xtol", "gtol", "max_nfev") if k in options}
-            # the consistent start, the rank check and the search run in scaled units
-            # (`RecordUnits`); the fit comes back in the units of the records
-            fit = pem_records(records, s, theta0, **tol)
+            theta0 = _start_option(self, s, options)
+            tol = {k: options[k] for k in PEM_OPTIONS[2:] if k in options}
+            # the starts, the rank check and the search run in scaled units (`RecordUnits`);
+            # the fit comes back in the units of the records
+            fit = pem_records(records, s, theta0, stacklevel=stacklevel + 1, **tol)
             theta, cov, sigma2, eps = fit.theta, fit.cov, fit.noise_variance, fit.residuals
-            learned["fit_info_"] = {"cost": fit.cost, "n_fev": fit.n_fev, "n_jev": fit.n_jev,
-                                    "status": fit.status, "message": fit.message,
-                                    "theta0": fit.theta0}
+            learned["fit_info_"] = {
+                "cost": fit.cost, "n_fev": fit.n_fev, "n_jev": fit.n_jev, "n_iter": fit.n_iter,
+                "status": fit.status, "message": fit.message, "converged": fit.converged,
+                "theta0": fit.theta0, "start": fit.start, "start_costs": fit.start_costs,
+                "n_starts": fit.n_starts, "max_root": fit.max_root, "arx_cost": fit.arx_cost,
+                "warnings": fit.warnings}
         else:
             fit, units, P, R = _recursive_fit(records, s, method, dict(options), stacklevel + 1)
             theta = units.estimate_from_unit(fit.theta)
@@ -564,6 +563,30 @@ class TimeSeriesModel(PolynomialModel):
         self._check_fitted("frequency_response")
         self._no_input_model(noise, "frequency_response")
         return super().frequency_response(omega, theta, noise=True)
+
+
+def _start_option(model, s, options):
+    """The start of the batch search from ``theta0=`` or ``init_model=`` (None: the default
+    starts), validated against the structure `s`."""
+    theta0, init = options.get("theta0"), options.get("init_model")
+    if theta0 is not None and init is not None:
+        raise TypeError("give `theta0` or `init_model`, not both")
+    if init is not None:
+        if not isinstance(init, PolynomialModel):
+            raise TypeError(f"`init_model` must be a fitted ARMAX, OE, BJ, AR or ARMA model; got "
+                            f"{type(init).__name__}")
+        init._check_fitted("init_model")
+        if init.structure_ != s:
+            raise ValueError(f"`init_model` must have the structure being fitted "
+                             f"({model._orders_text()} with {s.n_inputs} input(s)); got "
+                             f"{init._orders_text()} with {init.structure_.n_inputs} input(s)")
+        theta0 = init.theta_
+    if theta0 is not None:
+        theta0 = np.array(theta0, dtype=float).reshape(-1)
+        if theta0.shape != (s.n_params,) or not np.isfinite(theta0).all():
+            raise ValueError(f"`theta0` must hold n_params = {s.n_params} finite "
+                             f"values; got shape {theta0.shape}")
+    return theta0
 
 
 def _recursive_fit(records, s, method, options, stacklevel):

@@ -49,8 +49,11 @@ class ARMAX(PolynomialModel):
     method_ : str
         ``"pem"``, ``"rpem"`` or ``"rplr"``.
     fit_info_ : dict
-        ``"pem"``: the optimizer's report (``cost``, ``n_fev``, ``message``,
-        the start ``theta0``).
+        ``"pem"``: the search's report (``cost``, ``converged``, ``message``,
+        ``n_fev``, ``n_iter``, the start ``theta0``, which start it was,
+        ``start``, and the criterion of each, ``start_costs``, ``max_root``
+        of ``C``, ``D``, ``F``, the ARX criterion ``arx_cost`` and the
+        ``warnings`` given).
     theta_history_ : ndarray, shape (N, n_params)
         ``"rpem"``/``"rplr"``: the estimate after each sample.
     recursive_residuals_ : ndarray, shape (N,)
@@ -64,8 +67,9 @@ class ARMAX(PolynomialModel):
     -----
     ``fit(u, y, method="pem")`` minimizes :math:`\sum_{t \ge t_0}
     \varepsilon(t)^2` with :math:`\varepsilon = (A y - B u)/C` by
-    ``scipy.optimize.least_squares`` with the exact gradient, started from
-    the Hannan-Rissanen estimate, ``C`` kept stable;
+    a Levenberg-Marquardt search with the exact gradient, started from the
+    Hannan-Rissanen estimate or the ARX of the same orders (the lower
+    criterion), ``C`` kept stable by reflection;
     ``"rpem"`` and ``"rplr"`` (extended least squares) are the recursive
     forms. Translation: MATLAB ``armax(data, [na nb nc nk])`` is
     ``ARMAX(na, nb, nc, nk).fit(u, y)``; ``rarmax`` / ``recursiveARMAX``
@@ -129,9 +133,16 @@ class ARMAX(PolynomialModel):
             Batch prediction-error minimization, recursive prediction error,
             or recursive pseudo-linear regression (extended least squares).
         **options
-            ``"pem"``: ``theta0`` (start; the consistent estimate by
-            default), ``ftol``, ``xtol``, ``gtol``, ``max_nfev`` of
-            ``scipy.optimize.least_squares``. ``"rpem"``/``"rplr"``: the
+            ``"pem"``: ``theta0`` (start; the lowest criterion of the
+            consistent estimates by default) or ``init_model`` (a fitted
+            model of the same structure to start from: MATLAB's
+            ``init_sys``), ``n_starts`` (default 1: searches from that start
+            and ``n_starts - 1`` random stable ones, the best kept; seeded
+            by ``rng``), ``ftol``, ``xtol``, ``gtol`` (stopping tolerances,
+            default 1e-12), ``max_nfev`` (a positive integer: criterion
+            evaluations per search), ``max_time`` (seconds), ``progress``
+            (``"auto"``: a tqdm bar after 3 s if tqdm is installed; True,
+            False). ``"rpem"``/``"rplr"``: the
             options of `RecursiveLeastSquares` (``lam``, ``P0``, ``x0``,
             ``R``, ``Q``, ``forgetting``, ``forgetting_params``, ``gate``,
             ``check_every``, ``cond_max``),
@@ -159,6 +170,11 @@ class ARMAX(PolynomialModel):
 
         Warns
         -----
+        ConvergenceWarning
+            ``"pem"``: the search ended with a zero of ``C`` (``F``, ``D``)
+            on the stability boundary, stopped at ``max_nfev`` or
+            ``max_time``, or with a larger criterion than the least-squares
+            ARX of the same orders (see the guide, "Model family").
         NumericalWarning
             ``"rplr"`` when :math:`\\mathrm{Re}\\{1/C\\} > 1/2` fails at the
             estimate (extended least squares may not converge to the

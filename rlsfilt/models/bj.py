@@ -38,9 +38,12 @@ class BJ(PolynomialModel):
     Notes
     -----
     The predictor is :math:`\hat y = y - \frac{D}{C}(y - \frac{B}{F} u)`;
-    ``"pem"`` starts from refined IV for :math:`B/F` and a Hannan-Rissanen
-    ARMA fit of the output error for :math:`C/D`, with ``C``, ``D`` and
-    ``F`` kept stable. MATLAB ``bj(data, [nb nc nd nf nk])`` is
+    ``"pem"`` starts from the lowest criterion of refined IV for
+    :math:`B/F`, the ARX of the same orders (``F_i = A``, ``D = A`` when
+    ``nd == nf``) and a high-order ARX reduced per input, each with a
+    Hannan-Rissanen ARMA fit of the output error for :math:`C/D`; ``C``,
+    ``D`` and ``F`` are kept stable by reflection (``init_model=``,
+    ``n_starts=``: see :meth:`ARMAX.fit`). MATLAB ``bj(data, [nb nc nd nf nk])`` is
     ``BJ(nb, nc, nd, nf, nk).fit(u, y)``; ``recursiveBJ`` is
     :class:`~rlsfilt.RecursiveBJ`. ``to_tf(noise=True)`` is :math:`C/D`.
 

@@ -36,8 +36,11 @@ class OE(PolynomialModel):
 
     Notes
     -----
-    ``"pem"`` starts from the simplified refined IV estimate of each path
-    (Young's SRIV, whose fixed point is the output-error estimate); ``"rplr"``
+    ``"pem"`` starts from the lowest criterion of the simplified refined IV
+    estimate of each path (Young's SRIV, whose fixed point is the
+    output-error estimate), the ARX of the same orders (``F_i = A``) and a
+    high-order ARX reduced per input, and keeps ``F`` stable by reflection
+    (``init_model=``, ``n_starts=``: see :meth:`ARMAX.fit`); ``"rplr"``
     is the output-error pseudo-linear regression (regressor
     ``[u(t-nk..), -yhat(t-1..)]``), which converges when
     :math:`1/F - 1/2` is strictly positive real (warned otherwise);
