@@ -105,10 +105,15 @@ def run(args):
     nb, nk = per_input(args.nb, n_in, "--nb"), per_input(args.nk, n_in, "--nk")
     columns = [args.channel_column, *args.inputs, args.output]
     frame = pd.read_csv(args.file, sep=args.delimiter, engine="python" if args.delimiter
-                        is None else "c", usecols=lambda c: c in columns)
+                        is None else "c", usecols=lambda c: c in columns,
+                        **_label_options(args.channel_column, columns))
     missing = [c for c in columns if c not in frame.columns]
     if missing:
         raise ValueError(f"column '{missing[0]}' is not in '{args.file}'")
+    empty = (frame[args.channel_column] == "").to_numpy()
+    if empty.any():
+        raise ValueError(f"column '{args.channel_column}', data row {int(np.argmax(empty)) + 1} "
+                         f"of '{args.file}' has no channel label")
     for col in [*args.inputs, args.output]:
         values = pd.to_numeric(frame[col], errors="coerce")
         bad = values.isna() & frame[col].notna()
@@ -183,6 +188,22 @@ def _csv_text(table):
     for label, row in zip(table.index, table.itertuples(index=False, name=None)):
         writer.writerow([_cell(label)] + [_cell(v) for v in row])
     return buf.getvalue()
+
+
+def _label_options(channel, columns):
+    """`pandas.read_csv` options that read the channel labels as the text they are.
+
+    With type inference "01" and "1" (or "1e3" and "1000") were one number,
+    so two plants' records were concatenated and fitted as one channel; and
+    "NA", "None" or "null" were a missing label. The label column is read as
+    strings with no missing-value markers; the data columns keep pandas'
+    default markers (an "NA" sample is a missing sample there).
+    """
+    from pandas._libs.parsers import STR_NA_VALUES
+
+    markers = sorted(STR_NA_VALUES)
+    return {"dtype": {channel: str}, "keep_default_na": False,
+            "na_values": {c: markers for c in columns if c != channel}}
 
 
 def _render(table, fmt):

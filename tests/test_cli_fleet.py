@@ -200,3 +200,40 @@ def test_identify_many_escapes_formula_labels_end_to_end(rng, tmp_path):
     assert [r[0] for r in rows[1:]] == ["'=1+2", "'@cmd", "'+x", "'-y z", "ok"]
     a1 = rows[0].index("a1")
     assert all(r[a1].startswith("-") and float(r[a1]) < 0 for r in rows[1:])  # not escaped
+
+
+@pytest.mark.parametrize("labels", [("01", "1"), ("1e3", "1000"), ("NA", "null")])
+def test_channel_labels_are_read_as_text(rng, tmp_path, capsys, labels):
+    """Labels that type inference merged ("01" and "1" are both 1) or read as
+    missing ("NA") stay two channels, each with its own fit."""
+    N = 300
+    parts = []
+    for c, label in enumerate(labels):
+        u = rng.standard_normal(N)
+        a = [1.0, -0.5 - 0.3 * c]                     # different plants
+        y = lfilter([0, 1.0 + c], a, u) + 0.01 * rng.standard_normal(N)
+        parts.append(pd.DataFrame({"t": np.arange(N), "cell": label, "current": u,
+                                   "voltage": y}))
+    frame = pd.concat(parts, ignore_index=True).sort_values(["t", "cell"], kind="stable")
+    frame.to_csv(tmp_path / "pack.csv", index=False)
+    assert _run(["identify-many", str(tmp_path / "pack.csv"), "-c", "cell", "-u", "current",
+                 "-y", "voltage", "--na", "1", "--nb", "1", "--format", "json", "-q"]) == 0
+    rows = json.loads(capsys.readouterr().out)
+    assert [r["channel"] for r in rows] == list(dict.fromkeys(frame["cell"]))  # as they come
+    assert [r["n_samples"] for r in rows] == [N - 1, N - 1]
+    for row in rows:
+        c = labels.index(row["channel"])
+        sel = frame["cell"] == labels[c]
+        u, y = frame.loc[sel, "current"].to_numpy(), frame.loc[sel, "voltage"].to_numpy()
+        model = ARX(1, 1).fit(u, y)
+        np.testing.assert_allclose([row["a1"], row["b1"]], model.theta_, rtol=1e-10)
+        np.testing.assert_allclose([row["a1"], row["b1"]], [-0.5 - 0.3 * c, 1.0 + c],
+                                   atol=0.01)
+
+
+def test_empty_channel_label_is_named(rng, tmp_path):
+    (tmp_path / "pack.csv").write_text("cell,current,voltage\na,1,2\n,2,3\na,3,4\n")
+    with pytest.raises(ValueError, match="column 'cell', data row 2 of .* has no channel "
+                                         "label"):
+        _run(["identify-many", str(tmp_path / "pack.csv"), "-c", "cell", "-u", "current",
+              "-y", "voltage", "-q"])
