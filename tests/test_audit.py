@@ -741,3 +741,48 @@ def test_integer_column_labels_are_read():
 def test_a_time_index_gives_the_sampling_period(index):
     data = IOData.from_dataframe(pd.DataFrame({"u": U, "y": Y}, index=index), "u", "y")
     assert data.dt == pytest.approx(0.08, rel=1e-12)
+
+
+# ----------------------------------------------------------------------
+# the second audit (#27): the fleets in the table
+# ----------------------------------------------------------------------
+def _fleet_entries():
+    """`fit_many` (least squares and recursive): three channels of the table's record
+    (each channel its own input), the estimates one row per channel."""
+    from rlsfilt import fit_many
+
+    C = 3
+    us = np.column_stack([np.roll(U, 7 * c) for c in range(C)])
+    ys = np.column_stack([lfilter([0, 1.0, 0.5], [1, -1.5, 0.7], us[:, c])
+                          + 0.1 * np.roll(Y - lfilter([0, 1.0, 0.5], [1, -1.5, 0.7], U), c)
+                          for c in range(C)])
+    b_scaled = scaled(lambda r, s: r * np.array([1.0, 1.0, s, s]))         # y * s: b * s
+    b_inverse = scaled(lambda r, s: r * np.array([1.0, 1.0, 1 / s, 1 / s]))
+    # ARX.fit is scale-invariant over the double range (#18 item 7); the fleet's own least
+    # squares and bank are not yet: refused as "not persistently exciting" around 1e-160,
+    # an overflow (RuntimeWarning) around 1e160 (models/fleet.py, filters/bank.py)
+    unscaled = {k: "fit_many is not scale-invariant around 1e+-160 (ARX.fit is)"
+                for k in ("huge", "tiny")}
+    entries = []
+    for method in ("ls", "rls"):
+        def run(u, y, method=method):
+            return fit_many(ARX(2, 2), u, y, method=method, residual_tests=False).theta_.copy()
+        entries += [
+            Entry(f"fit_many(method={method!r})", "u", lambda v, run=run: run(v, ys), us,
+                  expect={"huge": b_inverse, "tiny": b_inverse}, known=unscaled),
+            Entry(f"fit_many(method={method!r})", "y", lambda v, run=run: run(us, v), ys,
+                  expect={"huge": b_scaled, "tiny": b_scaled}, known=unscaled),
+        ]
+    return entries
+
+
+FLEET_ENTRIES = _fleet_entries()
+FLEET_PARAMS = [pytest.param(e, kind, id=f"{e.name}-{e.arg}-{kind}",
+                             marks=[pytest.mark.xfail(strict=True, reason=e.known[kind])]
+                             if kind in e.known else [])
+                for e in FLEET_ENTRIES for kind in ARRAY_KINDS]
+
+
+@pytest.mark.parametrize("entry, kind", FLEET_PARAMS)
+def test_bad_input_catalogue_fleets(entry, kind):
+    test_bad_input_catalogue(entry, kind)
