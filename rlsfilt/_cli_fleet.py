@@ -32,7 +32,16 @@ import sys
 import numpy as np
 
 from ._atomic import atomic_write
-from ._cli_args import forgetting_factor, fraction, int_at_least, int_list, per_input
+from ._cli_args import (
+    CSV_ENCODING,
+    csv_fields_of_any_length,
+    forgetting_factor,
+    fraction,
+    int_at_least,
+    int_list,
+    per_input,
+    shown_cell,
+)
 from .filters.bank import _MODES as BANK_MODES  # the forgetting modes RLSBank runs
 
 __all__ = []
@@ -104,9 +113,7 @@ def run(args):
     n_in = len(args.inputs)
     nb, nk = per_input(args.nb, n_in, "--nb"), per_input(args.nk, n_in, "--nk")
     columns = [args.channel_column, *args.inputs, args.output]
-    frame = pd.read_csv(args.file, sep=args.delimiter, engine="python" if args.delimiter
-                        is None else "c", usecols=lambda c: c in columns,
-                        **_label_options(args.channel_column, columns))
+    frame = _read_frame(args.file, args.delimiter, columns, args.channel_column)
     missing = [c for c in columns if c not in frame.columns]
     if missing:
         raise ValueError(f"column '{missing[0]}' is not in '{args.file}'")
@@ -120,7 +127,7 @@ def run(args):
         if bad.any():
             row = int(np.argmax(bad.to_numpy()))
             raise ValueError(f"column '{col}', data row {row + 1} of '{args.file}' is not a "
-                             f"number: {frame[col].iloc[row]!r}")
+                             f"number: {shown_cell(str(frame[col].iloc[row]))}")
         frame[col] = values
     options = {"max_lag": args.max_lag, "alpha": args.alpha,
                "residual_tests": not args.no_residual_tests, "on_error": args.on_error,
@@ -195,6 +202,28 @@ def _csv_text(table):
 _PANDAS_NA_MARKERS = ["", "#N/A", "#N/A N/A", "#NA", "-1.#IND", "-1.#QNAN", "-NaN", "-nan",
                       "1.#IND", "1.#QNAN", "<NA>", "N/A", "NA", "NULL", "NaN", "None", "n/a",
                       "nan", "null"]
+
+
+def _read_frame(path, delimiter, columns, channel):
+    """`columns` of the CSV file `path` as a frame, the channel labels as text.
+
+    Read as `rlsfilt identify` reads (`rlsfilt.cli._read_csv`): UTF-8 with or
+    without a byte order mark, fields of any length (a long cell reaches the
+    checks that name its row and column); a file that is no CSV is one line
+    naming it.
+    """
+    import pandas as pd
+
+    try:
+        with csv_fields_of_any_length():
+            return pd.read_csv(path, sep=delimiter, engine="python" if delimiter is None
+                               else "c", usecols=lambda c: c in columns, encoding=CSV_ENCODING,
+                               **_label_options(channel, columns))
+    except UnicodeDecodeError:
+        raise ValueError(f"'{path}' is not a UTF-8 text file") from None
+    except pd.errors.ParserError as exc:
+        raise ValueError(f"'{path}' cannot be read as CSV: "
+                         f"{str(exc).strip().splitlines()[0]}") from None
 
 
 def _label_options(channel, columns):

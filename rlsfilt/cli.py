@@ -63,13 +63,16 @@ import numpy as np
 
 from ._atomic import atomic_write
 from ._cli_args import (
+    CSV_ENCODING,
     CLIError,
+    csv_fields_of_any_length,
     float_where,
     forgetting_factor,
     fraction,
     int_at_least,
     int_list,
     per_input,
+    shown_cell,
 )
 from ._resources import check_memory
 from ._version import __version__
@@ -740,7 +743,7 @@ def _read_csv(path, columns, delimiter=None, progress=None, text_columns=()):
     if os.path.isdir(path):
         raise CLIError(f"'{path}' is a directory; expected a CSV file")
     try:
-        with open(path, newline="", encoding="utf-8-sig") as fh:
+        with open(path, newline="", encoding=CSV_ENCODING) as fh, csv_fields_of_any_length():
             return _parse_csv(fh, path, columns, delimiter, progress, text_columns)
     except UnicodeDecodeError:
         raise CLIError(f"'{path}' is not a UTF-8 text file") from None
@@ -757,7 +760,8 @@ def _parse_csv(fh, path, columns, delimiter, progress, text_columns):
     if delimiter is None:
         delimiter = _detect_delimiter(header_line.rstrip("\r\n"))
     reader = csv.reader(itertools.chain([header_line], fh), delimiter=delimiter)
-    header = [h.strip() for h in next(reader)]
+    records = _records(reader, path, first)
+    header = [h.strip() for h in next(records)]
     where = {}
     for j, name in enumerate(header):
         where.setdefault(name, j)
@@ -772,7 +776,7 @@ def _parse_csv(fh, path, columns, delimiter, progress, text_columns):
     idx = [where[c] for c in columns]
     values = [[] if c in text_columns else array.array("d") for c in columns]
     row = 0
-    for fields in reader:
+    for fields in records:
         line = first + reader.line_num
         if not fields or all(not f.strip() for f in fields):
             continue
@@ -790,12 +794,12 @@ def _parse_csv(fh, path, columns, delimiter, progress, text_columns):
             try:
                 v = float(cell)
             except ValueError:
-                shown = f"'{cell}'" if cell else "an empty cell"
+                shown = shown_cell(cell) if cell else "an empty cell"
                 raise CLIError(f"'{path}' line {line} (data row {row}), column '{c}': "
                                f"expected a number; got {shown}") from None
             if not math.isfinite(v):
                 raise CLIError(f"'{path}' line {line} (data row {row}), column '{c}': "
-                               f"expected a finite number; got '{cell}'")
+                               f"expected a finite number; got {shown_cell(cell)}")
             values[k].append(v)
         if progress is not None and row % 20000 == 0:
             progress.show(f"reading '{path}': {row} rows")
@@ -803,6 +807,20 @@ def _parse_csv(fh, path, columns, delimiter, progress, text_columns):
         raise CLIError(f"'{path}' has a header but no data rows")
     return {c: np.array(v, dtype=object) if c in text_columns else np.frombuffer(v, dtype=float)
             for c, v in zip(columns, values)}
+
+
+def _records(reader, path, first):
+    """The rows of a csv `reader`, its errors (a NUL byte, a field longer than the csv
+    module's limit if another thread lowered it meanwhile) one line naming the file line."""
+    while True:
+        try:
+            fields = next(reader)
+        except StopIteration:
+            return
+        except csv.Error as exc:
+            raise CLIError(f"'{path}' line {first + reader.line_num} cannot be read as CSV: "
+                           f"{exc}") from None
+        yield fields
 
 
 def _detect_delimiter(header_line):

@@ -11,7 +11,9 @@ returns only its per-channel summary (one row per channel: parameters,
 standard errors, fits, residual tests). The records themselves never travel
 back; a channel's numbers do not depend on which other channels share its
 block, so the result equals the in-memory ``fit_many(...).summary()``
-exactly.
+exactly (bit for bit), and so, like it, each channel's own ``ARX.fit`` and
+``validate`` to round-off (a few units in the last place: the fleet's
+least squares and recursion are not the single model's code).
 
 Any scheduler works: with a ``dask.distributed.Client`` active (or passed
 as `client`), the tasks run on its workers, and its dashboard and

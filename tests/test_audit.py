@@ -37,6 +37,8 @@ pytest runs with ``-W error``, so a stray warning is a failure of its own.
 To cover a new entry point, add its `Entry` lines to `ENTRIES`.
 """
 
+import itertools
+import json
 import os
 import pickle
 import re
@@ -741,3 +743,276 @@ def test_integer_column_labels_are_read():
 def test_a_time_index_gives_the_sampling_period(index):
     data = IOData.from_dataframe(pd.DataFrame({"u": U, "y": Y}, index=index), "u", "y")
     assert data.dt == pytest.approx(0.08, rel=1e-12)
+
+
+# ----------------------------------------------------------------------
+# the second audit (#27): the fleets in the table
+# ----------------------------------------------------------------------
+def _fleet_entries():
+    """`fit_many` (least squares and recursive): three channels of the table's record
+    (each channel its own input), the estimates one row per channel."""
+    from rlsfilt import fit_many
+
+    C = 3
+    us = np.column_stack([np.roll(U, 7 * c) for c in range(C)])
+    ys = np.column_stack([lfilter([0, 1.0, 0.5], [1, -1.5, 0.7], us[:, c])
+                          + 0.1 * np.roll(Y - lfilter([0, 1.0, 0.5], [1, -1.5, 0.7], U), c)
+                          for c in range(C)])
+    b_scaled = scaled(lambda r, s: r * np.array([1.0, 1.0, s, s]))         # y * s: b * s
+    b_inverse = scaled(lambda r, s: r * np.array([1.0, 1.0, 1 / s, 1 / s]))
+    # ARX.fit is scale-invariant over the double range (#18 item 7); the fleet's own least
+    # squares and bank are not yet: refused as "not persistently exciting" around 1e-160,
+    # an overflow (RuntimeWarning) around 1e160 (models/fleet.py, filters/bank.py)
+    unscaled = {k: "fit_many is not scale-invariant around 1e+-160 (ARX.fit is)"
+                for k in ("huge", "tiny")}
+    entries = []
+    for method in ("ls", "rls"):
+        def run(u, y, method=method):
+            return fit_many(ARX(2, 2), u, y, method=method, residual_tests=False).theta_.copy()
+        entries += [
+            Entry(f"fit_many(method={method!r})", "u", lambda v, run=run: run(v, ys), us,
+                  expect={"huge": b_inverse, "tiny": b_inverse}, known=unscaled),
+            Entry(f"fit_many(method={method!r})", "y", lambda v, run=run: run(us, v), ys,
+                  expect={"huge": b_scaled, "tiny": b_scaled}, known=unscaled),
+        ]
+    return entries
+
+
+FLEET_ENTRIES = _fleet_entries()
+FLEET_PARAMS = [pytest.param(e, kind, id=f"{e.name}-{e.arg}-{kind}",
+                             marks=[pytest.mark.xfail(strict=True, reason=e.known[kind])]
+                             if kind in e.known else [])
+                for e in FLEET_ENTRIES for kind in ARRAY_KINDS]
+
+
+@pytest.mark.parametrize("entry, kind", FLEET_PARAMS)
+def test_bad_input_catalogue_fleets(entry, kind):
+    test_bad_input_catalogue(entry, kind)
+
+
+# ----------------------------------------------------------------------
+# the second audit (#27): the command line reads its CSV files
+# ----------------------------------------------------------------------
+def _long_csv(labels=("a", "b"), n=80, extra=None):
+    """A long-format record, one row per sample: channel, input, output (and a notes
+    column, whose row 5 holds `extra`)."""
+    rng = np.random.default_rng(27)
+    lines = ["ch,u,y,notes"]
+    for c, label in enumerate(labels):
+        u = rng.standard_normal(n)
+        y = lfilter([0, 1.0 + c], [1, -0.5], u) + 0.01 * rng.standard_normal(n)
+        lines += [f"{label},{float(a)!r},{float(b)!r}," for a, b in zip(u, y)]
+    if extra is not None:
+        lines[5] += extra
+    return "\n".join(lines) + "\n"
+
+
+_MANY = ["identify-many", "{path}", "-c", "ch", "-u", "u", "-y", "y", "--na", "1", "--nb", "1",
+         "--no-residual-tests", "-q", "--format", "json"]
+_ONE = ["identify", "{path}", "-u", "u", "-y", "y", "--na", "1", "--nb", "1", "--json"]
+_LONG = "1" * 140_000                   # a number of 140,000 digits: over csv's 131,072
+
+
+def _long_cell(text, line, column):
+    """`text` with the cell of `line` (0: the header) and `column` replaced by `_LONG`."""
+    lines = text.split("\n")
+    fields = lines[line].split(",")
+    fields[column] = _LONG
+    lines[line] = ",".join(fields)
+    return "\n".join(lines)
+
+
+#: name -> (file bytes, command line, fragments of the one-line error); exit status 1
+CLI_CASES = {
+    "a field over 131,072 characters (identify)": (
+        _long_cell(_long_csv(("a",)), 1, 1).encode(), _ONE,
+        ["line 2 (data row 1), column 'u'", "140,000 characters"]),
+    "a field over 131,072 characters (identify-many)": (
+        _long_cell(_long_csv(), 81, 1).encode(), _MANY,
+        ["column 'u', data row 81", "140,000 characters"]),
+    "a file that is not UTF-8 (identify-many)": (
+        _long_csv().encode().replace(b"\na,", b"\n\xff\xfe,", 1), _MANY,
+        ["is not a UTF-8 text file"]),
+    "an unclosed quote (identify-many)": (
+        _long_csv().encode() + b'b,"1,2,\n', _MANY, ["cannot be read as CSV"]),
+}
+
+
+def _cli(argv, path, capsys):
+    from rlsfilt.cli import main
+
+    status = main([a.format(path=path) for a in argv])
+    out, err = capsys.readouterr()
+    return status, out, err
+
+
+@pytest.mark.parametrize("case", list(CLI_CASES))
+def test_cli_cases_give_one_line_errors(case, tmp_path, capsys):
+    import csv
+
+    content, argv, fragments = CLI_CASES[case]
+    path = tmp_path / "record.csv"
+    path.write_bytes(content)
+    status, _, err = _cli(argv, path, capsys)
+    assert status == 1, err
+    assert err.startswith("rlsfilt: error: ") and err.count("\n") == 1, err
+    for words in fragments:
+        assert words in err, err
+    assert len(err) < 400                      # the long cell is not printed
+    assert csv.field_size_limit() == 131_072   # the csv module's limit is put back
+
+
+@pytest.mark.parametrize("argv", [_ONE, _MANY], ids=["identify", "identify-many"])
+@pytest.mark.parametrize("variant", ["byte order mark", "a long cell in an unread column"])
+def test_cli_reads_what_it_should(variant, argv, tmp_path, capsys):
+    """A UTF-8 byte order mark (spreadsheets write one) and a cell over csv's limit in a
+    column the command does not read give the numbers of the plain file."""
+    labels = ("a",) if argv is _ONE else ("a", "b")
+    plain, other = tmp_path / "plain.csv", tmp_path / "other.csv"
+    plain.write_text(_long_csv(labels), encoding="utf-8")
+    if variant == "byte order mark":
+        other.write_text(_long_csv(labels), encoding="utf-8-sig")
+        assert other.read_bytes().startswith(b"\xef\xbb\xbf")
+    else:
+        other.write_text(_long_csv(labels, extra="x" * 140_000), encoding="utf-8")
+    results = []
+    for path in (plain, other):
+        status, out, err = _cli(argv, path, capsys)
+        assert status == 0, err
+        results.append(json.loads(out))
+    if argv is _ONE:
+        assert results[1]["theta"] == results[0]["theta"]
+    else:
+        assert results[1] == results[0]
+
+
+def test_cli_channels_named_like_missing_values(tmp_path, capsys):
+    """Channels "NA", "None", "null" (pandas' missing-value markers) are three channels."""
+    labels = ("NA", "None", "null")
+    path = tmp_path / "record.csv"
+    path.write_text(_long_csv(labels))
+    status, out, err = _cli(_MANY, path, capsys)
+    assert status == 0, err
+    rows = json.loads(out)
+    assert [r["channel"] for r in rows] == list(labels)
+    assert_allclose([r["b1"] for r in rows], [1.0, 2.0, 3.0], atol=0.01)
+
+
+# ----------------------------------------------------------------------
+# the second audit (#27): the model family, the regulators, structure selection
+# ----------------------------------------------------------------------
+def _collinear(make, second):
+    """`make()` fitted to two inputs, the second `second(u)`."""
+    u = U.copy()
+    return make().fit(np.column_stack([u, second(u)]), Y)
+
+
+def _to_kalman(noise_variance, model=None):
+    from rlsfilt.adaptive import to_kalman
+    return to_kalman(MODEL if model is None else model, noise_variance=noise_variance)
+
+
+def _two_outputs():
+    rng = np.random.default_rng(27)
+    y2 = np.column_stack([Y, lfilter([0, 0.5], [1, -0.3], U) + 0.1 * rng.standard_normal(N)])
+    return ARX(1, 1).fit(U, y2)
+
+
+def _gmv(**kw):
+    from rlsfilt.adaptive import generalized_minimum_variance
+    return generalized_minimum_variance([1, -0.9], [0, 1, 1.5], **kw)
+
+
+def _recursive_ar_batch_with_u():
+    from rlsfilt.models import RecursiveAR
+    return RecursiveAR(2).batch(Y, U)
+
+
+def _select_structure(grid, **kw):
+    from rlsfilt import select_structure
+    return select_structure(OE, U, Y, grid, **kw)
+
+
+#: name -> (call, error class, words the message holds)
+FAMILY_CASES = {
+    **{f"{name} on two exactly collinear inputs": (
+        lambda make=make: _collinear(make, lambda u: 2.0 * u), ValueError,
+        "`u` is not persistently exciting for these orders, or two of its inputs are collinear")
+       for name, make in (("OE", lambda: OE([2, 2], [2, 2], [1, 1])),
+                          ("BJ", lambda: BJ([2, 2], 1, 1, [2, 2], [1, 1])),
+                          ("ARMAX", lambda: ARMAX(2, [2, 2], 1, [1, 1])))},
+    "OE on an input and its delayed copy": (
+        lambda: _collinear(lambda: OE([2, 2], [2, 2], [1, 1]), lambda u: np.r_[0.0, u[:-1]]),
+        ValueError, "rank 3 < sum(nb) = 4"),
+    "OE(method='rpem') on two collinear inputs": (
+        lambda: OE([1, 1], [1, 1], [1, 1]).fit(np.column_stack([U, -U]), Y, method="rpem"),
+        ValueError, "two of its inputs are collinear"),
+    "to_kalman(noise_variance=-1)": (lambda: _to_kalman(-1), ValueError,
+                                     "`noise_variance` must be a positive variance; got -1"),
+    "to_kalman(noise_variance=0)": (lambda: _to_kalman(0.0), ValueError, "`noise_variance`"),
+    "to_kalman(noise_variance='1')": (lambda: _to_kalman("1"), TypeError, "`noise_variance`"),
+    "to_kalman with an indefinite covariance": (
+        lambda: _to_kalman([[1.0, 2.0], [2.0, 1.0]], _two_outputs()), ValueError,
+        "`noise_variance` must be positive definite; got smallest eigenvalue -1"),
+    "to_kalman with an asymmetric covariance": (
+        lambda: _to_kalman([[1.0, 0.5], [0.0, 1.0]], _two_outputs()), ValueError,
+        "`noise_variance` must be a symmetric (2, 2) covariance"),
+    "generalized_minimum_variance(Q=-1)": (lambda: _gmv(Q=-1.0), ValueError,
+                                           "`Q` must have Q(0) >= 0"),
+    "RecursiveAR.batch(y, u)": (_recursive_ar_batch_with_u, ValueError,
+                                "`u` must be omitted: RecursiveAR has no input"),
+    "select_structure with 10^6 candidates": (
+        lambda: _select_structure({"nb": range(1, 101), "nf": range(1, 101),
+                                   "nk": range(100)}),
+        ValueError, "`grid` gives 1,000,000 candidate structures (100 nb x 100 nf x 100 nk "
+                    "values)"),
+    "select_structure with a long list of structures": (
+        lambda: _select_structure([{"nb": 1, "nf": 1}] * 20_000), ValueError,
+        "`grid` gives 20,000 candidate structures"),
+    "select_structure with an endless generator": (
+        lambda: _select_structure({"nb": 1, "nf": 1} for _ in itertools.count()),
+        ValueError, "`grid` gives more than 10,000 candidate structures"),
+    "select_structure(max_candidates=1.5)": (
+        lambda: _select_structure({"nb": [1], "nf": [1]}, max_candidates=1.5), TypeError,
+        "`max_candidates` must be an integer"),
+}
+
+
+@pytest.mark.parametrize("case", list(FAMILY_CASES))
+def test_family_cases_give_clear_errors(case):
+    run, error, words = FAMILY_CASES[case]
+    with pytest.raises(error, match=re.escape(words)):
+        run()
+
+
+def test_refused_collinear_fit_and_input_leave_the_state():
+    """A refused fit keeps the model's previous fit; a refused batch the recursion's state."""
+    from rlsfilt.models import RecursiveAR
+
+    model = OE([2, 2], [2, 2], [1, 1]).fit(np.column_stack([U, np.roll(U, 17)]), Y)
+    theta = model.theta_.copy()
+    with pytest.raises(ValueError, match="collinear"):
+        model.fit(np.column_stack([U, 3.0 * U]), Y)
+    assert_array_equal(model.theta_, theta)
+    ar = RecursiveAR(2)
+    ar.batch(Y[:50])
+    before = pickle.dumps(ar)
+    with pytest.raises(ValueError, match="`u`"):
+        ar.batch(Y[50:], U[50:])
+    assert pickle.dumps(ar) == before
+    assert ar.n_steps == 50
+
+
+def test_select_structure_fits_a_large_grid_when_told():
+    """The count comes first; `max_candidates` lifts the bound (and the result is the same)."""
+    grid = {"nb": [1, 2], "nf": [1, 2], "nk": [1]}
+    with pytest.raises(ValueError, match="`grid` gives 4 candidate structures"):
+        _select_structure(grid, max_candidates=3)
+    assert _select_structure(grid, max_candidates=4).best == _select_structure(grid).best
+
+
+def test_to_kalman_takes_positive_variances():
+    model = _two_outputs()
+    for value, Sigma in ((2.0, 2.0 * np.eye(2)), ([1.0, 3.0], np.diag([1.0, 3.0])),
+                         ([[2.0, 0.5], [0.5, 1.0]], np.array([[2.0, 0.5], [0.5, 1.0]]))):
+        assert_array_equal(_to_kalman(value, model).Q[-2:, -2:], Sigma)

@@ -200,6 +200,8 @@ def test_identify_many_escapes_formula_labels_end_to_end(rng, tmp_path):
     assert [r[0] for r in rows[1:]] == ["'=1+2", "'@cmd", "'+x", "'-y z", "ok"]
     a1 = rows[0].index("a1")
     assert all(r[a1].startswith("-") and float(r[a1]) < 0 for r in rows[1:])  # not escaped
+
+
 @pytest.mark.parametrize("labels", [("01", "1"), ("1e3", "1000"), ("NA", "null")])
 def test_channel_labels_are_read_as_text(rng, tmp_path, capsys, labels):
     """Labels that type inference merged ("01" and "1" are both 1) or read as

@@ -170,7 +170,9 @@ def generalized_minimum_variance(A, B=None, C=None, d=None, *, P=1.0, Q=0.0, dt=
     P : array_like or float, default 1.0
         Weight on the output (``P(0) != 0``); a scalar is a constant.
     Q : array_like or float, default 0.0
-        Weight on the control. ``P = 1, Q = 0`` is minimum variance.
+        Weight on the control, with ``Q(0) >= 0`` (the cost has
+        :math:`(Q u)^2`: ``-Q`` is the same weight, so a negative ``Q(0)`` is
+        refused as a slip). ``P = 1, Q = 0`` is minimum variance.
 
     Returns
     -------
@@ -181,8 +183,9 @@ def generalized_minimum_variance(A, B=None, C=None, d=None, *, P=1.0, Q=0.0, dt=
     Raises
     ------
     ValueError
-        For bad polynomials, or weights that make the closed loop unstable
-        (the message names `P` and `Q` and the offending pole).
+        For bad polynomials, ``P(0) = 0`` or ``Q(0) < 0``, or weights that make
+        the closed loop unstable (the message names `P` and `Q` and the
+        offending pole).
 
     Notes
     -----
@@ -229,6 +232,9 @@ def generalized_minimum_variance(A, B=None, C=None, d=None, *, P=1.0, Q=0.0, dt=
     if P[0] == 0.0:
         raise ValueError(f"`P` must have P(0) != 0; got P = {P.tolist()}")
     Q = trim(as_poly(Q, "Q"))
+    if Q[0] < 0.0:      # the cost weighs (Q u)^2: -Q is the same weight, so a sign is a slip
+        raise ValueError(f"`Q` must have Q(0) >= 0 (a weight on u: the cost has (Q u)^2, "
+                         f"so -Q weighs as Q); got Q = {Q.tolist()}")
     return _gmv(A, trim(Bp), C, d, P, Q, dt)
 
 

@@ -4,9 +4,10 @@ r"""A bank of independent recursive least-squares filters, one per channel.
 of the same size side by side: the state has a leading channel axis
 (``x`` is ``(C, dim_x)``, ``P`` is ``(C, dim_x, dim_x)``), and one compiled
 call updates every channel (:mod:`rlsfilt.filters._kernels_bank`). Each
-channel follows exactly the arithmetic of its own `RecursiveLeastSquares`,
-so ``bank.channel(i)`` is an ordinary filter that continues where channel
-``i`` of the bank stands.
+channel follows the arithmetic of its own `RecursiveLeastSquares` (the same
+bits in the exponential and directional modes; the constant-trace rescaling
+agrees to round-off, a few units in the last place), so ``bank.channel(i)``
+is an ordinary filter that continues where channel ``i`` of the bank stands.
 
 The state arrays the bank makes (``x``, ``P``, their priors and
 posteriors, ``K``, ``Q``) are stored in Fortran order, the channel index
@@ -191,8 +192,9 @@ class RLSBank:
 
     Channel ``c`` estimates ``x[c]`` in its own regression
     :math:`z_{k,c} = H_{k,c}\, x_c + v_{k,c}`, with its own forgetting
-    factor, noise variance and random walk, exactly as a
-    :class:`~rlsfilt.RecursiveLeastSquares` with ``dim_z = 1`` would; the
+    factor, noise variance and random walk, as a
+    :class:`~rlsfilt.RecursiveLeastSquares` with ``dim_z = 1`` would (bit for
+    bit, except the constant-trace mode: to round-off); the
     bank runs all channels in one compiled call per :meth:`update` and per
     :meth:`batch_filter`, which for thousands of small filters is one to
     two orders of magnitude faster than a Python loop over filters (see
@@ -289,9 +291,11 @@ class RLSBank:
         P_c &= P_c^- - (P_c^- H_c^T)(P_c^- H_c^T)^T / S_c
 
     with the same operations in the same order, so every channel agrees
-    with a separate filter to round-off (in practice bit for bit); the
-    directional and constant-trace modes replace the last two lines as in
-    :mod:`rlsfilt.filters.forgetting`. ``P`` is kept exactly symmetric.
+    with a separate filter bit for bit in the exponential and directional
+    modes; the directional and constant-trace modes replace the last two
+    lines as in :mod:`rlsfilt.filters.forgetting`, and the constant-trace
+    rescaling agrees to round-off only (a few units in the last place: the
+    tests hold it to 1e-12). ``P`` is kept exactly symmetric.
 
     **The windup cap** (exponential mode, ``lam < 1``) is that of
     `RecursiveLeastSquares`, channel by channel and with the same
@@ -895,7 +899,8 @@ class RLSBank:
         `P0`, forgetting mode and constants, health-check settings) and
         state (``x``, ``P``, priors, posteriors and the last step's
         diagnostics), so further ``predict``/``update`` calls continue
-        exactly as channel `i` of the bank would; its :meth:`reset` returns
+        as channel `i` of the bank would (bit for bit; to round-off in the
+        constant-trace mode); its :meth:`reset` returns
         to the channel's ``x0``, ``P0``. The bank is not changed.
 
         Parameters

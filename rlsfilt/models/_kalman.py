@@ -17,6 +17,7 @@ import functools
 
 import numpy as np
 
+from .._validation import as_float_array
 from ._polynomials import model_dt, observer_form, trim
 
 __all__ = ["to_kalman"]
@@ -38,9 +39,10 @@ def to_kalman(model, noise_variance=None):
         whose ``polynomials()`` gives ``(A, B)`` or ``(A, B, C)`` in
         ascending powers of :math:`q^{-1}`, such as an `InnovationsModel`.
     noise_variance : float or array_like, optional
-        Covariance :math:`\Sigma` of the innovations; the model's
-        ``noise_covariance_`` or ``noise_variance_``, or 1 (it only scales
-        ``P`` and ``S``, never the predictions).
+        Covariance :math:`\Sigma` of the innovations: a positive variance,
+        ``ny`` of them, or a symmetric positive definite ``(ny, ny)`` matrix;
+        the model's ``noise_covariance_`` or ``noise_variance_``, or 1 by
+        default (it only scales ``P`` and ``S``, never the predictions).
 
     Returns
     -------
@@ -199,7 +201,7 @@ def _noise_covariance(model, noise_variance, ny):
         if value is None:
             value = 1.0
     else:
-        value = noise_variance
+        value = as_float_array(noise_variance, "noise_variance")
     S = np.asarray(value, dtype=float)
     if S.ndim == 0 or S.size == 1:
         S = float(S.reshape(())) * np.eye(ny)
@@ -208,6 +210,19 @@ def _noise_covariance(model, noise_variance, ny):
     if S.shape != (ny, ny) or not np.all(np.isfinite(S)):
         raise ValueError(f"`noise_variance` must be a finite scalar or a ({ny}, {ny}) "
                          f"covariance; got shape {S.shape}")
-    if noise_variance is None and not np.any(S):
-        S = np.eye(ny)            # a noise-free model: any positive scale gives the same filter
+    if noise_variance is None:
+        if not np.any(S):
+            S = np.eye(ny)        # a noise-free model: any positive scale gives the same filter
+        return S
+    # given: a variance is positive, a covariance symmetric positive definite (S, the
+    # innovations' covariance the filter inverts, is this matrix)
+    scale = float(np.max(np.abs(S)))
+    if np.max(np.abs(S - S.T)) > 1e-10 * scale:
+        raise ValueError(f"`noise_variance` must be a symmetric ({ny}, {ny}) covariance; got "
+                         f"max |S - S^T| = {np.max(np.abs(S - S.T)):.3g}")
+    smallest = float(S[0, 0] if ny == 1 else np.linalg.eigvalsh(0.5 * (S + S.T))[0])
+    if not smallest > 0.0:
+        got = f"{smallest:.6g}" if ny == 1 else f"smallest eigenvalue {smallest:.3g}"
+        raise ValueError(f"`noise_variance` must be "
+                         f"{'a positive variance' if ny == 1 else 'positive definite'}; got {got}")
     return S

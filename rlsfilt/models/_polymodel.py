@@ -31,7 +31,7 @@ from ._pem import (
 )
 from ._recursive_pem import RecursionState, recursive_pem_records
 from ._units import RecordUnits, equivariant_forgetting
-from .regressors import _as_signal, as_records, is_listed
+from .regressors import _as_signal, as_records, check_input_rank, is_listed
 
 __all__ = []
 
@@ -94,6 +94,8 @@ class PolynomialModel(IdentifiedModel):
             raise ValueError(f"`y` must have more than t0 + n_params = {s.t0} + {s.n_params} = "
                              f"{s.t0 + s.n_params} samples{per} for {self._orders_text()}; got "
                              f"{N}")
+        check_input_rank(records, s.nb, s.nk, s.t0)     # collinear inputs: as ARMAX, ARX
+
         learned = {"method_": method}
         if method == "pem":
             theta0 = _start_option(self, s, options)

@@ -109,6 +109,8 @@ class _RecursiveModel:
         ----------
         y : array_like, shape (N,)
         u : array_like, shape (N,) or (N, nu)
+            The inputs; omitted for AR/ARMA (an input given to them is a
+            ``ValueError``, as in `step`).
 
         Returns
         -------
@@ -129,6 +131,7 @@ class _RecursiveModel:
                                  f"{np.shape(u)}")
             check_finite(U, "u")
         else:
+            self._no_input(u)
             U = np.zeros((len(yv), 0))
         out = self._state.run(yv, U)
         if len(yv):
@@ -210,8 +213,7 @@ class _RecursiveModel:
     def _input(self, u):
         nu = self._structure.n_inputs
         if nu == 0:
-            if u is not None and np.size(u):
-                raise ValueError(f"`u` must be omitted: {type(self).__name__} has no input")
+            self._no_input(u)
             return np.zeros(0)
         if u is None:
             raise ValueError(f"`u` must be given: the model has {nu} input(s)")
@@ -224,6 +226,12 @@ class _RecursiveModel:
         if arr.size != nu:
             raise ValueError(f"`u` must have {nu} entries (one per input); got {arr.size}")
         return check_finite(arr, "u")
+
+
+    def _no_input(self, u):
+        """Refuse an input given to a time-series model (`step` and `batch` alike)."""
+        if u is not None and np.size(u):
+            raise ValueError(f"`u` must be omitted: {type(self).__name__} has no input")
 
 
 def _scalar(y, name):

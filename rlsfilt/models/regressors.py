@@ -371,6 +371,34 @@ def _full_rank_rows(Phi):
     return hi
 
 
+def check_input_rank(records, nb, nk, start):
+    """Refuse inputs whose lagged values (the ``B`` regressors) are linearly dependent.
+
+    The rows ``t >= start`` of every experiment, columns ``u_j(t - k)`` for
+    ``k = nk_j .. nk_j + nb_j - 1``, must have full column rank (decided by
+    `_column_rank`): otherwise the input is not persistently exciting of
+    order ``nb``, or two inputs are collinear (one a multiple, or a delayed
+    copy, of another) and what each input contributes cannot be told apart.
+    ARX (through its least squares) and ARMAX (through the gradient of its
+    predictor) refuse such records; OE and BJ, whose inputs each have their
+    own ``F``, have a gradient of full rank at most starts and need this check.
+    """
+    keep = [j for j, n_j in enumerate(nb) if n_j > 0]      # an input with nb = 0 is unused
+    if not keep:                                         # (or a time series: no input)
+        return
+    s = arx_structure(0, [nb[j] for j in keep], [nk[j] for j in keep], len(keep), 1)
+    n = s.n_params
+    Phi = np.vstack([_build(U[:, keep], Y[:, None], s, start) for U, Y in records
+                     if len(Y) > start])
+    rank = _column_rank(Phi) if np.isfinite(Phi).all() else 0
+    if rank < n:
+        what = (", or two of its inputs are collinear (one a multiple or a delayed copy of "
+                "another: what each contributes cannot be told apart)" if len(nb) > 1 else "")
+        raise ValueError(f"`u` is not persistently exciting for these orders{what}: its lagged "
+                         f"values (the regressors of B) have rank {rank} < sum(nb) = {n}; use a "
+                         "richer input, fewer inputs or lower orders")
+
+
 def _column_rank(Phi):
     """Numerical rank of `Phi` after scaling its columns to unit norm.
 

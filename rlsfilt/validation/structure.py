@@ -105,7 +105,15 @@ class StructureSelection:
         return pd.DataFrame(rows)
 
 
-def _grid(grid):
+#: The most candidates `select_structure` fits unless told otherwise (`max_candidates`):
+#: each is a prediction-error fit (an iterative search), so 10^4 of them already take
+#: minutes to hours; a larger grid is refused before anything is fitted
+MAX_CANDIDATES = 10_000
+
+
+def _grid(grid, max_candidates):
+    """The candidates of `grid` as a list of dicts, counted before any is built: more than
+    `max_candidates` is a ValueError saying how many and how to narrow the grid."""
     if isinstance(grid, dict):
         if not grid:
             raise ValueError("`grid` must name at least one order; got an empty dict")
@@ -113,19 +121,38 @@ def _grid(grid):
         values = []
         for name in names:
             v = grid[name]
-            v = list(v) if hasattr(v, "__iter__") and not isinstance(v, (str, bytes)) else [v]
-            if not v:
+            if not hasattr(v, "__iter__") or isinstance(v, (str, bytes)):
+                v = [v]
+            elif not hasattr(v, "__len__"):     # a generator: at most what could be fitted
+                v = list(itertools.islice(v, max_candidates + 1))
+            if not len(v):
                 raise ValueError(f"`grid['{name}']` must hold at least one value; got none")
             values.append(v)
-        return [dict(zip(names, combo)) for combo in itertools.product(*values)]
-    combos = [dict(c) for c in grid]
+        n = math.prod(len(v) for v in values)
+        if n > max_candidates:
+            sizes = " x ".join(f"{len(v):,} {name}" for name, v in zip(names, values))
+            _too_many(f"{n:,}", max_candidates, f" ({sizes} values)")
+        return [dict(zip(names, combo)) for combo in itertools.product(*map(list, values))]
+    if hasattr(grid, "__len__") and len(grid) > max_candidates:
+        _too_many(f"{len(grid):,}", max_candidates)
+    combos = [dict(c) for c in itertools.islice(grid, max_candidates + 1)]
+    if len(combos) > max_candidates:
+        _too_many(f"more than {max_candidates:,}", max_candidates)
     if not combos:
         raise ValueError("`grid` must hold at least one structure; got none")
     return combos
 
 
+def _too_many(count, max_candidates, sizes=""):
+    raise ValueError(f"`grid` gives {count} candidate structures{sizes}, each a "
+                     f"prediction-error fit; `max_candidates` is {max_candidates:,}: narrow the "
+                     "grid (fewer values per order, a coarse grid first and then a fine one "
+                     "around its best, or select_order for ARX orders), or pass a larger "
+                     "max_candidates to fit them all")
+
+
 def select_structure(model_class, u, y, grid, *, criterion="bic", validation=None,
-                     dt=True, **fit_options):
+                     dt=True, max_candidates=MAX_CANDIDATES, **fit_options):
     r"""Fit every structure of a grid and rank them by a criterion of the prediction errors.
 
     Parameters
@@ -149,12 +176,24 @@ def select_structure(model_class, u, y, grid, *, criterion="bic", validation=Non
         MATLAB's ``selstruc`` on validation losses).
     dt : True or float, default True
         Sampling period of the candidates.
+    max_candidates : int, default 10_000
+        The most candidates fitted. The grid is counted before anything is
+        fitted, and a larger one is a ``ValueError`` saying how many
+        candidates it gives (each is an iterative prediction-error fit:
+        10^4 of them take minutes to hours); pass a larger value to fit
+        them all anyway.
     **fit_options
         Passed to every ``fit`` (for example ``method="rpem"``).
 
     Returns
     -------
     StructureSelection
+
+    Raises
+    ------
+    ValueError
+        When the grid gives more than `max_candidates` structures (before
+        any fit), or names an order with no values.
 
     Notes
     -----
@@ -190,7 +229,8 @@ def select_structure(model_class, u, y, grid, *, criterion="bic", validation=Non
     if validation is not None:
         if not isinstance(validation, (tuple, list)) or len(validation) != 2:
             raise TypeError("`validation` must be a tuple (u_v, y_v)")
-    combos = _grid(grid)
+    max_candidates = check_int(max_candidates, "max_candidates", minimum=1)
+    combos = _grid(grid, max_candidates)
     candidates, values, models = [], [], []
     for orders in combos:
         row = {"orders": dict(orders), "n_params": None, "loss": math.nan,
