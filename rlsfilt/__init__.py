@@ -19,6 +19,7 @@ from .exceptions import (
     OperatingPointWarning,
     RegulatorWarning,
     OrderSelectionWarning,
+    ConversionWarning,
 )
 from .filters import RecursiveLeastSquares, RLSBank, SlidingWindowRLS, SquareRootRLS
 from .models import (
@@ -94,5 +95,6 @@ __all__ = [
     "OperatingPointWarning",
     "RegulatorWarning",
     "OrderSelectionWarning",
+    "ConversionWarning",
     "__version__",
 ]

@@ -6,7 +6,8 @@ keeps working, while ``except NotFittedError`` lets a caller be precise.
 
 __all__ = ["NotFittedError", "InsufficientDataError", "ExactFitError", "NumericalWarning",
            "ForgettingSkippedWarning", "ExcitationWarning", "RegulatorWarning",
-           "OperatingPointWarning", "OrderSelectionWarning"]
+           "OperatingPointWarning", "OrderSelectionWarning",
+           "ConversionWarning"]
 
 
 class NotFittedError(ValueError, AttributeError):
@@ -59,3 +60,10 @@ class OperatingPointWarning(UserWarning):
 class OrderSelectionWarning(UserWarning):
     """The best structure (or delay) found lies at the edge of the range that
     was searched; the message names the bound to widen."""
+
+
+class ConversionWarning(UserWarning):
+    """A converted model cannot be used as the caller will likely use it: the
+    transfer-function matrix of a model with several inputs or outputs, which
+    the installed python-control cannot simulate without Slycot (``to_ss()``
+    can); the message names the alternative."""

@@ -113,3 +113,85 @@ def test_fits_and_validation_functions_take_iodata(record, cls, orders):
     assert a.prediction_fit == pytest.approx(b.prediction_fit, rel=1e-12)
     assert compare(m_a, uv, yv).fit == pytest.approx(compare(m_a, val).fit, rel=1e-12)
     assert delayest(u, y) == delayest(data)
+
+
+# ----------------------------------------------------------------------
+# several inputs (#28 item 6)
+# ----------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def two_inputs():
+    """Two inputs with delays 2 and 17 and nb 3 and 2: y = B1/A u1 + B2/A u2 + e/A."""
+    rng = np.random.default_rng(6)
+    N = 3000
+    u = rng.standard_normal((N, 2))
+    a = [1, -0.6]
+    y = (lfilter([0, 0, 1.0, 0.5, 0.25], a, u[:, 0]) + lfilter([0] * 17 + [0.8, -0.4], a, u[:, 1])
+         + lfilter([1], a, 0.1 * rng.standard_normal(N)))
+    return u, y
+
+
+def test_select_order_finds_both_delays_and_each_nb(two_inputs):
+    u, y = two_inputs
+    # nk not given: each input's delays are a window around delayest's estimate
+    sel = select_order(u, y, na=range(0, 3), nb=[range(1, 5), range(1, 4)])
+    assert sel.seeded_by_delayest == (2, 17)
+    assert [list(r) for r in sel.nk_ranges] == [[1, 2, 3], [16, 17, 18]]
+    assert sel.best == (1, (3, 2), (2, 17))
+    model = sel.best_model()
+    assert (tuple(model.nb), tuple(model.nk)) == ((3, 2), (2, 17))
+    # oracle: the best candidate's loss is ordinary least squares on the aligned rows
+    t0 = 17 + 3 - 1 + 1       # largest lag of the grid: nk 18 + nb 3 - 1
+    rows = np.arange(t0, len(y))
+    Phi = np.column_stack([-y[rows - 1]] + [u[rows - k, 0] for k in (2, 3, 4)]
+                          + [u[rows - k, 1] for k in (17, 18)])
+    theta, res, *_ = np.linalg.lstsq(Phi, y[rows], rcond=None)
+    i = sel.best_index
+    assert sel.table["loss"][i] == pytest.approx(res[0] / len(rows), rel=1e-9)
+    assert_allclose(sel.thetas[i], theta, rtol=1e-8)
+
+
+def test_per_input_ranges_as_lists_or_dicts_on_records(two_inputs):
+    u, y = two_inputs
+    data = IOData(u, y, input_names=["heater", "fan"])
+    a = select_order(data, na=[1], nb=[range(1, 5), range(1, 4)],
+                     nk=[range(0, 4), range(15, 20)])
+    b = select_order(data, na=[1], nb={"heater": range(1, 5), "fan": range(1, 4)},
+                     nk={0: range(0, 4), 1: range(15, 20)})
+    assert a.best == b.best == (1, (3, 2), (2, 17))
+    assert a.seeded_by_delayest is None
+    assert "3,2" in a.summary() and a.to_dataframe()["nk"][a.best_index] == [2, 17]
+    with pytest.warns(OrderSelectionWarning, match=r"`nk\[fan\]` range \(15\.\.17\)"):
+        select_order(data, na=[1], nb=[[3], [2]], nk=[range(0, 4), range(15, 18)])
+    with pytest.raises(ValueError, match="`nk` must give every input a range; missing 'fan'"):
+        select_order(data, na=[1], nk={"heater": range(0, 3)})
+    with pytest.raises(ValueError, match=r"`nb` must hold one range per input \(2\); got 3"):
+        select_order(data, na=[1], nb=[range(1, 2)] * 3)
+
+
+def test_family_searches_per_input_delays(two_inputs):
+    u, y = two_inputs
+    data = IOData(u[:1500], y[:1500])
+    sel = select_order(data, model=OE, nb=[[3], [2]], nf=[[1], [1]])
+    assert sel.seeded_by_delayest == (2, 17)
+    assert sel.best["nk"] == (2, 17)
+
+
+def test_to_tf_of_several_inputs_points_to_to_ss(two_inputs):
+    import importlib.util
+
+    import control
+
+    from rlsfilt.exceptions import ConversionWarning
+
+    u, y = two_inputs
+    model = ARX(1, [3, 2], [2, 17]).fit(u, y)
+    if importlib.util.find_spec("slycot") is None:
+        with pytest.warns(ConversionWarning, match=r"use model\.to_ss\(\)"):
+            G = model.to_tf()
+        with pytest.raises(control.ControlMIMONotImplemented):
+            control.forced_response(G, np.arange(50), u[:50].T)
+    # what the warning advises works without Slycot
+    resp = control.forced_response(model.to_ss(), np.arange(200), u[:200].T)
+    assert_allclose(np.ravel(resp.outputs), model.simulate(u[:200]), rtol=1e-9, atol=1e-10)
+    # one input, one output: no warning (pytest turns warnings into errors)
+    ARX(1, 3, 2).fit(u[:, 0], y).to_tf()
