@@ -301,8 +301,8 @@ def test_identify_select_order_finds_the_true_orders(capsys, tmp_path, record):
     res = json.loads(out)
     assert (res["na"], res["nb"], res["nk"]) == (2, [2], [1])
     sel = res["metadata"]["order_selection"]
-    # na in 0..4, nb in 1..4, nk in 1..4
-    assert sel["criterion"] == "bic" and len(sel["candidates"]) == 5 * 4 * 4
+    # na in 0..5, nb in 1..5 (the library's default largest order), nk in 1..4
+    assert sel["criterion"] == "bic" and len(sel["candidates"]) == 6 * 5 * 4
     assert sel["best"] == [2, 2, 1]
     best = min(sel["candidates"], key=lambda c: c["bic"])
     assert (best["na"], best["nb"], best["nk"]) == (2, 2, 1)

@@ -15,6 +15,7 @@ from .compare import Comparison, compare
 from .criteria import InformationCriteria, criteria_from_loss, information_criteria
 from .cusum import CusumResult, cusum, cusum_squares, recursive_residuals
 from .delay import DelayEstimate, delayest
+from .impulse import ImpulseResponse, impulseest
 from .metrics import fit_percent
 from .plant import PlantComparison
 from .report import ValidationReport, validate
@@ -33,6 +34,7 @@ __all__ = [
     "CusumResult",
     "DelayEstimate",
     "FrequencyBand",
+    "ImpulseResponse",
     "InformationCriteria",
     "OrderSelection",
     "ParameterIntervals",
@@ -47,6 +49,7 @@ __all__ = [
     "delayest",
     "fit_percent",
     "frequency_response_band",
+    "impulseest",
     "information_criteria",
     "parameter_intervals",
     "recursive_residuals",
