@@ -11,8 +11,18 @@ import pytest
 from numpy.testing import assert_allclose
 from scipy.signal import lfilter
 
-from rlsfilt import ARMAX, ARX, BJ, OE, IOData, compare, delayest, select_order, \
-    select_structure, validate
+from rlsfilt import (
+    ARMAX,
+    ARX,
+    BJ,
+    OE,
+    IOData,
+    compare,
+    delayest,
+    select_order,
+    select_structure,
+    validate,
+)
 from rlsfilt.exceptions import OrderSelectionWarning
 from rlsfilt.validation import information_criteria
 
