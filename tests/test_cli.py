@@ -650,3 +650,17 @@ def test_warnings_are_one_line_on_stderr(capsys, tmp_path):
     assert len(lines) == 1, err
     assert lines[0].startswith("rlsfilt: warning: `P` is ill-conditioned")
     assert "at step" in lines[0]
+
+
+def test_select_order_edge_warning_names_the_cli_options():
+    import argparse
+
+    from rlsfilt.cli import _option_names
+
+    msg = ("the best structure (na, nb, nk) = (5, 2, 3) is at the upper edge of the `na` range "
+           "(0..5): widen `na` upwards; and at the upper edge of the `nk` range (1..3): widen "
+           "`nk` upwards (the best may lie outside the grid)")
+    out = _option_names(msg, argparse.Namespace(max_order=5, delay_range=None))
+    assert "`na` (--max-order 5): raise --max-order" in out
+    assert "widen them with --delay-range LO:HI" in out
+    assert "widen `na`" not in out and "widen `nk`" not in out
