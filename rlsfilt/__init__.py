@@ -11,6 +11,7 @@ from .continuous import d2c
 from .data import IOData, Trend, detrend, retrend
 from .exceptions import (
     ConvergenceWarning,
+    ConversionWarning,
     ExactFitError,
     ExcitationWarning,
     ForgettingSkippedWarning,
@@ -96,5 +97,6 @@ __all__ = [
     "RegulatorWarning",
     "OrderSelectionWarning",
     "ConvergenceWarning",
+    "ConversionWarning",
     "__version__",
 ]

@@ -48,6 +48,7 @@ import array
 import atexit
 import contextlib
 import csv
+import inspect
 import itertools
 import json
 import math
@@ -100,6 +101,8 @@ _DEFAULT_PLANT = "dc_motor"
 _TRACKING_LAM = 0.98     # demo forgetting factor for the time-varying plant
 _DEMO_BYTES_PER_SAMPLE = 700   # the demo's peak per sample (measured about 500 at 2e5 samples)
 _DETREND = {"constant": "mean", "linear": False, "none": False}   # -> ARX(offset=...)
+# the largest na and nb --select-order tries by default: the library's own default range
+_MAX_ORDER = max(inspect.signature(select_order).parameters["nb"].default.values)
 _DELAY_SEARCH = 20       # largest delay delayest tries for --select-order without a range
 #: the demo's records: the textbook plants and a measured-like record (operating point,
 #: dead time, colored disturbance, two runs)
@@ -333,8 +336,9 @@ def _build_parser():
     ident.add_argument("--select-order", action="store_true",
                        help="choose na, nb (and nk unless given) by BIC, up to --max-order "
                             "(--model arx)")
-    ident.add_argument("--max-order", type=_positive_int, default=4, metavar="N",
-                       help="largest na and nb tried by --select-order (default: 4)")
+    ident.add_argument("--max-order", type=_positive_int, default=_MAX_ORDER, metavar="N",
+                       help="largest na and nb tried by --select-order (default: "
+                            f"{_MAX_ORDER}, as rlsfilt.select_order)")
     ident.add_argument("--delay-range", type=_delay_range, default=None, metavar="LO:HI",
                        help="delays tried by --select-order (default: around the delay "
                             "estimated by delayest)")
@@ -414,11 +418,13 @@ def _run_identify(args):
             metadata["delay_estimate"] = found
             lines.append(f"delay: delayest finds nk = {_fmt_list(list(np.atleast_1d(found)))};"
                          f" orders searched with nk in {nks.start}..{nks.stop - 1}")
-        with progress.task("order selection"):
+        with progress.task("order selection"), warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", OrderSelectionWarning)
             selection = select_order(est, na=range(0, args.max_order + 1),
                                      nb=range(1, args.max_order + 1), nk=nks,
                                      criterion="bic", validation=val, dt=est.dt,
                                      offset=offset)
+        _reissue(caught, args)
         na, nb_best, nk_best = selection.best
         nb, nk = [nb_best] * n_in, [nk_best] * n_in
         metadata["order_selection"] = selection.to_dict()
@@ -577,6 +583,36 @@ def _minus(data, u_op, y_op):
                   input_names=data.input_names, output_names=data.output_names,
                   input_units=data.input_units, output_units=data.output_units,
                   experiment_names=data.experiment_names, tstart=data.tstart)
+
+
+def _reissue(caught, args):
+    """The warnings of select_order, its edge warning in the command's option names
+    (``--max-order``, ``--delay-range``) rather than the library's ``na``/``nb``/``nk``."""
+    for w in caught:
+        message = str(w.message)
+        if issubclass(w.category, OrderSelectionWarning):
+            message = _option_names(message, args)
+        warnings.warn_explicit(message, w.category, w.filename, w.lineno)
+
+
+def _option_names(message, args):
+    """``the upper edge of the `nb` range (1..4): widen `nb` upwards`` -> ``... of
+    --max-order 4: raise --max-order``."""
+    import re
+
+    def edge(m):
+        which, name = m.group(1), m.group(2)
+        if name in ("na", "nb"):
+            if which == "upper":
+                return (f"the upper edge of `{name}` (--max-order {args.max_order}): raise "
+                        "--max-order")
+            return f"the lower edge of `{name}` (0 or 1, the smallest order)"
+        option = "--delay-range" if args.delay_range is not None else "--delay-range LO:HI"
+        return (f"the {which} edge of the delays tried (`{name}` {m.group(3)}): widen them "
+                f"with {option}")
+
+    return re.sub(r"the (upper|lower) edge of the `(\w+)` range (\([^)]*\)): widen `\w+` "
+                  r"(?:upwards|downwards)", edge, message)
 
 
 def _family_model(args, na, nb, nk, n_in, dt):

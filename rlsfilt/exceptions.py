@@ -6,7 +6,8 @@ keeps working, while ``except NotFittedError`` lets a caller be precise.
 
 __all__ = ["NotFittedError", "InsufficientDataError", "ExactFitError", "NumericalWarning",
            "ForgettingSkippedWarning", "ExcitationWarning", "RegulatorWarning",
-           "OperatingPointWarning", "OrderSelectionWarning", "ConvergenceWarning"]
+           "OperatingPointWarning", "OrderSelectionWarning", "ConvergenceWarning",
+           "ConversionWarning"]
 
 
 class NotFittedError(ValueError, AttributeError):
@@ -66,3 +67,10 @@ class ConvergenceWarning(UserWarning):
     ended on the stability boundary, stopped at its evaluation or time limit,
     or ended with a larger criterion than the least-squares ARX of the same
     orders."""
+
+
+class ConversionWarning(UserWarning):
+    """A converted model cannot be used as the caller will likely use it: the
+    transfer-function matrix of a model with several inputs or outputs, which
+    the installed python-control cannot simulate without Slycot (``to_ss()``
+    can); the message names the alternative."""

@@ -59,6 +59,7 @@ __all__ = [
     "plot_plant_comparison",
     "plot_frequency_band",
     "plot_order_selection",
+    "plot_impulse",
     "plot_cusum",
     "plot_report",
     "plot_str_history",
@@ -629,7 +630,8 @@ def plot_autocorrelation(analysis, ax=None):
     ax.set_xlabel("lag $k$ (samples)")
     ax.set_ylabel(r"$\hat\rho_\varepsilon(k)$")
     _test_title(ax, "Residual autocorrelation", "white" if analysis.is_white else "NOT white",
-                analysis.pvalue_white, analysis.alpha, "whiteness")
+                analysis.pvalue_white, analysis.alpha, "whiteness", "Ljung-Box test",
+                int(outside.sum()), int(lags.size))
     return ax
 
 
@@ -678,9 +680,11 @@ def plot_cross_correlation(analysis, ax=None):
     _zero_line_and_scale(ax, float(np.max(bands)), xc)
     ax.set_xlabel(r"lag $\tau$ (samples; $\tau > 0$: past inputs)")
     ax.set_ylabel(r"$\hat\rho_{\varepsilon u}(\tau)$")
+    n_out = int(sum(np.sum(np.abs(xc[j]) > bands[j]) for j in range(nu)))
     _test_title(ax, "Input cross-correlation",
                 "independent" if analysis.is_independent else "NOT independent",
-                analysis.pvalue_independent, analysis.alpha, "independence")
+                analysis.pvalue_independent, analysis.alpha, "independence", "F-test",
+                n_out, int(xc.size))
     if nu > 1:
         _legend_outside(ax)
     return ax
@@ -981,6 +985,72 @@ def plot_order_selection(selection, ax=None):
     ax.grid(True, alpha=0.3)
     _legend_outside(ax)
     return ax
+
+
+def plot_impulse(impulse, ax=None, *, level=0.99):
+    r"""Impulse-response coefficients :math:`\hat g_j(k)` with their confidence band.
+
+    One panel per input (MATLAB's ``impulseest`` plot with ``showConfidence``):
+    stems for the coefficients, the shaded pointwise `level` band around zero
+    (a coefficient outside it differs significantly from zero), the first
+    significant lag marked.
+
+    Parameters
+    ----------
+    impulse : ImpulseResponse
+        What :func:`~rlsfilt.validation.impulseest` returned.
+    ax : matplotlib.axes.Axes or sequence of them, optional
+        One axes per input; a new figure is made if omitted.
+    level : float, default 0.99
+        Confidence level of the band.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scipy.signal import lfilter
+    >>> from rlsfilt.validation import impulseest
+    >>> rng = np.random.default_rng(1)
+    >>> u = rng.standard_normal(1000)
+    >>> y = lfilter([0, 0, 1.0], [1, -0.5], u) + 0.1 * rng.standard_normal(1000)
+    >>> fig = impulseest(u, y, n_coeffs=20).plot()
+    >>> "first significant lag 2" in fig.axes[0].get_title()
+    True
+    """
+    nu = impulse.n_inputs
+    if ax is None:
+        fig = _figure(figsize=(7, 2.2 + 2.2 * nu), layout="constrained")
+        axes = np.atleast_1d(fig.subplots(nu, 1, sharex=True))
+    else:
+        axes = np.atleast_1d(ax)
+        if axes.size != nu:
+            raise ValueError(f"`ax` must hold one axes per input ({nu}); got {axes.size}")
+        fig = axes[0].figure
+    z = impulse.z_value(level)
+    lags = impulse.lags * (1.0 if impulse.dt is True else float(impulse.dt))
+    sig = impulse.significant(level)
+    for j, axj in enumerate(axes):
+        g, half = impulse.coefficients[:, j], z * impulse.stderr[:, j]
+        axj.fill_between(lags, -half, half, step="mid", color=COLORS[5], alpha=0.35,
+                         linewidth=0)
+        axj.vlines(lags, 0.0, g, color=COLORS[0], lw=1.2)
+        axj.plot(lags[~sig[:, j]], g[~sig[:, j]], "o", color=COLORS[0], ms=3.5)
+        axj.plot(lags[sig[:, j]], g[sig[:, j]], "o", color=COLORS[1], ms=4.5)
+        axj.axhline(0.0, color=_BLACK, lw=0.6)
+        first = np.flatnonzero(sig[:, j])
+        text = (f"first significant lag {first[0]}" if first.size else "no significant lag")
+        if first.size:
+            axj.axvline(lags[first[0]], color=COLORS[1], lw=0.8, ls="--")
+        name = impulse.input_names[j]
+        axj.set_title(f"Impulse response {name} to {impulse.output_name}: {text}\n"
+                      f"shaded: {100 * level:g}% band per lag (+-{z:.3g} standard errors)",
+                      fontsize="medium")
+        axj.set_ylabel(rf"$\hat g(k)$ ({name})")
+    axes[-1].set_xlabel("lag $k$ (samples)" if impulse.dt is True else "lag (s)")
+    return fig
 
 
 def plot_cusum(result, ax=None, *, t=None, xlabel=None):
@@ -1488,11 +1558,14 @@ def _zero_line_and_scale(ax, band, values):
     ax.set_ylim(-top, top)
 
 
-def _test_title(ax, what, verdict, pvalue, alpha, hypothesis):
-    """The title of a residual-test panel: ``"<what>: <verdict> (p = ...)"`` over the
-    meaning of the shaded band (the ``1 - alpha`` band under `hypothesis`)."""
-    ax.set_title(f"{what}: {verdict} (p = {pvalue:.3g})\n"
-                 f"shaded: {100 * (1 - alpha):g}% band under {hypothesis}", fontsize="medium")
+def _test_title(ax, what, verdict, pvalue, alpha, hypothesis, test, n_outside, n_lags):
+    """The title of a residual-test panel: ``"<what>: <verdict> (<test>, joint over all lags,
+    p = ...)"`` over the meaning of the shaded band: a per-lag ``1 - alpha`` band under
+    `hypothesis`, which single lags leave by chance (``alpha * n_lags`` of them expected)
+    even when the joint test passes."""
+    ax.set_title(f"{what}: {verdict} ({test} joint over {n_lags} lags, p = {pvalue:.3g})\n"
+                 f"shaded: {100 * (1 - alpha):g}% band per lag under {hypothesis}; "
+                 f"{n_outside} outside (~{alpha * n_lags:.2g} by chance)", fontsize="medium")
 
 
 def _decimate(x, y, max_points=MAX_POINTS):

@@ -301,8 +301,8 @@ def test_identify_select_order_finds_the_true_orders(capsys, tmp_path, record):
     res = json.loads(out)
     assert (res["na"], res["nb"], res["nk"]) == (2, [2], [1])
     sel = res["metadata"]["order_selection"]
-    # na in 0..4, nb in 1..4, nk in 1..4
-    assert sel["criterion"] == "bic" and len(sel["candidates"]) == 5 * 4 * 4
+    # na in 0..5, nb in 1..5 (the library's default largest order), nk in 1..4
+    assert sel["criterion"] == "bic" and len(sel["candidates"]) == 6 * 5 * 4
     assert sel["best"] == [2, 2, 1]
     best = min(sel["candidates"], key=lambda c: c["bic"])
     assert (best["na"], best["nb"], best["nk"]) == (2, 2, 1)
@@ -650,3 +650,17 @@ def test_warnings_are_one_line_on_stderr(capsys, tmp_path):
     assert len(lines) == 1, err
     assert lines[0].startswith("rlsfilt: warning: `P` is ill-conditioned")
     assert "at step" in lines[0]
+
+
+def test_select_order_edge_warning_names_the_cli_options():
+    import argparse
+
+    from rlsfilt.cli import _option_names
+
+    msg = ("the best structure (na, nb, nk) = (5, 2, 3) is at the upper edge of the `na` range "
+           "(0..5): widen `na` upwards; and at the upper edge of the `nk` range (1..3): widen "
+           "`nk` upwards (the best may lie outside the grid)")
+    out = _option_names(msg, argparse.Namespace(max_order=5, delay_range=None))
+    assert "`na` (--max-order 5): raise --max-order" in out
+    assert "widen them with --delay-range LO:HI" in out
+    assert "widen `na`" not in out and "widen `nk`" not in out

@@ -25,13 +25,14 @@ import abc
 import html
 import inspect
 import numbers
+import warnings
 from collections import namedtuple
 
 import numpy as np
 
 from .._serialize import jsonable
 from .._validation import check_dt
-from ..exceptions import NotFittedError
+from ..exceptions import ConversionWarning, NotFittedError
 from . import _conversion
 from .regressors import _as_signal, as_io_data
 
@@ -401,12 +402,37 @@ class IdentifiedModel(abc.ABC):
         Returns
         -------
         control.TransferFunction
+
+        Warns
+        -----
+        ConversionWarning
+            For several inputs or outputs when Slycot is not installed:
+            python-control (0.10) turns a transfer-function *matrix* into
+            state space, which its ``forced_response``, ``step_response``,
+            ``feedback`` and ``ss`` need, only through Slycot, and raises
+            ``ControlMIMONotImplemented`` without it. :meth:`to_ss` gives
+            the same model as a ``control.StateSpace`` that needs no Slycot.
+
+        Notes
+        -----
+        A single-input, single-output transfer function works everywhere in
+        python-control. For several inputs or outputs, simulate
+        :meth:`to_ss` (or the model's own :meth:`simulate`), or install
+        Slycot (``pip install "rlsfilt[mimo]"``: manylinux wheels exist for
+        CPython 3.11), with which python-control converts the matrix itself.
+        Frequency responses and poles of the matrix need no Slycot.
         """
         self._check_fitted("to_tf")
         if not continuous and (method != "zoh" or pade is not None):
             raise TypeError("`method` and `pade` only apply with continuous=True")
-        G = _conversion.to_tf(self.polydata(), self._check_dt(), noise)
-        G = _labelled(G, self._signal_labels(noise))
+        G = _labelled(_conversion.to_tf(self.polydata(), self._check_dt(), noise),
+                      self._signal_labels(noise))
+        if (G.ninputs > 1 or G.noutputs > 1) and not _has_slycot():
+            warnings.warn(
+                f"the {G.noutputs}x{G.ninputs} transfer-function matrix cannot be simulated or "
+                "turned into state space by python-control without Slycot "
+                "(ControlMIMONotImplemented); use model.to_ss() (same model, no Slycot "
+                "needed) or install slycot", ConversionWarning, stacklevel=2)
         if continuous:
             from ..continuous import d2c
 
@@ -658,7 +684,9 @@ class IdentifiedModel(abc.ABC):
         """
         self._check_fitted("to_dict")
         p = self.polydata()
-        G = self.to_tf()
+        with warnings.catch_warnings():   # only the coefficients are read
+            warnings.simplefilter("ignore", ConversionWarning)
+            G = self.to_tf()
         tfs = [{"output": i, "input": j, "num": G.num[i][j], "den": G.den[i][j],
                 "dt": self._check_dt(), "variable": "z"}
                for i in range(self.n_outputs_) for j in range(self.n_inputs_)]
@@ -817,3 +845,10 @@ def _labelled(G, labels):
     if G.issiso():
         return control.tf(G.num[0][0], G.den[0][0], G.dt, **kw)
     return control.tf(G.num, G.den, G.dt, **kw)
+
+
+def _has_slycot():
+    """True when python-control can convert transfer-function matrices (Slycot importable)."""
+    import importlib.util
+
+    return importlib.util.find_spec("slycot") is not None

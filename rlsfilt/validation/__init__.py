@@ -16,6 +16,7 @@ from .criteria import InformationCriteria, criteria_from_loss, information_crite
 from .cusum import CusumResult, cusum, cusum_squares, recursive_residuals
 from .delay import DelayEstimate, delayest
 from .detection import ChangeDetector, cusum_threshold
+from .impulse import ImpulseResponse, impulseest
 from .metrics import fit_percent
 from .plant import PlantComparison
 from .report import ValidationReport, validate
@@ -35,6 +36,7 @@ __all__ = [
     "CusumResult",
     "DelayEstimate",
     "FrequencyBand",
+    "ImpulseResponse",
     "InformationCriteria",
     "OrderSelection",
     "ParameterIntervals",
@@ -50,6 +52,7 @@ __all__ = [
     "delayest",
     "fit_percent",
     "frequency_response_band",
+    "impulseest",
     "information_criteria",
     "parameter_intervals",
     "recursive_residuals",

@@ -88,7 +88,10 @@ def delayest(u, y=None, na=2, nb=2, nk_min=0, nk_max=None, *, full_output=False)
     -----
     OrderSelectionWarning
         When an estimated delay is at ``nk_max`` (or at ``nk_min > 0``):
-        the true delay may lie outside the range, so widen that bound.
+        the true delay may lie outside the range, so widen that bound. And
+        when the losses point to ``nk_max`` but the impulse response
+        estimate is significant earlier (then that shorter delay is
+        returned, see Notes).
 
     Raises
     ------
@@ -107,6 +110,16 @@ def delayest(u, y=None, na=2, nb=2, nk_min=0, nk_max=None, *, full_output=False)
     first coefficient, and a shorter one ties when the model's ``nb``
     exceeds the plant's (its leading coefficient is then zero: a delay means
     exactly that the first coefficients vanish).
+
+    A delay at the upper edge ``nk_max`` is checked against the impulse
+    response estimate of :func:`~rlsfilt.validation.impulseest` (lags
+    ``0 .. nk_max + nb + 10``, noise prewhitened): when a coefficient at a
+    lag :math:`k_g` inside the range differs from zero with all lags tested
+    together at the 1 % level (Bonferroni), the delay cannot exceed
+    :math:`k_g` (a delay :math:`n_k` states that the first :math:`n_k`
+    coefficients vanish), and the best delay up to :math:`k_g` is returned,
+    with a warning. This guards against low-order test models that fit a
+    swept or narrow-band input equally well at any delay.
 
     One Householder QR factorization of :math:`[\Psi\;y]`, accumulated over
     blocks of rows (:math:`R \leftarrow \mathrm{qr}([R;\,\text{block}])`,
@@ -203,8 +216,8 @@ def delayest(u, y=None, na=2, nb=2, nk_min=0, nk_max=None, *, full_output=False)
         se = np.sqrt(max(cov[at, at], 0.0))
         return se > 0 and abs(b[at]) / se > t_crit
 
-    def best_for(j, delays, inputs):
-        ks = range(nk_min[j], nk_max[j] + 1)
+    def best_for(j, delays, inputs, upper=None):
+        ks = range(nk_min[j], (nk_max[j] if upper is None else upper) + 1)
         curve = np.array([loss({**delays, j: k}, inputs) for k in ks])
         ok = np.flatnonzero(curve <= curve.min() * tie)
         # among the delays whose loss ties with the best, the shortest whose leading
@@ -229,6 +242,17 @@ def delayest(u, y=None, na=2, nb=2, nk_min=0, nk_max=None, *, full_output=False)
         if not changed:
             break
     names = data.input_names
+    for j, k_imp in _impulse_check(data, delays, nk_min, nk_max, nb):
+        # the loss curve ran to the upper edge while the impulse response estimate is
+        # significant (all lags tested together at the 1 % level) much earlier: the
+        # delay is at most that lag (a longer delay claims those coefficients are zero)
+        k_edge = delays[j]
+        delays[j] = _best_upto(best_for, j, delays, nu, k_imp)
+        warnings.warn(f"the ARX losses of input {names[j]!r} are smallest at the edge "
+                      f"nk_max={k_edge}, but its impulse response estimate (impulseest) is "
+                      f"significant from lag {k_imp} on: returning nk={delays[j]}, the best "
+                      f"delay up to lag {k_imp}; check with impulseest(...).plot()",
+                      OrderSelectionWarning, stacklevel=2)
     for j in range(nu):
         for bound, value, edge in (("nk_max", nk_max[j], True),
                                    ("nk_min", nk_min[j], nk_min[j] > 0)):
@@ -248,6 +272,31 @@ def delayest(u, y=None, na=2, nb=2, nk_min=0, nk_max=None, *, full_output=False)
 # ----------------------------------------------------------------------
 # private helpers
 # ----------------------------------------------------------------------
+def _impulse_check(data, delays, nk_min, nk_max, nb):
+    """``[(j, first significant lag)]`` for the inputs whose delay is at ``nk_max`` while
+    the impulse response estimate (:func:`impulseest`, lags 0 .. nk_max + nb + 10) is
+    significant, at the family-wise 1 % level, at a lag inside the range before it."""
+    at_edge = [j for j in delays if delays[j] == nk_max[j] > nk_min[j]]
+    if not at_edge:
+        return []
+    from .impulse import impulseest
+
+    n = max(nk_max) + max(nb) + 10
+    try:
+        first = impulseest(data, n_coeffs=n).delay(familywise=True)
+    except ValueError:            # too short a record for the FIR estimate: no check
+        return []
+    first = (first,) if data.n_inputs == 1 else first
+    return [(j, first[j]) for j in at_edge
+            if first[j] is not None and nk_min[j] <= first[j] < delays[j]]
+
+
+def _best_upto(best_for, j, delays, nu, k_max):
+    """The delay of input `j` chosen among ``nk_min .. k_max`` (the others fixed)."""
+    k, _ = best_for(j, delays, range(nu), k_max)
+    return k
+
+
 def _per_input(value, name, nu, minimum):
     if isinstance(value, (list, tuple, np.ndarray)):
         values = list(value)

@@ -12,6 +12,7 @@ import warnings
 import numpy as np
 
 from .._validation import as_float_array, check_int
+from ..exceptions import ConversionWarning
 from ..models._base import IdentifiedModel, check_is_fitted
 from ..plotting import plot_bode, plot_plant_comparison, plot_step
 
@@ -246,7 +247,9 @@ def _model_tf(model):
         sys = model
     elif isinstance(model, IdentifiedModel):
         check_is_fitted(model, "PlantComparison")
-        sys = model.to_tf()
+        with warnings.catch_warnings():   # its frequency response needs no Slycot
+            warnings.simplefilter("ignore", ConversionWarning)
+            sys = model.to_tf()
     else:
         raise TypeError("`model` must be a fitted ARX model or a python-control LTI system "
                         f"(or another rlsfilt IdentifiedModel); got {type(model).__name__}")

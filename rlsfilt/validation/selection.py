@@ -29,6 +29,8 @@ __all__ = ["OrderSelection", "select_order"]
 # candidates (a few minutes on one core); a realistic grid (na, nb, nk up to 10 with
 # one input: 1210 candidates) needs about 1e7
 _MAX_WORK = 1e11
+# the delays select_order tries per input around delayest's estimate when `nk` is not given
+_SEED_HALF_WIDTH = 1
 _CRITERIA = ("aic", "aicc", "bic", "naic", "fpe", "mdl", "loss")
 _FIELDS = [("na", int), ("nb", int), ("nk", int), ("n_params", int), ("loss", float),
            ("val_loss", float), ("aic", float), ("aicc", float), ("bic", float),
@@ -75,7 +77,7 @@ class OrderSelection:
         # records in any units, see select_order)
         self._rank_key = self.values if rank_key is None else np.asarray(rank_key, float)
         i = int(np.nanargmin(self._rank_key))
-        self.best = (int(table["na"][i]), int(table["nb"][i]), int(table["nk"][i]))
+        self.best = (int(table["na"][i]), _orders(table["nb"][i]), _orders(table["nk"][i]))
         self.best_index = i
         self.thetas = thetas
         self.n_rows = n_rows
@@ -100,6 +102,7 @@ class OrderSelection:
         from ..models import ARX
 
         na, nb, nk = self.best
+        nb, nk = (list(v) if isinstance(v, tuple) else v for v in (nb, nk))
         return ARX(na, nb, nk, dt=self._dt, offset=self._offset).fit(*self._data)
 
     def to_dict(self):
@@ -116,13 +119,16 @@ class OrderSelection:
         names = self.table.dtype.names
         return jsonable({"best": self.best, "criterion": self.criterion, "n_rows": self.n_rows,
                          "n_val_rows": self.n_val_rows,
-                         "candidates": [{k: row[k] for k in names} for row in self.table]})
+                         "candidates": [{k: _plain(row[k]) for k in names}
+                                        for row in self.table]})
 
     def to_dataframe(self):
         """The table as a ``pandas.DataFrame`` (pandas must be installed)."""
         import pandas as pd
 
-        return pd.DataFrame({name: self.table[name] for name in self.table.dtype.names})
+        return pd.DataFrame({name: [_plain(v) for v in self.table[name]]
+                             if self.table[name].ndim > 1 else self.table[name]
+                             for name in self.table.dtype.names})
 
     def summary(self, top=10):
         """Text table of the `top` candidates, best first.
@@ -139,7 +145,8 @@ class OrderSelection:
         top = check_int(top, "top", minimum=1)
         order = np.argsort(self._rank_key, kind="stable")[:top]
         val = not np.all(np.isnan(self.table["val_loss"]))
-        head = f"{'na':>3} {'nb':>3} {'nk':>3} {'d':>3} {'loss':>11}"
+        w = 3 if self.table["nb"].ndim == 1 else 4 * self.table["nb"].shape[1] + 1
+        head = f"{'na':>3} {'nb':>{w}} {'nk':>{w}} {'d':>3} {'loss':>11}"
         head += f" {'val_loss':>11}" if val else ""
         extra = self.criterion != "loss"
         head += f" {self.criterion:>12}" if extra else ""
@@ -147,7 +154,8 @@ class OrderSelection:
                  f"{self.n_rows} aligned rows)", head]
         for i in order:
             r = self.table[i]
-            line = f"{r['na']:>3} {r['nb']:>3} {r['nk']:>3} {r['n_params']:>3} {r['loss']:>11.5g}"
+            nb, nk = (_text(_orders(r[k])) for k in ("nb", "nk"))
+            line = f"{r['na']:>3} {nb:>{w}} {nk:>{w}} {r['n_params']:>3} {r['loss']:>11.5g}"
             line += f" {r['val_loss']:>11.5g}" if val else ""
             line += f" {self.values[i]:>12.6g}" if extra else ""
             line += "  unstable" if not r["stable"] else ""
@@ -345,22 +353,30 @@ def select_order(u, y=None, na=_NA, nb=_NB, nk=_NK, criterion="bic", validation=
     if fit_options is not None:
         raise ValueError("`fit_options` applies to the classes fitted by prediction error, "
                          "not to ARX (searched by least squares); remove it")
-    na, nb, nk = (v.values if isinstance(v, _Default) else v for v in (na, nb, nk))
     from ..models.arx import _offset_mode
 
     mode = _offset_mode(offset)
-    na_list = _order_list(na, "na", 0)
-    nb_list = _order_list(nb, "nb", 1)
-    nk_list = _order_list(nk, "nk", 0)
     records, info = _records(u, y, "u", "y")
-    # the lists are sorted (ranges ascending): first and last are the extremes
-    kmin = nk_list[0]
-    kmax = nk_list[-1] + nb_list[-1] - 1
-    na_max = na_list[-1]
-    t_max = max(na_max, kmax)
     nu = records[0][0].shape[1]
-    n_lags = kmax - kmin + 1
-    n_cols = na_max + nu * n_lags + (mode == "intercept")
+    names = info["u_names"] or [f"u{j + 1}" for j in range(nu)]
+    nb_per, nk_per, seeded = _input_ranges(nb, nk, nu, names, u, y)
+    na = na.values if isinstance(na, _Default) else na
+    na_list = _order_list(na, "na", 0)
+    per_input = nb_per is not None
+    if not per_input:
+        nb = nb.values if isinstance(nb, _Default) else nb
+        nk = nk.values if isinstance(nk, _Default) else nk
+        nb_per = [_order_list(nb, "nb", 1)] * nu
+        nk_per = [_order_list(nk, "nk", 0)] * nu
+    # the lists are sorted (ranges ascending): first and last are the extremes; per input
+    # the columns u_j(t - kmin_j) .. u_j(t - kmax_j)
+    kmins = [nk_per[j][0] for j in range(nu)]
+    kmaxs = [nk_per[j][-1] + nb_per[j][-1] - 1 for j in range(nu)]
+    n_lags = [kmaxs[j] - kmins[j] + 1 for j in range(nu)]
+    na_max = na_list[-1]
+    t_max = max([na_max] + kmaxs)
+    n_cols = na_max + sum(n_lags) + (mode == "intercept")
+    starts = np.cumsum([na_max] + n_lags)[:-1]
 
     # limits first, before anything of the size of the orders is allocated
     n = sum(len(U) for U, _ in records)
@@ -368,10 +384,15 @@ def select_order(u, y=None, na=_NA, nb=_NB, nk=_NK, criterion="bic", validation=
     if rows <= n_cols:
         raise InsufficientDataError(
             f"`y` is too short for these orders: {n} samples leave {rows} aligned rows "
-            f"for up to {n_cols} regressors (largest `na` = {na_max}, `nb` = {nb_list[-1]}, "
-            f"`nk` = {nk_list[-1]}); use more data or smaller orders")
-    n_cand = len(na_list) * len(nb_list) * len(nk_list)
-    n_par = na_max + nu * nb_list[-1] + (mode == "intercept")
+            f"for up to {n_cols} regressors (largest `na` = {na_max}, `nb` = "
+            f"{_largest(nb_per, per_input)}, `nk` = {_largest(nk_per, per_input)}); use more "
+            "data or smaller orders")
+    if per_input:
+        n_cand = len(na_list) * int(np.prod([len(nb_per[j]) * len(nk_per[j])
+                                             for j in range(nu)]))
+    else:
+        n_cand = len(na_list) * len(nb_per[0]) * len(nk_per[0])
+    n_par = na_max + sum(nb_per[j][-1] for j in range(nu)) + (mode == "intercept")
     # each candidate is a least-squares problem with n_cols + 1 rows and up to n_par
     # columns: refuse a grid that would take hours rather than run it
     work = n_cand * (n_cols + 1) * n_par ** 2
@@ -388,7 +409,7 @@ def select_order(u, y=None, na=_NA, nb=_NB, nk=_NK, criterion="bic", validation=
                  f"regressors on {n} samples")
     op = _means(records) if mode == "mean" else None
 
-    Psi, target = _stacked_regressor(records, na_max, kmin, kmax, t_max, op, mode)
+    Psi, target = _stacked_regressor(records, na_max, kmins, kmaxs, t_max, op, mode)
     # unit columns: the least-squares cut-off of rank-deficient candidates and the
     # conditioning no longer depend on the signals' units (losses are unchanged); the
     # target divided by a power of two near its largest entry (exact), so that losses are
@@ -414,7 +435,8 @@ def select_order(u, y=None, na=_NA, nb=_NB, nk=_NK, criterion="bic", validation=
         if val_records[0][0].shape[1] != nu:
             raise ValueError(f"`validation` input must have {nu} column(s) like `u`; got "
                              f"{val_records[0][0].shape[1]}")
-        Psi_v, target_v = _stacked_regressor(val_records, na_max, kmin, kmax, t_max, op, mode)
+        Psi_v, target_v = _stacked_regressor(val_records, na_max, kmins, kmaxs, t_max, op,
+                                             mode)
         if len(target_v) == 0:
             raise InsufficientDataError(
                 f"`validation` record is too short: {sum(len(U) for U, _ in val_records)} "
@@ -423,14 +445,21 @@ def select_order(u, y=None, na=_NA, nb=_NB, nk=_NK, criterion="bic", validation=
         raise ValueError("`criterion`='loss' needs `validation` data (on the estimation data "
                          "the largest model always has the smallest loss)")
 
-    cands = list(itertools.product(na_list, nb_list, nk_list))
-    table = np.zeros(len(cands), dtype=_FIELDS)
+    if per_input:   # (na, (nb_1, .., nb_nu), (nk_1, .., nk_nu)), inputs varying independently
+        pairs = list(itertools.product(*[itertools.product(nb_per[j], nk_per[j])
+                                         for j in range(nu)]))
+        cands = [(a, tuple(p[0] for p in pair), tuple(p[1] for p in pair))
+                 for a in na_list for pair in pairs]
+    else:
+        cands = list(itertools.product(na_list, nb_per[0], nk_per[0]))
+    table = np.zeros(len(cands), dtype=_fields(nu if per_input else None))
     thetas = []
     loss_s = np.empty(len(cands))        # the losses in units of ty^2
     const = [n_cols - 1] if mode == "intercept" else []
     for i, (a, b, k) in enumerate(cands):
-        S = list(range(a)) + [na_max + j * n_lags + (k - kmin) + m
-                              for j in range(nu) for m in range(b)] + const
+        bs, ks = (b, k) if per_input else ((b,) * nu, (k,) * nu)
+        S = list(range(a)) + [int(starts[j]) + (ks[j] - kmins[j]) + m
+                              for j in range(nu) for m in range(bs[j])] + const
         M = R[:, S]
         theta = np.linalg.lstsq(M, r_y, rcond=None)[0] if S else np.zeros(0)
         res = r_y - M @ theta
@@ -480,7 +509,18 @@ def select_order(u, y=None, na=_NA, nb=_NB, nk=_NK, criterion="bic", validation=
     data = _given(u, y, records, info)
     result = OrderSelection(table, criterion, values, thetas, rows, N if use_val else None,
                             data, dt, offset, rank_key=rank_key)
-    _warn_edges(result.best, {"na": na_list, "nb": nb_list, "nk": nk_list})
+    result.nk_ranges = [nk_per[j] for j in range(nu)] if per_input else None
+    result.seeded_by_delayest = seeded
+    if per_input:
+        ranges = {"na": na_list}
+        best = [result.best[0]]
+        for name, lists, at in (("nb", nb_per, 1), ("nk", nk_per, 2)):
+            for j in range(nu):
+                ranges[_input_key(name, j, names, nu)] = lists[j]
+                best.append(result.best[at][j])
+        _warn_edges(tuple(best), ranges)
+    else:
+        _warn_edges(result.best, {"na": na_list, "nb": nb_per[0], "nk": nk_per[0]})
     return result
 
 
@@ -518,15 +558,33 @@ def _select_family(model, u, y, orders, criterion, validation, dt, offset, stabl
     if getattr(model, "_TIME_SERIES", False) and u is not None:
         raise ValueError(f"`u` must be None for the time-series class {name} (the record is "
                          f"`y`); got {type(u).__name__}")
-    grid = {}
+    nu, names = 0, []
+    if not getattr(model, "_TIME_SERIES", False):
+        records, info = _records(u, y, "u", "y")
+        nu = records[0][0].shape[1]
+        names = info["u_names"] or [f"u{j + 1}" for j in range(nu)]
+    grid, ranges, seeded = {}, {}, None
     for key in params:
         value = orders[key]
+        per = _per_input_lists(value, key, nu, names, 1 if key == "nb" else 0) \
+            if key in ("nb", "nf", "nk") and nu else None
+        if per is None and key == "nk" and nu > 1 and isinstance(value, (_Default,
+                                                                         type(None))):
+            per, seeded = _seed_delays(u, y, nu)
+        if per is not None:     # one tuple of per-input orders per candidate
+            grid[key] = list(itertools.product(*per))
+            for j in range(nu):
+                ranges[(key, j)] = (_input_key(key, j, names, nu), per[j])
+            continue
         if value is None or isinstance(value, _Default):
             value = range(1, 4) if key == "nk" else range(1, 3)
         grid[key] = _order_list(value, key, 1 if key == "nb" else 0)
+        ranges[(key, None)] = (key, grid[key])
     result = select_structure(model, u, y, grid, criterion=criterion, validation=validation,
                               dt=dt, **(fit_options or {}))
-    _warn_edges(tuple(result.best[k] for k in grid), grid, stacklevel=4)
+    result.seeded_by_delayest = seeded
+    best = tuple(result.best[k] if j is None else result.best[k][j] for k, j in ranges)
+    _warn_edges(best, dict(ranges.values()), stacklevel=4)
     return result
 
 
@@ -581,13 +639,13 @@ def _means(records):
     return U.mean(axis=0), Y.mean(axis=0)
 
 
-def _stacked_regressor(records, na_max, kmin, kmax, t_max, op, mode):
+def _stacked_regressor(records, na_max, kmins, kmaxs, t_max, op, mode):
     """`_full_regressor` of every experiment, one after the other (+ ones for an intercept)."""
     Psis, targets = [], []
     for U, Y in records:
         if op is not None:
             U, Y = U - op[0], Y - op[1]
-        Psi, target = _full_regressor(U, Y, na_max, kmin, kmax, t_max)
+        Psi, target = _full_regressor(U, Y, na_max, kmins, kmaxs, t_max)
         if mode == "intercept":
             Psi = np.column_stack([Psi, np.ones(len(target))])
         Psis.append(Psi)
@@ -629,8 +687,111 @@ def _as_given(X, was_1d, names):
     return pd.DataFrame(X, columns=names)
 
 
-def _full_regressor(U, Y, na_max, kmin, kmax, t_max):
-    """The regressors of ``ARX(na_max, kmax - kmin + 1, kmin)``, rows t_max..N-1: columns
-    ``-y(t-1..na_max)`` then per input ``u(t-kmin..kmax)``, every candidate a column subset."""
-    s = arx_structure(na_max, kmax - kmin + 1, kmin, U.shape[1], 1)
+def _full_regressor(U, Y, na_max, kmins, kmaxs, t_max):
+    """The regressors of ``ARX(na_max, kmax - kmin + 1, kmin)`` (per input), rows
+    t_max..N-1: columns ``-y(t-1..na_max)`` then per input ``u_j(t-kmin_j..kmax_j)``, every
+    candidate a column subset."""
+    s = arx_structure(na_max, [b - a + 1 for a, b in zip(kmins, kmaxs)], list(kmins),
+                      U.shape[1], 1)
     return _build(U, Y, s, t_max), Y[t_max:, 0]
+
+
+def _fields(nu):
+    """The table's dtype: ``nb`` and ``nk`` one per input when searched per input."""
+    if nu is None:
+        return _FIELDS
+    return [(name, kind, (nu,)) if name in ("nb", "nk") else (name, kind)
+            for name, kind in _FIELDS]
+
+
+def _orders(value):
+    """An int, or a tuple of ints for per-input orders."""
+    value = np.asarray(value)
+    return int(value) if value.ndim == 0 else tuple(int(v) for v in value)
+
+
+def _plain(value):
+    value = np.asarray(value)
+    return value.item() if value.ndim == 0 else [v.item() for v in value]
+
+
+def _text(order):
+    return str(order) if isinstance(order, int) else ",".join(map(str, order))
+
+
+def _largest(lists, per_input):
+    return [lst[-1] for lst in lists] if per_input else lists[0][-1]
+
+
+def _input_key(name, j, names, nu):
+    """``nk[u2]``: the per-input range's name in messages."""
+    return f"{name}[{names[j]}]" if nu > 1 else name
+
+
+def _is_order_range(v):
+    return isinstance(v, (range, list, tuple, np.ndarray)) and not (
+        isinstance(v, np.ndarray) and v.ndim == 0)
+
+
+def _per_input_lists(value, name, nu, names, minimum):
+    """Per-input order lists when `value` is per input (a dict, or a sequence of ranges),
+    else None."""
+    if isinstance(value, _Default) or value is None:
+        return None
+    if isinstance(value, dict):
+        lists = [None] * nu
+        for key, v in value.items():
+            if isinstance(key, str) and key in names:
+                j = list(names).index(key)
+            elif isinstance(key, numbers.Integral) and not isinstance(key, bool) \
+                    and 0 <= key < nu:
+                j = int(key)
+            else:
+                raise ValueError(f"`{name}` keys must be input indices 0..{nu - 1} or input "
+                                 f"names {list(names)}; got {key!r}")
+            lists[j] = _order_list(v, f"{name}[{key}]", minimum)
+        missing = [names[j] for j in range(nu) if lists[j] is None]
+        if missing:
+            raise ValueError(f"`{name}` must give every input a range; missing "
+                             f"{', '.join(map(repr, missing))}")
+        return lists
+    if isinstance(value, (list, tuple)) and value and all(_is_order_range(v) for v in value):
+        if len(value) != nu:
+            raise ValueError(f"`{name}` must hold one range per input ({nu}); got "
+                             f"{len(value)}")
+        return [_order_list(v, f"{name}[{j}]", minimum) for j, v in enumerate(value)]
+    return None
+
+
+def _input_ranges(nb, nk, nu, names, u, y):
+    """Per-input ``(nb lists, nk lists, seeded)``, or ``(None, None, None)`` when every
+    input shares one ``nb`` and one ``nk`` range.
+
+    Per input when `nb` or `nk` is given per input, or when several inputs have no `nk`:
+    then each input's delays are a window around its delay estimated by
+    :func:`delayest` (``seeded`` is that estimate)."""
+    nb_per = _per_input_lists(nb, "nb", nu, names, 1)
+    nk_per = _per_input_lists(nk, "nk", nu, names, 0)
+    seeded = None
+    if nk_per is None and isinstance(nk, _Default) and nu > 1:
+        nk_per, seeded = _seed_delays(u, y, nu)
+    if nb_per is None and nk_per is None:
+        return None, None, None
+    if nb_per is None:
+        nb_per = [_order_list(nb.values if isinstance(nb, _Default) else nb, "nb", 1)] * nu
+    if nk_per is None:
+        nk_per = [_order_list(nk.values if isinstance(nk, _Default) else nk, "nk", 0)] * nu
+    return nb_per, nk_per, seeded
+
+
+def _seed_delays(u, y, nu):
+    """Per input the delays ``d_j - 1 .. d_j + 1`` (never below 0) around the estimate
+    ``d_j`` of :func:`delayest` (its defaults: ARX(2, 2) test models, delays 0..20)."""
+    from .delay import delayest
+
+    with warnings.catch_warnings():   # an edge here shows as select_order's own edge warning
+        warnings.simplefilter("ignore", OrderSelectionWarning)
+        d = delayest(u, y)
+    d = (d,) if nu == 1 else tuple(d)
+    return [range(max(k - _SEED_HALF_WIDTH, 0), k + _SEED_HALF_WIDTH + 1) for k in d], d
+

@@ -16,7 +16,7 @@ import numpy as np
 
 from .._serialize import jsonable
 from .._validation import check_int
-from ._model import one_step
+from ._model import one_step_records
 from .criteria import _criteria, information_criteria
 
 __all__ = ["StructureSelection", "select_structure"]
@@ -143,6 +143,51 @@ def _grid(grid, max_candidates):
     return combos
 
 
+def _estimation(u, y, grid, time_series):
+    """``(u, y, grid)`` with an `IOData` `u` kept whole (``y`` None) and a grid given in the
+    place of `y` moved to `grid`."""
+    from ..data.iodata import IOData
+
+    if isinstance(u, IOData):
+        if time_series:
+            raise TypeError("`u` must be None for a time-series class (the record is `y`); "
+                            "got an IOData")
+        if grid is None and y is not None and not _is_signal(y):
+            y, grid = None, y       # select_structure(OE, data, {"nb": ...})
+        if y is not None:
+            raise TypeError(f"`y` must be omitted when `u` is an IOData (it holds the "
+                            f"outputs); got {type(y).__name__}")
+    elif y is None:
+        raise TypeError("`y` is required unless `u` is an IOData")
+    if grid is None:
+        raise TypeError("`grid` is required: a dict from each order to its values, e.g. "
+                        "{'nb': [1, 2], 'nf': [1, 2], 'nk': [1]}")
+    return u, y, grid
+
+
+def _is_signal(x):
+    """A record (array, pandas object, list of arrays), not a grid (dict, list of dicts)."""
+    if isinstance(x, dict):
+        return False
+    if isinstance(x, (list, tuple)) and x and all(isinstance(c, dict) for c in x):
+        return False
+    return True
+
+
+def _validation_pair(validation):
+    """``(u_v, y_v)`` of the validation argument: a pair, or an `IOData` as ``(data, None)``."""
+    from ..data.iodata import IOData
+
+    if validation is None:
+        return None
+    if isinstance(validation, IOData):
+        return validation, None
+    if not isinstance(validation, (tuple, list)) or len(validation) != 2:
+        raise TypeError(f"`validation` must be a pair (u_v, y_v) or an IOData; got "
+                        f"{type(validation).__name__}")
+    return tuple(validation)
+
+
 def _too_many(count, max_candidates, sizes=""):
     raise ValueError(f"`grid` gives {count} candidate structures{sizes}, each a "
                      f"prediction-error fit; `max_candidates` is {max_candidates:,}: narrow the "
@@ -151,7 +196,7 @@ def _too_many(count, max_candidates, sizes=""):
                      "max_candidates to fit them all")
 
 
-def select_structure(model_class, u, y, grid, *, criterion="bic", validation=None,
+def select_structure(model_class, u, y=None, grid=None, *, criterion="bic", validation=None,
                      dt=True, max_candidates=MAX_CANDIDATES, **fit_options):
     r"""Fit every structure of a grid and rank them by a criterion of the prediction errors.
 
@@ -160,10 +205,14 @@ def select_structure(model_class, u, y, grid, *, criterion="bic", validation=Non
     model_class : type
         An :class:`~rlsfilt.models.IdentifiedModel` class (`ARMAX`, `OE`,
         `BJ`, `ARMA`, `ARX`, ...).
-    u : array_like or None
-        Input record (None for a time-series class such as `ARMA`).
-    y : array_like, shape (N,)
-        Output record.
+    u : array_like, shape (N,) or (N, nu), IOData, or None
+        Input record, or an `IOData` holding inputs and outputs (then `y`
+        is omitted: ``select_structure(OE, data, grid=...)``, or the grid
+        given third, ``select_structure(OE, data, {...})``); several
+        experiments are fitted together, no prediction straddling two of
+        them. None for a time-series class such as `ARMA`.
+    y : array_like, shape (N,), optional
+        Output record (omitted with an `IOData`).
     grid : dict or iterable of dict
         Orders to try: a dict from each constructor parameter to its values
         (every combination is tried; per-input orders of several inputs as
@@ -171,9 +220,11 @@ def select_structure(model_class, u, y, grid, *, criterion="bic", validation=Non
     criterion : {"bic", "aic", "aicc", "naic", "fpe", "mdl", "loss"}, default "bic"
         Smaller is better. ``"loss"`` is the mean squared one-step prediction
         error on the validation data (or the estimation data without them).
-    validation : tuple ``(u_v, y_v)``, optional
+    validation : tuple ``(u_v, y_v)`` or IOData, optional
         Fresh data: the criteria then penalize the validation loss (as
-        MATLAB's ``selstruc`` on validation losses).
+        MATLAB's ``selstruc`` on validation losses). An `IOData` of several
+        experiments is scored over all of them (each predictor started
+        afresh). For a time-series class, ``(None, y_v)``.
     dt : True or float, default True
         Sampling period of the candidates.
     max_candidates : int, default 10_000
@@ -226,9 +277,8 @@ def select_structure(model_class, u, y, grid, *, criterion="bic", validation=Non
         raise TypeError(f"`model_class` must be a model class such as ARMAX; got "
                         f"{type(model_class).__name__}")
     time_series = bool(getattr(model_class, "_TIME_SERIES", False))
-    if validation is not None:
-        if not isinstance(validation, (tuple, list)) or len(validation) != 2:
-            raise TypeError("`validation` must be a tuple (u_v, y_v)")
+    u, y, grid = _estimation(u, y, grid, time_series)
+    validation = _validation_pair(validation)
     max_candidates = check_int(max_candidates, "max_candidates", minimum=1)
     combos = _grid(grid, max_candidates)
     candidates, values, models = [], [], []
@@ -255,7 +305,7 @@ def select_structure(model_class, u, y, grid, *, criterion="bic", validation=Non
         row["loss"] = ic.loss
         if validation is not None:
             uv, yv = validation
-            _, _, e = one_step(model, uv, yv, "select_structure")
+            _, e, _ = one_step_records(model, uv, yv, "select_structure")
             V = float(np.mean(e ** 2))
             row["val_loss"] = V
             crit = _criteria(V, len(e), ic.n_params)
