@@ -1262,9 +1262,11 @@ def plot_str_history(history, fig=None, *, true_theta=None):
     >>> from rlsfilt.plotting import plot_str_history
     >>> stre = SelfTuningRegulator(RecursiveLeastSquares(2, P0=100.0),
     ...                            dict(Am=[1, -0.5], Ao=[1.0]), na=1, nb=1, dt=0.1)
+    >>> import numpy as np
+    >>> dither = 0.05 * np.random.default_rng(0).standard_normal(100)  # excitation
     >>> y = 0.0
     >>> for t in range(100):
-    ...     u = stre.step(y, r=1.0 if (t // 25) % 2 else -1.0)
+    ...     u = stre.step(y, r=1.0 if (t // 25) % 2 else -1.0, dither=dither[t])
     ...     y = 0.8 * y + 0.5 * u
     >>> fig = plot_str_history(stre.history, true_theta=[-0.8, 0.5])
     >>> [ax.get_ylabel() for ax in fig.axes]
