@@ -244,7 +244,9 @@ def _filter_entries(label, make):
     entries += [
         Entry(f"{label}.update", "z", lambda v: update(z=v), ZS[10], kind="scalar",
               expect={"nan": OK, "none": OK, "bool": EITHER, "huge": EITHER, "tiny": EITHER}),
-        Entry(f"{label}.update", "H", lambda v: update(H=v), ROW, expect={"huge": WARNS}),
+        # H=None is H omitted: self.H, as filterpy's update(z, R=None, H=None)
+        Entry(f"{label}.update", "H", lambda v: update(H=v), ROW,
+              expect={"huge": WARNS, "none": OK}),
         Entry(f"{label}.update", "R", lambda v: update(R=v), 0.5, kind="scalar",
               expect={"none": OK, "huge": ERROR, "tiny": ERROR}),
         Entry(f"{label}.batch_filter", "zs",
