@@ -159,11 +159,17 @@ class _Model:
         self.x0, self.P0 = setup.x0, setup.P0
         self.reset()
 
+    #: Whether the condition number of ``P`` after an update bounds the agreement (a
+    #: downdate or a triangular inverse: yes; the covariance update: no, only its start)
+    #: and the power of it that does (``P`` from a square root: its square root).
+    track_updates, power = True, 1.0
+
     def _conditioned(self):
         """Track the largest condition number of ``P`` since the last (re)start (on the
         null space of the constraints): the tolerance of the comparison grows with it."""
         w = np.linalg.eigvalsh(self.P)[self.n - self.rank:]
-        self.kappa = max(self.kappa, w[-1] / w[0] if w[0] > 0 else np.inf)
+        kappa = (w[-1] / w[0]) ** self.power if w[0] > 0 else np.inf
+        self.kappa = max(self.kappa, kappa)
 
     def _fresh_diagnostics(self):
         self.kappa = 1.0
@@ -177,7 +183,8 @@ class _Model:
         self.K, self.S = K, s * np.eye(self.m)
         self.n_updates += 1
         self.x_post, self.P_post = self.x, self.P
-        self._conditioned()
+        if self.track_updates:
+            self._conditioned()
 
     def _weighted_rows(self, zs, Hs, lam):
         Z = np.array([np.full(self.m, np.nan) if z is None else np.ravel(z) for z in zs])
@@ -208,6 +215,8 @@ class _Model:
 class RLSModel(_Model):
     """`RecursiveLeastSquares` as the textbook: ``rls_predict``, ``rls_update``
     (every mode, gate, windup cap), the constraint projection and EFRA's start."""
+
+    track_updates = False
 
     def __init__(self, f, setup):
         self.mode = MODES.index(f.forgetting)
@@ -293,6 +302,8 @@ class RLSModel(_Model):
 
 class SquareRootModel(_Model):
     """`SquareRootRLS` as the textbook: Givens rotations on ``[U d]`` (``U^T U = P^-1``)."""
+
+    power = 0.5
 
     def __init__(self, f, setup):
         self.lam = f.lam
@@ -751,3 +762,412 @@ def _test_filters(case):
 
 test_filters_cross_product = _with_examples(_test_filters, KNOWN)
 test_filters_cross_product.__doc__ = "Every filter x dim_z x mode x option x program."
+
+
+# ----------------------------------------------------------------------
+# the bank: the same programs, channel by channel
+# ----------------------------------------------------------------------
+#: `RLSBank` in the registry's terms. Its channels are single-output filters, so the
+#: ``dim_z`` of a bank case is its number of channels; a missing sample is per channel:
+#: ``"NaN"`` a NaN measurement, ``"None"`` a NaN regressor row (the bank's other
+#: marker; the channel's filter sees a missing measurement).
+BANK = FilterSpec("RLSBank", None, None, declared=(
+    Declared("forgetting", tuple(m for m in MODES if m not in
+                                 ("exponential", "directional", "constant_trace")),
+             ValueError, "the bank's kernels have the exponential, directional and "
+             "constant-trace modes only (one RecursiveLeastSquares per channel for others)"),
+    Declared("forgetting", ("constant_trace",), ValueError,
+             "the default trace is 0 at lam = 1", when=_needs_trace),
+    Declared("gate", _not_default("gate"), TypeError, "no outlier gate in the bank"),
+    Declared("constraints", (True,), AttributeError, "no constrain() in the bank")),
+    extra=("lam_t",))
+
+
+class BankRecord(Record):
+    """A record per channel: ``H`` (N, C, dim_x), ``Z`` (N, C)."""
+
+    def __init__(self, rng, n, C, options, N=400):
+        self.H = rng.standard_normal((N, C, n))
+        self.Z = np.einsum("kcn,cn->kc", self.H, rng.standard_normal((C, n)))
+        self.Z += 0.1 * rng.standard_normal((N, C))
+        self.missing = ((rng.random((N, C)) < 0.15) if options["missing"] != "none"
+                        else np.zeros((N, C), bool))
+        self.marker = options["missing"]
+        self.R = rng.uniform(0.5, 2.0, (N, C))
+        self.k = 0
+
+    def step(self, ks):
+        """For samples `ks`: what the bank is given (``z``, ``H``) and what channel
+        ``c``'s filter is given (``z[:, c]``, ``Hc[:, c]``), and the skipped regressors."""
+        z, H = self.Z[ks].copy(), self.H[ks].copy()
+        miss = self.missing[ks]
+        Hc = H.copy()
+        if self.marker == "None":              # a NaN in the regressor skips the channel
+            H[miss] = np.nan
+            Hc[miss] = 0.0
+        z[miss] = np.nan                       # (the channel's filter: missing)
+        zb = z.copy()
+        if self.marker == "None":
+            zb[miss] = self.Z[ks][miss]        # the bank sees the measurement, not the row
+        return zb, H, z, Hc, miss & (self.marker == "None")
+
+
+def _bank_build(case, options, rng):
+    n, C = case.dim_x, case.dim_z
+    P0 = (1e4 * np.eye(n), 100.0 * np.eye(n), _spd(rng, n, 50.0))[int(rng.integers(0, 3))]
+    x0 = rng.standard_normal((C, n)) if rng.random() < 0.5 else np.zeros((C, n))
+    R = (1.0, 0.5)[int(rng.integers(0, 2))]
+    kw = {}
+    if options["lam"] != 1.0:
+        kw["lam"] = options["lam"]
+    if options["forgetting"] != "exponential":
+        kw["forgetting"] = options["forgetting"]
+    if options["Q"] == "scalar":
+        kw["Q"] = 1e-4
+    elif options["Q"] == "matrix":
+        kw["Q"] = _spd(rng, n, 1e-4)
+    channels = [RecursiveLeastSquares(n, 1, P0=P0, x0=x0[c], R=R, **kw) for c in range(C)]
+    if options["gate"] is not None:
+        kw["gate"] = options["gate"]
+    bank = RLSBank(C, n, P0=P0, x0=x0, R=R, **kw)
+    if options["constraints"]:
+        bank.constrain(rng.standard_normal((1, n)), 0.0)
+    return bank, channels
+
+
+BANK_PAIRS = {   # bank attribute -> the channel filter's, channel c
+    "x": lambda v, c: v[c], "P": lambda v, c: v[c], "x_prior": lambda v, c: v[c],
+    "P_prior": lambda v, c: v[c], "x_post": lambda v, c: v[c], "P_post": lambda v, c: v[c],
+    "y": lambda v, c: v[c], "K": lambda v, c: v[c], "S": lambda v, c: v[c],
+    "lam_t": lambda v, c: v[c],
+}
+FILTER_VIEW = {"x": lambda v: v[:, 0], "x_prior": lambda v: v[:, 0], "x_post": lambda v: v[:, 0],
+               "y": lambda v: v[0, 0], "K": lambda v: v[:, 0], "S": lambda v: v[0, 0]}
+
+
+def _compare_bank(bank, channels, names, skipped, tag):
+    for name in names:
+        if name == "n_updates":
+            assert all(bank.n_updates == f.n_updates for f in channels), (tag, name)
+            continue
+        value = getattr(bank, name)
+        for c, f in enumerate(channels):
+            expected = FILTER_VIEW.get(name, lambda v: v)(getattr(f, name))
+            if name == "S" and skipped[c]:     # no variance of a NaN regressor
+                expected = np.nan
+            kappa = np.linalg.cond(f.P)
+            _close(BANK_PAIRS[name](value, c), expected, f"{tag}: {name}[{c}]",
+                   RTOL * max(1.0, kappa / 1e2))
+
+
+def run_bank_case(case, make_bank=None):
+    """`case` on an `RLSBank` and on one `RecursiveLeastSquares` per channel."""
+    options = {**DEFAULTS, **case.options}
+    rng = np.random.default_rng(case.seed)
+    declared = BANK.declared_for(options)
+    if declared:
+        with pytest.raises(declared):
+            _bank_build(case, options, rng)
+        return
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ForgettingSkippedWarning)
+        bank, channels = _bank_build(case, options, rng)
+        if make_bank is not None:              # (the meta-tests: a broken bank)
+            bank = make_bank(bank)
+        names = STATE + BANK.extra
+        live = [bank]
+        skipped = np.zeros(case.dim_z, bool)
+        data = BankRecord(rng, case.dim_x, case.dim_z, options)
+        for i, op in enumerate(case.program):
+            skipped = _bank_apply(op, live, channels, data, rng, names, skipped,
+                                  f"op {i} {op}")
+        for b in live:
+            _compare_bank(b, channels, names, skipped, "at the end")
+
+
+def _bank_apply(op, live, channels, data, rng, names, skipped, tag):
+    kind, C, n = op[0], len(channels), channels[0].dim_x
+    if kind == "predict":
+        for f in live + channels:
+            f.predict()
+    elif kind in ("update", "predict_update"):
+        ks = data.take(1)
+        zb, H, z, Hc, skip = (a[0] for a in data.step(ks))
+        R = data.R[ks[0]] if op[1] else None
+        for b in live:
+            getattr(b, kind)(zb, H, R)
+        for c, f in enumerate(channels):
+            getattr(f, kind)(z[c], Hc[c], None if R is None else R[c])
+        skipped = skip
+        if len(op) > 2 and op[2]:
+            for b in live:
+                _compare_bank(b, channels, ("x",), skipped, tag)
+    elif kind == "read":
+        for b in live:
+            _compare_bank(b, channels, [n for n in names if n in op[1] or
+                                        (n not in STATE and "extra" in op[1])], skipped, tag)
+    elif kind == "assign":
+        if op[1] == "x":
+            value = 0.5 * rng.standard_normal((C, n))
+        else:
+            value = np.array([_spd(rng, n, float(rng.uniform(1.0, 100.0))) for _ in range(C)])
+        for b in live:
+            setattr(b, op[1], value.copy(order=op[2]))
+        for c, f in enumerate(channels):
+            setattr(f, op[1], value[c].reshape(n, 1) if op[1] == "x" else value[c])
+    elif kind == "copy":
+        g = COPIERS[op[1]](live[0])
+        live[:] = [live[0], g] if op[2] else [g]
+    elif kind == "reset":
+        for f in live + channels:
+            f.reset()
+        skipped = np.zeros(C, bool)
+    elif kind == "initialize":
+        zb, H, z, Hc, _ = data.step(data.take(n + op[1]))
+        failed = False
+        for c, f in enumerate(channels):
+            try:
+                f.initialize(z[:, c], Hc[:, c])
+            except ValueError:
+                failed = True                  # (the channel filters that passed: started)
+        if failed:                             # the bank refuses, and changes nothing
+            for b in live:
+                before = pickle.dumps(b)
+                with pytest.raises(ValueError):
+                    b.initialize(zb, H)
+                assert pickle.dumps(b) == before, tag
+            for c, f in enumerate(channels):   # the channels that started: as the bank
+                f.x, f.P = live[0].x[c].reshape(n, 1), live[0].P[c]
+                f.x_prior, f.P_prior = live[0].x_prior[c].reshape(n, 1), live[0].P_prior[c]
+                f.x_post, f.P_post = live[0].x_post[c].reshape(n, 1), live[0].P_post[c]
+            return skipped
+        for b in live:
+            b.initialize(zb, H)
+    elif kind == "batch":
+        _, count, update_first, with_Rs = op
+        ks = data.take(count)
+        zb, H, z, Hc, skip = data.step(ks)
+        Rs = data.R[ks] if with_Rs else None
+        twin = copy.deepcopy(live[0])
+        expected = [f.batch_filter(z[:, c], Hc[:, c], Rs=None if Rs is None else Rs[:, c],
+                                   update_first=update_first) for c, f in enumerate(channels)]
+        for b in live:
+            out = b.batch_filter(zb, H, Rs=Rs, update_first=update_first)
+            for i, label in enumerate(("means", "covariances", "means_p", "covariances_p")):
+                for c in range(C):
+                    e = expected[c][i][..., 0] if i in (0, 2) else expected[c][i]
+                    _close(out[i][:, c], e, f"{tag}: {label}[{c}]",
+                           RTOL * max(1.0, np.linalg.cond(channels[c].P) / 1e2))
+        streamed = _stream(twin, zb, H, Rs, update_first)
+        for label, a, s in zip(("means", "covariances", "means_p", "covariances_p"),
+                               out, streamed):
+            assert_array_equal(a, np.array(s), err_msg=f"{tag}: streamed {label}")
+        _same_bits(twin, live[-1], names, f"{tag}: streamed state")
+        skipped = skip[-1]
+    else:
+        raise ValueError(f"unknown operation {op!r}")
+    return skipped
+
+
+@st.composite
+def bank_cases(draw):
+    """A bank case: one to three channels, one value per option axis, a program."""
+    anything = draw(st.integers(0, 9)) == 0
+    options = {axis: draw(st.sampled_from(OPTIONS[axis] if anything
+                                          else BANK.axis_values(axis)))
+               for axis in OPTIONS}
+    start = draw(st.sampled_from(((), (("initialize", 0),), (("initialize", 2),))))
+    return Case("RLSBank", draw(st.sampled_from(DIM_X)), draw(st.sampled_from(DIM_Z)),
+                options, draw(st.integers(0, 2**32 - 1)), start + draw(PROGRAM))
+
+
+KNOWN_BANK = [Case("RLSBank", 7, 3, {}, 0,
+                   (("initialize", 0),) + (("predict",), ("update", False, True)) * 4
+                   + (("read", STATE + ("extra",)),))]
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(case=bank_cases())
+def _test_bank(case):
+    run_bank_case(case)
+
+
+test_bank_channel_by_channel = _with_examples(_test_bank, KNOWN_BANK)
+test_bank_channel_by_channel.__doc__ = "Every channel of RLSBank is a RecursiveLeastSquares."
+
+
+# ----------------------------------------------------------------------
+# the registry is complete and its declarations are true
+# ----------------------------------------------------------------------
+def test_every_contract_filter_is_registered():
+    """Every filter of the shared contract's registry runs the cross product too."""
+    from test_contract_filters import FILTERS
+    registered = {spec.name for spec in SPECS} | {BANK.name}
+    for case in FILTERS:
+        f = case.make()
+        name = type(getattr(f, "bank", f)).__name__
+        assert name in registered, f"{name} ({case.name}) is not in SPECS"
+
+
+def test_declarations_name_real_options():
+    for spec in SPECS + [BANK]:
+        for d in spec.declared:
+            assert d.axis in OPTIONS and set(d.values) <= set(OPTIONS[d.axis]), (spec.name, d)
+            assert DEFAULTS[d.axis] not in d.values or d.when is not None, (spec.name, d)
+
+
+# ----------------------------------------------------------------------
+# the checker can fail: deliberately wrong filters are caught
+# ----------------------------------------------------------------------
+class _CorruptSecondUpdate(RecursiveLeastSquares):
+    """Right but for ``x`` after the second update with several outputs (#26's symptom)."""
+
+    def update(self, z, H, R=None):
+        super().update(z, H, R)
+        if self.n_updates == 2 and self.dim_z >= 2:
+            self.x = self.x + 1e-9
+
+
+class _BatchOffByOneUlp(RecursiveLeastSquares):
+    """``batch_filter`` one unit in the last place away from the stream."""
+
+    def batch_filter(self, zs, Hs, Rs=None, update_first=False, saver=None,
+                     store_covariances=True):
+        means, covs, means_p, covs_p = super().batch_filter(zs, Hs, Rs, update_first)
+        means = means.copy()
+        means[-1, 0, 0] = np.nextafter(means[-1, 0, 0], np.inf)
+        return means, covs, means_p, covs_p
+
+
+class _SecondPredictIgnored(RecursiveLeastSquares):
+    """``predict()`` twice in a row forgets once."""
+
+    _last_was_predict = False
+
+    def predict(self, Q=None):
+        if not self._last_was_predict:
+            super().predict(Q)
+        self._last_was_predict = True
+
+    def update(self, z, H, R=None):
+        self._last_was_predict = False
+        super().update(z, H, R)
+
+
+class _PriorIsPosterior(RecursiveLeastSquares):
+    """``x_prior`` reports the estimate after the update."""
+
+    x_prior = property(lambda self: self.x, RecursiveLeastSquares.x_prior.fset)
+
+
+class _DeepcopyDrifts(RecursiveLeastSquares):
+    """A deep copy (and pickle) that does not resume exactly."""
+
+    def __reduce_ex__(self, protocol):
+        fn, args, state, *rest = super().__reduce_ex__(protocol)
+        return (_drifted, (fn, args, state))
+
+
+def _drifted(fn, args, state):
+    f = fn(*args)
+    attributes, slots = state
+    f.__dict__.update(copy.deepcopy(attributes))
+    for name, value in copy.deepcopy(slots).items():
+        setattr(f, name, value)
+    f.x = f.x * (1.0 + 1e-9)
+    return f
+
+
+class _ResetKeepsP(SquareRootRLS):
+    """``reset()`` that forgets to return ``P`` to ``P0``."""
+
+    def reset(self):
+        P = getattr(self, "_Wv", None) is not None and self.P
+        super().reset()
+        if P is not False:
+            self.P = P
+
+
+def _spec_of(cls, base="RecursiveLeastSquares"):
+    import dataclasses
+    return dataclasses.replace(SPECS_BY_NAME[base],
+                               make=lambda dim_x, dim_z, rng, **kw: cls(dim_x, dim_z, **kw))
+
+
+def _steps(*ops, read=STATE):
+    return tuple(ops) + (("read", read),)
+
+
+BROKEN = [  # (what is wrong, spec, a case that shows it, the same case without it)
+    ("x after the 2nd update, dim_z = 2", _spec_of(_CorruptSecondUpdate),
+     Case("", 3, 2, {}, 5, _steps(("predict_update", False, False),
+                                  ("predict_update", False, False))),
+     Case("", 3, 1, {}, 5, _steps(("predict_update", False, False),
+                                  ("predict_update", False, False)))),
+    ("batch_filter one ulp from the stream", _spec_of(_BatchOffByOneUlp),
+     Case("", 3, 1, {}, 5, _steps(("batch", 3, False, False))),
+     Case("", 3, 1, {}, 5, _steps(("predict_update", False, False)))),
+    ("predict twice forgets once", _spec_of(_SecondPredictIgnored),
+     Case("", 3, 1, {"lam": 0.95}, 5, _steps(("predict",), ("predict",),
+                                            ("update", False, False))),
+     Case("", 3, 1, {"lam": 0.95}, 5, _steps(("predict",), ("update", False, False)))),
+    ("x_prior is the posterior", _spec_of(_PriorIsPosterior),
+     Case("", 3, 1, {}, 5, _steps(("predict_update", False, False), read=("x_prior",))),
+     Case("", 3, 1, {}, 5, _steps(("predict",), read=("x_prior",)))),
+    ("a deep copy drifts", _spec_of(_DeepcopyDrifts),
+     Case("", 3, 2, {}, 5, _steps(("predict_update", False, False),
+                                  ("copy", "deepcopy", False))),
+     Case("", 3, 2, {}, 5, _steps(("predict_update", False, False)))),
+    ("reset keeps P", _spec_of(_ResetKeepsP, "SquareRootRLS"),
+     Case("", 3, 1, {}, 5, _steps(("predict_update", False, False), ("reset",))),
+     Case("", 3, 1, {}, 5, _steps(("predict_update", False, False)))),
+]
+
+
+@pytest.mark.parametrize("what, spec, bad, good", BROKEN, ids=[b[0] for b in BROKEN])
+def test_the_checker_catches_a_broken_filter(what, spec, bad, good):
+    run_case(good, spec)                   # the same filter passes where it is right
+    with pytest.raises(AssertionError):
+        run_case(bad, spec)
+
+
+class _CorruptChannel(RLSBank):
+    """Every channel right but the last, after the second update."""
+
+    def update(self, z, H, R=None):
+        super().update(z, H, R)
+        if self.n_updates == 2:
+            x = self.x.copy()
+            x[-1] += 1e-9
+            self.x = x
+
+
+def _as_corrupt(bank):
+    bank.__class__ = _CorruptChannel
+    return bank
+
+
+def test_the_bank_checker_catches_a_broken_channel():
+    case = Case("RLSBank", 3, 2, {}, 5, _steps(("predict_update", False, False),
+                                               ("predict_update", False, False)))
+    run_bank_case(Case("RLSBank", 3, 2, {}, 5, case.program[:1] + case.program[-1:]),
+                  _as_corrupt)                 # right after one update
+    with pytest.raises(AssertionError):
+        run_bank_case(case, _as_corrupt)
+
+
+def test_a_false_declaration_is_caught():
+    """Declaring a supported option unsupported fails (the build does not raise) ..."""
+    import dataclasses
+    spec = dataclasses.replace(SPECS_BY_NAME["RecursiveLeastSquares"], declared=(
+        Declared("gate", _not_default("gate"), TypeError, "(wrong)"),))
+    with pytest.raises(pytest.fail.Exception, match="DID NOT RAISE"):
+        run_case(Case("", 3, 1, {"gate": 4.0}, 5, ()), spec)
+
+
+def test_an_undeclared_unsupported_option_fails():
+    """... and an unsupported option that is not declared is an error, not a skip."""
+    import dataclasses
+    spec = dataclasses.replace(SPECS_BY_NAME["SquareRootRLS"], declared=())
+    with pytest.raises(TypeError):
+        run_case(Case("", 3, 1, {"Q": "scalar"}, 5, ()), spec)
