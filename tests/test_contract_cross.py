@@ -171,18 +171,42 @@ class _Model:
         kappa = (w[-1] / w[0]) ** self.power if w[0] > 0 else np.inf
         self.kappa = max(self.kappa, kappa)
 
-    def _fresh_diagnostics(self):
+    #: The size of the operands each quantity was last computed from: its round-off is
+    #: relative to them. ``P - g g^T / S`` leaves an error of the size of the prior (a
+    #: broad ``P0`` against a few samples: the error of 1e4 in a ``P`` of 0.1); ``K``,
+    #: ``S``, ``x`` and ``y`` inherit it through ``g = P H^T``.
+    SCALES = {"P": "P_scale", "P_prior": "P_scale", "P_post": "P_scale", "K": "K_scale",
+              "S": "S_scale", "x": "x_scale", "x_prior": "x_scale", "x_post": "x_scale",
+              "y": "y_scale", "lam_t": "lam_t_scale"}
+
+    def _fresh_scales(self):
         self.kappa = 1.0
+        self.P_scale = self.K_scale = self.S_scale = self.x_scale = self.y_scale = 0.0
+        self.lam_t_scale = 0.0
+
+    def _fresh_diagnostics(self):
+        self._fresh_scales()
         self.y = np.zeros((self.m, 1))
         self.K = np.zeros((self.n, 1))
         self.S = np.zeros((self.m, self.m))
         self.n_updates = 0
 
-    def _diagnostics(self, y, K, s):
+    def _diagnostics(self, y, K, s, phi):
         self.y = np.full((self.m, 1), np.nan) if y is None else y
         self.K, self.S = K, s * np.eye(self.m)
         self.n_updates += 1
         self.x_post, self.P_post = self.x, self.P
+        self.P_scale = max(self.P_scale, self.P_before)
+        h = self.n * np.abs(phi).max()
+        self.y_scale = (self.x_scale + np.abs(self.x).max()) * h     # y = z - H x
+        self.S_scale = self.P_scale * h * h
+        self.K_scale = self.P_scale * h / s
+        if y is not None:
+            self.x_scale = max(self.x_scale, self.K_scale * np.abs(y).max())
+        # lam_t of the modes other than exponential is read off the updated P (its
+        # trace, phi P phi^T): relative to the prior's size, as P is
+        self.lam_t_scale = abs(getattr(self, "lam_t", 1.0)) * max(
+            1.0, self.P_scale / max(np.abs(self.P).max(), 1e-300))
         if self.track_updates:
             self._conditioned()
 
@@ -273,12 +297,13 @@ class RLSModel(_Model):
 
     def update(self, z, H, R=None):
         self._efra_start()
+        self.P_before = np.abs(self.P).max()
         self.x, self.P, y, K, s, self.lam_t, self.gated, self.cap = ref.rls_update(
             self.x, self.P, np.reshape(H, (1, -1)), _column(z), self.R if R is None else R,
             self.mode, self.params, self.lam, self.gate, self.Pi, self.held_back)
         self.held_back = False
         self.n_gated += self.gated
-        self._diagnostics(y, K, s)
+        self._diagnostics(y, K, s, H)
 
     def initialize(self, zs, Hs):
         A, B = self._weighted_rows(zs, Hs, self.lam)
@@ -291,7 +316,7 @@ class RLSModel(_Model):
         self.x_prior = self.x_post = self.x
         self.P_prior = self.P_post = self.P
         self.cap = self.held_back = False
-        self.kappa = 1.0
+        self._fresh_scales()
         self._conditioned()
 
     def assign(self, name, value):
@@ -327,9 +352,10 @@ class SquareRootModel(_Model):
         self.x_prior, self.P_prior = self.x, self.P
 
     def update(self, z, H, R=None):
+        self.P_before = np.abs(self.P).max()
         self.U, self.d, _, y, K, s = ref.square_root_update(
             self.U, self.d, np.reshape(H, (1, -1)), _column(z), self.R if R is None else R)
-        self._diagnostics(y, K, s)
+        self._diagnostics(y, K, s, H)
 
     def initialize(self, zs, Hs):
         A, B = self._weighted_rows(zs, Hs, self.lam)
@@ -338,7 +364,7 @@ class SquareRootModel(_Model):
         self.U, self.d = Rf[:, :self.n], Rf[:, self.n:]
         self.x_prior = self.x_post = self.x
         self.P_prior = self.P_post = self.P
-        self.kappa = 1.0
+        self._fresh_scales()
         self._conditioned()
 
     def assign(self, name, value):
@@ -367,9 +393,26 @@ class SlidingWindowModel(_Model):
         self.x_prior, self.P_prior = self.x, self.P
 
     def update(self, z, H, R=None):
+        self.P_before = np.abs(self.P).max()
+        self._downdate_gain(np.reshape(H, (1, -1)), z, self.R if R is None else R)
         y, K, s = self.w.update(np.reshape(H, (1, -1)), _column(z), self.R if R is None else R)
-        self._diagnostics(y, K, s)
+        self._diagnostics(y, K, s, H)
         self.n_updates = self.w.count
+
+    def _downdate_gain(self, phi, z, r):
+        """The downdate of a full window divides by ``d = r_old - phi_old P phi_old^T``:
+        its round-off grows by ``r_old / d`` (times the condition number of ``P``)."""
+        w = self.w
+        if w.nw < self.window or np.isnan(w.wZ[w.head]).any():
+            return
+        P = w.P
+        if z is not None:
+            g = P @ phi.T
+            P = P - g @ g.T / ((phi @ g).item() + r)
+        old = w.wH[w.head:w.head + 1]
+        d = w.wR[w.head] - (old @ P @ old.T).item()
+        if d > 0:
+            self.kappa = max(self.kappa, 10.0 * np.linalg.cond(P) * w.wR[w.head] / d)
 
     def initialize(self, zs, Hs):
         k = min(len(Hs), self.window)
@@ -386,7 +429,7 @@ class SlidingWindowModel(_Model):
         w.nw, w.head, w.exact = k, k % self.window, True
         self.x_prior = self.x_post = self.x
         self.P_prior = self.P_post = self.P
-        self.kappa = 1.0
+        self._fresh_scales()
         self._conditioned()
 
     def assign(self, name, value):
@@ -549,12 +592,13 @@ def _tolerance(model):
     return RTOL * max(1.0, model.kappa / 1e2)
 
 
-def _close(actual, expected, name, rtol=RTOL):
-    """Equal to `rtol` relative to the largest entry of `expected`, NaN at the same places."""
+def _close(actual, expected, name, rtol=RTOL, scale=0.0):
+    """Equal to `rtol` relative to the largest entry of `expected` (or `scale`, the size
+    of the operands of the step that made it, when larger), NaN at the same places."""
     a, b = np.asarray(actual, dtype=float), np.asarray(expected, dtype=float)
     assert a.shape == b.shape, (name, a.shape, b.shape)
     assert_array_equal(np.isnan(a), np.isnan(b), err_msg=name)
-    scale = np.abs(np.nan_to_num(b)).max() if b.size else 1.0
+    scale = max(np.abs(np.nan_to_num(b)).max() if b.size else 1.0, scale)
     err = np.abs(np.nan_to_num(a - b)).max() if b.size else 0.0
     assert err <= rtol * max(scale, 1e-300), (name, float(err), float(scale), rtol)
 
@@ -566,7 +610,9 @@ def _compare(f, model, names, tag):
         if name in ("n_updates", "gated", "n_gated"):
             assert actual == expected, (tag, name, actual, expected)
         else:
-            _close(actual, expected, f"{tag}: {name}", rtol)
+            _close(actual, expected, f"{tag}: {name}", rtol,
+                   getattr(model, model.SCALES.get(name, "kappa")) if name in model.SCALES
+                   else 0.0)
 
 
 def _same_bits(a, b, names, tag):
@@ -650,7 +696,7 @@ def _apply(op, live, model, data, rng, names, tag):
         n, m = model.n, model.m
         value = (0.5 * rng.standard_normal((n, m)) if op[1] == "x"
                  else _spd(rng, n, float(rng.uniform(1.0, 100.0))))
-        model.assign(op[1], value)
+        model.assign(op[1], value)         # (the snapshots keep their round-off)
         model._conditioned()
         for f in live:
             setattr(f, op[1], value.copy(order=op[2]))
@@ -680,13 +726,22 @@ def _apply(op, live, model, data, rng, names, tag):
         ks = data.take(count)
         caller, zs, Hs = data.batch(ks)
         Rs = data.R[ks] if with_Rs else None
+        first = max(np.abs(model.P).max(), model.P_scale)
         expected = model.batch(zs, Hs, Rs, update_first)
+        covs = np.maximum.accumulate(np.maximum(
+            first, np.maximum(*(np.abs(c).max(axis=(1, 2)) for c in expected[1::2]))))
         twin = copy.deepcopy(live[0])
         for f in live:
             out = f.batch_filter(caller, Hs, Rs=Rs, update_first=update_first)
             for label, a, b in zip(("means", "covariances", "means_p", "covariances_p"),
                                    out, expected):
-                _close(a, b, f"{tag}: {label}", _tolerance(model))
+                if label.startswith("cov"):
+                    b = np.asarray(b)
+                    for k in range(len(b)):
+                        _close(a[k], b[k], f"{tag}: {label} step {k}", _tolerance(model),
+                               covs[k])
+                else:
+                    _close(a, b, f"{tag}: {label}", _tolerance(model), model.x_scale)
         # streaming equals batch_filter, bit for bit
         streamed = _stream(twin, caller, Hs, Rs, update_first)
         for label, a, b in zip(("means", "covariances", "means_p", "covariances_p"),
