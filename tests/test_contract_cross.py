@@ -281,6 +281,7 @@ class RLSModel(_Model):
         Au = A / np.linalg.norm(A, axis=1)[:, None]
         self.Pi = np.eye(self.n) - Au.T @ np.linalg.solve(Au @ Au.T, Au)
         PA = self.P @ A.T
+        self.kappa = max(self.kappa, np.linalg.cond(Au @ self.P @ Au.T))   # (its round-off)
         W = np.linalg.solve(A @ PA, PA.T).T
         self.x = self.x + W @ (b - A @ self.x)
         self.P = ref.project(self.P - W @ PA.T, self.Pi)
@@ -311,13 +312,13 @@ class RLSModel(_Model):
         Ri = np.linalg.inv(Rf)
         self.x, self.P = Ri @ (Qf.T @ B), self.R * (Ri @ Ri.T)
         self.efra = self.mode == MODES.index("efra")
+        self._fresh_scales()
+        self._conditioned()
         if self.A is not None:
             self._impose(self.A, self.b)
         self.x_prior = self.x_post = self.x
         self.P_prior = self.P_post = self.P
         self.cap = self.held_back = False
-        self._fresh_scales()
-        self._conditioned()
 
     def assign(self, name, value):
         setattr(self, name, value.copy())
@@ -800,6 +801,26 @@ KNOWN = [_var_case(spec.name) for spec in SPECS] + [
     Case("RecursiveLeastSquares", 3, 2, {"lam": 0.95}, 1,
          (("assign", "x", "F"), ("predict_update", False, True),
           ("predict_update", False, True), ("read", STATE))),
+    # the checker's own false alarms, each a tolerance that did not follow the operands:
+    # three constraints of cond(A P A^T) = 8e5 on a batch start of four rows
+    Case("RecursiveLeastSquares", 4, 2, {"constraints": True}, 262144,
+         (("initialize", 0), ("predict_update", False, False))),
+    # a window of dim_x samples, one missing: the prior comes back, then a downdate
+    Case("SlidingWindowRLS", 3, 2, {"missing": "None"}, 158436856,
+         (("predict_update", False, False), ("predict_update", True, False),
+          ("predict_update", True, False), ("predict_update", False, False),
+          ("predict_update", False, False), ("predict_update", True, False))),
+    # a broad prior (P0 = 1e4) against two samples: P's round-off is of the prior's size
+    Case("RecursiveLeastSquares", 2, 1, {}, 0, (("predict_update", False, False),) * 3),
+    # constant trace: lam_t read off the trace of the updated P
+    Case("RecursiveLeastSquares", 2, 1, {"forgetting": "constant_trace", "lam": 0.95,
+                                         "constraints": True}, 0,
+         (("predict_update", False, False), ("read", ("extra",)))),
+    # a batch start that a missing sample makes rank-deficient: refused, nothing changed
+    Case("SlidingWindowRLS", 2, 1, {"missing": "None"}, 0,
+         (("initialize", 2), ("predict_update", False, False),
+          ("predict_update", False, False), ("initialize", 0),
+          ("predict_update", False, False))),
 ]
 
 
