@@ -931,9 +931,12 @@ def _compare_bank(bank, channels, names, skipped, tag):
             expected = FILTER_VIEW.get(name, lambda v: v)(getattr(f, name))
             if name == "S" and skipped[c]:     # no variance of a NaN regressor
                 expected = np.nan
-            kappa = np.linalg.cond(f.P)
+            # the operands: y = z - H x, S = H P H^T + R, K = P H^T / S (the two may
+            # start apart by round-off: the bank's batch start is its own QR)
+            h, x, P = np.abs(f.H).sum(), np.abs(f.x).max(), np.abs(f.P).max()
+            scale = {"y": h * x, "S": h * h * P, "K": h * P / max(abs(f.S[0, 0]), f.R)}
             _close(BANK_PAIRS[name](value, c), expected, f"{tag}: {name}[{c}]",
-                   RTOL * max(1.0, kappa / 1e2))
+                   RTOL * max(1.0, np.linalg.cond(f.P) / 1e2), scale.get(name, 0.0))
 
 
 def run_bank_case(case, make_bank=None):
@@ -1057,9 +1060,13 @@ def bank_cases(draw):
                 options, draw(st.integers(0, 2**32 - 1)), start + draw(PROGRAM))
 
 
-KNOWN_BANK = [Case("RLSBank", 7, 3, {}, 0,
-                   (("initialize", 0),) + (("predict",), ("update", False, True)) * 4
-                   + (("read", STATE + ("extra",)),))]
+KNOWN_BANK = [
+    Case("RLSBank", 7, 3, {}, 0, (("initialize", 0),) + (("predict",), ("update", False, True))
+         * 4 + (("read", STATE + ("extra",)),)),
+    # the checker's false alarm: a residual of 4e-4 one ulp of z apart after the batch start
+    Case("RLSBank", 4, 1, {"missing": "None"}, 29,
+         (("initialize", 2), ("predict_update", False, False))),
+]
 
 
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
