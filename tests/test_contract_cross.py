@@ -20,8 +20,14 @@ with both in lockstep), ``reset``, ``initialize`` and ``batch_filter``.
 Every filter is held, step by step and at every read, to a *textbook model*
 built only from its public configuration and the NumPy reference
 (``textbook.ref``, the recursions of ``_reference.py``) at 1e-12 relative to
-the largest entry of each array; every ``batch_filter`` is also held equal,
-bit for bit, to a copy of the filter streamed through ``predict``/``update``.
+the size of the operands each quantity was computed from: the array itself,
+or, when larger, the prior covariance whose round-off ``P - g g^T / S``
+keeps (a broad ``P0`` against a few samples), passed on to ``K``, ``S``,
+``x`` and ``y`` through ``g = P H^T``; times the condition number beyond 100
+where the algorithm divides by it (a batch start, the constraint projection's
+``A P A^T``, a downdate, ``P`` from a square root). Every ``batch_filter`` is
+also held equal, bit for bit, to a copy of the filter streamed through
+``predict``/``update``.
 `RLSBank` runs the same programs channel by channel against one
 `RecursiveLeastSquares` per channel.
 
@@ -72,6 +78,8 @@ OPTIONS = {
     "missing": ("none", "None", "NaN"),
     "gate": (None, 4.0),
     "constraints": (False, True),
+    # the windup cap's trace bound at trace(P0): it holds the forgetting back at once
+    "trace_max": (None, "trace(P0)"),
 }
 DEFAULTS = {axis: values[0] for axis, values in OPTIONS.items()}
 #: The public state every filter is read for; ``"extra"`` reads the spec's own.
@@ -249,6 +257,9 @@ class RLSModel(_Model):
         self.exponential = f.forgetting == "exponential"
         self.Q = f.Q if f.Q.any() else None
         self.A = self.b = self.Pi = None
+        self.efra_interval = None
+        if f.forgetting == "efra":           # P / R in EFRA's invariant interval
+            self.efra_interval = tuple(f.R * v for v in efra_bounds(f.lam, *self.params))
         super().__init__(f, setup)
         if setup.A is not None:
             self.constrain(setup.A, setup.b)
@@ -450,7 +461,10 @@ SPECS = [
     FilterSpec("RecursiveLeastSquares", _rls_make, RLSModel, declared=(
         Declared("forgetting", ("constant_trace",), ValueError,
                  "the default trace dim_x R (1 - lam) is 0 at lam = 1: an explicit "
-                 "forgetting_params['trace'] is needed", when=_needs_trace),),
+                 "forgetting_params['trace'] is needed", when=_needs_trace),
+        Declared("trace_max", _not_default("trace_max"), TypeError,
+                 "trace_max is a constant of the exponential and variable modes only",
+                 when=lambda o: o["forgetting"] not in ("exponential", "variable"))),
         extra=("lam_t", "gated", "n_gated")),
     FilterSpec("SquareRootRLS", _sr_make, SquareRootModel, declared=(
         Declared("forgetting", _not_default("forgetting"), TypeError,
@@ -458,14 +472,16 @@ SPECS = [
         Declared("Q", _not_default("Q"), TypeError,
                  "a random walk has no cheap information-form update"),
         Declared("gate", _not_default("gate"), TypeError, "no outlier gate"),
-        Declared("constraints", (True,), AttributeError, "no constrain()"))),
+        Declared("constraints", (True,), AttributeError, "no constrain()"),
+        Declared("trace_max", _not_default("trace_max"), TypeError, "no windup cap"))),
     FilterSpec("SlidingWindowRLS", _sw_make, SlidingWindowModel, declared=(
         Declared("forgetting", _not_default("forgetting"), TypeError,
                  "a window forgets by dropping samples"),
         Declared("lam", _not_default("lam"), TypeError, "a window forgets by dropping samples"),
         Declared("Q", _not_default("Q"), TypeError, "no time update"),
         Declared("gate", _not_default("gate"), TypeError, "no outlier gate"),
-        Declared("constraints", (True,), AttributeError, "no constrain()"))),
+        Declared("constraints", (True,), AttributeError, "no constrain()"),
+        Declared("trace_max", _not_default("trace_max"), TypeError, "no windup cap"))),
 ]
 SPECS_BY_NAME = {spec.name: spec for spec in SPECS}
 
@@ -516,6 +532,8 @@ def _build(spec, case, options, rng):
         kw["Q"] = _spd(rng, n, 1e-4)
     if options["gate"] is not None:
         kw["gate"] = options["gate"]
+    if options["trace_max"] is not None:
+        kw["forgetting_params"] = {"trace_max": float(np.trace(P0))}
     setup = Setup(x0, P0)
     f = spec.make(n, m, rng, **kw)
     if options["constraints"]:
@@ -697,6 +715,8 @@ def _apply(op, live, model, data, rng, names, tag):
         n, m = model.n, model.m
         value = (0.5 * rng.standard_normal((n, m)) if op[1] == "x"
                  else _spd(rng, n, float(rng.uniform(1.0, 100.0))))
+        if op[1] == "P" and getattr(model, "efra_interval", None):
+            value = clip_eigenvalues(value, *model.efra_interval)   # (EFRA is stable there)
         model.assign(op[1], value)         # (the snapshots keep their round-off)
         model._conditioned()
         for f in live:
@@ -855,7 +875,9 @@ BANK = FilterSpec("RLSBank", None, None, declared=(
     Declared("forgetting", ("constant_trace",), ValueError,
              "the default trace is 0 at lam = 1", when=_needs_trace),
     Declared("gate", _not_default("gate"), TypeError, "no outlier gate in the bank"),
-    Declared("constraints", (True,), AttributeError, "no constrain() in the bank")),
+    Declared("constraints", (True,), AttributeError, "no constrain() in the bank"),
+    Declared("trace_max", _not_default("trace_max"), ValueError,
+             "no windup cap in the bank's kernels")),
     extra=("lam_t",))
 
 
@@ -902,12 +924,13 @@ def _bank_build(case, options, rng):
         kw["Q"] = 1e-4
     elif options["Q"] == "matrix":
         kw["Q"] = _spd(rng, n, 1e-4)
-    channels = [RecursiveLeastSquares(n, 1, P0=P0, x0=x0[c], R=R, **kw) for c in range(C)]
-    if options["gate"] is not None:
-        kw["gate"] = options["gate"]
-    bank = RLSBank(C, n, P0=P0, x0=x0, R=R, **kw)
+    if options["trace_max"] is not None:
+        kw["forgetting_params"] = {"trace_max": float(np.trace(P0))}
+    bank = RLSBank(C, n, P0=P0, x0=x0, R=R, **kw, **(
+        {} if options["gate"] is None else {"gate": options["gate"]}))
     if options["constraints"]:
         bank.constrain(rng.standard_normal((1, n)), 0.0)
+    channels = [RecursiveLeastSquares(n, 1, P0=P0, x0=x0[c], R=R, **kw) for c in range(C)]
     return bank, channels
 
 
