@@ -861,6 +861,28 @@ test_filters_cross_product.__doc__ = "Every filter x dim_z x mode x option x pro
 
 
 # ----------------------------------------------------------------------
+# bugs found by the cross product
+# ----------------------------------------------------------------------
+@pytest.mark.parametrize("forgetting", MODES)
+def test_no_gate_never_gates_even_when_S_is_not_positive(forgetting):
+    """Found by the cross product (EFRA, ``predict``, ``P`` assigned outside EFRA's
+    interval, two ``predict_update``): with ``gate=None`` a step whose innovation
+    variance ``S = H P H^T + R`` is not positive (an indefinite ``P``) was rejected as
+    gated (the kernel's "no gate" is ``inf``, and ``y'y > inf^2 S = -inf``): ``gated``
+    True, ``n_gated`` counting, ``K`` zero and the estimate frozen for good, while the
+    textbook updates (and the fused batch loop of the exponential mode did not gate).
+    Fixed in ``_kernels._innovation``."""
+    lam = 0.95 if forgetting == "constant_trace" else 1.0
+    f = RecursiveLeastSquares(2, lam=lam, R=0.5, forgetting=forgetting, check_every=0)
+    f.predict()
+    f.P = np.array([[1.0, 3.0], [3.0, -400.0]])          # indefinite: H P H^T < -R below
+    f.predict_update(0.7, [0.3, -1.2])
+    assert f.S[0, 0] < 0.0
+    assert not f.gated and f.n_gated == 0
+    assert np.any(f.K != 0.0)
+
+
+# ----------------------------------------------------------------------
 # the bank: the same programs, channel by channel
 # ----------------------------------------------------------------------
 #: `RLSBank` in the registry's terms. Its channels are single-output filters, so the

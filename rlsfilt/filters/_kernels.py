@@ -232,7 +232,9 @@ def _innovation(x, phi, z, missing, r, w, gate, g, y):
             acc += phi[i] * x[i, j]
         y[j] = z[j] - acc
         yy += y[j] * y[j]
-    gated = yy > gate * gate * s             # sqrt(y'y / S) > gate
+    # sqrt(y'y / S) > gate; no gate (inf) rejects nothing, even when S <= 0 (inf^2 S is
+    # then -inf, which every y'y exceeds)
+    gated = gate < np.inf and yy > gate * gate * s
     return q, s, yy, not gated, gated
 
 
