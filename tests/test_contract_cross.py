@@ -853,6 +853,14 @@ KNOWN = [_var_case(spec.name) for spec in SPECS] + [
     Case("SlidingWindowRLS", 4, 2, {"missing": "None"}, 21545,
          (("predict_update", False, False), ("predict_update", False, False),
           ("initialize", 0), ("batch", 3, False, False))),
+    # the gate that gated without a gate (S < 0 after P assigned to EFRA; fixed), and the
+    # projection of an assigned P on a missing sample (see the xfail): both now assign a
+    # P the filter can take
+    Case("RecursiveLeastSquares", 2, 1, {"forgetting": "efra"}, 0,
+         (("predict",), ("assign", "P", "C"), ("predict_update", False, False),
+          ("predict_update", False, False))),
+    Case("RecursiveLeastSquares", 2, 1, {"missing": "None", "constraints": True}, 0,
+         (("initialize", 2), ("assign", "P", "C"), ("update", False, False))),
     # a batch start that a missing sample makes rank-deficient: refused, nothing changed
     Case("SlidingWindowRLS", 2, 1, {"missing": "None"}, 0,
          (("initialize", 2), ("predict_update", False, False),
