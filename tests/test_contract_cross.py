@@ -168,8 +168,8 @@ class _Model:
         self.reset()
 
     #: Whether the condition number of ``P`` after an update bounds the agreement (a
-    #: downdate or a triangular inverse: yes; the covariance update: no, only its start)
-    #: and the power of it that does (``P`` from a square root: its square root).
+    #: downdate or ``P = U^-1 U^-T``: yes; the covariance update: no, only its start)
+    #: and the power of it that does.
     track_updates, power = True, 1.0
 
     def _conditioned(self):
@@ -342,8 +342,6 @@ class RLSModel(_Model):
 
 class SquareRootModel(_Model):
     """`SquareRootRLS` as the textbook: Givens rotations on ``[U d]`` (``U^T U = P^-1``)."""
-
-    power = 0.5
 
     def __init__(self, f, setup):
         self.lam = f.lam
@@ -835,6 +833,8 @@ KNOWN = [_var_case(spec.name) for spec in SPECS] + [
          (("assign", "x", "F"), ("predict_update", False, True),
           ("predict_update", False, True), ("read", STATE))),
     # the checker's own false alarms, each a tolerance that did not follow the operands:
+    # P = U^-1 U^-T from the QR of dim_x rows: cond(P), not its square root
+    Case("SquareRootRLS", 4, 1, {}, 24, (("initialize", 0), ("assign", "x", "C"))),
     # three constraints of cond(A P A^T) = 8e5 on a batch start of four rows
     Case("RecursiveLeastSquares", 4, 2, {"constraints": True}, 262144,
          (("initialize", 0), ("predict_update", False, False))),
