@@ -41,7 +41,8 @@ URLS = {
 
 def _public(module):
     names = getattr(module, "__all__", None)
-    if names is None:
+    # filterpy.common's __all__ lists its submodules, not the names it imports from them
+    if names is None or all(inspect.ismodule(getattr(module, n, None)) for n in names):
         names = [n for n in dir(module) if not n.startswith("_")]
     return [n for n in names if not n.startswith("_") and hasattr(module, n)]
 
@@ -163,7 +164,7 @@ def filterpy_entries():
         if role == "module":
             return f"{full.split('.')[1]}/{full.split('.')[1]}.html#module-{full}"
         sub, name = full.split(".")[1], full.split(".")[-1]
-        if role == "class":
+        if role == "class" and sub == "kalman":
             return f"{sub}/{name}.html#{full}"
         return f"{sub}/{sub}.html#{full}"
 

@@ -374,3 +374,40 @@ def test_missing_methods_finds_a_gap():
     missing = _missing_methods("rlsfilt.ARMAX", page)
     assert "fit" in missing or "predict" in missing
     assert "predict" in missing and "summary" in missing
+
+
+# ----------------------------------------------------------------------
+# markup that renders: MyST roles on MyST pages, no escaped underscores in math text
+# ----------------------------------------------------------------------
+_RST_ROLE = re.compile(r"(?<![`\w}]):(func|class|meth|mod|attr|obj|doc|ref|data|exc):`")
+_MATH_TEXT_ESCAPE = re.compile(r"\\(?:text|texttt|textrm|mbox)\{[^}]*\\_")
+
+
+def _prose(text):
+    """`text` without its fenced code blocks (a role inside code is shown as written)."""
+    return re.sub(r"^```(?!\{)[^\n]*\n.*?^```$", "", text, flags=re.M | re.S)
+
+
+def test_myst_pages_use_myst_roles():
+    """An rST role (``:func:`x```) on a MyST page prints as raw text: use ``{func}`x```."""
+    bad = [f"{p.relative_to(DOCS)}: {m.group(0)}" for p in PAGES if p.name != "changelog.md"
+           for m in _RST_ROLE.finditer(_prose(p.read_text()))]
+    assert not bad, bad
+
+
+def test_math_text_has_no_escaped_underscores():
+    """MathJax prints ``\\_`` inside ``\\text{}`` literally (``spread\\_max``): use
+    ``\\mathtt{spread\\_max}``, where it is an underscore."""
+    files = [p for p in PAGES if p.name != "changelog.md"] + sorted((ROOT / "rlsfilt").rglob("*.py"))
+    bad = [f"{p.relative_to(ROOT)}: {m.group(0)}" for p in files
+           for m in _MATH_TEXT_ESCAPE.finditer(p.read_text())]
+    assert not bad, bad
+    assert _MATH_TEXT_ESCAPE.search(r"$\texttt{spread\_max}$")
+
+
+@pytest.mark.parametrize("page", ["quickstart.md", "theory.md"]
+                         + [f"guide/{p.name}" for p in sorted((DOCS / "guide").glob("*.md"))])
+def test_pages_link_to_the_api(page):
+    """The quick start, the theory and every guide page link API names (MyST roles)."""
+    assert re.search(r"\{(class|func|meth)\}`[~]?rlsfilt\.", (DOCS / page).read_text()), (
+        f"{page} links no API name: write {{class}}`~rlsfilt.Name` for the main ones")
