@@ -80,6 +80,8 @@ extensions = [
     # their math with no network (it sets mathjax_path to the local tex-chtml.js)
     "sphinx-mathjax-offline",
     "sphinx.ext.viewcode",
+    "sphinx.ext.intersphinx",
+    "sphinx_copybutton",
     "numpydoc",
     "matplotlib.sphinxext.plot_directive",
     "myst_nb",
@@ -102,6 +104,22 @@ numpydoc_xref_param_type = False
 # an Examples section that imports matplotlib runs through the plot directive: the API pages of
 # the plotting functions show the figure their example draws
 numpydoc_use_plots = True
+
+# Links to numpy, scipy, python-control, filterpy and matplotlib, made offline: each project's
+# inventory is read from docs/_inventories/ (written by docs/_make_inventories.py from the
+# installed packages; a project's real objects.inv can replace its file), never fetched.
+intersphinx_mapping = {
+    "numpy": ("https://numpy.org/doc/stable/", "_inventories/numpy.inv"),
+    "scipy": ("https://docs.scipy.org/doc/scipy/", "_inventories/scipy.inv"),
+    "control": ("https://python-control.readthedocs.io/en/stable/", "_inventories/control.inv"),
+    "matplotlib": ("https://matplotlib.org/stable/", "_inventories/matplotlib.inv"),
+    "filterpy": ("https://filterpy.readthedocs.io/en/latest/", "_inventories/filterpy.inv"),
+}
+
+# a copy button on every code block; prompts ($, >>>, ...) and outputs are not copied
+copybutton_prompt_text = r">>> |\.\.\. |\$ "
+copybutton_prompt_is_regexp = True
+copybutton_exclude = ".linenos, .gp, .go"
 
 # MyST and the notebooks
 myst_enable_extensions = ["dollarmath", "amsmath", "colon_fence", "deflist"]

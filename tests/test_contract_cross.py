@@ -1235,7 +1235,9 @@ class _SecondPredictIgnored(RecursiveLeastSquares):
 class _PriorIsPosterior(RecursiveLeastSquares):
     """``x_prior`` reports the estimate after the update."""
 
-    x_prior = property(lambda self: self.x, RecursiveLeastSquares.x_prior.fset)
+    def update(self, z, H=None, R=None):
+        super().update(z, H, R)
+        self.x_prior = self.x.copy()
 
 
 class _DeepcopyDrifts(RecursiveLeastSquares):

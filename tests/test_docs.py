@@ -303,3 +303,111 @@ def test_unnamed_modules_finds_a_missing_module(tmp_path):
         (pkg / name).write_text("")
     doc = "`a/` holds `x.py`, `a/_base.py`; `b/`: `_base.py`"
     assert _unnamed_modules(doc, pkg) == ["b/_base.py", "b/y.py"]
+
+
+# ----------------------------------------------------------------------
+# every public method of every public class is on the class's API page
+# ----------------------------------------------------------------------
+def _public_methods(cls):
+    """The public methods of `cls`, inherited ones included, that rlsfilt defines (not those
+    only a builtin base such as ``tuple`` or ``BaseException`` provides)."""
+    import inspect
+
+    names = set()
+    for name in dir(cls):
+        if name.startswith("_"):
+            continue
+        owner = next((k for k in cls.__mro__ if name in vars(k)), None)
+        if owner is None or owner.__module__ == "builtins":
+            continue
+        raw = vars(owner)[name]
+        if isinstance(raw, (staticmethod, classmethod)) or inspect.isfunction(raw):
+            names.add(name)
+    return names
+
+
+def _class_pages(tmp_path):
+    """``{fully qualified name: generated rst}`` of the classes in docs/api/index.rst, made by
+    autosummary with the documentation's templates (as the HTML build does, without it)."""
+    from sphinx.ext.autosummary.generate import main as autogen
+
+    out = tmp_path / "generated"
+    autogen(["-t", str(DOCS / "_templates"), "-o", str(out),
+             str(DOCS / "api" / "index.rst")])
+    return {full: (out / f"{full}.rst").read_text() for full in _documented_names()
+            if isinstance(_resolve(full), type)}
+
+
+def _missing_methods(full, page):
+    """The public methods of the class `full` that its generated page leaves out."""
+    cls = _resolve(full)
+    methods = _public_methods(cls)
+    if not methods:
+        return []
+    option = re.search(r"^   :inherited-members:(.*)$", page, re.M)
+    excluded = {n.strip() for n in option.group(1).split(",")} if option else None
+    missing = []
+    for name in sorted(methods):
+        owner = next(k for k in cls.__mro__ if name in vars(k))
+        # autodoc documents it: defined on the class, or inherited from a base not excluded
+        documented = owner is cls or (excluded is not None and owner.__name__ not in excluded)
+        listed = re.search(rf"^      ~{re.escape(cls.__qualname__)}\.{name}$", page, re.M)
+        if not (documented and listed):
+            missing.append(name)
+    return missing
+
+
+def test_api_pages_list_every_public_method(tmp_path):
+    """Each public class's API page documents and lists (in its Methods table) every public
+    method, inherited ones included (issue #32: ``predict_update`` of the filters, ``fit`` and
+    ``predict`` of the model family were missing)."""
+    pages = _class_pages(tmp_path)
+    assert len(pages) > 40 and "rlsfilt.RecursiveLeastSquares" in pages
+    gaps = {full: m for full, page in pages.items() if (m := _missing_methods(full, page))}
+    assert not gaps, f"public methods missing from their API pages: {gaps}"
+    assert "predict_update" in _public_methods(_resolve("rlsfilt.RecursiveLeastSquares"))
+
+
+def test_missing_methods_finds_a_gap():
+    """The check fails on a page without inherited members or without a listed method."""
+    page = ".. autoclass:: ARMAX\n   :members:\n\n      ~ARMAX.fit\n"
+    missing = _missing_methods("rlsfilt.ARMAX", page)
+    assert "fit" in missing or "predict" in missing
+    assert "predict" in missing and "summary" in missing
+
+
+# ----------------------------------------------------------------------
+# markup that renders: MyST roles on MyST pages, no escaped underscores in math text
+# ----------------------------------------------------------------------
+_RST_ROLE = re.compile(r"(?<![`\w}]):(func|class|meth|mod|attr|obj|doc|ref|data|exc):`")
+_MATH_TEXT_ESCAPE = re.compile(r"\\(?:text|texttt|textrm|mbox)\{[^}]*\\_")
+
+
+def _prose(text):
+    """`text` without its fenced code blocks (a role inside code is shown as written)."""
+    return re.sub(r"^```(?!\{)[^\n]*\n.*?^```$", "", text, flags=re.M | re.S)
+
+
+def test_myst_pages_use_myst_roles():
+    """An rST role (``:func:`x```) on a MyST page prints as raw text: use ``{func}`x```."""
+    bad = [f"{p.relative_to(DOCS)}: {m.group(0)}" for p in PAGES if p.name != "changelog.md"
+           for m in _RST_ROLE.finditer(_prose(p.read_text()))]
+    assert not bad, bad
+
+
+def test_math_text_has_no_escaped_underscores():
+    """MathJax prints ``\\_`` inside ``\\text{}`` literally (``spread\\_max``): use
+    ``\\mathtt{spread\\_max}``, where it is an underscore."""
+    files = [p for p in PAGES if p.name != "changelog.md"] + sorted((ROOT / "rlsfilt").rglob("*.py"))
+    bad = [f"{p.relative_to(ROOT)}: {m.group(0)}" for p in files
+           for m in _MATH_TEXT_ESCAPE.finditer(p.read_text())]
+    assert not bad, bad
+    assert _MATH_TEXT_ESCAPE.search(r"$\texttt{spread\_max}$")
+
+
+@pytest.mark.parametrize("page", ["quickstart.md", "theory.md"]
+                         + [f"guide/{p.name}" for p in sorted((DOCS / "guide").glob("*.md"))])
+def test_pages_link_to_the_api(page):
+    """The quick start, the theory and every guide page link API names (MyST roles)."""
+    assert re.search(r"\{(class|func|meth)\}`[~]?rlsfilt\.", (DOCS / page).read_text()), (
+        f"{page} links no API name: write {{class}}`~rlsfilt.Name` for the main ones")

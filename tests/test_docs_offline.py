@@ -75,3 +75,38 @@ def test_built_documentation_has_no_remote_script():
         if srcs:
             remote[str(page.relative_to(html))] = srcs
     assert not remote, f"pages loading scripts from the network: {remote}"
+
+
+def test_intersphinx_reads_the_shipped_inventories():
+    """Intersphinx links numpy, scipy, python-control, filterpy and matplotlib with no network:
+    every project's inventory is a file in docs/_inventories/ that Sphinx can read, and it
+    holds the names the pages link to."""
+    import posixpath
+
+    from sphinx.util.inventory import InventoryFile
+
+    assert "sphinx.ext.intersphinx" in _conf_value("extensions")
+    mapping = _conf_value("intersphinx_mapping")
+    assert set(mapping) == {"numpy", "scipy", "control", "matplotlib", "filterpy"}
+    wanted = {"numpy": ("py:class", "numpy.ndarray"),
+              "scipy": ("py:function", "scipy.signal.lfilter"),
+              "control": ("py:class", "control.TransferFunction"),
+              "matplotlib": ("py:class", "matplotlib.figure.Figure"),
+              "filterpy": ("py:class", "filterpy.kalman.KalmanFilter")}
+    for project, (url, inventory) in mapping.items():
+        assert url.startswith("https://") and url.endswith("/"), url
+        assert isinstance(inventory, str) and not re.match(r"https?:", inventory), (
+            f"{project}: the inventory must be a local file, not {inventory!r}")
+        path = DOCS / inventory
+        assert path.is_file(), f"{path} is missing (run python docs/_make_inventories.py)"
+        with path.open("rb") as f:
+            inv = InventoryFile.load(f, url, posixpath.join)
+        role, name = wanted[project]
+        item = inv[role][name]
+        uri = getattr(item, "uri", None) or item[2]
+        assert uri.startswith(url), uri
+
+
+def test_copy_button_is_enabled():
+    assert "sphinx_copybutton" in _conf_value("extensions")
+    import sphinx_copybutton  # noqa: F401  (the docs extra installs it)

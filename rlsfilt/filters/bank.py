@@ -300,7 +300,7 @@ class RLSBank:
     **The windup cap** (exponential mode, ``lam < 1``) is that of
     `RecursiveLeastSquares`, channel by channel and with the same
     arithmetic: after each update a channel whose ``P`` spread far off its
-    regressor's direction (:math:`\sum_i P_{ii} H_i^2 > \text{spread\_max}\,
+    regressor's direction (:math:`\sum_i P_{ii} H_i^2 > \mathtt{spread\_max}\,
     H P H^T`) or whose ``trace(P) / lam`` would exceed ``trace_max`` holds
     its next time update's forgetting back, and its next update forgets
     along its regressor only. A channel whose regressor stops exciting

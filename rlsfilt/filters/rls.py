@@ -231,7 +231,7 @@ class RecursiveLeastSquares(_FilterBase):
     stop exciting, until it overflows and the estimate is NaN for good. After
     each update the filter therefore decides, in O(dim_x), whether the next
     :meth:`predict` may divide ``P`` by ``lam``: not when
-    :math:`\sum_i P_{ii} H_i^2 > \text{spread\_max}\, H P H^T` (``P`` far
+    :math:`\sum_i P_{ii} H_i^2 > \mathtt{spread\_max}\, H P H^T` (``P`` far
     larger off the regressor's direction than along it; the ratio does not
     depend on the units of the regressors) or when
     :math:`\operatorname{tr} P / \lambda` would exceed ``trace_max``. Then

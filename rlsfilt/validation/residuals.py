@@ -165,7 +165,7 @@ def residual_analysis(model, u, y=None, max_lag=25, alpha=0.01, *, output=0, mod
     .. math::
 
         Q = n (n + 2) \sum_{k=1}^{M} \frac{\hat\rho_\varepsilon(k)^2}{n - k}
-        \;\sim\; \chi^2(M - \text{model\_df})
+        \;\sim\; \chi^2(M - \mathtt{model\_df})
 
     (Ljung & Box 1978), the same as ``statsmodels.stats.diagnostic.
     acorr_ljungbox(e, lags=[M], model_df=model_df)``.
