@@ -491,8 +491,8 @@ def _persistence_entries():
     base = json.loads(_dumps(_document(MODEL)))
 
     def stored(v):
-        if isinstance(v, (pd.Series, pd.DataFrame)):
-            v = v.to_numpy()
+        if isinstance(v, (pd.Series, pd.DataFrame, pd.api.extensions.ExtensionArray)):
+            v = v.to_numpy(dtype=float)     # pandas' own dtypes hold the same numbers
         if isinstance(v, np.ndarray):
             if v.ndim == 0:
                 return stored(v.item())
@@ -520,7 +520,9 @@ def _persistence_entries():
         return load
 
     # a plain list is not a stored array, an int or bool array not a float one
-    array = {"list": ERROR, "int": ERROR, "bool": ERROR, "huge": OK, "tiny": OK}
+    # (an array of Decimal objects is stored with dtype object: not a float array either)
+    array = {"list": ERROR, "int": ERROR, "bool": ERROR, "huge": OK, "tiny": OK,
+             "decimal": ERROR}
     return [
         # scaled coefficients no longer match the stored polynomials a_, b_: refused
         Entry("load_model", "fitted.theta_",
