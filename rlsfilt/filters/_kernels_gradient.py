@@ -37,7 +37,7 @@ METHODS = ("lms", "nlms", "sign_error", "sign_data", "sign_sign")
 LMS, NLMS, SIGN_ERROR, SIGN_DATA, SIGN_SIGN = range(5)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _sign(v):
     if v > 0.0:
         return 1.0
@@ -46,43 +46,51 @@ def _sign(v):
     return 0.0
 
 
-@njit(cache=True)
-def lms_step(method, x, h, z, mu, eps, leak, K, y):
-    """One gradient step in place: `x` (n, m), regressor `h` (n,), measurement `z`
-    (m,), gain `K` (n,) and residual `y` (m,) written. Returns False (and changes
-    nothing) when `z` is missing."""
+@njit(cache=True, inline="always")
+def lms_step(method, x, Hm, Z, k, mu, eps, leak, K, y):
+    """One gradient step in place on sample `k`: `x` (n, m), regressor ``Hm[k]``
+    (n,), measurement ``Z[k]`` (m,), gain `K` (n,) and residual `y` (m,) written
+    (rows are indexed, not sliced: no array views in the loop). Returns False
+    (and changes nothing) when the measurement is missing."""
     n, m = x.shape
     for j in range(m):
-        if np.isnan(z[j]):
+        if np.isnan(Z[k, j]):
             return False
     for j in range(m):                                   # y = z - x^T h
         acc = 0.0
         for i in range(n):
-            acc += x[i, j] * h[i]
-        y[j] = z[j] - acc
+            acc += x[i, j] * Hm[k, i]
+        y[j] = Z[k, j] - acc
     norm = 1.0
     if method == NLMS:                                   # n = eps + h^T h
         norm = eps
         for i in range(n):
-            norm += h[i] * h[i]
+            norm += Hm[k, i] * Hm[k, i]
     for i in range(n):                                   # K = mu s(h) / n
-        hi = _sign(h[i]) if (method == SIGN_DATA or method == SIGN_SIGN) else h[i]
+        hi = _sign(Hm[k, i]) if (method == SIGN_DATA or method == SIGN_SIGN) else Hm[k, i]
         K[i] = mu * hi / norm
     keep = 1.0 - mu * leak
     for j in range(m):                                   # x <- (1 - mu a) x + K g(y)^T
         e = _sign(y[j]) if (method == SIGN_ERROR or method == SIGN_SIGN) else y[j]
         for i in range(n):
-            if leak != 0.0:
-                x[i, j] = keep * x[i, j] + K[i] * e
-            else:
-                x[i, j] = x[i, j] + K[i] * e
+            x[i, j] = keep * x[i, j] + K[i] * e
     return True
 
 
 @njit(cache=True)
 def lms_update(method, x, h, z, mu, eps, leak, K, y):
-    """The streaming step: `lms_step` on arrays the caller allocated."""
-    return lms_step(method, x, h, z, mu, eps, leak, K, y)
+    """The streaming step: `lms_step` on arrays the caller allocated (`h` the row
+    ``(1, n)``, `z` the measurement ``(1, m)``)."""
+    return lms_step(method, x, h, z, 0, mu, eps, leak, K, y)
+
+
+@njit(cache=True, inline="always")
+def _store(out, k, x):
+    """``out[k] = x`` element by element (cheaper than a slice assignment per sample)."""
+    n, m = x.shape
+    for i in range(n):
+        for j in range(m):
+            out[k, i, j] = x[i, j]
 
 
 @njit(cache=True)
@@ -92,12 +100,12 @@ def lms_batch(method, x, Hm, Z, mu, eps, leak, update_first, K, y, means, means_
     last = -1
     for k in range(Z.shape[0]):
         if not update_first:
-            means_p[k] = x
-        if lms_step(method, x, Hm[k], Z[k], mu, eps, leak, K, y):
+            _store(means_p, k, x)
+        if lms_step(method, x, Hm, Z, k, mu, eps, leak, K, y):
             last = k
-        means[k] = x
+        _store(means, k, x)
         if update_first:
-            means_p[k] = x
+            _store(means_p, k, x)
     return last
 
 
@@ -184,10 +192,10 @@ def apa_batch(x, Hm, Z, mu, eps, update_first, X, D, K, y, A, B, E, means, means
     last = -1
     for k in range(Z.shape[0]):
         if not update_first:
-            means_p[k] = x
+            _store(means_p, k, x)
         if apa_step(x, Hm[k], Z[k], mu, eps, X, D, K, y, A, B, E):
             last = k
-        means[k] = x
+        _store(means, k, x)
         if update_first:
-            means_p[k] = x
+            _store(means_p, k, x)
     return last

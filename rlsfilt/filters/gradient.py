@@ -174,8 +174,8 @@ class _GradientFilter(_FilterBase):
 
     def _step(self, x, h, z, K, y, work):
         k = _kernels()
-        k.lms_update(k.METHODS.index(self._METHOD), x, h, z, self.mu, self.eps, self.leak,
-                     K.reshape(-1), y)
+        k.lms_update(k.METHODS.index(self._METHOD), x, h.reshape(1, -1), z.reshape(1, -1),
+                     self.mu, self.eps, self.leak, K.reshape(-1), y)
 
     def _run(self, x, Hm, Z, update_first, K, y, work, means, means_p):
         k = _kernels()
