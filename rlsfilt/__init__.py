@@ -22,7 +22,18 @@ from .exceptions import (
     OrderSelectionWarning,
     RegulatorWarning,
 )
-from .filters import RecursiveLeastSquares, RLSBank, SlidingWindowRLS, SquareRootRLS
+from .filters import (
+    APA,
+    LMS,
+    NLMS,
+    RecursiveLeastSquares,
+    RLSBank,
+    SignDataLMS,
+    SignErrorLMS,
+    SignSignLMS,
+    SlidingWindowRLS,
+    SquareRootRLS,
+)
 from .models import (
     AR,
     ARMA,
@@ -55,6 +66,12 @@ __all__ = [
     "SlidingWindowRLS",
     "SquareRootRLS",
     "RLSBank",
+    "LMS",
+    "NLMS",
+    "SignErrorLMS",
+    "SignDataLMS",
+    "SignSignLMS",
+    "APA",
     "ARX",
     "ARMAX",
     "OE",

@@ -53,6 +53,8 @@ class NLMS(_FilterBase):
 
     def update(self, z, H, R=None):
         """One normalized gradient step (a missing `z` changes nothing but ``z``)."""
+        if self.frozen:                                 # adaptation off: only diagnostics
+            return self._frozen_update(z, H, R)
         phi, r = self._as_regressor(H, "H"), self._R if R is None else check_variance(R, "R")
         zc = self._as_measurement(z, "z")
         self.H, self.n_updates = phi, self.n_updates + 1

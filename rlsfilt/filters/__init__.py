@@ -1,6 +1,7 @@
-"""Recursive least-squares filters, their smoother and their tuning by likelihood."""
+"""Recursive least-squares filters, the gradient family, their smoother and their tuning."""
 
 from .bank import RLSBank
+from .gradient import APA, LMS, NLMS, SignDataLMS, SignErrorLMS, SignSignLMS
 from .rls import RecursiveLeastSquares
 from .sliding_window import SlidingWindowRLS
 from .smoother import SmoothedTrajectory, rts_smoother
@@ -9,4 +10,4 @@ from .tuning import BankTuneResult, TuneResult, tune, tune_bank
 
 __all__ = ["RecursiveLeastSquares", "SlidingWindowRLS", "SquareRootRLS", "RLSBank",
            "rts_smoother", "SmoothedTrajectory", "tune", "TuneResult", "tune_bank",
-           "BankTuneResult"]
+           "BankTuneResult", "LMS", "NLMS", "SignErrorLMS", "SignDataLMS", "SignSignLMS", "APA"]

@@ -213,6 +213,75 @@ class _FilterBase(Filter):
             twin.update(z, H, R)
         return twin.x, twin.P
 
+    # ------------------------------------------------------------------
+    # adaptation switch (MATLAB's EnableAdaptation) and frames of rows
+    # ------------------------------------------------------------------
+    @property
+    def frozen(self):
+        """Whether adaptation is off (:meth:`freeze`): ``update`` then computes the
+        residual ``y`` and its variance ``S`` but leaves ``x``, ``P`` and the
+        counters bit-unchanged, and ``predict`` changes nothing."""
+        return self.__dict__.get("_frozen", False)
+
+    @property
+    def adapt(self):
+        """``not frozen``: assign False to freeze the estimate, True to resume
+        (MATLAB's ``EnableAdaptation``)."""
+        return not self.frozen
+
+    @adapt.setter
+    def adapt(self, value):
+        self._frozen = not check_bool(value, "adapt")
+
+    def freeze(self):
+        """Stop adapting: predictions and residuals continue, ``x`` and ``P`` stay
+        as they are until :meth:`unfreeze`. Returns the filter."""
+        self._frozen = True
+        return self
+
+    def unfreeze(self):
+        """Resume adapting from the state held while frozen. Returns the filter."""
+        self._frozen = False
+        return self
+
+    def _frozen_predict(self):
+        """``predict`` while frozen: record ``x_prior`` (and ``P_prior``), nothing else."""
+        self.x_prior = self.x.copy()
+        if self.has_covariance:
+            self.P_prior = self.P.copy()
+
+    def _frozen_update(self, z, H, R):
+        """``update`` while frozen: validate as ``update`` does, then only the
+        diagnostics: ``y = z - H x``, ``S = (H P H^T + R) I`` (``R I`` without a
+        covariance), ``K = 0``; ``x``, ``P`` and the counters stay bit-unchanged."""
+        phi = self._as_regressor(self.H if H is None else H, "H")
+        r = self._R if R is None else check_variance(R, "R")
+        zc = self._as_measurement(z, "z")
+        x = self._checked_x()
+        if self.has_covariance:
+            _, s = _innovation(self._checked_P(), phi, r)
+        else:
+            s = r
+        m = self.dim_z
+        if zc is None:
+            zc = np.full((m, 1), np.nan)
+        y = zc - (phi @ x).T                          # y = z - H x (NaN when missing)
+        S = s * np.eye(m)
+        self.H = phi
+        self.set_diagnostics(z=zc, y=y, K=np.zeros_like(self.K), S=S, SI=np.eye(m) / s)
+
+    def update_block(self, Z, H, R=None):
+        """Several samples at once (MATLAB's frame-based input): for each row of
+        `Z` (``(N,)`` or ``(N, dim_z)``, NaN for missing) and of `H` (``(N,
+        dim_x)``), a :meth:`predict` then an :meth:`update`, bit for bit those
+        calls one by one, in one compiled call (``batch_filter``'s loop; its
+        arguments are named ``zs``, ``Hs``, ``Rs`` in its messages). `R` is a
+        variance for every row or one per row. Leaves the diagnostics of the last
+        row's update; a call that raises changes nothing. Returns the filter.
+        """
+        self._batch(Z, H, R, False, None, False)
+        return self
+
     def predict_update(self, z, H=None, R=None):
         """One textbook step: :meth:`predict` then :meth:`update`.
 
@@ -240,7 +309,7 @@ class _FilterBase(Filter):
         if saver is not None and not callable(getattr(saver, "save", None)):
             raise TypeError(f"`saver` must be None or have a save() method (filterpy's Saver); "
                             f"got {type(saver).__name__}")
-        if saver is None and len(Z):
+        if saver is None and len(Z) and not self.frozen:
             return self._batch_compiled(Z, Hm, Rv, update_first, store_covariances)
         before = copy.deepcopy(self)._shallow_state()
         self._batch_start = self.n_updates

@@ -427,6 +427,8 @@ class RecursiveLeastSquares(_FilterBase):
         if u is not None or B is not None or F is not None:
             self._refuse_control(u, B, F)             # filterpy's arguments: raise
         Q = self._Q_kernel if Q is None else self._random_walk(Q)
+        if self.frozen:                               # adaptation off: x, P unchanged
+            return self._frozen_predict()
         x, P = self._state() if self._recheck else (self._x, self._P)
         # one compiled step (_kernels.predict_kernel) into a new array:
         #   x^- = x               (constant, or random-walk, parameters)
@@ -462,6 +464,8 @@ class RecursiveLeastSquares(_FilterBase):
         R : float, optional
             Measurement-noise variance for this call only.
         """
+        if self.frozen:                               # adaptation off: only diagnostics
+            return self._frozen_update(z, H, R)
         # validate (the row's finiteness: by the compiled step, flag _BAD_ROW)
         H = self._row(H)                              # a new (1, dim_x) row
         z = self._as_measurement(z, "z")              # a new (dim_z, 1) column, or None

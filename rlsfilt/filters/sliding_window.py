@@ -208,6 +208,8 @@ class SlidingWindowRLS(_FilterBase):
         """
         if u is not None or B is not None or F is not None:
             self._refuse_control(u, B, F)
+        if self.frozen:                               # adaptation off: x, P unchanged
+            return self._frozen_predict()
         self._checked_P()
         self.x_prior = self._checked_x().copy()
         self.P_prior = self.P.copy()
@@ -229,6 +231,8 @@ class SlidingWindowRLS(_FilterBase):
         R : float, optional
             Noise variance of this sample.
         """
+        if self.frozen:                               # adaptation off: only diagnostics
+            return self._frozen_update(z, H, R)
         phi = self._as_regressor(self.H if H is None else H, "H")   # filterpy: self.H
         r = self._R if R is None else check_variance(R, "R")
         zc = self._as_measurement(z, "z")

@@ -241,6 +241,8 @@ class SquareRootRLS(_FilterBase):
         """
         if u is not None or B is not None or F is not None:
             self._refuse_control(u, B, F)
+        if self.frozen:                               # adaptation off: x, P unchanged
+            return self._frozen_predict()
         delta = self._delta.copy()
         if self._lam != 1.0:
             # Delta <- Delta / lam     (U <- sqrt(lam) U, P <- P / lam; W, v and x unchanged)
@@ -253,6 +255,8 @@ class SquareRootRLS(_FilterBase):
         """Measurement update with regressor row `H` (``self.H`` if omitted, as in
         filterpy; see :meth:`RecursiveLeastSquares.update`; missing `z` keeps the
         estimate)."""
+        if self.frozen:                               # adaptation off: only diagnostics
+            return self._frozen_update(z, H, R)
         phi = self._as_regressor(self.H if H is None else H, "H")   # filterpy: self.H
         r = self._R if R is None else check_variance(R, "R")
         zc = self._as_measurement(z, "z")

@@ -1,0 +1,71 @@
+"""Time the gradient filters' ``batch_filter`` against padasip, per sample (thread CPU time).
+
+For LMS, NLMS, sign-sign LMS and affine projection (order 4), on the same
+Gaussian regressors and step sizes: rlsfilt's ``batch_filter`` (one compiled
+loop) against padasip's ``run`` (a Python loop over NumPy steps). Each
+contender runs once per round, rounds are interleaved and the best round
+counts (thread CPU time, so the other users of a shared machine count less).
+Prints ns per sample and the speed-up; the issue's target is >= 100x.
+
+Usage::
+
+    python benchmarks/bench_gradient.py --smoke     # a few seconds
+    python benchmarks/bench_gradient.py             # dim_x 4 and 16, N = 20000
+"""
+
+import argparse
+import time
+
+import numpy as np
+import padasip as pa
+
+import rlsfilt
+
+CASES = {
+    "LMS": (lambda n: rlsfilt.LMS(n, mu=0.01), lambda n: pa.filters.FilterLMS(n, mu=0.01,
+                                                                              w="zeros")),
+    "NLMS": (lambda n: rlsfilt.NLMS(n, mu=0.5, eps=0.01),
+             lambda n: pa.filters.FilterNLMS(n, mu=0.5, eps=0.01, w="zeros")),
+    "SignSignLMS": (lambda n: rlsfilt.SignSignLMS(n, mu=0.001),
+                    lambda n: pa.filters.FilterSSLMS(n, mu=0.001, w="zeros")),
+    "APA(order=4)": (lambda n: rlsfilt.APA(n, order=4, mu=0.5, eps=0.01),
+                     lambda n: pa.filters.FilterAP(n, order=4, mu=0.5, ifc=0.01, w="zeros")),
+}
+
+
+def _cpu(fn):
+    t = time.thread_time()
+    fn()
+    return time.thread_time() - t
+
+
+def run(dims, n_samples, slow_samples, rounds):
+    rng = np.random.default_rng(0)
+    print(f"{'filter':14s} {'dim_x':>5s} {'rlsfilt ns':>11s} {'padasip ns':>11s} {'speed-up':>9s}")
+    for n in dims:
+        Hs = rng.standard_normal((n_samples, n))
+        zs = Hs @ rng.standard_normal(n) + 0.1 * rng.standard_normal(n_samples)
+        for name, (ours, theirs) in CASES.items():
+            ours(n).batch_filter(zs[:10], Hs[:10])              # compile / load the cache
+            best_o = best_p = np.inf
+            for _ in range(rounds):
+                best_o = min(best_o, _cpu(lambda: ours(n).batch_filter(
+                    zs, Hs, store_covariances=False)) / n_samples)
+                best_p = min(best_p, _cpu(lambda: theirs(n).run(
+                    zs[:slow_samples], Hs[:slow_samples])) / slow_samples)
+            print(f"{name:14s} {n:5d} {1e9 * best_o:11.0f} {1e9 * best_p:11.0f} "
+                  f"{best_p / best_o:8.0f}x")
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--smoke", action="store_true", help="a few seconds")
+    args = parser.parse_args(argv)
+    if args.smoke:
+        run([4], 2000, 500, 2)
+    else:
+        run([4, 16], 20000, 2000, 5)
+
+
+if __name__ == "__main__":
+    main()
