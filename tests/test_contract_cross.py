@@ -1183,6 +1183,9 @@ def test_every_contract_filter_is_registered():
     registered = {spec.name for spec in SPECS} | {BANK.name}
     for case in FILTERS:
         f = case.make()
+        if not getattr(f, "least_squares", True):
+            continue    # no least-squares textbook to compare with (the gradient family and
+            #             the example filter: their references are in test_gradient.py)
         name = type(getattr(f, "bank", f)).__name__
         assert name in registered, f"{name} ({case.name}) is not in SPECS"
 

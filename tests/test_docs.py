@@ -398,7 +398,8 @@ def test_myst_pages_use_myst_roles():
 def test_math_text_has_no_escaped_underscores():
     """MathJax prints ``\\_`` inside ``\\text{}`` literally (``spread\\_max``): use
     ``\\mathtt{spread\\_max}``, where it is an underscore."""
-    files = [p for p in PAGES if p.name != "changelog.md"] + sorted((ROOT / "rlsfilt").rglob("*.py"))
+    files = ([p for p in PAGES if p.name != "changelog.md"]
+             + sorted((ROOT / "rlsfilt").rglob("*.py")))
     bad = [f"{p.relative_to(ROOT)}: {m.group(0)}" for p in files
            for m in _MATH_TEXT_ESCAPE.finditer(p.read_text())]
     assert not bad, bad

@@ -1,4 +1,4 @@
-r"""The stochastic-gradient family as filters: LMS, normalized LMS, sign variants, affine projection.
+r"""The stochastic-gradient family as filters: LMS, NLMS, sign variants, affine projection.
 
 The filters of padasip (``FilterLMS``, ``FilterNLMS``, ``FilterSSLMS``,
 ``FilterAP``) and MATLAB's ``dsp.LMSFilter``/``recursiveLS(...,
