@@ -9,9 +9,10 @@ dask DataFrame) becomes one task that runs the in-memory
 :func:`rlsfilt.models.fit_many` on its channels where the block lives and
 returns only its per-channel summary (one row per channel: parameters,
 standard errors, fits, residual tests). The records themselves never travel
-back; a channel's numbers do not depend on which other channels share its
-block, so the result equals the in-memory ``fit_many(...).summary()``
-exactly (bit for bit), and so, like it, each channel's own ``ARX.fit`` and
+back; a channel's estimates and fits do not depend on which other channels
+share its block, so they equal the in-memory ``fit_many(...).summary()``
+bit for bit; its residual-test statistics (computed vectorized over a
+block) to round-off; and so, like it, each channel's own ``ARX.fit`` and
 ``validate`` to round-off (a few units in the last place: the fleet's
 least squares and recursion are not the single model's code).
 

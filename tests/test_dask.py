@@ -68,7 +68,12 @@ def test_dask_arrays_on_two_workers_equal_fit_many(rng, client, method, options)
     got = rdask.fit_many(ARX(2, 2, 1), da.from_array(u, chunks=chunks),
                          da.from_array(y, chunks=chunks), method, channels=labels,
                          client=client, **options)
-    pd.testing.assert_frame_equal(got, expected, check_exact=True)
+    # the estimates and fits bit for bit; the residual tests' statistics (vectorized over
+    # the channels of a block, whose size the chunks set) to round-off
+    tests = [c for c in expected.columns if c.startswith(("f_statistic", "q_statistic", "pvalue"))]
+    pd.testing.assert_frame_equal(got.drop(columns=tests), expected.drop(columns=tests),
+                                  check_exact=True)
+    pd.testing.assert_frame_equal(got[tests], expected[tests], check_exact=False, rtol=1e-12)
 
 
 def test_several_inputs_and_lazy_result(rng, client):
