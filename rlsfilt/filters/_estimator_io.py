@@ -65,6 +65,14 @@ class _EstimatorStepper:
     def _get_state(self):
         return np.concatenate([_filter_state.get_state(self.filter), self._ypast, self._upast])
 
+    def _snapshot(self):
+        return self.filter._shallow_state(), self._ypast.copy(), self._upast.copy()
+
+    def _restore_snapshot(self, snap):
+        self.filter._restore(snap[0])
+        self._ypast[:] = snap[1]
+        self._upast[:] = snap[2]
+
     def _set_state(self, vec):
         nf = len(vec) - len(self._ypast) - len(self._upast)
         _filter_state.set_state(self.filter, vec[:nf])
