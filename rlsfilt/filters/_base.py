@@ -44,6 +44,10 @@ class _FilterBase(Filter):
     ``has_covariance``) and the abstract members of `rlsfilt.filters.contract.Filter`.
     """
 
+    # arrays a step writes into in place, which a copy of the attributes
+    # (`_shallow_state`) must copy to stay valid; the others are replaced, not written
+    _written_in_place = ()
+
     def _repr_html_(self):
         return filter_html(self)   # Jupyter: dimensions, settings, estimate +- std dev, health
 
