@@ -54,7 +54,9 @@ class _EstimatorStepper:
         z, H = self._measurement(w)
         x = np.asarray(f.x, dtype=float)
         e = np.atleast_1d(np.asarray(z, dtype=float)).reshape(-1) - H @ x   # a-priori error
-        _, messages = call_capturing(f.predict_update, z, H)
+        # predict + update, as predict_update without its undo: a failed step is never
+        # reused (each evaluation restores the state from x)
+        _, messages = call_capturing(_predict_update, f, z, H)
         if self.mode == "arx":
             u, y = w
             push(self._ypast, y)
@@ -98,6 +100,11 @@ class _EstimatorStepper:
         self._layout().unpack(self.filter, vec[:nf])
         self._ypast[:] = vec[nf:nf + len(self._ypast)]
         self._upast[:] = vec[nf + len(self._ypast):]
+
+
+def _predict_update(f, z, H):
+    f.predict()
+    f.update(z, H)
 
 
 def estimator_iosystem(filter, regressor="direct", dt=True, *, inputs=None, name="estimator"):
