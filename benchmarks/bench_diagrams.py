@@ -230,19 +230,23 @@ def main(argv=None):
         print(f"  {k:48s} {v:9.1f}")
     bare = est["(a) bare filter step"]
     own = est["(c) interconnect simulation"] - est["(d) same diagram, trivial system"]
-    print("estimator:")
-    print(f"  update+output functions / bare step                {est['(b) estimator update+output functions'] / bare:6.2f}x")
-    print(f"  in the diagram, python-control's overhead aside    {own:7.1f} us = {own / bare:.2f}x the bare step")
-    print(f"  python-control's own overhead (trivial system)     {est['(d) same diagram, trivial system']:7.1f} us")
+    direct = est["(b) estimator update+output functions"]
+    line("estimator: update+output functions / bare step", f"{direct / bare:.2f}x")
+    line("  in the diagram, python-control's overhead aside",
+         f"{own:.1f} us = {own / bare:.2f}x the bare step")
     ref = reg["(e) plain-numpy loop (same work)"]
     own_r = reg["(e) interconnect simulation"] - reg["(e) same diagram, trivial system"]
-    print("regulator:")
-    print(f"  step loop / plain-numpy loop                       {reg['(e) SelfTuningRegulator.step loop'] / ref:6.2f}x")
-    print(f"  update+output functions / plain-numpy loop         {reg['(e) regulator update+output functions'] / ref:6.2f}x")
-    print(f"  update+output functions / bare filter step         {reg['(e) regulator update+output functions'] / bare:6.2f}x")
-    print(f"  in the diagram, python-control's overhead aside    {own_r:7.1f} us = {own_r / ref:.2f}x the numpy loop, {own_r / bare:.1f}x the bare step")
-    print(f"  python-control's own overhead (trivial system)     {reg['(e) same diagram, trivial system']:7.1f} us")
+    stepped = reg["(e) SelfTuningRegulator.step loop"]
+    direct_r = reg["(e) regulator update+output functions"]
+    line("regulator: step loop / plain-numpy loop", f"{stepped / ref:.2f}x")
+    line("  update+output functions / plain-numpy loop", f"{direct_r / ref:.2f}x")
+    line("  update+output functions / bare filter step", f"{direct_r / bare:.2f}x")
+    line("  in the diagram, python-control's overhead aside",
+         f"{own_r:.1f} us = {own_r / ref:.2f}x the numpy loop, {own_r / bare:.1f}x the bare step")
 
+
+def line(label, value):
+    print(f"  {label:52s} {value}")
 
 if __name__ == "__main__":
     main()

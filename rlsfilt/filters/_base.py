@@ -474,7 +474,7 @@ def _has_none(values):
         return False
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _slots(cls):
     """The slot names of `cls` and its bases (once per class: `_restore` runs per sample
     inside python-control)."""
