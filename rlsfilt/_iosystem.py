@@ -11,7 +11,13 @@ distinct ``(x, u)``; the output and update functions share it, and warnings
 are issued only by the update (the committed step), once per message.
 
 The object provides ``_get_state()``, ``_set_state(vector)`` and
-``_io_step(inputs) -> (outputs, messages)``.
+``_io_step(inputs) -> (outputs, messages)``, and optionally
+``_snapshot()``/``_restore_snapshot(snap)``: a cheap copy of everything a
+step reads, taken after each step under the bytes of the state vector it
+left, so that the next sample (whose ``x`` is that vector) restores it
+without unpacking the vector. A restored snapshot is the state
+``_set_state(vector)`` would give (the vector is read back from it), so
+results are the same bit for bit; unpacking stays for any other ``x``.
 """
 
 import copy
@@ -37,35 +43,87 @@ def make_iosystem(template, *, inputs, outputs, states, dt, name=None):
     if len(states) != len(x_start):
         raise RuntimeError("internal error: state labels and state size differ")
     cache = {}
+    snaps = {}          # state-vector bytes -> snapshot of `work` in that state
+    fast = hasattr(work, "_snapshot")
+    holds = [None]      # the evaluation whose result `work` holds now
     emitted = set()
 
+    def restore(x):
+        snap = snaps.get(x.tobytes()) if fast else None
+        if snap is not None:
+            work._restore_snapshot(snap)
+            return
+        work._set_state(x if x.any() else x_start)
+        if fast:
+            remember(x, work._snapshot())
+
+    def remember(x, snap):
+        if len(snaps) >= _CACHE_SIZE:
+            snaps.clear()
+        snaps[x.tobytes()] = snap
+
     def evaluate(x, w):
+        """``[outputs, messages, snapshot after the step, new state or None]``."""
         x = np.ascontiguousarray(x, dtype=float)
         w = np.ascontiguousarray(w, dtype=float)
         key = (x.tobytes(), w.tobytes())
         hit = cache.get(key)
         if hit is None:
-            work._set_state(x if x.any() else x_start)
+            holds[0] = None
+            restore(x)
             out, messages = work._io_step(w)
-            hit = (np.array(out, dtype=float), work._get_state(), messages)
+            if fast:        # the new state is packed only if the update asks for it
+                hit = [np.array(out, dtype=float), messages, work._snapshot(), None]
+            else:
+                hit = [np.array(out, dtype=float), messages, None,
+                       np.asarray(work._get_state(), dtype=float)]
+            holds[0] = hit
             if len(cache) >= _CACHE_SIZE:
                 cache.clear()
             cache[key] = hit
         return hit
 
     def updfcn(t, x, u, params):
-        _, new, messages = evaluate(x, u)
-        for message, category in messages:
+        hit = evaluate(x, u)
+        if hit[3] is None:
+            if holds[0] is not hit:
+                work._restore_snapshot(hit[2])
+                holds[0] = hit
+            hit[3] = np.asarray(work._get_state(), dtype=float)
+            remember(hit[3], hit[2])
+        for message, category in hit[1]:
             if message not in emitted:
                 emitted.add(message)
                 warnings.warn(message, category, stacklevel=2)
-        return new.copy()
+        return hit[3].copy()
 
     def outfcn(t, x, u, params):
         return evaluate(x, u)[0].copy()
 
     return control.nlsys(updfcn, outfcn, inputs=list(inputs), outputs=list(outputs),
                          states=list(states), dt=dt, name=name)
+
+
+def snapshot_filter(f):
+    """A copy of a filter's attributes (`_shallow_state`) that stays valid.
+
+    A step replaces the arrays it changes, except those the filter lists in
+    ``_written_in_place`` (the ring buffer of `SlidingWindowRLS`): only
+    these are copied.
+    """
+    state = f._shallow_state()
+    for name in f._written_in_place:
+        state[name] = state[name].copy()
+    return state
+
+
+def restore_filter(f, snap):
+    """Put back a :func:`snapshot_filter` (copies again: the snapshot stays valid)."""
+    if f._written_in_place:
+        snap = dict(snap)
+        for name in f._written_in_place:
+            snap[name] = snap[name].copy()
+    f._restore(snap)
 
 
 def call_capturing(fn, *args):

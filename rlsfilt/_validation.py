@@ -213,13 +213,18 @@ def check_covariance(C, n, name, definite=False):
 def check_finite(arr, name):
     """Raise if `arr` holds NaN or inf, naming the first bad index.
 
-    One summation screens the array (a NaN or inf makes the sum NaN or inf); the
-    exact test runs only when the sum is not finite (a bad entry, or finite
-    entries whose sum overflows).
+    A small array (up to 64 entries, the per-sample calls) is tested entry by
+    entry; a larger one is screened by one summation (a NaN or inf makes the
+    sum NaN or inf), and the exact test runs only when the sum is not finite
+    (a bad entry, or finite entries whose sum overflows).
     """
-    with np.errstate(over="ignore", invalid="ignore"):
-        if np.isfinite(np.sum(arr)):
+    if arr.size <= 64 and arr.dtype.kind != "O":     # small: cheaper than entering errstate
+        if np.isfinite(arr).all():
             return arr
+    else:
+        with np.errstate(over="ignore", invalid="ignore"):
+            if np.isfinite(np.sum(arr)):
+                return arr
     bad = ~np.isfinite(arr)
     if bad.any():
         idx = np.unravel_index(int(np.argmax(bad)), arr.shape)

@@ -90,6 +90,30 @@ def test_a_filter_restored_from_its_state_continues_bit_for_bit():
         assert_array_equal(_filter_state.get_state(g), _filter_state.get_state(f))
 
 
+def test_the_layout_packs_as_get_state_and_snapshots_stay_valid():
+    # what the python-control systems use at every sample instead of get_state/set_state
+    from rlsfilt._iosystem import restore_filter, snapshot_filter
+
+    rng = np.random.default_rng(5)
+    Hs, zs = rng.standard_normal((150, 3)), rng.standard_normal(150)
+    for make in FILTERS.values():
+        f = make(3)
+        layout = _filter_state.StateLayout(f)
+        for k in range(70):
+            f.predict_update(zs[k], Hs[k])
+        vec = layout.pack(f, np.empty(layout.size))
+        assert_array_equal(vec, _filter_state.get_state(f))
+        g = make(3)
+        layout.unpack(g, vec)
+        assert_array_equal(_filter_state.get_state(g), vec)
+        snap = snapshot_filter(f)
+        for _ in range(2):          # the snapshot survives the steps after its restore
+            for k in range(70, 150):        # past the window: the ring buffer is rewritten
+                f.predict_update(zs[k], Hs[k])
+            restore_filter(f, snap)
+            assert_array_equal(_filter_state.get_state(f), vec)
+
+
 @pytest.mark.parametrize("name", FILTERS)
 def test_estimator_system_equals_batch_filter(name):
     rng = np.random.default_rng(1)

@@ -1,5 +1,7 @@
 """rst_design: closed-loop poles against python-control, integral action, conversions, errors."""
 
+import re
+
 import control
 import numpy as np
 import pytest
@@ -267,3 +269,31 @@ def test_non_causal_controllers_are_rejected():
         RSTController([0.0, 1.0], [1.0], [1.0])
     with pytest.raises(ValueError, match=r"`dt` must be True"):
         RSTController([1.0], [1.0], [1.0], dt=-1)
+
+
+@pytest.mark.parametrize("options", [
+    dict(Am=AM, Ao=AO),
+    dict(Am=AM, integral=False),
+    dict(Am=AM, Ao=AO, cancel_zeros=True, dt=0.5),
+])
+def test_the_regulators_prepared_design_equals_rst_design(options):
+    # SelfTuningRegulator checks the options once; every design is rst_design's, bit for bit
+    from rlsfilt.adaptive.rst import _prepared_design
+
+    design = _prepared_design(**options)
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        A = np.r_[1.0, 0.3 * rng.standard_normal(2)]
+        B = np.r_[0.0, 1.0, 0.4 * rng.standard_normal()]
+        try:
+            ref = rst_design(A, B, **options)
+        except ValueError as exc:
+            with pytest.raises(ValueError, match=re.escape(str(exc))):
+                design(A, B)
+            continue
+        got = design(A, B)
+        for name in ("R", "S", "T", "Ao", "target"):
+            assert_array_equal(getattr(got, name), getattr(ref, name))
+        assert got.dt == ref.dt
+    with pytest.raises(ValueError, match=r"`Am` must be stable"):
+        _prepared_design(Am=[1.0, -1.5])

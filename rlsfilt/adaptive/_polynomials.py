@@ -42,15 +42,21 @@ def as_poly(p, name, *, monic=False):
     return arr
 
 
+def _nonzero(p):
+    """``np.flatnonzero(p)`` without its generic reshaping (called many times per sample)."""
+    a = p if type(p) is np.ndarray and p.ndim == 1 else np.ravel(p)
+    return a.nonzero()[0]
+
+
 def trim(p):
     """Drop trailing zero coefficients (highest powers of ``q^-1``); keep one."""
-    nz = np.flatnonzero(p)
+    nz = _nonzero(p)
     return p[:nz[-1] + 1].copy() if len(nz) else np.zeros(1)
 
 
 def degree(p):
     """Degree in ``q^-1`` (index of the last nonzero coefficient; -1 for zero)."""
-    nz = np.flatnonzero(p)
+    nz = _nonzero(p)
     return int(nz[-1]) if len(nz) else -1
 
 

@@ -391,6 +391,14 @@ def rst_design(A, B=None, Am=None, Ao=None, *, integral=True, cancel_zeros=False
     1.0
     """
     A, B, model = _plant(A, B)
+    Am, Ao, integral, radius, coprime_tol, dt = _design_options(
+        Am, Ao, integral, cancel_zeros, coprime_tol,
+        model_dt(model) if dt is None and model is not None else dt)
+    return _solve_rst(A, B, Am, Ao, integral, radius, coprime_tol, dt)
+
+
+def _design_options(Am, Ao, integral, cancel_zeros, coprime_tol, dt):
+    """`rst_design`'s options checked: ``(Am, Ao, integral, radius, coprime_tol, dt)``."""
     if Am is None:
         raise TypeError("`Am` is required: the desired closed-loop polynomial, e.g. "
                         "Am=np.poly(poles)")
@@ -402,8 +410,29 @@ def rst_design(A, B=None, Am=None, Ao=None, *, integral=True, cancel_zeros=False
         raise TypeError(f"`integral` must be True or False; got {integral!r}")
     radius = _check_cancel(cancel_zeros)
     coprime_tol = check_real(coprime_tol, "coprime_tol", minimum=0)
-    dt = check_dt(model_dt(model) if dt is None and model is not None else
-                  (True if dt is None else dt))
+    dt = check_dt(True if dt is None else dt)
+    return Am, Ao, integral, radius, coprime_tol, dt
+
+
+def _prepared_design(*, Am=None, Ao=None, integral=True, cancel_zeros=False, dt=None,
+                     coprime_tol=COPRIME_TOL):
+    """``design(A, B)``, equal to ``rst_design(A, B, **options)``, with the options checked once.
+
+    For a loop that designs at every sample (`SelfTuningRegulator`): the
+    checks of `Am` and `Ao` (their roots) and of the other options do not
+    change between samples. Raises as `rst_design` would for a bad option.
+    """
+    options = _design_options(Am, Ao, integral, cancel_zeros, coprime_tol, dt)
+
+    def design(A, B):
+        A, B, _ = _plant(A, B)
+        return _solve_rst(A, B, *options)
+
+    return design
+
+
+def _solve_rst(A, B, Am, Ao, integral, radius, coprime_tol, dt):
+    """The design of `rst_design` for checked ``A, B`` (from `_plant`) and options."""
     A1 = np.convolve(A, [1.0, -1.0]) if integral else A
     if degree(B) < 1:
         raise ValueError(f"`B` must have degree >= 1 in q^-1 (a delay nk >= 1, or nb >= 2 "
@@ -426,7 +455,20 @@ def rst_design(A, B=None, Am=None, Ao=None, *, integral=True, cancel_zeros=False
                          "R(0) = 0: the controller cannot be causal; add a delay to the model "
                          "or change Am, Ao")
     T = Am.sum() / B.sum() * Ao
-    return RSTController(R, S, T, dt, Ao=Ao, target=np.convolve(Bplus, Acl))
+    return _controller(R, S, T, dt, Ao, np.convolve(Bplus, Acl))
+
+
+def _controller(R, S, T, dt, Ao, target):
+    """``RSTController(R, S, T, dt, Ao=Ao, target=target)`` for the float arrays of a
+    design and its checked `dt` and `Ao`: the same object without repeating checks
+    that they pass (anything else goes through the constructor, and raises there)."""
+    if not all(np.isfinite(p).all() for p in (R, S, T, target)) or R[0] == 0.0:
+        return RSTController(R, S, T, dt, Ao=Ao, target=target)
+    ctrl = RSTController.__new__(RSTController)
+    ctrl.R, ctrl.S, ctrl.T = trim(R), trim(S), trim(T)
+    ctrl.Ao, ctrl.target = trim(Ao), trim(target)
+    ctrl.dt = dt
+    return ctrl
 
 
 def _check_cancel(cancel_zeros):
@@ -442,6 +484,8 @@ def _check_cancel(cancel_zeros):
 
 def _split_zeros(B, radius):
     """``(B+, B-)``: ``B+`` monic with the zeros of `B` inside `radius`, ``B = B+ B-``."""
+    if radius == 0.0:                 # nothing to cancel (the default): no roots needed
+        return np.ones(1), B
     nz = np.flatnonzero(B)
     lead = B[nz[0]] if len(nz) else 0.0
     zeros = roots(B[nz[0]:]) if len(nz) else np.zeros(0)

@@ -23,12 +23,12 @@ import warnings
 
 import numpy as np
 
-from .._iosystem import call_capturing, make_iosystem, push
+from .._iosystem import call_capturing, make_iosystem, push, restore_filter, snapshot_filter
 from .._validation import check_dt, check_int, check_real, check_scalar
 from ..exceptions import ExcitationWarning, RegulatorWarning
 from ..filters import _filter_state
 from ._polynomials import coprimeness, degree, fmt_complex, padd, roots, trim
-from .rst import RSTController, rst_design
+from .rst import RSTController, _prepared_design, rst_design
 
 __all__ = ["SelfTuningRegulator", "STRHistory"]
 
@@ -264,7 +264,10 @@ class SelfTuningRegulator:
         self.estimator = estimator
         self._design_kwargs = dict(design) if isinstance(design, dict) else None
         if isinstance(design, dict):
-            design = functools.partial(rst_design, **design)
+            try:                    # the options checked once, not at every sample
+                design = _prepared_design(**design)
+            except (TypeError, ValueError):     # rst_design raises the same at each design
+                design = functools.partial(rst_design, **design)
         if not callable(design):
             raise TypeError(f"`design` must be a callable design(A, B) -> RSTController or a "
                             f"dict of rst_design keywords; got {type(design).__name__}")
@@ -299,6 +302,7 @@ class SelfTuningRegulator:
         self._scalars[2] = float(np.trace(estimator.P))   # reference trace(P)
         self._records = []
         self._why = "no design was due yet"     # why the last design was rejected (messages)
+        self._checked = {}      # id -> (controller, rows, size) of the last verified designs
         if initial is not None:
             self._install(initial, "initial")
         else:
@@ -363,11 +367,11 @@ class SelfTuningRegulator:
 
     def _advance(self, y, r, v):
         """One sample: returns ``(u, record, messages)``; a failure restores the state."""
-        snapshot = self._get_state()
+        snapshot = self._snapshot()
         try:
             return self._advance_unsafe(y, r, v)
         except BaseException:
-            self._set_state(snapshot)
+            self._restore_snapshot(snapshot)
             raise
 
     def _advance_unsafe(self, y, r, v):
@@ -532,6 +536,7 @@ class SelfTuningRegulator:
         """
         sigma = coprimeness(A, B)
         messages = []
+        self._checked = {}
         full = reduced = None
         why = []
         if sigma >= self.coprime_tol:
@@ -551,8 +556,8 @@ class SelfTuningRegulator:
                 why.append(f"coprimeness {sigma:.3g}, closest {what}"
                            + ("" if reduced is not None else f"; the reduced design {note}"))
         self._why = "; ".join(why)
-        if full is not None and (reduced is None or
-                                 _size(full) <= self.max_growth * _size(reduced)):
+        if full is not None and (reduced is None or self._checked[id(full)][2]
+                                 <= self.max_growth * self._checked[id(reduced)][2]):
             return full, "full", messages
         if reduced is not None:
             return reduced, "reduced", messages
@@ -567,7 +572,8 @@ class SelfTuningRegulator:
             ctrl, caught = call_capturing(design, Ad, Bd)
         except (ValueError, np.linalg.LinAlgError) as exc:
             return None, f"raised {type(exc).__name__}: {exc}"
-        Rc, Sc, Tc = self._rows(ctrl, "design")      # raises for a misfit controller
+        rows = self._rows(ctrl, "design")           # raises for a misfit controller
+        Rc, Sc, Tc = rows
         target = getattr(ctrl, "target", None)
         if target is not None:            # A R + B S = target on the model designed for
             char = padd(np.convolve(Ad, Rc), np.convolve(Bd, Sc))
@@ -589,13 +595,17 @@ class SelfTuningRegulator:
             return None, (f"has size {size:.3g}, more than max_growth = {self.max_growth:g} "
                           f"times the size {last:.3g} of the controller in use")
         messages += caught
+        self._checked[id(ctrl)] = (ctrl, rows, size)     # for _try_design and _install
         return ctrl, ""
 
     def _install(self, ctrl, what):
         """Store a controller's polynomials in the fixed-size rows of ``_ctrl``."""
-        self._ctrl[:] = self._rows(ctrl, what)
+        checked = self._checked.get(id(ctrl))
+        rows, size = (checked[1:] if checked is not None and checked[0] is ctrl else
+                      (self._rows(ctrl, what), _size(ctrl)))
+        self._ctrl[:] = rows
         self._scalars[0] = 1.0
-        self._scalars[_I["size_last"]] = _size(ctrl)
+        self._scalars[_I["size_last"]] = size
 
     def _rows(self, ctrl, what):
         """A controller's ``R, S, T`` zero-padded to ``max_order + 1``; checks them."""
@@ -632,18 +642,50 @@ class SelfTuningRegulator:
     def _parts(self):
         return [self._ypast, self._upast, self._rpast, self._ctrl, self._scalars, self._info]
 
+    def _layout(self):
+        """The estimator's `StateLayout`, worked out once per estimator object."""
+        layout = self.__dict__.get("_state_layout")
+        if layout is None or layout.owner is not self.estimator:
+            layout = self._state_layout = _filter_state.StateLayout(self.estimator)
+        return layout
+
     def _get_state(self):
-        own = [np.asarray(p, dtype=float).reshape(-1) for p in self._parts()]
-        return np.concatenate([_filter_state.get_state(self.estimator)] + own)
+        layout = self._layout()
+        parts = self._parts()
+        vec = np.empty(layout.size + sum(p.size for p in parts))
+        layout.pack(self.estimator, vec[:layout.size])
+        i = layout.size
+        for part in parts:
+            vec[i:i + part.size] = part.reshape(-1)
+            i += part.size
+        return vec
 
     def _set_state(self, vec):
         vec = np.asarray(vec, dtype=float)
-        nf = len(_filter_state.get_state(self.estimator))
-        _filter_state.set_state(self.estimator, vec[:nf])
+        layout = self._layout()
+        nf = layout.size
+        layout.unpack(self.estimator, vec[:nf])
         i = nf
         for part in self._parts():
             part.reshape(-1)[:] = vec[i:i + part.size]
             i += part.size
+
+    def _snapshot(self):
+        """A cheap copy of the state: the estimator's attributes and copies of the
+        memories. An estimator without the shared base's ``_shallow_state`` is copied
+        through its state vector."""
+        est = self.estimator
+        if not hasattr(est, "_written_in_place"):         # not on the shared base
+            return None, self._get_state()
+        return snapshot_filter(est), [p.copy() for p in self._parts()]
+
+    def _restore_snapshot(self, snap):
+        if snap[0] is None:
+            self._set_state(snap[1])
+            return
+        restore_filter(self.estimator, snap[0])
+        for part, saved in zip(self._parts(), snap[1]):
+            part[...] = saved
 
     @property
     def state(self):

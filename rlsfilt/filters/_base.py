@@ -8,6 +8,7 @@ the small filterpy helpers live here once.
 """
 
 import copy
+import functools
 import math
 import warnings
 
@@ -43,6 +44,10 @@ class _FilterBase(Filter):
     Subclasses set ``dim_x``, ``dim_z``, ``_R`` and provide ``x`` (and ``P`` when
     ``has_covariance``) and the abstract members of `rlsfilt.filters.contract.Filter`.
     """
+
+    # arrays a step writes into in place, which a copy of the attributes
+    # (`_shallow_state`) must copy to stay valid; the others are replaced, not written
+    _written_in_place = ()
 
     def _repr_html_(self):
         return filter_html(self)   # Jupyter: dimensions, settings, estimate +- std dev, health
@@ -366,7 +371,9 @@ class _FilterBase(Filter):
 
     def _shallow_state(self):
         """The attributes (``__dict__`` and slots) as a new dict. The steps never
-        write into an array they leave behind, so this is enough to undo one."""
+        write into an array they leave behind, except those in ``_written_in_place``
+        (which the filter's own step puts back on failure), so this is enough to
+        undo one."""
         state = self.__dict__.copy()
         for cls in type(self).__mro__:
             for name in getattr(cls, "__slots__", ()):
@@ -536,9 +543,11 @@ def _has_none(values):
         return False
 
 
+@functools.cache
 def _slots(cls):
-    """The slot names of `cls` and its bases."""
-    return {name for c in cls.__mro__ for name in getattr(c, "__slots__", ())}
+    """The slot names of `cls` and its bases (once per class: `_restore` runs per sample
+    inside python-control)."""
+    return frozenset(name for c in cls.__mro__ for name in getattr(c, "__slots__", ()))
 
 
 def _innovation(P, phi, r):

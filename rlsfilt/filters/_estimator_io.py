@@ -13,7 +13,7 @@ import numbers
 
 import numpy as np
 
-from .._iosystem import call_capturing, make_iosystem, push
+from .._iosystem import call_capturing, make_iosystem, push, restore_filter, snapshot_filter
 from .._validation import check_dt, check_int
 from . import _filter_state
 
@@ -54,7 +54,9 @@ class _EstimatorStepper:
         z, H = self._measurement(w)
         x = np.asarray(f.x, dtype=float)
         e = np.atleast_1d(np.asarray(z, dtype=float)).reshape(-1) - H @ x   # a-priori error
-        _, messages = call_capturing(f.predict_update, z, H)
+        # predict + update, as predict_update without its undo: a failed step is never
+        # reused (each evaluation restores the state from x)
+        _, messages = call_capturing(_predict_update, f, z, H)
         if self.mode == "arx":
             u, y = w
             push(self._ypast, y)
@@ -63,13 +65,46 @@ class _EstimatorStepper:
         return out, messages
 
     def _get_state(self):
-        return np.concatenate([_filter_state.get_state(self.filter), self._ypast, self._upast])
+        layout = self._layout()
+        nf, ny = layout.size, len(self._ypast)
+        vec = np.empty(nf + ny + len(self._upast))
+        layout.pack(self.filter, vec[:nf])
+        vec[nf:nf + ny] = self._ypast
+        vec[nf + ny:] = self._upast
+        return vec
+
+    def _layout(self):
+        layout = self.__dict__.get("_state_layout")
+        if layout is None or layout.owner is not self.filter:
+            layout = self._state_layout = _filter_state.StateLayout(self.filter)
+        return layout
+
+    def _snapshot(self):
+        """A cheap copy of the state (see `rlsfilt._iosystem`): the filter's attributes
+        and the memories."""
+        f = self.filter
+        if not hasattr(f, "_written_in_place"):        # a filter without the shared base
+            return None, self._get_state()
+        return snapshot_filter(f), self._ypast.copy(), self._upast.copy()
+
+    def _restore_snapshot(self, snap):
+        if snap[0] is None:
+            self._set_state(snap[1])
+            return
+        restore_filter(self.filter, snap[0])
+        self._ypast[:] = snap[1]
+        self._upast[:] = snap[2]
 
     def _set_state(self, vec):
         nf = len(vec) - len(self._ypast) - len(self._upast)
-        _filter_state.set_state(self.filter, vec[:nf])
+        self._layout().unpack(self.filter, vec[:nf])
         self._ypast[:] = vec[nf:nf + len(self._ypast)]
         self._upast[:] = vec[nf + len(self._ypast):]
+
+
+def _predict_update(f, z, H):
+    f.predict()
+    f.update(z, H)
 
 
 def estimator_iosystem(filter, regressor="direct", dt=True, *, inputs=None, name="estimator"):

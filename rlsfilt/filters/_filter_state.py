@@ -8,7 +8,8 @@ contract (`rlsfilt.filters.contract.Filter`: ``get_state()`` and
 the dict out as one vector and reads it back. Restoring copies the stored
 floats, so a filter restored from its own state continues bit for bit as the
 original would. An object without the contract raises a `TypeError` that
-names it.
+names it. `StateLayout` does the same with the layout worked out once, for
+the python-control systems that pack and unpack at every sample.
 """
 
 import numpy as np
@@ -59,3 +60,39 @@ def set_state(f, vec):
     if i != len(vec):
         raise ValueError(f"the filter state must have {i} entries; got {len(vec)}")
     f.set_state(state)
+
+
+class StateLayout:
+    """Where each entry of a filter's :meth:`get_state` lies in the flat vector.
+
+    Worked out once from `f` (a filter's state has fixed keys and shapes);
+    :meth:`pack` and :meth:`unpack` then equal :func:`get_state` and
+    :func:`set_state` without rebuilding the layout at every call.
+    """
+
+    def __init__(self, f):
+        check_supported(f)
+        self.owner = f
+        self.entries, i = [], 0
+        for name, value in f.get_state().items():
+            shape = np.shape(value)
+            size = int(np.prod(shape)) if shape else 1
+            self.entries.append((name, shape, i, i + size))
+            i += size
+        self.size = i
+
+    def pack(self, f, out):
+        """Write the state of `f` into `out` (length :attr:`size`), as :func:`get_state`."""
+        for (_, shape, a, b), value in zip(self.entries, f.get_state().values()):
+            if shape:
+                out[a:b] = np.ravel(value)
+            else:
+                out[a] = value
+        return out
+
+    def unpack(self, f, vec):
+        """Restore `f` from `vec`, as :func:`set_state`."""
+        if len(vec) != self.size:
+            raise ValueError(f"the filter state must have {self.size} entries; got {len(vec)}")
+        f.set_state({name: vec[a:b].reshape(shape) if shape else float(vec[a])
+                     for name, shape, a, b in self.entries})

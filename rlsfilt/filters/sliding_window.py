@@ -137,6 +137,9 @@ class SlidingWindowRLS(_FilterBase):
                       "excite every direction of the parameters; use a longer window or more "
                       "exciting input.")
 
+    # the ring buffer is written in place (a snapshot of the attributes copies it)
+    _written_in_place = ("_wH", "_wZ", "_wR")
+
     def __init__(self, dim_x, window, dim_z=1, *, P0=1e4, x0=None, R=1.0, refresh=None,
                  check_every=None, cond_max=1e12):
         self.dim_x = check_dimension(dim_x, "dim_x")
