@@ -294,9 +294,10 @@ def test_argument_errors(rng):
         fit_many(model, u, y, lam=0.9)
     with pytest.raises(TypeError, match="`gate` is not an option of fit_many or RLSBank"):
         fit_many(model, u, y, "rls", gate=3.0)
-    with pytest.raises(ValueError, match="`forgetting_params` key 'trace_max' is not supported "
-                                         r"by RLSBank \(mode 'exponential'\); supported: none"):
-        fit_many(model, u, y, "rls", lam=0.99, forgetting_params={"trace_max": 10.0})
+    with pytest.raises(ValueError, match="`forgetting_params` key 'alpha' is not supported "
+                                         r"by RLSBank \(mode 'exponential'\); supported: "
+                                         "'spread_max', 'trace_max'"):
+        fit_many(model, u, y, "rls", lam=0.99, forgetting_params={"alpha": 10.0})
     with pytest.raises(ValueError, match="`method` must be 'ls' or 'rls'"):
         fit_many(model, u, y, "ml")
     with pytest.raises(ValueError, match="`on_error` must be 'raise' or 'nan'"):

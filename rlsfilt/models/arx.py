@@ -35,6 +35,7 @@ from ._arx_iv import check_options as check_iv_options
 from ._arx_iv import fit_arx_iv
 from ._base import IdentifiedModel, Polynomials
 from ._lag_rows import LagRows, MatrixRows
+from ._offset import offset_mode as _offset_mode
 from ._summary import EQUATION_STYLES, ModelSummary
 from ._units import RecordUnits, equivariant_forgetting, estimate_in_units
 from .regressors import (
@@ -1547,17 +1548,6 @@ def _split(theta, s):
 
 def _fmt(t):
     return t[0] if len(set(t)) == 1 and len(t) == 1 else list(t)
-
-
-def _offset_mode(offset):
-    """``"none"``, ``"intercept"`` or ``"mean"`` for the `offset` parameter (validated)."""
-    if isinstance(offset, str):
-        if offset == "mean":
-            return "mean"
-    elif isinstance(offset, (bool, np.bool_)):
-        return "intercept" if offset else "none"
-    raise ValueError(f"`offset` must be False, True (estimate an intercept) or 'mean' (remove "
-                     f"the means of the estimation record); got {offset!r}")
 
 
 def _means(records):

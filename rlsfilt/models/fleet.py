@@ -31,6 +31,7 @@ from .._validation import as_float_array, check_dt, check_int, check_probability
 from ..exceptions import NumericalWarning
 from ..filters._health import warn_at_caller as _warn_at_caller
 from ..filters.bank import RLSBank, _full_rank
+from ._offset import offset_mode as _offset_mode
 from .regressors import _full_rank_rows, arx_structure
 
 __all__ = ["ARXBank", "fit_many"]
@@ -794,9 +795,10 @@ class _FitRecord:
 def _fleet_params(model):
     """The constructor parameters of `model`, an `ARX` (anything else is refused: a
     fleet fits exactly the model it is given)."""
-    from .arx import ARX
-
-    if type(model) is not ARX:
+    # the class by its name and module, not by an import of it: arx.py imports this
+    # module (ARX.fit_many), and the import graph has no cycle
+    cls = type(model)
+    if (cls.__module__, cls.__qualname__) != ("rlsfilt.models.arx", "ARX"):
         name = type(model).__name__
         why = (" (its noise or output-error polynomials need a prediction-error fit per "
                "channel: fit them one by one with its own fit method)"
@@ -813,12 +815,6 @@ def _describe(params):
     if _offset_mode(params.get("offset", False)) != "none":
         text += f", offset={params['offset']!r}"
     return text + ")"
-
-
-def _offset_mode(offset):
-    from .arx import _offset_mode as mode
-
-    return mode(offset)
 
 
 def _as_slice(cs):
