@@ -436,7 +436,7 @@ class RecursiveLeastSquares(_FilterBase):
         #                          cap holds 1 / lam back, the next update forgets along H)
         #   P^- <- Pi P^- Pi      (constraints: keep A P = 0)
         il = 1.0 if self._cap else self._il
-        P_prior = np.empty_like(P)
+        P_prior = np.empty(P.shape)
         _streaming.kernels().predict_kernel(P, il, Q, self._cfg, P_prior)
         # commit
         self._x, self._P = x, P_prior
@@ -468,14 +468,10 @@ class RecursiveLeastSquares(_FilterBase):
             return self._frozen_update(z, H, R)
         # validate (the row's finiteness: by the compiled step, flag _BAD_ROW)
         H = self._row(H)                              # a new (1, dim_x) row
-        z = self._as_measurement(z, "z")              # a new (dim_z, 1) column, or None
-        missing = z is None
-        z = np.full((self.dim_z, 1), np.nan) if missing else z
+        z, missing = self._column(z)                  # a new (dim_z, 1) column; NaN: missing
         r = self._R if R is None else check_variance(R, "R")
         x, P = self._state() if self._recheck else (self._x, self._P)
-        n, m = self.dim_x, self.dim_z
-        xn, Pn, y, K = np.empty((n, m)), np.empty((n, n)), np.empty((m, 1)), np.empty((n, 1))
-        S, SI = np.empty((m, m)), np.empty((m, m))
+        xn, Pn, y, K, S, SI = _step_arrays(self.dim_x, self.dim_z)
         # one compiled step (_kernels.update_kernel) into those new arrays:
         #   y = z - H x              a-priori residual
         #   S = H P H^T + R          innovation variance
@@ -506,12 +502,14 @@ class RecursiveLeastSquares(_FilterBase):
         `P` the new covariance): raise for a non-finite row, warn for a skipped
         forgetting or a failed health check; all before the state changes (a
         warning turned into an error leaves the filter as it was)."""
+        every = self._check_every
+        due = every and not n_updates % every
+        if not (flags or due or self._updates_since_predict):
+            return                                    # the ordinary step: nothing to decide
         if flags & _BAD_ROW:
             check_finite(H[0], "H")                   # raises
         bad = (flags & _BAD_DIAGONAL) != 0
         skipped = (self._updates_since_predict and not self._warned_skip and self._forgets)
-        every = self._check_every
-        due = every and not n_updates % every
         checked = due or (every and bad and not self._warned_health)
         problem = self._health_problem(P, n_updates, bad) if checked else None
         if skipped or (problem is not None and not self._warned_health):
@@ -1004,13 +1002,23 @@ class RecursiveLeastSquares(_FilterBase):
     # private helpers
     # ------------------------------------------------------------------
     def _row(self, H):
-        """`H` (``self.H`` when None) as a new float64 row ``(1, dim_x)``. Its
-        finiteness is tested by the compiled step (cheaper than ``np.isfinite`` here)."""
+        """`H` (``self.H`` when None) as a new C-contiguous float64 row ``(1, dim_x)``,
+        the layout the compiled step is typed for. Its finiteness is tested by the
+        compiled step (cheaper than ``np.isfinite`` here)."""
         H = self.H if H is None else H
-        if (type(H) is np.ndarray and H.dtype == _F8 and 0 < H.ndim <= 2
-                and H.shape[-1] == H.size == self.dim_x):        # (dim_x,) or (1, dim_x)
-            return np.array(H, ndmin=2)
+        if type(H) is np.ndarray and H.dtype is _F8 and H.shape == (self.dim_x,):
+            return np.array(H, ndmin=2)        # a copy: C-contiguous whatever H's strides
         return self._as_regressor(H, "H")
+
+    def _column(self, z):
+        """`z` as a new float64 column ``(dim_z, 1)`` and whether it is missing (then
+        all NaN). The common case, one finite float, skips the general validation."""
+        if isinstance(z, float) and self.dim_z == 1 and math.isfinite(z):
+            return np.array(z, ndmin=2), False
+        z = self._as_measurement(z, "z")
+        if z is None:
+            return np.full((self.dim_z, 1), np.nan), True
+        return z, False
 
     def _state(self):
         """``(x, P)`` after an assignment or a (re)start: checked for their shapes,
@@ -1104,6 +1112,15 @@ class EqualityConstraints:
 
     def __repr__(self):
         return f"EqualityConstraints(A={self.A.tolist()}, b={self.b.tolist()})"
+
+
+def _step_arrays(n, m):
+    """New arrays for the outputs of one ``update_kernel`` call: ``x`` (n, m), ``P``
+    (n, n), ``y`` (m, 1), ``K`` (n, 1), ``S`` and ``SI`` (m, m), all C-contiguous
+    float64 (the layout the kernel is compiled for). Each step writes into new
+    arrays, so an array the filter handed out is never changed afterwards."""
+    return (np.empty((n, m)), np.empty((n, n)), np.empty((m, 1)), np.empty((n, 1)),
+            np.empty((m, m)), np.empty((m, m)))
 
 
 def _row_norms(A):
