@@ -35,7 +35,7 @@ from . import _health, _streaming
 from . import forgetting as _fg
 from . import smoother as _smoother
 from . import tuning as _tuning
-from ._base import MISSING_DIAGNOSTICS, _FilterBase, own_array
+from ._base import MISSING_DIAGNOSTICS, _FilterBase, _locked, own_array
 from .contract import check_state
 
 __all__ = ["RecursiveLeastSquares"]
@@ -342,6 +342,7 @@ class RecursiveLeastSquares(_FilterBase):
         return self._x
 
     @x.setter
+    @_locked
     def x(self, value):
         self._x = own_array(value, "x")
         self._recheck = True
@@ -352,6 +353,7 @@ class RecursiveLeastSquares(_FilterBase):
         return self._P
 
     @P.setter
+    @_locked
     def P(self, value):
         self._P = own_array(value, "P")
         self._recheck = True
@@ -363,6 +365,7 @@ class RecursiveLeastSquares(_FilterBase):
         return self._lam
 
     @lam.setter
+    @_locked
     def lam(self, value):
         lam = check_lam(value)
         params = _fg.mode_params(self._mode, self._forgetting_params_in, self.dim_x, lam,
@@ -387,6 +390,7 @@ class RecursiveLeastSquares(_FilterBase):
         return self._gate
 
     @gate.setter
+    @_locked
     def gate(self, value):
         self._gate = None if value is None else _check_positive(value, "gate")
         self._configure()
@@ -397,6 +401,7 @@ class RecursiveLeastSquares(_FilterBase):
         return self._Q
 
     @Q.setter
+    @_locked
     def Q(self, value):
         self._Q = check_covariance(value, self.dim_x, "Q")
         self._Q_kernel = self._Q if self._Q.any() else _EMPTY
@@ -423,27 +428,28 @@ class RecursiveLeastSquares(_FilterBase):
         Q : float or array_like, optional
             Random-walk covariance for this call only; ``self.Q`` if omitted.
         """
-        # validate
-        if u is not None or B is not None or F is not None:
-            self._refuse_control(u, B, F)             # filterpy's arguments: raise
-        Q = self._Q_kernel if Q is None else self._random_walk(Q)
-        if self.frozen:                               # adaptation off: x, P unchanged
-            return self._frozen_predict()
-        x, P = self._state() if self._recheck else (self._x, self._P)
-        # one compiled step (_kernels.predict_kernel) into a new array:
-        #   x^- = x               (constant, or random-walk, parameters)
-        #   P^- = P / lam + Q     (exponential mode: filterpy's fading memory; the windup
-        #                          cap holds 1 / lam back, the next update forgets along H)
-        #   P^- <- Pi P^- Pi      (constraints: keep A P = 0)
-        il = 1.0 if self._cap else self._il
-        P_prior = np.empty(P.shape)
-        _streaming.kernels().predict_kernel(P, il, Q, self._cfg, P_prior)
-        # commit
-        self._x, self._P = x, P_prior
-        self.x_prior, self.P_prior = x.copy(), P_prior.copy()
-        self._w = self._il if self._cap else 1.0      # 1 / lam held back for the update
-        self._updates_since_predict = 0
-        self._recheck = self._efra_pending = False
+        with self._lock:                                  # one call at a time (threads)
+            # validate
+            if u is not None or B is not None or F is not None:
+                self._refuse_control(u, B, F)             # filterpy's arguments: raise
+            Q = self._Q_kernel if Q is None else self._random_walk(Q)
+            if self.frozen:                               # adaptation off: x, P unchanged
+                return self._frozen_predict()
+            x, P = self._state() if self._recheck else (self._x, self._P)
+            # one compiled step (_kernels.predict_kernel) into a new array:
+            #   x^- = x               (constant, or random-walk, parameters)
+            #   P^- = P / lam + Q     (exponential mode: filterpy's fading memory; the windup
+            #                          cap holds 1 / lam back, the next update forgets along H)
+            #   P^- <- Pi P^- Pi      (constraints: keep A P = 0)
+            il = 1.0 if self._cap else self._il
+            P_prior = np.empty(P.shape)
+            _streaming.kernels().predict_kernel(P, il, Q, self._cfg, P_prior)
+            # commit
+            self._x, self._P = x, P_prior
+            self.x_prior, self.P_prior = x.copy(), P_prior.copy()
+            self._w = self._il if self._cap else 1.0      # 1 / lam held back for the update
+            self._updates_since_predict = 0
+            self._recheck = self._efra_pending = False
 
     def update(self, z, H=None, R=None):
         r"""Measurement update with regressor row `H`.
@@ -464,38 +470,39 @@ class RecursiveLeastSquares(_FilterBase):
         R : float, optional
             Measurement-noise variance for this call only.
         """
-        if self.frozen:                               # adaptation off: only diagnostics
-            return self._frozen_update(z, H, R)
-        # validate (the row's finiteness: by the compiled step, flag _BAD_ROW)
-        H = self._row(H)                              # a new (1, dim_x) row
-        z, missing = self._column(z)                  # a new (dim_z, 1) column; NaN: missing
-        r = self._R if R is None else check_variance(R, "R")
-        x, P = self._state() if self._recheck else (self._x, self._P)
-        xn, Pn, y, K, S, SI = _step_arrays(self.dim_x, self.dim_z)
-        # one compiled step (_kernels.update_kernel) into those new arrays:
-        #   y = z - H x              a-priori residual
-        #   S = H P H^T + R          innovation variance
-        #   K = P H^T / S            gain
-        #   x = x + K y^T            (missing or gated: x unchanged, K = 0)
-        #   P = P - K S K^T          (the other forgetting modes: their update)
-        #   P <- Pi P Pi             (constraints)
-        flags, lam_t = _streaming.kernels().update_kernel(x, P, H, z, r, self._cfg, self._w,
-                                                          xn, Pn, y, K, S, SI)
-        n_updates = self.n_updates + 1
-        self._check_step(flags, H, Pn, n_updates)    # raises or warns: nothing changed yet
-        # commit
-        self._x, self._P = xn, Pn
-        self.x_post, self.P_post = xn.copy(), Pn.copy()
-        self.H, self.z, self.y, self.K, self.S, self.SI = H, z, y, K, S, SI
-        self._lazy = MISSING_DIAGNOSTICS if missing else None
-        self.gated = (flags & _GATED) != 0
-        self.n_gated += self.gated
-        self.n_capped += self._w != 1.0
-        self._cap, self._w = (flags & _CAP) != 0, 1.0
-        self.lam_t = lam_t
-        self.n_updates = n_updates
-        self._updates_since_predict += 1
-        self._recheck = self._efra_pending = False
+        with self._lock:                                  # one call at a time (threads)
+            if self.frozen:                               # adaptation off: only diagnostics
+                return self._frozen_update(z, H, R)
+            # validate (the row's finiteness: by the compiled step, flag _BAD_ROW)
+            H = self._row(H)                              # a new (1, dim_x) row
+            z, missing = self._column(z)                  # a new (dim_z, 1) column; NaN: missing
+            r = self._R if R is None else check_variance(R, "R")
+            x, P = self._state() if self._recheck else (self._x, self._P)
+            xn, Pn, y, K, S, SI = _step_arrays(self.dim_x, self.dim_z)
+            # one compiled step (_kernels.update_kernel) into those new arrays:
+            #   y = z - H x              a-priori residual
+            #   S = H P H^T + R          innovation variance
+            #   K = P H^T / S            gain
+            #   x = x + K y^T            (missing or gated: x unchanged, K = 0)
+            #   P = P - K S K^T          (the other forgetting modes: their update)
+            #   P <- Pi P Pi             (constraints)
+            flags, lam_t = _streaming.kernels().update_kernel(x, P, H, z, r, self._cfg, self._w,
+                                                              xn, Pn, y, K, S, SI)
+            n_updates = self.n_updates + 1
+            self._check_step(flags, H, Pn, n_updates)     # raises or warns: nothing changed yet
+            # commit
+            self._x, self._P = xn, Pn
+            self.x_post, self.P_post = xn.copy(), Pn.copy()
+            self.H, self.z, self.y, self.K, self.S, self.SI = H, z, y, K, S, SI
+            self._lazy = MISSING_DIAGNOSTICS if missing else None
+            self.gated = (flags & _GATED) != 0
+            self.n_gated += self.gated
+            self.n_capped += self._w != 1.0
+            self._cap, self._w = (flags & _CAP) != 0, 1.0
+            self.lam_t = lam_t
+            self.n_updates = n_updates
+            self._updates_since_predict += 1
+            self._recheck = self._efra_pending = False
 
     def _check_step(self, flags, H, P, n_updates):
         """The decisions of `update` before it commits (`flags` of ``update_kernel``,
@@ -520,6 +527,7 @@ class RecursiveLeastSquares(_FilterBase):
     # ------------------------------------------------------------------
     # batch start and batch runs
     # ------------------------------------------------------------------
+    @_locked
     def initialize(self, zs, Hs):
         r"""Start the filter from batch least squares on the first samples.
 
@@ -733,6 +741,7 @@ class RecursiveLeastSquares(_FilterBase):
     # ------------------------------------------------------------------
     # equality constraints
     # ------------------------------------------------------------------
+    @_locked
     def constrain(self, A, b):
         r"""From now on keep the estimate on the affine set ``A x = b`` as well.
 
@@ -902,6 +911,7 @@ class RecursiveLeastSquares(_FilterBase):
         """Whether :meth:`predict` changes ``P`` (``lam < 1`` in the time update, or ``Q``)."""
         return self._forgets
 
+    @_locked
     def get_state(self):
         """Copies of the state a resumed run needs: ``x``, ``P``, the counters, the
         windup cap's decision for the next time update (``cap``, ``w``), EFRA's
@@ -915,6 +925,7 @@ class RecursiveLeastSquares(_FilterBase):
                 "updates_since_predict": int(self._updates_since_predict),
                 "recheck": bool(self._recheck)}
 
+    @_locked
     def set_state(self, state):
         """Continue from `state`, a dict from :meth:`get_state` (copied)."""
         s = check_state(self, state)
@@ -926,6 +937,7 @@ class RecursiveLeastSquares(_FilterBase):
         self._updates_since_predict = s["updates_since_predict"]
         self._recheck = s["recheck"]
 
+    @_locked
     def run_record(self, Z, Hm, *, lead=0, residuals=False, scales=None, lags=None):
         """`batch_filter` on a record the caller has validated, for the models.
 
@@ -947,6 +959,7 @@ class RecursiveLeastSquares(_FilterBase):
                                             self._cfg, P_prior)
         return x.copy(), P_prior
 
+    @_locked
     def reset(self):
         """Return to the state given at construction (``x0``, ``P0``).
 

@@ -12,7 +12,7 @@ from .._validation import (
     check_variance,
 )
 from . import _health, _streaming
-from ._base import MISSING_DIAGNOSTICS, _FilterBase, own_array
+from ._base import MISSING_DIAGNOSTICS, _FilterBase, _locked, own_array
 from ._streaming import c_array
 from .contract import check_state
 
@@ -166,6 +166,7 @@ class SlidingWindowRLS(_FilterBase):
         return self._x
 
     @x.setter
+    @_locked
     def x(self, value):
         self._x = own_array(value, "x")
 
@@ -175,6 +176,7 @@ class SlidingWindowRLS(_FilterBase):
         return self._P
 
     @P.setter
+    @_locked
     def P(self, value):
         self._P = own_array(value, "P")
 
@@ -199,6 +201,7 @@ class SlidingWindowRLS(_FilterBase):
     # ------------------------------------------------------------------
     # the recursion
     # ------------------------------------------------------------------
+    @_locked
     def predict(self, u=None, B=None, F=None):
         """Record ``x_prior`` and ``P_prior`` (the window has no time update).
 
@@ -214,6 +217,7 @@ class SlidingWindowRLS(_FilterBase):
         self.x_prior = self._checked_x().copy()
         self.P_prior = self.P.copy()
 
+    @_locked
     def update(self, z, H=None, R=None):
         """Add sample ``(z, H)`` to the window and drop the oldest one.
 
@@ -283,6 +287,7 @@ class SlidingWindowRLS(_FilterBase):
         self._head, self._nw, self._count, self._next_exact_try, exact = ist.tolist()
         self.exact = exact == 1
 
+    @_locked
     def initialize(self, zs, Hs, Rs=None):
         """Start from exact least squares on the given samples.
 
@@ -410,6 +415,7 @@ class SlidingWindowRLS(_FilterBase):
     # ------------------------------------------------------------------
     # the filter contract (rlsfilt.filters.contract.Filter)
     # ------------------------------------------------------------------
+    @_locked
     def get_state(self):
         """Copies of the state a resumed run needs: ``x``, ``P``, the window (rows,
         measurements, variances, oldest not first: a ring buffer from ``head``), its
@@ -420,6 +426,7 @@ class SlidingWindowRLS(_FilterBase):
                 "n_updates": int(self._count), "next_exact_try": int(self._next_exact_try),
                 "exact": bool(self.exact), "warned_health": bool(self._warned_health)}
 
+    @_locked
     def set_state(self, state):
         """Continue from `state`, a dict from :meth:`get_state` (copied)."""
         s = check_state(self, state)
@@ -440,6 +447,7 @@ class SlidingWindowRLS(_FilterBase):
         if problem is not None:
             self._warn_health(problem + _health.at_update(self._count))
 
+    @_locked
     def reset(self):
         """Empty the window and return to ``x0``, ``P0``. Re-arms the health
         warning."""
