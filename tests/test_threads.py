@@ -127,3 +127,76 @@ def test_lock_is_reentrant_and_released_after_an_error():
     with rls._lock:                             # held by the caller: the calls still run
         rls.predict_update(1.0, H=[1.0, 2.0])
     assert rls.n_updates == 1
+
+
+# ----------------------------------------------------------------------
+# the bank and the streaming estimators of the model family
+# ----------------------------------------------------------------------
+def test_shared_bank_loses_no_update(rng):
+    from rlsfilt import RLSBank
+
+    C = 3
+    Phi = rng.standard_normal((N_THREADS * M_UPDATES, C, DIM))
+    Z = Phi @ np.array([0.5, -1.0, 2.0]) + 0.01 * rng.standard_normal((len(Phi), C))
+    bank = RLSBank(C, DIM, lam=0.99)
+    _hammer(bank.predict_update, Phi, Z)
+    assert bank.n_updates == N_THREADS * M_UPDATES
+
+
+def _armax_record(rng, N=N_THREADS * M_UPDATES):
+    from scipy.signal import lfilter
+
+    u, e = rng.standard_normal(N), 0.1 * rng.standard_normal(N)
+    y = lfilter([0, 1.0, 0.5], [1, -1.5, 0.7], u) + lfilter([1, 0.4], [1, -1.5, 0.7], e)
+    return y, u
+
+
+def test_shared_recursive_model_counts_every_step(rng):
+    from rlsfilt import RecursiveARMAX, RecursiveIV
+
+    y, u = _armax_record(rng)
+    for model in (RecursiveARMAX(2, 2, 1, 1), RecursiveIV(2, 2, 1)):
+        _hammer(lambda yk, uk, m=model: m.step(float(yk), float(uk)), u, y)
+        if hasattr(model, "n_steps"):
+            assert model.n_steps == N_THREADS * M_UPDATES
+        assert np.isfinite(model.theta).all()
+
+
+@pytest.mark.parametrize("name", ["RecursiveARMAX", "RecursiveOE", "RecursiveBJ",
+                                  "RecursiveARX", "RecursiveAR", "RecursiveARMA",
+                                  "RecursiveIV"])
+def test_copy_copy_of_a_recursive_model_is_independent(name, rng):
+    """#27 item 8: copy.copy shared the recursion state, so stepping the copy
+    moved the original."""
+    import rlsfilt
+
+    make = {"RecursiveARMAX": lambda: rlsfilt.RecursiveARMAX(2, 2, 1, 1),
+            "RecursiveOE": lambda: rlsfilt.RecursiveOE(2, 2, 1),
+            "RecursiveBJ": lambda: rlsfilt.RecursiveBJ(2, 1, 1, 2, 1),
+            "RecursiveARX": lambda: rlsfilt.RecursiveARX(2, 2, 1),
+            "RecursiveAR": lambda: rlsfilt.RecursiveAR(2),
+            "RecursiveARMA": lambda: rlsfilt.RecursiveARMA(2, 1),
+            "RecursiveIV": lambda: rlsfilt.RecursiveIV(2, 2, 1)}[name]
+    y, u = _armax_record(rng, 200)
+    no_input = name in ("RecursiveAR", "RecursiveARMA")
+
+    def step(m, k):
+        return m.step(float(y[k])) if no_input else m.step(float(y[k]), float(u[k]))
+
+    original, reference = make(), make()
+    for k in range(100):
+        step(original, k)
+        step(reference, k)
+    twin = copy.copy(original)
+    assert twin._lock is not original._lock
+    for k in range(100, 200):                 # the copy runs on alone
+        step(twin, k)
+    assert_allclose(original.theta, reference.theta, rtol=0, atol=0)
+    assert_allclose(original.P, reference.P, rtol=0, atol=0)
+    for k in range(100, 200):                 # and the original, after it, gives the same
+        step(reference, k)
+        step(original, k)
+    assert_allclose(twin.theta, reference.theta, rtol=0, atol=0)
+    assert_allclose(original.theta, reference.theta, rtol=0, atol=0)
+    again = pickle.loads(pickle.dumps(original))
+    assert_allclose(again.theta, original.theta, rtol=0, atol=0)

@@ -81,6 +81,7 @@ class _FilterBase(Filter):
             return self._shallow_state()
 
     def __setstate__(self, state):
+        self._lock = threading.RLock()      # (made by __new__ too; not by pickle protocol 0, 1)
         self._restore(state)
 
     def _repr_html_(self):
