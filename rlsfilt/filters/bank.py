@@ -214,6 +214,11 @@ class RLSBank:
     two orders of magnitude faster than a Python loop over filters (see
     ``docs/performance.md``).
 
+    A bank shared by threads applies each call whole: every public call that
+    changes its state (and every read that settles a deferred
+    :meth:`predict`) holds the bank's own reentrant lock; copies and pickles
+    get their own.
+
     Parameters
     ----------
     n_channels : int

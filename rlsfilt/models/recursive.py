@@ -21,6 +21,12 @@ around 1e160 the covariance update overflows. The batch fits read the same
 options in the same units and give the same numbers, but run in scaled units
 and name a default prior that does not suit the data
 (:mod:`rlsfilt.models._units`).
+
+**Copies and threads.** ``copy.copy`` of an estimator is as deep as
+``copy.deepcopy`` (the recursion state is updated in place, so a shallow copy
+would move with the original); an estimator shared by threads takes one call
+at a time (``step``, ``batch``, ``restart``, ``reset`` and the reads of the
+estimate hold its lock; copies and pickles get their own).
 """
 
 import copy
