@@ -9,6 +9,7 @@ is the filter's own: copies and pickles get a new one.
 
 import copy
 import pickle
+import sys
 import threading
 
 import numpy as np
@@ -36,19 +37,19 @@ def _hammer(step, Phi, z):
         try:
             for k in range(block * M_UPDATES, (block + 1) * M_UPDATES):
                 step(z[k], Phi[k])
-        except BaseException as exc:        # pragma: no cover - reported below
+        except Exception as exc:            # pragma: no cover - reported below
             errors.append(exc)
 
     threads = [threading.Thread(target=work, args=(b,)) for b in range(N_THREADS)]
-    switch = __import__("sys").getswitchinterval()
-    __import__("sys").setswitchinterval(1e-6)   # switch threads as often as possible
+    switch = sys.getswitchinterval()
+    sys.setswitchinterval(1e-6)             # switch threads as often as possible
     try:
         for t in threads:
             t.start()
         for t in threads:
             t.join()
     finally:
-        __import__("sys").setswitchinterval(switch)
+        sys.setswitchinterval(switch)
     assert not errors, errors
 
 
