@@ -41,6 +41,22 @@ Usage::
 
 Install the peers with ``pip install rlsfilt[bench]``; a peer that is not
 installed is skipped.
+
+Two narrower measurements of the streaming pair (``docs/performance.md``,
+"Streaming" and "Threads"; thread CPU time, ``OPENBLAS_NUM_THREADS=1``, the
+shared 2-core machine at a load average of 8 to 12)::
+
+    python benchmarks/bench_rls.py --streaming-ablation --dims 2 5 20 --rounds 7
+    #   dim_x         2        5        20
+    #   before #27    4.87 us  4.96 us  5.44 us   (predict()+update() as shipped)
+    #   after #27     5.17 us  5.20 us  5.71 us   (with the lock; the fast paths
+    #                                              for a float64 row and a float z
+    #                                              save 0.1-0.2 us of it)
+    #   kernels + the 13 fresh arrays of a step:  3.37, 3.42, 3.85 us (the floor
+    #                 of a step handing out new filterpy attributes)
+    #   kernels alone 1.38 us  1.40 us  1.59 us
+    python benchmarks/bench_rls.py --lock-cost --dims 2 5 20 --rounds 9
+    #   the two lock acquisitions of a pair: 0.24-0.25 us, 4.5-4.9 % of the step
 """
 
 import argparse
@@ -311,7 +327,13 @@ def streaming_vs_filterpy(results):
 def streaming_ablation(dims, n_samples=5000, rounds=7, rng=0, log=print):
     """Time the streaming pair against the floors a trick could bring it to.
 
-    ``as shipped``: ``predict()`` then ``update()``; ``kernels alone``: the
+    ``as shipped``: ``predict()`` then ``update()``; ``kernels + arrays``: the
+    two compiled calls plus the 13 new arrays a step hands out as filterpy's
+    attributes (``P`` and ``P_prior`` of the predict, ``x_prior``, the copied
+    row ``H`` and column ``z``, ``x``, ``P``, ``y``, ``K``, ``S``, ``SI``,
+    ``x_post``, ``P_post``), with no validation, lock or bookkeeping: the
+    floor of any step that, like filterpy's, hands out fresh arrays and never
+    reuses them; ``kernels alone``: the
     two compiled calls they make (``predict_kernel``, ``update_kernel``)
     through numba's dispatcher on arrays allocated once, so no validation,
     no new arrays and no commit: the floor of any Python-side trick (the
@@ -348,7 +370,19 @@ def streaming_ablation(dims, n_samples=5000, rounds=7, rng=0, log=print):
                 predict_kernel(P, 1.0 / LAM, Q, cfg, Pm)
                 update_kernel(x, Pm, rows[k], cols[k], 1.0, cfg, 1.0, *outs)
 
+        def kernels_and_arrays(n=n, P=P, Q=Q, cfg=cfg, x=x, Hs=Hs, zs=zs):
+            for k in range(n_samples):
+                P_prior = np.empty((n, n))
+                kern.predict_kernel(P, 1.0 / LAM, Q, cfg, P_prior)
+                x.copy(), P_prior.copy()                                  # x_prior, P_prior
+                H, z = np.array(Hs[k], ndmin=2), np.array(zs[k], ndmin=2)
+                xn, Pn, y, K, S, SI = (np.empty((n, 1)), np.empty((n, n)), np.empty((1, 1)),
+                                       np.empty((n, 1)), np.empty((1, 1)), np.empty((1, 1)))
+                kern.update_kernel(x, P_prior, H, z, 1.0, cfg, 1.0, xn, Pn, y, K, S, SI)
+                xn.copy(), Pn.copy()                                      # x_post, P_post
+
         variants = {"as shipped": lambda: run_stream(Hs, zs),
+                    "kernels + arrays": kernels_and_arrays,
                     "kernels alone": lambda: kernels_alone(kern.predict_kernel,
                                                            kern.update_kernel),
                     "entry points": lambda: kernels_alone(entry_p, entry_u)}
@@ -361,6 +395,52 @@ def streaming_ablation(dims, n_samples=5000, rounds=7, rng=0, log=print):
         results[n] = best
         log(f"dim_x = {n:3d}, predict+update: " + ", ".join(
             f"{k} {v * 1e6:.2f} us" for k, v in best.items()))
+    return results
+
+
+def lock_cost(dims, n_samples=5000, rounds=7, rng=0, log=print):
+    """Time the filter's lock against the streaming pair it guards.
+
+    ``predict+update``: the pair as shipped (each call holds the filter's
+    reentrant lock, so a filter shared by threads loses no update);
+    ``lock``: what the two acquisitions cost alone, ``with rls._lock:`` twice
+    per sample in the same kind of loop, minus the empty loop. Thread CPU
+    time per sample, interleaved rounds, best round; returns ``{dim_x:
+    {variant: seconds}}`` and logs the lock's share of the step.
+    """
+    rng = np.random.default_rng(rng)
+    results = {}
+    for n in dims:
+        Hs, zs = arx_data(n, n_samples, rng)
+        lock = rlsfilt.RecursiveLeastSquares(n)._lock
+
+        def locks(lock=lock):
+            for _ in range(n_samples):
+                with lock:
+                    pass
+                with lock:
+                    pass
+
+        def empty():
+            for _ in range(n_samples):
+                pass
+
+        variants = {"predict+update": lambda Hs=Hs, zs=zs: run_stream(Hs, zs), "locks": locks,
+                    "empty": empty}
+        for run in variants.values():
+            run()
+        best = dict.fromkeys(variants, np.inf)
+        for _ in range(rounds):
+            for name, run in variants.items():
+                t0 = time.thread_time()
+                run()
+                best[name] = min(best[name], (time.thread_time() - t0) / n_samples)
+        result = {"predict+update": best["predict+update"],
+                  "lock": max(best["locks"] - best["empty"], 0.0)}
+        results[n] = result
+        log(f"dim_x = {n:3d}: predict+update {result['predict+update'] * 1e6:.2f} us, of "
+            f"which the two lock acquisitions {result['lock'] * 1e6:.3f} us "
+            f"({100 * result['lock'] / result['predict+update']:.1f} %)")
     return results
 
 
@@ -409,6 +489,8 @@ def main(argv=None):
                              "process's CPU time, steadier on a machine other jobs load")
     parser.add_argument("--streaming-ablation", action="store_true",
                         help="only time predict+update against its compiled calls alone")
+    parser.add_argument("--lock-cost", action="store_true",
+                        help="only time predict+update with and without the filter's lock")
     parser.add_argument("--json", metavar="PATH",
                         help="also save the times (seconds per sample) as JSON")
     parser.add_argument("--replot", metavar="JSON",
@@ -423,6 +505,8 @@ def main(argv=None):
         return results
     if args.streaming_ablation:
         return streaming_ablation(args.dims or [5, 20], rounds=1 if args.smoke else args.rounds)
+    if args.lock_cost:
+        return lock_cost(args.dims or [2, 5, 20], rounds=1 if args.smoke else args.rounds)
     if args.smoke:
         dims = args.dims or [2, 5]
         n_samples, peer_samples, rounds = 2000, 100, 1

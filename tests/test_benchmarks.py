@@ -81,6 +81,15 @@ def test_streaming_ablation_runs():
     """The ablation behind the streaming numbers of ``docs/performance.md`` runs."""
     bench = _load_script()
     results = bench.streaming_ablation([2], n_samples=60, rounds=1, log=lambda *a: None)
-    assert set(results[2]) == {"as shipped", "kernels alone", "entry points"}
+    assert set(results[2]) == {"as shipped", "kernels + arrays", "kernels alone",
+                               "entry points"}
     assert all(v > 0 for v in results[2].values())
+
+
+def test_lock_cost_runs():
+    """The measurement of the filter's lock behind ``docs/performance.md`` runs."""
+    bench = _load_script()
+    results = bench.lock_cost([2], n_samples=60, rounds=1, log=lambda *a: None)
+    assert set(results[2]) == {"predict+update", "lock"}
+    assert results[2]["predict+update"] > 0 and results[2]["lock"] >= 0
 

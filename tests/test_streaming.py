@@ -193,3 +193,32 @@ def test_kernels_load_lazily_and_c_array_copies_only_when_needed():
     ro.flags.writeable = False
     assert _streaming.c_array(ro) is not ro
     assert _streaming.c_array([1, 2]).dtype == np.float64
+
+
+def test_fast_path_rows_and_measurements_give_the_same_bits(rng):
+    """The fast path (a float64 row of shape (dim_x,), a float z) hands the compiled
+    step a new C-contiguous row whatever the caller's layout, and the same bits as
+    the general validation (byte-swapped, read-only, 2-D, strided rows; NumPy and
+    Python floats, 1-element arrays)."""
+    Hs, zs = _record(rng)
+    ref, *others = (RecursiveLeastSquares(4, lam=0.95) for _ in range(5))
+    swapped = Hs.astype(">f8")
+    ro = Hs.copy()
+    ro.flags.writeable = False
+    col = np.asfortranarray(Hs.T.copy()).T                     # rows with stride 8 * N
+    for k in range(N):
+        z = _z(zs, k)
+        ref.predict_update(z, Hs[k])
+        zf = None if z is None else float(z)
+        za = None if z is None else np.array([z])
+        others[0].predict_update(zf, swapped[k])
+        others[1].predict_update(za, ro[k])
+        others[2].predict_update(z, Hs[k:k + 1])
+        others[3].predict_update(zf, col[k])
+        for f in others:
+            assert f.H.flags.c_contiguous and f.H.shape == (1, 4)
+            assert f.z.flags.c_contiguous and f.z.shape == (1, 1)
+    for f in others:
+        _same(ref, f)
+    assert not ro.flags.writeable
+    assert_array_equal(swapped, Hs)                            # no caller array written

@@ -5,11 +5,21 @@ they store and update the covariance, not in what they accept or report, so
 the validation of regressors, measurements and batch records, the lazy
 filterpy diagnostics (``log_likelihood``, ``likelihood``, ``mahalanobis``) and
 the small filterpy helpers live here once.
+
+**Threads.** Every filter carries a reentrant lock (`_locked`): each public
+call that changes its state (``predict``, ``update``, ``predict_update``,
+``batch_filter``, ``initialize``, ``reset``, ``constrain``, ``set_state``,
+``set_diagnostics`` and the property setters) holds it, so a filter shared
+by threads applies every call whole, one at a time, and loses none; copies
+and pickles are taken under it too. The lock costs about 0.1 us per call
+(``python benchmarks/bench_rls.py --lock-cost``); it is not pickled or
+copied: each filter, and each copy, has its own.
 """
 
 import copy
 import functools
 import math
+import threading
 import warnings
 
 import numpy as np
@@ -38,16 +48,45 @@ MISSING_DIAGNOSTICS = (0.0, 1.0, math.nan)
 _DIAGNOSTICS = ("x_prior", "P_prior", "x_post", "P_post", "H", "K", "S", "SI", "z", "y")
 
 
+def _locked(method):
+    """`method` holding the filter's lock: a shared filter applies each call whole."""
+    @functools.wraps(method)
+    def locked(self, *args, **kwargs):
+        with self._lock:
+            return method(self, *args, **kwargs)
+    return locked
+
+
 class _FilterBase(Filter):
     """Validation helpers and diagnostics shared by the filters.
 
     Subclasses set ``dim_x``, ``dim_z``, ``_R`` and provide ``x`` (and ``P`` when
     ``has_covariance``) and the abstract members of `rlsfilt.filters.contract.Filter`.
+    Each instance has its own reentrant lock ``_lock`` (made in ``__new__``, so
+    also for copies and unpickled filters); see the module docstring.
     """
 
     # arrays a step writes into in place, which a copy of the attributes
     # (`_shallow_state`) must copy to stay valid; the others are replaced, not written
     _written_in_place = ()
+
+    # a slot, not in ``__dict__``: filterpy's Saver deep-copies ``__dict__``, and a
+    # lock can be neither copied nor pickled
+    __slots__ = ("_lock",)
+
+    def __new__(cls, *args, **kwargs):
+        self = super().__new__(cls)
+        self._lock = threading.RLock()
+        return self
+
+    def __getstate__(self):
+        """The attributes without the lock, read under it (pickle, copy, deepcopy)."""
+        with self._lock:
+            return self._shallow_state()
+
+    def __setstate__(self, state):
+        self._lock = threading.RLock()      # (made by __new__ too; not by pickle protocol 0, 1)
+        self._restore(state)
 
     def _repr_html_(self):
         return filter_html(self)   # Jupyter: dimensions, settings, estimate +- std dev, health
@@ -65,11 +104,13 @@ class _FilterBase(Filter):
         return self._check_every
 
     @check_every.setter
+    @_locked
     def check_every(self, value):
         self._check_every = (max(250, 32 * self.dim_x) if value is None
                              else check_int(value, "check_every", minimum=0))
 
     @R.setter
+    @_locked
     def R(self, value):
         self._R = check_variance(value, "R")
 
@@ -91,6 +132,7 @@ class _FilterBase(Filter):
         """Mahalanobis distance ``sqrt(y^T S^-1 y)`` of the last residual."""
         return self._diagnostics()[2]
 
+    @_locked
     def set_diagnostics(self, **values):
         """Assign the diagnostics of the last update (``H``, ``z``, ``y``, ``K``, ``S``,
         ``SI``, ``x_prior``, ``P_prior``, ``x_post``, ``P_post``), as a filter handed a
@@ -186,6 +228,7 @@ class _FilterBase(Filter):
         return 1.0 / math.sqrt(getattr(self, "lam", 1.0))
 
     @alpha.setter
+    @_locked
     def alpha(self, value):
         if not hasattr(type(self), "lam"):
             raise AttributeError(_refused("alpha", f"{type(self).__name__} forgets by its "
@@ -235,6 +278,7 @@ class _FilterBase(Filter):
         return not self.frozen
 
     @adapt.setter
+    @_locked
     def adapt(self, value):
         self._frozen = not check_bool(value, "adapt")
 
@@ -287,6 +331,7 @@ class _FilterBase(Filter):
         self._batch(Z, H, R, False, None, False)
         return self
 
+    @_locked
     def predict_update(self, z, H=None, R=None):
         """One textbook step: :meth:`predict` then :meth:`update`.
 
@@ -301,6 +346,7 @@ class _FilterBase(Filter):
             self._restore(before)
             raise
 
+    @_locked
     def _batch(self, zs, Hs, Rs, update_first, saver, store_covariances):
         """`batch_filter` of every filter: validate the record, then run the
         compiled loop (``_batch_compiled``) or, with a `saver` or an empty
@@ -378,6 +424,7 @@ class _FilterBase(Filter):
         for cls in type(self).__mro__:
             for name in getattr(cls, "__slots__", ()):
                 state[name] = getattr(self, name)
+        del state["_lock"]                  # the filter's own: never copied or restored
         return state
 
     def _restore(self, state):

@@ -32,6 +32,7 @@ made first. Every attribute read has the bits of the eager recursion.
 import copy
 import functools
 import math
+import threading
 
 import numpy as np
 
@@ -64,20 +65,31 @@ _get_kernels = lazy_module("rlsfilt.filters._kernels_bank")
 
 
 def _atomic(method):
-    """Run `method` as one transaction: if it raises (a rejected input, or a
+    """Run `method` as one transaction, holding the bank's lock (a bank shared by
+    threads applies each call whole): if it raises (a rejected input, or a
     warning turned into an error after the step was computed), the bank's
     attributes are put back as they were. The methods replace arrays and
     never write into the ones they leave behind, so a shallow copy of the
     attributes is enough to undo them."""
     @functools.wraps(method)
     def run(self, *args, **kwargs):
-        before = self.__dict__.copy()
-        try:
+        with self._lock:
+            before = self.__dict__.copy()
+            try:
+                return method(self, *args, **kwargs)
+            except BaseException:
+                self.__dict__.clear()
+                self.__dict__.update(before)
+                raise
+    return run
+
+
+def _locked(method):
+    """`method` holding the bank's lock (its reads may settle a deferred predict)."""
+    @functools.wraps(method)
+    def run(self, *args, **kwargs):
+        with self._lock:
             return method(self, *args, **kwargs)
-        except BaseException:
-            self.__dict__.clear()
-            self.__dict__.update(before)
-            raise
     return run
 
 
@@ -98,15 +110,17 @@ class _Lazy:
     def __get__(self, bank, owner=None):
         if bank is None:
             return self
-        value = bank.__dict__[self.key]
-        if type(value) is tuple:
-            value = _made(value)
-            bank.__dict__[self.key] = value
-        return value
+        with bank._lock:
+            value = bank.__dict__[self.key]
+            if type(value) is tuple:
+                value = _made(value)
+                bank.__dict__[self.key] = value
+            return value
 
     def __set__(self, bank, value):
-        bank._settle_pending()   # the predict before keeps its P_prior, as if it had run
-        bank.__dict__[self.key] = value
+        with bank._lock:
+            bank._settle_pending()   # the predict before keeps its P_prior, as if it had run
+            bank.__dict__[self.key] = value
 
 
 def _made(lazy):
@@ -199,6 +213,11 @@ class RLSBank:
     :meth:`batch_filter`, which for thousands of small filters is one to
     two orders of magnitude faster than a Python loop over filters (see
     ``docs/performance.md``).
+
+    A bank shared by threads applies each call whole: every public call that
+    changes its state (and every read that settles a deferred
+    :meth:`predict`) holds the bank's own reentrant lock; copies and pickles
+    get their own.
 
     Parameters
     ----------
@@ -350,10 +369,28 @@ class RLSBank:
            [-0.3,  0.5]])
     """
 
+    # the lock in a slot, outside ``__dict__`` (which filterpy's Saver deep-copies and
+    # `_atomic` restores); made in ``__new__``, so copies and unpickled banks get their own
+    __slots__ = ("_lock", "__dict__", "__weakref__")
+
     x_prior = _Lazy("Estimates after the last :meth:`predict`, ``(C, dim_x)``.")
     P_prior = _Lazy("Covariances after the last :meth:`predict`, ``(C, dim_x, dim_x)``.")
     x_post = _Lazy("Estimates after the last :meth:`update`, ``(C, dim_x)``.")
     P_post = _Lazy("Covariances after the last :meth:`update`, ``(C, dim_x, dim_x)``.")
+
+    def __new__(cls, *args, **kwargs):
+        self = super().__new__(cls)
+        self._lock = threading.RLock()
+        return self
+
+    def __getstate__(self):
+        """The attributes without the lock, read under it (pickle, copy, deepcopy)."""
+        with self._lock:
+            return self.__dict__.copy()
+
+    def __setstate__(self, state):
+        self._lock = threading.RLock()      # (made by __new__ too; not by pickle protocol 0, 1)
+        self.__dict__.update(state)
 
     def __init__(self, n_channels, dim_x, lam=1.0, *, Q=0.0, R=1.0, P0=1e4, x0=None,
                  forgetting="exponential", forgetting_params=None, check_every=100,
@@ -390,6 +427,7 @@ class RLSBank:
     # state and configuration; assigning stores a copy
     # ------------------------------------------------------------------
     @property
+    @_locked
     def x(self):
         """Estimates, ``(C, dim_x)``; assigning stores a copy (the shape is checked
         where it is used, so that the error names the method)."""
@@ -397,12 +435,14 @@ class RLSBank:
         return self._x
 
     @x.setter
+    @_locked
     def x(self, value):
         x = np.array(as_float_array(value, "x"), dtype=np.float64, order="F")
         self._settle_pending()
         self._x, self._x_out = x, False
 
     @property
+    @_locked
     def P(self):
         """Covariances, ``(C, dim_x, dim_x)``; assigning stores a copy (the shape is
         checked where it is used)."""
@@ -411,6 +451,7 @@ class RLSBank:
         return self._P
 
     @P.setter
+    @_locked
     def P(self, value):
         P = np.array(as_float_array(value, "P"), dtype=np.float64, order="F")
         self._settle_pending()
@@ -452,6 +493,7 @@ class RLSBank:
         return self._lam.copy()
 
     @lam.setter
+    @_locked
     def lam(self, value):
         lam = self._per_channel(value, "lam")
         bad = ~((lam > 0.0) & (lam <= 1.0))
@@ -469,6 +511,7 @@ class RLSBank:
         return self._R.copy()
 
     @R.setter
+    @_locked
     def R(self, value):
         self._R = self._per_channel_positive(value, "R")
 
@@ -478,6 +521,7 @@ class RLSBank:
         return self._Q.copy()
 
     @Q.setter
+    @_locked
     def Q(self, value):
         self._Q = np.asfortranarray(self._covariances(value, "Q"))
         self._Q_is_zero = not self._Q.any()
@@ -892,6 +936,7 @@ class RLSBank:
     # ------------------------------------------------------------------
     # channels, copies, reset
     # ------------------------------------------------------------------
+    @_locked
     def channel(self, i):
         """Channel `i` as an ordinary :class:`~rlsfilt.RecursiveLeastSquares`.
 
@@ -966,6 +1011,7 @@ class RLSBank:
         new.reset()
         return new
 
+    @_locked
     def reset(self):
         """Return every channel to ``x0``, ``P0``; diagnostics and counters are cleared.
 

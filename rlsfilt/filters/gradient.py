@@ -39,7 +39,7 @@ import numpy as np
 
 from .._lazy import lazy_module
 from .._validation import check_bool, check_int, check_real, check_variance
-from ._base import _FilterBase
+from ._base import _FilterBase, _locked
 from .contract import check_state
 
 __all__ = ["LMS", "NLMS", "SignErrorLMS", "SignDataLMS", "SignSignLMS", "APA"]
@@ -73,6 +73,7 @@ class _GradientFilter(_FilterBase):
         return self._x
 
     @x.setter
+    @_locked
     def x(self, value):
         self._x = self._as_state(value, "x")
 
@@ -82,10 +83,12 @@ class _GradientFilter(_FilterBase):
         ``"sign_sign"`` or ``"apa"``."""
         return self._METHOD
 
+    @_locked
     def predict(self):
         """No time update (constant weights): ``x_prior`` is a copy of ``x``."""
         self.x_prior = self._x.copy()
 
+    @_locked
     def update(self, z, H=None, R=None):
         """One gradient step with measurement `z` and regressor row `H` (``self.H``
         when omitted, as filterpy); `R` is only the predictive variance of the
@@ -102,6 +105,7 @@ class _GradientFilter(_FilterBase):
             self._step(x, phi[0], zc[:, 0], K, y, work)   # y = z - x^T h; x <- x + K g(y)
         self._commit(x, phi, zc, y, K, r, work, zc is not None)
 
+    @_locked
     def initialize(self, zs, Hs):
         """Start from least squares on the samples `zs`, `Hs` (the measurement
         buffers of `APA` then hold the newest of them)."""
@@ -189,6 +193,7 @@ class _GradientFilter(_FilterBase):
     def _gain_shape(self):
         return (self.dim_x, 1)
 
+    @_locked
     def reset(self):
         """Back to ``x0``; diagnostics, counters and buffers cleared."""
         self._x = self._x0.copy()
@@ -197,10 +202,12 @@ class _GradientFilter(_FilterBase):
         self.K = np.zeros(self._gain_shape())
         self.n_updates = 0
 
+    @_locked
     def get_state(self):
         """``x`` and the update count (a copy)."""
         return {"x": self._x.copy(), "n_updates": int(self.n_updates)}
 
+    @_locked
     def set_state(self, state):
         """Continue from a dict of :meth:`get_state`."""
         s = check_state(self, state)
@@ -389,12 +396,14 @@ class APA(_GradientFilter):
     def _gain_shape(self):
         return (self.dim_x, self.order)
 
+    @_locked
     def reset(self):
         """Back to ``x0``; diagnostics, counters and the buffers (zeros) cleared."""
         super().reset()
         self.X = np.zeros((self.order, self.dim_x))
         self.D = np.zeros((self.order, self.dim_z))
 
+    @_locked
     def initialize(self, zs, Hs):
         """Least squares on `zs`, `Hs`; the buffers then hold their newest rows."""
         super().initialize(zs, Hs)
@@ -420,11 +429,13 @@ class APA(_GradientFilter):
                                     self.mu, self.eps, update_first, *work[:2], K, y,
                                     *work[2:], means, means_p)
 
+    @_locked
     def get_state(self):
         """``x``, the buffers ``X`` and ``D`` and the update count (copies)."""
         return {"x": self._x.copy(), "X": self.X.copy(), "D": self.D.copy(),
                 "n_updates": int(self.n_updates)}
 
+    @_locked
     def set_state(self, state):
         """Continue from a dict of :meth:`get_state`."""
         s = check_state(self, state)

@@ -21,9 +21,18 @@ around 1e160 the covariance update overflows. The batch fits read the same
 options in the same units and give the same numbers, but run in scaled units
 and name a default prior that does not suit the data
 (:mod:`rlsfilt.models._units`).
+
+**Copies and threads.** ``copy.copy`` of an estimator is as deep as
+``copy.deepcopy`` (the recursion state is updated in place, so a shallow copy
+would move with the original); an estimator shared by threads takes one call
+at a time (``step``, ``batch``, ``restart``, ``reset`` and the reads of the
+estimate hold its lock; copies and pickles get their own).
 """
 
+import copy
+import functools
 import numbers
+import threading
 
 import numpy as np
 
@@ -35,6 +44,41 @@ __all__ = ["RecursiveARMAX", "RecursiveOE", "RecursiveBJ", "RecursiveARX", "Recu
            "RecursiveARMA"]
 
 
+def _locked(method):
+    """`method` holding the estimator's lock (one call at a time from threads)."""
+    @functools.wraps(method)
+    def run(self, *args, **kwargs):
+        with self._lock:
+            return method(self, *args, **kwargs)
+    return run
+
+
+class _Guarded:
+    """A reentrant lock per estimator, left out of pickles and copies (each copy
+    makes its own), and ``copy.copy`` as deep as ``copy.deepcopy``: the recursion
+    state is updated in place, so a copy that shared it would move with the original."""
+
+    def __new__(cls, *args, **kwargs):
+        self = super().__new__(cls)
+        self._lock = threading.RLock()
+        return self
+
+    def __copy__(self):
+        """``copy.copy``: an independent estimator (``copy.deepcopy``)."""
+        return copy.deepcopy(self)
+
+    def __getstate__(self):
+        """The attributes without the lock, read under it (pickle, deepcopy)."""
+        with self._lock:
+            state = self.__dict__.copy()
+        del state["_lock"]
+        return state
+
+    def __setstate__(self, state):
+        self._lock = threading.RLock()      # (made by __new__ too; not by pickle protocol 0, 1)
+        self.__dict__.update(state)
+
+
 def _n_inputs(nb):
     if isinstance(nb, np.ndarray) and nb.ndim == 0:
         nb = nb.item()
@@ -43,7 +87,7 @@ def _n_inputs(nb):
     return len(nb)
 
 
-class _RecursiveModel:
+class _RecursiveModel(_Guarded):
     """One-sample-at-a-time estimation of a model of the family (shared machinery).
 
     Parameters of every subclass: the orders, then keyword options
@@ -51,6 +95,12 @@ class _RecursiveModel:
     (``lam``, ``lam_start``, ``lam_rate``, ``P0``, ``x0``, ``R``, ``Q``,
     ``forgetting``, ``forgetting_params``, ``gate``, ``project``; see
     :meth:`ARMAX.fit`), in the signals' units (see the module notes).
+
+    **Copies and threads.** ``copy.copy`` and ``copy.deepcopy`` both give an
+    independent estimator (the recursion state is copied, so stepping one
+    never moves the other). An estimator shared by threads takes one call at a
+    time: :meth:`step`, :meth:`batch`, :meth:`restart`, :meth:`reset` and the
+    reads of the estimate hold its lock.
     """
 
     def __init__(self, s, method, options):
@@ -84,21 +134,22 @@ class _RecursiveModel:
         """
         # fast path (the loop of a real-time application): float samples need only a
         # finiteness check (x - x is NaN for NaN and inf); anything else is validated in full
-        if isinstance(y, float) and y - y == 0.0:
-            if self._nu == 1 and isinstance(u, float) and u - u == 0.0:
-                uv = self._ubuf
-                uv[0] = u
-            elif self._nu == 0 and u is None:
-                uv = self._ubuf
+        with self._lock:                     # one call at a time (threads)
+            if isinstance(y, float) and y - y == 0.0:
+                if self._nu == 1 and isinstance(u, float) and u - u == 0.0:
+                    uv = self._ubuf
+                    uv[0] = u
+                elif self._nu == 0 and u is None:
+                    uv = self._ubuf
+                else:
+                    uv = self._input(u)
             else:
+                y = _scalar(y, "y")
                 uv = self._input(u)
-        else:
-            y = _scalar(y, "y")
-            uv = self._input(u)
-        state = self._state
-        yhat, eps, _ = state.step(y, uv)
-        self.last_error = eps
-        return yhat, state.theta.copy()
+            state = self._state
+            yhat, eps, _ = state.step(y, uv)
+            self.last_error = eps
+            return yhat, state.theta.copy()
 
     __call__ = step
 
@@ -133,32 +184,37 @@ class _RecursiveModel:
         else:
             self._no_input(u)
             U = np.zeros((len(yv), 0))
-        out = self._state.run(yv, U)
-        if len(yv):
-            self.last_error = float(out["eps"][-1])
+        with self._lock:
+            out = self._state.run(yv, U)
+            if len(yv):
+                self.last_error = float(out["eps"][-1])
         return out["yhat"], out["theta_history"]
 
     def restart(self):
         """Start a new experiment: the regressor and filter signals restart from rest
         (zero past), while the estimate, ``P`` and the forgetting profile carry on (as
         ``fit`` does at each experiment boundary of an `IOData`)."""
-        self._state.restart()
+        with self._lock:
+            self._state.restart()
 
     def reset(self):
         """Return to the initial estimate and covariance."""
-        self._state = self._initial.copy()
-        self.last_error = np.nan
+        with self._lock:
+            self._state = self._initial.copy()
+            self.last_error = np.nan
 
     # ------------------------------------------------------------------
     @property
     def theta(self):
         """The current estimate (a copy), in the order of :attr:`param_names`."""
-        return self._state.theta.copy()
+        with self._lock:
+            return self._state.theta.copy()
 
     @property
     def P(self):
         """The covariance matrix of the recursion (a copy)."""
-        return self._state.P.copy()
+        with self._lock:
+            return self._state.P.copy()
 
     @property
     def param_names(self):
@@ -177,7 +233,8 @@ class _RecursiveModel:
 
     def polynomials(self):
         """Current ``(A, B, C, D, F)`` in MATLAB's form (``B``, ``F`` lists per input)."""
-        return split_theta(self._state.theta, self._structure)
+        with self._lock:
+            return split_theta(self._state.theta.copy(), self._structure)
 
     @property
     def A(self):

@@ -16,7 +16,7 @@ from .._validation import (
 )
 from ..exceptions import NumericalWarning
 from ._stability import reflect
-from .recursive import _scalar
+from .recursive import _Guarded, _locked, _scalar
 from .regressors import arx_structure
 
 __all__ = ["RecursiveIV"]
@@ -24,7 +24,7 @@ __all__ = ["RecursiveIV"]
 _get_kernels = lazy_module("rlsfilt.models._recursive_kernels")
 
 
-class RecursiveIV:
+class RecursiveIV(_Guarded):
     r"""Streaming ARX estimation by recursive instrumental variables.
 
     The online form of ``ARX.fit(u, y, method="riv")``: each
@@ -131,6 +131,7 @@ class RecursiveIV:
         self._nu = s.n_inputs
         self.reset()
 
+    @_locked
     def reset(self):
         """Return to the initial estimate, covariance and auxiliary model."""
         s, n = self._s, self._s.n_params
@@ -180,6 +181,7 @@ class RecursiveIV:
                              f"{uv.size}")
         return uv
 
+    @_locked
     def step(self, y, u, z=None):
         """Take one sample: return the prediction made before it and the new estimate.
 
