@@ -230,10 +230,11 @@ def smooth(filt, zs, Hs, Rs=None):
     """`RecursiveLeastSquares.smooth` and `RLSBank.smooth`: ``batch_filter`` over
     the record, then `rts_smoother` on what it stored."""
     _check_kalman(filt)
-    capped = getattr(filt, "n_capped", 0)
+    # (a count for a filter, one per channel for a bank)
+    capped = np.copy(getattr(filt, "n_capped", 0))
     run = filt.batch_filter(zs, Hs, Rs, store_covariances=True)
     means, covs, means_p, covs_p = tuple(run)
-    if getattr(filt, "n_capped", 0) != capped:
+    if np.any(np.asarray(getattr(filt, "n_capped", 0)) != capped):
         warnings.warn("the windup cap of exponential forgetting restricted some updates of "
                       "this run (n_capped grew), so their priors are not P / lam + Q and the "
                       "smoothed trajectory there is approximate", NumericalWarning,
