@@ -84,6 +84,7 @@ bank.update(z[0] * np.ones(4), Hb[0])
 """),
     ("ARX", """
 rlsfilt.ARX(2, 2, 1).fit(u, y)
+rlsfilt.ARX(2, 2, 1).fit(u, y, method="rls")
 rlsfilt.ARX(2, 2, 1).fit(u, y, method="ls")
 """),
     ("ARMAX", "rlsfilt.ARMAX(2, 2, 1, 1).fit(u, y); rlsfilt.ARMAX(2, 2, 1, 1).fit(u, y, method='rpem')"),
