@@ -87,9 +87,11 @@ rlsfilt.ARX(2, 2, 1).fit(u, y)
 rlsfilt.ARX(2, 2, 1).fit(u, y, method="rls")
 rlsfilt.ARX(2, 2, 1).fit(u, y, method="ls")
 """),
-    ("ARMAX", "rlsfilt.ARMAX(2, 2, 1, 1).fit(u, y); rlsfilt.ARMAX(2, 2, 1, 1).fit(u, y, method='rpem')"),
+    ("ARMAX", "rlsfilt.ARMAX(2, 2, 1, 1).fit(u, y)\n"
+              "rlsfilt.ARMAX(2, 2, 1, 1).fit(u, y, method='rpem')"),
     ("OE", "rlsfilt.OE(2, 2, 1).fit(u, y); rlsfilt.OE(2, 2, 1).fit(u, y, method='rpem')"),
-    ("BJ", "rlsfilt.BJ(2, 1, 1, 2, 1).fit(u, y); rlsfilt.BJ(2, 1, 1, 2, 1).fit(u, y, method='rpem')"),
+    ("BJ", "rlsfilt.BJ(2, 1, 1, 2, 1).fit(u, y)\n"
+           "rlsfilt.BJ(2, 1, 1, 2, 1).fit(u, y, method='rpem')"),
     ("AR", "rlsfilt.AR(2).fit(y); rlsfilt.AR(2).fit(y, method='rpem')"),
     ("ARMA", "rlsfilt.ARMA(2, 1).fit(y); rlsfilt.ARMA(2, 1).fit(y, method='rpem')"),
     ("RecursiveARMAX", """
@@ -99,7 +101,8 @@ r.step(float(y[0]), float(u[0]))
 """),
     ("RecursiveOE", "rlsfilt.RecursiveOE(2, 2, 1).batch(y, u)"),
     ("RecursiveBJ", "rlsfilt.RecursiveBJ(2, 1, 1, 2, 1).batch(y, u)"),
-    ("RecursiveARX", "r = rlsfilt.RecursiveARX(2, 2, 1); r.batch(y, u); r.step(float(y[0]), float(u[0]))"),
+    ("RecursiveARX", "r = rlsfilt.RecursiveARX(2, 2, 1)\n"
+                     "r.batch(y, u)\nr.step(float(y[0]), float(u[0]))"),
     ("RecursiveAR", "rlsfilt.RecursiveAR(2).batch(y)"),
     ("RecursiveARMA", "rlsfilt.RecursiveARMA(2, 1).batch(y)"),
 )
