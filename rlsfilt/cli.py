@@ -352,6 +352,14 @@ def _build_parser():
     ident.set_defaults(run=_run_identify)
     from . import _cli_fleet  # identify-many: one ARX model per channel
     _cli_fleet.add_parser(sub)
+
+    warm = sub.add_parser(
+        "warmup", help="compile the common kernels ahead (for images and CI)",
+        description="Compile the kernels the usual calls reach (every filter, the model "
+                    "family, RLSBank) into numba's disk cache, so that later processes "
+                    "start warm. Set NUMBA_CACHE_DIR to choose where the cache goes.")
+    warm.add_argument("--quiet", action="store_true", help="print nothing")
+    warm.set_defaults(run=_run_warmup)
     return parser
 
 
@@ -644,6 +652,19 @@ def _delay_search(data, args, progress):
             found = delayest(test, nk_max=nk_max)
     ks = np.atleast_1d(found)
     return range(max(0, int(ks.min()) - 2), int(ks.max()) + 3), found
+
+
+def _run_warmup(args):
+    from . import _warmup
+
+    log = None if args.quiet else print
+    if log:
+        log("rlsfilt warmup: compiling the common kernels into numba's disk cache "
+            "(CPU seconds per class)")
+    spent = _warmup.warmup(log=log)
+    if log:
+        log(f"done: {sum(spent.values()):.1f} s; later processes load the kernels from the cache")
+    return EXIT_OK
 
 
 def _run_demo(args):
