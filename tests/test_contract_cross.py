@@ -1253,10 +1253,7 @@ class _DeepcopyDrifts(RecursiveLeastSquares):
 
 def _drifted(fn, args, state):
     f = fn(*args)
-    attributes, slots = state
-    f.__dict__.update(copy.deepcopy(attributes))
-    for name, value in copy.deepcopy(slots).items():
-        setattr(f, name, value)
+    f.__setstate__(copy.deepcopy(state))
     f.x = f.x * (1.0 + 1e-9)
     return f
 

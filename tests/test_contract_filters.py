@@ -744,9 +744,6 @@ EXPECTED_FAILURES = {
     **{(name, check): _NO_BANK_FREEZE
        for name in ("RLSBank", "RLSBank-lam0.95", "RLSBank-directional-Q", "RLSBank-constant_trace")
        for check in ("check_freeze_keeps_the_state", "check_update_block_equals_rows")},
-    ("SquareRootRLS-lam0.97", "check_warning_turned_error_changes_nothing"):
-        "SquareRootRLS forgets (lam < 1) but does not warn (ForgettingSkippedWarning) when "
-        "update() follows update() without predict(): the skipped time update is silent (#26)",
 }
 
 

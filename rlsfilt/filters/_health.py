@@ -24,6 +24,13 @@ __all__ = []
 _PACKAGE_DIR = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
+#: The warning of an ``update()`` that follows an ``update()`` without ``predict()`` in a
+#: filter that forgets (its time update, ``P / lam`` or ``+ Q``, was skipped): one wording
+#: for every filter.
+SKIPPED_FORGETTING = ("update() was called twice without predict() in between, so the "
+                      "forgetting (lam < 1) or random walk (Q > 0) of this step was skipped; "
+                      "call predict() before each update() or use predict_update().")
+
 def symmetric_problem(P, cond_max, basis=None):
     """None if the symmetric ``P`` is healthy, else what is wrong with it.
 

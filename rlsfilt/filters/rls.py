@@ -44,9 +44,6 @@ _EMPTY = np.zeros((0, 0))          # an absent Q or projector, as the kernels ta
 _F8 = np.dtype(np.float64)
 _BAD_ROW, _BAD_DIAGONAL, _GATED, _CAP = 1, 2, 4, 8   # the flags of _kernels.update_kernel
 
-_SKIPPED = ("update() was called twice without predict() in between, so the forgetting "
-            "(lam < 1) or random walk (Q > 0) of this step was skipped; call predict() "
-            "before each update() or use predict_update().")
 
 
 class RecursiveLeastSquares(_FilterBase):
@@ -1092,7 +1089,7 @@ class RecursiveLeastSquares(_FilterBase):
         """Issue the warnings of a step, before it changes the state (a warning turned
         into an error then leaves the filter as it was)."""
         if skipped:
-            _health.warn_at_caller(_SKIPPED, ForgettingSkippedWarning)
+            _health.warn_at_caller(_health.SKIPPED_FORGETTING, ForgettingSkippedWarning)
             self._warned_skip = True
         self._warn_health(problem)
 

@@ -13,6 +13,7 @@ from .._validation import (
     check_real,
     check_variance,
 )
+from ..exceptions import ForgettingSkippedWarning
 from . import _health, _streaming
 from ._base import MISSING_DIAGNOSTICS, _FilterBase, _locked
 from ._streaming import c_array
@@ -262,6 +263,7 @@ class SquareRootRLS(_FilterBase):
             # Delta <- Delta / lam     (U <- sqrt(lam) U, P <- P / lam; W, v and x unchanged)
             _streaming.window_kernels().sr_predict(delta, 1.0 / self._lam)
         self._delta = delta
+        self._updates_since_predict = 0
         self.x_prior = self._x.copy()
         self.P_prior = self.P
 
@@ -296,7 +298,13 @@ class SquareRootRLS(_FilterBase):
                 problem = ((_health.factor_problem(U, self.cond_max)
                             or "`P` failed the health check")
                            + _health.at_update(n_updates, self._batch_start))
+        # an update after an update: the forgetting of this step was skipped (once)
+        skipped = self._lam != 1.0 and self._updates_since_predict and not self._warned_skip
+        if skipped:
+            _health.warn_at_caller(_health.SKIPPED_FORGETTING, ForgettingSkippedWarning)
         self._warn_health(problem)                           # before the state changes
+        self._warned_skip = self._warned_skip or bool(skipped)
+        self._updates_since_predict += 1
         self._clear_lazy()
         self.H = phi
         self.S, self.SI = s * self._I_z, self._I_z / s
@@ -337,6 +345,7 @@ class SquareRootRLS(_FilterBase):
         self._set_factors(*_unit_factor(U), v=d / np.diagonal(U)[:, None])
         self.x_prior, self.x_post = self._x.copy(), self._x.copy()
         self.P_prior = self.P_post = self.P
+        self._updates_since_predict = 0
 
     def batch_filter(self, zs, Hs, Rs=None, update_first=False, saver=None,
                      store_covariances=True):
@@ -387,6 +396,7 @@ class SquareRootRLS(_FilterBase):
             means_p[0] = self._x
             means_p[1:] = means[:-1]
         self.n_updates = step0 + N
+        self._updates_since_predict = 0 if update_first else 1   # last: a predict, an update
         self._Wv, self._delta, self._x = Wv, delta, x
         self._clear_lazy()
         self.H = Hm[-1].reshape(1, n).copy()
@@ -451,6 +461,7 @@ class SquareRootRLS(_FilterBase):
         health warning."""
         self.n_updates = 0
         self._warned_health = False
+        self._updates_since_predict, self._warned_skip = 0, False
         self._x = self._x0.copy()
         self.P = self._P0
         self.x_prior, self.x_post = self._x.copy(), self._x.copy()
