@@ -949,7 +949,8 @@ BANK = FilterSpec("RLSBank", None, None, declared=(
     Declared("gate", _not_default("gate"), TypeError, "no outlier gate in the bank"),
     Declared("constraints", (True,), AttributeError, "no constrain() in the bank"),
     Declared("trace_max", _not_default("trace_max"), ValueError,
-             "no windup cap in the bank's kernels")),
+             "the bank's windup cap is a constant of its exponential mode only",
+             when=lambda o: o["forgetting"] != "exponential")),
     extra=("lam_t",))
 
 
@@ -1161,6 +1162,10 @@ KNOWN_BANK = [
     # the checker's false alarm: a residual of 4e-4 one ulp of z apart after the batch start
     Case("RLSBank", 4, 1, {"missing": "None"}, 29,
          (("initialize", 2), ("predict_update", False, False))),
+    # the bank gained the windup cap (#27): its constants were refused before
+    Case("RLSBank", 2, 1, {"trace_max": "trace(P0)"}, 0, (("predict_update", False, False),)),
+    Case("RLSBank", 3, 2, {"trace_max": "trace(P0)", "lam": 0.95}, 3,
+         (("predict",), ("update", False, True)) * 6 + (("read", STATE + ("extra",)),)),
 ]
 
 

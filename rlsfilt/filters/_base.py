@@ -25,6 +25,7 @@ import warnings
 import numpy as np
 
 from .._display import filter_html
+from .._signature import init_signature
 from .._validation import (
     VARIANCE_RANGE,
     as_float_array,
@@ -78,6 +79,10 @@ class _FilterBase(Filter):
         self = super().__new__(cls)
         self._lock = threading.RLock()
         return self
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        cls.__signature__ = init_signature(cls)   # __init__'s, not __new__'s (*args, **kwargs)
 
     def __getstate__(self):
         """The attributes without the lock, read under it (pickle, copy, deepcopy)."""

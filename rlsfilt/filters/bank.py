@@ -38,6 +38,7 @@ import numpy as np
 
 from .._display import pretty_str
 from .._lazy import lazy_module
+from .._signature import init_signature
 from .._validation import (
     COVARIANCE_MAX,
     VARIANCE_RANGE,
@@ -1354,3 +1355,6 @@ def _list(channels, most=10):
     shown = ", ".join(str(int(c)) for c in channels[:most])
     more = f", ... ({len(channels) - most} more)" if len(channels) > most else ""
     return f"[{shown}{more}]"
+
+
+RLSBank.__signature__ = init_signature(RLSBank)   # __init__'s, not __new__'s

@@ -36,6 +36,7 @@ import threading
 
 import numpy as np
 
+from .._signature import init_signature
 from .._validation import as_float_array, check_finite
 from ._family import family_structure, param_names, split_theta
 from ._recursive_pem import RecursionState
@@ -62,6 +63,10 @@ class _Guarded:
         self = super().__new__(cls)
         self._lock = threading.RLock()
         return self
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        cls.__signature__ = init_signature(cls)   # __init__'s, not __new__'s (*args, **kwargs)
 
     def __copy__(self):
         """``copy.copy``: an independent estimator (``copy.deepcopy``)."""
