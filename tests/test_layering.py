@@ -19,7 +19,8 @@ from test_import_graph import import_graph
 LAYERS = [
     ("support", ["rlsfilt.exceptions", "rlsfilt._version", "rlsfilt._validation",
                  "rlsfilt._resources", "rlsfilt._display", "rlsfilt._scale", "rlsfilt._numba",
-                 "rlsfilt._serialize", "rlsfilt._lazy_scipy", "rlsfilt._lazy", "rlsfilt._warmup", "rlsfilt._signature",
+                 "rlsfilt._serialize", "rlsfilt._lazy_scipy", "rlsfilt._lazy", "rlsfilt._warmup",
+                 "rlsfilt._signature",
                  "rlsfilt._iosystem", "rlsfilt.plotting", "rlsfilt.continuous", "rlsfilt.data",
                  "rlsfilt._atomic", "rlsfilt._model_file"]),
     ("filters", ["rlsfilt.filters"]),
