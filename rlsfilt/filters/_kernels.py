@@ -50,10 +50,8 @@ together (reading and writing ``P`` once, four rows at a time). Its
 arithmetic is, element by element, that of the two steps (the same products
 summed in the same order; no ``fastmath``), so it gives the same bits, faster.
 Its usual steps run in `_usual_steps`, a loop that makes no call (the rare
-steps return to `exponential_batch`). One compiled loop serves every number
-of parameters: compiling one per ``n`` (the dimension as a compile-time
-constant) cost seconds of compilation for each new ``n`` and gained nothing
-measurable (0.85x to 1.06x at 2 to 8 parameters, ``docs/performance.md``).
+steps return to `exponential_batch`), compiled with the dimension as a
+constant up to `_UNROLLED_MAX` parameters (`_dimension_witness`).
 
 **The health check** runs in two tiers: every update tests the diagonal of
 ``P`` (positive and finite, O(n)); every ``check_every`` updates (and at once
@@ -593,7 +591,8 @@ def _sweep(P, g, cu, il, Q, h, gn, n, L):
 def _sweep_rows(P, g, cu, il, h, gn, n, L):
     """`_sweep` without ``Q``, four rows at a time.
 
-    ``n`` is the length of ``h``; ``P`` has at least ``n``
+    ``n`` is the length of ``h`` (an argument: a compile-time constant where
+    the caller has one, see `exponential_batch`); ``P`` has at least ``n``
     rows of ``L >= n`` entries (the padded work array of `exponential_batch`,
     zero past column ``n``; only its first ``n`` rows are swept), ``g`` and
     ``gn`` have length ``L`` (``g`` zero past ``n``: the padding stays zero).
@@ -668,21 +667,9 @@ def _sweep_q(P, g, cu, il, Q, h, gn):
 
 
 @njit(cache=True, error_model="numpy")
-def _sweep_apart(P, g, cu, il, Q, h, gn, n, L):
-    """`_sweep`, compiled once apart (not inlined) for the steps outside `_usual_steps`.
-
-    Each inlined copy of the sweep is seconds of compilation; the rare steps
-    (the first, the last, a health check, a block's end) call this one
-    instead and pay a call, which they do not notice. With an empty `Q` it is
-    `_sweep_rows`.
-    """
-    _sweep(P, g, cu, il, Q, h, gn, n, L)
-
-
-@njit(cache=True, error_model="numpy")
 def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, covs_p, ys,
                       ss, x_prior, P_prior, x_post, P_post, K, check_every, step0, cond_max,
-                      state, episodes, P_fail, symmetric, Pw, scales, lags):
+                      state, episodes, P_fail, symmetric, Pw, scales, lags, dims):
     """`step_batch` of the default configuration with one output, fused (see the module).
 
     Exponential forgetting, no gate, no constraints, ``m = 1``: ``ss`` has
@@ -715,13 +702,18 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
     (:mod:`rlsfilt.filters._kernels_lagged`): the blocks are then filled from
     the signals (``Hm`` is not read), so no regressor matrix need exist.
 
+    ``dims``: `_dimension_witness` of ``n``. A tuple of ``n`` zeros makes ``n``
+    a compile-time constant (``len`` of a tuple is part of its type): numba
+    compiles the function once per such ``n`` and the compiler unrolls the
+    loops over ``n`` (at 4 parameters the usual step took 20 % less time).
+
     The usual steps run in `_usual_steps`, a loop without calls; this
     function takes the others (the windup cap, health checks, stored
     covariances, the last two steps, the end of a block of rows), then hands
     back.
     """
     N = Z.shape[0]
-    n = x.shape[0]
+    n = len(dims)                                    # a constant when dims is a tuple
     L = Pw.shape[1]
     hasq = Q.shape[0] > 0
     store = covs.shape[0] > 0
@@ -734,24 +726,22 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
     gn = Pw[n + 1]
     W = np.empty((n, n))
     X = np.empty((n, n))
-    Pc = np.empty((n, n))                            # P copied for a health check (C order:
-    noq = np.zeros((0, 0))                           # the check step_batch compiled); no Q
     none = np.zeros((n, 0))
     cap = state[3] == 1
-    n_capped = np.int64(0)                           # not a literal: one variant of _usual_steps
+    n_capped = 0
     w = state[4]
     countdown = check_every - step0 % check_every if check_every > 0 else -1
     if scales is not None:
         hsc, zsc, msc, ysc, Hb = scales
-        _fill_block(Hm, lags, np.int64(0), hsc, Hb)   # int64: one compiled variant
+        _fill_block(Hm, lags, 0, hsc, Hb)
         h = Hb[0]
     else:
         h = Hm[0]
     if update_first:                                 # the gain of P
-        _sweep_apart(Pw, g, 0.0, 1.0, noq, h, gn, n, L)
+        _sweep_rows(Pw, g, 0.0, 1.0, h, gn, n, L)
     else:                                            # P^- and its gain
         w = il if cap else 1.0
-        _sweep_apart(Pw, g, 0.0, 1.0 if cap else il, Q, h, gn, n, L)
+        _sweep(Pw, g, 0.0, 1.0 if cap else il, Q, h, gn, n, L)
         if store:
             copy2(Pv, covs_p[0])
     g, gn = gn, g
@@ -761,20 +751,19 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
     s = np.nan
     yk = np.nan
     H = Hm if scales is None else Hb
-    k = np.int64(0)                                  # not a literal 0: one variant of the callees
+    k = 0
     while True:
         off = 0 if scales is None else k - k % _SCALED_BLOCK    # the row of step k in H: k - off
         (k, cu, kc, updated, cap, check, due, cheap_bad, s, yk, w, countdown, n_capped,
          odd) = _usual_steps(k, N, Z, H, off, Rv, il, Q, cfg, means, ys, th, Pw, g, gn, w,
-                             countdown, n_capped, check_every, state, store, scales)
+                             countdown, n_capped, check_every, state, store, scales, dims)
         if odd:
             g, gn = gn, g
         # step k is not a usual one (or the last of a block of rows): its sweep
         last = k == N - 1
         hn = H[min(k + 1, N - 1) - off]              # the next row
         if last:
-            for i in range(n):                       # loops, not x[:, 0] = th: a slice
-                x[i, 0] = th[i]                      # assignment compiles numba's shape errors
+            x[:, 0] = th
             if updated:
                 for i in range(n):
                     K[i] = g[i] * kc
@@ -782,22 +771,18 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
         # tests with update_first, and otherwise P / lam, whose definiteness and
         # condition number are those of P (with Q the two halves run apart)
         if last or cap or store or (check and hasq and not update_first):
-            # (a conditional expression among 31 arguments is bytecode numba cannot read)
-            il_k = 1.0 if cap else il
-            _unfused_step(x, Pw, Pv, Pc, g, gn, cu, il_k, Q, noq, hn, k,
+            _unfused_step(x, Pw, Pv, g, gn, cu, 1.0 if cap else il, Q, hn, k,
                           last, check, update_first, due, cheap_bad, cond_max, state,
                           episodes, P_fail, W, X, none, symmetric, x_prior, P_prior, x_post,
                           P_post, covs, covs_p)
         else:
-            _sweep_apart(Pw, g, cu, il, Q, hn, gn, n, L)
+            _sweep(Pw, g, cu, il, Q, hn, gn, n, L)
             if check:
-                copy2(Pv, Pc)
-                _health(Pc, none, symmetric, cond_max, k, due, cheap_bad, state, episodes,
+                _health(Pv, none, symmetric, cond_max, k, due, cheap_bad, state, episodes,
                         P_fail, W, X)
         g, gn = gn, g
         if k == N - 2 and not update_first:
-            for i in range(n):
-                x[i, 0] = th[i]
+            x[:, 0] = th
             copy2(x, x_prior)
             copy2(Pv, P_prior)
         if last:
@@ -820,7 +805,7 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
 
 @njit(cache=True, error_model="numpy", _nrt=False)
 def _usual_steps(k, N, Z, H, off, Rv, il, Q, cfg, means, ys, th, Pw, g, gn, w, countdown,
-                 n_capped, check_every, state, store, scales):
+                 n_capped, check_every, state, store, scales, dims):
     """The steps of `exponential_batch` from step `k` on, up to the first that is not
     a usual one, whose sweep it leaves to the caller.
 
@@ -837,7 +822,7 @@ def _usual_steps(k, N, Z, H, off, Rv, il, Q, cfg, means, ys, th, Pw, g, gn, w, c
     ``y``), the running ``w``, ``countdown``, ``n_capped`` and whether the
     gains ``g``, ``gn`` changed places an odd number of times.
     """
-    n = th.shape[0]
+    n = len(dims)
     L = Pw.shape[1]
     r_each = Rv.shape[0] == N
     every_y = ys.shape[0] == N
@@ -900,6 +885,15 @@ def _usual_steps(k, N, Z, H, off, Rv, il, Q, cfg, means, ys, th, Pw, g, gn, w, c
 
 
 _SCALED_BLOCK = 256   # rows `exponential_batch` scales at a time
+_UNROLLED_MAX = 8     # `exponential_batch` is compiled for each n up to this
+
+
+def _dimension_witness(n):
+    """The ``dims`` argument of `exponential_batch` for `n` parameters: a tuple of
+    `n` zeros up to `_UNROLLED_MAX` (``n`` is then a constant of the compiled
+    loop), else an array of length `n` (one compiled loop for every larger
+    ``n``)."""
+    return (0,) * n if n <= _UNROLLED_MAX else np.zeros(n, dtype=np.int8)
 
 
 @njit(cache=True, error_model="numpy")
@@ -924,38 +918,34 @@ def _scale_block(Hm, k, hsc, Hb):
 
 
 @njit(cache=True, error_model="numpy")
-def _unfused_step(x, Pw, P, Pc, g, gn, cu, il, Q, noq, h, k, last, check, update_first, due,
-                  cheap_bad, cond_max, state, episodes, P_fail, W, X, none, symmetric, x_prior,
-                  P_prior, x_post, P_post, covs, covs_p):
+def _unfused_step(x, Pw, P, g, gn, cu, il, Q, h, k, last, check, update_first, due, cheap_bad,
+                  cond_max, state, episodes, P_fail, W, X, none, symmetric, x_prior, P_prior,
+                  x_post, P_post, covs, covs_p):
     """The rare steps of `exponential_batch` (not inlined, so that they stay out of
     the loop's code): a step whose time update the windup cap holds back (`il`
     is then 1), and a step whose updated ``P`` is checked, kept (the last) or
     stored (``covs``, ``covs_p`` of length N), whose sweep runs in two halves:
     the update, then the time update with the next gain (after the last
     update only with `update_first`). The sweeps run on the padded ``Pw``, the
-    copies read its view ``P``, the checks its copy `Pc` (C order, as `step_batch`
-    checks it: one compiled check); `noq` is an empty ``Q`` (`_sweep_apart` is then
-    `_sweep_rows`)."""
+    copies and the checks read its view ``P``."""
     store = covs.shape[0] > 0
     if not (check or last or store):
-        _sweep_apart(Pw, g, cu, il, Q, h, gn, h.shape[0], Pw.shape[1])
+        _sweep(Pw, g, cu, il, Q, h, gn, h.shape[0], Pw.shape[1])
         return
-    _sweep_apart(Pw, g, cu, 1.0, noq, h, gn, h.shape[0], Pw.shape[1])
+    _sweep_rows(Pw, g, cu, 1.0, h, gn, h.shape[0], Pw.shape[1])
     if store:
         copy2(P, covs[k])
     if last:
         copy2(x, x_post)
         copy2(P, P_post)
     if check and not update_first:
-        copy2(P, Pc)
-        _health(Pc, none, symmetric, cond_max, k, due, cheap_bad, state, episodes, P_fail, W, X)
+        _health(P, none, symmetric, cond_max, k, due, cheap_bad, state, episodes, P_fail, W, X)
     if not last or update_first:
-        _sweep_apart(Pw, g, 0.0, il, Q, h, gn, h.shape[0], Pw.shape[1])
+        _sweep(Pw, g, 0.0, il, Q, h, gn, h.shape[0], Pw.shape[1])
         if store:
             copy2(P, covs_p[k if update_first else k + 1])
     if check and update_first:
-        copy2(P, Pc)
-        _health(Pc, none, symmetric, cond_max, k, due, cheap_bad, state, episodes, P_fail, W, X)
+        _health(P, none, symmetric, cond_max, k, due, cheap_bad, state, episodes, P_fail, W, X)
     if last and update_first:
         copy2(x, x_prior)
         copy2(P, P_prior)
@@ -1058,7 +1048,8 @@ def run_batch(x, P, Z, Hm, Rv, cfg, Q, basis, update_first, store_covariances,
             int(check_every), int(step0), float(cond_max), out.state, out.episodes,
             out.P_fail, symmetric, aligned_zeros((n + 2, padded_width(n, 0))),
             None if scales is None else (hsc, zsc[0], msc[:, 0].copy(), ysc[0],
-                                         aligned_zeros((_SCALED_BLOCK + 1, n))), lags)
+                                         aligned_zeros((_SCALED_BLOCK + 1, n))), lags,
+            _dimension_witness(n))
         out.gated = np.zeros(1, dtype=np.bool_)
         out.lam_t_last = lam
     else:

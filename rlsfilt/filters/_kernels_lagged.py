@@ -130,9 +130,7 @@ def lag_residuals(lags, theta, out, top):
     Y, U, cols, seg_rows, seg_t0 = lags
     n, m = theta.shape
     with_target = np.empty((n + 1, 3), dtype=np.int64)
-    for j in range(n):                  # loops, not slice assignments: those compile numba's
-        for c in range(3):              # shape-mismatch messages (a second of compilation)
-            with_target[j, c] = cols[j, c]
+    with_target[:n] = cols
     scale = np.empty(n + 1)
     scale[n] = -1.0
     Bt = np.empty((n + 1, _BLOCK))
@@ -140,8 +138,7 @@ def lag_residuals(lags, theta, out, top):
     total = seg_rows[-1]
     for i in range(m):
         with_target[n, 0], with_target[n, 1], with_target[n, 2] = 0, i, 0
-        for j in range(n):
-            scale[j] = theta[j, i]
+        scale[:n] = theta[:, i]
         rows_lags = (Y, U, with_target, seg_rows, seg_t0)
         top[i] = 0.0
         for k in range(0, total, _BLOCK):
