@@ -234,3 +234,34 @@ def test_report_and_figure_state_the_initial_condition(rng):
     assert ax.get_title().endswith("initial state estimated (least squares over the record)")
     assert "2-step prediction" in c.summary() and c.to_dict()["horizon"] == 2
     plt.close("all")
+
+
+def test_closed_loop_record_oe_fit_is_the_simulation_from_the_estimated_state():
+    """Issue #28, 1: a closed-loop record (a proportional controller around the plant, the
+    reference stepping, coloured noise at the output) and an OE model fitted to it:
+    validate's simulation fit is compare's, equals python-control's forced response from
+    the reported initial state, and is a sane number (the start from measured outputs
+    through A prod(F_i) gave hundreds of millions of negative percent)."""
+    control = pytest.importorskip("control")
+    rng = np.random.default_rng(28)
+    N = 1200
+    r = np.repeat(rng.choice([-1.0, 1.0], N // 60), 60) + 5.0       # far from zero
+    v = lfilter([1.0], [1, -0.9], 0.05 * rng.standard_normal(N))    # coloured
+    x1 = x2 = 0.0
+    u, y = np.zeros(N), np.zeros(N)
+    for t in range(N):
+        y[t] = x1 + v[t]                       # y = 0.5 q^-1 / (1 - 1.5 q^-1 + 0.7 q^-2) u
+        u[t] = 0.3 * (r[t] - y[t]) + 0.05 * rng.standard_normal()
+        x1, x2 = 1.5 * x1 - 0.7 * x2 + 0.5 * u[t], x1
+    est, val = slice(0, 900), slice(900, N)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")              # operating point, convergence notes
+        model = OE(1, 2, 1).fit(u[est], y[est])
+        rep = validate(model, u[val], y[val])
+    comp = compare(model, u[val], y[val])
+    assert rep.simulation_fit == pytest.approx(comp.fit, abs=1e-9)
+    sim = control.forced_response(model.to_ss(), np.arange(float(N - 900)), u[val],
+                                  X0=rep.x0[0])
+    np.testing.assert_allclose(rep.y_simulated, np.ravel(sim.outputs), rtol=1e-9, atol=1e-8)
+    assert rep.simulation_fit == pytest.approx(fit_percent(y[val], rep.y_simulated), abs=1e-9)
+    assert 30 < rep.simulation_fit <= 100
