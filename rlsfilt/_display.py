@@ -151,3 +151,122 @@ def _fmt(value):
     if arr.size <= 4:
         return np.array2string(arr.ravel(), precision=4)
     return f"array of shape {arr.shape}"
+
+
+# ----------------------------------------------------------------------
+# banks, selections and trends: the same look as the filters' table
+# ----------------------------------------------------------------------
+_EDGE = 5        # channels shown at each end of a long bank
+_TOP = 10        # candidates of a selection listed
+
+
+def _table(header, rows):
+    """An HTML table: `header` texts, then `rows` of cell texts (every text escaped);
+    a row that is a plain string is one cell spanning the table."""
+    head = "".join(f"<th>{html.escape(str(h))}</th>" for h in header)
+    body = []
+    for row in rows:
+        if isinstance(row, str):
+            body.append(f"<tr><td colspan='{len(header)}'>{html.escape(row)}</td></tr>")
+        else:
+            first, *rest = row
+            cells = "".join(f"<td>{html.escape(str(c))}</td>" for c in rest)
+            body.append(f"<tr><th>{html.escape(str(first))}</th>{cells}</tr>")
+    return f"<table class='rlsfilt-display'><tr>{head}</tr>{''.join(body)}</table>"
+
+
+def _wrap(head, *parts):
+    """The display's frame: a heading paragraph (already HTML) and its parts."""
+    return f"<div class='rlsfilt-display'><p>{head}</p>{''.join(parts)}</div>"
+
+
+def _edges(n, edge=_EDGE):
+    """Indices shown of `n` items: all, or the first and last `edge` (and the gap)."""
+    if n <= 2 * edge:
+        return list(range(n)), None
+    return list(range(edge)) + list(range(n - edge, n)), n - 2 * edge
+
+
+def bank_html(bank, labels=None):
+    """The HTML of an ``RLSBank``: its settings and the estimate +- std dev of the
+    first and last channels (`labels`: optional names of the channels)."""
+    name = type(bank).__name__
+    C, n = int(bank.n_channels), int(bank.dim_x)
+    x = np.asarray(bank.x, dtype=float).reshape(C, n)
+    P = np.asarray(bank.P, dtype=float).reshape(C, n, n)
+    with np.errstate(invalid="ignore"):
+        sd = np.sqrt(np.clip(np.diagonal(P, axis1=1, axis2=2), 0.0, None))
+    failed = np.asarray(bank.failed_channels)
+    head = (f"<strong>{html.escape(name)}</strong>: {C} channel{'s' * (C != 1)}, "
+            f"{n} parameter{'s' * (n != 1)} each")
+    shown, gap = _edges(C)
+    rows = []
+    for k, c in enumerate(shown):
+        if gap and k == _EDGE:
+            rows.append(f"... {gap} more channels ...")
+        label = str(labels[c]) if labels is not None else str(c)
+        cells = [f"{_fmt(x[c, i])} ± {_fmt(sd[c, i])}" for i in range(n)]
+        rows.append([label, *cells, "yes" if c in failed else "no"])
+    header = ["channel", *(f"x[{i}] ± std dev" for i in range(n)), "failed"]
+    lam = np.asarray(bank.lam)
+    settings = [_row("forgetting factor lam", _fmt(lam[0] if np.all(lam == lam.flat[0])
+                                                   else lam)),
+                _row("forgetting mode", _fmt(bank.forgetting)),
+                _row("updates so far (n_updates)", _fmt(int(bank.n_updates))),
+                _row("channels that failed the health check", _fmt(int(failed.size)))]
+    return _wrap(head, _table(header, rows),
+                 f"<details><summary>settings</summary>"
+                 f"<table class='rlsfilt-display'>{''.join(settings)}</table></details>")
+
+
+def ranking_html(name, criterion, labels, columns, key, errors=None, top=_TOP):
+    """The HTML of a selection: the candidates sorted by `key` (smaller is better;
+    NaN last), the `top` first and a count of the rest.
+
+    `labels` names each candidate, `columns` is a list of ``(header, values)``;
+    `errors` (optional) is the refusal message of each candidate (or None)."""
+    key = np.asarray(key, dtype=float)
+    order = np.argsort(np.where(np.isnan(key), np.inf, key), kind="stable")
+    rows = []
+    for rank, i in enumerate(order[:top]):
+        if errors is not None and errors[i]:
+            rows.append(f"{labels[i]}: refused: {errors[i]}")
+            continue
+        mark = " (best)" if rank == 0 else ""
+        rows.append([f"{labels[i]}{mark}", *(_fmt(vals[i]) for _, vals in columns)])
+    if len(order) > top:
+        rows.append(f"... {len(order) - top} more candidates ...")
+    head = (f"<strong>{html.escape(name)}</strong> by {html.escape(str(criterion))}: "
+            f"{len(order)} candidate{'s' * (len(order) != 1)}, best first")
+    return _wrap(head, _table(["candidate", *(h for h, _ in columns)], rows))
+
+
+def trend_html(trend, names=None):
+    """The HTML of a ``Trend``: intercept and slope of each segment of each signal."""
+    name = type(trend).__name__
+    n_cols = trend.n_columns
+    if names is None:
+        if trend.n_inputs is not None:
+            names = ([f"u{i}" for i in range(trend.n_inputs)]
+                     + [f"y{i}" for i in range(n_cols - trend.n_inputs)])
+        else:
+            names = [f"column {c}" for c in range(n_cols)]
+    rows = []
+    for e in range(trend.n_experiments):
+        for m, start in enumerate(trend.breakpoints[e]):
+            for c in range(n_cols):
+                where = (f"experiment {e}, " if trend.n_experiments > 1 else "") + \
+                    f"from sample {start}"
+                row = [names[c], where, _fmt(trend.intercept[e][m, c])]
+                if trend.type != "constant":
+                    row.append(_fmt(trend.slope[e][m, c]))
+                rows.append(row)
+    total = len(rows)
+    rows = rows[:4 * _TOP]
+    if total > len(rows):
+        rows.append(f"... {total - len(rows)} more coefficients ...")
+    header = ["signal", "segment", "intercept"] + (["slope"] if trend.type != "constant" else [])
+    head = (f"<strong>{html.escape(name)}</strong>: {html.escape(str(trend.type))}, "
+            f"{trend.n_experiments} experiment{'s' * (trend.n_experiments != 1)}, "
+            f"{n_cols} signal{'s' * (n_cols != 1)}")
+    return _wrap(head, _table(header, rows))

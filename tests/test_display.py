@@ -98,3 +98,71 @@ def test_report_shows_percent_and_the_verdict_in_words():
     d2 = mass_spring_damper()
     bad = validate(ARX(1, 1, 1, dt=d2.dt).fit(d2.u, d2.y), d2.u, d2.y)._repr_html_()
     assert "FAIL: residual tests FAILED" in bad and "&#10008;" in bad and "NOT white" in bad
+
+
+# ----------------------------------------------------------------------
+# banks, selections and trends (issue #32)
+# ----------------------------------------------------------------------
+def _looks_like_html(text, name):
+    assert text.startswith("<div class='rlsfilt-display'>") and text.endswith("</div>")
+    assert f"<strong>{name}" in text
+    assert text.count("<table") == text.count("</table>")
+
+
+def test_bank_html_and_repr_stay_short_for_many_channels():
+    from rlsfilt import RLSBank
+    from rlsfilt._display import bank_html
+
+    bank = RLSBank(1000, 3, P0=4.0)
+    bank.x = np.arange(3000.0).reshape(1000, 3)
+    out = bank._repr_html_()
+    _looks_like_html(out, "RLSBank")
+    assert "1000 channels, 3 parameters each" in out
+    assert out.count("<tr>") < 40 and "... 990 more channels ..." in out
+    assert "<th>999</th><td>2997 ± 2</td>" in out and "<th>5</th>" not in out
+    text = repr(bank)
+    assert len(text.splitlines()) < 30 and "... 990 more channels ..." in text
+    assert "RLSBank object" in text and "n_channels = 1000" in text
+    assert "P = " in repr(RLSBank(3, 2))                 # few channels: every matrix, as before
+    labelled = bank_html(RLSBank(2, 1), labels=["<b>", "ok"])
+    assert "<th>&lt;b&gt;</th>" in labelled and "<b>" not in labelled
+
+
+def test_selection_html_best_first_top_ten():
+    from rlsfilt import select_order
+    from rlsfilt.datasets import dc_motor
+    from rlsfilt.validation.structure import StructureSelection
+
+    d = dc_motor()
+    sel = select_order(d.u, d.y, na=range(1, 5), nb=range(1, 5), nk=range(1, 3))
+    out = sel._repr_html_()
+    _looks_like_html(out, "OrderSelection")
+    na, nb, nk = sel.best
+    assert f"<tr><th>na={na} nb={nb} nk={nk} (best)</th>" in out
+    assert out.count("<tr>") == 1 + 10 + 1 and f"... {len(sel.table) - 10} more candidates" in out
+
+    class Model:
+        pass
+
+    cands = [{"orders": {"na": k}, "n_params": k, "loss": 1.0 / k, "error": None}
+             for k in range(1, 4)]
+    cands.append({"orders": {"na": 9}, "n_params": 9, "loss": np.nan, "error": "<b>bad</b>"})
+    st = StructureSelection(cands, "aic", [3.0, 1.0, 2.0, np.nan], [Model()] * 4)
+    out = st._repr_html_()
+    _looks_like_html(out, "StructureSelection")
+    rows = re.findall(r"<tr><th>(.*?)</th>", out)
+    assert rows == ["candidate", "na=2 (best)", "na=3", "na=1"]
+    assert "refused: &lt;b&gt;bad&lt;/b&gt;" in out and "<b>" not in out
+
+
+def test_trend_html_shows_the_coefficients():
+    from rlsfilt.data import detrend
+
+    x = np.column_stack([np.arange(10.0), 5.0 + 3.0 * np.arange(10.0)])
+    _, trend = detrend(x, type="linear")
+    out = trend._repr_html_()
+    _looks_like_html(out, "Trend")
+    assert "<th>intercept</th><th>slope</th>" in out
+    assert _cells(out, "column 1") == ["from sample 0", "5", "3"]
+    _, many = detrend(np.ones((400, 1)), type="linear", bp=list(range(10, 400, 5)))
+    assert many._repr_html_().count("<tr>") < 45 and "more coefficients" in many._repr_html_()

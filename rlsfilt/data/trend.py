@@ -23,6 +23,7 @@ import numbers
 
 import numpy as np
 
+from .._display import trend_html
 from .._scale import pow2_scale
 from .._validation import as_float_array, check_finite, check_int
 from .iodata import IOData
@@ -220,6 +221,9 @@ class Trend:
         """The `Trend` stored by :meth:`to_dict`."""
         return cls(d["type"], d["breakpoints"], d["intercept"], d["slope"], d["n_inputs"],
                    d["n_outputs"], d["one_d"], d["lengths"])
+
+    def _repr_html_(self):
+        return trend_html(self)   # Jupyter: intercept (and slope) of each signal and segment
 
     def __repr__(self):
         segs = sorted({len(b) for b in self.breakpoints})

@@ -36,7 +36,7 @@ import threading
 
 import numpy as np
 
-from .._display import pretty_str
+from .._display import _edges, bank_html, pretty_str
 from .._lazy import lazy_module
 from .._signature import init_signature
 from .._validation import (
@@ -1077,20 +1077,39 @@ class RLSBank:
             return np.abs(self.y) / np.sqrt(self.S)
 
     def __repr__(self):
-        return "\n".join([
-            "RLSBank object",
-            pretty_str("n_channels", self.n_channels),
-            pretty_str("dim_x", self.dim_x),
-            pretty_str("lam", self._lam),
-            pretty_str("forgetting", self.forgetting),
-            pretty_str("x", self.x),
-            pretty_str("P", self.P),
-            pretty_str("R", self._R),
-            pretty_str("y", self.y),
-            pretty_str("S", self.S),
-            pretty_str("K", self.K),
-            pretty_str("failed_channels", self.failed_channels),
-        ])
+        shown, gap = _edges(self.n_channels)
+        if gap is None:
+            return "\n".join([
+                "RLSBank object",
+                pretty_str("n_channels", self.n_channels),
+                pretty_str("dim_x", self.dim_x),
+                pretty_str("lam", self._lam),
+                pretty_str("forgetting", self.forgetting),
+                pretty_str("x", self.x),
+                pretty_str("P", self.P),
+                pretty_str("R", self._R),
+                pretty_str("y", self.y),
+                pretty_str("S", self.S),
+                pretty_str("K", self.K),
+                pretty_str("failed_channels", self.failed_channels),
+            ])
+        # many channels: the first and last few, not every channel's matrices
+        lines = ["RLSBank object",
+                 pretty_str("n_channels", self.n_channels),
+                 pretty_str("dim_x", self.dim_x),
+                 pretty_str("forgetting", self.forgetting),
+                 pretty_str("n_updates", self.n_updates),
+                 pretty_str("failed_channels", _list(self.failed_channels)),
+                 f"x (first and last {len(shown) // 2} of {self.n_channels} channels):"]
+        x = self.x
+        for k, c in enumerate(shown):
+            if k == len(shown) // 2:
+                lines.append(f"  ... {gap} more channels ...")
+            lines.append(f"  [{c}] {np.array2string(x[c], precision=6)}")
+        return "\n".join(lines)
+
+    def _repr_html_(self):
+        return bank_html(self)   # Jupyter: settings, estimate +- std dev of the edge channels
 
     # ------------------------------------------------------------------
     # health of P

@@ -14,6 +14,7 @@ import warnings
 
 import numpy as np
 
+from .._display import ranking_html
 from .._resources import check_memory
 from .._scale import pow2_scale, safe_norm
 from .._serialize import jsonable
@@ -89,6 +90,19 @@ class OrderSelection:
     def __repr__(self):
         return (f"<OrderSelection: best (na, nb, nk) = {self.best} by {self.criterion} among "
                 f"{len(self.table)} candidates>")
+
+    def _repr_html_(self):
+        t = self.table
+        labels = [f"na={t['na'][i]} nb={_text(_orders(t['nb'][i]))} nk={_text(_orders(t['nk'][i]))}"
+                  for i in range(len(t))]
+        columns = [("n_params", t["n_params"]), ("loss", t["loss"])]
+        if not np.all(np.isnan(t["val_loss"])):
+            columns.append(("val_loss", t["val_loss"]))
+        if self.criterion != "loss":
+            columns.append((self.criterion, self.values))
+        columns.append(("stable", t["stable"]))
+        return ranking_html(type(self).__name__, self.criterion, labels, columns,
+                            self._rank_key)
 
     def best_model(self):
         """An ``ARX`` of the best structure fitted on the whole estimation record.

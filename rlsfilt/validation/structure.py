@@ -14,6 +14,7 @@ import math
 
 import numpy as np
 
+from .._display import ranking_html
 from .._serialize import jsonable
 from .._validation import check_int
 from ._model import one_step_records
@@ -62,6 +63,16 @@ class StructureSelection:
     def __repr__(self):
         return (f"<StructureSelection: best {type(self.best_model).__name__} {self.best} by "
                 f"{self.criterion} among {len(self.candidates)} candidates>")
+
+    def _repr_html_(self):
+        c = self.candidates
+        labels = [", ".join(f"{k}={v}" for k, v in ci["orders"].items()) for ci in c]
+        columns = [("n_params", [ci.get("n_params") for ci in c]),
+                   ("loss", [ci.get("loss") for ci in c]),
+                   (self.criterion, self.values)]
+        return ranking_html(f"{type(self).__name__} of {type(self.best_model).__name__}",
+                            self.criterion, labels, columns, self.values,
+                            errors=[ci.get("error") for ci in c])
 
     def summary(self, top=10):
         """Text table of the `top` candidates, best first.
