@@ -60,3 +60,23 @@ def test_errors(rng):
         select_structure(ARMA, None, y, {"nb": [1]})
     with pytest.raises(ValueError, match="no candidate structure could be fitted"):
         select_structure(ARMA, None, y[:5], {"na": [4], "nc": [4]})
+
+
+def test_structure_search_shows_progress_when_asked(capsys):
+    """#28: a search that fits many candidates can show a tqdm bar (``progress=True`` at once,
+    ``"auto"`` after a few seconds, False never); the result does not depend on it."""
+    pytest.importorskip("tqdm")
+    from scipy.signal import lfilter
+
+    from rlsfilt import OE, select_structure
+
+    rng = np.random.default_rng(5)
+    u = rng.standard_normal(300)
+    y = lfilter([0, 0.5], [1, -0.7], u) + 0.05 * rng.standard_normal(300)
+    grid = {"nb": [1, 2], "nf": [1], "nk": [1]}
+    quiet = select_structure(OE, u, y, grid, progress=False)
+    shown = select_structure(OE, u, y, grid, progress=True)
+    assert "select_structure(OE)" in capsys.readouterr().err
+    assert [c["orders"] for c in quiet.candidates] == [c["orders"] for c in shown.candidates]
+    with pytest.raises(ValueError, match="`progress`"):
+        select_structure(OE, u, y, grid, progress="yes")

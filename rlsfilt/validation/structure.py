@@ -15,6 +15,7 @@ import math
 import numpy as np
 
 from .._display import ranking_html
+from .._progress import LazyProgress
 from .._serialize import jsonable
 from .._validation import check_int
 from ._model import one_step_records
@@ -208,7 +209,7 @@ def _too_many(count, max_candidates, sizes=""):
 
 
 def select_structure(model_class, u, y=None, grid=None, *, criterion="bic", validation=None,
-                     dt=True, max_candidates=MAX_CANDIDATES, **fit_options):
+                     dt=True, max_candidates=MAX_CANDIDATES, progress="auto", **fit_options):
     r"""Fit every structure of a grid and rank them by a criterion of the prediction errors.
 
     Parameters
@@ -244,6 +245,10 @@ def select_structure(model_class, u, y=None, grid=None, *, criterion="bic", vali
         candidates it gives (each is an iterative prediction-error fit:
         10^4 of them take minutes to hours); pass a larger value to fit
         them all anyway.
+    progress : {"auto", True, False}, default "auto"
+        A tqdm progress bar over the candidates: ``"auto"`` shows one once
+        the search has run a few seconds (if tqdm is installed), True at
+        once, False never.
     **fit_options
         Passed to every ``fit`` (for example ``method="rpem"``).
 
@@ -292,8 +297,10 @@ def select_structure(model_class, u, y=None, grid=None, *, criterion="bic", vali
     validation = _validation_pair(validation)
     max_candidates = check_int(max_candidates, "max_candidates", minimum=1)
     combos = _grid(grid, max_candidates)
+    bar = LazyProgress(len(combos), progress, desc=f"select_structure({model_class.__name__})")
     candidates, values, models = [], [], []
     for orders in combos:
+        bar.tick()
         row = {"orders": dict(orders), "n_params": None, "loss": math.nan,
                "val_loss": math.nan, **{k: math.nan for k in _CRITERIA if k != "loss"},
                "error": None}
@@ -330,4 +337,5 @@ def select_structure(model_class, u, y=None, grid=None, *, criterion="bic", vali
             values.append(row["val_loss"] if validation is not None else row["loss"])
         else:
             values.append(row[criterion])
+    bar.close()
     return StructureSelection(candidates, criterion, values, models)
