@@ -79,12 +79,12 @@ References
 
 import contextlib
 import numbers
-import time
 import warnings
 
 import numpy as np
 
 from .._lazy_scipy import lfilter
+from .._progress import AFTER, LazyProgress
 from .._validation import check_int
 from ..exceptions import ConvergenceWarning
 from ._family import split_theta
@@ -370,8 +370,6 @@ def pem_records(records, s, theta0=None, *, ftol=1e-12, xtol=1e-12, gtol=1e-12,
     if max_time is not None and not (isinstance(max_time, numbers.Real) and max_time > 0):
         raise ValueError(f"`max_time` must be a positive number of seconds or None; got "
                          f"{max_time!r}")
-    if progress not in ("auto", True, False):
-        raise ValueError(f"`progress` must be 'auto', True or False; got {progress!r}")
     units = RecordUnits(records, s)
     scaled = units.scale_records(records)
     with _one_blas_thread():
@@ -406,7 +404,7 @@ def pem_records(records, s, theta0=None, *, ftol=1e-12, xtol=1e-12, gtol=1e-12,
 BOUNDARY_TOL = 1e-4
 
 #: ``progress="auto"`` shows a bar once a fit has run this many seconds.
-PROGRESS_AFTER = 3.0
+PROGRESS_AFTER = AFTER
 
 
 def _one_blas_thread():
@@ -428,40 +426,16 @@ class _Clock:
     """Time limit and (lazy) progress bar shared by the searches of one fit."""
 
     def __init__(self, max_time, progress, total):
-        self.t_start = time.monotonic()
         self.max_time = max_time
-        self.progress = progress
-        self.total = total
-        self.bar = None
-        self.count = 0
-        if progress is True:
-            self._open()
-
-    def _open(self):
-        try:
-            from tqdm.auto import tqdm
-        except ImportError:
-            if self.progress is True:
-                raise ImportError("`progress=True` needs tqdm: pip install tqdm") from None
-            self.progress = False
-            return
-        self.bar = tqdm(total=self.total, unit="eval", desc="pem", leave=False)
-        self.bar.update(self.count)
+        self.bar = LazyProgress(total, progress, desc="pem", after=PROGRESS_AFTER, unit="eval")
 
     def tick(self, cost):
         """One criterion evaluation; returns False once the time limit is reached."""
-        self.count += 1
-        elapsed = time.monotonic() - self.t_start
-        if self.bar is None and self.progress == "auto" and elapsed > PROGRESS_AFTER:
-            self._open()
-        if self.bar is not None:
-            self.bar.update(1)
-            self.bar.set_postfix(cost=f"{cost:.6g}", refresh=False)
+        elapsed = self.bar.tick(cost=f"{cost:.6g}")
         return self.max_time is None or elapsed < self.max_time
 
     def close(self):
-        if self.bar is not None:
-            self.bar.close()
+        self.bar.close()
 
 
 def _max_root(theta, s):
