@@ -4,7 +4,8 @@ Searches that fit many candidates (`select_structure`, and through it
 `select_order` for the model family) and the prediction-error fits (their
 criterion evaluations) say nothing while they are quick; once one has run
 `after` seconds, a tqdm bar shows how far it is. Without tqdm the loop runs
-silently, unless the caller asked for the bar (``progress=True``: an ImportError says how to get it).
+silently, unless the caller asked for the bar (``progress=True``: an
+ImportError says how to get it).
 """
 
 import time
