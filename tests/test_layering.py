@@ -20,7 +20,7 @@ LAYERS = [
     ("support", ["rlsfilt.exceptions", "rlsfilt._version", "rlsfilt._validation",
                  "rlsfilt._resources", "rlsfilt._display", "rlsfilt._scale", "rlsfilt._numba",
                  "rlsfilt._serialize", "rlsfilt._lazy_scipy", "rlsfilt._lazy", "rlsfilt._warmup",
-                 "rlsfilt._signature", "rlsfilt._progress",
+                 "rlsfilt._locking", "rlsfilt._progress",
                  "rlsfilt._iosystem", "rlsfilt.plotting", "rlsfilt.continuous", "rlsfilt.data",
                  "rlsfilt._atomic", "rlsfilt._model_file"]),
     ("filters", ["rlsfilt.filters"]),

@@ -25,7 +25,8 @@ import warnings
 import numpy as np
 
 from .._display import filter_html
-from .._signature import init_signature
+from .._locking import init_signature
+from .._locking import locked as _locked
 from .._validation import (
     VARIANCE_RANGE,
     as_float_array,
@@ -47,15 +48,6 @@ _TINY = float(np.finfo(float).tiny)
 MISSING_DIAGNOSTICS = (0.0, 1.0, math.nan)
 #: The diagnostics of the last update that `set_diagnostics` assigns.
 _DIAGNOSTICS = ("x_prior", "P_prior", "x_post", "P_post", "H", "K", "S", "SI", "z", "y")
-
-
-def _locked(method):
-    """`method` holding the filter's lock: a shared filter applies each call whole."""
-    @functools.wraps(method)
-    def locked(self, *args, **kwargs):
-        with self._lock:
-            return method(self, *args, **kwargs)
-    return locked
 
 
 class _FilterBase(Filter):

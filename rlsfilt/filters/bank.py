@@ -38,7 +38,8 @@ import numpy as np
 
 from .._display import _edges, bank_html, pretty_str
 from .._lazy import lazy_module
-from .._signature import init_signature
+from .._locking import init_signature
+from .._locking import locked as _locked
 from .._validation import (
     COVARIANCE_MAX,
     VARIANCE_RANGE,
@@ -82,15 +83,6 @@ def _atomic(method):
                 self.__dict__.clear()
                 self.__dict__.update(before)
                 raise
-    return run
-
-
-def _locked(method):
-    """`method` holding the bank's lock (its reads may settle a deferred predict)."""
-    @functools.wraps(method)
-    def run(self, *args, **kwargs):
-        with self._lock:
-            return method(self, *args, **kwargs)
     return run
 
 

@@ -38,8 +38,9 @@ filtering algorithm using an orthogonal projection to an affine subspace.
 import numpy as np
 
 from .._lazy import lazy_module
+from .._locking import locked as _locked
 from .._validation import check_bool, check_int, check_real, check_variance
-from ._base import _FilterBase, _locked
+from ._base import _FilterBase
 from .contract import check_state
 
 __all__ = ["LMS", "NLMS", "SignErrorLMS", "SignDataLMS", "SignSignLMS", "APA"]

@@ -19,6 +19,7 @@ import math
 import numpy as np
 
 from .._display import pretty_str
+from .._locking import locked as _locked
 from .._scale import safe_norm
 from .._validation import (
     as_float_array,
@@ -35,7 +36,7 @@ from . import _health, _streaming
 from . import forgetting as _fg
 from . import smoother as _smoother
 from . import tuning as _tuning
-from ._base import MISSING_DIAGNOSTICS, _FilterBase, _locked, own_array
+from ._base import MISSING_DIAGNOSTICS, _FilterBase, own_array
 from .contract import check_state
 
 __all__ = ["RecursiveLeastSquares"]

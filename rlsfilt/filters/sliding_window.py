@@ -3,6 +3,7 @@
 import numpy as np
 
 from .._display import pretty_str
+from .._locking import locked as _locked
 from .._validation import (
     check_covariance,
     check_dimension,
@@ -12,7 +13,7 @@ from .._validation import (
     check_variance,
 )
 from . import _health, _streaming
-from ._base import MISSING_DIAGNOSTICS, _FilterBase, _locked, own_array
+from ._base import MISSING_DIAGNOSTICS, _FilterBase, own_array
 from ._streaming import c_array
 from .contract import check_state
 

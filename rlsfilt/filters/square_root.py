@@ -5,6 +5,7 @@ import math
 import numpy as np
 
 from .._display import pretty_str
+from .._locking import locked as _locked
 from .._validation import (
     check_covariance,
     check_dimension,
@@ -15,7 +16,7 @@ from .._validation import (
 )
 from ..exceptions import ForgettingSkippedWarning
 from . import _health, _streaming
-from ._base import MISSING_DIAGNOSTICS, _FilterBase, _locked
+from ._base import MISSING_DIAGNOSTICS, _FilterBase
 from ._streaming import c_array
 from .contract import check_state
 

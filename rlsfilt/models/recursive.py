@@ -30,28 +30,18 @@ estimate hold its lock; copies and pickles get their own).
 """
 
 import copy
-import functools
 import numbers
 import threading
 
 import numpy as np
 
-from .._signature import init_signature
+from .._locking import init_signature
 from .._validation import as_float_array, check_finite
 from ._family import family_structure, param_names, split_theta
 from ._recursive_pem import RecursionState
 
 __all__ = ["RecursiveARMAX", "RecursiveOE", "RecursiveBJ", "RecursiveARX", "RecursiveAR",
            "RecursiveARMA"]
-
-
-def _locked(method):
-    """`method` holding the estimator's lock (one call at a time from threads)."""
-    @functools.wraps(method)
-    def run(self, *args, **kwargs):
-        with self._lock:
-            return method(self, *args, **kwargs)
-    return run
 
 
 class _Guarded:

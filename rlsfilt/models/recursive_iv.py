@@ -6,6 +6,7 @@ import warnings
 import numpy as np
 
 from .._lazy import lazy_module
+from .._locking import locked as _locked
 from .._validation import (
     as_float_array,
     check_covariance,
@@ -16,7 +17,7 @@ from .._validation import (
 )
 from ..exceptions import NumericalWarning
 from ._stability import reflect
-from .recursive import _Guarded, _locked, _scalar
+from .recursive import _Guarded, _scalar
 from .regressors import arx_structure
 
 __all__ = ["RecursiveIV"]
