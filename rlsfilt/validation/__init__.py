@@ -15,7 +15,7 @@ from .compare import Comparison, compare
 from .criteria import InformationCriteria, criteria_from_loss, information_criteria
 from .cusum import CusumResult, cusum, cusum_squares, recursive_residuals
 from .delay import DelayEstimate, delayest
-from .detection import ChangeDetector, cusum_threshold
+from .detection import ChangeDetector, cusum_threshold, glr_threshold
 from .impulse import ImpulseResponse, impulseest
 from .metrics import fit_percent
 from .plant import PlantComparison
@@ -52,6 +52,7 @@ __all__ = [
     "delayest",
     "fit_percent",
     "frequency_response_band",
+    "glr_threshold",
     "impulseest",
     "information_criteria",
     "parameter_intervals",
