@@ -11,6 +11,7 @@ python-control. Results are objects with named fields, ``summary()`` and
 ``plot()`` methods.
 """
 
+from .bank_detection import BankChangeDetector
 from .compare import Comparison, compare
 from .criteria import InformationCriteria, criteria_from_loss, information_criteria
 from .cusum import CusumResult, cusum, cusum_squares, recursive_residuals
@@ -31,6 +32,7 @@ from .uncertainty import (
 )
 
 __all__ = [
+    "BankChangeDetector",
     "ChangeDetector",
     "Comparison",
     "CusumResult",
