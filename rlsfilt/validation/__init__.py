@@ -22,6 +22,7 @@ from .metrics import fit_percent
 from .plant import PlantComparison
 from .report import ValidationReport, validate
 from .residuals import ResidualAnalysis, residual_analysis
+from .segmentation import Segmentation, segment
 from .selection import OrderSelection, select_order
 from .structure import StructureSelection, select_structure
 from .uncertainty import (
@@ -44,6 +45,7 @@ __all__ = [
     "ParameterIntervals",
     "PlantComparison",
     "ResidualAnalysis",
+    "Segmentation",
     "StructureSelection",
     "ValidationReport",
     "compare",
@@ -60,6 +62,7 @@ __all__ = [
     "parameter_intervals",
     "recursive_residuals",
     "residual_analysis",
+    "segment",
     "select_order",
     "select_structure",
     "validate",
