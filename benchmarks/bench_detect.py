@@ -8,6 +8,13 @@ round counts; times are thread CPU time (``time.thread_time``) with one BLAS thr
 overhead is ``(with detector - without) / without``, printed for CUSUM, Page-Hinkley
 and the GLR at several windows (its step is O(C M)).
 
+Measured on the development machine (2 shared cores, C = 1000, dim_x = 3; best of 5 rounds,
+about +-3 % from run to run): a bank step 34.5 us; with CUSUM 15 %, Page-Hinkley 16 %,
+GLR 20 % (M = 10 and 30) and 25 % (M = 100) more. About 1 us of each is the Python call,
+the CUSUM's kernel about 4 us (a sqrt and a division per channel); the GLR's exact pruning
+(one CUSUM bound per piece of window lengths, see ``_kernels_detection.py``) keeps it from
+the O(C M) of a full scan (before it: 230 % at M = 10, 1000 % at M = 100).
+
 Usage::
 
     PYTHONPATH=. python benchmarks/bench_detect.py            # C = 1000, 2000 samples, 5 rounds

@@ -129,3 +129,23 @@ def test_lambda_hold_of_a_bank_ends_on_reset():
     assert bank.lam.tolist() == [0.5, 0.98, 0.5]
     det.reset()
     assert bank.lam.tolist() == [0.99, 0.98, 0.97]
+
+
+@pytest.mark.parametrize("window", [1, 7, 64, 100])
+def test_glr_pruned_decisions_equal_full_scans(rng, window):
+    """The bank's GLR scans only the channels its CUSUM bounds flag: on many channels
+    with shifts of every size the alarms are those of detectors that scan every window."""
+    C, N = 150, 400
+    e = rng.standard_normal((N, C))
+    e[200:] += np.linspace(-2.0, 2.0, C)                  # shifts from -2 to 2 sd
+    e[rng.random((N, C)) < 0.02] = np.nan
+    det = BankChangeDetector(C, "glr", arl=300.0, window=window)
+    alarms = det.run(e, np.ones((N, C)))
+    singles = [ChangeDetector("glr", arl=300.0, window=window) for _ in range(C)]
+    for c in range(C):
+        for k in range(N):
+            assert singles[c].update(e[k, c], 1.0) == alarms[k, c]
+    assert [d.alarms for d in singles] == det.alarms
+    assert_array_equal(det.g_plus, [d.g_plus for d in singles])
+    assert_array_equal(det.g_minus, [d.g_minus for d in singles])
+    assert alarms.sum() > C // 2

@@ -94,7 +94,7 @@ class BankChangeDetector:
         (self.method, self.threshold, self.drift, self.window, self.action, self.boost,
          self.alarm_lam, self.hold) = _settings(method, arl, shift, window, threshold, action,
                                                 boost, alarm_lam, hold)
-        self._code = _METHOD_CODES[self.method]
+        self._params = np.array([_METHOD_CODES[self.method], self.drift, self.threshold])
         self._half_inverse = 0.5 / np.arange(1.0, self.window + 1.0)       # 1 / (2 L)
         self._held = None
         self.reset()
@@ -107,33 +107,44 @@ class BankChangeDetector:
             bank, own, left = self._held
             bank.lam = np.where(left > 0, own, bank.lam)
         self._held = None
-        C = self.n_channels
-        self._fstate = np.zeros((C, 4))
-        self._istate = np.zeros((C, 3), dtype=np.int64)
-        self._istate[:, 1] = -1
-        self._recent = np.zeros((C, self.window if self.method == "glr" else 1))
+        C, glr = self.n_channels, self.method == "glr"
+        self._fstate = np.zeros((4, C))
+        self._istate = np.zeros((3, C), dtype=np.int64)
+        self._istate[1] = -1
+        self._recent = np.zeros((C, 2 * self.window if glr else 2))
+        self._pieces = (_kernels().glr_pieces(self.threshold, self.window) if glr
+                        else np.zeros((2, 1)))
+        self._bounds = np.zeros((2, self._pieces.shape[1], C if glr else 1))
         self.alarms = [[] for _ in range(C)]
         self.n_steps = 0
 
+    def _statistics(self):
+        if self.method != "glr":
+            return self._fstate[:2].copy()
+        out = np.empty((2, self.n_channels))
+        _kernels().glr_statistics(self._istate, self._recent, self._half_inverse, out)
+        return out
+
     @property
     def g_plus(self):
-        """:math:`g^+` of every channel, shape (C,) (a copy)."""
-        return self._fstate[:, 0].copy()
+        """:math:`g^+` of every channel, shape (C,) (for the GLR computed from its
+        window when read)."""
+        return self._statistics()[0]
 
     @property
     def g_minus(self):
-        """:math:`g^-` of every channel, shape (C,) (a copy)."""
-        return self._fstate[:, 1].copy()
+        """:math:`g^-` of every channel, shape (C,)."""
+        return self._statistics()[1]
 
     @property
     def statistic(self):
         """``max(g_plus, g_minus)`` of every channel, shape (C,)."""
-        return np.maximum(self._fstate[:, 0], self._fstate[:, 1])
+        return self._statistics().max(axis=0)
 
     @property
     def n_samples(self):
         """Innovations seen by each channel since :meth:`reset`, shape (C,)."""
-        return self._istate[:, 0].copy()
+        return self._istate[0].copy()
 
     def update(self, y, S):
         """Feed one innovation per channel with its variance; return the alarms.
@@ -150,22 +161,22 @@ class BankChangeDetector:
             Which channels alarmed.
         """
         C = self.n_channels
-        y = np.ascontiguousarray(as_float_array(y, "y"), dtype=np.float64)
-        S = np.ascontiguousarray(as_float_array(S, "S"), dtype=np.float64)
+        y, S = _vector(y, "y", C), _vector(S, "S", C)
         if y.shape != (C,) or S.shape != (C,):
             raise ValueError(f"`y` and `S` must have shape ({C},) (one per channel); got "
                              f"{y.shape} and {S.shape}")
         alarm = np.empty(C, dtype=np.bool_)
-        n = _kernels().bank_detect(y, S, self._code, self.drift, self.threshold,
-                                   self._fstate, self._istate, self._recent,
-                                   self._half_inverse, alarm)
+        n = _kernels().bank_detect(y, S, self._params, self._fstate, self._istate,
+                                   self._recent, self._half_inverse, self._bounds,
+                                   self._pieces, alarm)
         if n < 0:
             c = -n - 1
             raise ValueError(f"`S` must be a positive finite variance; got {S[c]} for "
                              f"channel {c}")
         self.n_steps += 1
+        self._n_new = n
         if n:
-            seen = self._istate[:, 0]
+            seen = self._istate[0]
             for c in np.flatnonzero(alarm):
                 self.alarms[c].append(int(seen[c]) - 1)
         return alarm
@@ -182,7 +193,7 @@ class BankChangeDetector:
                 held_bank.lam = np.where(ending, own, held_bank.lam)
             self._held = (held_bank, own, left) if (left > 0).any() else None
         alarm = self.update(bank.y, bank.S)
-        if not alarm.any() or self.action == "none":
+        if not self._n_new or self.action == "none":
             return alarm
         if self.action == "reset":
             bank.reset(alarm)
@@ -218,3 +229,11 @@ class BankChangeDetector:
         return (f"<BankChangeDetector {self.method}: {self.n_channels} channels, "
                 f"h={self.threshold:.4g}{k}, {sum(map(len, self.alarms))} alarm(s) "
                 f"in {self.n_steps} steps>")
+
+
+def _vector(value, name, C):
+    """`value` as a contiguous float64 array (the bank's own ``y``, ``S`` as they are)."""
+    if (type(value) is np.ndarray and value.dtype == np.float64 and value.shape == (C,)
+            and value.flags.c_contiguous):
+        return value
+    return np.ascontiguousarray(as_float_array(value, name), dtype=np.float64)
