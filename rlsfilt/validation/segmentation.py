@@ -33,6 +33,7 @@ probability ``q``) is minimized exactly, offline. AR and ARX structures
 least-squares losses: fit a higher-order ARX instead).
 """
 
+import html
 import math
 
 import numpy as np
@@ -113,6 +114,10 @@ class Segmentation:
             par = ", ".join(f"{v:.4g} ± {e:.2g}" for v, e in zip(th, s, strict=True))
             lines.append(f"  samples {a:6d} .. {b - 1:6d}: [{par}]")
         return "\n".join(lines)
+
+    def _repr_html_(self):
+        """The :meth:`summary` for Jupyter."""
+        return f"<pre>{html.escape(self.summary())}</pre>"
 
     def __repr__(self):
         return (f"<Segmentation: {self.n_segments} segment(s), changes at "
