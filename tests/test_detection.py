@@ -87,7 +87,7 @@ def simulated_glr_run_length(h, window, rng, paths=2000):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize(("arl", "window"), [(200.0, 20), (500.0, 100)])
+@pytest.mark.parametrize(("arl", "window"), [(200.0, 20), (500.0, 50)])
 def test_glr_threshold_gives_the_run_length_by_simulation(rng, arl, window):
     """Siegmund & Venkatraman's approximation, solved for h: the simulated run length
     is within 10 % of the wanted one."""

@@ -159,7 +159,7 @@ def glr_threshold(arl, window=100):
     \varphi(x/2))`, and the window lengths :math:`1, \dots, M` taken as
     the interval :math:`[1/2, M + 1/2]` (midpoint rule). Solved for
     :math:`h`. Simulation (``tests/test_detection.py``) puts the true run
-    length within about 10 % of `arl` for windows of 20 to 200 samples, on the
+    length within about 10 % of `arl` for windows of 10 to 100 samples, on the
     long side for windows of 50 and more.
 
     References
