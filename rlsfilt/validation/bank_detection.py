@@ -185,6 +185,7 @@ class BankChangeDetector:
         """:meth:`update` with ``bank.y`` and ``bank.S`` (call it after each
         ``bank.update``), and apply the action to the alarmed channels; returns
         the alarms, shape (C,)."""
+        alarm = self.update(bank.y, bank.S)              # (first: a bad S changes nothing)
         if self._held is not None:                       # the holds count every sample
             held_bank, own, left = self._held
             left = left - 1
@@ -192,7 +193,6 @@ class BankChangeDetector:
             if ending.any():
                 held_bank.lam = np.where(ending, own, held_bank.lam)
             self._held = (held_bank, own, left) if (left > 0).any() else None
-        alarm = self.update(bank.y, bank.S)
         if not self._n_new or self.action == "none":
             return alarm
         if self.action == "reset":

@@ -363,12 +363,12 @@ class ChangeDetector:
         if self.action == "lambda" and not hasattr(filt, "lam"):
             raise TypeError(f'action="lambda" needs a filter with a forgetting factor `lam`; '
                             f"got {type(filt).__name__}")
+        alarm = self.update(filt.y, filt.S)          # (first: a bad S changes nothing)
         if self._held is not None:                   # the hold counts every sample
             held_filt, lam, left = self._held
             self._held = (held_filt, lam, left - 1) if left > 1 else None
             if left == 1:
                 held_filt.lam = lam
-        alarm = self.update(filt.y, filt.S)
         if alarm and self.action == "reset":
             filt.reset()
         elif alarm and self.action == "boost":
