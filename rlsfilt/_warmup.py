@@ -31,6 +31,7 @@ _COLD_SECONDS = {
     "rlsfilt.filters._kernels_window": 10,
     "rlsfilt.filters._kernels_bank": 15,
     "rlsfilt.models._recursive_kernels": 10,
+    "rlsfilt.validation._kernels_detection": 5,
 }
 
 _announced = []
@@ -105,6 +106,13 @@ r.step(float(y[0]), float(u[0]))
                      "r.batch(y, u)\nr.step(float(y[0]), float(u[0]))"),
     ("RecursiveAR", "rlsfilt.RecursiveAR(2).batch(y)"),
     ("RecursiveARMA", "rlsfilt.RecursiveARMA(2, 1).batch(y)"),
+    ("BankChangeDetector", """
+from rlsfilt.validation import BankChangeDetector
+for method in ("cusum", "glr"):
+    det = BankChangeDetector(4, method, window=8)
+    det.update(np.ones(4), np.ones(4))
+    det.g_plus
+"""),
 )
 
 

@@ -61,6 +61,7 @@ __all__ = [
     "plot_order_selection",
     "plot_impulse",
     "plot_cusum",
+    "plot_segmentation",
     "plot_report",
     "plot_str_history",
 ]
@@ -1130,6 +1131,63 @@ def plot_cusum(result, ax=None, *, t=None, xlabel=None):
     ax.set_ylabel("$W_t$" if result.kind == "cusum" else "$S_t$")
     ax.set_title(f"{name}: constancy " + ("REJECTED" if result.rejected else "not rejected")
                  + f" at {100 * result.alpha:g}%")
+    _legend_outside(ax)
+    return ax
+
+
+def plot_segmentation(segmentation, ax=None, *, names=None, true_values=None):
+    r"""Piecewise-constant parameters of a segmentation, with its change times.
+
+    Parameters
+    ----------
+    segmentation : Segmentation
+        What :func:`~rlsfilt.validation.segment` returned.
+    ax : matplotlib.axes.Axes, optional
+        Axes to draw in; a new figure is made if omitted.
+    names : sequence of str, optional
+        Parameter names (:math:`\theta_1, \dots` by default).
+    true_values : array_like, shape (N, n_params), optional
+        True parameters per sample, drawn dashed.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from rlsfilt.validation import segment
+    >>> from rlsfilt.plotting import plot_segmentation
+    >>> rng = np.random.default_rng(0)
+    >>> y = np.r_[rng.standard_normal(100), 2 + rng.standard_normal(100)]
+    >>> seg = segment(y[1:], np.ones(199), na=0, nb=1, nk=0, R2=1.0)
+    >>> ax = plot_segmentation(seg)
+    >>> len(ax.lines)
+    2
+    """
+    ax = _axes(ax)
+    theta = np.asarray(segmentation.theta, dtype=float)
+    n = theta.shape[1]
+    names = _names(names, None, n)
+    for i in range(n):
+        xs, ys = [], []
+        for (a, b), th in zip(segmentation.segments, theta, strict=True):
+            xs += [a, b - 1, np.nan]
+            ys += [th[i], th[i], np.nan]
+        ax.plot(xs, ys, color=COLORS[i % len(COLORS)], lw=1.6, label=names[i])
+    if true_values is not None:
+        tv = as_float_array(true_values, "true_values")
+        if tv.ndim != 2 or tv.shape[1] != n:
+            raise ValueError(f"`true_values` must have shape (N, {n}); got {tv.shape}")
+        for i in range(n):
+            ax.plot(np.arange(len(tv)), tv[:, i], color=COLORS[i % len(COLORS)], lw=1.0,
+                    linestyle="--")
+    for k, t in enumerate(segmentation.change_times):
+        ax.axvline(t, color=_GREY, lw=1.0, linestyle=":",
+                   label="change" if k == 0 else None)
+    ax.set_xlabel("sample $t$")
+    ax.set_ylabel("parameters")
+    ax.set_title(f"{segmentation.n_segments} segment(s)")
     _legend_outside(ax)
     return ax
 

@@ -9,9 +9,9 @@ from numpy.testing import assert_allclose
 from scipy.stats import binomtest
 
 from rlsfilt import RecursiveLeastSquares
-from rlsfilt.validation import ChangeDetector, cusum_threshold
+from rlsfilt.validation import ChangeDetector, cusum_threshold, glr_threshold
 
-METHODS = ["cusum", "page_hinkley"]
+METHODS = ["cusum", "page_hinkley", "glr"]
 
 
 def simulated_run_length(h, k, page_hinkley, rng, paths=3000):
@@ -49,7 +49,7 @@ def test_threshold_closed_form_and_validation():
     with pytest.raises(ValueError, match="`shift` must be a positive"):
         cusum_threshold(100.0, -1.0)
     with pytest.raises(ValueError, match="`method` must be one of"):
-        ChangeDetector("glr")
+        ChangeDetector("glrt")
     with pytest.raises(ValueError, match="`action` must be one of"):
         ChangeDetector(action="restart")
     with pytest.raises(ValueError, match="`boost` must be"):
@@ -59,6 +59,85 @@ def test_threshold_closed_form_and_validation():
     with pytest.raises(ValueError, match="`S` must be a positive"):
         ChangeDetector().update(1.0, 0.0)
     assert ChangeDetector(threshold=3.0).threshold == 3.0
+    with pytest.raises(ValueError, match="`window` must be an integer >= 1; got 0"):
+        ChangeDetector("glr", window=0)
+    with pytest.raises(ValueError, match="`alarm_lam` must be in"):
+        ChangeDetector(action="lambda", alarm_lam=1.5)
+    with pytest.raises(ValueError, match="`hold` must be an integer"):
+        ChangeDetector(action="lambda", hold=0)
+    assert ChangeDetector("glr", arl=500.0, window=50).threshold == glr_threshold(500.0, 50)
+
+
+def simulated_glr_run_length(h, window, rng, paths=2000):
+    """Mean run length of the two-sided window-limited GLR on N(0, 1) data (the
+    statistic written out from its definition, all paths at once)."""
+    recent = np.zeros((window, paths))
+    done, length, t = np.zeros(paths, bool), np.zeros(paths), 0
+    inv = 1.0 / (2.0 * np.arange(1, window + 1))
+    while not done.all():
+        t += 1
+        recent = np.roll(recent, 1, axis=0)
+        recent[0] = rng.standard_normal(paths)
+        n = min(t, window)
+        sums = np.cumsum(recent[:n], axis=0)
+        g = np.max(sums * sums * inv[:n, None], axis=0)
+        new = ~done & (g > h)
+        length[new], done = t, done | new
+    return length.mean(), length.std() / math.sqrt(paths)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("arl", "window"), [(200.0, 20), (500.0, 50)])
+def test_glr_threshold_gives_the_run_length_by_simulation(rng, arl, window):
+    """Siegmund & Venkatraman's approximation, solved for h: the simulated run length
+    is within 10 % of the wanted one."""
+    h = glr_threshold(arl, window)
+    mean, se = simulated_glr_run_length(h, window, rng)
+    assert abs(mean - arl) < 0.1 * arl + 3 * se, (mean, se)
+
+
+def test_glr_threshold_closed_form():
+    """The threshold solves 1/arl = b phi(b) int_{b/sqrt(M + 1/2)}^{b/sqrt(1/2)} x nu(x)^2 dx,
+    b = sqrt(2 h), with Siegmund's nu (written out here, integrated by scipy)."""
+    from scipy.integrate import quad
+    from scipy.stats import norm
+
+    def nu(x):
+        return (2 / x) * (norm.cdf(x / 2) - 0.5) / ((x / 2) * norm.cdf(x / 2) + norm.pdf(x / 2))
+
+    for arl, M in [(1000.0, 100), (300.0, 10), (1e5, 1)]:
+        b = math.sqrt(2 * glr_threshold(arl, M))
+        integral = quad(lambda x: x * nu(x) ** 2, b / math.sqrt(M + 0.5), b / math.sqrt(0.5),
+                        epsabs=0, epsrel=1e-12)[0]
+        assert_allclose(1 / (b * norm.pdf(b) * integral), arl, rtol=1e-9)
+    # a longer window: more chances of a false alarm, a higher threshold
+    assert glr_threshold(1000.0, 200) > glr_threshold(1000.0, 100) > glr_threshold(1000.0, 10)
+    with pytest.raises(ValueError, match="`arl` must be a finite number > 1"):
+        glr_threshold(1.0)
+    with pytest.raises(ValueError, match="`window` must be an integer"):
+        glr_threshold(100.0, 2.5)
+
+
+def test_glr_statistic_is_its_definition(rng):
+    """g+ and g- at every step are max over the last M windows of S^2 / (2 L), split by the
+    sign of S, recomputed from scratch; the window restarts after an alarm."""
+    e = rng.standard_normal(400)
+    e[200:] += 1.5
+    det = ChangeDetector("glr", window=30, arl=1000.0)
+    start = 0
+    for t in range(len(e)):
+        alarm = det.update(e[t], 1.0)
+        if alarm:
+            assert det.g_plus == det.g_minus == 0.0
+            start = t + 1
+            continue
+        gp = gm = 0.0
+        for j in range(max(start, t - 29), t + 1):
+            s = e[j:t + 1].sum()
+            g = s * s / (2 * (t - j + 1))
+            gp, gm = (max(gp, g), gm) if s > 0 else (gp, max(gm, g))
+        assert_allclose([det.g_plus, det.g_minus], [gp, gm], rtol=1e-12, atol=1e-14)
+    assert det.alarms and 200 <= det.alarms[0] <= 215
 
 
 @pytest.mark.parametrize("method", METHODS)
@@ -67,7 +146,7 @@ def test_false_alarm_rate_on_a_filter_within_nominal(method):
     are N(0, 1), and the alarms per sample are not more frequent than 1 / arl (binomial
     test at 1 %, over 40,000 samples)."""
     arl, alarms, samples = 200.0, 0, 0
-    for seed in range(20):
+    for seed in range(20 if method != "glr" else 10):
         rng = np.random.default_rng(500 + seed)
         H = np.column_stack([np.ones(2000), rng.standard_normal(2000)])
         z = H @ [1.0, 0.5] + 0.1 * rng.standard_normal(2000)
@@ -79,6 +158,42 @@ def test_false_alarm_rate_on_a_filter_within_nominal(method):
         alarms, samples = alarms + len(det.alarms), samples + det.n_samples
     assert binomtest(alarms, samples, 1.0 / arl, alternative="greater").pvalue > 0.01
     assert alarms > 0.5 * samples / arl            # and not a detector that never alarms
+
+
+def test_temporary_lambda_holds_then_restores_the_filters_own():
+    """action="lambda": the `hold` updates after an alarm run with `alarm_lam` (each
+    equal to a filter given that lam), then the filter's own lam is back."""
+    H, z = piecewise_plant(6)
+    rls = RecursiveLeastSquares(2, lam=0.995, R=0.01)
+    det = ChangeDetector(arl=10_000, shift=2.0, action="lambda", alarm_lam=0.8, hold=5)
+    lams = []
+    for k in range(len(z)):
+        rls.predict_update(z[k], H[k])
+        lams.append(rls.lam)
+        det.step(rls)
+    first = det.alarms[0]
+    assert 300 <= first <= 310
+    lams = np.array(lams)
+    held = np.zeros(len(z), bool)                 # the 5 samples after each alarm
+    for a in det.alarms:
+        held[a + 1:a + 6] = True
+    assert_allclose(lams, np.where(held, 0.8, 0.995), rtol=0, atol=0)
+    assert held.sum() >= 10                        # (two alarms at least)
+    # the hold is exactly a filter whose lam is 0.8 for those samples
+    ref = RecursiveLeastSquares(2, lam=0.995, R=0.01)
+    for k in range(len(z)):
+        ref.lam = lams[k]
+        ref.predict_update(z[k], H[k])
+    assert_allclose(ref.x, rls.x, rtol=0, atol=0)
+    # reset() of the detector ends a hold in force
+    rls2 = RecursiveLeastSquares(2, lam=0.99, R=0.01)
+    det2 = ChangeDetector("glr", threshold=1e-9, action="lambda", alarm_lam=0.7, hold=50)
+    rls2.predict_update(1.0, [1.0, 0.0])
+    assert det2.step(rls2) and rls2.lam == 0.7
+    det2.reset()
+    assert rls2.lam == 0.99
+    with pytest.raises(TypeError, match='action="lambda" needs a filter'):
+        ChangeDetector(action="lambda").step(object())
 
 
 def piecewise_plant(seed, N=900):

@@ -448,8 +448,13 @@ class RLSBank:
     def P(self, value):
         P = np.array(as_float_array(value, "P"), dtype=np.float64, order="F")
         self._settle_pending()
+        old = self._P
+        # the windup cap decides again from the new P, in the channels whose P changed
+        # (as assigning P to each channel's own filter would)
+        changed = (np.any(old != P, axis=(1, 2)) if old.shape == P.shape == (
+            self.n_channels, self.dim_x, self.dim_x) else None)
         self._P, self._P_out = P, False
-        self._uncap()                        # the windup cap decides again from the new P
+        self._uncap(changed)
 
     # ------------------------------------------------------------------
     # the deferred time update and the lazy copies (see the module docstring)
@@ -1005,11 +1010,24 @@ class RLSBank:
         return new
 
     @_locked
-    def reset(self):
-        """Return every channel to ``x0``, ``P0``; diagnostics and counters are cleared.
+    def reset(self, channels=None):
+        """Return every channel (or the given ones) to ``x0``, ``P0``.
 
         ``lam``, ``R``, ``Q`` and the forgetting mode are kept.
+
+        Parameters
+        ----------
+        channels : array_like of int or bool, optional
+            The channels to reset: indices, or a mask of shape ``(C,)``. By
+            default all, and the diagnostics and counters are cleared too;
+            given, only those channels' ``x``, ``P``, ``lam_t``, ``n_capped``
+            and windup cap are reset, each as its own filter's
+            ``RecursiveLeastSquares.reset()`` would (the other channels, the
+            last step's diagnostics and ``n_updates`` are kept).
         """
+        if channels is not None:
+            self._reset_channels(channels)
+            return
         C, n = self.n_channels, self.dim_x
         self._pending = None
         self._x = self._x0.copy(order="F")
@@ -1032,11 +1050,45 @@ class RLSBank:
         self._warned_skip = False
         self._fresh = True
 
-    def _uncap(self):
+    def _reset_channels(self, channels):
+        """`reset` of the `channels` only (see there)."""
+        C = self.n_channels
+        idx = np.asarray(channels)
+        if idx.dtype == bool:
+            if idx.shape != (C,):
+                raise ValueError(f"`channels` as a mask must have shape ({C},); got "
+                                 f"{idx.shape}")
+            idx = np.flatnonzero(idx)
+        elif idx.size == 0:
+            idx = idx.astype(np.int64).reshape(-1)
+        elif not np.issubdtype(idx.dtype, np.integer):
+            raise TypeError(f"`channels` must be channel indices or a boolean mask; got "
+                            f"an array of {idx.dtype}")
+        idx = idx.reshape(-1)
+        if idx.size and (idx.min() < -C or idx.max() >= C):
+            raise ValueError(f"`channels` must be in [-{C}, {C}); got {idx.min()} .. "
+                             f"{idx.max()}")
+        self._settle_pending()
+        x, P = self._x.copy(order="F"), self._P.copy(order="F")     # (never write in place:
+        x[idx], P[idx] = self._x0[idx], self._P0[idx]               #  lazy copies share them)
+        self._x, self._P, self._x_out, self._P_out = x, P, False, False
+        lam_t, n_capped = self.lam_t.copy(), self.n_capped.copy()
+        lam_t[idx], n_capped[idx] = self._lam[idx], 0
+        self.lam_t, self.n_capped = lam_t, n_capped
+        mask = np.zeros(C, dtype=bool)
+        mask[idx] = True
+        self._uncap(mask)
+
+    def _uncap(self, channels=None):
         """The windup cap decides afresh from the next update (a new ``P``), as
-        `RecursiveLeastSquares` does after ``initialize`` or an assigned ``P``."""
-        self._cap = np.zeros(self.n_channels, dtype=bool)
-        self._w = np.ones(self.n_channels)
+        `RecursiveLeastSquares` does after ``initialize`` or an assigned ``P``: in
+        every channel, or in those of the mask `channels`."""
+        if channels is None:
+            self._cap = np.zeros(self.n_channels, dtype=bool)
+            self._w = np.ones(self.n_channels)
+            return
+        self._cap = np.where(channels, False, self._cap)
+        self._w = np.where(channels, 1.0, self._w)
 
     def copy(self):
         """An independent deep copy of the bank."""

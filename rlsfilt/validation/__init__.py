@@ -11,16 +11,18 @@ python-control. Results are objects with named fields, ``summary()`` and
 ``plot()`` methods.
 """
 
+from .bank_detection import BankChangeDetector
 from .compare import Comparison, compare
 from .criteria import InformationCriteria, criteria_from_loss, information_criteria
 from .cusum import CusumResult, cusum, cusum_squares, recursive_residuals
 from .delay import DelayEstimate, delayest
-from .detection import ChangeDetector, cusum_threshold
+from .detection import ChangeDetector, cusum_threshold, glr_threshold
 from .impulse import ImpulseResponse, impulseest
 from .metrics import fit_percent
 from .plant import PlantComparison
 from .report import ValidationReport, validate
 from .residuals import ResidualAnalysis, residual_analysis
+from .segmentation import Segmentation, segment
 from .selection import OrderSelection, select_order
 from .structure import StructureSelection, select_structure
 from .uncertainty import (
@@ -31,6 +33,7 @@ from .uncertainty import (
 )
 
 __all__ = [
+    "BankChangeDetector",
     "ChangeDetector",
     "Comparison",
     "CusumResult",
@@ -42,6 +45,7 @@ __all__ = [
     "ParameterIntervals",
     "PlantComparison",
     "ResidualAnalysis",
+    "Segmentation",
     "StructureSelection",
     "ValidationReport",
     "compare",
@@ -52,11 +56,13 @@ __all__ = [
     "delayest",
     "fit_percent",
     "frequency_response_band",
+    "glr_threshold",
     "impulseest",
     "information_criteria",
     "parameter_intervals",
     "recursive_residuals",
     "residual_analysis",
+    "segment",
     "select_order",
     "select_structure",
     "validate",
