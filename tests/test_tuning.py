@@ -211,7 +211,7 @@ def test_true_q_inside_its_interval_in_90_percent_of_200_seeds():
 def test_compiled_terms_equal_the_innovations_of_batch_filter(rng):
     """The likelihood kernel runs the filter's recursion: its sums equal those of
     batch_filter's innovations y_t = z_t - H_t x^-_t, s_t = H_t P^-_t H_t^T + 1."""
-    from rlsfilt.filters._kernels_tuning import profile_terms
+    from rlsfilt.filters._kernels_tuning import profile_derivs
 
     H, z = drifting_record(rng, N=500)
     z[[7, 99]] = np.nan
@@ -226,7 +226,11 @@ def test_compiled_terms_equal_the_innovations_of_batch_filter(rng):
         s = np.einsum("ki,kij,kj->k", H, Pp, H) + 1.0
         keep = ~np.isnan(y).any(axis=1)
         keep[:4] = False
-        slog, sq, count = profile_terms(x0, 20.0 * np.eye(3), Z, H, 1.0 / lam, Q, 4)
+        k0 = np.zeros((0, 3, 3))
+        slog, sq, count, *_ = profile_derivs(x0, 20.0 * np.eye(3), Z, H,
+                                             np.full((3, 3), 1.0 / lam), Q, k0, k0,
+                                             np.zeros((0, 0, 3, 3)), np.zeros((0, 0, 3, 3)),
+                                             4, 0)
         assert count == keep.sum() * m
         assert_allclose(slog, np.log(s[keep]).sum(), rtol=1e-12)
         assert_allclose(sq, np.sum(y[keep] ** 2 / s[keep, None]), rtol=1e-12)
@@ -257,3 +261,39 @@ def test_bank_channels_equal_single_filters(rng, param):
         assert_allclose(bank.Q[1], fits.estimate[1] * fits.R[1] * np.eye(n), rtol=1e-15)
     else:
         assert_allclose(bank.lam, fits.estimate, rtol=0)
+
+
+@pytest.mark.parametrize("param, v", [("q", [-4.0]), ("lam", [0.97]),
+                                      ("q_diag", [-5.0, -3.0, -4.0]),
+                                      ("lam_diag", [0.95, 0.99, 0.9])])
+def test_sensitivity_derivatives_equal_finite_differences(rng, param, v):
+    """The gradient and the Hessian of the profile log-likelihood that the compiled
+    sensitivity recursions return, against central differences of the likelihood
+    (rtol 1e-6; Richardson-extrapolated differences), with missing samples, a burn-in
+    and two outputs."""
+    from rlsfilt.filters.tuning import _model, _profile
+
+    H, z = drifting_record(rng, N=400)
+    z[[11, 200]] = np.nan
+    Z = np.column_stack([z, 0.3 * z + 0.1 * rng.standard_normal(400)])
+    x0, P0, Q_rel = np.zeros((3, 2)), 30.0 * np.eye(3), 1e-3 * np.eye(3)
+    v = np.array(v)
+
+    def run(w, order):
+        return _profile(x0, P0, Z, H, _model(param, w, 3, 0.98, Q_rel), 2, 2, order)
+
+    def richardson(f, h):                # central difference, error O(h^4)
+        d1, d2 = (f(h) - f(-h)) / (2 * h), (f(h / 2) - f(-h / 2)) / h
+        return (4 * d2 - d1) / 3
+
+    ll, _, _, grad, hess = run(v, 2)
+    assert run(v, 1)[0] == ll
+    assert_allclose(run(v, 1)[3], grad, rtol=1e-14)
+    h = 1e-3 if param.startswith("q") else 1e-4
+    for a in range(len(v)):
+        e = np.zeros(len(v))
+        e[a] = 1.0
+        assert_allclose(richardson(lambda t: run(v + t * e, 0)[0], h), grad[a], rtol=1e-6,
+                        atol=1e-9 * abs(ll))
+        assert_allclose(richardson(lambda t: run(v + t * e, 1)[3], h), hess[a], rtol=1e-6,
+                        atol=1e-9 * abs(ll))

@@ -21,10 +21,13 @@ and the profile log-likelihood of the remaining parameter is
     \ell_p = -\tfrac12 \left(N (\log 2\pi + \log \hat\sigma^2 + 1) + \sum_t \log s_t\right).
 
 `tune` maximizes it over the forgetting factor :math:`\lambda`, a scalar random
-walk :math:`Q = q \sigma^2 I` or a diagonal one, by a bounded search on a
-transformed parameter (the likelihood at one value is evaluated exactly by
-one ``batch_filter`` run), and takes standard errors from the observed
-information (the numerical second derivative of :math:`\ell_p`).
+walk :math:`Q = q \sigma^2 I` or a diagonal one, on a transformed parameter
+(:math:`\log(1 - \lambda)`, :math:`\log q`). Each pass over the record is one
+compiled run of the filter's recursion that carries the sensitivities
+:math:`\partial x_t, \partial P_t` (and their second derivatives) along, so it
+returns the exact gradient and Hessian of :math:`\ell_p` with its value: a
+handful of passes find the maximum, and the standard errors come from the
+exact observed information :math:`-\partial^2 \ell_p`.
 """
 
 import math
@@ -39,7 +42,7 @@ __all__ = ["BankTuneResult", "TuneResult", "tune", "tune_bank"]
 _LOG_2PI = math.log(2.0 * math.pi)
 _PARAMS = ("lam", "q", "q_diag")
 _kernels = lazy_module("rlsfilt.filters._kernels_tuning")
-_H = 1e-3            # step of the numerical second derivative in the search variable
+_LAM_GAP = 1e-12     # lam = 1 is searched as 1 - lam = 1e-12 (u = log(1 - lam) finite)
 
 
 class TuneResult:
@@ -54,8 +57,9 @@ class TuneResult:
         entries for ``"q_diag"``).
     stderr : float or ndarray
         Standard error of `estimate` from the observed information (for ``q``
-        by the delta method from :math:`\log q`, the scale it is searched
-        on); NaN when the estimate lies on a bound.
+        and ``lam`` by the delta method from :math:`\log q` and
+        :math:`\log(1 - \lambda)`, the scales they are searched on); NaN when
+        the estimate lies on a bound.
     loglik : float
         Profile log-likelihood at the estimate (the noise variance
         concentrated out).
@@ -75,7 +79,7 @@ class TuneResult:
     """
 
     def __init__(self, param, estimate, stderr, loglik, R, converged, at_bound, n_obs,
-                 n_evals, _log_stderr=None):
+                 n_evals, _log_stderr=None, _gradient=None, _hessian=None):
         self.param = param
         self.estimate = estimate
         self.stderr = stderr
@@ -86,23 +90,27 @@ class TuneResult:
         self.n_obs = n_obs
         self.n_evals = n_evals
         self._log_stderr = _log_stderr
+        self._gradient = _gradient       # of the profile log-likelihood in the search variable
+        self._hessian = _hessian
 
     def interval(self, level=0.95):
         r"""Wald confidence interval ``(low, high)`` at `level`.
 
-        For ``lam``: :math:`\hat\lambda \pm z\,\mathrm{se}`, the upper end at
-        most 1. For ``q``: on the log scale it is searched on,
-        :math:`\hat q \exp(\pm z\,\mathrm{se}(\log \hat q))` (positive, and
-        closer to the likelihood's shape).
+        On the scale the parameter is searched on (closer to the likelihood's
+        shape, and inside the parameter's range): for ``q``,
+        :math:`\hat q \exp(\pm z\,\mathrm{se}(\log \hat q))`; for ``lam``,
+        :math:`1 - (1 - \hat\lambda) \exp(\mp z\,\mathrm{se}(\log(1 - \hat\lambda)))`,
+        below 1.
         """
         from scipy.stats import norm  # lazy: keeps `import rlsfilt` light
 
         if not 0.0 < level < 1.0:
             raise ValueError(f"`level` must be in (0, 1); got {level}")
         zq = norm.ppf(0.5 + 0.5 * level)
-        if self.param == "lam":
-            return self.estimate - zq * self.stderr, min(1.0, self.estimate + zq * self.stderr)
         half = zq * self._log_stderr
+        if self.param == "lam":          # on log(1 - lam), the scale it is searched on
+            gap = 1.0 - self.estimate
+            return 1.0 - gap * np.exp(half), 1.0 - gap * np.exp(-half)
         return self.estimate * np.exp(-half), self.estimate * np.exp(half)
 
     def apply(self, filt):
@@ -224,13 +232,17 @@ def tune(filt, zs, Hs, param="q", *, bounds=None, burn=0, apply=False):
 
     Notes
     -----
-    See the module docstring for the profile likelihood. The search runs on
-    :math:`\lambda` itself (bounded Brent, ``scipy.optimize.minimize_scalar``)
-    or on :math:`\log q` (bounded Brent; for ``"q_diag"`` L-BFGS-B with
-    central-difference gradients, from the scalar estimate). The standard
-    errors come from the observed information :math:`-\partial^2 \ell_p /
-    \partial v^2` in the search variable ``v`` by central differences, mapped
-    to ``q`` by the delta method.
+    See the module docstring for the profile likelihood. Every likelihood
+    evaluation is one compiled pass of the filter with its sensitivity
+    recursions (the exact derivatives of ``x``, ``P``, the innovations and their
+    variances with respect to the search variable). The search runs on
+    :math:`\log(1 - \lambda)` or :math:`\log q`: one variable by a safeguarded
+    Newton search (the exact second derivative at the start, then secants of
+    the exact first derivatives, steps halved until the likelihood rises);
+    ``"q_diag"`` by L-BFGS-B on the exact gradient. The standard errors come
+    from the observed information :math:`-\partial^2 \ell_p / \partial v^2` in
+    the search variable ``v`` (exact for ``"q_diag"``; the converged secant for one
+    variable), mapped to the parameter by the delta method.
 
     References
     ----------
@@ -321,82 +333,49 @@ def tune_bank(bank, zs, Hs, param="q", *, bounds=None, burn=0, apply=False):
 def _tune_record(Z, Hm, x_start, P_rel, Q_rel, lam0, param, bounds, burn):
     """`tune` on a validated record ``Z`` (N, m), ``Hm`` (N, n) from ``x_start`` (n, m),
     with ``P`` and ``Q`` relative to ``R``; returns the `TuneResult`."""
-    from scipy.optimize import minimize, minimize_scalar  # lazy: keeps `import rlsfilt` light
-
-    lo, hi = bounds
     n, m = x_start.shape
-    evals = [0]
     x_start = np.ascontiguousarray(x_start, dtype=np.float64)
     P_rel = np.ascontiguousarray(P_rel, dtype=np.float64)
     Zc, Hc = np.ascontiguousarray(Z, dtype=np.float64), np.ascontiguousarray(Hm, dtype=np.float64)
-    terms = _kernels().profile_terms
+    Q_rel = np.ascontiguousarray(Q_rel, dtype=np.float64)
+    v_lo, v_hi, v0 = _search_interval(param, bounds, lam0, n)
+    evals = [0]
 
-    def profile(lam, Q):
-        """``(loglik, sigma2, n_obs)`` of one run (R = 1, P and Q relative to R)."""
+    def run(v, order):
         evals[0] += 1
-        # sum log s_t, sum y_t^2 / s_t (s_t = S_t / sigma^2), compiled
-        slog, sq, n_obs = terms(x_start, P_rel, Zc, Hc, 1.0 / lam,
-                                np.ascontiguousarray(Q, dtype=np.float64), burn)
-        if n_obs == 0:
-            raise ValueError("`zs` has no measurement left for the likelihood (all missing "
-                             "or burnt in)")
-        sigma2 = sq / n_obs                                  # sigma^2 = mean(y^2 / s)
-        ll = -0.5 * (n_obs * (_LOG_2PI + math.log(sigma2) + 1.0) + m * slog)
-        return ll, sigma2, n_obs
+        return _profile(x_start, P_rel, Zc, Hc, _model(param, v, n, lam0, Q_rel), burn, m, order)
 
-    if param == "lam":
-        def run(v):
-            return profile(float(v), Q_rel)
-
-        v_lo, v_hi = lo, hi
-    elif param == "q":
-        def run(v):
-            return profile(lam0, math.exp(float(v)) * np.eye(n))
-
-        v_lo, v_hi = math.log(lo), math.log(hi)
+    if len(v0) == 1:
+        v, (ll, sigma2, n_obs, grad, hess), converged, fixed = _secant(
+            run, v0, v_lo, v_hi, _max_step(param))
     else:
-        def run(v):
-            return profile(lam0, np.diag(np.exp(np.asarray(v, dtype=float))))
-
-        v_lo, v_hi = math.log(lo), math.log(hi)
-
-    def negll(v):
-        return -run(v)[0]
-
-    if param in ("lam", "q"):
-        res = minimize_scalar(negll, bounds=(v_lo, v_hi), method="bounded",
-                              options={"xatol": 1e-10, "maxiter": 500})
-        v = float(res.x)
-        converged = bool(res.success)
-        width = v_hi - v_lo
-        at_bound = min(v - v_lo, v_hi - v) < 1e-6 * width
-    else:
-        start = minimize_scalar(lambda u: negll(np.full(n, u)), bounds=(v_lo, v_hi),
-                                method="bounded",
-                                options={"xatol": 1e-6, "maxiter": 500})
-        res = minimize(negll, np.full(n, float(start.x)), method="L-BFGS-B", jac="3-point",
-                       bounds=[(v_lo, v_hi)] * n,
-                       options={"ftol": 1e-15, "gtol": 1e-7, "maxiter": 500})
-        v = np.asarray(res.x, dtype=float)
-        # (a line search that stops at round-off is converged when the gradient is nil:
-        # 1e-4 per unit of log q moves q by less than 1e-5 of itself at any usual curvature)
-        converged = bool(res.success) or float(np.max(np.abs(res.jac))) < 1e-4
-        width = v_hi - v_lo
-        at_bound = bool(np.any(np.minimum(v - v_lo, v_hi - v) < 1e-6 * width))
-    ll, sigma2, n_obs = run(v)
-    se_v = _stderr(run, v, ll, v_lo, v_hi, param)
-    if at_bound:                         # no curvature to read on a bound
-        se_v = np.nan if param != "q_diag" else np.full(n, np.nan)
-    if param == "lam":
+        v, (ll, sigma2, n_obs, grad, hess), converged, fixed = _quasi_newton(
+            run, v0, v_lo, v_hi)
+    at_bound = bool(np.any(fixed))
+    se_v = np.full(len(v), np.nan)
+    if not at_bound:                     # no curvature to read on a bound
+        try:
+            cov = np.linalg.inv(-hess)   # the observed information in the search variable
+            d = np.diag(cov)
+            se_v = np.where(d > 0, np.sqrt(np.abs(d)), np.nan)
+        except np.linalg.LinAlgError:
+            pass
+    scalar = param in ("lam", "q")
+    if param == "lam":                   # lam = 1 - exp(u); se by the delta method
+        gap = math.exp(v[0])
+        if at_bound and v[0] <= v_lo[0] and bounds[1] == 1.0:
+            gap = 0.0                    # the upper bound lam = 1 itself
+            ll, sigma2, n_obs = run(np.array([-np.inf]), 0)[:3]
+        estimate, stderr, log_se = 1.0 - np.array([gap]), gap * se_v, se_v
+    elif param == "lam_diag":
         estimate, stderr, log_se = v, se_v, None
-    elif param == "q":
-        estimate = math.exp(v)
-        stderr, log_se = estimate * se_v, se_v
     else:
         estimate = np.exp(v)
         stderr, log_se = estimate * se_v, se_v
+    if scalar:
+        estimate, stderr, log_se = float(estimate[0]), float(stderr[0]), float(log_se[0])
     return TuneResult(param, estimate, stderr, ll, sigma2, converged and not at_bound, at_bound,
-                      n_obs, evals[0], _log_stderr=log_se)
+                      n_obs, evals[0], _log_stderr=log_se, _gradient=grad, _hessian=hess)
 
 
 # ----------------------------------------------------------------------
@@ -417,35 +396,161 @@ def _bounds(param, bounds):
     return lo, hi
 
 
-def _stderr(run, v, ll, v_lo, v_hi, param):
-    """Standard errors in the search variable from the observed information (central
-    differences of the profile log-likelihood); NaN on a bound or where the curvature
-    is not negative."""
-    v = np.atleast_1d(np.asarray(v, dtype=float))
+def _search_interval(param, bounds, lam0, n):
+    """``(low, high, start)`` of the search variable (arrays of its length): ``lam`` itself, or
+    ``log q``."""
+    lo, hi = bounds
+    k = n if param in ("q_diag", "lam_diag") else 1
+    if param == "lam":                   # u = log(1 - lam): lam = 1 is u = log(_LAM_GAP)
+        start = lam0 if lo < lam0 < hi else min(max(0.99, 0.5 * (lo + hi)), hi)
+        u_lo, u_hi = math.log(max(1.0 - hi, _LAM_GAP)), math.log(1.0 - lo)
+        u0 = min(max(math.log(max(1.0 - start, _LAM_GAP)), u_lo), u_hi)
+        return np.array([u_lo]), np.array([u_hi]), np.array([u0])
+    if param == "lam_diag":
+        start = lam0 if lo < lam0 < hi else min(max(0.99, 0.5 * (lo + hi)), hi)
+        return np.full(k, lo), np.full(k, hi), np.full(k, start)
+    v_lo, v_hi = math.log(lo), math.log(hi)
+    start = min(max(math.log(1e-3), v_lo), v_hi)
+    return np.full(k, v_lo), np.full(k, v_hi), np.full(k, start)
+
+
+def _model(param, v, n, lam0, Q_rel):
+    """The time update ``P^- = A * P + Q`` at the search variable `v` and the derivatives
+    ``(A, Q, dA, dQ, d2A, d2Q)`` of `A` and `Q` in `v` (the kernel's arguments)."""
     k = len(v)
-    h = np.full(k, _H)
-    if param == "lam":                   # stay inside (0, 1]
-        h = np.minimum(h * max(1.0 - float(v[0]), 1e-6), 0.5 * (v_hi - v))
-    if np.any(v - h < v_lo) or np.any(v + h > v_hi) or np.any(h <= 0):
-        return np.nan if k == 1 else np.full(k, np.nan)
+    dA, dQ = np.zeros((k, n, n)), np.zeros((k, n, n))
+    d2A, d2Q = np.zeros((k, k, n, n)), np.zeros((k, k, n, n))
+    if param == "q":                     # Q = exp(v) I: dQ = d2Q = Q
+        A = np.full((n, n), 1.0 / lam0)
+        Q = math.exp(v[0]) * np.eye(n)
+        dQ[0] = d2Q[0, 0] = Q
+    elif param == "q_diag":              # Q = diag(exp(v)): dQ_a = d2Q_aa = exp(v_a) E_aa
+        A = np.full((n, n), 1.0 / lam0)
+        q = np.exp(v)
+        Q = np.diag(q)
+        for a in range(k):
+            dQ[a, a, a] = d2Q[a, a, a, a] = q[a]
+    elif param == "lam":                 # A = 1 / lam, lam = 1 - exp(u)
+        d = math.exp(v[0])               # 1 - lam
+        lam = 1.0 - d
+        A = np.full((n, n), 1.0 / lam)
+        Q = Q_rel
+        dA[0] = d / (lam * lam)                              # dA/du = (1 - lam) / lam^2
+        d2A[0, 0] = d * (2.0 - lam) / lam ** 3               # (1 - lam)(2 - lam) / lam^3
+    else:                                # A_ij = (lam_i lam_j)^(-1/2), c_a = [i = a] + [j = a]
+        lam = np.asarray(v, dtype=float)
+        w = 1.0 / np.sqrt(lam)
+        A = np.outer(w, w)
+        Q = Q_rel
+        eye = np.eye(n)
+        c = 0.5 * (eye[:, :, None] + eye[:, None, :])        # c[a] / 2
+        for a in range(k):
+            dA[a] = -A * c[a] / lam[a]
+            for b in range(k):
+                d2A[a, b] = A * c[a] * c[b] / (lam[a] * lam[b])
+            d2A[a, a] += A * c[a] / lam[a] ** 2
+    return A, np.ascontiguousarray(Q, dtype=np.float64), dA, dQ, d2A, d2Q
 
-    def f(w):
-        return run(float(w[0]) if k == 1 else w)[0]
 
-    Hs = np.empty((k, k))
-    for i in range(k):
-        ei = np.zeros(k)
-        ei[i] = h[i]
-        Hs[i, i] = (f(v + ei) - 2.0 * ll + f(v - ei)) / h[i] ** 2
-        for j in range(i):
-            ej = np.zeros(k)
-            ej[j] = h[j]
-            Hs[i, j] = Hs[j, i] = (f(v + ei + ej) - f(v + ei - ej) - f(v - ei + ej)
-                                   + f(v - ei - ej)) / (4.0 * h[i] * h[j])
-    try:
-        cov = np.linalg.inv(-Hs)
-    except np.linalg.LinAlgError:
-        return np.nan if k == 1 else np.full(k, np.nan)
-    d = np.diag(cov)
-    se = np.where(d > 0, np.sqrt(np.abs(d)), np.nan)
-    return float(se[0]) if k == 1 else se
+def _profile(x_start, P_rel, Z, H, model, burn, m, order):
+    r"""``(loglik, sigma2, n_obs, gradient, Hessian)`` of the profile log-likelihood at one
+    point (one compiled pass; the derivatives in the search variable when `order` asks).
+
+    With ``slog = sum log s_t`` and ``sq = sum y_t^2 / s_t`` over ``N`` outputs:
+    :math:`\ell_p = -\tfrac12 (N (\log 2\pi + \log(sq/N) + 1) + m\,slog)`,
+    :math:`\partial_a \ell_p = -\tfrac12 (N\,sq_a / sq + m\,slog_a)`,
+    :math:`\partial_{ab} \ell_p = -\tfrac12 (N (sq_{ab}/sq - sq_a sq_b / sq^2) + m\,slog_{ab})`.
+    """
+    slog, sq, n_obs, dslog, dsq, d2slog, d2sq = _kernels().profile_derivs(
+        x_start, P_rel, Z, H, *model, burn, order)
+    if n_obs == 0:
+        raise ValueError("`zs` has no measurement left for the likelihood (all missing "
+                         "or burnt in)")
+    sigma2 = sq / n_obs                                      # sigma^2 = mean(y^2 / s)
+    ll = -0.5 * (n_obs * (_LOG_2PI + math.log(sigma2) + 1.0) + m * slog)
+    grad = -0.5 * (n_obs * dsq / sq + m * dslog)
+    hess = -0.5 * (n_obs * (d2sq / sq - np.outer(dsq, dsq) / sq ** 2) + m * d2slog)
+    return ll, sigma2, n_obs, grad, hess
+
+
+def _secant(run, v0, lo, hi, max_step, maxiter=100, xtol=1e-8):
+    """Maximize the profile log-likelihood of one variable by a safeguarded Newton search
+    inside ``[lo, hi]``: the exact second derivative at the start (`run(v, 2)`, one
+    compiled pass), then the secant of the exact first derivatives of the later passes
+    (`run(v, 1)`), each step at most ``max_step(v)`` long and halved until the
+    likelihood does not fall; where the curvature is not negative, an uphill step of
+    that length. Returns ``(v, (loglik, sigma2, n_obs, gradient, Hessian), converged,
+    held)``, the Hessian the last secant (or exact) second derivative."""
+    v = min(max(float(v0[0]), float(lo[0])), float(hi[0]))
+    lo, hi = float(lo[0]), float(hi[0])
+    ll, sigma2, n_obs, grad, hess = run(np.array([v]), 2)
+    g, h = float(grad[0]), float(hess[0, 0])
+    converged = held = False
+    for _ in range(maxiter):
+        held = (v <= lo and g < 0) or (v >= hi and g > 0)
+        if held:
+            converged = True
+            break
+        cap = float(max_step(np.array([v]))[0])
+        step = -g / h if h < 0 else math.copysign(cap, g)
+        step = max(-cap, min(cap, step))
+        v_new = min(max(v + step, lo), hi)
+        if abs(v_new - v) <= xtol:
+            converged = True
+            break
+        tol = 1e-12 * (1.0 + abs(ll))                          # round-off of the sums
+        new = run(np.array([v_new]), 1)
+        halvings = 0
+        while new[0] < ll - tol and halvings < 60:
+            step *= 0.5
+            halvings += 1
+            v_new = min(max(v + step, lo), hi)
+            new = run(np.array([v_new]), 1)
+        if new[0] < ll - tol:                                  # no ascent left: stay
+            break
+        g_new = float(new[3][0])
+        dv = v_new - v
+        if abs(dv) > 1e-6 * (1.0 + abs(v)):                    # else: round-off dominates
+            h_sec = (g_new - g) / dv
+            if h_sec < 0:
+                h = h_sec
+            else:                                              # not concave here: exact
+                new = run(np.array([v_new]), 2)
+                h = float(new[4][0, 0])
+        v, (ll, sigma2, n_obs) = v_new, new[:3]
+        g = g_new
+    return (np.array([v]), (ll, sigma2, n_obs, np.array([g]), np.array([[h]])), converged,
+            np.array([held]))
+
+
+def _quasi_newton(run, v0, lo, hi):
+    """Maximize the profile log-likelihood of several variables in the box ``[lo, hi]`` by
+    L-BFGS-B on the exact gradients (`run(v, 1)`), then one pass with the exact Hessian
+    (`run(v, 2)`) for the observed information. Returns ``(v, (loglik, sigma2, n_obs,
+    gradient, Hessian), converged, held)``."""
+    from scipy.optimize import minimize  # lazy: keeps `import rlsfilt` light
+
+    def negll(v):
+        out = run(v, 1)
+        return -out[0], -out[3]
+
+    res = minimize(negll, np.clip(v0, lo, hi), jac=True, method="L-BFGS-B",
+                   bounds=list(zip(lo, hi, strict=True)),
+                   options={"ftol": 1e-15, "gtol": 1e-8, "maxiter": 500})
+    v = np.asarray(res.x, dtype=float)
+    out = run(v, 2)
+    grad = out[3]
+    held = ((v <= lo) & (grad < 0)) | ((v >= hi) & (grad > 0))
+    # (a line search that stops at round-off is converged when the gradient is nil:
+    # 1e-4 per unit of log q moves q by less than 1e-5 of itself at any usual curvature)
+    free = ~held
+    converged = bool(res.success) or float(np.max(np.abs(grad[free]), initial=0.0)) < 1e-4
+    return v, out, converged, held
+
+
+def _max_step(param):
+    """Longest step of the search per variable: 4 in ``log q`` and in ``log(1 - lam)``;
+    for a diagonal ``lam`` the distance to 1 (at least 1e-3)."""
+    if param == "lam_diag":
+        return lambda v: np.maximum(1.0 - v, 1e-3)
+    return lambda v: np.full(len(v), 4.0)
