@@ -13,6 +13,7 @@ import math
 
 import numpy as np
 import pytest
+from _reference import diagonal_forgetting_profile_loglik as reference_loglik
 from numpy.testing import assert_allclose
 
 from rlsfilt import RecursiveLeastSquares
@@ -293,7 +294,47 @@ def test_sensitivity_derivatives_equal_finite_differences(rng, param, v):
     for a in range(len(v)):
         e = np.zeros(len(v))
         e[a] = 1.0
-        assert_allclose(richardson(lambda t: run(v + t * e, 0)[0], h), grad[a], rtol=1e-6,
+        assert_allclose(richardson(lambda t, e=e: run(v + t * e, 0)[0], h), grad[a], rtol=1e-6,
                         atol=1e-9 * abs(ll))
-        assert_allclose(richardson(lambda t: run(v + t * e, 1)[3], h), hess[a], rtol=1e-6,
+        assert_allclose(richardson(lambda t, e=e: run(v + t * e, 1)[3], h), hess[a], rtol=1e-6,
                         atol=1e-9 * abs(ll))
+
+
+def test_diagonal_forgetting_equals_the_numpy_reference_and_its_maximum(rng):
+    """``lam_diag``: the profile log-likelihood of P^- = L^-1/2 P L^-1/2 + Q equals the
+    plain NumPy recursion of tests/_reference.py (1e-9) at equal parameters; with equal
+    entries, the scalar ``lam``'s; its maximum equals scipy's search on the reference;
+    a drifting and a constant parameter get different factors."""
+    from scipy.optimize import minimize
+
+    from rlsfilt.filters.tuning import _model, _profile
+
+    N, n = 800, 2
+    H = rng.standard_normal((N, n))
+    x = np.column_stack([np.full(N, 1.0), np.cumsum(0.04 * rng.standard_normal(N))])
+    z = np.sum(H * x, axis=1) + 0.1 * rng.standard_normal(N)
+    z[50] = np.nan
+    P0, Q = 10.0 * np.eye(n), 1e-6 * np.eye(n)
+    rls = RecursiveLeastSquares(n, P0=P0, Q=Q)
+    lam = np.array([0.995, 0.93])
+    ll = _profile(np.zeros((n, 1)), P0, z[:, None], H, _model("lam_diag", lam, n, 1.0, Q),
+                  0, 1, 0)[0]
+    assert_allclose(ll, reference_loglik(z, H, lam, Q, P0, np.zeros(n)), rtol=0, atol=1e-9)
+    same = rls.tune(z, H, "lam", bounds=(0.95, 0.95 + 1e-13))
+    assert_allclose(_profile(np.zeros((n, 1)), P0, z[:, None], H,
+                             _model("lam_diag", np.full(n, 0.95), n, 1.0, Q), 0, 1, 0)[0],
+                    same.loglik, rtol=0, atol=1e-8)
+    fit = rls.tune(z, H, "lam_diag")
+    ref = minimize(lambda v: -reference_loglik(z, H, v, Q, P0, np.zeros(n)), fit.estimate * 0.999,
+                   method="L-BFGS-B", bounds=[(0.5, 1.0)] * n,
+                   options={"ftol": 1e-15, "gtol": 1e-9})
+    assert fit.estimate.shape == (n,) and fit.estimate[0] > fit.estimate[1]
+    assert_allclose(fit.estimate, ref.x, rtol=1e-5)
+    assert fit.loglik >= -ref.fun - 1e-8
+    assert fit.loglik >= rls.tune(z, H, "lam").loglik            # a larger model
+    lo, hi = fit.interval()
+    free = ~np.isnan(fit.stderr)
+    assert free[1] and np.all(lo[free] < fit.estimate[free]) and np.all(hi <= 1.0)
+    assert "lam[1]" in fit.summary()
+    with pytest.raises(ValueError, match="diagonal forgetting factor cannot be applied"):
+        fit.apply(rls)

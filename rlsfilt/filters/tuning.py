@@ -40,7 +40,7 @@ from .._validation import as_float_array, check_int
 __all__ = ["BankTuneResult", "TuneResult", "tune", "tune_bank"]
 
 _LOG_2PI = math.log(2.0 * math.pi)
-_PARAMS = ("lam", "q", "q_diag")
+_PARAMS = ("lam", "q", "q_diag", "lam_diag")
 _kernels = lazy_module("rlsfilt.filters._kernels_tuning")
 _LAM_GAP = 1e-12     # lam = 1 is searched as 1 - lam = 1e-12 (u = log(1 - lam) finite)
 
@@ -50,16 +50,16 @@ class TuneResult:
 
     Attributes
     ----------
-    param : {"lam", "q", "q_diag"}
+    param : {"lam", "q", "q_diag", "lam_diag"}
         What was tuned.
     estimate : float or ndarray of shape (dim_x,)
-        :math:`\hat\lambda`, or :math:`\hat q = Q / R` (a vector of diagonal
-        entries for ``"q_diag"``).
+        :math:`\hat\lambda`, or :math:`\hat q = Q / R` (vectors of diagonal
+        entries for ``"q_diag"`` and ``"lam_diag"``).
     stderr : float or ndarray
         Standard error of `estimate` from the observed information (for ``q``
         and ``lam`` by the delta method from :math:`\log q` and
-        :math:`\log(1 - \lambda)`, the scales they are searched on); NaN when
-        the estimate lies on a bound.
+        :math:`\log(1 - \lambda)`, the scales they are searched on); NaN for
+        an entry on a bound (the others from the information of the free ones).
     loglik : float
         Profile log-likelihood at the estimate (the noise variance
         concentrated out).
@@ -107,6 +107,9 @@ class TuneResult:
         if not 0.0 < level < 1.0:
             raise ValueError(f"`level` must be in (0, 1); got {level}")
         zq = norm.ppf(0.5 + 0.5 * level)
+        if self.param == "lam_diag":     # Wald, on lam itself
+            return (self.estimate - zq * self.stderr,
+                    np.minimum(1.0, self.estimate + zq * self.stderr))
         half = zq * self._log_stderr
         if self.param == "lam":          # on log(1 - lam), the scale it is searched on
             gap = 1.0 - self.estimate
@@ -116,6 +119,9 @@ class TuneResult:
     def apply(self, filt):
         """Set `filt`'s ``R`` and its ``lam`` or ``Q`` to the estimate (its state is kept:
         :meth:`reset` it to run the record again). Returns `filt`."""
+        if self.param == "lam_diag":
+            raise ValueError("a diagonal forgetting factor cannot be applied: the filters take "
+                             "one `lam`; use the estimate (or tune 'lam')")
         if self.param == "lam":
             Q = filt.Q / filt.R                 # the random walk relative to R, kept
             filt.R = self.R
@@ -135,7 +141,7 @@ class TuneResult:
                  f"{self.n_evals} filter runs, {'converged' if self.converged else 'NOT converged'}"
                  f"{', at a bound' if self.at_bound else ''})"]
         for i in range(len(est)):
-            name = self.param if len(est) == 1 else f"q[{i}]"
+            name = self.param if len(est) == 1 else f"{self.param.split('_')[0]}[{i}]"
             lines.append(f"  {name:8s} {est[i]:.6g}  (se {se[i]:.3g}; 95 % [{lo[i]:.6g}, "
                          f"{hi[i]:.6g}])")
         lines.append(f"  R        {self.R:.6g}")
@@ -182,6 +188,9 @@ class BankTuneResult:
     def apply(self, bank):
         """Set every channel's ``R`` and ``lam`` or ``Q`` to its estimate; returns `bank`."""
         R_old, n = bank.R, bank.dim_x
+        if self.param == "lam_diag":
+            raise ValueError("a diagonal forgetting factor cannot be applied: the bank takes "
+                             "one `lam` per channel; use the estimates (or tune 'lam')")
         if self.param == "lam":
             Q_rel = bank.Q / R_old[:, None, None]
             bank.R = self.R
@@ -211,12 +220,18 @@ def tune(filt, zs, Hs, param="q", *, bounds=None, burn=0, apply=False):
         parametrization). It is left unchanged unless `apply`.
     zs, Hs : array_like
         The record, as for ``batch_filter``; NaN in `zs` marks missing samples.
-    param : {"q", "lam", "q_diag"}, default "q"
+    param : {"q", "lam", "q_diag", "lam_diag"}, default "q"
         What to estimate: ``"q"``, the random walk ``Q = q R I`` (the filter's
         ``lam`` kept); ``"lam"``, the forgetting factor (the filter's ``Q / R``
-        kept); ``"q_diag"``, a diagonal random walk ``Q = R diag(q)``.
+        kept); ``"q_diag"``, a diagonal random walk ``Q = R diag(q)``;
+        ``"lam_diag"``, a forgetting factor per parameter (diagonal forgetting,
+        :math:`P^- = L^{-1/2} P L^{-1/2} + Q`, :math:`L = \operatorname{diag}(\lambda)`:
+        parameter ``i`` keeps a memory of about :math:`1 / (1 - \lambda_i)` samples;
+        the filter's ``Q / R`` kept). The filters run one ``lam``, so this
+        estimate is a diagnosis (which parameters drift) and is not `apply`-able.
     bounds : (float, float), optional
-        Search interval of the parameter: ``(0.5, 1.0)`` for ``lam``,
+        Search interval of the parameter: ``(0.5, 1.0)`` for ``lam`` and each
+        entry of ``lam_diag``,
         ``(1e-12, 1e2)`` for ``q`` and each entry of ``q_diag`` (relative to ``R``).
     burn : int, default 0
         Innovations left out of the likelihood at the start (statsmodels'
@@ -239,7 +254,8 @@ def tune(filt, zs, Hs, param="q", *, bounds=None, burn=0, apply=False):
     :math:`\log(1 - \lambda)` or :math:`\log q`: one variable by a safeguarded
     Newton search (the exact second derivative at the start, then secants of
     the exact first derivatives, steps halved until the likelihood rises);
-    ``"q_diag"`` by L-BFGS-B on the exact gradient. The standard errors come
+    ``"q_diag"`` and ``"lam_diag"`` by L-BFGS-B on the exact gradient (from
+    the scalar estimate). The standard errors come
     from the observed information :math:`-\partial^2 \ell_p / \partial v^2` in
     the search variable ``v`` (exact for ``"q_diag"``; the converged secant for one
     variable), mapped to the parameter by the delta method.
@@ -340,6 +356,11 @@ def _tune_record(Z, Hm, x_start, P_rel, Q_rel, lam0, param, bounds, burn):
     Q_rel = np.ascontiguousarray(Q_rel, dtype=np.float64)
     v_lo, v_hi, v0 = _search_interval(param, bounds, lam0, n)
     evals = [0]
+    if param in ("q_diag", "lam_diag"):  # start from the scalar estimate
+        one = _tune_record(Z, Hm, x_start, P_rel, Q_rel, lam0, param[:-5], bounds, burn)
+        evals[0] = one.n_evals
+        v0 = np.clip(np.full(n, math.log(one.estimate) if param == "q_diag" else one.estimate),
+                     v_lo, v_hi)
 
     def run(v, order):
         evals[0] += 1
@@ -353,11 +374,11 @@ def _tune_record(Z, Hm, x_start, P_rel, Q_rel, lam0, param, bounds, burn):
             run, v0, v_lo, v_hi)
     at_bound = bool(np.any(fixed))
     se_v = np.full(len(v), np.nan)
-    if not at_bound:                     # no curvature to read on a bound
-        try:
-            cov = np.linalg.inv(-hess)   # the observed information in the search variable
-            d = np.diag(cov)
-            se_v = np.where(d > 0, np.sqrt(np.abs(d)), np.nan)
+    free = ~np.asarray(fixed)            # no curvature to read on a bound
+    if free.any():
+        try:                             # the observed information of the free variables
+            d = np.diag(np.linalg.inv(-hess[np.ix_(free, free)]))
+            se_v[free] = np.where(d > 0, np.sqrt(np.abs(d)), np.nan)
         except np.linalg.LinAlgError:
             pass
     scalar = param in ("lam", "q")
@@ -384,14 +405,15 @@ def _tune_record(Z, Hm, x_start, P_rel, Q_rel, lam0, param, bounds, burn):
 def _bounds(param, bounds):
     """The search interval of `param` (checked)."""
     if bounds is None:
-        return (0.5, 1.0) if param == "lam" else (1e-12, 1e2)
+        return (0.5, 1.0) if param in ("lam", "lam_diag") else (1e-12, 1e2)
     try:
         lo, hi = (float(b) for b in bounds)
     except (TypeError, ValueError):
         raise TypeError(f"`bounds` must be a pair of numbers; got {bounds!r}") from None
-    ok = (0.0 < lo < hi <= 1.0) if param == "lam" else (0.0 < lo < hi < math.inf)
+    is_lam = param in ("lam", "lam_diag")
+    ok = (0.0 < lo < hi <= 1.0) if is_lam else (0.0 < lo < hi < math.inf)
     if not ok:
-        allowed = "0 < low < high <= 1" if param == "lam" else "0 < low < high < inf"
+        allowed = "0 < low < high <= 1" if is_lam else "0 < low < high < inf"
         raise ValueError(f"`bounds` must satisfy {allowed} for {param!r}; got {bounds!r}")
     return lo, hi
 
