@@ -338,3 +338,58 @@ def test_diagonal_forgetting_equals_the_numpy_reference_and_its_maximum(rng):
     assert "lam[1]" in fit.summary()
     with pytest.raises(ValueError, match="diagonal forgetting factor cannot be applied"):
         fit.apply(rls)
+
+
+def drifting_plant(rng, N=1500, C=None):
+    """A first-order plant whose gain drifts (random walk); `C` channels of it."""
+    shape = (N,) if C is None else (N, C)
+    u = rng.standard_normal(shape)
+    b = 1.0 + np.cumsum(0.01 * rng.standard_normal(shape), axis=0)
+    y = np.zeros(shape)
+    e = 0.05 * rng.standard_normal(shape)
+    for t in range(1, N):
+        y[t] = 0.6 * y[t - 1] + b[t] * u[t - 1] + e[t]
+    return u, y
+
+
+@pytest.mark.parametrize("param", ["lam", "Q"])
+def test_arx_fit_tunes_on_its_regressor_rows(rng, param):
+    """``ARX.fit(method="rls", lam="tune")`` (or ``Q="tune"``) equals tuning a filter on
+    ``model.regressors`` by hand, then fitting with the estimate."""
+    from rlsfilt import ARX
+
+    u, y = drifting_plant(rng)
+    model = ARX(1, 1).fit(u, y, "rls", **{param: "tune"}, P0=100.0)
+    Phi, target = ARX(1, 1).regressors(u, y)
+    by_hand = RecursiveLeastSquares(2, P0=100.0).tune(target, Phi, param.lower(), burn=2)
+    assert model.tune_.estimate == by_hand.estimate and model.tune_.loglik == by_hand.loglik
+    if param == "lam":
+        assert by_hand.estimate < 0.999 and model.lam_ == by_hand.estimate
+        ref = ARX(1, 1).fit(u, y, "rls", lam=by_hand.estimate, P0=100.0)
+    else:
+        assert_allclose(model.filter_.Q, by_hand.estimate * np.eye(2), rtol=1e-15)
+        ref = ARX(1, 1).fit(u, y, "rls", Q=by_hand.estimate * np.eye(2), P0=100.0)
+    assert_allclose(model.theta_history_, ref.theta_history_, rtol=0, atol=0)
+    with pytest.raises(ValueError, match="only applies to method='rls'"):
+        ARX(1, 1).fit(u, y, "riv", lam="tune")
+    with pytest.raises(ValueError, match="tune one of `lam` and `Q`"):
+        ARX(1, 1).fit(u, y, "rls", lam="tune", Q="tune")
+    with pytest.raises(ValueError, match="`lam` must be a number or 'tune'; got 'auto'"):
+        ARX(1, 1).fit(u, y, "rls", lam="auto")
+
+
+@pytest.mark.parametrize("param", ["lam", "Q"])
+def test_fit_many_tunes_every_channel_as_arx_fit(rng, param):
+    """``fit_many(..., lam="tune")``: each channel's estimate and fit equal
+    ``ARX.fit(u[:, c], y[:, c], "rls", lam="tune")``."""
+    from rlsfilt import ARX
+    from rlsfilt.models import fit_many
+
+    u, y = drifting_plant(rng, N=600, C=3)
+    fleet = fit_many(ARX(1, 1), u, y, "rls", **{param: "tune"}, residual_tests=False)
+    assert fleet.tune_.estimate.shape == (3,)
+    for c in range(3):
+        one = ARX(1, 1).fit(u[:, c], y[:, c], "rls", **{param: "tune"})
+        assert_allclose(fleet.tune_.estimate[c], one.tune_.estimate, rtol=1e-12)
+        assert_allclose(fleet.theta_[c], one.theta_, rtol=1e-9)
+        assert_allclose(fleet.model(c).theta_, one.theta_, rtol=1e-9)
