@@ -393,3 +393,41 @@ def test_fit_many_tunes_every_channel_as_arx_fit(rng, param):
         assert_allclose(fleet.tune_.estimate[c], one.tune_.estimate, rtol=1e-12)
         assert_allclose(fleet.theta_[c], one.theta_, rtol=1e-9)
         assert_allclose(fleet.model(c).theta_, one.theta_, rtol=1e-9)
+
+
+def test_profile_and_likelihood_interval_against_statsmodels(rng):
+    """``TuneResult.profile`` equals statsmodels' concentrated log-likelihood at each q
+    (1e-8); the ends of ``likelihood_interval`` lie 1.92 below the maximum; on a long
+    record it is close to the Wald interval; ``plot_profile`` draws both."""
+    import matplotlib.pyplot as plt
+    from scipy.stats import chi2
+
+    H, z = drifting_record(rng, N=1500)
+    x0, P0 = np.zeros(3), 100.0 * np.eye(3)
+    mod = statsmodels_model(z, H, x0, P0)
+    fit = RecursiveLeastSquares(3, P0=P0, x0=x0).tune(z, H, "q")
+    qs = fit.estimate * np.array([0.5, 1.0, 2.0])
+    assert_allclose(fit.profile(qs), [mod.loglike([q]) for q in qs], rtol=0, atol=1e-8)
+    assert_allclose(fit.profile(fit.estimate), fit.loglik, rtol=0, atol=1e-10)
+    lo, hi = fit.likelihood_interval()
+    assert_allclose(fit.profile([lo, hi]) - fit.loglik, -0.5 * chi2.ppf(0.95, 1), rtol=1e-7)
+    assert_allclose([lo, hi], fit.interval(), rtol=0.05)
+    lam = RecursiveLeastSquares(3, P0=P0, x0=x0).tune(z, H, "lam")
+    lo, hi = lam.likelihood_interval(0.9)
+    assert lo < lam.estimate < hi < 1.0
+    assert_allclose(lam.profile([lo, hi]) - lam.loglik, -0.5 * chi2.ppf(0.9, 1), rtol=1e-7)
+    ax = lam.plot_profile()
+    assert ax.get_xlabel() == r"$\lambda$" and len(ax.get_lines()) >= 3
+    assert "likelihood interval" in " ".join(t.get_text() for t in ax.get_legend().get_texts())
+    plt.close("all")
+    # on the bound lam = 1 the interval ends there
+    H2, z2 = drifting_record(rng, N=500, q_std=0.0)
+    one = RecursiveLeastSquares(3, P0=100.0).tune(z2, H2, "lam")
+    lo, hi = one.likelihood_interval()
+    assert one.at_bound and hi == 1.0 and lo < 1.0
+    with pytest.raises(ValueError, match="`values` of lam must be in"):
+        one.profile([1.5])
+    from rlsfilt import RLSBank
+    bank_fit = RLSBank(2, 3, P0=100.0).tune(np.column_stack([z, z]), np.stack([H, H], 1))
+    with pytest.raises(ValueError, match="the profile needs the record"):
+        bank_fit.channel(0).plot_profile()

@@ -79,7 +79,7 @@ class TuneResult:
     """
 
     def __init__(self, param, estimate, stderr, loglik, R, converged, at_bound, n_obs,
-                 n_evals, _log_stderr=None, _gradient=None, _hessian=None):
+                 n_evals, _log_stderr=None, _gradient=None, _hessian=None, _loglik_at=None):
         self.param = param
         self.estimate = estimate
         self.stderr = stderr
@@ -92,6 +92,7 @@ class TuneResult:
         self._log_stderr = _log_stderr
         self._gradient = _gradient       # of the profile log-likelihood in the search variable
         self._hessian = _hessian
+        self._loglik_at = _loglik_at     # the profile log-likelihood at one parameter value
 
     def interval(self, level=0.95):
         r"""Wald confidence interval ``(low, high)`` at `level`.
@@ -115,6 +116,73 @@ class TuneResult:
             gap = 1.0 - self.estimate
             return 1.0 - gap * np.exp(half), 1.0 - gap * np.exp(-half)
         return self.estimate * np.exp(-half), self.estimate * np.exp(half)
+
+    def profile(self, values):
+        r"""The profile log-likelihood :math:`\ell_p` (``R`` concentrated out) at each of
+        `values` of the parameter (``lam`` or ``q``; one compiled pass each).
+
+        Parameters
+        ----------
+        values : array_like
+            Values of ``lam`` in ``(0, 1]`` or of ``q`` in ``[0, inf)``.
+
+        Returns
+        -------
+        ndarray, the shape of `values`
+        """
+        if self._loglik_at is None:
+            raise ValueError("the profile needs the record: it is kept for a scalar 'lam' or "
+                             "'q' of one filter (for a bank channel, tune `bank.channel(c)`); "
+                             f"got {self.param!r}")
+        v = as_float_array(values, "values")
+        ok = (v > 0) & (v <= 1) if self.param == "lam" else v >= 0
+        if not np.all(ok):
+            allowed = "in (0, 1]" if self.param == "lam" else ">= 0"
+            raise ValueError(f"`values` of {self.param} must be {allowed}; got "
+                             f"{v[~ok].ravel()[0]!r}")
+        return np.vectorize(self._loglik_at, otypes=[float])(v)
+
+    def likelihood_interval(self, level=0.95):
+        r"""Likelihood-ratio confidence interval ``(low, high)`` at `level`: the values
+        whose profile log-likelihood is within :math:`\chi^2_1(\text{level}) / 2`
+        (1.92 at 95 %) of the maximum (Wilks), found by root finding on the
+        profile; an end is the search bound where the profile does not fall that
+        far (``lam = 1``, or the lower bound of ``q``).
+        """
+        from scipy.optimize import brentq
+        from scipy.stats import chi2
+
+        if not 0.0 < level < 1.0:
+            raise ValueError(f"`level` must be in (0, 1); got {level}")
+        if self._loglik_at is None:
+            self.profile([])                              # raises with the reason
+        cut = self.loglik - 0.5 * chi2.ppf(level, 1)
+        lo_b, hi_b = self._bounds
+        if self.param == "lam":                # on u = log(1 - lam): lam = 1 is u = -inf
+            to_v = lambda p: math.log(1.0 - p) if p < 1.0 else -math.inf  # noqa: E731
+            from_v = lambda v: 1.0 - math.exp(v)                         # noqa: E731
+        else:
+            to_v, from_v = math.log, math.exp
+        v_hat = to_v(self.estimate) if self.estimate > 0 else -math.inf
+        if not math.isfinite(v_hat):           # on the bound lam = 1 (or q = 0)
+            v_hat = math.log(_LAM_GAP) if self.param == "lam" else math.log(lo_b)
+        ends = []
+        for bound in (lo_b, hi_b):
+            v_b = to_v(bound) if bound > 0 else -math.inf
+            v_b = max(v_b, math.log(_LAM_GAP)) if self.param == "lam" else v_b
+            f = lambda v: self._loglik_at(from_v(v)) - cut                # noqa: E731
+            if abs(v_b - v_hat) < 1e-12 or f(v_b) >= 0.0:
+                ends.append(bound)
+                continue
+            ends.append(from_v(brentq(f, v_hat, v_b, xtol=1e-12, rtol=1e-12)))
+        return tuple(sorted(ends))
+
+    def plot_profile(self, ax=None, *, level=0.95, n_points=61):
+        """Plot the profile log-likelihood around the estimate with the likelihood-ratio
+        interval: `rlsfilt.plotting.plot_profile_likelihood`. Returns the Axes."""
+        from ..plotting import plot_profile_likelihood
+
+        return plot_profile_likelihood(self, ax=ax, level=level, n_points=n_points)
 
     def apply(self, filt):
         """Set `filt`'s ``R`` and its ``lam`` or ``Q`` to the estimate (its state is kept:
@@ -294,7 +362,8 @@ def tune(filt, zs, Hs, param="q", *, bounds=None, burn=0, apply=False):
     Z, Hm = filt._as_batch(zs, Hs)
     bounds = _bounds(param, bounds)
     R0 = filt.R
-    out = _tune_record(Z, Hm, filt.x, filt.P / R0, filt.Q / R0, filt.lam, param, bounds, burn)
+    out = _tune_record(Z, Hm, filt.x, filt.P / R0, filt.Q / R0, filt.lam, param, bounds, burn,
+                       keep=True)
     if apply:
         out.apply(filt)
     return out
@@ -346,9 +415,10 @@ def tune_bank(bank, zs, Hs, param="q", *, bounds=None, burn=0, apply=False):
     return out
 
 
-def _tune_record(Z, Hm, x_start, P_rel, Q_rel, lam0, param, bounds, burn):
+def _tune_record(Z, Hm, x_start, P_rel, Q_rel, lam0, param, bounds, burn, keep=False):
     """`tune` on a validated record ``Z`` (N, m), ``Hm`` (N, n) from ``x_start`` (n, m),
-    with ``P`` and ``Q`` relative to ``R``; returns the `TuneResult`."""
+    with ``P`` and ``Q`` relative to ``R``; returns the `TuneResult` (with `keep`, one
+    that keeps the record for its `TuneResult.profile`)."""
     n, m = x_start.shape
     x_start = np.ascontiguousarray(x_start, dtype=np.float64)
     P_rel = np.ascontiguousarray(P_rel, dtype=np.float64)
@@ -395,8 +465,20 @@ def _tune_record(Z, Hm, x_start, P_rel, Q_rel, lam0, param, bounds, burn):
         stderr, log_se = estimate * se_v, se_v
     if scalar:
         estimate, stderr, log_se = float(estimate[0]), float(stderr[0]), float(log_se[0])
-    return TuneResult(param, estimate, stderr, ll, sigma2, converged and not at_bound, at_bound,
-                      n_obs, evals[0], _log_stderr=log_se, _gradient=grad, _hessian=hess)
+    loglik_at = None
+    if keep and scalar:                  # the profile at a value of lam or q (the record kept)
+        def loglik_at(value):
+            if param == "lam":
+                w = math.log(1.0 - value) if value < 1.0 else -math.inf
+            else:
+                w = math.log(value) if value > 0 else -math.inf
+            return _profile(x_start, P_rel, Zc, Hc, _model(param, np.array([w]), n, lam0, Q_rel),
+                            burn, m, 0)[0]
+    out = TuneResult(param, estimate, stderr, ll, sigma2, converged and not at_bound, at_bound,
+                     n_obs, evals[0], _log_stderr=log_se, _gradient=grad, _hessian=hess,
+                     _loglik_at=loglik_at)
+    out._bounds = bounds
+    return out
 
 
 # ----------------------------------------------------------------------
