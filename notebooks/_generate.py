@@ -1216,6 +1216,181 @@ assert min(hx_p["BJ, selected"]) > 0.05   # the prose above says so: keep it tru
      {"tags": ["remove-cell"]}),
 ]
 
+# ----------------------------------------------------------------------
+# 8. Time-varying parameters: tuned, detected, smoothed
+# ----------------------------------------------------------------------
+TIME_VARYING = [
+    ("md", r"""# 8. Time-varying parameters: tune, detect, smooth
+
+A first-order plant whose gain drifts slowly and whose pole jumps twice. Every recursive
+estimator tracks it with a forgetting factor that somebody has to choose ("typically 0.97 to
+0.995"). Here the choice is made by the data instead:
+
+1. **tune** the forgetting factor, or the random walk $Q$, by maximum likelihood
+   (`ARX.fit(method="rls", lam="tune")`), and see how sure the estimate is (its profile
+   likelihood);
+2. **detect** the jumps on the normalized innovations $y_t / \sqrt{S_t}$ of the tuned filter
+   (`ChangeDetector`), which reopens its covariance at each alarm;
+3. **smooth** each segment between the alarms in both directions (the Rauch-Tung-Striebel
+   smoother, `smooth()`);
+
+and compare every step with a hand-picked $\lambda$."""),
+    ("code", r"""import numpy as np
+import matplotlib.pyplot as plt
+
+from rlsfilt import ARX, RecursiveLeastSquares
+from rlsfilt.plotting import plot_smoothed
+from rlsfilt.validation import ChangeDetector
+
+plt.rcParams.update({"figure.dpi": 150, "savefig.dpi": 150})   # sharp figures
+rng = np.random.default_rng(8)"""),
+    ("md", r"""## The plant
+
+$y(t) + a_1(t)\, y(t-1) = b_1(t)\, u(t-1) + e(t)$ with $e$ white, standard deviation 0.2. The pole
+$-a_1$ jumps from 0.6 to 0.8 at $t = 1000$ and to 0.5 at $t = 2000$; the gain $b_1$ is a random walk
+(steps of standard deviation 0.002). The input is a random binary signal about 1, so the
+regressors have a mean and a jump shifts the mean of the innovations."""),
+    ("code", r"""N = 3000
+t = np.arange(N)
+a1 = np.where(t < 1000, -0.6, np.where(t < 2000, -0.8, -0.5))    # the pole jumps twice
+b1 = 1.0 + np.cumsum(0.002 * rng.standard_normal(N))              # the gain drifts
+u = 1.0 + np.where(rng.random(N) < 0.5, -0.5, 0.5)                 # binary, about 1
+y = np.zeros(N)
+for k in range(1, N):
+    y[k] = -a1[k] * y[k - 1] + b1[k] * u[k - 1] + 0.2 * rng.standard_normal()
+
+theta_true = np.column_stack([a1, b1])[1:]      # on the regressor rows t = 1 .. N-1
+
+
+def rms(theta):
+    "RMS tracking error of a1 and b1 after the first 200 rows."
+    return np.sqrt(np.mean((theta[200:] - theta_true[200:]) ** 2, axis=0))"""),
+    ("md", r"""## Hand-picked forgetting factors
+
+`ARX(1, 1).fit(u, y, method="rls", lam=...)` for the usual range of $\lambda$; `theta_history_`
+holds the estimate after every sample:"""),
+    ("code", r"""print(f"{'lam':>8} {'RMS a1':>8} {'RMS b1':>8}")
+by_hand = {}
+for lam in (0.9, 0.95, 0.98, 0.99, 0.995):
+    by_hand[lam] = ARX(1, 1).fit(u, y, "rls", lam=lam)
+    print(f"{lam:8.3f} " + " ".join(f"{v:8.4f}" for v in rms(by_hand[lam].theta_history_)))"""),
+    ("md", r"""The errors depend strongly on $\lambda$, and the best value is not the textbook one. Nothing in
+these numbers is available without the true parameters."""),
+    ("md", r"""## 1. Tune by maximum likelihood
+
+The filter is the Kalman filter of the parameters, so its innovations give the exact Gaussian
+log-likelihood of the record (the prediction-error decomposition), with the noise variance $R$
+in closed form. `lam="tune"` maximizes it over $\lambda$ before the fit; `tune_` holds the
+estimate, its standard error and its 95 % interval:"""),
+    ("code", r"""tuned_lam = ARX(1, 1).fit(u, y, "rls", lam="tune")
+print(tuned_lam.tune_.summary())
+print("RMS a1, b1:", np.round(rms(tuned_lam.theta_history_), 4))"""),
+    ("md", r"""The profile likelihood shows how sharply the data pin $\lambda$ down: the 95 %
+likelihood-ratio interval is where the curve stays within 1.92 of its maximum."""),
+    ("code", r"""ax = tuned_lam.tune_.plot_profile()
+plt.show()
+lo, hi = tuned_lam.tune_.likelihood_interval()
+print(f"95 % likelihood interval of lam: [{lo:.4f}, {hi:.4f}]")
+print("log-likelihood of the hand-picked values, relative to the maximum:")
+for lam in by_hand:
+    print(f"  lam = {lam:5.3f}: {tuned_lam.tune_.profile(lam) - tuned_lam.tune_.loglik:9.1f}")"""),
+    ("md", r"""Forgetting discounts the whole covariance at the same rate. A random walk $Q = q R I$ adds
+uncertainty without forgetting the information already gathered; `Q="tune"` estimates $q$ the
+same way, and its likelihood is higher:"""),
+    ("code", r"""tuned_q = ARX(1, 1).fit(u, y, "rls", Q="tune")
+print(tuned_q.tune_.summary())
+print("RMS a1, b1:", np.round(rms(tuned_q.theta_history_), 4))
+print("log-likelihood gain over the tuned lam:",
+      round(tuned_q.tune_.loglik - tuned_lam.tune_.loglik, 1))"""),
+    ("md", r"""## 2. Find the jumps
+
+The tuned filter's normalized innovations $y_t / \sqrt{S_t}$ are $N(0, 1)$ while the model
+holds. A two-sided CUSUM on them (`ChangeDetector`, threshold set for one false alarm per
+10,000 samples on average) alarms when a jump shifts their mean, and `action="boost"`
+multiplies $P$ by 1000 at each alarm so the filter re-converges at once. The filter runs on
+the model's regressor rows, one sample at a time:"""),
+    ("code", r"""Phi, target = ARX(1, 1).regressors(u, y)
+
+online = tuned_q.tune_.apply(RecursiveLeastSquares(2, P0=1e4))   # Q = q R I, R estimated
+detector = ChangeDetector("cusum", arl=10_000, shift=1.0, action="boost")
+detected = np.empty((len(target), 2))
+for k in range(len(target)):
+    online.predict_update(target[k], Phi[k])
+    detector.step(online)                      # reads online.y and online.S
+    detected[k] = online.x[:, 0]
+alarms = np.array(detector.alarms)
+print("alarms at t =", alarms + 1, "(the jumps are at t = 1000 and 2000)")
+print("RMS a1, b1:", np.round(rms(detected), 4))"""),
+    ("code", r"""assert len(alarms) == 2 and abs(alarms[0] + 1 - 1000) <= 10 and abs(alarms[1] + 1 - 2000) <= 10""",
+     {"tags": ["remove-cell"]}),
+    ("md", r"""## 3. Smooth each segment
+
+Between the alarms the parameters barely move. Each segment is tuned again (a diagonal $Q$: one
+random walk per parameter; both end near zero here, constant parameters fit the data) and
+smoothed in both directions: every estimate then uses the whole segment, not only the past."""),
+    ("code", r"""edges = [0, *alarms, len(target)]
+pieces = []
+for lo, hi in zip(edges[:-1], edges[1:]):
+    fit = RecursiveLeastSquares(2, P0=1e4).tune(target[lo:hi], Phi[lo:hi], "q_diag", burn=2)
+    print(f"rows {lo:4d}-{hi:4d}: q = {np.array2string(fit.estimate, precision=2)}")
+    pieces.append(fit.apply(RecursiveLeastSquares(2, P0=1e4)).smooth(target[lo:hi], Phi[lo:hi]))
+smoothed = np.vstack([p.means[:, :, 0] for p in pieces])
+print("RMS a1, b1:", np.round(rms(smoothed), 4))"""),
+    ("code", r"""ax = plot_smoothed(pieces[1], names=["$a_1$", "$b_1$"],
+                   true_values=theta_true[edges[1]:edges[2]])
+ax.set_xlabel("row of the second segment")
+ax.set_ylim(-1.0, 1.2)
+plt.show()"""),
+    ("md", r"""## The comparison
+
+The hand-picked $\lambda = 0.98$ against each step: the tuned $\lambda$, the tuned random walk,
+the random walk with the detector, and the smoothed segments."""),
+    ("code", r"""runs = {
+    "lam = 0.98 (by hand)": by_hand[0.98].theta_history_,
+    f"lam = {tuned_lam.lam_:.3f} (tuned)": tuned_lam.theta_history_,
+    f"Q = {tuned_q.tune_.estimate:.1e} R I (tuned)": tuned_q.theta_history_,
+    "tuned Q + detector": detected,
+    "smoothed segments": smoothed,
+}
+print(f"{'':28} {'RMS a1':>8} {'RMS b1':>8}")
+for name, theta in runs.items():
+    print(f"{name:28} " + " ".join(f"{v:8.4f}" for v in rms(theta)))
+
+fig, axes = plt.subplots(2, 1, figsize=(8, 5), sharex=True, layout="constrained")
+rows = np.arange(1, N)
+for i, (axis, label) in enumerate(zip(axes, ["$a_1$", "$b_1$"])):
+    axis.plot(rows, theta_true[:, i], color="k", lw=1.5, label="true")
+    axis.plot(rows, by_hand[0.98].theta_history_[:, i], lw=0.8, alpha=0.7,
+              label=r"$\lambda = 0.98$ by hand")
+    axis.plot(rows, detected[:, i], lw=0.8, label="tuned $Q$ + detector")
+    axis.plot(rows, smoothed[:, i], lw=1.2, label="smoothed segments")
+    for a in alarms:
+        axis.axvline(a + 1, color="grey", ls=":", lw=1)
+    axis.set_ylabel(label)
+axes[0].set_ylim(-1.0, -0.3)
+axes[1].set_ylim(0.7, 1.3)
+axes[1].set_xlabel("sample $t$")
+axes[0].legend(ncol=2, fontsize=7, loc="upper right")
+plt.show()"""),
+    ("code", r"""errs = {name: rms(theta).sum() for name, theta in runs.items()}
+assert errs["smoothed segments"] < errs["tuned Q + detector"] < errs["lam = 0.98 (by hand)"]
+assert tuned_q.tune_.loglik > tuned_lam.tune_.loglik""",
+     {"tags": ["remove-cell"]}),
+    ("md", r"""What the data chose, and what it bought:
+
+- the tuned $\lambda$ is below the textbook range and tracks better than $\lambda = 0.98$; the
+  textbook values (0.98 and above) lie far outside its likelihood interval;
+- the tuned random walk has a higher likelihood than any forgetting factor and tracks better
+  still;
+- the detector finds both jumps within a few samples, and reopening the covariance there lets
+  a slowly tuned filter follow them;
+- smoothing the segments between the alarms, each with its own tuned $Q$, gives the smallest
+  errors: every estimate uses the data on both sides.
+
+The guide page *Time-varying parameters* has the equations and the oracles (statsmodels'
+maximum likelihood, banded least squares, filterpy's smoother)."""),
+]
+
 NOTEBOOKS = {
     "01_quickstart.ipynb": QUICKSTART,
     "02_tracking.ipynb": TRACKING,
@@ -1224,6 +1399,7 @@ NOTEBOOKS = {
     "05_beside_filterpy.ipynb": FILTERPY,
     "06_real_records.ipynb": REAL_RECORDS,
     "07_beyond_arx.ipynb": BEYOND_ARX,
+    "08_time_varying.ipynb": TIME_VARYING,
 }
 
 

@@ -47,6 +47,7 @@ __all__ = [
     "MAX_POINTS",
     "plot_parameters",
     "plot_smoothed",
+    "plot_profile_likelihood",
     "plot_trace",
     "plot_tracking",
     "plot_compare",
@@ -77,6 +78,97 @@ MAX_POINTS = 4000
 
 #: Samples shown in the window of :func:`plot_comparison` when the record is longer.
 _WINDOW = 400
+
+
+def plot_profile_likelihood(result, ax=None, *, level=0.95, n_points=61):
+    r"""Plot the profile log-likelihood of a tuned ``lam`` or ``q`` with its interval.
+
+    Draws :math:`\ell_p(\theta) - \ell_p(\hat\theta)` over the parameter (``q``
+    on a logarithmic axis), the estimate, the likelihood-ratio cut
+    :math:`-\chi^2_1(\text{level}) / 2` (-1.92 at 95 %) and the interval
+    where the curve lies above it (`TuneResult.likelihood_interval`), with the
+    Wald interval of `TuneResult.interval` for comparison.
+
+    Parameters
+    ----------
+    result : TuneResult
+        What ``tune(..., "lam")`` or ``tune(..., "q")`` of a filter returns.
+    ax : matplotlib.axes.Axes, optional
+        Axes to draw in; a new figure is made if omitted.
+    level : float, default 0.95
+        Confidence level of the intervals.
+    n_points : int, default 61
+        Points of the curve (one filter pass each).
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from rlsfilt import RecursiveLeastSquares
+    >>> from rlsfilt.plotting import plot_profile_likelihood
+    >>> rng = np.random.default_rng(0)
+    >>> H = rng.standard_normal((500, 1))
+    >>> gain = 1 + np.cumsum(0.02 * rng.standard_normal(500))
+    >>> z = H[:, 0] * gain + 0.1 * rng.standard_normal(500)
+    >>> ax = plot_profile_likelihood(RecursiveLeastSquares(1).tune(z, H, "q"))
+    >>> ax.get_xscale()
+    'log'
+    """
+    n_points = check_int(n_points, "n_points", minimum=5)
+    low, high = result.likelihood_interval(level)
+    est = result.estimate
+    cut = -0.5 * _chi2_ppf(level)
+    is_q = result.param == "q"
+    # the grid: on log q or log(1 - lam), the interval padded by 3/4 of its width (an
+    # interval that reaches q = 0 or lam = 1 shown over 4 decades or 3 e-folds)
+    if is_q:
+        a, b = np.log(max(low, 1e-300)), np.log(high)
+        a = max(a, b - np.log(1e4))
+        pad = max(0.75 * min(b - a, np.log(10.0)), 0.05)
+        grid = np.exp(np.linspace(a - pad, b + pad, n_points))
+    else:
+        a, b = np.log(max(1.0 - high, 1e-12)), np.log(1.0 - low)
+        a = max(a, b - 3.0)
+        pad = max(0.75 * min(b - a, 1.0), 0.05)
+        grid = np.sort(1.0 - np.exp(np.linspace(a - pad, min(b + pad, np.log(0.999)),
+                                                n_points)))
+    rel = result.profile(grid) - result.loglik
+    ax = _axes(ax)
+    ax.plot(grid, rel, color=COLORS[0], lw=1.5, label=r"profile $\ell_p - \ell_p(\hat\theta)$")
+    ax.axhline(cut, color=_GREY, lw=1.0, ls="--",
+               label=rf"$-\chi^2_1({level:g})/2 = {cut:.2f}$")
+    ax.axvline(est, color=COLORS[1], lw=1.2, label=f"estimate {est:.4g}")
+    ax.axvspan(low, high, color=COLORS[0], alpha=0.12,
+               label=f"{100 * level:g} % likelihood interval [{low:.4g}, {high:.4g}]")
+    w_low, w_high = result.interval(level)
+    if np.isfinite(w_low) and np.isfinite(w_high):
+        ax.plot([w_low, w_high], [cut, cut], color=COLORS[2], lw=3, solid_capstyle="butt",
+                label=f"Wald interval [{w_low:.4g}, {w_high:.4g}]")
+    if is_q:
+        from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+
+        ax.set_xscale("log")
+        if grid[-1] / grid[0] < 300.0:                  # under 2.5 decades: 1, 2, 5 labelled
+            ax.xaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
+            ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:.3g}"))
+            ax.xaxis.set_minor_formatter(NullFormatter())
+    ax.set_ylim(max(float(np.nanmin(rel)), 4.0 * cut), 0.15 * -cut)
+    symbol = r"$q = Q / R$" if is_q else r"$\lambda$"
+    ax.set_xlabel(symbol)
+    ax.set_ylabel(r"$\ell_p - \ell_p(\hat\theta)$")
+    ax.set_title(f"profile log-likelihood of {symbol}")
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=2, fontsize="small")
+    return ax
+
+
+def _chi2_ppf(level):
+    """The `level` quantile of chi-squared with one degree of freedom (scipy, lazily)."""
+    from scipy.stats import chi2
+
+    return float(chi2.ppf(level, 1))
 
 
 # ----------------------------------------------------------------------

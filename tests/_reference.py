@@ -359,3 +359,32 @@ def window_lstsq(Hw, Zw, Rw, x0=None, P0=None):
     Qf, Rf = np.linalg.qr(A)
     x = solve_triangular(Rf, Qf.T @ B)
     return x, square_root_covariance(Rf)
+
+
+# ----------------------------------------------------------------------
+# diagonal (per-parameter) forgetting, for the likelihood of `tune`
+# ----------------------------------------------------------------------
+def diagonal_forgetting_profile_loglik(z, H, lam, Q, P0, x0):
+    r"""Profile log-likelihood (``R`` concentrated out) of the recursion with a diagonal
+    forgetting ``P^- = L^{-1/2} P L^{-1/2} + Q``, ``L = diag(lam)``, ``R = 1``; `lam` a
+    vector (a scalar: exponential forgetting). Missing samples (NaN) are skipped."""
+    n = H.shape[1]
+    Li = np.diag(1.0 / np.sqrt(np.broadcast_to(lam, (n,))))
+    x, P = np.array(x0, dtype=float).reshape(n), np.array(P0, dtype=float)
+    ys, ss = [], []
+    for zt, h in zip(z, H, strict=True):
+        P = Li @ P @ Li + Q                       # time update
+        s = h @ P @ h + 1.0                       # innovation variance
+        y = zt - h @ x                            # innovation
+        if np.isnan(y):
+            continue
+        K = P @ h / s
+        x = x + K * y
+        P = P - np.outer(K, h @ P)
+        P = 0.5 * (P + P.T)
+        ys.append(y)
+        ss.append(s)
+    y, s = np.array(ys), np.array(ss)
+    N = len(y)
+    sigma2 = np.mean(y * y / s)
+    return -0.5 * (N * (math.log(2 * math.pi) + math.log(sigma2) + 1) + np.log(s).sum())

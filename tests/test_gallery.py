@@ -22,7 +22,8 @@ PLOTTING_FUNCTIONS = ["plot_parameters", "plot_trace", "plot_tracking", "plot_co
                       "plot_autocorrelation", "plot_cross_correlation", "plot_residuals",
                       "plot_bode", "plot_step", "plot_plant_comparison", "plot_frequency_band",
                       "plot_order_selection", "plot_cusum", "plot_report", "plot_str_history",
-                      "plot_smoothed", "plot_compare", "plot_impulse", "plot_segmentation"]
+                      "plot_smoothed", "plot_compare", "plot_impulse", "plot_segmentation",
+                      "plot_profile_likelihood"]
 
 
 def test_the_gallery_shows_every_plotting_function():

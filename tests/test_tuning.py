@@ -13,6 +13,7 @@ import math
 
 import numpy as np
 import pytest
+from _reference import diagonal_forgetting_profile_loglik as reference_loglik
 from numpy.testing import assert_allclose
 
 from rlsfilt import RecursiveLeastSquares
@@ -211,7 +212,7 @@ def test_true_q_inside_its_interval_in_90_percent_of_200_seeds():
 def test_compiled_terms_equal_the_innovations_of_batch_filter(rng):
     """The likelihood kernel runs the filter's recursion: its sums equal those of
     batch_filter's innovations y_t = z_t - H_t x^-_t, s_t = H_t P^-_t H_t^T + 1."""
-    from rlsfilt.filters._kernels_tuning import profile_terms
+    from rlsfilt.filters._kernels_tuning import profile_derivs
 
     H, z = drifting_record(rng, N=500)
     z[[7, 99]] = np.nan
@@ -226,7 +227,11 @@ def test_compiled_terms_equal_the_innovations_of_batch_filter(rng):
         s = np.einsum("ki,kij,kj->k", H, Pp, H) + 1.0
         keep = ~np.isnan(y).any(axis=1)
         keep[:4] = False
-        slog, sq, count = profile_terms(x0, 20.0 * np.eye(3), Z, H, 1.0 / lam, Q, 4)
+        k0 = np.zeros((0, 3, 3))
+        slog, sq, count, *_ = profile_derivs(x0, 20.0 * np.eye(3), Z, H,
+                                             np.full((3, 3), 1.0 / lam), Q, k0, k0,
+                                             np.zeros((0, 0, 3, 3)), np.zeros((0, 0, 3, 3)),
+                                             4, 0)
         assert count == keep.sum() * m
         assert_allclose(slog, np.log(s[keep]).sum(), rtol=1e-12)
         assert_allclose(sq, np.sum(y[keep] ** 2 / s[keep, None]), rtol=1e-12)
@@ -257,3 +262,172 @@ def test_bank_channels_equal_single_filters(rng, param):
         assert_allclose(bank.Q[1], fits.estimate[1] * fits.R[1] * np.eye(n), rtol=1e-15)
     else:
         assert_allclose(bank.lam, fits.estimate, rtol=0)
+
+
+@pytest.mark.parametrize("param, v", [("q", [-4.0]), ("lam", [0.97]),
+                                      ("q_diag", [-5.0, -3.0, -4.0]),
+                                      ("lam_diag", [0.95, 0.99, 0.9])])
+def test_sensitivity_derivatives_equal_finite_differences(rng, param, v):
+    """The gradient and the Hessian of the profile log-likelihood that the compiled
+    sensitivity recursions return, against central differences of the likelihood
+    (rtol 1e-6; Richardson-extrapolated differences), with missing samples, a burn-in
+    and two outputs."""
+    from rlsfilt.filters.tuning import _model, _profile
+
+    H, z = drifting_record(rng, N=400)
+    z[[11, 200]] = np.nan
+    Z = np.column_stack([z, 0.3 * z + 0.1 * rng.standard_normal(400)])
+    x0, P0, Q_rel = np.zeros((3, 2)), 30.0 * np.eye(3), 1e-3 * np.eye(3)
+    v = np.array(v)
+
+    def run(w, order):
+        return _profile(x0, P0, Z, H, _model(param, w, 3, 0.98, Q_rel), 2, 2, order)
+
+    def richardson(f, h):                # central difference, error O(h^4)
+        d1, d2 = (f(h) - f(-h)) / (2 * h), (f(h / 2) - f(-h / 2)) / h
+        return (4 * d2 - d1) / 3
+
+    ll, _, _, grad, hess = run(v, 2)
+    assert run(v, 1)[0] == ll
+    assert_allclose(run(v, 1)[3], grad, rtol=1e-14)
+    h = 1e-3 if param.startswith("q") else 1e-4
+    for a in range(len(v)):
+        e = np.zeros(len(v))
+        e[a] = 1.0
+        assert_allclose(richardson(lambda t, e=e: run(v + t * e, 0)[0], h), grad[a], rtol=1e-6,
+                        atol=1e-9 * abs(ll))
+        assert_allclose(richardson(lambda t, e=e: run(v + t * e, 1)[3], h), hess[a], rtol=1e-6,
+                        atol=1e-9 * abs(ll))
+
+
+def test_diagonal_forgetting_equals_the_numpy_reference_and_its_maximum(rng):
+    """``lam_diag``: the profile log-likelihood of P^- = L^-1/2 P L^-1/2 + Q equals the
+    plain NumPy recursion of tests/_reference.py (1e-9) at equal parameters; with equal
+    entries, the scalar ``lam``'s; its maximum equals scipy's search on the reference;
+    a drifting and a constant parameter get different factors."""
+    from scipy.optimize import minimize
+
+    from rlsfilt.filters.tuning import _model, _profile
+
+    N, n = 800, 2
+    H = rng.standard_normal((N, n))
+    x = np.column_stack([np.full(N, 1.0), np.cumsum(0.04 * rng.standard_normal(N))])
+    z = np.sum(H * x, axis=1) + 0.1 * rng.standard_normal(N)
+    z[50] = np.nan
+    P0, Q = 10.0 * np.eye(n), 1e-6 * np.eye(n)
+    rls = RecursiveLeastSquares(n, P0=P0, Q=Q)
+    lam = np.array([0.995, 0.93])
+    ll = _profile(np.zeros((n, 1)), P0, z[:, None], H, _model("lam_diag", lam, n, 1.0, Q),
+                  0, 1, 0)[0]
+    assert_allclose(ll, reference_loglik(z, H, lam, Q, P0, np.zeros(n)), rtol=0, atol=1e-9)
+    same = rls.tune(z, H, "lam", bounds=(0.95, 0.95 + 1e-13))
+    assert_allclose(_profile(np.zeros((n, 1)), P0, z[:, None], H,
+                             _model("lam_diag", np.full(n, 0.95), n, 1.0, Q), 0, 1, 0)[0],
+                    same.loglik, rtol=0, atol=1e-8)
+    fit = rls.tune(z, H, "lam_diag")
+    ref = minimize(lambda v: -reference_loglik(z, H, v, Q, P0, np.zeros(n)), fit.estimate * 0.999,
+                   method="L-BFGS-B", bounds=[(0.5, 1.0)] * n,
+                   options={"ftol": 1e-15, "gtol": 1e-9})
+    assert fit.estimate.shape == (n,) and fit.estimate[0] > fit.estimate[1]
+    assert_allclose(fit.estimate, ref.x, rtol=1e-5)
+    assert fit.loglik >= -ref.fun - 1e-8
+    assert fit.loglik >= rls.tune(z, H, "lam").loglik            # a larger model
+    lo, hi = fit.interval()
+    free = ~np.isnan(fit.stderr)
+    assert free[1] and np.all(lo[free] < fit.estimate[free]) and np.all(hi <= 1.0)
+    assert "lam[1]" in fit.summary()
+    with pytest.raises(ValueError, match="diagonal forgetting factor cannot be applied"):
+        fit.apply(rls)
+
+
+def drifting_plant(rng, N=1500, C=None):
+    """A first-order plant whose gain drifts (random walk); `C` channels of it."""
+    shape = (N,) if C is None else (N, C)
+    u = rng.standard_normal(shape)
+    b = 1.0 + np.cumsum(0.01 * rng.standard_normal(shape), axis=0)
+    y = np.zeros(shape)
+    e = 0.05 * rng.standard_normal(shape)
+    for t in range(1, N):
+        y[t] = 0.6 * y[t - 1] + b[t] * u[t - 1] + e[t]
+    return u, y
+
+
+@pytest.mark.parametrize("param", ["lam", "Q"])
+def test_arx_fit_tunes_on_its_regressor_rows(rng, param):
+    """``ARX.fit(method="rls", lam="tune")`` (or ``Q="tune"``) equals tuning a filter on
+    ``model.regressors`` by hand, then fitting with the estimate."""
+    from rlsfilt import ARX
+
+    u, y = drifting_plant(rng)
+    model = ARX(1, 1).fit(u, y, "rls", **{param: "tune"}, P0=100.0)
+    Phi, target = ARX(1, 1).regressors(u, y)
+    by_hand = RecursiveLeastSquares(2, P0=100.0).tune(target, Phi, param.lower(), burn=2)
+    assert model.tune_.estimate == by_hand.estimate and model.tune_.loglik == by_hand.loglik
+    if param == "lam":
+        assert by_hand.estimate < 0.999 and model.lam_ == by_hand.estimate
+        ref = ARX(1, 1).fit(u, y, "rls", lam=by_hand.estimate, P0=100.0)
+    else:
+        assert_allclose(model.filter_.Q, by_hand.estimate * np.eye(2), rtol=1e-15)
+        ref = ARX(1, 1).fit(u, y, "rls", Q=by_hand.estimate * np.eye(2), P0=100.0)
+    assert_allclose(model.theta_history_, ref.theta_history_, rtol=0, atol=0)
+    with pytest.raises(ValueError, match="only applies to method='rls'"):
+        ARX(1, 1).fit(u, y, "riv", lam="tune")
+    with pytest.raises(ValueError, match="tune one of `lam` and `Q`"):
+        ARX(1, 1).fit(u, y, "rls", lam="tune", Q="tune")
+    with pytest.raises(ValueError, match="`lam` must be a number or 'tune'; got 'auto'"):
+        ARX(1, 1).fit(u, y, "rls", lam="auto")
+
+
+@pytest.mark.parametrize("param", ["lam", "Q"])
+def test_fit_many_tunes_every_channel_as_arx_fit(rng, param):
+    """``fit_many(..., lam="tune")``: each channel's estimate and fit equal
+    ``ARX.fit(u[:, c], y[:, c], "rls", lam="tune")``."""
+    from rlsfilt import ARX
+    from rlsfilt.models import fit_many
+
+    u, y = drifting_plant(rng, N=600, C=3)
+    fleet = fit_many(ARX(1, 1), u, y, "rls", **{param: "tune"}, residual_tests=False)
+    assert fleet.tune_.estimate.shape == (3,)
+    for c in range(3):
+        one = ARX(1, 1).fit(u[:, c], y[:, c], "rls", **{param: "tune"})
+        assert_allclose(fleet.tune_.estimate[c], one.tune_.estimate, rtol=1e-12)
+        assert_allclose(fleet.theta_[c], one.theta_, rtol=1e-9)
+        assert_allclose(fleet.model(c).theta_, one.theta_, rtol=1e-9)
+
+
+def test_profile_and_likelihood_interval_against_statsmodels(rng):
+    """``TuneResult.profile`` equals statsmodels' concentrated log-likelihood at each q
+    (1e-8); the ends of ``likelihood_interval`` lie 1.92 below the maximum; on a long
+    record it is close to the Wald interval; ``plot_profile`` draws both."""
+    import matplotlib.pyplot as plt
+    from scipy.stats import chi2
+
+    H, z = drifting_record(rng, N=1500)
+    x0, P0 = np.zeros(3), 100.0 * np.eye(3)
+    mod = statsmodels_model(z, H, x0, P0)
+    fit = RecursiveLeastSquares(3, P0=P0, x0=x0).tune(z, H, "q")
+    qs = fit.estimate * np.array([0.5, 1.0, 2.0])
+    assert_allclose(fit.profile(qs), [mod.loglike([q]) for q in qs], rtol=0, atol=1e-8)
+    assert_allclose(fit.profile(fit.estimate), fit.loglik, rtol=0, atol=1e-10)
+    lo, hi = fit.likelihood_interval()
+    assert_allclose(fit.profile([lo, hi]) - fit.loglik, -0.5 * chi2.ppf(0.95, 1), rtol=1e-7)
+    assert_allclose([lo, hi], fit.interval(), rtol=0.05)
+    lam = RecursiveLeastSquares(3, P0=P0, x0=x0).tune(z, H, "lam")
+    lo, hi = lam.likelihood_interval(0.9)
+    assert lo < lam.estimate < hi < 1.0
+    assert_allclose(lam.profile([lo, hi]) - lam.loglik, -0.5 * chi2.ppf(0.9, 1), rtol=1e-7)
+    ax = lam.plot_profile()
+    assert ax.get_xlabel() == r"$\lambda$" and len(ax.get_lines()) >= 3
+    assert "likelihood interval" in " ".join(t.get_text() for t in ax.get_legend().get_texts())
+    plt.close("all")
+    # on the bound lam = 1 the interval ends there
+    H2, z2 = drifting_record(rng, N=500, q_std=0.0)
+    one = RecursiveLeastSquares(3, P0=100.0).tune(z2, H2, "lam")
+    lo, hi = one.likelihood_interval()
+    assert one.at_bound and hi == 1.0 and lo < 1.0
+    with pytest.raises(ValueError, match="`values` of lam must be in"):
+        one.profile([1.5])
+    from rlsfilt import RLSBank
+    bank_fit = RLSBank(2, 3, P0=100.0).tune(np.column_stack([z, z]), np.stack([H, H], 1))
+    with pytest.raises(ValueError, match="the profile needs the record"):
+        bank_fit.channel(0).plot_profile()

@@ -21,10 +21,13 @@ and the profile log-likelihood of the remaining parameter is
     \ell_p = -\tfrac12 \left(N (\log 2\pi + \log \hat\sigma^2 + 1) + \sum_t \log s_t\right).
 
 `tune` maximizes it over the forgetting factor :math:`\lambda`, a scalar random
-walk :math:`Q = q \sigma^2 I` or a diagonal one, by a bounded search on a
-transformed parameter (the likelihood at one value is evaluated exactly by
-one ``batch_filter`` run), and takes standard errors from the observed
-information (the numerical second derivative of :math:`\ell_p`).
+walk :math:`Q = q \sigma^2 I` or a diagonal one, on a transformed parameter
+(:math:`\log(1 - \lambda)`, :math:`\log q`). Each pass over the record is one
+compiled run of the filter's recursion that carries the sensitivities
+:math:`\partial x_t, \partial P_t` (and their second derivatives) along, so it
+returns the exact gradient and Hessian of :math:`\ell_p` with its value: a
+handful of passes find the maximum, and the standard errors come from the
+exact observed information :math:`-\partial^2 \ell_p`.
 """
 
 import math
@@ -37,9 +40,9 @@ from .._validation import as_float_array, check_int
 __all__ = ["BankTuneResult", "TuneResult", "tune", "tune_bank"]
 
 _LOG_2PI = math.log(2.0 * math.pi)
-_PARAMS = ("lam", "q", "q_diag")
+_PARAMS = ("lam", "q", "q_diag", "lam_diag")
 _kernels = lazy_module("rlsfilt.filters._kernels_tuning")
-_H = 1e-3            # step of the numerical second derivative in the search variable
+_LAM_GAP = 1e-12     # lam = 1 is searched as 1 - lam = 1e-12 (u = log(1 - lam) finite)
 
 
 class TuneResult:
@@ -47,15 +50,16 @@ class TuneResult:
 
     Attributes
     ----------
-    param : {"lam", "q", "q_diag"}
+    param : {"lam", "q", "q_diag", "lam_diag"}
         What was tuned.
     estimate : float or ndarray of shape (dim_x,)
-        :math:`\hat\lambda`, or :math:`\hat q = Q / R` (a vector of diagonal
-        entries for ``"q_diag"``).
+        :math:`\hat\lambda`, or :math:`\hat q = Q / R` (vectors of diagonal
+        entries for ``"q_diag"`` and ``"lam_diag"``).
     stderr : float or ndarray
         Standard error of `estimate` from the observed information (for ``q``
-        by the delta method from :math:`\log q`, the scale it is searched
-        on); NaN when the estimate lies on a bound.
+        and ``lam`` by the delta method from :math:`\log q` and
+        :math:`\log(1 - \lambda)`, the scales they are searched on); NaN for
+        an entry on a bound (the others from the information of the free ones).
     loglik : float
         Profile log-likelihood at the estimate (the noise variance
         concentrated out).
@@ -75,7 +79,7 @@ class TuneResult:
     """
 
     def __init__(self, param, estimate, stderr, loglik, R, converged, at_bound, n_obs,
-                 n_evals, _log_stderr=None):
+                 n_evals, _log_stderr=None, _gradient=None, _hessian=None, _loglik_at=None):
         self.param = param
         self.estimate = estimate
         self.stderr = stderr
@@ -86,28 +90,106 @@ class TuneResult:
         self.n_obs = n_obs
         self.n_evals = n_evals
         self._log_stderr = _log_stderr
+        self._gradient = _gradient       # of the profile log-likelihood in the search variable
+        self._hessian = _hessian
+        self._loglik_at = _loglik_at     # the profile log-likelihood at one parameter value
 
     def interval(self, level=0.95):
         r"""Wald confidence interval ``(low, high)`` at `level`.
 
-        For ``lam``: :math:`\hat\lambda \pm z\,\mathrm{se}`, the upper end at
-        most 1. For ``q``: on the log scale it is searched on,
-        :math:`\hat q \exp(\pm z\,\mathrm{se}(\log \hat q))` (positive, and
-        closer to the likelihood's shape).
+        On the scale the parameter is searched on (closer to the likelihood's
+        shape, and inside the parameter's range): for ``q``,
+        :math:`\hat q \exp(\pm z\,\mathrm{se}(\log \hat q))`; for ``lam``,
+        :math:`1 - (1 - \hat\lambda) \exp(\mp z\,\mathrm{se}(\log(1 - \hat\lambda)))`,
+        below 1.
         """
         from scipy.stats import norm  # lazy: keeps `import rlsfilt` light
 
         if not 0.0 < level < 1.0:
             raise ValueError(f"`level` must be in (0, 1); got {level}")
         zq = norm.ppf(0.5 + 0.5 * level)
-        if self.param == "lam":
-            return self.estimate - zq * self.stderr, min(1.0, self.estimate + zq * self.stderr)
+        if self.param == "lam_diag":     # Wald, on lam itself
+            return (self.estimate - zq * self.stderr,
+                    np.minimum(1.0, self.estimate + zq * self.stderr))
         half = zq * self._log_stderr
+        if self.param == "lam":          # on log(1 - lam), the scale it is searched on
+            gap = 1.0 - self.estimate
+            return 1.0 - gap * np.exp(half), 1.0 - gap * np.exp(-half)
         return self.estimate * np.exp(-half), self.estimate * np.exp(half)
+
+    def profile(self, values):
+        r"""The profile log-likelihood :math:`\ell_p` (``R`` concentrated out) at each of
+        `values` of the parameter (``lam`` or ``q``; one compiled pass each).
+
+        Parameters
+        ----------
+        values : array_like
+            Values of ``lam`` in ``(0, 1]`` or of ``q`` in ``[0, inf)``.
+
+        Returns
+        -------
+        ndarray, the shape of `values`
+        """
+        if self._loglik_at is None:
+            raise ValueError("the profile needs the record: it is kept for a scalar 'lam' or "
+                             "'q' of one filter (for a bank channel, tune `bank.channel(c)`); "
+                             f"got {self.param!r}")
+        v = as_float_array(values, "values")
+        ok = (v > 0) & (v <= 1) if self.param == "lam" else v >= 0
+        if not np.all(ok):
+            allowed = "in (0, 1]" if self.param == "lam" else ">= 0"
+            raise ValueError(f"`values` of {self.param} must be {allowed}; got "
+                             f"{v[~ok].ravel()[0]!r}")
+        return np.vectorize(self._loglik_at, otypes=[float])(v)
+
+    def likelihood_interval(self, level=0.95):
+        r"""Likelihood-ratio confidence interval ``(low, high)`` at `level`: the values
+        whose profile log-likelihood is within :math:`\chi^2_1(\text{level}) / 2`
+        (1.92 at 95 %) of the maximum (Wilks), found by root finding on the
+        profile; an end is the search bound where the profile does not fall that
+        far (``lam = 1``, or the lower bound of ``q``).
+        """
+        from scipy.optimize import brentq
+        from scipy.stats import chi2
+
+        if not 0.0 < level < 1.0:
+            raise ValueError(f"`level` must be in (0, 1); got {level}")
+        if self._loglik_at is None:
+            self.profile([])                              # raises with the reason
+        cut = self.loglik - 0.5 * chi2.ppf(level, 1)
+        lo_b, hi_b = self._bounds
+        if self.param == "lam":                # on u = log(1 - lam): lam = 1 is u = -inf
+            to_v = lambda p: math.log(1.0 - p) if p < 1.0 else -math.inf  # noqa: E731
+            from_v = lambda v: 1.0 - math.exp(v)                         # noqa: E731
+        else:
+            to_v, from_v = math.log, math.exp
+        v_hat = to_v(self.estimate) if self.estimate > 0 else -math.inf
+        if not math.isfinite(v_hat):           # on the bound lam = 1 (or q = 0)
+            v_hat = math.log(_LAM_GAP) if self.param == "lam" else math.log(lo_b)
+        ends = []
+        for bound in (lo_b, hi_b):
+            v_b = to_v(bound) if bound > 0 else -math.inf
+            v_b = max(v_b, math.log(_LAM_GAP)) if self.param == "lam" else v_b
+            f = lambda v: self._loglik_at(from_v(v)) - cut                # noqa: E731
+            if abs(v_b - v_hat) < 1e-12 or f(v_b) >= 0.0:
+                ends.append(bound)
+                continue
+            ends.append(from_v(brentq(f, v_hat, v_b, xtol=1e-12, rtol=1e-12)))
+        return tuple(sorted(ends))
+
+    def plot_profile(self, ax=None, *, level=0.95, n_points=61):
+        """Plot the profile log-likelihood around the estimate with the likelihood-ratio
+        interval: `rlsfilt.plotting.plot_profile_likelihood`. Returns the Axes."""
+        from ..plotting import plot_profile_likelihood
+
+        return plot_profile_likelihood(self, ax=ax, level=level, n_points=n_points)
 
     def apply(self, filt):
         """Set `filt`'s ``R`` and its ``lam`` or ``Q`` to the estimate (its state is kept:
         :meth:`reset` it to run the record again). Returns `filt`."""
+        if self.param == "lam_diag":
+            raise ValueError("a diagonal forgetting factor cannot be applied: the filters take "
+                             "one `lam`; use the estimate (or tune 'lam')")
         if self.param == "lam":
             Q = filt.Q / filt.R                 # the random walk relative to R, kept
             filt.R = self.R
@@ -127,7 +209,7 @@ class TuneResult:
                  f"{self.n_evals} filter runs, {'converged' if self.converged else 'NOT converged'}"
                  f"{', at a bound' if self.at_bound else ''})"]
         for i in range(len(est)):
-            name = self.param if len(est) == 1 else f"q[{i}]"
+            name = self.param if len(est) == 1 else f"{self.param.split('_')[0]}[{i}]"
             lines.append(f"  {name:8s} {est[i]:.6g}  (se {se[i]:.3g}; 95 % [{lo[i]:.6g}, "
                          f"{hi[i]:.6g}])")
         lines.append(f"  R        {self.R:.6g}")
@@ -174,6 +256,9 @@ class BankTuneResult:
     def apply(self, bank):
         """Set every channel's ``R`` and ``lam`` or ``Q`` to its estimate; returns `bank`."""
         R_old, n = bank.R, bank.dim_x
+        if self.param == "lam_diag":
+            raise ValueError("a diagonal forgetting factor cannot be applied: the bank takes "
+                             "one `lam` per channel; use the estimates (or tune 'lam')")
         if self.param == "lam":
             Q_rel = bank.Q / R_old[:, None, None]
             bank.R = self.R
@@ -203,12 +288,18 @@ def tune(filt, zs, Hs, param="q", *, bounds=None, burn=0, apply=False):
         parametrization). It is left unchanged unless `apply`.
     zs, Hs : array_like
         The record, as for ``batch_filter``; NaN in `zs` marks missing samples.
-    param : {"q", "lam", "q_diag"}, default "q"
+    param : {"q", "lam", "q_diag", "lam_diag"}, default "q"
         What to estimate: ``"q"``, the random walk ``Q = q R I`` (the filter's
         ``lam`` kept); ``"lam"``, the forgetting factor (the filter's ``Q / R``
-        kept); ``"q_diag"``, a diagonal random walk ``Q = R diag(q)``.
+        kept); ``"q_diag"``, a diagonal random walk ``Q = R diag(q)``;
+        ``"lam_diag"``, a forgetting factor per parameter (diagonal forgetting,
+        :math:`P^- = L^{-1/2} P L^{-1/2} + Q`, :math:`L = \operatorname{diag}(\lambda)`:
+        parameter ``i`` keeps a memory of about :math:`1 / (1 - \lambda_i)` samples;
+        the filter's ``Q / R`` kept). The filters run one ``lam``, so this
+        estimate is a diagnosis (which parameters drift) and is not `apply`-able.
     bounds : (float, float), optional
-        Search interval of the parameter: ``(0.5, 1.0)`` for ``lam``,
+        Search interval of the parameter: ``(0.5, 1.0)`` for ``lam`` and each
+        entry of ``lam_diag``,
         ``(1e-12, 1e2)`` for ``q`` and each entry of ``q_diag`` (relative to ``R``).
     burn : int, default 0
         Innovations left out of the likelihood at the start (statsmodels'
@@ -224,13 +315,18 @@ def tune(filt, zs, Hs, param="q", *, bounds=None, burn=0, apply=False):
 
     Notes
     -----
-    See the module docstring for the profile likelihood. The search runs on
-    :math:`\lambda` itself (bounded Brent, ``scipy.optimize.minimize_scalar``)
-    or on :math:`\log q` (bounded Brent; for ``"q_diag"`` L-BFGS-B with
-    central-difference gradients, from the scalar estimate). The standard
-    errors come from the observed information :math:`-\partial^2 \ell_p /
-    \partial v^2` in the search variable ``v`` by central differences, mapped
-    to ``q`` by the delta method.
+    See the module docstring for the profile likelihood. Every likelihood
+    evaluation is one compiled pass of the filter with its sensitivity
+    recursions (the exact derivatives of ``x``, ``P``, the innovations and their
+    variances with respect to the search variable). The search runs on
+    :math:`\log(1 - \lambda)` or :math:`\log q`: one variable by a safeguarded
+    Newton search (the exact second derivative at the start, then secants of
+    the exact first derivatives, steps halved until the likelihood rises);
+    ``"q_diag"`` and ``"lam_diag"`` by L-BFGS-B on the exact gradient (from
+    the scalar estimate). The standard errors come
+    from the observed information :math:`-\partial^2 \ell_p / \partial v^2` in
+    the search variable ``v`` (exact for ``"q_diag"``; the converged secant for one
+    variable), mapped to the parameter by the delta method.
 
     References
     ----------
@@ -266,7 +362,8 @@ def tune(filt, zs, Hs, param="q", *, bounds=None, burn=0, apply=False):
     Z, Hm = filt._as_batch(zs, Hs)
     bounds = _bounds(param, bounds)
     R0 = filt.R
-    out = _tune_record(Z, Hm, filt.x, filt.P / R0, filt.Q / R0, filt.lam, param, bounds, burn)
+    out = _tune_record(Z, Hm, filt.x, filt.P / R0, filt.Q / R0, filt.lam, param, bounds, burn,
+                       keep=True)
     if apply:
         out.apply(filt)
     return out
@@ -318,85 +415,70 @@ def tune_bank(bank, zs, Hs, param="q", *, bounds=None, burn=0, apply=False):
     return out
 
 
-def _tune_record(Z, Hm, x_start, P_rel, Q_rel, lam0, param, bounds, burn):
+def _tune_record(Z, Hm, x_start, P_rel, Q_rel, lam0, param, bounds, burn, keep=False):
     """`tune` on a validated record ``Z`` (N, m), ``Hm`` (N, n) from ``x_start`` (n, m),
-    with ``P`` and ``Q`` relative to ``R``; returns the `TuneResult`."""
-    from scipy.optimize import minimize, minimize_scalar  # lazy: keeps `import rlsfilt` light
-
-    lo, hi = bounds
+    with ``P`` and ``Q`` relative to ``R``; returns the `TuneResult` (with `keep`, one
+    that keeps the record for its `TuneResult.profile`)."""
     n, m = x_start.shape
-    evals = [0]
     x_start = np.ascontiguousarray(x_start, dtype=np.float64)
     P_rel = np.ascontiguousarray(P_rel, dtype=np.float64)
     Zc, Hc = np.ascontiguousarray(Z, dtype=np.float64), np.ascontiguousarray(Hm, dtype=np.float64)
-    terms = _kernels().profile_terms
+    Q_rel = np.ascontiguousarray(Q_rel, dtype=np.float64)
+    v_lo, v_hi, v0 = _search_interval(param, bounds, lam0, n)
+    evals = [0]
+    if param in ("q_diag", "lam_diag"):  # start from the scalar estimate
+        one = _tune_record(Z, Hm, x_start, P_rel, Q_rel, lam0, param[:-5], bounds, burn)
+        evals[0] = one.n_evals
+        v0 = np.clip(np.full(n, math.log(one.estimate) if param == "q_diag" else one.estimate),
+                     v_lo, v_hi)
 
-    def profile(lam, Q):
-        """``(loglik, sigma2, n_obs)`` of one run (R = 1, P and Q relative to R)."""
+    def run(v, order):
         evals[0] += 1
-        # sum log s_t, sum y_t^2 / s_t (s_t = S_t / sigma^2), compiled
-        slog, sq, n_obs = terms(x_start, P_rel, Zc, Hc, 1.0 / lam,
-                                np.ascontiguousarray(Q, dtype=np.float64), burn)
-        if n_obs == 0:
-            raise ValueError("`zs` has no measurement left for the likelihood (all missing "
-                             "or burnt in)")
-        sigma2 = sq / n_obs                                  # sigma^2 = mean(y^2 / s)
-        ll = -0.5 * (n_obs * (_LOG_2PI + math.log(sigma2) + 1.0) + m * slog)
-        return ll, sigma2, n_obs
+        return _profile(x_start, P_rel, Zc, Hc, _model(param, v, n, lam0, Q_rel), burn, m, order)
 
-    if param == "lam":
-        def run(v):
-            return profile(float(v), Q_rel)
-
-        v_lo, v_hi = lo, hi
-    elif param == "q":
-        def run(v):
-            return profile(lam0, math.exp(float(v)) * np.eye(n))
-
-        v_lo, v_hi = math.log(lo), math.log(hi)
+    if len(v0) == 1:
+        v, (ll, sigma2, n_obs, grad, hess), converged, fixed = _secant(
+            run, v0, v_lo, v_hi, _max_step(param))
     else:
-        def run(v):
-            return profile(lam0, np.diag(np.exp(np.asarray(v, dtype=float))))
-
-        v_lo, v_hi = math.log(lo), math.log(hi)
-
-    def negll(v):
-        return -run(v)[0]
-
-    if param in ("lam", "q"):
-        res = minimize_scalar(negll, bounds=(v_lo, v_hi), method="bounded",
-                              options={"xatol": 1e-10, "maxiter": 500})
-        v = float(res.x)
-        converged = bool(res.success)
-        width = v_hi - v_lo
-        at_bound = min(v - v_lo, v_hi - v) < 1e-6 * width
-    else:
-        start = minimize_scalar(lambda u: negll(np.full(n, u)), bounds=(v_lo, v_hi),
-                                method="bounded",
-                                options={"xatol": 1e-6, "maxiter": 500})
-        res = minimize(negll, np.full(n, float(start.x)), method="L-BFGS-B", jac="3-point",
-                       bounds=[(v_lo, v_hi)] * n,
-                       options={"ftol": 1e-15, "gtol": 1e-7, "maxiter": 500})
-        v = np.asarray(res.x, dtype=float)
-        # (a line search that stops at round-off is converged when the gradient is nil:
-        # 1e-4 per unit of log q moves q by less than 1e-5 of itself at any usual curvature)
-        converged = bool(res.success) or float(np.max(np.abs(res.jac))) < 1e-4
-        width = v_hi - v_lo
-        at_bound = bool(np.any(np.minimum(v - v_lo, v_hi - v) < 1e-6 * width))
-    ll, sigma2, n_obs = run(v)
-    se_v = _stderr(run, v, ll, v_lo, v_hi, param)
-    if at_bound:                         # no curvature to read on a bound
-        se_v = np.nan if param != "q_diag" else np.full(n, np.nan)
-    if param == "lam":
+        v, (ll, sigma2, n_obs, grad, hess), converged, fixed = _quasi_newton(
+            run, v0, v_lo, v_hi)
+    at_bound = bool(np.any(fixed))
+    se_v = np.full(len(v), np.nan)
+    free = ~np.asarray(fixed)            # no curvature to read on a bound
+    if free.any():
+        try:                             # the observed information of the free variables
+            d = np.diag(np.linalg.inv(-hess[np.ix_(free, free)]))
+            se_v[free] = np.where(d > 0, np.sqrt(np.abs(d)), np.nan)
+        except np.linalg.LinAlgError:
+            pass
+    scalar = param in ("lam", "q")
+    if param == "lam":                   # lam = 1 - exp(u); se by the delta method
+        gap = math.exp(v[0])
+        if at_bound and v[0] <= v_lo[0] and bounds[1] == 1.0:
+            gap = 0.0                    # the upper bound lam = 1 itself
+            ll, sigma2, n_obs = run(np.array([-np.inf]), 0)[:3]
+        estimate, stderr, log_se = 1.0 - np.array([gap]), gap * se_v, se_v
+    elif param == "lam_diag":
         estimate, stderr, log_se = v, se_v, None
-    elif param == "q":
-        estimate = math.exp(v)
-        stderr, log_se = estimate * se_v, se_v
     else:
         estimate = np.exp(v)
         stderr, log_se = estimate * se_v, se_v
-    return TuneResult(param, estimate, stderr, ll, sigma2, converged and not at_bound, at_bound,
-                      n_obs, evals[0], _log_stderr=log_se)
+    if scalar:
+        estimate, stderr, log_se = float(estimate[0]), float(stderr[0]), float(log_se[0])
+    loglik_at = None
+    if keep and scalar:                  # the profile at a value of lam or q (the record kept)
+        def loglik_at(value):
+            if param == "lam":
+                w = math.log(1.0 - value) if value < 1.0 else -math.inf
+            else:
+                w = math.log(value) if value > 0 else -math.inf
+            return _profile(x_start, P_rel, Zc, Hc, _model(param, np.array([w]), n, lam0, Q_rel),
+                            burn, m, 0)[0]
+    out = TuneResult(param, estimate, stderr, ll, sigma2, converged and not at_bound, at_bound,
+                     n_obs, evals[0], _log_stderr=log_se, _gradient=grad, _hessian=hess,
+                     _loglik_at=loglik_at)
+    out._bounds = bounds
+    return out
 
 
 # ----------------------------------------------------------------------
@@ -405,47 +487,174 @@ def _tune_record(Z, Hm, x_start, P_rel, Q_rel, lam0, param, bounds, burn):
 def _bounds(param, bounds):
     """The search interval of `param` (checked)."""
     if bounds is None:
-        return (0.5, 1.0) if param == "lam" else (1e-12, 1e2)
+        return (0.5, 1.0) if param in ("lam", "lam_diag") else (1e-12, 1e2)
     try:
         lo, hi = (float(b) for b in bounds)
     except (TypeError, ValueError):
         raise TypeError(f"`bounds` must be a pair of numbers; got {bounds!r}") from None
-    ok = (0.0 < lo < hi <= 1.0) if param == "lam" else (0.0 < lo < hi < math.inf)
+    is_lam = param in ("lam", "lam_diag")
+    ok = (0.0 < lo < hi <= 1.0) if is_lam else (0.0 < lo < hi < math.inf)
     if not ok:
-        allowed = "0 < low < high <= 1" if param == "lam" else "0 < low < high < inf"
+        allowed = "0 < low < high <= 1" if is_lam else "0 < low < high < inf"
         raise ValueError(f"`bounds` must satisfy {allowed} for {param!r}; got {bounds!r}")
     return lo, hi
 
 
-def _stderr(run, v, ll, v_lo, v_hi, param):
-    """Standard errors in the search variable from the observed information (central
-    differences of the profile log-likelihood); NaN on a bound or where the curvature
-    is not negative."""
-    v = np.atleast_1d(np.asarray(v, dtype=float))
+def _search_interval(param, bounds, lam0, n):
+    """``(low, high, start)`` of the search variable (arrays of its length): ``lam`` itself, or
+    ``log q``."""
+    lo, hi = bounds
+    k = n if param in ("q_diag", "lam_diag") else 1
+    if param == "lam":                   # u = log(1 - lam): lam = 1 is u = log(_LAM_GAP)
+        start = lam0 if lo < lam0 < hi else min(max(0.99, 0.5 * (lo + hi)), hi)
+        u_lo, u_hi = math.log(max(1.0 - hi, _LAM_GAP)), math.log(1.0 - lo)
+        u0 = min(max(math.log(max(1.0 - start, _LAM_GAP)), u_lo), u_hi)
+        return np.array([u_lo]), np.array([u_hi]), np.array([u0])
+    if param == "lam_diag":
+        start = lam0 if lo < lam0 < hi else min(max(0.99, 0.5 * (lo + hi)), hi)
+        return np.full(k, lo), np.full(k, hi), np.full(k, start)
+    v_lo, v_hi = math.log(lo), math.log(hi)
+    start = min(max(math.log(1e-3), v_lo), v_hi)
+    return np.full(k, v_lo), np.full(k, v_hi), np.full(k, start)
+
+
+def _model(param, v, n, lam0, Q_rel):
+    """The time update ``P^- = A * P + Q`` at the search variable `v` and the derivatives
+    ``(A, Q, dA, dQ, d2A, d2Q)`` of `A` and `Q` in `v` (the kernel's arguments)."""
     k = len(v)
-    h = np.full(k, _H)
-    if param == "lam":                   # stay inside (0, 1]
-        h = np.minimum(h * max(1.0 - float(v[0]), 1e-6), 0.5 * (v_hi - v))
-    if np.any(v - h < v_lo) or np.any(v + h > v_hi) or np.any(h <= 0):
-        return np.nan if k == 1 else np.full(k, np.nan)
+    dA, dQ = np.zeros((k, n, n)), np.zeros((k, n, n))
+    d2A, d2Q = np.zeros((k, k, n, n)), np.zeros((k, k, n, n))
+    if param == "q":                     # Q = exp(v) I: dQ = d2Q = Q
+        A = np.full((n, n), 1.0 / lam0)
+        Q = math.exp(v[0]) * np.eye(n)
+        dQ[0] = d2Q[0, 0] = Q
+    elif param == "q_diag":              # Q = diag(exp(v)): dQ_a = d2Q_aa = exp(v_a) E_aa
+        A = np.full((n, n), 1.0 / lam0)
+        q = np.exp(v)
+        Q = np.diag(q)
+        for a in range(k):
+            dQ[a, a, a] = d2Q[a, a, a, a] = q[a]
+    elif param == "lam":                 # A = 1 / lam, lam = 1 - exp(u)
+        d = math.exp(v[0])               # 1 - lam
+        lam = 1.0 - d
+        A = np.full((n, n), 1.0 / lam)
+        Q = Q_rel
+        dA[0] = d / (lam * lam)                              # dA/du = (1 - lam) / lam^2
+        d2A[0, 0] = d * (2.0 - lam) / lam ** 3               # (1 - lam)(2 - lam) / lam^3
+    else:                                # A_ij = (lam_i lam_j)^(-1/2), c_a = [i = a] + [j = a]
+        lam = np.asarray(v, dtype=float)
+        w = 1.0 / np.sqrt(lam)
+        A = np.outer(w, w)
+        Q = Q_rel
+        eye = np.eye(n)
+        c = 0.5 * (eye[:, :, None] + eye[:, None, :])        # c[a] / 2
+        for a in range(k):
+            dA[a] = -A * c[a] / lam[a]
+            for b in range(k):
+                d2A[a, b] = A * c[a] * c[b] / (lam[a] * lam[b])
+            d2A[a, a] += A * c[a] / lam[a] ** 2
+    return A, np.ascontiguousarray(Q, dtype=np.float64), dA, dQ, d2A, d2Q
 
-    def f(w):
-        return run(float(w[0]) if k == 1 else w)[0]
 
-    Hs = np.empty((k, k))
-    for i in range(k):
-        ei = np.zeros(k)
-        ei[i] = h[i]
-        Hs[i, i] = (f(v + ei) - 2.0 * ll + f(v - ei)) / h[i] ** 2
-        for j in range(i):
-            ej = np.zeros(k)
-            ej[j] = h[j]
-            Hs[i, j] = Hs[j, i] = (f(v + ei + ej) - f(v + ei - ej) - f(v - ei + ej)
-                                   + f(v - ei - ej)) / (4.0 * h[i] * h[j])
-    try:
-        cov = np.linalg.inv(-Hs)
-    except np.linalg.LinAlgError:
-        return np.nan if k == 1 else np.full(k, np.nan)
-    d = np.diag(cov)
-    se = np.where(d > 0, np.sqrt(np.abs(d)), np.nan)
-    return float(se[0]) if k == 1 else se
+def _profile(x_start, P_rel, Z, H, model, burn, m, order):
+    r"""``(loglik, sigma2, n_obs, gradient, Hessian)`` of the profile log-likelihood at one
+    point (one compiled pass; the derivatives in the search variable when `order` asks).
+
+    With ``slog = sum log s_t`` and ``sq = sum y_t^2 / s_t`` over ``N`` outputs:
+    :math:`\ell_p = -\tfrac12 (N (\log 2\pi + \log(sq/N) + 1) + m\,slog)`,
+    :math:`\partial_a \ell_p = -\tfrac12 (N\,sq_a / sq + m\,slog_a)`,
+    :math:`\partial_{ab} \ell_p = -\tfrac12 (N (sq_{ab}/sq - sq_a sq_b / sq^2) + m\,slog_{ab})`.
+    """
+    slog, sq, n_obs, dslog, dsq, d2slog, d2sq = _kernels().profile_derivs(
+        x_start, P_rel, Z, H, *model, burn, order)
+    if n_obs == 0:
+        raise ValueError("`zs` has no measurement left for the likelihood (all missing "
+                         "or burnt in)")
+    sigma2 = sq / n_obs                                      # sigma^2 = mean(y^2 / s)
+    ll = -0.5 * (n_obs * (_LOG_2PI + math.log(sigma2) + 1.0) + m * slog)
+    grad = -0.5 * (n_obs * dsq / sq + m * dslog)
+    hess = -0.5 * (n_obs * (d2sq / sq - np.outer(dsq, dsq) / sq ** 2) + m * d2slog)
+    return ll, sigma2, n_obs, grad, hess
+
+
+def _secant(run, v0, lo, hi, max_step, maxiter=100, xtol=1e-8):
+    """Maximize the profile log-likelihood of one variable by a safeguarded Newton search
+    inside ``[lo, hi]``: the exact second derivative at the start (`run(v, 2)`, one
+    compiled pass), then the secant of the exact first derivatives of the later passes
+    (`run(v, 1)`), each step at most ``max_step(v)`` long and halved until the
+    likelihood does not fall; where the curvature is not negative, an uphill step of
+    that length. Returns ``(v, (loglik, sigma2, n_obs, gradient, Hessian), converged,
+    held)``, the Hessian the last secant (or exact) second derivative."""
+    v = min(max(float(v0[0]), float(lo[0])), float(hi[0]))
+    lo, hi = float(lo[0]), float(hi[0])
+    ll, sigma2, n_obs, grad, hess = run(np.array([v]), 2)
+    g, h = float(grad[0]), float(hess[0, 0])
+    converged = held = False
+    for _ in range(maxiter):
+        held = (v <= lo and g < 0) or (v >= hi and g > 0)
+        if held:
+            converged = True
+            break
+        cap = float(max_step(np.array([v]))[0])
+        step = -g / h if h < 0 else math.copysign(cap, g)
+        step = max(-cap, min(cap, step))
+        v_new = min(max(v + step, lo), hi)
+        if abs(v_new - v) <= xtol:
+            converged = True
+            break
+        tol = 1e-12 * (1.0 + abs(ll))                          # round-off of the sums
+        new = run(np.array([v_new]), 1)
+        halvings = 0
+        while new[0] < ll - tol and halvings < 60:
+            step *= 0.5
+            halvings += 1
+            v_new = min(max(v + step, lo), hi)
+            new = run(np.array([v_new]), 1)
+        if new[0] < ll - tol:                                  # no ascent left: stay
+            break
+        g_new = float(new[3][0])
+        dv = v_new - v
+        if abs(dv) > 1e-6 * (1.0 + abs(v)):                    # else: round-off dominates
+            h_sec = (g_new - g) / dv
+            if h_sec < 0:
+                h = h_sec
+            else:                                              # not concave here: exact
+                new = run(np.array([v_new]), 2)
+                h = float(new[4][0, 0])
+        v, (ll, sigma2, n_obs) = v_new, new[:3]
+        g = g_new
+    return (np.array([v]), (ll, sigma2, n_obs, np.array([g]), np.array([[h]])), converged,
+            np.array([held]))
+
+
+def _quasi_newton(run, v0, lo, hi):
+    """Maximize the profile log-likelihood of several variables in the box ``[lo, hi]`` by
+    L-BFGS-B on the exact gradients (`run(v, 1)`), then one pass with the exact Hessian
+    (`run(v, 2)`) for the observed information. Returns ``(v, (loglik, sigma2, n_obs,
+    gradient, Hessian), converged, held)``."""
+    from scipy.optimize import minimize  # lazy: keeps `import rlsfilt` light
+
+    def negll(v):
+        out = run(v, 1)
+        return -out[0], -out[3]
+
+    res = minimize(negll, np.clip(v0, lo, hi), jac=True, method="L-BFGS-B",
+                   bounds=list(zip(lo, hi, strict=True)),
+                   options={"ftol": 1e-15, "gtol": 1e-8, "maxiter": 500})
+    v = np.asarray(res.x, dtype=float)
+    out = run(v, 2)
+    grad = out[3]
+    held = ((v <= lo) & (grad < 0)) | ((v >= hi) & (grad > 0))
+    # (a line search that stops at round-off is converged when the gradient is nil:
+    # 1e-4 per unit of log q moves q by less than 1e-5 of itself at any usual curvature)
+    free = ~held
+    converged = bool(res.success) or float(np.max(np.abs(grad[free]), initial=0.0)) < 1e-4
+    return v, out, converged, held
+
+
+def _max_step(param):
+    """Longest step of the search per variable: 4 in ``log q`` and in ``log(1 - lam)``;
+    for a diagonal ``lam`` the distance to 1 (at least 1e-3)."""
+    if param == "lam_diag":
+        return lambda v: np.maximum(1.0 - v, 1e-3)
+    return lambda v: np.full(len(v), 4.0)

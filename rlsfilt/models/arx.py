@@ -37,6 +37,7 @@ from ._base import IdentifiedModel, Polynomials
 from ._lag_rows import LagRows, MatrixRows
 from ._offset import offset_mode as _offset_mode
 from ._summary import EQUATION_STYLES, ModelSummary
+from ._tuning_option import tuning_param
 from ._units import RecordUnits, equivariant_forgetting, estimate_in_units
 from .regressors import (
     _as_signal,
@@ -136,6 +137,10 @@ class ARX(IdentifiedModel):
         ``method="rls"`` only: number of rows of the batch start.
     lam_ : float
         ``method="rls"`` only: the forgetting factor used.
+    tune_ : TuneResult
+        ``method="rls"`` with ``lam="tune"`` or ``Q="tune"`` only: the
+        maximum-likelihood estimate (`rlsfilt.filters.tuning.TuneResult`:
+        estimate, standard error, interval, profile plot).
     form_ : str
         ``method="rls"`` only: ``"covariance"`` or ``"square_root"``, the
         recursion that ran (see `form` of :meth:`fit`).
@@ -217,6 +222,7 @@ class ARX(IdentifiedModel):
     # learned attributes that only some fits set, and which ones
     _ONLY_SET_BY = {**{name: "fit(..., method='rls')" for name in
                        ("lam_", "form_", "filter_")},
+                    "tune_": "fit(..., method='rls', lam='tune' or Q='tune')",
                     **{name: "fit(..., method='rls' or 'riv')" for name in
                        ("theta_history_", "recursive_residuals_", "k0_")},
                     "instruments_": "fit(..., method='iv' or 'riv')",
@@ -333,7 +339,13 @@ class ARX(IdentifiedModel):
             signals' units, as their defaults (``P0 = 1e4 I``, ``R = 1``,
             MATLAB's ``rarx``). The batch start does not depend on the units;
             a prior start is the same fit for a record in other units only
-            with ``P0 / R`` (and ``Q / R``) in those units.
+            with ``P0 / R`` (and ``Q / R``) in those units. ``lam="tune"`` or
+            ``Q="tune"`` (one of them): estimate it first by maximum likelihood
+            on the model's regressor rows (`rlsfilt.filters.tuning.tune` of a
+            `RecursiveLeastSquares` with the other options, from its prior
+            ``x0``, ``P0``, the first ``n_params`` innovations left out of the
+            likelihood; ``Q = q R I``), then fit with the estimate; the result
+            is ``tune_``.
         form : {"auto", "covariance", "square_root"}, optional
             ``"rls"`` only: the recursion. ``"covariance"`` is
             `RecursiveLeastSquares` (updates ``P``); ``"square_root"`` is
@@ -408,6 +420,7 @@ class ARX(IdentifiedModel):
         """
         if method not in ("ls", "rls", "iv", "riv"):
             raise ValueError(f"`method` must be 'ls', 'rls', 'iv' or 'riv'; got {method!r}")
+        tuning = tuning_param(method, lam, Q, "ARX.fit")
         opts = {"k0": k0, "lam": lam, "P0": P0, "R": R, "Q": Q, "x0": x0, "form": form}
         if method == "ls":
             given = [k for k, v in opts.items() if v is not None] + list(filter_options)
@@ -451,6 +464,7 @@ class ARX(IdentifiedModel):
                 intercept=_offset_mode(self.offset) == "intercept")
         else:
             dev = records if op is None else [(U - op[0], Y - op[1]) for U, Y in records]
+            tuned = None if tuning is None else self._tune(records, s, op, opts, tuning)
             intercept = _offset_mode(self.offset) == "intercept"
             units = RecordUnits(dev, s, intercept=intercept)
             # the rows read from the signals: the regressor matrix only where a path needs it
@@ -464,6 +478,8 @@ class ARX(IdentifiedModel):
                          else "covariance",
                          "theta_history_": history[:, :, 0] if info["y_1d"] else history,
                          "recursive_residuals_": prior[:, 0] if info["y_1d"] else prior}
+            if tuned is not None:
+                recursive["tune_"] = tuned
         if method == "rls":          # with the largest residuals (their scale, below)
             resid, top = lagged.residuals(theta)
         else:
@@ -472,7 +488,7 @@ class ARX(IdentifiedModel):
         sigma2, cov, noise_cov = _noise_and_covariance(resid, dof, inv_scaled, col_scale, top)
         # everything is computed: only now the model changes
         for name in ("theta_history_", "filter_", "k0_", "lam_", "form_", "recursive_residuals_",
-                     "noise_covariance_", "intercept_", "instruments_", "trend_"):
+                     "tune_", "noise_covariance_", "intercept_", "instruments_", "trend_"):
             self.__dict__.pop(name, None)
         self.__dict__.update(recursive)
         self._store(theta, s, info)
@@ -487,6 +503,24 @@ class ARX(IdentifiedModel):
         self.n_experiments_ = len(records)
         self.method_ = method
         return self
+
+    def _tune(self, records, s, op, opts, param):
+        """Maximum likelihood of `param` (``"lam"`` or ``"q"``) on the regressor rows, by a
+        `RecursiveLeastSquares` with the other options; writes the estimate into `opts`
+        (``Q = q R I``) and returns the `TuneResult`."""
+        Phi, target = self._design(records, s, op)
+        n = Phi.shape[1]
+        kw = {key: opts[key] for key in ("P0", "R", "x0") if opts[key] is not None}
+        other = "Q" if param == "lam" else "lam"
+        if opts[other] is not None:
+            kw[other] = opts[other]
+        filt = RecursiveLeastSquares(n, dim_z=s.n_outputs, **kw, **opts["extra"])
+        fit = filt.tune(target, Phi, param, burn=n)
+        if param == "lam":
+            opts["lam"] = fit.estimate
+        else:
+            opts["Q"] = fit.estimate * filt.R * np.eye(n)
+        return fit
 
     def _store(self, theta, s, info):
         """Set every fitted attribute derived from ``theta`` (n_params, ny)."""

@@ -32,6 +32,7 @@ from ..exceptions import NumericalWarning
 from ..filters._health import warn_at_caller as _warn_at_caller
 from ..filters.bank import RLSBank, _full_rank
 from ._offset import offset_mode as _offset_mode
+from ._tuning_option import tuning_param
 from .regressors import _full_rank_rows, arx_structure
 
 __all__ = ["ARXBank", "fit_many"]
@@ -65,6 +66,10 @@ class ARXBank:
         :func:`fit_many`, or ``0 .. C-1``).
     theta_ : ndarray, shape (C, n_params)
         Parameters of each channel in regressor order (``param_names_``).
+    tune_ : BankTuneResult
+        ``lam="tune"`` or ``Q="tune"`` only: each channel's maximum-likelihood
+        estimate (`rlsfilt.filters.tuning.BankTuneResult`; NaN for channels
+        not fitted).
     theta_cov_ : ndarray, shape (C, n_params, n_params)
         Parameter covariances, as ``ARX.theta_cov_``.
     std_errors_ : ndarray, shape (C, n_params)
@@ -287,7 +292,10 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
         ``"rls"`` only, as in :meth:`ARX.fit`; `lam` and `R` may also hold
         one value per channel (shape (C,)), `P0` and `Q` one scalar or
         matrix per channel (shapes (C,) or (C, n_params, n_params)), `x0`
-        one row per channel (C, n_params).
+        one row per channel (C, n_params). ``lam="tune"`` or ``Q="tune"``:
+        each channel's by maximum likelihood first, as :meth:`ARX.fit` does
+        (`RLSBank.tune` on the channels' regressor rows); the results are
+        ``tune_`` of the returned bank.
     max_lag : int, default 25
         Largest lag of the residual tests.
     alpha : float, default 0.01
@@ -375,8 +383,11 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
     offset = _offset_mode(params["offset"])
     if method not in ("ls", "rls"):
         raise ValueError(f"`method` must be 'ls' or 'rls'; got {method!r}")
+    tuning = tuning_param(method, lam, Q, "fit_many")
     opts = {"k0": k0, "lam": lam, "P0": P0, "R": R, "Q": Q, "x0": x0}
     given = [key for key, value in opts.items() if value is not None]
+    if tuning is not None:                   # estimated below, per channel
+        opts["lam" if tuning == "lam" else "Q"] = None
     if method == "ls" and (given or filter_options):
         raise TypeError(f"`{(given + list(filter_options))[0]}` only applies to method='rls'; "
                         "got method='ls'")
@@ -418,6 +429,10 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
     chunk = max(1, _CHUNK_BYTES // (8 * max(rows, 1) * (n + 2)))
     todo = np.flatnonzero(good)
     buffer = np.empty(rows * n * min(chunk, C))               # the regressors of a chunk
+    tuned = None
+    if tuning is not None:
+        with _one_blas_thread():
+            tuned = _tune_channels(rec, per_channel, todo, chunk, buffer, tuning, C)
     try:
         with _one_blas_thread():
             for start in range(0, C, chunk):
@@ -454,6 +469,7 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
         is_independent_=None if out.Q is None else out.p_indep > alpha,
         k0_=out.k0, recursive_residuals_=out.rec,
         healthy_=out.healthy, errors_=list(errors), n_samples_=rows, n_params_=n,
+        **({} if tuned is None else {"tune_": tuned}),
         param_names_=names, method_=method, max_lag=max_lag, alpha=alpha,
         **rec.operating_point(out.theta), _data=(U, Y), _fingerprint=sums, _options=kept)
 
@@ -997,6 +1013,42 @@ def _fail(out, c, labels, message, on_error):
     if on_error == "raise":
         raise ValueError(f"channel {labels[c]!r}: {message}")
     out.errors[c] = message
+
+
+def _tune_channels(rec, per_channel, todo, chunk, buffer, param, C):
+    """Maximum likelihood of every fitted channel's ``lam`` or ``q`` on its regressor rows
+    (`RLSBank.tune`, the first ``n_params`` innovations left out); sets the estimates in
+    `per_channel` and its bank (``Q = q R I``) and returns the `BankTuneResult` (channels
+    not fitted: NaN)."""
+    from ..filters.tuning import BankTuneResult, TuneResult
+
+    s, bank = rec.s, per_channel["bank"]
+    n = s.n_params
+    nan = TuneResult(param, np.nan, np.nan, np.nan, np.nan, False, False, 0, 0,
+                     _log_stderr=np.nan)
+    results = [nan] * C
+    for start in range(0, C, chunk):
+        cs = todo[(todo >= start) & (todo < start + chunk)]
+        if not cs.size:
+            continue
+        cs, sel = _as_slice(cs)
+        norms = np.empty((cs.size, n))
+        Phi, target = _regressors(rec.U, rec.Y, s, sel, buffer, norms)
+        fits = bank._subset(cs).tune(target, Phi, param, burn=n)
+        for j, c in enumerate(cs):
+            results[c] = fits.channel(j)
+    est = np.array([r.estimate for r in results])
+    fitted = ~np.isnan(est)
+    if param == "lam":
+        lam = bank.lam.copy()
+        lam[fitted] = est[fitted]
+        bank.lam = lam
+    else:
+        Q = bank.Q.copy()
+        Q[fitted] = est[fitted, None, None] * bank.R[fitted, None, None] * np.eye(n)
+        bank.Q = Q
+    per_channel.update(lam=bank.lam, Q=bank.Q)
+    return BankTuneResult(results)
 
 
 def _rls_options(C, n, method, opts, filter_options):
