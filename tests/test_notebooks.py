@@ -84,9 +84,9 @@ def stray_outputs(outputs, temp_dirs=()):
         else:
             continue
         text = text if isinstance(text, str) else "".join(text)
-        for temp in temps:
-            if temp and temp in text:
-                found.append(f"a temporary path {temp!r}: {text[:120]!r}")
+        hits = [temp for temp in temps if temp and temp in text]
+        if hits:                                   # one finding per output
+            found.append(f"a temporary path {hits[0]!r}: {text[:120]!r}")
     return found
 
 
