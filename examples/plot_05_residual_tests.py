@@ -21,6 +21,7 @@ d = mass_spring_damper()
 too_simple = residual_analysis(ARX(1, 1, 1, dt=d.dt).fit(d.u, d.y), d.u, d.y)
 fig = plot_residuals(too_simple)
 fig.suptitle("ARX(1, 1, 1): too simple")
+plt.show()
 
 # %%
 # The true structure ARX(2, 2, 1) passes both tests.

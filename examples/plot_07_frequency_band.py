@@ -21,6 +21,7 @@ model = ARX(*short.orders, dt=short.dt).fit(short.u, short.y)
 band = frequency_response_band(model, rng=0)
 fig = plot_frequency_band(band, plant=short.plant)
 fig.suptitle("150 samples, noise std 0.1")
+plt.show()
 
 # %%
 # Ten times more data: the band narrows by about :math:`\sqrt{10}`.

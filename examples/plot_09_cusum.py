@@ -5,10 +5,11 @@ Has the plant changed? CUSUM tests
 The CUSUM and CUSUM-of-squares tests of Brown, Durbin & Evans (1975) run on
 the recursive residuals of RLS. Under constant parameters their paths stay
 inside the significance lines; a parameter change drives them out.
-:func:`rlsfilt.plotting.plot_cusum` marks the sample where the path departs
-furthest from its expected course (an estimate of when the plant changed)
-and the first crossing of the lines. Pass ``t`` so the marks are in the
-record's samples: row ``r`` of an ARX regression is sample ``r + max_lag``.
+:func:`rlsfilt.plotting.plot_cusum` marks, when a test rejects constancy, the
+path outside the lines and the sample where it departs furthest from its
+expected course (an estimate of when the plant changed); a test that does not
+reject gets no marks. Pass ``t`` so the marks are in the record's samples: row
+``r`` of an ARX regression is sample ``r + max_lag``.
 """
 
 import matplotlib.pyplot as plt

@@ -6,6 +6,7 @@ A filterpy-style toolkit: `RecursiveLeastSquares` mirrors filterpy's
 """
 
 from . import adaptive, data, datasets, validation  # public subpackages
+from ._display import Summary
 from ._version import __version__
 from .continuous import d2c
 from .data import IOData, Trend, detrend, retrend
@@ -93,6 +94,7 @@ __all__ = [
     "d2c",
     "save_model",
     "load_model",
+    "Summary",
     "adaptive",
     "data",
     "ARXBank",

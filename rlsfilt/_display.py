@@ -1,5 +1,5 @@
-"""Display of the filters: rich HTML in Jupyter (``_repr_html_``) and the text of
-their ``repr`` (`pretty_str`).
+"""Display of results: rich HTML in Jupyter (``_repr_html_``), the text of their
+``repr`` (`pretty_str`), and `Summary`, what every ``summary()`` returns.
 
 One table a user can read at a glance instead of forty lines of matrices:
 the dimensions and settings, the current estimate with its standard
@@ -18,7 +18,7 @@ import html
 
 import numpy as np
 
-__all__ = []
+__all__ = ["Summary"]
 
 _MAX_ROWS = 20   # parameters listed before the table is cut (the rest is summarized)
 _SETTINGS = (    # (attribute, label), shown when the filter has the attribute
@@ -32,6 +32,69 @@ _SETTINGS = (    # (attribute, label), shown when the filter has the attribute
     ("Q", "Q (random walk)"),
     ("n_updates", "updates so far"),
 )
+
+
+class Summary:
+    """A summary of a result: plain text to print, an HTML table in a notebook.
+
+    Every ``summary()`` of rlsfilt returns one (a model's, a validation
+    report's, a selection's, a bank's, ...). ``print(s)``, ``str(s)`` and
+    ``s.as_text()`` give the text; Jupyter displays ``s.as_html()``.
+
+    Parameters
+    ----------
+    text : str
+        The plain text.
+    html : str, optional
+        The HTML, its texts already escaped; by default the escaped text in a
+        ``<pre>`` block.
+
+    Examples
+    --------
+    >>> from rlsfilt import Summary
+    >>> s = Summary("a = 1 < 2")
+    >>> print(s)
+    a = 1 < 2
+    >>> s.as_html()
+    "<pre class='rlsfilt-summary'>a = 1 &lt; 2</pre>"
+    """
+
+    def __init__(self, text, html=None):
+        if not isinstance(text, str):
+            raise TypeError(f"`text` must be a str; got {type(text).__name__}")
+        if html is not None and not isinstance(html, str):
+            raise TypeError(f"`html` must be a str or None; got {type(html).__name__}")
+        self._text = text
+        self._html = html
+
+    def as_text(self):
+        """The summary as plain text (what ``print`` shows).
+
+        Returns
+        -------
+        str
+        """
+        return self._text
+
+    def as_html(self):
+        """The summary as HTML (what a notebook shows).
+
+        Returns
+        -------
+        str
+        """
+        if self._html is None:
+            return f"<pre class='rlsfilt-summary'>{html.escape(self.as_text())}</pre>"
+        return self._html
+
+    def __str__(self):
+        return self.as_text()
+
+    def __repr__(self):
+        return self.as_text()
+
+    def _repr_html_(self):
+        return self.as_html()
 
 
 def pretty_str(label, value):
@@ -160,7 +223,7 @@ _EDGE = 5        # channels shown at each end of a long bank
 _TOP = 10        # candidates of a selection listed
 
 
-def _table(header, rows):
+def table_html(header, rows):
     """An HTML table: `header` texts, then `rows` of cell texts (every text escaped);
     a row that is a plain string is one cell spanning the table."""
     head = "".join(f"<th>{html.escape(str(h))}</th>" for h in header)
@@ -175,12 +238,29 @@ def _table(header, rows):
     return f"<table class='rlsfilt-display'><tr>{head}</tr>{''.join(body)}</table>"
 
 
-def _wrap(head, *parts):
+def table_text(header, rows, indent="  "):
+    """A plain-text table: `header` texts, then `rows` of cell texts, the first
+    column left-aligned and the others right-aligned; a row that is a plain
+    string is printed as it is."""
+    cells = [list(map(str, header))] + [list(map(str, r)) for r in rows if not isinstance(r, str)]
+    widths = [max(len(r[k]) for r in cells) for k in range(len(header))]
+
+    def line(r):
+        first, *rest = r
+        return indent + "  ".join([first.ljust(widths[0])]
+                                  + [c.rjust(w) for c, w in zip(rest, widths[1:])]).rstrip()
+    out = [line(cells[0])]
+    for r in rows:
+        out.append(indent + r if isinstance(r, str) else line(list(map(str, r))))
+    return "\n".join(out)
+
+
+def frame_html(head, *parts):
     """The display's frame: a heading paragraph (already HTML) and its parts."""
     return f"<div class='rlsfilt-display'><p>{head}</p>{''.join(parts)}</div>"
 
 
-def _edges(n, edge=_EDGE):
+def edge_indices(n, edge=_EDGE):
     """Indices shown of `n` items: all, or the first and last `edge` (and the gap)."""
     if n <= 2 * edge:
         return list(range(n)), None
@@ -199,7 +279,7 @@ def bank_html(bank, labels=None):
     failed = np.asarray(bank.failed_channels)
     head = (f"<strong>{html.escape(name)}</strong>: {C} channel{'s' * (C != 1)}, "
             f"{n} parameter{'s' * (n != 1)} each")
-    shown, gap = _edges(C)
+    shown, gap = edge_indices(C)
     rows = []
     for k, c in enumerate(shown):
         if gap and k == _EDGE:
@@ -214,7 +294,7 @@ def bank_html(bank, labels=None):
                 _row("forgetting mode", _fmt(bank.forgetting)),
                 _row("updates so far (n_updates)", _fmt(int(bank.n_updates))),
                 _row("channels that failed the health check", _fmt(int(failed.size)))]
-    return _wrap(head, _table(header, rows),
+    return frame_html(head, table_html(header, rows),
                  f"<details><summary>settings</summary>"
                  f"<table class='rlsfilt-display'>{''.join(settings)}</table></details>")
 
@@ -238,7 +318,7 @@ def ranking_html(name, criterion, labels, columns, key, errors=None, top=_TOP):
         rows.append(f"... {len(order) - top} more candidates ...")
     head = (f"<strong>{html.escape(name)}</strong> by {html.escape(str(criterion))}: "
             f"{len(order)} candidate{'s' * (len(order) != 1)}, best first")
-    return _wrap(head, _table(["candidate", *(h for h, _ in columns)], rows))
+    return frame_html(head, table_html(["candidate", *(h for h, _ in columns)], rows))
 
 
 def trend_html(trend, names=None):
@@ -269,4 +349,4 @@ def trend_html(trend, names=None):
     head = (f"<strong>{html.escape(name)}</strong>: {html.escape(str(trend.type))}, "
             f"{trend.n_experiments} experiment{'s' * (trend.n_experiments != 1)}, "
             f"{n_cols} signal{'s' * (n_cols != 1)}")
-    return _wrap(head, _table(header, rows))
+    return frame_html(head, table_html(header, rows))

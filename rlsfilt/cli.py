@@ -436,7 +436,7 @@ def _run_identify(args):
         na, nb_best, nk_best = selection.best
         nb, nk = [nb_best] * n_in, [nk_best] * n_in
         metadata["order_selection"] = selection.to_dict()
-        lines += ["", selection.summary()]
+        lines += ["", selection.summary().as_text()]
     if family:
         model, orders = _family_model(args, na, nb, nk, n_in, est.dt)
         s = family_structure(n_inputs=n_in, **orders)
@@ -774,7 +774,8 @@ def _emit(report, args, before=(), after=()):
         print(json.dumps(result))
     else:
         note = report.metadata.get("validation_note")
-        print("\n".join([*before, *([note, ""] if note else []), report.summary(), *after]))
+        print("\n".join([*before, *([note, ""] if note else []), report.summary().as_text(),
+                         *after]))
     if args.plot:
         _save_figure(report, args.plot)
         if not args.json:

@@ -10,7 +10,7 @@ dask DataFrame) becomes one task that runs the in-memory
 returns only its per-channel summary (one row per channel: parameters,
 standard errors, fits, residual tests). The records themselves never travel
 back; a channel's estimates and fits do not depend on which other channels
-share its block, so they equal the in-memory ``fit_many(...).summary()``
+share its block, so they equal the in-memory ``fit_many(...).to_dataframe()``
 bit for bit; its residual-test statistics (computed vectorized over a
 block) to round-off; and so, like it, each channel's own ``ARX.fit`` and
 ``validate`` to round-off (a few units in the last place: the fleet's
@@ -83,7 +83,7 @@ def fit_many(model, u, y, method="ls", *, channels=None, client=None, compute=Tr
     Returns
     -------
     pandas.DataFrame or dask.dataframe.DataFrame
-        ``fit_many(model, u, y, method, **options).summary()``, equal to it
+        ``fit_many(model, u, y, method, **options).to_dataframe()``, equal to it
         exactly. The ``error`` column of the lazy frame (None where a
         channel was fitted) is dropped from the computed one when no
         channel failed, as in the in-memory summary.
@@ -141,7 +141,7 @@ def fit_many_frame(model, frame, *, channel, input, output, method="ls", client=
     -------
     pandas.DataFrame or dask.dataframe.DataFrame
         One row per channel, in order of appearance, as
-        ``fit_many(...).summary()`` of the channels (with the ``error``
+        ``fit_many(...).to_dataframe()`` of the channels (with the ``error``
         column when the frame is lazy or some channel failed).
 
     Raises
@@ -174,7 +174,7 @@ def fit_many_frame(model, frame, *, channel, input, output, method="ls", client=
 
 def _fit_block(model, u, y, method, labels, options):
     """One task: the summary of a block of channels (the only thing sent back)."""
-    table = _fit_many(model, u, y, method, channels=labels, **options).summary()
+    table = _fit_many(model, u, y, method, channels=labels, **options).to_dataframe()
     if "error" not in table:
         table["error"] = None
     return table
@@ -226,7 +226,7 @@ def _meta(model, n_inputs, method, options, labels):
 
 
 def _collect(parts, meta, client, compute):
-    """The lazy frame, or the computed one in the types of `ARXBank.summary`."""
+    """The lazy frame, or the computed one in the types of `ARXBank.to_dataframe`."""
     lazy = dd.from_delayed(parts, meta=meta, verify_meta=False)
     if not compute:
         return lazy

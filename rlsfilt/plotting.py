@@ -247,11 +247,14 @@ def plot_parameters(source, covariances=None, *, t=None, names=None, true_values
     lo = min(float(np.nanmin(a)) for a in shown) if np.isfinite(theta).any() else np.nan
     hi = max(float(np.nanmax(a)) for a in shown) if np.isfinite(theta).any() else np.nan
     span = hi - lo
+    widths = []                      # the median half-width of each band
     for i in range(n):
         color = _color(i)
         ax.plot(*_decimate(tt, theta[:, i]), color=color, lw=1.2, label=names[i])
         if covs is not None:
             sd = np.sqrt(np.clip(covs[:, i, i], 0.0, None))
+            if np.isfinite(sd).any():
+                widths.append(float(np.nanmedian(n_std * sd)))
             ax.fill_between(*_envelope(tt, theta[:, i] - n_std * sd, theta[:, i] + n_std * sd),
                             color=color, alpha=0.2, linewidth=0)
             # the y-range follows the bands only where they are informative: the broad prior
@@ -269,7 +272,14 @@ def plot_parameters(source, covariances=None, *, t=None, names=None, true_values
     ax.set_ylabel(r"estimate $\hat\theta$")
     title = "parameter estimates"
     if covs is not None:
-        title += rf" ($\pm{n_std:g}\sigma$ bands)"
+        # a band narrower than about 1 % of the axis is hidden under its line: say so
+        # instead of promising bands the reader cannot see
+        bottom, top = ax.get_ylim()
+        if widths and max(widths) < 0.01 * (top - bottom):
+            title += (rf" ($\pm{n_std:g}\sigma$ bands too narrow to see at this scale: "
+                      rf"median ${n_std:g}\sigma \leq$ {max(widths):.2g})")
+        else:
+            title += rf" ($\pm{n_std:g}\sigma$ bands)"
     ax.set_title(title)
     extra = []
     if truth is not None:
@@ -1149,10 +1159,13 @@ def plot_impulse(impulse, ax=None, *, level=0.99):
 def plot_cusum(result, ax=None, *, t=None, xlabel=None):
     r"""CUSUM or CUSUM-of-squares path with its significance lines.
 
-    The sample where the path departs furthest from its expected course
-    (zero for the CUSUM, the diagonal for the CUSUM of squares) is marked:
-    it estimates when the parameters changed. The first crossing of the
-    lines, when there is one, is marked too.
+    When the test rejects constancy, the stretches of the path outside the
+    lines are drawn thick, and the sample where the path departs furthest
+    from its expected course (zero for the CUSUM, the diagonal for the
+    CUSUM of squares) is marked: it estimates when the parameters changed.
+    The first crossing is not marked: the CUSUM of squares of a record whose
+    noise grows after a change leaves the lines long before the change.
+    When constancy is not rejected, nothing is marked.
 
     Parameters
     ----------
@@ -1212,13 +1225,14 @@ def plot_cusum(result, ax=None, *, t=None, xlabel=None):
     ax.plot(*_decimate(x, lower), color=_BLACK, lw=1.0, linestyle="--")
     ax.plot(*_decimate(x, upper), color=_BLACK, lw=1.0, linestyle="--")
     ax.plot(*_decimate(x, stat), color=COLORS[0], lw=1.4, label=name)
-    if result.crossings.size:
-        k = int(np.searchsorted(index, result.crossings[0]))
-        ax.plot(x[k], stat[k], "o", color=COLORS[1], ms=6,
-                label=f"first crossing at $t$ = {x[k]:g}")
-    k = int(np.argmax(np.abs(stat - centre)))
-    ax.axvline(x[k], color=COLORS[1], lw=1.2, alpha=0.8,
-               label=f"largest departure at $t$ = {x[k]:g}")
+    if result.rejected:
+        # the path outside the lines, thick (NaN elsewhere breaks the line there)
+        outside = np.where((stat < lower) | (stat > upper), stat, np.nan)
+        ax.plot(*_decimate(x, outside), color=COLORS[1], lw=3.0, alpha=0.6,
+                label="outside the lines")
+        k = int(np.argmax(np.abs(stat - centre)))
+        ax.axvline(x[k], color=COLORS[1], lw=1.2, alpha=0.8,
+                   label=f"largest departure at $t$ = {x[k]:g}")
     ax.set_xlabel(xlabel if xlabel is not None else "sample $t$")
     ax.set_ylabel("$W_t$" if result.kind == "cusum" else "$S_t$")
     ax.set_title(f"{name}: constancy " + ("REJECTED" if result.rejected else "not rejected")
@@ -1386,8 +1400,11 @@ def _label_gain(report, ax_mag):
 def plot_str_history(history, fig=None, *, true_theta=None):
     r"""A self-tuning regulator's run: output and reference, control, estimates, trace of P.
 
-    Four stacked axes sharing the time axis. Steps where a due redesign
-    was rejected (the last controller kept) are marked on the control.
+    Stacked axes sharing the time axis: output and reference, control, the
+    estimates of ``A`` (and the offset ``c``, when estimated), those of ``B``
+    (on their own axis: their scale is often far from that of ``A``'s) and
+    :math:`\mathrm{tr}\,P`. Steps where a due redesign was rejected (the
+    last controller kept) are marked on the control.
 
     Parameters
     ----------
@@ -1420,7 +1437,7 @@ def plot_str_history(history, fig=None, *, true_theta=None):
     ...     y = 0.8 * y + 0.5 * u
     >>> fig = plot_str_history(stre.history, true_theta=[-0.8, 0.5])
     >>> [ax.get_ylabel() for ax in fig.axes]
-    ['$y$, $r$', 'control $u$', 'estimate $\\hat\\theta$', '$\\mathrm{tr}\\,P$']
+    ['$y$, $r$', 'control $u$', 'estimates $\\hat a$', 'estimates $\\hat b$', '$\\mathrm{tr}\\,P$']
     >>> fig.axes[-1].get_xlabel()
     'time (s)'
     """
@@ -1428,7 +1445,16 @@ def plot_str_history(history, fig=None, *, true_theta=None):
         fig = _figure(None, figsize=(9, 9), layout="constrained")
     else:
         fig.clf()
-    axes = fig.subplots(4, 1, sharex=True)
+    theta = np.asarray(history.theta, dtype=float)
+    offset = bool(getattr(history, "offset", False))
+    na = int(history.na)
+    nb = theta.shape[1] - na - offset
+    # the estimates of A (and the offset), then those of B: a1 ~ -1.5 beside b1 ~ 0.002 on one
+    # axis would draw the b's as a flat line at zero
+    groups = [(list(range(na)) + [na + nb] * offset, r"estimates $\hat a$"
+               + (r", $\hat c$" if offset else "")),
+              (list(range(na, na + nb)), r"estimates $\hat b$")]
+    axes = fig.subplots(4 + len(groups) - 1, 1, sharex=True)
     t = np.asarray(history.t, dtype=float)
     ax = axes[0]
     ax.plot(*_decimate(t, history.r), color=_BLACK, linestyle=":", lw=1.2, label="reference $r$")
@@ -1444,13 +1470,19 @@ def plot_str_history(history, fig=None, *, true_theta=None):
                 label="design kept\n(rejected estimate)")
     ax.set_ylabel("control $u$")
     _legend_outside(ax)
-    theta = np.asarray(history.theta, dtype=float)
-    offset = bool(getattr(history, "offset", False))
-    names = ([rf"$\hat a_{{{i + 1}}}$" for i in range(history.na)]
-             + [rf"$\hat b_{{{i + 1}}}$" for i in range(theta.shape[1] - history.na - offset)]
-             + [r"$\hat c$"] * offset)
-    plot_parameters(theta, t=t, names=names, true_values=true_theta, ax=axes[2])
-    ax = axes[3]
+    names = ([rf"$\hat a_{{{i + 1}}}$" for i in range(na)]
+             + [rf"$\hat b_{{{i + 1}}}$" for i in range(nb)] + [r"$\hat c$"] * offset)
+    truth = None if true_theta is None else as_float_array(true_theta, "true_theta")
+    if truth is not None and truth.shape[-1] != theta.shape[1]:
+        raise ValueError(f"`true_theta` must have {theta.shape[1]} parameters on its last axis "
+                         f"(na + nb{' + 1' if offset else ''}); got shape {truth.shape}")
+    for k, (cols, label) in enumerate(groups):
+        plot_parameters(theta[:, cols], t=t, names=[names[c] for c in cols],
+                        true_values=None if truth is None else truth[..., cols],
+                        ax=axes[2 + k])
+        axes[2 + k].set_ylabel(label)
+        axes[2 + k].set_title("")
+    ax = axes[-1]
     trace = np.asarray(history.trace_P, dtype=float)
     ax.plot(*_decimate(t, trace), color=COLORS[3], lw=1.1)
     _trace_axis(ax, trace)

@@ -107,7 +107,7 @@ def test_the_loop_report_matches_python_control():
         for z in np.exp(1j * np.array([0.05, 0.3, 1.1, 2.9])):  # not z = 1: a pole of K
             assert abs(getattr(loop, name)(z) - ref(z)) < 1e-10 * max(1.0, abs(ref(z))), name
     assert abs(loop.dcgain - 1.0) < 1e-12
-    assert "stable" in repr(loop) and "A R + B S" in loop.summary()
+    assert "stable" in repr(loop) and "A R + B S" in str(loop.summary())
 
 
 def test_to_ss_and_to_tf_are_the_same_controller():

@@ -273,7 +273,7 @@ def test_history_plot_and_repr():
     h = stre.history
     assert_allclose(h.t, 0.1 * np.arange(120))
     fig = h.plot(true_theta=THETA)
-    assert len(fig.axes) == 4
+    assert len(fig.axes) == 5
     assert fig.axes[-1].get_xlabel() == "time (s)"
     plt.close(fig)
     assert "120 steps" in repr(h)

@@ -119,7 +119,7 @@ def test_identify_json_is_the_report_dict(capsys, csv_file, record, tmp_path):
     means = ", ".join(f"{n} = {table[n].mean():.6g}" for n in ("u1", "u2", "y"))
     assert text == (f"data: '{csv_file}', 500 samples, sample time 0.1 s\n"
                     f"detrend: constant (means removed: {means}; the model keeps them and "
-                    "predicts in the units of the data)\n\n" + report.summary() + "\n")
+                    "predicts in the units of the data)\n\n" + str(report.summary()) + "\n")
     png = tmp_path / "fig.png"
     _run(capsys, *_ident_args(csv_file, "--dt", "0.1", "--plot", str(png)))
     assert len(report.plot().axes) >= 3 and png.stat().st_size > 0

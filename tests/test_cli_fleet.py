@@ -1,6 +1,6 @@
 """``rlsfilt identify-many``: one ARX model per channel of a long-format CSV file.
 
-Oracle: ``fit_many(...).summary()`` of the same channels (the CSV round trip
+Oracle: ``fit_many(...).to_dataframe()`` of the same channels (the CSV round trip
 of a float is exact, so the written table equals it exactly).
 """
 
@@ -43,7 +43,7 @@ def _expected(frame, method="ls", **options):
     labels = list(dict.fromkeys(frame["cell"]))
     u = np.column_stack([frame.loc[frame["cell"] == c, "current"].to_numpy() for c in labels])
     y = np.column_stack([frame.loc[frame["cell"] == c, "voltage"].to_numpy() for c in labels])
-    return fit_many(ARX(2, 2, 1), u, y, method, channels=labels, **options).summary()
+    return fit_many(ARX(2, 2, 1), u, y, method, channels=labels, **options).to_dataframe()
 
 
 def test_csv_summary_equals_fit_many(rng, tmp_path):

@@ -1,6 +1,6 @@
 """rlsfilt.dask: fit_many over Dask collections on a two-worker LocalCluster.
 
-Oracle: the in-memory ``fit_many(...).summary()``; the distributed result
+Oracle: the in-memory ``fit_many(...).to_dataframe()``; the distributed result
 must equal it exactly (a channel's numbers do not depend on which other
 channels share its block). Also: ``import rlsfilt`` never imports Dask.
 """
@@ -63,7 +63,7 @@ def test_dask_arrays_on_two_workers_equal_fit_many(rng, client, method, options)
     if options.get("lam") == "per channel":
         options = {"lam": rng.uniform(0.97, 1.0, 23)}
     labels = [f"cell{c:02d}" for c in range(23)]
-    expected = fit_many(ARX(2, 2, 1), u, y, method, channels=labels, **options).summary()
+    expected = fit_many(ARX(2, 2, 1), u, y, method, channels=labels, **options).to_dataframe()
     chunks = (-1, (5, 9, 1, 8))                         # uneven blocks of channels
     got = rdask.fit_many(ARX(2, 2, 1), da.from_array(u, chunks=chunks),
                          da.from_array(y, chunks=chunks), method, channels=labels,
@@ -85,7 +85,7 @@ def test_several_inputs_and_lazy_result(rng, client):
     future = client.compute(lazy)
     distributed.wait(future)
     got = future.result().drop(columns="error")
-    expected = fit_many(model, u, y, residual_tests=False).summary()
+    expected = fit_many(model, u, y, residual_tests=False).to_dataframe()
     pd.testing.assert_frame_equal(got, expected, check_exact=True)
 
 
@@ -103,9 +103,10 @@ def test_long_dask_dataframe_partitioned_by_channel(rng, client):
     short = [c for c in range(9) if not c % 3]
     expected = pd.concat([
         fit_many(ARX(2, 2, 1), u[:, full], y[:, full], "rls",
-                 channels=[f"s{c}" for c in full]).summary(),
+                 channels=[f"s{c}" for c in full]).to_dataframe(),
         fit_many(ARX(2, 2, 1), u[:250, short], y[:250, short], "rls",
-                 channels=[f"s{c}" for c in short]).summary()]).loc[[f"s{c}" for c in range(9)]]
+                 channels=[f"s{c}" for c in short]).to_dataframe(),
+    ]).loc[[f"s{c}" for c in range(9)]]
     assert list(got.index) == [f"s{c}" for c in range(9)]
     pd.testing.assert_frame_equal(got, expected, check_exact=True, check_index_type=False)
 

@@ -89,7 +89,7 @@ def test_report_shows_percent_and_the_verdict_in_words():
     d = dc_motor()
     rep = validate(ARX(*d.orders, dt=d.dt).fit(d.u, d.y), d.u, d.y, plant=d.plant)
     pc = rep.plant_comparison
-    for text in (rep.summary(), rep._repr_html_()):
+    for text in (str(rep.summary()), rep._repr_html_()):
         assert f"{100 * pc.frequency_error:.4g}%" in text
         assert f"{100 * pc.dc_gain_error:.4g}%" in text
         assert f"{100 * pc.step_error:.4g}%" in text

@@ -169,7 +169,7 @@ def test_per_input_ranges_as_lists_or_dicts_on_records(two_inputs):
                      nk={0: range(0, 4), 1: range(15, 20)})
     assert a.best == b.best == (1, (3, 2), (2, 17))
     assert a.seeded_by_delayest is None
-    assert "3,2" in a.summary() and a.to_dataframe()["nk"][a.best_index] == [2, 17]
+    assert "3,2" in str(a.summary()) and a.to_dataframe()["nk"][a.best_index] == [2, 17]
     with pytest.warns(OrderSelectionWarning, match=r"`nk\[fan\]` range \(15\.\.17\)"):
         select_order(data, na=[1], nb=[[3], [2]], nk=[range(0, 4), range(15, 18)])
     with pytest.raises(ValueError, match="`nk` must give every input a range; missing 'fan'"):

@@ -161,8 +161,8 @@ def test_arx_fit_many_is_fit_many(rng):
     u, y = _fleet(rng, C=4)
     a = ARX(2, 2, 1).fit_many(u, y, "rls", lam=0.99, residual_tests=False)
     b = fit_many(ARX(2, 2, 1), u, y, "rls", lam=0.99, residual_tests=False)
-    pd.testing.assert_frame_equal(a.summary(), b.summary(), check_exact=True)
-    assert "q_statistic" not in a.summary() and a.pvalue_white_ is None
+    pd.testing.assert_frame_equal(a.to_dataframe(), b.to_dataframe(), check_exact=True)
+    assert "q_statistic" not in a.to_dataframe() and a.pvalue_white_ is None
 
 
 # ----------------------------------------------------------------------
@@ -171,15 +171,15 @@ def test_arx_fit_many_is_fit_many(rng):
 @pytest.mark.parametrize("method", ["ls", "rls"])
 def test_results_do_not_depend_on_the_chunking(rng, monkeypatch, method):
     u, y = _fleet(rng, C=13, N=250)
-    whole = fit_many(ARX(2, 2, 1), u, y, method).summary()
+    whole = fit_many(ARX(2, 2, 1), u, y, method).to_dataframe()
     part = fit_many(ARX(2, 2, 1), u[:, 3:8], y[:, 3:8], method,
-                    channels=range(3, 8)).summary()
+                    channels=range(3, 8)).to_dataframe()
     pd.testing.assert_frame_equal(part, whole.iloc[3:8], check_exact=True)
-    single = fit_many(ARX(2, 2, 1), u[:, [7]], y[:, [7]], method, channels=[7]).summary()
+    single = fit_many(ARX(2, 2, 1), u[:, [7]], y[:, [7]], method, channels=[7]).to_dataframe()
     pd.testing.assert_frame_equal(single, whole.iloc[[7]], check_exact=True)
     monkeypatch.setattr(fleet, "_CHUNK_BYTES", 1)           # one channel per chunk
     monkeypatch.setattr(fleet, "_TEST_BYTES", 1)
-    pd.testing.assert_frame_equal(fit_many(ARX(2, 2, 1), u, y, method).summary(), whole,
+    pd.testing.assert_frame_equal(fit_many(ARX(2, 2, 1), u, y, method).to_dataframe(), whole,
                                   check_exact=True)
 
 
@@ -213,7 +213,7 @@ def test_model_returns_an_ordinary_fitted_arx(rng):
 def test_summary_is_one_row_per_channel(rng):
     u, y = _fleet(rng, C=6)
     bank = fit_many(ARX(2, 2, 1), u, y, channels=list("abcdef"))
-    table = bank.summary()
+    table = bank.to_dataframe()
     assert list(table.index) == list("abcdef") and table.index.name == "channel"
     assert list(table.columns) == [
         "n_samples", "a1", "a2", "b1", "b2", "se_a1", "se_a2", "se_b1", "se_b2",
@@ -225,7 +225,7 @@ def test_summary_is_one_row_per_channel(rng):
     assert worst == list("abcdef")[int(np.argmin(bank.simulation_fit_))]
     assert "ARXBank: 6 channels of ARX(na=2, nb=2, nk=1)" in repr(bank)
     assert "<table" in bank._repr_html_()
-    rls = fit_many(ARX(2, 2, 1), u, y, "rls").summary()
+    rls = fit_many(ARX(2, 2, 1), u, y, "rls").to_dataframe()
     assert list(rls.columns[-2:]) == ["k0", "healthy"]
 
 
@@ -268,7 +268,7 @@ def test_bad_channels_raise_or_give_nan(rng):
     for method in ("ls", "rls"):
         bank = fit_many(ARX(2, 2, 1), u, y, method, on_error="nan")
         assert [e is None for e in bank.errors_] == [True, False, True, False, True]
-        table = bank.summary()
+        table = bank.to_dataframe()
         assert table.loc[[1, 3], ["a1", "simulation_fit", "pvalue_white"]].isna().all().all()
         assert table["error"][3].startswith("the regressor matrix has rank")
         assert np.isnan(bank.residuals_[:, 1]).all()
@@ -355,7 +355,7 @@ def test_offset_models_equal_arx_fit_and_validate(rng, offset, method):
             assert_allclose(bank.output_offset_[c], model.output_offset_[0], rtol=1e-12)
     names = ["a1", "a2", "b1", "b2"] + (["c"] if offset is True else [])
     assert bank.param_names_ == names
-    assert list(bank.summary().columns[1:len(names) + 1]) == names
+    assert list(bank.to_dataframe().columns[1:len(names) + 1]) == names
     assert "offset=" in repr(bank)
 
 

@@ -33,7 +33,7 @@ def test_true_response_inside_its_bands_with_colored_noise():
     assert not g.significant()[:5, 0].any()
     assert g.noise_order == 10 and g.noise_ar[0] == 1.0
     assert g.noise_ar[1] == pytest.approx(-0.9, abs=0.05)   # the noise pole was found
-    assert "first significant lag 5" in g.summary()
+    assert "first significant lag 5" in str(g.summary())
 
 
 def test_without_prewhitening_it_is_least_squares():

@@ -81,7 +81,7 @@ def test_validate_report_and_plot_accept_a_non_arx_model(oe_record):
                                rtol=1e-13)
     assert rep.plant_comparison.frequency_error < 0.1
     assert rep.criteria.n_params == 2
-    text = rep.summary()
+    text = str(rep.summary())
     assert "Validation of FirstOrderOE(n_iter=50) on 1500 samples" in text
     assert "f1" in text and "b1" in text
     assert "FirstOrderOE" in rep._repr_html_()

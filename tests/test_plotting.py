@@ -139,7 +139,7 @@ from matplotlib.colors import to_hex  # noqa: E402
 import rlsfilt.plotting as plotting  # noqa: E402
 from rlsfilt import ARX, validate  # noqa: E402
 from rlsfilt.datasets import dc_motor, mass_spring_damper, time_varying  # noqa: E402
-from rlsfilt.validation import cusum_squares, frequency_response_band  # noqa: E402
+from rlsfilt.validation import cusum, cusum_squares, frequency_response_band  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -314,8 +314,8 @@ def test_cusum_marks_are_in_samples():
     res = cusum_squares(z, Phi)
     ax = plot_cusum(res, t=np.arange(lag, len(ds.y)))
     texts = [t.get_text() for t in ax.get_legend().get_texts()]
-    first = f"first crossing at $t$ = {res.crossings[0] + lag}"
-    assert first in texts
+    assert res.rejected and "outside the lines" in texts
+    assert not any(t.startswith("first crossing") for t in texts)   # at t = 92: misleading
     departure = [t for t in texts if t.startswith("largest departure")][0]
     assert abs(int(departure.rsplit("= ", 1)[1]) - ds.change_time) <= 5
     path = [ln for ln in ax.get_lines() if ln.get_label() == "CUSUM of squares"][0]
@@ -323,6 +323,22 @@ def test_cusum_marks_are_in_samples():
     assert_allclose(path.get_ydata(), res.statistic)
     with pytest.raises(ValueError, match=r"`t` must have shape \(N,\)"):
         plot_cusum(res, t=np.arange(10))
+    outside = [ln for ln in ax.get_lines() if ln.get_label() == "outside the lines"][0]
+    inside = (res.statistic >= res.bounds[0]) & (res.statistic <= res.bounds[1])
+    assert np.all(np.isnan(outside.get_ydata()[inside]))
+    assert_allclose(outside.get_ydata()[~inside], res.statistic[~inside])
+
+
+def test_cusum_not_rejected_has_no_marks():
+    """A test that does not reject draws the path and its lines, and marks nothing."""
+    ds = time_varying(rng=0)
+    Phi, z = ARX(*ds.orders).regressors(ds.u, ds.y)
+    res = cusum(z, Phi)
+    assert not res.rejected
+    ax = plot_cusum(res)
+    texts = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert texts == ["95% region under constancy", "CUSUM"]
+    assert "not rejected" in ax.get_title()
 
 
 def test_bode_of_a_band_and_bad_source():

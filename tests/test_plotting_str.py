@@ -34,9 +34,17 @@ def _history(N=300, dt=0.1):
 def test_the_regulator_figure_follows_the_conventions():
     h = _history()
     fig = plot_str_history(h, true_theta=THETA)
-    out_ax, u_ax, theta_ax, trace_ax = fig.axes
-    # the data drawn are the history's
+    out_ax, u_ax, a_ax, b_ax, trace_ax = fig.axes
+    # the data drawn are the history's; the a's and the b's each on their own axis (#32: their
+    # scales differ)
     assert_allclose(out_ax.get_lines()[1].get_ydata(), h.y)
+    theta = np.asarray(h.theta)
+    for ax, cols in ((a_ax, [0, 1]), (b_ax, [2, 3])):
+        estimates = [ln for ln in ax.get_lines() if ln.get_linestyle() == "-"]
+        assert len(estimates) == 2
+        for ln, c in zip(estimates, cols):
+            assert_allclose(ln.get_ydata(), theta[:, c])
+    assert a_ax.get_ylabel() == r"estimates $\hat a$" and b_ax.get_ylabel() == r"estimates $\hat b$"
     assert_allclose(trace_ax.get_lines()[0].get_ydata(), h.trace_P)
     # colour-blind-safe palette, reference in black; legends beside the data
     colours = {to_hex(ln.get_color()) for ax in fig.axes for ln in ax.get_lines()}
@@ -52,7 +60,7 @@ def test_the_regulator_figure_follows_the_conventions():
     assert trace_ax.get_xlabel() == "time (s)" and trace_ax.get_yscale() == "log"
     # the history's own method is this function, into a given figure
     fig2 = plt.figure()
-    assert h.plot(fig2, true_theta=THETA) is fig2 and len(fig2.axes) == 4
+    assert h.plot(fig2, true_theta=THETA) is fig2 and len(fig2.axes) == 5
     plt.close("all")
 
 

@@ -57,7 +57,7 @@ def test_validate_reports_an_unstable_model_instead_of_a_huge_fit(rng):
     assert report.is_unstable and report.max_pole_magnitude == pytest.approx(1.02, rel=1e-6)
     assert np.isnan(report.simulation_fit)
     message = "unstable model, largest pole magnitude 1.02, simulation diverges"
-    text = report.summary()
+    text = str(report.summary())
     assert f"Simulation fit      : {message}" in text and "e+" not in text.split("\n")[3]
     assert message in report._repr_html_()
     ax = report.plot_comparison()
@@ -77,7 +77,7 @@ def test_validate_takes_iodata_of_several_experiments(rng):
     model = ARX(2, 2, 1, dt=0.5).fit(data)
     report = validate(model, data, max_lag=10)
     assert report.experiment_lengths == (300, 200) and len(report.y) == 500
-    assert "on 500 samples of 2 experiments" in report.summary()
+    assert "on 500 samples of 2 experiments" in str(report.summary())
     # each experiment is simulated from its own start, and the fit covers both
     single = [validate(model, u, y, max_lag=10) for u, y in runs]
     np.testing.assert_array_equal(report.y_simulated[300:], single[1].y_simulated)

@@ -168,7 +168,7 @@ def test_constant_parameters_end_on_the_bound(rng):
     fit = RecursiveLeastSquares(3, P0=100.0).tune(z, H, "lam")
     assert fit.at_bound and not fit.converged and np.isnan(fit.stderr)
     assert fit.estimate > 1 - 1e-5
-    assert "at a bound" in fit.summary()
+    assert "at a bound" in str(fit.summary())
 
 
 def test_apply_lam_and_validation(rng):

@@ -100,7 +100,7 @@ def test_short_two_input_oe_record_gets_a_sane_validate_fit(true_oe):
     assert rep.simulation_fit == pytest.approx(fit, abs=1e-8)      # was -5959 %
     assert rep.prediction_fit == rep.simulation_fit                 # OE: the same predictor
     assert rep.simulation_fit > 90
-    assert rep.initial == "estimate" and "estimated" in rep.summary()
+    assert rep.initial == "estimate" and "estimated" in str(rep.summary())
     # the simulation the report holds is the model's, from the state it reports
     control = pytest.importorskip("control")
     sim = control.forced_response(true_oe.to_ss(), np.arange(101.0), u.T, X0=rep.x0[0])
@@ -195,7 +195,8 @@ def test_verdicts_per_model_class(rng):
     rep = validate(oe, u, y)
     assert not all(r.is_white for r in rep.residuals) and rep.residuals[0].is_independent
     assert rep.judged_by_input and rep.passed
-    assert "fit BJ or ARMAX" in rep.summary() and "consider other orders" not in rep.summary()
+    text = str(rep.summary())
+    assert "fit BJ or ARMAX" in text and "consider other orders" not in text
     assert "fit BJ or ARMAX" in rep._repr_html_()
     out = rep.to_dict()
     assert out["judged_by_input"] is True and out["passed"] is True
@@ -223,7 +224,7 @@ def test_report_and_figure_state_the_initial_condition(rng):
     for initial, words in (("estimate", "initial state estimated"),
                            ("zero", "zero initial state (from rest)")):
         rep = validate(model, u, y, initial=initial)
-        assert f"Initial condition   : {words}" in rep.summary()
+        assert f"Initial condition   : {words}" in str(rep.summary())
         assert words in rep._repr_html_()
         assert rep.to_dict()["initial_condition"] == initial
     fig = validate(model, u, y).plot()
@@ -232,7 +233,7 @@ def test_report_and_figure_state_the_initial_condition(rng):
     c = compare(model, u, y, horizon=2)
     ax = c.plot()
     assert ax.get_title().endswith("initial state estimated (least squares over the record)")
-    assert "2-step prediction" in c.summary() and c.to_dict()["horizon"] == 2
+    assert "2-step prediction" in str(c.summary()) and c.to_dict()["horizon"] == 2
     plt.close("all")
 
 

@@ -94,7 +94,7 @@ def test_summary_and_plot():
 
     d = datasets.dc_motor()
     cmp = PlantComparison(ARX(2, 2, 1, dt=d.dt).fit(d.u, d.y), d.plant)
-    text = cmp.summary()
+    text = str(cmp.summary())
     assert "max relative frequency-response error" in text
     assert text.count("vs plant") == 2
     fig = cmp.plot()

@@ -144,7 +144,7 @@ def test_plot_and_text(rng):
     fig = r.plot()
     assert len(fig.axes) == 2
     assert "NOT white" in fig.axes[0].get_title()
-    assert "NOT white" in r.summary()
+    assert "NOT white" in str(r.summary())
     assert "white=False" in repr(r)
     plt.close("all")
 

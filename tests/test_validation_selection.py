@@ -116,7 +116,7 @@ def test_best_model_summary_dataframe_and_plot():
     assert model.dt == d.dt
     np.testing.assert_allclose(model.theta_,
                                ARX(*sel.best).fit(d.u, d.y).theta_, rtol=1e-12)
-    text = sel.summary(top=3)
+    text = str(sel.summary(top=3))
     assert "<- best" in text and text.count("\n") == 4
     df = sel.to_dataframe()
     assert list(df.columns[:4]) == ["na", "nb", "nk", "n_params"] and len(df) == 12
@@ -191,7 +191,7 @@ def test_any_grid_matches_brute_force(na_max, nb_max, nk_min, nk_span, n_inputs,
 def test_summary_top_is_checked():
     d = datasets.thermal_process(n_samples=400)
     sel = select_order(d.u, d.y, na=[1], nb=[1], nk=[3, 4])
-    assert sel.summary(top=1).count("\n") == 2
+    assert str(sel.summary(top=1)).count("\n") == 2
     with pytest.raises(ValueError, match=r"`top` must be >= 1; got 0"):
         sel.summary(top=0)
 
@@ -257,7 +257,7 @@ def test_select_order_armax_picks_the_truth_and_is_select_structure(rng):
     for c, r in zip(sel.candidates, ref.candidates):
         assert c["orders"] == r["orders"] and c["loss"] == r["loss"]
     np.testing.assert_array_equal(sel.best_model.theta_, ref.best_model.theta_)
-    assert "<- best" in sel.summary()
+    assert "<- best" in str(sel.summary())
     assert list(sel.to_dataframe()[["na", "nb", "nc", "nk"]].iloc[sel.best_index]) == [2, 2, 2, 1]
     # the ARMAX one-step loss is the noise variance (0.09); ARX of the true (na, nb, nk),
     # from the same entry point, leaves the coloured part C e in its residuals

@@ -57,7 +57,7 @@ def test_report_of_a_time_series_has_the_whiteness_test_only(series):
 
 def test_report_text_html_dict_and_plot_say_there_is_no_input(series):
     rep = validate(AR(2).fit(series), None, series)
-    text = rep.summary()
+    text = str(rep.summary())
     assert "Simulation fit      : not applicable (time series: no input)" in text
     assert "independence of inputs: not applicable (time series: no input)" in text
     assert "not applicable (time series: no input)" in rep._repr_html_()

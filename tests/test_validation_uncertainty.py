@@ -64,7 +64,7 @@ def test_intervals_of_true_and_multi_output_models(rng):
     ci2 = parameter_intervals(model)
     assert ci2.lower.shape == model.theta_.shape == (3, 2)
     np.testing.assert_allclose(ci2.std_error, model.std_errors_, rtol=1e-12)
-    assert "(y2)" in ci2.summary()
+    assert "(y2)" in str(ci2.summary())
 
 
 def test_zero_standard_error_with_no_spare_equations_is_a_point_interval():

@@ -19,6 +19,7 @@ Polynomials are coefficient arrays of ascending powers of :math:`q^{-1}`
 
 import numpy as np
 
+from .._display import Summary
 from .._validation import check_dt, check_real
 from ..models._polynomials import model_dt, observer_form
 from ._polynomials import (
@@ -262,20 +263,26 @@ class ClosedLoop:
         return float(self.B.sum() * self.controller.T.sum() / self.characteristic.sum())
 
     def summary(self):
-        """The closed loop as text: characteristic polynomial, poles, static gain."""
+        """The closed loop: characteristic polynomial, poles, static gain.
+
+        Returns
+        -------
+        Summary
+            ``print`` it, or display it in a notebook.
+        """
         rho = np.max(np.abs(self.poles)) if len(self.poles) else 0.0
         poles = ", ".join(fmt_complex(p) for p in self.poles)
-        return "\n".join([
+        return Summary("\n".join([
             "Closed loop of " + self.controller.control_law(),
             f"  plant: ({format_poly(self.A)}) y(t) = ({format_poly(self.B)}) u(t)",
             f"  A R + B S = {format_poly(self.characteristic)}",
             f"  poles: {poles}",
             f"  largest |pole| = {rho:.6g} ({'stable' if self.stable else 'UNSTABLE'}); "
             f"static gain r -> y = {self.dcgain:.6g}",
-        ])
+        ]))
 
     def __repr__(self):
-        return self.summary()
+        return self.summary().as_text()
 
 
 def rst_design(A, B=None, Am=None, Ao=None, *, integral=True, cancel_zeros=False, dt=None,

@@ -36,7 +36,7 @@ import threading
 
 import numpy as np
 
-from .._display import _edges, bank_html, pretty_str
+from .._display import bank_html, edge_indices, pretty_str
 from .._lazy import lazy_module
 from .._locking import init_signature
 from .._locking import locked as _locked
@@ -1121,7 +1121,7 @@ class RLSBank:
             return np.abs(self.y) / np.sqrt(self.S)
 
     def __repr__(self):
-        shown, gap = _edges(self.n_channels)
+        shown, gap = edge_indices(self.n_channels)
         if gap is None:
             return "\n".join([
                 "RLSBank object",

@@ -30,10 +30,12 @@ handful of passes find the maximum, and the standard errors come from the
 exact observed information :math:`-\partial^2 \ell_p`.
 """
 
+import html
 import math
 
 import numpy as np
 
+from .._display import Summary, frame_html, table_html
 from .._lazy import lazy_module
 from .._validation import as_float_array, check_int
 
@@ -201,7 +203,13 @@ class TuneResult:
         return filt
 
     def summary(self):
-        """One line per quantity: the estimate, its standard error and interval, R, loglik."""
+        """One line per quantity: the estimate, its standard error and interval, R, loglik.
+
+        Returns
+        -------
+        Summary
+            ``print`` it, or display it in a notebook (a table).
+        """
         est = np.atleast_1d(self.estimate)
         se = np.atleast_1d(self.stderr)
         lo, hi = (np.atleast_1d(v) for v in self.interval())
@@ -214,7 +222,12 @@ class TuneResult:
                          f"{hi[i]:.6g}])")
         lines.append(f"  R        {self.R:.6g}")
         lines.append(f"  loglik   {self.loglik:.6f}")
-        return "\n".join(lines)
+        rows = [[self.param if len(est) == 1 else f"q[{i}]", f"{est[i]:.6g}", f"{se[i]:.3g}",
+                 f"[{lo[i]:.6g}, {hi[i]:.6g}]"] for i in range(len(est))]
+        rows += [["R", f"{self.R:.6g}", "", ""], ["loglik", f"{self.loglik:.6f}", "", ""]]
+        page = frame_html(html.escape(lines[0]),
+                          table_html(["quantity", "estimate", "std error", "95 % interval"], rows))
+        return Summary("\n".join(lines), page)
 
     def __repr__(self):
         return (f"<TuneResult {self.param}={np.round(self.estimate, 6)!r} "

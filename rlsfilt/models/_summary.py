@@ -13,6 +13,8 @@ import math
 
 import numpy as np
 
+from .._display import Summary
+
 __all__ = ["ModelSummary", "coefficient_statistics"]
 
 
@@ -67,8 +69,10 @@ def coefficient_statistics(estimate, std_error, dof, level=0.95):
             "quantile": quantile}
 
 
-class ModelSummary:
+class ModelSummary(Summary):
     """Summary of a fitted model: ``print`` it, or display it in a notebook.
+
+    A :class:`~rlsfilt.Summary` (``as_text()``, ``as_html()``) built from the model.
 
     The model's description (orders, method, equations) is followed by one
     coefficient table per output with the columns ``coef``, ``std err``,
@@ -116,13 +120,8 @@ class ModelSummary:
                      if tab["dof"] > 0 else "  (no spare equations: t and P>|t| undefined)")
         return "\n".join(lines)
 
-    def __str__(self):
-        return self.as_text()
-
-    def __repr__(self):
-        return self.as_text()
-
-    def _repr_html_(self):
+    def as_html(self):
+        """The summary as HTML: the model's description and the coefficient tables."""
         m, tab = self.model, self.table
         esc = html.escape
         parts = list(m._summary_lines("html"))

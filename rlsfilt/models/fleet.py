@@ -4,7 +4,8 @@ r"""Fleets of channels: one ARX model per channel, fitted together.
 loop of a plant, every sensor of an array, every cell of a battery pack)
 and returns an `ARXBank`: the parameters, standard errors, fit percentages
 and residual-test p-values of every channel as arrays with a leading
-channel axis, a pandas ``summary()`` with one row per channel, and
+channel axis, a ``summary()`` with one row per channel (``to_dataframe()``
+for all of them in pandas), and
 ``model(i)``, an ordinary fitted `ARX` of channel ``i``.
 
 The numbers are those of ``ARX(...).fit(u[:, i], y[:, i])`` and
@@ -19,6 +20,7 @@ numbers.
 """
 
 import contextlib
+import html
 import inspect
 import math
 import numbers
@@ -26,6 +28,7 @@ import warnings
 
 import numpy as np
 
+from .._display import Summary, edge_indices, frame_html, table_html, table_text
 from .._scale import unit_columns
 from .._validation import as_float_array, check_dt, check_int, check_probability
 from ..exceptions import NumericalWarning
@@ -48,8 +51,9 @@ class ARXBank:
     r"""Fitted ARX models of many channels: what :func:`fit_many` returns.
 
     Every fitted quantity has the channel as its leading axis (``C``
-    channels, ``n_params`` parameters per channel); `summary` collects them
-    in a pandas DataFrame with one row per channel, and `model` returns
+    channels, ``n_params`` parameters per channel); `summary` shows them
+    one row per channel (`to_dataframe`: all of them in a pandas
+    DataFrame), and `model` returns
     channel ``i`` as an ordinary fitted `ARX`.
 
     Attributes
@@ -168,7 +172,53 @@ class ARXBank:
         return model.fit(u, Y[:, c], self.method_, **self._channel_options(c))
 
     def summary(self):
-        """One row per channel: parameters, standard errors, fits and residual tests.
+        """The fleet at a glance: fits and residual tests, one row per channel.
+
+        The first and last 5 channels of a larger fleet are listed; for
+        every channel (and every column) use :meth:`to_dataframe`.
+
+        Returns
+        -------
+        Summary
+            ``print`` it, or display it in a notebook (a table): per channel
+            the parameters with their standard errors, the simulation and
+            prediction fits (percent), the p-values of the residual tests,
+            ``healthy`` (``method="rls"``) and the error of a failed channel.
+        """
+        shown, gap = edge_indices(len(self))
+        header = ["channel", *(f"{n} ± se" for n in self.param_names_), "sim. fit %",
+                  "pred. fit %"]
+        tests = self.q_statistic_ is not None
+        rls = self.method_ == "rls"
+        header += ["p white", "p independent"] if tests else []
+        header += ["healthy"] if rls else []
+        failed = any(e is not None for e in self.errors_)
+        header += ["error"] if failed else []
+        rows = []
+        for k, c in enumerate(shown):
+            if gap and k == len(shown) // 2:
+                rows.append(f"... {gap} more channels ...")
+            row = [self.channels_[c],
+                   *(f"{self.theta_[c, p]:.5g} ± {self.std_errors_[c, p]:.2g}"
+                     for p in range(len(self.param_names_))),
+                   f"{self.simulation_fit_[c]:.2f}", f"{self.prediction_fit_[c]:.2f}"]
+            if tests:
+                row += [f"{self.pvalue_white_[c]:.3g}", f"{self.pvalue_independent_[c]:.3g}"]
+            if rls:
+                row.append("yes" if self.healthy_[c] else "no")
+            if failed:
+                row.append(self.errors_[c] or "")
+            rows.append(row)
+        head = repr(self)
+        text = head + "\n\n" + table_text(header, rows)
+        first, *rest = head.splitlines()
+        page = frame_html(html.escape(first) + "".join("<br>" + html.escape(line.strip())
+                                                       for line in rest),
+                          table_html(header, rows))
+        return Summary(text, page)
+
+    def to_dataframe(self):
+        """Every channel and every number in a pandas DataFrame, one row per channel.
 
         Returns
         -------
@@ -181,7 +231,7 @@ class ARXBank:
             residual tests), ``k0`` and ``healthy`` (``method="rls"``) and
             ``error`` (when a channel failed with ``on_error="nan"``).
             Sort and filter it as any DataFrame, e.g.
-            ``summary().sort_values("simulation_fit")``.
+            ``to_dataframe().sort_values("simulation_fit")``.
         """
         import pandas as pd
 
@@ -227,11 +277,7 @@ class ARXBank:
         return "\n".join(lines)
 
     def _repr_html_(self):
-        import html
-
-        head = self.summary().head(20)._repr_html_()
-        more = f"<p>... {len(self) - 20} more channels</p>" if len(self) > 20 else ""
-        return f"<pre>{html.escape(repr(self))}</pre>{head}{more}"
+        return self.summary().as_html()
 
     def _position(self, i):
         C = len(self)
@@ -372,7 +418,7 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
     >>> fleet = fit_many(ARX(1, 1), u, y)
     >>> bool(np.allclose(fleet.a_[:, 0], a, atol=0.01))
     True
-    >>> table = fleet.summary()
+    >>> table = fleet.to_dataframe()
     >>> list(table.columns[:5])
     ['n_samples', 'a1', 'b1', 'se_a1', 'se_b1']
     >>> int(table["is_white"].sum()) >= 190
@@ -478,7 +524,7 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
 # records in long format (one row per sample, a channel column)
 # ----------------------------------------------------------------------
 def _summary_long(model, frame, channel, inputs, output, method="ls", **options):
-    """`ARXBank.summary` of the channels of a long-format pandas DataFrame.
+    """`ARXBank.to_dataframe` of the channels of a long-format pandas DataFrame.
 
     `frame` holds one row per sample: the channel label in column
     `channel`, the inputs in the columns `inputs`, the output in `output`;
@@ -509,7 +555,7 @@ def _summary_long(model, frame, channel, inputs, output, method="ls", **options)
         names = list(labels[group])
         U = Uall[rows]                                                      # (L, Cg, nu)
         try:
-            table = fit_many(model, U, Yall[rows], method, channels=names, **options).summary()
+            table = fit_many(model, U, Yall[rows], method, channels=names, **options).to_dataframe()
         except ValueError as exc:
             if on_error == "raise":
                 if "channel" in str(exc):        # the message names the channel already
@@ -524,7 +570,7 @@ def _summary_long(model, frame, channel, inputs, output, method="ls", **options)
 
 
 def _summary_schema(model, n_inputs, method, options):
-    """``{column: dtype}`` of `ARXBank.summary` (with the ``error`` column)."""
+    """``{column: dtype}`` of `ARXBank.to_dataframe` (with the ``error`` column)."""
     params = _fleet_params(model)
     s = arx_structure(params["na"], params["nb"], params["nk"], n_inputs, 1)
     names = _param_names(s) + (["c"] if _offset_mode(params["offset"]) == "intercept" else [])

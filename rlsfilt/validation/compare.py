@@ -36,6 +36,7 @@ import html
 
 import numpy as np
 
+from .._display import Summary
 from .._serialize import jsonable
 from .._validation import check_int
 from ..models._base import check_is_fitted
@@ -100,16 +101,23 @@ class Comparison:
         return "simulation" if self.is_simulation else f"{int(self.horizon)}-step prediction"
 
     def summary(self):
-        """One line per output: the fit and the initial condition."""
+        """One line: the fit of each output and the initial condition.
+
+        Returns
+        -------
+        Summary
+            ``print`` it, or display it in a notebook.
+        """
         fits = ", ".join(f"{v:.2f}%" for v in np.atleast_1d(self.fit))
-        return (f"{self.what} of {type(self.model).__name__} on {len(self.y)} samples: fit "
+        text = (f"{self.what} of {type(self.model).__name__} on {len(self.y)} samples: fit "
                 f"{fits} ({self.initial_text})")
+        return Summary(text, f"<p>{html.escape(text)}</p>")
 
     def __repr__(self):
-        return self.summary()
+        return self.summary().as_text()
 
     def _repr_html_(self):
-        return f"<p>{html.escape(self.summary())}</p>"
+        return self.summary().as_html()
 
     def to_dict(self):
         """JSON-ready: ``fit``, ``initial``, ``initial_text``, ``horizon`` (None for a

@@ -17,10 +17,12 @@ of ordinary least squares, :math:`\hat\sigma^2 (\Phi^\top\Phi)^{-1}`, from a
 QR factorization.
 """
 
+import html
 from collections import namedtuple
 
 import numpy as np
 
+from .._display import Summary, frame_html, table_html
 from .._validation import check_int
 from ..data.iodata import as_iodata
 from ..plotting import plot_impulse
@@ -124,18 +126,34 @@ class ImpulseResponse:
         return first[0] if self.n_inputs == 1 else tuple(first)
 
     def summary(self, level=0.99):
-        """Text: per input the first significant lag and the significant coefficients."""
+        """Per input the first significant lag and the significant coefficients.
+
+        Parameters
+        ----------
+        level : float, default 0.99
+            Confidence level of the bands that decide significance.
+
+        Returns
+        -------
+        Summary
+            ``print`` it, or display it in a notebook (a table).
+        """
         z = self.z_value(level)
         lines = [f"Impulse response estimate: {self.coefficients.shape[0]} coefficients per "
                  f"input, {self.n_rows} rows, noise prewhitened by AR({self.noise_order}); "
                  f"{100 * level:g} % bands (+-{z:.3g} standard errors)"]
         sig = self.significant(level)
+        rows = []
         for j, name in enumerate(self.input_names):
             ks = np.flatnonzero(sig[:, j])
             first = f"first significant lag {ks[0]}" if ks.size else "no significant lag"
-            lines.append(f"  {name} -> {self.output_name}: {first}; significant at lags "
-                         f"{', '.join(map(str, ks[:12]))}{' ...' if ks.size > 12 else ''}")
-        return "\n".join(lines)
+            lags = f"{', '.join(map(str, ks[:12]))}{' ...' if ks.size > 12 else ''}"
+            lines.append(f"  {name} -> {self.output_name}: {first}; significant at lags {lags}")
+            rows.append([f"{name} -> {self.output_name}", ks[0] if ks.size else "none", lags])
+        page = frame_html(html.escape(lines[0]),
+                          table_html(["input -> output", "first significant lag",
+                                      "significant lags"], rows))
+        return Summary("\n".join(lines), page)
 
     def plot(self, ax=None, level=0.99):
         """Coefficients against lag with the `level` band (:func:`rlsfilt.plotting.plot_impulse`).

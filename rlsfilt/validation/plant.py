@@ -6,11 +6,13 @@ simulated and evaluated by python-control, on the model's sample time, and
 their step responses, frequency responses, DC gains and poles are compared.
 """
 
+import html
 import math
 import warnings
 
 import numpy as np
 
+from .._display import Summary, frame_html, table_html
 from .._validation import as_float_array, check_int
 from ..exceptions import ConversionWarning
 from ..models._base import IdentifiedModel, check_is_fitted
@@ -171,7 +173,13 @@ class PlantComparison:
                 f"max_pole_distance={self.max_pole_distance:.3g}>")
 
     def summary(self):
-        """A short text table of the comparison."""
+        """A short table of the comparison: errors, then the matched poles.
+
+        Returns
+        -------
+        Summary
+            ``print`` it, or display it in a notebook (a table).
+        """
         lines = [
             "Comparison with the true plant (python-control)",
             f"  max relative frequency-response error : {_pct(self.frequency_error)}"
@@ -187,7 +195,21 @@ class PlantComparison:
             lines.append(f"    extra model pole {_fmt_complex(p)}")
         for p in self.unmatched_plant_poles:
             lines.append(f"    plant pole not modelled {_fmt_complex(p)}")
-        return "\n".join(lines)
+        errors = [["max relative frequency-response error",
+                   f"{_pct(self.frequency_error)} (up to Nyquist, {self.omega[-1]:.4g} "
+                   f"rad/time unit)"],
+                  ["relative DC-gain error", _pct(self.dc_gain_error)],
+                  ["relative step-response error", _pct(self.step_error)],
+                  ["largest matched pole distance", f"{self.max_pole_distance:.4g}"]]
+        poles = [[_fmt_complex(p), _fmt_complex(q), f"{dist:.3g}"]
+                 for p, q, dist in zip(self.poles_model, self.poles_plant, self.pole_distances)]
+        poles += [[_fmt_complex(p), "none (extra model pole)", ""]
+                  for p in self.unmatched_model_poles]
+        poles += [["none (plant pole not modelled)", _fmt_complex(q), ""]
+                  for q in self.unmatched_plant_poles]
+        page = frame_html(html.escape(lines[0]), table_html(["quantity", "value"], errors),
+                          table_html(["model pole", "plant pole", "|diff|"], poles))
+        return Summary("\n".join(lines), page)
 
     # the figures: each method is its plotting function applied to this comparison, which
     # documents the arguments (passed on) and the return value

@@ -5,6 +5,7 @@ import warnings
 
 import numpy as np
 
+from .._display import Summary
 from .._resources import check_memory
 from .._serialize import jsonable
 from .._validation import check_int, check_probability
@@ -164,10 +165,17 @@ class ValidationReport:
         return "residual tests FAILED: consider other orders"
 
     def __repr__(self):
-        return self.summary()
+        return self.summary().as_text()
 
     def summary(self):
-        """The report as plain text, with the model's coefficient table."""
+        """The report: text with the model's coefficient table, or a table in a notebook.
+
+        Returns
+        -------
+        Summary
+            ``print`` it for the text (what ``rlsfilt identify`` prints), or
+            display it in a notebook (the HTML of the report).
+        """
         dt = "" if self.model.dt is True else f" (sample time {float(self.model.dt):g})"
         lines = [f"Validation of {self._model_name()} on {len(self.y)} samples"
                  f"{self._experiments_text()}{dt}",
@@ -183,7 +191,7 @@ class ValidationReport:
             for i, r in enumerate(self.residuals):
                 if len(self.residuals) > 1:
                     lines.append(f" output {i}:")
-                lines.append(r.summary())
+                lines.append(r.summary().as_text())
         else:
             lines.append(f"Residual tests skipped: {self.skipped}")
         c = self.criteria
@@ -197,9 +205,9 @@ class ValidationReport:
                   f"Parameters ({100 * self.intervals.level:g}% confidence intervals):",
                   self.model.summary().as_text()]
         if self.plant_comparison is not None:
-            lines += ["", self.plant_comparison.summary()]
+            lines += ["", self.plant_comparison.summary().as_text()]
         lines += ["", "Verdict: " + self.verdict]
-        return "\n".join(lines)
+        return Summary("\n".join(lines), self._html())
 
     def to_dict(self):
         """The report as a JSON-ready dict (what ``rlsfilt identify --json`` prints).
@@ -273,6 +281,9 @@ class ValidationReport:
         return jsonable(out)
 
     def _repr_html_(self):
+        return self.summary().as_html()
+
+    def _html(self):
         def row(name, value):
             return f"<tr><th style='text-align:left'>{html.escape(name)}</th>" \
                    f"<td style='text-align:left'>{html.escape(value)}</td></tr>"
@@ -319,7 +330,7 @@ class ValidationReport:
                 f"<span style='color:{color}'>{mark} {verdict}</span></h4>"
                 f"<table>{''.join(rows)}</table>"
                 f"<details><summary>parameters</summary><pre>"
-                f"{html.escape(self.intervals.summary())}</pre></details></div>")
+                f"{html.escape(self.intervals.summary().as_text())}</pre></details></div>")
 
     def plot(self, fig=None, window=None):
         """One figure: measured vs simulated and predicted output, residual

@@ -8,6 +8,7 @@ MATLAB's ``resid`` and Ljung (1999, sec. 16.6).
 
 import numpy as np
 
+from .._display import Summary, frame_html, table_html
 from .._scale import pow2_scale
 from .._validation import check_int, check_probability
 from ..exceptions import ExactFitError, InsufficientDataError
@@ -80,17 +81,33 @@ class ResidualAnalysis:
         return self.is_independent is not None
 
     def summary(self):
-        """Two lines of text: the two tests and their decisions."""
+        """The two tests and their decisions, a line each.
+
+        Returns
+        -------
+        Summary
+            ``print`` it, or display it in a notebook (a table).
+        """
         white = (f"  whiteness (Ljung-Box, {self.df_white} df): Q = {self.q_statistic:.4g}, "
                  f"p = {self.pvalue_white:.4g} -> {'white' if self.is_white else 'NOT white'}")
+        rows = [["whiteness (Ljung-Box)", self.df_white, f"Q = {self.q_statistic:.4g}",
+                 f"{self.pvalue_white:.4g}", "white" if self.is_white else "NOT white"]]
         if not self.has_input:
-            return white + "\n  independence of inputs: not applicable (time series: no input)"
-        return "\n".join([
-            white,
-            f"  independence of inputs (F, {self.df_independent} df): "
-            f"F = {self.f_statistic:.4g}, p = {self.pvalue_independent:.4g} -> "
-            f"{'independent' if self.is_independent else 'NOT independent'}",
-        ])
+            text = white + "\n  independence of inputs: not applicable (time series: no input)"
+            rows.append("independence of inputs: not applicable (time series: no input)")
+        else:
+            text = "\n".join([
+                white,
+                f"  independence of inputs (F, {self.df_independent} df): "
+                f"F = {self.f_statistic:.4g}, p = {self.pvalue_independent:.4g} -> "
+                f"{'independent' if self.is_independent else 'NOT independent'}",
+            ])
+            rows.append(["independence of inputs (F)", self.df_independent,
+                         f"F = {self.f_statistic:.4g}", f"{self.pvalue_independent:.4g}",
+                         "independent" if self.is_independent else "NOT independent"])
+        page = frame_html(f"Residual tests (alpha = {self.alpha:g}, max lag {self.max_lag})",
+                          table_html(["test", "df", "statistic", "p", "decision"], rows))
+        return Summary(text, page)
 
     # the figures: each method is its plotting function applied to this analysis, which
     # documents the argument and the return value

@@ -14,7 +14,7 @@ import warnings
 
 import numpy as np
 
-from .._display import ranking_html
+from .._display import Summary, ranking_html
 from .._resources import check_memory
 from .._scale import pow2_scale, safe_norm
 from .._serialize import jsonable
@@ -92,6 +92,9 @@ class OrderSelection:
                 f"{len(self.table)} candidates>")
 
     def _repr_html_(self):
+        return self._html()
+
+    def _html(self, top=10):
         t = self.table
         labels = [f"na={t['na'][i]} nb={_text(_orders(t['nb'][i]))} nk={_text(_orders(t['nk'][i]))}"
                   for i in range(len(t))]
@@ -102,7 +105,7 @@ class OrderSelection:
             columns.append((self.criterion, self.values))
         columns.append(("stable", t["stable"]))
         return ranking_html(type(self).__name__, self.criterion, labels, columns,
-                            self._rank_key)
+                            self._rank_key, top=top)
 
     def best_model(self):
         """An ``ARX`` of the best structure fitted on the whole estimation record.
@@ -145,7 +148,7 @@ class OrderSelection:
                              for name in self.table.dtype.names})
 
     def summary(self, top=10):
-        """Text table of the `top` candidates, best first.
+        """Table of the `top` candidates, best first.
 
         Parameters
         ----------
@@ -154,7 +157,8 @@ class OrderSelection:
 
         Returns
         -------
-        str
+        Summary
+            ``print`` it, or display it in a notebook (a table).
         """
         top = check_int(top, "top", minimum=1)
         order = np.argsort(self._rank_key, kind="stable")[:top]
@@ -175,7 +179,7 @@ class OrderSelection:
             line += "  unstable" if not r["stable"] else ""
             line += "  <- best" if i == self.best_index else ""
             lines.append(line)
-        return "\n".join(lines)
+        return Summary("\n".join(lines), self._html(top))
 
     def plot(self, ax=None):
         """Criterion against the number of parameters (as MATLAB's ``selstruc``).

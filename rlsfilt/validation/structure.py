@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from .._display import ranking_html
+from .._display import Summary, ranking_html
 from .._progress import LazyProgress
 from .._serialize import jsonable
 from .._validation import check_int
@@ -66,6 +66,9 @@ class StructureSelection:
                 f"{self.criterion} among {len(self.candidates)} candidates>")
 
     def _repr_html_(self):
+        return self._html()
+
+    def _html(self, top=10):
         c = self.candidates
         labels = [", ".join(f"{k}={v}" for k, v in ci["orders"].items()) for ci in c]
         columns = [("n_params", [ci.get("n_params") for ci in c]),
@@ -73,10 +76,10 @@ class StructureSelection:
                    (self.criterion, self.values)]
         return ranking_html(f"{type(self).__name__} of {type(self.best_model).__name__}",
                             self.criterion, labels, columns, self.values,
-                            errors=[ci.get("error") for ci in c])
+                            errors=[ci.get("error") for ci in c], top=top)
 
     def summary(self, top=10):
-        """Text table of the `top` candidates, best first.
+        """Table of the `top` candidates, best first.
 
         Parameters
         ----------
@@ -84,7 +87,8 @@ class StructureSelection:
 
         Returns
         -------
-        str
+        Summary
+            ``print`` it, or display it in a notebook (a table).
         """
         top = check_int(top, "top", minimum=1)
         order = np.argsort(np.where(np.isnan(self.values), np.inf, self.values),
@@ -101,7 +105,7 @@ class StructureSelection:
             mark = "  <- best" if i == self.best_index else ""
             lines.append(f"  {orders:<40} d={c['n_params']:<3} loss={c['loss']:<11.5g} "
                          f"{self.criterion}={self.values[i]:.6g}{mark}")
-        return "\n".join(lines)
+        return Summary("\n".join(lines), self._html(top))
 
     def to_dict(self):
         """The selection as a JSON-ready dict (non-finite numbers as None)."""

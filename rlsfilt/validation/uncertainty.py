@@ -8,6 +8,7 @@ covariance of the least-squares estimate under white equation error
 
 import numpy as np
 
+from .._display import Summary, table_html
 from .._validation import as_float_array, as_generator, check_int, check_probability
 from ..models._base import check_is_fitted
 from ..models._summary import coefficient_statistics
@@ -68,7 +69,13 @@ class ParameterIntervals:
         return (self.lower <= theta) & (theta <= self.upper)
 
     def summary(self):
-        """Text table: estimate, standard error and interval per parameter."""
+        """Table: estimate, standard error and interval per parameter.
+
+        Returns
+        -------
+        Summary
+            ``print`` it, or display it in a notebook (a table).
+        """
         pct = f"{100 * self.level:g}%"
         lines = [f"{'parameter':>12} {'estimate':>12} {'std error':>11} "
                  f"{pct + ' lower':>12} {pct + ' upper':>12}"]
@@ -76,16 +83,21 @@ class ParameterIntervals:
         se = self.std_error.reshape(len(self.names), -1)
         lo = self.lower.reshape(len(self.names), -1)
         hi = self.upper.reshape(len(self.names), -1)
+        rows = []
         for i, name in enumerate(self.names):
             for j in range(est.shape[1]):
                 tag = name if est.shape[1] == 1 else f"{name} (y{j + 1})"
                 lines.append(f"{tag:>12} {est[i, j]:>12.6g} {se[i, j]:>11.4g} "
                              f"{lo[i, j]:>12.6g} {hi[i, j]:>12.6g}")
-        return "\n".join(lines)
+                rows.append([tag, f"{est[i, j]:.6g}", f"{se[i, j]:.4g}", f"{lo[i, j]:.6g}",
+                             f"{hi[i, j]:.6g}"])
+        page = table_html(["parameter", "estimate", "std error", f"{pct} lower",
+                           f"{pct} upper"], rows)
+        return Summary("\n".join(lines), page)
 
     def __repr__(self):
         return f"<ParameterIntervals: {len(self.names)} parameters at level {self.level:g}>\n" \
-            + self.summary()
+            + self.summary().as_text()
 
 
 class FrequencyBand:
