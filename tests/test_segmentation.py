@@ -112,8 +112,8 @@ def test_ar_model_validation_summary_and_plot():
     b = seg.segments[0][1] - 2
     assert_allclose(seg.theta[0], np.linalg.lstsq(Phi[a:b], y[2:][a:b], rcond=None)[0],
                     rtol=1e-10)
-    assert "2 segment(s)" in seg.summary() and "changes at" in repr(seg)
-    assert seg._repr_html_().startswith("<pre>Segmentation, 2 segment(s)")
+    assert "2 segment(s)" in str(seg.summary()) and "changes at" in repr(seg)
+    assert seg._repr_html_().startswith("<pre class='rlsfilt-summary'>Segmentation, 2 segment(s)")
     assert seg.std_errors().shape == (2, 2)
     ax = seg.plot(names=["a1", "a2"], true_values=np.zeros((600, 2)))
     assert ax.get_title() == "2 segment(s)"

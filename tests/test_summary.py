@@ -23,6 +23,7 @@ from rlsfilt.validation import (
     impulseest,
     parameter_intervals,
     residual_analysis,
+    segment,
     select_order,
     validate,
 )
@@ -182,6 +183,18 @@ def _closed_loop(record, arx):
     return loop.summary(), [f"{loop.dcgain:.6g}"]
 
 
+def _segmentation(record, arx):
+    gen = np.random.default_rng(3)
+    u = gen.standard_normal(400)
+    y = np.zeros(400)
+    for t in range(1, 400):
+        a = -0.5 if t < 200 else -0.8
+        y[t] = -a * y[t - 1] + u[t - 1] + 0.1 * gen.standard_normal()
+    seg = segment(y, u, na=1, nb=1, R2=0.01)
+    assert seg._repr_html_() == seg.summary().as_html()
+    return seg.summary(), [f"{seg.theta[0, 0]:.4g}", f"{seg.theta[-1, 1]:.4g}"]
+
+
 CASES = {
     "ARX": _model_case(lambda u, y: ARX(2, 2, 1).fit(u, y)),
     "ARMAX": _model_case(lambda u, y: ARMAX(2, 2, 1, 1).fit(u, y)),
@@ -200,6 +213,7 @@ CASES = {
     "ResidualAnalysis": _residuals,
     "TuneResult": _tune,
     "ClosedLoop": _closed_loop,
+    "Segmentation": _segmentation,
 }
 
 

@@ -33,11 +33,11 @@ probability ``q``) is minimized exactly, offline. AR and ARX structures
 least-squares losses: fit a higher-order ARX instead).
 """
 
-import html
 import math
 
 import numpy as np
 
+from .._display import Summary
 from .._validation import as_float_array, check_int
 from ..models import arx_regressors
 
@@ -106,18 +106,24 @@ class Segmentation:
         return np.sqrt(np.diagonal(self.covariances, axis1=1, axis2=2))
 
     def summary(self):
-        """A text table: one line per segment with its samples and parameters."""
+        """One line per segment with its samples and parameters.
+
+        Returns
+        -------
+        Summary
+            ``print`` it, or display it in a notebook.
+        """
         lines = [f"Segmentation, {self.n_segments} segment(s), orders {self.orders}, "
                  f"criterion {self.objective:.6g} (change penalty {self.penalty:.4g})"]
         se = self.std_errors()
         for (a, b), th, s in zip(self.segments, self.theta, se, strict=True):
             par = ", ".join(f"{v:.4g} ± {e:.2g}" for v, e in zip(th, s, strict=True))
             lines.append(f"  samples {a:6d} .. {b - 1:6d}: [{par}]")
-        return "\n".join(lines)
+        return Summary("\n".join(lines))
 
     def _repr_html_(self):
         """The :meth:`summary` for Jupyter."""
-        return f"<pre>{html.escape(self.summary())}</pre>"
+        return self.summary().as_html()
 
     def __repr__(self):
         return (f"<Segmentation: {self.n_segments} segment(s), changes at "
