@@ -18,6 +18,16 @@ left, so that the next sample (whose ``x`` is that vector) restores it
 without unpacking the vector. A restored snapshot is the state
 ``_set_state(vector)`` would give (the vector is read back from it), so
 results are the same bit for bit; unpacking stays for any other ``x``.
+The system also remembers which state vector the working copy is in (after
+an update: the vector it returned), so a sequential simulation restores
+nothing.
+
+An object that can compute its outputs without stepping also provides
+``_io_peek(inputs) -> (outputs, token)`` (or None: it cannot) and
+``_io_commit(inputs, token) -> messages`` (or None: the state has changed
+since the peek). The output function then only peeks, and the update
+commits the peek made on the same ``(x, u)``, so each sample takes one step
+however often python-control evaluates the outputs.
 """
 
 import copy
