@@ -18,6 +18,16 @@ left, so that the next sample (whose ``x`` is that vector) restores it
 without unpacking the vector. A restored snapshot is the state
 ``_set_state(vector)`` would give (the vector is read back from it), so
 results are the same bit for bit; unpacking stays for any other ``x``.
+The system also remembers which state vector the working copy is in (after
+an update: the vector it returned), so a sequential simulation restores
+nothing.
+
+An object that can compute its outputs without stepping also provides
+``_io_peek(inputs) -> (outputs, token)`` (or None: it cannot) and
+``_io_commit(inputs, token) -> messages`` (or None: the state has changed
+since the peek). The output function then only peeks, and the update
+commits the peek made on the same ``(x, u)``, so each sample takes one step
+however often python-control evaluates the outputs.
 """
 
 import copy
@@ -42,38 +52,47 @@ def make_iosystem(template, *, inputs, outputs, states, dt, name=None):
     x_start = np.array(template._get_state(), dtype=float)
     if len(states) != len(x_start):
         raise RuntimeError("internal error: state labels and state size differ")
-    cache = {}
+    outs = {}           # (state bytes, input bytes) -> outputs
+    cache = {}          # (state bytes, input bytes) -> a step, see `evaluate`
     snaps = {}          # state-vector bytes -> snapshot of `work` in that state
+    tokens = {}         # (state bytes, input bytes) -> (outputs, inputs, token) of a peek
     fast = hasattr(work, "_snapshot")
-    holds = [None]      # the evaluation whose result `work` holds now
+    peeks = hasattr(work, "_io_peek")
+    at = [None]         # the bytes of the state vector `work` is in now (None: unknown)
+    holds = [None]      # the step whose result `work` holds now
     emitted = set()
 
-    def restore(x):
-        snap = snaps.get(x.tobytes()) if fast else None
-        if snap is not None:
-            work._restore_snapshot(snap)
-            return
-        work._set_state(x if x.any() else x_start)
-        if fast:
-            remember(x, work._snapshot())
-
-    def remember(x, snap):
+    def remember(xb, snap):
         if len(snaps) >= _CACHE_SIZE:
             snaps.clear()
-        snaps[x.tobytes()] = snap
+        snaps[xb] = snap
 
-    def evaluate(x, w):
-        """``[outputs, messages, snapshot after the step, new state or None]``."""
-        x = np.ascontiguousarray(x, dtype=float)
-        w = np.ascontiguousarray(w, dtype=float)
-        key = (x.tobytes(), w.tobytes())
+    def goto(x, xb):
+        """Put `work` in the state of vector `x` (bytes `xb`)."""
+        if at[0] == xb:
+            return
+        at[0] = holds[0] = None
+        snap = snaps.get(xb) if fast else None
+        if snap is not None:
+            work._restore_snapshot(snap)
+        else:
+            work._set_state(x if x.any() else x_start)
+            if fast:
+                remember(xb, work._snapshot())
+        at[0] = xb
+
+    def evaluate(x, xb, w, key, keep):
+        """``[outputs, messages, snapshot after the step or None, new state or None]``;
+        the snapshot is taken if `keep` (an output evaluation, which the update may
+        have to go back to)."""
         hit = cache.get(key)
         if hit is None:
-            holds[0] = None
-            restore(x)
+            goto(x, xb)
+            at[0] = holds[0] = None
             out, messages = work._io_step(w)
             if fast:        # the new state is packed only if the update asks for it
-                hit = [np.array(out, dtype=float), messages, work._snapshot(), None]
+                hit = [np.array(out, dtype=float), messages,
+                       work._snapshot() if keep else None, None]
             else:
                 hit = [np.array(out, dtype=float), messages, None,
                        np.asarray(work._get_state(), dtype=float)]
@@ -83,14 +102,43 @@ def make_iosystem(template, *, inputs, outputs, states, dt, name=None):
             cache[key] = hit
         return hit
 
+    def arrays(x, u):
+        x = np.ascontiguousarray(x, dtype=float)
+        w = np.ascontiguousarray(u, dtype=float)
+        xb = x.tobytes()
+        return x, xb, w, (xb, w.tobytes())
+
+    def commit(xb, key):
+        """The step an output evaluation peeked at (`work` still in that state), taken
+        now; None if there is none."""
+        peeked = tokens.get(key)
+        if peeked is None or at[0] != xb or key in cache:
+            return None
+        messages = work._io_commit(peeked[1], peeked[2])
+        if messages is None:
+            return None
+        at[0] = None
+        hit = holds[0] = [peeked[0], messages, None, None]
+        if len(cache) >= _CACHE_SIZE:
+            cache.clear()
+        cache[key] = hit
+        tokens.clear()
+        return hit
+
     def updfcn(t, x, u, params):
-        hit = evaluate(x, u)
+        x, xb, w, key = arrays(x, u)
+        hit = commit(xb, key) if tokens else None
+        if hit is None:
+            hit = evaluate(x, xb, w, key, False)
         if hit[3] is None:
             if holds[0] is not hit:
                 work._restore_snapshot(hit[2])
                 holds[0] = hit
             hit[3] = np.asarray(work._get_state(), dtype=float)
-            remember(hit[3], hit[2])
+            if hit[2] is not None:
+                remember(hit[3].tobytes(), hit[2])
+        if holds[0] is hit:         # `work` is in the new state: the next sample's
+            at[0] = hit[3].tobytes()
         for message, category in hit[1]:
             if message not in emitted:
                 emitted.add(message)
@@ -98,7 +146,26 @@ def make_iosystem(template, *, inputs, outputs, states, dt, name=None):
         return hit[3].copy()
 
     def outfcn(t, x, u, params):
-        return evaluate(x, u)[0].copy()
+        x, xb, w, key = arrays(x, u)
+        out = outs.get(key)
+        if out is None:
+            hit = cache.get(key)
+            if hit is not None:
+                out = hit[0]
+            elif peeks:                     # the outputs without a step, if it can
+                goto(x, xb)
+                peeked = work._io_peek(w)
+                if peeked is not None:
+                    out = peeked[0]
+                    if len(tokens) >= _CACHE_SIZE:
+                        tokens.clear()
+                    tokens[key] = (out, w.copy(), peeked[1])
+            if out is None:
+                out = evaluate(x, xb, w, key, True)[0]
+            if len(outs) >= _CACHE_SIZE:
+                outs.clear()
+            outs[key] = out
+        return out.copy()
 
     return control.nlsys(updfcn, outfcn, inputs=list(inputs), outputs=list(outputs),
                          states=list(states), dt=dt, name=name)
@@ -141,5 +208,5 @@ def call_capturing(fn, *args):
 def push(buf, value):
     """Shift a newest-first memory of past samples by one and store `value` in front."""
     if len(buf):
-        buf[1:] = buf[:-1].copy()
+        buf[1:] = buf[:-1]              # overlapping: NumPy copies through a buffer
         buf[0] = value

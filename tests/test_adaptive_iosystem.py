@@ -1,6 +1,7 @@
 """The STR and the filters as python-control systems: interconnect == the step loop."""
 
 import copy
+import warnings
 
 import control
 import numpy as np
@@ -200,3 +201,106 @@ def test_every_filter_has_as_iosystem(name):
     sys = f.as_iosystem("direct", dt=0.5)
     assert sys.dt == 0.5 and sys.nstates == len(_filter_state.get_state(f))
     assert sys.output_labels[-1] == "e"
+
+
+# the estimator system's outputs are a peek at the step (nothing changed); its update commits it
+PEEKED = {
+    "exponential": lambda: RecursiveLeastSquares(3, lam=0.97, P0=100.0),
+    "random walk Q": lambda: RecursiveLeastSquares(3, P0=10.0, Q=1e-3),
+    "directional": lambda: RecursiveLeastSquares(3, lam=0.95, forgetting="directional"),
+    "efra": lambda: RecursiveLeastSquares(3, lam=0.95, forgetting="efra"),
+    "gate": lambda: RecursiveLeastSquares(3, lam=0.98, P0=100.0, gate=3.0),
+    "two outputs": lambda: RecursiveLeastSquares(3, dim_z=2, lam=0.98),
+    "health check": lambda: RecursiveLeastSquares(3, lam=0.7, check_every=5, cond_max=1e3),
+}
+
+
+def _filter_attributes(f):
+    return {k: (v.copy() if isinstance(v, np.ndarray) else v)
+            for k, v in f._shallow_state().items()}
+
+
+def _same(a, b):
+    assert a.keys() == b.keys()
+    for k in a:
+        if isinstance(a[k], np.ndarray):
+            assert_array_equal(a[k], b[k], err_msg=k)
+        elif k != "_lazy":
+            assert a[k] == b[k] or (a[k] != a[k] and b[k] != b[k]), k
+
+
+@pytest.mark.parametrize("name", PEEKED)
+def test_peek_and_commit_equal_predict_update_bit_for_bit(name):
+    rng = np.random.default_rng(6)
+    f, ref = PEEKED[name](), PEEKED[name]()
+    m = f.dim_z
+    Hs = rng.standard_normal((60, 3))
+    Hs[30:, 1:] = 0.0                     # one direction excited: forgetting decisions, windup
+    Zs = rng.standard_normal((60, m)) + 5.0 * (rng.random((60, 1)) < 0.1)   # outliers: gate
+    issued = []
+    for k in range(60):
+        z = float(Zs[k, 0]) if m == 1 else Zs[k]
+        if k == 0:      # a new filter's state is checked by the real step first: no peek
+            assert f._peek_predict_update(z, Hs[k]) is None
+            for g in (f, ref):
+                g.predict_update(z, Hs[k])
+            continue
+        before = _filter_attributes(f)
+        other = f._peek_predict_update(-z, Hs[k])     # a peek on other inputs changes nothing
+        xn, token = f._peek_predict_update(z, Hs[k], other[1])
+        _same(_filter_attributes(f), before)
+        with warnings.catch_warnings(record=True) as ours:
+            warnings.simplefilter("always")
+            assert f._commit_peeked(token)
+        with warnings.catch_warnings(record=True) as theirs:
+            warnings.simplefilter("always")
+            ref.predict()
+            ref.update(z, Hs[k])
+        assert [str(w.message) for w in ours] == [str(w.message) for w in theirs]
+        issued += ours
+        assert_array_equal(xn, ref.x)
+        _same(_filter_attributes(f), _filter_attributes(ref))
+    if name == "health check":                        # the warning path was exercised
+        assert any("ill-conditioned" in str(w.message) for w in issued)
+
+
+def test_a_stale_peek_is_not_committed():
+    rng = np.random.default_rng(7)
+    f = RecursiveLeastSquares(2, lam=0.98)
+    H, z = rng.standard_normal(2), 0.3
+    f.predict_update(z, H)
+    _, token = f._peek_predict_update(z, H)
+    f.predict_update(1.0, H)                          # the state moved on
+    before = _filter_attributes(f)
+    assert f._commit_peeked(token) is False
+    _same(_filter_attributes(f), before)
+    _, token = f._peek_predict_update(z, H)
+    f.lam = 0.9                                       # an option changed
+    assert f._commit_peeked(token) is False
+    f.freeze()
+    assert f._peek_predict_update(z, H) is None       # frozen: the system steps for real
+
+
+def test_estimator_system_in_any_call_order_equals_the_filter():
+    """Outputs and updates on other states and inputs in between (restores, stale peeks)."""
+    rng = np.random.default_rng(8)
+    sys = estimator_iosystem(RecursiveLeastSquares(2, lam=0.98, P0=10.0), regressor=(1, 1, 1))
+    upd, out = sys.updfcn, sys.outfcn
+    W = rng.standard_normal((40, 2))
+    ref = RecursiveLeastSquares(2, lam=0.98, P0=10.0)
+    x, states, past = np.zeros(sys.nstates), [], (0.0, 0.0)
+    for k in range(40):
+        states.append(x)
+        if k >= 2:                                     # visit an older state in between
+            out(k, states[k - 2], W[k], {})
+            upd(k, states[k - 1], -W[k], {})
+        y_out = out(k, x, W[k], {})
+        if k % 3 == 0:
+            out(k, x, W[k] + 1.0, {})                  # another peek on the same state
+        x = upd(k, x, W[k], {})
+        H = np.array([-past[1], past[0]])
+        e = W[k, 1] - H @ ref.x[:, 0]
+        ref.predict_update(W[k, 1], H)
+        past = (W[k, 0], W[k, 1])
+        assert_allclose(y_out, np.r_[ref.x[:, 0], e], rtol=0, atol=1e-13)
+        assert_array_equal(x[:len(_filter_state.get_state(ref))], _filter_state.get_state(ref))

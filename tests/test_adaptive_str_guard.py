@@ -173,7 +173,20 @@ def test_the_tank_needs_the_offset_for_the_designed_poles(offset):
     stre = SelfTuningRegulator(RecursiveLeastSquares(2 + offset, lam=0.995, P0=100.0),
                                dict(Am=Am, Ao=Ao), na=1, nb=1, offset=offset,
                                u_limits=(0.0, 2.0))
-    y, u, r = _tank(stre)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        y, u, r = _tank(stre)
+    # without the offset, one warning at the end of the first 50 samples says so (the level
+    # stays above 0.905 there, 6.4 standard deviations from zero); with it, none
+    level = [w for w in caught if "offset=True" in str(w.message)]
+    assert len(level) == (0 if offset else 1), [str(w.message) for w in caught]
+    if not offset:
+        assert level[0].category is RegulatorWarning
+        low, std = np.abs(y[:50]).min(), np.std(y[:50])            # the oracle: NumPy
+        message = str(level[0].message)
+        assert f"at least {low:.3g} away from zero ({low / std:.3g} of its" in message
+        assert f"mean {np.mean(y[:50]):.3g})" in message
+        assert "Operating points: a tank" in message
     # the plant linearized at the last reference level: h(t+1) = p h(t) + u(t) / area
     level = r[-1]
     A = np.array([1.0, -(1.0 - OUTFLOW / (2 * np.sqrt(level)) / AREA)])
@@ -206,12 +219,30 @@ def test_an_affine_equilibrium_is_estimated_with_the_offset():
             rs.append(r)
         return stre, np.array(ys), np.array(rs)
 
-    stre, y, r = run(True)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")                           # no warning with the offset
+        stre, y, r = run(True)
     assert_allclose(stre.theta, [-0.9, 0.2, 0.5], atol=0.02)
     # without integral action the offset's input u_c = -c / B(1) gives zero static error
     assert abs(y[40:50].mean() - 6.0) < 0.05 and abs(y[90:100].mean() - 4.0) < 0.05
-    plain, y0, _ = run(False)
+    plain, y0, _ = run(False)       # started from rest at zero: no operating-point warning
     assert np.abs(plain.theta - [-0.9, 0.2]).max() > 0.05         # biased by the equilibrium
+
+
+def test_a_loop_from_rest_stepping_to_a_constant_reference_gets_no_offset_warning():
+    """Its first window's mean is several standard deviations from zero, but it starts at 0."""
+    stre = SelfTuningRegulator(RecursiveLeastSquares(2, P0=1.0, x0=[-0.9, 0.2]),
+                               dict(Am=np.poly([0.3])), na=1, nb=1)
+    y, u, rng = 0.0, 0.0, np.random.default_rng(5)
+    ys = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for _ in range(60):
+            y = 0.9 * y + 0.2 * u + 0.01 * rng.standard_normal()
+            u = stre.step(y, 1.0, dither=0.02 * rng.choice([-1.0, 1.0]))
+            ys.append(y)
+    ys = np.array(ys[:50])
+    assert abs(ys.mean()) > 3.0 * ys.std()            # a mean-only test would have warned
 
 
 def test_offset_argument_checks():

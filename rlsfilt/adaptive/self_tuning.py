@@ -35,7 +35,11 @@ __all__ = ["SelfTuningRegulator", "STRHistory"]
 # names of the scalar bookkeeping entries of the state vector, in order
 _SCALARS = ("have_controller", "step", "trace_ref", "warned_excitation", "warned_windup",
             "n_rejected", "rejected_run", "warned_rejected", "warned_reduced",
-            "warned_saturation", "size_last", "sat_block", "err2_block", "err2_prev")
+            "warned_saturation", "size_last", "sat_block", "err2_block", "err2_prev",
+            "level_mean", "level_m2", "level_min")
+# the operating-point check: without `offset`, warn if over the first _LEVEL_WINDOW samples
+# the output stays more than _LEVEL_RATIO of its standard deviations away from zero
+_LEVEL_WINDOW, _LEVEL_RATIO = 50, 3.0
 _I = {name: i for i, name in enumerate(_SCALARS)}
 
 
@@ -85,7 +89,9 @@ class SelfTuningRegulator:
         control law subtracts the estimated offset's input, :math:`R (u -
         u_c) = T r - S y` with :math:`u_c = -c / B(1)` (with integral action
         ``R(1) = 0`` and the term vanishes: the integrator takes care of
-        it). See the guide's tank example.
+        it). See the guide's tank example. Without it, a `RegulatorWarning`
+        (once) says so when every measured output of the first 50 samples
+        is more than 3 of their standard deviations away from zero.
     coprime_tol : float, default 1e-4
         The full-order design is not tried when the estimated ``A`` and
         ``B`` nearly share a factor: the smallest singular value
@@ -381,6 +387,8 @@ class SelfTuningRegulator:
         k = int(self._scalars[1])
         for value, name in ((y, "y"), (r, "r"), (v, "dither")):
             self._check_signal(value, name, k)
+        if not self.offset and k < _LEVEL_WINDOW:
+            messages += self._check_level(y, k)
         # regressor phi(t) = [-y(t-1) .. -y(t-na), u(t-nk) .. u(t-nk-nb+1) (, 1)]
         phi = np.concatenate([-self._ypast[:na], self._upast[nk - 1:nk - 1 + nb],
                               np.ones(int(self.offset))])
@@ -509,6 +517,33 @@ class SelfTuningRegulator:
                 f"{what} = {value:.3g} at step {k} exceeds signal_limit = "
                 f"{self.signal_limit:.3g}: the loop is diverging (or the signal is in the wrong "
                 "units); the regulator is left as before this step")
+
+    def _check_level(self, y, k):
+        """The operating-point check of a model without offset, one sample of the first
+        window: a warning (once, at the window's end) if the output stayed far from zero.
+
+        Every sample must stay away, not only the mean: a loop started from rest
+        that steps to a constant reference also has a mean of several standard
+        deviations over its first samples, but it starts at zero."""
+        # Welford's running mean and sum of squared deviations of y(0) .. y(k)
+        sc = self._scalars
+        mean, m2 = sc[_I["level_mean"]], sc[_I["level_m2"]]
+        delta = y - mean
+        mean += delta / (k + 1)
+        m2 += delta * (y - mean)
+        low = abs(y) if k == 0 else min(sc[_I["level_min"]], abs(y))
+        sc[_I["level_mean"]], sc[_I["level_m2"]], sc[_I["level_min"]] = mean, m2, low
+        std = np.sqrt(m2 / (k + 1))
+        if k + 1 < _LEVEL_WINDOW or not low > _LEVEL_RATIO * std:
+            return []
+        return [(f"SelfTuningRegulator: over the first {_LEVEL_WINDOW} samples the output "
+                 f"stayed at least {low:.3g} away from zero ({low / std if std else np.inf:.3g} "
+                 f"of its standard deviations; mean {mean:.3g}), and the model has no offset "
+                 "(offset=False): an ARX model through the origin fitted about an operating "
+                 "point biases the estimate and misses the designed poles. Use offset=True "
+                 "(estimator dim_x = na + nb + 1) or deviation variables (subtract the operating "
+                 "point before step); see 'Operating points: a tank' in the guide "
+                 "(docs/guide/control.md)", RegulatorWarning)]
 
     def _watchdog(self, k):
         """At the end of a monitor block: saturation with an error that does not fall."""

@@ -39,11 +39,16 @@ class _EstimatorStepper:
     def _measurement(self, w):
         n, m = self.filter.dim_x, self.filter.dim_z
         if self.mode == "arx":
-            u, y = w
             # phi(t) = [-y(t-1) .. -y(t-na), u(t-nk) .. u(t-nk-nb+1)]
-            ucur = np.concatenate([[u], self._upast])
-            H = np.concatenate([-self._ypast, ucur[self.nk:self.nk + self.nb]])
-            return y, H
+            na, nk = self.na, self.nk
+            H = np.empty(n)
+            np.negative(self._ypast, out=H[:na])
+            if nk:
+                H[na:] = self._upast[nk - 1:nk - 1 + self.nb]
+            else:
+                H[na] = w[0]
+                H[na + 1:] = self._upast[:self.nb - 1]
+            return w[1], H
         if self.mode == "direct":
             return (w[0] if m == 1 else w[:m]), w[m:m + n]
         z, H = self.fn(w)
@@ -53,16 +58,50 @@ class _EstimatorStepper:
         f = self.filter
         z, H = self._measurement(w)
         x = np.asarray(f.x, dtype=float)
-        e = np.atleast_1d(np.asarray(z, dtype=float)).reshape(-1) - H @ x   # a-priori error
         # predict + update, as predict_update without its undo: a failed step is never
         # reused (each evaluation restores the state from x)
         _, messages = call_capturing(_predict_update, f, z, H)
+        self._remember(w)
+        return self._outputs(np.asarray(f.x, dtype=float), z, H, x), messages
+
+    def _remember(self, w):
         if self.mode == "arx":
             u, y = w
             push(self._ypast, y)
             push(self._upast, u)
-        out = np.concatenate([np.asarray(f.x, dtype=float).reshape(-1), e])
-        return out, messages
+
+    def _io_peek(self, w):
+        """``(outputs, token)``: the outputs `_io_step(w)` would give (bit for bit),
+        with nothing changed, and a token for `_io_commit`; None when the filter
+        cannot tell without stepping."""
+        f = self.filter
+        z, H = self._measurement(w)
+        peeked = f._peek_predict_update(z, H, self.__dict__.get("_token"))
+        if peeked is None:
+            return None
+        self._token = peeked[1]             # its predict serves the next peek in this state
+        return self._outputs(peeked[0], z, H, np.asarray(f.x, dtype=float)), peeked[1]
+
+    def _io_commit(self, w, token):
+        """Take the step `_io_peek(w)` computed: its messages, or None (nothing done)
+        if the state has changed since."""
+        done, messages = call_capturing(self.filter._commit_peeked, token)
+        if not done:
+            return None
+        self._remember(w)
+        return messages
+
+    def _outputs(self, xn, z, H, x):
+        """``[theta after the step, z - H x]`` (`x` the estimate before it)."""
+        n = xn.size
+        out = np.empty(n + self.filter.dim_z)
+        out[:n] = xn.ravel()
+        e = H.dot(x)                                       # a-priori error, z - H x
+        if isinstance(z, float) and len(e) == 1:
+            out[n] = z - e[0]
+        else:                                              # None: a missing sample
+            out[n:] = np.asarray(np.nan if z is None else z, dtype=float).reshape(-1) - e
+        return out
 
     def _get_state(self):
         layout = self._layout()

@@ -80,14 +80,16 @@ class StateLayout:
             self.entries.append((name, shape, i, i + size))
             i += size
         self.size = i
+        self._arrays = [(name, a, b) for name, shape, a, b in self.entries if shape]
+        self._scalars = [name for name, shape, _, _ in self.entries if not shape]
+        self._at = np.array([a for _, shape, a, _ in self.entries if not shape], dtype=np.intp)
 
     def pack(self, f, out):
         """Write the state of `f` into `out` (length :attr:`size`), as :func:`get_state`."""
-        for (_, shape, a, b), value in zip(self.entries, f.get_state().values()):
-            if shape:
-                out[a:b] = np.ravel(value)
-            else:
-                out[a] = value
+        state = f.get_state()
+        for name, a, b in self._arrays:
+            out[a:b] = np.asarray(state[name]).ravel()
+        out[self._at] = [state[name] for name in self._scalars]
         return out
 
     def unpack(self, f, vec):

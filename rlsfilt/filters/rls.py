@@ -452,12 +452,15 @@ class RecursiveLeastSquares(_FilterBase):
             il = 1.0 if self._cap else self._il
             P_prior = np.empty(P.shape)
             _streaming.kernels().predict_kernel(P, il, Q, self._cfg, P_prior)
-            # commit
-            self._x, self._P = x, P_prior
-            self.x_prior, self.P_prior = x.copy(), P_prior.copy()
-            self._w = self._il if self._cap else 1.0      # 1 / lam held back for the update
-            self._updates_since_predict = 0
-            self._recheck = self._efra_pending = False
+            self._commit_predict(x, P_prior)
+
+    def _commit_predict(self, x, P_prior):
+        """The state change of :meth:`predict`, after its compiled step."""
+        self._x, self._P = x, P_prior
+        self.x_prior, self.P_prior = x.copy(), P_prior.copy()
+        self._w = self._il if self._cap else 1.0          # 1 / lam held back for the update
+        self._updates_since_predict = 0
+        self._recheck = self._efra_pending = False
 
     def update(self, z, H=None, R=None):
         r"""Measurement update with regressor row `H`.
@@ -496,21 +499,72 @@ class RecursiveLeastSquares(_FilterBase):
             #   P <- Pi P Pi             (constraints)
             flags, lam_t = _streaming.kernels().update_kernel(x, P, H, z, r, self._cfg, self._w,
                                                               xn, Pn, y, K, S, SI)
-            n_updates = self.n_updates + 1
-            self._check_step(flags, H, Pn, n_updates)     # raises or warns: nothing changed yet
-            # commit
-            self._x, self._P = xn, Pn
-            self.x_post, self.P_post = xn.copy(), Pn.copy()
-            self.H, self.z, self.y, self.K, self.S, self.SI = H, z, y, K, S, SI
-            self._lazy = MISSING_DIAGNOSTICS if missing else None
-            self.gated = (flags & _GATED) != 0
-            self.n_gated += self.gated
-            self.n_capped += self._w != 1.0
-            self._cap, self._w = (flags & _CAP) != 0, 1.0
-            self.lam_t = lam_t
-            self.n_updates = n_updates
-            self._updates_since_predict += 1
-            self._recheck = self._efra_pending = False
+            self._commit_update(H, z, missing, xn, Pn, y, K, S, SI, flags, lam_t)
+
+    def _commit_update(self, H, z, missing, xn, Pn, y, K, S, SI, flags, lam_t):
+        """The decisions and the state change of :meth:`update`, after its compiled step."""
+        n_updates = self.n_updates + 1
+        self._check_step(flags, H, Pn, n_updates)         # raises or warns: nothing changed yet
+        # commit
+        self._x, self._P = xn, Pn
+        self.x_post, self.P_post = xn.copy(), Pn.copy()
+        self.H, self.z, self.y, self.K, self.S, self.SI = H, z, y, K, S, SI
+        self._lazy = MISSING_DIAGNOSTICS if missing else None
+        self.gated = (flags & _GATED) != 0
+        self.n_gated += self.gated
+        self.n_capped += self._w != 1.0
+        self._cap, self._w = (flags & _CAP) != 0, 1.0
+        self.lam_t = lam_t
+        self.n_updates = n_updates
+        self._updates_since_predict += 1
+        self._recheck = self._efra_pending = False
+
+    def _peek_predict_update(self, z, H, like=None):
+        """``predict(); update(z, H)`` computed by the same compiled steps on the same
+        arrays, with nothing changed and no warning: ``(estimate, token)``, the
+        estimate ``(dim_x, dim_z)`` it would leave (bit for bit) and a token for
+        :meth:`_commit_peeked`. For the python-control system, which evaluates its
+        outputs several times per sample and commits one step. None when the step
+        is not the plain one (frozen, a state assigned or restarted since the last
+        step): the caller then runs the real step. `like`, a token of an earlier peek,
+        lends its predicted covariance if the filter is still in the same state."""
+        with self._lock:
+            if self.frozen or self._recheck or self._efra_pending:
+                return None
+            H = self._row(H)
+            z, missing = self._column(z)
+            x, k = self._x, _streaming.kernels()
+            options = (self._Q_kernel, self._cfg, self._il, self._cap)
+            if (like is not None and like[0] is x and like[1] is self._P
+                    and all(a is b for a, b in zip(like[3], options))):
+                P_prior = like[2]                   # the same predict, already done
+            else:
+                # as predict: P^- = P / lam + Q (1 / lam held back after a capped step)
+                P_prior = np.empty(self._P.shape)
+                k.predict_kernel(self._P, 1.0 if self._cap else self._il, self._Q_kernel,
+                                 self._cfg, P_prior)
+            # as update, right after that predict
+            xn, Pn, y, K, S, SI = _step_arrays(self.dim_x, self.dim_z)
+            flags, lam_t = k.update_kernel(x, P_prior, H, z, self._R, self._cfg,
+                                           self._il if self._cap else 1.0, xn, Pn, y, K, S, SI)
+            if flags & _BAD_ROW:
+                return None                 # the real step raises the error naming H
+            return xn, (x, self._P, P_prior, options + (self._R, self._check_every),
+                        (H, z, missing, xn, Pn, y, K, S, SI, flags, lam_t))
+
+    def _commit_peeked(self, token):
+        """Commit a :meth:`_peek_predict_update` as ``predict(); update(z, H)`` would
+        (its warnings, its errors), if the filter is still in the state it was
+        peeked in; False (nothing done) otherwise."""
+        with self._lock:
+            x, P, P_prior, options, step = token
+            now = (self._Q_kernel, self._cfg, self._il, self._cap, self._R, self._check_every)
+            if (self._x is not x or self._P is not P or self.frozen or self._recheck
+                    or any(a is not b for a, b in zip(options, now))):
+                return False
+            self._commit_predict(x, P_prior)
+            self._commit_update(*step)
+            return True
 
     def _check_step(self, flags, H, P, n_updates):
         """The decisions of `update` before it commits (`flags` of ``update_kernel``,
