@@ -17,7 +17,7 @@ matplotlib.use("Agg")
 PACKAGES = ["rlsfilt.models", "rlsfilt.validation", "rlsfilt.datasets", "rlsfilt.adaptive",
             "rlsfilt.data"]
 # single-module parts of the package with Examples sections
-TOP_MODULES = ["rlsfilt.continuous", "rlsfilt.persistence"]
+TOP_MODULES = ["rlsfilt.continuous", "rlsfilt.persistence", "rlsfilt.river", "rlsfilt.sklearn"]
 
 
 def _modules():
