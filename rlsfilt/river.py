@@ -63,6 +63,10 @@ class RLSRegressor(base.Regressor):
         Learn an intercept (the weight of a constant feature, with the same
         prior).
 
+    Features that appear together in one sample take their places in sorted
+    order (of their names as text), so the model does not depend on the order
+    of the keys of `x`: shuffled dicts give the same numbers, bit for bit.
+
     Attributes
     ----------
     weights : dict
@@ -70,7 +74,7 @@ class RLSRegressor(base.Regressor):
     filter : RecursiveLeastSquares or None
         The filter behind the model (None before the first ``learn_one``):
         its ``x`` holds the intercept first (if any), then the features in
-        the order they appeared.
+        the order they appeared (sorted within a sample).
 
     See Also
     --------
@@ -152,7 +156,9 @@ class RLSRegressor(base.Regressor):
         """
         y = check_real(y, "y")
         values = self._values(x)
-        new = [f for f in values if f not in self._index]
+        # features new in one sample enter in a fixed order, not the dict's: the state
+        # (and every number after it) does not depend on the order of the keys
+        new = sorted((f for f in values if f not in self._index), key=_feature_order)
         if new or self.filter is None:
             if not self._grow(new):
                 return                  # no intercept and no feature: nothing to learn
@@ -232,3 +238,8 @@ class RLSRegressor(base.Regressor):
             self._index[f] = self._offset + len(self._index)
         self.filter = filt
         return True
+
+
+def _feature_order(name):
+    """Sort key of feature names of any (mixed) types."""
+    return type(name).__name__, str(name)

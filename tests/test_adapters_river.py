@@ -160,3 +160,22 @@ def test_bad_values_are_named_and_change_nothing():
         model.predict_one({"b": None})
     assert list(model.weights) == ["a"]
     assert_array_equal(model.filter.x, before["x"])
+
+
+def test_the_order_of_the_keys_does_not_matter():
+    """Shuffled dicts (river's check_shuffle_features_no_impact, here bit for bit and
+    with features emerging together on an ill-conditioned stream)."""
+    rng = np.random.default_rng(5)
+    a, b = RLSRegressor(lam=0.99), RLSRegressor(lam=0.99)
+    for t in range(60):
+        x = {"date": 7.4e5 + t, "p": float(rng.standard_normal()), 3: float(rng.random())}
+        if t >= 20:
+            x |= {"q": float(rng.standard_normal()), "r": 1.0}
+        keys = list(x)
+        rng.shuffle(keys)
+        shuffled = {k: x[k] for k in keys}
+        assert a.predict_one(x) == b.predict_one(shuffled)
+        a.learn_one(x, float(rng.standard_normal()))
+        b.learn_one(shuffled, a.filter.z[0, 0])
+    assert list(a.weights) == list(b.weights) == [3, "date", "p", "q", "r"]   # int < str
+    assert_array_equal(a.filter.x, b.filter.x)
