@@ -1,7 +1,9 @@
 r"""Compiled (numba) steps and batch loops of the gradient filters (`rlsfilt.filters.gradient`).
 
-One step function per family, shared by the streaming kernel and the batch
-loop, so that ``update`` and ``batch_filter`` agree bit for bit:
+One step per family; the batch loops run the same operations in the same
+order (for one output written out in the loop, `_lms_one` and `_apa_one`), so
+that ``update`` and ``batch_filter`` agree bit for bit
+(``tests/test_gradient.py``, the contract suite):
 
 - `lms_step`: LMS, normalized LMS and the sign variants, with leakage
   (Haykin 2002, ch. 5-6):
