@@ -93,3 +93,17 @@ def test_lock_cost_runs():
     assert set(results[2]) == {"predict+update", "lock"}
     assert results[2]["predict+update"] > 0 and results[2]["lock"] >= 0
 
+
+
+def test_gradient_benchmark_runs_in_smoke_mode(tmp_path):
+    """``benchmarks/bench_gradient.py --smoke`` (the numbers of docs/performance.md's
+    gradient table) runs and prints one positive row per filter."""
+    env = dict(os.environ, MPLBACKEND="Agg")
+    env["PYTHONPATH"] = str(ROOT) + os.pathsep + env.get("PYTHONPATH", "")
+    proc = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_gradient.py"),
+                           "--smoke"], env=env, cwd=str(tmp_path), capture_output=True,
+                          text=True, timeout=300, check=True)
+    rows = {line.split()[0]: line.split()[-4:] for line in proc.stdout.splitlines()
+            if line.endswith("x")}
+    assert set(rows) == {"LMS", "NLMS", "SignSignLMS", "APA(order=4)"}
+    assert all(float(v.rstrip("x")) > 0 for r in rows.values() for v in r)

@@ -19,7 +19,8 @@ PAGES = sorted(p for p in DOCS.rglob("*.md")
 # exceptions too: a name dropped from any of their lists in docs/api/index.rst must fail the test)
 SUBPACKAGES = ["rlsfilt.filters", "rlsfilt.models", "rlsfilt.datasets", "rlsfilt.validation",
                "rlsfilt.adaptive", "rlsfilt.data",
-               "rlsfilt.plotting", "rlsfilt.exceptions", "rlsfilt.cli"]
+               "rlsfilt.plotting", "rlsfilt.exceptions", "rlsfilt.cli",
+               "rlsfilt.river", "rlsfilt.sklearn"]
 _FENCE = re.compile(r"^(?P<skip>% skip-test\n)?```python\n(?P<code>.*?)^```$", re.M | re.S)
 
 

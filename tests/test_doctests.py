@@ -17,7 +17,8 @@ matplotlib.use("Agg")
 PACKAGES = ["rlsfilt.models", "rlsfilt.validation", "rlsfilt.datasets", "rlsfilt.adaptive",
             "rlsfilt.data"]
 # single-module parts of the package with Examples sections
-TOP_MODULES = ["rlsfilt.continuous", "rlsfilt.persistence", "rlsfilt._display"]
+TOP_MODULES = ["rlsfilt.continuous", "rlsfilt.persistence", "rlsfilt._display", "rlsfilt.river",
+               "rlsfilt.sklearn"]
 
 
 def _modules():

@@ -27,7 +27,8 @@ LAYERS = [
     ("models", ["rlsfilt.models", "rlsfilt.persistence"]),
     ("validation", ["rlsfilt.validation", "rlsfilt.datasets"]),
     ("applications", ["rlsfilt.adaptive", "rlsfilt.cli", "rlsfilt._cli_args",
-                      "rlsfilt._cli_fleet", "rlsfilt.dask", "rlsfilt.__main__"]),
+                      "rlsfilt._cli_fleet", "rlsfilt.dask", "rlsfilt.river", "rlsfilt.sklearn",
+                      "rlsfilt.__main__"]),
     ("package", ["rlsfilt"]),
 ]
 

@@ -126,6 +126,9 @@ class _GradientFilter(_FilterBase):
         Returns ``(means, None, means_p, None)``: the estimates after each update
         and before it (``update_first=False``; after it otherwise), each
         ``(N, dim_x, dim_z)``. A gradient filter has no covariances to store.
+        As in `RecursiveLeastSquares` (``store_covariances=False``), `means_p`
+        is a read-only view of the array that holds `means` (a predict does not
+        change the estimate), so a record costs one array of estimates.
         """
         check_bool(store_covariances, "store_covariances")
         return self._batch(zs, Hs, Rs, update_first, saver, False)
@@ -134,9 +137,15 @@ class _GradientFilter(_FilterBase):
         N, n, m = len(Z), self.dim_x, self.dim_z
         x, y, K = self._x.copy(), np.full(m, np.nan), self.K.copy()
         work = self._work()
-        means, means_p = np.empty((N, n, m)), np.empty((N, n, m))
-        last = self._run(x, Hm, Z, update_first, K, y, work, means, means_p)
-        x_prior = x.copy() if update_first else means_p[-1].copy()
+        # one array of estimates: trajectory[0] the start, trajectory[k + 1] after sample k;
+        # the estimates before each update are a read-only view of it (no time update: the
+        # estimate after a predict is the one before it), as RecursiveLeastSquares does
+        trajectory = np.empty((N + 1, n, m))
+        last = self._run(x, Hm, Z, K, y, work, trajectory)
+        means = trajectory[1:]
+        means_p = (means if update_first else trajectory[:-1]).view()
+        means_p.flags.writeable = False
+        x_prior = x.copy() if update_first else trajectory[-2].copy()
         self._commit_batch(x, Hm, Z, Rv, y, K, work, last, x_prior)
         return means, None, means_p, None
 
@@ -182,11 +191,11 @@ class _GradientFilter(_FilterBase):
         k.lms_update(k.METHODS.index(self._METHOD), x, h.reshape(1, -1), z.reshape(1, -1),
                      self.mu, self.eps, self.leak, K.reshape(-1), y)
 
-    def _run(self, x, Hm, Z, update_first, K, y, work, means, means_p):
+    def _run(self, x, Hm, Z, K, y, work, trajectory):
         k = _kernels()
         return k.lms_batch(k.METHODS.index(self._METHOD), x, np.ascontiguousarray(Hm),
                            np.ascontiguousarray(Z), self.mu, self.eps, self.leak,
-                           update_first, K.reshape(-1), y, means, means_p)
+                           K.reshape(-1), y, trajectory)
 
     def _final_health_check(self):
         """No covariance, no health check."""
@@ -417,18 +426,18 @@ class APA(_GradientFilter):
     def _work(self):
         k, n, m = self.order, self.dim_x, self.dim_z
         return (self.X.copy(), self.D.copy(), np.empty((k, k)), np.empty((k, n)),
-                np.empty((k, m)))
+                np.empty((k, m)), np.empty((k, k)))
 
     def _set_work(self, work):
         self.X, self.D = work[0], work[1]
 
     def _step(self, x, h, z, K, y, work):
-        _kernels().apa_update(x, h, z, self.mu, self.eps, *work[:2], K, y, *work[2:])
+        _kernels().apa_update(x, h.reshape(1, -1), z.reshape(1, -1), self.mu, self.eps,
+                              *work[:2], K, y, *work[2:])
 
-    def _run(self, x, Hm, Z, update_first, K, y, work, means, means_p):
+    def _run(self, x, Hm, Z, K, y, work, trajectory):
         return _kernels().apa_batch(x, np.ascontiguousarray(Hm), np.ascontiguousarray(Z),
-                                    self.mu, self.eps, update_first, *work[:2], K, y,
-                                    *work[2:], means, means_p)
+                                    self.mu, self.eps, *work[:2], K, y, *work[2:], trajectory)
 
     @_locked
     def get_state(self):
