@@ -365,7 +365,8 @@ def streaming_ablation(dims, n_samples=5000, rounds=7, rng=0, log=print):
         entry_p = kern.predict_kernel.overloads[tuple(map(typeof, args_p))].entry_point
         entry_u = kern.update_kernel.overloads[tuple(map(typeof, args_u))].entry_point
 
-        def kernels_alone(predict_kernel, update_kernel):
+        def kernels_alone(predict_kernel, update_kernel, P=P, Q=Q, cfg=cfg, Pm=Pm, x=x,
+                          rows=rows, cols=cols, outs=outs):
             for k in range(n_samples):
                 predict_kernel(P, 1.0 / LAM, Q, cfg, Pm)
                 update_kernel(x, Pm, rows[k], cols[k], 1.0, cfg, 1.0, *outs)
@@ -381,11 +382,11 @@ def streaming_ablation(dims, n_samples=5000, rounds=7, rng=0, log=print):
                 kern.update_kernel(x, P_prior, H, z, 1.0, cfg, 1.0, xn, Pn, y, K, S, SI)
                 xn.copy(), Pn.copy()                                      # x_post, P_post
 
-        variants = {"as shipped": lambda: run_stream(Hs, zs),
+        variants = {"as shipped": lambda Hs=Hs, zs=zs: run_stream(Hs, zs),
                     "kernels + arrays": kernels_and_arrays,
                     "kernels alone": lambda: kernels_alone(kern.predict_kernel,
                                                            kern.update_kernel),
-                    "entry points": lambda: kernels_alone(entry_p, entry_u)}
+                    "entry points": lambda p=entry_p, u=entry_u: kernels_alone(p, u)}
         best = dict.fromkeys(variants, np.inf)
         for _ in range(rounds):
             for name, run in variants.items():
