@@ -907,17 +907,13 @@ def test_no_gate_never_gates_even_when_S_is_not_positive(forgetting):
     assert np.any(f.K != 0.0)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "A missing sample projects P onto the constraints' null space in the exponential mode "
-    "only: after `f = RecursiveLeastSquares(2, lam=0.95).constrain([1, 1], 0.5); "
-    "f.update(1.0, [1, 0]); f.P = [[300, -17], [-17, 47]]; f.update(None, [0.3, -1.2])` "
-    "P is [[95.25, -95.25], [-95.25, 95.25]] (Pi P Pi), while every other mode and the "
-    "textbook (_reference.rls_update: a missing sample leaves P) keep the assigned P. The "
-    "docstring says P is projected 'after each predict and update'; which of the two is "
-    "meant is for the filter's owner (branch core) to decide. Found by the cross product "
-    "(constraints, P assigned, a missing sample)."))
 @pytest.mark.parametrize("forgetting", MODES)
 def test_a_missing_sample_treats_an_assigned_P_alike_in_every_mode(forgetting):
+    """Found by the cross product (constraints, ``P`` assigned, a missing sample): the
+    exponential mode projected an assigned ``P`` onto the constraints' null space on a
+    missing sample (``Pi P Pi``), every other mode and the textbook
+    (``_reference.rls_update``) kept it. Decided: a sample that updates nothing leaves
+    ``P`` in every mode (``predict`` and every real update still project)."""
     P = np.array([[300.0, -17.0], [-17.0, 47.0]])
     seen = []
     for mode in (forgetting, "exponential"):

@@ -362,8 +362,8 @@ def measurement_update(x, P, phi, z, missing, r, cfg, Pi, g, y, K, T, w, xn, Pn)
                 xn[i, j] = x[i, j] + ki * y[j]
     else:                                    # exponential, held back: x unchanged
         copy2(x, xn)
-    if Pi.shape[0]:                          # keep A P = 0
-        project(Pn, Pi, T)
+    if Pi.shape[0] and (updated or w != 1.0):   # keep A P = 0 (a sample skipped with no
+        project(Pn, Pi, T)                      # forgetting held back leaves P, as every mode)
     cap = False
     if mode == EXPONENTIAL:
         hph = q * r * (w * (1.0 / s)) if updated else q * w    # phi P phi^T after the update
