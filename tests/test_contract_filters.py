@@ -176,8 +176,43 @@ class BankAdapter:
             Hs = np.broadcast_to(Hs[:, None, :], (Hs.shape[0], len(SCALES), Hs.shape[-1]))
         self.bank.initialize(self._z(zs), Hs)
 
+    def update_block(self, Z, H, R=None):
+        C = len(SCALES)
+        if _real(H) and np.ndim(H) == 2:
+            H = np.asarray(H)
+            H = np.broadcast_to(H[:, None, :], (H.shape[0], C, H.shape[-1]))
+        if _real(R) and np.ndim(R) == 1:
+            R = np.broadcast_to(np.asarray(R, dtype=float)[:, None], (len(R), C))
+        assert self.bank.update_block(self._z(Z), H, R) is self.bank
+        return self
+
     def copy(self):
         return copy.deepcopy(self)
+
+    # the adaptation switch and the state, forwarded
+    frozen = property(lambda self: self.bank.frozen)
+
+    @property
+    def adapt(self):
+        return self.bank.adapt
+
+    @adapt.setter
+    def adapt(self, value):
+        self.bank.adapt = value
+
+    def freeze(self):
+        assert self.bank.freeze() is self.bank
+        return self
+
+    def unfreeze(self):
+        assert self.bank.unfreeze() is self.bank
+        return self
+
+    def get_state(self):
+        """Every channel's ``x``, ``P``, counters and ``lam_t`` (copies)."""
+        b = self.bank
+        return {"x": b.x.copy(), "P": b.P.copy(), "n_updates": int(b.n_updates),
+                "n_capped": b.n_capped.copy(), "lam_t": b.lam_t.copy()}
 
     # assignment: the same value for every channel (the bank stores its own copy)
     @property
@@ -738,13 +773,7 @@ CHECKS = [
     check_update_block_equals_rows,
 ]
 
-_NO_BANK_FREEZE = ("RLSBank has no freeze()/unfreeze() and no update_block yet (#31: the bank "
-                   "is still to do)")
-EXPECTED_FAILURES = {
-    **{(name, check): _NO_BANK_FREEZE
-       for name in ("RLSBank", "RLSBank-lam0.95", "RLSBank-directional-Q", "RLSBank-constant_trace")
-       for check in ("check_freeze_keeps_the_state", "check_update_block_equals_rows")},
-}
+EXPECTED_FAILURES = {}
 
 
 @parametrize_with_checks(FILTERS, CHECKS, EXPECTED_FAILURES)
