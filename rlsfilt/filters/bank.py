@@ -30,7 +30,6 @@ made first. Every attribute read has the bits of the eager recursion.
 """
 
 import copy
-import functools
 import math
 import threading
 
@@ -38,6 +37,7 @@ import numpy as np
 
 from .._display import _edges, bank_html, pretty_str
 from .._lazy import lazy_module
+from .._locking import atomic as _atomic
 from .._locking import init_signature
 from .._locking import locked as _locked
 from .._validation import (
@@ -64,26 +64,6 @@ _SUPPORTED_PARAMS = {"exponential": ("spread_max", "trace_max"), "directional": 
 _LOG_2PI = math.log(2.0 * math.pi)
 _TINY = np.finfo(float).tiny
 _get_kernels = lazy_module("rlsfilt.filters._kernels_bank")
-
-
-def _atomic(method):
-    """Run `method` as one transaction, holding the bank's lock (a bank shared by
-    threads applies each call whole): if it raises (a rejected input, or a
-    warning turned into an error after the step was computed), the bank's
-    attributes are put back as they were. The methods replace arrays and
-    never write into the ones they leave behind, so a shallow copy of the
-    attributes is enough to undo them."""
-    @functools.wraps(method)
-    def run(self, *args, **kwargs):
-        with self._lock:
-            before = self.__dict__.copy()
-            try:
-                return method(self, *args, **kwargs)
-            except BaseException:
-                self.__dict__.clear()
-                self.__dict__.update(before)
-                raise
-    return run
 
 
 class _Lazy:
