@@ -30,8 +30,8 @@ from .._validation import (
 )
 from ..exceptions import InsufficientDataError, NumericalWarning
 from ..filters import RecursiveLeastSquares, SquareRootRLS
-from . import _conversion
 from . import _arx_online as _online
+from . import _conversion
 from ._arx_iv import check_options as check_iv_options
 from ._arx_iv import fit_arx_iv
 from ._base import IdentifiedModel, Polynomials
