@@ -286,6 +286,7 @@ class GradientBankAdapter(_ChannelsAdapter):
     covariance (``has_covariance = False``: the checks skip ``P``), no ``Q``."""
 
     has_covariance = False
+    least_squares = False
     state_names = ("x", "x_prior", "x_post", "y", "K", "S", "SI", "z", "H")
 
     def __init__(self, dim_x, x0=None, **kw):

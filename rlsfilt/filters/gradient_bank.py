@@ -123,6 +123,7 @@ class GradientBank:
     """
 
     has_covariance = False
+    least_squares = False
     __slots__ = ("_lock", "__dict__", "__weakref__")
 
     def __new__(cls, *args, **kwargs):
