@@ -139,3 +139,37 @@ def test_bad_arguments_are_named():
     with pytest.raises(ValueError, match="rank-deficient in channel 0"):
         bank.initialize(np.zeros((3, 3)), np.ones((3, 3, 2)))
     assert bank.n_updates == 0 and not bank.x.any()
+
+
+# ----------------------------------------------------------------------
+# a fleet of gradient ARX fits: fit_many(method="nlms" | "lms")
+# ----------------------------------------------------------------------
+@pytest.mark.parametrize("method, options", [("nlms", {"eps": 0.01}), ("lms", {"leak": 0.01})])
+def test_fit_many_gradient_equals_arx_fit(method, options):
+    """Every channel of ``fit_many(..., method)`` is ``ARX.fit(..., method)`` of its
+    record (the estimate bit for bit, the statistics to round-off), with one step
+    size per channel; ``model(i)`` refits it."""
+    from scipy.signal import lfilter
+
+    from rlsfilt import ARX
+    from rlsfilt.models import fit_many
+
+    rng = np.random.default_rng(7)
+    C, N = 6, 300
+    u = rng.standard_normal((N, C))
+    a = rng.uniform(-0.9, -0.5, C)
+    y = np.column_stack([lfilter([0, 1.0], [1, a[c]], u[:, c]) for c in range(C)])
+    y += 0.05 * rng.standard_normal((N, C))
+    mu = np.linspace(0.2, 0.8, C) if method == "nlms" else np.linspace(0.01, 0.05, C)
+    fleet = fit_many(ARX(1, 1), u, y, method, mu=mu, **options)
+    assert fleet.method_ == method and np.isnan(fleet.std_errors_).all()
+    for c in range(C):
+        m = ARX(1, 1).fit(u[:, c], y[:, c], method=method, mu=mu[c], **options)
+        assert_array_equal(fleet.theta_[c], m.theta_)
+        assert_allclose(fleet.recursive_residuals_[:, c], m.recursive_residuals_, rtol=1e-12,
+                        atol=1e-12)
+        assert_allclose(fleet.noise_variance_[c], m.noise_variance_, rtol=1e-12)
+        assert_allclose(fleet.residuals_[:, c], m.residuals_, rtol=1e-12, atol=1e-12)
+    assert_array_equal(fleet.model(2).theta_, fleet.theta_[2])
+    with pytest.raises(TypeError, match="`lam` is not an option of method="):
+        fit_many(ARX(1, 1), u, y, method, lam=0.99)
