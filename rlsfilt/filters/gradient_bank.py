@@ -342,8 +342,9 @@ class GradientBank:
     @_atomic
     def initialize(self, zs, Hs):
         """Start every channel from least squares on its samples `zs` (``(k0,
-        C)``), `Hs` (``(k0, C, dim_x)``), rows with a NaN dropped (as
-        :meth:`NLMS.initialize` per channel)."""
+        C)``), `Hs` (``(k0, C, dim_x)``), rows with a NaN dropped (as the single
+        filter's ``initialize`` per channel); a channel whose rows do not
+        determine every parameter is a ValueError naming it."""
         C, n = self.n_channels, self.dim_x
         Z = self._measured(zs, "zs", None, f"(k0, {C})", ndim=2)
         if Z.shape[1] != C:
