@@ -143,3 +143,20 @@ def test_window_options():
         with pytest.raises(TypeError, match=f"`{name}` does not apply to method='rls' with a "
                                             "`window`"):
             ARX(2, 2, 1).fit(u, y, method="rls", window=30, **{name: value})
+
+
+@pytest.mark.parametrize("options", [{"method": "nlms", "mu": 0.5}, {"method": "lms", "mu": 0.05},
+                                     {"method": "rls", "window": 60}])
+def test_save_and_load_keep_the_fit(options, tmp_path):
+    """A saved gradient fit (NaN covariance) or window fit loads with the same numbers."""
+    from rlsfilt import load_model, save_model
+
+    u, y = _siso()
+    model = ARX(2, 2, 1).fit(u, y, **options)
+    save_model(model, tmp_path / "m.json")
+    again = load_model(tmp_path / "m.json")
+    assert again.method_ == model.method_
+    assert again.__dict__.get("form_") == model.__dict__.get("form_")
+    for name in ("theta_", "theta_cov_", "noise_variance_"):
+        assert_array_equal(getattr(again, name), getattr(model, name), err_msg=name)
+    assert_array_equal(again.predict(u, y), model.predict(u, y))
