@@ -173,3 +173,27 @@ def test_fit_many_gradient_equals_arx_fit(method, options):
     assert_array_equal(fleet.model(2).theta_, fleet.theta_[2])
     with pytest.raises(TypeError, match="`lam` is not an option of method="):
         fit_many(ARX(1, 1), u, y, method, lam=0.99)
+
+
+def test_dask_fit_many_gradient_equals_fit_many():
+    """`rlsfilt.dask.fit_many` with a gradient method: the per-channel step sizes are
+    split with the channel blocks, and the table is that of `fit_many`."""
+    import dask.array as da
+    from scipy.signal import lfilter
+
+    import rlsfilt.dask as rd
+    from rlsfilt import ARX
+    from rlsfilt.models import fit_many
+
+    rng = np.random.default_rng(8)
+    C, N = 8, 300
+    u = rng.standard_normal((N, C))
+    y = np.column_stack([lfilter([0, 1.0], [1, -0.6], u[:, c]) for c in range(C)])
+    y += 0.05 * rng.standard_normal((N, C))
+    mu = np.linspace(0.2, 0.8, C)
+    table = rd.fit_many(ARX(1, 1), da.from_array(u, chunks=(N, 3)),
+                        da.from_array(y, chunks=(N, 3)), "nlms", mu=mu, residual_tests=False)
+    ref = fit_many(ARX(1, 1), u, y, "nlms", mu=mu, residual_tests=False).summary()
+    assert_array_equal(table[["a1", "b1"]].to_numpy(), ref[["a1", "b1"]].to_numpy())
+    assert_allclose(table["noise_variance"].to_numpy(), ref["noise_variance"].to_numpy(),
+                    rtol=1e-12)
