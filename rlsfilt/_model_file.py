@@ -61,8 +61,9 @@ _FAMILY_REQUIRED = ("method_", "theta_", "theta_cov_", "noise_variance_", "n_sam
                     "n_params_", "n_inputs_", "n_outputs_", "structure_", "n_experiments_",
                     "input_names_", "output_names_", "a_", "c_", "d_", "b_", "f_")
 # learned attributes only some fits set: name -> the methods that set them
-_ARX_ONLY = {"lam_": ("rls",), "form_": ("rls",), "k0_": ("rls", "riv"),
-             "theta_history_": ("rls", "riv"), "recursive_residuals_": ("rls", "riv"),
+_ARX_ONLY = {"lam_": ("rls",), "form_": ("rls",), "k0_": ("rls", "riv", "nlms", "lms"),
+             "theta_history_": ("rls", "riv", "nlms", "lms"),
+             "recursive_residuals_": ("rls", "riv", "nlms", "lms"),
              "instruments_": ("iv", "riv")}
 _FAMILY_ONLY = {"fit_info_": ("pem",), "margins_": ("rplr",),
                 "theta_history_": ("rpem", "rplr"), "recursive_residuals_": ("rpem", "rplr")}
@@ -589,8 +590,10 @@ def _signals_info(raw, nu, ny):
 
 def _common(raw, out, n_params, per_output, ny, y_1d):
     """Covariance, noise variance, counts and per-sample arrays shared by every class."""
+    # (a gradient fit has no covariance: NaN)
     out["theta_cov_"] = _array(raw["theta_cov_"], "fitted.theta_cov_",
-                               (n_params, n_params) if y_1d else (ny, n_params, n_params))
+                               (n_params, n_params) if y_1d else (ny, n_params, n_params),
+                               allow_nan=out.get("method_") in ("nlms", "lms"))
     diag = np.diagonal(out["theta_cov_"], axis1=-2, axis2=-1)
     if (diag < 0).any():
         raise ValueError("`fitted.theta_cov_` must have a non-negative diagonal (variances); "
@@ -624,7 +627,8 @@ def _common(raw, out, n_params, per_output, ny, y_1d):
 def _arx_fitted(model, raw, version):
     """The learned attributes of an ARX file, typed and checked against ``params``."""
     _object(raw, "fitted", _ARX_FITTED, _ARX_REQUIRED, owner="a fitted ARX")
-    method = _text(raw["method_"], "fitted.method_", ("ls", "rls", "iv", "riv", "true"))
+    method = _text(raw["method_"], "fitted.method_",
+                   ("ls", "rls", "iv", "riv", "nlms", "lms", "true"))
     _check_method_fields(raw, _ARX_ONLY, method)
     nu = _int(raw["n_inputs_"], "fitted.n_inputs_", 1)
     ny = _int(raw["n_outputs_"], "fitted.n_outputs_", 1)
@@ -689,7 +693,8 @@ def _arx_fitted(model, raw, version):
         if out["lam_"] > 1.0:
             _fail("fitted.lam_", "must be in (0, 1]", raw["lam_"])
     if "form_" in raw:
-        out["form_"] = _text(raw["form_"], "fitted.form_", ("covariance", "square_root"))
+        out["form_"] = _text(raw["form_"], "fitted.form_",
+                             ("covariance", "square_root", "window"))
     if "instruments_" in raw:
         out["instruments_"] = _array(raw["instruments_"], "fitted.instruments_",
                                      (out["n_samples_"], n_params))

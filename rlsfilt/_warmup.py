@@ -83,6 +83,17 @@ Hb = np.broadcast_to(H[:, None, :], (20, 4, 3))
 bank.batch_filter(np.tile(z[:, None], (1, 4)), Hb)
 bank.update(z[0] * np.ones(4), Hb[0])
 """),
+    ("GradientBank", """
+gb = rlsfilt.GradientBank(4, 3, mu=0.5)
+Hb = np.broadcast_to(H[:, None, :], (20, 4, 3))
+gb.batch_filter(np.tile(z[:, None], (1, 4)), Hb)
+gb.update(z[0] * np.ones(4), Hb[0])
+"""),
+    ("gradient filters", """
+for f in (rlsfilt.NLMS(3), rlsfilt.LMS(3), rlsfilt.APA(3, order=2)):
+    f.batch_filter(z, H)
+    f.update(1.0, H[0])
+"""),
     ("ARX", """
 rlsfilt.ARX(2, 2, 1).fit(u, y)
 rlsfilt.ARX(2, 2, 1).fit(u, y, method="rls")

@@ -66,7 +66,7 @@ def fit_many(model, u, y, method="ls", *, channels=None, client=None, compute=Tr
         with the channel chunks of `y`.
     y : dask.array.Array or array_like, shape (N, C)
         Outputs, chunked by channel (axis 1).
-    method : {"ls", "rls"}, default "ls"
+    method : {"ls", "rls", "nlms", "lms"}, default "ls"
     channels : sequence, optional
         Channel labels (default ``0 .. C-1``).
     client : dask.distributed.Client, optional

@@ -151,7 +151,8 @@ def test_bad_shapes_and_types(data):
 
 
 def test_bad_method_and_options(data):
-    with pytest.raises(ValueError, match=r"`method` must be 'ls', 'rls', 'iv' or 'riv'; got 'qr'"):
+    with pytest.raises(ValueError, match=r"`method` must be 'ls', 'rls', 'iv', 'riv', 'nlms' or "
+                                        r"'lms'; got 'qr'"):
         ARX(2, 2).fit(*data, method="qr")
     with pytest.raises(TypeError, match=r"`lam` only applies to method='rls'; got method='ls'"):
         ARX(2, 2).fit(*data, lam=0.99)
@@ -305,7 +306,8 @@ def test_learned_attributes_before_fit_say_to_call_fit(name):
 def test_attributes_of_other_fits_say_which_fit_sets_them(data):
     model = ARX(1, 1).fit(*data)
     with pytest.raises(AttributeError, match=r"`theta_history_` is only set by "
-                                             r"fit\(\.\.\., method='rls' or 'riv'\)"):
+                                             r"fit\(\.\.\., method='rls', 'riv', 'nlms' or "
+                                             r"'lms'\)"):
         model.theta_history_  # noqa: B018
     with pytest.raises(AttributeError, match=r"`noise_covariance_` is only set by a fit on 2-D"):
         model.noise_covariance_  # noqa: B018

@@ -1031,3 +1031,70 @@ def test_arrays_handed_out_are_not_lazy_sources(rng):
         b.update(Z[3], H[3])
         b.predict()
     _assert_same_bits(bank, eager, "held after the predict")
+
+
+# ----------------------------------------------------------------------
+# the adaptation switch and frames of rows (#31; the contract suite checks
+# them too, through a bank whose channels share one regressor)
+# ----------------------------------------------------------------------
+@pytest.mark.parametrize("mode", MODES)
+def test_frozen_bank_equals_frozen_filters(rng, mode):
+    """While frozen each channel gives the residual and innovation variance of
+    its own frozen `RecursiveLeastSquares` (NaN where its sample is missing),
+    and ``x``, ``P`` stay bit-unchanged; ``channel(i)`` of a frozen bank is a
+    frozen filter; after ``unfreeze`` the bank continues as one that never saw
+    the frozen rows."""
+    Z, H = _record(rng, N=60, C=7)
+    C, n = Z.shape[1], H.shape[2]
+    opts = _options(rng, C, mode)
+    bank = RLSBank(C, n, **opts)
+    bank.update_block(Z[:30], H[:30])
+    twin = bank.copy()
+    filters = [bank.channel(c) for c in range(C)]
+    x0, P0 = bank.x.copy(), bank.P.copy()
+    assert bank.freeze() is bank and bank.frozen and not bank.adapt
+    assert all(bank.channel(c).frozen for c in range(C))
+    for f in filters:
+        f.freeze()
+    for k in range(30, 40):
+        bank.predict_update(Z[k], H[k])
+        for c, f in enumerate(filters):
+            if np.isnan(H[k, c]).any():
+                assert np.isnan(bank.y[c]) and np.isnan(bank.S[c])
+                continue
+            f.predict_update(Z[k, c], H[k, c])
+            assert_allclose(bank.y[c], f.y[0, 0], rtol=1e-14, atol=1e-14)
+            assert_allclose(bank.S[c], f.S[0, 0], rtol=1e-14)
+        assert_array_equal(np.isnan(bank.y), np.isnan(Z[k]) | np.isnan(H[k]).any(axis=1))
+        assert not bank.K.any()
+        assert_array_equal(bank.x, x0)
+        assert_array_equal(bank.P, P0)
+    bank.update_block(Z[40:45], H[40:45])
+    hist = bank.batch_filter(Z[45:50], H[45:50])
+    assert_array_equal(hist.means, np.broadcast_to(x0, hist.means.shape))
+    assert_array_equal(bank.P, P0)
+    assert bank.n_updates == twin.n_updates
+    bank.adapt = True
+    for b in (bank, twin):
+        b.update_block(Z[50:], H[50:])
+    _assert_same_bits(bank, twin, "after unfreeze")
+
+
+def test_update_block_equals_rows_per_channel(rng):
+    """``update_block`` with channel-specific regressors, missing samples and
+    variances per step and channel equals ``predict_update`` row by row, bit for
+    bit; a rejected block changes nothing."""
+    Z, H = _record(rng, N=50, C=9)
+    C, n = Z.shape[1], H.shape[2]
+    opts = _options(rng, C, "exponential")
+    Rs = rng.uniform(0.5, 2.0, (50, C))
+    a, b = RLSBank(C, n, **opts), RLSBank(C, n, **opts)
+    for lo, hi in ((0, 1), (1, 20), (20, 50)):
+        assert a.update_block(Z[lo:hi], H[lo:hi], Rs[lo:hi]) is a
+        for k in range(lo, hi):
+            b.predict_update(Z[k], H[k], Rs[k])
+        _assert_same_bits(a, b, f"rows {lo}:{hi}")
+    before = pickle.dumps(a)
+    with pytest.raises(ValueError, match="`Hs` must have shape"):
+        a.update_block(Z[:5], H[:4])
+    assert pickle.dumps(a) == before

@@ -58,7 +58,9 @@ from numpy.testing import assert_array_equal
 from textbook import ref
 
 from rlsfilt import (
+    NLMS,
     ForgettingSkippedWarning,
+    GradientBank,
     RecursiveLeastSquares,
     RLSBank,
     SlidingWindowRLS,
@@ -1176,12 +1178,198 @@ test_bank_channel_by_channel.__doc__ = "Every channel of RLSBank is a RecursiveL
 
 
 # ----------------------------------------------------------------------
+# the gradient bank: the same programs, each channel against its own NLMS
+# ----------------------------------------------------------------------
+#: `GradientBank` in the registry's terms: only the ``missing`` axis applies (no
+#: forgetting, covariance, gate or constraints in a gradient filter); its channels
+#: are held bit for bit to one `NLMS` per channel (the bank's kernel does the
+#: single filter's operations in the same order), its textbook is padasip's
+#: (``tests/test_gradient_bank.py``).
+GRADIENT_BANK = FilterSpec("GradientBank", None, None, declared=(
+    Declared("forgetting", _not_default("forgetting"), TypeError, "no forgetting"),
+    Declared("lam", _not_default("lam"), TypeError, "no forgetting factor"),
+    Declared("Q", _not_default("Q"), TypeError, "no covariance, no random walk"),
+    Declared("gate", _not_default("gate"), TypeError, "no outlier gate"),
+    Declared("constraints", (True,), AttributeError, "no constrain()"),
+    Declared("trace_max", _not_default("trace_max"), TypeError, "no windup cap")))
+GRADIENT_STATE = ("x", "x_prior", "x_post", "y", "K", "S", "n_updates")
+
+
+def _gradient_bank_build(case, options, rng):
+    n, C = case.dim_x, case.dim_z
+    x0 = rng.standard_normal((C, n)) if rng.random() < 0.5 else np.zeros((C, n))
+    mu, eps, R = rng.uniform(0.1, 1.0, C), float(rng.choice([1e-3, 0.1])), 0.5
+    kw = {}
+    if options["lam"] != 1.0:
+        kw["lam"] = options["lam"]
+    if options["forgetting"] != "exponential":
+        kw["forgetting"] = options["forgetting"]
+    if options["Q"] != "none":
+        kw["Q"] = 1e-4
+    if options["gate"] is not None:
+        kw["gate"] = options["gate"]
+    if options["trace_max"] is not None:
+        kw["forgetting_params"] = {"trace_max": 1.0}
+    bank = GradientBank(C, n, mu, eps=eps, x0=x0, R=R, **kw)
+    if options["constraints"]:
+        bank.constrain(rng.standard_normal((1, n)), 0.0)
+    channels = [NLMS(n, 1, mu[c], eps=eps, x0=x0[c], R=R) for c in range(C)]
+    return bank, channels
+
+
+def _compare_gradient_bank(bank, channels, names, updated, tag):
+    """Bit for bit, channel by channel; ``K`` and ``S`` where the channel's last step
+    updated (a skipped channel: the bank's ``K`` is zero, the filter keeps its own)."""
+    for name in names:
+        if name == "n_updates":
+            assert all(bank.n_updates == f.n_updates for f in channels), (tag, name)
+            continue
+        value = getattr(bank, name)
+        for c, f in enumerate(channels):
+            if name in ("K", "S") and not updated[c]:
+                continue
+            expected = FILTER_VIEW.get(name, lambda v: v)(getattr(f, name))
+            assert_array_equal(value[c], expected, err_msg=f"{tag}: {name}[{c}]")
+
+
+def run_gradient_bank_case(case, make_bank=None):
+    """`case` on a `GradientBank` and on one `NLMS` per channel (`make_bank`: the
+    meta-tests' broken bank)."""
+    options = {**DEFAULTS, **case.options}
+    rng = np.random.default_rng(case.seed)
+    declared = GRADIENT_BANK.declared_for(options)
+    if declared:
+        with pytest.raises(declared):
+            _gradient_bank_build(case, options, rng)
+        return
+    bank, channels = _gradient_bank_build(case, options, rng)
+    if make_bank is not None:
+        bank = make_bank(bank)
+    live, n, C = [bank], case.dim_x, case.dim_z
+    updated = np.zeros(C, bool)
+    data = BankRecord(rng, n, C, options)
+    for i, op in enumerate(case.program):
+        tag, kind = f"op {i} {op}", op[0]
+        if kind == "predict":
+            for f in live + channels:
+                f.predict()
+        elif kind in ("update", "predict_update"):
+            ks = data.take(1)
+            zb, H, z, Hc, skip = (a[0] for a in data.step(ks))
+            R = data.R[ks[0]] if op[1] else None
+            for b in live:
+                getattr(b, kind)(zb, H, R)
+            for c, f in enumerate(channels):
+                getattr(f, kind)(z[c], Hc[c], None if R is None else R[c])
+            updated = ~np.isnan(z)
+        elif kind == "read":
+            for b in live:
+                _compare_gradient_bank(b, channels, [m for m in GRADIENT_STATE if m in op[1]],
+                                       updated, tag)
+        elif kind == "assign":                 # (no P: every assignment is of x)
+            value = 0.5 * rng.standard_normal((C, n))
+            for b in live:
+                b.x = value.copy(order=op[2])
+            for c, f in enumerate(channels):
+                f.x = value[c].reshape(n, 1)
+        elif kind == "copy":
+            g = COPIERS[op[1]](live[0])
+            live[:] = [live[0], g] if op[2] else [g]
+        elif kind == "reset":
+            for f in live + channels:
+                f.reset()
+            updated = np.zeros(C, bool)
+        elif kind == "initialize":
+            zb, H, z, Hc, _ = data.step(data.take(n + op[1]))
+            keep = ~np.isnan(z)
+            if any(np.linalg.matrix_rank(Hc[keep[:, c], c]) < n for c in range(C)):
+                for b in live:                 # the bank refuses, and changes nothing
+                    before = pickle.dumps(b)
+                    with pytest.raises(ValueError):
+                        b.initialize(zb, H)
+                    assert pickle.dumps(b) == before, tag
+                continue
+            for b in live:
+                b.initialize(np.where(np.isnan(H).any(axis=2), np.nan, zb), H)
+            for c, f in enumerate(channels):   # (least squares: to round-off)
+                f.initialize(z[:, c], Hc[:, c])
+                _close(live[0].x[c], f.x[:, 0], f"{tag}: initialize[{c}]", RTOL * 1e3)
+                f.x = live[0].x[c].reshape(n, 1)
+                f.x_prior, f.x_post = f.x.copy(), f.x.copy()
+        elif kind == "batch":
+            _, count, update_first, with_Rs = op
+            ks = data.take(count)
+            zb, H, z, Hc, skip = data.step(ks)
+            Rs = data.R[ks] if with_Rs else None
+            twin = copy.deepcopy(live[0])
+            expected = [f.batch_filter(z[:, c], Hc[:, c], Rs=None if Rs is None else Rs[:, c],
+                                       update_first=update_first)
+                        for c, f in enumerate(channels)]
+            for b in live:
+                out = b.batch_filter(zb, H, Rs=Rs, update_first=update_first)
+                for i_, label in ((0, "means"), (2, "means_p")):
+                    for c in range(C):
+                        assert_array_equal(out[i_][:, c], expected[c][i_][..., 0],
+                                           err_msg=f"{tag}: {label}[{c}]")
+            for k in range(len(ks)):           # batch_filter's documented loop, streamed
+                if not update_first:
+                    twin.predict()
+                twin.update(zb[k], H[k], None if Rs is None else Rs[k])
+                if update_first:
+                    twin.predict()
+            for name in GRADIENT_STATE:
+                assert_array_equal(getattr(twin, name), getattr(live[-1], name),
+                                   err_msg=f"{tag}: streamed {name}")
+            updated = ~np.isnan(z[-1])
+        else:
+            raise ValueError(f"unknown operation {op!r}")
+    for b in live:
+        _compare_gradient_bank(b, channels, GRADIENT_STATE, updated, "at the end")
+
+
+@st.composite
+def gradient_bank_cases(draw):
+    """A gradient bank case: one to three channels, one value per option axis, a program."""
+    anything = draw(st.integers(0, 9)) == 0
+    options = {axis: draw(st.sampled_from(OPTIONS[axis] if anything
+                                          else GRADIENT_BANK.axis_values(axis)))
+               for axis in OPTIONS}
+    start = draw(st.sampled_from(((), (("initialize", 0),), (("initialize", 2),))))
+    return Case("GradientBank", draw(st.sampled_from(DIM_X)), draw(st.sampled_from(DIM_Z)),
+                options, draw(st.integers(0, 2**32 - 1)), start + draw(PROGRAM))
+
+
+KNOWN_GRADIENT_BANK = [
+    Case("GradientBank", 7, 3, {}, 0, (("initialize", 0),)
+         + (("predict",), ("update", False, True)) * 4 + (("read", STATE),)),
+    Case("GradientBank", 3, 2, {"missing": "None"}, 1,
+         (("predict_update", True, False),) * 5 + (("batch", 6, False, True),
+                                                   ("read", STATE))),
+    # a missing sample after an assigned x: the single filters kept a stale x_post
+    # (now posterior = prior, as RecursiveLeastSquares)
+    Case("GradientBank", 2, 1, {"missing": "None"}, 2590,
+         (("initialize", 2), ("predict_update", False, False), ("assign", "x", "C"),
+          ("predict_update", False, False))),
+]
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(case=gradient_bank_cases())
+def _test_gradient_bank(case):
+    run_gradient_bank_case(case)
+
+
+test_gradient_bank_channel_by_channel = _with_examples(_test_gradient_bank, KNOWN_GRADIENT_BANK)
+test_gradient_bank_channel_by_channel.__doc__ = "Every channel of GradientBank is an NLMS."
+
+
+# ----------------------------------------------------------------------
 # the registry is complete and its declarations are true
 # ----------------------------------------------------------------------
 def test_every_contract_filter_is_registered():
     """Every filter of the shared contract's registry runs the cross product too."""
     from test_contract_filters import FILTERS
-    registered = {spec.name for spec in SPECS} | {BANK.name}
+    registered = {spec.name for spec in SPECS} | {BANK.name, GRADIENT_BANK.name}
     for case in FILTERS:
         f = case.make()
         if not getattr(f, "least_squares", True):
@@ -1192,7 +1380,7 @@ def test_every_contract_filter_is_registered():
 
 
 def test_declarations_name_real_options():
-    for spec in SPECS + [BANK]:
+    for spec in SPECS + [BANK, GRADIENT_BANK]:
         for d in spec.declared:
             assert d.axis in OPTIONS and set(d.values) <= set(OPTIONS[d.axis]), (spec.name, d)
             assert DEFAULTS[d.axis] not in d.values or d.when is not None, (spec.name, d)
@@ -1335,6 +1523,28 @@ def test_the_bank_checker_catches_a_broken_channel():
                   _as_corrupt)                 # right after one update
     with pytest.raises(AssertionError):
         run_bank_case(case, _as_corrupt)
+
+
+class _CorruptGradientChannel(GradientBank):
+    """Right but for the last channel's estimate after its second update (one ulp)."""
+
+    def update(self, z, H, R=None):
+        super().update(z, H, R)
+        if self.n_updates == 2:
+            x = self.x.copy()
+            x[-1, 0] = np.nextafter(x[-1, 0], np.inf)
+            self.x = x
+
+
+def test_the_gradient_bank_checker_catches_a_broken_channel():
+    def corrupt(bank):
+        bank.__class__ = _CorruptGradientChannel
+        return bank
+
+    step = ("predict_update", False, False)
+    run_gradient_bank_case(Case("GradientBank", 3, 2, {}, 5, (step,)), corrupt)
+    with pytest.raises(AssertionError):
+        run_gradient_bank_case(Case("GradientBank", 3, 2, {}, 5, (step, step)), corrupt)
 
 
 def test_a_false_declaration_is_caught():

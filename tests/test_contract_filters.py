@@ -31,7 +31,8 @@ runs on every registered filter:
 - the health warning points at the caller's line, from ``update``,
   ``predict_update`` and ``batch_filter`` (with and without a ``Saver``).
 
-`RLSBank` is registered through `BankAdapter`: a bank of ``len(SCALES)``
+`RLSBank` and `GradientBank` are registered through `BankAdapter` and
+`GradientBankAdapter`: a bank of ``len(SCALES)``
 channels fed the contract's single-channel record, channel ``c`` with its
 measurements scaled by ``SCALES[c]`` (powers of two, so every channel is
 channel 0 times its scale, bit for bit, and differs from the others). The
@@ -62,6 +63,7 @@ from rlsfilt import (
     APA,
     LMS,
     ForgettingSkippedWarning,
+    GradientBank,
     NumericalWarning,
     RecursiveLeastSquares,
     RLSBank,
@@ -102,8 +104,9 @@ def _real(value):
         return False
 
 
-class BankAdapter:
-    """An `RLSBank` of ``len(SCALES)`` channels behind the single filter's interface.
+class _ChannelsAdapter:
+    """A bank of ``len(SCALES)`` channels behind the single filter's interface
+    (`BankAdapter` for `RLSBank`, `GradientBankAdapter` for `GradientBank`).
 
     Every call is forwarded to the bank (which validates it): a measurement
     ``z`` becomes ``z * SCALES`` (one per channel), a regressor row is
@@ -115,9 +118,6 @@ class BankAdapter:
     `RecursiveLeastSquares` (``x`` is ``(dim_x, 1)``, ``y`` is ``(1, 1)``,
     ``R`` is a float); ``bank`` is the bank.
     """
-
-    def __init__(self, dim_x, x0=None, **kw):
-        self.bank = RLSBank(len(SCALES), dim_x, x0=x0, **kw)
 
     # the forwarded calls: every channel gets the same regressor, scaled measurements
     @staticmethod
@@ -147,9 +147,6 @@ class BankAdapter:
         """A single variance (a float or a (1, 1) array) as the bank's shared scalar."""
         return np.asarray(value).reshape(()) if _real(value) and np.size(value) == 1 else value
 
-    def predict(self, Q=None):
-        self.bank.predict(Q)
-
     def update(self, z, H, R=None):
         self.bank.update(self._one_z(z), self._H(H), self._shared(R))
 
@@ -176,8 +173,45 @@ class BankAdapter:
             Hs = np.broadcast_to(Hs[:, None, :], (Hs.shape[0], len(SCALES), Hs.shape[-1]))
         self.bank.initialize(self._z(zs), Hs)
 
+    def update_block(self, Z, H, R=None):
+        C = len(SCALES)
+        if _real(H) and np.ndim(H) == 2:
+            H = np.asarray(H)
+            H = np.broadcast_to(H[:, None, :], (H.shape[0], C, H.shape[-1]))
+        if _real(R) and np.ndim(R) == 1:
+            R = np.broadcast_to(np.asarray(R, dtype=float)[:, None], (len(R), C))
+        assert self.bank.update_block(self._z(Z), H, R) is self.bank
+        return self
+
     def copy(self):
         return copy.deepcopy(self)
+
+    # the adaptation switch and the state, forwarded
+    frozen = property(lambda self: self.bank.frozen)
+
+    @property
+    def adapt(self):
+        return self.bank.adapt
+
+    @adapt.setter
+    def adapt(self, value):
+        self.bank.adapt = value
+
+    def freeze(self):
+        assert self.bank.freeze() is self.bank
+        return self
+
+    def unfreeze(self):
+        assert self.bank.unfreeze() is self.bank
+        return self
+
+    state_names = BANK_STATE            # what `_same_state` compares in every channel
+
+    def get_state(self):
+        """Every channel's ``x``, ``P``, counters and ``lam_t`` (copies)."""
+        b = self.bank
+        return {"x": b.x.copy(), "P": b.P.copy(), "n_updates": int(b.n_updates),
+                "n_capped": b.n_capped.copy(), "lam_t": b.lam_t.copy()}
 
     # assignment: the same value for every channel (the bank stores its own copy)
     @property
@@ -192,30 +226,12 @@ class BankAdapter:
         self.bank.x = value
 
     @property
-    def P(self):
-        return self.bank.P[0]
-
-    @P.setter
-    def P(self, value):
-        if _real(value) and np.ndim(value) == 2:
-            value = np.broadcast_to(value, (len(SCALES),) + np.shape(value))
-        self.bank.P = value
-
-    @property
     def R(self):
         return float(self.bank.R[0])
 
     @R.setter
     def R(self, value):
         self.bank.R = self._shared(value)
-
-    @property
-    def Q(self):
-        return self.bank.Q[0]
-
-    @Q.setter
-    def Q(self, value):
-        self.bank.Q = value
 
 
 def _channel0(name, view):
@@ -226,10 +242,61 @@ def _channel0(name, view):
 
 for _name, _view in [
         *[(n, lambda v: v[0][:, None]) for n in ("x_prior", "x_post", "K")],
-        *[(n, lambda v: v[0]) for n in ("P_prior", "P_post", "log_likelihood")],
+        ("log_likelihood", lambda v: v[0]),
         *[(n, lambda v: np.full((1, 1), v[0])) for n in ("y", "z", "S", "SI")],
         ("H", lambda v: v[0][None, :]), ("n_updates", lambda v: v)]:
-    setattr(BankAdapter, _name, _channel0(_name, _view))
+    setattr(_ChannelsAdapter, _name, _channel0(_name, _view))
+
+
+class BankAdapter(_ChannelsAdapter):
+    """An `RLSBank` of ``len(SCALES)`` channels (see `_ChannelsAdapter`), with ``P``
+    and ``Q`` (assigned: every channel's)."""
+
+    def __init__(self, dim_x, x0=None, **kw):
+        self.bank = RLSBank(len(SCALES), dim_x, x0=x0, **kw)
+
+    def predict(self, Q=None):
+        self.bank.predict(Q)
+
+    @property
+    def P(self):
+        return self.bank.P[0]
+
+    @P.setter
+    def P(self, value):
+        if _real(value) and np.ndim(value) == 2:
+            value = np.broadcast_to(value, (len(SCALES),) + np.shape(value))
+        self.bank.P = value
+
+    @property
+    def Q(self):
+        return self.bank.Q[0]
+
+    @Q.setter
+    def Q(self, value):
+        self.bank.Q = value
+
+
+for _name in ("P_prior", "P_post"):
+    setattr(BankAdapter, _name, _channel0(_name, lambda v: v[0]))
+
+
+class GradientBankAdapter(_ChannelsAdapter):
+    """A `GradientBank` of ``len(SCALES)`` channels (see `_ChannelsAdapter`): no
+    covariance (``has_covariance = False``: the checks skip ``P``), no ``Q``."""
+
+    has_covariance = False
+    least_squares = False
+    state_names = ("x", "x_prior", "x_post", "y", "K", "S", "SI", "z", "H")
+
+    def __init__(self, dim_x, x0=None, **kw):
+        self.bank = GradientBank(len(SCALES), dim_x, x0=x0, **kw)
+
+    def predict(self):
+        self.bank.predict()
+
+    def get_state(self):
+        return self.bank.get_state()
 
 
 def _ones(n):
@@ -290,6 +357,14 @@ FILTERS = [
     FilterCase("RLSBank-constant_trace",
                lambda **kw: BankAdapter(DIM_X, lam=0.95, forgetting="constant_trace", **kw),
                None, True),
+    FilterCase("GradientBank-nlms",
+               lambda **kw: GradientBankAdapter(DIM_X, mu=0.5, eps=0.01, **kw), None, True),
+    FilterCase("GradientBank-lms-leaky",
+               lambda **kw: GradientBankAdapter(DIM_X, mu=0.02, method="lms", leak=0.1, **kw),
+               None, True),
+    FilterCase("GradientBank-sign_sign",
+               lambda **kw: GradientBankAdapter(DIM_X, mu=0.01, method="sign_sign", **kw),
+               None, True),
 ]
 
 
@@ -327,8 +402,8 @@ def _same_state(a, b):
     for name in STATE if _has_P(a) else [n for n in STATE if not n.startswith("P")]:
         assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
     assert a.n_updates == b.n_updates
-    if isinstance(a, BankAdapter):       # every channel, not only the one the checks read
-        for name in BANK_STATE:
+    if isinstance(a, _ChannelsAdapter):       # every channel, not only the one the checks read
+        for name in a.state_names:
             assert_array_equal(getattr(a.bank, name), getattr(b.bank, name), err_msg=name)
 
 
@@ -352,7 +427,7 @@ def check_least_squares(case):
         w = np.sqrt(case.weights(k + 1))
         theta, *_ = np.linalg.lstsq(Hs[:k + 1] * w[:, None], zs[:k + 1] * w, rcond=None)
         assert_allclose(means[k - K0, :, 0], theta, rtol=1e-9, atol=1e-12, err_msg=str(k))
-        if isinstance(f, BankAdapter):   # channel c: measurements and estimate times SCALES[c]
+        if isinstance(f, _ChannelsAdapter):   # channel c: measurements and estimate times SCALES[c]
             assert_allclose(f.history.means[k - K0], SCALES[:, None] * theta, rtol=1e-9,
                             atol=1e-12, err_msg=str(k))
 
@@ -738,13 +813,7 @@ CHECKS = [
     check_update_block_equals_rows,
 ]
 
-_NO_BANK_FREEZE = ("RLSBank has no freeze()/unfreeze() and no update_block yet (#31: the bank "
-                   "is still to do)")
-EXPECTED_FAILURES = {
-    **{(name, check): _NO_BANK_FREEZE
-       for name in ("RLSBank", "RLSBank-lam0.95", "RLSBank-directional-Q", "RLSBank-constant_trace")
-       for check in ("check_freeze_keeps_the_state", "check_update_block_equals_rows")},
-}
+EXPECTED_FAILURES = {}
 
 
 @parametrize_with_checks(FILTERS, CHECKS, EXPECTED_FAILURES)

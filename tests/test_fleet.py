@@ -298,7 +298,7 @@ def test_argument_errors(rng):
                                          r"by RLSBank \(mode 'exponential'\); supported: "
                                          "'spread_max', 'trace_max'"):
         fit_many(model, u, y, "rls", lam=0.99, forgetting_params={"alpha": 10.0})
-    with pytest.raises(ValueError, match="`method` must be 'ls' or 'rls'"):
+    with pytest.raises(ValueError, match="`method` must be 'ls', 'rls', 'nlms' or 'lms'"):
         fit_many(model, u, y, "ml")
     with pytest.raises(ValueError, match="`on_error` must be 'raise' or 'nan'"):
         fit_many(model, u, y, on_error="skip")

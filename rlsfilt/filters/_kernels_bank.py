@@ -1051,3 +1051,38 @@ def bank_unhealthy(Pt, cond_max, bad):
                     for j in range(n):
                         T[i, j] = Pt[j, i, c0 + b]
                 bad[c0 + b] = _unhealthy(T, cond_max)
+
+
+@njit(**_JIT)
+def bank_residuals(xt, Pt, z, H, r, y, S, SI):
+    """The diagnostics of a measurement update without the update (a frozen bank):
+    ``y = z - h . x`` (NaN where ``z`` or the regressor holds NaN), ``S = h . (P h)
+    + r`` (NaN where the regressor holds NaN) and ``SI = 1 / S`` of every channel,
+    with the sums in the order of `_gain_residual` (``g_i = sum_j P_ij h_j``, ``j``
+    ascending; ``h . g`` and ``h . x`` over ``i`` ascending). ``xt`` (n, C) and
+    ``Pt`` (n, n, C) in the bank's layout are only read."""
+    n, C = xt.shape
+    g = np.empty(n)
+    for c in range(C):
+        hok = True
+        for j in range(n):
+            hok = hok and H[c, j] == H[c, j]
+        if not hok:
+            y[c] = np.nan
+            S[c] = np.nan
+            SI[c] = np.nan
+            continue
+        for i in range(n):                   # g = P h
+            acc = 0.0
+            for j in range(n):
+                acc += Pt[j, i, c] * H[c, j]
+            g[i] = acc
+        acc = 0.0
+        for i in range(n):                   # s = h . g + r
+            acc += H[c, i] * g[i]
+        S[c] = acc + r[c]
+        SI[c] = 1.0 / S[c]
+        acc = 0.0
+        for i in range(n):                   # y = z - h . x
+            acc += H[c, i] * xt[i, c]
+        y[c] = z[c] - acc

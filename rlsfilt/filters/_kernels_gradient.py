@@ -391,3 +391,95 @@ def _apa_one(x, Hm, Z, mu, eps, X, D, y, A, E, G, means):
         for i in range(n):
             means[k + 1, i, 0] = x[i, 0]
     return last
+
+
+@njit(cache=True, inline="always")
+def bank_step(method, x, H, Z, k, mu, eps, leak, K, y, S, R, r_row):
+    """`lms_step` of every channel ``c`` of a `GradientBank` on sample `k`, with the
+    same operations in the same order (so each channel has the bits of its own
+    filter): `x` (C, n), regressors ``H[k]`` (C, n), measurements ``Z[k]`` (C,),
+    step sizes `mu`, `eps`, `leak` (C,); writes the gains `K` (C, n), residuals `y`
+    and variances `S` ``= R[r_row]`` (C,). A channel whose measurement or
+    regressor holds NaN skips the step (``y`` NaN, ``K`` zero; ``S`` NaN when the
+    regressor holds NaN). Returns the number of channels that updated."""
+    C, n = x.shape
+    count = 0
+    for c in range(C):
+        hok = True
+        for i in range(n):
+            hok = hok and H[k, c, i] == H[k, c, i]
+        if not (hok and Z[k, c] == Z[k, c]):
+            y[c] = np.nan
+            S[c] = R[r_row, c] if hok else np.nan
+            for i in range(n):
+                K[c, i] = 0.0
+            continue
+        count += 1
+        acc = 0.0                                        # y = z - x^T h
+        for i in range(n):
+            acc += x[c, i] * H[k, c, i]
+        e = Z[k, c] - acc
+        y[c] = e
+        S[c] = R[r_row, c]
+        norm = 1.0
+        if method == NLMS:                               # n = eps + h^T h
+            norm = eps[c]
+            for i in range(n):
+                norm += H[k, c, i] * H[k, c, i]
+        m = mu[c]
+        for i in range(n):                               # K = mu s(h) / n
+            hi = _sign(H[k, c, i]) if (method == SIGN_DATA or method == SIGN_SIGN) \
+                else H[k, c, i]
+            K[c, i] = m * hi / norm
+        keep = 1.0 - m * leak[c]
+        if method == SIGN_ERROR or method == SIGN_SIGN:
+            e = _sign(e)
+        for i in range(n):                               # x <- (1 - mu a) x + K g(y)
+            x[c, i] = keep * x[c, i] + K[c, i] * e
+    return count
+
+
+@njit(cache=True)
+def bank_update(method, x, H, Z, mu, eps, leak, K, y, S, R):
+    """The streaming step of a `GradientBank`: `bank_step` on ``H`` (1, C, n), ``Z``
+    (1, C) and ``R`` (1, C)."""
+    return bank_step(method, x, H, Z, 0, mu, eps, leak, K, y, S, R, 0)
+
+
+@njit(cache=True)
+def bank_batch(method, x, H, Z, mu, eps, leak, update_first, K, y, S, R, means, means_p,
+               ys, ss, x_last):
+    """`bank_step` over a record ``H`` (N, C, n), ``Z`` (N, C), ``R`` (N, C) or (1, C);
+    `x`, `K`, `y`, `S` hold the final state, `x_last` (C, n) the estimates before
+    the last step. ``means``, ``means_p`` (N, C, n) and ``ys``, ``ss`` (N, C)
+    receive the histories when they have N rows (none with 0 rows). Returns the
+    index of the last sample at which a channel updated (-1: none)."""
+    N = Z.shape[0]
+    C, n = x.shape
+    keep_means, keep_res = means.shape[0] == N, ys.shape[0] == N
+    per_row = R.shape[0] == N
+    last = -1
+    for k in range(N):
+        if k == N - 1:
+            for c in range(C):
+                for i in range(n):
+                    x_last[c, i] = x[c, i]
+        if keep_means and not update_first:
+            for c in range(C):
+                for i in range(n):
+                    means_p[k, c, i] = x[c, i]
+        if bank_step(method, x, H, Z, k, mu, eps, leak, K, y, S, R, k if per_row else 0):
+            last = k
+        if keep_res:
+            for c in range(C):
+                ys[k, c] = y[c]
+                ss[k, c] = S[c]
+        if keep_means:
+            for c in range(C):
+                for i in range(n):
+                    means[k, c, i] = x[c, i]
+            if update_first:
+                for c in range(C):
+                    for i in range(n):
+                        means_p[k, c, i] = x[c, i]
+    return last

@@ -30,7 +30,6 @@ made first. Every attribute read has the bits of the eager recursion.
 """
 
 import copy
-import functools
 import math
 import threading
 
@@ -38,6 +37,7 @@ import numpy as np
 
 from .._display import bank_html, edge_indices, pretty_str
 from .._lazy import lazy_module
+from .._locking import atomic as _atomic
 from .._locking import init_signature
 from .._locking import locked as _locked
 from .._validation import (
@@ -64,26 +64,6 @@ _SUPPORTED_PARAMS = {"exponential": ("spread_max", "trace_max"), "directional": 
 _LOG_2PI = math.log(2.0 * math.pi)
 _TINY = np.finfo(float).tiny
 _get_kernels = lazy_module("rlsfilt.filters._kernels_bank")
-
-
-def _atomic(method):
-    """Run `method` as one transaction, holding the bank's lock (a bank shared by
-    threads applies each call whole): if it raises (a rejected input, or a
-    warning turned into an error after the step was computed), the bank's
-    attributes are put back as they were. The methods replace arrays and
-    never write into the ones they leave behind, so a shallow copy of the
-    attributes is enough to undo them."""
-    @functools.wraps(method)
-    def run(self, *args, **kwargs):
-        with self._lock:
-            before = self.__dict__.copy()
-            try:
-                return method(self, *args, **kwargs)
-            except BaseException:
-                self.__dict__.clear()
-                self.__dict__.update(before)
-                raise
-    return run
 
 
 class _Lazy:
@@ -586,6 +566,8 @@ class RLSBank:
         else:
             Q = self._covariances(Q, "Q")
             Q_is_zero = not Q.any()
+        if self.frozen:                                        # adaptation off: x, P unchanged
+            return self._frozen_predict()
         self._settle_pending()                                 # predict() twice
         self._checked_x(), self._checked_P()                   # (the shapes)
         # P^- = P / lam + Q, deferred: run by the next update's compiled call,
@@ -610,10 +592,15 @@ class RLSBank:
         A call that raises, or whose warning is turned into an error, leaves
         the bank as it was.
 
+        While the bank is :attr:`frozen` only the diagnostics are computed
+        (``y``, ``S``, ``SI``; ``K`` is zero): ``x``, ``P`` and the counters
+        stay bit-unchanged.
+
         Parameters
         ----------
-        z : array_like, shape (C,)
-            One measurement per channel; NaN skips that channel.
+        z : array_like, shape (C,), or None
+            One measurement per channel; NaN skips that channel, None every
+            channel.
         H : array_like, shape (C, dim_x)
             One regressor row per channel; a row holding NaN skips that
             channel.
@@ -621,6 +608,10 @@ class RLSBank:
             Noise variances for this call only.
         """
         C, n = self.n_channels, self.dim_x
+        if z is None:                        # every channel missing
+            z = np.full(C, np.nan)
+        if self.frozen:                      # adaptation off: only the diagnostics
+            return self._frozen_update(z, H, R)
         # shapes and types here; infinities are found by the kernel (no extra pass)
         zz = self._measurements(z, "z", (C,), "({C},) (one measurement per channel)",
                                 finite=False)
@@ -662,6 +653,97 @@ class RLSBank:
         """
         self.predict()
         self.update(z, H, R)
+
+    @_atomic
+    def update_block(self, Z, H, R=None):
+        """Several steps of every channel at once (MATLAB's frame-based input).
+
+        For each row of `Z` and `H` a :meth:`predict` then an :meth:`update`,
+        bit for bit those calls one by one, in one compiled call (the loop of
+        :meth:`batch_filter`, whose argument names ``zs``, ``Hs``, ``Rs`` its
+        messages use). Leaves the diagnostics of the last row's update; a call
+        that raises changes nothing. While :attr:`frozen` every row only
+        computes the diagnostics.
+
+        Parameters
+        ----------
+        Z : array_like, shape (N, C)
+            Measurements; NaN skips that channel at that step.
+        H : array_like, shape (N, C, dim_x)
+            Regressor rows; a row holding NaN skips that channel at that step.
+        R : float or array_like of shape (C,) or (N, C), optional
+            Noise variances: shared, one per channel, or one per step and
+            channel (the bank's `R` if omitted).
+
+        Returns
+        -------
+        RLSBank
+            The bank.
+        """
+        self.batch_filter(Z, H, R, store_covariances=False, store_means=False,
+                          store_residuals=False)
+        return self
+
+    # ------------------------------------------------------------------
+    # adaptation switch (MATLAB's EnableAdaptation)
+    # ------------------------------------------------------------------
+    @property
+    def frozen(self):
+        """Whether adaptation is off (:meth:`freeze`): :meth:`update` then
+        computes the residuals ``y`` and their variances ``S`` but leaves ``x``,
+        ``P`` and the counters bit-unchanged, and :meth:`predict` changes
+        nothing (as the single filters)."""
+        return self.__dict__.get("_frozen", False)
+
+    @property
+    def adapt(self):
+        """``not frozen``: assign False to freeze every channel, True to resume
+        (MATLAB's ``EnableAdaptation``)."""
+        return not self.frozen
+
+    @adapt.setter
+    @_locked
+    def adapt(self, value):
+        self._frozen = not check_bool(value, "adapt")
+
+    @_locked
+    def freeze(self):
+        """Stop adapting: predictions and residuals continue, ``x`` and ``P`` stay
+        as they are until :meth:`unfreeze`. Returns the bank."""
+        self._frozen = True
+        return self
+
+    @_locked
+    def unfreeze(self):
+        """Resume adapting from the state held while frozen. Returns the bank."""
+        self._frozen = False
+        return self
+
+    def _frozen_predict(self):
+        """:meth:`predict` while frozen: record ``x_prior`` and ``P_prior``, nothing else."""
+        self._settle_pending()               # (a predict before the freeze, as it would run)
+        x, P = self._x, self._P
+        d = self.__dict__
+        d["_x_prior"] = x.copy(order="F") if self._x_out else (x, None, None, None)
+        d["_P_prior"] = P.copy(order="F") if self._P_out else (P, None, None, None)
+
+    def _frozen_update(self, z, H, R):
+        """:meth:`update` while frozen: validate as ``update`` does, then only the
+        diagnostics ``y = z - H x``, ``S = H P H^T + R``, ``SI = 1 / S`` and ``K =
+        0`` (`_kernels_bank.bank_residuals`); ``x``, ``P``, ``lam_t`` and the
+        counters stay bit-unchanged."""
+        C, n = self.n_channels, self.dim_x
+        zz = self._measurements(z, "z", (C,), "({C},) (one measurement per channel)")
+        Hm = self._measurements(H, "H", (C, n), "({C}, {n}) (one regressor row of dim_x = "
+                                                 "{n} per channel)")
+        r = self._R if R is None else self._per_channel_positive(R, "R")
+        self._settle_pending()
+        y, S, SI = np.empty(C), np.empty(C), np.empty(C)
+        _get_kernels().bank_residuals(self._checked_x(), self._checked_P(), zz, Hm, r, y, S, SI)
+        self.z, self.H = zz.copy(), Hm.copy()
+        self.y, self.S, self.SI = y, S, SI
+        self.K = np.zeros((C, n), order="F")
+        self._fresh = False
 
     @_atomic
     def batch_filter(self, zs, Hs, Rs=None, update_first=False, saver=None,
@@ -745,7 +827,7 @@ class RLSBank:
         h_last = Ht.flags.c_contiguous and not Hm.flags.c_contiguous
         Hk = Ht if h_last else np.ascontiguousarray(Hm)
         Rv = self._batch_variances(Rs, N)
-        if saver is not None:
+        if saver is not None or self.frozen:
             return self._batch_stepwise(Z, Hm, Rv, update_first, saver, store_covariances,
                                         store_means, store_residuals)
         self._settle_pending()                 # a predict() before runs first
@@ -804,8 +886,8 @@ class RLSBank:
 
     def _batch_stepwise(self, Z, Hm, Rv, update_first, saver, store_covariances, store_means,
                         store_residuals):
-        """`batch_filter` with a `saver`: :meth:`predict`/:meth:`update` step by
-        step, ``saver.save()`` after each step. The record is validated first;
+        """`batch_filter` with a `saver` or while frozen: :meth:`predict`/:meth:`update`
+        step by step, ``saver.save()`` after each step (if any). The record is validated first;
         a call that raises is undone by `batch_filter` (see `_atomic`)."""
         C, n = self.n_channels, self.dim_x
         N = len(Z)
@@ -837,7 +919,8 @@ class RLSBank:
                     covs_p[k] = self.P
             if store_means:
                 means_p[k] = self.x_prior
-            saver.save()
+            if saver is not None:
+                saver.save()
         return BankHistory(means if store_means else None,
                            covs if store_covariances else None,
                            means_p if store_means else None,
@@ -940,8 +1023,8 @@ class RLSBank:
 
         The filter has the channel's configuration (`lam`, `R`, `Q`, `x0`,
         `P0`, forgetting mode and constants, health-check settings) and
-        state (``x``, ``P``, priors, posteriors and the last step's
-        diagnostics), so further ``predict``/``update`` calls continue
+        state (``x``, ``P``, priors, posteriors, the last step's
+        diagnostics and :attr:`adapt`), so further ``predict``/``update`` calls continue
         as channel `i` of the bank would (bit for bit; to round-off in the
         constant-trace mode); its :meth:`reset` returns
         to the channel's ``x0``, ``P0``. The bank is not changed.
@@ -977,6 +1060,7 @@ class RLSBank:
         f._cap, f._w = bool(self._cap[i]), float(self._w[i])       # the windup cap's state
         f._updates_since_predict = self._updates_since_predict
         f._warned_health = bool(np.isin(i, self.failed_channels))
+        f.adapt = self.adapt                 # (a frozen bank gives a frozen filter)
         if not self._fresh:
             f.H = self.H[i].reshape(1, n).copy()
             f.z = np.full((1, 1), self.z[i])

@@ -152,7 +152,8 @@ class _GradientFilter(_FilterBase):
     def _commit(self, x, phi, zc, y, K, r, work, updated):
         """Make a step's arrays the filter's (nothing is written before this)."""
         self.H, self.n_updates = phi, self.n_updates + 1
-        if not updated:
+        if not updated:                     # missing: the estimate is kept (posterior = prior)
+            self.x_post = self._x.copy()
             nan = np.full((self.dim_z, 1), np.nan)
             self.set_diagnostics(z=nan, y=nan.copy())
             return

@@ -48,6 +48,7 @@ def coefficient_statistics(estimate, std_error, dof, level=0.95):
     error (an exact fit, or given coefficients) gives a zero-width interval,
     an infinite ``t`` and a p-value of 0 (the limit as the standard error
     goes to zero); a zero estimate with a zero standard error has NaN for both.
+    A NaN standard error (no covariance: a gradient fit) gives NaN for all three.
     """
     from scipy.stats import t as student_t  # lazy: keeps `import rlsfilt` light
     estimate = np.asarray(estimate, dtype=float)
@@ -59,6 +60,7 @@ def coefficient_statistics(estimate, std_error, dof, level=0.95):
     with np.errstate(divide="ignore", invalid="ignore"):
         tval = np.where(se > 0, estimate / np.where(se > 0, se, 1.0),
                         np.where(estimate != 0, np.copysign(np.inf, estimate), np.nan))
+        tval = np.where(np.isnan(se), np.nan, tval)   # no standard error (a gradient fit)
     if dof > 0:
         # 2 P(T > |t|): 0 for an infinite t, NaN for a NaN t (0 / 0)
         pvalue = 2.0 * student_t.sf(np.abs(tval), dof)

@@ -30,6 +30,7 @@ from .._validation import (
 )
 from ..exceptions import InsufficientDataError, NumericalWarning
 from ..filters import RecursiveLeastSquares, SquareRootRLS
+from . import _arx_online as _online
 from . import _conversion
 from ._arx_iv import check_options as check_iv_options
 from ._arx_iv import fit_arx_iv
@@ -121,20 +122,22 @@ class ARX(IdentifiedModel):
         Signal names (from pandas or an `IOData`, else ``u``, ``y``, ...)
         and units (``""`` when unknown).
     method_ : str
-        ``"ls"``, ``"rls"``, ``"iv"`` or ``"riv"``.
+        ``"ls"``, ``"rls"``, ``"iv"``, ``"riv"``, ``"nlms"`` or ``"lms"``.
     theta_history_ : ndarray, shape ``(n_samples_, n_params[, ny])``
-        ``method="rls"`` or ``"riv"`` only: the estimate after each row; rows
+        ``method="rls"``, ``"riv"``, ``"nlms"`` or ``"lms"`` only: the
+        estimate after each row; rows
         before the batch start (``k0 - 1``) are NaN.
     instruments_ : ndarray, shape ``(n_samples_, n_z)``
         ``method="iv"`` or ``"riv"`` only: the instrument rows used (for
         ``"model"`` instruments with the prefilter, prefiltered).
     recursive_residuals_ : ndarray, shape ``(n_samples_,)`` or ``(n_samples_, ny)``
-        ``method="rls"`` only: the a-priori residuals
+        ``method="rls"`` (and the gradient methods) only: the a-priori residuals
         :math:`y(t) - \varphi(t)\hat\theta(t-1)`, the errors the filter
         actually made (NaN for the rows of the batch start). Under forgetting
         these, not ``residuals_``, show how well the model tracked.
     k0_ : int
-        ``method="rls"`` only: number of rows of the batch start.
+        ``method="rls"`` only: number of rows of the batch start (0 for the
+        gradient methods).
     lam_ : float
         ``method="rls"`` only: the forgetting factor used.
     tune_ : TuneResult
@@ -142,10 +145,12 @@ class ARX(IdentifiedModel):
         maximum-likelihood estimate (`rlsfilt.filters.tuning.TuneResult`:
         estimate, standard error, interval, profile plot).
     form_ : str
-        ``method="rls"`` only: ``"covariance"`` or ``"square_root"``, the
-        recursion that ran (see `form` of :meth:`fit`).
-    filter_ : RecursiveLeastSquares or SquareRootRLS
-        ``method="rls"`` only: the filter after the last sample, ready for
+        ``method="rls"`` only: ``"covariance"``, ``"square_root"`` or
+        ``"window"`` (`SlidingWindowRLS`), the recursion that ran (see `form`
+        and `window` of :meth:`fit`).
+    filter_ : RecursiveLeastSquares, SquareRootRLS, SlidingWindowRLS, NLMS or LMS
+        ``method="rls"``, ``"nlms"``, ``"lms"`` only: the filter after the
+        last sample, ready for
         more ``predict``/``update`` calls (not kept by a saved model).
 
     Notes
@@ -220,10 +225,10 @@ class ARX(IdentifiedModel):
     """
 
     # learned attributes that only some fits set, and which ones
-    _ONLY_SET_BY = {**{name: "fit(..., method='rls')" for name in
-                       ("lam_", "form_", "filter_")},
+    _ONLY_SET_BY = {**{name: "fit(..., method='rls')" for name in ("lam_", "form_")},
                     "tune_": "fit(..., method='rls', lam='tune' or Q='tune')",
-                    **{name: "fit(..., method='rls' or 'riv')" for name in
+                    "filter_": "fit(..., method='rls', 'nlms' or 'lms')",
+                    **{name: "fit(..., method='rls', 'riv', 'nlms' or 'lms')" for name in
                        ("theta_history_", "recursive_residuals_", "k0_")},
                     "instruments_": "fit(..., method='iv' or 'riv')",
                     "noise_covariance_": "a fit on 2-D `y` (several outputs)"}
@@ -303,7 +308,7 @@ class ARX(IdentifiedModel):
     # fitting
     # ------------------------------------------------------------------
     def fit(self, u, y=None, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=None,
-            x0=None, form=None, **filter_options):
+            x0=None, form=None, window=None, **filter_options):
         r"""Estimate the parameters from an input/output record.
 
         Parameters
@@ -314,10 +319,16 @@ class ARX(IdentifiedModel):
             experiment.
         y : array_like, shape (N,) or (N, ny), or a list of them
             Output record, same length (a list: one per experiment).
-        method : {"ls", "rls", "iv", "riv"}, default "ls"
+        method : {"ls", "rls", "iv", "riv", "nlms", "lms"}, default "ls"
             ``"ls"``: batch least squares through QR. ``"rls"``:
             `RecursiveLeastSquares` over the rows, started by batch least
-            squares on the first `k0` rows. ``"iv"``, ``"riv"``: batch and
+            squares on the first `k0` rows (with `window`: least squares over
+            the last `window` rows). ``"nlms"``, ``"lms"``: the gradient
+            filters `NLMS` and `LMS` over the rows from `x0` (zeros), MATLAB's
+            'NormalizedGradient' and 'Gradient' estimation methods (options
+            ``mu``, ``leak`` and, for ``"nlms"``, ``eps``; in the signals'
+            units; ``theta_cov_`` is NaN: a gradient estimate has no
+            covariance). ``"iv"``, ``"riv"``: batch and
             recursive instrumental variables, unbiased under coloured
             equation error (options ``instruments`` = ``"model"`` (refined
             IV with an auxiliary model, the default for one output),
@@ -358,6 +369,14 @@ class ARX(IdentifiedModel):
             mode), so that the recursive fit stays within about 1e-8
             (relative) of batch least squares up to condition numbers of
             1e8.
+        window : int, optional
+            ``"rls"`` only: finite history (MATLAB's ``History = 'Finite'``,
+            ``WindowLength``): `SlidingWindowRLS` over the last `window` rows
+            (at least ``n_params``), so that the estimate after each row is
+            batch least squares on the last `window` rows (fewer at the
+            start); options `k0` (at most `window`), `P0`, `R`, `x0` and the
+            filter's `refresh`, run in the signals' units. ``theta_cov_`` is
+            that of the last window, ``form_`` is ``"window"``.
         **filter_options
             ``"rls"`` only: any other keyword argument of
             `RecursiveLeastSquares` (for example its forgetting mode), passed
@@ -418,16 +437,33 @@ class ARX(IdentifiedModel):
         end of the record, while ``noise_variance_`` (residuals of the final
         estimate over all rows) overstates the noise if the plant changed.
         """
-        if method not in ("ls", "rls", "iv", "riv"):
-            raise ValueError(f"`method` must be 'ls', 'rls', 'iv' or 'riv'; got {method!r}")
+        if method not in ("ls", "rls", "iv", "riv", *_online.GRADIENT):
+            raise ValueError("`method` must be 'ls', 'rls', 'iv', 'riv', 'nlms' or 'lms'; got "
+                             f"{method!r}")
         tuning = tuning_param(method, lam, Q, "ARX.fit")
         opts = {"k0": k0, "lam": lam, "P0": P0, "R": R, "Q": Q, "x0": x0, "form": form}
+        if window is not None and method != "rls":
+            raise TypeError(f"`window` only applies to method='rls'; got method={method!r}")
         if method == "ls":
             given = [k for k, v in opts.items() if v is not None] + list(filter_options)
             if given:
                 raise TypeError(f"`{given[0]}` only applies to method='rls'; got method='ls'")
         iv_options = {k: v for k, v in opts.items() if v is not None} | filter_options
-        if method in ("iv", "riv"):
+        if method in _online.GRADIENT:
+            given = [k for k, v in opts.items() if v is not None and k != "x0"]
+            if given:
+                raise TypeError(f"`{given[0]}` does not apply to method={method!r} (a gradient "
+                                "method: options `mu`, `leak`, `x0` and, for 'nlms', `eps`)")
+            gradient = _online.gradient_options(method, filter_options) | (
+                {} if x0 is None else {"x0": x0})
+        elif window is not None:
+            given = [k for k in ("lam", "Q", "form") if opts[k] is not None] + [
+                k for k in filter_options if k not in _online.WINDOW_OPTIONS]
+            if given:
+                raise TypeError(f"`{given[0]}` does not apply to method='rls' with a `window` "
+                                "(options `k0`, `P0`, `R`, `x0`, `refresh`, `check_every`, "
+                                "`cond_max`)")
+        elif method in ("iv", "riv"):
             check_iv_options(method, iv_options)
         else:
             _check_filter_options(filter_options)
@@ -452,9 +488,28 @@ class ARX(IdentifiedModel):
         # compute everything first: a fit that raises leaves the model as it was
         recursive, cov_iv = {}, None
         inv_scaled, col_scale = None, np.ones(n_params)
-        if method != "rls":
+        direct = method != "rls" or window is not None    # (the rows as one matrix)
+        if direct:
             Phi, target = self._design(records, s, op)
-        if method == "ls":
+        if method in _online.GRADIENT:
+            theta, history, prior, filt = _online.run_gradient(Phi, target, method, gradient)
+            recursive = {"filter_": filt, "k0_": 0,
+                         "theta_history_": history[:, :, 0] if info["y_1d"] else history,
+                         "recursive_residuals_": prior[:, 0] if info["y_1d"] else prior}
+        elif window is not None:
+            if k0 is not None:
+                k0 = check_int(k0, "k0", minimum=0)
+            else:
+                k0 = 0 if (P0 is not None or x0 is not None) else _full_rank_rows(Phi)
+                if k0 is None:            # not even all rows determine theta
+                    _qr_least_squares(Phi, target)      # raises with the rank in the message
+            options = {k: v for k, v in (("P0", P0), ("R", R), ("x0", x0)) if v is not None}
+            theta, inv_scaled, history, prior, filt = _online.run_window(
+                Phi, target, window, k0, options | filter_options)
+            recursive = {"filter_": filt, "k0_": k0, "lam_": 1.0, "form_": "window",
+                         "theta_history_": history[:, :, 0] if info["y_1d"] else history,
+                         "recursive_residuals_": prior[:, 0] if info["y_1d"] else prior}
+        elif method == "ls":
             theta, inv_scaled, col_scale = _qr_least_squares(Phi, target,
                                                              _output_lags(s, Phi.shape[1]))
         elif method in ("iv", "riv"):
@@ -480,7 +535,7 @@ class ARX(IdentifiedModel):
                          "recursive_residuals_": prior[:, 0] if info["y_1d"] else prior}
             if tuned is not None:
                 recursive["tune_"] = tuned
-        if method == "rls":          # with the largest residuals (their scale, below)
+        if not direct:               # with the largest residuals (their scale, below)
             resid, top = lagged.residuals(theta)
         else:
             resid, top = target - Phi @ theta, None
@@ -494,6 +549,8 @@ class ARX(IdentifiedModel):
         self._store(theta, s, info)
         self._set_operating_point(records, op)
         cov = cov if cov_iv is None else cov_iv
+        if cov is None:              # a gradient estimate: no covariance (MATLAB's neither)
+            cov = np.full((s.n_outputs, n_params, n_params), np.nan)
         self.theta_cov_ = cov[0] if info["y_1d"] else cov
         self.noise_variance_ = float(sigma2[0]) if info["y_1d"] else sigma2
         if not info["y_1d"]:
@@ -1081,8 +1138,12 @@ class ARX(IdentifiedModel):
                     + [f"<p><code>{line}</code></p>" for line in self._equation_lines("html")])
         how = {"ls": "batch least squares (QR)", "rls": "recursive least squares",
                "iv": "instrumental variables", "riv": "recursive instrumental variables",
+               "nlms": "normalized gradient (NLMS)", "lms": "gradient (LMS)",
                "true": "given coefficients (no fit)"}[self.method_]
-        if self.method_ == "rls":
+        if self.method_ == "rls" and self.__dict__.get("form_") == "window":
+            how += f" over a window of {self.filter_.window} rows" if "filter_" in \
+                self.__dict__ else " over a finite window"
+        elif self.method_ == "rls":
             start = (f"batch start on {self.k0_} rows" if self.k0_ else "prior start")
             how += f" (lam={self.lam_:g}, {start})"
         n_exp = self.__dict__.get("n_experiments_", 1)

@@ -34,6 +34,7 @@ from .._validation import as_float_array, check_dt, check_int, check_probability
 from ..exceptions import NumericalWarning
 from ..filters._health import warn_at_caller as _warn_at_caller
 from ..filters.bank import RLSBank, _full_rank
+from ..filters.gradient_bank import GradientBank
 from ._offset import offset_mode as _offset_mode
 from ._tuning_option import tuning_param
 from .regressors import _full_rank_rows, arx_structure
@@ -41,6 +42,8 @@ from .regressors import _full_rank_rows, arx_structure
 __all__ = ["ARXBank", "fit_many"]
 
 _RLS_OPTIONS = ("k0", "lam", "P0", "R", "Q", "x0")
+#: The gradient methods (MATLAB's 'NormalizedGradient', 'Gradient'): a `GradientBank`.
+_GRADIENT = ("nlms", "lms")
 # bytes of regressors per chunk of channels (about a second-level cache or two)
 _CHUNK_BYTES = 16 * 2 ** 20
 # bytes of the lagged-input matrices per batch of the independence test
@@ -97,10 +100,12 @@ class ARXBank:
     is_white_, is_independent_ : ndarray of bool, shape (C,)
         ``pvalue > alpha``.
     k0_ : ndarray of int, shape (C,)
-        ``method="rls"`` only: rows of each channel's batch start.
+        ``method="rls"``: rows of each channel's batch start (0 for the
+        gradient methods; None for ``"ls"``).
     recursive_residuals_ : ndarray, shape ``(n_samples_, C)``
-        ``method="rls"`` only: the a-priori residuals of the filter (NaN on
-        the rows of the batch start), as ``ARX.recursive_residuals_``.
+        ``method="rls"``, ``"nlms"``, ``"lms"``: the a-priori residuals of
+        the filter (NaN on the rows of the batch start), as
+        ``ARX.recursive_residuals_``.
     healthy_ : ndarray of bool, shape (C,)
         ``method="rls"``: the channel's covariance passed every health
         check (always True for ``"ls"``).
@@ -112,7 +117,7 @@ class ARXBank:
     param_names_ : list of str
         ``a1 .. a_na, b1 .. b_nb`` (``b1[u2]`` with several inputs).
     method_ : str
-        ``"ls"`` or ``"rls"``.
+        ``"ls"``, ``"rls"``, ``"nlms"`` or ``"lms"``.
     max_lag, alpha : int, float
         Settings of the residual tests.
     """
@@ -295,7 +300,7 @@ class ARXBank:
     def _channel_options(self, c):
         opts = {}
         for key, value in self._options.items():
-            if key in ("lam", "R"):
+            if key in ("lam", "R", "mu", "eps", "leak"):
                 opts[key] = float(value[c])
             elif key in ("P0", "Q", "x0"):
                 opts[key] = value[c]
@@ -330,10 +335,13 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
     y : array_like, shape (N, C)
         Outputs, one column per channel (a DataFrame's columns label the
         channels).
-    method : {"ls", "rls"}, default "ls"
-        As in :meth:`ARX.fit`: batch least squares (QR), or recursive least
+    method : {"ls", "rls", "nlms", "lms"}, default "ls"
+        As in :meth:`ARX.fit`: batch least squares (QR), recursive least
         squares started by batch least squares on the first ``k0`` rows of
-        each channel.
+        each channel, or the gradient methods (one `GradientBank` for the
+        channels of a chunk; options ``mu``, ``leak``, ``x0`` and, for
+        ``"nlms"``, ``eps``, each shared or one per channel; ``theta_cov_``
+        and the standard errors are NaN).
     k0, lam, P0, R, Q, x0
         ``"rls"`` only, as in :meth:`ARX.fit`; `lam` and `R` may also hold
         one value per channel (shape (C,)), `P0` and `Q` one scalar or
@@ -361,9 +369,10 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
         Labels of the channels (default: the columns of a pandas `y`, else
         ``0 .. C-1``).
     **filter_options
-        ``"rls"`` only: ``forgetting`` (``"exponential"``, ``"directional"``,
+        ``"rls"``: ``forgetting`` (``"exponential"``, ``"directional"``,
         ``"constant_trace"``), ``forgetting_params``, ``check_every``,
-        ``cond_max`` of `RLSBank`.
+        ``cond_max`` of `RLSBank`. ``"nlms"``, ``"lms"``: ``mu``, ``leak``
+        and (``"nlms"``) ``eps`` of `GradientBank`.
 
     Returns
     -------
@@ -427,8 +436,8 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
     params = _fleet_params(model)
     na, nb, nk, dt = params["na"], params["nb"], params["nk"], params["dt"]
     offset = _offset_mode(params["offset"])
-    if method not in ("ls", "rls"):
-        raise ValueError(f"`method` must be 'ls' or 'rls'; got {method!r}")
+    if method not in ("ls", "rls", *_GRADIENT):
+        raise ValueError(f"`method` must be 'ls', 'rls', 'nlms' or 'lms'; got {method!r}")
     tuning = tuning_param(method, lam, Q, "fit_many")
     opts = {"k0": k0, "lam": lam, "P0": P0, "R": R, "Q": Q, "x0": x0}
     given = [key for key, value in opts.items() if value is not None]
@@ -437,7 +446,10 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
     if method == "ls" and (given or filter_options):
         raise TypeError(f"`{(given + list(filter_options))[0]}` only applies to method='rls'; "
                         "got method='ls'")
-    _check_filter_options(filter_options)
+    if method in _GRADIENT:
+        _check_gradient_options(method, [key for key in given if key != "x0"], filter_options)
+    else:
+        _check_filter_options(filter_options)
     if on_error not in ("raise", "nan"):
         raise ValueError(f"`on_error` must be 'raise' or 'nan'; got {on_error!r}")
     max_lag = check_int(max_lag, "max_lag", minimum=1)
@@ -458,7 +470,8 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
     if residual_tests and rows <= 2 * max_lag + 2:
         raise ValueError(f"`max_lag` must be small against the {rows} residuals (need n > "
                          f"2 max_lag + 2); got max_lag = {max_lag}")
-    per_channel = _rls_options(C, n, method, opts, filter_options)
+    per_channel = (_gradient_options(C, n, method, x0, filter_options) if method in _GRADIENT
+                   else _rls_options(C, n, method, opts, filter_options))
     k0 = None if k0 is None else check_int(k0, "k0", minimum=0)
     if k0 is not None and k0 > rows:
         raise ValueError(f"`k0` must be <= the number of regressor rows ({rows}); got {k0}")
@@ -500,7 +513,8 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
                         "unreliable (see `healthy_`)", NumericalWarning)
     names = _param_names(s) + (["c"] if offset == "intercept" else [])
     kept = {key: value for key, value in per_channel.items() if key in given}
-    kept.update(filter_options)
+    kept.update(filter_options if method not in _GRADIENT else
+                {key: per_channel[key] for key in filter_options})
     if "k0" in given:
         kept["k0"] = k0
     return ARXBank(
@@ -616,8 +630,8 @@ class _Results:
         self.sim_fit = np.full(C, nan)
         self.pred_fit = np.full(C, nan)
         self.healthy = np.ones(C, dtype=bool)
-        self.k0 = np.zeros(C, dtype=int) if method == "rls" else None
-        self.rec = np.empty((rows, C)) if method == "rls" else None
+        self.k0 = np.zeros(C, dtype=int) if method != "ls" else None
+        self.rec = np.empty((rows, C)) if method != "ls" else None
         self.Q = np.full(C, nan) if tests else None
         self.p_white = np.full(C, nan) if tests else None
         self.F = np.full(C, nan) if tests else None
@@ -649,6 +663,8 @@ def _fit_chunk(cs, rec, method, per_channel, k0, max_lag, tests, on_error, label
                     "richer input, more data or lower orders")
         for j in np.flatnonzero(~ok):
             _fail(out, cs[j], labels, rank_msg.format(n=s.n_params), on_error)
+    elif method in _GRADIENT:
+        ok, theta, cov = _gradient(cs, Phi, target, method, per_channel, out)
     else:
         ok, theta, cov = _recursive(cs, Phi, target, norms, per_channel, k0, labels, on_error,
                                     out)
@@ -764,6 +780,19 @@ def _recursive(cs, Phi, target, norms, opts, k0, labels, on_error, out):
         out.healthy[sel] = ~np.isin(np.arange(len(g)), bank.failed_channels)
         ok[np.setdiff1d(np.flatnonzero(k0s == kv), g)] = False
     return ok, theta, cov
+
+
+def _gradient(cs, Phi, target, method, opts, out):
+    """The gradient filter of each channel, as ``ARX.fit(method="nlms" | "lms")``: one
+    `GradientBank` over the chunk from ``x0``; the a-priori residuals go into
+    ``out.rec``. A gradient estimate has no covariance (NaN)."""
+    rows, c, n = Phi.shape
+    bank = GradientBank(c, n, opts["mu"][cs], method=method, eps=opts["eps"][cs],
+                        leak=opts["leak"][cs], x0=opts["x0"][cs])
+    hist = bank.batch_filter(target, Phi, store_means=False)
+    _, sel = _as_slice(cs)
+    out.rec[:, sel] = hist.residuals
+    return np.ones(c, dtype=bool), bank.x.copy(), np.full((c, n, n), np.nan)
 
 
 def _run_group(cs, g, k0, Phi, target, opts, labels, on_error, out):
@@ -1106,6 +1135,26 @@ def _rls_options(C, n, method, opts, filter_options):
     return {"lam": proto.lam, "R": proto.R, "Q": proto.Q, "P0": proto._P0, "x0": proto._x0,
             "filter": dict(filter_options), "bank": proto,
             "prior": opts["P0"] is not None or opts["x0"] is not None}
+
+
+def _gradient_options(C, n, method, x0, options):
+    """Per-channel ``mu``, ``eps``, ``leak`` and ``x0`` of a gradient `method`, validated
+    by a `GradientBank` (scalars or one per channel; its defaults those of `NLMS`/`LMS`)."""
+    defaults = {"mu": 0.1 if method == "nlms" else 0.01, "eps": 0.001, "leak": 0.0}
+    kw = defaults | dict(options)
+    proto = GradientBank(C, n, kw["mu"], method=method, eps=kw["eps"], leak=kw["leak"],
+                         x0=x0)
+    return {"mu": proto.mu, "eps": proto.eps, "leak": proto.leak, "x0": proto.x.copy()}
+
+
+def _check_gradient_options(method, given, options):
+    """Refuse the least-squares options and anything but ``mu``, ``leak`` (and ``eps`` for
+    ``"nlms"``) for a gradient `method`."""
+    valid = ["mu", "leak"] + (["eps"] if method == "nlms" else [])
+    for name in list(given) + list(options):
+        if name not in valid:
+            raise TypeError(f"`{name}` is not an option of method={method!r}; its options are "
+                            f"{valid + ['x0']}")
 
 
 def _check_filter_options(options):

@@ -37,6 +37,7 @@ import numpy as np
 
 from .._locking import init_signature
 from .._validation import as_float_array, check_finite
+from . import _recursive_filter
 from ._family import family_structure, param_names, split_theta
 from ._recursive_pem import RecursionState
 
@@ -98,11 +99,17 @@ class _RecursiveModel(_Guarded):
     reads of the estimate hold its lock.
     """
 
-    def __init__(self, s, method, options):
+    def __init__(self, s, method, options, window=None):
         self._structure = s
         self._options = dict(options)
         self.method = method
-        self._state = RecursionState(s, method, **options)
+        self.window = window
+        if method in _recursive_filter.GRADIENT or window is not None:
+            # MATLAB's gradient methods and finite history: a filter on the regressor
+            filt = _recursive_filter.make_filter(s.n_params, method, window, options)
+            self._state = _recursive_filter.FilterRecursion(s, filt)
+        else:
+            self._state = RecursionState(s, method, **options)
         self._initial = self._state.copy()
         self.last_error = np.nan
         self._nu = s.n_inputs
@@ -207,7 +214,8 @@ class _RecursiveModel(_Guarded):
 
     @property
     def P(self):
-        """The covariance matrix of the recursion (a copy)."""
+        """The covariance matrix of the recursion (a copy; a gradient method has none:
+        AttributeError)."""
         with self._lock:
             return self._state.P.copy()
 
@@ -260,7 +268,9 @@ class _RecursiveModel(_Guarded):
 
     def __repr__(self):
         args = ", ".join(f"{k}={v!r}" for k, v in self._orders.items())
-        return f"{type(self).__name__}({args}, method={self.method!r}), {self.n_steps} steps"
+        window = "" if self.window is None else f", window={self.window}"
+        return (f"{type(self).__name__}({args}, method={self.method!r}{window}), "
+                f"{self.n_steps} steps")
 
     def _input(self, u):
         nu = self._structure.n_inputs
@@ -335,6 +345,13 @@ class RecursiveARMAX(_RecursiveModel):
 class RecursiveOE(_RecursiveModel):
     """Streaming output-error estimation (MATLAB ``recursiveOE``): orders as :class:`~rlsfilt.OE`.
 
+    ``method`` is ``"rpem"`` (the default) or ``"rplr"``. ``window=W``
+    (MATLAB's finite history, ``WindowLength``) replaces the recursion by
+    least squares over the last ``W`` pseudo-linear regressor rows
+    ``[u(t-nk) ..., -w(t-1) ...]``, ``w = B/F u`` simulated with the estimate
+    after each update (`SlidingWindowRLS`, ``method`` ``"rplr"``; options
+    ``P0``, ``R``, ``x0``, ``refresh``).
+
     Examples
     --------
     >>> import numpy as np
@@ -348,10 +365,15 @@ class RecursiveOE(_RecursiveModel):
     array([ 1. , -0.7])
     """
 
-    def __init__(self, nb, nf, nk=1, *, method="rpem", **options):
+    def __init__(self, nb, nf, nk=1, *, method=None, window=None, **options):
         self._orders = {"nb": nb, "nf": nf, "nk": nk}
         s = family_structure(nb=nb, nf=nf, nk=nk, n_inputs=_n_inputs(nb))
-        super().__init__(s, method, options)
+        if window is not None and method not in (None, "rplr"):
+            raise ValueError(f"`method` must be 'rplr' (or omitted) with a `window`: the "
+                             f"window is least squares on the pseudo-linear regressor; got "
+                             f"{method!r}")
+        method = ("rplr" if window is not None else "rpem") if method is None else method
+        super().__init__(s, method, options, window)
 
 
 class RecursiveBJ(_RecursiveModel):
@@ -366,22 +388,61 @@ class RecursiveBJ(_RecursiveModel):
 class RecursiveARX(_RecursiveModel):
     """Streaming ARX estimation (MATLAB ``recursiveARX``): orders as :class:`~rlsfilt.ARX`.
 
-    The recursion is `RecursiveLeastSquares` on the ARX regressor (RPLR and
-    RPEM coincide for ARX); every option of the filter applies.
+    By default the recursion is `RecursiveLeastSquares` on the ARX regressor
+    (RPLR and RPEM coincide for ARX; ``method`` reads ``"rplr"``); every
+    option of the filter applies. MATLAB's other estimation methods and its
+    finite history run a filter on the same regressor rows instead:
+
+    - ``method="nlms"`` ('NormalizedGradient': `NLMS`, options ``mu``,
+      ``eps``, ``leak``, ``x0``) or ``method="lms"`` ('Gradient': `LMS`,
+      options ``mu``, ``leak``, ``x0``); there is no ``P``;
+    - ``window=W`` (``History = 'Finite'``, ``WindowLength``):
+      `SlidingWindowRLS`, least squares on the last ``W`` regressor rows
+      (options ``P0``, ``R``, ``x0``, ``refresh``; the prior counts until
+      the window first fills).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from scipy.signal import lfilter
+    >>> from rlsfilt import RecursiveARX
+    >>> rng = np.random.default_rng(1)
+    >>> u = rng.standard_normal(3000)
+    >>> y = lfilter([0, 1.0], [1, -0.5], u)
+    >>> yhat, theta = RecursiveARX(1, 1, method="nlms", mu=0.5).batch(y, u)
+    >>> np.round(theta[-1], 3)
+    array([-0.5,  1. ])
     """
 
-    def __init__(self, na, nb, nk=1, **options):
+    def __init__(self, na, nb, nk=1, *, method="rls", window=None, **options):
         self._orders = {"na": na, "nb": nb, "nk": nk}
         s = family_structure(na=na, nb=nb, nk=nk, n_inputs=_n_inputs(nb))
-        super().__init__(s, "rplr", options)
+        super().__init__(s, _arx_method(method, window), options, window)
 
 
 class RecursiveAR(_RecursiveModel):
-    """Streaming AR estimation (MATLAB ``recursiveAR``): ``step(y)``."""
+    """Streaming AR estimation (MATLAB ``recursiveAR``): ``step(y)``.
 
-    def __init__(self, na, **options):
+    ``method`` (``"rls"``, ``"nlms"``, ``"lms"``) and ``window`` as
+    :class:`RecursiveARX`.
+    """
+
+    def __init__(self, na, *, method="rls", window=None, **options):
         self._orders = {"na": na}
-        super().__init__(family_structure(na=na, n_inputs=0), "rplr", options)
+        super().__init__(family_structure(na=na, n_inputs=0), _arx_method(method, window),
+                         options, window)
+
+
+def _arx_method(method, window):
+    """The engine's name of an ARX/AR streaming `method`: ``"rls"`` is the RPLR
+    recursion (least squares on the ARX regressor); the gradient methods keep theirs."""
+    if method == "rls":
+        return "rplr"
+    if method in _recursive_filter.GRADIENT:
+        if window is not None:
+            raise TypeError(f"`window` only applies to method='rls'; got method={method!r}")
+        return method
+    raise ValueError(f"`method` must be 'rls', 'nlms' or 'lms'; got {method!r}")
 
 
 class RecursiveARMA(_RecursiveModel):

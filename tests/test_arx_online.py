@@ -1,0 +1,162 @@
+"""ARX.fit's online methods of MATLAB's recursiveARX: gradient and finite history (#31).
+
+Oracles: the gradient filters (`NLMS`, `LMS`) run by hand on the regressor
+rows ``ARX.regressors`` gives (bit for bit), padasip's ``FilterNLMS`` and
+``FilterLMS`` on the same rows (1e-12), and ``numpy.linalg.lstsq`` on the
+last ``window`` rows at every step (1e-9) for ``window=``. The model contract
+(save/load, summary, predict, ...) runs on these fits in
+``tests/test_contract_models.py`` (``ARX-nlms``, ``ARX-lms-2-outputs``,
+``ARX-rls-window``).
+"""
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose, assert_array_equal
+from scipy.signal import lfilter
+
+from rlsfilt import ARX, LMS, NLMS, SlidingWindowRLS
+
+pa = pytest.importorskip("padasip")
+
+
+def _siso(seed=0, n=600):
+    rng = np.random.default_rng(seed)
+    u = rng.standard_normal(n)
+    y = lfilter([0, 1.0, 0.5], [1, -1.5, 0.7], u) + 0.05 * rng.standard_normal(n)
+    return u, y
+
+
+def _mimo(seed=1, n=500):
+    rng = np.random.default_rng(seed)
+    u = rng.standard_normal((n, 2))
+    y1 = lfilter([0, 1.0], [1, -0.6], u[:, 0]) + 0.05 * rng.standard_normal(n)
+    y2 = lfilter([0, 0.5], [1, -0.3], u[:, 1]) + 0.3 * np.r_[0.0, y1[:-1]] \
+        + 0.05 * rng.standard_normal(n)
+    return u, np.column_stack([y1, y2])
+
+
+@pytest.mark.parametrize("method, cls, options", [
+    ("nlms", NLMS, {"mu": 0.5}),
+    ("nlms", NLMS, {"mu": 0.3, "eps": 0.1, "leak": 0.01}),
+    ("lms", LMS, {"mu": 0.05}),
+    ("lms", LMS, {"mu": 0.02, "leak": 0.1}),
+])
+@pytest.mark.parametrize("data", [_siso, _mimo])
+def test_gradient_fit_is_the_filter_on_the_regressors(method, cls, options, data):
+    u, y = data()
+    model = ARX(2, [2, 1] if np.ndim(u) == 2 else 2, 1) if data is _mimo else ARX(2, 2, 1)
+    model.fit(u, y, method=method, **options)
+    Phi, target = model.regressors(u, y)
+    ny = 1 if np.ndim(y) == 1 else y.shape[1]
+    f = cls(Phi.shape[1], ny, **options)
+    means, _, means_p, _ = f.batch_filter(target, Phi)
+    assert_array_equal(model.theta_, f.x[:, 0] if ny == 1 else f.x)
+    assert_array_equal(model.theta_history_, means[:, :, 0] if ny == 1 else means)
+    assert model.method_ == method and model.k0_ == 0
+    assert np.isnan(model.theta_cov_).all() and np.isnan(model.std_errors_).all()
+    T = target.reshape(len(target), -1)
+    assert_allclose(model.recursive_residuals_.reshape(T.shape),
+                    T - np.einsum("ti,tij->tj", Phi, means_p), rtol=1e-12, atol=1e-12)
+    assert_allclose(model.residuals_.reshape(T.shape),
+                    T - Phi @ model.theta_.reshape(Phi.shape[1], -1), rtol=1e-12, atol=1e-12)
+    assert isinstance(model.filter_, cls)
+
+
+@pytest.mark.parametrize("method, padasip_filter", [("nlms", "FilterNLMS"), ("lms", "FilterLMS")])
+def test_gradient_fit_equals_padasip(method, padasip_filter):
+    """padasip on the same regressor rows (zero start; its ``run`` returns the weights
+    before each row and the a-priori errors) to 1e-12."""
+    u, y = _siso(seed=3)
+    mu = 0.5 if method == "nlms" else 0.05
+    model = ARX(2, 2, 1).fit(u, y, method=method, mu=mu, **({"eps": 1e-3} if method == "nlms"
+                                                             else {}))
+    Phi, target = model.regressors(u, y)
+    p = getattr(pa.filters, padasip_filter)(Phi.shape[1], mu=mu, w="zeros")
+    _, e, w = p.run(target, Phi)
+    assert_allclose(model.theta_history_[:-1], w[1:], rtol=1e-12, atol=1e-12)
+    assert_allclose(model.recursive_residuals_, e, rtol=1e-12, atol=1e-12)
+
+
+def test_gradient_fit_starts_from_x0_and_refuses_rls_options():
+    u, y = _siso()
+    x0 = np.array([-1.4, 0.6, 0.9, 0.4])
+    model = ARX(2, 2, 1).fit(u, y, method="nlms", mu=0.2, x0=x0)
+    Phi, target = model.regressors(u, y)
+    f = NLMS(4, mu=0.2, x0=x0)
+    f.batch_filter(target, Phi)
+    assert_array_equal(model.theta_, f.x[:, 0])
+    for bad, match in (({"lam": 0.99}, "`lam` does not apply to method='nlms'"),
+                       ({"P0": 10.0}, "`P0` does not apply"),
+                       ({"eps": 0.1, "method": "lms"}, "`eps` is not an option of "
+                                                       "method='lms'"),
+                       ({"window": 50}, "`window` only applies to method='rls'"),
+                       ({"step": 0.1}, "`step` is not an option")):
+        kw = {"method": "nlms"} | bad
+        with pytest.raises(TypeError, match=match):
+            ARX(2, 2, 1).fit(u, y, **kw)
+    with pytest.raises(ValueError, match="`mu` must be"):
+        ARX(2, 2, 1).fit(u, y, method="nlms", mu=-1.0)
+    with pytest.raises(ValueError, match="'nlms' or 'lms'"):
+        ARX(2, 2, 1).fit(u, y, method="gradient")
+
+
+@pytest.mark.parametrize("window", [8, 25, 120])
+@pytest.mark.parametrize("data", [_siso, _mimo])
+def test_window_is_least_squares_over_the_window(window, data):
+    """After each row the estimate is numpy's lstsq on the last `window` rows (fewer at
+    the start), to 1e-9; ``theta_cov_`` is that of the last window."""
+    u, y = data()
+    model = ARX(2, 2, 1) if data is _siso else ARX(1, [1, 1], 1)
+    model.fit(u, y, method="rls", window=window)
+    Phi, target = model.regressors(u, y)
+    k0 = model.k0_
+    assert k0 == Phi.shape[1] and model.form_ == "window" and model.lam_ == 1.0
+    hist = model.theta_history_
+    for t in range(k0 - 1, len(Phi)):
+        lo = max(0, t - window + 1)
+        theta = np.linalg.lstsq(Phi[lo:t + 1], target[lo:t + 1], rcond=None)[0]
+        assert_allclose(hist[t], theta, rtol=1e-9, atol=1e-9, err_msg=str(t))
+    assert np.isnan(hist[:k0 - 1]).all()
+    assert_array_equal(model.theta_, hist[-1])
+    W = Phi[-window:]
+    resid = model.residuals_.reshape(len(Phi), -1)
+    sigma2 = (resid ** 2).sum(axis=0) / (len(Phi) - Phi.shape[1])
+    cov = sigma2[:, None, None] * np.linalg.inv(W.T @ W)[None]
+    assert_allclose(model.theta_cov_.reshape(cov.shape), cov, rtol=1e-8)
+    assert isinstance(model.filter_, SlidingWindowRLS) and model.filter_.window == window
+    assert f"over a window of {window} rows" in str(model.summary())
+
+
+def test_window_options():
+    u, y = _siso()
+    model = ARX(2, 2, 1).fit(u, y, method="rls", window=30, k0=10)
+    Phi, target = model.regressors(u, y)
+    assert_allclose(model.theta_history_[9], np.linalg.lstsq(Phi[:10], target[:10],
+                                                             rcond=None)[0], rtol=1e-10)
+    assert_allclose(model.theta_, np.linalg.lstsq(Phi[-30:], target[-30:], rcond=None)[0],
+                    rtol=1e-9)
+    with pytest.raises(ValueError, match="`window` must be >= 4"):
+        ARX(2, 2, 1).fit(u, y, method="rls", window=3)
+    with pytest.raises(ValueError, match="`k0` must be <= `window`"):
+        ARX(2, 2, 1).fit(u, y, method="rls", window=10, k0=20)
+    for name, value in (("lam", 0.99), ("Q", 1e-3), ("forgetting", "directional")):
+        with pytest.raises(TypeError, match=f"`{name}` does not apply to method='rls' with a "
+                                            "`window`"):
+            ARX(2, 2, 1).fit(u, y, method="rls", window=30, **{name: value})
+
+
+@pytest.mark.parametrize("options", [{"method": "nlms", "mu": 0.5}, {"method": "lms", "mu": 0.05},
+                                     {"method": "rls", "window": 60}])
+def test_save_and_load_keep_the_fit(options, tmp_path):
+    """A saved gradient fit (NaN covariance) or window fit loads with the same numbers."""
+    from rlsfilt import load_model, save_model
+
+    u, y = _siso()
+    model = ARX(2, 2, 1).fit(u, y, **options)
+    save_model(model, tmp_path / "m.json")
+    again = load_model(tmp_path / "m.json")
+    assert again.method_ == model.method_
+    assert again.__dict__.get("form_") == model.__dict__.get("form_")
+    for name in ("theta_", "theta_cov_", "noise_variance_"):
+        assert_array_equal(getattr(again, name), getattr(model, name), err_msg=name)
+    assert_array_equal(again.predict(u, y), model.predict(u, y))
