@@ -335,7 +335,7 @@ def test_diagonal_forgetting_equals_the_numpy_reference_and_its_maximum(rng):
     lo, hi = fit.interval()
     free = ~np.isnan(fit.stderr)
     assert free[1] and np.all(lo[free] < fit.estimate[free]) and np.all(hi <= 1.0)
-    assert "lam[1]" in fit.summary()
+    assert "lam[1]" in str(fit.summary())
     with pytest.raises(ValueError, match="diagonal forgetting factor cannot be applied"):
         fit.apply(rls)
 
