@@ -15,16 +15,18 @@ child) with an empty cache and with the cache the first run filled:
 ``rlsfilt demo``, a first ``ARX.fit(method="rls")`` and a first
 ``ARMAX.fit(method="rpem")`` (each in its own empty cache).
 
-Measured on the 2-core development machine (busy: load about 10; the numbers
-scale with the load, compare them in one run):
+Measured on the 2-core development machine (busy: load 5 to 10; the numbers
+move with the load, compare them in one run), before and after #32 (the
+fused loop compiled once for every size but 5, its rare steps sharing one
+compiled sweep, no duplicate variants):
 
-=================================  ==============  ==============
-cold CPU seconds (empty cache)     before (#32)    after (#32)
-=================================  ==============  ==============
-``rlsfilt demo``                   23.6            11.0
-first ``ARX.fit(method="rls")``    see the output  see the output
-first ``fit(method="rpem")``       see the output  see the output
-=================================  ==============  ==============
+=================================  ===============  ===============
+CPU seconds, cold / warm           before (#32)     after (#32)
+=================================  ===============  ===============
+``rlsfilt demo``                   23.4 / 2.5       12.8 / 2.4
+first ``ARX.fit(method="rls")``    21.6 / 1.1       11.1 / 1.1
+first ``fit(method="rpem")``       13.2 / 1.6       13.5 / 1.7
+=================================  ===============  ===============
 
 Usage::
 

@@ -748,8 +748,7 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
     X = np.empty((n, n))
     no_q = np.zeros((0, 0))
     cap = state[3] == 1
-    n_capped = np.int64(0)                           # a literal 0 would compile
-    #                                                  _usual_steps twice
+    n_capped = np.int64(0)                           # a literal 0: two compiles
     w = state[4]
     countdown = check_every - step0 % check_every if check_every > 0 else -1
     if scales is not None:
@@ -953,14 +952,16 @@ def _store_column(th, x):
         x[i, 0] = th[i]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _unfused_step(x, Pw, P, g, gn, cu, il, Q, h, k, last, check, update_first, due, cheap_bad,
                   cond_max, state, episodes, P_fail, W, X, symmetric, x_prior, P_prior,
                   x_post, P_post, covs, covs_p):
-    """The rare steps of `exponential_batch` (not inlined, so that they stay out of
-    the loop's code): a step whose time update the windup cap holds back (`il`
-    is then 1), and a step whose updated ``P`` is checked, kept (the last) or
-    stored (``covs``, ``covs_p`` of length N), whose sweep runs in two halves:
+    """The rare steps of `exponential_batch` (inlined there: the usual steps run in
+    `_usual_steps`, so this stays out of the hot loop; a separate function was compiled
+    again with its callees linked in, a fifth of the first run's compile work): a step
+    whose time update the windup cap holds back (`il` is then 1), and a step whose
+    updated ``P`` is checked, kept (the last) or stored (``covs``, ``covs_p`` of
+    length N), whose sweep runs in two halves:
     the update, then the time update with the next gain (after the last
     update only with `update_first`). The sweeps run on the padded ``Pw``, the
     copies and the checks read its view ``P``."""
