@@ -12,7 +12,7 @@ import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
 from rlsfilt import ARX, RecursiveLeastSquares
-from rlsfilt.filters._kernels_lagged import lag_rows
+from rlsfilt.filters._kernels_lagged import lag_rows, lag_rows_numpy
 from rlsfilt.models import arx as arx_module
 from rlsfilt.models._lag_rows import LagRows, MatrixRows
 from rlsfilt.models.regressors import as_records
@@ -58,12 +58,17 @@ def test_lag_rows_are_the_regressor_matrix_bit_for_bit(rng, structure):
     scale = np.ldexp(1.0, np.arange(Phi.shape[1]) - 3)
     for first in (0, 1, 294, 300, len(Phi) - 1):
         assert_array_equal(rows.rows(first, len(Phi), scale), Phi[first:] * scale)
-        tail = np.empty((len(Phi) - first + 7, Phi.shape[1]))   # room for more: not written
-        tail[:] = 7.0
-        got = lag_rows(rows.lags(first), 0, np.ones(Phi.shape[1]), tail)
-        assert got == len(Phi) - first
-        assert_array_equal(tail[:got], Phi[first:])
-        assert_array_equal(tail[got:], 7.0)
+        for fill in (lag_rows, lag_rows_numpy):              # compiled, and its NumPy twin
+            tail = np.empty((len(Phi) - first + 7, Phi.shape[1]))   # room for more: not written
+            tail[:] = 7.0
+            got = fill(rows.lags(first), 0, np.ones(Phi.shape[1]), tail)
+            assert got == len(Phi) - first
+            assert_array_equal(tail[:got], Phi[first:])
+            assert_array_equal(tail[got:], 7.0)
+            few = np.empty((3, Phi.shape[1]))              # from row `first` of the whole spec
+            got = fill(rows.lags(), first, scale, few)
+            assert got == min(3, len(Phi) - first)
+            assert_array_equal(few[:got], Phi[first:first + got] * scale)
         assert_array_equal(rows.target(first, len(Phi)), target[first:])
     assert_array_equal(rows.target(3, 11), target[3:11])
     with pytest.raises(TypeError, match="leading slices"):

@@ -50,8 +50,13 @@ together (reading and writing ``P`` once, four rows at a time). Its
 arithmetic is, element by element, that of the two steps (the same products
 summed in the same order; no ``fastmath``), so it gives the same bits, faster.
 Its usual steps run in `_usual_steps`, a loop that makes no call (the rare
-steps return to `exponential_batch`), compiled with the dimension as a
-constant up to `_UNROLLED_MAX` parameters (`_dimension_witness`).
+steps return to `exponential_batch`, whose sweeps are one shared call,
+`_sweep_call`), compiled once for every size (with the dimension as a
+constant only where it measurably pays: `_SPECIALISED`, `_dimension_witness`).
+What the first run compiles is kept small: no literal arguments (a literal
+``0`` compiles a callee a second time), no slice assignment of arrays (numba
+compiles its error message, string formatting included), the health
+checks in one layout and without the constrained variant in the fused loop.
 
 **The health check** runs in two tiers: every update tests the diagonal of
 ``P`` (positive and finite, O(n)); every ``check_every`` updates (and at once
@@ -64,7 +69,7 @@ next failure warns again.
 import numpy as np
 
 from .._numba import njit  # numba.njit, uncached where no cache directory is writable
-from ._kernels_lagged import lag_rows
+from ._kernels_lagged import lag_rows, lag_rows_numpy
 from ._kernels_shared import (
     aligned_zeros,
     any_nan,
@@ -456,8 +461,15 @@ def _health(P, basis, symmetric, cond_max, k, due, cheap_bad, state, episodes, P
     inlined: the loops stay lean).
     """
     armed = state[0] == 1
-    if basis.shape[1]:
-        bad = unhealthy_on(P, basis, cond_max, armed)
+    P = np.ascontiguousarray(P)              # one layout: the checks compile once
+    constrained = False
+    bad = False
+    if basis is not None:                    # None (the fused loop): not compiled in
+        if basis.shape[1]:
+            constrained = True
+            bad = unhealthy_on(P, basis, cond_max, armed)
+    if constrained:
+        pass
     elif symmetric:
         bad = unhealthy_sym(P, cond_max, W, X, armed)
     else:
@@ -587,6 +599,14 @@ def _sweep(P, g, cu, il, Q, h, gn, n, L):
         _sweep_rows(P, g, cu, il, h, gn, n, L)
 
 
+@njit(cache=True, error_model="numpy")
+def _sweep_call(P, g, cu, il, Q, h, gn):
+    """`_sweep` as a call (``n`` the length of ``h``, ``L`` the row length of ``P``): the
+    rare steps of `exponential_batch` share this one compiled sweep instead of an inlined
+    copy at each of their call sites (the usual steps inline theirs, `_usual_steps`)."""
+    _sweep(P, g, cu, il, Q, h, gn, h.shape[0], P.shape[1])
+
+
 @njit(cache=True, error_model="numpy", inline="always")
 def _sweep_rows(P, g, cu, il, h, gn, n, L):
     """`_sweep` without ``Q``, four rows at a time.
@@ -705,7 +725,8 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
     ``dims``: `_dimension_witness` of ``n``. A tuple of ``n`` zeros makes ``n``
     a compile-time constant (``len`` of a tuple is part of its type): numba
     compiles the function once per such ``n`` and the compiler unrolls the
-    loops over ``n`` (at 4 parameters the usual step took 20 % less time).
+    loops over ``n``; an array makes it one loop for every ``n`` (see
+    `_SPECIALISED` for where the constant pays).
 
     The usual steps run in `_usual_steps`, a loop without calls; this
     function takes the others (the windup cap, health checks, stored
@@ -714,7 +735,6 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
     """
     N = Z.shape[0]
     n = len(dims)                                    # a constant when dims is a tuple
-    L = Pw.shape[1]
     hasq = Q.shape[0] > 0
     store = covs.shape[0] > 0
     th = x[:, 0].copy()                              # local: no aliasing in the loop
@@ -726,22 +746,22 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
     gn = Pw[n + 1]
     W = np.empty((n, n))
     X = np.empty((n, n))
-    none = np.zeros((n, 0))
+    no_q = np.zeros((0, 0))
     cap = state[3] == 1
-    n_capped = 0
+    n_capped = np.int64(0)                           # a literal 0: two compiles
     w = state[4]
     countdown = check_every - step0 % check_every if check_every > 0 else -1
     if scales is not None:
         hsc, zsc, msc, ysc, Hb = scales
-        _fill_block(Hm, lags, 0, hsc, Hb)
+        _fill_block(Hm, lags, np.int64(0), hsc, Hb)    # not a literal 0: one compile
         h = Hb[0]
     else:
         h = Hm[0]
     if update_first:                                 # the gain of P
-        _sweep_rows(Pw, g, 0.0, 1.0, h, gn, n, L)
+        _sweep_call(Pw, g, 0.0, 1.0, no_q, h, gn)
     else:                                            # P^- and its gain
         w = il if cap else 1.0
-        _sweep(Pw, g, 0.0, 1.0 if cap else il, Q, h, gn, n, L)
+        _sweep_call(Pw, g, 0.0, 1.0 if cap else il, Q, h, gn)
         if store:
             copy2(Pv, covs_p[0])
     g, gn = gn, g
@@ -751,7 +771,7 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
     s = np.nan
     yk = np.nan
     H = Hm if scales is None else Hb
-    k = 0
+    k = np.int64(0)                                  # not a literal: one compile
     while True:
         off = 0 if scales is None else k - k % _SCALED_BLOCK    # the row of step k in H: k - off
         (k, cu, kc, updated, cap, check, due, cheap_bad, s, yk, w, countdown, n_capped,
@@ -763,7 +783,7 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
         last = k == N - 1
         hn = H[min(k + 1, N - 1) - off]              # the next row
         if last:
-            x[:, 0] = th
+            _store_column(th, x)
             if updated:
                 for i in range(n):
                     K[i] = g[i] * kc
@@ -773,16 +793,16 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
         if last or cap or store or (check and hasq and not update_first):
             _unfused_step(x, Pw, Pv, g, gn, cu, 1.0 if cap else il, Q, hn, k,
                           last, check, update_first, due, cheap_bad, cond_max, state,
-                          episodes, P_fail, W, X, none, symmetric, x_prior, P_prior, x_post,
+                          episodes, P_fail, W, X, symmetric, x_prior, P_prior, x_post,
                           P_post, covs, covs_p)
         else:
-            _sweep(Pw, g, cu, il, Q, hn, gn, n, L)
+            _sweep_call(Pw, g, cu, il, Q, hn, gn)
             if check:
-                _health(Pv, none, symmetric, cond_max, k, due, cheap_bad, state, episodes,
+                _health(Pv, None, symmetric, cond_max, k, due, cheap_bad, state, episodes,
                         P_fail, W, X)
         g, gn = gn, g
         if k == N - 2 and not update_first:
-            x[:, 0] = th
+            _store_column(th, x)
             copy2(x, x_prior)
             copy2(Pv, P_prior)
         if last:
@@ -885,15 +905,22 @@ def _usual_steps(k, N, Z, H, off, Rv, il, Q, cfg, means, ys, th, Pw, g, gn, w, c
 
 
 _SCALED_BLOCK = 256   # rows `exponential_batch` scales at a time
-_UNROLLED_MAX = 8     # `exponential_batch` is compiled for each n up to this
+#: The sizes `exponential_batch` is compiled for with ``n`` a constant. Each is a
+#: compile of its own (about 3 s of CPU the first time it runs); measured against the one
+#: loop for every ``n`` (batch_filter, lam = 0.99, 10^4 to 10^5 samples, median of 7
+#: interleaved rounds in one process, thread CPU time): 1.00x at 2 parameters, 0.84x (slower)
+#: at 3, 1.02x at 4, 1.12x at 5, 1.00x at 6, 0.97x at 8. Only 5 is kept: the batch_filter
+#: target at 5 parameters (at most the hand-written loop's time, benchmarks/bench_targets.py)
+#: is met with it and missed without.
+_SPECIALISED = (5,)
 
 
 def _dimension_witness(n):
     """The ``dims`` argument of `exponential_batch` for `n` parameters: a tuple of
-    `n` zeros up to `_UNROLLED_MAX` (``n`` is then a constant of the compiled
-    loop), else an array of length `n` (one compiled loop for every larger
-    ``n``)."""
-    return (0,) * n if n <= _UNROLLED_MAX else np.zeros(n, dtype=np.int8)
+    `n` zeros for the sizes of `_SPECIALISED` (``n`` is then a constant of the
+    compiled loop), else an array of length `n` (one compiled loop for every
+    other ``n``)."""
+    return (0,) * n if n in _SPECIALISED else np.zeros(n, dtype=np.int8)
 
 
 @njit(cache=True, error_model="numpy")
@@ -917,35 +944,45 @@ def _scale_block(Hm, k, hsc, Hb):
             Hb[r, i] = Hm[k + r, i] * hsc[i]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
+def _store_column(th, x):
+    """``x[:, 0] = th`` as a loop (a slice assignment compiles numba's shape-error
+    message, string formatting included: a second of CPU on the first run)."""
+    for i in range(th.shape[0]):
+        x[i, 0] = th[i]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def _unfused_step(x, Pw, P, g, gn, cu, il, Q, h, k, last, check, update_first, due, cheap_bad,
-                  cond_max, state, episodes, P_fail, W, X, none, symmetric, x_prior, P_prior,
+                  cond_max, state, episodes, P_fail, W, X, symmetric, x_prior, P_prior,
                   x_post, P_post, covs, covs_p):
-    """The rare steps of `exponential_batch` (not inlined, so that they stay out of
-    the loop's code): a step whose time update the windup cap holds back (`il`
-    is then 1), and a step whose updated ``P`` is checked, kept (the last) or
-    stored (``covs``, ``covs_p`` of length N), whose sweep runs in two halves:
+    """The rare steps of `exponential_batch` (inlined there: the usual steps run in
+    `_usual_steps`, so this stays out of the hot loop; a separate function was compiled
+    again with its callees linked in, a fifth of the first run's compile work): a step
+    whose time update the windup cap holds back (`il` is then 1), and a step whose
+    updated ``P`` is checked, kept (the last) or stored (``covs``, ``covs_p`` of
+    length N), whose sweep runs in two halves:
     the update, then the time update with the next gain (after the last
     update only with `update_first`). The sweeps run on the padded ``Pw``, the
     copies and the checks read its view ``P``."""
     store = covs.shape[0] > 0
     if not (check or last or store):
-        _sweep(Pw, g, cu, il, Q, h, gn, h.shape[0], Pw.shape[1])
+        _sweep_call(Pw, g, cu, il, Q, h, gn)
         return
-    _sweep_rows(Pw, g, cu, 1.0, h, gn, h.shape[0], Pw.shape[1])
+    _sweep_call(Pw, g, cu, 1.0, np.zeros((0, 0)), h, gn)         # the update half, no Q
     if store:
         copy2(P, covs[k])
     if last:
         copy2(x, x_post)
         copy2(P, P_post)
     if check and not update_first:
-        _health(P, none, symmetric, cond_max, k, due, cheap_bad, state, episodes, P_fail, W, X)
+        _health(P, None, symmetric, cond_max, k, due, cheap_bad, state, episodes, P_fail, W, X)
     if not last or update_first:
-        _sweep(Pw, g, 0.0, il, Q, h, gn, h.shape[0], Pw.shape[1])
+        _sweep_call(Pw, g, 0.0, il, Q, h, gn)
         if store:
             copy2(P, covs_p[k if update_first else k + 1])
     if check and update_first:
-        _health(P, none, symmetric, cond_max, k, due, cheap_bad, state, episodes, P_fail, W, X)
+        _health(P, None, symmetric, cond_max, k, due, cheap_bad, state, episodes, P_fail, W, X)
     if last and update_first:
         copy2(x, x_prior)
         copy2(P, P_prior)
@@ -1032,7 +1069,7 @@ def run_batch(x, P, Z, Hm, Rv, cfg, Q, basis, update_first, store_covariances,
     fused = mode == EXPONENTIAL and gate == np.inf and len(cfg) == CFG_PI and m == 1 and N > 0
     if lags is not None and not fused:                # the step loop reads a matrix
         Hm = np.empty((N, n))
-        lag_rows(lags, 0, np.ones(n), Hm)
+        lag_rows_numpy(lags, 0, np.ones(n), Hm)
         Hc, lags = Hm, None
     covs = np.empty((N if store_covariances else 0, n, n))
     covs_p = np.empty((N if store_covariances else 0, n, n))
@@ -1073,7 +1110,7 @@ def run_batch(x, P, Z, Hm, Rv, cfg, Q, basis, update_first, store_covariances,
     if N:                                             # the last step as the filter saw it
         if lags is not None:                          # the last row, read as the loop read it
             out.H_last = np.empty((1, n))
-            lag_rows(lags, N - 1, hsc, out.H_last)
+            lag_rows_numpy(lags, N - 1, hsc, out.H_last)
             out.H_last, out.z_last, out.y_last = out.H_last[0], Z[-1] * zsc, out.ys[-1] / ysc
         elif scales is not None:
             out.H_last, out.z_last, out.y_last = Hm[-1] * hsc, Z[-1] * zsc, out.ys[-1] / ysc

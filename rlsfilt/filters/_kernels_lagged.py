@@ -25,7 +25,7 @@ import numpy as np
 
 from .._numba import njit  # numba.njit, uncached where no cache directory is writable
 
-__all__ = ["lag_rows", "lag_gram", "lag_residuals"]
+__all__ = ["lag_rows", "lag_rows_numpy", "lag_gram", "lag_residuals"]
 
 _BLOCK = 1024   # rows `lag_gram` and `lag_residuals` build at a time
 
@@ -42,7 +42,7 @@ def lag_rows(lags, k, scale, out):
     Y, U, cols, seg_rows, seg_t0 = lags
     rows = min(out.shape[0], seg_rows[-1] - k)
     n = cols.shape[0]
-    s = np.searchsorted(seg_rows, k, side="right") - 1
+    s = _segment(seg_rows, k)
     r0 = 0
     while r0 < rows:
         kr = k + r0
@@ -69,6 +69,48 @@ def lag_rows(lags, k, scale, out):
                     out[o + r, jj] = f
         r0 += run
     return rows
+
+
+def lag_rows_numpy(lags, k, scale, out):
+    """`lag_rows` in NumPy, for the calls from Python (a few leading rows, the last row, a
+    whole matrix): the same numbers, a strided copy times one factor per column and run
+    of rows, with nothing to compile (the compiled `lag_rows` is inlined into the
+    kernels that read rows a block at a time)."""
+    Y, U, cols, seg_rows, seg_t0 = lags
+    rows = min(out.shape[0], int(seg_rows[-1]) - k)
+    s = int(np.searchsorted(seg_rows, k, side="right")) - 1
+    r0 = 0
+    while r0 < rows:
+        kr = k + r0
+        while kr >= seg_rows[s + 1]:
+            s += 1
+        run = min(rows - r0, int(seg_rows[s + 1]) - kr)
+        t = int(seg_t0[s]) + kr - int(seg_rows[s])
+        for j, (kind, ch, lag) in enumerate(cols.tolist()):
+            dst = out[r0:r0 + run, j]
+            if kind == 0:                         # -y * f as y * (-f): the same bits
+                np.multiply(Y[t - lag:t - lag + run, ch], -scale[j], out=dst)
+            elif kind == 1:
+                np.multiply(U[t - lag:t - lag + run, ch], scale[j], out=dst)
+            else:
+                dst[...] = scale[j]
+        r0 += run
+    return rows
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _segment(seg_rows, k):
+    """The experiment of row `k`: the last ``s`` with ``seg_rows[s] <= k`` (bisection;
+    ``np.searchsorted(seg_rows, k, side="right") - 1``, whose string argument made
+    numba compile its string operations into every caller, a second of CPU)."""
+    lo, hi = 0, seg_rows.shape[0]
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if seg_rows[mid] <= k:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo - 1
 
 
 @njit(cache=True, error_model="numpy", fastmath={"reassoc", "contract"})
@@ -130,7 +172,9 @@ def lag_residuals(lags, theta, out, top):
     Y, U, cols, seg_rows, seg_t0 = lags
     n, m = theta.shape
     with_target = np.empty((n + 1, 3), dtype=np.int64)
-    with_target[:n] = cols
+    for j in range(n):                            # loops, not slice assignments: less to compile
+        for c in range(3):
+            with_target[j, c] = cols[j, c]
     scale = np.empty(n + 1)
     scale[n] = -1.0
     Bt = np.empty((n + 1, _BLOCK))
@@ -138,7 +182,8 @@ def lag_residuals(lags, theta, out, top):
     total = seg_rows[-1]
     for i in range(m):
         with_target[n, 0], with_target[n, 1], with_target[n, 2] = 0, i, 0
-        scale[:n] = theta[:, i]
+        for j in range(n):
+            scale[j] = theta[j, i]
         rows_lags = (Y, U, with_target, seg_rows, seg_t0)
         top[i] = 0.0
         for k in range(0, total, _BLOCK):

@@ -1122,9 +1122,15 @@ class RecursiveLeastSquares(_FilterBase):
         """The health problem of ``P`` after update `n_updates` (the check is due;
         `diagonal_bad`: the kernel's cheap check failed), or None."""
         kern = _streaming.kernels()
-        basis = np.zeros((self.dim_x, 0)) if self._null_basis is None else self._null_basis
         armed = not self._warned_health              # warned: only the bound re-arms
-        if not (diagonal_bad or kern.unhealthy_on(P, basis, self.cond_max, armed)):
+        # without constraints `unhealthy` itself (`unhealthy_on` with an empty basis): the
+        # batch loops' check compiled it already, `unhealthy_on` is not compiled for it
+        bad = diagonal_bad or (
+            kern.unhealthy(np.ascontiguousarray(P, dtype=np.float64), float(self.cond_max),
+                           armed)
+            if self._null_basis is None else
+            kern.unhealthy_on(P, self._null_basis, self.cond_max, armed))
+        if not bad:
             return None
         if not armed:
             return "`P` is not certified healthy"

@@ -80,7 +80,7 @@ class LagRows:
 
     def rows(self, start, stop, scale=None):
         """``Phi[start:stop]`` (times `scale` column by column), a new array."""
-        from ..filters._kernels_lagged import lag_rows
+        from ..filters._kernels_lagged import lag_rows_numpy as lag_rows
 
         stop = min(stop, self.shape[0])
         out = np.empty((max(stop - start, 0), self.shape[1]))

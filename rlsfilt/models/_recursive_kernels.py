@@ -210,8 +210,10 @@ def rls_update(theta, P, psi, eps, r, cfg, g, K, T, dx, zy):
     for i in range(n):
         dx[i, 0] = 0.0
     zy[0] = eps
+    # T as an 'A' view, as `forget` passes it: `project` (never run here: no constraints,
+    # but typed) then compiles once, not once per layout
     s, lam_t, gated, _ = measurement_update(dx, P, psi, zy[:1], False, r, cfg, P[:0, :0], g,
-                                            zy[1:], K, T, 1.0, dx, P)
+                                            zy[1:], K, T[:, :], 1.0, dx, P)
     for i in range(n):                       # theta = theta + K eps
         theta[i] = theta[i] + dx[i, 0]
     return s, lam_t, gated
@@ -256,9 +258,11 @@ def take_lags(a, b, j, buf, ra, rb, first, count, sign):
 # ----------------------------------------------------------------------
 # RPEM / RPLR
 # ----------------------------------------------------------------------
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _lagged_sum(theta, start, n, buf, sig, first_lag):
-    """``sum_{k<n} theta[start + k] * buf[sig, first_lag + k]``."""
+    """``sum_{k<n} theta[start + k] * buf[sig, first_lag + k]`` (inlined: called with
+    constant rows and lags, a separate function was compiled once per constant, nine
+    times for `rpem_step`)."""
     acc = 0.0
     for k in range(n):
         acc += theta[start + k] * buf[sig, first_lag + k]
