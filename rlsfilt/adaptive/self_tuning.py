@@ -24,6 +24,7 @@ import warnings
 import numpy as np
 
 from .._iosystem import call_capturing, make_iosystem, push, restore_filter, snapshot_filter
+from .._lazy import lazy_module
 from .._validation import check_dt, check_int, check_real, check_scalar
 from ..exceptions import ExcitationWarning, RegulatorWarning
 from ..filters import _filter_state
@@ -31,6 +32,8 @@ from ._polynomials import coprimeness, degree, fmt_complex, padd, roots, trim
 from .rst import RSTController, _prepared_design, rst_design
 
 __all__ = ["SelfTuningRegulator", "STRHistory"]
+
+_kernels = lazy_module("rlsfilt.adaptive._kernels_design")
 
 # names of the scalar bookkeeping entries of the state vector, in order
 _SCALARS = ("have_controller", "step", "trace_ref", "warned_excitation", "warned_windup",
@@ -278,6 +281,13 @@ class SelfTuningRegulator:
             raise TypeError(f"`design` must be a callable design(A, B) -> RSTController or a "
                             f"dict of rst_design keywords; got {type(design).__name__}")
         self.design = design
+        self._fast = None       # the compiled design's arguments, see _fast_design
+        options = getattr(design, "options", None)
+        if options is not None and options[3] == 0.0:   # rst_design, no zero cancelled
+            Am, Ao, integral, _, tol, _ = options
+            Acl = np.convolve(Am, Ao)
+            self._fast = (design, np.ascontiguousarray(trim(Acl)), np.array(Ao, dtype=float),
+                          float(Am.sum()), bool(integral), float(tol))
         self.redesign_every = check_int(redesign_every, "redesign_every", minimum=1)
         self.dead_zone = check_real(dead_zone, "dead_zone", minimum=0)
         self.bounds = None if bounds is None else _check_bounds(bounds, n)
@@ -303,6 +313,7 @@ class SelfTuningRegulator:
         self._upast = np.zeros(max(self.nk + self.nb - 1, L - 1))
         self._rpast = np.zeros(L - 1)
         self._ctrl = np.zeros((3, L))      # rows R, S, T, zero-padded
+        self._rows_work = np.zeros((3, L))     # scratch of the compiled design
         self._info = np.zeros((n, n))      # sum of phi phi^T over the monitor block
         self._scalars = np.zeros(len(_SCALARS))
         self._scalars[2] = float(np.trace(estimator.P))   # reference trace(P)
@@ -413,10 +424,14 @@ class SelfTuningRegulator:
         rejected = reduced = False
         if redesigned:
             A, B = self._polynomials(theta)
-            ctrl, kind, caught = self._try_design(A, B, theta)
-            messages += caught
+            if self._fast_design(A, B):
+                ctrl, kind = True, "full"
+            else:
+                ctrl, kind, caught = self._try_design(A, B, theta)
+                messages += caught
+                if ctrl is not None:
+                    self._install(ctrl, "design")
             if ctrl is not None:
-                self._install(ctrl, "design")
                 reduced = kind == "reduced"
                 self._scalars[_I["rejected_run"]] = 0.0
                 self._scalars[_I["warned_rejected"]] = 0.0
@@ -562,6 +577,30 @@ class SelfTuningRegulator:
                  "the controller in use cannot control the plant within u_limits. Check "
                  "history.rejected, the model orders and the design's speed (Am)",
                  RegulatorWarning)]
+
+    def _fast_design(self, A, B):
+        """The common case of :meth:`_try_design` in one compiled call: True if it
+        installed the full design (the decision and the controller of the NumPy
+        path, which runs whenever this returns False: near a common factor, a design
+        that `rst_design` refuses or that fails a check, another design function)."""
+        fast = self._fast
+        if fast is None or self.design is not fast[0] or self.stable_R:
+            return False
+        sc = self._scalars
+        try:
+            status, _, size = _kernels().design_full(
+                A, B, *fast[1:], self.coprime_tol, self.reduce_tol, self.max_growth,
+                bool(sc[0]), float(sc[_I["size_last"]]), self._rows_work)
+        except (ValueError, ZeroDivisionError, np.linalg.LinAlgError):
+            return False
+        if status != 0:
+            return False
+        self._checked = {}
+        self._why = ""
+        self._ctrl[:] = self._rows_work
+        sc[0] = 1.0
+        sc[_I["size_last"]] = size
+        return True
 
     def _try_design(self, A, B, theta):
         """``(controller or None, "full" or "reduced", messages)`` for the estimate ``A, B``.
