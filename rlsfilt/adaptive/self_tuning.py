@@ -588,7 +588,7 @@ class SelfTuningRegulator:
             return False
         sc = self._scalars
         try:
-            status, _, size = _kernels().design_full(
+            status, size = _kernels().design_full(
                 A, B, *fast[1:], self.coprime_tol, self.reduce_tol, self.max_growth,
                 bool(sc[0]), float(sc[_I["size_last"]]), self._rows_work)
         except (ValueError, ZeroDivisionError, np.linalg.LinAlgError):
