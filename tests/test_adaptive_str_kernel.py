@@ -12,12 +12,11 @@ import warnings
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose, assert_array_equal
+from test_adaptive_str_guard import A1, B1, DESIGN, _run
 
 from rlsfilt import RecursiveLeastSquares
 from rlsfilt.adaptive import SelfTuningRegulator, rst_design
 from rlsfilt.adaptive._polynomials import coprimeness
-
-from test_adaptive_str_guard import A1, B1, DESIGN, _run
 
 
 def _regulator(na, nb, nk, design, fast=True, **kwargs):

@@ -19,6 +19,7 @@ parameters or the covariance winds up.
 """
 
 import functools
+import math
 import warnings
 
 import numpy as np
@@ -350,8 +351,12 @@ class SelfTuningRegulator:
         return self._polynomials(self.theta)
 
     def _polynomials(self, theta):
-        A = np.concatenate([[1.0], theta[:self.na]])
-        B = np.concatenate([np.zeros(self.nk), theta[self.na:self.na + self.nb]])
+        na, nk = self.na, self.nk
+        A = np.empty(na + 1)
+        A[0] = 1.0
+        A[1:] = theta[:na]
+        B = np.zeros(nk + self.nb)
+        B[nk:] = theta[na:na + self.nb]
         return A, B
 
     # ------------------------------------------------------------------
@@ -401,8 +406,11 @@ class SelfTuningRegulator:
         if not self.offset and k < _LEVEL_WINDOW:
             messages += self._check_level(y, k)
         # regressor phi(t) = [-y(t-1) .. -y(t-na), u(t-nk) .. u(t-nk-nb+1) (, 1)]
-        phi = np.concatenate([-self._ypast[:na], self._upast[nk - 1:nk - 1 + nb],
-                              np.ones(int(self.offset))])
+        phi = np.empty(na + nb + self.offset)
+        np.negative(self._ypast[:na], out=phi[:na])
+        phi[na:na + nb] = self._upast[nk - 1:nk - 1 + nb]
+        if self.offset:
+            phi[-1] = 1.0
         theta = self.theta
         e = y - phi @ theta                       # a-priori prediction error
         updated = self.dead_zone == 0.0 or abs(e) > self.dead_zone
@@ -410,7 +418,7 @@ class SelfTuningRegulator:
             _, caught = call_capturing(est.predict_update, y, phi)
             messages += caught
             theta = self.theta
-            if not (np.all(np.isfinite(theta)) and np.all(np.isfinite(est.P))):
+            if not (np.isfinite(theta).all() and np.isfinite(est.P).all()):
                 raise ValueError(
                     f"SelfTuningRegulator: the estimate became non-finite at step {k} (`y` = "
                     f"{y:.6g}, largest |phi| = {np.max(np.abs(phi), initial=0.0):.6g}): the "
@@ -480,10 +488,10 @@ class SelfTuningRegulator:
         push(self._upast, u)
         push(self._rpast, r)
         # excitation monitor, windup check and saturation watchdog
-        self._info += np.outer(phi, phi)
+        self._info += phi[:, None] * phi[None, :]
         self._scalars[_I["sat_block"]] += saturated
         self._scalars[_I["err2_block"]] += (r - y) ** 2
-        trace = float(np.trace(est.P))
+        trace = float(np.asarray(est.P).trace())
         if trace > self.windup_ratio * self._scalars[2]:
             if not self._scalars[4]:
                 self._scalars[4] = 1.0
@@ -522,6 +530,8 @@ class SelfTuningRegulator:
 
     def _check_signal(self, value, name, k, computed=False):
         """Raise a `ValueError` naming the signal if it is not finite or beyond `signal_limit`."""
+        if math.isfinite(value) and abs(value) <= self.signal_limit:
+            return
         what = f"the computed `{name}`" if computed else f"`{name}`"
         if not np.isfinite(value):
             raise ValueError(f"`{name}` must be finite; got {value} at step {k}"
@@ -779,7 +789,9 @@ class SelfTuningRegulator:
 
     def _io_step(self, w):
         y, r, v = (float(x) for x in w)
-        u, record, messages = self._advance(y, r, v)
+        # no snapshot to undo a failed step: the system never reuses a working copy
+        # whose step raised (it restores the next one from the state vector)
+        u, record, messages = self._advance_unsafe(y, r, v)
         if self._io_extra:
             return np.concatenate([[u, record[3]], record[4]]), messages
         return np.array([u]), messages
