@@ -236,3 +236,40 @@ def design_full(A, B, Acl, Ao, am_sum, integral, tol_design, tol_reg, reduce_tol
     if have_ctrl and size_last > 0 and size > max_growth * size_last:
         return NOT_VERIFIED, 0.0
     return ACCEPTED, size
+
+
+@njit(cache=True, error_model="numpy")
+def control_law(ctrl, rpast, ypast, upast, y, r):
+    r"""``u(t)`` of :math:`R u = T r - S y` before the offset, the dither and the limits.
+
+    .. math::
+
+        u(t) = \big(t_0 r(t) + \sum_{i \ge 1} t_i r(t-i) - s_0 y(t)
+               - \sum_{i \ge 1} s_i y(t-i) - \sum_{i \ge 1} r_i u(t-i)\big) / r_0
+
+    with the rows ``R, S, T`` of `ctrl` (length ``L``) and the newest-first
+    memories.
+    """
+    m = ctrl.shape[1] - 1
+    R, S, T = ctrl[0], ctrl[1], ctrl[2]
+    return (T[0] * r + np.dot(T[1:], rpast[:m]) - S[0] * y - np.dot(S[1:], ypast[:m])
+            - np.dot(R[1:], upast[:m])) / R[0]
+
+
+@njit(cache=True, error_model="numpy")
+def remember(ypast, upast, rpast, info, scalars, phi, y, u, r, saturated, i_sat, i_err2):
+    r"""The end of a sample: push ``y, u, r`` into their newest-first memories,
+    :math:`\sum \varphi\varphi^T` += :math:`\varphi\varphi^T`, and the watchdog's
+    block sums: ``scalars[i_sat]`` += `saturated`, ``scalars[i_err2]`` +=
+    :math:`(r - y)^2`."""
+    for buf, value in ((ypast, y), (upast, u), (rpast, r)):
+        for i in range(len(buf) - 1, 0, -1):
+            buf[i] = buf[i - 1]
+        if len(buf):
+            buf[0] = value
+    n = len(phi)
+    for i in range(n):
+        for j in range(n):
+            info[i, j] += phi[i] * phi[j]
+    scalars[i_sat] += saturated
+    scalars[i_err2] += (r - y) ** 2

@@ -24,7 +24,7 @@ import warnings
 
 import numpy as np
 
-from .._iosystem import call_capturing, make_iosystem, push, restore_filter, snapshot_filter
+from .._iosystem import call_capturing, make_iosystem, restore_filter, snapshot_filter
 from .._lazy import lazy_module
 from .._validation import check_dt, check_int, check_real, check_scalar
 from ..exceptions import ExcitationWarning, RegulatorWarning
@@ -401,8 +401,11 @@ class SelfTuningRegulator:
         est = self.estimator
         messages = []
         k = int(self._scalars[1])
-        for value, name in ((y, "y"), (r, "r"), (v, "dither")):
-            self._check_signal(value, name, k)
+        lim = self.signal_limit
+        if not (math.isfinite(y) and math.isfinite(r) and math.isfinite(v)
+                and abs(y) <= lim and abs(r) <= lim and abs(v) <= lim):
+            for value, name in ((y, "y"), (r, "r"), (v, "dither")):
+                self._check_signal(value, name, k)
         if not self.offset and k < _LEVEL_WINDOW:
             messages += self._check_level(y, k)
         # regressor phi(t) = [-y(t-1) .. -y(t-na), u(t-nk) .. u(t-nk-nb+1) (, 1)]
@@ -411,13 +414,13 @@ class SelfTuningRegulator:
         phi[na:na + nb] = self._upast[nk - 1:nk - 1 + nb]
         if self.offset:
             phi[-1] = 1.0
-        theta = self.theta
+        theta = np.array(est.x, dtype=float).reshape(-1)     # a copy, as self.theta
         e = y - phi @ theta                       # a-priori prediction error
         updated = self.dead_zone == 0.0 or abs(e) > self.dead_zone
         if updated:
             _, caught = call_capturing(est.predict_update, y, phi)
             messages += caught
-            theta = self.theta
+            theta = np.array(est.x, dtype=float).reshape(-1)
             if not (np.isfinite(theta).all() and np.isfinite(est.P).all()):
                 raise ValueError(
                     f"SelfTuningRegulator: the estimate became non-finite at step {k} (`y` = "
@@ -466,11 +469,10 @@ class SelfTuningRegulator:
                     f"rejected (the last because {self._why}); {state}. Check the model "
                     "orders, the excitation and the design (Am, Ao)", RegulatorWarning))
         # control law R (u - u_c) = T r - S y, with the past from the memories
-        L = self._L
+        kernels = _kernels()
         if self._scalars[0]:
-            R, S, T = self._ctrl
-            u = (T[0] * r + T[1:] @ self._rpast[:L - 1] - S[0] * y - S[1:] @ self._ypast[:L - 1]
-                 - R[1:] @ self._upast[:L - 1]) / R[0]
+            R = self._ctrl[0]
+            u = kernels.control_law(self._ctrl, self._rpast, self._ypast, self._upast, y, r)
             if self.offset:
                 Bsum = theta[na:na + nb].sum()
                 if abs(Bsum) > 1e-12 * np.abs(theta[na:na + nb]).sum():
@@ -484,13 +486,10 @@ class SelfTuningRegulator:
             saturated = not self.u_limits[0] < u < self.u_limits[1]
             u = min(max(u, self.u_limits[0]), self.u_limits[1])
         u = float(u)
-        push(self._ypast, y)
-        push(self._upast, u)
-        push(self._rpast, r)
-        # excitation monitor, windup check and saturation watchdog
-        self._info += phi[:, None] * phi[None, :]
-        self._scalars[_I["sat_block"]] += saturated
-        self._scalars[_I["err2_block"]] += (r - y) ** 2
+        # the memories, the excitation monitor's sum, the saturation watchdog's block sums
+        kernels.remember(self._ypast, self._upast, self._rpast, self._info, self._scalars, phi,
+                         y, u, r, float(saturated), _I["sat_block"], _I["err2_block"])
+        # windup check, excitation monitor and saturation watchdog
         trace = float(np.asarray(est.P).trace())
         if trace > self.windup_ratio * self._scalars[2]:
             if not self._scalars[4]:
