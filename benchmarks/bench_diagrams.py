@@ -14,7 +14,10 @@ Everything is timed in one process, as CPU time of the measuring thread
        size (update ``x``, outputs zeros): python-control's own overhead
 (e)    the regulator: ``SelfTuningRegulator.step`` in a loop with the plant,
        its system's update and output functions called directly, the whole
-       interconnect simulation (and its trivial twin), against a plain-numpy
+       interconnect simulation (and its trivial twin, whose output ``u = (r - y) / 2``
+       passes ``y`` through as the regulator's does: python-control then
+       iterates its algebraic loop as often, three output passes per
+       evaluation instead of two), against a plain-numpy
        loop doing the same work (RLS, the coprimeness SVD, the Sylvester solve,
        the check ``A R + B S`` and the closed-loop roots, the control law)
 =====  ==========================================================================
@@ -64,10 +67,22 @@ def plant_sys():
     return control.ss(control.tf(B, A, True), inputs="u", outputs="y", name="plant")
 
 
-def trivial(nstates, inputs, outputs, name):
-    """A NonlinearIOSystem doing nothing, of the given size: python-control's overhead."""
+def trivial(nstates, inputs, outputs, name, feedthrough=False):
+    """A NonlinearIOSystem doing nothing, of the given size: python-control's overhead.
+
+    With `feedthrough`, the outputs are ``(u[1] - u[0]) / 2`` (a proportional law on
+    the first two inputs, ``r - y`` for the regulator's), so that python-control
+    iterates an algebraic loop through it as often as through a system whose outputs
+    depend on its inputs.
+    """
     zeros = np.zeros(len(outputs))
-    return control.nlsys(lambda t, x, u, p: x, lambda t, x, u, p: zeros, inputs=inputs,
+    if feedthrough:
+        def out(t, x, u, p):
+            return zeros + 0.5 * (u[1] - u[0])
+    else:
+        def out(t, x, u, p):
+            return zeros
+    return control.nlsys(lambda t, x, u, p: x, out, inputs=inputs,
                          outputs=outputs, states=nstates, dt=True, name=name)
 
 
@@ -203,7 +218,7 @@ def bench_regulator(N, repeats):
     T = np.arange(N)
     loop = control.interconnect([plant_sys(), sysm], inputs=["r", "dither"], outputs=["y", "u"])
     twin = control.interconnect(
-        [plant_sys(), trivial(sysm.nstates, ["y", "r", "dither"], ["u"], "str")],
+        [plant_sys(), trivial(sysm.nstates, ["y", "r", "dither"], ["u"], "str", True)],
         inputs=["r", "dither"], outputs=["y", "u"])
     t = {"(e) plain-numpy loop (same work)": best(lambda: numpy_regulator(N, r, d), repeats),
          "(e) SelfTuningRegulator.step loop": best(step_loop, repeats),

@@ -32,6 +32,7 @@ _COLD_SECONDS = {
     "rlsfilt.filters._kernels_bank": 15,
     "rlsfilt.models._recursive_kernels": 10,
     "rlsfilt.validation._kernels_detection": 5,
+    "rlsfilt.adaptive._kernels_design": 5,
 }
 
 _announced = []
@@ -123,6 +124,13 @@ for method in ("cusum", "glr"):
     det = BankChangeDetector(4, method, window=8)
     det.update(np.ones(4), np.ones(4))
     det.g_plus
+"""),
+    ("SelfTuningRegulator", """
+from rlsfilt.adaptive import SelfTuningRegulator
+stre = SelfTuningRegulator(rlsfilt.RecursiveLeastSquares(4, P0=100.0),
+                           dict(Am=np.poly([0.5, 0.6]), Ao=np.poly([0.2])), na=2, nb=2)
+for t in range(20):
+    stre.step(y[t], 1.0)
 """),
 )
 

@@ -435,6 +435,7 @@ def _prepared_design(*, Am=None, Ao=None, integral=True, cancel_zeros=False, dt=
         A, B, _ = _plant(A, B)
         return _solve_rst(A, B, *options)
 
+    design.options = options        # (Am, Ao, integral, radius, coprime_tol, dt), checked
     return design
 
 

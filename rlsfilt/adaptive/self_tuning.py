@@ -19,11 +19,13 @@ parameters or the covariance winds up.
 """
 
 import functools
+import math
 import warnings
 
 import numpy as np
 
-from .._iosystem import call_capturing, make_iosystem, push, restore_filter, snapshot_filter
+from .._iosystem import call_capturing, make_iosystem, restore_filter, snapshot_filter
+from .._lazy import lazy_module
 from .._validation import check_dt, check_int, check_real, check_scalar
 from ..exceptions import ExcitationWarning, RegulatorWarning
 from ..filters import _filter_state
@@ -31,6 +33,8 @@ from ._polynomials import coprimeness, degree, fmt_complex, padd, roots, trim
 from .rst import RSTController, _prepared_design, rst_design
 
 __all__ = ["SelfTuningRegulator", "STRHistory"]
+
+_kernels = lazy_module("rlsfilt.adaptive._kernels_design")
 
 # names of the scalar bookkeeping entries of the state vector, in order
 _SCALARS = ("have_controller", "step", "trace_ref", "warned_excitation", "warned_windup",
@@ -278,6 +282,13 @@ class SelfTuningRegulator:
             raise TypeError(f"`design` must be a callable design(A, B) -> RSTController or a "
                             f"dict of rst_design keywords; got {type(design).__name__}")
         self.design = design
+        self._fast = None       # the compiled design's arguments, see _fast_design
+        options = getattr(design, "options", None)
+        if options is not None and options[3] == 0.0:   # rst_design, no zero cancelled
+            Am, Ao, integral, _, tol, _ = options
+            Acl = np.convolve(Am, Ao)
+            self._fast = (design, np.ascontiguousarray(trim(Acl)), np.array(Ao, dtype=float),
+                          float(Am.sum()), bool(integral), float(tol))
         self.redesign_every = check_int(redesign_every, "redesign_every", minimum=1)
         self.dead_zone = check_real(dead_zone, "dead_zone", minimum=0)
         self.bounds = None if bounds is None else _check_bounds(bounds, n)
@@ -303,6 +314,7 @@ class SelfTuningRegulator:
         self._upast = np.zeros(max(self.nk + self.nb - 1, L - 1))
         self._rpast = np.zeros(L - 1)
         self._ctrl = np.zeros((3, L))      # rows R, S, T, zero-padded
+        self._rows_work = np.zeros((3, L))     # scratch of the compiled design
         self._info = np.zeros((n, n))      # sum of phi phi^T over the monitor block
         self._scalars = np.zeros(len(_SCALARS))
         self._scalars[2] = float(np.trace(estimator.P))   # reference trace(P)
@@ -339,8 +351,12 @@ class SelfTuningRegulator:
         return self._polynomials(self.theta)
 
     def _polynomials(self, theta):
-        A = np.concatenate([[1.0], theta[:self.na]])
-        B = np.concatenate([np.zeros(self.nk), theta[self.na:self.na + self.nb]])
+        na, nk = self.na, self.nk
+        A = np.empty(na + 1)
+        A[0] = 1.0
+        A[1:] = theta[:na]
+        B = np.zeros(nk + self.nb)
+        B[nk:] = theta[na:na + self.nb]
         return A, B
 
     # ------------------------------------------------------------------
@@ -385,21 +401,27 @@ class SelfTuningRegulator:
         est = self.estimator
         messages = []
         k = int(self._scalars[1])
-        for value, name in ((y, "y"), (r, "r"), (v, "dither")):
-            self._check_signal(value, name, k)
+        lim = self.signal_limit
+        if not (math.isfinite(y) and math.isfinite(r) and math.isfinite(v)
+                and abs(y) <= lim and abs(r) <= lim and abs(v) <= lim):
+            for value, name in ((y, "y"), (r, "r"), (v, "dither")):
+                self._check_signal(value, name, k)
         if not self.offset and k < _LEVEL_WINDOW:
             messages += self._check_level(y, k)
         # regressor phi(t) = [-y(t-1) .. -y(t-na), u(t-nk) .. u(t-nk-nb+1) (, 1)]
-        phi = np.concatenate([-self._ypast[:na], self._upast[nk - 1:nk - 1 + nb],
-                              np.ones(int(self.offset))])
-        theta = self.theta
+        phi = np.empty(na + nb + self.offset)
+        np.negative(self._ypast[:na], out=phi[:na])
+        phi[na:na + nb] = self._upast[nk - 1:nk - 1 + nb]
+        if self.offset:
+            phi[-1] = 1.0
+        theta = np.array(est.x, dtype=float).reshape(-1)     # a copy, as self.theta
         e = y - phi @ theta                       # a-priori prediction error
         updated = self.dead_zone == 0.0 or abs(e) > self.dead_zone
         if updated:
             _, caught = call_capturing(est.predict_update, y, phi)
             messages += caught
-            theta = self.theta
-            if not (np.all(np.isfinite(theta)) and np.all(np.isfinite(est.P))):
+            theta = np.array(est.x, dtype=float).reshape(-1)
+            if not (np.isfinite(theta).all() and np.isfinite(est.P).all()):
                 raise ValueError(
                     f"SelfTuningRegulator: the estimate became non-finite at step {k} (`y` = "
                     f"{y:.6g}, largest |phi| = {np.max(np.abs(phi), initial=0.0):.6g}): the "
@@ -413,10 +435,14 @@ class SelfTuningRegulator:
         rejected = reduced = False
         if redesigned:
             A, B = self._polynomials(theta)
-            ctrl, kind, caught = self._try_design(A, B, theta)
-            messages += caught
+            if self._fast_design(A, B):
+                ctrl, kind = True, "full"
+            else:
+                ctrl, kind, caught = self._try_design(A, B, theta)
+                messages += caught
+                if ctrl is not None:
+                    self._install(ctrl, "design")
             if ctrl is not None:
-                self._install(ctrl, "design")
                 reduced = kind == "reduced"
                 self._scalars[_I["rejected_run"]] = 0.0
                 self._scalars[_I["warned_rejected"]] = 0.0
@@ -443,11 +469,10 @@ class SelfTuningRegulator:
                     f"rejected (the last because {self._why}); {state}. Check the model "
                     "orders, the excitation and the design (Am, Ao)", RegulatorWarning))
         # control law R (u - u_c) = T r - S y, with the past from the memories
-        L = self._L
+        kernels = _kernels()
         if self._scalars[0]:
-            R, S, T = self._ctrl
-            u = (T[0] * r + T[1:] @ self._rpast[:L - 1] - S[0] * y - S[1:] @ self._ypast[:L - 1]
-                 - R[1:] @ self._upast[:L - 1]) / R[0]
+            R = self._ctrl[0]
+            u = kernels.control_law(self._ctrl, self._rpast, self._ypast, self._upast, y, r)
             if self.offset:
                 Bsum = theta[na:na + nb].sum()
                 if abs(Bsum) > 1e-12 * np.abs(theta[na:na + nb]).sum():
@@ -461,14 +486,11 @@ class SelfTuningRegulator:
             saturated = not self.u_limits[0] < u < self.u_limits[1]
             u = min(max(u, self.u_limits[0]), self.u_limits[1])
         u = float(u)
-        push(self._ypast, y)
-        push(self._upast, u)
-        push(self._rpast, r)
-        # excitation monitor, windup check and saturation watchdog
-        self._info += np.outer(phi, phi)
-        self._scalars[_I["sat_block"]] += saturated
-        self._scalars[_I["err2_block"]] += (r - y) ** 2
-        trace = float(np.trace(est.P))
+        # the memories, the excitation monitor's sum, the saturation watchdog's block sums
+        kernels.remember(self._ypast, self._upast, self._rpast, self._info, self._scalars, phi,
+                         y, u, r, float(saturated), _I["sat_block"], _I["err2_block"])
+        # windup check, excitation monitor and saturation watchdog
+        trace = float(np.asarray(est.P).trace())
         if trace > self.windup_ratio * self._scalars[2]:
             if not self._scalars[4]:
                 self._scalars[4] = 1.0
@@ -507,6 +529,8 @@ class SelfTuningRegulator:
 
     def _check_signal(self, value, name, k, computed=False):
         """Raise a `ValueError` naming the signal if it is not finite or beyond `signal_limit`."""
+        if math.isfinite(value) and abs(value) <= self.signal_limit:
+            return
         what = f"the computed `{name}`" if computed else f"`{name}`"
         if not np.isfinite(value):
             raise ValueError(f"`{name}` must be finite; got {value} at step {k}"
@@ -562,6 +586,30 @@ class SelfTuningRegulator:
                  "the controller in use cannot control the plant within u_limits. Check "
                  "history.rejected, the model orders and the design's speed (Am)",
                  RegulatorWarning)]
+
+    def _fast_design(self, A, B):
+        """The common case of :meth:`_try_design` in one compiled call: True if it
+        installed the full design (the decision and the controller of the NumPy
+        path, which runs whenever this returns False: near a common factor, a design
+        that `rst_design` refuses or that fails a check, another design function)."""
+        fast = self._fast
+        if fast is None or self.design is not fast[0] or self.stable_R:
+            return False
+        sc = self._scalars
+        try:
+            status, size = _kernels().design_full(
+                A, B, *fast[1:], self.coprime_tol, self.reduce_tol, self.max_growth,
+                bool(sc[0]), float(sc[_I["size_last"]]), self._rows_work)
+        except (ValueError, ZeroDivisionError, np.linalg.LinAlgError):
+            return False
+        if status != 0:
+            return False
+        self._checked = {}
+        self._why = ""
+        self._ctrl[:] = self._rows_work
+        sc[0] = 1.0
+        sc[_I["size_last"]] = size
+        return True
 
     def _try_design(self, A, B, theta):
         """``(controller or None, "full" or "reduced", messages)`` for the estimate ``A, B``.
@@ -740,7 +788,9 @@ class SelfTuningRegulator:
 
     def _io_step(self, w):
         y, r, v = (float(x) for x in w)
-        u, record, messages = self._advance(y, r, v)
+        # no snapshot to undo a failed step: the system never reuses a working copy
+        # whose step raised (it restores the next one from the state vector)
+        u, record, messages = self._advance_unsafe(y, r, v)
         if self._io_extra:
             return np.concatenate([[u, record[3]], record[4]]), messages
         return np.array([u]), messages
