@@ -71,7 +71,8 @@ class Segmentation:
     covariances : ndarray, shape (n_segments, n_params, n_params)
         Their covariances, :math:`\sigma_s^2 (\Phi_s^T \Phi_s)^{-1}` with
         :math:`\sigma_s^2` ``R2`` when given, else the segment's residual
-        variance ``RSS / (n_s - n_params)``.
+        variance ``RSS / (n_s - n_params)`` (for an ARMAX model with estimated
+        innovations, the pseudo-linear regression's, see :func:`segment`).
     noise_variances : ndarray, shape (n_segments,)
         :math:`\sigma_s^2` of each segment.
     rss : ndarray, shape (n_segments,)
@@ -193,9 +194,9 @@ def segment(y, u=None, *, na, nb=0, nk=1, nc=0, R2=None, q=0.01, penalty=None, m
         their Hannan-Rissanen estimates (for instance from a model fitted
         elsewhere); finite.
     n_iter : int, default 2
-        ARMAX only: the most rounds of "innovations from the segments found,
-        then the segmentation of the extended regression" (it stops earlier
-        when the change times repeat).
+        ARMAX only: the most rounds of "innovations at the pseudo-linear
+        fixed point on the latest segments, then the segmentation of the
+        extended regression" (it stops earlier when the change times repeat).
 
     Returns
     -------
@@ -218,17 +219,26 @@ def segment(y, u=None, *, na, nb=0, nk=1, nc=0, R2=None, q=0.01, penalty=None, m
         y(t) = -\sum_{k=1}^{n_a} a_k y(t-k) + \sum_i \sum_k b_{i,k} u_i(t-n_{k,i}-k+1)
                + \sum_{k=1}^{n_c} c_k \hat e(t-k) + e(t).
 
-    The estimates :math:`\hat e(t)` are the residuals of a long ARX model
-    (order :math:`L = \max(20, 3(n_a + n_c))`, at most an eighth of the
-    segment per signal) fitted *per segment* of a preliminary segmentation:
-    the ARX (``nc = 0``) one with unknown variance, then, for up to `n_iter`
-    rounds, the latest segmentation of the extended regression. Samples
-    before the first long-model row have no :math:`\hat e` and no
-    regression row (`Segmentation.max_lag` counts them). The approximation
-    is the one of MATLAB's ``segment``, whose ARMAX filters regress on
-    estimated innovations as well (pseudo-linear regression): the
-    covariances ignore the error of :math:`\hat e`, and an innovation
-    estimate near a change mixes the two regimes.
+    The first estimates :math:`\hat e(t)` are the residuals of a long ARX
+    model (order :math:`L = \max(20, 3(n_a + n_c))`, at most an eighth of the
+    segment per signal) fitted *per segment* of a preliminary segmentation,
+    the ARX (``nc = 0``) one with unknown variance. Then, for up to `n_iter`
+    rounds: on the latest segments, the pseudo-linear regression is iterated
+    to its fixed point (each segment's least squares on the extended rows,
+    then :math:`\hat e = (A y - B u) / C` with each segment's polynomials,
+    ``C`` reflected into the unit circle), and the regression with these
+    :math:`\hat e` is segmented exactly. Samples before the first long-model
+    row have no :math:`\hat e` and no regression row
+    (`Segmentation.max_lag` counts them). The approximation is the one of
+    MATLAB's ``segment``, whose ARMAX filters regress on estimated
+    innovations as well (pseudo-linear regression): the segmentation is
+    exact for the regression, not for the ARMAX likelihood, and an
+    innovation estimate near a change mixes the two regimes. The
+    covariances are those of the fixed point,
+    :math:`\sigma^2 (\Phi^T \Psi)^{-1} \Phi^T \Phi (\Psi^T \Phi)^{-1}` with
+    :math:`\psi = \varphi / C(q)` (the plain :math:`\sigma^2 (\Phi^T \Phi)^{-1}`
+    would understate them); with given `innovations`,
+    :math:`\sigma^2 (\Phi^T \Phi)^{-1}`.
 
     References
     ----------
@@ -323,7 +333,7 @@ def segment(y, u=None, *, na, nb=0, nk=1, nc=0, R2=None, q=0.01, penalty=None, m
         return _result(fit, orders, max_lag, len(y), None)
     orders = (*orders[:2], nc, orders[2])
     if innovations is not None:
-        e = as_float_array(innovations, "innovations")
+        e = np.array(as_float_array(innovations, "innovations"), dtype=float)   # (a copy)
         if e.shape != y.shape or not np.all(np.isfinite(e)):
             raise ValueError(f"`innovations` must be finite with the shape of `y`, {y.shape}; "
                              f"got shape {e.shape}" + (" with non-finite values"
@@ -393,7 +403,7 @@ def _pseudo_linear_covariances(A, fit, d0):
     for s, ((a, b), th) in enumerate(zip(fit["bounds"], fit["theta"], strict=True)):
         P = A[a:b]
         Psi = lfilter([1.0], reflect(np.r_[1.0, th[d0:]]), P, axis=0)
-        M = np.linalg.inv(P.T @ Psi)
+        M = np.linalg.pinv(P.T @ Psi)
         cov[s] = fit["sig2"][s] * (M @ (P.T @ P) @ M.T)
     return cov
 
