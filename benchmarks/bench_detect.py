@@ -8,12 +8,16 @@ round counts; times are thread CPU time (``time.thread_time``) with one BLAS thr
 overhead is ``(with detector - without) / without``, printed for CUSUM, Page-Hinkley
 and the GLR at several windows (its step is O(C M)).
 
-Measured on the development machine (2 shared cores, C = 1000, dim_x = 3; best of 5 rounds,
-about +-3 % from run to run): a bank step 34.5 us; with CUSUM 15 %, Page-Hinkley 16 %,
-GLR 20 % (M = 10 and 30) and 25 % (M = 100) more. About 1 us of each is the Python call,
-the CUSUM's kernel about 4 us (a sqrt and a division per channel); the GLR's exact pruning
-(one CUSUM bound per piece of window lengths, see ``_kernels_detection.py``) keeps it from
-the O(C M) of a full scan (before it: 230 % at M = 10, 1000 % at M = 100).
+Measured on the development machine (2 shared cores, C = 1000, dim_x = 3; best of 7 rounds,
+about +-3 % from run to run): a bank step 33.2 us; with CUSUM 10.6 %, Page-Hinkley 10.4 %,
+GLR 11.9 % (M = 10), 12.5 % (M = 30) and 13.9 % (M = 100) more. In the same run, the
+detector before its trimming (a ring ``(C, 2 M)`` written twice per sample, one cache line
+per channel; ten kernel arguments; the kernel module looked up per step) cost 12.0 %,
+13.2 %, 18.1 %, 18.3 % and 19.8 % (earlier runs on a busier machine: up to 25 % at
+M = 100). About 1 us of each is the Python call, the CUSUM's kernel about 3 us (a sqrt and
+a division per channel); the GLR's exact pruning (one CUSUM bound per piece of window
+lengths, see ``_kernels_detection.py``) keeps it from the O(C M) of a full scan (before
+it: 230 % at M = 10, 1000 % at M = 100).
 
 Usage::
 

@@ -10,11 +10,13 @@ statistics are the same bits (``tests/test_bank_detection.py``):
     GLR:           s = 0; for the last L = 1 .. M samples, newest first:
                    s += e_(k-L+1), g = s * s * (1 / (2 L)) -> g+ (s > 0) or g- (s <= 0)
 
-Layout: the channel index is last in ``fstate`` ``(4, C)`` (``g+, g-``, running
-mean and count) and ``istate`` ``(3, C)`` (samples seen, newest slot of the GLR
-ring, samples in the GLR window), so the loops over the channels vectorize; the
-GLR ring ``recent`` is ``(C, 2 M)``, each value written twice (slots ``p`` and
-``p + M``) so that a channel's window, newest first, is contiguous.
+Layout: the channel index is last in ``fstate`` ``(4, C)`` (``g+, g-``,
+running mean and count), ``bounds`` ``(2, K, C)`` (see below) and ``istate``
+``(3, C)`` (samples seen, newest slot of the GLR ring, samples in the GLR
+window), so the loops over the channels vectorize; the GLR ring ``recent`` is
+``(M, C)``, slot-major: channels that advance together (no missing sample)
+write one contiguous row per step, a few cache lines instead of one line per
+channel (the window is read, cyclically, only by a scan).
 
 **The GLR's exact pruning.** Scanning the ``M`` windows of every channel at
 every step costs ``O(C M)``. The test only needs to know whether some window
@@ -25,7 +27,7 @@ chord :math:`\\alpha + \\beta L`, so a crossing in the piece makes
 :math:`S_L - \\beta L > \\alpha`, hence the CUSUM with drift :math:`\\beta`,
 :math:`W = \\max(0, W + e - \\beta)` (the largest :math:`S_L - \\beta L` over
 all windows since the last alarm), exceed :math:`\\alpha`. The kernel runs one
-such CUSUM per piece and sign (``bounds``, ``(2, K, C)``; chords of a ``b``
+such CUSUM per piece and sign (``bounds``; chords of a ``b``
 smaller by 1e-7 relative, so rounding cannot hide a crossing) and scans only
 the channels where one exceeds its :math:`\\alpha`; the decision is the same as
 scanning all (tested). The statistics themselves (``g+``, ``g-``) are computed
@@ -65,12 +67,16 @@ def glr_pieces(threshold, window):
 
 @njit(**_JIT)
 def _scan(recent, c, top, n, half_inverse):
-    """``(g+, g-)`` of channel ``c``'s GLR window: ``n`` values ending at slot ``top``."""
+    """``(g+, g-)`` of channel ``c``'s GLR window: its ``n`` newest values, the
+    newest in slot ``top`` of the ring (older ones in the slots before it, cyclically)."""
+    M = recent.shape[0]
     gp = 0.0
     gm = 0.0
     s = 0.0
+    slot = top
     for L in range(n):                                   # windows of L + 1 samples
-        s += recent[c, top - L]
+        s += recent[slot, c]
+        slot = slot - 1 if slot > 0 else M - 1
         g = s * s * half_inverse[L]
         if s > 0.0:
             if g > gp:
@@ -81,26 +87,35 @@ def _scan(recent, c, top, n, half_inverse):
 
 
 @njit(**_JIT)
-def glr_statistics(istate, recent, half_inverse, out):
+def glr_statistics(istate, recent, consts, out):
     """``out[0], out[1]`` (each ``(C,)``): the GLR's ``g+`` and ``g-`` of every channel."""
-    M = recent.shape[1] // 2
+    half_inverse = consts[4 + 2 * int(consts[3]):]
     for c in range(istate.shape[1]):
-        gp, gm = _scan(recent, c, istate[1, c] + M, istate[2, c], half_inverse)
+        gp, gm = _scan(recent, c, istate[1, c], istate[2, c], half_inverse)
         out[0, c] = gp
         out[1, c] = gm
 
 
+def constants(method, drift, threshold, window):
+    """The constants of `bank_detect` in one array (one argument less to unbox per
+    call): ``[method code, drift, threshold, K, alpha (K), beta (K), 1 / (2 L) for
+    L = 1 .. window]``, with the GLR's ``K`` pieces (`glr_pieces`; none otherwise)."""
+    pieces = glr_pieces(threshold, window) if method == GLR else np.zeros((2, 0))
+    return np.concatenate([[method, drift, threshold, pieces.shape[1]], pieces[0], pieces[1],
+                           0.5 / np.arange(1.0, window + 1.0)])
+
+
 @njit(**_JIT)
-def bank_detect(y, S, params, fstate, istate, recent, half_inverse, bounds, pieces, alarm):
-    """Feed ``y / sqrt(S)`` of every channel (``params``: method code, drift,
-    threshold); set ``alarm[c]`` and restart the alarmed channels' statistics.
-    Returns the number of alarms, or ``-(c + 1)`` for the first channel ``c`` whose
-    ``S`` is not a positive finite number where its ``y`` is not NaN (then nothing
-    has changed)."""
+def bank_detect(y, S, consts, fstate, istate, recent, bounds, alarm):
+    """Feed ``y / sqrt(S)`` of every channel (``consts`` from `constants`); set
+    ``alarm[c]`` and restart the alarmed channels' statistics. Returns the number
+    of alarms, or ``-(c + 1)`` for the first channel ``c`` whose ``S`` is not a
+    positive finite number where its ``y`` is not NaN
+    (then nothing has changed)."""
     C = y.shape[0]
-    method = int(params[0])
-    drift = params[1]
-    threshold = params[2]
+    method = int(consts[0])
+    drift = consts[1]
+    threshold = consts[2]
     # (loops without early exits or branches on the data: LLVM vectorizes them)
     n_bad = 0
     e = np.empty(C)
@@ -113,23 +128,23 @@ def bank_detect(y, S, params, fstate, istate, recent, half_inverse, bounds, piec
                 return -(c + 1)
     n_alarms = 0
     if method == GLR:
-        M = recent.shape[1] // 2
-        for c in range(C):
+        M = recent.shape[0]
+        for c in range(C):                               # (branch-free: vectorizes)
             alarm[c] = False
-            if e[c] == e[c]:
-                istate[0, c] += 1
-                pos = istate[1, c] + 1
-                if pos == M:
-                    pos = 0
-                istate[1, c] = pos
-                recent[c, pos] = e[c]
-                recent[c, pos + M] = e[c]
-                if istate[2, c] < M:
-                    istate[2, c] += 1
+            valid = e[c] == e[c]
+            istate[0, c] += valid
+            pos = istate[1, c] + valid                   # the newest slot of the ring
+            istate[1, c] = 0 if pos == M else pos
+            istate[2, c] += valid & (istate[2, c] < M)
+        for c in range(C):                               # the ring: slot-major, so the
+            if e[c] == e[c]:                             # channels in step write one row
+                recent[istate[1, c], c] = e[c]
+        K = int(consts[3])
+        half_inverse = consts[4 + 2 * K:]
         flag = np.zeros(C, dtype=np.bool_)
-        for i in range(pieces.shape[1]):                 # the CUSUM bound of each piece
-            a = pieces[0, i]
-            bt = pieces[1, i]
+        for i in range(K):                               # the CUSUM bound of each piece
+            a = consts[4 + i]
+            bt = consts[4 + K + i]
             for c in range(C):
                 ec = e[c]
                 valid = ec == ec
@@ -145,12 +160,12 @@ def bank_detect(y, S, params, fstate, istate, recent, half_inverse, bounds, piec
         for c in range(C):
             if not flag[c] or e[c] != e[c]:
                 continue
-            gp, gm = _scan(recent, c, istate[1, c] + M, istate[2, c], half_inverse)
+            gp, gm = _scan(recent, c, istate[1, c], istate[2, c], half_inverse)
             if gp > threshold or gm > threshold:
                 alarm[c] = True
                 n_alarms += 1
                 istate[2, c] = 0
-                for i in range(pieces.shape[1]):
+                for i in range(K):
                     bounds[0, i, c] = 0.0
                     bounds[1, i, c] = 0.0
         return n_alarms

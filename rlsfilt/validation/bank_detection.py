@@ -18,6 +18,7 @@ __all__ = ["BankChangeDetector"]
 
 _kernels = lazy_module("rlsfilt.validation._kernels_detection")
 _METHOD_CODES = {"cusum": 0, "page_hinkley": 1, "glr": 2}
+_FLOAT = np.dtype(np.float64)
 
 
 class BankChangeDetector:
@@ -94,8 +95,11 @@ class BankChangeDetector:
         (self.method, self.threshold, self.drift, self.window, self.action, self.boost,
          self.alarm_lam, self.hold) = _settings(method, arl, shift, window, threshold, action,
                                                 boost, alarm_lam, hold)
-        self._params = np.array([_METHOD_CODES[self.method], self.drift, self.threshold])
-        self._half_inverse = 0.5 / np.arange(1.0, self.window + 1.0)       # 1 / (2 L)
+        kernels = _kernels()
+        self._consts = kernels.constants(_METHOD_CODES[self.method], self.drift,
+                                         self.threshold, self.window)
+        self._detect, self._glr_statistics = kernels.bank_detect, kernels.glr_statistics
+        self._shape = (self.n_channels,)
         self._held = None
         self.reset()
 
@@ -111,10 +115,9 @@ class BankChangeDetector:
         self._fstate = np.zeros((4, C))
         self._istate = np.zeros((3, C), dtype=np.int64)
         self._istate[1] = -1
-        self._recent = np.zeros((C, 2 * self.window if glr else 2))
-        self._pieces = (_kernels().glr_pieces(self.threshold, self.window) if glr
-                        else np.zeros((2, 1)))
-        self._bounds = np.zeros((2, self._pieces.shape[1], C if glr else 1))
+        self._recent = np.zeros((self.window, C) if glr else (1, 1))
+        self._bounds = np.zeros((2, int(self._consts[3]), C if glr else 1))
+        self._state = (self._consts, self._fstate, self._istate, self._recent, self._bounds)
         self.alarms = [[] for _ in range(C)]
         self.n_steps = 0
 
@@ -122,7 +125,7 @@ class BankChangeDetector:
         if self.method != "glr":
             return self._fstate[:2].copy()
         out = np.empty((2, self.n_channels))
-        _kernels().glr_statistics(self._istate, self._recent, self._half_inverse, out)
+        self._glr_statistics(self._istate, self._recent, self._consts, out)
         return out
 
     @property
@@ -160,15 +163,13 @@ class BankChangeDetector:
         ndarray of bool, shape (C,)
             Which channels alarmed.
         """
-        C = self.n_channels
-        y, S = _vector(y, "y", C), _vector(S, "S", C)
-        if y.shape != (C,) or S.shape != (C,):
-            raise ValueError(f"`y` and `S` must have shape ({C},) (one per channel); got "
-                             f"{y.shape} and {S.shape}")
-        alarm = np.empty(C, dtype=np.bool_)
-        n = _kernels().bank_detect(y, S, self._params, self._fstate, self._istate,
-                                   self._recent, self._half_inverse, self._bounds,
-                                   self._pieces, alarm)
+        shape = self._shape
+        if not (type(y) is np.ndarray and type(S) is np.ndarray and y.shape == shape
+                and S.shape == shape and y.dtype == _FLOAT and S.dtype == _FLOAT
+                and y.flags.c_contiguous and S.flags.c_contiguous):
+            y, S = self._vectors(y, S)                   # (the bank's own y, S pass as they are)
+        alarm = np.empty(shape, dtype=np.bool_)
+        n = self._detect(y, S, *self._state, alarm)
         if n < 0:
             c = -n - 1
             raise ValueError(f"`S` must be a positive finite variance; got {S[c]} for "
@@ -180,6 +181,16 @@ class BankChangeDetector:
             for c in np.flatnonzero(alarm):
                 self.alarms[c].append(int(seen[c]) - 1)
         return alarm
+
+    def _vectors(self, y, S):
+        """`y` and `S` as contiguous float64 arrays of shape ``(C,)``, or an error."""
+        C = self.n_channels
+        y = np.ascontiguousarray(as_float_array(y, "y"), dtype=np.float64)
+        S = np.ascontiguousarray(as_float_array(S, "S"), dtype=np.float64)
+        if y.shape != (C,) or S.shape != (C,):
+            raise ValueError(f"`y` and `S` must have shape ({C},) (one per channel); got "
+                             f"{y.shape} and {S.shape}")
+        return y, S
 
     def step(self, bank):
         """:meth:`update` with ``bank.y`` and ``bank.S`` (call it after each
@@ -230,10 +241,3 @@ class BankChangeDetector:
                 f"h={self.threshold:.4g}{k}, {sum(map(len, self.alarms))} alarm(s) "
                 f"in {self.n_steps} steps>")
 
-
-def _vector(value, name, C):
-    """`value` as a contiguous float64 array (the bank's own ``y``, ``S`` as they are)."""
-    if (type(value) is np.ndarray and value.dtype == np.float64 and value.shape == (C,)
-            and value.flags.c_contiguous):
-        return value
-    return np.ascontiguousarray(as_float_array(value, name), dtype=np.float64)
