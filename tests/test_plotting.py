@@ -369,4 +369,5 @@ def test_docstring_examples_run():
     assert sum(len(t.examples) for t in tests) > 40
     for test in tests:
         runner.run(test, out=report.append)
+        plt.close("all")                  # each example's figures (pyplot warns at 20 open)
     assert runner.summarize(verbose=False).failed == 0, "".join(report)
