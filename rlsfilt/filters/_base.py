@@ -412,12 +412,6 @@ class _FilterBase(Filter):
             _health.warn(problem, self._HEALTH_ADVICE)
             self._warned_health = True
 
-    def _peek_predict_update(self, z, H, like=None):
-        """``(estimate, token)``: the estimate ``predict(); update(z, H)`` would leave,
-        with nothing changed, and a token to commit it; None when the filter cannot
-        tell without stepping (the default; see `RecursiveLeastSquares`)."""
-        return None
-
     def _shallow_state(self):
         """The attributes (``__dict__`` and slots) as a new dict. The steps never
         write into an array they leave behind, except those in ``_written_in_place``

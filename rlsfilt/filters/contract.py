@@ -18,6 +18,12 @@ members:
   the batch loop behind ``batch_filter`` (compiled for the production
   filters; a plain loop is allowed) that the shared base
   (`rlsfilt.filters._base._FilterBase`) calls after validating the record;
+- **an optional look-ahead** for the python-control system, which evaluates
+  its outputs several times per sample: ``_peek_predict_update(z, H, like)``
+  returns ``(estimate, token)``, what ``predict(); update(z, H)`` would leave,
+  with nothing changed, and ``_commit_peeked(token)`` takes that step (False
+  if the filter has changed since). The default peeks nothing (None), and the
+  system then steps as usual (`rlsfilt.filters._estimator_io`);
 - **capabilities**, class attributes (or properties) that tests and callers
   consult instead of asking for a class:
 
@@ -98,6 +104,19 @@ class Filter(abc.ABC):
         dim_z) with NaN for missing samples, ``Hm`` (N, dim_x), ``Rv`` (N,).
         Returns ``(means, covariances, means_p, covariances_p)``; leaves the
         filter unchanged if it raises."""
+
+    def _peek_predict_update(self, z, H, like=None):
+        """``(estimate, token)``: the estimate ``predict(); update(z, H)`` would leave,
+        with nothing changed, and a token for :meth:`_commit_peeked`; None when the
+        filter cannot tell without stepping (the default). `like`, a token of an
+        earlier peek, may lend its predicted covariance."""
+        return None
+
+    def _commit_peeked(self, token):
+        """Take the step a :meth:`_peek_predict_update` computed, with its warnings
+        and errors, if the filter is still in the state it was peeked in; False
+        (nothing done) otherwise. Only called with a token this filter returned."""
+        return False
 
 
 def check_state(filt, state):
