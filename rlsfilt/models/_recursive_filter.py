@@ -84,6 +84,16 @@ class FilterRecursion:
                                  "method)")
         return self.filt.P
 
+    @property
+    def frozen(self):
+        """Whether adaptation is off (the filter's :attr:`frozen`): a step forms the
+        regressor and the prediction, the estimate and ``P`` stay as they are."""
+        return self.filt.frozen
+
+    @frozen.setter
+    def frozen(self, value):
+        self.filt.adapt = not value
+
     def restart(self):
         """Signal lags back to rest (zero); the estimate carries on."""
         s = self.s

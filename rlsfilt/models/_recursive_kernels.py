@@ -267,8 +267,12 @@ def _lagged_sum(theta, start, n, buf, sig, first_lag):
 
 @njit(cache=True)
 def rpem_step(theta, P, buf, y, u, na, nb, nc, nd, nf, nk, off_b, off_c, off_d, off_f,
-              method, cfg, lam, Q, r, project, phi, psi, g, K, T, dx, zy):
+              method, cfg, lam, Q, r, project, phi, psi, g, K, T, dx, zy, adapt=True):
     """One step of RPEM (``method`` 0) or RPLR (1), in place on ``theta``, ``P``, ``buf``.
+
+    ``adapt=False`` (the estimator frozen): no covariance or estimate update,
+    ``theta`` and ``P`` untouched (``s`` NaN, ``lam_t`` 1, no gate, no
+    projection); the signals move on through the filters of ``theta``.
 
     ``lam`` is this step's forgetting factor (see `next_lam`); `cfg` the
     filters' configuration (``forgetting.kernel_config``: the forgetting
@@ -330,10 +334,13 @@ def rpem_step(theta, P, buf, y, u, na, nb, nc, nd, nf, nk, off_b, off_c, off_d, 
         yhat += phi[i] * theta[i]
     eps = y - yhat
     # covariance and estimate update (RecursiveLeastSquares with regressor psi)
-    cfg[CFG_LAM] = lam
-    forget(P, 1.0 / lam if int(cfg[CFG_MODE]) == EXPONENTIAL else 1.0, Q)
-    s, lam_t, gated = rls_update(theta, P, psi, eps, r, cfg, g, K, T, dx, zy)
-    reflected = stabilize(theta, nc, nd, nf, off_c, off_d, off_f) if project else 0
+    if adapt:
+        cfg[CFG_LAM] = lam
+        forget(P, 1.0 / lam if int(cfg[CFG_MODE]) == EXPONENTIAL else 1.0, Q)
+        s, lam_t, gated = rls_update(theta, P, psi, eps, r, cfg, g, K, T, dx, zy)
+        reflected = stabilize(theta, nc, nd, nf, off_c, off_d, off_f) if project else 0
+    else:                                # frozen: theta(t) = theta(t-1), P unchanged
+        s, lam_t, gated, reflected = np.nan, 1.0, False, 0
     # the model's own signals with theta(t): w_i = B_i/F_i u_i, v = A y - sum w_i, e = D/C v
     wsum = 0.0
     for i in range(nu):
@@ -410,7 +417,8 @@ SPEC_NA, SPEC_NC, SPEC_ND, SPEC_OFF_C, SPEC_OFF_D, SPEC_METHOD = range(6)
 SPEC_PROJECT, SPEC_NU, SPEC_BLOCKS = range(6, 9)
 # fpar (float64): inputs lam, lam_rate, r; state lam_now; outputs of the last step; the
 # work of `rls_update` (its measurement and residual)
-F_LAM, F_LAM_RATE, F_R, F_LAM_NOW, F_LAM_T, F_GATED, F_REFL, F_Z, F_Y, F_SIZE = range(10)
+# then F_FROZEN: 1.0 while the estimator is frozen (no update, the profile held)
+F_LAM, F_LAM_RATE, F_R, F_LAM_NOW, F_LAM_T, F_GATED, F_REFL, F_Z, F_Y, F_FROZEN, F_SIZE = range(11)
 
 
 @njit(cache=True)
@@ -437,7 +445,11 @@ def rpem_stream(theta, P, buf, y, u, spec, fpar, cfg, Q, W, T):
         theta, P, buf, y, u, spec[SPEC_NA], nb, spec[SPEC_NC], spec[SPEC_ND], nf, nk, off_b,
         spec[SPEC_OFF_C], spec[SPEC_OFF_D], off_f, spec[SPEC_METHOD], cfg, lam_now, Q, fpar[F_R],
         spec[SPEC_PROJECT] != 0, W[0], W[1], W[2], W[3], T, W[4].reshape((W.shape[1], 1)),
-        fpar[F_Z:F_Z + 2])
+        fpar[F_Z:F_Z + 2], fpar[F_FROZEN] == 0.0)
+    if fpar[F_FROZEN] != 0.0:            # frozen: the forgetting profile waits
+        fpar[F_GATED] = 0.0
+        fpar[F_REFL] = 0.0
+        return yh, ep
     fpar[F_LAM_NOW] = next_lam(lam_now, fpar[F_LAM], fpar[F_LAM_RATE])
     fpar[F_LAM_T] = lam_t
     fpar[F_GATED] = 1.0 if gt else 0.0

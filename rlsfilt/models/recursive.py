@@ -36,7 +36,7 @@ import threading
 import numpy as np
 
 from .._locking import init_signature
-from .._validation import as_float_array, check_finite
+from .._validation import as_float_array, check_bool, check_finite
 from . import _recursive_filter
 from ._family import family_structure, param_names, split_theta
 from ._recursive_pem import RecursionState
@@ -111,6 +111,7 @@ class _RecursiveModel(_Guarded):
         else:
             self._state = RecursionState(s, method, **options)
         self._initial = self._state.copy()
+        self._frozen = False
         self.last_error = np.nan
         self._nu = s.n_inputs
         self._ubuf = np.zeros(s.n_inputs)      # the input sample of the fast path
@@ -203,7 +204,46 @@ class _RecursiveModel(_Guarded):
         """Return to the initial estimate and covariance."""
         with self._lock:
             self._state = self._initial.copy()
+            self._state.frozen = self.frozen           # the switch is the user's setting
             self.last_error = np.nan
+
+    # ------------------------------------------------------------------
+    # adaptation switch (MATLAB's EnableAdaptation)
+    # ------------------------------------------------------------------
+    @property
+    def frozen(self):
+        """Whether adaptation is off (:meth:`freeze`): :meth:`step` and :meth:`batch`
+        still return the predictions of the held estimate and move the regressor's
+        signals (lagged ``y``, ``u`` and the noise and simulated-output states, through
+        the filters of the held estimate), while :attr:`theta`, :attr:`P` and the
+        forgetting profile stay bit-unchanged."""
+        return self.__dict__.get("_frozen", False)
+
+    @property
+    def adapt(self):
+        """``not frozen``: assign False to freeze the estimate, True to resume
+        (MATLAB's ``EnableAdaptation``)."""
+        return not self.frozen
+
+    @adapt.setter
+    def adapt(self, value):
+        value = check_bool(value, "adapt")
+        with self._lock:
+            self._frozen = not value
+            self._state.frozen = not value
+
+    def freeze(self):
+        """Stop adapting (MATLAB's ``EnableAdaptation = false``): predictions
+        continue, the estimate and ``P`` stay as they are until :meth:`unfreeze`.
+        Returns the estimator."""
+        self.adapt = False
+        return self
+
+    def unfreeze(self):
+        """Resume adapting from the held estimate, with the signals of the frozen
+        samples in the regressor. Returns the estimator."""
+        self.adapt = True
+        return self
 
     # ------------------------------------------------------------------
     @property
@@ -269,8 +309,9 @@ class _RecursiveModel(_Guarded):
     def __repr__(self):
         args = ", ".join(f"{k}={v!r}" for k, v in self._orders.items())
         window = "" if self.window is None else f", window={self.window}"
+        frozen = ", frozen" if self.frozen else ""
         return (f"{type(self).__name__}({args}, method={self.method!r}{window}), "
-                f"{self.n_steps} steps")
+                f"{self.n_steps} steps{frozen}")
 
     def _input(self, u):
         nu = self._structure.n_inputs
