@@ -173,7 +173,13 @@ class _RecursiveModel(_Guarded):
         theta_history : ndarray, shape (N, n_params)
             The estimate after each sample.
         """
-        yv = check_finite(as_float_array(y, "y").reshape(-1), "y")
+        yv = as_float_array(y, "y")
+        if yv.ndim == 2 and yv.shape[1] == 1:
+            yv = yv[:, 0]
+        if yv.ndim != 1:
+            raise ValueError(f"`y` must have shape (N,) or (N, 1) (one output sample per "
+                             f"row); got {yv.shape}")
+        check_finite(yv, "y")
         nu = self._structure.n_inputs
         if nu:
             if u is None:
@@ -188,7 +194,9 @@ class _RecursiveModel(_Guarded):
             self._no_input(u)
             U = np.zeros((len(yv), 0))
         with self._lock:
-            out = self._state.run(yv, U)
+            state = self._state.copy()       # a call that raises leaves the estimator as it was
+            out = state.run(yv, U)
+            self._state = state
             if len(yv):
                 self.last_error = float(out["eps"][-1])
         return out["yhat"], out["theta_history"]
