@@ -701,7 +701,74 @@ def _online_entries():
     return entries
 
 
-ONLINE_ENTRIES = _online_entries()
+def _adapter_entries():
+    """The streaming adapters (#31): river's and scikit-learn's `RLSRegressor`
+    (constructors, ``learn_one``/``predict_one``, ``fit``/``partial_fit``/``predict``)."""
+    from rlsfilt.river import RLSRegressor as RiverRLS
+    from rlsfilt.sklearn import RLSRegressor as SkRLS
+
+    def river_run(**kw):
+        m = RiverRLS(**kw)
+        for h, z in zip(HS, ZS):
+            m.learn_one({"a": h[0], "b": h[1], "c": h[2]}, z)
+        return np.array(list(m.weights.values()))
+
+    learner = _running_on(RiverRLS())
+    for h, z in zip(HS[:10], ZS[:10]):
+        learner.f.learn_one({"a": h[0], "b": h[1], "c": h[2]}, z)
+    row = {"a": HS[10, 0], "b": HS[10, 1]}
+
+    def learn(g, v, which):
+        x = {**row, "c": v} if which == "x" else {**row, "c": HS[10, 2]}
+        g.learn_one(x, v if which == "y" else ZS[10])
+        return np.array(list(g.weights.values()))
+
+    sk = _running_on(SkRLS().partial_fit(HS[:10], ZS[:10]))
+
+    def coef(m):
+        return np.append(m.coef_, m.intercept_)
+
+    return [
+        # lam around 1e-160: the filter's health warning (P^- = P / lam overflows)
+        Entry("river.RLSRegressor()", "lam", lambda v: river_run(lam=v), 0.98, kind="scalar",
+              expect={"huge": ERROR, "tiny": WARNS, "list": EITHER}),
+        Entry("river.RLSRegressor()", "delta", lambda v: river_run(delta=v), 100.0,
+              kind="scalar", expect={"huge": EITHER, "tiny": EITHER, "list": EITHER}),
+        Entry("river.RLSRegressor()", "R", lambda v: river_run(R=v), 0.5, kind="scalar",
+              expect={"huge": ERROR, "tiny": ERROR, "list": EITHER}),
+        Entry("river.RLSRegressor.learn_one", "y",
+              learner.call(lambda g, v: learn(g, v, "y")), ZS[10], kind="scalar",
+              expect={"huge": EITHER, "tiny": EITHER, "list": EITHER, "0d": EITHER},
+              state=learner.state),
+        Entry("river.RLSRegressor.learn_one", "x",
+              learner.call(lambda g, v: learn(g, v, "x")), HS[10, 2], kind="scalar",
+              expect={"huge": WARNS, "tiny": EITHER, "list": EITHER, "0d": EITHER},
+              state=learner.state),
+        Entry("river.RLSRegressor.predict_one", "x",
+              lambda v: learner.f.predict_one({**row, "c": v}), HS[10, 2], kind="scalar",
+              expect={"huge": EITHER, "tiny": EITHER, "list": EITHER, "0d": EITHER},
+              state=learner.state),
+        Entry("sklearn.RLSRegressor.fit", "lam", lambda v: coef(SkRLS(lam=v).fit(HS, ZS)),
+              0.98, kind="scalar", expect={"huge": ERROR, "tiny": WARNS, "list": EITHER}),
+        Entry("sklearn.RLSRegressor.fit", "delta",
+              lambda v: coef(SkRLS(delta=v).fit(HS, ZS)), 100.0, kind="scalar",
+              expect={"huge": EITHER, "tiny": EITHER, "list": EITHER}),
+        Entry("sklearn.RLSRegressor.fit", "X", lambda v: coef(SkRLS().fit(v, ZS)), HS,
+              expect={"huge": WARNS, "tiny": EITHER, "bool": EITHER}),
+        Entry("sklearn.RLSRegressor.fit", "y", lambda v: coef(SkRLS().fit(HS, v)), ZS,
+              expect={"huge": EITHER, "tiny": EITHER, "bool": EITHER}),
+        Entry("sklearn.RLSRegressor.partial_fit", "X",
+              sk.call(lambda g, v: coef(g.partial_fit(v, ZS[10:]))), HS[10:],
+              expect={"huge": WARNS, "tiny": EITHER, "bool": EITHER}, state=sk.state),
+        Entry("sklearn.RLSRegressor.partial_fit", "y",
+              sk.call(lambda g, v: coef(g.partial_fit(HS[10:], v))), ZS[10:],
+              expect={"huge": EITHER, "tiny": EITHER, "bool": EITHER}, state=sk.state),
+        Entry("sklearn.RLSRegressor.predict", "X", lambda v: sk.f.predict(v), HS[10:],
+              expect={"huge": EITHER, "tiny": EITHER, "bool": EITHER}, state=sk.state),
+    ]
+
+
+ONLINE_ENTRIES = _online_entries() + _adapter_entries()
 ONLINE_PARAMS = [pytest.param(e, kind, id=f"{e.name}-{e.arg}-{kind}",
                               marks=[pytest.mark.xfail(strict=True, reason=e.known[kind])]
                               if kind in e.known else [])
