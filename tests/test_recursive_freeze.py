@@ -251,3 +251,93 @@ def test_switch_survives_reset_copies_and_pickles_and_rejects_bad_values(name):
     assert not est.frozen
     _steps(est, name, u, y, 20, 60)
     assert not np.array_equal(est.theta, theta)
+
+
+# ----------------------------------------------------------------------
+# RecursiveIV
+# ----------------------------------------------------------------------
+def _riv(instruments, **kw):
+    from rlsfilt import RecursiveIV
+
+    return RecursiveIV(2, 2, 1, instruments=instruments, **kw)
+
+
+def _riv_step(est, t, u, y):
+    if est.instruments == "given":
+        return est.step(y[t], u[t], z=[u[t - 3], u[t - 4], u[t - 1], u[t - 2]])
+    return est.step(y[t], u[t])
+
+
+@pytest.mark.parametrize("instruments", ["model", "delayed", "given"])
+def test_riv_frozen_steps_hold_the_estimate_and_predict_with_it(instruments):
+    u, y = _record(5)
+    est = _riv(instruments, theta_aux=[-1.0, 0.3, 1.0, 0.0], refresh=25)
+    for t in range(4, F0):
+        _riv_step(est, t, u, y)
+    theta, P = est.theta, est.P
+    aux = (est._alpha.copy(), est._beta.copy())
+    est.freeze()
+    assert est.frozen and not est.adapt and repr(est).endswith("frozen")
+    for t in range(F0, F1):
+        yhat, th = _riv_step(est, t, u, y)
+        assert_array_equal(th, theta)
+        assert_array_equal(est.P, P)
+        assert yhat == pytest.approx(float(est.phi @ theta), rel=1e-13, abs=1e-13)
+    assert_array_equal(est._alpha, aux[0])             # the auxiliary model held
+    assert_array_equal(est._beta, aux[1])
+    est.unfreeze()
+    _riv_step(est, F1, u, y)
+    assert not np.array_equal(est.theta, theta)
+    with pytest.raises(TypeError, match="adapt"):
+        est.adapt = "no"
+
+
+@pytest.mark.parametrize("instruments, options", [("delayed", {}),
+                                                   ("model", {"refresh": 0})])
+def test_riv_unfreeze_continues_as_a_recursion_that_skipped_those_updates(instruments,
+                                                                          options):
+    """Bit for bit the same recursion whose updates of those samples its conditioning
+    check rejected (tol = inf: theta and P untouched with lam = 1 and no random walk)."""
+    import warnings
+
+    from rlsfilt.models._recursive_kernels import RF_TOL
+
+    u, y = _record(6)
+    est = _riv(instruments, theta_aux=[-1.0, 0.3, 1.0, 0.0], **options)
+    ref = _riv(instruments, theta_aux=[-1.0, 0.3, 1.0, 0.0], **options)
+    tol = ref._fpar[RF_TOL]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")              # the reference's skipped updates
+        for t in range(4, N):
+            if t == F0:
+                est.freeze()
+                ref._fpar[RF_TOL] = np.inf
+            if t == F1:
+                est.unfreeze()
+                ref._fpar[RF_TOL] = tol
+            a, b = _riv_step(est, t, u, y), _riv_step(ref, t, u, y)
+            assert a[0] == b[0]
+            assert_array_equal(a[1], b[1])
+    assert_array_equal(est.P, ref.P)
+    assert ref.n_skipped == F1 - F0 and est.n_skipped == 0
+
+
+def test_riv_rows_taken_while_frozen_do_not_count_towards_the_exact_start():
+    """Frozen from the first sample: the exact start after unfreeze() is the IV solution
+    of the next k0 rows (numpy), not of rows seen while frozen."""
+    u, y = _record(7)
+    k0 = 20
+    est = _riv("delayed", k0=k0).freeze()
+    for t in range(0, 40):
+        yhat, _ = _riv_step(est, t, u, y)
+    assert_array_equal(est.theta, np.zeros(4))
+    est.unfreeze()
+    Phi, Z, target = [], [], []
+    for t in range(40, 40 + k0):
+        _riv_step(est, t, u, y)
+        Phi.append(est.phi)
+        Z.append(est.z)
+        target.append(y[t])
+    Phi, Z = np.array(Phi), np.array(Z)
+    expected = np.linalg.solve(Z.T @ Phi, Z.T @ np.array(target))
+    np.testing.assert_allclose(est.theta, expected, rtol=1e-9)

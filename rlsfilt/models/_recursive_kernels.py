@@ -730,7 +730,7 @@ def riv_model(theta, P, buf, U, y, t0, na, nb, nk, k0, alpha, beta, refresh, pre
 # packed arguments of `riv_stream` (as for `rpem_stream`)
 RSPEC_NA, RSPEC_K0, RSPEC_REFRESH, RSPEC_PREFILTER, RSPEC_GIVEN, RSPEC_NU = range(6)
 RSPEC_BLOCKS = 6
-RF_IL, RF_R, RF_TOL, RF_SIZE = range(4)
+RF_IL, RF_R, RF_TOL, RF_FROZEN, RF_SIZE = range(5)   # RF_FROZEN: 1.0 while frozen
 # rows of the work array W (7, n): phi, z, g, h, K, theta before the step, eps (W[6, 0])
 W_PHI, W_Z, W_G, W_H, W_K, W_THETA, W_EPS = range(7)
 
@@ -754,6 +754,20 @@ def riv_stream(theta, P, buf, y, u, z_given, row, spec, fpar, alpha, beta, Q, S0
     prev = W[W_THETA]
     for i in range(n):
         prev[i] = theta[i, 0]
+    if fpar[RF_FROZEN] != 0.0:
+        # frozen (status 4): the signals and rows move on through the held auxiliary
+        # model; no start row, update or refresh; theta and P untouched
+        riv_signals(buf, y, u, spec[RSPEC_NA], nb, nk, alpha, beta,
+                    spec[RSPEC_PREFILTER] != 0, W[W_PHI], W[W_Z])
+        if spec[RSPEC_GIVEN] != 0:
+            for j in range(n):
+                W[W_Z, j] = z_given[j]
+        if 0 <= row < spec[RSPEC_K0]:
+            return 4, np.nan                 # the exact start is not made yet
+        yhat = 0.0
+        for i in range(n):
+            yhat += W[W_PHI, i] * prev[i]
+        return 4, yhat
     status, _ = riv_model_step(
         theta, P, buf, y, u, z_given, spec[RSPEC_GIVEN] != 0, row, spec[RSPEC_NA], nb, nk,
         spec[RSPEC_K0], alpha, beta, spec[RSPEC_REFRESH], spec[RSPEC_PREFILTER] != 0,
