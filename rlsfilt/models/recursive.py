@@ -97,6 +97,11 @@ class _RecursiveModel(_Guarded):
     never moves the other). An estimator shared by threads takes one call at a
     time: :meth:`step`, :meth:`batch`, :meth:`restart`, :meth:`reset` and the
     reads of the estimate hold its lock.
+
+    **Adaptation switch.** :meth:`freeze` (``adapt = False``, MATLAB's
+    ``EnableAdaptation = false``) holds the estimate, ``P`` and the forgetting
+    profile while the predictions and the regressor's signals go on;
+    :meth:`unfreeze` resumes as if those samples' updates had been skipped.
     """
 
     def __init__(self, s, method, options, window=None):
@@ -158,6 +163,10 @@ class _RecursiveModel(_Guarded):
 
     def batch(self, y, u=None):
         """Run a record through the same compiled recursion; return the estimates.
+
+        All or nothing: a call that raises (a bad sample, a health warning turned
+        into an error) leaves the estimator as it was. While :attr:`frozen`, the
+        predictions of the held estimate (its rows all equal to it).
 
         Parameters
         ----------
