@@ -412,7 +412,9 @@ def _bank_entries():
               expect={"huge": ERROR, "tiny": WARNS, "list": ERROR}),
         Entry("RLSBank()", "P0", lambda v: run(P0=v), 10.0 * np.eye(3),
               expect={"huge": ERROR, "0d": SAME, "none": ERROR}),
-        Entry("RLSBank.update", "z", lambda v: update(z=v), zs[10], expect={"nan": OK}),
+        # None: no measurement for any channel (documented since the bank's freeze, #31)
+        Entry("RLSBank.update", "z", lambda v: update(z=v), zs[10],
+              expect={"nan": OK, "none": OK}),
         Entry("RLSBank.update", "H", lambda v: update(H=v), Hs[10],
               expect={"nan": OK, "huge": WARNS}),
         Entry("RLSBank.batch_filter", "zs",
