@@ -490,7 +490,8 @@ def _run_identify(args):
         metadata["model_file"] = args.save_model
         metadata["model_file_trend"] = None if trend is None else trend.type
     report = _validate(model, val if val is not None else est, None,
-                       args.lam if args.method in _LAM_METHODS else 1.0, metadata, progress)
+                       args.lam if args.method in _LAM_METHODS else 1.0, metadata, progress,
+                       window=args.window)
     after = [f"\nmodel saved to {args.save_model}"] if args.save_model else []
     if args.save_model and trend is not None:
         after[0] += (f" with the {trend.type} trend removed from the estimation data "
@@ -749,24 +750,29 @@ def _run_demo(args):
     return _emit(report, args, lines, _truth_table(model, theta_true, batch, label, lam))
 
 
-def _validate(model, u, y, lam, metadata, progress, plant=None):
+def _validate(model, u, y, lam, metadata, progress, plant=None, window=None):
     """`rlsfilt.validate` on the whole record, or with forgetting on its end.
 
     With ``lam < 1`` the final estimate describes the end of the record only,
     so it is validated on the last three memory lengths ``3 / (1 - lam)``
-    samples (at least 100 rows with a complete regressor).
+    samples; with a `window` of rows, on the samples of the last window (each
+    at least 100 rows with a complete regressor).
     """
-    if isinstance(u, IOData) and lam < 1.0 and u.n_experiments > 1:
+    local = lam < 1.0 or window is not None
+    if isinstance(u, IOData) and local and u.n_experiments > 1:
         u = u.getexp(-1)  # the estimate describes the end of the last experiment
     N = u.n_samples if isinstance(u, IOData) else len(y)
     start = 0
-    if lam < 1.0:
-        length = max(int(round(3.0 / (1.0 - lam))), 100 + model.max_lag + model.n_params)
-        start = max(0, N - length)
+    floor = 100 + model.max_lag + model.n_params
+    if window is not None:
+        start = max(0, N - max(window + model.max_lag, floor))
+        what = f"the last window of {window} rows"
+    elif lam < 1.0:
+        start = max(0, N - max(int(round(3.0 / (1.0 - lam))), floor))
+        what = f"three memory lengths of lam = {lam:g}"
     metadata["validation_start"] = start
     if start:
-        metadata["validation_note"] = (f"validation (on the last {N - start} samples, three "
-                                       f"memory lengths of lam = {lam:g})")
+        metadata["validation_note"] = f"validation (on the last {N - start} samples, {what})"
         if isinstance(u, IOData):
             u = u[start:]
         else:

@@ -267,6 +267,9 @@ def test_identify_window_is_least_squares_over_the_last_rows(capsys, tmp_path):
     assert code == 0, err
     res = json.loads(out)
     assert res["form"] == "window"
+    # validated on the samples of the last window (the estimate describes them only)
+    assert res["metadata"]["validation_start"] == 800 - (120 + 2)
+    assert "the last window of 120 rows" in res["metadata"]["validation_note"]
     Phi, z = ARX(2, 2, 1).regressors(ds.u, ds.y)
     ref = np.linalg.lstsq(Phi[-120:], z[-120:], rcond=None)[0]
     np.testing.assert_allclose(res["theta"], ref.ravel(), rtol=1e-9, atol=1e-12)
