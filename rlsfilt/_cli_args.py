@@ -64,6 +64,8 @@ def float_where(accept, expected):
 forgetting_factor = float_where(lambda v: 0.0 < v <= 1.0, "in (0, 1]")
 #: A fraction or a probability, in (0, 1) (a split point, a significance level).
 fraction = float_where(lambda v: 0.0 < v < 1.0, "in (0, 1)")
+#: a step size (``--mu``): finite and positive
+step_size = float_where(lambda v: 0.0 < v < float("inf"), "a positive number")
 
 
 def per_input(values, n_in, option):

@@ -41,6 +41,7 @@ from ._cli_args import (
     int_list,
     per_input,
     shown_cell,
+    step_size,
 )
 from .filters.bank import _MODES as BANK_MODES  # the forgetting modes RLSBank runs
 
@@ -67,8 +68,12 @@ def add_parser(subparsers):
                    help="number of B coefficients, one value or one per input (default: 2)")
     p.add_argument("--nk", type=int_list(0), default=[1], metavar="NK[,NK...]",
                    help="input delay in samples, one value or one per input (default: 1)")
-    p.add_argument("--method", choices=("ls", "rls"), default="ls",
-                   help="batch least squares or recursive least squares (default: ls)")
+    p.add_argument("--method", choices=("ls", "rls", "nlms", "lms"), default="ls",
+                   help="batch least squares, recursive least squares, or the gradient methods "
+                        "(nlms: normalized least mean squares, lms: least mean squares; one "
+                        "GradientBank per group of channels) (default: ls)")
+    p.add_argument("--mu", type=step_size, default=None,
+                   help="step size for --method nlms or lms (default: the filter's, 0.01)")
     p.add_argument("--lam", type=forgetting_factor, default=None,
                    help="forgetting factor in (0, 1] for --method rls (default: 1)")
     p.add_argument("--forgetting", choices=BANK_MODES, default=None,
@@ -110,6 +115,8 @@ def run(args):
     if args.method != "rls" and (args.lam is not None or args.forgetting is not None):
         raise ValueError(f"--{'lam' if args.lam is not None else 'forgetting'} needs "
                          "--method rls")
+    if args.mu is not None and args.method not in ("nlms", "lms"):
+        raise ValueError("--mu needs --method nlms or lms")
     n_in = len(args.inputs)
     nb, nk = per_input(args.nb, n_in, "--nb"), per_input(args.nk, n_in, "--nk")
     columns = [args.channel_column, *args.inputs, args.output]
@@ -137,6 +144,8 @@ def run(args):
             options["lam"] = args.lam
         if args.forgetting is not None:
             options["forgetting"] = args.forgetting
+    if args.mu is not None:
+        options["mu"] = args.mu
     model = ARX(args.na, nb[0] if n_in == 1 else nb, nk[0] if n_in == 1 else nk)
     table = _summary_long(model, frame, args.channel_column, args.inputs, args.output,
                           args.method, **options)

@@ -108,13 +108,15 @@ _DELAY_SEARCH = 20       # largest delay delayest tries for --select-order witho
 #: dead time, colored disturbance, two runs)
 _DEMO_PLANTS = {**PLANTS, "heat_exchanger": heat_exchanger}
 #: the methods of each --model (the first is the default), and the orders each one takes
-_METHODS = {"arx": ("ls", "rls", "iv", "riv"), "armax": ("pem", "rpem", "rplr"),
+_METHODS = {"arx": ("ls", "rls", "iv", "riv", "nlms", "lms"), "armax": ("pem", "rpem", "rplr"),
             "oe": ("pem", "rpem", "rplr"), "bj": ("pem", "rpem", "rplr")}
 _ORDERS = {"arx": ("na",), "armax": ("na", "nc"), "oe": ("nf",), "bj": ("nc", "nd", "nf")}
 _FAMILY = {"armax": ARMAX, "oe": OE, "bj": BJ}
 #: methods that take --lam (a forgetting factor) and --forgetting (a forgetting scheme)
 _LAM_METHODS = ("rls", "riv", "rpem", "rplr")
 _FORGETTING_METHODS = ("rls", "rpem", "rplr")
+#: methods that take --mu (a step size): the gradient methods of ARX.fit
+_GRADIENT_METHODS = ("nlms", "lms")
 
 
 # ----------------------------------------------------------------------
@@ -302,12 +304,21 @@ def _build_parser():
     ident.add_argument("--nk", type=int_list(0), default=None, metavar="NK[,NK...]",
                        help="input delay in samples, one value or one per input (default: 1; "
                             "searched by --select-order unless given)")
-    ident.add_argument("--method", choices=("ls", "rls", "iv", "riv", "pem", "rpem", "rplr"),
+    ident.add_argument("--method", choices=("ls", "rls", "iv", "riv", "nlms", "lms", "pem",
+                                            "rpem", "rplr"),
                        default=None,
-                       help="arx: batch or recursive least squares (ls, rls) or instrumental "
-                            "variables (iv, riv); armax, oe, bj: batch or recursive prediction "
-                            "error (pem, rpem) or pseudo-linear regression (rplr) (default: ls "
-                            "for arx, pem for the others)")
+                       help="arx: batch or recursive least squares (ls, rls), instrumental "
+                            "variables (iv, riv) or the gradient methods (nlms: normalized "
+                            "least mean squares, lms: least mean squares); armax, oe, bj: batch "
+                            "or recursive prediction error (pem, rpem) or pseudo-linear "
+                            "regression (rplr) (default: ls for arx, pem for the others)")
+    ident.add_argument("--mu", type=_positive_float, default=None,
+                       help="step size for --method nlms or lms (MATLAB's AdaptationGain; "
+                            "default: the filter's, 0.01)")
+    ident.add_argument("--window", type=_positive_int, default=None, metavar="N",
+                       help="finite history for --method rls: least squares over the last N "
+                            "regressor rows (MATLAB's WindowLength; at least the number of "
+                            "parameters)")
     ident.add_argument("--lam", type=forgetting_factor, default=1.0,
                        help="forgetting factor in (0, 1] for --method rls, riv, rpem or rplr "
                             "(default: 1)")
@@ -447,19 +458,30 @@ def _run_identify(args):
         model = ARX(na, nb[0] if n_in == 1 else nb, nk[0] if n_in == 1 else nk, dt=est.dt,
                     offset=offset)
     options = {}
-    if args.method in _LAM_METHODS:
-        options["lam"] = args.lam
-    if args.method in _FORGETTING_METHODS:
-        options["forgetting"] = args.forgetting
+    if args.window is not None:                # least squares over a window: no forgetting
+        options["window"] = args.window
+    else:
+        if args.method in _LAM_METHODS:
+            options["lam"] = args.lam
+        if args.method in _FORGETTING_METHODS:
+            options["forgetting"] = args.forgetting
+    if args.mu is not None:
+        options["mu"] = args.mu
     task = {"ls": "least squares", "rls": "recursive least squares",
             "iv": "instrumental variables", "riv": "recursive instrumental variables",
+            "nlms": "normalized least mean squares", "lms": "least mean squares",
             "pem": "prediction-error minimization", "rpem": "recursive prediction error",
             "rplr": "recursive pseudo-linear regression"}[args.method]
+    if args.window is not None:
+        task = f"least squares over a window of {args.window} rows"
     with progress.task(f"{task} on {est.n_samples} samples"):
         try:
             model.fit(est, method=args.method, **options)
         except ValueError as exc:    # e.g. an input that is not exciting for these orders
             raise CLIError(f"{type(model).__name__}: {exc}") from None
+    if args.method in _GRADIENT_METHODS and not np.isfinite(model.theta_).all():
+        raise CLIError(f"--method {args.method} diverged (the estimate is not finite): lower "
+                       f"--mu{'' if args.mu is None else f' (got {args.mu:g})'}")
     if args.save_model:
         try:
             model.save(args.save_model, trend=trend)
@@ -468,7 +490,8 @@ def _run_identify(args):
         metadata["model_file"] = args.save_model
         metadata["model_file_trend"] = None if trend is None else trend.type
     report = _validate(model, val if val is not None else est, None,
-                       args.lam if args.method in _LAM_METHODS else 1.0, metadata, progress)
+                       args.lam if args.method in _LAM_METHODS else 1.0, metadata, progress,
+                       window=args.window)
     after = [f"\nmodel saved to {args.save_model}"] if args.save_model else []
     if args.save_model and trend is not None:
         after[0] += (f" with the {trend.type} trend removed from the estimation data "
@@ -505,6 +528,15 @@ def _check_identify_options(args):
         with_scheme = [m for m in methods if m in _FORGETTING_METHODS]
         raise CLIError(f"--forgetting {args.forgetting} needs --method "
                        f"{' or '.join(with_scheme)}")
+    if args.mu is not None and args.method not in _GRADIENT_METHODS:
+        raise CLIError(f"--mu needs --method {' or '.join(_GRADIENT_METHODS)} (--model arx)")
+    if args.window is not None:
+        if args.method != "rls":
+            raise CLIError(f"--window needs --method rls (--model arx); got --method "
+                           f"{args.method}")
+        if args.lam != 1.0 or args.forgetting != "exponential":
+            raise CLIError(f"--window replaces forgetting: give --window or "
+                           f"--{'lam' if args.lam != 1.0 else 'forgetting'}, not both")
     if args.select_order and args.model != "arx":
         raise CLIError(f"--select-order searches ARX orders; give the orders of --model "
                        f"{args.model} (or rank structures with rlsfilt.select_structure)")
@@ -718,24 +750,29 @@ def _run_demo(args):
     return _emit(report, args, lines, _truth_table(model, theta_true, batch, label, lam))
 
 
-def _validate(model, u, y, lam, metadata, progress, plant=None):
+def _validate(model, u, y, lam, metadata, progress, plant=None, window=None):
     """`rlsfilt.validate` on the whole record, or with forgetting on its end.
 
     With ``lam < 1`` the final estimate describes the end of the record only,
     so it is validated on the last three memory lengths ``3 / (1 - lam)``
-    samples (at least 100 rows with a complete regressor).
+    samples; with a `window` of rows, on the samples of the last window (each
+    at least 100 rows with a complete regressor).
     """
-    if isinstance(u, IOData) and lam < 1.0 and u.n_experiments > 1:
+    local = lam < 1.0 or window is not None
+    if isinstance(u, IOData) and local and u.n_experiments > 1:
         u = u.getexp(-1)  # the estimate describes the end of the last experiment
     N = u.n_samples if isinstance(u, IOData) else len(y)
     start = 0
-    if lam < 1.0:
-        length = max(int(round(3.0 / (1.0 - lam))), 100 + model.max_lag + model.n_params)
-        start = max(0, N - length)
+    floor = 100 + model.max_lag + model.n_params
+    if window is not None:
+        start = max(0, N - max(window + model.max_lag, floor))
+        what = f"the last window of {window} rows"
+    elif lam < 1.0:
+        start = max(0, N - max(int(round(3.0 / (1.0 - lam))), floor))
+        what = f"three memory lengths of lam = {lam:g}"
     metadata["validation_start"] = start
     if start:
-        metadata["validation_note"] = (f"validation (on the last {N - start} samples, three "
-                                       f"memory lengths of lam = {lam:g})")
+        metadata["validation_note"] = f"validation (on the last {N - start} samples, {what})"
         if isinstance(u, IOData):
             u = u[start:]
         else:

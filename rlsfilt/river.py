@@ -35,7 +35,7 @@ try:
 except ImportError as exc:  # pragma: no cover - exercised without river only
     raise ImportError('rlsfilt.river needs river: pip install "rlsfilt[river]"') from exc
 
-from ._validation import check_bool, check_lam, check_real, check_variance
+from ._validation import COVARIANCE_MAX, check_bool, check_lam, check_real, check_variance
 from .filters.rls import RecursiveLeastSquares
 
 __all__ = ["RLSRegressor"]
@@ -124,7 +124,7 @@ class RLSRegressor(base.Regressor):
         self.R = R
         self.intercept = intercept
         self._lam = check_lam(lam, "lam")
-        self._delta = check_real(delta, "delta", minimum=0, strict=True)
+        self._delta = _check_delta(delta)
         self._R = check_variance(R, "R")
         self._offset = int(check_bool(intercept, "intercept"))
         self._index = {}        # feature name -> its column of H (after the intercept)
@@ -159,15 +159,20 @@ class RLSRegressor(base.Regressor):
         # features new in one sample enter in a fixed order, not the dict's: the state
         # (and every number after it) does not depend on the order of the keys
         new = sorted((f for f in values if f not in self._index), key=_feature_order)
-        if new or self.filter is None:
-            if not self._grow(new):
-                return                  # no intercept and no feature: nothing to learn
-        H = np.zeros(self.filter.dim_x)
-        H[:self._offset] = 1.0
-        for f, v in values.items():
-            H[self._index[f]] = v
-        self.filter.predict()           # P^- = P / lam
-        self.filter.update(y, H)        # theta += K (y - H theta), P = P^- - K S K^T
+        filt, index = self.filter, dict(self._index)    # a call that raises changes nothing
+        try:
+            if new or self.filter is None:
+                if not self._grow(new):
+                    return              # no intercept and no feature: nothing to learn
+            H = np.zeros(self.filter.dim_x)
+            H[:self._offset] = 1.0
+            for f, v in values.items():
+                H[self._index[f]] = v
+            # P^- = P / lam; theta += K (y - H theta), P = P^- - K S K^T (undone if it raises)
+            self.filter.predict_update(y, H)
+        except BaseException:
+            self.filter, self._index = filt, index
+            raise
 
     def predict_one(self, x, with_dist=False):
         """The prediction ``H theta`` for the features `x`, or its distribution.
@@ -215,6 +220,8 @@ class RLSRegressor(base.Regressor):
             if isinstance(v, (bool, np.bool_)) or not isinstance(v, numbers.Real):
                 raise TypeError(f"`x[{f!r}]` must be a real number; got {v!r}")
             out[f] = float(v)
+            if not np.isfinite(out[f]):
+                raise ValueError(f"`x[{f!r}]` must be finite; got {out[f]}")
         return out
 
     def _grow(self, new):
@@ -238,6 +245,16 @@ class RLSRegressor(base.Regressor):
             self._index[f] = self._offset + len(self._index)
         self.filter = filt
         return True
+
+
+def _check_delta(delta):
+    """The prior variance `delta` of a weight: positive, finite, at most
+    ``COVARIANCE_MAX`` (the filter's covariance update multiplies two of them)."""
+    delta = check_real(delta, "delta", minimum=0, strict=True)
+    if delta > COVARIANCE_MAX:
+        raise ValueError(f"`delta` must be at most {COVARIANCE_MAX:.0e} (the covariance update "
+                         f"multiplies two prior variances); got {delta}")
+    return delta
 
 
 def _feature_order(name):

@@ -33,7 +33,7 @@ except ImportError as exc:  # pragma: no cover - exercised without scikit-learn 
     raise ImportError('rlsfilt.sklearn needs scikit-learn >= 1.6: pip install "rlsfilt[sklearn]"'
                       ) from exc
 
-from ._validation import check_bool, check_lam, check_real
+from ._validation import COVARIANCE_MAX, check_bool, check_lam, check_real
 from .filters.rls import RecursiveLeastSquares
 
 __all__ = ["RLSRegressor"]
@@ -135,9 +135,15 @@ class RLSRegressor(RegressorMixin, BaseEstimator):
         -------
         self : RLSRegressor
         """
-        X, y = validate_data(self, X, y, dtype=np.float64, y_numeric=True, multi_output=True)
-        self._start(y)
-        return self._learn(X, y)
+        before = self.__dict__.copy()       # a fit that raises leaves the estimator as it was
+        try:
+            X, y = self._validated(X, y, reset=True)
+            self._start(y)
+            return self._learn(X, y)
+        except BaseException:
+            self.__dict__.clear()
+            self.__dict__.update(before)
+            raise
 
     def partial_fit(self, X, y):
         """Learn the rows of `X`, continuing from the previous call (or the prior).
@@ -154,15 +160,25 @@ class RLSRegressor(RegressorMixin, BaseEstimator):
         self : RLSRegressor
         """
         first = not hasattr(self, "filter_")
-        X, y = validate_data(self, X, y, dtype=np.float64, y_numeric=True, multi_output=True,
-                             reset=first)
-        if first:
-            self._start(y)
-        elif (y.ndim == 2) != self._multi or (y.ndim == 2 and y.shape[1] != self.filter_.dim_z):
+        before = self.__dict__.copy()       # a call that raises leaves the estimator as it was
+        try:
+            X, y = self._validated(X, y, reset=first)
+            if first:
+                self._start(y)
+            else:
+                self._same_targets(y)
+            return self._learn(X, y)
+        except BaseException:
+            self.__dict__.clear()
+            self.__dict__.update(before)
+            raise
+
+    def _same_targets(self, y):
+        """A later `partial_fit` takes the first call's number of targets."""
+        if (y.ndim == 2) != self._multi or (y.ndim == 2 and y.shape[1] != self.filter_.dim_z):
             raise ValueError(f"`y` has shape {y.shape}; expected "
                              + (f"(n_samples, {self.filter_.dim_z})" if self._multi
                                 else "(n_samples,)") + " as in the first partial_fit")
-        return self._learn(X, y)
 
     def predict(self, X):
         """The predictions ``X coef_^T + intercept_``.
@@ -176,14 +192,32 @@ class RLSRegressor(RegressorMixin, BaseEstimator):
         ndarray, shape (n_samples,) or (n_samples, n_targets)
         """
         check_is_fitted(self)
-        X = validate_data(self, X, dtype=np.float64, reset=False)
-        return X @ self.coef_.T + self.intercept_
+        _no_dates(X, "X")
+        try:
+            X = validate_data(self, X, dtype=np.float64, reset=False)
+        except (ValueError, TypeError) as exc:
+            raise type(exc)(f"`X`: {exc}") from exc
+        # C order: a DataFrame's (Fortran-ordered) rows give the bits of the same array's
+        return np.ascontiguousarray(X) @ self.coef_.T + self.intercept_
 
     # ------------------------------------------------------------------
+    def _validated(self, X, y, reset):
+        """scikit-learn's checks of ``(X, y)``, with a message naming the argument."""
+        _no_dates(X, "X")
+        _no_dates(y, "y")
+        try:
+            return validate_data(self, X, y, dtype=np.float64, y_numeric=True,
+                                 multi_output=True, reset=reset)
+        except (ValueError, TypeError) as exc:
+            raise type(exc)(f"{_culprit(X, y)}: {exc}") from exc
+
     def _start(self, y):
         """A new filter at the prior, for `y`'s number of targets."""
         lam = check_lam(self.lam, "lam")
         delta = check_real(self.delta, "delta", minimum=0, strict=True)
+        if delta > COVARIANCE_MAX:
+            raise ValueError(f"`delta` must be at most {COVARIANCE_MAX:.0e} (the covariance "
+                             f"update multiplies two prior variances); got {delta}")
         check_bool(self.fit_intercept, "fit_intercept")
         self._multi = y.ndim == 2
         dim_z = y.shape[1] if self._multi else 1
@@ -202,3 +236,25 @@ class RLSRegressor(RegressorMixin, BaseEstimator):
         self.coef_ = coef.copy() if self._multi else coef[0].copy()
         self.intercept_ = intercept.copy() if self._multi else float(intercept[0])
         return self
+
+
+def _no_dates(a, name):
+    """Dates and durations are not numbers (numpy would read them as counts of units)."""
+    kind = getattr(getattr(a, "dtype", None), "kind", None)
+    dtypes = getattr(a, "dtypes", [])             # a DataFrame's, one per column
+    kinds = [getattr(t, "kind", None)
+             for t in ([dtypes] if hasattr(dtypes, "kind") else dtypes)]
+    if kind in ("M", "m") or any(k in ("M", "m") for k in kinds):
+        raise TypeError(f"`{name}` must be numeric; got dates or durations")
+
+
+def _culprit(X, y):
+    """Which of `X`, `y` scikit-learn's combined check refused (both if each alone passes)."""
+    from sklearn.utils import check_array
+
+    for a, name, opts in ((X, "X", {}), (y, "y", {"ensure_2d": False})):
+        try:
+            check_array(a, dtype=np.float64, **opts)
+        except (ValueError, TypeError):
+            return f"`{name}`"
+    return "`X`, `y`"

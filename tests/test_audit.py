@@ -412,7 +412,9 @@ def _bank_entries():
               expect={"huge": ERROR, "tiny": WARNS, "list": ERROR}),
         Entry("RLSBank()", "P0", lambda v: run(P0=v), 10.0 * np.eye(3),
               expect={"huge": ERROR, "0d": SAME, "none": ERROR}),
-        Entry("RLSBank.update", "z", lambda v: update(z=v), zs[10], expect={"nan": OK}),
+        # None: no measurement for any channel (documented since the bank's freeze, #31)
+        Entry("RLSBank.update", "z", lambda v: update(z=v), zs[10],
+              expect={"nan": OK, "none": OK}),
         Entry("RLSBank.update", "H", lambda v: update(H=v), Hs[10],
               expect={"nan": OK, "huge": WARNS}),
         Entry("RLSBank.batch_filter", "zs",
@@ -547,6 +549,241 @@ def _persistence_entries():
               kind="scalar",
               expect={"list": ERROR, "bool": OK, "int": AS_FLOAT, "huge": OK, "tiny": OK}),
     ]
+
+
+def _running_on(obj):
+    """A `_Running` around `obj` as it is (a bank or a streaming model)."""
+    running = object.__new__(_Running)
+    running.f = obj
+    return running
+
+
+def _online_entries():
+    """The online estimation of #31: `GradientBank`, the gradient and window options of
+    `ARX.fit`, the `Recursive*` models' methods, window and steps (a rejected step or
+    batch leaves the estimator as it was)."""
+    from rlsfilt import GradientBank, RecursiveAR, RecursiveARX, RecursiveOE
+
+    C = 4
+    zs = np.column_stack([ZS + 0.01 * c for c in range(C)])            # (N, C)
+    Hs = np.repeat(HS[:, None, :], C, axis=1)                        # (N, C, 3)
+
+    def bank(**kw):
+        b = GradientBank(C, 3, **{"mu": 0.5, **kw})
+        b.batch_filter(zs, Hs)
+        return b.x.copy()
+
+    running = _running_on(GradientBank(C, 3, mu=0.5))
+    running.f.batch_filter(zs[:10], Hs[:10])
+    on_bank = running.call
+    entries = [
+        Entry("GradientBank()", "mu", lambda v: bank(mu=v), 0.5, kind="scalar",
+              expect={"huge": EITHER, "tiny": OK, "list": EITHER, "int": AS_FLOAT}),
+        Entry("GradientBank()", "eps", lambda v: bank(eps=v), 1e-3, kind="scalar",
+              expect={"huge": OK, "tiny": OK, "list": EITHER, "int": AS_FLOAT}),
+        Entry("GradientBank()", "leak", lambda v: bank(leak=v), 1e-3, kind="scalar",
+              expect={"huge": EITHER, "tiny": OK, "list": EITHER, "int": EITHER}),
+        Entry("GradientBank()", "x0", lambda v: bank(x0=v), [0.1, 0.2, 0.3],
+              expect={"none": OK, "huge": EITHER, "tiny": OK}),
+        Entry("GradientBank()", "n_channels", lambda v: GradientBank(v, 3).x.shape, 4,
+              kind="int"),
+        Entry("GradientBank()", "dim_x", lambda v: GradientBank(4, v).x.shape, 3, kind="int"),
+        Entry("GradientBank.update", "z",
+              on_bank(lambda g, v: (g.predict(), g.update(v, Hs[10]), g.x.copy())[-1]),
+              zs[10], expect={"nan": OK, "none": OK, "huge": EITHER, "tiny": OK},
+              state=running.state),          # None: no measurement (every channel skips)
+        Entry("GradientBank.update", "H",
+              on_bank(lambda g, v: (g.predict(), g.update(zs[10], v), g.x.copy())[-1]),
+              Hs[10], expect={"nan": OK, "huge": EITHER, "tiny": OK, "bool": EITHER},
+              state=running.state),
+        # update_block's messages use batch_filter's names (documented, as RLSBank's)
+        Entry("GradientBank.update_block", "zs",
+              on_bank(lambda g, v: (g.update_block(v, Hs[10:20]), g.x.copy())[-1]),
+              zs[10:20], expect={"nan": OK, "huge": EITHER, "tiny": OK}, state=running.state),
+        Entry("GradientBank.update_block", "Hs",
+              on_bank(lambda g, v: (g.update_block(zs[10:20], v), g.x.copy())[-1]),
+              Hs[10:20], expect={"nan": OK, "huge": EITHER, "tiny": OK, "bool": EITHER},
+              state=running.state),
+        Entry("GradientBank.batch_filter", "zs",
+              on_bank(lambda g, v: g.batch_filter(v, Hs[10:]).means), zs[10:],
+              expect={"nan": OK, "huge": EITHER, "tiny": OK}, state=running.state),
+        Entry("GradientBank.batch_filter", "Hs",
+              on_bank(lambda g, v: g.batch_filter(zs[10:], v).means), Hs[10:],
+              expect={"nan": OK, "huge": EITHER, "tiny": OK, "bool": EITHER},
+              state=running.state),
+    ]
+    # ARX.fit's gradient methods and window
+    b_inv = scaled(lambda r, s: r * np.array([1.0, 1.0, 1 / s, 1 / s]))     # u * s: b / s
+    for m in ("nlms", "lms"):
+        mu = 0.5 if m == "nlms" else 0.01
+        entries += [
+            Entry(f"ARX.fit(method={m!r})", "u",
+                  lambda v, m=m, mu=mu: _theta(ARX(2, 2).fit(v, Y, method=m, mu=mu)), U,
+                  expect={"huge": EITHER, "tiny": EITHER}),
+            Entry(f"ARX.fit(method={m!r})", "y",
+                  lambda v, m=m, mu=mu: _theta(ARX(2, 2).fit(U, v, method=m, mu=mu)), Y,
+                  expect={"huge": EITHER, "tiny": EITHER, "shape": ERROR}),
+            Entry(f"ARX.fit(method={m!r})", "mu",
+                  lambda v, m=m: _theta(ARX(2, 2).fit(U, Y, method=m, mu=v)), mu,
+                  kind="scalar", expect={"huge": EITHER, "tiny": OK, "int": EITHER}),
+            Entry(f"ARX.fit(method={m!r})", "leak",
+                  lambda v, m=m, mu=mu: _theta(ARX(2, 2).fit(U, Y, method=m, mu=mu, leak=v)),
+                  1e-3, kind="scalar", expect={"huge": EITHER, "tiny": OK, "int": EITHER}),
+        ]
+    entries += [
+        Entry("ARX.fit(method='nlms')", "eps",
+              lambda v: _theta(ARX(2, 2).fit(U, Y, method="nlms", mu=0.5, eps=v)), 1e-3,
+              kind="scalar", expect={"huge": OK, "tiny": OK, "int": AS_FLOAT}),
+        Entry("ARX.fit(method='rls')", "window",
+              lambda v: _theta(ARX(2, 2).fit(U, Y, method="rls", window=v)), 50, kind="int",
+              expect={"none": OK}),                  # None: no window (the default)
+        # the window runs SlidingWindowRLS on the unscaled rows (its filter_ is the
+        # user's): not yet scale-invariant as the other ARX fits (#18 item 7)
+        Entry("ARX.fit(method='rls', window=50)", "u",
+              lambda v: _theta(ARX(2, 2).fit(v, Y, method="rls", window=50)), U,
+              expect={"huge": b_inv, "tiny": b_inv},
+              known={k: "ARX.fit(window=) is not scale-invariant around 1e+-160"
+                     for k in ("huge", "tiny")}),
+    ]
+    # the streaming models: options, steps and records
+    makers = {"RecursiveARX(method='nlms')": lambda: RecursiveARX(2, 2, 1, method="nlms",
+                                                                  mu=0.5),
+              "RecursiveARX(window=40)": lambda: RecursiveARX(2, 2, 1, window=40),
+              "RecursiveOE(window=60)": lambda: RecursiveOE(2, 2, 1, window=60),
+              "RecursiveARX": lambda: RecursiveARX(2, 2, 1)}
+    for label, make in makers.items():
+        est = _running_on(make())
+        est.f.batch(Y[:30], U[:30])
+
+        # a window's prior is in the signals' units (the module notes of
+        # rlsfilt.models.recursive): around 1e160 its health warning, the state unchanged
+        big = WARNS if "window" in label else EITHER
+
+        def step(g, v, which):
+            out = g.step(v, U[30]) if which == "y" else g.step(Y[30], v)
+            return out[0], out[1]
+
+        entries += [
+            Entry(f"{label}.step", "y", est.call(lambda g, v: step(g, v, "y")), Y[30],
+                  kind="scalar", expect={"huge": EITHER, "tiny": EITHER, "bool": EITHER},
+                  state=est.state),
+            Entry(f"{label}.step", "u", est.call(lambda g, v: step(g, v, "u")), U[30],
+                  kind="scalar", expect={"huge": EITHER, "tiny": EITHER, "bool": EITHER,
+                                         "none": ERROR}, state=est.state),
+            Entry(f"{label}.batch", "y", est.call(lambda g, v: g.batch(v, U[30:60])[1]),
+                  Y[30:60], expect={"huge": big, "tiny": EITHER}, state=est.state),
+            Entry(f"{label}.batch", "u", est.call(lambda g, v: g.batch(Y[30:60], v)[1]),
+                  U[30:60], expect={"huge": big, "tiny": EITHER}, state=est.state),
+        ]
+    frozen = _running_on(RecursiveARX(2, 2, 1))
+    frozen.f.batch(Y[:30], U[:30])
+    frozen.f.freeze()
+    entries += [
+        Entry("RecursiveARX(frozen).step", "y",
+              frozen.call(lambda g, v: g.step(v, U[30])[0]), Y[30], kind="scalar",
+              expect={"huge": EITHER, "tiny": EITHER, "bool": EITHER}, state=frozen.state),
+        Entry("RecursiveARX(frozen).batch", "u",
+              frozen.call(lambda g, v: g.batch(Y[30:60], v)[0]), U[30:60],
+              expect={"huge": EITHER, "tiny": EITHER}, state=frozen.state),
+        Entry("RecursiveARX()", "mu",
+              lambda v: RecursiveARX(2, 2, 1, method="nlms", mu=v).batch(Y, U)[1], 0.5,
+              kind="scalar", expect={"huge": EITHER, "tiny": OK, "int": EITHER}),
+        Entry("RecursiveARX()", "window",
+              lambda v: RecursiveARX(2, 2, 1, window=v).batch(Y, U)[1], 40, kind="int",
+              expect={"none": OK}),
+        Entry("RecursiveAR()", "window",
+              lambda v: RecursiveAR(2, window=v).batch(Y)[1], 40, kind="int", expect={"none": OK}),
+        Entry("RecursiveOE()", "window",
+              lambda v: RecursiveOE(2, 2, 1, window=v).batch(Y, U)[1], 60, kind="int",
+              expect={"none": OK}),
+        Entry("RecursiveAR()", "mu",
+              lambda v: RecursiveAR(2, method="lms", mu=v).batch(Y)[1], 0.01,
+              kind="scalar", expect={"huge": EITHER, "tiny": OK, "int": EITHER}),
+    ]
+    return entries
+
+
+def _adapter_entries():
+    """The streaming adapters (#31): river's and scikit-learn's `RLSRegressor`
+    (constructors, ``learn_one``/``predict_one``, ``fit``/``partial_fit``/``predict``)."""
+    from rlsfilt.river import RLSRegressor as RiverRLS
+    from rlsfilt.sklearn import RLSRegressor as SkRLS
+
+    def river_run(**kw):
+        m = RiverRLS(**kw)
+        for h, z in zip(HS, ZS):
+            m.learn_one({"a": h[0], "b": h[1], "c": h[2]}, z)
+        return np.array(list(m.weights.values()))
+
+    learner = _running_on(RiverRLS())
+    for h, z in zip(HS[:10], ZS[:10]):
+        learner.f.learn_one({"a": h[0], "b": h[1], "c": h[2]}, z)
+    row = {"a": HS[10, 0], "b": HS[10, 1]}
+
+    def learn(g, v, which):
+        x = {**row, "c": v} if which == "x" else {**row, "c": HS[10, 2]}
+        g.learn_one(x, v if which == "y" else ZS[10])
+        return np.array(list(g.weights.values()))
+
+    sk = _running_on(SkRLS().partial_fit(HS[:10], ZS[:10]))
+
+    def coef(m):
+        return np.append(m.coef_, m.intercept_)
+
+    return [
+        # lam around 1e-160: the filter's health warning (P^- = P / lam overflows)
+        Entry("river.RLSRegressor()", "lam", lambda v: river_run(lam=v), 0.98, kind="scalar",
+              expect={"huge": ERROR, "tiny": WARNS, "list": EITHER}),
+        Entry("river.RLSRegressor()", "delta", lambda v: river_run(delta=v), 100.0,
+              kind="scalar", expect={"huge": EITHER, "tiny": EITHER, "list": EITHER}),
+        Entry("river.RLSRegressor()", "R", lambda v: river_run(R=v), 0.5, kind="scalar",
+              expect={"huge": ERROR, "tiny": ERROR, "list": EITHER}),
+        Entry("river.RLSRegressor.learn_one", "y",
+              learner.call(lambda g, v: learn(g, v, "y")), ZS[10], kind="scalar",
+              expect={"huge": EITHER, "tiny": EITHER, "list": EITHER, "0d": EITHER},
+              state=learner.state),
+        Entry("river.RLSRegressor.learn_one", "x",
+              learner.call(lambda g, v: learn(g, v, "x")), HS[10, 2], kind="scalar",
+              expect={"huge": WARNS, "tiny": EITHER, "list": EITHER, "0d": EITHER},
+              state=learner.state),
+        Entry("river.RLSRegressor.predict_one", "x",
+              lambda v: learner.f.predict_one({**row, "c": v}), HS[10, 2], kind="scalar",
+              expect={"huge": EITHER, "tiny": EITHER, "list": EITHER, "0d": EITHER},
+              state=learner.state),
+        Entry("sklearn.RLSRegressor.fit", "lam", lambda v: coef(SkRLS(lam=v).fit(HS, ZS)),
+              0.98, kind="scalar", expect={"huge": ERROR, "tiny": WARNS, "list": EITHER}),
+        Entry("sklearn.RLSRegressor.fit", "delta",
+              lambda v: coef(SkRLS(delta=v).fit(HS, ZS)), 100.0, kind="scalar",
+              expect={"huge": EITHER, "tiny": EITHER, "list": EITHER}),
+        Entry("sklearn.RLSRegressor.fit", "X", lambda v: coef(SkRLS().fit(v, ZS)), HS,
+              expect={"huge": WARNS, "tiny": EITHER, "bool": EITHER}),
+        Entry("sklearn.RLSRegressor.fit", "y", lambda v: coef(SkRLS().fit(HS, v)), ZS,
+              expect={"huge": EITHER, "tiny": EITHER, "bool": EITHER}),
+        Entry("sklearn.RLSRegressor.partial_fit", "X",
+              sk.call(lambda g, v: coef(g.partial_fit(v, ZS[10:]))), HS[10:],
+              expect={"huge": WARNS, "tiny": EITHER, "bool": EITHER}, state=sk.state),
+        Entry("sklearn.RLSRegressor.partial_fit", "y",
+              sk.call(lambda g, v: coef(g.partial_fit(HS[10:], v))), ZS[10:],
+              expect={"huge": EITHER, "tiny": EITHER, "bool": EITHER}, state=sk.state),
+        Entry("sklearn.RLSRegressor.predict", "X", lambda v: sk.f.predict(v), HS[10:],
+              expect={"huge": EITHER, "tiny": EITHER, "bool": EITHER}, state=sk.state),
+    ]
+
+
+ONLINE_ENTRIES = _online_entries() + _adapter_entries()
+ONLINE_PARAMS = [pytest.param(e, kind, id=f"{e.name}-{e.arg}-{kind}",
+                              marks=[pytest.mark.xfail(strict=True, reason=e.known[kind])]
+                              if kind in e.known else [])
+                 for e in ONLINE_ENTRIES
+                 for kind in {"array": ARRAY_KINDS, "scalar": SCALAR_KINDS,
+                              "int": INT_KINDS}[e.kind]]
+
+
+@pytest.mark.parametrize("entry, kind", ONLINE_PARAMS)
+def test_bad_input_catalogue_online(entry, kind):
+    """#31's entry points: each bad value a clear error naming the argument (the
+    estimator unchanged), or the documented outcome."""
+    test_bad_input_catalogue(entry, kind)
 
 
 def _best(u, y, na=range(1, 4)):

@@ -236,6 +236,70 @@ def test_identify_forgetting_modes_match_the_filter(capsys, tmp_path, mode):
     np.testing.assert_allclose(res["theta"], ds.theta_true[-1], atol=0.12)
 
 
+@pytest.mark.parametrize("method, mu", [("nlms", 0.5), ("lms", 0.01), ("nlms", None)])
+def test_identify_gradient_methods_are_the_filter_on_the_rows(capsys, tmp_path, method, mu):
+    """--method nlms|lms (--mu): the filter run by hand on ARX's regressor rows (1e-12)."""
+    from rlsfilt import ARX, LMS, NLMS
+    from rlsfilt.datasets import time_varying
+
+    ds = time_varying(n_samples=800, rng=1)
+    path = _write_csv(tmp_path / "tv.csv", ["u", "y"], zip(ds.u, ds.y))
+    extra = () if mu is None else ("--mu", str(mu))
+    code, out, err = _run(capsys, "identify", path, "-u", "u", "-y", "y", "--method", method,
+                          *extra, "--json", "--detrend", "none")
+    assert code == 0, err
+    res = json.loads(out)
+    assert res["method"] == method and res["theta_std"] == [None] * 4
+    Phi, z = ARX(2, 2, 1).regressors(ds.u, ds.y)
+    filt = {"nlms": NLMS, "lms": LMS}[method](4, **({} if mu is None else {"mu": mu}))
+    filt.batch_filter(z, Phi)
+    np.testing.assert_allclose(res["theta"], filt.x[:, 0], rtol=1e-12, atol=1e-14)
+
+
+def test_identify_window_is_least_squares_over_the_last_rows(capsys, tmp_path):
+    from rlsfilt import ARX
+    from rlsfilt.datasets import time_varying
+
+    ds = time_varying(n_samples=800, rng=2)
+    path = _write_csv(tmp_path / "tv.csv", ["u", "y"], zip(ds.u, ds.y))
+    code, out, err = _run(capsys, "identify", path, "-u", "u", "-y", "y", "--method", "rls",
+                          "--window", "120", "--json", "--detrend", "none")
+    assert code == 0, err
+    res = json.loads(out)
+    assert res["form"] == "window"
+    # validated on the samples of the last window (the estimate describes them only)
+    assert res["metadata"]["validation_start"] == 800 - (120 + 2)
+    assert "the last window of 120 rows" in res["metadata"]["validation_note"]
+    Phi, z = ARX(2, 2, 1).regressors(ds.u, ds.y)
+    ref = np.linalg.lstsq(Phi[-120:], z[-120:], rcond=None)[0]
+    np.testing.assert_allclose(res["theta"], ref.ravel(), rtol=1e-9, atol=1e-12)
+    # the whole record's least squares differs (the plant changes): the window mattered
+    full = np.linalg.lstsq(Phi, z, rcond=None)[0]
+    assert np.max(np.abs(full.ravel() - res["theta"])) > 1e-3
+
+
+def test_error_gradient_and_window_options(capsys, csv_file):
+    base = ("identify", csv_file, "-u", "u1", "-y", "y")
+    r = _run(capsys, *base, "--mu", "0.1")
+    _assert_one_line_error(*r, "--mu needs --method nlms or lms")
+    r = _run(capsys, *base, "--method", "nlms", "--lam", "0.9")
+    _assert_one_line_error(*r, "--lam 0.9 needs --method rls or riv")
+    r = _run(capsys, *base, "--window", "50")
+    _assert_one_line_error(*r, "--window needs --method rls (--model arx); got --method ls")
+    r = _run(capsys, *base, "--method", "rls", "--window", "50", "--lam", "0.9")
+    _assert_one_line_error(*r, "--window replaces forgetting: give --window or --lam, not both")
+    r = _run(capsys, *base, "--method", "rls", "--window", "2")
+    _assert_one_line_error(*r, "ARX: `window` must be >= 4; got 2")
+    r = _run(capsys, *base, "--model", "oe", "--method", "nlms")
+    _assert_one_line_error(*r, "--method nlms does not apply to --model oe")
+    r = _run(capsys, *base, "--method", "lms", "--mu", "5")
+    _assert_one_line_error(*r, "--method lms diverged (the estimate is not finite): lower --mu "
+                               "(got 5)")
+    for option, value in (("--mu", "0"), ("--mu", "inf"), ("--window", "0")):
+        r = _run(capsys, *base, option, value)
+        assert r[0] == 2 and f"argument {option}: must be" in r[2]
+
+
 def test_identify_text_report(capsys, csv_file):
     code, out, err = _run(capsys, *_ident_args(csv_file, "--time", "t"))
     assert code == 0 and err == ""

@@ -69,6 +69,31 @@ def test_json_to_stdout_with_rls(rng, tmp_path, capsys):
             assert rec[key] == (value.item() if hasattr(value, "item") else value), key
 
 
+@pytest.mark.parametrize("method, mu", [("nlms", "0.3"), ("lms", "0.02")])
+def test_gradient_methods_equal_fit_many_and_the_filter_by_hand(rng, tmp_path, method, mu):
+    """--method nlms|lms --mu: fit_many's GradientBank (exactly), which is the filter run
+    by hand on each channel's regressor rows (1e-12)."""
+    from rlsfilt import LMS, NLMS
+
+    frame = _write_csv(tmp_path / "pack.csv", rng, C=3)
+    out = tmp_path / "summary.csv"
+    _run(["identify-many", str(tmp_path / "pack.csv"), "-c", "cell", "-u", "current",
+          "-y", "voltage", "--method", method, "--mu", mu, "-o", str(out), "-q"])
+    got = pd.read_csv(out, index_col="channel")
+    expected = _expected(frame, method, mu=float(mu))
+    pd.testing.assert_frame_equal(got, expected, check_exact=True, check_index_type=False)
+    for label in got.index:
+        rows = frame[frame["cell"] == label]
+        Phi, z = ARX(2, 2, 1).regressors(rows["current"].to_numpy(), rows["voltage"].to_numpy())
+        filt = {"nlms": NLMS, "lms": LMS}[method](4, mu=float(mu))
+        filt.batch_filter(z, Phi)
+        np.testing.assert_allclose(got.loc[label, ["a1", "a2", "b1", "b2"]].to_numpy(float),
+                                   filt.x[:, 0], rtol=1e-12, atol=1e-14)
+    with pytest.raises(ValueError, match="--mu needs --method nlms or lms"):
+        _run(["identify-many", str(tmp_path / "pack.csv"), "-c", "cell", "-u", "current",
+              "-y", "voltage", "--method", "rls", "--mu", mu, "-q"])
+
+
 def test_bad_channel_is_named_or_reported(rng, tmp_path, capsys):
     def blank(frame):
         frame.loc[(frame["cell"] == "cell3") & (frame["t"] == 40), "voltage"] = np.nan
@@ -117,6 +142,9 @@ def test_user_errors_are_one_line(rng, tmp_path):
     ("--na", "-1", "argument --na: must be >= 0; got -1"),
     ("--nk", "1,-2", "argument --nk: must be >= 0; got -2"),
     ("--forgetting", "efra", "argument --forgetting: invalid choice: 'efra'"),
+    ("--mu", "-0.1", "argument --mu: must be a positive number; got -0.1"),
+    ("--mu", "nan", "argument --mu: must be a positive number; got nan"),
+    ("--method", "rpem", "argument --method: invalid choice: 'rpem'"),
 ])
 def test_option_errors_read_as_rlsfilt_identify(option, value, message, tmp_path, capsys):
     """identify-many parses its options with the types of ``rlsfilt identify`` (the same

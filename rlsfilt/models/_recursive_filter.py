@@ -84,6 +84,16 @@ class FilterRecursion:
                                  "method)")
         return self.filt.P
 
+    @property
+    def frozen(self):
+        """Whether adaptation is off (the filter's :attr:`frozen`): a step forms the
+        regressor and the prediction, the estimate and ``P`` stay as they are."""
+        return self.filt.frozen
+
+    @frozen.setter
+    def frozen(self, value):
+        self.filt.adapt = not value
+
     def restart(self):
         """Signal lags back to rest (zero); the estimate carries on."""
         s = self.s
@@ -91,36 +101,43 @@ class FilterRecursion:
         self._u = [np.zeros(nk + nb) for nk, nb in zip(s.nk, s.nb)]   # u_j(t) ..
         self._w = [np.zeros(nf) for nf in s.nf]                    # w_j(t-1) ..
 
-    def _regressor(self):
+    def _regressor(self, ulags):
         s = self.s
         phi = np.empty(s.n_params)
         phi[:s.na] = -self._y
         for j in range(s.n_inputs):
             b, f = self._off_b[j], self._off_f[j]
-            phi[b:b + s.nb[j]] = self._u[j][s.nk[j]:]
+            phi[b:b + s.nb[j]] = ulags[j][s.nk[j]:]
             phi[f:f + s.nf[j]] = -self._w[j]
         return phi
 
     def step(self, y, u):
-        """One sample ``y`` (float), ``u`` ((nu,) float64): ``(yhat, eps, False)``."""
+        """One sample ``y`` (float), ``u`` ((nu,) float64): ``(yhat, eps, False)``.
+
+        A step that raises (the filter's health warning turned into an error)
+        leaves the recursion as it was: the lags move only after the filter's
+        ``predict_update``, which undoes itself when it raises. A diverging
+        gradient estimate gives non-finite predictions without a warning, as
+        the filters' compiled steps do.
+        """
         s = self.s
-        for j in range(s.n_inputs):                      # u_j(t) enters the lags
-            uj = self._u[j]
-            uj[1:] = uj[:-1].copy()
-            if len(uj):
-                uj[0] = u[j]
-        phi = self._regressor()
+        # u_j(t) enters the lags (new arrays: committed after the update)
+        ulags = [np.concatenate(([u[j]], uj[:-1])) if len(uj) else uj
+                 for j, uj in enumerate(self._u)]
+        phi = self._regressor(ulags)
         filt = self.filt
-        filt.predict()
-        yhat = float(phi @ filt.x[:, 0])                 # y^(t) = phi(t) theta(t-1)
-        filt.update(y, phi)
+        with np.errstate(over="ignore", invalid="ignore"):
+            yhat = float(phi @ filt.x[:, 0])             # y^(t) = phi(t) theta(t-1)
+        filt.predict_update(y, phi)
         theta = filt.x[:, 0]
+        self._u = ulags
         for j in range(s.n_inputs):                      # w_j(t) = B_j / F_j u_j(t)
             if s.nf[j]:
                 b, f = self._off_b[j], self._off_f[j]
                 w = self._w[j]
-                wt = (phi[b:b + s.nb[j]] @ theta[b:b + s.nb[j]]
-                      - w @ theta[f:f + s.nf[j]])
+                with np.errstate(over="ignore", invalid="ignore"):
+                    wt = (phi[b:b + s.nb[j]] @ theta[b:b + s.nb[j]]
+                          - w @ theta[f:f + s.nf[j]])
                 w[1:] = w[:-1].copy()
                 w[0] = wt
         if s.na:

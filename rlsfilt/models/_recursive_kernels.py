@@ -271,8 +271,12 @@ def _lagged_sum(theta, start, n, buf, sig, first_lag):
 
 @njit(cache=True)
 def rpem_step(theta, P, buf, y, u, na, nb, nc, nd, nf, nk, off_b, off_c, off_d, off_f,
-              method, cfg, lam, Q, r, project, phi, psi, g, K, T, dx, zy):
+              method, cfg, lam, Q, r, project, phi, psi, g, K, T, dx, zy, adapt=True):
     """One step of RPEM (``method`` 0) or RPLR (1), in place on ``theta``, ``P``, ``buf``.
+
+    ``adapt=False`` (the estimator frozen): no covariance or estimate update,
+    ``theta`` and ``P`` untouched (``s`` NaN, ``lam_t`` 1, no gate, no
+    projection); the signals move on through the filters of ``theta``.
 
     ``lam`` is this step's forgetting factor (see `next_lam`); `cfg` the
     filters' configuration (``forgetting.kernel_config``: the forgetting
@@ -334,10 +338,13 @@ def rpem_step(theta, P, buf, y, u, na, nb, nc, nd, nf, nk, off_b, off_c, off_d, 
         yhat += phi[i] * theta[i]
     eps = y - yhat
     # covariance and estimate update (RecursiveLeastSquares with regressor psi)
-    cfg[CFG_LAM] = lam
-    forget(P, 1.0 / lam if int(cfg[CFG_MODE]) == EXPONENTIAL else 1.0, Q)
-    s, lam_t, gated = rls_update(theta, P, psi, eps, r, cfg, g, K, T, dx, zy)
-    reflected = stabilize(theta, nc, nd, nf, off_c, off_d, off_f) if project else 0
+    if adapt:
+        cfg[CFG_LAM] = lam
+        forget(P, 1.0 / lam if int(cfg[CFG_MODE]) == EXPONENTIAL else 1.0, Q)
+        s, lam_t, gated = rls_update(theta, P, psi, eps, r, cfg, g, K, T, dx, zy)
+        reflected = stabilize(theta, nc, nd, nf, off_c, off_d, off_f) if project else 0
+    else:                                # frozen: theta(t) = theta(t-1), P unchanged
+        s, lam_t, gated, reflected = np.nan, 1.0, False, 0
     # the model's own signals with theta(t): w_i = B_i/F_i u_i, v = A y - sum w_i, e = D/C v
     wsum = 0.0
     for i in range(nu):
@@ -414,7 +421,8 @@ SPEC_NA, SPEC_NC, SPEC_ND, SPEC_OFF_C, SPEC_OFF_D, SPEC_METHOD = range(6)
 SPEC_PROJECT, SPEC_NU, SPEC_BLOCKS = range(6, 9)
 # fpar (float64): inputs lam, lam_rate, r; state lam_now; outputs of the last step; the
 # work of `rls_update` (its measurement and residual)
-F_LAM, F_LAM_RATE, F_R, F_LAM_NOW, F_LAM_T, F_GATED, F_REFL, F_Z, F_Y, F_SIZE = range(10)
+# then F_FROZEN: 1.0 while the estimator is frozen (no update, the profile held)
+F_LAM, F_LAM_RATE, F_R, F_LAM_NOW, F_LAM_T, F_GATED, F_REFL, F_Z, F_Y, F_FROZEN, F_SIZE = range(11)
 
 
 @njit(cache=True)
@@ -441,7 +449,11 @@ def rpem_stream(theta, P, buf, y, u, spec, fpar, cfg, Q, W, T):
         theta, P, buf, y, u, spec[SPEC_NA], nb, spec[SPEC_NC], spec[SPEC_ND], nf, nk, off_b,
         spec[SPEC_OFF_C], spec[SPEC_OFF_D], off_f, spec[SPEC_METHOD], cfg, lam_now, Q, fpar[F_R],
         spec[SPEC_PROJECT] != 0, W[0], W[1], W[2], W[3], T, W[4].reshape((W.shape[1], 1)),
-        fpar[F_Z:F_Z + 2])
+        fpar[F_Z:F_Z + 2], fpar[F_FROZEN] == 0.0)
+    if fpar[F_FROZEN] != 0.0:            # frozen: the forgetting profile waits
+        fpar[F_GATED] = 0.0
+        fpar[F_REFL] = 0.0
+        return yh, ep
     fpar[F_LAM_NOW] = next_lam(lam_now, fpar[F_LAM], fpar[F_LAM_RATE])
     fpar[F_LAM_T] = lam_t
     fpar[F_GATED] = 1.0 if gt else 0.0
@@ -722,7 +734,7 @@ def riv_model(theta, P, buf, U, y, t0, na, nb, nk, k0, alpha, beta, refresh, pre
 # packed arguments of `riv_stream` (as for `rpem_stream`)
 RSPEC_NA, RSPEC_K0, RSPEC_REFRESH, RSPEC_PREFILTER, RSPEC_GIVEN, RSPEC_NU = range(6)
 RSPEC_BLOCKS = 6
-RF_IL, RF_R, RF_TOL, RF_SIZE = range(4)
+RF_IL, RF_R, RF_TOL, RF_FROZEN, RF_SIZE = range(5)   # RF_FROZEN: 1.0 while frozen
 # rows of the work array W (7, n): phi, z, g, h, K, theta before the step, eps (W[6, 0])
 W_PHI, W_Z, W_G, W_H, W_K, W_THETA, W_EPS = range(7)
 
@@ -746,6 +758,20 @@ def riv_stream(theta, P, buf, y, u, z_given, row, spec, fpar, alpha, beta, Q, S0
     prev = W[W_THETA]
     for i in range(n):
         prev[i] = theta[i, 0]
+    if fpar[RF_FROZEN] != 0.0:
+        # frozen (status 4): the signals and rows move on through the held auxiliary
+        # model; no start row, update or refresh; theta and P untouched
+        riv_signals(buf, y, u, spec[RSPEC_NA], nb, nk, alpha, beta,
+                    spec[RSPEC_PREFILTER] != 0, W[W_PHI], W[W_Z])
+        if spec[RSPEC_GIVEN] != 0:
+            for j in range(n):
+                W[W_Z, j] = z_given[j]
+        if 0 <= row < spec[RSPEC_K0]:
+            return 4, np.nan                 # the exact start is not made yet
+        yhat = 0.0
+        for i in range(n):
+            yhat += W[W_PHI, i] * prev[i]
+        return 4, yhat
     status, _ = riv_model_step(
         theta, P, buf, y, u, z_given, spec[RSPEC_GIVEN] != 0, row, spec[RSPEC_NA], nb, nk,
         spec[RSPEC_K0], alpha, beta, spec[RSPEC_REFRESH], spec[RSPEC_PREFILTER] != 0,

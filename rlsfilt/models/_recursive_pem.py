@@ -201,6 +201,17 @@ class RecursionState:
     def lam_t(self, value):
         self._fpar[_get_kernels().F_LAM_T] = value
 
+    @property
+    def frozen(self):
+        """Whether adaptation is off: a step moves the signals through the filters of
+        the held ``theta`` but leaves ``theta``, ``P`` and the forgetting profile as
+        they are."""
+        return bool(self._fpar[_get_kernels().F_FROZEN])
+
+    @frozen.setter
+    def frozen(self, value):
+        self._fpar[_get_kernels().F_FROZEN] = 1.0 if value else 0.0
+
     def _common(self):
         i = self._ints
         return (i["na"], i["nb"], i["nc"], i["nd"], i["nf"], i["nk"], i["off_b"], i["off_c"],
@@ -221,6 +232,11 @@ class RecursionState:
         N, n = len(y), self.s.n_params
         out = {"theta_history": np.empty((N, n)), "yhat": np.empty(N), "eps": np.empty(N),
                "gated": np.zeros(N, dtype=np.bool_)}
+        if self.frozen:                    # the streaming step, sample by sample
+            for t in range(N):
+                out["yhat"][t], out["eps"][t], out["gated"][t] = self.step(float(y[t]), U[t])
+                out["theta_history"][t] = self.theta
+            return out
         k = _get_kernels()
         lam_now, lam_t, n_refl = k.rpem_batch(self.theta, self.P, self.buf, y, U,
                                               *self._common(), out["theta_history"],
@@ -304,10 +320,18 @@ class RecursionState:
         return None if self._work is None else self._work[0][0].copy()
 
     def copy(self):
-        """An independent copy."""
+        """An independent copy: the arrays a step writes (``theta``, ``P``, the signal
+        buffer, the scalars, the filters' configuration and the work rows) are copied,
+        the read-only configuration is shared (a tenth of the cost of a deep copy:
+        every `batch` of the streaming objects runs on a copy)."""
         import copy
 
-        return copy.deepcopy(self)
+        new = copy.copy(self)
+        for name in ("theta", "P", "buf", "_fpar", "_cfg"):
+            setattr(new, name, getattr(self, name).copy())
+        if self._work is not None:
+            new._work = tuple(a.copy() for a in self._work)
+        return new
 
 
 def positive_real_margins(theta, s, n_grid=1024):

@@ -36,7 +36,7 @@ import threading
 import numpy as np
 
 from .._locking import init_signature
-from .._validation import as_float_array, check_finite
+from .._validation import as_float_array, check_bool, check_finite
 from . import _recursive_filter
 from ._family import family_structure, param_names, split_theta
 from ._recursive_pem import RecursionState
@@ -97,6 +97,11 @@ class _RecursiveModel(_Guarded):
     never moves the other). An estimator shared by threads takes one call at a
     time: :meth:`step`, :meth:`batch`, :meth:`restart`, :meth:`reset` and the
     reads of the estimate hold its lock.
+
+    **Adaptation switch.** :meth:`freeze` (``adapt = False``, MATLAB's
+    ``EnableAdaptation = false``) holds the estimate, ``P`` and the forgetting
+    profile while the predictions and the regressor's signals go on;
+    :meth:`unfreeze` resumes as if those samples' updates had been skipped.
     """
 
     def __init__(self, s, method, options, window=None):
@@ -111,6 +116,7 @@ class _RecursiveModel(_Guarded):
         else:
             self._state = RecursionState(s, method, **options)
         self._initial = self._state.copy()
+        self._frozen = False
         self.last_error = np.nan
         self._nu = s.n_inputs
         self._ubuf = np.zeros(s.n_inputs)      # the input sample of the fast path
@@ -158,6 +164,10 @@ class _RecursiveModel(_Guarded):
     def batch(self, y, u=None):
         """Run a record through the same compiled recursion; return the estimates.
 
+        All or nothing: a call that raises (a bad sample, a health warning turned
+        into an error) leaves the estimator as it was. While :attr:`frozen`, the
+        predictions of the held estimate (its rows all equal to it).
+
         Parameters
         ----------
         y : array_like, shape (N,)
@@ -172,7 +182,13 @@ class _RecursiveModel(_Guarded):
         theta_history : ndarray, shape (N, n_params)
             The estimate after each sample.
         """
-        yv = check_finite(as_float_array(y, "y").reshape(-1), "y")
+        yv = as_float_array(y, "y")
+        if yv.ndim == 2 and yv.shape[1] == 1:
+            yv = yv[:, 0]
+        if yv.ndim != 1:
+            raise ValueError(f"`y` must have shape (N,) or (N, 1) (one output sample per "
+                             f"row); got {yv.shape}")
+        check_finite(yv, "y")
         nu = self._structure.n_inputs
         if nu:
             if u is None:
@@ -187,7 +203,9 @@ class _RecursiveModel(_Guarded):
             self._no_input(u)
             U = np.zeros((len(yv), 0))
         with self._lock:
-            out = self._state.run(yv, U)
+            state = self._state.copy()       # a call that raises leaves the estimator as it was
+            out = state.run(yv, U)
+            self._state = state
             if len(yv):
                 self.last_error = float(out["eps"][-1])
         return out["yhat"], out["theta_history"]
@@ -203,7 +221,46 @@ class _RecursiveModel(_Guarded):
         """Return to the initial estimate and covariance."""
         with self._lock:
             self._state = self._initial.copy()
+            self._state.frozen = self.frozen           # the switch is the user's setting
             self.last_error = np.nan
+
+    # ------------------------------------------------------------------
+    # adaptation switch (MATLAB's EnableAdaptation)
+    # ------------------------------------------------------------------
+    @property
+    def frozen(self):
+        """Whether adaptation is off (:meth:`freeze`): :meth:`step` and :meth:`batch`
+        still return the predictions of the held estimate and move the regressor's
+        signals (lagged ``y``, ``u`` and the noise and simulated-output states, through
+        the filters of the held estimate), while :attr:`theta`, :attr:`P` and the
+        forgetting profile stay bit-unchanged."""
+        return self.__dict__.get("_frozen", False)
+
+    @property
+    def adapt(self):
+        """``not frozen``: assign False to freeze the estimate, True to resume
+        (MATLAB's ``EnableAdaptation``)."""
+        return not self.frozen
+
+    @adapt.setter
+    def adapt(self, value):
+        value = check_bool(value, "adapt")
+        with self._lock:
+            self._frozen = not value
+            self._state.frozen = not value
+
+    def freeze(self):
+        """Stop adapting (MATLAB's ``EnableAdaptation = false``): predictions
+        continue, the estimate and ``P`` stay as they are until :meth:`unfreeze`.
+        Returns the estimator."""
+        self.adapt = False
+        return self
+
+    def unfreeze(self):
+        """Resume adapting from the held estimate, with the signals of the frozen
+        samples in the regressor. Returns the estimator."""
+        self.adapt = True
+        return self
 
     # ------------------------------------------------------------------
     @property
@@ -269,8 +326,9 @@ class _RecursiveModel(_Guarded):
     def __repr__(self):
         args = ", ".join(f"{k}={v!r}" for k, v in self._orders.items())
         window = "" if self.window is None else f", window={self.window}"
+        frozen = ", frozen" if self.frozen else ""
         return (f"{type(self).__name__}({args}, method={self.method!r}{window}), "
-                f"{self.n_steps} steps")
+                f"{self.n_steps} steps{frozen}")
 
     def _input(self, u):
         nu = self._structure.n_inputs

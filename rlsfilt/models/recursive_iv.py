@@ -9,6 +9,7 @@ from .._lazy import lazy_module
 from .._locking import locked as _locked
 from .._validation import (
     as_float_array,
+    check_bool,
     check_covariance,
     check_finite,
     check_int,
@@ -128,7 +129,7 @@ class RecursiveIV(_Guarded):
         self._spec = np.array([s.na, self.k0, 0 if given else self.refresh,
                                self.prefilter and not given, given, s.n_inputs]
                               + list(s.nb) + list(s.nk), dtype=np.int64)
-        self._fpar = np.array([1.0 / self.lam, self.R, self.tol])
+        self._fpar = np.array([1.0 / self.lam, self.R, self.tol, 0.0])   # (RF_FROZEN last)
         self._nu = s.n_inputs
         self.reset()
 
@@ -150,9 +151,42 @@ class RecursiveIV(_Guarded):
         self._ulags = np.zeros((s.n_inputs, max(s.nk[0] + s.nb[0] + s.na,
                                                 max(k + b for k, b in zip(s.nk, s.nb)))))
         self.n_steps = 0
+        self._frozen_rows = 0             # regressor rows taken while frozen (not counted)
         self.n_skipped = 0
         self.last_error = np.nan
         self._warned = False
+
+    # ------------------------------------------------------------------
+    # adaptation switch (MATLAB's EnableAdaptation)
+    # ------------------------------------------------------------------
+    @property
+    def frozen(self):
+        """Whether adaptation is off (:meth:`freeze`): :meth:`step` still returns the
+        prediction of the held estimate and moves the signals (through the held
+        auxiliary model), while ``theta``, ``P`` and the auxiliary model stay
+        bit-unchanged; the rows taken while frozen count neither towards the exact
+        start nor towards the refresh period."""
+        return bool(self._fpar[_get_kernels().RF_FROZEN])
+
+    @property
+    def adapt(self):
+        """``not frozen``: assign False to freeze the estimate, True to resume."""
+        return not self.frozen
+
+    @adapt.setter
+    @_locked
+    def adapt(self, value):
+        self._fpar[_get_kernels().RF_FROZEN] = 0.0 if check_bool(value, "adapt") else 1.0
+
+    def freeze(self):
+        """Stop adapting (MATLAB's ``EnableAdaptation = false``). Returns the estimator."""
+        self.adapt = False
+        return self
+
+    def unfreeze(self):
+        """Resume adapting from the held estimate. Returns the estimator."""
+        self.adapt = True
+        return self
 
     @property
     def theta(self):
@@ -226,11 +260,13 @@ class RecursiveIV(_Guarded):
             self._z[:] = zv
         elif z is not None:
             raise ValueError("`z` only applies to instruments='given'")
-        row = self.n_steps - s.max_lag
+        row = self.n_steps - s.max_lag - self._frozen_rows
         status, yhat = _get_kernels().riv_stream(
             self._theta, self._P, self._buf, yv, uv, self._z, row, self._spec, self._fpar,
             self._alpha, self._beta, self._Q, *self._start, self._work)
         self.n_steps += 1
+        if status == 4 and row >= 0:       # frozen: the row does not count (start, refresh)
+            self._frozen_rows += 1
         if status == 3:
             self.n_steps -= 1
             raise ValueError(f"the exact start on the first k0 = {self.k0} rows is singular "
@@ -264,4 +300,4 @@ class RecursiveIV(_Guarded):
     def __repr__(self):
         args = ", ".join(f"{k}={v!r}" for k, v in self._orders.items())
         return (f"RecursiveIV({args}, instruments={self.instruments!r}), "
-                f"{self.n_steps} steps")
+                f"{self.n_steps} steps{', frozen' if self.frozen else ''}")
