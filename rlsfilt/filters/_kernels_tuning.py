@@ -262,8 +262,11 @@ def scalar_pass(x0, P0, Z, H, Qb, a, da, d2a, c, dc, d2c, burn, order, work):
     The same recursion with ``k = 1``, its loops fused: each step's measurement
     update and the next time update are one sweep of the upper triangle of ``P``
     and its derivatives (``P^-_{t+1} = a (P^-_t - g g^T / s) + c Qb``, mirrored to
-    the lower); `work` (`_work`) holds the state, so a pass allocates nothing.
-    ``tests/test_tuning.py`` holds it equal to `profile_derivs`.
+    the lower); `work` (`_work`) holds the state, so a pass allocates nothing;
+    ``sum log s`` is the log of running products of ``s`` (one ``log`` per
+    hundred steps or so instead of one per step: about 10 % of a pass), flushed
+    before they can overflow. ``tests/test_tuning.py`` holds it equal to
+    `profile_derivs`.
     """
     x, dx, d2x, P, dP, d2P, g, dg, d2g, y, dy, d2y = work
     n, m = x0.shape
@@ -280,6 +283,7 @@ def scalar_pass(x0, P0, Z, H, Qb, a, da, d2a, c, dc, d2c, burn, order, work):
             dP[i, j] = da * p0 + dc * qb
             d2P[i, j] = d2a * p0 + d2c * qb
     slog = sq = dslog = dsq = d2slog = d2sq = 0.0
+    prod = 1.0                            # running product of s >= 1
     count = 0
     for t in range(Z.shape[0]):
         # g = P^- h, s = h^T g + 1, y = z - x^T h (and their derivatives)
@@ -340,7 +344,13 @@ def scalar_pass(x0, P0, Z, H, Qb, a, da, d2a, c, dc, d2c, burn, order, work):
         dr = -ds * r2                                   # d(1/s)
         d2r = -d2s * r2 + 2.0 * ds * ds * r2 * r
         if t >= burn:
-            slog += math.log(s)
+            if s < 1e100:                 # sum log s as the log of running products
+                prod *= s
+                if prod > 1e150:
+                    slog += math.log(prod)
+                    prod = 1.0
+            else:
+                slog += math.log(s)
             count += m
             dslog += ds * r
             d2slog += d2s * r - ds * ds * r2
@@ -387,6 +397,7 @@ def scalar_pass(x0, P0, Z, H, Qb, a, da, d2a, c, dc, d2c, burn, order, work):
                         v2 = d2a * pp + 2.0 * da * dpp + a * d2pp + d2c * Qb[i, j]
                         d2P[i, j] = v2
                         d2P[j, i] = v2
+    slog += math.log(prod)
     return slog, sq, count, dslog, dsq, d2slog, d2sq
 
 
