@@ -447,6 +447,7 @@ def test_scalar_kernel_equals_the_general_one(rng, param):
     Z = np.column_stack([z, 0.3 * z + 0.1 * rng.standard_normal(300)])
     x0, P0 = 0.1 * np.ones((3, 2)), 30.0 * np.eye(3)
     Q_rel = 1e-3 * np.array([[1.0, 0.2, 0.0], [0.2, 2.0, 0.1], [0.0, 0.1, 0.5]])
+    P0 = P0 + np.array([[0.0, 1.0, -2.0], [1.0, 0.0, 0.5], [-2.0, 0.5, 0.0]])
     kind, Qb = (0, np.eye(3)) if param == "q" else (1, Q_rel)
     work = kernels._work(3, 2)
     for v in ((-6.0, -2.0) if param == "q" else (math.log(0.1), math.log(0.005))):

@@ -260,9 +260,11 @@ def scalar_pass(x0, P0, Z, H, Qb, a, da, d2a, c, dc, d2c, burn, order, work):
     hyperparameter (scalars), the time update ``P^- = a P + c Qb`` (`scalar_model`).
 
     The same recursion with ``k = 1``, its loops fused: each step's measurement
-    update and the next time update are one sweep of the upper triangle of ``P``
-    and its derivatives (``P^-_{t+1} = a (P^-_t - g g^T / s) + c Qb``, mirrored to
-    the lower); `work` (`_work`) holds the state, so a pass allocates nothing;
+    update and the next time update are one sweep of ``P`` and its derivatives
+    (``P^-_{t+1} = a (P^-_t - g g^T / s) + c Qb``; `Qb` symmetric), over every
+    entry (fixed-length loops: about 1.2x faster than the triangle and its mirror
+    at ``dim_x = 3``), each entry written so that ``(j, i)`` rounds exactly as
+    ``(i, j)``; `work` (`_work`) holds the state, so a pass allocates nothing;
     ``sum log s`` is the log of running products of ``s`` (one ``log`` per
     hundred steps or so instead of one per step: about 10 % of a pass), flushed
     before they can overflow. ``tests/test_tuning.py`` holds it equal to
@@ -277,8 +279,9 @@ def scalar_pass(x0, P0, Z, H, Qb, a, da, d2a, c, dc, d2c, burn, order, work):
             x[i, c_] = x0[i, c_]
             dx[i, c_] = 0.0
             d2x[i, c_] = 0.0
-        for j in range(n):                # the first prior (P0 has no derivative)
-            p0, qb = P0[i, j], Qb[i, j]
+        for j in range(n):                # the first prior (P0 has no derivative; its
+            p0 = P0[min(i, j), max(i, j)]     # upper triangle read, as Qb's)
+            qb = Qb[i, j]
             P[i, j] = a * p0 + c * qb
             dP[i, j] = da * p0 + dc * qb
             d2P[i, j] = d2a * p0 + d2c * qb
@@ -327,17 +330,11 @@ def scalar_pass(x0, P0, Z, H, Qb, a, da, d2a, c, dc, d2c, burn, order, work):
                 missing = True
         if missing:                       # posterior = prior: P^-_{t+1} = a P^-_t + c Qb
             for i in range(n):
-                for j in range(i, n):
-                    pp, dpp, d2pp, qb = P[i, j], dP[i, j], d2P[i, j], Qb[i, j]
-                    v2 = d2a * pp + 2.0 * da * dpp + a * d2pp + d2c * qb
-                    v1 = da * pp + a * dpp + dc * qb
-                    v0 = a * pp + c * qb
-                    P[i, j] = v0
-                    P[j, i] = v0
-                    dP[i, j] = v1
-                    dP[j, i] = v1
-                    d2P[i, j] = v2
-                    d2P[j, i] = v2
+                for j in range(n):
+                    pp, dpp, qb = P[i, j], dP[i, j], Qb[i, j]
+                    d2P[i, j] = d2a * pp + 2.0 * da * dpp + a * d2P[i, j] + d2c * qb
+                    dP[i, j] = da * pp + a * dpp + dc * qb
+                    P[i, j] = a * pp + c * qb
             continue
         r = 1.0 / s
         r2 = r * r
@@ -375,28 +372,24 @@ def scalar_pass(x0, P0, Z, H, Qb, a, da, d2a, c, dc, d2c, burn, order, work):
                     dx[i, c_] += dg[i] * e + gi * de
                 if d2:
                     d2x[i, c_] += d2g[i] * e + 2.0 * dg[i] * de + gi * d2e
-        # P = P^- - g g^T / s, then the next prior a P + c Qb (and derivatives)
+        # P = P^- - g g^T / s, then the next prior a P + c Qb (and derivatives); every
+        # entry (a loop of fixed length runs faster than the triangle), each written so
+        # that the (j, i) entry rounds exactly as the (i, j) one: P stays symmetric
         for i in range(n):
             gi, dgi, d2gi = g[i], dg[i], d2g[i]
-            for j in range(i, n):
-                gj, dgj, d2gj = g[j], dg[j], d2g[j]
+            for j in range(n):
+                gj, dgj = g[j], dg[j]
                 gg = gi * gj
                 pp = P[i, j] - gg * r
-                v0 = a * pp + c * Qb[i, j]
-                P[i, j] = v0
-                P[j, i] = v0
+                P[i, j] = a * pp + c * Qb[i, j]
                 if d1:
                     dgg = dgi * gj + gi * dgj
                     dpp = dP[i, j] - (dgg * r + gg * dr)
-                    v1 = da * pp + a * dpp + dc * Qb[i, j]
-                    dP[i, j] = v1
-                    dP[j, i] = v1
+                    dP[i, j] = da * pp + a * dpp + dc * Qb[i, j]
                     if d2:
-                        d2pp = d2P[i, j] - ((d2gi * gj + 2.0 * dgi * dgj + gi * d2gj) * r
+                        d2pp = d2P[i, j] - (((d2gi * gj + gi * d2g[j]) + 2.0 * dgi * dgj) * r
                                             + 2.0 * dgg * dr + gg * d2r)
-                        v2 = d2a * pp + 2.0 * da * dpp + a * d2pp + d2c * Qb[i, j]
-                        d2P[i, j] = v2
-                        d2P[j, i] = v2
+                        d2P[i, j] = d2a * pp + 2.0 * da * dpp + a * d2pp + d2c * Qb[i, j]
     slog += math.log(prod)
     return slog, sq, count, dslog, dsq, d2slog, d2sq
 

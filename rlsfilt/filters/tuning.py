@@ -480,7 +480,7 @@ def _tune_scalar(Z, H, x_start, P_rel, Q_rel, lam0, param, bounds, burn, keep):
         v_lo, v_hi = math.log(lo), math.log(hi)
         v0 = min(max(math.log(1e-3), v_lo), v_hi)
     else:                                # v = log(1 - lam): lam = 1 is v = log(_LAM_GAP)
-        kind, Qb = 1, Q_rel
+        kind, Qb = 1, np.triu(Q_rel) + np.triu(Q_rel, 1).T   # its upper triangle, as before
         start = lam0 if lo < lam0 < hi else min(max(0.99, 0.5 * (lo + hi)), hi)
         v_lo, v_hi = math.log(max(1.0 - hi, _LAM_GAP)), math.log(1.0 - lo)
         v0 = min(max(math.log(max(1.0 - start, _LAM_GAP)), v_lo), v_hi)
