@@ -334,9 +334,9 @@ def tune(filt, zs, Hs, param="q", *, bounds=None, burn=0, apply=False):
     variances with respect to the search variable). The search runs on
     :math:`\log(1 - \lambda)` or :math:`\log q`: one variable by a safeguarded
     Newton search (the exact second derivative at the start, then secants of
-    the exact first derivatives, steps halved until the likelihood rises);
-    ``"q_diag"`` and ``"lam_diag"`` by L-BFGS-B on the exact gradient (from
-    the scalar estimate). The standard errors come
+    the exact first derivatives, steps halved until the likelihood rises), the
+    whole search one compiled call; ``"q_diag"`` and ``"lam_diag"`` by L-BFGS-B
+    on the exact gradient (from the scalar estimate). The standard errors come
     from the observed information :math:`-\partial^2 \ell_p / \partial v^2` in
     the search variable ``v`` (exact for ``"q_diag"``; the converged secant for one
     variable), mapped to the parameter by the delta method.
