@@ -449,7 +449,7 @@ def test_scalar_kernel_equals_the_general_one(rng, param):
     Q_rel = 1e-3 * np.array([[1.0, 0.2, 0.0], [0.2, 2.0, 0.1], [0.0, 0.1, 0.5]])
     P0 = P0 + np.array([[0.0, 1.0, -2.0], [1.0, 0.0, 0.5], [-2.0, 0.5, 0.0]])
     kind, Qb = (0, np.eye(3)) if param == "q" else (1, Q_rel)
-    work = kernels._work(3, 2)
+    work = kernels.scalar_work(3, 2)
     for v in ((-6.0, -2.0) if param == "q" else (math.log(0.1), math.log(0.005))):
         for order in (0, 1, 2):
             ref = _profile(x0, P0, Z, H, _model(param, np.array([v]), 3, 0.98, Q_rel), 3, 2,

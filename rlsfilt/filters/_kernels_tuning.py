@@ -247,7 +247,7 @@ def scalar_model(kind, v, lam0):
 
 
 @njit(cache=True)
-def _work(n, m):
+def scalar_work(n, m):
     """The state of a scalar pass: ``(x, dx, d2x, P, dP, d2P, g, dg, d2g, y, dy, d2y)``."""
     return (np.empty((n, m)), np.empty((n, m)), np.empty((n, m)),
             np.empty((n, n)), np.empty((n, n)), np.empty((n, n)),
@@ -264,7 +264,7 @@ def scalar_pass(x0, P0, Z, H, Qb, a, da, d2a, c, dc, d2c, burn, order, work):
     (``P^-_{t+1} = a (P^-_t - g g^T / s) + c Qb``; `Qb` symmetric), over every
     entry (fixed-length loops: about 1.2x faster than the triangle and its mirror
     at ``dim_x = 3``), each entry written so that ``(j, i)`` rounds exactly as
-    ``(i, j)``; `work` (`_work`) holds the state, so a pass allocates nothing;
+    ``(i, j)``; `work` (`scalar_work`) holds the state, so a pass allocates nothing;
     ``sum log s`` is the log of running products of ``s`` (one ``log`` per
     hundred steps or so instead of one per step: about 10 % of a pass), flushed
     before they can overflow. ``tests/test_tuning.py`` holds it equal to
@@ -429,7 +429,7 @@ def scalar_search(x0, P0, Z, H, Qb, kind, lam0, burn, v0, lo, hi, max_step, maxi
     n_passes)``; ``n_obs = 0`` when the record has no innovation to count.
     """
     n, m = x0.shape
-    work = _work(n, m)
+    work = scalar_work(n, m)
     v = min(max(v0, lo), hi)
     ll, sigma2, n_obs, g, h = scalar_profile(x0, P0, Z, H, Qb, kind, v, lam0, burn, 2, work)
     passes = 1

@@ -495,8 +495,9 @@ def _tune_scalar(Z, H, x_start, P_rel, Q_rel, lam0, param, bounds, burn, keep):
         gap = math.exp(v)
         if held and v <= v_lo and hi == 1.0:
             gap = 0.0                    # the upper bound lam = 1 itself
+            work = kern.scalar_work(*x_start.shape)
             ll, sigma2, n_obs = kern.scalar_profile(x_start, P_rel, Z, H, Qb, kind, -math.inf,
-                                                    lam0, burn, 0, kern._work(*x_start.shape))[:3]
+                                                    lam0, burn, 0, work)[:3]
         estimate, stderr = 1.0 - gap, gap * log_se
     else:
         estimate = math.exp(v)
@@ -509,7 +510,7 @@ def _tune_scalar(Z, H, x_start, P_rel, Q_rel, lam0, param, bounds, burn, keep):
             else:
                 w = math.log(value) if value > 0 else -math.inf
             return kern.scalar_profile(x_start, P_rel, Z, H, Qb, kind, w, lam0, burn, 0,
-                                       kern._work(*x_start.shape))[0]
+                                       kern.scalar_work(*x_start.shape))[0]
     out = TuneResult(param, estimate, stderr, ll, sigma2, converged and not held, held,
                      n_obs, passes, _log_stderr=log_se, _gradient=np.array([g]),
                      _hessian=np.array([[h]]), _loglik_at=loglik_at)
