@@ -431,3 +431,33 @@ def test_profile_and_likelihood_interval_against_statsmodels(rng):
     bank_fit = RLSBank(2, 3, P0=100.0).tune(np.column_stack([z, z]), np.stack([H, H], 1))
     with pytest.raises(ValueError, match="the profile needs the record"):
         bank_fit.channel(0).plot_profile()
+
+
+@pytest.mark.parametrize("param", ["q", "lam"])
+def test_scalar_kernel_equals_the_general_one(rng, param):
+    """The fused one-variable pass of the compiled search (`scalar_profile`) returns the
+    profile log-likelihood, its gradient and second derivative of the general
+    sensitivity kernel (`_profile`, checked against finite differences above) to
+    round-off, with missing samples, a burn-in and two outputs, at every order."""
+    from rlsfilt.filters import _kernels_tuning as kernels
+    from rlsfilt.filters.tuning import _model, _profile
+
+    H, z = drifting_record(rng, N=300)
+    z[[4, 150]] = np.nan
+    Z = np.column_stack([z, 0.3 * z + 0.1 * rng.standard_normal(300)])
+    x0, P0 = 0.1 * np.ones((3, 2)), 30.0 * np.eye(3)
+    Q_rel = 1e-3 * np.array([[1.0, 0.2, 0.0], [0.2, 2.0, 0.1], [0.0, 0.1, 0.5]])
+    P0 = P0 + np.array([[0.0, 1.0, -2.0], [1.0, 0.0, 0.5], [-2.0, 0.5, 0.0]])
+    kind, Qb = (0, np.eye(3)) if param == "q" else (1, Q_rel)
+    work = kernels.scalar_work(3, 2)
+    for v in ((-6.0, -2.0) if param == "q" else (math.log(0.1), math.log(0.005))):
+        for order in (0, 1, 2):
+            ref = _profile(x0, P0, Z, H, _model(param, np.array([v]), 3, 0.98, Q_rel), 3, 2,
+                           order)
+            got = kernels.scalar_profile(x0, P0, Z, H, Qb, kind, v, 0.98, 3, order, work)
+            assert got[2] == ref[2]
+            assert_allclose(got[:2], ref[:2], rtol=1e-13)
+            if order >= 1:
+                assert_allclose(got[3], ref[3][0], rtol=1e-10)
+            if order == 2:
+                assert_allclose(got[4], ref[4][0, 0], rtol=1e-10)

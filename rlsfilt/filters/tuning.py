@@ -334,9 +334,9 @@ def tune(filt, zs, Hs, param="q", *, bounds=None, burn=0, apply=False):
     variances with respect to the search variable). The search runs on
     :math:`\log(1 - \lambda)` or :math:`\log q`: one variable by a safeguarded
     Newton search (the exact second derivative at the start, then secants of
-    the exact first derivatives, steps halved until the likelihood rises);
-    ``"q_diag"`` and ``"lam_diag"`` by L-BFGS-B on the exact gradient (from
-    the scalar estimate). The standard errors come
+    the exact first derivatives, steps halved until the likelihood rises), the
+    whole search one compiled call; ``"q_diag"`` and ``"lam_diag"`` by L-BFGS-B
+    on the exact gradient (from the scalar estimate). The standard errors come
     from the observed information :math:`-\partial^2 \ell_p / \partial v^2` in
     the search variable ``v`` (exact for ``"q_diag"``; the converged secant for one
     variable), mapped to the parameter by the delta method.
@@ -437,24 +437,19 @@ def _tune_record(Z, Hm, x_start, P_rel, Q_rel, lam0, param, bounds, burn, keep=F
     P_rel = np.ascontiguousarray(P_rel, dtype=np.float64)
     Zc, Hc = np.ascontiguousarray(Z, dtype=np.float64), np.ascontiguousarray(Hm, dtype=np.float64)
     Q_rel = np.ascontiguousarray(Q_rel, dtype=np.float64)
+    if param in ("q", "lam"):
+        return _tune_scalar(Zc, Hc, x_start, P_rel, Q_rel, lam0, param, bounds, burn, keep)
     v_lo, v_hi, v0 = _search_interval(param, bounds, lam0, n)
-    evals = [0]
-    if param in ("q_diag", "lam_diag"):  # start from the scalar estimate
-        one = _tune_record(Z, Hm, x_start, P_rel, Q_rel, lam0, param[:-5], bounds, burn)
-        evals[0] = one.n_evals
-        v0 = np.clip(np.full(n, math.log(one.estimate) if param == "q_diag" else one.estimate),
-                     v_lo, v_hi)
+    one = _tune_scalar(Zc, Hc, x_start, P_rel, Q_rel, lam0, param[:-5], bounds, burn, False)
+    evals = [one.n_evals]                # start from the scalar estimate
+    v0 = np.clip(np.full(n, math.log(one.estimate) if param == "q_diag" else one.estimate),
+                 v_lo, v_hi)
 
     def run(v, order):
         evals[0] += 1
         return _profile(x_start, P_rel, Zc, Hc, _model(param, v, n, lam0, Q_rel), burn, m, order)
 
-    if len(v0) == 1:
-        v, (ll, sigma2, n_obs, grad, hess), converged, fixed = _secant(
-            run, v0, v_lo, v_hi, _max_step(param))
-    else:
-        v, (ll, sigma2, n_obs, grad, hess), converged, fixed = _quasi_newton(
-            run, v0, v_lo, v_hi)
+    v, (ll, sigma2, n_obs, grad, hess), converged, fixed = _quasi_newton(run, v0, v_lo, v_hi)
     at_bound = bool(np.any(fixed))
     se_v = np.full(len(v), np.nan)
     free = ~np.asarray(fixed)            # no curvature to read on a bound
@@ -464,32 +459,61 @@ def _tune_record(Z, Hm, x_start, P_rel, Q_rel, lam0, param, bounds, burn, keep=F
             se_v[free] = np.where(d > 0, np.sqrt(np.abs(d)), np.nan)
         except np.linalg.LinAlgError:
             pass
-    scalar = param in ("lam", "q")
-    if param == "lam":                   # lam = 1 - exp(u); se by the delta method
-        gap = math.exp(v[0])
-        if at_bound and v[0] <= v_lo[0] and bounds[1] == 1.0:
-            gap = 0.0                    # the upper bound lam = 1 itself
-            ll, sigma2, n_obs = run(np.array([-np.inf]), 0)[:3]
-        estimate, stderr, log_se = 1.0 - np.array([gap]), gap * se_v, se_v
-    elif param == "lam_diag":
+    if param == "lam_diag":
         estimate, stderr, log_se = v, se_v, None
     else:
         estimate = np.exp(v)
         stderr, log_se = estimate * se_v, se_v
-    if scalar:
-        estimate, stderr, log_se = float(estimate[0]), float(stderr[0]), float(log_se[0])
+    out = TuneResult(param, estimate, stderr, ll, sigma2, converged and not at_bound, at_bound,
+                     n_obs, evals[0], _log_stderr=log_se, _gradient=grad, _hessian=hess)
+    out._bounds = bounds
+    return out
+
+
+def _tune_scalar(Z, H, x_start, P_rel, Q_rel, lam0, param, bounds, burn, keep):
+    """`_tune_record` of ``"q"`` or ``"lam"`` (contiguous float64 arrays): the whole
+    search is one compiled call (`_kernels_tuning.scalar_search`)."""
+    kern = _kernels()
+    lo, hi = bounds
+    if param == "q":                     # v = log q, Q = exp(v) I
+        kind, Qb = 0, np.eye(len(P_rel))
+        v_lo, v_hi = math.log(lo), math.log(hi)
+        v0 = min(max(math.log(1e-3), v_lo), v_hi)
+    else:                                # v = log(1 - lam): lam = 1 is v = log(_LAM_GAP)
+        kind, Qb = 1, np.triu(Q_rel) + np.triu(Q_rel, 1).T   # its upper triangle, as before
+        start = lam0 if lo < lam0 < hi else min(max(0.99, 0.5 * (lo + hi)), hi)
+        v_lo, v_hi = math.log(max(1.0 - hi, _LAM_GAP)), math.log(1.0 - lo)
+        v0 = min(max(math.log(max(1.0 - start, _LAM_GAP)), v_lo), v_hi)
+    v, ll, sigma2, n_obs, g, h, converged, held, passes = kern.scalar_search(
+        x_start, P_rel, Z, H, Qb, kind, lam0, burn, v0, v_lo, v_hi, 4.0, 100, 1e-8)
+    if n_obs == 0:
+        raise ValueError("`zs` has no measurement left for the likelihood (all missing "
+                         "or burnt in)")
+    # the observed information -h (none on a bound), by the delta method to the parameter
+    log_se = math.sqrt(-1.0 / h) if (not held and h < 0.0) else math.nan
+    if param == "lam":                   # lam = 1 - exp(v)
+        gap = math.exp(v)
+        if held and v <= v_lo and hi == 1.0:
+            gap = 0.0                    # the upper bound lam = 1 itself
+            work = kern.scalar_work(*x_start.shape)
+            ll, sigma2, n_obs = kern.scalar_profile(x_start, P_rel, Z, H, Qb, kind, -math.inf,
+                                                    lam0, burn, 0, work)[:3]
+        estimate, stderr = 1.0 - gap, gap * log_se
+    else:
+        estimate = math.exp(v)
+        stderr = estimate * log_se
     loglik_at = None
-    if keep and scalar:                  # the profile at a value of lam or q (the record kept)
+    if keep:                             # the profile at a value of lam or q (the record kept)
         def loglik_at(value):
             if param == "lam":
                 w = math.log(1.0 - value) if value < 1.0 else -math.inf
             else:
                 w = math.log(value) if value > 0 else -math.inf
-            return _profile(x_start, P_rel, Zc, Hc, _model(param, np.array([w]), n, lam0, Q_rel),
-                            burn, m, 0)[0]
-    out = TuneResult(param, estimate, stderr, ll, sigma2, converged and not at_bound, at_bound,
-                     n_obs, evals[0], _log_stderr=log_se, _gradient=grad, _hessian=hess,
-                     _loglik_at=loglik_at)
+            return kern.scalar_profile(x_start, P_rel, Z, H, Qb, kind, w, lam0, burn, 0,
+                                       kern.scalar_work(*x_start.shape))[0]
+    out = TuneResult(param, estimate, stderr, ll, sigma2, converged and not held, held,
+                     n_obs, passes, _log_stderr=log_se, _gradient=np.array([g]),
+                     _hessian=np.array([[h]]), _loglik_at=loglik_at)
     out._bounds = bounds
     return out
 
@@ -514,21 +538,15 @@ def _bounds(param, bounds):
 
 
 def _search_interval(param, bounds, lam0, n):
-    """``(low, high, start)`` of the search variable (arrays of its length): ``lam`` itself, or
-    ``log q``."""
+    """``(low, high, start)`` of the search variable of ``"q_diag"`` (``log q``) or
+    ``"lam_diag"`` (``lam`` itself), arrays of length `n`."""
     lo, hi = bounds
-    k = n if param in ("q_diag", "lam_diag") else 1
-    if param == "lam":                   # u = log(1 - lam): lam = 1 is u = log(_LAM_GAP)
-        start = lam0 if lo < lam0 < hi else min(max(0.99, 0.5 * (lo + hi)), hi)
-        u_lo, u_hi = math.log(max(1.0 - hi, _LAM_GAP)), math.log(1.0 - lo)
-        u0 = min(max(math.log(max(1.0 - start, _LAM_GAP)), u_lo), u_hi)
-        return np.array([u_lo]), np.array([u_hi]), np.array([u0])
     if param == "lam_diag":
         start = lam0 if lo < lam0 < hi else min(max(0.99, 0.5 * (lo + hi)), hi)
-        return np.full(k, lo), np.full(k, hi), np.full(k, start)
+        return np.full(n, lo), np.full(n, hi), np.full(n, start)
     v_lo, v_hi = math.log(lo), math.log(hi)
     start = min(max(math.log(1e-3), v_lo), v_hi)
-    return np.full(k, v_lo), np.full(k, v_hi), np.full(k, start)
+    return np.full(n, v_lo), np.full(n, v_hi), np.full(n, start)
 
 
 def _model(param, v, n, lam0, Q_rel):
@@ -590,61 +608,13 @@ def _profile(x_start, P_rel, Z, H, model, burn, m, order):
     return ll, sigma2, n_obs, grad, hess
 
 
-def _secant(run, v0, lo, hi, max_step, maxiter=100, xtol=1e-8):
-    """Maximize the profile log-likelihood of one variable by a safeguarded Newton search
-    inside ``[lo, hi]``: the exact second derivative at the start (`run(v, 2)`, one
-    compiled pass), then the secant of the exact first derivatives of the later passes
-    (`run(v, 1)`), each step at most ``max_step(v)`` long and halved until the
-    likelihood does not fall; where the curvature is not negative, an uphill step of
-    that length. Returns ``(v, (loglik, sigma2, n_obs, gradient, Hessian), converged,
-    held)``, the Hessian the last secant (or exact) second derivative."""
-    v = min(max(float(v0[0]), float(lo[0])), float(hi[0]))
-    lo, hi = float(lo[0]), float(hi[0])
-    ll, sigma2, n_obs, grad, hess = run(np.array([v]), 2)
-    g, h = float(grad[0]), float(hess[0, 0])
-    converged = held = False
-    for _ in range(maxiter):
-        held = (v <= lo and g < 0) or (v >= hi and g > 0)
-        if held:
-            converged = True
-            break
-        cap = float(max_step(np.array([v]))[0])
-        step = -g / h if h < 0 else math.copysign(cap, g)
-        step = max(-cap, min(cap, step))
-        v_new = min(max(v + step, lo), hi)
-        if abs(v_new - v) <= xtol:
-            converged = True
-            break
-        tol = 1e-12 * (1.0 + abs(ll))                          # round-off of the sums
-        new = run(np.array([v_new]), 1)
-        halvings = 0
-        while new[0] < ll - tol and halvings < 60:
-            step *= 0.5
-            halvings += 1
-            v_new = min(max(v + step, lo), hi)
-            new = run(np.array([v_new]), 1)
-        if new[0] < ll - tol:                                  # no ascent left: stay
-            break
-        g_new = float(new[3][0])
-        dv = v_new - v
-        if abs(dv) > 1e-6 * (1.0 + abs(v)):                    # else: round-off dominates
-            h_sec = (g_new - g) / dv
-            if h_sec < 0:
-                h = h_sec
-            else:                                              # not concave here: exact
-                new = run(np.array([v_new]), 2)
-                h = float(new[4][0, 0])
-        v, (ll, sigma2, n_obs) = v_new, new[:3]
-        g = g_new
-    return (np.array([v]), (ll, sigma2, n_obs, np.array([g]), np.array([[h]])), converged,
-            np.array([held]))
-
-
 def _quasi_newton(run, v0, lo, hi):
     """Maximize the profile log-likelihood of several variables in the box ``[lo, hi]`` by
     L-BFGS-B on the exact gradients (`run(v, 1)`), then one pass with the exact Hessian
     (`run(v, 2)`) for the observed information. Returns ``(v, (loglik, sigma2, n_obs,
-    gradient, Hessian), converged, held)``."""
+    gradient, Hessian), converged, held)``. (``ftol = 1e-12``: a relative change of
+    the likelihood of 1e-12 moves the estimates by about 1e-7 of themselves; a
+    tighter one only adds line searches lost in round-off.)"""
     from scipy.optimize import minimize  # lazy: keeps `import rlsfilt` light
 
     def negll(v):
@@ -653,7 +623,7 @@ def _quasi_newton(run, v0, lo, hi):
 
     res = minimize(negll, np.clip(v0, lo, hi), jac=True, method="L-BFGS-B",
                    bounds=list(zip(lo, hi, strict=True)),
-                   options={"ftol": 1e-15, "gtol": 1e-8, "maxiter": 500})
+                   options={"ftol": 1e-12, "gtol": 1e-8, "maxiter": 500})
     v = np.asarray(res.x, dtype=float)
     out = run(v, 2)
     grad = out[3]
@@ -663,11 +633,3 @@ def _quasi_newton(run, v0, lo, hi):
     free = ~held
     converged = bool(res.success) or float(np.max(np.abs(grad[free]), initial=0.0)) < 1e-4
     return v, out, converged, held
-
-
-def _max_step(param):
-    """Longest step of the search per variable: 4 in ``log q`` and in ``log(1 - lam)``;
-    for a diagonal ``lam`` the distance to 1 (at least 1e-3)."""
-    if param == "lam_diag":
-        return lambda v: np.maximum(1.0 - v, 1e-3)
-    return lambda v: np.full(len(v), 4.0)
