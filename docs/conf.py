@@ -8,6 +8,7 @@ notebook that changed.
 """
 
 import os
+import re
 import sys
 from pathlib import Path
 
@@ -166,3 +167,21 @@ plot_formats = [("png", 150)]
 plot_include_source = True
 plot_html_show_formats = False
 plot_html_show_source_link = False
+
+
+# The adapters' classes inherit methods from river and scikit-learn (``score``,
+# ``set_fit_request``, ...), whose docstrings point into those projects' own
+# documentation (``:ref:``, ``:term:`` labels we have no inventory for, offline).
+# Their cross-references are shown as plain text on our pages.
+_FOREIGN_ROLE = re.compile(r":(?:ref|term|doc):`([^`<]*?)\s*(?:<[^>]*>)?`")
+
+
+def _plain_foreign_references(app, what, name, obj, options, lines):
+    module = getattr(obj, "__module__", None) or ""
+    if name.startswith("rlsfilt.") and module.split(".")[0] in ("sklearn", "river"):
+        lines[:] = [_FOREIGN_ROLE.sub(lambda m: f"*{m.group(1).strip()}*", line)
+                    for line in lines]
+
+
+def setup(app):
+    app.connect("autodoc-process-docstring", _plain_foreign_references)

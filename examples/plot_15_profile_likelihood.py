@@ -1,6 +1,6 @@
 """
 How sure is the tuned forgetting factor? ``TuneResult.plot_profile()``
-=====================================================================
+======================================================================
 
 Two coefficients drift as random walks; ``RecursiveLeastSquares.tune`` finds
 the forgetting factor and, on a second panel, the random walk ``Q = q R`` by
