@@ -47,6 +47,8 @@ _kernels = lazy_module("rlsfilt.filters._kernels_tuning")
 _LAM_GAP = 1e-12     # lam = 1 is searched as 1 - lam = 1e-12 (u = log(1 - lam) finite)
 _F64 = np.dtype(np.float64)
 _EYES = {}           # the identity Qb of a scalar q per dim_x (read by the kernel only)
+_Q_BOUNDS = (1e-12, 1e2)                     # the default search interval of q
+_Q_SEARCH = (math.log(1e-12), math.log(1e2), math.log(1e-3))   # (low, high, start) of log q
 
 
 class TuneResult:
@@ -515,8 +517,11 @@ def _tune_scalar(Z, H, x_start, P_rel, Q_rel, lam0, param, bounds, burn, keep, s
         if Qb is None:
             Qb = _EYES[n] = np.eye(n)
         kind = 0
-        v_lo, v_hi = math.log(lo), math.log(hi)
-        v0 = min(max(math.log(1e-3), v_lo), v_hi)
+        if bounds == _Q_BOUNDS:
+            v_lo, v_hi, v0 = _Q_SEARCH
+        else:
+            v_lo, v_hi = math.log(lo), math.log(hi)
+            v0 = min(max(math.log(1e-3), v_lo), v_hi)
     else:                                # v = log(1 - lam): lam = 1 is v = log(_LAM_GAP)
         kind, Qb = 1, np.triu(Q_rel) + np.triu(Q_rel, 1).T   # its upper triangle, as before
         start = lam0 if lo < lam0 < hi else min(max(0.99, 0.5 * (lo + hi)), hi)
@@ -582,7 +587,7 @@ def _plain_record(zs, Hs, n, m):
 def _bounds(param, bounds):
     """The search interval of `param` (checked)."""
     if bounds is None:
-        return (0.5, 1.0) if param in ("lam", "lam_diag") else (1e-12, 1e2)
+        return (0.5, 1.0) if param in ("lam", "lam_diag") else _Q_BOUNDS
     try:
         lo, hi = (float(b) for b in bounds)
     except (TypeError, ValueError):
