@@ -192,6 +192,34 @@ def test_apply_lam_and_validation(rng):
         fit.interval(1.5)
 
 
+@pytest.mark.parametrize("param", ["q", "lam"])
+def test_scalar_record_screened_as_batch_filter_validates_it(rng, param):
+    """A plain float64 record skips the Python validation (the kernel screens it): a bad
+    entry is still named as batch_filter names it, missing samples (NaN in zs) still
+    pass, and any other form of the record gives the same estimate to the last bit."""
+    H, z = drifting_record(rng, N=300)
+    rls = RecursiveLeastSquares(3, R=2.0, Q=0.02)
+    z = z.copy()
+    z[17] = np.nan                                         # a missing sample: allowed
+    fit = rls.tune(z, H, param)
+    for zs, Hs in ((list(z), H.tolist()), (z[:, None], np.asfortranarray(H)),
+                   (np.repeat(z, 2)[::2], np.repeat(H, 2, axis=0)[::2])):
+        other = rls.tune(zs, Hs, param)
+        assert (other.estimate, other.loglik, other.R, other.n_evals) == \
+            (fit.estimate, fit.loglik, fit.R, fit.n_evals)
+    for bad_z, bad_H, match in ((np.inf, None, r"`zs` must be finite; got inf at index \(5, 0\)"),
+                                (None, np.nan, r"`Hs` must be finite; got nan at index \(9, 2\)"),
+                                (None, -np.inf, r"`Hs` must be finite; got -inf")):
+        zb, Hb = z.copy(), H.copy()
+        if bad_z is not None:
+            zb[5] = bad_z
+        else:
+            Hb[9, 2] = bad_H
+        with pytest.raises(ValueError, match=match):
+            rls.tune(zb, Hb, param)
+    assert fit._gradient.shape == (1,) and fit._hessian.shape == (1, 1)
+
+
 @pytest.mark.slow
 def test_true_q_inside_its_interval_in_90_percent_of_200_seeds():
     """Coverage of the 95 % interval of q (log scale, observed information): at least

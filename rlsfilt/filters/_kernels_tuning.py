@@ -416,7 +416,8 @@ def scalar_profile(x0, P0, Z, H, Qb, kind, v, lam0, burn, order, work):
 
 
 @njit(cache=True, error_model="numpy")
-def scalar_search(x0, P0, Z, H, Qb, kind, lam0, burn, v0, lo, hi, max_step, maxiter, xtol):
+def scalar_search(x0, P0, Z, H, Qb, kind, lam0, burn, v0, lo, hi, max_step, maxiter, xtol,
+                  screen):
     """Maximize the profile log-likelihood of one variable `v` in ``[lo, hi]`` by a
     safeguarded Newton search: the exact second derivative at the start, then secants
     of the exact first derivatives (the exact one where a secant is not negative);
@@ -425,10 +426,27 @@ def scalar_search(x0, P0, Z, H, Qb, kind, lam0, burn, v0, lo, hi, max_step, maxi
     be shorter than `xtol` or the start sits on a bound with the gradient pointing
     out. One compiled call: no Python between passes.
 
+    With `screen`, the record is first screened as ``batch_filter`` validates it (every
+    entry of `H` finite, no infinity in `Z`; NaN there marks a missing sample): a
+    record that fails returns at once with ``n_obs = -1`` and no pass (the caller
+    validates it again to name the bad entry), so that a record the caller has not
+    validated costs no Python pass over it.
+
     Returns ``(v, loglik, sigma2, n_obs, gradient, second derivative, converged, held,
     n_passes)``; ``n_obs = 0`` when the record has no innovation to count.
     """
     n, m = x0.shape
+    if screen:
+        bad = 0.0                         # 0 * h is 0 for a finite h, NaN for inf or NaN
+        for t in range(H.shape[0]):
+            for j in range(H.shape[1]):
+                bad += 0.0 * H[t, j]
+        for t in range(Z.shape[0]):
+            for c_ in range(Z.shape[1]):
+                if abs(Z[t, c_]) == math.inf:
+                    bad = math.nan
+        if bad != 0.0:
+            return v0, math.nan, math.nan, -1, math.nan, math.nan, False, False, 0
     work = scalar_work(n, m)
     v = min(max(v0, lo), hi)
     ll, sigma2, n_obs, g, h = scalar_profile(x0, P0, Z, H, Qb, kind, v, lam0, burn, 2, work)

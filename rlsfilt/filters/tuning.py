@@ -45,6 +45,10 @@ _LOG_2PI = math.log(2.0 * math.pi)
 _PARAMS = ("lam", "q", "q_diag", "lam_diag")
 _kernels = lazy_module("rlsfilt.filters._kernels_tuning")
 _LAM_GAP = 1e-12     # lam = 1 is searched as 1 - lam = 1e-12 (u = log(1 - lam) finite)
+_F64 = np.dtype(np.float64)
+_EYES = {}           # the identity Qb of a scalar q per dim_x (read by the kernel only)
+_Q_BOUNDS = (1e-12, 1e2)                     # the default search interval of q
+_Q_SEARCH = (math.log(1e-12), math.log(1e2), math.log(1e-3))   # (low, high, start) of log q
 
 
 class TuneResult:
@@ -92,9 +96,19 @@ class TuneResult:
         self.n_obs = n_obs
         self.n_evals = n_evals
         self._log_stderr = _log_stderr
-        self._gradient = _gradient       # of the profile log-likelihood in the search variable
-        self._hessian = _hessian
+        self._grad = _gradient           # of the profile log-likelihood in the search variable
+        self._hess = _hessian            # (floats for one variable: arrays when asked)
         self._loglik_at = _loglik_at     # the profile log-likelihood at one parameter value
+
+    @property
+    def _gradient(self):
+        """The gradient of the profile log-likelihood in the search variable, shape (k,)."""
+        return None if self._grad is None else np.atleast_1d(np.asarray(self._grad, float))
+
+    @property
+    def _hessian(self):
+        """Its second derivatives, shape (k, k)."""
+        return None if self._hess is None else np.atleast_2d(np.asarray(self._hess, float))
 
     def interval(self, level=0.95):
         r"""Wald confidence interval ``(low, high)`` at `level`.
@@ -371,12 +385,32 @@ def tune(filt, zs, Hs, param="q", *, bounds=None, burn=0, apply=False):
     if getattr(filt, "forgetting", None) != "exponential":
         raise ValueError("`tune` needs a RecursiveLeastSquares with forgetting='exponential' "
                          "(a Kalman time update P / lam + Q)")
-    burn = check_int(burn, "burn", minimum=0)
-    Z, Hm = filt._as_batch(zs, Hs)
+    if type(burn) is not int or burn < 0:
+        burn = check_int(burn, "burn", minimum=0)
     bounds = _bounds(param, bounds)
     R0 = filt.R
-    out = _tune_record(Z, Hm, filt.x, filt.P / R0, filt.Q / R0, filt.lam, param, bounds, burn,
-                       keep=True)
+    if param == "q" or param == "lam":
+        # the lean path of one variable: a record of C-contiguous float64 arrays of the
+        # usual shapes goes to the kernel as it is, screened there (`scalar_search`);
+        # anything else (or a record that fails the screen) is validated here
+        plain = _plain_record(zs, Hs, filt.dim_x, filt.dim_z)
+        if plain is not None:
+            Z, Hm = plain
+        else:
+            Z, Hm = filt._as_batch(zs, Hs)
+            Z, Hm = np.ascontiguousarray(Z, dtype=np.float64), np.ascontiguousarray(Hm, np.float64)
+        x_start = np.ascontiguousarray(filt.x, dtype=np.float64)
+        P_rel = np.ascontiguousarray(filt.P / R0, dtype=np.float64)
+        Q_rel = None if param == "q" else np.ascontiguousarray(filt.Q / R0, dtype=np.float64)
+        out = _tune_scalar(Z, Hm, x_start, P_rel, Q_rel, filt.lam, param, bounds, burn, True,
+                           screen=plain is not None)
+        if out is None:                  # the screen failed: the validation names the entry
+            filt._as_batch(zs, Hs)
+            raise ValueError("`zs` must hold no infinity and `Hs` must be finite")
+    else:
+        Z, Hm = filt._as_batch(zs, Hs)
+        out = _tune_record(Z, Hm, filt.x, filt.P / R0, filt.Q / R0, filt.lam, param, bounds,
+                           burn, keep=True)
     if apply:
         out.apply(filt)
     return out
@@ -470,22 +504,33 @@ def _tune_record(Z, Hm, x_start, P_rel, Q_rel, lam0, param, bounds, burn, keep=F
     return out
 
 
-def _tune_scalar(Z, H, x_start, P_rel, Q_rel, lam0, param, bounds, burn, keep):
-    """`_tune_record` of ``"q"`` or ``"lam"`` (contiguous float64 arrays): the whole
-    search is one compiled call (`_kernels_tuning.scalar_search`)."""
+def _tune_scalar(Z, H, x_start, P_rel, Q_rel, lam0, param, bounds, burn, keep, screen=False):
+    """`_tune_record` of ``"q"`` or ``"lam"`` (contiguous float64 arrays; `Q_rel` unused
+    for ``"q"``): the whole search is one compiled call (`_kernels_tuning.scalar_search`).
+    With `screen`, the kernel screens the record first, and None is returned when it
+    fails (`tune` validates it again, to name the bad entry)."""
     kern = _kernels()
     lo, hi = bounds
     if param == "q":                     # v = log q, Q = exp(v) I
-        kind, Qb = 0, np.eye(len(P_rel))
-        v_lo, v_hi = math.log(lo), math.log(hi)
-        v0 = min(max(math.log(1e-3), v_lo), v_hi)
+        n = len(P_rel)
+        Qb = _EYES.get(n)
+        if Qb is None:
+            Qb = _EYES[n] = np.eye(n)
+        kind = 0
+        if bounds == _Q_BOUNDS:
+            v_lo, v_hi, v0 = _Q_SEARCH
+        else:
+            v_lo, v_hi = math.log(lo), math.log(hi)
+            v0 = min(max(math.log(1e-3), v_lo), v_hi)
     else:                                # v = log(1 - lam): lam = 1 is v = log(_LAM_GAP)
         kind, Qb = 1, np.triu(Q_rel) + np.triu(Q_rel, 1).T   # its upper triangle, as before
         start = lam0 if lo < lam0 < hi else min(max(0.99, 0.5 * (lo + hi)), hi)
         v_lo, v_hi = math.log(max(1.0 - hi, _LAM_GAP)), math.log(1.0 - lo)
         v0 = min(max(math.log(max(1.0 - start, _LAM_GAP)), v_lo), v_hi)
     v, ll, sigma2, n_obs, g, h, converged, held, passes = kern.scalar_search(
-        x_start, P_rel, Z, H, Qb, kind, lam0, burn, v0, v_lo, v_hi, 4.0, 100, 1e-8)
+        x_start, P_rel, Z, H, Qb, kind, lam0, burn, v0, v_lo, v_hi, 4.0, 100, 1e-8, screen)
+    if n_obs < 0:
+        return None
     if n_obs == 0:
         raise ValueError("`zs` has no measurement left for the likelihood (all missing "
                          "or burnt in)")
@@ -512,8 +557,8 @@ def _tune_scalar(Z, H, x_start, P_rel, Q_rel, lam0, param, bounds, burn, keep):
             return kern.scalar_profile(x_start, P_rel, Z, H, Qb, kind, w, lam0, burn, 0,
                                        kern.scalar_work(*x_start.shape))[0]
     out = TuneResult(param, estimate, stderr, ll, sigma2, converged and not held, held,
-                     n_obs, passes, _log_stderr=log_se, _gradient=np.array([g]),
-                     _hessian=np.array([[h]]), _loglik_at=loglik_at)
+                     n_obs, passes, _log_stderr=log_se, _gradient=g, _hessian=h,
+                     _loglik_at=loglik_at)
     out._bounds = bounds
     return out
 
@@ -521,10 +566,28 @@ def _tune_scalar(Z, H, x_start, P_rel, Q_rel, lam0, param, bounds, burn, keep):
 # ----------------------------------------------------------------------
 # private helpers
 # ----------------------------------------------------------------------
+def _plain_record(zs, Hs, n, m):
+    """``(Z, H)``, shapes (N, m) and (N, n), when `zs` and `Hs` are C-contiguous float64
+    arrays of the shapes ``batch_filter`` takes (``zs`` (N,) for one output): views of
+    them, not checked for infinities (`scalar_search` screens them); else None."""
+    if (type(zs) is not np.ndarray or type(Hs) is not np.ndarray or zs.dtype is not _F64
+            or Hs.dtype is not _F64 or Hs.ndim != 2 or Hs.shape[1] != n):
+        return None
+    if zs.ndim == 1 and m == 1:
+        Z = zs.reshape(-1, 1)
+    elif zs.ndim == 2 and zs.shape[1] == m:
+        Z = zs
+    else:
+        return None
+    if len(Z) != len(Hs) or not (Z.flags.c_contiguous and Hs.flags.c_contiguous):
+        return None
+    return Z, Hs
+
+
 def _bounds(param, bounds):
     """The search interval of `param` (checked)."""
     if bounds is None:
-        return (0.5, 1.0) if param in ("lam", "lam_diag") else (1e-12, 1e2)
+        return (0.5, 1.0) if param in ("lam", "lam_diag") else _Q_BOUNDS
     try:
         lo, hi = (float(b) for b in bounds)
     except (TypeError, ValueError):
