@@ -103,7 +103,9 @@ def test_gradient_benchmark_runs_in_smoke_mode(tmp_path):
     proc = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_gradient.py"),
                            "--smoke"], env=env, cwd=str(tmp_path), capture_output=True,
                           text=True, timeout=300, check=True)
-    rows = {line.split()[0]: line.split()[-4:] for line in proc.stdout.splitlines()
+    single, bank = proc.stdout.split("\n\n", 1)        # the filters, then the bank
+    rows = {line.split()[0]: line.split()[-4:] for line in single.splitlines()
             if line.endswith("x")}
     assert set(rows) == {"LMS", "NLMS", "SignSignLMS", "APA(order=4)"}
+    assert [line for line in bank.splitlines() if line.endswith("x")]
     assert all(float(v.rstrip("x")) > 0 for r in rows.values() for v in r)

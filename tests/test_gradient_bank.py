@@ -193,7 +193,7 @@ def test_dask_fit_many_gradient_equals_fit_many():
     mu = np.linspace(0.2, 0.8, C)
     table = rd.fit_many(ARX(1, 1), da.from_array(u, chunks=(N, 3)),
                         da.from_array(y, chunks=(N, 3)), "nlms", mu=mu, residual_tests=False)
-    ref = fit_many(ARX(1, 1), u, y, "nlms", mu=mu, residual_tests=False).summary()
+    ref = fit_many(ARX(1, 1), u, y, "nlms", mu=mu, residual_tests=False).to_dataframe()
     assert_array_equal(table[["a1", "b1"]].to_numpy(), ref[["a1", "b1"]].to_numpy())
     assert_allclose(table["noise_variance"].to_numpy(), ref["noise_variance"].to_numpy(),
                     rtol=1e-12)

@@ -152,12 +152,13 @@ def design_full(A, B, Acl, Ao, am_sum, integral, tol_design, tol_reg, reduce_tol
     .. math::
 
         \sigma = \sigma_{min}(\mathrm{Syl}(A/\|A\|, B/\|B\|)) \ge
-            \max(\text{coprime\_tol}, \text{reduce\_tol}), \quad
+            \max(\tau_{\mathrm{coprime}}, \tau_{\mathrm{reduce}}), \quad
         A_1 = A (1 - q^{-1}), \quad
         \mathrm{Syl}(A_1, B) [r'; s] = A_m A_o, \quad
         R = (1 - q^{-1}) R', \quad T = \frac{A_m(1)}{B(1)} A_o,
 
-    then :math:`|A R + B S - A_m A_o|_\infty \le 10^{-8} (|A|_1 |R|_1 +
+    (the thresholds :math:`\tau` are `coprime_tol` and `reduce_tol`), then
+    :math:`|A R + B S - A_m A_o|_\infty \le 10^{-8} (|A|_1 |R|_1 +
     |B|_1 |S|_1)`, :math:`A R + B S` stable (Schur-Cohn) and the size
     :math:`(|R|_1 + |S|_1 + |T|_1) / |r_0| \le` `max_growth` times the
     previous one.
