@@ -6,15 +6,16 @@ MATLAB's ``recursiveARX`` offers four ``EstimationMethod`` values
 two and the window on the ARX regressor rows with the filters of
 :mod:`rlsfilt.filters`, as ``ARX.fit`` and the streaming objects need them:
 
-- `fit_gradient`: ``method="nlms"`` ('NormalizedGradient', `NLMS`:
+- `run_gradient`: ``method="nlms"`` ('NormalizedGradient', `NLMS`:
   :math:`\theta \leftarrow \theta + \mu \varphi^T e / (\epsilon + \varphi
   \varphi^T)`) or ``method="lms"`` ('Gradient', `LMS`: :math:`\theta
   \leftarrow \theta + \mu \varphi^T e`), from ``x0`` (zeros), in the
   signals' units (MATLAB's ``AdaptationGain`` is `mu`, its
   ``NormalizationBias`` `eps`). A gradient estimate has no covariance;
-- `fit_window`: `SlidingWindowRLS` over the last ``window`` rows, started by
+- `run_window`: `SlidingWindowRLS` over the last ``window`` rows, started by
   exact least squares on the first ``k0`` rows, so that the estimate after
-  row ``t`` is least squares on rows ``max(0, t - window + 1) .. t``.
+  row ``t`` is least squares on rows ``max(0, t - window + 1) .. t``; run in
+  the record's power-of-two units (`RecordUnits`) and mapped back exactly.
 
 Both return the estimate, its history, the a-priori residuals and the filter
 (``filter_``), and are what the fitted attributes of ``method="rls"`` are for
