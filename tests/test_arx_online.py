@@ -127,6 +127,61 @@ def test_window_is_least_squares_over_the_window(window, data):
     assert f"over a window of {window} rows" in str(model.summary())
 
 
+@pytest.mark.parametrize("data", [_siso, _mimo])
+def test_window_filter_is_in_the_signals_units(data):
+    """The window runs in power-of-two scaled units; ``filter_`` gets its state back in
+    the signals' units: its window holds the user's last rows (bit for bit, the maps are
+    powers of two) and, continued on new rows, it is lstsq over the last `window` rows."""
+    u, y = data(n=400)
+    model = ARX(2, 2, 1) if data is _siso else ARX(1, [1, 1], 1)
+    window = 40
+    model.fit(u[:300], y[:300], method="rls", window=window)
+    Phi, target = model.regressors(u, y)
+    rows = len(model.regressors(u[:300], y[:300])[0])
+    f = model.filter_
+    state = f.get_state()
+    order = (np.arange(window) + state["head"]) % window      # oldest first
+    assert_array_equal(state["window_H"][order], Phi[rows - window:rows])
+    assert_array_equal(state["window_z"][order], target[rows - window:rows].reshape(window, -1))
+    assert_array_equal(state["window_R"], 1.0)
+    assert_array_equal(f.x.reshape(model.theta_.shape), model.theta_)
+    W = Phi[rows - window:rows]
+    assert_allclose(f.P, np.linalg.inv(W.T @ W), rtol=1e-9)
+    means = f.batch_filter(target[rows:], Phi[rows:])[0]
+    for t in range(rows, len(Phi)):
+        theta = np.linalg.lstsq(Phi[t - window + 1:t + 1], target[t - window + 1:t + 1],
+                                rcond=None)[0]
+        assert_allclose(means[t - rows].reshape(theta.shape), theta, rtol=1e-9, atol=1e-9)
+
+
+SCALES = [(2.0 ** 40, 1.0), (1e-150, 1.0), (1.0, 1e150), (1e120, 1e-120)]
+
+
+@pytest.mark.parametrize("k0, su, sy", [(None, *s) for s in SCALES]
+                         + [(0, 2.0 ** 40, 1.0), (0, 1e-60, 1.0), (0, 1e50, 1e-50)])
+def test_window_fit_is_scale_invariant(k0, su, sy):
+    """``u * su`` and ``y * sy`` give the fit of the unscaled record with the ``b``
+    coefficients times ``sy / su``: estimates, histories, recursive residuals and
+    covariance (the window runs in power-of-two units, #18 item 7); bit for bit for
+    powers of two. A prior start (``k0=0``) gets ``P0`` and ``R`` in the signals' units
+    (``P0`` of a ``b`` coefficient times ``(sy / su)^2``: within the range `P0` takes)."""
+    u, y = _siso()
+    g = np.array([1.0, 1.0, sy / su, sy / su])
+    kw, ref_kw = {}, {}
+    if k0 == 0:
+        ref_kw = {"k0": 0, "P0": 1e6, "R": 1.0}
+        kw = {"k0": 0, "P0": np.diag(1e6 * g ** 2), "R": sy ** 2}
+    ref = ARX(2, 2, 1).fit(u, y, method="rls", window=50, **ref_kw)
+    model = ARX(2, 2, 1).fit(u * su, y * sy, method="rls", window=50, **kw)
+    exact = su == 2.0 ** 40
+    check = assert_array_equal if exact else (
+        lambda a, b: assert_allclose(a, b, rtol=1e-10, atol=1e-10 * np.nanmax(np.abs(b))))
+    check(model.theta_, ref.theta_ * g)
+    check(model.theta_history_, ref.theta_history_ * g)
+    check(model.recursive_residuals_, ref.recursive_residuals_ * sy)
+    check(model.theta_cov_, ref.theta_cov_ * np.outer(g, g))
+
+
 def test_window_options():
     u, y = _siso()
     model = ARX(2, 2, 1).fit(u, y, method="rls", window=30, k0=10)

@@ -614,6 +614,7 @@ def _online_entries():
     ]
     # ARX.fit's gradient methods and window
     b_inv = scaled(lambda r, s: r * np.array([1.0, 1.0, 1 / s, 1 / s]))     # u * s: b / s
+    b_scaled_y = scaled(lambda r, s: r * np.array([1.0, 1.0, s, s]))        # y * s: b * s
     for m in ("nlms", "lms"):
         mu = 0.5 if m == "nlms" else 0.01
         entries += [
@@ -637,13 +638,13 @@ def _online_entries():
         Entry("ARX.fit(method='rls')", "window",
               lambda v: _theta(ARX(2, 2).fit(U, Y, method="rls", window=v)), 50, kind="int",
               expect={"none": OK}),                  # None: no window (the default)
-        # the window runs SlidingWindowRLS on the unscaled rows (its filter_ is the
-        # user's): not yet scale-invariant as the other ARX fits (#18 item 7)
+        # the window runs in power-of-two scaled units as the other ARX fits (#18 item 7)
         Entry("ARX.fit(method='rls', window=50)", "u",
               lambda v: _theta(ARX(2, 2).fit(v, Y, method="rls", window=50)), U,
-              expect={"huge": b_inv, "tiny": b_inv},
-              known={k: "ARX.fit(window=) is not scale-invariant around 1e+-160"
-                     for k in ("huge", "tiny")}),
+              expect={"huge": b_inv, "tiny": b_inv}),
+        Entry("ARX.fit(method='rls', window=50)", "y",
+              lambda v: _theta(ARX(2, 2).fit(U, v, method="rls", window=50)), Y,
+              expect={"huge": b_scaled_y, "tiny": b_scaled_y, "shape": ERROR}),
     ]
     # the streaming models: options, steps and records
     makers = {"RecursiveARX(method='nlms')": lambda: RecursiveARX(2, 2, 1, method="nlms",

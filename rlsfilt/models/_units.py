@@ -298,6 +298,26 @@ class RecordUnits:
         z = c if z is None else np.asarray(z, dtype=int)
         return c[:, None] + z[None, :] + r
 
+    def diagnostics_from_unit(self, r=0):
+        r"""The maps of a filter's last-update diagnostics (``x_prior``, ``x_post``,
+        ``P_prior``, ``P_post``, ``H``, ``K``, ``S``, ``SI``, ``z``, ``y``) from a run in the
+        scaled units with ``R~ = 2^r R`` to the signals' units, by name: the regressor row
+        :math:`\varphi = 2^c\tilde\varphi`, the gain :math:`K = 2^{-c}\tilde K`,
+        :math:`S = 2^{-r}\tilde S`, outputs and residuals :math:`2^{e_y}`."""
+        c, ey = self.column_exponents, self.output_exponents[:, None]
+
+        def cols(H):                                   # a regressor row: phi = 2^c phi~
+            return np.ldexp(H, c)
+
+        def gain(K):                                   # K = P phi / S = 2^-c K~
+            return np.ldexp(K, -c[:, None] if np.ndim(K) == 2 else -c)
+
+        return {"x_prior": self.theta_from_unit, "x_post": self.theta_from_unit,
+                "P_prior": lambda P: self.P_from_unit(P, r=r),
+                "P_post": lambda P: self.P_from_unit(P, r=r), "H": cols, "K": gain,
+                "S": lambda S: np.ldexp(S, -r), "SI": lambda S: np.ldexp(S, r),
+                "z": lambda z: np.ldexp(z, ey), "y": lambda y: np.ldexp(y, ey)}
+
     def R_to_unit(self, R, r=0):
         """The noise variance ``R`` -> the scaled units: :math:`2^r R`."""
         with np.errstate(over="ignore", under="ignore"):

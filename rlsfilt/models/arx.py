@@ -374,9 +374,12 @@ class ARX(IdentifiedModel):
             ``WindowLength``): `SlidingWindowRLS` over the last `window` rows
             (at least ``n_params``), so that the estimate after each row is
             batch least squares on the last `window` rows (fewer at the
-            start); options `k0` (at most `window`), `P0`, `R`, `x0` and the
-            filter's `refresh`, run in the signals' units. ``theta_cov_`` is
-            that of the last window, ``form_`` is ``"window"``.
+            start); options `k0` (at most `window`), `P0`, `R`, `x0` (in the
+            signals' units) and the filter's `refresh`. The window runs in
+            the record's power-of-two units as the other methods (Notes);
+            ``filter_`` is a `SlidingWindowRLS` in the signals' units
+            holding the final window. ``theta_cov_`` is that of the last
+            window, ``form_`` is ``"window"``.
         **filter_options
             ``"rls"`` only: any other keyword argument of
             `RecursiveLeastSquares` (for example its forgetting mode), passed
@@ -426,7 +429,9 @@ class ARX(IdentifiedModel):
         holds the final state in the signals' units (``P`` over- or
         underflows there for records around :math:`10^{\pm 160}`: continue
         such a record with the square-root form, whose factor stays in
-        range). Forgetting modes with constants that bound ``trace(P)``
+        range; with `window`, whose ``filter_`` then has ``inf`` or
+        subnormal entries of ``P``, refit the record instead of continuing
+        the filter). Forgetting modes with constants that bound ``trace(P)``
         (``"constant_trace"``, ``"efra"``, ``"variable"``, an explicit
         ``trace_max``) run in the signals' units.
 
@@ -504,8 +509,10 @@ class ARX(IdentifiedModel):
                 if k0 is None:            # not even all rows determine theta
                     _qr_least_squares(Phi, target)      # raises with the rank in the message
             options = {k: v for k, v in (("P0", P0), ("R", R), ("x0", x0)) if v is not None}
-            theta, inv_scaled, history, prior, filt = _online.run_window(
-                Phi, target, window, k0, options | filter_options)
+            dev = records if op is None else [(U - op[0], Y - op[1]) for U, Y in records]
+            units = RecordUnits(dev, s, intercept=_offset_mode(self.offset) == "intercept")
+            theta, inv_scaled, col_scale, history, prior, filt = _online.run_window(
+                Phi, target, window, k0, options | filter_options, units)
             recursive = {"filter_": filt, "k0_": k0, "lam_": 1.0, "form_": "window",
                          "theta_history_": history[:, :, 0] if info["y_1d"] else history,
                          "recursive_residuals_": prior[:, 0] if info["y_1d"] else prior}
@@ -1305,19 +1312,8 @@ def _hand_over(rls, user, theta, units, r):
     mapped), ``P`` (over- or underflowing where it is not representable in the signals'
     units), the last step's diagnostics and the counters, so that it continues as the
     filter run in the signals' units would."""
-    c, ey = units.column_exponents, units.output_exponents[:, None]
-
-    def cols(H):                                   # a regressor row: phi = 2^c phi~
-        return np.ldexp(H, c)
-
-    def gain(K):                                   # K = P phi / S = 2^-c K~
-        return np.ldexp(K, -c[:, None] if np.ndim(K) == 2 else -c)
-
-    maps = {"x_prior": units.theta_from_unit, "x_post": units.theta_from_unit,
-            "P_prior": lambda P: units.P_from_unit(P, r=r),
-            "P_post": lambda P: units.P_from_unit(P, r=r), "H": cols, "K": gain,
-            "S": lambda S: np.ldexp(S, -r), "SI": lambda S: np.ldexp(S, r),
-            "z": lambda z: np.ldexp(z, ey), "y": lambda y: np.ldexp(y, ey)}
+    c = units.column_exponents
+    maps = units.diagnostics_from_unit(r)
     state = rls.get_state()                        # the counters and pending decisions
     with np.errstate(over="ignore", under="ignore"):
         if isinstance(rls, SquareRootRLS):
