@@ -66,6 +66,7 @@ when the diagonal test fails) `unhealthy_sym` decides as ``eigvalsh`` would
 next failure warns again.
 """
 
+import numba
 import numpy as np
 
 from .._numba import njit  # numba.njit, uncached where no cache directory is writable
@@ -472,6 +473,12 @@ def _health(P, basis, symmetric, cond_max, k, due, cheap_bad, state, episodes, P
         pass
     elif symmetric:
         bad = unhealthy_sym(P, cond_max, W, X, armed)
+    elif basis is None:
+        # the fused loop keeps P exactly as symmetric as it starts, which it does unless
+        # the caller's P was not: `unhealthy` through Python, compiled on its first call
+        # (not into the loop, for a case most runs never meet)
+        with numba.objmode(bad="boolean"):
+            bad = _unhealthy_call(P, cond_max, armed)
     else:
         bad = unhealthy(P, cond_max, armed)
     if bad and armed:
@@ -483,6 +490,11 @@ def _health(P, basis, symmetric, cond_max, k, due, cheap_bad, state, episodes, P
         state[0] = 0
     elif not bad and due:
         state[0] = 1
+
+
+def _unhealthy_call(P, cond_max, exact):
+    """`unhealthy` called from `_health`'s object-mode block."""
+    return bool(unhealthy(P, cond_max, exact))
 
 
 @njit(cache=True, error_model="numpy")

@@ -8,6 +8,7 @@ loaded from the disk cache by later processes.
 
 import math
 
+import numba
 import numpy as np
 
 from .._numba import njit  # numba.njit, uncached where no cache directory is writable
@@ -241,8 +242,25 @@ def unhealthy_sym(A, cond_max, W, X, exact=True):
         return False
     if not exact:
         return True
+    # the eigenvalues, through Python: `eigen_unhealthy` is compiled on its first call,
+    # not into every kernel that checks health (most runs never need it: a third of a
+    # second of a first run's compile work)
+    with numba.objmode(bad="boolean"):
+        bad = _eigen_unhealthy_call(A, cond_max)
+    return bad
+
+
+@njit(cache=True, error_model="numpy")
+def eigen_unhealthy(A, cond_max):
+    """The eigenvalue decision of `unhealthy_sym`: ``A`` (exactly symmetric, finite) is not
+    positive definite or its condition number is above `cond_max`."""
     w = np.linalg.eigvalsh(A)
-    return w[0] <= 0.0 or w[n - 1] > cond_max * w[0]
+    return w[0] <= 0.0 or w[A.shape[0] - 1] > cond_max * w[0]
+
+
+def _eigen_unhealthy_call(A, cond_max):
+    """`eigen_unhealthy` called from a compiled kernel's object-mode block."""
+    return bool(eigen_unhealthy(A, cond_max))
 
 
 @njit(cache=True, error_model="numpy", inline="always")

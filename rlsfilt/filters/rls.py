@@ -1123,13 +1123,22 @@ class RecursiveLeastSquares(_FilterBase):
         `diagonal_bad`: the kernel's cheap check failed), or None."""
         kern = _streaming.kernels()
         armed = not self._warned_health              # warned: only the bound re-arms
-        # without constraints `unhealthy` itself (`unhealthy_on` with an empty basis): the
-        # batch loops' check compiled it already, `unhealthy_on` is not compiled for it
-        bad = diagonal_bad or (
-            kern.unhealthy(np.ascontiguousarray(P, dtype=np.float64), float(self.cond_max),
-                           armed)
-            if self._null_basis is None else
-            kern.unhealthy_on(P, self._null_basis, self.cond_max, armed))
+        # without constraints `unhealthy` itself (`unhealthy_on` with an empty basis is not
+        # compiled for it), or `unhealthy_sym` (which the batch loops' check compiled
+        # already) when ``P`` is exactly symmetric and ``(P + P^T) / 2`` is ``P`` (no
+        # entry whose double overflows): the same decision
+        if diagonal_bad:
+            bad = True
+        elif self._null_basis is not None:
+            bad = kern.unhealthy_on(P, self._null_basis, self.cond_max, armed)
+        else:
+            Pc = np.ascontiguousarray(P, dtype=np.float64)
+            if np.array_equal(Pc, Pc.T) and np.all(np.abs(Pc) < 2.0 ** 1023):
+                n = len(Pc)
+                bad = kern.unhealthy_sym(Pc, float(self.cond_max), np.empty((n, n)),
+                                         np.empty((n, n)), armed)
+            else:
+                bad = kern.unhealthy(Pc, float(self.cond_max), armed)
         if not bad:
             return None
         if not armed:
