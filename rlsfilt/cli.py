@@ -763,7 +763,7 @@ def _validate(model, u, y, lam, metadata, progress, plant=None, window=None):
         u = u.getexp(-1)  # the estimate describes the end of the last experiment
     N = u.n_samples if isinstance(u, IOData) else len(y)
     start = 0
-    floor = 100 + model.max_lag + model.n_params
+    floor = 100 + model.max_lag + model.n_params if local else 0
     if window is not None:
         start = max(0, N - max(window + model.max_lag, floor))
         what = f"the last window of {window} rows"
