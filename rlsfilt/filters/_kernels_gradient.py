@@ -41,17 +41,25 @@ call, no method test and no stored gain per sample), which took
 an ``inline="always"`` step with an early return per sample, about 8 times
 slower than the same arithmetic written out in the loop.
 
-Tried for affine projection at ``dim_x = 16``, order 4 (about 130 ns per sample),
-bit for bit the same results, and not kept (below the 1.5x a change must pay): the
-rows in a ring instead of shifted (0.89x alone), a transposed buffer with the row
-sums interleaved per entry (0.65x), the new Gram row and ``X x`` fused two rows per
-pass (1.03x) or four (1.32x; 1.40x with ``X^T E`` four rows per pass, 1.21x at order
-5), a reciprocal of ``D`` instead of the divisions (no gain). Only the loop written
-out for exactly four rows, with its sums in registers, reached 1.63x: a path for one
-order, not kept.
+The affine projection loop for one output takes its order ``q`` as a compile-time
+constant (`_apa_one`, for the orders of `_APA_ORDERS`; a tuple of ``q`` zeros is the
+witness, as `_dimension_witness` does for the dimension in ``_kernels.py``; numba
+compiles one loop per order used, lazily): the shift of the rows, the new Gram row
+and ``X x`` are one pass over the entries with their ``q`` sums in registers, every
+sum in the order of the entries (bit for bit the former loop and `apa_update`). At
+order 4 it took 125 to 74 ns per sample at ``dim_x = 16`` (1.68x) and 77 to 43 ns at
+``dim_x = 4`` (1.81x); order 5 1.60x and 1.72x, order 6 1.47x and 1.64x, order 1
+1.93x and 1.31x (one run, interleaved, best of 7). From order 7 the sums no longer
+stay in registers (0.43x at order 8), so those orders keep the loop with the order
+as a variable (`_apa_one_any`). Tried before and not kept (below the 1.5x a change
+must pay): the rows in a ring instead of shifted (0.89x alone), a transposed buffer
+with the row sums interleaved per entry (0.65x), the new Gram row and ``X x`` fused
+two or four rows per pass for any order (1.03x, 1.32x), a reciprocal of ``D``
+instead of the divisions (no gain).
 """
 
 import numpy as np
+from numba.cpython.unsafe.tuple import tuple_setitem
 
 from .._numba import njit
 
@@ -318,18 +326,39 @@ def apa_update(x, h, z, mu, eps, X, D, K, y, A, B, E, G):
     return True
 
 
-@njit(cache=True)
+#: The orders whose batch loop for one output is compiled with the order as a constant
+#: (`_apa_one`); above them the sums no longer stay in registers and the fused loop
+#: is slower than `_apa_one_any` (0.43x at order 8, ``dim_x = 16``).
+_APA_ORDERS = range(1, 7)
+
+
 def apa_batch(x, Hm, Z, mu, eps, X, D, K, y, A, B, E, G, means):
     """`apa_update` over a record: ``means[k + 1]`` is the estimate after sample `k`
     (``means[0]`` the estimate at entry); `x`, the buffers, `K`, `y` hold the final
     state. The Gram matrix ``X X^T`` is carried from step to step (one new row per
     sample, the same bits as recomputing it) and the gain is formed once, for the
-    last step. Returns the index of the last sample that updated (-1: none)."""
+    last step. Returns the index of the last sample that updated (-1: none).
+
+    The order ``q`` enters the compiled loop as a tuple of ``q`` zeros (``len`` of
+    a tuple is part of its type, so ``q`` is a compile-time constant: numba
+    compiles one loop per order used, lazily)."""
+    q = X.shape[0]
+    return _apa_batch(x, Hm, Z, mu, eps, X, D, K, y, A, B, E, G, means,
+                      (0.0,) * q if q in _APA_ORDERS else None)
+
+
+@njit(cache=True)
+def _apa_batch(x, Hm, Z, mu, eps, X, D, K, y, A, B, E, G, means, zeros):
+    """`apa_batch` with the order witness `zeros` (a tuple of ``q`` zeros; None for
+    an order above `_APA_ORDERS`)."""
     _store(means, 0, x)
     _apa_gram(X, G, False)
     m = x.shape[1]
     if m == 1:
-        last = _apa_one(x, Hm, Z, mu, eps, X, D, y, A, E, G, means)
+        if zeros is None:                                # numba prunes the other branch
+            last = _apa_one_any(x, Hm, Z, mu, eps, X, D, y, A, E, G, means)
+        else:
+            last = _apa_one(x, Hm, Z, mu, eps, X, D, y, A, E, G, means, zeros)
         if last >= 0:
             _apa_gain(X, mu, A, B, K)
         return last
@@ -350,11 +379,85 @@ def apa_batch(x, Hm, Z, mu, eps, X, D, K, y, A, B, E, G, means):
 
 
 @njit(cache=True)
-def _apa_one(x, Hm, Z, mu, eps, X, D, y, A, E, G, means):
+def _apa_one(x, Hm, Z, mu, eps, X, D, y, A, E, G, means, zeros):
     """The sample loop of `apa_batch` for one output: `_apa_shift`, `_apa_gram` and
     `_apa_correct` written out for ``m = 1``, operation for operation (so bit for bit
-    the streaming step) and with no call inside the loop. Returns the last sample
-    that updated (-1: none)."""
+    the streaming step) and with no call inside the loop. The order ``q =
+    len(zeros)`` is a compile-time constant: the shift of the rows, the new Gram
+    row ``X[0] X^T`` and ``X x`` are one pass over the entries, their ``q`` sums
+    each in a tuple (registers), every sum still in the order of the entries.
+    Returns the last sample that updated (-1: none)."""
+    q = len(zeros)                                       # a constant: one loop per order
+    n = X.shape[1]
+    last = -1
+    for k in range(Z.shape[0]):
+        z = Z[k, 0]
+        if z == z:                                       # not missing (NaN)
+            for r in range(q - 1, 0, -1):                # the rows move one place down
+                D[r, 0] = D[r - 1, 0]
+                for c in range(r, 0, -1):                # and so do their products
+                    G[r, c] = G[r - 1, c - 1]
+                    G[c, r] = G[r, c]
+            D[0, 0] = z
+            g = zeros                                    # g = X[0] X^T (the new Gram row)
+            e = zeros                                    # e = X x
+            for i in range(n):
+                xi = x[i, 0]
+                h = Hm[k, i]
+                for r in range(q - 1, 0, -1):
+                    X[r, i] = X[r - 1, i]
+                X[0, i] = h
+                for r in range(q):
+                    v = X[r, i]
+                    g = tuple_setitem(g, r, g[r] + v * h)
+                    e = tuple_setitem(e, r, e[r] + v * xi)
+            for r in range(q):
+                G[r, 0] = g[r]
+                G[0, r] = g[r]
+                E[r, 0] = D[r, 0] - e[r]                 # E = D - X x
+            y[0] = E[0, 0]
+            for c in range(q):                           # G + eps I = L D L^T
+                d = G[c, c] + eps
+                for t in range(c):
+                    d -= A[c, t] * A[c, t] * A[t, t]
+                A[c, c] = d
+                inv = 1.0 / d
+                for r in range(c + 1, q):
+                    s = G[r, c]
+                    for t in range(c):
+                        s -= A[r, t] * A[c, t] * A[t, t]
+                    A[r, c] = s * inv
+            for r in range(q):                           # E <- (L D L^T)^-1 E
+                s = E[r, 0]
+                for t in range(r):
+                    s -= A[r, t] * E[t, 0]
+                E[r, 0] = s
+            for r in range(q):
+                E[r, 0] = E[r, 0] / A[r, r]
+            for r in range(q - 1, -1, -1):
+                s = E[r, 0]
+                for t in range(r + 1, q):
+                    s -= A[t, r] * E[t, 0]
+                E[r, 0] = s
+            for i in range(n):                           # x <- x + mu X^T E
+                acc = 0.0
+                for r in range(q):
+                    acc += X[r, i] * E[r, 0]
+                x[i, 0] += mu * acc
+                means[k + 1, i, 0] = x[i, 0]
+            last = k
+        else:
+            for i in range(n):
+                means[k + 1, i, 0] = x[i, 0]
+    return last
+
+
+@njit(cache=True)
+def _apa_one_any(x, Hm, Z, mu, eps, X, D, y, A, E, G, means):
+    """The sample loop of `apa_batch` for one output and an order above
+    `_APA_ORDERS`: `_apa_shift`, `_apa_gram` and `_apa_correct` written out for
+    ``m = 1``, operation for operation (so bit for bit the streaming step) and with
+    no call inside the loop. Returns the last sample that updated (-1: none)."""
     q, n = X.shape
     last = -1
     for k in range(Z.shape[0]):
