@@ -106,7 +106,7 @@ def test_lms_family_against_padasip_and_the_textbook(name, make, make_pa, ref):
             assert_allclose(g.x[:, 0], p.w, **TOL)
 
 
-@pytest.mark.parametrize("order", [1, 3, 6])
+@pytest.mark.parametrize("order", [1, 3, 6, 8])   # 8: the loop for orders past the constant ones
 def test_apa_against_padasip_and_the_textbook(order):
     zs, Hs = _record(1)
     f = APA(N_X, order=order, mu=0.4, eps=0.01)
@@ -137,7 +137,7 @@ def test_streaming_equals_batch_and_block_bit_for_bit():
     zs, Hs = _record(3)
     zs[[7, 100]] = np.nan
     for make in (lambda: LMS(N_X, mu=0.02, leak=0.1), lambda: SignDataLMS(N_X, mu=0.01),
-                 lambda: APA(N_X, order=4, mu=0.3)):
+                 lambda: APA(N_X, order=4, mu=0.3), lambda: APA(N_X, order=8, mu=0.3)):
         a, b, c = make(), make(), make()
         means, *_ = a.batch_filter(zs, Hs)
         c.update_block(zs, Hs)
