@@ -174,7 +174,59 @@ class BankHistory:
         return f"<BankHistory: {N} steps of {C} channels>"
 
 
-class RLSBank:
+class BankBase:
+    """What every bank of filters shares: its lock (in a slot, outside ``__dict__``,
+    which filterpy's Saver deep-copies and `_atomic` restores; made in ``__new__``,
+    so copies and unpickled banks get their own), ``copy`` and filterpy's
+    diagnostics per channel from the last residuals ``y`` and their variances
+    ``S`` (``(C,)`` each; ``_fresh`` before any update). `RLSBank` and
+    `rlsfilt.filters.gradient_bank.GradientBank` derive from it."""
+
+    __slots__ = ("_lock", "__dict__", "__weakref__")
+
+    def __new__(cls, *args, **kwargs):
+        self = super().__new__(cls)
+        self._lock = threading.RLock()
+        return self
+
+    def __getstate__(self):
+        """The attributes without the lock, read under it (pickle, copy, deepcopy)."""
+        with self._lock:
+            return self.__dict__.copy()
+
+    def __setstate__(self, state):
+        self._lock = threading.RLock()      # (made by __new__ too; not by pickle protocol 0, 1)
+        self.__dict__.update(state)
+
+    def copy(self):
+        """An independent deep copy of the bank."""
+        return copy.deepcopy(self)
+
+    @property
+    def log_likelihood(self):
+        """``log N(y; 0, S)`` of each channel's last measurement, shape (C,)
+        (0 where the channel skipped it; ``log(tiny)`` before any update)."""
+        if self._fresh:
+            return np.full(self.n_channels, math.log(_TINY))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            ll = -0.5 * (_LOG_2PI + np.log(self.S) + self.y * self.y / self.S)
+        return np.where(np.isnan(self.y), 0.0, ll)
+
+    @property
+    def likelihood(self):
+        """``exp(log_likelihood)``, floored at the smallest positive float, shape (C,)."""
+        return np.maximum(np.exp(self.log_likelihood), _TINY)
+
+    @property
+    def mahalanobis(self):
+        """``|y| / sqrt(S)`` of each channel's last residual, shape (C,) (NaN where skipped)."""
+        if self._fresh:
+            return np.zeros(self.n_channels)
+        with np.errstate(invalid="ignore"):
+            return np.abs(self.y) / np.sqrt(self.S)
+
+
+class RLSBank(BankBase):
     r"""``n_channels`` independent recursive least-squares filters updated together.
 
     Channel ``c`` estimates ``x[c]`` in its own regression
@@ -342,28 +394,11 @@ class RLSBank:
            [-0.3,  0.5]])
     """
 
-    # the lock in a slot, outside ``__dict__`` (which filterpy's Saver deep-copies and
-    # `_atomic` restores); made in ``__new__``, so copies and unpickled banks get their own
-    __slots__ = ("_lock", "__dict__", "__weakref__")
-
     x_prior = _Lazy("Estimates after the last :meth:`predict`, ``(C, dim_x)``.")
     P_prior = _Lazy("Covariances after the last :meth:`predict`, ``(C, dim_x, dim_x)``.")
     x_post = _Lazy("Estimates after the last :meth:`update`, ``(C, dim_x)``.")
     P_post = _Lazy("Covariances after the last :meth:`update`, ``(C, dim_x, dim_x)``.")
 
-    def __new__(cls, *args, **kwargs):
-        self = super().__new__(cls)
-        self._lock = threading.RLock()
-        return self
-
-    def __getstate__(self):
-        """The attributes without the lock, read under it (pickle, copy, deepcopy)."""
-        with self._lock:
-            return self.__dict__.copy()
-
-    def __setstate__(self, state):
-        self._lock = threading.RLock()      # (made by __new__ too; not by pickle protocol 0, 1)
-        self.__dict__.update(state)
 
     def __init__(self, n_channels, dim_x, lam=1.0, *, Q=0.0, R=1.0, P0=1e4, x0=None,
                  forgetting="exponential", forgetting_params=None, check_every=100,
@@ -1173,36 +1208,6 @@ class RLSBank:
             return
         self._cap = np.where(channels, False, self._cap)
         self._w = np.where(channels, 1.0, self._w)
-
-    def copy(self):
-        """An independent deep copy of the bank."""
-        return copy.deepcopy(self)
-
-    # ------------------------------------------------------------------
-    # filterpy diagnostics, per channel
-    # ------------------------------------------------------------------
-    @property
-    def log_likelihood(self):
-        """``log N(y; 0, S)`` of each channel's last measurement, shape (C,)
-        (0 where the channel skipped it; ``log(tiny)`` before any update)."""
-        if self._fresh:
-            return np.full(self.n_channels, math.log(_TINY))
-        with np.errstate(invalid="ignore", divide="ignore"):
-            ll = -0.5 * (_LOG_2PI + np.log(self.S) + self.y * self.y / self.S)
-        return np.where(np.isnan(self.y), 0.0, ll)
-
-    @property
-    def likelihood(self):
-        """``exp(log_likelihood)``, floored at the smallest positive float, shape (C,)."""
-        return np.maximum(np.exp(self.log_likelihood), _TINY)
-
-    @property
-    def mahalanobis(self):
-        """``|y| / sqrt(S)`` of each channel's last residual, shape (C,) (NaN where skipped)."""
-        if self._fresh:
-            return np.zeros(self.n_channels)
-        with np.errstate(invalid="ignore"):
-            return np.abs(self.y) / np.sqrt(self.S)
 
     def __repr__(self):
         shown, gap = edge_indices(self.n_channels)

@@ -13,9 +13,6 @@ a `BankHistory` from ``batch_filter``, NaN as missing data per channel,
 ``channel(i)``, ``freeze()``, ``update_block``; there is no covariance.
 """
 
-import copy
-import math
-import threading
 
 import numpy as np
 
@@ -25,7 +22,7 @@ from .._locking import init_signature
 from .._locking import locked as _locked
 from .._validation import as_float_array, check_bool, check_dimension, check_int, check_length
 from . import gradient as _gradient
-from .bank import BankHistory
+from .bank import BankBase, BankHistory
 
 __all__ = ["GradientBank"]
 
@@ -33,11 +30,9 @@ _kernels = lazy_module("rlsfilt.filters._kernels_gradient")
 _CLASSES = {"lms": _gradient.LMS, "nlms": _gradient.NLMS,
             "sign_error": _gradient.SignErrorLMS, "sign_data": _gradient.SignDataLMS,
             "sign_sign": _gradient.SignSignLMS}
-_LOG_2PI = math.log(2.0 * math.pi)
-_TINY = np.finfo(float).tiny
 
 
-class GradientBank:
+class GradientBank(BankBase):
     r"""``n_channels`` independent gradient filters (NLMS by default) updated together.
 
     Channel ``c`` estimates ``x[c]`` in its own regression
@@ -124,21 +119,6 @@ class GradientBank:
 
     has_covariance = False
     least_squares = False
-    __slots__ = ("_lock", "__dict__", "__weakref__")
-
-    def __new__(cls, *args, **kwargs):
-        self = super().__new__(cls)
-        self._lock = threading.RLock()
-        return self
-
-    def __getstate__(self):
-        """The attributes without the lock, read under it (pickle, copy, deepcopy)."""
-        with self._lock:
-            return self.__dict__.copy()
-
-    def __setstate__(self, state):
-        self._lock = threading.RLock()
-        self.__dict__.update(state)
 
     def __init__(self, n_channels, dim_x, mu=0.1, *, method="nlms", eps=0.001, leak=0.0,
                  x0=None, R=1.0):
@@ -441,36 +421,6 @@ class GradientBank:
         self.S, self.SI = np.zeros(C), np.zeros(C)
         self.n_updates = 0
         self._fresh = True
-
-    def copy(self):
-        """An independent deep copy of the bank."""
-        return copy.deepcopy(self)
-
-    # ------------------------------------------------------------------
-    # filterpy diagnostics, per channel (as RLSBank's)
-    # ------------------------------------------------------------------
-    @property
-    def log_likelihood(self):
-        """``log N(y; 0, S)`` of each channel's last residual, shape (C,) (0 where
-        the channel skipped it; ``log(tiny)`` before any update)."""
-        if self._fresh:
-            return np.full(self.n_channels, math.log(_TINY))
-        with np.errstate(invalid="ignore", divide="ignore"):
-            ll = -0.5 * (_LOG_2PI + np.log(self.S) + self.y * self.y / self.S)
-        return np.where(np.isnan(self.y), 0.0, ll)
-
-    @property
-    def likelihood(self):
-        """``exp(log_likelihood)``, floored at the smallest positive float, shape (C,)."""
-        return np.maximum(np.exp(self.log_likelihood), _TINY)
-
-    @property
-    def mahalanobis(self):
-        """``|y| / sqrt(S)`` of each channel's last residual, shape (C,)."""
-        if self._fresh:
-            return np.zeros(self.n_channels)
-        with np.errstate(invalid="ignore"):
-            return np.abs(self.y) / np.sqrt(self.S)
 
     def __repr__(self):
         return (f"GradientBank(n_channels={self.n_channels}, dim_x={self.dim_x}, "
