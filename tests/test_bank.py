@@ -342,7 +342,7 @@ def test_initialize_equals_rls_initialize(rng):
 def test_initialize_rank_check_equals_matrix_rank(rng):
     """The QR bound that settles most ranks of `initialize` gives exactly the ranks
     of numpy's matrix_rank (SVD), near the threshold too."""
-    from rlsfilt.filters.bank import _full_rank
+    from rlsfilt.filters.bank import full_rank as _full_rank
 
     mats = []
     for k0, n in ((6, 3), (3, 3), (8, 4)):

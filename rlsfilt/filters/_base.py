@@ -564,6 +564,33 @@ class _FilterBase(Filter):
         return arr.copy()
 
 
+def snapshot_filter(f):
+    """A copy of filter `f`'s attributes (`_FilterBase._shallow_state`) that stays
+    valid, for the python-control systems (`rlsfilt._iosystem`), which step one
+    object back and forth between states; None when `f` is not on the shared base
+    (the caller then copies through ``get_state``).
+
+    A step replaces the arrays it changes, except those the filter lists in
+    ``_written_in_place`` (the ring buffer of `SlidingWindowRLS`): only these are
+    copied.
+    """
+    if not isinstance(f, _FilterBase):
+        return None
+    state = f._shallow_state()
+    for name in f._written_in_place:
+        state[name] = state[name].copy()
+    return state
+
+
+def restore_filter(f, snap):
+    """Put back a :func:`snapshot_filter` (copies again: the snapshot stays valid)."""
+    if f._written_in_place:
+        snap = dict(snap)
+        for name in f._written_in_place:
+            snap[name] = snap[name].copy()
+    f._restore(snap)
+
+
 def own_array(value, name):
     """`value` as the filter's own C-contiguous float64 array (always a copy).
 

@@ -33,7 +33,7 @@ from .._scale import unit_columns
 from .._validation import as_float_array, check_dt, check_int, check_probability
 from ..exceptions import NumericalWarning
 from ..filters._health import warn_at_caller as _warn_at_caller
-from ..filters.bank import RLSBank, _full_rank
+from ..filters.bank import RLSBank, full_rank, subset
 from ..filters.gradient_bank import GradientBank
 from ._offset import offset_mode as _offset_mode
 from ._tuning_option import tuning_param
@@ -802,7 +802,7 @@ def _run_group(cs, g, k0, Phi, target, opts, labels, on_error, out):
     rows = Phi.shape[0]
 
     def make(channels):                 # the fleet's bank, validated once, cut to `channels`
-        return opts["bank"]._subset(cs[channels])
+        return subset(opts["bank"], cs[channels])
 
     bank = make(g)
     g_sel = slice(None) if len(g) == Phi.shape[1] else g      # no copy for a whole chunk
@@ -923,8 +923,8 @@ def _batch_start_rows(Phi, norms):
     rows, c, n = Phi.shape
     Ps = Phi[:n].transpose(1, 0, 2) / np.where(norms > 0, norms, 1.0)[:, None, :]
     k0s = np.full(c, n)
-    # the ranks of np.linalg.matrix_rank(Ps), most settled by a QR (bank._full_rank)
-    rank, _ = _full_rank(Ps, np.linalg.qr(Ps, mode="r"))
+    # the ranks of np.linalg.matrix_rank(Ps), most settled by a QR (bank.full_rank)
+    rank, _ = full_rank(Ps, np.linalg.qr(Ps, mode="r"))
     for j in np.flatnonzero(rank < n):
         k = _full_rank_rows(Phi[:, j])
         k0s[j] = -1 if k is None else k
@@ -1109,7 +1109,7 @@ def _tune_channels(rec, per_channel, todo, chunk, buffer, param, C):
         cs, sel = _as_slice(cs)
         norms = np.empty((cs.size, n))
         Phi, target = _regressors(rec.U, rec.Y, s, sel, buffer, norms)
-        fits = bank._subset(cs).tune(target, Phi, param, burn=n)
+        fits = subset(bank, cs).tune(target, Phi, param, burn=n)
         for j, c in enumerate(cs):
             results[c] = fits.channel(j)
     est = np.array([r.estimate for r in results])
@@ -1132,7 +1132,9 @@ def _rls_options(C, n, method, opts, filter_options):
         return {}
     kw = {key: opts[key] for key in ("lam", "R", "Q", "P0", "x0") if opts[key] is not None}
     proto = RLSBank(C, n, **kw, **filter_options)
-    return {"lam": proto.lam, "R": proto.R, "Q": proto.Q, "P0": proto._P0, "x0": proto._x0,
+    # (a new bank's state is its start: P = P0, x = x0)
+    return {"lam": proto.lam, "R": proto.R, "Q": proto.Q, "P0": proto.P.copy(),
+            "x0": proto.x.copy(),
             "filter": dict(filter_options), "bank": proto,
             "prior": opts["P0"] is not None or opts["x0"] is not None}
 
