@@ -78,6 +78,7 @@ from rlsfilt import (
     SlidingWindowRLS,
     SquareRootRLS,
 )
+from rlsfilt.filters.bank import MODES as BANK_MODES
 from rlsfilt.filters.forgetting import MODES, clip_eigenvalues, efra_bounds
 
 RTOL = 1e-12
@@ -818,7 +819,8 @@ def _stream(f, zs, Hs, Rs, update_first):
     """`batch_filter`'s documented loop, step by step: its four histories (None for
     the covariances of a filter without one)."""
     out = ([], [], [], [])
-    P = (lambda: f.P.copy()) if f.has_covariance else (lambda: None)
+    has_P = getattr(f, "has_covariance", True)        # (a bank: yes)
+    P = (lambda: f.P.copy()) if has_P else (lambda: None)
     for k in range(len(Hs)):
         if not update_first:
             f.predict()
@@ -831,7 +833,7 @@ def _stream(f, zs, Hs, Rs, update_first):
             f.predict()
             out[2].append(f.x.copy())
             out[3].append(P())
-    return out if f.has_covariance else (out[0], None, out[2], None)
+    return out if has_P else (out[0], None, out[2], None)
 
 
 def run_case(case, spec=None):
@@ -1111,8 +1113,7 @@ def test_a_missing_sample_treats_an_assigned_P_alike_in_every_mode(forgetting):
 #: ``"NaN"`` a NaN measurement, ``"None"`` a NaN regressor row (the bank's other
 #: marker; the channel's filter sees a missing measurement).
 BANK = FilterSpec("RLSBank", None, None, declared=(
-    Declared("forgetting", tuple(m for m in MODES if m not in
-                                 ("exponential", "directional", "constant_trace")),
+    Declared("forgetting", tuple(m for m in MODES if m not in BANK_MODES),
              ValueError, "the bank's kernels have the exponential, directional and "
              "constant-trace modes only (one RecursiveLeastSquares per channel for others)"),
     Declared("forgetting", ("constant_trace",), ValueError,

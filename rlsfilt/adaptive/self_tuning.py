@@ -29,7 +29,7 @@ from .._lazy import lazy_module
 from .._validation import check_dt, check_int, check_real, check_scalar
 from ..exceptions import ExcitationWarning, RegulatorWarning
 from ..filters import _filter_state
-from ..filters._base import restore_filter, snapshot_filter
+from ..filters.contract import restore_filter, snapshot_filter
 from ._polynomials import coprimeness, degree, fmt_complex, padd, roots, trim
 from .rst import RSTController, _prepared_design, rst_design
 

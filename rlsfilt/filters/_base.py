@@ -59,10 +59,6 @@ class _FilterBase(Filter):
     also for copies and unpickled filters); see the module docstring.
     """
 
-    # arrays a step writes into in place, which a copy of the attributes
-    # (`_shallow_state`) must copy to stay valid; the others are replaced, not written
-    _written_in_place = ()
-
     # a slot, not in ``__dict__``: filterpy's Saver deep-copies ``__dict__``, and a
     # lock can be neither copied nor pickled
     __slots__ = ("_lock",)
@@ -562,33 +558,6 @@ class _FilterBase(Filter):
             raise ValueError(f"`Rs` must hold variances in [{lo:.0e}, {hi:.0e}] (the update "
                              f"multiplies and divides by them); got {arr[i]:.3g} at index {i}")
         return arr.copy()
-
-
-def snapshot_filter(f):
-    """A copy of filter `f`'s attributes (`_FilterBase._shallow_state`) that stays
-    valid, for the python-control systems (`rlsfilt._iosystem`), which step one
-    object back and forth between states; None when `f` is not on the shared base
-    (the caller then copies through ``get_state``).
-
-    A step replaces the arrays it changes, except those the filter lists in
-    ``_written_in_place`` (the ring buffer of `SlidingWindowRLS`): only these are
-    copied.
-    """
-    if not isinstance(f, _FilterBase):
-        return None
-    state = f._shallow_state()
-    for name in f._written_in_place:
-        state[name] = state[name].copy()
-    return state
-
-
-def restore_filter(f, snap):
-    """Put back a :func:`snapshot_filter` (copies again: the snapshot stays valid)."""
-    if f._written_in_place:
-        snap = dict(snap)
-        for name in f._written_in_place:
-            snap[name] = snap[name].copy()
-    f._restore(snap)
 
 
 def own_array(value, name):

@@ -16,7 +16,7 @@ import numpy as np
 from .._iosystem import call_capturing, make_iosystem, push
 from .._validation import check_dt, check_int
 from . import _filter_state
-from ._base import restore_filter, snapshot_filter
+from .contract import restore_filter, snapshot_filter
 
 __all__ = ["estimator_iosystem"]
 
