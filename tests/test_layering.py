@@ -124,6 +124,9 @@ def filter_private_members(paths):
             for node in ast.walk(cls):
                 if isinstance(node, ast.FunctionDef) and _private(node.name):
                     names.add(node.name)
+                elif isinstance(node, ast.Assign):              # class attributes
+                    names.update(t.id for t in node.targets
+                                 if isinstance(t, ast.Name) and _private(t.id))
                 elif (isinstance(node, ast.Attribute) and isinstance(node.ctx, ast.Store)
                       and getattr(node.value, "id", None) == "self" and _private(node.attr)):
                     names.add(node.attr)
@@ -156,7 +159,7 @@ def test_no_module_reaches_into_a_filters_private_members():
 
     filters_dir = g.ROOT / "rlsfilt" / "filters"
     members = filter_private_members(filters_dir / f"{m}.py" for m in FILTER_MODULES)
-    assert {"_x", "_P", "_shallow_state", "_restore"} <= members     # (the scan sees them)
+    assert {"_x", "_P", "_shallow_state", "_restore", "_written_in_place"} <= members
     bad = []
     for path in sorted((g.ROOT / "rlsfilt").rglob("*.py")):
         rel = path.relative_to(g.ROOT).as_posix()
@@ -178,3 +181,44 @@ def test_the_private_member_scan_can_fail(tmp_path):
     found = private_reaches(tmp_path / "m.py", {"_x", "_P0", "_full_rank"}, tmp_path)
     assert sorted(found) == [(1, "from rlsfilt.filters.bank import _full_rank"),
                              (4, "bank._P0")]
+
+
+# ----------------------------------------------------------------------
+# one lazy kernel loader
+# ----------------------------------------------------------------------
+def kernel_imports_in_functions(path):
+    """``(line, module)`` of each import of a compiled kernel module (``*_kernels*``)
+    written inside a function of the module at `path`: a lazy import by hand, past
+    the one loader (`rlsfilt._lazy.lazy_module`, which also says when a cold first
+    use compiles)."""
+    found = []
+    for fn in ast.walk(ast.parse(path.read_text())):
+        if not isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            continue
+        for node in ast.walk(fn):
+            if isinstance(node, ast.ImportFrom):
+                names = [node.module or ""] + [f"{node.module}.{a.name}" for a in node.names]
+            elif isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            else:
+                continue
+            if any("_kernels" in n.rpartition(".")[2] for n in names):
+                found.append((node.lineno, ast.unparse(node)))
+    return found
+
+
+def test_kernel_modules_load_through_the_one_lazy_loader():
+    import test_import_graph as g
+
+    bad = [f"{p.relative_to(g.ROOT)}:{line}: {text}"
+           for p in sorted((g.ROOT / "rlsfilt").rglob("*.py"))
+           for line, text in kernel_imports_in_functions(p)]
+    assert not bad, "kernel modules imported by hand (use lazy_module):\n" + "\n".join(bad)
+
+
+def test_the_kernel_import_scan_can_fail(tmp_path):
+    (tmp_path / "m.py").write_text(
+        "from .filters import _kernels_x\n"
+        "def f():\n    from ..filters._kernels_lagged import lag_gram\n"
+        "    from . import _kernels_fleet\n    import numpy\n")
+    assert [line for line, _ in kernel_imports_in_functions(tmp_path / "m.py")] == [3, 4]
