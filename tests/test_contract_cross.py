@@ -50,6 +50,7 @@ filter of ``docs/develop.md`` with ``ref.lms_step``/``ref.apa_step``
 """
 
 import copy
+import functools
 import math
 import pickle
 import warnings
@@ -496,16 +497,16 @@ class SlidingWindowModel(_Model):
 class GradientModel(_Model):
     """The gradient family as the textbook: ``ref.lms_step`` (LMS, NLMS, the sign
     variants, leakage) and ``ref.apa_step`` (affine projection, its buffers ``X``,
-    ``D`` newest first). No covariance: ``S = R I`` (the example filter's NLMS
-    regularizes with ``R``: ``eps = R``, ``S = (R + h^T h) I``), and a missing sample
-    leaves ``K`` and ``S`` as they were (``y`` NaN)."""
+    ``D`` newest first). No covariance: ``S = R I`` (with `eps_is_R`, an NLMS that
+    regularizes with ``R`` as the example filter's: ``eps = R``, ``S = (R + h^T h) I``),
+    and a missing sample leaves ``K`` and ``S`` as they were (``y`` NaN)."""
 
     has_covariance = False
     track_updates = False
 
-    def __init__(self, f, setup):
+    def __init__(self, f, setup, eps_is_R=False):
         self.method = getattr(f, "method", "nlms")
-        self.eps_is_R = isinstance(f, ExampleNLMS)
+        self.eps_is_R = eps_is_R
         self.mu, self.eps = f.mu, getattr(f, "eps", 0.0)
         self.leak, self.order = getattr(f, "leak", 0.0), getattr(f, "order", 1)
         super().__init__(f, setup)
@@ -604,8 +605,9 @@ GRADIENT_DECLARED = (
 GRADIENT_STATE = ("x", "x_prior", "x_post", "y", "K", "S", "n_updates")
 
 
-def _gradient_spec(name, make, extra=()):
-    return FilterSpec(name, make, GradientModel, GRADIENT_DECLARED, extra, GRADIENT_STATE)
+def _gradient_spec(name, make, extra=(), **model_options):
+    model = functools.partial(GradientModel, **model_options)
+    return FilterSpec(name, make, model, GRADIENT_DECLARED, extra, GRADIENT_STATE)
 
 
 SPECS = [
@@ -645,7 +647,8 @@ SPECS = [
                                          mu=_uniform(0.1, 1.0), eps=_choice(1e-3, 0.1)),
                    extra=("X", "D")),
     # the example of docs/develop.md (tests/example_filter.py): one line, as any filter
-    _gradient_spec("NLMS-example", _gradient_make(ExampleNLMS, mu=_uniform(0.1, 1.0))),
+    _gradient_spec("NLMS-example", _gradient_make(ExampleNLMS, mu=_uniform(0.1, 1.0)),
+                   eps_is_R=True),
 ]
 SPECS_BY_NAME = {spec.name: spec for spec in SPECS}
 
