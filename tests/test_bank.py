@@ -23,7 +23,7 @@ import rlsfilt
 from rlsfilt import ForgettingSkippedWarning, NumericalWarning, RecursiveLeastSquares, RLSBank
 from rlsfilt.filters import _kernels_bank
 
-MODES = ["exponential", "directional", "constant_trace"]
+MODES = list(rlsfilt.filters.bank.MODES)      # the modes the bank runs
 
 
 def _record(rng, N=120, C=23, n=3, missing=0.06, bad_rows=0.03):
