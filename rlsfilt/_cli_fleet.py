@@ -43,7 +43,7 @@ from ._cli_args import (
     shown_cell,
     step_size,
 )
-from .filters.bank import _MODES as BANK_MODES  # the forgetting modes RLSBank runs
+from .filters.bank import MODES as BANK_MODES  # the forgetting modes RLSBank runs
 
 __all__ = []
 

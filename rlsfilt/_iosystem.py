@@ -171,28 +171,6 @@ def make_iosystem(template, *, inputs, outputs, states, dt, name=None):
                          states=list(states), dt=dt, name=name)
 
 
-def snapshot_filter(f):
-    """A copy of a filter's attributes (`_shallow_state`) that stays valid.
-
-    A step replaces the arrays it changes, except those the filter lists in
-    ``_written_in_place`` (the ring buffer of `SlidingWindowRLS`): only
-    these are copied.
-    """
-    state = f._shallow_state()
-    for name in f._written_in_place:
-        state[name] = state[name].copy()
-    return state
-
-
-def restore_filter(f, snap):
-    """Put back a :func:`snapshot_filter` (copies again: the snapshot stays valid)."""
-    if f._written_in_place:
-        snap = dict(snap)
-        for name in f._written_in_place:
-            snap[name] = snap[name].copy()
-    f._restore(snap)
-
-
 def call_capturing(fn, *args):
     """``fn(*args)`` with the warnings it issues returned, not shown: ``(result, messages)``.
 

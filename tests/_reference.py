@@ -388,3 +388,31 @@ def diagonal_forgetting_profile_loglik(z, H, lam, Q, P0, x0):
     N = len(y)
     sigma2 = np.mean(y * y / s)
     return -0.5 * (N * (math.log(2 * math.pi) + math.log(sigma2) + 1) + np.log(s).sum())
+
+
+# ----------------------------------------------------------------------
+# the gradient family (LMS, NLMS, the sign variants, affine projection)
+# ----------------------------------------------------------------------
+def lms_step(x, h, z, mu, method, eps=0.0, leak=0.0):
+    r"""One step of the LMS family (Haykin 2002, ch. 5, 6, 13): ``y = z - x^T h``,
+    ``K = mu f(h) / n``, ``x <- (1 - mu a) x + K g(y)^T``, with ``f``, ``g`` the
+    identity or the sign (``"sign_data"``, ``"sign_error"``, ``"sign_sign"``) and
+    ``n = eps + h^T h`` for ``"nlms"`` (1 otherwise). `h` (n,), `z` (m,); returns
+    ``(x, y, K)`` with ``y`` (m, 1) and ``K`` (n, 1)."""
+    y = z - h @ x                                            # a-priori residual
+    f = np.sign(h) if method in ("sign_data", "sign_sign") else h
+    g = np.sign(y) if method in ("sign_error", "sign_sign") else y
+    norm = eps + h @ h if method == "nlms" else 1.0
+    K = mu * f / norm
+    return (1.0 - mu * leak) * x + np.outer(K, g), y.reshape(-1, 1), K.reshape(-1, 1)
+
+
+def apa_step(x, X, D, h, z, mu, eps):
+    r"""One affine-projection step (Ozeki & Umeda 1984; Haykin 2002, ch. 6): the
+    newest row and measurement enter the buffers ``X`` (order, n) and ``D``
+    (order, m) first, ``E = D - X x``, ``K = mu X^T (X X^T + eps I)^-1``,
+    ``x <- x + K E``. Returns ``(x, X, D, y, K)``, ``y = E[0]`` as (m, 1)."""
+    X, D = np.vstack([h, X[:-1]]), np.vstack([z, D[:-1]])
+    E = D - X @ x
+    K = mu * np.linalg.solve(X @ X.T + eps * np.eye(len(X)), X).T   # (G symmetric)
+    return x + K @ E, X, D, E[0].reshape(-1, 1), K

@@ -8,10 +8,10 @@ the covariance update is the filters' own textbook recursion
 
 import _reference as _rls_reference
 import numpy as np
+from _reference_riv import _filt, _lag
 
 from rlsfilt.filters import forgetting as _fg
 from rlsfilt.models._family import split_theta
-from rlsfilt.models._recursive_reference import _filt, _lag
 from rlsfilt.models._stability import stabilize_theta
 
 __all__ = ["rpem_reference"]

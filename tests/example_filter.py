@@ -58,7 +58,8 @@ class NLMS(_FilterBase):
         phi, r = self._as_regressor(H, "H"), self._R if R is None else check_variance(R, "R")
         zc = self._as_measurement(z, "z")
         self.H, self.n_updates = phi, self.n_updates + 1
-        if zc is None:
+        if zc is None:                                  # missing: posterior = prior
+            self.x_post = self._x.copy()
             nan = np.full((self.dim_z, 1), np.nan)
             self.set_diagnostics(z=nan, y=nan.copy())
             return
@@ -67,7 +68,8 @@ class NLMS(_FilterBase):
         self.K = self.mu * phi.T / s                    # K = mu H^T / (R + H H^T)
         self._x = self._x + self.K @ y.T                # x <- x + K y^T
         self.x_post = self._x.copy()
-        self.set_diagnostics(z=zc, y=y, S=np.full((1, 1), s), SI=np.full((1, 1), 1.0 / s))
+        eye = np.eye(self.dim_z)
+        self.set_diagnostics(z=zc, y=y, S=s * eye, SI=eye / s)   # S = (R + H H^T) I
 
     def initialize(self, zs, Hs):
         """Start from least squares on the given samples."""
@@ -76,6 +78,7 @@ class NLMS(_FilterBase):
         if np.linalg.matrix_rank(Hm[keep]) < self.dim_x:
             raise ValueError(f"`Hs` is rank-deficient: need {self.dim_x} independent rows")
         self._x = np.linalg.lstsq(Hm[keep], Z[keep], rcond=None)[0]
+        self.x_prior, self.x_post = self._x.copy(), self._x.copy()
 
     def batch_filter(self, zs, Hs, Rs=None, update_first=False, saver=None,
                      store_covariances=True):

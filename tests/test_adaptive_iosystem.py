@@ -93,7 +93,7 @@ def test_a_filter_restored_from_its_state_continues_bit_for_bit():
 
 def test_the_layout_packs_as_get_state_and_snapshots_stay_valid():
     # what the python-control systems use at every sample instead of get_state/set_state
-    from rlsfilt._iosystem import restore_filter, snapshot_filter
+    from rlsfilt.filters.contract import restore_filter, snapshot_filter
 
     rng = np.random.default_rng(5)
     Hs, zs = rng.standard_normal((150, 3)), rng.standard_normal(150)

@@ -23,7 +23,7 @@ import rlsfilt
 from rlsfilt import ForgettingSkippedWarning, NumericalWarning, RecursiveLeastSquares, RLSBank
 from rlsfilt.filters import _kernels_bank
 
-MODES = ["exponential", "directional", "constant_trace"]
+MODES = list(rlsfilt.filters.bank.MODES)      # the modes the bank runs
 
 
 def _record(rng, N=120, C=23, n=3, missing=0.06, bad_rows=0.03):
@@ -342,7 +342,7 @@ def test_initialize_equals_rls_initialize(rng):
 def test_initialize_rank_check_equals_matrix_rank(rng):
     """The QR bound that settles most ranks of `initialize` gives exactly the ranks
     of numpy's matrix_rank (SVD), near the threshold too."""
-    from rlsfilt.filters.bank import _full_rank
+    from rlsfilt.filters.bank import full_rank as _full_rank
 
     mats = []
     for k0, n in ((6, 3), (3, 3), (8, 4)):

@@ -41,9 +41,16 @@ combination is skipped.
 Fixed database. The cases that ever failed run every time, as ``@example``:
 the VAR case of #26 (``dim_z = 3``, ``initialize`` then ``predict`` +
 ``update``) for every filter, and each failure found since (see ``KNOWN``).
+
+Every filter of ``test_contract_filters.FILTERS`` has a spec here (checked by
+``test_every_contract_filter_is_registered``): the least-squares filters with
+the recursions of ``_reference.py``, the gradient family and the example
+filter of ``docs/develop.md`` with ``ref.lms_step``/``ref.apa_step``
+(`GradientModel`, their public state ``GRADIENT_STATE``: no covariance).
 """
 
 import copy
+import functools
 import math
 import pickle
 import warnings
@@ -52,20 +59,27 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import pytest
+from example_filter import NLMS as ExampleNLMS
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_array_equal
 from textbook import ref
 
 from rlsfilt import (
+    APA,
+    LMS,
     NLMS,
     ForgettingSkippedWarning,
     GradientBank,
     RecursiveLeastSquares,
     RLSBank,
+    SignDataLMS,
+    SignErrorLMS,
+    SignSignLMS,
     SlidingWindowRLS,
     SquareRootRLS,
 )
+from rlsfilt.filters.bank import MODES as BANK_MODES
 from rlsfilt.filters.forgetting import MODES, clip_eigenvalues, efra_bounds
 
 RTOL = 1e-12
@@ -120,7 +134,8 @@ class FilterSpec:
     ``make(dim_x, dim_z, rng, **kw)`` builds the filter with keyword options
     (only those that differ from the defaults are passed); ``model(f,
     setup)`` is the textbook machine started from ``setup`` with `f`'s public
-    configuration; ``extra`` names public state beyond ``STATE``.
+    configuration; ``extra`` names public state beyond ``state`` (``STATE``, or
+    ``GRADIENT_STATE`` for a filter without a covariance).
     """
 
     name: str
@@ -128,6 +143,11 @@ class FilterSpec:
     model: Callable
     declared: tuple = ()
     extra: tuple = ()
+    state: tuple = None
+
+    def names(self):
+        """The public state read at every comparison."""
+        return (self.state or STATE) + self.extra
 
     def declared_for(self, options):
         """The errors the declarations that apply to `options` allow (empty: supported)."""
@@ -153,6 +173,24 @@ def _sw_make(dim_x, dim_z, rng, **kw):
     return SlidingWindowRLS(dim_x, window, dim_z, refresh=refresh, **kw)
 
 
+def _gradient_make(cls, **draws):
+    """A maker of a gradient filter: its constants drawn from `rng` (``draws``: name ->
+    a function of rng); a gradient filter has no ``P0`` (every other option it does
+    not take is refused by its constructor, as declared)."""
+    def make(dim_x, dim_z, rng, **kw):
+        kw.pop("P0")
+        return cls(dim_x, dim_z, **{k: draw(rng) for k, draw in draws.items()}, **kw)
+    return make
+
+
+def _uniform(lo, hi):
+    return lambda rng: float(rng.uniform(lo, hi))
+
+
+def _choice(*values):
+    return lambda rng: values[int(rng.integers(0, len(values)))]
+
+
 # ---- the textbook models (public configuration and the NumPy reference only)
 def _column(z):
     return None if z is None else np.asarray(z, dtype=float).reshape(-1, 1)
@@ -162,6 +200,7 @@ class _Model:
     """What every model shares: the diagnostics of an update and the batch loop."""
 
     rank = None                       # the rank of P (dim_x without constraints)
+    has_covariance = True             # (False: the gradient family, GRADIENT_STATE)
 
     def __init__(self, f, setup):
         self.n, self.m, self.R = f.dim_x, f.dim_z, f.R
@@ -455,6 +494,95 @@ class SlidingWindowModel(_Model):
         setattr(self.w, name, value.copy())
 
 
+class GradientModel(_Model):
+    """The gradient family as the textbook: ``ref.lms_step`` (LMS, NLMS, the sign
+    variants, leakage) and ``ref.apa_step`` (affine projection, its buffers ``X``,
+    ``D`` newest first). No covariance: ``S = R I`` (with `eps_is_R`, an NLMS that
+    regularizes with ``R`` as the example filter's: ``eps = R``, ``S = (R + h^T h) I``),
+    and a missing sample leaves ``K`` and ``S`` as they were (``y`` NaN)."""
+
+    has_covariance = False
+    track_updates = False
+
+    def __init__(self, f, setup, eps_is_R=False):
+        self.method = getattr(f, "method", "nlms")
+        self.eps_is_R = eps_is_R
+        self.mu, self.eps = f.mu, getattr(f, "eps", 0.0)
+        self.leak, self.order = getattr(f, "leak", 0.0), getattr(f, "order", 1)
+        super().__init__(f, setup)
+
+    def reset(self):
+        self.x = self.x0.copy()
+        self.x_prior = self.x_post = self.x
+        self._fresh_diagnostics()
+        self.K = np.zeros((self.n, self.order if self.method == "apa" else 1))
+        self.X, self.D = np.zeros((self.order, self.n)), np.zeros((self.order, self.m))
+
+    def predict(self):
+        self.x_prior = self.x
+
+    def update(self, z, H, R=None):
+        r = self.R if R is None else R
+        h = np.ravel(H)
+        self.n_updates += 1
+        if z is None:                  # missing: x kept, K and S as they were
+            self.y = np.full((self.m, 1), np.nan)
+            self.x_post = self.x
+            return
+        z = np.ravel(z)
+        x_before = np.abs(self.x).max()
+        if self.method == "apa":
+            self.x, self.X, self.D, self.y, self.K = ref.apa_step(
+                self.x, self.X, self.D, h, z, self.mu, self.eps)
+            kappa = np.linalg.cond(self.X @ self.X.T + self.eps * np.eye(self.order))
+        else:
+            eps = r if self.eps_is_R else self.eps
+            self.x, self.y, self.K = ref.lms_step(self.x, h, z, self.mu, self.method, eps,
+                                                  self.leak)
+            kappa = 1.0
+        s = r + h @ h if self.eps_is_R else r
+        self.S = s * np.eye(self.m)
+        self.x_post = self.x
+        # the round-off of each quantity, relative to its operands (a solve: times kappa)
+        self.kappa_diagnostics = kappa
+        self.kappa = max(self.kappa, kappa)
+        self.y_scale = np.abs(z).max() + self.n * np.abs(h).max() * x_before
+        self.K_scale = np.abs(self.K).max()
+        step = self.K_scale * max(self.y_scale, 1.0) * self.order
+        self.x_scale = max(self.x_scale, x_before, step)
+
+    def initialize(self, zs, Hs):
+        Z = np.array([np.full(self.m, np.nan) if z is None else np.ravel(z) for z in zs])
+        keep = ~np.isnan(Z).any(axis=1)
+        if np.linalg.matrix_rank(Hs[keep]) < self.n:
+            raise ValueError("rank-deficient")
+        self.x = np.linalg.lstsq(Hs[keep], Z[keep], rcond=None)[0]
+        self.x_prior = self.x_post = self.x
+        rows, meas = Hs[keep][::-1][:self.order], Z[keep][::-1][:self.order]
+        self.X, self.D = np.zeros((self.order, self.n)), np.zeros((self.order, self.m))
+        self.X[:len(rows)], self.D[:len(meas)] = rows, meas
+        self._fresh_scales()
+
+    def assign(self, name, value):
+        self.x = value.copy()
+
+    def _conditioned(self):
+        """No covariance: the solves of APA set the condition number (`update`)."""
+
+    def batch(self, zs, Hs, Rs, update_first):
+        out = ([], [])
+        for k in range(len(Hs)):
+            if not update_first:
+                self.predict()
+                out[1].append(self.x)
+            self.update(zs[k], Hs[k], None if Rs is None else Rs[k])
+            out[0].append(self.x)
+            if update_first:
+                self.predict()
+                out[1].append(self.x)
+        return [np.array(out[0]), None, np.array(out[1]), None]
+
+
 def solve_upper(U, d):
     from scipy.linalg import solve_triangular
     return solve_triangular(U, d)
@@ -462,6 +590,24 @@ def solve_upper(U, d):
 
 def _needs_trace(options):
     return options["lam"] == 1.0
+
+
+#: What a gradient filter does not have: only the ``missing`` axis applies (no
+#: forgetting, covariance, gate or constraints).
+GRADIENT_DECLARED = (
+    Declared("forgetting", _not_default("forgetting"), TypeError, "no forgetting"),
+    Declared("lam", _not_default("lam"), TypeError, "no forgetting factor"),
+    Declared("Q", _not_default("Q"), TypeError, "no covariance, no random walk"),
+    Declared("gate", _not_default("gate"), TypeError, "no outlier gate"),
+    Declared("constraints", (True,), AttributeError, "no constrain()"),
+    Declared("trace_max", _not_default("trace_max"), TypeError, "no windup cap"))
+#: The public state of a filter without a covariance.
+GRADIENT_STATE = ("x", "x_prior", "x_post", "y", "K", "S", "n_updates")
+
+
+def _gradient_spec(name, make, extra=(), **model_options):
+    model = functools.partial(GradientModel, **model_options)
+    return FilterSpec(name, make, model, GRADIENT_DECLARED, extra, GRADIENT_STATE)
 
 
 SPECS = [
@@ -489,6 +635,20 @@ SPECS = [
         Declared("gate", _not_default("gate"), TypeError, "no outlier gate"),
         Declared("constraints", (True,), AttributeError, "no constrain()"),
         Declared("trace_max", _not_default("trace_max"), TypeError, "no windup cap"))),
+    _gradient_spec("LMS", _gradient_make(LMS, mu=_uniform(0.005, 0.05),
+                                         leak=_choice(0.0, 0.1))),
+    _gradient_spec("NLMS", _gradient_make(NLMS, mu=_uniform(0.1, 1.0), eps=_choice(1e-3, 0.1),
+                                          leak=_choice(0.0, 0.1))),
+    _gradient_spec("SignErrorLMS", _gradient_make(SignErrorLMS, mu=_uniform(0.005, 0.05))),
+    _gradient_spec("SignDataLMS", _gradient_make(SignDataLMS, mu=_uniform(0.005, 0.05))),
+    _gradient_spec("SignSignLMS", _gradient_make(SignSignLMS, mu=_uniform(0.005, 0.05),
+                                                 leak=_choice(0.0, 0.1))),
+    _gradient_spec("APA", _gradient_make(APA, order=_choice(1, 2, 3, 5),
+                                         mu=_uniform(0.1, 1.0), eps=_choice(1e-3, 0.1)),
+                   extra=("X", "D")),
+    # the example of docs/develop.md (tests/example_filter.py): one line, as any filter
+    _gradient_spec("NLMS-example", _gradient_make(ExampleNLMS, mu=_uniform(0.1, 1.0)),
+                   eps_is_R=True),
 ]
 SPECS_BY_NAME = {spec.name: spec for spec in SPECS}
 
@@ -659,21 +819,24 @@ COPIERS = {
 
 
 def _stream(f, zs, Hs, Rs, update_first):
-    """`batch_filter`'s documented loop, step by step: its four histories."""
+    """`batch_filter`'s documented loop, step by step: its four histories (None for
+    the covariances of a filter without one)."""
     out = ([], [], [], [])
+    has_P = getattr(f, "has_covariance", True)        # (a bank: yes)
+    P = (lambda: f.P.copy()) if has_P else (lambda: None)
     for k in range(len(Hs)):
         if not update_first:
             f.predict()
             out[2].append(f.x.copy())
-            out[3].append(f.P.copy())
+            out[3].append(P())
         f.update(zs[k], Hs[k], None if Rs is None else Rs[k])
         out[0].append(f.x.copy())
-        out[1].append(f.P.copy())
+        out[1].append(P())
         if update_first:
             f.predict()
             out[2].append(f.x.copy())
-            out[3].append(f.P.copy())
-    return out
+            out[3].append(P())
+    return out if has_P else (out[0], None, out[2], None)
 
 
 def run_case(case, spec=None):
@@ -690,7 +853,7 @@ def run_case(case, spec=None):
         warnings.simplefilter("ignore", ForgettingSkippedWarning)   # update() alone warns
         f, setup = _build(spec, case, options, rng)
         model = spec.model(f, setup)
-        names = STATE + spec.extra
+        names = spec.names()
         live = [f]
         _compare(f, model, names, "after construction")
         data = Record(rng, case.dim_x, case.dim_z, options)
@@ -724,12 +887,14 @@ def _apply(op, live, model, data, rng, names, tag):
                                 (n not in STATE and "extra" in op[1])], tag)
     elif kind == "assign":
         n, m = model.n, model.m
+        if not model.has_covariance:       # no P: every assignment is of x
+            op = ("assign", "x", op[2])
         value = (0.5 * rng.standard_normal((n, m)) if op[1] == "x"
                  else _spd(rng, n, float(rng.uniform(1.0, 100.0))))
         if op[1] == "P" and getattr(model, "efra_interval", None):
             value = clip_eigenvalues(value, *model.efra_interval)   # (EFRA is stable there)
         if op[1] == "P" and getattr(model, "Pi", None) is not None:
-            value = ref.project(value, model.Pi)   # A P = 0 (see the xfail below otherwise)
+            value = ref.project(value, model.Pi)   # A P = 0, as every P of the filter
         model.assign(op[1], value)         # (the snapshots keep their round-off)
         model._conditioned()
         for f in live:
@@ -760,16 +925,19 @@ def _apply(op, live, model, data, rng, names, tag):
         ks = data.take(count)
         caller, zs, Hs = data.batch(ks)
         Rs = data.R[ks] if with_Rs else None
-        first = max(np.abs(model.P).max(), model.P_scale)
+        first = max(np.abs(model.P).max(), model.P_scale) if model.has_covariance else 0.0
         expected = model.batch(zs, Hs, Rs, update_first)
-        covs = np.maximum.accumulate(np.maximum(
-            first, np.maximum(*(np.abs(c).max(axis=(1, 2)) for c in expected[1::2]))))
+        if model.has_covariance:
+            covs = np.maximum.accumulate(np.maximum(
+                first, np.maximum(*(np.abs(c).max(axis=(1, 2)) for c in expected[1::2]))))
         twin = copy.deepcopy(live[0])
         for f in live:
             out = f.batch_filter(caller, Hs, Rs=Rs, update_first=update_first)
             for label, a, b in zip(("means", "covariances", "means_p", "covariances_p"),
                                    out, expected):
-                if label.startswith("cov"):
+                if label.startswith("cov") and b is None:
+                    assert a is None, f"{tag}: {label} of a filter without P"
+                elif label.startswith("cov"):
                     b = np.asarray(b)
                     for k in range(len(b)):
                         _close(a[k], b[k], f"{tag}: {label} step {k}", _tolerance(model),
@@ -780,6 +948,9 @@ def _apply(op, live, model, data, rng, names, tag):
         streamed = _stream(twin, caller, Hs, Rs, update_first)
         for label, a, b in zip(("means", "covariances", "means_p", "covariances_p"),
                                out, streamed):
+            if b is None:
+                assert a is None, f"{tag}: streamed {label}"
+                continue
             assert_array_equal(a, np.array(b), err_msg=f"{tag}: streamed {label}")
         _same_bits(twin, live[-1], names, f"{tag}: streamed state")
     else:
@@ -856,13 +1027,20 @@ KNOWN = [_var_case(spec.name) for spec in SPECS] + [
          (("predict_update", False, False), ("predict_update", False, False),
           ("initialize", 0), ("batch", 3, False, False))),
     # the gate that gated without a gate (S < 0 after P assigned to EFRA; fixed), and the
-    # projection of an assigned P on a missing sample (see the xfail): both now assign a
+    # projection of an assigned P on a missing sample (now kept in every mode:
+    # test_a_missing_sample_treats_an_assigned_P_alike_in_every_mode); both now assign a
     # P the filter can take
     Case("RecursiveLeastSquares", 2, 1, {"forgetting": "efra"}, 0,
          (("predict",), ("assign", "P", "C"), ("predict_update", False, False),
           ("predict_update", False, False))),
     Case("RecursiveLeastSquares", 2, 1, {"missing": "None", "constraints": True}, 0,
          (("initialize", 2), ("assign", "P", "C"), ("update", False, False))),
+    # the gradient family kept the x_prior of before a batch start (now x, as every filter)
+    Case("LMS", 2, 1, {}, 0, (("initialize", 0),)),
+    Case("APA", 3, 2, {"missing": "NaN"}, 0, (("predict",), ("initialize", 1))),
+    # the example filter kept a stale x_post on a missing sample, after an assigned x
+    Case("NLMS-example", 2, 1, {"missing": "None"}, 0,
+         (("assign", "x", "C"), ("predict_update", False, False))),
     # a batch start that a missing sample makes rank-deficient: refused, nothing changed
     Case("SlidingWindowRLS", 2, 1, {"missing": "None"}, 0,
          (("initialize", 2), ("predict_update", False, False),
@@ -938,8 +1116,7 @@ def test_a_missing_sample_treats_an_assigned_P_alike_in_every_mode(forgetting):
 #: ``"NaN"`` a NaN measurement, ``"None"`` a NaN regressor row (the bank's other
 #: marker; the channel's filter sees a missing measurement).
 BANK = FilterSpec("RLSBank", None, None, declared=(
-    Declared("forgetting", tuple(m for m in MODES if m not in
-                                 ("exponential", "directional", "constant_trace")),
+    Declared("forgetting", tuple(m for m in MODES if m not in BANK_MODES),
              ValueError, "the bank's kernels have the exponential, directional and "
              "constant-trace modes only (one RecursiveLeastSquares per channel for others)"),
     Declared("forgetting", ("constant_trace",), ValueError,
@@ -1185,14 +1362,7 @@ test_bank_channel_by_channel.__doc__ = "Every channel of RLSBank is a RecursiveL
 #: are held bit for bit to one `NLMS` per channel (the bank's kernel does the
 #: single filter's operations in the same order), its textbook is padasip's
 #: (``tests/test_gradient_bank.py``).
-GRADIENT_BANK = FilterSpec("GradientBank", None, None, declared=(
-    Declared("forgetting", _not_default("forgetting"), TypeError, "no forgetting"),
-    Declared("lam", _not_default("lam"), TypeError, "no forgetting factor"),
-    Declared("Q", _not_default("Q"), TypeError, "no covariance, no random walk"),
-    Declared("gate", _not_default("gate"), TypeError, "no outlier gate"),
-    Declared("constraints", (True,), AttributeError, "no constrain()"),
-    Declared("trace_max", _not_default("trace_max"), TypeError, "no windup cap")))
-GRADIENT_STATE = ("x", "x_prior", "x_post", "y", "K", "S", "n_updates")
+GRADIENT_BANK = FilterSpec("GradientBank", None, None, declared=GRADIENT_DECLARED)
 
 
 def _gradient_bank_build(case, options, rng):
@@ -1367,16 +1537,17 @@ test_gradient_bank_channel_by_channel.__doc__ = "Every channel of GradientBank i
 # the registry is complete and its declarations are true
 # ----------------------------------------------------------------------
 def test_every_contract_filter_is_registered():
-    """Every filter of the shared contract's registry runs the cross product too."""
+    """Every filter of the shared contract's registry runs the cross product too (the
+    gradient family and the example filter included: their textbook is
+    ``ref.lms_step``/``ref.apa_step``)."""
     from test_contract_filters import FILTERS
-    registered = {spec.name for spec in SPECS} | {BANK.name, GRADIENT_BANK.name}
+    rng = np.random.default_rng(0)
+    registered = {type(spec.make(2, 1, rng, P0=np.eye(2))) for spec in SPECS}
+    registered |= {RLSBank, GradientBank}
     for case in FILTERS:
         f = case.make()
-        if not getattr(f, "least_squares", True):
-            continue    # no least-squares textbook to compare with (the gradient family and
-            #             the example filter: their references are in test_gradient.py)
-        name = type(getattr(f, "bank", f)).__name__
-        assert name in registered, f"{name} ({case.name}) is not in SPECS"
+        cls = type(getattr(f, "bank", f))
+        assert cls in registered, f"{cls.__name__} ({case.name}) is not in SPECS"
 
 
 def test_declarations_name_real_options():

@@ -29,7 +29,9 @@ runs on every registered filter:
   bit like the original;
 - streaming ``predict``/``update`` equals ``batch_filter`` bit for bit;
 - the health warning points at the caller's line, from ``update``,
-  ``predict_update`` and ``batch_filter`` (with and without a ``Saver``).
+  ``predict_update`` and ``batch_filter`` (with and without a ``Saver``);
+- ``as_iosystem`` (the python-control system every filter inherits) steps
+  as the filter streamed (#26: the example filter's inherited system failed).
 
 `RLSBank` and `GradientBank` are registered through `BankAdapter` and
 `GradientBankAdapter`: a bank of ``len(SCALES)``
@@ -796,6 +798,34 @@ def check_update_block_equals_rows(case):
     assert _state(a) == before
 
 
+def check_as_iosystem_steps_like_the_filter(case):
+    """A filter as a python-control system (``as_iosystem``, inherited from the base)
+    steps as the filter does: its outputs ``theta`` and ``e`` over a record equal
+    ``predict_update`` streamed on a twin (1e-12), and the filter itself is untouched.
+    A bank is not a `contract.Filter` and has no system."""
+    import control
+
+    from rlsfilt.filters.contract import Filter
+
+    f = case.make()
+    if not isinstance(f, Filter):
+        assert not hasattr(f, "as_iosystem"), case.name
+        return
+    zs, Hs = _record(outliers=False)
+    zs, Hs = zs[:60], Hs[:60]
+    before = pickle.dumps(f.get_state())
+    sys = f.as_iosystem("direct")
+    resp = control.input_output_response(sys, np.arange(len(zs)), np.vstack([zs, Hs.T]))
+    twin, means, errors = case.make(), [], []
+    for z, h in zip(zs, Hs, strict=True):
+        errors.append(z - h @ twin.x[:, 0])
+        twin.predict_update(z, h)
+        means.append(twin.x[:, 0].copy())
+    assert_allclose(resp.outputs[:DIM_X].T, means, rtol=0, atol=1e-12)
+    assert_allclose(resp.outputs[DIM_X], errors, rtol=0, atol=1e-12)
+    assert pickle.dumps(f.get_state()) == before
+
+
 CHECKS = [
     check_least_squares,
     check_saver_round_trip,
@@ -811,6 +841,7 @@ CHECKS = [
     check_health_warning_points_at_the_caller,
     check_freeze_keeps_the_state,
     check_update_block_equals_rows,
+    check_as_iosystem_steps_like_the_filter,
 ]
 
 EXPECTED_FAILURES = {}

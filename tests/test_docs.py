@@ -413,3 +413,48 @@ def test_pages_link_to_the_api(page):
     """The quick start, the theory and every guide page link API names (MyST roles)."""
     assert re.search(r"\{(class|func|meth)\}`[~]?rlsfilt\.", (DOCS / page).read_text()), (
         f"{page} links no API name: write {{class}}`~rlsfilt.Name` for the main ones")
+
+
+# ----------------------------------------------------------------------
+# the hand-kept lists of the forgetting modes (docs/develop.md, "Adding a forgetting mode")
+# ----------------------------------------------------------------------
+_MODE_ROW = re.compile(r'^\| `"(?P<mode>\w+)"` \|.*\| (?P<ref>[^|]+) \|$', re.M)
+
+
+def mode_list_gaps(modes, docstring, robust, theory):
+    """What the hand-kept lists of the forgetting modes miss: a mode not in the
+    ``forgetting`` parameter of the docstring, not in the table of ``robust.md``, or
+    whose reference there (first author) is not among ``theory.md``'s references."""
+    gaps = []
+    param = re.search(r"^    forgetting : \{(.*?)\}", docstring, re.M)
+    listed = re.findall(r'"(\w+)"', param.group(1)) if param else []
+    rows = {m.group("mode"): m.group("ref") for m in _MODE_ROW.finditer(robust)}
+    references = theory.split("## References", 1)[-1]
+    for mode in modes:
+        if mode not in listed:
+            gaps.append(f"{mode}: not in RecursiveLeastSquares' `forgetting` parameter")
+        if mode not in rows:
+            gaps.append(f"{mode}: no row in docs/guide/robust.md's table of modes")
+        elif re.match(r"\s*([^\W\d]+)", rows[mode]).group(1) not in references:
+            gaps.append(f"{mode}: its reference ({rows[mode].strip()}) not in docs/theory.md")
+    return gaps
+
+
+def test_every_forgetting_mode_is_in_the_hand_kept_lists():
+    from rlsfilt import RecursiveLeastSquares
+    from rlsfilt.filters.forgetting import MODES
+
+    assert mode_list_gaps(MODES, RecursiveLeastSquares.__doc__,
+                          (DOCS / "guide" / "robust.md").read_text(),
+                          (DOCS / "theory.md").read_text()) == []
+
+
+def test_mode_list_gaps_finds_a_missing_mode():
+    doc = '    forgetting : {"exponential", "efra"}, optional\n'
+    robust = ('| `"exponential"` | all | Ljung (1999) |\n'
+              '| `"regularized"` | some | Nobody (2030) |\n')
+    theory = "## References\n- L. Ljung, ...\n"
+    assert mode_list_gaps(("exponential", "regularized", "efra"), doc, robust, theory) == [
+        "regularized: not in RecursiveLeastSquares' `forgetting` parameter",
+        "regularized: its reference (Nobody (2030)) not in docs/theory.md",
+        "efra: no row in docs/guide/robust.md's table of modes"]

@@ -17,6 +17,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from rlsfilt import RecursiveLeastSquares, SlidingWindowRLS, SquareRootRLS
+from rlsfilt.filters.forgetting import MODES
 
 N_THREADS, M_UPDATES, DIM = 4, 300, 3
 
@@ -58,8 +59,7 @@ def _exact_start(filt, Phi, z):
     return Phi[DIM + 2:], z[DIM + 2:]
 
 
-@pytest.mark.parametrize("forgetting", ["exponential", "directional", "constant_trace",
-                                        "efra", "variable"])
+@pytest.mark.parametrize("forgetting", MODES)
 def test_shared_filter_loses_no_update(forgetting, rng):
     Phi, z = _rows(rng)
     rls = RecursiveLeastSquares(DIM, lam=0.99, forgetting=forgetting)

@@ -24,11 +24,12 @@ import warnings
 
 import numpy as np
 
-from .._iosystem import call_capturing, make_iosystem, restore_filter, snapshot_filter
+from .._iosystem import call_capturing, make_iosystem
 from .._lazy import lazy_module
 from .._validation import check_dt, check_int, check_real, check_scalar
 from ..exceptions import ExcitationWarning, RegulatorWarning
 from ..filters import _filter_state
+from ..filters.contract import restore_filter, snapshot_filter
 from ._polynomials import coprimeness, degree, fmt_complex, padd, roots, trim
 from .rst import RSTController, _prepared_design, rst_design
 
@@ -755,12 +756,12 @@ class SelfTuningRegulator:
 
     def _snapshot(self):
         """A cheap copy of the state: the estimator's attributes and copies of the
-        memories. An estimator without the shared base's ``_shallow_state`` is copied
-        through its state vector."""
-        est = self.estimator
-        if not hasattr(est, "_written_in_place"):         # not on the shared base
+        memories. An estimator not on the filters' shared base is copied through its
+        state vector."""
+        snap = snapshot_filter(self.estimator)
+        if snap is None:                                  # not on the shared base
             return None, self._get_state()
-        return snapshot_filter(est), [p.copy() for p in self._parts()]
+        return snap, [p.copy() for p in self._parts()]
 
     def _restore_snapshot(self, snap):
         if snap[0] is None:

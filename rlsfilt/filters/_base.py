@@ -59,10 +59,6 @@ class _FilterBase(Filter):
     also for copies and unpickled filters); see the module docstring.
     """
 
-    # arrays a step writes into in place, which a copy of the attributes
-    # (`_shallow_state`) must copy to stay valid; the others are replaced, not written
-    _written_in_place = ()
-
     # a slot, not in ``__dict__``: filterpy's Saver deep-copies ``__dict__``, and a
     # lock can be neither copied nor pickled
     __slots__ = ("_lock",)

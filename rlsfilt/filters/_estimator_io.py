@@ -13,9 +13,10 @@ import numbers
 
 import numpy as np
 
-from .._iosystem import call_capturing, make_iosystem, push, restore_filter, snapshot_filter
+from .._iosystem import call_capturing, make_iosystem, push
 from .._validation import check_dt, check_int
 from . import _filter_state
+from .contract import restore_filter, snapshot_filter
 
 __all__ = ["estimator_iosystem"]
 
@@ -121,10 +122,10 @@ class _EstimatorStepper:
     def _snapshot(self):
         """A cheap copy of the state (see `rlsfilt._iosystem`): the filter's attributes
         and the memories."""
-        f = self.filter
-        if not hasattr(f, "_written_in_place"):        # a filter without the shared base
+        snap = snapshot_filter(self.filter)
+        if snap is None:                               # a filter without the shared base
             return None, self._get_state()
-        return snapshot_filter(f), self._ypast.copy(), self._upast.copy()
+        return snap, self._ypast.copy(), self._upast.copy()
 
     def _restore_snapshot(self, snap):
         if snap[0] is None:

@@ -57,7 +57,8 @@ from . import forgetting as _fg
 
 __all__ = ["RLSBank", "BankHistory"]
 
-_MODES = ("exponential", "directional", "constant_trace")
+#: The forgetting modes `RLSBank` runs (the command line offers these).
+MODES = ("exponential", "directional", "constant_trace")
 # the keys of `forgetting_params` each mode of the bank reads (its kernels know no others)
 _SUPPORTED_PARAMS = {"exponential": ("spread_max", "trace_max"), "directional": ("eps",),
                      "constant_trace": ("trace", "ratio")}
@@ -408,11 +409,11 @@ class RLSBank(BankBase):
         # per channel: x, P and their priors, posteriors and the batch's work arrays
         self.n_channels = check_length(n_channels, "n_channels",
                                        bytes_per_item=64 * self.dim_x * (self.dim_x + 1))
-        if not isinstance(forgetting, str) or forgetting not in _MODES:
+        if not isinstance(forgetting, str) or forgetting not in MODES:
             raise ValueError(
-                f"`forgetting` must be one of {', '.join(map(repr, _MODES))} for RLSBank; got "
+                f"`forgetting` must be one of {', '.join(map(repr, MODES))} for RLSBank; got "
                 f"{forgetting!r} (use one RecursiveLeastSquares per channel for the others)")
-        self._mode = _MODES.index(forgetting)
+        self._mode = MODES.index(forgetting)
         self._forgetting_params_in = _supported_params(forgetting, forgetting_params)
         self._R = self._per_channel_positive(R, "R")
         # (P0 first: the windup cap's default trace_max is 1e12 trace(P0), per channel)
@@ -542,7 +543,7 @@ class RLSBank(BankBase):
     @property
     def forgetting(self):
         """Forgetting mode (read-only; chosen at construction)."""
-        return _MODES[self._mode]
+        return MODES[self._mode]
 
     @property
     def forgetting_params(self):
@@ -1005,7 +1006,7 @@ class RLSBank(BankBase):
         d = np.where(norms > 0.0, norms, 1.0)
         As = A / d[:, None, :]
         Qf, Rf = np.linalg.qr(As) if k0 >= n else (None, None)
-        rank, Rinv = _full_rank(As, Rf)
+        rank, Rinv = full_rank(As, Rf)
         short = np.flatnonzero(rank < n)
         if short.size:
             c = int(short[0])
@@ -1107,26 +1108,6 @@ class RLSBank(BankBase):
             if np.isnan(self.y[i]):
                 f._log_likelihood, f._likelihood, f._mahalanobis = 0.0, 1.0, math.nan
         return f
-
-    def _subset(self, channels):
-        """A new bank of `channels` (an integer index array) of this one, with their
-        configuration (``lam``, ``R``, ``Q``, ``P0``, ``x0``, the mode's constants,
-        already validated here) and a fresh state, as ``RLSBank(len(channels),
-        ...)`` with those channels' options would be, without validating them
-        again (`fit_many` takes one chunk of a fleet at a time)."""
-        channels = np.asarray(channels, dtype=np.int64)
-        new = copy.copy(self)
-        new.__dict__ = {key: value for key, value in self.__dict__.items()
-                        if key in ("dim_x", "_mode", "_forgetting_params_in", "check_every",
-                                   "cond_max", "parallel")}
-        new.n_channels = len(channels)
-        for name in ("_lam", "_il", "_R", "_params"):
-            setattr(new, name, getattr(self, name)[channels])       # (copies)
-        for name in ("_Q", "_P0", "_x0"):                           # (state layout)
-            setattr(new, name, np.asfortranarray(getattr(self, name)[channels]))
-        new._Q_is_zero = not new._Q.any()
-        new.reset()
-        return new
 
     @_locked
     def reset(self, channels=None):
@@ -1436,7 +1417,28 @@ class RLSBank(BankBase):
 
 
 
-def _full_rank(As, R):
+def subset(bank, channels):
+    """A new `RLSBank` of `channels` (an integer index array) of `bank`, with their
+    configuration (``lam``, ``R``, ``Q``, ``P0``, ``x0``, the mode's constants,
+    already validated there) and a fresh state, as ``RLSBank(len(channels), ...)``
+    with those channels' options would be, without validating them again
+    (`rlsfilt.fit_many` takes one chunk of a fleet at a time)."""
+    channels = np.asarray(channels, dtype=np.int64)
+    new = copy.copy(bank)
+    new.__dict__ = {key: value for key, value in bank.__dict__.items()
+                    if key in ("dim_x", "_mode", "_forgetting_params_in", "check_every",
+                               "cond_max", "parallel")}
+    new.n_channels = len(channels)
+    for name in ("_lam", "_il", "_R", "_params"):
+        setattr(new, name, getattr(bank, name)[channels])           # (copies)
+    for name in ("_Q", "_P0", "_x0"):                               # (state layout)
+        setattr(new, name, np.asfortranarray(getattr(bank, name)[channels]))
+    new._Q_is_zero = not new._Q.any()
+    new.reset()
+    return new
+
+
+def full_rank(As, R):
     """``np.linalg.matrix_rank(As)`` of each ``(k0, n)`` matrix of the stack `As`
     (C, k0, n), from its QR factors ``R`` (C, n, n) where they settle the
     answer (`R` is None when ``k0 < n``); and ``R^-1`` when every ``R`` has

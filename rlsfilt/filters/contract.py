@@ -24,6 +24,12 @@ members:
   with nothing changed, and ``_commit_peeked(token)`` takes that step (False
   if the filter has changed since). The default peeks nothing (None), and the
   system then steps as usual (`rlsfilt.filters._estimator_io`);
+- **an optional cheap snapshot** for the same systems, which step one
+  object back and forth between states: ``_shallow_state()`` (the attributes
+  as a new dict), ``_restore(state)`` and ``_written_in_place`` (the arrays a
+  step writes into, which a snapshot must copy); the shared base provides
+  them. `snapshot_filter` and `restore_filter` use them, and a filter without
+  them is copied through ``get_state``/``set_state``;
 - **capabilities**, class attributes (or properties) that tests and callers
   consult instead of asking for a class:
 
@@ -50,7 +56,7 @@ import abc
 
 import numpy as np
 
-__all__ = ["Filter", "check_state"]
+__all__ = ["Filter", "check_state", "snapshot_filter", "restore_filter"]
 
 
 class Filter(abc.ABC):
@@ -117,6 +123,46 @@ class Filter(abc.ABC):
         and errors, if the filter is still in the state it was peeked in; False
         (nothing done) otherwise. Only called with a token this filter returned."""
         return False
+
+    #: The arrays a step writes into in place, which a snapshot must copy to stay
+    #: valid (the others are replaced, not written).
+    _written_in_place = ()
+
+    def _shallow_state(self):
+        """The attributes as a new dict, for a cheap snapshot; None: no snapshot (the
+        default), the filter is copied through :meth:`get_state`."""
+        return None
+
+    def _restore(self, state):
+        """Put back a dict of :meth:`_shallow_state`."""
+        raise NotImplementedError("this filter takes no snapshot (_shallow_state is None)")
+
+
+def snapshot_filter(f):
+    """A copy of filter `f`'s attributes that stays valid, for the python-control
+    systems (`rlsfilt._iosystem`), which step one object back and forth between
+    states; None when `f` takes no snapshot (the caller then copies through
+    ``get_state``).
+
+    A step replaces the arrays it changes, except those the filter lists in
+    ``_written_in_place`` (the ring buffer of `SlidingWindowRLS`): only these are
+    copied.
+    """
+    state = f._shallow_state() if isinstance(f, Filter) else None
+    if state is None:
+        return None
+    for name in f._written_in_place:
+        state[name] = state[name].copy()
+    return state
+
+
+def restore_filter(f, snap):
+    """Put back a :func:`snapshot_filter` (copies again: the snapshot stays valid)."""
+    if f._written_in_place:
+        snap = dict(snap)
+        for name in f._written_in_place:
+            snap[name] = snap[name].copy()
+    f._restore(snap)
 
 
 def check_state(filt, state):

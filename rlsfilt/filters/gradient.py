@@ -116,7 +116,7 @@ class _GradientFilter(_FilterBase):
             raise ValueError(f"`Hs` is rank-deficient: need {self.dim_x} independent rows "
                              f"(dim_x); got rank {np.linalg.matrix_rank(Hm[keep])}")
         self._x = np.linalg.lstsq(Hm[keep], Z[keep], rcond=None)[0]
-        self.x_post = self._x.copy()
+        self.x_prior, self.x_post = self._x.copy(), self._x.copy()   # (as every filter)
 
     def batch_filter(self, zs, Hs, Rs=None, update_first=False, saver=None,
                      store_covariances=True):

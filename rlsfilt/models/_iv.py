@@ -383,7 +383,7 @@ def recursive_iv(U, Y, s, instruments="model", **options):
 
 def recursive_iv_records(records, s, instruments="model", *, lam=1.0, Q=None, R=1.0, P0=None,
                          x0=None, k0=None, refresh=None, prefilter=False, theta_aux=None,
-                         tol=1e-10, cond_max=1e12, compiled=True, stacklevel=2):
+                         tol=1e-10, cond_max=1e12, kernels=None, stacklevel=2):
     r"""Recursive instrumental variables over ARX records (one or several experiments).
 
     The rows of each experiment are built from its own samples (signals
@@ -426,8 +426,11 @@ def recursive_iv_records(records, s, instruments="model", *, lam=1.0, Q=None, R=
         and reported.
     cond_max : float, default 1e12
         Largest condition number of the final ``P`` that passes silently.
-    compiled : bool, default True
-        ``False`` runs the NumPy reference (tests).
+    kernels : module, optional
+        What provides the steps ``riv_model`` and ``riv_rows`` (with the
+        signatures of :mod:`rlsfilt.models._recursive_kernels`); the compiled
+        kernels by default. The tests pass their NumPy reference
+        (``tests/_reference_riv.py``).
     stacklevel : int, default 2
         Of the warnings.
 
@@ -489,21 +492,14 @@ def recursive_iv_records(records, s, instruments="model", *, lam=1.0, Q=None, R=
         for i, ((U, Y), count) in enumerate(zip(records, counts)):
             sl = slice(first, first + count)       # this experiment's rows
             k0_i = k0 if i == 0 else 0             # the exact start is in the first
-            if compiled:
-                k = _get_kernels()
-                buf = np.zeros((4 + 2 * s.n_inputs, s.max_lag + 1))     # from rest
-                bad_i, singular = k.riv_model(
-                    theta, P, buf, np.ascontiguousarray(U, dtype=float),
-                    np.ascontiguousarray(Y[:, 0], dtype=float), s.max_lag, s.na,
-                    np.array(s.nb, dtype=np.int64), np.array(s.nk, dtype=np.int64), k0_i,
-                    alpha, beta, refresh, bool(prefilter), il, Qa, float(R), tol,
-                    hist[sl], eps[sl], Phi[sl], Z[sl], target[sl])
-            else:
-                from ._recursive_reference import riv_model_reference
-                bad_i, singular = riv_model_reference(
-                    theta, P, U, Y[:, 0], s, k0_i, alpha, beta, refresh, prefilter, lam,
-                    None if q_zero else Qa, R, tol, hist[sl], eps[sl], Phi[sl], Z[sl],
-                    target[sl])
+            k = _get_kernels() if kernels is None else kernels
+            buf = np.zeros((4 + 2 * s.n_inputs, s.max_lag + 1))     # from rest
+            bad_i, singular = k.riv_model(
+                theta, P, buf, np.ascontiguousarray(U, dtype=float),
+                np.ascontiguousarray(Y[:, 0], dtype=float), s.max_lag, s.na,
+                np.array(s.nb, dtype=np.int64), np.array(s.nk, dtype=np.int64), k0_i,
+                alpha, beta, refresh, bool(prefilter), il, Qa, float(R), tol,
+                hist[sl], eps[sl], Phi[sl], Z[sl], target[sl])
             if singular:
                 break
             if bad < 0 and bad_i >= 0:
@@ -541,14 +537,9 @@ def recursive_iv_records(records, s, instruments="model", *, lam=1.0, Q=None, R=
             P = np.ascontiguousarray(G)
             theta = np.ascontiguousarray(theta)
             hist[k0 - 1] = theta
-        if compiled:
-            k = _get_kernels()
-            bad = k.riv_rows(theta, P, Phi[k0:], Z[k0:], np.ascontiguousarray(target[k0:]),
-                             il, Qa, float(R), tol, hist[k0:], eps[k0:])
-        else:
-            from ._recursive_reference import riv_rows_reference
-            bad = riv_rows_reference(theta, P, Phi[k0:], Z[k0:], target[k0:], lam,
-                                     None if q_zero else Qa, R, tol, hist[k0:], eps[k0:])
+        k = _get_kernels() if kernels is None else kernels
+        bad = k.riv_rows(theta, P, Phi[k0:], Z[k0:], np.ascontiguousarray(target[k0:]),
+                         il, Qa, float(R), tol, hist[k0:], eps[k0:])
         bad = bad + k0 if bad >= 0 else bad
     if bad >= 0:
         warnings.warn(f"recursive IV: the gain denominator R + phi^T P z nearly vanished at row "

@@ -11,7 +11,12 @@ not run, the square-root form, an exact condition number.
 
 import numpy as np
 
+from .._lazy import lazy_module
+
 __all__ = ["LagRows", "MatrixRows"]
+
+#: The compiled row readers, imported on first use.
+_lagged = lazy_module("rlsfilt.filters._kernels_lagged")
 
 
 class LagRows:
@@ -80,13 +85,12 @@ class LagRows:
 
     def rows(self, start, stop, scale=None):
         """``Phi[start:stop]`` (times `scale` column by column), a new array."""
-        from ..filters._kernels_lagged import lag_rows_numpy as lag_rows
-
         stop = min(stop, self.shape[0])
         out = np.empty((max(stop - start, 0), self.shape[1]))
         if len(out):
-            lag_rows(self.lags(start), 0, np.ones(self.shape[1]) if scale is None
-                          else np.ascontiguousarray(scale, dtype=np.float64), out)
+            _lagged().lag_rows_numpy(self.lags(start), 0, np.ones(self.shape[1])
+                                     if scale is None
+                                     else np.ascontiguousarray(scale, dtype=np.float64), out)
         return out
 
     def __getitem__(self, key):
@@ -115,22 +119,19 @@ class LagRows:
 
     def gram(self, exponents=None):
         """The Gram matrix of the rows with column ``j`` times ``2^exponents[j]``."""
-        from ..filters._kernels_lagged import lag_gram
-
         n = self.shape[1]
         scale = np.ones(n) if exponents is None else np.ldexp(1.0, exponents)
         G = np.empty((n, n))
-        lag_gram(self.lags(), scale, G)
+        _lagged().lag_gram(self.lags(), scale, G)
         return G
 
     def residuals(self, theta):
         """``(target - Phi theta, max_abs)``: the residuals (rows, ny) of `theta` (n, ny),
         and the largest magnitude in each column (`lag_residuals`)."""
-        from ..filters._kernels_lagged import lag_residuals
-
         out = np.empty((self.shape[0], self.n_outputs))
         top = np.empty(self.n_outputs)
-        lag_residuals(self.lags(), np.ascontiguousarray(theta, dtype=np.float64), out, top)
+        theta = np.ascontiguousarray(theta, dtype=np.float64)
+        _lagged().lag_residuals(self.lags(), theta, out, top)
         return out, top
 
 

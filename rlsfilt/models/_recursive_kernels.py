@@ -2,8 +2,9 @@ r"""Compiled (numba) recursions of the model family: RPEM, RPLR and recursive IV
 
 Every function is ``njit(cache=True)``; the module is imported on first use
 (``import rlsfilt`` stays light). The readable NumPy reference of the same
-arithmetic is :mod:`rlsfilt.models._recursive_reference`; the tests hold the
-two equal to round-off. The covariance updates are not written here: they
+arithmetic is in the tests (``tests/_reference_rpem.py``,
+``tests/_reference_riv.py``; not installed), which hold the two equal to
+round-off. The covariance updates are not written here: they
 are the compiled updates of `RecursiveLeastSquares`
 (:func:`rlsfilt.filters._kernels.time_update` and ``measurement_update``,
 called through `forget` and `rls_update`), so every forgetting mode and the

@@ -29,17 +29,21 @@ import warnings
 import numpy as np
 
 from .._display import Summary, edge_indices, frame_html, table_html, table_text
+from .._lazy import lazy_module
 from .._scale import unit_columns
 from .._validation import as_float_array, check_dt, check_int, check_probability
 from ..exceptions import NumericalWarning
 from ..filters._health import warn_at_caller as _warn_at_caller
-from ..filters.bank import RLSBank, _full_rank
+from ..filters.bank import RLSBank, full_rank, subset
 from ..filters.gradient_bank import GradientBank
 from ._offset import offset_mode as _offset_mode
 from ._tuning_option import tuning_param
 from .regressors import _full_rank_rows, arx_structure
 
 __all__ = ["ARXBank", "fit_many"]
+
+#: The compiled statistics of a fleet, imported on first use.
+_fleet_kernels = lazy_module("rlsfilt.models._kernels_fleet")
 
 _RLS_OPTIONS = ("k0", "lam", "P0", "R", "Q", "x0")
 #: The gradient methods (MATLAB's 'NormalizedGradient', 'Gradient'): a `GradientBank`.
@@ -673,8 +677,6 @@ def _fit_chunk(cs, rec, method, per_channel, k0, max_lag, tests, on_error, label
     if not ok.all():
         cs, Phi, theta, cov = cs[ok], Phi[:, ok], theta[ok], cov[ok]
     rows, c, n = Phi.shape
-    from ._kernels_fleet import fleet_statistics
-
     cs, sel = _as_slice(cs)
     # the statistics read the record itself (not the regressors) and write the
     # residuals in place when the channels are consecutive (no copies)
@@ -682,8 +684,8 @@ def _fit_chunk(cs, rec, method, per_channel, k0, max_lag, tests, on_error, label
     resid = out.resid if isinstance(sel, slice) else np.empty((rows, c))
     sigma2, pred_fit, sim_fit = np.empty(c), np.empty(c), np.empty(c)
     u_lag, u_input = _input_columns(s)
-    fleet_statistics(Yc, c0, Uc, cu0, s.na, u_lag, u_input, theta, resid, sigma2, pred_fit,
-                     sim_fit)
+    _fleet_kernels().fleet_statistics(Yc, c0, Uc, cu0, s.na, u_lag, u_input, theta, resid,
+                                      sigma2, pred_fit, sim_fit)
     out.theta[sel], out.sigma2[sel] = theta, sigma2
     if isinstance(sel, slice):
         resid = resid[:, sel]
@@ -802,7 +804,7 @@ def _run_group(cs, g, k0, Phi, target, opts, labels, on_error, out):
     rows = Phi.shape[0]
 
     def make(channels):                 # the fleet's bank, validated once, cut to `channels`
-        return opts["bank"]._subset(cs[channels])
+        return subset(opts["bank"], cs[channels])
 
     bank = make(g)
     g_sel = slice(None) if len(g) == Phi.shape[1] else g      # no copy for a whole chunk
@@ -923,8 +925,8 @@ def _batch_start_rows(Phi, norms):
     rows, c, n = Phi.shape
     Ps = Phi[:n].transpose(1, 0, 2) / np.where(norms > 0, norms, 1.0)[:, None, :]
     k0s = np.full(c, n)
-    # the ranks of np.linalg.matrix_rank(Ps), most settled by a QR (bank._full_rank)
-    rank, _ = _full_rank(Ps, np.linalg.qr(Ps, mode="r"))
+    # the ranks of np.linalg.matrix_rank(Ps), most settled by a QR (bank.full_rank)
+    rank, _ = full_rank(Ps, np.linalg.qr(Ps, mode="r"))
     for j in np.flatnonzero(rank < n):
         k = _full_rank_rows(Phi[:, j])
         k0s[j] = -1 if k is None else k
@@ -956,8 +958,6 @@ def _regressors(U, Y, s, channels=None, buffer=None, norms=None):
     `norms` (c, n) that array receives the norms of their columns (summed in
     time order, in the same pass).
     """
-    from ._kernels_fleet import build_regressors
-
     U, Y = np.ascontiguousarray(U, dtype=float), np.ascontiguousarray(Y, dtype=float)
     channels = slice(0, Y.shape[1]) if channels is None else channels
     Yc, c0, Uc, cu0 = _record_views(U, Y, channels)
@@ -966,7 +966,7 @@ def _regressors(U, Y, s, channels=None, buffer=None, norms=None):
     Phi = np.empty(shape) if buffer is None else buffer[:math.prod(shape)].reshape(shape)
     norms = np.empty((c, s.n_params)) if norms is None else norms
     u_lag, u_input = _input_columns(s)
-    build_regressors(Yc, c0, Uc, cu0, s.na, u_lag, u_input, Phi, norms)
+    _fleet_kernels().build_regressors(Yc, c0, Uc, cu0, s.na, u_lag, u_input, Phi, norms)
     return Phi.transpose(0, 2, 1), Y[s.max_lag:, channels]
 
 
@@ -1052,10 +1052,8 @@ def _aligned_inputs(u, y):
 def _fingerprint(U, Y):
     """Per-channel sums of the record (2, C): `ARXBank.model` refits from the
     caller's arrays and checks with them that the record is still the one fitted."""
-    from ._kernels_fleet import record_sums
-
     out = np.empty((2, Y.shape[1]))
-    record_sums(np.ascontiguousarray(Y), np.ascontiguousarray(U), out)
+    _fleet_kernels().record_sums(np.ascontiguousarray(Y), np.ascontiguousarray(U), out)
     return out
 
 
@@ -1109,7 +1107,7 @@ def _tune_channels(rec, per_channel, todo, chunk, buffer, param, C):
         cs, sel = _as_slice(cs)
         norms = np.empty((cs.size, n))
         Phi, target = _regressors(rec.U, rec.Y, s, sel, buffer, norms)
-        fits = bank._subset(cs).tune(target, Phi, param, burn=n)
+        fits = subset(bank, cs).tune(target, Phi, param, burn=n)
         for j, c in enumerate(cs):
             results[c] = fits.channel(j)
     est = np.array([r.estimate for r in results])
@@ -1132,7 +1130,9 @@ def _rls_options(C, n, method, opts, filter_options):
         return {}
     kw = {key: opts[key] for key in ("lam", "R", "Q", "P0", "x0") if opts[key] is not None}
     proto = RLSBank(C, n, **kw, **filter_options)
-    return {"lam": proto.lam, "R": proto.R, "Q": proto.Q, "P0": proto._P0, "x0": proto._x0,
+    # (a new bank's state is its start: P = P0, x = x0)
+    return {"lam": proto.lam, "R": proto.R, "Q": proto.Q, "P0": proto.P.copy(),
+            "x0": proto.x.copy(),
             "filter": dict(filter_options), "bank": proto,
             "prior": opts["P0"] is not None or opts["x0"] is not None}
 

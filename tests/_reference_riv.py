@@ -1,16 +1,20 @@
-r"""Readable NumPy reference of the recursions of :mod:`._recursive_kernels` (for the tests).
+r"""Readable NumPy reference of the recursive-IV recursions of
+:mod:`rlsfilt.models._recursive_kernels` (``riv_model``, ``riv_rows``), for the tests.
 
 Written for the reader, not for speed: every signal is a full-length array,
 every filter is its difference equation. The RPEM/RPLR reference, which calls
-the filters' textbook recursion, lives with the tests (``tests/_reference_rpem.py``);
-the recursive-IV references are here. The compiled kernels must agree
-with these functions to round-off; production code never calls them, except
-``compiled=False`` paths that exist for the tests.
+the filters' textbook recursion, is ``_reference_rpem.py`` (it shares `_filt`
+and `_lag`). `riv_model` and `riv_rows` take the compiled kernels' arguments, so
+``recursive_iv(..., kernels=_reference_riv)`` runs the fit on this reference;
+the compiled kernels must agree with it to round-off (``tests/test_iv.py``).
+Not installed with the package (#26: test-only code out of the package).
 """
+
+from types import SimpleNamespace
 
 import numpy as np
 
-from ._stability import reflect
+from rlsfilt.models._stability import reflect
 
 __all__ = []
 
@@ -117,3 +121,26 @@ def riv_model_reference(theta, P, U, y, s, k0, alpha, beta, refresh, prefilter, 
     theta[:] = th
     P[:] = Pm
     return bad, False
+
+
+# ----------------------------------------------------------------------
+# the compiled kernels' signatures (`recursive_iv_records(..., kernels=...)`)
+# ----------------------------------------------------------------------
+def _lam_and_Q(il, Qa):
+    return 1.0 / il, (Qa if Qa.size else None)
+
+
+def riv_model(theta, P, buf, U, y, max_lag, na, nb, nk, k0, alpha, beta, refresh, prefilter,
+              il, Qa, R, tol, hist, eps_hist, Phi_out, Z_out, Y_out):
+    """`riv_model_reference` with the arguments of ``_recursive_kernels.riv_model``."""
+    s = SimpleNamespace(na=na, nb=tuple(int(b) for b in nb), nk=tuple(int(k) for k in nk),
+                        max_lag=max_lag)
+    lam, Q = _lam_and_Q(il, Qa)
+    return riv_model_reference(theta, P, U, y, s, k0, alpha, beta, refresh, prefilter, lam, Q,
+                               R, tol, hist, eps_hist, Phi_out, Z_out, Y_out)
+
+
+def riv_rows(theta, P, Phi, Z, Y, il, Qa, R, tol, hist, eps_hist):
+    """`riv_rows_reference` with the arguments of ``_recursive_kernels.riv_rows``."""
+    lam, Q = _lam_and_Q(il, Qa)
+    return riv_rows_reference(theta, P, Phi, Z, Y, lam, Q, R, tol, hist, eps_hist)
