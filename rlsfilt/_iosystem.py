@@ -114,7 +114,12 @@ def make_iosystem(template, *, inputs, outputs, states, dt, name=None):
         peeked = tokens.get(key)
         if peeked is None or at[0] != xb or key in cache:
             return None
-        messages = work._io_commit(peeked[1], peeked[2])
+        try:
+            messages = work._io_commit(peeked[1], peeked[2])
+        except BaseException:           # a commit that raises may have done part of it
+            at[0] = holds[0] = None
+            tokens.clear()
+            raise
         if messages is None:
             return None
         at[0] = None
