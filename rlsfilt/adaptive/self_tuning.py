@@ -512,8 +512,12 @@ class SelfTuningRegulator:
 
     def _check_estimate(self, k, y, phi):
         """Raise if the estimator's estimate or covariance is not finite."""
-        est = self.estimator
-        if not (np.isfinite(est.x).all() and np.isfinite(est.P).all()):
+        x, P = self.estimator.x, self.estimator.P
+        # a finite sum: every entry is finite (an inf or NaN entry makes it inf or NaN);
+        # an overflowing sum of finite entries goes to the entry-wise test
+        if math.isfinite(x.sum() + P.sum()):
+            return
+        if not (np.isfinite(x).all() and np.isfinite(P).all()):
             raise ValueError(
                 f"SelfTuningRegulator: the estimate became non-finite at step {k} (`y` = "
                 f"{y:.6g}, largest |phi| = {np.max(np.abs(phi), initial=0.0):.6g}): the "
@@ -775,14 +779,8 @@ class SelfTuningRegulator:
 
     def _get_state(self):
         layout = self._layout()
-        parts = self._parts()
-        vec = np.empty(layout.size + sum(p.size for p in parts))
-        layout.pack(self.estimator, vec[:layout.size])
-        i = layout.size
-        for part in parts:
-            vec[i:i + part.size] = part.reshape(-1)
-            i += part.size
-        return vec
+        return np.concatenate([layout.pack(self.estimator, np.empty(layout.size)),
+                               *(part.reshape(-1) for part in self._parts())])
 
     def _set_state(self, vec):
         vec = np.asarray(vec, dtype=float)
