@@ -439,8 +439,8 @@ class SelfTuningRegulator:
             peeked = est._peek_predict_update(y, phi, like)
             if peeked is None:
                 return None
-            theta, token = np.array(peeked[0], dtype=float).reshape(-1), peeked[1]
-            if not np.isfinite(theta).all():
+            theta, token = peeked[0].reshape(-1), peeked[1]     # a new array, not the filter's
+            if not math.isfinite(theta.sum()):      # (finite sum: finite entries)
                 return None
         elif updated:
             _, caught = call_capturing(est.predict_update, y, phi)
@@ -852,7 +852,7 @@ class SelfTuningRegulator:
         commit adopts them, so a sample whose outputs python-control evaluates on
         several inputs takes one step.
         """
-        y, r, v = (float(x) for x in w)
+        y, r, v = w.tolist()
         saved = (self._scalars, self._ctrl, self._why, self._checked)
         self._scalars, self._ctrl = saved[0].copy(), saved[1].copy()
         try:
@@ -860,6 +860,8 @@ class SelfTuningRegulator:
             if decided is None:
                 return None
             token = (decided, self._scalars, self._ctrl, self._why, self._checked)
+        except ValueError:      # the real step raises it, or an error it checks first
+            return None         # (a covariance that is no longer finite)
         finally:
             self._scalars, self._ctrl, self._why, self._checked = saved
         if decided[15] is not None:
