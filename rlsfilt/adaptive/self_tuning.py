@@ -512,7 +512,7 @@ class SelfTuningRegulator:
 
     def _check_estimate(self, k, y, phi):
         """Raise if the estimator's estimate or covariance is not finite."""
-        x, P = self.estimator.x, self.estimator.P
+        x, P = np.asarray(self.estimator.x), np.asarray(self.estimator.P)
         # a finite sum: every entry is finite (an inf or NaN entry makes it inf or NaN);
         # an overflowing sum of finite entries goes to the entry-wise test
         if math.isfinite(x.sum() + P.sum()):
@@ -881,9 +881,8 @@ class SelfTuningRegulator:
             self._check_estimate(k, y, phi)
         if projected is not None:
             self.estimator.x = projected.reshape(-1, 1)
-        self._scalars[:] = scalars
-        self._ctrl[:] = ctrl
-        self._why, self._checked = why, checked
+        # the look-ahead's copies become the state (snapshots hold copies of their own)
+        self._scalars, self._ctrl, self._why, self._checked = scalars, ctrl, why, checked
         return self._conclude(decided, record=False)[2]
 
     def as_iosystem(self, dt=None, name="str", extra_outputs=False):

@@ -83,8 +83,6 @@ class StateLayout:
         self._arrays = [(name, a, b) for name, shape, a, b in self.entries if shape]
         self._scalars = [name for name, shape, _, _ in self.entries if not shape]
         self._at = np.array([a for _, shape, a, _ in self.entries if not shape], dtype=np.intp)
-        if len(self._at) and np.array_equal(self._at, np.arange(self._at[0], self._at[-1] + 1)):
-            self._at = slice(int(self._at[0]), int(self._at[-1]) + 1)   # one slice: cheaper
 
     def pack(self, f, out):
         """Write the state of `f` into `out` (length :attr:`size`), as :func:`get_state`."""
