@@ -28,6 +28,13 @@ An object that can compute its outputs without stepping also provides
 since the peek). The output function then only peeks, and the update
 commits the peek made on the same ``(x, u)``, so each sample takes one step
 however often python-control evaluates the outputs.
+
+python-control (``control.nlsys``, 0.10) computes a sample's outputs and then
+its update, each by passes over every subsystem's output function until the
+loop's signals settle, the first pass with those signals at zero: an output
+function sees each sample's inputs two or three times, first on inputs the
+loop discards. The outputs are remembered on the bytes of ``(x, u)``, so a
+repeated evaluation is one dictionary look-up.
 """
 
 import copy
