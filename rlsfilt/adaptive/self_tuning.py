@@ -29,6 +29,7 @@ from .._lazy import lazy_module
 from .._validation import check_dt, check_int, check_real, check_scalar
 from ..exceptions import ExcitationWarning, RegulatorWarning
 from ..filters import _filter_state
+from ..filters.contract import Filter
 from ._polynomials import coprimeness, degree, fmt_complex, padd, roots, trim
 from .rst import RSTController, _prepared_design, rst_design
 
@@ -852,6 +853,9 @@ class SelfTuningRegulator:
         commit adopts them, so a sample whose outputs python-control evaluates on
         several inputs takes one step.
         """
+        if getattr(type(self.estimator), "_peek_predict_update",
+                   None) is Filter._peek_predict_update:
+            return None                 # a filter that never peeks: the real step
         y, r, v = w.tolist()
         saved = (self._scalars, self._ctrl, self._why, self._checked)
         self._scalars, self._ctrl = saved[0].copy(), saved[1].copy()
@@ -860,8 +864,8 @@ class SelfTuningRegulator:
             if decided is None:
                 return None
             token = (decided, self._scalars, self._ctrl, self._why, self._checked)
-        except ValueError:      # the real step raises it, or an error it checks first
-            return None         # (a covariance that is no longer finite)
+        except Exception:       # the real step decides: it raises this, or an error it
+            return None         # checks first (a covariance that is no longer finite)
         finally:
             self._scalars, self._ctrl, self._why, self._checked = saved
         if decided[15] is not None:
