@@ -9,11 +9,18 @@ Everything is timed in one process, as CPU time of the measuring thread
        ``update(z, H)`` on precomputed ARX(2, 2, 1) regressors (the compiled step)
 (b)    the estimator system's update and output functions called directly, one
        of each per step (what ``input_output_response`` calls)
+(b2)   the same functions in python-control's call pattern for a sample, without
+       python-control: the outputs on the inputs of its first pass over the loop
+       (the loop's signals at zero: ``y = 0``), then on the settled inputs, all of it
+       twice (once for the outputs, once for the update), then the update: ours
+       alone, as the diagram calls it
 (c)    a whole ``input_output_response`` of ``interconnect([plant, estimator])``
 (d)    the same diagram with a trivial ``NonlinearIOSystem`` of the same state
        size (update ``x``, outputs zeros): python-control's own overhead
 (e)    the regulator: ``SelfTuningRegulator.step`` in a loop with the plant,
-       its system's update and output functions called directly, the whole
+       its system's update and output functions called directly (once each, and
+       in python-control's pattern, three output passes: ``y = 0``, then the
+       settled ``y`` twice), the whole
        interconnect simulation (and its trivial twin, whose output ``u = (r - y) / 2``
        passes ``y`` through as the regulator's does: python-control then
        iterates its algebraic loop as often, three output passes per
@@ -86,6 +93,21 @@ def trivial(nstates, inputs, outputs, name, feedthrough=False):
                          outputs=outputs, states=nstates, dt=True, name=name)
 
 
+def replay(sysm, W, W0, passes):
+    """A loop calling `sysm`'s output function as python-control does in a sample
+    (`passes`: 0 the inputs of the first pass, `W0`, 1 the settled ones, `W`; for the
+    outputs, then again for the update) and then its update function."""
+    def run():
+        x = np.zeros(sysm.nstates)
+        upd, out, p = sysm.updfcn, sysm.outfcn, {}
+        for t in range(len(W)):
+            for _ in range(2):
+                for j in passes:
+                    out(t, x, W0[t] if j == 0 else W[t], p)
+            x = upd(t, x, W[t], p)
+    return run
+
+
 def arx_data(N, seed=0):
     rng = np.random.default_rng(seed)
     u = rng.standard_normal(N)
@@ -116,6 +138,8 @@ def bench_estimator(N, repeats):
             out(t, x, W[t], p)
             x = upd(t, x, W[t], p)
 
+    W0 = W.copy()
+    W0[:, 1] = 0.0                  # python-control's first pass: y, from the plant, is 0
     T = np.arange(N)
     outs = ["y", "theta[0]", "theta[1]", "theta[2]", "theta[3]", "e"]
     loop = control.interconnect([plant_sys(), est], inputs="u", outputs=outs)
@@ -124,6 +148,8 @@ def bench_estimator(N, repeats):
         inputs="u", outputs=outs)
     t = {"(a) bare filter step": best(bare, repeats),
          "(b) estimator update+output functions": best(direct, repeats),
+         "(b2) the same in python-control's call pattern": best(
+             replay(est, W, W0, (0, 1)), repeats),
          "(c) interconnect simulation": best(
              lambda: control.input_output_response(loop, T, u), repeats),
          "(d) same diagram, trivial system": best(
@@ -215,6 +241,8 @@ def bench_regulator(N, repeats):
             out(k, x, W[k], p)
             x = upd(k, x, W[k], p)
 
+    W0 = W.copy()
+    W0[:, 0] = 0.0                  # python-control's first pass: y, from the plant, is 0
     T = np.arange(N)
     loop = control.interconnect([plant_sys(), sysm], inputs=["r", "dither"], outputs=["y", "u"])
     twin = control.interconnect(
@@ -223,6 +251,8 @@ def bench_regulator(N, repeats):
     t = {"(e) plain-numpy loop (same work)": best(lambda: numpy_regulator(N, r, d), repeats),
          "(e) SelfTuningRegulator.step loop": best(step_loop, repeats),
          "(e) regulator update+output functions": best(direct, repeats),
+         "(e) the same in python-control's call pattern": best(
+             replay(sysm, W, W0, (0, 1, 1)), repeats),
          "(e) interconnect simulation": best(
              lambda: control.input_output_response(loop, T, [r, d]), repeats),
          "(e) same diagram, trivial system": best(
@@ -249,6 +279,8 @@ def main(argv=None):
     line("estimator: update+output functions / bare step", f"{direct / bare:.2f}x")
     line("  in the diagram, python-control's overhead aside",
          f"{own:.1f} us = {own / bare:.2f}x the bare step")
+    alone = est["(b2) the same in python-control's call pattern"]
+    line("  ours alone in python-control's call pattern", f"{alone / bare:.2f}x the bare step")
     ref = reg["(e) plain-numpy loop (same work)"]
     own_r = reg["(e) interconnect simulation"] - reg["(e) same diagram, trivial system"]
     stepped = reg["(e) SelfTuningRegulator.step loop"]
@@ -258,6 +290,8 @@ def main(argv=None):
     line("  update+output functions / bare filter step", f"{direct_r / bare:.2f}x")
     line("  in the diagram, python-control's overhead aside",
          f"{own_r:.1f} us = {own_r / ref:.2f}x the numpy loop, {own_r / bare:.1f}x the bare step")
+    alone_r = reg["(e) the same in python-control's call pattern"]
+    line("  ours alone in python-control's call pattern", f"{alone_r / bare:.2f}x the bare step")
 
 
 def line(label, value):

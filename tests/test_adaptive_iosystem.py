@@ -304,3 +304,65 @@ def test_estimator_system_in_any_call_order_equals_the_filter():
         past = (W[k, 0], W[k, 1])
         assert_allclose(y_out, np.r_[ref.x[:, 0], e], rtol=0, atol=1e-13)
         assert_array_equal(x[:len(_filter_state.get_state(ref))], _filter_state.get_state(ref))
+
+
+@pytest.mark.parametrize("name", FILTERS)
+def test_str_system_in_any_call_order_equals_the_step_loop_bit_for_bit(name):
+    """The regulator's system peeks at its outputs (decisions on copies, the estimator
+    peeked) and commits in the update: outputs on other inputs (the zero loop signal
+    python-control starts each sample with), on older states and updates from them in
+    between change nothing; every output and state equals the step loop's bit for bit."""
+    N = 120
+    kw = dict(na=2, nb=2, monitor_every=40, u_limits=(-3.0, 3.0), bounds=(-5.0, 5.0))
+    ref = SelfTuningRegulator(FILTERS[name](4), DESIGN, **kw)
+    sys = SelfTuningRegulator(FILTERS[name](4), DESIGN, **kw).as_iosystem(extra_outputs=True)
+    upd, out = sys.updfcn, sys.outfcn
+    plant = control.ss(control.tf(B, A, True), inputs="u", outputs="y")
+    r, d = _signals(N, seed=3)
+    x, xp, states = np.zeros(sys.nstates), np.zeros(plant.nstates), []
+    for k in range(N):
+        y = plant.output(k, xp, [0.0])[0]
+        w = np.array([y, r[k], d[k]])
+        states.append(x)
+        if k >= 2:                                      # an older state in between
+            out(k, states[k - 2], w, {})
+            upd(k, states[k - 1], w + 0.5, {})
+        out(k, x, np.array([0.0, r[k], d[k]]), {})      # python-control's first pass
+        got = out(k, x, w, {})
+        assert_array_equal(out(k, x, w, {}), got)        # a repeated evaluation
+        if k % 7 == 0:
+            out(k, x, w + 1.0, {})                      # another peek on the same state
+        x = upd(k, x, w, {})
+        u = ref.step(y, r[k], d[k])
+        h = ref.history
+        assert_array_equal(got, np.r_[u, h.e[-1], h.theta[-1]])
+        assert_array_equal(x, ref.state)
+        xp = plant.dynamics(k, xp, [u])
+    # and python-control's own simulation, from the start, bit for bit
+    fresh = SelfTuningRegulator(FILTERS[name](4), DESIGN, **kw)
+    loop = control.interconnect([plant, fresh.as_iosystem()], inputs=["r", "dither"],
+                                outputs=["y", "u"])
+    resp = control.input_output_response(loop, np.arange(N), [r, d])
+    assert_array_equal(resp.outputs[1], ref.history.u)
+    assert_array_equal(resp.outputs[0], ref.history.y)
+
+
+def test_str_system_output_that_raises_changes_nothing():
+    """An output evaluation that raises (a measurement beyond signal_limit) leaves the
+    system's working copy as it was: the next sample continues as the step loop."""
+    stre = SelfTuningRegulator(RecursiveLeastSquares(4, P0=100.0), DESIGN, na=2, nb=2)
+    sys = stre.as_iosystem()
+    x = np.zeros(sys.nstates)
+    for k in range(5):
+        w = np.array([0.1 * k, 1.0, 0.1])
+        sys.outfcn(k, x, w, {})
+        x = sys.updfcn(k, x, w, {})
+    bad = np.array([1e200, 1.0, 0.1])        # beyond signal_limit: a clear error
+    with pytest.raises(ValueError, match="signal_limit"):
+        sys.outfcn(5, x, bad, {})
+    ref = copy.deepcopy(stre)
+    for k in range(5):
+        ref.step(0.1 * k, 1.0, 0.1)
+    w = np.array([0.5, 1.0, 0.1])
+    assert_array_equal(sys.outfcn(5, x, w, {}), [ref.step(*w)])
+    assert_array_equal(sys.updfcn(5, x, w, {}), ref.state)

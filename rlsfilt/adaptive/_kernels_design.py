@@ -113,6 +113,16 @@ def _coprime_at_least(a, b, tau):
 
 
 @njit(cache=True, error_model="numpy")
+def _add_product(out, a, b):
+    """``out[:len(a) + len(b) - 1] += a * b`` (the polynomial product, ``np.convolve``;
+    a loop: numba's ``np.convolve`` costs some 2 us a call at these sizes)."""
+    for i in range(len(a)):
+        ai = a[i]
+        for j in range(len(b)):
+            out[i + j] += ai * b[j]
+
+
+@njit(cache=True, error_model="numpy")
 def _schur_stable(p):
     r"""Whether every zero of ``z^n p(z^-1)`` is strictly inside the unit circle.
 
@@ -223,8 +233,8 @@ def design_full(A, B, Acl, Ao, am_sum, integral, tol_design, tol_reg, reduce_tol
     Rc, Sc = rows[0], rows[1]
     # the verification: A R + B S against the target, on the estimate itself
     char = np.zeros(max(len(A) + L - 1, len(B) + L - 1))
-    char[:len(A) + L - 1] += np.convolve(A, Rc)
-    char[:len(B) + L - 1] += np.convolve(B, Sc)
+    _add_product(char, A, Rc)
+    _add_product(char, B, Sc)
     res = 0.0
     for i in range(max(len(char), len(Acl))):
         c = char[i] if i < len(char) else 0.0

@@ -29,7 +29,7 @@ from .._lazy import lazy_module
 from .._validation import check_dt, check_int, check_real, check_scalar
 from ..exceptions import ExcitationWarning, RegulatorWarning
 from ..filters import _filter_state
-from ..filters.contract import restore_filter, snapshot_filter
+from ..filters.contract import Filter, restore_filter, snapshot_filter
 from ._polynomials import coprimeness, degree, fmt_complex, padd, roots, trim
 from .rst import RSTController, _prepared_design, rst_design
 
@@ -398,9 +398,26 @@ class SelfTuningRegulator:
             raise
 
     def _advance_unsafe(self, y, r, v):
+        """One sample in place, ``(u, record, messages)`` (a failure may leave part of
+        it done: `_advance` undoes it)."""
+        return self._conclude(self._decide(y, r, v))
+
+    def _decide(self, y, r, v, peek=False, like=None):
+        """The part of a sample that sets ``u``: the checks of the signals, the
+        estimator's update, the projection, the redesign and the control law.
+
+        Returns ``[k, y, r, phi, e, theta, updated, redesigned, rejected, reduced, u,
+        saturated, messages before the estimator's, the estimator's, messages after,
+        estimator token, projected estimate]``, for :meth:`_conclude`. With `peek`
+        the estimator is only peeked at (``_peek_predict_update(y, phi, like)``: its
+        token, for ``_commit_peeked``, is returned and the projected estimate is not
+        written back) and the caller has put copies of ``_scalars`` and ``_ctrl`` in
+        place (see :meth:`_io_peek`); None if the estimator cannot peek, or its peeked
+        estimate is not finite (the real step then raises).
+        """
         na, nb, nk = self.na, self.nb, self.nk
         est = self.estimator
-        messages = []
+        before = []
         k = int(self._scalars[1])
         lim = self.signal_limit
         if not (math.isfinite(y) and math.isfinite(r) and math.isfinite(v)
@@ -408,7 +425,7 @@ class SelfTuningRegulator:
             for value, name in ((y, "y"), (r, "r"), (v, "dither")):
                 self._check_signal(value, name, k)
         if not self.offset and k < _LEVEL_WINDOW:
-            messages += self._check_level(y, k)
+            before = self._check_level(y, k)
         # regressor phi(t) = [-y(t-1) .. -y(t-na), u(t-nk) .. u(t-nk-nb+1) (, 1)]
         phi = np.empty(na + nb + self.offset)
         np.negative(self._ypast[:na], out=phi[:na])
@@ -418,20 +435,27 @@ class SelfTuningRegulator:
         theta = np.array(est.x, dtype=float).reshape(-1)     # a copy, as self.theta
         e = y - phi @ theta                       # a-priori prediction error
         updated = self.dead_zone == 0.0 or abs(e) > self.dead_zone
-        if updated:
+        caught, token, projected = [], None, None
+        if updated and peek:
+            peeked = est._peek_predict_update(y, phi, like)
+            if peeked is None:
+                return None
+            theta, token = peeked[0].reshape(-1), peeked[1]     # a new array, not the filter's
+            if not math.isfinite(theta.sum()):      # (finite sum: finite entries)
+                return None
+        elif updated:
             _, caught = call_capturing(est.predict_update, y, phi)
-            messages += caught
             theta = np.array(est.x, dtype=float).reshape(-1)
-            if not (np.isfinite(theta).all() and np.isfinite(est.P).all()):
-                raise ValueError(
-                    f"SelfTuningRegulator: the estimate became non-finite at step {k} (`y` = "
-                    f"{y:.6g}, largest |phi| = {np.max(np.abs(phi), initial=0.0):.6g}): the "
-                    "loop or the estimator diverged; the regulator is left as before this step")
+            self._check_estimate(k, y, phi)
         if self.bounds is not None:               # projection onto the box
             clipped = np.clip(theta, *self.bounds)
             if np.any(clipped != theta):
-                est.x = clipped.reshape(-1, 1)
+                if peek:
+                    projected = clipped
+                else:
+                    est.x = clipped.reshape(-1, 1)
                 theta = clipped
+        messages = []
         redesigned = k % self.redesign_every == 0
         rejected = reduced = False
         if redesigned:
@@ -439,8 +463,7 @@ class SelfTuningRegulator:
             if self._fast_design(A, B):
                 ctrl, kind = True, "full"
             else:
-                ctrl, kind, caught = self._try_design(A, B, theta)
-                messages += caught
+                ctrl, kind, messages = self._try_design(A, B, theta)
                 if ctrl is not None:
                     self._install(ctrl, "design")
             if ctrl is not None:
@@ -470,10 +493,9 @@ class SelfTuningRegulator:
                     f"rejected (the last because {self._why}); {state}. Check the model "
                     "orders, the excitation and the design (Am, Ao)", RegulatorWarning))
         # control law R (u - u_c) = T r - S y, with the past from the memories
-        kernels = _kernels()
         if self._scalars[0]:
             R = self._ctrl[0]
-            u = kernels.control_law(self._ctrl, self._rpast, self._ypast, self._upast, y, r)
+            u = _kernels().control_law(self._ctrl, self._rpast, self._ypast, self._upast, y, r)
             if self.offset:
                 Bsum = theta[na:na + nb].sum()
                 if abs(Bsum) > 1e-12 * np.abs(theta[na:na + nb]).sum():
@@ -486,12 +508,34 @@ class SelfTuningRegulator:
         if self.u_limits is not None:
             saturated = not self.u_limits[0] < u < self.u_limits[1]
             u = min(max(u, self.u_limits[0]), self.u_limits[1])
-        u = float(u)
+        return [k, y, r, phi, e, theta, updated, redesigned, rejected, reduced, float(u),
+                saturated, before, caught, messages, token, projected]
+
+    def _check_estimate(self, k, y, phi):
+        """Raise if the estimator's estimate or covariance is not finite."""
+        x, P = np.asarray(self.estimator.x), np.asarray(self.estimator.P)
+        # a finite sum: every entry is finite (an inf or NaN entry makes it inf or NaN);
+        # an overflowing sum of finite entries goes to the entry-wise test
+        if math.isfinite(x.sum() + P.sum()):
+            return
+        if not (np.isfinite(x).all() and np.isfinite(P).all()):
+            raise ValueError(
+                f"SelfTuningRegulator: the estimate became non-finite at step {k} (`y` = "
+                f"{y:.6g}, largest |phi| = {np.max(np.abs(phi), initial=0.0):.6g}): the "
+                "loop or the estimator diverged; the regulator is left as before this step")
+
+    def _conclude(self, decided, record=True):
+        """The rest of a sample after :meth:`_decide` and the estimator's step: the
+        memories, the monitors, the step count. Returns ``(u, record or None,
+        messages)``."""
+        (k, y, r, phi, e, theta, updated, redesigned, rejected, reduced, u, saturated,
+         before, caught, after, _, _) = decided
+        messages = before + caught + after
         # the memories, the excitation monitor's sum, the saturation watchdog's block sums
-        kernels.remember(self._ypast, self._upast, self._rpast, self._info, self._scalars, phi,
-                         y, u, r, float(saturated), _I["sat_block"], _I["err2_block"])
+        _kernels().remember(self._ypast, self._upast, self._rpast, self._info, self._scalars,
+                            phi, y, u, r, float(saturated), _I["sat_block"], _I["err2_block"])
         # windup check, excitation monitor and saturation watchdog
-        trace = float(np.asarray(est.P).trace())
+        trace = float(np.asarray(self.estimator.P).trace())
         if trace > self.windup_ratio * self._scalars[2]:
             if not self._scalars[4]:
                 self._scalars[4] = 1.0
@@ -524,9 +568,10 @@ class SelfTuningRegulator:
             self._info[:] = 0.0
             messages += self._watchdog(k)
         self._scalars[1] = k + 1
-        record = (y, r, u, e, theta.copy(), trace, updated, redesigned, rejected,
-                  self._ctrl.copy(), excitation, reduced)
-        return u, record, messages
+        if not record:
+            return u, None, messages
+        return u, (y, r, u, e, theta.copy(), trace, updated, redesigned, rejected,
+                   self._ctrl.copy(), excitation, reduced), messages
 
     def _check_signal(self, value, name, k, computed=False):
         """Raise a `ValueError` naming the signal if it is not finite or beyond `signal_limit`."""
@@ -735,14 +780,8 @@ class SelfTuningRegulator:
 
     def _get_state(self):
         layout = self._layout()
-        parts = self._parts()
-        vec = np.empty(layout.size + sum(p.size for p in parts))
-        layout.pack(self.estimator, vec[:layout.size])
-        i = layout.size
-        for part in parts:
-            vec[i:i + part.size] = part.reshape(-1)
-            i += part.size
-        return vec
+        return np.concatenate([layout.pack(self.estimator, np.empty(layout.size)),
+                               *(part.reshape(-1) for part in self._parts())])
 
     def _set_state(self, vec):
         vec = np.asarray(vec, dtype=float)
@@ -791,10 +830,64 @@ class SelfTuningRegulator:
         y, r, v = (float(x) for x in w)
         # no snapshot to undo a failed step: the system never reuses a working copy
         # whose step raised (it restores the next one from the state vector)
-        u, record, messages = self._advance_unsafe(y, r, v)
-        if self._io_extra:
-            return np.concatenate([[u, record[3]], record[4]]), messages
-        return np.array([u]), messages
+        decided = self._decide(y, r, v)
+        return self._io_outputs(decided), self._conclude(decided, record=False)[2]
+
+    def _io_outputs(self, decided):
+        """The system's outputs ``[u]`` (with `extra_outputs`: ``[u, e, theta..]``)."""
+        if not self._io_extra:
+            return np.array([decided[10]])
+        theta = decided[5]
+        out = np.empty(2 + len(theta))
+        out[0], out[1] = decided[10], decided[4]
+        out[2:] = theta
+        return out
+
+    def _io_peek(self, w):
+        """``(outputs, token)``: the outputs `_io_step(w)` would give (bit for bit), with
+        nothing changed, and a token for `_io_commit`; None when the step cannot be
+        computed without taking it (the estimator does not peek).
+
+        The decisions of the sample (:meth:`_decide`) are taken on copies of the
+        scalars and the controller, and the estimator is only peeked at; the
+        commit adopts them, so a sample whose outputs python-control evaluates on
+        several inputs takes one step.
+        """
+        if getattr(type(self.estimator), "_peek_predict_update",
+                   None) is Filter._peek_predict_update:
+            return None                 # a filter that never peeks: the real step
+        y, r, v = w.tolist()
+        saved = (self._scalars, self._ctrl, self._why, self._checked)
+        self._scalars, self._ctrl = saved[0].copy(), saved[1].copy()
+        try:
+            decided = self._decide(y, r, v, peek=True, like=self.__dict__.get("_like"))
+            if decided is None:
+                return None
+            token = (decided, self._scalars, self._ctrl, self._why, self._checked)
+        except Exception:       # the real step decides: it raises this, or an error it
+            return None         # checks first (a covariance that is no longer finite)
+        finally:
+            self._scalars, self._ctrl, self._why, self._checked = saved
+        if decided[15] is not None:
+            self._like = decided[15]          # its predict serves the next peek in this state
+        return self._io_outputs(decided), token
+
+    def _io_commit(self, w, token):
+        """Take the step `_io_peek(w)` computed: its messages, or None (nothing done)
+        if the estimator has changed since."""
+        decided, scalars, ctrl, why, checked = token
+        k, y, phi, est_token, projected = decided[0], decided[1], decided[3], decided[15], \
+            decided[16]
+        if est_token is not None:
+            done, decided[13] = call_capturing(self.estimator._commit_peeked, est_token)
+            if not done:
+                return None
+            self._check_estimate(k, y, phi)
+        if projected is not None:
+            self.estimator.x = projected.reshape(-1, 1)
+        # the look-ahead's copies become the state (snapshots hold copies of their own)
+        self._scalars, self._ctrl, self._why, self._checked = scalars, ctrl, why, checked
+        return self._conclude(decided, record=False)[2]
 
     def as_iosystem(self, dt=None, name="str", extra_outputs=False):
         r"""The regulator as a discrete-time python-control `NonlinearIOSystem`.
