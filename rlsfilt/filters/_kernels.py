@@ -88,6 +88,7 @@ from .forgetting import (
     CFG_PARAMS,
     CFG_PI,
     CONSTANT_TRACE,
+    DIAGONAL,
     DIRECTIONAL,
     EFRA,
     EXPONENTIAL,
@@ -101,10 +102,31 @@ __all__ = []
 # one step
 # ----------------------------------------------------------------------
 @njit(cache=True, error_model="numpy", inline="always")
+def _pi_start(cfg, n):
+    """Where the projector starts in `cfg`: after the diagonal mode's ``n`` factors."""
+    return CFG_PI + n if int(cfg[CFG_MODE]) == DIAGONAL else CFG_PI
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def projector(cfg, n):
     """The projector ``Pi`` of the constraints in `cfg` ((0, 0) without them)."""
-    k = n if cfg.shape[0] > CFG_PI else 0
-    return cfg[CFG_PI:CFG_PI + k * k].reshape((k, k))
+    start = _pi_start(cfg, n)
+    k = n if cfg.shape[0] > start else 0
+    return cfg[start:start + k * k].reshape((k, k))
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def diagonal_factors(cfg, n):
+    """The diagonal mode's time-update factors ``w_i = 1 / sqrt(lam_i)`` in `cfg`
+    (length ``n``; empty in every other mode)."""
+    k = n if int(cfg[CFG_MODE]) == DIAGONAL else 0
+    return cfg[CFG_PI:CFG_PI + k]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def unconstrained(cfg, n):
+    """Whether `cfg` holds no constraints (no projector)."""
+    return cfg.shape[0] == _pi_start(cfg, n)
 
 
 @njit(cache=True, error_model="numpy")
@@ -147,6 +169,46 @@ def time_update(P, il, Q, Pi, T, Pn):
                 Pn[i, j] = P[i, j] * il
     if Pi.shape[0]:
         project(Pn, Pi, T)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def diagonal_time_update(P, wd, Q, Pi, T, Pn):
+    """The diagonal mode's ``Pn = L^-1/2 P L^-1/2 + Q`` (``L = diag(lam)``), entry by
+    entry ``Pn_ij = P_ij (w_i w_j) + Q_ij`` with ``w_i = 1 / sqrt(lam_i)`` (`wd`;
+    the products as `tuning`'s likelihood forms them), then ``Pn <- Pi Pn Pi``
+    (`Q`, `Pi` empty when absent; `Pn` may be `P`)."""
+    n = P.shape[0]
+    if Q.shape[0]:
+        for i in range(n):
+            wi = wd[i]
+            for j in range(n):
+                Pn[i, j] = (wi * wd[j]) * P[i, j] + Q[i, j]
+    else:
+        for i in range(n):
+            wi = wd[i]
+            for j in range(n):
+                Pn[i, j] = (wi * wd[j]) * P[i, j]
+    if Pi.shape[0]:
+        project(Pn, Pi, T)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def held_back_factor(P, phi, g, wd):
+    """The diagonal mode's forgetting along the regressor when the windup cap held its
+    time update back: ``w = (phi L^-1/2 P L^-1/2 phi^T) / (phi P phi^T)``, the growth of
+    ``phi P phi^T`` the held-back time update would have given (``1 / lam`` for equal
+    factors); 1 when ``phi P phi^T`` is not positive. ``g = P phi^T``."""
+    n = P.shape[0]
+    q = 0.0
+    qa = 0.0
+    for i in range(n):
+        q += phi[i] * g[i]
+        ui = phi[i] * wd[i]
+        acc = 0.0
+        for j in range(n):
+            acc += P[i, j] * (phi[j] * wd[j])
+        qa += ui * acc
+    return qa / q if q > 0.0 else 1.0
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -268,18 +330,21 @@ def measurement_update(x, P, phi, z, missing, r, cfg, Pi, g, y, K, T, w, xn, Pn)
     n, m = x.shape
     mode = int(cfg[CFG_MODE])
     lam = cfg[CFG_LAM]
+    timed = mode == EXPONENTIAL or mode == DIAGONAL       # forgets in the time update
     gain(P, phi, g)                          # g = P H^T
+    if mode == DIAGONAL and w != 1.0:        # held back: w = phi P^-_diag phi^T / phi P phi^T
+        w = held_back_factor(P, phi, g, diagonal_factors(cfg, n))
     q, s, yy, updated, gated = _innovation(x, phi, z, missing, r, w, cfg[CFG_GATE], g, y)
-    lam_skip = lam if mode == EXPONENTIAL else 1.0
+    lam_skip = lam if timed else 1.0
     if not updated:
         for i in range(n):
             K[i] = 0.0
-        if mode != EXPONENTIAL:
+        if not timed:
             copy2(x, xn)
             copy2(P, Pn)
             return s, lam_skip, gated, False
     lam_t = lam
-    if mode == EXPONENTIAL:
+    if timed:                                # exponential, diagonal: the standard update
         c = 1.0 / s
         cu = exponential_coefficient(q, c, w, updated)
         if updated:
@@ -375,7 +440,28 @@ def measurement_update(x, P, phi, z, missing, r, cfg, Pi, g, y, K, T, w, xn, Pn)
         hph = q * r * (w * (1.0 / s)) if updated else q * w    # phi P phi^T after the update
         tr, spread, _ = _diagonal_stats(Pn, g, 0.0, phi, phi.shape[0])   # of the updated P
         cap = windup_cap(tr, spread, hph, 1.0 / lam, cfg)
+    elif mode == DIAGONAL and lam != 1.0:
+        hph = q * r * (w * (1.0 / s)) if updated else q * w
+        cap = _diagonal_windup_cap(Pn, phi, hph, diagonal_factors(cfg, n), cfg,
+                                   unconstrained(cfg, n))
     return s, lam_t, gated, cap
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _diagonal_windup_cap(P, phi, hph, wd, cfg, plain):
+    """`windup_cap` of the diagonal mode, on the updated `P`: hold the next time update
+    back when the trace after it, ``sum_i P_ii / lam_i``, would exceed ``trace_max``, or
+    when ``sum_i P_ii phi_i^2 > spread_max phi P phi^T`` (without constraints: `plain`)."""
+    tr = 0.0
+    spread = 0.0
+    for i in range(P.shape[0]):
+        d = P[i, i]
+        tr += d * (wd[i] * wd[i])
+        spread += (d * phi[i]) * phi[i]
+    if tr > cfg[CFG_PARAMS + 1]:
+        return True
+    spread_max = cfg[CFG_PARAMS]
+    return plain and spread_max < np.inf and spread > spread_max * hph
 
 
 # ----------------------------------------------------------------------
@@ -386,8 +472,13 @@ def predict_kernel(P, il, Q, cfg, Pn):
     """Streaming ``predict``: ``Pn = P il + Q`` then ``Pn <- Pi Pn Pi`` (`time_update`,
     `Q` (0, 0) when absent, ``Pi`` the projector of the configuration `cfg`)."""
     n = P.shape[0]
-    k = n if cfg.shape[0] > CFG_PI else 0
-    time_update(P, il, Q, projector(cfg, n), np.empty((k, k)), Pn)
+    Pi = projector(cfg, n)
+    k = Pi.shape[0]
+    wd = diagonal_factors(cfg, n)
+    if wd.shape[0] and il != 1.0:            # diagonal: P^- = L^-1/2 P L^-1/2 + Q
+        diagonal_time_update(P, wd, Q, Pi, np.empty((k, k)), Pn)
+    else:
+        time_update(P, il, Q, Pi, np.empty((k, k)), Pn)
 
 
 #: The flags `update_kernel` returns, added: a regressor with NaN or inf (nothing
@@ -425,7 +516,7 @@ def update_kernel(x, P, H, z, r, cfg, w, xn, Pn, y, K, S, SI):
         v = phi[i]
         if v - v != 0.0:                     # NaN or inf
             return BAD_ROW, np.nan
-    plain = cfg.shape[0] == CFG_PI           # no constraints
+    plain = unconstrained(cfg, n)            # no constraints
     k = 0 if plain and int(cfg[CFG_MODE]) != EFRA else n     # (n, n) work: Pi P Pi, EFRA
     s, lam_t, gated, cap = measurement_update(x, P, phi, z[:, 0], any_nan(z[:, 0]), r, cfg,
                                               projector(cfg, n), np.empty(n), y[:, 0],
@@ -527,6 +618,8 @@ def step_batch(x, P, Z, Hm, Rv, il, Q, update_first, cfg, basis,
     N = Z.shape[0]
     n, m = x.shape
     Pi = projector(cfg, n)
+    wd = diagonal_factors(cfg, n)
+    plain = unconstrained(cfg, n)
     r_each = Rv.shape[0] == N
     g = np.empty(n)
     y = np.empty(m)
@@ -543,7 +636,7 @@ def step_batch(x, P, Z, Hm, Rv, il, Q, update_first, cfg, basis,
     for k in range(N):
         if not update_first:
             w = il if cap else 1.0
-            _time_step(x, P, 1.0 if cap else il, Q, Pi, T, k, N, means_p, covs_p,
+            _time_step(x, P, 1.0 if cap else il, wd, Q, Pi, T, k, N, means_p, covs_p,
                        x_prior, P_prior)
         z = Z[k]
         n_capped += w != 1.0
@@ -561,10 +654,10 @@ def step_batch(x, P, Z, Hm, Rv, il, Q, update_first, cfg, basis,
         if k == N - 1:
             copy2(x, x_post)
             copy2(P, P_post)
-        cheap_bad = cfg.shape[0] == CFG_PI and diagonal_bad(P)
+        cheap_bad = plain and diagonal_bad(P)
         if update_first:
             w = il if cap else 1.0
-            _time_step(x, P, 1.0 if cap else il, Q, Pi, T, k, N, means_p, covs_p,
+            _time_step(x, P, 1.0 if cap else il, wd, Q, Pi, T, k, N, means_p, covs_p,
                        x_prior, P_prior)
         countdown -= 1                 # zero when (step0 + k + 1) % check_every == 0
         due = countdown == 0
@@ -581,9 +674,12 @@ def step_batch(x, P, Z, Hm, Rv, il, Q, update_first, cfg, basis,
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _time_step(x, P, il, Q, Pi, T, k, N, means_p, covs_p, x_prior, P_prior):
-    """`time_update` in `step_batch`, with its histories (and the last prior)."""
-    if il != 1.0 or Q.shape[0] or Pi.shape[0]:
+def _time_step(x, P, il, wd, Q, Pi, T, k, N, means_p, covs_p, x_prior, P_prior):
+    """`time_update` in `step_batch` (`diagonal_time_update` with the diagonal mode's
+    factors `wd`), with its histories (and the last prior)."""
+    if wd.shape[0] and il != 1.0:
+        diagonal_time_update(P, wd, Q, Pi, T, P)
+    elif il != 1.0 or Q.shape[0] or Pi.shape[0]:
         time_update(P, il, Q, Pi, T, P)
     if means_p.shape[0]:
         copy2(x, means_p[k])
@@ -1051,7 +1147,9 @@ def run_batch(x, P, Z, Hm, Rv, cfg, Q, basis, update_first, store_covariances,
     if scales is not None:
         hsc, zsc, msc, ysc = (np.ascontiguousarray(a, dtype=np.float64) for a in scales)
     mode, lam, gate = int(cfg[CFG_MODE]), cfg[CFG_LAM], cfg[CFG_GATE]
-    il = 1.0 / lam if mode == EXPONENTIAL else 1.0
+    # 1 / lam in the exponential mode; in the diagonal mode 1 / min(lam) (not 1 when it
+    # forgets: the time update then reads its factors from cfg)
+    il = 1.0 / lam if mode == EXPONENTIAL or mode == DIAGONAL else 1.0
     empty = np.zeros((0, 0))
     Qa = empty if Q is None else np.ascontiguousarray(Q, dtype=np.float64)
     Ba = np.zeros((n, 0)) if basis is None else np.ascontiguousarray(basis, dtype=np.float64)

@@ -369,18 +369,46 @@ class RecursiveLeastSquares(_FilterBase):
 
     @property
     def lam(self):
-        """Forgetting factor in (0, 1]."""
+        """Forgetting factor in (0, 1]; with ``forgetting="diagonal"`` the factors of
+        the parameters, a read-only array of shape ``(dim_x,)`` (assign a number or an
+        array of that shape)."""
         return self._lam
 
     @lam.setter
     @_locked
     def lam(self, value):
-        lam = check_lam(value)
-        params = _fg.mode_params(self._mode, self._forgetting_params_in, self.dim_x, lam,
+        self._set_lam(self._mode, value)
+
+    def _set_lam(self, mode, value):
+        """Validate `value` for forgetting `mode` and configure it (all checks first)."""
+        if mode == _fg.DIAGONAL:
+            lam = _fg.diagonal_lam(value, self.dim_x)
+            lam_min = float(lam.min())
+        else:
+            if np.ndim(value) and np.size(value) > 1:
+                raise ValueError(
+                    f"`lam` must be a number for forgetting={_fg.MODES[mode]!r}; got an array "
+                    f"of shape {np.shape(value)} (one factor per parameter: "
+                    "forgetting='diagonal')")
+            lam = lam_min = check_lam(value)
+        params = _fg.mode_params(mode, self._forgetting_params_in, self.dim_x, lam_min,
                                  self._R, float(np.trace(self._P0)))
-        self._lam, self._params = lam, params
-        self._il = 1.0 / lam if self._mode == _fg.EXPONENTIAL else 1.0   # predict: P / lam
+        self._mode, self._lam, self._params = mode, lam, params
+        # predict: P / lam (exponential); P / sqrt(lam_i lam_j) (diagonal: 1 / min lam here,
+        # not 1 when it forgets: the kernels read the factors from the configuration)
+        self._il = 1.0 / lam_min if mode in _fg.TIME_UPDATE_MODES else 1.0
         self._configure()
+
+    @_locked
+    def _forget_per_parameter(self, lam):
+        """Switch an exponential (or diagonal) filter to ``forgetting="diagonal"`` with the
+        factors `lam` (`TuneResult.apply` of ``"lam_diag"``; the state and the windup
+        cap's decision are kept: both modes forget in the time update)."""
+        if self._mode not in _fg.TIME_UPDATE_MODES:
+            raise ValueError("a diagonal forgetting factor applies to a filter with "
+                             "forgetting='exponential' or 'diagonal'; got "
+                             f"forgetting={self.forgetting!r}")
+        self._set_lam(_fg.DIAGONAL, lam)
 
     @property
     def forgetting(self):
@@ -630,7 +658,10 @@ class RecursiveLeastSquares(_FilterBase):
         """
         from scipy.linalg import solve_triangular  # lazy: keeps `import rlsfilt` light
         Z, Hm = self._as_batch(zs, Hs)
-        w = self._lam ** (0.5 * np.arange(len(Z) - 1, -1, -1.0))
+        # (diagonal forgetting has no weighted least-squares form: its batch start does
+        # not weight the rows)
+        lam = 1.0 if self._mode == _fg.DIAGONAL else self._lam
+        w = lam ** (0.5 * np.arange(len(Z) - 1, -1, -1.0))
         keep = ~np.isnan(Z).any(axis=1)
         A = Hm[keep] * w[keep, None]
         B = Z[keep] * w[keep, None]
@@ -1039,7 +1070,7 @@ class RecursiveLeastSquares(_FilterBase):
         self.n_updates = 0
         self.n_capped = 0
         self._cap, self._w = False, 1.0     # the windup cap: see predict()
-        self.lam_t = self._lam
+        self.lam_t = float(np.min(self._lam))
         self._warned_health = False
         self._efra_pending = self._mode == _fg.EFRA
         self._recheck = True          # check the state (and start EFRA) at the next step
