@@ -486,6 +486,33 @@ def test_arx_fit_tunes_on_its_regressor_rows(rng, param):
         ARX(1, 1).fit(u, y, "rls", lam="auto")
 
 
+@pytest.mark.parametrize("scale", [1.0, 1e-6])
+def test_arx_fit_runs_a_tuned_diagonal_forgetting(rng, scale, tmp_path):
+    """``ARX.fit(method="rls", forgetting="diagonal", lam=estimate)`` with the estimate of
+    ``tune(..., "lam_diag")`` on the model's rows equals that filter run by hand on them
+    (batch start on the first rows, then batch_filter; bit for bit, in any units), and
+    the per-parameter ``lam_`` is kept by save/load; an array `lam` without it is refused
+    naming `lam`."""
+    from rlsfilt import ARX, load_model, save_model
+
+    u, y = drifting_plant(rng)
+    y = scale * y
+    Phi, target = ARX(1, 1).regressors(u, y)
+    lam = RecursiveLeastSquares(2, P0=100.0).tune(target, Phi, "lam_diag", burn=2).estimate
+    model = ARX(1, 1).fit(u, y, "rls", forgetting="diagonal", lam=lam)
+    f = RecursiveLeastSquares(2, lam=lam, forgetting="diagonal", check_every=0)
+    f.initialize(target[:2], Phi[:2])
+    f.batch_filter(target[2:], Phi[2:])
+    assert_array_equal(model.theta_, f.x[:, 0])
+    assert_array_equal(model.lam_, lam) and model.filter_.forgetting == "diagonal"
+    assert "lam=[" in str(model.summary()) and model.to_dict()["lam"] == list(lam)
+    save_model(model, tmp_path / "m.json")
+    assert_array_equal(load_model(tmp_path / "m.json").lam_, lam)
+    with pytest.raises(ValueError, match=r"`lam` must be a number for forgetting='exponential'"
+                                         r"; got an array of shape \(2,\)"):
+        ARX(1, 1).fit(u, y, "rls", lam=lam)
+
+
 @pytest.mark.parametrize("param", ["lam", "Q"])
 def test_fit_many_tunes_every_channel_as_arx_fit(rng, param):
     """``fit_many(..., lam="tune")``: each channel's estimate and fit equal
