@@ -16,6 +16,9 @@ One step, for every forgetting mode (the codes of
                                             mode, 1 when the windup cap holds the
                                             forgetting back; the other modes forget
                                             in the update)
+    P_ij <- P_ij (w_i w_j) + Q_ij           diagonal_time_update (the diagonal mode:
+                                            P^- = L^-1/2 P L^-1/2 + Q, w_i = lam_i^-1/2
+                                            from the configuration, diagonal_factors)
     g = P phi;  q = phi . g                 measurement_update
     s = w q + r                             w = il if the forgetting was held back, else 1
     y = z - phi x                           per output
@@ -24,6 +27,8 @@ One step, for every forgetting mode (the codes of
                  cu = c, or cu = w^2 c - (w - 1)/q when held back (the held-back
                  forgetting P <- P + (w - 1) g g^T / q along the regressor, and
                  the update, in one rank-one term)
+    diagonal: as exponential; held back, w = phi L^-1/2 P L^-1/2 phi^T / q
+              (held_back_factor: the growth of phi P phi^T the time update would give)
     directional, constant_trace, efra, variable: the formulas of _reference.update_<mode>
     P <- Pi P Pi
 
@@ -314,7 +319,9 @@ def measurement_update(x, P, phi, z, missing, r, cfg, Pi, g, y, K, T, w, xn, Pn)
     (m,; NaN when missing) and the gain ``K`` (n,; zero when missing or
     gated). `cfg` is ``forgetting.kernel_config``, `Pi` its projector; `T`
     is (n, n) work; `w` is ``1 / lam`` when the last time update held the
-    forgetting back (the windup cap, exponential mode) and 1 otherwise.
+    forgetting back (the windup cap, exponential mode) and 1 otherwise (the
+    diagonal mode: any value but 1 says held back; the factor is
+    `held_back_factor`).
 
     Returns
     -------

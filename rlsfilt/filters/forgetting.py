@@ -2,10 +2,12 @@ r"""Forgetting modes of recursive least squares: names, codes and constants.
 
 Plain exponential forgetting (``P <- P / lam`` in every step) winds up: when
 the regressor stops exciting some direction, nothing ever shrinks ``P`` in
-that direction again and it grows like ``lam**-k`` (covariance windup). The
-other modes bound ``P`` by forgetting only what new data replaces; they
-forget inside the measurement update, because they need the step's
-regressor or residual.
+that direction again and it grows like ``lam**-k`` (covariance windup).
+Diagonal forgetting (``P <- L^-1/2 P L^-1/2``, ``L = diag(lam)``: a factor per
+parameter) forgets in the time update too, and shares the exponential mode's
+windup cap (`TIME_UPDATE_MODES`). The other modes bound ``P`` by forgetting
+only what new data replaces; they forget inside the measurement update,
+because they need the step's regressor or residual.
 
 This module is the one home of the modes' configuration: their names
 (:data:`MODES`), the integer codes the compiled kernels dispatch on, the
