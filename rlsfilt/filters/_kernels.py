@@ -176,7 +176,7 @@ def time_update(P, il, Q, Pi, T, Pn):
         project(Pn, Pi, T)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def diagonal_time_update(P, wd, Q, Pi, T, Pn):
     """The diagonal mode's ``Pn = L^-1/2 P L^-1/2 + Q`` (``L = diag(lam)``), entry by
     entry ``Pn_ij = P_ij (w_i w_j) + Q_ij`` with ``w_i = 1 / sqrt(lam_i)`` (`wd`;
@@ -197,22 +197,24 @@ def diagonal_time_update(P, wd, Q, Pi, T, Pn):
         project(Pn, Pi, T)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
-def held_back_factor(P, phi, g, wd):
+@njit(cache=True, error_model="numpy")
+def held_back_factor(P, phi, wd):
     """The diagonal mode's forgetting along the regressor when the windup cap held its
     time update back: ``w = (phi L^-1/2 P L^-1/2 phi^T) / (phi P phi^T)``, the growth of
     ``phi P phi^T`` the held-back time update would have given (``1 / lam`` for equal
-    factors); 1 when ``phi P phi^T`` is not positive. ``g = P phi^T``."""
+    factors); 1 when ``phi P phi^T`` is not positive. (Called by the step's callers,
+    before `measurement_update`, which takes it as its `w`.)"""
     n = P.shape[0]
     q = 0.0
     qa = 0.0
     for i in range(n):
-        q += phi[i] * g[i]
-        ui = phi[i] * wd[i]
         acc = 0.0
+        acc_w = 0.0
         for j in range(n):
-            acc += P[i, j] * (phi[j] * wd[j])
-        qa += ui * acc
+            acc += P[i, j] * phi[j]
+            acc_w += P[i, j] * (phi[j] * wd[j])
+        q += phi[i] * acc
+        qa += (phi[i] * wd[i]) * acc_w
     return qa / q if q > 0.0 else 1.0
 
 
@@ -319,9 +321,8 @@ def measurement_update(x, P, phi, z, missing, r, cfg, Pi, g, y, K, T, w, xn, Pn)
     (m,; NaN when missing) and the gain ``K`` (n,; zero when missing or
     gated). `cfg` is ``forgetting.kernel_config``, `Pi` its projector; `T`
     is (n, n) work; `w` is ``1 / lam`` when the last time update held the
-    forgetting back (the windup cap, exponential mode) and 1 otherwise (the
-    diagonal mode: any value but 1 says held back; the factor is
-    `held_back_factor`).
+    forgetting back (the windup cap, exponential mode), `held_back_factor` in the
+    diagonal mode, and 1 otherwise.
 
     Returns
     -------
@@ -339,8 +340,6 @@ def measurement_update(x, P, phi, z, missing, r, cfg, Pi, g, y, K, T, w, xn, Pn)
     lam = cfg[CFG_LAM]
     timed = mode == EXPONENTIAL or mode == DIAGONAL       # forgets in the time update
     gain(P, phi, g)                          # g = P H^T
-    if mode == DIAGONAL and w != 1.0:        # held back: w = phi P^-_diag phi^T / phi P phi^T
-        w = held_back_factor(P, phi, g, diagonal_factors(cfg, n))
     q, s, yy, updated, gated = _innovation(x, phi, z, missing, r, w, cfg[CFG_GATE], g, y)
     lam_skip = lam if timed else 1.0
     if not updated:
@@ -442,23 +441,29 @@ def measurement_update(x, P, phi, z, missing, r, cfg, Pi, g, y, K, T, w, xn, Pn)
         copy2(x, xn)
     if Pi.shape[0] and (updated or w != 1.0):   # keep A P = 0 (a sample skipped with no
         project(Pn, Pi, T)                      # forgetting held back leaves P, as every mode)
-    cap = False
-    if mode == EXPONENTIAL:
+    cap = False                              # (the diagonal mode's: `diagonal_windup_cap`,
+    if mode == EXPONENTIAL:                  # which the callers decide)
         hph = q * r * (w * (1.0 / s)) if updated else q * w    # phi P phi^T after the update
         tr, spread, _ = _diagonal_stats(Pn, g, 0.0, phi, phi.shape[0])   # of the updated P
         cap = windup_cap(tr, spread, hph, 1.0 / lam, cfg)
-    elif mode == DIAGONAL and lam != 1.0:
-        hph = q * r * (w * (1.0 / s)) if updated else q * w
-        cap = _diagonal_windup_cap(Pn, phi, hph, diagonal_factors(cfg, n), cfg,
-                                   unconstrained(cfg, n))
     return s, lam_t, gated, cap
 
 
-@njit(cache=True, error_model="numpy", inline="always")
-def _diagonal_windup_cap(P, phi, hph, wd, cfg, plain):
-    """`windup_cap` of the diagonal mode, on the updated `P`: hold the next time update
-    back when the trace after it, ``sum_i P_ii / lam_i``, would exceed ``trace_max``, or
-    when ``sum_i P_ii phi_i^2 > spread_max phi P phi^T`` (without constraints: `plain`)."""
+@njit(cache=True, error_model="numpy")
+def diagonal_windup_cap(P, phi, g, s, r, w, updated, wd, cfg, plain):
+    """`windup_cap` of the diagonal mode, after `measurement_update` (``P`` the updated
+    covariance, `g`, `s`, `w` those of the step, `updated` False for a missing or gated
+    sample): hold the next time update back when the trace after it,
+    ``sum_i P_ii / lam_i``, would exceed ``trace_max``, or when
+    ``sum_i P_ii phi_i^2 > spread_max phi P phi^T`` (without constraints: `plain`).
+    Never when every factor is 1. (Called by `step_batch` and `update_kernel` outside
+    the step every other mode shares, so their loops carry no trace of it.)"""
+    if cfg[CFG_LAM] == 1.0:
+        return False
+    q = 0.0
+    for i in range(phi.shape[0]):
+        q += phi[i] * g[i]
+    hph = q * r * (w * (1.0 / s)) if updated else q * w    # phi P phi^T after the update
     tr = 0.0
     spread = 0.0
     for i in range(P.shape[0]):
@@ -525,9 +530,16 @@ def update_kernel(x, P, H, z, r, cfg, w, xn, Pn, y, K, S, SI):
             return BAD_ROW, np.nan
     plain = unconstrained(cfg, n)            # no constraints
     k = 0 if plain and int(cfg[CFG_MODE]) != EFRA else n     # (n, n) work: Pi P Pi, EFRA
-    s, lam_t, gated, cap = measurement_update(x, P, phi, z[:, 0], any_nan(z[:, 0]), r, cfg,
-                                              projector(cfg, n), np.empty(n), y[:, 0],
+    wd = diagonal_factors(cfg, n)
+    if wd.shape[0] and w != 1.0:             # diagonal, held back: its factor along H
+        w = held_back_factor(P, phi, wd)
+    g = np.empty(n)
+    missing = any_nan(z[:, 0])
+    s, lam_t, gated, cap = measurement_update(x, P, phi, z[:, 0], missing, r, cfg,
+                                              projector(cfg, n), g, y[:, 0],
                                               K[:, 0], np.empty((k, k)), w, xn, Pn)
+    if wd.shape[0]:
+        cap = diagonal_windup_cap(Pn, phi, g, s, r, w, not (missing or gated), wd, cfg, plain)
     for i in range(m):
         for j in range(m):
             S[i, j] = s if i == j else 0.0
@@ -599,7 +611,7 @@ def _unhealthy_call(P, cond_max, exact):
 def step_batch(x, P, Z, Hm, Rv, il, Q, update_first, cfg, basis,
                means, means_p, covs, covs_p, ys, ss, gated,
                x_prior, P_prior, x_post, P_post, K, check_every, step0, cond_max,
-               state, episodes, P_fail, symmetric):
+               state, episodes, P_fail, symmetric, wd):
     """`time_update` and `measurement_update` over a record, in place on ``x``, ``P``.
 
     ``Z`` (N, m; NaN rows missing), ``Hm`` (N, n), ``Rv`` (N,) or (1,) (one
@@ -615,7 +627,9 @@ def step_batch(x, P, Z, Hm, Rv, il, Q, update_first, cfg, basis,
     ``[armed, n_episodes, n_capped, cap, w]`` on entry and exit: the
     health-check state, the count of updates whose forgetting the windup
     cap held back, whether the next time update must hold it back, and
-    ``1 / lam`` when the last one did (else 1).
+    ``1 / lam`` when the last one did (else 1). `wd` is None but in the diagonal
+    mode, where it holds its factors ``1 / sqrt(lam_i)`` (`diagonal_factors`): its
+    branches are then compiled in, and only then (numba prunes ``wd is None``).
 
     Returns
     -------
@@ -625,7 +639,6 @@ def step_batch(x, P, Z, Hm, Rv, il, Q, update_first, cfg, basis,
     N = Z.shape[0]
     n, m = x.shape
     Pi = projector(cfg, n)
-    wd = diagonal_factors(cfg, n)
     plain = unconstrained(cfg, n)
     r_each = Rv.shape[0] == N
     g = np.empty(n)
@@ -643,13 +656,23 @@ def step_batch(x, P, Z, Hm, Rv, il, Q, update_first, cfg, basis,
     for k in range(N):
         if not update_first:
             w = il if cap else 1.0
-            _time_step(x, P, 1.0 if cap else il, wd, Q, Pi, T, k, N, means_p, covs_p,
-                       x_prior, P_prior)
+            if wd is None:
+                _time_step(x, P, 1.0 if cap else il, Q, Pi, T, k, N, means_p, covs_p,
+                           x_prior, P_prior)
+            else:
+                _diagonal_time_step(x, P, il != 1.0 and not cap, wd, Q, Pi, T, k, N, means_p,
+                                    covs_p, x_prior, P_prior)
         z = Z[k]
         n_capped += w != 1.0
-        s, lam_t, gk, cap = measurement_update(x, P, Hm[k], z, any_nan(z),
-                                               Rv[k if r_each else 0], cfg, Pi, g, y, K, T, w,
-                                               x, P)
+        if wd is not None:
+            if w != 1.0:                     # diagonal, held back: its factor along H
+                w = held_back_factor(P, Hm[k], wd)
+        r = Rv[k if r_each else 0]
+        s, lam_t, gk, cap = measurement_update(x, P, Hm[k], z, any_nan(z), r, cfg, Pi, g, y,
+                                               K, T, w, x, P)
+        if wd is not None:
+            cap = diagonal_windup_cap(P, Hm[k], g, s, r, w, not (gk or any_nan(z)), wd, cfg,
+                                      plain)
         w = 1.0
         ss[k] = s
         gated[k] = gk
@@ -664,8 +687,12 @@ def step_batch(x, P, Z, Hm, Rv, il, Q, update_first, cfg, basis,
         cheap_bad = plain and diagonal_bad(P)
         if update_first:
             w = il if cap else 1.0
-            _time_step(x, P, 1.0 if cap else il, wd, Q, Pi, T, k, N, means_p, covs_p,
-                       x_prior, P_prior)
+            if wd is None:
+                _time_step(x, P, 1.0 if cap else il, Q, Pi, T, k, N, means_p, covs_p,
+                           x_prior, P_prior)
+            else:
+                _diagonal_time_step(x, P, il != 1.0 and not cap, wd, Q, Pi, T, k, N, means_p,
+                                    covs_p, x_prior, P_prior)
         countdown -= 1                 # zero when (step0 + k + 1) % check_every == 0
         due = countdown == 0
         if due:
@@ -681,13 +708,28 @@ def step_batch(x, P, Z, Hm, Rv, il, Q, update_first, cfg, basis,
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _time_step(x, P, il, wd, Q, Pi, T, k, N, means_p, covs_p, x_prior, P_prior):
-    """`time_update` in `step_batch` (`diagonal_time_update` with the diagonal mode's
-    factors `wd`), with its histories (and the last prior)."""
-    if wd.shape[0] and il != 1.0:
-        diagonal_time_update(P, wd, Q, Pi, T, P)
-    elif il != 1.0 or Q.shape[0] or Pi.shape[0]:
+def _time_step(x, P, il, Q, Pi, T, k, N, means_p, covs_p, x_prior, P_prior):
+    """`time_update` in `step_batch`, with its histories (and the last prior)."""
+    if il != 1.0 or Q.shape[0] or Pi.shape[0]:
         time_update(P, il, Q, Pi, T, P)
+    _record_prior(x, P, k, N, means_p, covs_p, x_prior, P_prior)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _diagonal_time_step(x, P, forget, wd, Q, Pi, T, k, N, means_p, covs_p, x_prior,
+                        P_prior):
+    """`_time_step` of the diagonal mode: `diagonal_time_update` when it `forget`s (not
+    held back by the windup cap), else ``P + Q`` (`time_update` with ``il = 1``)."""
+    if forget:
+        diagonal_time_update(P, wd, Q, Pi, T, P)
+    elif Q.shape[0] or Pi.shape[0]:
+        time_update(P, 1.0, Q, Pi, T, P)
+    _record_prior(x, P, k, N, means_p, covs_p, x_prior, P_prior)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _record_prior(x, P, k, N, means_p, covs_p, x_prior, P_prior):
+    """The histories of a time update in `step_batch` (and the last prior)."""
     if means_p.shape[0]:
         copy2(x, means_p[k])
     if covs_p.shape[0]:
@@ -1216,7 +1258,7 @@ def run_batch(x, P, Z, Hm, Rv, cfg, Q, basis, update_first, store_covariances,
             out.means, np.empty((0, n, m)), covs, covs_p, out.ys, out.ss, out.gated,
             out.x_prior, out.P_prior, out.x_post, out.P_post, K,
             int(check_every), int(step0), float(cond_max), out.state, out.episodes,
-            out.P_fail, symmetric)
+            out.P_fail, symmetric, cfg[CFG_PI:CFG_PI + n].copy() if mode == DIAGONAL else None)
         if scales is not None:                        # inf where beyond the double range
             with np.errstate(over="ignore", under="ignore"):
                 np.multiply(out.means, msc, out=out.means)
