@@ -508,8 +508,10 @@ def update_kernel(x, P, H, z, r, cfg, w, xn, Pn, y, K, S, SI):
 
     Writes the new estimate ``xn`` (n, m) and covariance ``Pn`` (n, n), the
     residual ``y`` (m, 1), the gain ``K`` (n, 1), ``S = s I`` and ``SI = I / s``
-    (m, m). `w` as in `measurement_update`. The same operations as one step of
-    `step_batch`, so streaming and ``batch_filter`` agree bit for bit.
+    (m, m). `w` as in `measurement_update` (in the diagonal mode any value but 1
+    says held back: its `held_back_factor` is computed here, and the windup cap by
+    `diagonal_windup_cap`). The same operations as one step of `step_batch`, so
+    streaming and ``batch_filter`` agree bit for bit.
 
     Returns
     -------
