@@ -376,6 +376,16 @@ def test_diagonal_lam_is_validated_and_read_only():
     with pytest.raises(TypeError, match=r"unknown keys \['eps'\] for forgetting='diagonal'; "
                                         r"allowed: spread_max, trace_max"):
         RecursiveLeastSquares(3, forgetting="diagonal", forgetting_params={"eps": 1})
+    from rlsfilt import ARMAX, RLSBank
+
+    with pytest.raises(ValueError, match=r"`forgetting` must be one of 'exponential', "
+                                         r"'directional', 'constant_trace' for RLSBank; got "
+                                         r"'diagonal'"):
+        RLSBank(2, 3, forgetting="diagonal")
+    u = np.sin(np.arange(100.0))
+    with pytest.raises(ValueError, match="`forgetting` must not be 'diagonal' for the recursive "
+                                         "prediction-error fits"):
+        ARMAX(1, 1, 1).fit(u, np.roll(u, 1), method="rpem", forgetting="diagonal")
 
 
 def test_diagonal_batch_start_does_not_weight_the_rows(rng):
