@@ -384,7 +384,7 @@ def test_diagonal_forgetting_equals_the_numpy_reference_and_its_maximum(rng):
     lo, hi = fit.interval()
     free = ~np.isnan(fit.stderr)
     assert free[1] and np.all(lo[free] < fit.estimate[free]) and np.all(hi <= 1.0)
-    assert "lam[1]" in str(fit.summary())
+    assert "lam[1]" in str(fit.summary()) and "lam[1]" in fit.summary().as_html()
 
 
 def _innovation_loglik(f, Z, H, burn=0):

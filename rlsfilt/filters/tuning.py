@@ -243,7 +243,8 @@ class TuneResult:
                          f"{hi[i]:.6g}])")
         lines.append(f"  R        {self.R:.6g}")
         lines.append(f"  loglik   {self.loglik:.6f}")
-        rows = [[self.param if len(est) == 1 else f"q[{i}]", f"{est[i]:.6g}", f"{se[i]:.3g}",
+        rows = [[self.param if len(est) == 1 else f"{self.param.split('_')[0]}[{i}]",
+                 f"{est[i]:.6g}", f"{se[i]:.3g}",
                  f"[{lo[i]:.6g}, {hi[i]:.6g}]"] for i in range(len(est))]
         rows += [["R", f"{self.R:.6g}", "", ""], ["loglik", f"{self.loglik:.6f}", "", ""]]
         page = frame_html(html.escape(lines[0]),
