@@ -689,9 +689,16 @@ def _arx_fitted(model, raw, version):
     if "k0_" in raw:
         out["k0_"] = _int(raw["k0_"], "fitted.k0_", 0)
     if "lam_" in raw:
-        out["lam_"] = _number(raw["lam_"], "fitted.lam_", positive=True)
-        if out["lam_"] > 1.0:
-            _fail("fitted.lam_", "must be in (0, 1]", raw["lam_"])
+        if isinstance(raw["lam_"], dict):        # one factor per parameter (diagonal)
+            out["lam_"] = _array(raw["lam_"], "fitted.lam_", (n_params,))
+            bad = ~((out["lam_"] > 0.0) & (out["lam_"] <= 1.0))
+            if bad.any():
+                i = int(np.flatnonzero(bad)[0])
+                _fail(f"fitted.lam_[{i}]", "must be in (0, 1]", float(out["lam_"][i]))
+        else:
+            out["lam_"] = _number(raw["lam_"], "fitted.lam_", positive=True)
+            if out["lam_"] > 1.0:
+                _fail("fitted.lam_", "must be in (0, 1]", raw["lam_"])
     if "form_" in raw:
         out["form_"] = _text(raw["form_"], "fitted.form_",
                              ("covariance", "square_root", "window"))

@@ -64,6 +64,8 @@ robust.constrain([1.0, 1.0, 0.0], -1.0)
 robust.batch_filter(z, H, store_covariances=False)
 robust.predict()
 robust.update(1.0, H[0])
+diagonal = rlsfilt.RecursiveLeastSquares(3, lam=[0.99, 0.98, 1.0], forgetting="diagonal")
+diagonal.batch_filter(z, H, store_covariances=False)
 """),
     ("SlidingWindowRLS", """
 sw = rlsfilt.SlidingWindowRLS(3, 8, check_every=7)

@@ -21,7 +21,14 @@ import numpy as np
 from scipy.linalg import solve_triangular
 from scipy.linalg.lapack import dtrtri
 
-from rlsfilt.filters.forgetting import CONSTANT_TRACE, DIRECTIONAL, EFRA, EXPONENTIAL, VARIABLE
+from rlsfilt.filters.forgetting import (
+    CONSTANT_TRACE,
+    DIAGONAL,
+    DIRECTIONAL,
+    EFRA,
+    EXPONENTIAL,
+    VARIABLE,
+)
 
 __all__ = []
 
@@ -32,11 +39,13 @@ __all__ = []
 def rls_predict(P, lam, Q=None, Pi=None, cap=False):
     """Time update ``P^- = P / lam + Q`` (then ``Pi P^- Pi`` with constraints).
 
-    With `cap` (the windup cap of the last update, `windup_cap`) the division
-    by `lam` is held back: the next `rls_update` forgets along its regressor.
+    `lam` an array (the diagonal mode): ``P^- = L^-1/2 P L^-1/2 + Q`` with
+    ``L = diag(lam)`` (`diagonal_predict`). With `cap` (the windup cap of the
+    last update, `windup_cap`) the forgetting is held back: the next
+    `rls_update` forgets along its regressor.
     """
     if not cap:
-        P = P / lam
+        P = diagonal_predict(P, lam) if np.ndim(lam) else P / lam
     if Q is not None:
         P = P + Q
     return P if Pi is None else project(P, Pi)
@@ -59,7 +68,7 @@ def rls_update(x, P, phi, z, r, mode=EXPONENTIAL, params=(), lam=1.0, gate=None,
         P = forget_along(P, phi, lam)
     g = P @ phi.T                                   # g = P H^T
     s = (phi @ g).item() + r                        # S = H P H^T + R
-    lam_skip = lam if mode == EXPONENTIAL else 1.0
+    lam_skip = np.min(lam) if mode in (EXPONENTIAL, DIAGONAL) else 1.0
     gated = False
     if z is None:
         y = None
@@ -73,23 +82,45 @@ def rls_update(x, P, phi, z, r, mode=EXPONENTIAL, params=(), lam=1.0, gate=None,
         if Pi is not None:                          # keep A P = 0
             P = project(P, Pi)
         hph = (s - r) * r / s                       # phi P phi^T after the update
-    cap = mode == EXPONENTIAL and windup_cap(P, phi, hph, lam, params, Pi is not None)
+    cap = (mode in (EXPONENTIAL, DIAGONAL)
+           and windup_cap(P, phi, hph, lam, params, Pi is not None))
     return x, P, y, K, s, lam_t, gated, cap
+
+
+def diagonal_predict(P, lam):
+    r"""The time update of diagonal (per-parameter) forgetting, without ``Q``:
+
+    .. math:: P^- = L^{-1/2} P L^{-1/2},\qquad L = \operatorname{diag}(\lambda_1,
+              \dots, \lambda_n),
+
+    i.e. :math:`P^-_{ij} = P_{ij} / \sqrt{\lambda_i \lambda_j}`: parameter ``i``
+    forgets with its own factor (a memory of about :math:`1/(1 - \lambda_i)`
+    samples); equal factors are exponential forgetting, ``P / lam``.
+    """
+    w = 1.0 / np.sqrt(lam)
+    return P * np.outer(w, w)       # (elementwise: exactly symmetric, as P; L^-1/2 P L^-1/2
+    #                                 as two products is not, and its asymmetry grows)
 
 
 def forget_along(P, phi, lam):
     r"""The forgetting of one step along the regressor only (directional forgetting).
 
     .. math:: g = P \phi^T,\quad q = \phi g,\qquad
-              P \leftarrow P + (1/\lambda - 1)\, g g^T / q
+              P \leftarrow P + (w - 1)\, g g^T / q
 
-    so that :math:`\phi P \phi^T` grows by :math:`1/\lambda` as under exponential
-    forgetting, while every direction the regressor does not excite keeps its
-    ``P`` (a zero regressor changes nothing).
+    with :math:`w = 1/\lambda` (exponential), so that :math:`\phi P \phi^T` grows by
+    :math:`1/\lambda` as under exponential forgetting, while every direction the
+    regressor does not excite keeps its ``P`` (a zero regressor changes nothing).
+    With a vector `lam` (diagonal forgetting) :math:`w = \phi L^{-1/2} P L^{-1/2}
+    \phi^T / q`, the growth the diagonal time update would give
+    :math:`\phi P \phi^T` (``1 / lam`` again when the factors are equal).
     """
     g = P @ phi.T
     q = (phi @ g).item()
-    return P + ((1.0 / lam - 1.0) / q) * (g * g.T) if q > 0.0 else P
+    if not q > 0.0:
+        return P
+    w = (phi @ diagonal_predict(P, lam) @ phi.T).item() / q if np.ndim(lam) else 1.0 / lam
+    return P + ((w - 1.0) / q) * (g * g.T)
 
 
 def windup_cap(P, phi, hph, lam, params, constrained=False):
@@ -106,12 +137,14 @@ def windup_cap(P, phi, hph, lam, params, constrained=False):
     units of each regressor; the ratio is at most ``dim_x`` times the
     condition number of the correlation matrix of ``P``. Never with ``lam =
     1``; the spread test is off under constraints (``P`` is singular there).
+    With a vector `lam` (diagonal forgetting) the trace after its time update,
+    :math:`\sum_i P_{ii} / \lambda_i`, and never when every factor is 1.
     """
-    if lam == 1.0:
+    if np.all(lam == 1.0):
         return False
     spread_max, trace_max = params
     d = np.diagonal(P)
-    if d.sum() / lam > trace_max:
+    if np.sum(d / lam) > trace_max:
         return True
     return (not constrained and spread_max < np.inf
             and float(d @ (phi[0] * phi[0])) > spread_max * hph)
@@ -196,9 +229,18 @@ def update_variable(x, P, y, g, s, r, lam, params):
     return x, Pb / lt, K, lt
 
 
+def update_diagonal(x, P, y, g, s, r, lam, params):
+    r"""Diagonal forgetting: the standard update (`update_exponential`); the forgetting
+    ``P^- = L^{-1/2} P L^{-1/2}`` happened in the predict (`diagonal_predict`).
+    ``lam_t`` is the smallest factor."""
+    x, P, K, _ = update_exponential(x, P, y, g, s, r, lam, params)
+    return x, P, K, np.min(lam)
+
+
 #: The measurement update of each mode, indexed by its code.
 UPDATES = {EXPONENTIAL: update_exponential, DIRECTIONAL: update_directional,
-           CONSTANT_TRACE: update_constant_trace, EFRA: update_efra, VARIABLE: update_variable}
+           CONSTANT_TRACE: update_constant_trace, EFRA: update_efra, VARIABLE: update_variable,
+           DIAGONAL: update_diagonal}
 
 
 def project(P, Pi):

@@ -13,7 +13,7 @@ kernel tests hold the compiled filters equal to these step by step.
 import _reference as ref
 import numpy as np
 
-from rlsfilt.filters.forgetting import EXPONENTIAL, clip_eigenvalues, efra_bounds
+from rlsfilt.filters.forgetting import TIME_UPDATE_MODES, clip_eigenvalues, efra_bounds
 
 
 def _record(zs, Hs, Rs, R, m):
@@ -48,7 +48,7 @@ def rls_run(f, zs, Hs, Rs=None, update_first=False):
     mode, params, lam, gate = f._mode, f._params, f.lam, f.gate
     Pi = f._Pi if f._Pi.size else None
     Q = f.Q if f.Q.any() else None
-    lam_time = lam if mode == EXPONENTIAL else 1.0      # the other modes forget in the update
+    lam_time = lam if mode in TIME_UPDATE_MODES else 1.0   # the others forget in the update
     x, P = f.x.copy(), f.P.copy()
     if f._efra_pending:                                 # EFRA's start: clip into its interval
         lo, hi = efra_bounds(lam, *params)

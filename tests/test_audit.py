@@ -268,6 +268,12 @@ def _filter_entries(label, make):
     if label in ("RecursiveLeastSquares", "SquareRootRLS"):
         entries.append(Entry(f"{label}()", "lam", lambda v: _xp(_batch(make(lam=v))), 0.95,
                              kind="scalar", expect={"huge": ERROR, "tiny": WARNS}))
+    if label == "RecursiveLeastSquares":      # one factor per parameter (#30)
+        entries.append(Entry(f"{label}(forgetting='diagonal')", "lam",
+                             lambda v: _xp(_batch(make(lam=v, forgetting="diagonal"))),
+                             np.array([0.95, 0.99, 1.0]),
+                             # a number is every parameter's; 4, 4, 4 are not in (0, 1]
+                             expect={"0d": OK, "int": ERROR, "tiny": WARNS}))
     if label.startswith("RecursiveLeastSquares"):
         entries += [
             Entry(f"{label}()", "Q", lambda v: _xp(_batch(make(Q=v))), 1e-4 * np.eye(3),

@@ -298,7 +298,9 @@ class RLSModel(_Model):
         self.mode = MODES.index(f.forgetting)
         self.params = tuple(f.forgetting_params.values())
         self.lam, self.gate = f.lam, f.gate
-        self.exponential = f.forgetting == "exponential"
+        # the modes that forget in the time update (diagonal: `lam` one factor per parameter)
+        self.exponential = f.forgetting in ("exponential", "diagonal")
+        self.batch_lam = 1.0 if f.forgetting == "diagonal" else f.lam   # initialize's weights
         self.Q = f.Q if f.Q.any() else None
         self.A = self.b = self.Pi = None
         self.efra_interval = None
@@ -313,7 +315,7 @@ class RLSModel(_Model):
         self.x_prior, self.P_prior = self.x, self.P
         self.x_post, self.P_post = self.x, self.P
         self._fresh_diagnostics()
-        self.lam_t, self.gated, self.n_gated = self.lam, False, 0
+        self.lam_t, self.gated, self.n_gated = np.min(self.lam), False, 0
         self.cap = self.held_back = False
         self.efra = self.mode == MODES.index("efra")
         if self.A is not None:
@@ -362,7 +364,7 @@ class RLSModel(_Model):
         self._diagnostics(y, K, s, H)
 
     def initialize(self, zs, Hs):
-        A, B = self._weighted_rows(zs, Hs, self.lam)
+        A, B = self._weighted_rows(zs, Hs, self.batch_lam)
         Qf, Rf = np.linalg.qr(A)
         Ri = np.linalg.inv(Rf)
         self.x, self.P = Ri @ (Qf.T @ B), self.R * (Ri @ Ri.T)
@@ -616,8 +618,8 @@ SPECS = [
                  "the default trace dim_x R (1 - lam) is 0 at lam = 1: an explicit "
                  "forgetting_params['trace'] is needed", when=_needs_trace),
         Declared("trace_max", _not_default("trace_max"), TypeError,
-                 "trace_max is a constant of the exponential and variable modes only",
-                 when=lambda o: o["forgetting"] not in ("exponential", "variable"))),
+                 "trace_max is a constant of the exponential, diagonal and variable modes only",
+                 when=lambda o: o["forgetting"] not in ("exponential", "diagonal", "variable"))),
         extra=("lam_t", "gated", "n_gated")),
     FilterSpec("SquareRootRLS", _sr_make, SquareRootModel, declared=(
         Declared("forgetting", _not_default("forgetting"), TypeError,
@@ -681,6 +683,16 @@ def _spd(rng, n, scale):
     return scale * (B @ B.T / n + 0.5 * np.eye(n))
 
 
+def _lam(options, n, rng):
+    """The ``lam`` of the ``lam`` axis: the number, or for the diagonal mode one factor per
+    parameter around it (all different: not only its exponential special case), half of
+    them 1 (parameters that do not forget beside ones that do)."""
+    if options["forgetting"] != "diagonal":
+        return options["lam"]
+    lam = rng.uniform(options["lam"] - 0.05, 1.0, n)
+    return np.where(rng.random(n) < 0.25, 1.0, lam)
+
+
 def _build(spec, case, options, rng):
     """The filter of `case` (only options other than the defaults are passed) and
     the start its model takes."""
@@ -690,7 +702,7 @@ def _build(spec, case, options, rng):
     kw = {"P0": P0 if rng.random() < 0.5 else P0.copy(order="F"), "x0": x0,
           "R": (1.0, 0.5)[int(rng.integers(0, 2))]}
     if options["lam"] != 1.0:
-        kw["lam"] = options["lam"]
+        kw["lam"] = _lam(options, n, rng)
     if options["forgetting"] != "exponential":
         kw["forgetting"] = options["forgetting"]
     if options["Q"] == "scalar":
@@ -1041,6 +1053,28 @@ KNOWN = [_var_case(spec.name) for spec in SPECS] + [
     # the example filter kept a stale x_post on a missing sample, after an assigned x
     Case("NLMS-example", 2, 1, {"missing": "None"}, 0,
          (("assign", "x", "C"), ("predict_update", False, False))),
+    # diagonal forgetting (#30), run every time: every option at once with a copy, a
+    # batch run and a reset between steps; and the windup cap holding it back at once
+    # (trace_max = trace(P0)) with missing samples, streamed and in batch
+    Case("RecursiveLeastSquares", 3, 3, {"forgetting": "diagonal", "lam": 0.95, "Q": "matrix",
+                                         "missing": "NaN", "gate": 4.0, "constraints": True},
+         7, (("initialize", 1),) + (("predict_update", True, True),) * 3
+         + (("copy", "pickle", True), ("batch", 6, False, True), ("predict",),
+            ("update", False, True), ("read", STATE + ("extra",)), ("reset",),
+            ("batch", 5, True, False), ("read", STATE + ("extra",)))),
+    Case("RecursiveLeastSquares", 4, 2, {"forgetting": "diagonal", "lam": 0.95,
+                                         "trace_max": "trace(P0)", "missing": "None",
+                                         "Q": "scalar"}, 11,
+         (("predict_update", False, True),) * 4 + (("batch", 6, False, False),
+                                                    ("predict",), ("predict",),
+                                                    ("update", True, True),
+                                                    ("assign", "P", "F"),
+                                                    ("batch", 6, True, True),
+                                                    ("read", STATE + ("extra",)))),
+    Case("RecursiveLeastSquares", 2, 1, {"forgetting": "diagonal", "lam": 0.95,
+                                         "trace_max": "trace(P0)", "constraints": True}, 3,
+         (("predict_update", False, True),) * 3 + (("batch", 4, False, False),
+                                                    ("read", STATE + ("extra",)))),
     # a batch start that a missing sample makes rank-deficient: refused, nothing changed
     Case("SlidingWindowRLS", 2, 1, {"missing": "None"}, 0,
          (("initialize", 2), ("predict_update", False, False),

@@ -279,6 +279,139 @@ def test_bad_forgetting_arguments():
         RecursiveLeastSquares(2, gate=0)
 
 
+# ----------------------------------------------------------------------
+# diagonal (per-parameter) forgetting (#30)
+# ----------------------------------------------------------------------
+def test_diagonal_forgetting_on_separate_regressors_is_each_parameters_ewls(rng):
+    """Rows that excite one parameter each keep P diagonal, so each parameter is its own
+    scalar recursion forgetting with its own factor at every step: the estimate equals
+    exponentially weighted least squares of its samples, sample k weighted by
+    lam_i**(t - k) and the prior by lam_i**t / P0 (closed form, 1e-12)."""
+    N, lam, P0 = 300, np.array([0.9, 0.97, 1.0]), 4.0
+    axis = rng.integers(0, 3, N)
+    h = rng.uniform(0.5, 2.0, N)
+    Hs = np.zeros((N, 3))
+    Hs[np.arange(N), axis] = h
+    zs = h * np.array([1.0, -2.0, 0.5])[axis] + 0.1 * rng.standard_normal(N)
+    zs[[17, 150]] = np.nan
+    rls = RecursiveLeastSquares(3, lam=lam, forgetting="diagonal", P0=P0)
+    means = rls.batch_filter(zs, Hs)[0][:, :, 0]
+    for t in (0, 5, 40, 149, 150, N - 1):
+        age = t - np.arange(t + 1)                       # the prior is t + 1 steps old
+        for i in range(3):
+            on = (axis[:t + 1] == i) & ~np.isnan(zs[:t + 1])
+            w = lam[i] ** age[on]
+            info = lam[i] ** (t + 1) / P0 + np.sum(w * h[:t + 1][on] ** 2)
+            ewls = np.sum(w * h[:t + 1][on] * zs[:t + 1][on]) / info
+            assert_allclose(means[t, i], ewls, rtol=1e-12, atol=1e-14)
+    assert_allclose(rls.P, np.diag(np.diag(rls.P)), rtol=0, atol=0)
+
+
+def test_diagonal_forgetting_with_equal_factors_is_exponential(rng):
+    """Equal factors: P / sqrt(lam lam) is P / lam up to round-off (1e-12), and all factors
+    1 gives the plain recursion bit for bit (no time update runs)."""
+    Hs, zs = arx_record(rng, n_samples=300)
+    zs = zs.astype(float)
+    zs[[3, 100]] = np.nan
+    for lam in (0.95, 1.0):
+        a = RecursiveLeastSquares(4, lam=lam, Q=1e-5, P0=100.0)
+        b = RecursiveLeastSquares(4, lam=lam, Q=1e-5, P0=100.0, forgetting="diagonal")
+        ma, Pa, _, _ = a.batch_filter(zs, Hs)
+        mb, Pb, _, _ = b.batch_filter(zs, Hs)
+        if lam == 1.0:
+            assert_array_equal(mb, ma)
+            assert_array_equal(Pb, Pa)
+        else:
+            assert_allclose(mb, ma, rtol=1e-12, atol=1e-12 * np.abs(ma).max())
+            assert_allclose(Pb, Pa, rtol=1e-12, atol=1e-12 * np.abs(Pa).max())
+        assert b.lam_t == lam and np.array_equal(b.lam, np.full(4, lam))
+
+
+def test_diagonal_forgetting_tracks_the_drifting_parameter_only(rng):
+    """A constant parameter beside a drifting one: forgetting only the drifting one
+    tracks it as well as forgetting both, and estimates the constant one better."""
+    N = 4000
+    Hs = rng.standard_normal((N, 2))
+    drift = 1.0 + np.cumsum(0.01 * rng.standard_normal(N))
+    zs = Hs[:, 0] * 2.0 + Hs[:, 1] * drift + 0.3 * rng.standard_normal(N)
+    both = RecursiveLeastSquares(2, lam=0.97, R=0.09).batch_filter(zs, Hs)[0][:, :, 0]
+    one = RecursiveLeastSquares(2, lam=[1.0, 0.97], forgetting="diagonal",
+                                R=0.09).batch_filter(zs, Hs)[0][:, :, 0]
+    err = lambda m, i, truth: np.sqrt(np.mean((m[500:, i] - truth[500:]) ** 2))  # noqa: E731
+    const = np.full(N, 2.0)
+    assert err(one, 0, const) < 0.5 * err(both, 0, const)
+    assert err(one, 1, drift) < 1.1 * err(both, 1, drift)
+
+
+def test_diagonal_lam_is_validated_and_read_only():
+    rls = RecursiveLeastSquares(3, lam=[0.9, 0.99, 1.0], forgetting="diagonal")
+    assert rls.forgetting == "diagonal" and rls.lam_t == 0.9
+    assert rls.forgetting_params == {"spread_max": 1e15, "trace_max": 1e12 * 3e4}
+    with pytest.raises(ValueError, match="read-only"):
+        rls.lam[0] = 0.5
+    given = np.array([0.95, 0.9, 0.8])
+    rls.lam = given
+    given[0] = 0.1                                       # the filter keeps its own copy
+    assert_array_equal(rls.lam, [0.95, 0.9, 0.8])
+    rls.lam = 0.97                                       # a number: every parameter
+    assert_array_equal(rls.lam, np.full(3, 0.97))
+    assert_allclose(rls.alpha, np.full(3, 1 / np.sqrt(0.97)), rtol=1e-15)
+    before = rls.lam
+    with pytest.raises(ValueError, match=r"`lam` must be a number or have shape \(3,\) \(one "
+                                         r"forgetting factor per parameter, dim_x = 3\); got "
+                                         r"shape \(2,\)"):
+        rls.lam = [0.9, 0.9]
+    with pytest.raises(ValueError, match=r"`lam` must be in \(0, 1\]; got lam\[1\] = 1.5"):
+        rls.lam = [0.9, 1.5, 0.9]
+    with pytest.raises(ValueError, match=r"`lam` must be in \(0, 1\]; got lam\[2\] = nan"):
+        RecursiveLeastSquares(3, lam=[0.9, 0.9, np.nan], forgetting="diagonal")
+    with pytest.raises(TypeError, match="`lam` must be real"):
+        RecursiveLeastSquares(3, lam=[0.9j, 0.9, 0.9], forgetting="diagonal")
+    assert rls.lam is before                             # a rejected value changes nothing
+    with pytest.raises(ValueError, match=r"`lam` must be a number for "
+                                         r"forgetting='exponential'; got an array of shape "
+                                         r"\(3,\) \(one factor per parameter: "
+                                         r"forgetting='diagonal'\)"):
+        RecursiveLeastSquares(3, lam=[0.9, 0.99, 1.0])
+    with pytest.raises(TypeError, match=r"unknown keys \['eps'\] for forgetting='diagonal'; "
+                                        r"allowed: spread_max, trace_max"):
+        RecursiveLeastSquares(3, forgetting="diagonal", forgetting_params={"eps": 1})
+    from rlsfilt import ARMAX, RLSBank
+
+    with pytest.raises(ValueError, match=r"`forgetting` must be one of 'exponential', "
+                                         r"'directional', 'constant_trace' for RLSBank; got "
+                                         r"'diagonal'"):
+        RLSBank(2, 3, forgetting="diagonal")
+    u = np.sin(np.arange(100.0))
+    with pytest.raises(ValueError, match="`forgetting` must not be 'diagonal' for the recursive "
+                                         "prediction-error fits"):
+        ARMAX(1, 1, 1).fit(u, np.roll(u, 1), method="rpem", forgetting="diagonal")
+
+
+def test_diagonal_batch_start_does_not_weight_the_rows(rng):
+    """``initialize`` under diagonal forgetting is ordinary least squares on the rows
+    (diagonal forgetting has no weighted least-squares form)."""
+    Hs, zs = arx_record(rng, n_samples=30)
+    rls = RecursiveLeastSquares(4, lam=[0.9, 0.95, 0.99, 1.0], forgetting="diagonal", R=0.5)
+    rls.initialize(zs, Hs)
+    ls = np.linalg.lstsq(Hs, zs, rcond=None)[0]
+    assert_allclose(rls.x[:, 0], ls, rtol=1e-10)
+    assert_allclose(rls.P, 0.5 * np.linalg.inv(Hs.T @ Hs), rtol=1e-10)
+
+
+def test_diagonal_smoother_uses_its_time_update(rng):
+    """``rts_smoother`` builds the priors of the diagonal mode, L^-1/2 P L^-1/2 + Q: the
+    same smoothed trajectory as ``smooth`` (which reads the priors the filter stored)."""
+    Hs, zs = arx_record(rng, n_samples=200)
+    kw = dict(lam=[0.9, 0.95, 0.99, 1.0], forgetting="diagonal", Q=1e-6, P0=10.0)
+    run = RecursiveLeastSquares(4, **kw)
+    means, covs, _, _ = run.batch_filter(zs, Hs)
+    xs, Ps, _, _ = run.rts_smoother(means, covs)
+    smoothed = RecursiveLeastSquares(4, **kw).smooth(zs, Hs)
+    assert_allclose(xs, smoothed.means, rtol=1e-12, atol=1e-13)
+    assert_allclose(Ps, smoothed.covariances, rtol=1e-12, atol=1e-15)
+
+
 def test_saver_records_gate_and_forgetting_state(rng):
     from filterpy.common import Saver
 

@@ -14,7 +14,7 @@ import math
 import numpy as np
 import pytest
 from _reference import diagonal_forgetting_profile_loglik as reference_loglik
-from numpy.testing import assert_allclose
+from numpy.testing import assert_allclose, assert_array_equal
 
 from rlsfilt import RecursiveLeastSquares
 from rlsfilt.filters.tuning import TuneResult, tune
@@ -292,6 +292,27 @@ def test_bank_channels_equal_single_filters(rng, param):
         assert_allclose(bank.lam, fits.estimate, rtol=0)
 
 
+def test_bank_lam_diag_is_estimated_and_refused_by_apply(rng):
+    """The bank tunes lam_diag channel by channel as single filters; it has no diagonal
+    forgetting, so applying it is refused (a channel's estimate applies to a filter)."""
+    from rlsfilt import RLSBank
+
+    C, N, n = 2, 300, 2
+    Hs = rng.standard_normal((N, C, n))
+    zs = np.einsum("tcn,tcn->tc", Hs, 1.0 + np.cumsum(0.03 * rng.standard_normal((N, C, n)),
+                                                      0)) + 0.1 * rng.standard_normal((N, C))
+    bank = RLSBank(C, n, P0=50.0)
+    fits = bank.tune(zs, Hs, "lam_diag")
+    assert fits.estimate.shape == (C, n)
+    with pytest.raises(ValueError, match="no forgetting='diagonal'"):
+        fits.apply(bank)
+    f = RecursiveLeastSquares(n, P0=50.0)
+    one = f.tune(zs[:, 1], Hs[:, 1], "lam_diag")
+    assert_allclose(fits.channel(1).estimate, one.estimate, rtol=0, atol=0)
+    fits.channel(1).apply(f)
+    assert f.forgetting == "diagonal"
+
+
 @pytest.mark.parametrize("param, v", [("q", [-4.0]), ("lam", [0.97]),
                                       ("q_diag", [-5.0, -3.0, -4.0]),
                                       ("lam_diag", [0.95, 0.99, 0.9])])
@@ -363,9 +384,68 @@ def test_diagonal_forgetting_equals_the_numpy_reference_and_its_maximum(rng):
     lo, hi = fit.interval()
     free = ~np.isnan(fit.stderr)
     assert free[1] and np.all(lo[free] < fit.estimate[free]) and np.all(hi <= 1.0)
-    assert "lam[1]" in str(fit.summary())
-    with pytest.raises(ValueError, match="diagonal forgetting factor cannot be applied"):
-        fit.apply(rls)
+    assert "lam[1]" in str(fit.summary()) and "lam[1]" in fit.summary().as_html()
+
+
+def _innovation_loglik(f, Z, H, burn=0):
+    """The Gaussian log-likelihood of `f`'s innovations over the record, from what
+    ``batch_filter`` stores: y_t = z_t - H_t x^-_t, S_t = H_t P^-_t H_t^T + R."""
+    _, _, Xp, Pp = f.batch_filter(Z, H)
+    y = Z - np.einsum("kn,knm->km", H, Xp)
+    S = np.einsum("ki,kij,kj->k", H, Pp, H) + f.R
+    keep = ~np.isnan(y).any(axis=1)
+    keep[:burn] = False
+    m = Z.shape[1]
+    return -0.5 * np.sum(m * np.log(2 * np.pi) + m * np.log(S[keep])
+                         + np.sum(y[keep] ** 2, axis=1) / S[keep])
+
+
+@pytest.mark.parametrize("m, burn", [(1, 0), (2, 3)])
+def test_apply_lam_diag_runs_the_likelihoods_recursion(rng, m, burn):
+    """``TuneResult.apply`` of ``"lam_diag"`` gives a filter with forgetting="diagonal" at
+    the estimate whose innovations have the tuned log-likelihood (1e-12 relative), in
+    batch_filter and streamed (filterpy's per-step ``log_likelihood``); the filter tuned
+    with ``apply=True`` switches mode in place, its state kept."""
+    N, n = 600, 3
+    H = rng.standard_normal((N, n))
+    x = np.column_stack([np.full(N, 1.0), np.cumsum(0.04 * rng.standard_normal(N)),
+                         np.cumsum(0.01 * rng.standard_normal(N))])
+    Z = (np.sum(H * x, axis=1)[:, None] * np.arange(1, m + 1)
+         + 0.1 * rng.standard_normal((N, m)))
+    Z[[10, 200]] = np.nan
+    R0, P0, Q = 2.0, 20.0 * np.eye(n), 1e-6 * np.diag([1.0, 2.0, 3.0])
+    x0 = 0.1 * np.ones((n, m))
+    rls = RecursiveLeastSquares(n, m, P0=P0, R=R0, Q=Q, x0=x0)
+    fit = rls.tune(Z, H, "lam_diag", burn=burn)
+    assert fit.estimate.shape == (n,) and fit.estimate[1] < fit.estimate[0]
+    # a new filter from the same start, relative to the estimated R (P0 = p0 R)
+    f = RecursiveLeastSquares(n, m, P0=P0 / R0 * fit.R, R=R0, Q=Q, x0=x0)
+    assert fit.apply(f) is f
+    assert f.forgetting == "diagonal" and f.R == fit.R
+    assert_allclose(f.lam, fit.estimate, rtol=0, atol=0)
+    assert_allclose(f.Q, Q / R0 * fit.R, rtol=1e-15)
+    g = f.copy()
+    assert_allclose(_innovation_loglik(f, Z, H, burn), fit.loglik, rtol=1e-12)
+    streamed = 0.0
+    for k in range(N):
+        g.predict()
+        g.update(Z[k], H[k])
+        streamed += g.log_likelihood if k >= burn else 0.0
+    assert_allclose(streamed, fit.loglik, rtol=1e-12)
+    assert_array_equal(g.x, f.x)                          # streaming = batch
+    # tune(apply=True): the exponential filter becomes a diagonal one, state kept
+    x_before, P_before = rls.x.copy(), rls.P.copy()
+    again = rls.tune(Z, H, "lam_diag", burn=burn, apply=True)
+    assert rls.forgetting == "diagonal" and np.array_equal(rls.lam, again.estimate)
+    assert_array_equal(rls.x, x_before)
+    assert_array_equal(rls.P, P_before)
+    # a diagonal filter tunes lam_diag (from its state) and nothing else
+    assert rls.tune(Z, H, "lam_diag", burn=burn).estimate.shape == (n,)
+    with pytest.raises(ValueError, match="estimates param='lam_diag' only; got 'q'"):
+        rls.tune(Z, H, "q")
+    with pytest.raises(ValueError, match="forgetting='exponential' or 'diagonal'; got "
+                                         "forgetting='directional'"):
+        fit.apply(RecursiveLeastSquares(n, m, lam=0.98, forgetting="directional"))
 
 
 def drifting_plant(rng, N=1500, C=None):
@@ -404,6 +484,33 @@ def test_arx_fit_tunes_on_its_regressor_rows(rng, param):
         ARX(1, 1).fit(u, y, "rls", lam="tune", Q="tune")
     with pytest.raises(ValueError, match="`lam` must be a number or 'tune'; got 'auto'"):
         ARX(1, 1).fit(u, y, "rls", lam="auto")
+
+
+@pytest.mark.parametrize("scale", [1.0, 1e-6])
+def test_arx_fit_runs_a_tuned_diagonal_forgetting(rng, scale, tmp_path):
+    """``ARX.fit(method="rls", forgetting="diagonal", lam=estimate)`` with the estimate of
+    ``tune(..., "lam_diag")`` on the model's rows equals that filter run by hand on them
+    (batch start on the first rows, then batch_filter; bit for bit, in any units), and
+    the per-parameter ``lam_`` is kept by save/load; an array `lam` without it is refused
+    naming `lam`."""
+    from rlsfilt import ARX, load_model, save_model
+
+    u, y = drifting_plant(rng)
+    y = scale * y
+    Phi, target = ARX(1, 1).regressors(u, y)
+    lam = RecursiveLeastSquares(2, P0=100.0).tune(target, Phi, "lam_diag", burn=2).estimate
+    model = ARX(1, 1).fit(u, y, "rls", forgetting="diagonal", lam=lam)
+    f = RecursiveLeastSquares(2, lam=lam, forgetting="diagonal", check_every=0)
+    f.initialize(target[:2], Phi[:2])
+    f.batch_filter(target[2:], Phi[2:])
+    assert_array_equal(model.theta_, f.x[:, 0])
+    assert_array_equal(model.lam_, lam) and model.filter_.forgetting == "diagonal"
+    assert "lam=[" in str(model.summary()) and model.to_dict()["lam"] == list(lam)
+    save_model(model, tmp_path / "m.json")
+    assert_array_equal(load_model(tmp_path / "m.json").lam_, lam)
+    with pytest.raises(ValueError, match=r"`lam` must be a number for forgetting='exponential'"
+                                         r"; got an array of shape \(2,\)"):
+        ARX(1, 1).fit(u, y, "rls", lam=lam)
 
 
 @pytest.mark.parametrize("param", ["lam", "Q"])

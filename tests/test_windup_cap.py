@@ -411,3 +411,92 @@ def test_fit_many_rls_with_forgetting_survives_lost_excitation():
     assert np.isfinite(bank.theta_).all()
     assert_allclose(bank.theta_[0], single.theta_, rtol=1e-9)
     assert_allclose(bank.theta_, np.broadcast_to([-0.5, 1.0], (C, 2)), atol=0.05)
+
+
+# ----------------------------------------------------------------------
+# diagonal forgetting (#30): the same cap, its trace after P^- = L^-1/2 P L^-1/2
+# ----------------------------------------------------------------------
+LAM_DIAG = np.array([0.9, 0.95, 0.99])
+
+
+def test_diagonal_forgetting_without_the_cap_goes_nan_and_with_it_recovers():
+    """Diagonal forgetting winds up as exponential forgetting does when the regressor
+    stays on a coordinate axis (the input held at 0: ``P_ii`` of the unexcited
+    parameters grows like ``lam_i**-k``): without the cap P overflows and x is NaN;
+    with it (the default) P stays finite and positive definite and the estimate
+    recovers. (A regressor held off the axes does not wind up with distinct factors:
+    the forgetting turns its information into every direction.)"""
+    Hs, zs = held_record(periods=1, period=14000, held=13600, tail=400)
+    Hs[400:14000, 1:] = 0.0                            # u held at 0: h = [1, 0, 0]
+    zs[400:14000] = Hs[400:14000] @ THETA
+    off = RecursiveLeastSquares(3, lam=LAM_DIAG, forgetting="diagonal", forgetting_params=OFF)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", NumericalWarning)
+        means = off.batch_filter(zs, Hs, store_covariances=False)[0]
+    assert np.isnan(means[-1]).all() and not np.isfinite(off.P).all()
+    capped = RecursiveLeastSquares(3, lam=LAM_DIAG, forgetting="diagonal")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", NumericalWarning)
+        for k in range(0, len(zs), 1000):
+            capped.batch_filter(zs[k:k + 1000], Hs[k:k + 1000], store_covariances=False)
+            assert np.isfinite(capped.P).all() and np.linalg.eigvalsh(capped.P)[0] > 0.0, k
+    assert capped.n_capped > 1000
+    assert_allclose(capped.x[:, 0], THETA, atol=0.05)
+
+
+def test_diagonal_zero_regressors_stop_at_trace_max():
+    """Nothing excited (h = 0): the trace after the diagonal time update, sum P_ii / lam_i,
+    is held at trace_max, as the exponential mode's trace / lam."""
+    rng = np.random.default_rng(3)
+    Hs = np.r_[rng.standard_normal((100, 2)), np.zeros((3000, 2)), rng.standard_normal((200, 2))]
+    zs = Hs @ np.array([1.0, -2.0]) + 0.01 * rng.standard_normal(len(Hs))
+    rls = RecursiveLeastSquares(2, lam=[0.9, 0.97], forgetting="diagonal", P0=1.0)
+    trace_max = rls.forgetting_params["trace_max"]
+    assert trace_max == 1e12 * 2.0
+    _, covs, _, covs_p = rls.batch_filter(zs, Hs)
+    traces = np.trace(covs_p, axis1=1, axis2=2)
+    assert traces.max() <= trace_max and traces[3000] > 1e-3 * trace_max
+    assert np.all(np.linalg.eigvalsh(covs)[:, 0] > 0)
+    assert_allclose(rls.x[:, 0], [1.0, -2.0], atol=0.02)      # (a memory of 10 to 33 samples)
+
+
+@pytest.mark.parametrize("update_first", [False, True])
+@pytest.mark.parametrize("Q", [0.0, 1e-6])
+def test_diagonal_capped_steps_equal_the_reference_and_every_path_the_same_bits(update_first,
+                                                                              Q):
+    """Held back, the diagonal mode forgets along the regressor by the growth its time
+    update would give phi P phi^T (``_reference.forget_along``): the kernels equal the
+    reference step by step; batch (the step loop), streaming and chunks give the same
+    bits."""
+    Hs, zs = held_record(periods=2, period=400, held=300, tail=100, seed=2)
+    Hs[100:400, 1:] = 0.0                              # the first hold at 0 (on an axis)
+    zs[100:400] = Hs[100:400] @ THETA
+    zs[[5, 150, 420]] = np.nan
+
+    def make():       # a low trace_max: the cap holds back in both holds (about 250 each)
+        return RecursiveLeastSquares(3, lam=LAM_DIAG, forgetting="diagonal", P0=10.0, R=0.01,
+                                     Q=Q, check_every=0,
+                                     forgetting_params={"spread_max": 1e4, "trace_max": 1e-2})
+
+    f = make()
+    ref = rls_run(f, zs, Hs, None, update_first)
+    out = f.batch_filter(zs, Hs, update_first=update_first)
+    assert ref.capped.sum() > 400 and f.n_capped == ref.capped.sum()
+    for label, a, b in zip(("means", "covs", "means_p", "covs_p"), out,
+                           (ref.means, ref.covs, ref.means_p, ref.covs_p)):
+        _close(a, b, label, rtol=1e-11)
+    stream = make()
+    for k in range(len(zs)):
+        if update_first:
+            stream.update(zs[k], Hs[k])
+            stream.predict()
+        else:
+            stream.predict_update(zs[k], Hs[k])
+    chunks = make()
+    for a, b in [(0, 97), (97, 98), (98, 450), (450, len(zs))]:
+        chunks.batch_filter(zs[a:b], Hs[a:b], update_first=update_first,
+                            store_covariances=False)
+    for name, g in (("stream", stream), ("chunks", chunks)):
+        for attr in STATE:
+            assert_array_equal(getattr(g, attr), getattr(f, attr), err_msg=f"{name} {attr}")
+        assert g.n_capped == f.n_capped, name

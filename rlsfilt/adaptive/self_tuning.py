@@ -29,7 +29,13 @@ from .._lazy import lazy_module
 from .._validation import check_dt, check_int, check_real, check_scalar
 from ..exceptions import ExcitationWarning, RegulatorWarning
 from ..filters import _filter_state
-from ..filters.contract import Filter, restore_filter, snapshot_filter
+from ..filters.contract import (
+    can_peek,
+    commit_peeked,
+    peek_predict_update,
+    restore_filter,
+    snapshot_filter,
+)
 from ._polynomials import coprimeness, degree, fmt_complex, padd, roots, trim
 from .rst import RSTController, _prepared_design, rst_design
 
@@ -409,8 +415,8 @@ class SelfTuningRegulator:
         Returns ``[k, y, r, phi, e, theta, updated, redesigned, rejected, reduced, u,
         saturated, messages before the estimator's, the estimator's, messages after,
         estimator token, projected estimate]``, for :meth:`_conclude`. With `peek`
-        the estimator is only peeked at (``_peek_predict_update(y, phi, like)``: its
-        token, for ``_commit_peeked``, is returned and the projected estimate is not
+        the estimator is only peeked at (``peek_predict_update(est, y, phi, like)``: its
+        token, for ``commit_peeked``, is returned and the projected estimate is not
         written back) and the caller has put copies of ``_scalars`` and ``_ctrl`` in
         place (see :meth:`_io_peek`); None if the estimator cannot peek, or its peeked
         estimate is not finite (the real step then raises).
@@ -437,7 +443,7 @@ class SelfTuningRegulator:
         updated = self.dead_zone == 0.0 or abs(e) > self.dead_zone
         caught, token, projected = [], None, None
         if updated and peek:
-            peeked = est._peek_predict_update(y, phi, like)
+            peeked = peek_predict_update(est, y, phi, like)
             if peeked is None:
                 return None
             theta, token = peeked[0].reshape(-1), peeked[1]     # a new array, not the filter's
@@ -853,8 +859,7 @@ class SelfTuningRegulator:
         commit adopts them, so a sample whose outputs python-control evaluates on
         several inputs takes one step.
         """
-        if getattr(type(self.estimator), "_peek_predict_update",
-                   None) is Filter._peek_predict_update:
+        if not can_peek(self.estimator):
             return None                 # a filter that never peeks: the real step
         y, r, v = w.tolist()
         saved = (self._scalars, self._ctrl, self._why, self._checked)
@@ -879,7 +884,7 @@ class SelfTuningRegulator:
         k, y, phi, est_token, projected = decided[0], decided[1], decided[3], decided[15], \
             decided[16]
         if est_token is not None:
-            done, decided[13] = call_capturing(self.estimator._commit_peeked, est_token)
+            done, decided[13] = call_capturing(commit_peeked, self.estimator, est_token)
             if not done:
                 return None
             self._check_estimate(k, y, phi)

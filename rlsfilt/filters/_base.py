@@ -217,8 +217,10 @@ class _FilterBase(Filter):
     @property
     def alpha(self):
         """filterpy's fading-memory factor, ``alpha**2 = 1 / lam`` (1 without
-        forgetting); assigning it sets `lam` to ``1 / alpha**2``."""
-        return 1.0 / math.sqrt(getattr(self, "lam", 1.0))
+        forgetting; an array with ``forgetting="diagonal"``); assigning it sets `lam`
+        to ``1 / alpha**2``."""
+        lam = getattr(self, "lam", 1.0)
+        return 1.0 / np.sqrt(lam) if isinstance(lam, np.ndarray) else 1.0 / math.sqrt(lam)
 
     @alpha.setter
     @_locked

@@ -16,6 +16,9 @@ One step, for every forgetting mode (the codes of
                                             mode, 1 when the windup cap holds the
                                             forgetting back; the other modes forget
                                             in the update)
+    P_ij <- P_ij (w_i w_j) + Q_ij           diagonal_time_update (the diagonal mode:
+                                            P^- = L^-1/2 P L^-1/2 + Q, w_i = lam_i^-1/2
+                                            from the configuration, diagonal_factors)
     g = P phi;  q = phi . g                 measurement_update
     s = w q + r                             w = il if the forgetting was held back, else 1
     y = z - phi x                           per output
@@ -24,6 +27,8 @@ One step, for every forgetting mode (the codes of
                  cu = c, or cu = w^2 c - (w - 1)/q when held back (the held-back
                  forgetting P <- P + (w - 1) g g^T / q along the regressor, and
                  the update, in one rank-one term)
+    diagonal: as exponential; held back, w = phi L^-1/2 P L^-1/2 phi^T / q
+              (held_back_factor: the growth of phi P phi^T the time update would give)
     directional, constant_trace, efra, variable: the formulas of _reference.update_<mode>
     P <- Pi P Pi
 
@@ -88,6 +93,7 @@ from .forgetting import (
     CFG_PARAMS,
     CFG_PI,
     CONSTANT_TRACE,
+    DIAGONAL,
     DIRECTIONAL,
     EFRA,
     EXPONENTIAL,
@@ -101,10 +107,31 @@ __all__ = []
 # one step
 # ----------------------------------------------------------------------
 @njit(cache=True, error_model="numpy", inline="always")
+def _pi_start(cfg, n):
+    """Where the projector starts in `cfg`: after the diagonal mode's ``n`` factors."""
+    return CFG_PI + n if int(cfg[CFG_MODE]) == DIAGONAL else CFG_PI
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def projector(cfg, n):
     """The projector ``Pi`` of the constraints in `cfg` ((0, 0) without them)."""
-    k = n if cfg.shape[0] > CFG_PI else 0
-    return cfg[CFG_PI:CFG_PI + k * k].reshape((k, k))
+    start = _pi_start(cfg, n)
+    k = n if cfg.shape[0] > start else 0
+    return cfg[start:start + k * k].reshape((k, k))
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def diagonal_factors(cfg, n):
+    """The diagonal mode's time-update factors ``w_i = 1 / sqrt(lam_i)`` in `cfg`
+    (length ``n``; empty in every other mode)."""
+    k = n if int(cfg[CFG_MODE]) == DIAGONAL else 0
+    return cfg[CFG_PI:CFG_PI + k]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def unconstrained(cfg, n):
+    """Whether `cfg` holds no constraints (no projector)."""
+    return cfg.shape[0] == _pi_start(cfg, n)
 
 
 @njit(cache=True, error_model="numpy")
@@ -147,6 +174,48 @@ def time_update(P, il, Q, Pi, T, Pn):
                 Pn[i, j] = P[i, j] * il
     if Pi.shape[0]:
         project(Pn, Pi, T)
+
+
+@njit(cache=True, error_model="numpy")
+def diagonal_time_update(P, wd, Q, Pi, T, Pn):
+    """The diagonal mode's ``Pn = L^-1/2 P L^-1/2 + Q`` (``L = diag(lam)``), entry by
+    entry ``Pn_ij = P_ij (w_i w_j) + Q_ij`` with ``w_i = 1 / sqrt(lam_i)`` (`wd`;
+    the products as `tuning`'s likelihood forms them), then ``Pn <- Pi Pn Pi``
+    (`Q`, `Pi` empty when absent; `Pn` may be `P`)."""
+    n = P.shape[0]
+    if Q.shape[0]:
+        for i in range(n):
+            wi = wd[i]
+            for j in range(n):
+                Pn[i, j] = (wi * wd[j]) * P[i, j] + Q[i, j]
+    else:
+        for i in range(n):
+            wi = wd[i]
+            for j in range(n):
+                Pn[i, j] = (wi * wd[j]) * P[i, j]
+    if Pi.shape[0]:
+        project(Pn, Pi, T)
+
+
+@njit(cache=True, error_model="numpy")
+def held_back_factor(P, phi, wd):
+    """The diagonal mode's forgetting along the regressor when the windup cap held its
+    time update back: ``w = (phi L^-1/2 P L^-1/2 phi^T) / (phi P phi^T)``, the growth of
+    ``phi P phi^T`` the held-back time update would have given (``1 / lam`` for equal
+    factors); 1 when ``phi P phi^T`` is not positive. (Called by the step's callers,
+    before `measurement_update`, which takes it as its `w`.)"""
+    n = P.shape[0]
+    q = 0.0
+    qa = 0.0
+    for i in range(n):
+        acc = 0.0
+        acc_w = 0.0
+        for j in range(n):
+            acc += P[i, j] * phi[j]
+            acc_w += P[i, j] * (phi[j] * wd[j])
+        q += phi[i] * acc
+        qa += (phi[i] * wd[i]) * acc_w
+    return qa / q if q > 0.0 else 1.0
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -252,7 +321,8 @@ def measurement_update(x, P, phi, z, missing, r, cfg, Pi, g, y, K, T, w, xn, Pn)
     (m,; NaN when missing) and the gain ``K`` (n,; zero when missing or
     gated). `cfg` is ``forgetting.kernel_config``, `Pi` its projector; `T`
     is (n, n) work; `w` is ``1 / lam`` when the last time update held the
-    forgetting back (the windup cap, exponential mode) and 1 otherwise.
+    forgetting back (the windup cap, exponential mode), `held_back_factor` in the
+    diagonal mode, and 1 otherwise.
 
     Returns
     -------
@@ -268,18 +338,19 @@ def measurement_update(x, P, phi, z, missing, r, cfg, Pi, g, y, K, T, w, xn, Pn)
     n, m = x.shape
     mode = int(cfg[CFG_MODE])
     lam = cfg[CFG_LAM]
+    timed = mode == EXPONENTIAL or mode == DIAGONAL       # forgets in the time update
     gain(P, phi, g)                          # g = P H^T
     q, s, yy, updated, gated = _innovation(x, phi, z, missing, r, w, cfg[CFG_GATE], g, y)
-    lam_skip = lam if mode == EXPONENTIAL else 1.0
+    lam_skip = lam if timed else 1.0
     if not updated:
         for i in range(n):
             K[i] = 0.0
-        if mode != EXPONENTIAL:
+        if not timed:
             copy2(x, xn)
             copy2(P, Pn)
             return s, lam_skip, gated, False
     lam_t = lam
-    if mode == EXPONENTIAL:
+    if timed:                                # exponential, diagonal: the standard update
         c = 1.0 / s
         cu = exponential_coefficient(q, c, w, updated)
         if updated:
@@ -370,12 +441,39 @@ def measurement_update(x, P, phi, z, missing, r, cfg, Pi, g, y, K, T, w, xn, Pn)
         copy2(x, xn)
     if Pi.shape[0] and (updated or w != 1.0):   # keep A P = 0 (a sample skipped with no
         project(Pn, Pi, T)                      # forgetting held back leaves P, as every mode)
-    cap = False
-    if mode == EXPONENTIAL:
+    cap = False                              # (the diagonal mode's: `diagonal_windup_cap`,
+    if mode == EXPONENTIAL:                  # which the callers decide)
         hph = q * r * (w * (1.0 / s)) if updated else q * w    # phi P phi^T after the update
         tr, spread, _ = _diagonal_stats(Pn, g, 0.0, phi, phi.shape[0])   # of the updated P
         cap = windup_cap(tr, spread, hph, 1.0 / lam, cfg)
     return s, lam_t, gated, cap
+
+
+@njit(cache=True, error_model="numpy")
+def diagonal_windup_cap(P, phi, g, s, r, w, updated, wd, cfg, plain):
+    """`windup_cap` of the diagonal mode, after `measurement_update` (``P`` the updated
+    covariance, `g`, `s`, `w` those of the step, `updated` False for a missing or gated
+    sample): hold the next time update back when the trace after it,
+    ``sum_i P_ii / lam_i``, would exceed ``trace_max``, or when
+    ``sum_i P_ii phi_i^2 > spread_max phi P phi^T`` (without constraints: `plain`).
+    Never when every factor is 1. (Called by `step_batch` and `update_kernel` outside
+    the step every other mode shares, so their loops carry no trace of it.)"""
+    if cfg[CFG_LAM] == 1.0:
+        return False
+    q = 0.0
+    for i in range(phi.shape[0]):
+        q += phi[i] * g[i]
+    hph = q * r * (w * (1.0 / s)) if updated else q * w    # phi P phi^T after the update
+    tr = 0.0
+    spread = 0.0
+    for i in range(P.shape[0]):
+        d = P[i, i]
+        tr += d * (wd[i] * wd[i])
+        spread += (d * phi[i]) * phi[i]
+    if tr > cfg[CFG_PARAMS + 1]:
+        return True
+    spread_max = cfg[CFG_PARAMS]
+    return plain and spread_max < np.inf and spread > spread_max * hph
 
 
 # ----------------------------------------------------------------------
@@ -386,8 +484,13 @@ def predict_kernel(P, il, Q, cfg, Pn):
     """Streaming ``predict``: ``Pn = P il + Q`` then ``Pn <- Pi Pn Pi`` (`time_update`,
     `Q` (0, 0) when absent, ``Pi`` the projector of the configuration `cfg`)."""
     n = P.shape[0]
-    k = n if cfg.shape[0] > CFG_PI else 0
-    time_update(P, il, Q, projector(cfg, n), np.empty((k, k)), Pn)
+    Pi = projector(cfg, n)
+    k = Pi.shape[0]
+    wd = diagonal_factors(cfg, n)
+    if wd.shape[0] and il != 1.0:            # diagonal: P^- = L^-1/2 P L^-1/2 + Q
+        diagonal_time_update(P, wd, Q, Pi, np.empty((k, k)), Pn)
+    else:
+        time_update(P, il, Q, Pi, np.empty((k, k)), Pn)
 
 
 #: The flags `update_kernel` returns, added: a regressor with NaN or inf (nothing
@@ -405,8 +508,10 @@ def update_kernel(x, P, H, z, r, cfg, w, xn, Pn, y, K, S, SI):
 
     Writes the new estimate ``xn`` (n, m) and covariance ``Pn`` (n, n), the
     residual ``y`` (m, 1), the gain ``K`` (n, 1), ``S = s I`` and ``SI = I / s``
-    (m, m). `w` as in `measurement_update`. The same operations as one step of
-    `step_batch`, so streaming and ``batch_filter`` agree bit for bit.
+    (m, m). `w` as in `measurement_update` (in the diagonal mode any value but 1
+    says held back: its `held_back_factor` is computed here, and the windup cap by
+    `diagonal_windup_cap`). The same operations as one step of `step_batch`, so
+    streaming and ``batch_filter`` agree bit for bit.
 
     Returns
     -------
@@ -425,11 +530,18 @@ def update_kernel(x, P, H, z, r, cfg, w, xn, Pn, y, K, S, SI):
         v = phi[i]
         if v - v != 0.0:                     # NaN or inf
             return BAD_ROW, np.nan
-    plain = cfg.shape[0] == CFG_PI           # no constraints
+    plain = unconstrained(cfg, n)            # no constraints
     k = 0 if plain and int(cfg[CFG_MODE]) != EFRA else n     # (n, n) work: Pi P Pi, EFRA
-    s, lam_t, gated, cap = measurement_update(x, P, phi, z[:, 0], any_nan(z[:, 0]), r, cfg,
-                                              projector(cfg, n), np.empty(n), y[:, 0],
+    wd = diagonal_factors(cfg, n)
+    if wd.shape[0] and w != 1.0:             # diagonal, held back: its factor along H
+        w = held_back_factor(P, phi, wd)
+    g = np.empty(n)
+    missing = any_nan(z[:, 0])
+    s, lam_t, gated, cap = measurement_update(x, P, phi, z[:, 0], missing, r, cfg,
+                                              projector(cfg, n), g, y[:, 0],
                                               K[:, 0], np.empty((k, k)), w, xn, Pn)
+    if wd.shape[0]:
+        cap = diagonal_windup_cap(Pn, phi, g, s, r, w, not (missing or gated), wd, cfg, plain)
     for i in range(m):
         for j in range(m):
             S[i, j] = s if i == j else 0.0
@@ -501,7 +613,7 @@ def _unhealthy_call(P, cond_max, exact):
 def step_batch(x, P, Z, Hm, Rv, il, Q, update_first, cfg, basis,
                means, means_p, covs, covs_p, ys, ss, gated,
                x_prior, P_prior, x_post, P_post, K, check_every, step0, cond_max,
-               state, episodes, P_fail, symmetric):
+               state, episodes, P_fail, symmetric, wd):
     """`time_update` and `measurement_update` over a record, in place on ``x``, ``P``.
 
     ``Z`` (N, m; NaN rows missing), ``Hm`` (N, n), ``Rv`` (N,) or (1,) (one
@@ -517,7 +629,9 @@ def step_batch(x, P, Z, Hm, Rv, il, Q, update_first, cfg, basis,
     ``[armed, n_episodes, n_capped, cap, w]`` on entry and exit: the
     health-check state, the count of updates whose forgetting the windup
     cap held back, whether the next time update must hold it back, and
-    ``1 / lam`` when the last one did (else 1).
+    ``1 / lam`` when the last one did (else 1). `wd` is None but in the diagonal
+    mode, where it holds its factors ``1 / sqrt(lam_i)`` (`diagonal_factors`): its
+    branches are then compiled in, and only then (numba prunes ``wd is None``).
 
     Returns
     -------
@@ -527,6 +641,7 @@ def step_batch(x, P, Z, Hm, Rv, il, Q, update_first, cfg, basis,
     N = Z.shape[0]
     n, m = x.shape
     Pi = projector(cfg, n)
+    plain = unconstrained(cfg, n)
     r_each = Rv.shape[0] == N
     g = np.empty(n)
     y = np.empty(m)
@@ -543,13 +658,23 @@ def step_batch(x, P, Z, Hm, Rv, il, Q, update_first, cfg, basis,
     for k in range(N):
         if not update_first:
             w = il if cap else 1.0
-            _time_step(x, P, 1.0 if cap else il, Q, Pi, T, k, N, means_p, covs_p,
-                       x_prior, P_prior)
+            if wd is None:
+                _time_step(x, P, 1.0 if cap else il, Q, Pi, T, k, N, means_p, covs_p,
+                           x_prior, P_prior)
+            else:
+                _diagonal_time_step(x, P, il != 1.0 and not cap, wd, Q, Pi, T, k, N, means_p,
+                                    covs_p, x_prior, P_prior)
         z = Z[k]
         n_capped += w != 1.0
-        s, lam_t, gk, cap = measurement_update(x, P, Hm[k], z, any_nan(z),
-                                               Rv[k if r_each else 0], cfg, Pi, g, y, K, T, w,
-                                               x, P)
+        if wd is not None:
+            if w != 1.0:                     # diagonal, held back: its factor along H
+                w = held_back_factor(P, Hm[k], wd)
+        r = Rv[k if r_each else 0]
+        s, lam_t, gk, cap = measurement_update(x, P, Hm[k], z, any_nan(z), r, cfg, Pi, g, y,
+                                               K, T, w, x, P)
+        if wd is not None:
+            cap = diagonal_windup_cap(P, Hm[k], g, s, r, w, not (gk or any_nan(z)), wd, cfg,
+                                      plain)
         w = 1.0
         ss[k] = s
         gated[k] = gk
@@ -561,11 +686,15 @@ def step_batch(x, P, Z, Hm, Rv, il, Q, update_first, cfg, basis,
         if k == N - 1:
             copy2(x, x_post)
             copy2(P, P_post)
-        cheap_bad = cfg.shape[0] == CFG_PI and diagonal_bad(P)
+        cheap_bad = plain and diagonal_bad(P)
         if update_first:
             w = il if cap else 1.0
-            _time_step(x, P, 1.0 if cap else il, Q, Pi, T, k, N, means_p, covs_p,
-                       x_prior, P_prior)
+            if wd is None:
+                _time_step(x, P, 1.0 if cap else il, Q, Pi, T, k, N, means_p, covs_p,
+                           x_prior, P_prior)
+            else:
+                _diagonal_time_step(x, P, il != 1.0 and not cap, wd, Q, Pi, T, k, N, means_p,
+                                    covs_p, x_prior, P_prior)
         countdown -= 1                 # zero when (step0 + k + 1) % check_every == 0
         due = countdown == 0
         if due:
@@ -585,6 +714,24 @@ def _time_step(x, P, il, Q, Pi, T, k, N, means_p, covs_p, x_prior, P_prior):
     """`time_update` in `step_batch`, with its histories (and the last prior)."""
     if il != 1.0 or Q.shape[0] or Pi.shape[0]:
         time_update(P, il, Q, Pi, T, P)
+    _record_prior(x, P, k, N, means_p, covs_p, x_prior, P_prior)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _diagonal_time_step(x, P, forget, wd, Q, Pi, T, k, N, means_p, covs_p, x_prior,
+                        P_prior):
+    """`_time_step` of the diagonal mode: `diagonal_time_update` when it `forget`s (not
+    held back by the windup cap), else ``P + Q`` (`time_update` with ``il = 1``)."""
+    if forget:
+        diagonal_time_update(P, wd, Q, Pi, T, P)
+    elif Q.shape[0] or Pi.shape[0]:
+        time_update(P, 1.0, Q, Pi, T, P)
+    _record_prior(x, P, k, N, means_p, covs_p, x_prior, P_prior)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _record_prior(x, P, k, N, means_p, covs_p, x_prior, P_prior):
+    """The histories of a time update in `step_batch` (and the last prior)."""
     if means_p.shape[0]:
         copy2(x, means_p[k])
     if covs_p.shape[0]:
@@ -1051,7 +1198,9 @@ def run_batch(x, P, Z, Hm, Rv, cfg, Q, basis, update_first, store_covariances,
     if scales is not None:
         hsc, zsc, msc, ysc = (np.ascontiguousarray(a, dtype=np.float64) for a in scales)
     mode, lam, gate = int(cfg[CFG_MODE]), cfg[CFG_LAM], cfg[CFG_GATE]
-    il = 1.0 / lam if mode == EXPONENTIAL else 1.0
+    # 1 / lam in the exponential mode; in the diagonal mode 1 / min(lam) (not 1 when it
+    # forgets: the time update then reads its factors from cfg)
+    il = 1.0 / lam if mode == EXPONENTIAL or mode == DIAGONAL else 1.0
     empty = np.zeros((0, 0))
     Qa = empty if Q is None else np.ascontiguousarray(Q, dtype=np.float64)
     Ba = np.zeros((n, 0)) if basis is None else np.ascontiguousarray(basis, dtype=np.float64)
@@ -1111,7 +1260,7 @@ def run_batch(x, P, Z, Hm, Rv, cfg, Q, basis, update_first, store_covariances,
             out.means, np.empty((0, n, m)), covs, covs_p, out.ys, out.ss, out.gated,
             out.x_prior, out.P_prior, out.x_post, out.P_post, K,
             int(check_every), int(step0), float(cond_max), out.state, out.episodes,
-            out.P_fail, symmetric)
+            out.P_fail, symmetric, cfg[CFG_PI:CFG_PI + n].copy() if mode == DIAGONAL else None)
         if scales is not None:                        # inf where beyond the double range
             with np.errstate(over="ignore", under="ignore"):
                 np.multiply(out.means, msc, out=out.means)

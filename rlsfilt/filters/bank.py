@@ -266,9 +266,11 @@ class RLSBank(BankBase):
         Initial estimate, shared or one per channel; zeros by default.
     forgetting : {"exponential", "directional", "constant_trace"}, default "exponential"
         Forgetting mode, as in :class:`~rlsfilt.RecursiveLeastSquares`.
-        ``"efra"``, ``"variable"``, the outlier gate and equality
-        constraints are not available in the bank (use one
-        `RecursiveLeastSquares` per channel for them).
+        ``"efra"``, ``"variable"``, ``"diagonal"`` (a forgetting factor
+        per parameter), the outlier gate and equality constraints are not
+        available in the bank (use one `RecursiveLeastSquares` per channel
+        for them; `BankTuneResult.apply` refuses a tuned ``"lam_diag"``
+        likewise).
     forgetting_params : dict, optional
         Constants of the mode, as in `RecursiveLeastSquares` (defaults
         computed per channel from its `lam`, `R` and `P0`): ``eps`` for

@@ -165,6 +165,28 @@ def restore_filter(f, snap):
     f._restore(snap)
 
 
+def can_peek(f):
+    """Whether filter `f` can tell the estimate of a step without taking it (it
+    overrides ``_peek_predict_update``); the python-control systems otherwise step."""
+    return (isinstance(f, Filter)
+            and type(f)._peek_predict_update is not Filter._peek_predict_update)
+
+
+def peek_predict_update(f, z, H, like=None):
+    """``(estimate, token)``: the estimate ``f.predict(); f.update(z, H)`` would leave,
+    with `f` unchanged, and a token for :func:`commit_peeked`; None when `f` cannot
+    tell without stepping. `like`, a token of an earlier peek in the same state, may
+    lend its predicted covariance."""
+    return f._peek_predict_update(z, H, like) if isinstance(f, Filter) else None
+
+
+def commit_peeked(f, token):
+    """Take the step :func:`peek_predict_update` computed, with its warnings and
+    errors, if `f` is still in the state it was peeked in; False (nothing done)
+    otherwise."""
+    return f._commit_peeked(token)
+
+
 def check_state(filt, state):
     """`state` checked against ``filt.get_state()``: the same keys, in order, and
     the same shapes; returns the values as ``{key: array or scalar}`` copies.

@@ -2,10 +2,12 @@ r"""Forgetting modes of recursive least squares: names, codes and constants.
 
 Plain exponential forgetting (``P <- P / lam`` in every step) winds up: when
 the regressor stops exciting some direction, nothing ever shrinks ``P`` in
-that direction again and it grows like ``lam**-k`` (covariance windup). The
-other modes bound ``P`` by forgetting only what new data replaces; they
-forget inside the measurement update, because they need the step's
-regressor or residual.
+that direction again and it grows like ``lam**-k`` (covariance windup).
+Diagonal forgetting (``P <- L^-1/2 P L^-1/2``, ``L = diag(lam)``: a factor per
+parameter) forgets in the time update too, and shares the exponential mode's
+windup cap (`TIME_UPDATE_MODES`). The other modes bound ``P`` by forgetting
+only what new data replaces; they forget inside the measurement update,
+because they need the step's regressor or residual.
 
 This module is the one home of the modes' configuration: their names
 (:data:`MODES`), the integer codes the compiled kernels dispatch on, the
@@ -40,13 +42,13 @@ import math
 
 import numpy as np
 
-from .._validation import check_scalar
+from .._validation import as_float_array, check_scalar
 
 __all__ = []
 
 #: Mode names accepted by ``RecursiveLeastSquares(forgetting=...)``, in code order.
-MODES = ("exponential", "directional", "constant_trace", "efra", "variable")
-EXPONENTIAL, DIRECTIONAL, CONSTANT_TRACE, EFRA, VARIABLE = range(5)
+MODES = ("exponential", "directional", "constant_trace", "efra", "variable", "diagonal")
+EXPONENTIAL, DIRECTIONAL, CONSTANT_TRACE, EFRA, VARIABLE, DIAGONAL = range(6)
 
 # Names of each mode's parameters, in the order of the params tuple.
 _PARAM_NAMES = {
@@ -55,7 +57,11 @@ _PARAM_NAMES = {
     CONSTANT_TRACE: ("trace", "ratio"),
     EFRA: ("alpha", "beta", "delta"),
     VARIABLE: ("lam_min", "trace_max"),
+    DIAGONAL: ("spread_max", "trace_max"),      # the windup cap, as the exponential mode's
 }
+
+#: The modes that forget in the time update (``predict``), with the windup cap.
+TIME_UPDATE_MODES = (EXPONENTIAL, DIAGONAL)
 
 
 def mode_code(forgetting):
@@ -82,7 +88,8 @@ def mode_params(code, params, dim_x, lam, R=1.0, P0_trace=1.0):
     white, unit-power regressors; needs ``lam < 1``), ``ratio = 1e4``; EFRA
     ``alpha = 0.5``, ``beta = delta = 0.005``; variable
     ``lam_min = max(0.5, 1 - 10 (1 - lam))`` (at most `lam`),
-    ``trace_max = 10 dim_x``.
+    ``trace_max = 10 dim_x``; diagonal as exponential (`lam` is then the
+    smallest factor: only a default that depends on it would read it).
     """
     if params is None:
         params = {}
@@ -107,7 +114,7 @@ def mode_params(code, params, dim_x, lam, R=1.0, P0_trace=1.0):
             raise ValueError(f"`forgetting_params['{name}']` must be a positive number (inf "
                              f"turns the cap off); got {p[name]}")
 
-    if code == EXPONENTIAL:
+    if code in TIME_UPDATE_MODES:
         p.setdefault("spread_max", SPREAD_MAX)
         p.setdefault("trace_max", TRACE_MAX_FACTOR * P0_trace)
         positive_or_inf("spread_max")
@@ -149,7 +156,28 @@ def mode_params(code, params, dim_x, lam, R=1.0, P0_trace=1.0):
     return tuple(p[name] for name in names)
 
 
-# The configuration array of the kernels: [mode, lam, gate, params (3), projector].
+def diagonal_lam(lam, dim_x):
+    """The forgetting factors of ``forgetting="diagonal"``: `lam` a number (every
+    parameter) or an array of shape ``(dim_x,)``, each in (0, 1]; a new read-only
+    float64 array."""
+    if isinstance(lam, (bool, np.bool_)):
+        raise TypeError(f"`lam` must be a real number or an array of {dim_x}; got {lam!r}")
+    arr = np.array(as_float_array(lam, "lam"), dtype=np.float64)    # a copy of its own
+    if arr.ndim == 0:
+        arr = np.full(dim_x, float(arr))
+    if arr.shape != (dim_x,):
+        raise ValueError(f"`lam` must be a number or have shape ({dim_x},) (one forgetting "
+                         f"factor per parameter, dim_x = {dim_x}); got shape {arr.shape}")
+    bad = ~((arr > 0.0) & (arr <= 1.0))                  # also NaN
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise ValueError(f"`lam` must be in (0, 1]; got lam[{i}] = {arr[i]}")
+    arr.flags.writeable = False
+    return arr
+
+
+# The configuration array of the kernels: [mode, lam, gate, params (3), (the diagonal
+# factors), projector].
 CFG_MODE, CFG_LAM, CFG_GATE, CFG_PARAMS, CFG_PI = 0, 1, 2, 3, 6
 
 
@@ -160,10 +188,21 @@ def kernel_config(code, lam, params, gate=None, Pi=None):
     factor, the gate (``inf`` without one: no residual exceeds it), the mode's
     parameters padded to three and, with constraints, the projector ``Pi``
     onto the null space of ``A`` (flattened; absent without constraints).
+
+    The diagonal mode (`lam` an array of the ``n`` factors ``lam_i``) holds the
+    smallest factor in the ``lam`` slot (the ``lam_t`` of its steps) and its time
+    update's factors ``w_i = 1 / sqrt(lam_i)`` in ``n`` entries from ``CFG_PI``,
+    before the projector: ``[mode, min lam, gate, p1, p2, p3, w..., Pi...]``
+    (`_kernels.diagonal_factors`, `_kernels.projector`).
     """
     pad = (0.0,) * (CFG_PI - CFG_PARAMS - len(params))
+    w = np.zeros(0)
+    if code == DIAGONAL:
+        lam = np.asarray(lam, dtype=np.float64)
+        w = 1.0 / np.sqrt(lam)              # w_i = lam_i^(-1/2), as `tuning._model` forms them
+        lam = float(lam.min())
     head = [code, lam, math.inf if gate is None else gate, *params, *pad]
-    return np.concatenate([head, np.zeros(0) if Pi is None else np.ravel(Pi)])
+    return np.concatenate([head, w, np.zeros(0) if Pi is None else np.ravel(Pi)])
 
 
 # ----------------------------------------------------------------------

@@ -62,10 +62,11 @@ class RecursiveLeastSquares(_FilterBase):
         Number of parameters (length of the regressor row).
     dim_z : int, default 1
         Number of outputs sharing the regressor.
-    lam : float, default 1.0
+    lam : float or array_like of shape (dim_x,), default 1.0
         Forgetting factor in (0, 1]. ``1`` is ordinary least squares; a
         sample ``j`` steps old is weighted by ``lam**j``, so the memory is
-        about ``1 / (1 - lam)`` samples.
+        about ``1 / (1 - lam)`` samples. With ``forgetting="diagonal"``, one
+        factor per parameter (a number: the same for every parameter).
     P0 : float or array_like, default 1e4
         Initial covariance; a scalar means ``P0 * I`` (the broad prior of
         MATLAB's ``rarx``). Must be symmetric positive definite.
@@ -77,17 +78,22 @@ class RecursiveLeastSquares(_FilterBase):
     Q : float or array_like, default 0.0
         Covariance of the parameter random walk added in :meth:`predict`; a
         scalar means ``Q * I``.
-    forgetting : {"exponential", "directional", "constant_trace", "efra", "variable"}, optional
+    forgetting : {"exponential", "directional", "constant_trace", "efra", "variable", \
+"diagonal"}, optional
         How old data is forgotten (see Notes); ``"exponential"`` by
         default. ``"exponential"`` divides
-        ``P`` by `lam` in :meth:`predict` (filterpy's fading memory); the
+        ``P`` by `lam` in :meth:`predict` (filterpy's fading memory), and
+        ``"diagonal"`` forgets each parameter with its own factor there,
+        :math:`P^- = L^{-1/2} P L^{-1/2} + Q`, ``L = diag(lam)`` (the
+        recursion of ``tune(..., "lam_diag")``); the
         others forget inside :meth:`update`, because they need the step's
         regressor or residual, and bound ``P`` when the input stops
         exciting the system (no covariance windup).
     forgetting_params : dict, optional
         Constants of the chosen mode: ``"exponential"``: the windup cap (see
         Notes), ``spread_max`` (1e15) and ``trace_max`` (``1e12 trace(P0)``;
-        ``inf`` for both gives the plain recursion); ``"directional"``: ``eps`` (1e-12,
+        ``inf`` for both gives the plain recursion), and the same for
+        ``"diagonal"``; ``"directional"``: ``eps`` (1e-12,
         smallest ``phi P phi^T / R`` that triggers forgetting);
         ``"constant_trace"``: ``trace`` (``dim_x * R * (1 - lam)`` with the
         `R` and `lam` given at construction: the trace plain forgetting
@@ -160,12 +166,13 @@ class RecursiveLeastSquares(_FilterBase):
         Number of measurement updates since :meth:`reset`.
     n_capped : int
         Number of updates since :meth:`reset` whose forgetting the windup
-        cap restricted to the regressor's direction (exponential mode; see
-        Notes).
+        cap restricted to the regressor's direction (exponential and
+        diagonal modes; see Notes).
     lam_t : float
         Forgetting factor effectively applied by the last update (`lam` for
-        ``"exponential"``; the directional weight, the variable factor or
-        the constant-trace normalization otherwise).
+        ``"exponential"``, the smallest factor for ``"diagonal"``; the
+        directional weight, the variable factor or the constant-trace
+        normalization otherwise).
     constraints : EqualityConstraints or None
         Every constraint given to :meth:`constrain`, stacked: ``.A`` of
         shape ``(p, dim_x)`` and ``.b`` of shape ``(p, dim_z)``; unpacks as
@@ -224,7 +231,23 @@ class RecursiveLeastSquares(_FilterBase):
       :math:`\lambda_t = 1 - (1 - \lambda)\, y^T y / (m S)`, clipped to
       ``[lam_min, 1]`` and raised so that ``trace(P) <= trace_max``.
 
-    **The windup cap** (exponential mode, ``lam < 1``). Plain exponential
+    **Diagonal forgetting** (``forgetting="diagonal"``, `lam` one factor per
+    parameter; a vector forgetting factor, see Parkum, Poulsen & Holst 1992)
+    forgets in :meth:`predict`, like ``"exponential"``, with
+    :math:`P^- = L^{-1/2} P L^{-1/2} + Q`, :math:`L = \operatorname{diag}(\lambda_1,
+    \dots, \lambda_n)`, i.e. :math:`P^-_{ij} = P_{ij} / \sqrt{\lambda_i\lambda_j} +
+    Q_{ij}`; the measurement update is the standard one. A parameter that stays
+    constant can keep ``lam_i = 1`` beside one that drifts; equal factors are
+    exponential forgetting. It is exactly the recursion whose likelihood
+    ``tune(..., "lam_diag")`` maximizes, so ``TuneResult.apply`` runs it. It has
+    no weighted least-squares form: :meth:`initialize` does not weight its rows.
+    The windup cap below applies with the trace after the time update,
+    :math:`\sum_i P_{ii} / \lambda_i`, and held back, the update forgets along
+    the regressor by :math:`w = H L^{-1/2} P L^{-1/2} H^T / (H P H^T)` (the growth
+    of :math:`H P H^T` the time update would have given; :math:`1/\lambda` for
+    equal factors).
+
+    **The windup cap** (exponential and diagonal modes, ``lam < 1``). Plain exponential
     forgetting lets ``P`` grow like ``lam**-k`` in the directions the data
     stop exciting, until it overflows and the estimate is NaN for good. After
     each update the filter therefore decides, in O(dim_x), whether the next
@@ -291,6 +314,8 @@ class RecursiveLeastSquares(_FilterBase):
        factors", *Automatica* 17(6), 1981.
     .. [10] Y. Zhu and X. R. Li, "Recursive least squares with linear
        constraints", *Communications in Information and Systems* 7(3), 2007.
+    .. [11] R. Parkum, N. K. Poulsen and J. Holst, "Recursive forgetting
+       algorithms", *Int. J. Control* 55(1), 1992.
 
     Examples
     --------
@@ -369,18 +394,46 @@ class RecursiveLeastSquares(_FilterBase):
 
     @property
     def lam(self):
-        """Forgetting factor in (0, 1]."""
+        """Forgetting factor in (0, 1]; with ``forgetting="diagonal"`` the factors of
+        the parameters, a read-only array of shape ``(dim_x,)`` (assign a number or an
+        array of that shape)."""
         return self._lam
 
     @lam.setter
     @_locked
     def lam(self, value):
-        lam = check_lam(value)
-        params = _fg.mode_params(self._mode, self._forgetting_params_in, self.dim_x, lam,
+        self._set_lam(self._mode, value)
+
+    def _set_lam(self, mode, value):
+        """Validate `value` for forgetting `mode` and configure it (all checks first)."""
+        if mode == _fg.DIAGONAL:
+            lam = _fg.diagonal_lam(value, self.dim_x)
+            lam_min = float(lam.min())
+        else:
+            if np.ndim(value) and np.size(value) > 1:
+                raise ValueError(
+                    f"`lam` must be a number for forgetting={_fg.MODES[mode]!r}; got an array "
+                    f"of shape {np.shape(value)} (one factor per parameter: "
+                    "forgetting='diagonal')")
+            lam = lam_min = check_lam(value)
+        params = _fg.mode_params(mode, self._forgetting_params_in, self.dim_x, lam_min,
                                  self._R, float(np.trace(self._P0)))
-        self._lam, self._params = lam, params
-        self._il = 1.0 / lam if self._mode == _fg.EXPONENTIAL else 1.0   # predict: P / lam
+        self._mode, self._lam, self._params = mode, lam, params
+        # predict: P / lam (exponential); P / sqrt(lam_i lam_j) (diagonal: 1 / min lam here,
+        # not 1 when it forgets: the kernels read the factors from the configuration)
+        self._il = 1.0 / lam_min if mode in _fg.TIME_UPDATE_MODES else 1.0
         self._configure()
+
+    @_locked
+    def _forget_per_parameter(self, lam):
+        """Switch an exponential (or diagonal) filter to ``forgetting="diagonal"`` with the
+        factors `lam` (`TuneResult.apply` of ``"lam_diag"``; the state and the windup
+        cap's decision are kept: both modes forget in the time update)."""
+        if self._mode not in _fg.TIME_UPDATE_MODES:
+            raise ValueError("a diagonal forgetting factor applies to a filter with "
+                             "forgetting='exponential' or 'diagonal'; got "
+                             f"forgetting={self.forgetting!r}")
+        self._set_lam(_fg.DIAGONAL, lam)
 
     @property
     def forgetting(self):
@@ -422,8 +475,9 @@ class RecursiveLeastSquares(_FilterBase):
 
         The estimate ``x`` is unchanged (constant or random-walk
         parameters). With ``lam = 1`` and ``Q = 0`` this only records
-        ``x_prior`` and ``P_prior``. For the forgetting modes other than
-        ``"exponential"`` the division by `lam` is not done here (their
+        ``x_prior`` and ``P_prior``. With ``forgetting="diagonal"`` it is
+        :math:`P \leftarrow L^{-1/2} P L^{-1/2} + Q`, ``L = diag(lam)``. For
+        the other forgetting modes the division by `lam` is not done here (their
         forgetting needs the regressor and happens in :meth:`update`); only
         ``Q`` is added.
 
@@ -448,6 +502,8 @@ class RecursiveLeastSquares(_FilterBase):
             #   x^- = x               (constant, or random-walk, parameters)
             #   P^- = P / lam + Q     (exponential mode: filterpy's fading memory; the windup
             #                          cap holds 1 / lam back, the next update forgets along H)
+            #   P^- = L^-1/2 P L^-1/2 + Q   (diagonal mode, L = diag(lam): P_ij / sqrt(lam_i
+            #                          lam_j); the cap likewise)
             #   P^- <- Pi P^- Pi      (constraints: keep A P = 0)
             il = 1.0 if self._cap else self._il
             P_prior = np.empty(P.shape)
@@ -630,7 +686,10 @@ class RecursiveLeastSquares(_FilterBase):
         """
         from scipy.linalg import solve_triangular  # lazy: keeps `import rlsfilt` light
         Z, Hm = self._as_batch(zs, Hs)
-        w = self._lam ** (0.5 * np.arange(len(Z) - 1, -1, -1.0))
+        # (diagonal forgetting has no weighted least-squares form: its batch start does
+        # not weight the rows)
+        lam = 1.0 if self._mode == _fg.DIAGONAL else self._lam
+        w = lam ** (0.5 * np.arange(len(Z) - 1, -1, -1.0))
         keep = ~np.isnan(Z).any(axis=1)
         A = Hm[keep] * w[keep, None]
         B = Z[keep] * w[keep, None]
@@ -1039,7 +1098,7 @@ class RecursiveLeastSquares(_FilterBase):
         self.n_updates = 0
         self.n_capped = 0
         self._cap, self._w = False, 1.0     # the windup cap: see predict()
-        self.lam_t = self._lam
+        self.lam_t = float(np.min(self._lam))
         self._warned_health = False
         self._efra_pending = self._mode == _fg.EFRA
         self._recheck = True          # check the state (and start EFRA) at the next step

@@ -215,7 +215,12 @@ def filter_rts_smoother(filt, Xs, Ps, Qs=None):
         if Q.shape != (N, n, n):
             raise ValueError(f"`Qs` must have shape ({n}, {n}) or ({N}, {n}, {n}); "
                              f"got {Q.shape}")
-    il = 1.0 / filt.lam
+    lam = np.asarray(filt.lam, dtype=float)
+    if getattr(filt, "forgetting", "exponential") == "diagonal":
+        w = 1.0 / np.sqrt(lam)
+        il = np.outer(w, w)               # P^-_{t+1} = L^-1/2 P_t L^-1/2 + Q_{t+1}
+    else:
+        il = 1.0 / lam
     Pp = np.empty_like(P)
     Pp[1:] = P[:-1] * il + Q[1:]          # P^-_{t+1} = P_t / lam + Q_{t+1}
     Pp[:1] = P[:1]
@@ -246,10 +251,11 @@ def smooth(filt, zs, Hs, Rs=None):
 # private helpers
 # ----------------------------------------------------------------------
 def _check_kalman(filt):
-    """Refuse a filter whose time update is not ``P / lam + Q`` (the forgetting
-    modes that forget inside the update have no Kalman prior)."""
+    """Refuse a filter whose time update is not ``P / lam + Q`` (or the diagonal
+    ``L^-1/2 P L^-1/2 + Q``; the forgetting modes that forget inside the update have
+    no Kalman prior)."""
     mode = getattr(filt, "forgetting", "exponential")
-    if mode != "exponential":
+    if mode not in ("exponential", "diagonal"):
         raise ValueError(f"the smoother needs forgetting='exponential' (a Kalman time update "
                          f"P / lam + Q); this filter forgets with {mode!r} inside its update")
 

@@ -202,11 +202,18 @@ class TuneResult:
 
     def apply(self, filt):
         """Set `filt`'s ``R`` and its ``lam`` or ``Q`` to the estimate (its state is kept:
-        :meth:`reset` it to run the record again). Returns `filt`."""
+        :meth:`reset` it to run the record again). Returns `filt`.
+
+        For ``"lam_diag"`` the filter's forgetting becomes ``"diagonal"`` with
+        ``lam = estimate`` (the time update :math:`P^- = L^{-1/2} P L^{-1/2} + Q` the
+        likelihood ran; an exponential filter switches mode, its ``Q / R`` kept), so
+        its innovations are those the likelihood was computed from."""
         if self.param == "lam_diag":
-            raise ValueError("a diagonal forgetting factor cannot be applied: the filters take "
-                             "one `lam`; use the estimate (or tune 'lam')")
-        if self.param == "lam":
+            Q = filt.Q / filt.R                 # the random walk relative to R, kept
+            filt._forget_per_parameter(self.estimate)    # checks before changing anything
+            filt.R = self.R
+            filt.Q = Q * self.R
+        elif self.param == "lam":
             Q = filt.Q / filt.R                 # the random walk relative to R, kept
             filt.R = self.R
             filt.lam = self.estimate
@@ -236,7 +243,8 @@ class TuneResult:
                          f"{hi[i]:.6g}])")
         lines.append(f"  R        {self.R:.6g}")
         lines.append(f"  loglik   {self.loglik:.6f}")
-        rows = [[self.param if len(est) == 1 else f"q[{i}]", f"{est[i]:.6g}", f"{se[i]:.3g}",
+        rows = [[self.param if len(est) == 1 else f"{self.param.split('_')[0]}[{i}]",
+                 f"{est[i]:.6g}", f"{se[i]:.3g}",
                  f"[{lo[i]:.6g}, {hi[i]:.6g}]"] for i in range(len(est))]
         rows += [["R", f"{self.R:.6g}", "", ""], ["loglik", f"{self.loglik:.6f}", "", ""]]
         page = frame_html(html.escape(lines[0]),
@@ -284,8 +292,10 @@ class BankTuneResult:
         """Set every channel's ``R`` and ``lam`` or ``Q`` to its estimate; returns `bank`."""
         R_old, n = bank.R, bank.dim_x
         if self.param == "lam_diag":
-            raise ValueError("a diagonal forgetting factor cannot be applied: the bank takes "
-                             "one `lam` per channel; use the estimates (or tune 'lam')")
+            raise ValueError("a diagonal forgetting factor cannot be applied to RLSBank: its "
+                             "kernels have no forgetting='diagonal'; apply each channel's "
+                             "estimate to a RecursiveLeastSquares (`fits.channel(c).apply(f)`), "
+                             "or tune 'lam'")
         if self.param == "lam":
             Q_rel = bank.Q / R_old[:, None, None]
             bank.R = self.R
@@ -309,7 +319,8 @@ def tune(filt, zs, Hs, param="q", *, bounds=None, burn=0, apply=False):
     Parameters
     ----------
     filt : RecursiveLeastSquares
-        The filter, with ``forgetting="exponential"``; its current state
+        The filter, with ``forgetting="exponential"`` (or ``"diagonal"`` for
+        ``param="lam_diag"``); its current state
         ``(x, P)`` starts every run (a new filter: ``x0``, ``P0``), with ``P``
         relative to its ``R`` (``P0 = p0 R`` in the scale-free
         parametrization). It is left unchanged unless `apply`.
@@ -322,8 +333,10 @@ def tune(filt, zs, Hs, param="q", *, bounds=None, burn=0, apply=False):
         ``"lam_diag"``, a forgetting factor per parameter (diagonal forgetting,
         :math:`P^- = L^{-1/2} P L^{-1/2} + Q`, :math:`L = \operatorname{diag}(\lambda)`:
         parameter ``i`` keeps a memory of about :math:`1 / (1 - \lambda_i)` samples;
-        the filter's ``Q / R`` kept). The filters run one ``lam``, so this
-        estimate is a diagnosis (which parameters drift) and is not `apply`-able.
+        the filter's ``Q / R`` kept). `apply` runs it:
+        ``RecursiveLeastSquares(forgetting="diagonal", lam=estimate)``, the same
+        recursion. A filter with ``forgetting="diagonal"`` can be tuned for
+        ``"lam_diag"`` only.
     bounds : (float, float), optional
         Search interval of the parameter: ``(0.5, 1.0)`` for ``lam`` and each
         entry of ``lam_diag``,
@@ -382,7 +395,11 @@ def tune(filt, zs, Hs, param="q", *, bounds=None, burn=0, apply=False):
     """
     if param not in _PARAMS:
         raise ValueError(f"`param` must be one of {', '.join(map(repr, _PARAMS))}; got {param!r}")
-    if getattr(filt, "forgetting", None) != "exponential":
+    mode = getattr(filt, "forgetting", None)
+    if mode == "diagonal" and param != "lam_diag":
+        raise ValueError("`tune` of a filter with forgetting='diagonal' estimates "
+                         f"param='lam_diag' only; got {param!r}")
+    if mode not in ("exponential", "diagonal"):
         raise ValueError("`tune` needs a RecursiveLeastSquares with forgetting='exponential' "
                          "(a Kalman time update P / lam + Q)")
     if type(burn) is not int or burn < 0:
@@ -409,7 +426,8 @@ def tune(filt, zs, Hs, param="q", *, bounds=None, burn=0, apply=False):
             raise ValueError("`zs` must hold no infinity and `Hs` must be finite")
     else:
         Z, Hm = filt._as_batch(zs, Hs)
-        out = _tune_record(Z, Hm, filt.x, filt.P / R0, filt.Q / R0, filt.lam, param, bounds,
+        lam0 = float(np.min(filt.lam))          # (a diagonal filter: its smallest factor)
+        out = _tune_record(Z, Hm, filt.x, filt.P / R0, filt.Q / R0, lam0, param, bounds,
                            burn, keep=True)
     if apply:
         out.apply(filt)

@@ -96,7 +96,7 @@ class RecursionState:
     Q : float or array_like, default 0.0
         Parameter random-walk covariance added in each time update.
     forgetting : str, default "exponential"
-        One of the modes of `RecursiveLeastSquares`.
+        One of the modes of `RecursiveLeastSquares` but ``"diagonal"``.
     forgetting_params : dict, optional
         Its constants (defaults as in `RecursiveLeastSquares`).
     gate : float, optional
@@ -125,6 +125,11 @@ class RecursionState:
         self.s = s
         self.method = method
         self.mode = _fg.mode_code(forgetting)
+        if self.mode == _fg.DIAGONAL:
+            raise ValueError("`forgetting` must not be 'diagonal' for the recursive "
+                             f"prediction-error fits ({method!r}: one `lam`, with its start-up "
+                             "profile); a factor per parameter is a mode of "
+                             "RecursiveLeastSquares (ARX.fit(method='rls'))")
         self.R = check_variance(R, "R")
         self.lam = check_lam(lam)
         self.lam_now = min(check_lam(lam_start, "lam_start"), self.lam)

@@ -90,9 +90,10 @@ def _column_exponents(s, input_exponents, output_exponents, intercept):
 
 def equivariant_forgetting(forgetting, params):
     """Whether a recursion with this forgetting mode gives the same numbers in scaled
-    units (see the notes): exponential forgetting (unless ``forgetting_params`` holds an
-    absolute ``trace_max``) and directional forgetting."""
-    return (forgetting in ("exponential", "directional")
+    units (see the notes): exponential and diagonal forgetting (unless
+    ``forgetting_params`` holds an absolute ``trace_max``; ``L^-1/2 P L^-1/2`` commutes
+    with the diagonal scaling of the columns) and directional forgetting."""
+    return (forgetting in ("exponential", "diagonal", "directional")
             and "trace_max" not in (params if isinstance(params, dict) else {}))
 
 

@@ -138,8 +138,9 @@ class ARX(IdentifiedModel):
     k0_ : int
         ``method="rls"`` only: number of rows of the batch start (0 for the
         gradient methods).
-    lam_ : float
-        ``method="rls"`` only: the forgetting factor used.
+    lam_ : float or ndarray
+        ``method="rls"`` only: the forgetting factor used (one per parameter,
+        shape ``(n_params,)``, with ``forgetting="diagonal"``).
     tune_ : TuneResult
         ``method="rls"`` with ``lam="tune"`` or ``Q="tune"`` only: the
         maximum-likelihood estimate (`rlsfilt.filters.tuning.TuneResult`:
@@ -356,7 +357,11 @@ class ARX(IdentifiedModel):
             `RecursiveLeastSquares` with the other options, from its prior
             ``x0``, ``P0``, the first ``n_params`` innovations left out of the
             likelihood; ``Q = q R I``), then fit with the estimate; the result
-            is ``tune_``.
+            is ``tune_``. With ``forgetting="diagonal"`` (passed to the
+            filter) `lam` may be one factor per parameter, an array of
+            shape ``(n_params,)`` in ``param_names_`` order (a diagonal
+            forgetting, :math:`P^- = L^{-1/2} P L^{-1/2} + Q`); its batch
+            start does not weight the rows.
         form : {"auto", "covariance", "square_root"}, optional
             ``"rls"`` only: the recursion. ``"covariance"`` is
             `RecursiveLeastSquares` (updates ``P``); ``"square_root"`` is
@@ -535,7 +540,8 @@ class ARX(IdentifiedModel):
                                                                              units)
             # prior: the a-priori (recursive) residuals y(t) - phi(t) theta(t-1) after
             # the batch start
-            recursive = {"filter_": rls, "k0_": k0, "lam_": float(rls.lam),
+            lam_used = rls.lam.copy() if np.ndim(rls.lam) else float(rls.lam)
+            recursive = {"filter_": rls, "k0_": k0, "lam_": lam_used,
                          "form_": "square_root" if isinstance(rls, SquareRootRLS)
                          else "covariance",
                          "theta_history_": history[:, :, 0] if info["y_1d"] else history,
@@ -1152,7 +1158,9 @@ class ARX(IdentifiedModel):
                 self.__dict__ else " over a finite window"
         elif self.method_ == "rls":
             start = (f"batch start on {self.k0_} rows" if self.k0_ else "prior start")
-            how += f" (lam={self.lam_:g}, {start})"
+            lam = (np.array2string(np.asarray(self.lam_), precision=4, separator=", ")
+                   if np.ndim(self.lam_) else f"{self.lam_:g}")
+            how += f" (lam={lam}, {start})"
         n_exp = self.__dict__.get("n_experiments_", 1)
         exps = f" of {n_exp} experiments" if n_exp > 1 else ""
         out = [f"{self._orders_text()}: {s.n_inputs} input(s), {s.n_outputs} output(s), "
