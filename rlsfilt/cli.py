@@ -981,7 +981,9 @@ def _save_figure(report, path):
 
     fig = report.plot()
     try:
-        fig.savefig(path, dpi=110)
+        # atomically, as every file rlsfilt writes (`--plot` takes .png, .pdf or .svg)
+        with atomic_write(path, "wb") as fh:
+            fig.savefig(fh, format=os.path.splitext(path)[1][1:].lower(), dpi=110)
     except OSError as exc:
         raise CLIError(f"cannot write '{path}': {exc.strerror}") from None
     finally:
