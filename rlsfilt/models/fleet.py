@@ -35,6 +35,7 @@ from .._validation import (
     as_float_array,
     check_dt,
     check_int,
+    check_not_dates,
     check_probability,
 )
 from ..exceptions import NumericalWarning
@@ -577,6 +578,8 @@ def _summary_long(model, frame, channel, inputs, output, method="ls", **options)
     order = np.argsort(codes, kind="stable")                # each channel's rows, in order
     counts = np.bincount(codes, minlength=len(labels))
     starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    check_not_dates([frame[output].dtype], "output")
+    check_not_dates(frame[inputs].dtypes, "input")
     Yall = frame[output].to_numpy(dtype=float)
     Uall = frame[inputs].to_numpy(dtype=float)
     on_error = options.get("on_error", "raise")
