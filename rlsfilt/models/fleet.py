@@ -404,7 +404,12 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
     (:class:`~rlsfilt.RLSBank` runs each channel exactly as a
     `RecursiveLeastSquares`, the windup cap of exponential forgetting
     included: a channel whose input stops exciting stays finite), the same
-    statistics. ``offset=True`` runs as one more input, constant 1, of one
+    statistics. Like ``ARX.fit``, each channel runs in its own power-of-two units
+    (every signal divided by a power of two near its largest entry, which is exact,
+    the results mapped back): records around 1e-160 or 1e160 fit as records of unit
+    size do, and at ordinary scales the numbers are those of the fit in the signals'
+    units, bit for bit (constant-trace forgetting and the gradient methods run in the
+    signals' units). ``offset=True`` runs as one more input, constant 1, of one
     coefficient and no delay (its regressor column is ARX's column of
     ones); the residual tests regress on a constant and the model's
     regressors, as :func:`~rlsfilt.validation.residual_analysis`. The regressors follow
@@ -936,8 +941,9 @@ class _ChannelUnits:
                     "scale the signals")
             d = np.abs(np.diagonal(P0, axis1=1, axis2=2))
             lost = (d < np.finfo(float).tiny).any(axis=1)
-            weak = lost | (np.ldexp(R, r)[:, None] / np.where(d > 0, d, 1.0)
-                           > 1e-2 * self._energy(record)).any(axis=1)
+            with np.errstate(over="ignore"):      # the prior's information, scaled
+                info = np.ldexp(R, r)[:, None] / np.where(d > 0, d, 1.0)
+            weak = lost | (info > 1e-2 * self._energy(record)).any(axis=1)
             if weak.any():
                 names = [labels[c] for c in np.flatnonzero(weak)]
                 _warn_at_caller(
