@@ -507,7 +507,7 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
                                    buffer, tuning, C)
     # ... each channel scaled to unit size by powers of two (exact), as ARX.fit runs
     units = _ChannelUnits(U, Y, s, offset == "intercept", good=good, scaled=(
-        method == "ls" or (method == "rls" and equivariant_forgetting(
+        "far" if method == "ls" else (method == "rls" and equivariant_forgetting(
             filter_options.get("forgetting", "exponential"),
             filter_options.get("forgetting_params")))))
     if method == "rls":
@@ -866,6 +866,9 @@ def _run_group(cs, g, k0, Phi, target, opts, labels, on_error, out):
     return g, bank
 
 
+_NEAR = 100
+
+
 class _ChannelUnits:
     r"""The powers of two that bring each channel to unit size, as `ARX.fit` does
     (:mod:`rlsfilt.models._units`), with a channel axis.
@@ -886,12 +889,18 @@ class _ChannelUnits:
     """
 
     def __init__(self, U, Y, s, intercept, scaled, good):
+        # scaled: True, False, or "far" (least squares: only a record with some signal
+        # beyond 2^+-_NEAR; nearer ones give the same bits unscaled, every operation
+        # of the fit being homogeneous and in range, and save the scaled copy)
         C, nu = U.shape[1], U.shape[2]
         self.eu, self.ey = np.zeros((C, nu), dtype=int), np.zeros(C, dtype=int)
         if scaled and good.any():           # (channels of NaN or inf, `~good`: exponent 0)
             Ug, Yg = (U, Y) if good.all() else (U[:, good], Y[:, good])
             self.eu[good] = np.reshape(pow2_exponent(Ug, axis=0), (-1, nu))
             self.ey[good] = np.reshape(pow2_exponent(Yg, axis=0), -1)
+            if scaled == "far" and max(np.abs(self.eu).max(initial=0),
+                                       np.abs(self.ey).max(initial=0)) <= _NEAR:
+                self.eu[:], self.ey[:] = 0, 0
         self._s, self._intercept = s, intercept
 
     @property
@@ -915,7 +924,9 @@ class _ChannelUnits:
         """The record in the scaled units (new arrays; the caller's are not touched)."""
         if self.identity:
             return U, Y
-        return times_pow2(U, -self.eu[None]), times_pow2(Y, -self.ey[None])
+        N, C, nu = U.shape                  # (rows of C nu columns: a fast inner loop)
+        Us = times_pow2(U.reshape(N, C * nu), -self.eu.reshape(-1)).reshape(N, C, nu)
+        return Us, times_pow2(Y, -self.ey)
 
     def bank(self, opts, filter_options, labels, record, prior):
         """The fleet's `RLSBank` in the scaled units, from the channels' options `opts`
