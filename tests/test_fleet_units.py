@@ -171,3 +171,23 @@ def test_long_frames_refuse_dates_as_samples(rng):
     durations = frame.assign(y=pd.to_timedelta(np.arange(2 * N), unit="s"))
     with pytest.raises(TypeError, match="`output` must be numeric array-like; got timedelta"):
         _summary_long(ARX(1, 1), durations, "ch", ["u"], "y")
+
+
+def test_labelled_inputs_with_unlabelled_outputs_pair_by_label(rng):
+    """`u` a DataFrame, `y` an array (#27 review: `u`'s columns were paired with `y`'s by
+    position whatever their labels): with `channels`, `u`'s columns are taken by those
+    labels; without, the channels are `u`'s columns, in their order."""
+    u, y = _record(rng)
+    labels = ["d", "a", "c", "b"]
+    U = pd.DataFrame(u, columns=labels)
+    expected = fit_many(ARX(2, 2), u, y, channels=labels)
+    got = fit_many(ARX(2, 2), U[["a", "b", "c", "d"]], y, channels=labels)
+    assert got.channels_ == labels
+    assert_array_equal(got.theta_, expected.theta_)
+    assert fit_many(ARX(2, 2), U, y).channels_ == labels
+    assert_array_equal(fit_many(ARX(2, 2), U, y).theta_, expected.theta_)
+    with pytest.raises(ValueError, match=r"the labels `channels` must carry the same channel "
+                                         r"labels .* `u` lacks \['e'\], and has \['d'\]"):
+        fit_many(ARX(2, 2), U, y, channels=["e", "a", "c", "b"])
+    with pytest.raises(ValueError, match="`channels` must be distinct labels"):
+        fit_many(ARX(2, 2), U, y, channels=["a", "a", "c", "b"])

@@ -339,7 +339,9 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
         with one column per channel works too. When `u` and `y` are both
         DataFrames, each channel's input is the column of `u` with the
         label of its column in `y` (in any order; labels that do not match,
-        or indexes that differ, are a ValueError).
+        or indexes that differ, are a ValueError). A DataFrame `u` with an
+        array `y` is taken by the labels `channels` when given; otherwise its
+        columns label the channels, in their order.
     y : array_like, shape (N, C)
         Outputs, one column per channel (a DataFrame's columns label the
         channels).
@@ -1183,9 +1185,14 @@ def _record_views(U, Y, channels):
 def _fleet_data(u, y, channels):
     """``U (N, C, nu)``, ``Y (N, C)`` as float64 C-ordered arrays, and the channel labels."""
     names = None
-    if hasattr(y, "columns") and hasattr(y, "to_numpy"):
+    if _is_frame(y):
         names = list(y.columns)
-        u = _aligned_inputs(u, y)
+        u = _aligned_inputs(u, names, "y", y.index)
+    elif _is_frame(u):                 # labelled inputs, outputs by position
+        if channels is None:
+            names = list(u.columns)    # the channels are u's columns, in their order
+        else:
+            u = _aligned_inputs(u, list(channels), "channels")
     Y = as_float_array(y.to_numpy() if hasattr(y, "to_numpy") else y, "y")
     U = as_float_array(u.to_numpy() if hasattr(u, "to_numpy") else u, "u")
     if Y.ndim != 2:
@@ -1215,28 +1222,35 @@ def _fleet_data(u, y, channels):
     return np.ascontiguousarray(U), np.ascontiguousarray(Y), names
 
 
-def _aligned_inputs(u, y):
-    """`u` with its columns in the order of `y`'s labels, when both are pandas
-    DataFrames: a fleet pairs a channel's input with its output by label, never
-    by position. Labels that do not match, or time indexes that differ, are a
-    ValueError naming them."""
-    if not (hasattr(u, "columns") and hasattr(u, "to_numpy")):
+def _is_frame(x):
+    return hasattr(x, "columns") and hasattr(x, "to_numpy")
+
+
+def _aligned_inputs(u, labels, other, index=None):
+    """`u` with its columns in the order of the channel `labels` (``y``'s columns, or
+    the `channels` given), when `u` is a pandas DataFrame: a fleet pairs a channel's
+    input with its output by label, never by position. Labels that do not match, or
+    time indexes that differ (`index`, ``y``'s), are a ValueError naming them."""
+    if not _is_frame(u):
         return u                             # an array: paired by position, as documented
-    ucols, ycols = list(u.columns), list(y.columns)
-    for name, cols in (("u", ucols), ("y", ycols)):
+    ucols = list(u.columns)
+    for name, cols in (("u", ucols), (other, labels)):
         if len(set(map(repr, cols))) != len(cols):
             raise ValueError(f"the columns of `{name}` must be distinct channel labels; got "
-                             f"{cols[:10]}{' ...' if len(cols) > 10 else ''}")
-    if ucols != ycols:
-        missing = [c for c in ycols if c not in ucols]
-        extra = [c for c in ucols if c not in ycols]
+                             f"{cols[:10]}{' ...' if len(cols) > 10 else ''}"
+                             if name != "channels" else "`channels` must be distinct labels")
+    if ucols != labels:
+        missing = [c for c in labels if c not in ucols]
+        extra = [c for c in ucols if c not in labels]
+        what = "the columns of `u` and `y`" if other == "y" else \
+            "the columns of `u` and the labels `channels`"
         if missing or extra:
             raise ValueError(
-                "the columns of `u` and `y` must carry the same channel labels (a channel's "
-                f"input is paired with its output by label); `u` lacks {missing[:10]}, and "
-                f"has {extra[:10]} that `y` lacks")
-        u = u[ycols]                         # the same labels in another order
-    if hasattr(u, "index") and hasattr(y, "index") and not u.index.equals(y.index):
+                f"{what} must carry the same channel labels (a channel's input is paired with "
+                f"its output by label); `u` lacks {missing[:10]}, and has {extra[:10]} that "
+                f"`{other}` lacks")
+        u = u[labels]                        # the same labels in another order
+    if index is not None and not u.index.equals(index):
         raise ValueError("`u` and `y` must have the same index (time on axis 0, sample by "
                          "sample); got different indexes")
     return u
