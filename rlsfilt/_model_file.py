@@ -314,9 +314,14 @@ def _int(value, path, minimum=None, maximum=None):
         _fail(path, "must be an integer", value)
     if minimum is not None and value < minimum:
         _fail(path, f"must be >= {minimum}", value)
-    if maximum is not None and value > maximum:
+    # (a count or an order beyond 2^53 is no fit's: a double no longer holds it exactly)
+    maximum = _MAX_INT if maximum is None else min(maximum, _MAX_INT)
+    if value > maximum:
         _fail(path, f"must be <= {maximum}", value)
     return value
+
+
+_MAX_INT = 2**53
 
 
 def _number(value, path, minimum=None, positive=False):
@@ -594,10 +599,17 @@ def _common(raw, out, n_params, per_output, ny, y_1d):
     out["theta_cov_"] = _array(raw["theta_cov_"], "fitted.theta_cov_",
                                (n_params, n_params) if y_1d else (ny, n_params, n_params),
                                allow_nan=out.get("method_") in ("nlms", "lms"))
-    diag = np.diagonal(out["theta_cov_"], axis1=-2, axis2=-1)
+    cov = out["theta_cov_"]
+    diag = np.diagonal(cov, axis1=-2, axis2=-1)
     if (diag < 0).any():
         raise ValueError("`fitted.theta_cov_` must have a non-negative diagonal (variances); "
                          f"got {float(diag.min())}")
+    # every fit stores a symmetric covariance (to the last bit; round-off allowed)
+    with np.errstate(invalid="ignore"):
+        skew = np.abs(cov - np.swapaxes(cov, -1, -2))
+        if (skew > 4 * np.finfo(float).eps * np.abs(cov)).any():
+            raise ValueError("`fitted.theta_cov_` must be symmetric (a covariance); got entries "
+                             f"that differ from their transposes by up to {np.nanmax(skew):.3g}")
     if y_1d:
         out["noise_variance_"] = _number(raw["noise_variance_"], "fitted.noise_variance_", 0.0)
     else:

@@ -247,12 +247,7 @@ def as_float_array(value, name):
         if arr.dtype.kind in "USV":
             shown = repr(value) if len(repr(value)) <= 40 else repr(value)[:37] + "..."
             raise TypeError(f"`{name}` must be numeric array-like; got text {shown}")
-        if arr.dtype.kind in "mM":
-            # numpy would read them as counts of their unit (seconds since 1970, ...)
-            raise TypeError(
-                f"`{name}` must be numeric array-like; got {arr.dtype} values (dates or "
-                "durations, not signal samples): pass the time stamps as `dt` or the "
-                "index of a DataFrame, and the signal's numbers here")
+        check_not_dates([arr.dtype], name)
         if not complex_values:
             arr = np.asarray(arr, dtype=float)
     except (TypeError, ValueError) as exc:
@@ -264,6 +259,22 @@ def as_float_array(value, name):
     if complex_values:
         raise TypeError(f"`{name}` must be real; got complex values (dtype {arr.dtype})")
     return arr
+
+
+def check_not_dates(dtypes, name):
+    """Refuse dates and durations as signal samples: a TypeError naming `name`.
+
+    numpy and pandas would read them as counts of their unit (seconds or
+    nanoseconds since 1970, ...); `dtypes` are the dtypes of an array or of the
+    columns of a pandas object (``Series.dtype``, ``DataFrame.dtypes``), timezone-aware
+    ones included.
+    """
+    for dtype in dtypes:
+        if getattr(dtype, "kind", None) in ("m", "M"):
+            raise TypeError(
+                f"`{name}` must be numeric array-like; got {dtype} values (dates or "
+                "durations, not signal samples): pass the time stamps as `dt` or the "
+                "index of a DataFrame, and the signal's numbers here")
 
 
 def check_bool(value, name):

@@ -203,13 +203,25 @@ def _writable_matplotlib_config():
 
 
 def _error(message):
-    print(f"rlsfilt: error: {message}", file=sys.stderr)
+    print(f"rlsfilt: error: {_bounded(message)}", file=sys.stderr)
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):
     """A warning is one line on stderr, like an error (no source path, no code line)."""
     text = str(message).splitlines()[0] if str(message) else category.__name__
-    print(f"rlsfilt: warning: {text}", file=sys.stderr if file is None else file)
+    print(f"rlsfilt: warning: {_bounded(text)}", file=sys.stderr if file is None else file)
+
+
+_MESSAGE_MAX = 2000     # characters of an error or warning line
+
+
+def _bounded(text):
+    """A message as the terminal shows it: its start and end when it is longer than
+    `_MESSAGE_MAX` (a channel label of 200,000 characters, quoted in a message)."""
+    if len(text) <= _MESSAGE_MAX:
+        return text
+    return (f"{text[:_MESSAGE_MAX // 2]} ... ({len(text):,} characters) ... "
+            f"{text[-_MESSAGE_MAX // 2:]}")
 
 
 # ----------------------------------------------------------------------
@@ -981,7 +993,9 @@ def _save_figure(report, path):
 
     fig = report.plot()
     try:
-        fig.savefig(path, dpi=110)
+        # atomically, as every file rlsfilt writes (`--plot` takes .png, .pdf or .svg)
+        with atomic_write(path, "wb") as fh:
+            fig.savefig(fh, format=os.path.splitext(path)[1][1:].lower(), dpi=110)
     except OSError as exc:
         raise CLIError(f"cannot write '{path}': {exc.strerror}") from None
     finally:

@@ -83,8 +83,9 @@ def fit_many(model, u, y, method="ls", *, channels=None, client=None, compute=Tr
     Returns
     -------
     pandas.DataFrame or dask.dataframe.DataFrame
-        ``fit_many(model, u, y, method, **options).to_dataframe()``, equal to it
-        exactly. The ``error`` column of the lazy frame (None where a
+        ``fit_many(model, u, y, method, **options).to_dataframe()``: the estimates
+        and fits equal to it bit for bit, the residual-test statistics to
+        round-off (see the module notes). The ``error`` column of the lazy frame (None where a
         channel was fitted) is dropped from the computed one when no
         channel failed, as in the in-memory summary.
     """

@@ -118,3 +118,28 @@ def test_identify_many_out_is_atomic(tmp_path, monkeypatch):
     monkeypatch.undo()
     assert args.run(args) == 0
     assert pd.read_csv(out, index_col="channel").index.tolist() == ["c0", "c1"]
+
+
+@pytest.mark.parametrize("ext", ["png", "svg"])
+def test_cli_plot_is_atomic(tmp_path, monkeypatch, capsys, ext):
+    """``--plot``: a figure whose writing fails midway keeps the old file (it was written
+    in place); a successful one replaces it with the figure in the extension's format."""
+    rng = np.random.default_rng(6)
+    u = rng.standard_normal(300)
+    y = lfilter([0, 1.0, 0.5], [1, -0.6], u) + 0.01 * rng.standard_normal(300)
+    pd.DataFrame({"u": u, "y": y}).to_csv(tmp_path / "rec.csv", index=False)
+    plot = tmp_path / f"fig.{ext}"
+    plot.write_bytes(b"previous figure")
+    argv = ["identify", str(tmp_path / "rec.csv"), "-u", "u", "-y", "y", "--na", "1",
+            "--plot", str(plot)]
+    _fail_sync(monkeypatch)
+    assert main(argv) != 0
+    assert "cannot write" in capsys.readouterr().err
+    assert plot.read_bytes() == b"previous figure"
+    assert _folder(tmp_path) == [f"fig.{ext}", "rec.csv"]
+    monkeypatch.undo()
+    assert main(argv) == 0
+    capsys.readouterr()
+    head = plot.read_bytes()[:64]
+    assert head.startswith(b"\x89PNG") if ext == "png" else b"<svg" in plot.read_bytes()[:2000]
+    assert _folder(tmp_path) == [f"fig.{ext}", "rec.csv"]

@@ -265,3 +265,20 @@ def test_empty_channel_label_is_named(rng, tmp_path):
                                          "label"):
         _run(["identify-many", str(tmp_path / "pack.csv"), "-c", "cell", "-u", "current",
               "-y", "voltage", "-q"])
+
+
+def test_a_huge_label_in_a_message_is_shown_shortened(rng, tmp_path, capsys):
+    """A channel label of 200,000 characters (a channel of one sample, too short to fit)
+    is quoted in the error, which the terminal gets as its start and end (#27 item 7)."""
+    from rlsfilt.cli import main
+
+    frame = _write_csv(tmp_path / "pack.csv", rng, C=2)
+    frame = frame.astype({"cell": object})
+    frame.iloc[0, frame.columns.get_loc("cell")] = "x" * 200_000
+    frame.to_csv(tmp_path / "pack.csv", index=False)
+    assert main(["identify-many", str(tmp_path / "pack.csv"), "-c", "cell", "-u", "current",
+                 "-y", "voltage", "-q"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("rlsfilt: error: ") and err.count("\n") == 1
+    assert 2000 < len(err) < 2200 and "characters) ... " in err
+    assert err.rstrip().endswith("got 1")            # the reason: one sample

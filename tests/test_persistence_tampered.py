@@ -509,3 +509,29 @@ def test_loading_a_crafted_file_imports_nothing_and_opens_no_socket(tmp_path):
                           capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert proc.stdout.strip() == f"refused {len(crafted) - 1}"
+
+
+# ----------------------------------------------------------------------
+# counts beyond what a fit can hold, covariances that are no covariances (#27 review)
+# ----------------------------------------------------------------------
+@pytest.mark.parametrize("key", ["ARX-miso-offset", "ARMAX-siso", "ARX-rls"])
+@pytest.mark.parametrize("field", ["n_samples_", "n_experiments_", "n_params_"])
+def test_integers_beyond_2_53_are_refused(key, field, tmp_path):
+    """A count of 10^400 loaded, and summary() then failed in scipy with a TypeError."""
+    doc = _doc(key)
+    doc["fitted"][field] = 10**400
+    assert "must be <= 9007199254740992" in _refused(tmp_path, doc, f"fitted.{field}")
+    doc["fitted"][field] = 2**53 + 1
+    _refused(tmp_path, doc, f"fitted.{field}")
+
+
+@pytest.mark.parametrize("key", ["ARX-miso-offset", "ARMAX-siso", "ARX-rls"])
+def test_a_covariance_that_is_not_symmetric_is_refused(key, tmp_path):
+    """Every fit stores a symmetric ``theta_cov_``: an off-diagonal entry changed on one
+    side only (wrong standard errors for one parameter) is refused; the file as written
+    loads."""
+    doc = _doc(key)
+    _load(tmp_path, doc)
+    cov = doc["fitted"]["theta_cov_"]["__ndarray__"]
+    cov["data"][1] = cov["data"][1] * 2 + 1.0
+    assert "symmetric" in _refused(tmp_path, doc, "fitted.theta_cov_")

@@ -30,14 +30,22 @@ import numpy as np
 
 from .._display import Summary, edge_indices, frame_html, table_html, table_text
 from .._lazy import lazy_module
-from .._scale import unit_columns
-from .._validation import as_float_array, check_dt, check_int, check_probability
+from .._scale import pow2_exponent, times_pow2, unit_columns
+from .._validation import (
+    COVARIANCE_MAX,
+    as_float_array,
+    check_dt,
+    check_int,
+    check_not_dates,
+    check_probability,
+)
 from ..exceptions import NumericalWarning
 from ..filters._health import warn_at_caller as _warn_at_caller
 from ..filters.bank import RLSBank, full_rank, subset
 from ..filters.gradient_bank import GradientBank
 from ._offset import offset_mode as _offset_mode
 from ._tuning_option import tuning_param
+from ._units import equivariant_forgetting, estimate_in_units
 from .regressors import _full_rank_rows, arx_structure
 
 __all__ = ["ARXBank", "fit_many"]
@@ -335,7 +343,9 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
         with one column per channel works too. When `u` and `y` are both
         DataFrames, each channel's input is the column of `u` with the
         label of its column in `y` (in any order; labels that do not match,
-        or indexes that differ, are a ValueError).
+        or indexes that differ, are a ValueError). A DataFrame `u` with an
+        array `y` is taken by the labels `channels` when given; otherwise its
+        columns label the channels, in their order.
     y : array_like, shape (N, C)
         Outputs, one column per channel (a DataFrame's columns label the
         channels).
@@ -400,7 +410,12 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
     (:class:`~rlsfilt.RLSBank` runs each channel exactly as a
     `RecursiveLeastSquares`, the windup cap of exponential forgetting
     included: a channel whose input stops exciting stays finite), the same
-    statistics. ``offset=True`` runs as one more input, constant 1, of one
+    statistics. Like ``ARX.fit``, each channel runs in its own power-of-two units
+    (every signal divided by a power of two near its largest entry, which is exact,
+    the results mapped back): records around 1e-160 or 1e160 fit as records of unit
+    size do, and at ordinary scales the numbers are those of the fit in the signals'
+    units, bit for bit (constant-trace forgetting and the gradient methods run in the
+    signals' units). ``offset=True`` runs as one more input, constant 1, of one
     coefficient and no delay (its regressor column is ARX's column of
     ones); the residual tests regress on a constant and the model's
     regressors, as :func:`~rlsfilt.validation.residual_analysis`. The regressors follow
@@ -462,11 +477,7 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
     U, Y, labels = _fleet_data(u, y, channels)
     N, C, nu = U.shape
     s = arx_structure(na, nb, nk, nu, 1)
-    # what the fit runs on: the record itself, its deviations from the channels' means
-    # (offset="mean"), or the record with a constant input of one coefficient and no
-    # delay, whose column of ones is ARX's intercept column (offset=True)
-    rec = _FitRecord(U, Y, s, offset)
-    n, rows = rec.s.n_params, N - s.max_lag
+    n, rows = s.n_params + (offset == "intercept"), N - s.max_lag
     if rows < n:
         raise ValueError(
             f"`y` must have at least max_lag + n_params = {s.max_lag} + {n} = {s.max_lag + n} "
@@ -492,10 +503,23 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
     chunk = max(1, _CHUNK_BYTES // (8 * max(rows, 1) * (n + 2)))
     todo = np.flatnonzero(good)
     buffer = np.empty(rows * n * min(chunk, C))               # the regressors of a chunk
+    # what the fit runs on: the record itself, its deviations from the channels' means
+    # (offset="mean"), or the record with a constant input of one coefficient and no
+    # delay, whose column of ones is ARX's intercept column (offset=True)
     tuned = None
-    if tuning is not None:
+    if tuning is not None:                   # (on the rows in the signals' units, as ARX.fit)
         with _one_blas_thread():
-            tuned = _tune_channels(rec, per_channel, todo, chunk, buffer, tuning, C)
+            tuned = _tune_channels(_FitRecord(U, Y, s, offset), per_channel, todo, chunk,
+                                   buffer, tuning, C)
+    # ... each channel scaled to unit size by powers of two (exact), as ARX.fit runs
+    units = _ChannelUnits(U, Y, s, offset == "intercept", good=good, scaled=(
+        "far" if method == "ls" else (method == "rls" and equivariant_forgetting(
+            filter_options.get("forgetting", "exponential"),
+            filter_options.get("forgetting_params")))))
+    if method == "rls":
+        per_channel["bank"] = units.bank(per_channel, filter_options, labels, (U, Y),
+                                         prior=k0 == 0 or (k0 is None and per_channel["prior"]))
+    rec = _FitRecord(*units.scale(U, Y), s, offset)
     try:
         with _one_blas_thread():
             for start in range(0, C, chunk):
@@ -508,6 +532,7 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
     finally:
         if bar is not None:
             bar.close()
+    units.results(out, labels, on_error)
     out.finish()
     unhealthy = [labels[c] for c in np.flatnonzero(~out.healthy & good)]
     if unhealthy:
@@ -524,7 +549,8 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
     return ARXBank(
         template=type(model)(**params), channels_=labels, structure_=s,
         theta_=out.theta, theta_cov_=out.cov, std_errors_=np.sqrt(
-            np.diagonal(out.cov, axis1=1, axis2=2)),
+            np.diagonal(out.cov, axis1=1, axis2=2)) if out.std_errors is None
+        else out.std_errors,
         noise_variance_=out.sigma2, residuals_=out.resid, simulation_fit_=out.sim_fit,
         prediction_fit_=out.pred_fit, q_statistic_=out.Q, df_white_=max_lag,
         pvalue_white_=out.p_white, f_statistic_=out.F, df_independent_=out.q,
@@ -535,7 +561,7 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
         healthy_=out.healthy, errors_=list(errors), n_samples_=rows, n_params_=n,
         **({} if tuned is None else {"tune_": tuned}),
         param_names_=names, method_=method, max_lag=max_lag, alpha=alpha,
-        **rec.operating_point(out.theta), _data=(U, Y), _fingerprint=sums, _options=kept)
+        **rec.operating_point(out.theta, units), _data=(U, Y), _fingerprint=sums, _options=kept)
 
 
 # ----------------------------------------------------------------------
@@ -563,6 +589,8 @@ def _summary_long(model, frame, channel, inputs, output, method="ls", **options)
     order = np.argsort(codes, kind="stable")                # each channel's rows, in order
     counts = np.bincount(codes, minlength=len(labels))
     starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    check_not_dates([frame[output].dtype], "output")
+    check_not_dates(frame[inputs].dtypes, "input")
     Yall = frame[output].to_numpy(dtype=float)
     Uall = frame[inputs].to_numpy(dtype=float)
     on_error = options.get("on_error", "raise")
@@ -642,6 +670,7 @@ class _Results:
         self.q = np.zeros(C, dtype=int) if tests else None
         self.p_indep = np.full(C, nan) if tests else None
         self.errors = None
+        self.std_errors = None          # (from the scaled units: `_ChannelUnits.results`)
 
     def finish(self):
         """NaN residuals for the channels that were not fitted."""
@@ -841,6 +870,170 @@ def _run_group(cs, g, k0, Phi, target, opts, labels, on_error, out):
     return g, bank
 
 
+_NEAR = 100
+
+
+class _ChannelUnits:
+    r"""The powers of two that bring each channel to unit size, as `ARX.fit` does
+    (:mod:`rlsfilt.models._units`), with a channel axis.
+
+    Input ``i`` of channel ``c`` is :math:`2^{e_{ci}}\tilde u`, its output
+    :math:`2^{e_{y,c}}\tilde y` (`pow2_exponent` of each column); regressor
+    column ``k`` of channel ``c`` has the exponent :math:`c_{ck}` of its signal
+    (0 for the intercept's ones) and the parameter is :math:`\theta_{ck} =
+    2^{g_{ck}}\tilde\theta_{ck}`, :math:`g_{ck} = e_{y,c} - c_{ck}`. Dividing the
+    record by powers of two is exact, and least squares, the bank's recursion
+    (exponential or directional forgetting, from ``P0``, ``R``, ``Q``, ``x0``
+    mapped as `RecordUnits.recursion_start` maps them) and the statistics then
+    run operation for operation as in the signals' units times powers of two: the
+    same bits wherever both runs stay in the normal range, and in range for
+    records of any size (around 1e+-160 too). The gradient methods and the
+    forgetting modes whose constants bound ``trace(P)`` run in the signals' units
+    (every exponent 0).
+    """
+
+    def __init__(self, U, Y, s, intercept, scaled, good):
+        # scaled: True, False, or "far" (least squares: only a record with some signal
+        # beyond 2^+-_NEAR; nearer ones give the same bits unscaled, every operation
+        # of the fit being homogeneous and in range, and save the scaled copy)
+        C, nu = U.shape[1], U.shape[2]
+        self.eu, self.ey = np.zeros((C, nu), dtype=int), np.zeros(C, dtype=int)
+        if scaled and good.any():           # (channels of NaN or inf, `~good`: exponent 0)
+            Ug, Yg = (U, Y) if good.all() else (U[:, good], Y[:, good])
+            self.eu[good] = np.reshape(pow2_exponent(Ug, axis=0), (-1, nu))
+            self.ey[good] = np.reshape(pow2_exponent(Yg, axis=0), -1)
+            if scaled == "far" and max(np.abs(self.eu).max(initial=0),
+                                       np.abs(self.ey).max(initial=0)) <= _NEAR:
+                self.eu[:], self.ey[:] = 0, 0
+        self._s, self._intercept = s, intercept
+
+    @property
+    def identity(self):
+        """Every exponent 0: the fit runs on the record itself."""
+        return not (self.eu.any() or self.ey.any())
+
+    def columns(self):
+        """:math:`c_{ck}` (C, n_params): the exponents of the regressor columns."""
+        parts = [np.repeat(self.ey[:, None], self._s.na, axis=1),
+                 self.eu[:, _input_columns(self._s)[1]]]
+        if self._intercept:
+            parts.append(np.zeros((len(self.ey), 1), dtype=int))
+        return np.concatenate(parts, axis=1)
+
+    def theta(self):
+        """:math:`g_{ck}` (C, n_params): the exponents of the parameters."""
+        return self.ey[:, None] - self.columns()
+
+    def scale(self, U, Y):
+        """The record in the scaled units (new arrays; the caller's are not touched)."""
+        if self.identity:
+            return U, Y
+        N, C, nu = U.shape                  # (rows of C nu columns: a fast inner loop)
+        Us = times_pow2(U.reshape(N, C * nu), -self.eu.reshape(-1)).reshape(N, C, nu)
+        return Us, times_pow2(Y, -self.ey)
+
+    def bank(self, opts, filter_options, labels, record, prior):
+        """The fleet's `RLSBank` in the scaled units, from the channels' options `opts`
+        (`_rls_options`, validated in the signals' units): ``R~ = 2^r R`` (``r``
+        bringing ``R`` to about 1), ``P0~`` of a `prior` start (``k0 = 0``) and ``Q~`` as
+        ``2^(c_k + c_l + r)`` times the user's, ``x0~ = 2^-g x0``; a batch start keeps
+        the default ``P0`` (the windup cap's default trace limit) in the scaled units,
+        as `ARX.fit`. A ``P0``, ``Q`` or ``x0`` beyond the filters' range there is a
+        ValueError naming it; channels whose prior ``P0`` outweighs their data are
+        warned about (NumericalWarning naming ``P0``), and those where it underflows
+        run in their own units, as `ARX.fit` runs them."""
+        R = opts["R"]
+        r = -np.round(np.log2(R)).astype(int)
+        P0 = None
+        if prior:                           # (a prior start: k0 = 0)
+            P0 = self._to_unit(opts["P0"], r)
+            if not np.max(np.abs(P0), initial=0.0) <= COVARIANCE_MAX:
+                raise ValueError(
+                    "`P0` must suit the scale of the data: read in the signals' units (as R) "
+                    "it is too diffuse for double precision for the record scaled to unit size "
+                    "(the first update would lose every digit of P); pass P0 and R in the "
+                    "signals' units (P0 about 1e4 * R / max|phi_k|^2 for parameter k), or "
+                    "scale the signals")
+            d = np.abs(np.diagonal(P0, axis1=1, axis2=2))
+            lost = (d < np.finfo(float).tiny).any(axis=1)
+            with np.errstate(over="ignore"):      # the prior's information, scaled
+                info = np.ldexp(R, r)[:, None] / np.where(d > 0, d, 1.0)
+            weak = lost | (info > 1e-2 * self._energy(record)).any(axis=1)
+            if weak.any():
+                names = [labels[c] for c in np.flatnonzero(weak)]
+                _warn_at_caller(
+                    f"P0 (in the signals' units, as R) outweighs the data of {len(names)} "
+                    f"channel(s) scaled to unit size: {names[:10]}"
+                    f"{' ...' if len(names) > 10 else ''}; the prior holds their estimates "
+                    "toward `x0`. Pass P0 and R in the signals' units (P0 about 1e4 * R / "
+                    "max|phi_k|^2 for parameter k), or scale the signals to unit size",
+                    NumericalWarning)
+            if lost.any():                        # these channels run in their own units
+                self.eu[lost], self.ey[lost] = 0, 0
+                P0 = self._to_unit(opts["P0"], r)
+        if self.identity:
+            return opts["bank"]
+        Q = self._to_unit(opts["Q"], r)
+        with np.errstate(over="ignore", under="ignore"):
+            x0 = np.ldexp(opts["x0"], -self.theta())
+        if not np.max(np.abs(Q), initial=0.0) <= COVARIANCE_MAX:
+            raise ValueError("`Q` must suit the scale of the data: read in the signals' units "
+                             "it is beyond the range of the recursion for the record scaled to "
+                             "unit size; pass a smaller Q or scale the signals")
+        if not np.isfinite(x0).all():
+            raise ValueError("`x0` must have b coefficients of the size the record's units "
+                             "allow (|b| up to about max|y| / max|u| times 1e300); got "
+                             "coefficients that overflow")
+        return RLSBank(len(R), x0.shape[1], opts["lam"], R=np.ldexp(R, r), Q=Q, x0=x0,
+                       **({} if P0 is None else {"P0": P0}), **filter_options)
+
+    def _to_unit(self, P, r):
+        """``P0`` or ``Q`` (C, n, n) -> the scaled units: ``2^(c_k + c_l + r)`` times."""
+        c = self.columns()
+        with np.errstate(over="ignore", under="ignore"):
+            return np.ldexp(P, c[:, :, None] + c[:, None, :] + r[:, None, None])
+
+    def _energy(self, record):
+        """The sum of squares of each regressor column's signal in the scaled units (the
+        intercept's ones: the number of samples), (C, n_params)."""
+        U, Y = self.scale(*record)
+        parts = [np.repeat(np.einsum("tc,tc->c", Y, Y)[:, None], self._s.na, axis=1),
+                 np.einsum("tci,tci->ci", U, U)[:, _input_columns(self._s)[1]]]
+        if self._intercept:
+            parts.append(np.full((Y.shape[1], 1), float(len(Y))))
+        return np.concatenate(parts, axis=1)
+
+    def results(self, out, labels, on_error):
+        """The fit's numbers in `out` (computed in the scaled units) -> the signals'
+        units, in place (before `_Results.finish`): a coefficient beyond the largest
+        double there is the error of `estimate_in_units`, for its channel."""
+        if self.identity:
+            return
+        g = self.theta()
+        with np.errstate(over="ignore", under="ignore", invalid="ignore"):
+            se = np.ldexp(np.sqrt(np.diagonal(out.cov, axis1=1, axis2=2)), g)
+            theta = np.ldexp(out.theta, g)
+            out.cov = np.ldexp(out.cov, g[:, :, None] + g[:, None, :])
+            out.sigma2 = np.ldexp(out.sigma2, 2 * self.ey)
+        out.std_errors = se
+        for c in np.flatnonzero(np.isfinite(out.theta).all(axis=1)
+                                & ~np.isfinite(theta).all(axis=1)):
+            try:
+                estimate_in_units(out.theta[c], g[c])
+            except ValueError as exc:
+                _fail(out, c, labels, str(exc), on_error)
+            theta[c], se[c], out.cov[c] = np.nan, np.nan, np.nan
+            out.sigma2[c], out.sim_fit[c], out.pred_fit[c] = np.nan, np.nan, np.nan
+        out.theta = theta
+        times_pow2(out.resid, self.ey[None, :], out=out.resid)
+        if out.rec is not None:
+            times_pow2(out.rec, self.ey[None, :], out=out.rec)
+
+    def means(self, means):
+        """The channels' means (``offset="mean"``, in the scaled units) -> the signals'."""
+        return np.ldexp(means[0], self.eu), np.ldexp(means[1], self.ey)
+
+
 class _FitRecord:
     """The record a fleet's fit runs on, for the `offset` of its ARX model.
 
@@ -874,14 +1067,16 @@ class _FitRecord:
             self.U = Ua
             self.s = arx_structure(s.na, list(s.nb) + [1], list(s.nk) + [0], nu + 1, 1)
 
-    def operating_point(self, theta):
+    def operating_point(self, theta, units):
         """The fitted attributes of the offset: ``intercept_`` (C,) for
         ``offset=True``; ``input_offset_`` (C, nu), ``output_offset_`` (C,) (the
-        channels' means) for ``"mean"``; nothing without an offset."""
+        channels' means, from the record in the scaled `units`) for ``"mean"``;
+        nothing without an offset."""
         if self.offset == "intercept":
             return {"intercept_": theta[:, -1].copy()}
         if self.offset == "mean":
-            return {"input_offset_": self.means[0], "output_offset_": self.means[1]}
+            u_bar, y_bar = units.means(self.means)
+            return {"input_offset_": u_bar, "output_offset_": y_bar}
         return {}
 
 
@@ -990,9 +1185,14 @@ def _record_views(U, Y, channels):
 def _fleet_data(u, y, channels):
     """``U (N, C, nu)``, ``Y (N, C)`` as float64 C-ordered arrays, and the channel labels."""
     names = None
-    if hasattr(y, "columns") and hasattr(y, "to_numpy"):
+    if _is_frame(y):
         names = list(y.columns)
-        u = _aligned_inputs(u, y)
+        u = _aligned_inputs(u, names, "y", y.index)
+    elif _is_frame(u):                 # labelled inputs, outputs by position
+        if channels is None:
+            names = list(u.columns)    # the channels are u's columns, in their order
+        else:
+            u = _aligned_inputs(u, list(channels), "channels")
     Y = as_float_array(y.to_numpy() if hasattr(y, "to_numpy") else y, "y")
     U = as_float_array(u.to_numpy() if hasattr(u, "to_numpy") else u, "u")
     if Y.ndim != 2:
@@ -1022,28 +1222,35 @@ def _fleet_data(u, y, channels):
     return np.ascontiguousarray(U), np.ascontiguousarray(Y), names
 
 
-def _aligned_inputs(u, y):
-    """`u` with its columns in the order of `y`'s labels, when both are pandas
-    DataFrames: a fleet pairs a channel's input with its output by label, never
-    by position. Labels that do not match, or time indexes that differ, are a
-    ValueError naming them."""
-    if not (hasattr(u, "columns") and hasattr(u, "to_numpy")):
+def _is_frame(x):
+    return hasattr(x, "columns") and hasattr(x, "to_numpy")
+
+
+def _aligned_inputs(u, labels, other, index=None):
+    """`u` with its columns in the order of the channel `labels` (``y``'s columns, or
+    the `channels` given), when `u` is a pandas DataFrame: a fleet pairs a channel's
+    input with its output by label, never by position. Labels that do not match, or
+    time indexes that differ (`index`, ``y``'s), are a ValueError naming them."""
+    if not _is_frame(u):
         return u                             # an array: paired by position, as documented
-    ucols, ycols = list(u.columns), list(y.columns)
-    for name, cols in (("u", ucols), ("y", ycols)):
+    ucols = list(u.columns)
+    for name, cols in (("u", ucols), (other, labels)):
         if len(set(map(repr, cols))) != len(cols):
             raise ValueError(f"the columns of `{name}` must be distinct channel labels; got "
-                             f"{cols[:10]}{' ...' if len(cols) > 10 else ''}")
-    if ucols != ycols:
-        missing = [c for c in ycols if c not in ucols]
-        extra = [c for c in ucols if c not in ycols]
+                             f"{cols[:10]}{' ...' if len(cols) > 10 else ''}"
+                             if name != "channels" else "`channels` must be distinct labels")
+    if ucols != labels:
+        missing = [c for c in labels if c not in ucols]
+        extra = [c for c in ucols if c not in labels]
+        what = "the columns of `u` and `y`" if other == "y" else \
+            "the columns of `u` and the labels `channels`"
         if missing or extra:
             raise ValueError(
-                "the columns of `u` and `y` must carry the same channel labels (a channel's "
-                f"input is paired with its output by label); `u` lacks {missing[:10]}, and "
-                f"has {extra[:10]} that `y` lacks")
-        u = u[ycols]                         # the same labels in another order
-    if hasattr(u, "index") and hasattr(y, "index") and not u.index.equals(y.index):
+                f"{what} must carry the same channel labels (a channel's input is paired with "
+                f"its output by label); `u` lacks {missing[:10]}, and has {extra[:10]} that "
+                f"`{other}` lacks")
+        u = u[labels]                        # the same labels in another order
+    if index is not None and not u.index.equals(index):
         raise ValueError("`u` and `y` must have the same index (time on axis 0, sample by "
                          "sample); got different indexes")
     return u

@@ -30,7 +30,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from .._scale import unit_columns
-from .._validation import as_float_array, check_finite, check_int
+from .._validation import as_float_array, check_finite, check_int, check_not_dates
 
 __all__ = ["arx_regressors", "arx_structure", "ARXStructure"]
 
@@ -159,6 +159,8 @@ def _as_signal(x, name, copy=True):
     elif getattr(x, "name", None) is not None and hasattr(x, "index"):  # pandas Series
         names = [str(x.name)]
     if hasattr(x, "to_numpy"):
+        # (pandas' to_numpy(dtype=float) reads dates as nanoseconds since 1970)
+        check_not_dates(x.dtypes if cols is not None else [getattr(x, "dtype", None)], name)
         if np.iscomplexobj(x.to_numpy()):
             raise TypeError(f"`{name}` must be real; got complex values")
         try:
