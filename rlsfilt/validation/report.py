@@ -19,7 +19,7 @@ from ._model import model_name, n_params, one_step
 from .compare import _time_series_records, compare, initial_text
 from .criteria import _from_residuals
 from .plant import PlantComparison
-from .residuals import _residual_analysis
+from .residuals import _residual_analysis, auto_max_lag
 from .uncertainty import frequency_response_band, parameter_intervals
 
 __all__ = ["ValidationReport", "validate"]
@@ -575,7 +575,7 @@ def validate(model, u, y=None, plant=None, *, initial="estimate", max_lag="auto"
     u = np.vstack(glued_u) if len(parts) > 1 or time_series else parts[0][0]
     n = E.shape[0]
     if auto:
-        lag = max(1, min(25, n // 4))
+        lag = auto_max_lag(n)
     residuals, criteria, skipped = (), None, None
     while True:
         try:
