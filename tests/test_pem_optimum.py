@@ -111,6 +111,19 @@ def test_oe_two_inputs_reaches_the_multistart_optimum(record):
     assert m.fit_info_["converged"]
 
 
+def test_oe220_of_the_issue_reaches_the_multistart_optimum(record):
+    """The issue's OE(2, 2, 0) (both delays 0, though the second input's is 2): it stopped on
+    the unit circle with B about 1e-4; from the default start it now reaches the lowest
+    criterion of the independent multistart, inside the circle, without a warning."""
+    U, y = record
+    m = OE(nb=[2, 2], nf=[2, 2], nk=[0, 0]).fit(U, y)       # warnings are errors here
+    ref, theta = multistart(U, y, (2, 2), (2, 2), (0, 0))
+    assert m.fit_info_["cost"] <= ref * (1 + 1e-9)
+    assert_allclose(m.theta_, theta, rtol=0, atol=1e-3)   # the same point (scipy: FD steps)
+    assert _max_root(m) < 0.95 and m.fit_info_["converged"]
+    assert m.fit_info_["cost"] < m.fit_info_["arx_cost"]
+
+
 def test_bj_two_inputs_reaches_the_multistart_optimum(record):
     U, y = record
     m = BJ(nb=[2, 2], nc=1, nd=1, nf=[2, 2], nk=NK).fit(U, y)
