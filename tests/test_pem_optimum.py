@@ -296,3 +296,17 @@ def test_bj_with_nd_at_least_nf_is_held_to_the_arx_criterion(record, nc, nd):
     # nd < nf: the structures do not contain each other, no ARX bound
     small = BJ(nb=[2, 2], nc=1, nd=1, nf=[2, 2], nk=NK).fit(U, y)
     assert small.fit_info_["arx_cost"] is None
+
+
+def test_progress_auto_shows_a_bar_once_the_fit_runs_long(record, capsys, monkeypatch):
+    """The default progress="auto": a bar appears once the fit has run PROGRESS_AFTER
+    seconds (here 0, so at the first evaluation); the estimate does not depend on it."""
+    import rlsfilt.models._pem as pem_module
+
+    U, y = record
+    quiet = OE(nb=[1, 1], nf=[1, 1], nk=NK).fit(U, y, progress=False)
+    assert "pem" not in capsys.readouterr().err
+    monkeypatch.setattr(pem_module, "PROGRESS_AFTER", 0.0)
+    shown = OE(nb=[1, 1], nf=[1, 1], nk=NK).fit(U, y)
+    assert "pem" in capsys.readouterr().err
+    assert_allclose(shown.theta_, quiet.theta_, rtol=0, atol=0)
