@@ -434,7 +434,11 @@ def validate(model, u, y=None, plant=None, *, initial="estimate", max_lag="auto"
         Initial state of the simulation and the one-step prediction (see
         :func:`compare`): ``"estimate"`` is MATLAB ``compare``'s default, so
         the fits are those a MATLAB user gets for the same model.
-        ``"measured"`` applies to ARX only (the simulation also to ARMAX).
+        ``"measured"`` applies to ARX only: validate needs it for both the
+        simulation and the one-step prediction, and the measured past
+        defines the predictor's state only without ``C`` and ``F`` (a
+        ValueError says so; ``compare(..., initial="measured")`` simulates
+        ARMAX from its measured past too).
     max_lag : int or "auto", default "auto"
         Largest lag of the residual correlations. ``"auto"`` (also the
         command line's): ``min(25, n // 4)`` for ``n`` residuals, halved
