@@ -13,13 +13,14 @@ from .._version import __version__
 from ..data.trend import _offset_messages
 from ..exceptions import ExactFitError, InsufficientDataError, OperatingPointWarning
 from ..models._base import check_is_fitted
+from ..models._residual_tests import auto_max_lag
 from ..models.regressors import as_records
 from ..plotting import plot_comparison, plot_report
 from ._model import model_name, n_params, one_step
 from .compare import _time_series_records, compare, initial_text
 from .criteria import _from_residuals
 from .plant import PlantComparison
-from .residuals import _residual_analysis, auto_max_lag
+from .residuals import _residual_analysis
 from .uncertainty import frequency_response_band, parameter_intervals
 
 __all__ = ["ValidationReport", "validate"]

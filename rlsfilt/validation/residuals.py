@@ -12,7 +12,7 @@ from .._display import Summary, frame_html, table_html
 from .._scale import pow2_scale
 from .._validation import check_int, check_probability
 from ..exceptions import ExactFitError, InsufficientDataError
-from ..models._residual_tests import input_lag_test
+from ..models._residual_tests import auto_max_lag, input_lag_test
 from ..models.regressors import _as_signal
 from ..plotting import plot_autocorrelation, plot_cross_correlation, plot_residuals
 from ._model import one_step_records
@@ -131,13 +131,6 @@ class ResidualAnalysis:
         Refer to :func:`rlsfilt.plotting.plot_cross_correlation` for full documentation.
         """
         return plot_cross_correlation(self, ax)
-
-
-def auto_max_lag(n):
-    """The first lag ``max_lag="auto"`` tries for `n` residuals: ``min(25, n // 4)``, at
-    least 1 (25 is MATLAB ``resid``'s default); the callers halve it while the record is
-    too short for the tests at that lag."""
-    return max(1, min(25, n // 4))
 
 
 def residual_analysis(model, u, y=None, max_lag="auto", alpha=0.01, *, output=0, model_df=0):
