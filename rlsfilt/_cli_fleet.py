@@ -78,8 +78,9 @@ def add_parser(subparsers):
                    help="forgetting factor in (0, 1] for --method rls (default: 1)")
     p.add_argument("--forgetting", choices=BANK_MODES, default=None,
                    help="forgetting scheme for --method rls (default: exponential)")
-    p.add_argument("--max-lag", type=int_at_least(1), default=25, metavar="M",
-                   help="largest lag of the residual tests (default: 25)")
+    p.add_argument("--max-lag", type=int_at_least(1), default=None, metavar="M",
+                   help="largest lag of the residual tests (default: auto, as fit_many: "
+                        "min(25, N/4), halved on a short record)")
     p.add_argument("--alpha", type=fraction, default=0.01,
                    help="significance level of the residual tests (default: 0.01)")
     p.add_argument("--no-residual-tests", action="store_true",
@@ -136,7 +137,7 @@ def run(args):
             raise ValueError(f"column '{col}', data row {row + 1} of '{args.file}' is not a "
                              f"number: {shown_cell(str(frame[col].iloc[row]))}")
         frame[col] = values
-    options = {"max_lag": args.max_lag, "alpha": args.alpha,
+    options = {"max_lag": "auto" if args.max_lag is None else args.max_lag, "alpha": args.alpha,
                "residual_tests": not args.no_residual_tests, "on_error": args.on_error,
                "progress": not args.quiet and sys.stderr.isatty()}
     if args.method == "rls":

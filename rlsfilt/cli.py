@@ -358,13 +358,14 @@ def _build_parser():
                             "the rest (e.g. 0.7)")
     ident.add_argument("--select-order", action="store_true",
                        help="choose na, nb (and nk unless given) by BIC, up to --max-order "
-                            "(--model arx)")
+                            "(--model arx); with several inputs nb and nk per input, each "
+                            "input's delays around its own delayest estimate")
     ident.add_argument("--max-order", type=_positive_int, default=_MAX_ORDER, metavar="N",
                        help="largest na and nb tried by --select-order (default: "
                             f"{_MAX_ORDER}, as rlsfilt.select_order)")
     ident.add_argument("--delay-range", type=_delay_range, default=None, metavar="LO:HI",
-                       help="delays tried by --select-order (default: around the delay "
-                            "estimated by delayest)")
+                       help="delays tried by --select-order, for every input (default: "
+                            "around the delay delayest estimates for each input)")
     ident.add_argument("--save-model", metavar="FILE.json", default=None,
                        help="save the fitted model (ARX.load reads it back)")
     ident.add_argument("--delimiter", default=None, metavar="CHAR",
@@ -441,23 +442,29 @@ def _run_identify(args):
                 "experiment_lengths": list(data.lengths), "validated_on": where}
     if args.select_order:
         if args.delay_range is not None:
-            nks = args.delay_range
+            nks = args.delay_range                      # the user's: one range for all inputs
         elif args.nk is not None:
-            nks = [nk[0]]
+            nks = [nk[0]] if n_in == 1 else [[k] for k in nk]   # the given delay(s)
         else:
             nks, found = _delay_search(est, args, progress)
             metadata["delay_estimate"] = found
+            searched = f"{nks.start}..{nks.stop - 1}" if n_in == 1 else "; ".join(
+                f"{name} {r.start}..{r.stop - 1}" for name, r in zip(args.inputs, nks))
             lines.append(f"delay: delayest finds nk = {_fmt_list(list(np.atleast_1d(found)))};"
-                         f" orders searched with nk in {nks.start}..{nks.stop - 1}")
+                         f" orders searched with nk in {searched}")
+        # several inputs with their own delays: per-input nb and nk, as select_order does
+        nbs = range(1, args.max_order + 1)
+        if n_in > 1 and not isinstance(nks, range):
+            nbs = [nbs] * n_in
         with progress.task("order selection"), warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", OrderSelectionWarning)
-            selection = select_order(est, na=range(0, args.max_order + 1),
-                                     nb=range(1, args.max_order + 1), nk=nks,
+            selection = select_order(est, na=range(0, args.max_order + 1), nb=nbs, nk=nks,
                                      criterion="bic", validation=val, dt=est.dt,
                                      offset=offset)
         _reissue(caught, args)
         na, nb_best, nk_best = selection.best
-        nb, nk = [nb_best] * n_in, [nk_best] * n_in
+        nb = list(nb_best) if isinstance(nb_best, tuple) else [nb_best] * n_in
+        nk = list(nk_best) if isinstance(nk_best, tuple) else [nk_best] * n_in
         metadata["order_selection"] = selection.to_dict()
         lines += ["", selection.summary().as_text()]
     if family:
@@ -555,9 +562,6 @@ def _check_identify_options(args):
     if args.forgetting == "constant_trace" and args.lam == 1.0:
         raise CLIError("--forgetting constant_trace needs --lam < 1 (it holds trace(P) at "
                        "n_params * (1 - lam))")
-    if args.select_order and args.nk is not None and len(set(args.nk)) > 1:
-        raise CLIError("--select-order uses one delay for all inputs; give one --nk value, "
-                       "a --delay-range, or neither (then delayest centres the range)")
     if args.delay_range is not None and not args.select_order:
         raise CLIError("--delay-range needs --select-order (give the delay itself with --nk)")
 
@@ -654,7 +658,7 @@ def _option_names(message, args):
 
     def edge(m):
         which, name = m.group(1), m.group(2)
-        if name in ("na", "nb"):
+        if name.split("[")[0] in ("na", "nb"):     # nb[fan]: a per-input range
             if which == "upper":
                 return (f"the upper edge of `{name}` (--max-order {args.max_order}): raise "
                         "--max-order")
@@ -663,8 +667,8 @@ def _option_names(message, args):
         return (f"the {which} edge of the delays tried (`{name}` {m.group(3)}): widen them "
                 f"with {option}")
 
-    return re.sub(r"the (upper|lower) edge of the `(\w+)` range (\([^)]*\)): widen `\w+` "
-                  r"(?:upwards|downwards)", edge, message)
+    return re.sub(r"the (upper|lower) edge of the `(\w+(?:\[[^\]]*\])?)` range (\([^)]*\)): "
+                  r"widen `[^`]+` (?:upwards|downwards)", edge, message)
 
 
 def _family_model(args, na, nb, nk, n_in, dt):
@@ -681,7 +685,9 @@ def _family_model(args, na, nb, nk, n_in, dt):
 
 
 def _delay_search(data, args, progress):
-    """``(range of delays, delayest's answer)`` for --select-order without a delay range."""
+    """``(delays to try, delayest's answer)`` for --select-order without a delay range: a
+    range around the delay of one input, a list of ranges (one per input, each around that
+    input's delay) for several inputs."""
     nu = data.n_inputs
     nk_max = _DELAY_SEARCH
     while nk_max > 1:   # the largest delay the record can test with ARX(2, 2) models
@@ -695,7 +701,10 @@ def _delay_search(data, args, progress):
             warnings.simplefilter("ignore", OrderSelectionWarning)
             found = delayest(test, nk_max=nk_max)
     ks = np.atleast_1d(found)
-    return range(max(0, int(ks.min()) - 2), int(ks.max()) + 3), found
+    if nu == 1:
+        return range(max(0, int(ks[0]) - 2), int(ks[0]) + 3), found
+    # per input d - 1 .. d + 1 around its own delay (select_order's own seeding)
+    return [range(max(0, int(k) - 1), int(k) + 2) for k in ks], found
 
 
 def _run_warmup(args):

@@ -166,3 +166,71 @@ def test_errors(capsys, hx_csv, tmp_path):
                                                    for k in range(50)))
     one_line(_run(capsys, *_args(hx_csv, "--validation", other)),
              "has sample time 2; '" + str(hx_csv) + "' has 1")
+
+
+def _two_delays_csv(path):
+    """Two inputs at operating points 20 and 5 with delays 1 and 8 (issue #28, item 6)."""
+    from scipy.signal import lfilter
+
+    rng = np.random.default_rng(4)
+    N = 1500
+    u1 = np.repeat(rng.choice([-1.0, 1.0], N // 4 + 1), 4)[:N] + 20
+    u2 = np.repeat(rng.choice([-1.0, 1.0], N // 3 + 1), 3)[:N] + 5
+    y = (lfilter([0, 0.5, 0.25], [1, -0.7], u1)
+         + lfilter(np.r_[np.zeros(8), 0.4, 0.2], [1, -0.7], u2)
+         + 0.05 * rng.standard_normal(N))
+    np.savetxt(path, np.column_stack([u1, u2, y]), delimiter=",", header="heater,fan,temp",
+               comments="")
+    return path, IOData(np.column_stack([u1, u2]), y, 1.0, input_names=["heater", "fan"],
+                        output_names=["temp"])
+
+
+def test_select_order_of_two_inputs_searches_each_inputs_delays(capsys, tmp_path):
+    """delayest finds one delay per input; --select-order searched one nk for both (it
+    picked nk = [1, 1], fit 39 %). Now each input's delays are d - 1 .. d + 1 around its own
+    estimate and nb is per input, as in select_order: the command's choice is the library's
+    on the same split records, their estimation means removed."""
+    from rlsfilt import select_order
+
+    csv, data = _two_delays_csv(tmp_path / "two.csv")
+    code, out, err = _run(capsys, "identify", csv, "-u", "heater", "-u", "fan", "-y", "temp",
+                          "--select-order", "--split", "0.7", "--json")
+    assert code == 0, err
+    res = json.loads(out)
+    assert res["metadata"]["delay_estimate"] == [1, 8] and res["nk"] == [1, 8]
+    est, val = data.split(0.7)
+    from rlsfilt.exceptions import OrderSelectionWarning
+
+    with pytest.warns(OrderSelectionWarning, match="upper edge of the `nb\\[heater\\]` range"):
+        sel = select_order(est, na=range(0, 6), nb=[range(1, 6)] * 2,
+                           nk=[range(0, 3), range(7, 10)], validation=val, offset="mean")
+    assert (res["na"], tuple(res["nb"]), tuple(res["nk"])) == sel.best
+    assert res["fit_percent"] > 80
+    # the edge warning of a per-input order names the command's option
+    assert "upper edge of `nb[heater]` (--max-order 5): raise --max-order" in err
+    assert "widen `nb[" not in err
+    # the text output says which delays were searched for each input
+    code, out, err = _run(capsys, "identify", csv, "-u", "heater", "-u", "fan", "-y", "temp",
+                          "--select-order", "--max-order", "3")
+    assert "delayest finds nk = 1,8; orders searched with nk in heater 0..2; fan 7..9" in out
+    # given delays are kept per input
+    code, out, err = _run(capsys, "identify", csv, "-u", "heater", "-u", "fan", "-y", "temp",
+                          "--select-order", "--nk", "1,8", "--max-order", "3", "--json")
+    assert code == 0, err
+    assert json.loads(out)["nk"] == [1, 8]
+
+
+def test_per_input_edge_warnings_name_the_command_options():
+    import argparse
+
+    from rlsfilt.cli import _option_names
+
+    msg = ("the best structure (na, nb[heater], nb[fan], nk[heater], nk[fan]) = (4, 5, 5, 1, 9) "
+           "is at the upper edge of the `nb[heater]` range (1..5): widen `nb[heater]` upwards; "
+           "and at the upper edge of the `nk[fan]` range (7..9): widen `nk[fan]` upwards (the "
+           "best may lie outside the grid)")
+    out = _option_names(msg, argparse.Namespace(max_order=5, delay_range=None))
+    assert "the upper edge of `nb[heater]` (--max-order 5): raise --max-order" in out
+    assert ("the upper edge of the delays tried (`nk[fan]` (7..9)): widen them with "
+            "--delay-range LO:HI") in out
+    assert "widen `nb" not in out and "widen `nk" not in out

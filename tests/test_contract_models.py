@@ -115,6 +115,8 @@ MODELS = [
               least_squares=False),
     ModelCase("OE-rpem", lambda: OE(1, 1, 1), _oe, {"method": "rpem"}, least_squares=False),
     ModelCase("BJ-pem", lambda: BJ(2, 1, 1, 2, 1), _siso, least_squares=False),
+    ModelCase("BJ-feedthrough-2-inputs", lambda: BJ([2, 1], 1, 0, [1, 1], [0, 1]), _miso,
+              least_squares=False),
     ModelCase("AR-pem-is-least-squares", lambda: AR(2, dt=0.5), _series),
     ModelCase("ARMA-pem", lambda: ARMA(2, 1), _series, least_squares=False),
     ModelCase("ARMA-rpem", lambda: ARMA(1, 1), _series, {"method": "rpem"},

@@ -176,3 +176,56 @@ def test_a_huge_nk_max_is_refused_at_once(monkeypatch):
     with pytest.raises(ValueError, match=r"at most nk_max=497 fits"):
         delayest(r.standard_normal(1000), r.standard_normal(1000), nk_max=10**9)
     assert len(calls) < 100      # bisection, not one step per candidate delay
+
+
+def test_an_edge_delay_is_checked_against_the_impulse_response():
+    """Issue #28, 7: the ARX(2, 2) test models fit a long, rising response best at the
+    largest delay tried, while the impulse response is plainly nonzero from lag 3 (the
+    truth: g(k) = 0 for k < 3). delayest checks the edge against impulseest and returns 3,
+    with a warning; the losses alone point to the edge."""
+    from rlsfilt.exceptions import OrderSelectionWarning
+
+    rng = np.random.default_rng(1)
+    N = 3000
+    g = np.r_[np.zeros(3), 0.02 * np.arange(1, 39)]
+    u = rng.standard_normal(N)
+    y = lfilter(g, [1.0], u) + 0.1 * rng.standard_normal(N)
+    with pytest.warns(OrderSelectionWarning, match="smallest at the edge nk_max=20, but its "
+                                                   "impulse response estimate .* significant "
+                                                   "from lag 3 on: returning nk=3"):
+        est = delayest(u, y, full_output=True)
+    assert est.nk == 3
+    assert int(np.argmin(est.losses[0])) == 20          # the losses alone: the edge
+
+
+@pytest.mark.parametrize("method", ["linear", "logarithmic"])
+def test_a_sweep_whose_delay_lies_beyond_the_range_keeps_the_losses_answer(method, monkeypatch):
+    """A swept sine into a slow plant with a dead time of 12 samples, delays tried up to 10.
+    An impulse estimate cut off at nk_max + nb + 10 = 22 lags, long before the response dies
+    out, is biased and shows lag 3 or 0 as significant (it moved the answer there); the
+    check lengthens it until its tail is insignificant, finds nothing before the range's
+    end, and leaves the answer of the losses (at or next to the edge, with no impulse
+    warning). With the range widened the delay is found."""
+    import warnings
+
+    from scipy.signal import chirp
+
+    from rlsfilt.validation import impulseest
+
+    N = 2000
+    rng = np.random.default_rng(0)
+    u = chirp(np.arange(N), f0=0.001, t1=N, f1=0.45, method=method)
+    y = lfilter(np.r_[np.zeros(12), 0.3, 0.2], A, u) + 0.05 * rng.standard_normal(N)
+    cut = impulseest(u, y, n_coeffs=22)
+    assert cut.delay(familywise=True) < 5 and cut.truncated()
+    assert "not died out within 22 lags" in str(cut.summary())
+    assert not impulseest(u, y, n_coeffs=50).truncated()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        found = delayest(u, y, nk_max=10)
+    assert not any("impulse" in str(w.message) for w in caught)
+    with monkeypatch.context() as m, warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        m.setattr(delay_module, "_impulse_check", lambda *args: [])
+        assert found == delayest(u, y, nk_max=10) >= 9
+    assert delayest(u, y, nk_max=20) == 12

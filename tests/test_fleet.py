@@ -307,7 +307,7 @@ def test_argument_errors(rng):
     with pytest.raises(ValueError, match="at least max_lag \\+ n_params"):
         fit_many(model, u[:5], y[:5])
     with pytest.raises(ValueError, match="`max_lag` must be small against"):
-        fit_many(model, u[:40], y[:40])
+        fit_many(model, u[:40], y[:40], max_lag=25)
     with pytest.raises(ValueError, match="`P0` only applies to a prior start"):
         fit_many(model, u, y, "rls", k0=10, P0=10.0)
 
@@ -378,3 +378,28 @@ def test_pandas_inputs_are_paired_with_outputs_by_label(rng):
         fit_many(ARX(2, 2, 1), U.rename(columns={"d": "e"}), Y)
     with pytest.raises(ValueError, match="`u` and `y` must have the same index"):
         fit_many(ARX(2, 2, 1), U.set_index(U.index + 1), Y)
+
+
+def test_max_lag_auto_on_short_channels(rng):
+    """Issue #28, 3 for fleets: 101 samples per channel failed with the old default of 25
+    lags (too few rows for the independence test). max_lag="auto" (the default, as in
+    validate) halves the lag until the tests are defined; every channel is then the ARX and
+    validate report at that lag, and on a long record "auto" is 25."""
+    import inspect
+
+    from rlsfilt.exceptions import InsufficientDataError
+
+    assert inspect.signature(fit_many).parameters["max_lag"].default == "auto"
+    u, y = _fleet(rng, C=3, N=101)
+    model = ARX(2, 2, 1)
+    with pytest.raises(InsufficientDataError, match="`max_lag` = 25 leaves too few rows"):
+        fit_many(model, u, y, max_lag=25)
+    bank = fit_many(model, u, y)
+    assert bank.max_lag == 12                     # min(25, 99 // 4) = 24, halved once
+    fixed = fit_many(model, u, y, max_lag=12)
+    assert_allclose(bank.q_statistic_, fixed.q_statistic_, rtol=0, atol=0)
+    for c in range(3):
+        _assert_channel_equals_arx(bank, c, ARX(2, 2, 1).fit(u[:, c], y[:, c]), u[:, c],
+                                   y[:, c])
+    u, y = _fleet(rng, C=2, N=400)
+    assert fit_many(model, u, y).max_lag == 25

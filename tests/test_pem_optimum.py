@@ -111,6 +111,19 @@ def test_oe_two_inputs_reaches_the_multistart_optimum(record):
     assert m.fit_info_["converged"]
 
 
+def test_oe220_of_the_issue_reaches_the_multistart_optimum(record):
+    """The issue's OE(2, 2, 0) (both delays 0, though the second input's is 2): it stopped on
+    the unit circle with B about 1e-4; from the default start it now reaches the lowest
+    criterion of the independent multistart, inside the circle, without a warning."""
+    U, y = record
+    m = OE(nb=[2, 2], nf=[2, 2], nk=[0, 0]).fit(U, y)       # warnings are errors here
+    ref, theta = multistart(U, y, (2, 2), (2, 2), (0, 0))
+    assert m.fit_info_["cost"] <= ref * (1 + 1e-9)
+    assert_allclose(m.theta_, theta, rtol=0, atol=1e-3)   # the same point (scipy: FD steps)
+    assert _max_root(m) < 0.95 and m.fit_info_["converged"]
+    assert m.fit_info_["cost"] < m.fit_info_["arx_cost"]
+
+
 def test_bj_two_inputs_reaches_the_multistart_optimum(record):
     U, y = record
     m = BJ(nb=[2, 2], nc=1, nd=1, nf=[2, 2], nk=NK).fit(U, y)
@@ -259,3 +272,41 @@ def test_progress_bar(record, capsys):
     U, y = record
     OE(nb=[1, 1], nf=[1, 1], nk=NK).fit(U, y, progress=True)
     assert "pem" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("nc, nd", [(1, 2), (0, 3)])
+def test_bj_with_nd_at_least_nf_is_held_to_the_arx_criterion(record, nc, nd):
+    """The ARX(2, [2, 2], nk) is the BJ point F_i = D = A (D padded when nd > nf), C = 1:
+    its criterion bounds the optimum and a fit above it warns (it was checked only for
+    nd == nf). The bound is the ARX's own criterion from rest, computed here with lfilter.
+    (With nd >= nf + nc the ARX point is singular: C and D share any factor there.)"""
+    U, y = record
+    arx = ARX(2, [2, 2], NK).fit(U, y)
+    a = np.r_[1.0, arx.a_]
+    theta = np.concatenate([*arx.b_, np.zeros(nc), a[1:], np.zeros(nd - 2), a[1:], a[1:]])
+    eps = errors(theta, U, y, (2, 2), (2, 2), NK, nc=nc, nd=nd)
+    m = BJ(nb=[2, 2], nc=nc, nd=nd, nf=[2, 2], nk=NK).fit(U, y)
+    assert_allclose(m.fit_info_["arx_cost"], 0.5 * float(eps @ eps), rtol=1e-10)
+    assert m.fit_info_["cost"] <= m.fit_info_["arx_cost"]
+    start = theta.copy()
+    start[:4] *= 0.2                                    # the ARX's gains, shrunk: far worse
+    with pytest.warns(ConvergenceWarning) as caught:
+        BJ(nb=[2, 2], nc=nc, nd=nd, nf=[2, 2], nk=NK).fit(U, y, theta0=start, max_nfev=2)
+    assert "least-squares ARX of the same orders" in " ".join(str(w.message) for w in caught)
+    # nd < nf: the structures do not contain each other, no ARX bound
+    small = BJ(nb=[2, 2], nc=1, nd=1, nf=[2, 2], nk=NK).fit(U, y)
+    assert small.fit_info_["arx_cost"] is None
+
+
+def test_progress_auto_shows_a_bar_once_the_fit_runs_long(record, capsys, monkeypatch):
+    """The default progress="auto": a bar appears once the fit has run PROGRESS_AFTER
+    seconds (here 0, so at the first evaluation); the estimate does not depend on it."""
+    import rlsfilt.models._pem as pem_module
+
+    U, y = record
+    quiet = OE(nb=[1, 1], nf=[1, 1], nk=NK).fit(U, y, progress=False)
+    assert "pem" not in capsys.readouterr().err
+    monkeypatch.setattr(pem_module, "PROGRESS_AFTER", 0.0)
+    shown = OE(nb=[1, 1], nf=[1, 1], nk=NK).fit(U, y)
+    assert "pem" in capsys.readouterr().err
+    assert_allclose(shown.theta_, quiet.theta_, rtol=0, atol=0)

@@ -13,6 +13,7 @@ from rlsfilt.plotting import (
     plot_autocorrelation,
     plot_bode,
     plot_comparison,
+    plot_cross_correlation,
     plot_cusum,
     plot_parameters,
     plot_trace,
@@ -371,3 +372,33 @@ def test_docstring_examples_run():
         runner.run(test, out=report.append)
         plt.close("all")                  # each example's figures (pyplot warns at 20 open)
     assert runner.summarize(verbose=False).failed == 0, "".join(report)
+
+
+def test_residual_titles_say_the_verdict_is_a_joint_test():
+    """Issue #28, 7: lags above the 99 % band under a title saying "independent (p = 0.18)"
+    read as a contradiction. A well-specified ARX whose joint tests pass with one lag of each
+    correlation outside its per-lag band: the titles name the joint test, its lags and p, what
+    the band is, and the count outside (computed here from the analysis' arrays) against the
+    count expected by chance."""
+    from scipy.signal import lfilter
+
+    from rlsfilt.validation import residual_analysis
+
+    g = np.random.default_rng(1)
+    u = g.standard_normal(600)
+    y = lfilter([0, 1.0, 0.5], [1, -0.7], u) + lfilter([1.0], [1, -0.7],
+                                                         0.2 * g.standard_normal(600))
+    r = residual_analysis(ARX(1, 2, 1).fit(u, y), u, y)
+    assert r.is_white and r.is_independent and r.max_lag == 25
+    n_cross = int(np.sum(np.abs(r.cross_correlation[0]) > r.cross_correlation_band[0]))
+    n_auto = int(np.sum(np.abs(r.autocorrelation[1:]) > r.autocorrelation_band))
+    assert n_cross == 1 and n_auto == 1
+    title = plot_cross_correlation(r).get_title()
+    assert title == (f"Input cross-correlation: independent (F-test joint over 51 lags, "
+                     f"p = {r.pvalue_independent:.3g})\nshaded: 99% band per lag under "
+                     f"independence; 1 outside (~0.51 by chance)")
+    title = plot_autocorrelation(r).get_title()
+    assert title == (f"Residual autocorrelation: white (Ljung-Box test joint over 25 lags, "
+                     f"p = {r.pvalue_white:.3g})\nshaded: 99% band per lag under whiteness; "
+                     f"1 outside (~0.25 by chance)")
+    plt.close("all")

@@ -266,3 +266,61 @@ def test_closed_loop_record_oe_fit_is_the_simulation_from_the_estimated_state():
     np.testing.assert_allclose(rep.y_simulated, np.ravel(sim.outputs), rtol=1e-9, atol=1e-8)
     assert rep.simulation_fit == pytest.approx(fit_percent(y[val], rep.y_simulated), abs=1e-9)
     assert 30 < rep.simulation_fit <= 100
+
+
+@pytest.fixture(scope="module")
+def two_input_bj():
+    """BJ([2, 2], 1, 1, [2, 2], [0, 1]) fitted on a zero-mean record of the same plant with
+    coloured noise (1 + 0.3 q^-1) / (1 - 0.9 q^-1) e."""
+    gen = np.random.default_rng(11)
+    n = 1500
+    u = np.column_stack([_prbs(gen, n, 5), _prbs(gen, n, 3)])
+    y = (lfilter(_B1, _F1, u[:, 0]) + lfilter(_B2, _F2, u[:, 1])
+         + lfilter([1.0, 0.3], [1.0, -0.9], 0.05 * gen.standard_normal(n)))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        return BJ([2, 2], 1, 1, [2, 2], [0, 1]).fit(u, y)
+
+
+def test_bj_two_inputs_simulation_and_prediction_against_least_squares(two_input_bj):
+    """Issue #28, 1: a two-input BJ on a short record at an operating point. The simulation
+    ignores the noise model (the OE oracle applies to B_i/F_i); the one-step prediction
+    (D/C) sum B_i/F_i u_i + (1 - D/C) y is built here with lfilter, its initial condition the
+    least-squares combination of the solutions of C F_1 F_2 yhat = 0. validate reports both
+    fits, equal to fit_percent of what it holds and to python-control's forced response."""
+    model = two_input_bj
+    u, y = _two_input_record(2, 101)
+    N = len(y)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")              # the operating-point warning
+        rep = validate(model, u, y)
+    yhat, fit = _oracle_fit(model, u, y)
+    np.testing.assert_allclose(rep.y_simulated, yhat, rtol=1e-9, atol=1e-8)
+    assert rep.simulation_fit == pytest.approx(fit, abs=1e-8)
+    assert rep.simulation_fit == pytest.approx(fit_percent(y, rep.y_simulated), abs=1e-12)
+    assert rep.simulation_fit > 90
+    # the one-step predictor, by hand
+    c, d = np.r_[1.0, model.c_], np.r_[1.0, model.d_]
+    b = [np.r_[np.zeros(k), bi] for k, bi in zip(model.nk, model.b_)]
+    f = [np.r_[1.0, fi] for fi in model.f_]
+    forced = (sum(lfilter(np.convolve(d, bi), np.convolve(c, fi), u[:, i])
+                  for i, (bi, fi) in enumerate(zip(b, f)))
+              + lfilter(np.r_[0.0, (c - d)[1:]], c, y))
+    a = np.convolve(c, np.convolve(f[0], f[1]))
+    E = _homogeneous_basis(a, N)
+    pred = forced + E @ np.linalg.lstsq(E, y - forced, rcond=None)[0]
+    np.testing.assert_allclose(rep.y_predicted, pred, rtol=1e-9, atol=1e-8)
+    assert rep.prediction_fit == pytest.approx(fit_percent(y, pred), abs=1e-8)
+    assert rep.prediction_fit > rep.simulation_fit     # the noise model predicts the colour
+    # from rest: the model's own simulate and predict
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        rest = validate(model, u, y, initial="zero")
+    np.testing.assert_allclose(rest.y_simulated, model.simulate(u), rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(rest.y_predicted, model.predict(u, y), rtol=1e-10, atol=1e-10)
+    control = pytest.importorskip("control")
+    sim = control.forced_response(model.to_ss(), np.arange(float(N)), u.T, X0=rep.x0[0])
+    np.testing.assert_allclose(rep.y_simulated, np.ravel(sim.outputs), rtol=1e-9, atol=1e-8)
+    with pytest.raises(ValueError, match="initial='measured' does not apply to the simulation "
+                                         "of BJ"):
+        compare(model, u, y, initial="measured")

@@ -174,3 +174,42 @@ def test_tests_do_not_depend_on_units(rng, su, sy):
     assert scaled.pvalue_independent == pytest.approx(ref.pvalue_independent, rel=1e-9)
     assert scaled.pvalue_white == pytest.approx(ref.pvalue_white, rel=1e-9)
     np.testing.assert_allclose(scaled.cross_correlation, ref.cross_correlation, atol=1e-10)
+
+
+def test_max_lag_auto_is_the_default_and_works_on_a_short_record(rng):
+    """Issue #28, 3: a short validation record (MATLAB's hair-dryer example validates on 101
+    samples) leaves too few rows for 25 lags. ``max_lag="auto"`` (the default, as in
+    `validate` and the CLI) starts at ``min(25, n // 4)`` and halves the lag until the tests
+    are defined; the result is that of the integer it chose, checked against statsmodels."""
+    import inspect
+
+    from rlsfilt import validate
+    from rlsfilt.exceptions import InsufficientDataError
+
+    assert inspect.signature(residual_analysis).parameters["max_lag"].default == "auto"
+    u, y = _record(rng, n=1101)
+    u2 = np.column_stack([u, rng.standard_normal(1101)])
+    model = ARX(2, [2, 2], [1, 1]).fit(u2[:1000], y[:1000])
+    uv, yv = u2[1000:], y[1000:]                      # 101 validation samples, 99 residuals
+    with pytest.raises(InsufficientDataError, match="`max_lag` = 25 leaves too few rows"):
+        residual_analysis(model, uv, yv, max_lag=25)
+    with pytest.raises(InsufficientDataError, match="`max_lag` = 24 leaves too few rows"):
+        residual_analysis(model, uv, yv, max_lag=24)   # min(25, 99 // 4): too many lags
+    r = residual_analysis(model, uv, yv)
+    assert r.max_lag == 12                             # 24 halved once
+    fixed = residual_analysis(model, uv, yv, max_lag=12)
+    assert r.q_statistic == fixed.q_statistic and r.f_statistic == fixed.f_statistic
+    lb = acorr_ljungbox(r.residuals, lags=[12])
+    assert r.q_statistic == pytest.approx(lb["lb_stat"].iloc[0], rel=1e-10)
+    assert validate(model, uv, yv).residuals[0].max_lag == 12
+    # a long record: "auto" is MATLAB resid's 25 lags, the same numbers as max_lag=25
+    long = residual_analysis(model, u2[:1000], y[:1000])
+    assert long.max_lag == 25
+    assert long.q_statistic == residual_analysis(model, u2[:1000], y[:1000],
+                                                 max_lag=25).q_statistic
+    # the Ljung-Box test keeps a degree of freedom: the lag is not halved to model_df
+    with pytest.raises(InsufficientDataError):
+        residual_analysis(model, uv, yv, model_df=13)  # 24 fails, 12 would leave none
+    assert residual_analysis(model, uv, yv, model_df=11).max_lag == 12
+    with pytest.raises(TypeError, match="`max_lag` must be an integer"):
+        residual_analysis(model, uv, yv, max_lag="twelve")

@@ -230,7 +230,8 @@ def arx_in_structure(U, y, s):
 
     ``A y = B u + e`` is the structure's predictor when ``F_i = A`` (OE, BJ:
     ``na = 0``, every ``nf_i`` equal) with ``D = A``, ``C = 1`` (BJ with
-    ``nd = nf``), or when there are no ``F_i`` (ARMAX, ARMA: ``C = D = 1``).
+    ``nd >= nf``, ``D`` padded with zeros), or when there are no ``F_i``
+    (ARMAX, ARMA: ``C = D = 1``).
     Returns ``(theta, exact)``: ``exact`` when the structure's criterion at
     ``theta`` is the ARX loss (the noise part is otherwise the Hannan-Rissanen
     fit of the ARX's output error), or ``(None, False)`` when the ARX does not
@@ -248,8 +249,8 @@ def arx_in_structure(U, y, s):
     m = s.nf[0]
     A, B = _arx_least_squares(U, y, m, s.nb, s.nk)
     F = [reflect(A)] * nu
-    if s.nd == m:
-        theta = join_theta(s, B=B, D=F[0], F=F)
+    if s.nd >= m:               # D = A (padded with zeros), C = 1
+        theta = join_theta(s, B=B, D=_pad(F[0], s.nd), F=F)
         return theta, bool(np.array_equal(F[0], A))
     if not s.has_noise_model:
         return join_theta(s, B=B, F=F), bool(np.array_equal(F[0], A))

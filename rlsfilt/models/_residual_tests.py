@@ -23,6 +23,25 @@ from ..exceptions import InsufficientDataError
 __all__ = []
 
 
+def auto_max_lag(n):
+    """The first lag ``max_lag="auto"`` tries for `n` residuals: ``min(25, n // 4)``, at
+    least 1 (25 is MATLAB ``resid``'s default); `residual_analysis` and `validate` halve it
+    while the record is too short for the tests at that lag."""
+    return max(1, min(25, n // 4))
+
+
+def fleet_max_lag(rows, n_params, n_inputs):
+    """``max_lag="auto"`` of `fit_many`: `auto_max_lag` halved until the tests are sure to
+    be defined on `rows` residuals: more than ``2 M + 2`` residuals (Ljung-Box) and, on the
+    ``rows - 2 M`` rows where every lag exists, more rows than the independence test's
+    regressors can number (``n_params + 1 + n_inputs (2 M + 1)``)."""
+    M = auto_max_lag(rows)
+    while M > 1 and (rows <= 2 * M + 2
+                     or rows - 2 * M <= n_params + 1 + n_inputs * (2 * M + 1)):
+        M //= 2
+    return M
+
+
 def ljung_box_many(E, max_lag, model_df=0):
     r"""Ljung-Box statistics of the residuals of each channel.
 

@@ -174,7 +174,10 @@ class ARMAX(PolynomialModel):
             ``"pem"``: the search ended with a zero of ``C`` (``F``, ``D``)
             on the stability boundary, stopped at ``max_nfev`` or
             ``max_time``, or with a larger criterion than the least-squares
-            ARX of the same orders (see the guide, "Model family").
+            ARX of the same orders where that ARX is a point of the structure
+            (ARMAX; OE with every ``nf_i`` equal; BJ also with ``nd >= nf``;
+            ``fit_info_["arx_cost"]`` is None otherwise; see the guide,
+            "Model family").
         NumericalWarning
             ``"rplr"`` when :math:`\\mathrm{Re}\\{1/C\\} > 1/2` fails at the
             estimate (extended least squares may not converge to the

@@ -40,12 +40,19 @@ class BJ(PolynomialModel):
     The predictor is :math:`\hat y = y - \frac{D}{C}(y - \frac{B}{F} u)`;
     ``"pem"`` starts from the lowest criterion of refined IV for
     :math:`B/F`, the ARX of the same orders (``F_i = A``, ``D = A`` when
-    ``nd == nf``) and a high-order ARX reduced per input, each with a
+    ``nd >= nf``) and a high-order ARX reduced per input, each with a
     Hannan-Rissanen ARMA fit of the output error for :math:`C/D`; ``C``,
     ``D`` and ``F`` are kept stable by reflection (``init_model=``,
     ``n_starts=``: see :meth:`ARMAX.fit`). MATLAB ``bj(data, [nb nc nd nf nk])`` is
     ``BJ(nb, nc, nd, nf, nk).fit(u, y)``; ``recursiveBJ`` is
     :class:`~rlsfilt.RecursiveBJ`. ``to_tf(noise=True)`` is :math:`C/D`.
+
+    The `ConvergenceWarning` for a criterion above the ARX's applies where the
+    least-squares ARX of the same orders is a point of the structure (every
+    ``nf_i`` equal and ``nd >= nf``): its criterion bounds the optimum. With
+    ``nd < nf`` the two structures do not contain each other, ``fit_info_
+    ["arx_cost"]`` is None and only ``n_starts=`` can tell a poor local
+    minimum.
 
     Examples
     --------

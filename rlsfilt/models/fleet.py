@@ -322,7 +322,8 @@ class ARXBank:
 
 
 def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=None, x0=None,
-             max_lag=25, alpha=0.01, residual_tests=True, on_error="raise", progress=False,
+             max_lag="auto", alpha=0.01, residual_tests=True, on_error="raise",
+             progress=False,
              channels=None, **filter_options):
     r"""Fit the orders of `model` to every channel of a fleet.
 
@@ -364,8 +365,12 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
         each channel's by maximum likelihood first, as :meth:`ARX.fit` does
         (`RLSBank.tune` on the channels' regressor rows); the results are
         ``tune_`` of the returned bank.
-    max_lag : int, default 25
-        Largest lag of the residual tests.
+    max_lag : int or "auto", default "auto"
+        Largest lag of the residual tests. ``"auto"`` (as in
+        :func:`~rlsfilt.validate`): ``min(25, n // 4)`` for ``n`` residuals
+        per channel (MATLAB ``resid``'s 25 on records of a few hundred
+        samples), halved until the tests are defined on a short record; the
+        bank's ``max_lag`` is the lag used.
     alpha : float, default 0.01
         Significance level of ``is_white_`` and ``is_independent_``.
     residual_tests : bool, default True
@@ -471,7 +476,9 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
         _check_filter_options(filter_options)
     if on_error not in ("raise", "nan"):
         raise ValueError(f"`on_error` must be 'raise' or 'nan'; got {on_error!r}")
-    max_lag = check_int(max_lag, "max_lag", minimum=1)
+    auto_lag = isinstance(max_lag, str) and max_lag == "auto"
+    if not auto_lag:
+        max_lag = check_int(max_lag, "max_lag", minimum=1)
     alpha = check_probability(alpha, "alpha")
     check_dt(dt)
     U, Y, labels = _fleet_data(u, y, channels)
@@ -482,6 +489,10 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
         raise ValueError(
             f"`y` must have at least max_lag + n_params = {s.max_lag} + {n} = {s.max_lag + n} "
             f"samples for {_describe(params)}; got {N}")
+    if auto_lag:
+        from ._residual_tests import fleet_max_lag
+
+        max_lag = fleet_max_lag(rows, n, nu)
     if residual_tests and rows <= 2 * max_lag + 2:
         raise ValueError(f"`max_lag` must be small against the {rows} residuals (need n > "
                          f"2 max_lag + 2); got max_lag = {max_lag}")

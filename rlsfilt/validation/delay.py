@@ -46,6 +46,9 @@ n_rows : int
 # factorization stays bounded by this block (and the triangular factor), whatever N
 _BLOCK_ROWS = 16384
 _MAX_SWEEPS = 20
+# coefficients at the end of the impulse response estimate that must be insignificant
+# before delayest trusts its early lags
+_TAIL = 5
 
 
 def delayest(u, y=None, na=2, nb=2, nk_min=0, nk_max=None, *, full_output=False):
@@ -112,8 +115,14 @@ def delayest(u, y=None, na=2, nb=2, nk_min=0, nk_max=None, *, full_output=False)
     exactly that the first coefficients vanish).
 
     A delay at the upper edge ``nk_max`` is checked against the impulse
-    response estimate of :func:`~rlsfilt.validation.impulseest` (lags
-    ``0 .. nk_max + nb + 10``, noise prewhitened): when a coefficient at a
+    response estimate of :func:`~rlsfilt.validation.impulseest` (noise
+    prewhitened), over lags ``0 .. n - 1`` with ``n`` from ``nk_max + nb +
+    10`` on, lengthened by half while any of its last 5 coefficients differs
+    from zero (1 % level): a response cut off before it has died out biases
+    the coefficients kept (the omitted tail is correlated with them through
+    the input's colour and the prewhitening), which shows early lags as
+    significant that are not. When no length up to a quarter of the record
+    covers the response, there is no check. When a coefficient at a
     lag :math:`k_g` inside the range differs from zero with all lags tested
     together at the 1 % level (Bonferroni), the delay cannot exceed
     :math:`k_g` (a delay :math:`n_k` states that the first :math:`n_k`
@@ -274,18 +283,33 @@ def delayest(u, y=None, na=2, nb=2, nk_min=0, nk_max=None, *, full_output=False)
 # ----------------------------------------------------------------------
 def _impulse_check(data, delays, nk_min, nk_max, nb):
     """``[(j, first significant lag)]`` for the inputs whose delay is at ``nk_max`` while
-    the impulse response estimate (:func:`impulseest`, lags 0 .. nk_max + nb + 10) is
-    significant, at the family-wise 1 % level, at a lag inside the range before it."""
+    the impulse response estimate (:func:`impulseest`, lags 0 .. n - 1, ``n`` from
+    nk_max + nb + 10 on, lengthened until the response has died out) is significant, at
+    the family-wise 1 % level, at a lag inside the range before it."""
     at_edge = [j for j in delays if delays[j] == nk_max[j] > nk_min[j]]
     if not at_edge:
         return []
     from .impulse import impulseest
 
     n = max(nk_max) + max(nb) + 10
-    try:
-        first = impulseest(data, n_coeffs=n).delay(familywise=True)
-    except ValueError:            # too short a record for the FIR estimate: no check
-        return []
+    n_most = max(n, min(data.lengths) // (4 * data.n_inputs))
+    while True:
+        try:
+            g = impulseest(data, n_coeffs=n)
+        except ValueError:        # too short a record for the FIR estimate: no check
+            return []
+        # the response must have died out within the lags estimated (its last _TAIL
+        # coefficients not significant): a truncated FIR biases the coefficients it keeps
+        # (the omitted tail correlates with them through a coloured or prewhitened input)
+        # and shows early lags as significant that are not
+        cut = g.truncated(n_tail=_TAIL)
+        cut = (cut,) if data.n_inputs == 1 else cut
+        if not any(cut[j] for j in at_edge):
+            break
+        if n >= n_most:
+            return []
+        n = min(n + n // 2, n_most)
+    first = g.delay(familywise=True)
     first = (first,) if data.n_inputs == 1 else first
     return [(j, first[j]) for j in at_edge
             if first[j] is not None and nk_min[j] <= first[j] < delays[j]]

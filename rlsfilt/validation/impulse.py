@@ -125,6 +125,24 @@ class ImpulseResponse:
                  for j in range(self.n_inputs)]
         return first[0] if self.n_inputs == 1 else tuple(first)
 
+    def truncated(self, level=0.99, n_tail=5):
+        """Whether the response of each input has not died out within the lags estimated.
+
+        True for an input when any of its last `n_tail` coefficients differs from zero at
+        `level`: the FIR model then omits a tail that correlates with the coefficients kept
+        (through the input's colour and the prewhitening), which biases them, so early lags
+        can look significant that are not. Raise ``n_coeffs`` (as
+        :func:`~rlsfilt.delayest` does before it trusts :meth:`delay`).
+
+        Returns
+        -------
+        bool or tuple of bool
+            One value per input (a tuple for several inputs).
+        """
+        n_tail = check_int(n_tail, "n_tail", minimum=1)
+        out = [bool(v) for v in self.significant(level)[-n_tail:].any(axis=0)]
+        return out[0] if self.n_inputs == 1 else tuple(out)
+
     def summary(self, level=0.99):
         """Per input the first significant lag and the significant coefficients.
 
@@ -149,6 +167,9 @@ class ImpulseResponse:
             first = f"first significant lag {ks[0]}" if ks.size else "no significant lag"
             lags = f"{', '.join(map(str, ks[:12]))}{' ...' if ks.size > 12 else ''}"
             lines.append(f"  {name} -> {self.output_name}: {first}; significant at lags {lags}")
+            if sig[-5:, j].any():
+                lines.append(f"    (not died out within {self.coefficients.shape[0]} lags: the "
+                             f"coefficients kept may be biased; raise n_coeffs)")
             rows.append([f"{name} -> {self.output_name}", ks[0] if ks.size else "none", lags])
         page = frame_html(html.escape(lines[0]),
                           table_html(["input -> output", "first significant lag",

@@ -13,6 +13,7 @@ from .._version import __version__
 from ..data.trend import _offset_messages
 from ..exceptions import ExactFitError, InsufficientDataError, OperatingPointWarning
 from ..models._base import check_is_fitted
+from ..models._residual_tests import auto_max_lag
 from ..models.regressors import as_records
 from ..plotting import plot_comparison, plot_report
 from ._model import model_name, n_params, one_step
@@ -434,7 +435,11 @@ def validate(model, u, y=None, plant=None, *, initial="estimate", max_lag="auto"
         Initial state of the simulation and the one-step prediction (see
         :func:`compare`): ``"estimate"`` is MATLAB ``compare``'s default, so
         the fits are those a MATLAB user gets for the same model.
-        ``"measured"`` applies to ARX only (the simulation also to ARMAX).
+        ``"measured"`` applies to ARX only: validate needs it for both the
+        simulation and the one-step prediction, and the measured past
+        defines the predictor's state only without ``C`` and ``F`` (a
+        ValueError says so; ``compare(..., initial="measured")`` simulates
+        ARMAX from its measured past too).
     max_lag : int or "auto", default "auto"
         Largest lag of the residual correlations. ``"auto"`` (also the
         command line's): ``min(25, n // 4)`` for ``n`` residuals, halved
@@ -575,7 +580,7 @@ def validate(model, u, y=None, plant=None, *, initial="estimate", max_lag="auto"
     u = np.vstack(glued_u) if len(parts) > 1 or time_series else parts[0][0]
     n = E.shape[0]
     if auto:
-        lag = max(1, min(25, n // 4))
+        lag = auto_max_lag(n)
     residuals, criteria, skipped = (), None, None
     while True:
         try:

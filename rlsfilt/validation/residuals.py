@@ -12,7 +12,7 @@ from .._display import Summary, frame_html, table_html
 from .._scale import pow2_scale
 from .._validation import check_int, check_probability
 from ..exceptions import ExactFitError, InsufficientDataError
-from ..models._residual_tests import input_lag_test
+from ..models._residual_tests import auto_max_lag, input_lag_test
 from ..models.regressors import _as_signal
 from ..plotting import plot_autocorrelation, plot_cross_correlation, plot_residuals
 from ._model import one_step_records
@@ -133,7 +133,7 @@ class ResidualAnalysis:
         return plot_cross_correlation(self, ax)
 
 
-def residual_analysis(model, u, y=None, max_lag=25, alpha=0.01, *, output=0, model_df=0):
+def residual_analysis(model, u, y=None, max_lag="auto", alpha=0.01, *, output=0, model_df=0):
     r"""Whiteness and input-independence tests of the one-step residuals.
 
     Parameters
@@ -149,9 +149,13 @@ def residual_analysis(model, u, y=None, max_lag=25, alpha=0.01, *, output=0, mod
         time series (`AR`, `ARMA`), which gets the whiteness test only.
     y : array_like, shape (N,) or (N, ny)
         Output record.
-    max_lag : int, default 25
-        Largest lag :math:`M` of the correlations (MATLAB's ``resid``
-        default).
+    max_lag : int or "auto", default "auto"
+        Largest lag :math:`M` of the correlations. ``"auto"`` (as in
+        :func:`validate` and the command line): ``min(25, n // 4)`` for ``n``
+        residuals (25 is MATLAB ``resid``'s default), halved while the
+        record is too short for the tests at that lag (down to
+        ``model_df + 1``), so a short validation record (100 samples) is
+        analysed; an integer is used as given.
     alpha : float, default 0.01
         Significance level of the tests and of the plotted bands (MATLAB's
         99% band).
@@ -247,12 +251,24 @@ def residual_analysis(model, u, y=None, max_lag=25, alpha=0.01, *, output=0, mod
     >>> residual_analysis(ARX(1, 1).fit(u, y), u, y).is_white
     False
     """
-    max_lag = check_int(max_lag, "max_lag", minimum=1)
+    auto = isinstance(max_lag, str) and max_lag == "auto"
+    if not auto:
+        max_lag = check_int(max_lag, "max_lag", minimum=1)
     alpha = check_probability(alpha, "alpha")
+    model_df = check_int(model_df, "model_df", minimum=0)
     Phi, E, U = one_step_records(model, u, y, "residual_analysis")
     if getattr(model, "n_inputs_", None) == 0:        # a time series: no input to test
         U = np.zeros((len(E) + model.max_lag, 0))
-    return _residual_analysis(Phi, E, U, max_lag, alpha, output, model_df)
+    if not auto:
+        return _residual_analysis(Phi, E, U, max_lag, alpha, output, model_df)
+    lag = max(auto_max_lag(len(E)), model_df + 1)
+    while True:
+        try:
+            return _residual_analysis(Phi, E, U, lag, alpha, output, model_df)
+        except InsufficientDataError:
+            if lag // 2 <= model_df:     # no shorter lag leaves the Ljung-Box test a degree
+                raise
+            lag //= 2
 
 
 def _residual_analysis(Phi, E, u, max_lag, alpha, output=0, model_df=0):

@@ -44,8 +44,15 @@ class OrderSelection:
 
     Attributes
     ----------
-    best : tuple of int
-        ``(na, nb, nk)`` minimizing the criterion.
+    best : tuple
+        ``(na, nb, nk)`` minimizing the criterion; with per-input ranges
+        (see :func:`select_order`) ``nb`` and ``nk`` are tuples, one entry
+        per input: ``(na, (nb_1, nb_2), (nk_1, nk_2))``.
+    nk_ranges : list of list of int or None
+        The delays tried per input when the search was per input, else None.
+    seeded_by_delayest : tuple of int or None
+        The per-input delays :func:`~rlsfilt.delayest` estimated when they
+        seeded the `nk` ranges (several inputs and `nk` not given), else None.
     criterion : str
         The criterion used.
     table : numpy structured array
@@ -222,17 +229,24 @@ def select_order(u, y=None, na=_NA, nb=_NB, nk=_NK, criterion="bic", validation=
         Estimation input, or an `IOData` holding inputs and outputs (then
         `y` is omitted and the other arguments are given by keyword); with
         several experiments no regressor row straddles two of them. With
-        several inputs every candidate uses the same ``nb`` and ``nk`` for
-        all of them.
+        several inputs `nb` and `nk` may be given per input (below).
     y : array_like, shape (N,)
         Estimation output (one output).
     na, nb : int or iterable of int
         Candidate orders; every combination is tried (``na >= 0``,
-        ``nb >= 1``).
+        ``nb >= 1``). With several inputs `nb` may be given per input: a
+        sequence of ranges, one per input (``nb=[range(1, 4), range(1,
+        3)]``), or a dict from input name or index to a range; every
+        combination of the inputs' orders is then tried.
     nk : int or iterable of int, default range(1, 4)
         Candidate delays, independent of the orders (``nk >= 0``): a dead
         time of 16 samples needs ``nk=range(14, 19)``, not larger orders
-        (:func:`~rlsfilt.delayest` estimates it first).
+        (:func:`~rlsfilt.delayest` estimates it first). Per input as `nb`
+        (``nk={"heater": range(0, 3), "fan": range(15, 22)}``). With
+        several inputs and `nk` not given, each input's delays are
+        ``d - 1 .. d + 1`` around the delay ``d`` that
+        :func:`~rlsfilt.delayest` estimates for it
+        (``result.seeded_by_delayest``); with one input ``range(1, 4)``.
     criterion : {"bic", "aic", "aicc", "naic", "fpe", "mdl", "loss"}, default "bic"
         What to minimize (see :func:`criteria_from_loss`); ``"loss"`` is the
         plain mean squared residual, sensible only with `validation`.
