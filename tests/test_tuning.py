@@ -468,7 +468,7 @@ def test_scalar_kernel_equals_the_general_one(rng, param):
     sensitivity kernel (`_profile`, checked against finite differences above) to
     round-off, with missing samples, a burn-in and two outputs, at every order."""
     from rlsfilt.filters import _kernels_tuning as kernels
-    from rlsfilt.filters.tuning import _model, _profile
+    from rlsfilt.filters.tuning import _dims, _model, _profile
 
     H, z = drifting_record(rng, N=300)
     z[[4, 150]] = np.nan
@@ -482,7 +482,11 @@ def test_scalar_kernel_equals_the_general_one(rng, param):
         for order in (0, 1, 2):
             ref = _profile(x0, P0, Z, H, _model(param, np.array([v]), 3, 0.98, Q_rel), 3, 2,
                            order)
-            got = kernels.scalar_profile(x0, P0, Z, H, Qb, kind, v, 0.98, 3, order, work)
+            got = kernels.scalar_profile(x0, P0, Z, H, Qb, kind, v, 0.98, 3, order, work,
+                                         _dims(3))
+            # the loop for every size: the same numbers to the last bit
+            assert got == kernels.scalar_profile(x0, P0, Z, H, Qb, kind, v, 0.98, 3, order,
+                                                 work, np.zeros(3, dtype=np.int8))
             assert got[2] == ref[2]
             assert_allclose(got[:2], ref[:2], rtol=1e-13)
             if order >= 1:

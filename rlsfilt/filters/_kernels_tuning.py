@@ -255,32 +255,39 @@ def scalar_work(n, m):
 
 
 @njit(cache=True)
-def scalar_pass(x0, P0, Z, H, Qb, a, da, d2a, c, dc, d2c, burn, order, work):
+def scalar_pass(x0, P0, Z, H, Qb, a, da, d2a, c, dc, d2c, burn, orders, dims, work):
     """``(slog, sq, count, dslog, dsq, d2slog, d2sq)`` of `profile_derivs` for one
     hyperparameter (scalars), the time update ``P^- = a P + c Qb`` (`scalar_model`).
 
     The same recursion with ``k = 1``, its loops fused: each step's measurement
     update and the next time update are one sweep of ``P`` and its derivatives
-    (``P^-_{t+1} = a (P^-_t - g g^T / s) + c Qb``; `Qb` symmetric), over every
-    entry (fixed-length loops: about 1.2x faster than the triangle and its mirror
-    at ``dim_x = 3``), each entry written so that ``(j, i)`` rounds exactly as
-    ``(i, j)``; `work` (`scalar_work`) holds the state, so a pass allocates nothing;
-    ``sum log s`` is the log of running products of ``s`` (one ``log`` per
-    hundred steps or so instead of one per step: about 10 % of a pass), flushed
-    before they can overflow. ``tests/test_tuning.py`` holds it equal to
-    `profile_derivs`.
+    (``P^-_{t+1} = a (P^-_t - g g^T / s) + c Qb``; `Qb` symmetric), over the upper
+    triangle only (``P``, ``dP``, ``d2P`` are read as symmetric: entry ``(i, j)`` from
+    ``(min, max)``; the lower triangle of the work arrays is not kept); `work`
+    (`scalar_work`) holds the state, so a pass allocates nothing; ``sum log s`` is the
+    log of running products of ``s`` (one ``log`` per hundred steps or so instead of
+    one per step: about 10 % of a pass), flushed before they can overflow.
+    ``tests/test_tuning.py`` holds it equal to `profile_derivs`.
+
+    `orders` is a tuple of ``order`` zeros (the derivatives wanted: 0, 1 or 2) and
+    `dims` a tuple of ``n`` zeros or an array of length ``n`` (`tuning._dims`): the
+    length of a tuple is part of its type, so numba compiles one pass per order (the
+    branches of the others pruned) and, for a tuple `dims`, per ``n`` (its loops
+    unrolled: at ``n = 3`` the order-1 pass runs in 0.65x the time of one loop for
+    every ``n`` and every order).
     """
     x, dx, d2x, P, dP, d2P, g, dg, d2g, y, dy, d2y = work
-    n, m = x0.shape
-    d1 = order >= 1
-    d2 = order >= 2
+    m = x0.shape[1]
+    n = len(dims)                         # a constant when dims is a tuple
+    d1 = len(orders) >= 1                 # constants: the branches are pruned
+    d2 = len(orders) >= 2
     for i in range(n):
         for c_ in range(m):
             x[i, c_] = x0[i, c_]
             dx[i, c_] = 0.0
             d2x[i, c_] = 0.0
-        for j in range(n):                # the first prior (P0 has no derivative; its
-            p0 = P0[min(i, j), max(i, j)]     # upper triangle read, as Qb's)
+        for j in range(i, n):             # the first prior (P0 has no derivative; its
+            p0 = P0[i, j]                 # upper triangle read, as Qb's)
             qb = Qb[i, j]
             P[i, j] = a * p0 + c * qb
             dP[i, j] = da * p0 + dc * qb
@@ -299,11 +306,12 @@ def scalar_pass(x0, P0, Z, H, Qb, a, da, d2a, c, dc, d2c, burn, order, work):
             acc2 = 0.0
             for j in range(n):
                 hj = H[t, j]
-                acc += P[i, j] * hj
+                lo, hi = min(i, j), max(i, j)
+                acc += P[lo, hi] * hj
                 if d1:
-                    acc1 += dP[i, j] * hj
+                    acc1 += dP[lo, hi] * hj
                 if d2:
-                    acc2 += d2P[i, j] * hj
+                    acc2 += d2P[lo, hi] * hj
             hi = H[t, i]
             g[i] = acc
             s += hi * acc
@@ -330,10 +338,12 @@ def scalar_pass(x0, P0, Z, H, Qb, a, da, d2a, c, dc, d2c, burn, order, work):
                 missing = True
         if missing:                       # posterior = prior: P^-_{t+1} = a P^-_t + c Qb
             for i in range(n):
-                for j in range(n):
+                for j in range(i, n):
                     pp, dpp, qb = P[i, j], dP[i, j], Qb[i, j]
-                    d2P[i, j] = d2a * pp + 2.0 * da * dpp + a * d2P[i, j] + d2c * qb
-                    dP[i, j] = da * pp + a * dpp + dc * qb
+                    if d2:
+                        d2P[i, j] = d2a * pp + 2.0 * da * dpp + a * d2P[i, j] + d2c * qb
+                    if d1:
+                        dP[i, j] = da * pp + a * dpp + dc * qb
                     P[i, j] = a * pp + c * qb
             continue
         r = 1.0 / s
@@ -372,12 +382,11 @@ def scalar_pass(x0, P0, Z, H, Qb, a, da, d2a, c, dc, d2c, burn, order, work):
                     dx[i, c_] += dg[i] * e + gi * de
                 if d2:
                     d2x[i, c_] += d2g[i] * e + 2.0 * dg[i] * de + gi * d2e
-        # P = P^- - g g^T / s, then the next prior a P + c Qb (and derivatives); every
-        # entry (a loop of fixed length runs faster than the triangle), each written so
-        # that the (j, i) entry rounds exactly as the (i, j) one: P stays symmetric
+        # P = P^- - g g^T / s, then the next prior a P + c Qb (and derivatives), on the
+        # upper triangle
         for i in range(n):
             gi, dgi, d2gi = g[i], dg[i], d2g[i]
-            for j in range(n):
+            for j in range(i, n):
                 gj, dgj = g[j], dg[j]
                 gg = gi * gj
                 pp = P[i, j] - gg * r
@@ -395,36 +404,59 @@ def scalar_pass(x0, P0, Z, H, Qb, a, da, d2a, c, dc, d2c, burn, order, work):
 
 
 @njit(cache=True, error_model="numpy")
-def scalar_profile(x0, P0, Z, H, Qb, kind, v, lam0, burn, order, work):
-    r"""``(loglik, sigma2, n_obs, gradient, second derivative)`` of the profile
-    log-likelihood in the search variable `v` (one `scalar_pass`; ``n_obs = 0`` when no
-    innovation is counted):
+def scalar_point(x0, P0, Z, H, Qb, kind, v, lam0, burn, orders, dims, work):
+    r"""``(loglik, sigma2, n_obs, gradient, second derivative, dsigma2)`` of the profile
+    log-likelihood in the search variable `v` (one `scalar_pass` of the order that
+    `orders` witnesses; ``n_obs = 0`` when no innovation is counted):
     :math:`\ell_p = -\tfrac12 (N (\log 2\pi + \log(sq/N) + 1) + m\,slog)`,
     :math:`\ell_p' = -\tfrac12 (N\,sq' / sq + m\,slog')`,
-    :math:`\ell_p'' = -\tfrac12 (N (sq''/sq - sq'^2 / sq^2) + m\,slog'')`."""
+    :math:`\ell_p'' = -\tfrac12 (N (sq''/sq - sq'^2 / sq^2) + m\,slog'')`,
+    ``dsigma2 = sq' / N`` (the derivative of :math:`\sigma^2 = sq / N`)."""
     a, da, d2a, c, dc, d2c = scalar_model(kind, v, lam0)
     slog, sq, count, dslog, dsq, d2slog, d2sq = scalar_pass(
-        x0, P0, Z, H, Qb, a, da, d2a, c, dc, d2c, burn, order, work)
+        x0, P0, Z, H, Qb, a, da, d2a, c, dc, d2c, burn, orders, dims, work)
     if count == 0:
-        return math.nan, math.nan, 0, math.nan, math.nan
+        return math.nan, math.nan, 0, math.nan, math.nan, math.nan
     m = x0.shape[1]
     sigma2 = sq / count
     ll = -0.5 * (count * (_LOG_2PI + math.log(sigma2) + 1.0) + m * slog)
     grad = -0.5 * (count * dsq / sq + m * dslog)
     hess = -0.5 * (count * (d2sq / sq - dsq * dsq / (sq * sq)) + m * d2slog)
-    return ll, sigma2, count, grad, hess
+    return ll, sigma2, count, grad, hess, dsq / count
+
+
+@njit(cache=True, error_model="numpy")
+def scalar_profile(x0, P0, Z, H, Qb, kind, v, lam0, burn, order, work, dims):
+    """`scalar_point` with the order as a number (0, 1 or 2)."""
+    if order <= 0:
+        return scalar_point(x0, P0, Z, H, Qb, kind, v, lam0, burn, (), dims, work)
+    if order == 1:
+        return scalar_point(x0, P0, Z, H, Qb, kind, v, lam0, burn, (0,), dims, work)
+    return scalar_point(x0, P0, Z, H, Qb, kind, v, lam0, burn, (0, 0), dims, work)
+
+
+#: The last step of the one-variable search is taken on the quadratic model, without a
+#: pass, when it is at most `_LAST_STEP` long and its product with the step before at
+#: most `_LAST_PRODUCT`: the secant iteration's error after a step is about
+#: ``|f''' / 2 f''|`` times that product (about 0.02 x 1e-7 for the records of
+#: benchmarks/bench_tune.py), and the log-likelihood, sigma^2 and the gradient there
+#: are their Taylor expansions (errors of order ``step^2 |h - h_secant|``, below 1e-11).
+_LAST_STEP = 3e-5
+_LAST_PRODUCT = 1e-7
 
 
 @njit(cache=True, error_model="numpy")
 def scalar_search(x0, P0, Z, H, Qb, kind, lam0, burn, v0, lo, hi, max_step, maxiter, xtol,
-                  screen):
+                  screen, dims):
     """Maximize the profile log-likelihood of one variable `v` in ``[lo, hi]`` by a
     safeguarded Newton search: the exact second derivative at the start, then secants
     of the exact first derivatives (the exact one where a secant is not negative);
     steps at most `max_step`, halved until the likelihood does not fall; an uphill
     step of that length where the curvature is not negative; stop when a step would
-    be shorter than `xtol` or the start sits on a bound with the gradient pointing
-    out. One compiled call: no Python between passes.
+    be shorter than `xtol`, or take the last step on the quadratic model without a
+    pass when it is short enough (`_LAST_STEP`, `_LAST_PRODUCT`), or when the start
+    sits on a bound with the gradient pointing out. One compiled call: no Python
+    between passes. `dims`: as for `scalar_pass`.
 
     With `screen`, the record is first screened as ``batch_filter`` validates it (every
     entry of `H` finite, no infinity in `Z`; NaN there marks a missing sample): a
@@ -449,12 +481,14 @@ def scalar_search(x0, P0, Z, H, Qb, kind, lam0, burn, v0, lo, hi, max_step, maxi
             return v0, math.nan, math.nan, -1, math.nan, math.nan, False, False, 0
     work = scalar_work(n, m)
     v = min(max(v0, lo), hi)
-    ll, sigma2, n_obs, g, h = scalar_profile(x0, P0, Z, H, Qb, kind, v, lam0, burn, 2, work)
+    ll, sigma2, n_obs, g, h, ds2 = scalar_point(x0, P0, Z, H, Qb, kind, v, lam0, burn,
+                                                (0, 0), dims, work)
     passes = 1
     converged = False
     held = False
     if n_obs == 0:
         return v, ll, sigma2, n_obs, g, h, converged, held, passes
+    last = math.inf                       # the length of the last step taken
     for _ in range(maxiter):
         held = (v <= lo and g < 0.0) or (v >= hi and g > 0.0)
         if held:
@@ -466,17 +500,26 @@ def scalar_search(x0, P0, Z, H, Qb, kind, lam0, burn, v0, lo, hi, max_step, maxi
         if abs(v_new - v) <= xtol:
             converged = True
             break
+        if (h < 0.0 and v_new == v + step and abs(step) <= _LAST_STEP
+                and abs(step) * last <= _LAST_PRODUCT):
+            # the last step on the quadratic model l + g d + h d^2 / 2 (d = -g / h)
+            ll += 0.5 * g * step
+            sigma2 += ds2 * step
+            g += h * step
+            v = v_new
+            converged = True
+            break
         tol = 1e-12 * (1.0 + abs(ll))                  # round-off of the sums
-        ll_n, s2_n, nobs_n, g_n, h_n = scalar_profile(x0, P0, Z, H, Qb, kind, v_new, lam0,
-                                                      burn, 1, work)
+        ll_n, s2_n, nobs_n, g_n, h_n, ds2_n = scalar_point(x0, P0, Z, H, Qb, kind, v_new,
+                                                           lam0, burn, (0,), dims, work)
         passes += 1
         halvings = 0
         while ll_n < ll - tol and halvings < 60:
             step *= 0.5
             halvings += 1
             v_new = min(max(v + step, lo), hi)
-            ll_n, s2_n, nobs_n, g_n, h_n = scalar_profile(x0, P0, Z, H, Qb, kind, v_new,
-                                                          lam0, burn, 1, work)
+            ll_n, s2_n, nobs_n, g_n, h_n, ds2_n = scalar_point(x0, P0, Z, H, Qb, kind, v_new,
+                                                               lam0, burn, (0,), dims, work)
             passes += 1
         if ll_n < ll - tol:                             # no ascent left: stay
             break
@@ -486,9 +529,10 @@ def scalar_search(x0, P0, Z, H, Qb, kind, lam0, burn, v0, lo, hi, max_step, maxi
             if h_sec < 0.0:
                 h = h_sec
             else:                                       # not concave here: exact
-                ll_n, s2_n, nobs_n, g_n, h_n = scalar_profile(x0, P0, Z, H, Qb, kind, v_new,
-                                                              lam0, burn, 2, work)
+                ll_n, s2_n, nobs_n, g_n, h_n, ds2_n = scalar_point(
+                    x0, P0, Z, H, Qb, kind, v_new, lam0, burn, (0, 0), dims, work)
                 passes += 1
                 h = h_n
-        v, ll, sigma2, n_obs, g = v_new, ll_n, s2_n, nobs_n, g_n
+        last = abs(dv)
+        v, ll, sigma2, n_obs, g, ds2 = v_new, ll_n, s2_n, nobs_n, g_n, ds2_n
     return v, ll, sigma2, n_obs, g, h, converged, held, passes
