@@ -121,6 +121,12 @@ def test_diagonal_q_equals_statsmodels_maximum_likelihood(rng):
     assert fit.converged and fit.estimate.shape == (3,)
     assert_allclose(fit.estimate, ref.params, rtol=1e-4)
     assert_allclose(fit.loglik, ref.llf, rtol=0, atol=1e-6)
+    assert fit.loglik >= ref.llf - 1e-9                      # ours is at least as high
+    # the standard errors from the exact Hessian: statsmodels' from its numerical Hessian
+    # of the log-likelihood on the same scale (q itself; its "oim", Harvey's formula,
+    # differs by a few per cent here)
+    bse = mod.filter(fit.estimate, cov_type="approx").bse
+    assert_allclose(fit.stderr, bse, rtol=1e-4)
 
 
 def fading_memory_loglik(z, H, lam, Q_rel, P0_rel):
@@ -493,3 +499,32 @@ def test_scalar_kernel_equals_the_general_one(rng, param):
                 assert_allclose(got[3], ref[3][0], rtol=1e-10)
             if order == 2:
                 assert_allclose(got[4], ref[4][0, 0], rtol=1e-10)
+
+
+def test_diagonal_kernel_equals_the_general_one(rng):
+    """The pass of the compiled ``q_diag`` search (`diag_profile`, ``Q = diag(exp(v))``)
+    returns the profile log-likelihood, its gradient and Hessian of the general
+    sensitivity kernel (`_profile`, checked against finite differences above) to
+    round-off, with missing samples, a burn-in and two outputs, at every order; the
+    loop for every size gives the same bits as the one unrolled for ``dim_x = 3``."""
+    from rlsfilt.filters import _kernels_tuning as kernels
+    from rlsfilt.filters.tuning import _dims, _model, _profile
+
+    H, z = drifting_record(rng, N=300)
+    z[[4, 150]] = np.nan
+    Z = np.column_stack([z, 0.3 * z + 0.1 * rng.standard_normal(300)])
+    x0 = 0.1 * np.ones((3, 2))
+    P0 = 30.0 * np.eye(3) + np.array([[0.0, 1.0, -2.0], [1.0, 0.0, 0.5], [-2.0, 0.5, 0.0]])
+    for v in (np.array([-5.0, -3.0, -4.0]), np.array([-12.0, -1.0, -2.5])):
+        for order in (0, 1, 2):
+            ref = _profile(x0, P0, Z, H, _model("q_diag", v, 3, 0.98, None), 3, 2, order)
+            got = kernels.diag_profile(x0, P0, Z, H, 1.0 / 0.98, v, 3, order, _dims(3))
+            loop = kernels.diag_profile(x0, P0, Z, H, 1.0 / 0.98, v, 3, order,
+                                        np.zeros(3, dtype=np.int8))
+            assert all(np.array_equal(a, b) for a, b in zip(got, loop, strict=True))
+            assert got[2] == ref[2]
+            assert_allclose(got[:2], ref[:2], rtol=1e-13)
+            if order >= 1:
+                assert_allclose(got[3], ref[3], rtol=1e-10, atol=1e-12 * abs(ref[0]))
+            if order == 2:
+                assert_allclose(got[4], ref[4], rtol=1e-10, atol=1e-12 * abs(ref[0]))

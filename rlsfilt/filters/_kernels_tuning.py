@@ -536,3 +536,419 @@ def scalar_search(x0, P0, Z, H, Qb, kind, lam0, burn, v0, lo, hi, max_step, maxi
         last = abs(dv)
         v, ll, sigma2, n_obs, g, ds2 = v_new, ll_n, s2_n, nobs_n, g_n, ds2_n
     return v, ll, sigma2, n_obs, g, h, converged, held, passes
+
+
+# ----------------------------------------------------------------------
+# a diagonal random walk ("q_diag"): a pass specialized to Q = diag(exp(v)), and the
+# whole Newton search compiled
+# ----------------------------------------------------------------------
+@njit(cache=True)
+def diag_work(n, m):
+    """The state of a `diag_pass`: ``(x, dx, d2x, P, dP, d2P, g, dg, d2g, y, dy, d2y, ds,
+    d2s, de, dslog, dsq, d2slog, d2sq)`` (``k = n`` variables)."""
+    return (np.empty((n, m)), np.empty((n, n, m)), np.empty((n, n, n, m)),
+            np.empty((n, n)), np.empty((n, n, n)), np.empty((n, n, n, n)),
+            np.empty(n), np.empty((n, n)), np.empty((n, n, n)),
+            np.empty(m), np.empty((n, m)), np.empty((n, n, m)),
+            np.empty(n), np.empty((n, n)), np.empty((n, m)),
+            np.empty(n), np.empty(n), np.empty((n, n)), np.empty((n, n)))
+
+
+@njit(cache=True)
+def diag_pass(x0, P0, Z, H, a, q, burn, orders, dims, work):
+    """``(slog, sq, count)`` of `profile_derivs` for the time update
+    ``P^- = a P + diag(q)``, ``q = exp(v)`` (``v`` the ``n`` search variables), with the
+    gradients ``dslog``, ``dsq`` and the Hessians ``d2slog``, ``d2sq`` in ``v`` left in
+    `work` (`diag_work`; up to the order that `orders` witnesses).
+
+    `profile_derivs` with ``A = a``, ``dA = d2A = 0``, ``dQ_k = d2Q_kk = q_k E_kk``: the
+    time update of a derivative is ``a dP + q_k E_kk``; each step's measurement update
+    and the next time update are one sweep of ``P`` and its derivatives, on the upper
+    triangle (read as symmetric) and the pairs ``k <= l``, with `orders` and `dims` as
+    for `scalar_pass` (the loops unrolled for a tuple `dims`). ``tests/test_tuning.py``
+    holds it equal to `profile_derivs`.
+    """
+    (x, dx, d2x, P, dP, d2P, g, dg, d2g, y, dy, d2y, ds, d2s, de, dslog, dsq, d2slog,
+     d2sq) = work
+    m = x0.shape[1]
+    n = len(dims)                         # a constant when dims is a tuple
+    d1 = len(orders) >= 1
+    d2 = len(orders) >= 2
+    for i in range(n):
+        for c_ in range(m):
+            x[i, c_] = x0[i, c_]
+        for j in range(i, n):             # the first prior a P0 + diag(q)
+            P[i, j] = a * P0[i, j] + (q[i] if i == j else 0.0)
+    for k in range(n):
+        dslog[k] = dsq[k] = 0.0
+        for i in range(n):
+            for c_ in range(m):
+                dx[k, i, c_] = 0.0
+            for j in range(i, n):
+                dP[k, i, j] = q[k] if (i == k and j == k) else 0.0
+        for l_ in range(n):
+            d2slog[k, l_] = d2sq[k, l_] = 0.0
+            for i in range(n):
+                for c_ in range(m):
+                    d2x[k, l_, i, c_] = 0.0
+                for j in range(i, n):
+                    d2P[k, l_, i, j] = q[k] if (k == l_ and i == k and j == k) else 0.0
+    slog = sq = 0.0
+    prod = 1.0                            # running product of s >= 1
+    count = 0
+    for t in range(Z.shape[0]):
+        # g = P^- h, s = h^T g + 1, y = z - x^T h (and their derivatives)
+        s = 1.0
+        for i in range(n):
+            acc = 0.0
+            for j in range(n):
+                acc += P[min(i, j), max(i, j)] * H[t, j]
+            g[i] = acc
+            s += H[t, i] * acc
+        if d1:
+            for k in range(n):
+                acc_s = 0.0
+                for i in range(n):
+                    acc = 0.0
+                    for j in range(n):
+                        acc += dP[k, min(i, j), max(i, j)] * H[t, j]
+                    dg[k, i] = acc
+                    acc_s += H[t, i] * acc
+                ds[k] = acc_s
+        if d2:
+            for k in range(n):
+                for l_ in range(k, n):
+                    acc_s = 0.0
+                    for i in range(n):
+                        acc = 0.0
+                        for j in range(n):
+                            acc += d2P[k, l_, min(i, j), max(i, j)] * H[t, j]
+                        d2g[k, l_, i] = acc
+                        acc_s += H[t, i] * acc
+                    d2s[k, l_] = acc_s
+        missing = False
+        for c_ in range(m):
+            acc = Z[t, c_]
+            for i in range(n):
+                acc -= H[t, i] * x[i, c_]
+            y[c_] = acc
+            if acc != acc:
+                missing = True
+            if d1:
+                for k in range(n):
+                    acc = 0.0
+                    for i in range(n):
+                        acc -= H[t, i] * dx[k, i, c_]
+                    dy[k, c_] = acc
+            if d2:
+                for k in range(n):
+                    for l_ in range(k, n):
+                        acc = 0.0
+                        for i in range(n):
+                            acc -= H[t, i] * d2x[k, l_, i, c_]
+                        d2y[k, l_, c_] = acc
+        if missing:                       # posterior = prior: P^-_{t+1} = a P^-_t + diag(q)
+            for i in range(n):
+                for j in range(i, n):
+                    P[i, j] = a * P[i, j] + (q[i] if i == j else 0.0)
+            if d1:
+                for k in range(n):
+                    for i in range(n):
+                        for j in range(i, n):
+                            dP[k, i, j] = a * dP[k, i, j] + (q[k] if (i == k and j == k)
+                                                             else 0.0)
+            if d2:
+                for k in range(n):
+                    for l_ in range(k, n):
+                        for i in range(n):
+                            for j in range(i, n):
+                                d2P[k, l_, i, j] = a * d2P[k, l_, i, j] + (
+                                    q[k] if (k == l_ and i == k and j == k) else 0.0)
+            continue
+        r = 1.0 / s
+        r2 = r * r
+        r3 = r2 * r
+        if t >= burn:
+            if s < 1e100:                 # sum log s as the log of running products
+                prod *= s
+                if prod > 1e150:
+                    slog += math.log(prod)
+                    prod = 1.0
+            else:
+                slog += math.log(s)
+            count += m
+            for c_ in range(m):
+                sq += y[c_] * y[c_] * r
+            if d1:
+                for k in range(n):
+                    dslog[k] += ds[k] * r
+                    for c_ in range(m):
+                        yc = y[c_]
+                        dsq[k] += 2.0 * yc * dy[k, c_] * r - yc * yc * ds[k] * r2
+            if d2:
+                for k in range(n):
+                    for l_ in range(k, n):
+                        d2slog[k, l_] += d2s[k, l_] * r - ds[k] * ds[l_] * r2
+                        for c_ in range(m):
+                            yc = y[c_]
+                            d2sq[k, l_] += (2.0 * dy[k, c_] * dy[l_, c_] * r
+                                            + 2.0 * yc * d2y[k, l_, c_] * r
+                                            - 2.0 * yc * (dy[k, c_] * ds[l_]
+                                                          + dy[l_, c_] * ds[k]) * r2
+                                            - yc * yc * d2s[k, l_] * r2
+                                            + 2.0 * yc * yc * ds[k] * ds[l_] * r3)
+        # x = x + g e^T, e = y / s (and derivatives; they read dg, de of this step)
+        for c_ in range(m):
+            e = y[c_] * r
+            if d1:
+                for k in range(n):
+                    de[k, c_] = dy[k, c_] * r - y[c_] * ds[k] * r2
+            if d2:
+                for k in range(n):
+                    for l_ in range(k, n):
+                        d2e = (d2y[k, l_, c_] * r - (dy[k, c_] * ds[l_] + dy[l_, c_] * ds[k]) * r2
+                               - y[c_] * d2s[k, l_] * r2 + 2.0 * y[c_] * ds[k] * ds[l_] * r3)
+                        for i in range(n):
+                            d2x[k, l_, i, c_] += (d2g[k, l_, i] * e + dg[k, i] * de[l_, c_]
+                                                  + dg[l_, i] * de[k, c_] + g[i] * d2e)
+            if d1:
+                for k in range(n):
+                    for i in range(n):
+                        dx[k, i, c_] += dg[k, i] * e + g[i] * de[k, c_]
+            for i in range(n):
+                x[i, c_] += g[i] * e
+        # P = P^- - g g^T / s and the next prior a P + diag(q) (and derivatives)
+        if d2:
+            for k in range(n):
+                for l_ in range(k, n):
+                    d2r = -d2s[k, l_] * r2 + 2.0 * ds[k] * ds[l_] * r3
+                    drk = -ds[k] * r2
+                    drl = -ds[l_] * r2
+                    for i in range(n):
+                        for j in range(i, n):
+                            v = d2P[k, l_, i, j] - (
+                                (d2g[k, l_, i] * g[j] + dg[k, i] * dg[l_, j]
+                                 + dg[l_, i] * dg[k, j] + g[i] * d2g[k, l_, j]) * r
+                                + (dg[k, i] * g[j] + g[i] * dg[k, j]) * drl
+                                + (dg[l_, i] * g[j] + g[i] * dg[l_, j]) * drk
+                                + g[i] * g[j] * d2r)
+                            d2P[k, l_, i, j] = a * v + (q[k] if (k == l_ and i == k and j == k)
+                                                        else 0.0)
+        if d1:
+            for k in range(n):
+                drk = -ds[k] * r2
+                for i in range(n):
+                    for j in range(i, n):
+                        v = dP[k, i, j] - ((dg[k, i] * g[j] + g[i] * dg[k, j]) * r
+                                           + g[i] * g[j] * drk)
+                        dP[k, i, j] = a * v + (q[k] if (i == k and j == k) else 0.0)
+        for i in range(n):
+            for j in range(i, n):
+                P[i, j] = a * (P[i, j] - g[i] * g[j] * r) + (q[i] if i == j else 0.0)
+    slog += math.log(prod)
+    for k in range(n):
+        for l_ in range(k + 1, n):
+            d2slog[l_, k] = d2slog[k, l_]
+            d2sq[l_, k] = d2sq[k, l_]
+    return slog, sq, count
+
+
+@njit(cache=True, error_model="numpy")
+def diag_point(x0, P0, Z, H, a, v, burn, orders, dims, work, grad, hess):
+    r"""``(loglik, sigma2, n_obs)`` of the profile log-likelihood at ``q = exp(v)`` (one
+    `diag_pass`), its gradient written into `grad` (n,) and its Hessian into `hess`
+    (n, n) in `v` (as `scalar_point`, entry by entry):
+    :math:`\partial_k \ell_p = -\tfrac12 (N\,sq_k / sq + m\,slog_k)`,
+    :math:`\partial_{kl} \ell_p = -\tfrac12 (N (sq_{kl}/sq - sq_k sq_l / sq^2)
+    + m\,slog_{kl})`. ``n_obs = 0`` when no innovation is counted."""
+    n = len(v)
+    q = np.exp(v)
+    slog, sq, count = diag_pass(x0, P0, Z, H, a, q, burn, orders, dims, work)
+    if count == 0:
+        return math.nan, math.nan, 0
+    dslog, dsq, d2slog, d2sq = work[15], work[16], work[17], work[18]
+    m = x0.shape[1]
+    sigma2 = sq / count
+    ll = -0.5 * (count * (_LOG_2PI + math.log(sigma2) + 1.0) + m * slog)
+    if len(orders) >= 1:
+        for k in range(n):
+            grad[k] = -0.5 * (count * dsq[k] / sq + m * dslog[k])
+    if len(orders) >= 2:
+        for k in range(n):
+            for l_ in range(n):
+                hess[k, l_] = -0.5 * (count * (d2sq[k, l_] / sq - dsq[k] * dsq[l_] / (sq * sq))
+                                      + m * d2slog[k, l_])
+    return ll, sigma2, count
+
+
+@njit(cache=True, error_model="numpy")
+def diag_profile(x0, P0, Z, H, a, v, burn, order, dims):
+    """`diag_point` with the order as a number: ``(loglik, sigma2, n_obs, gradient,
+    Hessian)``."""
+    n = len(v)
+    work = diag_work(n, x0.shape[1])
+    grad = np.zeros(n)
+    hess = np.zeros((n, n))
+    if order <= 0:
+        ll, sigma2, count = diag_point(x0, P0, Z, H, a, v, burn, (), dims, work, grad, hess)
+    elif order == 1:
+        ll, sigma2, count = diag_point(x0, P0, Z, H, a, v, burn, (0,), dims, work, grad,
+                                       hess)
+    else:
+        ll, sigma2, count = diag_point(x0, P0, Z, H, a, v, burn, (0, 0), dims, work, grad,
+                                       hess)
+    return ll, sigma2, count, grad, hess
+
+
+@njit(cache=True, error_model="numpy")
+def _newton_direction(grad, hess, free, max_step, step):
+    """The Newton step ``-hess^-1 grad`` of the free variables into `step` (zeros for the
+    others), by a Cholesky factorization of ``-hess`` on the free set; where it is not
+    positive definite, a steepest ascent step of length `max_step` instead. Steps are
+    cut to `max_step` in the largest entry."""
+    n = len(grad)
+    idx = np.empty(n, dtype=np.int64)
+    f = 0
+    for i in range(n):
+        step[i] = 0.0
+        if free[i]:
+            idx[f] = i
+            f += 1
+    L = np.zeros((f, f))
+    ok = True
+    for i in range(f):                    # -hess = L L^T on the free set
+        for j in range(i + 1):
+            acc = -hess[idx[i], idx[j]]
+            for p in range(j):
+                acc -= L[i, p] * L[j, p]
+            if i == j:
+                if not acc > 0.0:
+                    ok = False
+                    break
+                L[i, i] = math.sqrt(acc)
+            else:
+                L[i, j] = acc / L[j, j]
+        if not ok:
+            break
+    if ok:
+        w = np.empty(f)
+        for i in range(f):                # L w = grad, L^T d = w
+            acc = grad[idx[i]]
+            for p in range(i):
+                acc -= L[i, p] * w[p]
+            w[i] = acc / L[i, i]
+        for i in range(f - 1, -1, -1):
+            acc = w[i]
+            for p in range(i + 1, f):
+                acc -= L[p, i] * step[idx[p]]
+            step[idx[i]] = acc / L[i, i]
+    else:
+        big = 0.0
+        for i in range(f):
+            big = max(big, abs(grad[idx[i]]))
+        for i in range(f):
+            step[idx[i]] = max_step * grad[idx[i]] / big if big > 0.0 else 0.0
+    big = 0.0
+    for i in range(n):
+        big = max(big, abs(step[i]))
+    if big > max_step:
+        for i in range(n):
+            step[i] *= max_step / big
+
+
+@njit(cache=True, error_model="numpy")
+def diag_search(x0, P0, Z, H, a, burn, v0, lo, hi, max_step, maxiter, xtol, dims):
+    """Maximize the profile log-likelihood of ``v = log q`` (``Q = diag(exp(v))``) in the
+    box ``[lo, hi]`` by a projected Newton search on the exact gradient and Hessian
+    (every pass of order 2): a variable on a bound whose gradient points out is held
+    there; the others take the Newton step (`_newton_direction`), cut to the box and
+    halved until the likelihood does not fall. It stops when the step is shorter than
+    `xtol` in every entry, or takes a last step shorter than `_LAST_STEP` on the
+    quadratic model without a pass (the error after a Newton step is of the order of
+    its square). One compiled call.
+
+    Returns ``(v, loglik, sigma2, n_obs, gradient, Hessian, converged, held, n_passes)``
+    (`held`: bool per variable; ``n_obs = 0`` when no innovation is counted).
+    """
+    n, m = x0.shape
+    work = diag_work(n, m)
+    grad = np.zeros(n)
+    hess = np.zeros((n, n))
+    g_n = np.zeros(n)
+    h_n = np.zeros((n, n))
+    v = np.empty(n)
+    v_new = np.empty(n)
+    for i in range(n):
+        v[i] = min(max(v0[i], lo[i]), hi[i])
+    held = np.zeros(n, dtype=np.bool_)
+    free = np.ones(n, dtype=np.bool_)
+    step = np.zeros(n)
+    ll, sigma2, n_obs = diag_point(x0, P0, Z, H, a, v, burn, (0, 0), dims, work, grad, hess)
+    passes = 1
+    converged = False
+    if n_obs == 0:
+        return v, ll, sigma2, n_obs, grad, hess, converged, held, passes
+    for _ in range(maxiter):
+        any_free = False
+        for i in range(n):
+            held[i] = (v[i] <= lo[i] and grad[i] < 0.0) or (v[i] >= hi[i] and grad[i] > 0.0)
+            free[i] = not held[i]
+            any_free = any_free or free[i]
+        if not any_free:
+            converged = True
+            break
+        _newton_direction(grad, hess, free, max_step, step)
+        longest = 0.0
+        cut = False
+        for i in range(n):
+            v_new[i] = min(max(v[i] + step[i], lo[i]), hi[i])
+            longest = max(longest, abs(v_new[i] - v[i]))
+            cut = cut or v_new[i] != v[i] + step[i]
+        if longest <= xtol:
+            converged = True
+            break
+        if longest <= _LAST_STEP and not cut:
+            # the last step on the quadratic model: l + g.d + d.H d / 2 = l + g.d / 2
+            # (d the Newton step, H d = -g on the free set)
+            gd = 0.0
+            ds2 = 0.0
+            dsq = work[16]
+            count = n_obs
+            for i in range(n):
+                gd += grad[i] * step[i]
+                ds2 += dsq[i] / count * step[i]
+            for i in range(n):
+                acc = grad[i]
+                for j in range(n):
+                    acc += hess[i, j] * step[j]
+                grad[i] = acc
+                v[i] = v_new[i]
+            ll += 0.5 * gd
+            sigma2 += ds2
+            converged = True
+            break
+        tol = 1e-12 * (1.0 + abs(ll))                  # round-off of the sums
+        ll_n, s2_n, nobs_n = diag_point(x0, P0, Z, H, a, v_new, burn, (0, 0), dims, work,
+                                        g_n, h_n)
+        passes += 1
+        halvings = 0
+        while ll_n < ll - tol and halvings < 60:
+            halvings += 1
+            for i in range(n):
+                step[i] *= 0.5
+                v_new[i] = min(max(v[i] + step[i], lo[i]), hi[i])
+            ll_n, s2_n, nobs_n = diag_point(x0, P0, Z, H, a, v_new, burn, (0, 0), dims,
+                                            work, g_n, h_n)
+            passes += 1
+        if ll_n < ll - tol:                             # no ascent left: stay
+            # (the work arrays now hold the last trial: `grad`, `hess` stay those of v)
+            break
+        for i in range(n):
+            v[i] = v_new[i]
+            grad[i] = g_n[i]
+            for j in range(n):
+                hess[i, j] = h_n[i, j]
+        ll, sigma2, n_obs = ll_n, s2_n, nobs_n
+    for i in range(n):
+        held[i] = (v[i] <= lo[i] and grad[i] < 0.0) or (v[i] >= hi[i] and grad[i] > 0.0)
+    return v, ll, sigma2, n_obs, grad, hess, converged, held, passes

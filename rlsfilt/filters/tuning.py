@@ -484,11 +484,19 @@ def _tune_record(Z, Hm, x_start, P_rel, Q_rel, lam0, param, bounds, burn, keep=F
     v0 = np.clip(np.full(n, math.log(one.estimate) if param == "q_diag" else one.estimate),
                  v_lo, v_hi)
 
-    def run(v, order):
-        evals[0] += 1
-        return _profile(x_start, P_rel, Zc, Hc, _model(param, v, n, lam0, Q_rel), burn, m, order)
+    if param == "q_diag":                # the whole Newton search one compiled call
+        v, ll, sigma2, n_obs, grad, hess, converged, fixed, passes = _kernels().diag_search(
+            x_start, P_rel, Zc, Hc, 1.0 / lam0, burn, v0, v_lo, v_hi, 4.0, 100, 1e-8,
+            _dims(n))
+        evals[0] += passes
+    else:
+        def run(v, order):
+            evals[0] += 1
+            return _profile(x_start, P_rel, Zc, Hc, _model(param, v, n, lam0, Q_rel), burn, m,
+                            order)
 
-    v, (ll, sigma2, n_obs, grad, hess), converged, fixed = _quasi_newton(run, v0, v_lo, v_hi)
+        v, (ll, sigma2, n_obs, grad, hess), converged, fixed = _quasi_newton(run, v0, v_lo,
+                                                                             v_hi)
     at_bound = bool(np.any(fixed))
     se_v = np.full(len(v), np.nan)
     free = ~np.asarray(fixed)            # no curvature to read on a bound
