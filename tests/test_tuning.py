@@ -482,7 +482,7 @@ def test_scalar_kernel_equals_the_general_one(rng, param):
     x0, P0 = 0.1 * np.ones((3, 2)), 30.0 * np.eye(3)
     Q_rel = 1e-3 * np.array([[1.0, 0.2, 0.0], [0.2, 2.0, 0.1], [0.0, 0.1, 0.5]])
     P0 = P0 + np.array([[0.0, 1.0, -2.0], [1.0, 0.0, 0.5], [-2.0, 0.5, 0.0]])
-    kind, Qb = (0, np.eye(3)) if param == "q" else (1, Q_rel)
+    kind, Qb = (0, None) if param == "q" else (1, Q_rel)      # None: the identity
     work = kernels.scalar_work(3, 2)
     for v in ((-6.0, -2.0) if param == "q" else (math.log(0.1), math.log(0.005))):
         for order in (0, 1, 2):
@@ -493,6 +493,9 @@ def test_scalar_kernel_equals_the_general_one(rng, param):
             # the loop for every size: the same numbers to the last bit
             assert got == kernels.scalar_profile(x0, P0, Z, H, Qb, kind, v, 0.98, 3, order,
                                                  work, np.zeros(3, dtype=np.int8))
+            if Qb is None:                   # the lean pass of Q = c I: the same bits
+                assert got == kernels.scalar_profile(x0, P0, Z, H, np.eye(3), kind, v, 0.98, 3,
+                                                     order, work, _dims(3))
             assert got[2] == ref[2]
             assert_allclose(got[:2], ref[:2], rtol=1e-13)
             if order >= 1:

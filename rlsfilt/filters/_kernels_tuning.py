@@ -274,7 +274,9 @@ def scalar_pass(x0, P0, Z, H, Qb, a, da, d2a, c, dc, d2c, burn, orders, dims, wo
     length of a tuple is part of its type, so numba compiles one pass per order (the
     branches of the others pruned) and, for a tuple `dims`, per ``n`` (its loops
     unrolled: at ``n = 3`` the order-1 pass runs in 0.65x the time of one loop for
-    every ``n`` and every order).
+    every ``n`` and every order). ``Qb = None`` is the identity with a constant ``a``
+    (``da = d2a = 0``: the random walk ``Q = c I`` of ``q``), a pass of its own without
+    the products by 0 and 1 (the same numbers: about 0.87x the time at order 1).
     """
     x, dx, d2x, P, dP, d2P, g, dg, d2g, y, dy, d2y = work
     m = x0.shape[1]
@@ -288,7 +290,7 @@ def scalar_pass(x0, P0, Z, H, Qb, a, da, d2a, c, dc, d2c, burn, orders, dims, wo
             d2x[i, c_] = 0.0
         for j in range(i, n):             # the first prior (P0 has no derivative; its
             p0 = P0[i, j]                 # upper triangle read, as Qb's)
-            qb = Qb[i, j]
+            qb = (1.0 if i == j else 0.0) if Qb is None else Qb[i, j]
             P[i, j] = a * p0 + c * qb
             dP[i, j] = da * p0 + dc * qb
             d2P[i, j] = d2a * p0 + d2c * qb
@@ -339,7 +341,8 @@ def scalar_pass(x0, P0, Z, H, Qb, a, da, d2a, c, dc, d2c, burn, orders, dims, wo
         if missing:                       # posterior = prior: P^-_{t+1} = a P^-_t + c Qb
             for i in range(n):
                 for j in range(i, n):
-                    pp, dpp, qb = P[i, j], dP[i, j], Qb[i, j]
+                    pp, dpp = P[i, j], dP[i, j]
+                    qb = (1.0 if i == j else 0.0) if Qb is None else Qb[i, j]
                     if d2:
                         d2P[i, j] = d2a * pp + 2.0 * da * dpp + a * d2P[i, j] + d2c * qb
                     if d1:
@@ -390,6 +393,18 @@ def scalar_pass(x0, P0, Z, H, Qb, a, da, d2a, c, dc, d2c, burn, orders, dims, wo
                 gj, dgj = g[j], dg[j]
                 gg = gi * gj
                 pp = P[i, j] - gg * r
+                if Qb is None:            # Q = c I, a constant a (da = d2a = 0): the same
+                    dq = i == j           # numbers without the products by 0 and 1
+                    P[i, j] = a * pp + c if dq else a * pp
+                    if d1:
+                        dgg = dgi * gj + gi * dgj
+                        dpp = dP[i, j] - (dgg * r + gg * dr)
+                        dP[i, j] = a * dpp + dc if dq else a * dpp
+                        if d2:
+                            d2pp = d2P[i, j] - (((d2gi * gj + gi * d2g[j]) + 2.0 * dgi * dgj)
+                                                * r + 2.0 * dgg * dr + gg * d2r)
+                            d2P[i, j] = a * d2pp + d2c if dq else a * d2pp
+                    continue
                 P[i, j] = a * pp + c * Qb[i, j]
                 if d1:
                     dgg = dgi * gj + gi * dgj
@@ -449,8 +464,11 @@ _LAST_PRODUCT = 1e-7
 def scalar_search(x0, P0, Z, H, Qb, kind, lam0, burn, v0, lo, hi, max_step, maxiter, xtol,
                   screen, dims):
     """Maximize the profile log-likelihood of one variable `v` in ``[lo, hi]`` by a
-    safeguarded Newton search: the exact second derivative at the start, then secants
-    of the exact first derivatives (the exact one where a secant is not negative);
+    safeguarded Newton search: the exact second derivative at the start, then the slope
+    of the quadratic interpolation of the exact first derivatives at the last three
+    points (a secant with a curvature correction: about 13 % fewer passes than the
+    secant alone over q and lam of slow to fast drifts; the secant where that slope is
+    not negative, the exact second derivative where neither is);
     steps at most `max_step`, halved until the likelihood does not fall; an uphill
     step of that length where the curvature is not negative; stop when a step would
     be shorter than `xtol`, or take the last step on the quadratic model without a
@@ -489,6 +507,7 @@ def scalar_search(x0, P0, Z, H, Qb, kind, lam0, burn, v0, lo, hi, max_step, maxi
     if n_obs == 0:
         return v, ll, sigma2, n_obs, g, h, converged, held, passes
     last = math.inf                       # the length of the last step taken
+    v_prev, dd_prev = v, h                # the point before v, the divided difference
     for _ in range(maxiter):
         held = (v <= lo and g < 0.0) or (v >= hi and g > 0.0)
         if held:
@@ -525,14 +544,24 @@ def scalar_search(x0, P0, Z, H, Qb, kind, lam0, burn, v0, lo, hi, max_step, maxi
             break
         dv = v_new - v
         if abs(dv) > 1e-6 * (1.0 + abs(v)):             # else: round-off dominates
+            # the slope of the gradient at v_new from its quadratic interpolation
+            # through the last three points (Newton's divided differences; the start
+            # counts twice, with its exact h): the secant's plus c (v_new - v)
             h_sec = (g_n - g) / dv
-            if h_sec < 0.0:
+            h_quad = h_sec
+            if v_new != v_prev:
+                h_quad += (h_sec - dd_prev) / (v_new - v_prev) * dv
+            v_prev, dd_prev = v, h_sec
+            if h_quad < 0.0:
+                h = h_quad
+            elif h_sec < 0.0:
                 h = h_sec
             else:                                       # not concave here: exact
                 ll_n, s2_n, nobs_n, g_n, h_n, ds2_n = scalar_point(
                     x0, P0, Z, H, Qb, kind, v_new, lam0, burn, (0, 0), dims, work)
                 passes += 1
                 h = h_n
+                v_prev, dd_prev = v_new, h_n
         last = abs(dv)
         v, ll, sigma2, n_obs, g, ds2 = v_new, ll_n, s2_n, nobs_n, g_n, ds2_n
     return v, ll, sigma2, n_obs, g, h, converged, held, passes

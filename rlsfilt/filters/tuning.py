@@ -46,7 +46,6 @@ _PARAMS = ("lam", "q", "q_diag", "lam_diag")
 _kernels = lazy_module("rlsfilt.filters._kernels_tuning")
 _LAM_GAP = 1e-12     # lam = 1 is searched as 1 - lam = 1e-12 (u = log(1 - lam) finite)
 _F64 = np.dtype(np.float64)
-_EYES = {}           # the identity Qb of a scalar q per dim_x (read by the kernel only)
 _DIMS = {}           # the dimension witness of the one-variable kernels per dim_x (`_dims`)
 #: The sizes whose one-variable passes are compiled with ``dim_x`` a constant (loops
 #: unrolled; each size is a compile of its own, about ... s of CPU the first time): at
@@ -525,11 +524,7 @@ def _tune_scalar(Z, H, x_start, P_rel, Q_rel, lam0, param, bounds, burn, keep, s
     kern = _kernels()
     lo, hi = bounds
     if param == "q":                     # v = log q, Q = exp(v) I
-        n = len(P_rel)
-        Qb = _EYES.get(n)
-        if Qb is None:
-            Qb = _EYES[n] = np.eye(n)
-        kind = 0
+        kind, Qb = 0, None               # None: the identity (a pass of its own, leaner)
         if bounds == _Q_BOUNDS:
             v_lo, v_hi, v0 = _Q_SEARCH
         else:
