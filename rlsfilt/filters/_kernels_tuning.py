@@ -574,13 +574,13 @@ def scalar_search(x0, P0, Z, H, Qb, kind, lam0, burn, v0, lo, hi, max_step, maxi
 @njit(cache=True)
 def diag_work(n, m):
     """The state of a `diag_pass`: ``(x, dx, d2x, P, dP, d2P, g, dg, d2g, y, dy, d2y, ds,
-    d2s, de, dslog, dsq, d2slog, d2sq)`` (``k = n`` variables)."""
+    d2s, de, dslog, dsq, d2slog, d2sq, dgg)`` (``k = n`` variables)."""
     return (np.empty((n, m)), np.empty((n, n, m)), np.empty((n, n, n, m)),
             np.empty((n, n)), np.empty((n, n, n)), np.empty((n, n, n, n)),
             np.empty(n), np.empty((n, n)), np.empty((n, n, n)),
             np.empty(m), np.empty((n, m)), np.empty((n, n, m)),
             np.empty(n), np.empty((n, n)), np.empty((n, m)),
-            np.empty(n), np.empty(n), np.empty((n, n)), np.empty((n, n)))
+            np.empty(n), np.empty(n), np.empty((n, n)), np.empty((n, n)), np.empty((n, n, n)))
 
 
 @njit(cache=True)
@@ -598,7 +598,7 @@ def diag_pass(x0, P0, Z, H, a, q, burn, orders, dims, work):
     holds it equal to `profile_derivs`.
     """
     (x, dx, d2x, P, dP, d2P, g, dg, d2g, y, dy, d2y, ds, d2s, de, dslog, dsq, d2slog,
-     d2sq) = work
+     d2sq, dgg) = work
     m = x0.shape[1]
     n = len(dims)                         # a constant when dims is a tuple
     d1 = len(orders) >= 1
@@ -746,7 +746,13 @@ def diag_pass(x0, P0, Z, H, a, q, burn, orders, dims, work):
                         dx[k, i, c_] += dg[k, i] * e + g[i] * de[k, c_]
             for i in range(n):
                 x[i, c_] += g[i] * e
-        # P = P^- - g g^T / s and the next prior a P + diag(q) (and derivatives)
+        # P = P^- - g g^T / s and the next prior a P + diag(q) (and derivatives);
+        # dgg_k = d(g g^T) / dv_k, once per step
+        if d1:
+            for k in range(n):
+                for i in range(n):
+                    for j in range(i, n):
+                        dgg[k, i, j] = dg[k, i] * g[j] + g[i] * dg[k, j]
         if d2:
             for k in range(n):
                 for l_ in range(k, n):
@@ -758,8 +764,7 @@ def diag_pass(x0, P0, Z, H, a, q, burn, orders, dims, work):
                             v = d2P[k, l_, i, j] - (
                                 (d2g[k, l_, i] * g[j] + dg[k, i] * dg[l_, j]
                                  + dg[l_, i] * dg[k, j] + g[i] * d2g[k, l_, j]) * r
-                                + (dg[k, i] * g[j] + g[i] * dg[k, j]) * drl
-                                + (dg[l_, i] * g[j] + g[i] * dg[l_, j]) * drk
+                                + dgg[k, i, j] * drl + dgg[l_, i, j] * drk
                                 + g[i] * g[j] * d2r)
                             d2P[k, l_, i, j] = a * v + (q[k] if (k == l_ and i == k and j == k)
                                                         else 0.0)
@@ -768,8 +773,7 @@ def diag_pass(x0, P0, Z, H, a, q, burn, orders, dims, work):
                 drk = -ds[k] * r2
                 for i in range(n):
                     for j in range(i, n):
-                        v = dP[k, i, j] - ((dg[k, i] * g[j] + g[i] * dg[k, j]) * r
-                                           + g[i] * g[j] * drk)
+                        v = dP[k, i, j] - (dgg[k, i, j] * r + g[i] * g[j] * drk)
                         dP[k, i, j] = a * v + (q[k] if (i == k and j == k) else 0.0)
         for i in range(n):
             for j in range(i, n):
@@ -885,6 +889,16 @@ def _newton_direction(grad, hess, free, max_step, step):
             step[i] *= max_step / big
 
 
+#: The Newton search of ``q_diag`` takes its last step on the quadratic model, without a
+#: pass, also when it is at most `_NEWTON_LAST` long and the error it leaves, about
+#: ``M step^2`` with ``M = |step| / |last step|^2`` read off the quadratic convergence,
+#: is at most `_NEWTON_ERROR` (the Hessian of the standard errors is then the one a
+#: step away: a relative change of about 1e-3 times the third derivative over the
+#: second, about 4e-5 here).
+_NEWTON_LAST = 1e-3
+_NEWTON_ERROR = 1e-7
+
+
 @njit(cache=True, error_model="numpy")
 def diag_search(x0, P0, Z, H, a, burn, v0, lo, hi, max_step, maxiter, xtol, dims):
     """Maximize the profile log-likelihood of ``v = log q`` (``Q = diag(exp(v))``) in the
@@ -892,9 +906,10 @@ def diag_search(x0, P0, Z, H, a, burn, v0, lo, hi, max_step, maxiter, xtol, dims
     (every pass of order 2): a variable on a bound whose gradient points out is held
     there; the others take the Newton step (`_newton_direction`), cut to the box and
     halved until the likelihood does not fall. It stops when the step is shorter than
-    `xtol` in every entry, or takes a last step shorter than `_LAST_STEP` on the
-    quadratic model without a pass (the error after a Newton step is of the order of
-    its square). One compiled call.
+    `xtol` in every entry, or takes a last step on the quadratic model without a pass
+    when it is shorter than `_LAST_STEP`, or than `_NEWTON_LAST` with the error it
+    leaves below `_NEWTON_ERROR` (the error after a Newton step is of the order of its
+    square). One compiled call.
 
     Returns ``(v, loglik, sigma2, n_obs, gradient, Hessian, converged, held, n_passes)``
     (`held`: bool per variable; ``n_obs = 0`` when no innovation is counted).
@@ -917,6 +932,7 @@ def diag_search(x0, P0, Z, H, a, burn, v0, lo, hi, max_step, maxiter, xtol, dims
     converged = False
     if n_obs == 0:
         return v, ll, sigma2, n_obs, grad, hess, converged, held, passes
+    last = 0.0                            # the length of the last step taken (none yet)
     for _ in range(maxiter):
         any_free = False
         for i in range(n):
@@ -936,7 +952,8 @@ def diag_search(x0, P0, Z, H, a, burn, v0, lo, hi, max_step, maxiter, xtol, dims
         if longest <= xtol:
             converged = True
             break
-        if longest <= _LAST_STEP and not cut:
+        if not cut and (longest <= _LAST_STEP or (
+                longest <= _NEWTON_LAST and longest ** 3 <= _NEWTON_ERROR * last * last)):
             # the last step on the quadratic model: l + g.d + d.H d / 2 = l + g.d / 2
             # (d the Newton step, H d = -g on the free set)
             gd = 0.0
@@ -972,7 +989,9 @@ def diag_search(x0, P0, Z, H, a, burn, v0, lo, hi, max_step, maxiter, xtol, dims
         if ll_n < ll - tol:                             # no ascent left: stay
             # (the work arrays now hold the last trial: `grad`, `hess` stay those of v)
             break
+        last = 0.0
         for i in range(n):
+            last = max(last, abs(v_new[i] - v[i]))
             v[i] = v_new[i]
             grad[i] = g_n[i]
             for j in range(n):
