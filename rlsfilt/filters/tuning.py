@@ -47,9 +47,10 @@ _kernels = lazy_module("rlsfilt.filters._kernels_tuning")
 _LAM_GAP = 1e-12     # lam = 1 is searched as 1 - lam = 1e-12 (u = log(1 - lam) finite)
 _F64 = np.dtype(np.float64)
 _DIMS = {}           # the dimension witness of the one-variable kernels per dim_x (`_dims`)
-#: The sizes whose one-variable passes are compiled with ``dim_x`` a constant (loops
-#: unrolled; each size is a compile of its own, about ... s of CPU the first time): at
-#: ``dim_x = 3`` a pass of the search runs in 0.65-0.75x the time of the loop for every size.
+#: The sizes whose passes (`_kernels_tuning.scalar_pass`, `diag_pass`) are compiled with
+#: ``dim_x`` a constant (loops unrolled; each size and search a compile of its own, about
+#: 5 s of CPU the first time, then loaded from numba's disk cache): at ``dim_x = 3`` a
+#: pass runs in 0.65-0.75x the time of the loop for every size.
 _SPECIALISED = (1, 2, 3, 4, 5, 6)
 _Q_BOUNDS = (1e-12, 1e2)                     # the default search interval of q
 _Q_SEARCH = (math.log(1e-12), math.log(1e2), math.log(1e-3))   # (low, high, start) of log q
@@ -351,13 +352,18 @@ def tune(filt, zs, Hs, param="q", *, bounds=None, burn=0, apply=False):
     recursions (the exact derivatives of ``x``, ``P``, the innovations and their
     variances with respect to the search variable). The search runs on
     :math:`\log(1 - \lambda)` or :math:`\log q`: one variable by a safeguarded
-    Newton search (the exact second derivative at the start, then secants of
-    the exact first derivatives, steps halved until the likelihood rises), the
-    whole search one compiled call; ``"q_diag"`` and ``"lam_diag"`` by L-BFGS-B
-    on the exact gradient (from the scalar estimate). The standard errors come
-    from the observed information :math:`-\partial^2 \ell_p / \partial v^2` in
-    the search variable ``v`` (exact for ``"q_diag"``; the converged secant for one
-    variable), mapped to the parameter by the delta method.
+    Newton search (the exact second derivative at the start, then the slopes of
+    the quadratic interpolation of the exact first derivatives, steps halved
+    until the likelihood rises), the whole search one compiled call;
+    ``"q_diag"`` by a projected Newton search on the exact gradient and Hessian
+    (from the scalar estimate), also one compiled call; ``"lam_diag"`` by
+    L-BFGS-B on the exact gradient (from the scalar estimate). A last step
+    short enough is taken on the local quadratic model of the likelihood
+    without a pass (the log-likelihood and ``R`` there from their Taylor
+    expansions). The standard errors come from the observed information
+    :math:`-\partial^2 \ell_p / \partial v^2` in the search variable ``v``
+    (exact for ``"q_diag"`` and ``"lam_diag"``; the converged interpolated slope
+    for one variable), mapped to the parameter by the delta method.
 
     References
     ----------
