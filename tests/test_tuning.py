@@ -531,3 +531,43 @@ def test_diagonal_kernel_equals_the_general_one(rng):
                 assert_allclose(got[3], ref[3], rtol=1e-10, atol=1e-12 * abs(ref[0]))
             if order == 2:
                 assert_allclose(got[4], ref[4], rtol=1e-10, atol=1e-12 * abs(ref[0]))
+
+
+@pytest.mark.parametrize("seed", [0, 3])
+def test_diagonal_q_with_a_constant_parameter_equals_lbfgsb(seed):
+    """``q_diag`` with one constant parameter: its ``q`` ends tiny (seed 0) or on the
+    lower bound, held there (seed 3: ``at_bound``, no standard error for it); the compiled
+    projected Newton search reaches the likelihood of L-BFGS-B over the general
+    sensitivity pass (scipy, from the same start) or higher, with the same estimates."""
+    from scipy.optimize import minimize
+
+    from rlsfilt.filters.tuning import _model, _profile
+
+    rng = np.random.default_rng(seed)
+    N, n = 1500, 3
+    H = rng.standard_normal((N, n))
+    x = np.column_stack([np.full(N, 1.0), 1.0 + np.cumsum(0.03 * rng.standard_normal(N)),
+                         np.cumsum(0.01 * rng.standard_normal(N))])
+    z = np.sum(H * x, axis=1) + 0.1 * rng.standard_normal(N)
+    rls = RecursiveLeastSquares(n, P0=100.0)
+    fit = rls.tune(z, H, "q_diag")
+
+    def negll(v):
+        out = _profile(np.zeros((n, 1)), 100.0 * np.eye(n), z[:, None], H,
+                       _model("q_diag", v, n, 1.0, None), 0, 1, 1)
+        return -out[0], -out[3]
+
+    v0 = np.full(n, math.log(rls.tune(z, H, "q").estimate))
+    ref = minimize(negll, v0, jac=True, method="L-BFGS-B",
+                   bounds=[(math.log(1e-12), math.log(1e2))] * n,
+                   options={"ftol": 1e-15, "gtol": 1e-10, "maxiter": 1000})
+    assert fit.loglik >= -ref.fun - 1e-9
+    q_ref = np.exp(ref.x)
+    assert_allclose(fit.estimate[1:], q_ref[1:], rtol=1e-5)
+    if seed == 3:
+        assert fit.at_bound and not fit.converged and q_ref[0] < 1e-10
+        assert_allclose(fit.estimate[0], 1e-12, rtol=1e-12)         # exp(log(1e-12))
+        assert np.isnan(fit.stderr[0]) and np.all(np.isfinite(fit.stderr[1:]))
+    else:
+        assert not fit.at_bound and fit.converged
+        assert_allclose(fit.estimate[0], q_ref[0], rtol=1e-4)
