@@ -49,9 +49,11 @@ _F64 = np.dtype(np.float64)
 _DIMS = {}           # the dimension witness of the one-variable kernels per dim_x (`_dims`)
 #: The sizes whose passes (`_kernels_tuning.scalar_pass`, `diag_pass`) are compiled with
 #: ``dim_x`` a constant (loops unrolled; each size and search a compile of its own, about
-#: 5 s of CPU the first time, then loaded from numba's disk cache): at ``dim_x = 3`` a
-#: pass runs in 0.65-0.75x the time of the loop for every size.
-_SPECIALISED = (1, 2, 3, 4, 5, 6)
+#: 6 s of CPU the first time, then loaded from numba's disk cache). A pass of 2,000
+#: samples against the loop for every size (orders 1 and 2): 0.99x and 0.97x at 1 (not
+#: kept), 0.81x at 2, 0.69x and 0.73x at 4, 0.64x and 0.73x at 6, 0.66x at 8 (sizes
+#: above 6 run the loop: each size kept is one more compile).
+_SPECIALISED = (2, 3, 4, 5, 6)
 _Q_BOUNDS = (1e-12, 1e2)                     # the default search interval of q
 _Q_SEARCH = (math.log(1e-12), math.log(1e2), math.log(1e-3))   # (low, high, start) of log q
 
