@@ -10,6 +10,13 @@ Newton search of :mod:`rlsfilt.filters.tuning` calls it a handful of times per
 record. ``tests/test_tuning.py`` holds the sums equal to those of
 ``batch_filter``'s innovations and the derivatives equal to finite
 differences.
+
+`profile_derivs` is the general pass (any number of hyperparameters, any
+time update ``P^- = A * P + Q``); the searches run leaner passes of their own,
+held equal to it: `scalar_pass` for one variable (``q`` or ``lam``, the whole
+search `scalar_search` one compiled call) and `diag_pass` for a diagonal
+random walk (``q_diag``, `diag_search`), both on the upper triangle of ``P``
+with the order of the derivatives and the size as compile-time constants.
 """
 
 import math
