@@ -46,7 +46,7 @@ _PARAMS = ("lam", "q", "q_diag", "lam_diag")
 _kernels = lazy_module("rlsfilt.filters._kernels_tuning")
 _LAM_GAP = 1e-12     # lam = 1 is searched as 1 - lam = 1e-12 (u = log(1 - lam) finite)
 _F64 = np.dtype(np.float64)
-_DIMS = {}           # the dimension witness of the one-variable kernels per dim_x (`_dims`)
+_DIMS = {}           # the dimension witness of the scalar search per dim_x (`_dims`)
 #: The sizes whose passes (`_kernels_tuning.scalar_pass`, `diag_pass`) are compiled with
 #: ``dim_x`` a constant (loops unrolled; each size and search a compile of its own, about
 #: 6 s of CPU the first time, then loaded from numba's disk cache). A pass of 2,000
@@ -609,9 +609,10 @@ def _plain_record(zs, Hs, n, m):
 
 
 def _dims(n):
-    """The dimension witness of the one-variable kernels (`_kernels_tuning.scalar_pass`):
-    a tuple of `n` zeros for the sizes of `_SPECIALISED` (``n`` a constant of the compiled
-    pass), else an array of length `n` (one compiled pass for every other size)."""
+    """The dimension witness of the searches' passes (`_kernels_tuning.scalar_pass`,
+    `diag_pass`): a tuple of `n` zeros for the sizes of `_SPECIALISED` (``n`` a constant
+    of the compiled pass), else an array of length `n` (one compiled pass for every other
+    size)."""
     return (0,) * n if n in _SPECIALISED else np.zeros(n, dtype=np.int8)
 
 
