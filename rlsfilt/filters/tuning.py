@@ -412,7 +412,9 @@ def tune(filt, zs, Hs, param="q", *, bounds=None, burn=0, apply=False):
             Z, Hm = filt._as_batch(zs, Hs)
             Z, Hm = np.ascontiguousarray(Z, dtype=np.float64), np.ascontiguousarray(Hm, np.float64)
         x_start = np.ascontiguousarray(filt.x, dtype=np.float64)
-        P_rel = np.ascontiguousarray(filt.P / R0, dtype=np.float64)
+        # (a copy, kept by the result's profile; P / 1 is P: no division where R is 1)
+        P_rel = np.ascontiguousarray(filt.P.copy() if R0 == 1.0 else filt.P / R0,
+                                     dtype=np.float64)
         Q_rel = None if param == "q" else np.ascontiguousarray(filt.Q / R0, dtype=np.float64)
         out = _tune_scalar(Z, Hm, x_start, P_rel, Q_rel, filt.lam, param, bounds, burn, True,
                            screen=plain is not None)
