@@ -7,8 +7,10 @@ samples per series. statsmodels runs its ``MLEModel.fit()`` (L-BFGS, its
 defaults) on the same model. Times are thread CPU time (``time.thread_time``)
 per series, the median over the series; the estimates are compared too. Each
 is timed twice: the two libraries alternating series by series (each call in
-the caches the other left), and each over all the series in a row (a loop of
-series, as when tuning many). Last,
+the caches the other left: the number to quote), and each over all the series
+in a row (a loop of series, as when tuning many). ``lam`` (statsmodels has no
+forgetting factor) is timed against statsmodels' scalar-``q`` fit of the same
+record: the same one-variable search. Last,
 ``RLSBank.tune`` of 10,000 channels x 1,000 samples (``--channels``; the issue's
 target: about a minute on one core).
 
@@ -77,23 +79,29 @@ def main(series=10, channels=10000):
     rls = RecursiveLeastSquares(n, P0=P0, x0=x0)
     for param in ("q", "q_diag", "lam"):
         rls.tune(*record(0, N=50), param)                 # compile / load the kernel
-    for param, diagonal in (("q", False), ("q_diag", True)):
-        ours, theirs, rel = [], [], []
-        for seed in range(series):
+    # (param, statsmodels' model: lam against its scalar-q fit, statsmodels having no
+    # forgetting factor: the same one-variable search on the same record)
+    for param, diagonal in (("q", False), ("lam", False), ("q_diag", True)):
+        ours, theirs, rel, passes = [], [], [], []
+        for seed in range(series):                        # alternating, series by series
             z, H = record(seed)
             t0 = time.thread_time()
             fit = rls.tune(z, H, param)
             ours.append(time.thread_time() - t0)
+            passes.append(fit.n_evals)
             mod = statsmodels_model(z, H, x0, P0, diagonal)
             t0 = time.thread_time()
             res = mod.fit(disp=0)
             theirs.append(time.thread_time() - t0)
-            rel.append(np.max(np.abs(np.atleast_1d(fit.estimate) - res.params) / res.params))
+            if param != "lam":
+                rel.append(np.max(np.abs(np.atleast_1d(fit.estimate) - res.params)
+                                  / res.params))
         a, b = np.median(ours), np.median(theirs)
-        print(f"{param:7s} N = 2000, 3 coefficients, {series} series: rlsfilt tune "
-              f"{1e3 * a:.2f} ms, statsmodels fit {1e3 * b:.1f} ms per series "
-              f"(x{b / a:.0f}); largest relative difference of the estimates "
-              f"{max(rel):.1e}; {fit.n_evals} passes")
+        versus = "its scalar-q fit" if param == "lam" else "fit"
+        same = f"; largest relative difference of the estimates {max(rel):.1e}" if rel else ""
+        print(f"{param:7s} N = 2000, 3 coefficients, {series} series, alternating: rlsfilt tune "
+              f"{1e3 * a:.2f} ms, statsmodels {versus} {1e3 * b:.1f} ms per series "
+              f"(x{b / a:.0f}){same}; {np.median(passes):.0f} passes")
         # the same, each library over all the series in a row (a loop of series, as when
         # tuning many): above, each call runs right after the other library's, in the
         # caches that one left
@@ -110,15 +118,7 @@ def main(series=10, channels=10000):
             theirs.append(time.thread_time() - t0)
         a, b = np.median(ours), np.median(theirs)
         print(f"{param:7s} each in a loop of the {series} series: rlsfilt tune {1e3 * a:.2f} ms, "
-              f"statsmodels fit {1e3 * b:.1f} ms per series (x{b / a:.0f})")
-    ours = []
-    for seed in range(series):                            # lam (no statsmodels model)
-        z, H = record(seed)
-        t0 = time.thread_time()
-        fit = rls.tune(z, H, "lam")
-        ours.append(time.thread_time() - t0)
-    print(f"lam     N = 2000, 3 coefficients: rlsfilt tune {1e3 * np.median(ours):.2f} ms "
-          f"({fit.n_evals} passes)")
+              f"statsmodels {versus} {1e3 * b:.1f} ms per series (x{b / a:.0f})")
     # a bank: every channel tuned (scalar q), 1,000 samples per channel
     from rlsfilt import RLSBank
 

@@ -121,6 +121,12 @@ def test_diagonal_q_equals_statsmodels_maximum_likelihood(rng):
     assert fit.converged and fit.estimate.shape == (3,)
     assert_allclose(fit.estimate, ref.params, rtol=1e-4)
     assert_allclose(fit.loglik, ref.llf, rtol=0, atol=1e-6)
+    assert fit.loglik >= ref.llf - 1e-9                      # ours is at least as high
+    # the standard errors from the exact Hessian: statsmodels' from its numerical Hessian
+    # of the log-likelihood on the same scale (q itself; its "oim", Harvey's formula,
+    # differs by a few per cent here)
+    bse = mod.filter(fit.estimate, cov_type="approx").bse
+    assert_allclose(fit.stderr, bse, rtol=1e-4)
 
 
 def fading_memory_loglik(z, H, lam, Q_rel, P0_rel):
@@ -575,7 +581,7 @@ def test_scalar_kernel_equals_the_general_one(rng, param):
     sensitivity kernel (`_profile`, checked against finite differences above) to
     round-off, with missing samples, a burn-in and two outputs, at every order."""
     from rlsfilt.filters import _kernels_tuning as kernels
-    from rlsfilt.filters.tuning import _model, _profile
+    from rlsfilt.filters.tuning import _dims, _model, _profile
 
     H, z = drifting_record(rng, N=300)
     z[[4, 150]] = np.nan
@@ -583,16 +589,92 @@ def test_scalar_kernel_equals_the_general_one(rng, param):
     x0, P0 = 0.1 * np.ones((3, 2)), 30.0 * np.eye(3)
     Q_rel = 1e-3 * np.array([[1.0, 0.2, 0.0], [0.2, 2.0, 0.1], [0.0, 0.1, 0.5]])
     P0 = P0 + np.array([[0.0, 1.0, -2.0], [1.0, 0.0, 0.5], [-2.0, 0.5, 0.0]])
-    kind, Qb = (0, np.eye(3)) if param == "q" else (1, Q_rel)
+    kind, Qb = (0, None) if param == "q" else (1, Q_rel)      # None: the identity
     work = kernels.scalar_work(3, 2)
     for v in ((-6.0, -2.0) if param == "q" else (math.log(0.1), math.log(0.005))):
         for order in (0, 1, 2):
             ref = _profile(x0, P0, Z, H, _model(param, np.array([v]), 3, 0.98, Q_rel), 3, 2,
                            order)
-            got = kernels.scalar_profile(x0, P0, Z, H, Qb, kind, v, 0.98, 3, order, work)
+            got = kernels.scalar_profile(x0, P0, Z, H, Qb, kind, v, 0.98, 3, order, work,
+                                         _dims(3))
+            # the loop for every size: the same numbers to the last bit
+            assert got == kernels.scalar_profile(x0, P0, Z, H, Qb, kind, v, 0.98, 3, order,
+                                                 work, np.zeros(3, dtype=np.int8))
+            if Qb is None:                   # the lean pass of Q = c I: the same bits
+                assert got == kernels.scalar_profile(x0, P0, Z, H, np.eye(3), kind, v, 0.98, 3,
+                                                     order, work, _dims(3))
             assert got[2] == ref[2]
             assert_allclose(got[:2], ref[:2], rtol=1e-13)
             if order >= 1:
                 assert_allclose(got[3], ref[3][0], rtol=1e-10)
             if order == 2:
                 assert_allclose(got[4], ref[4][0, 0], rtol=1e-10)
+
+
+def test_diagonal_kernel_equals_the_general_one(rng):
+    """The pass of the compiled ``q_diag`` search (`diag_profile`, ``Q = diag(exp(v))``)
+    returns the profile log-likelihood, its gradient and Hessian of the general
+    sensitivity kernel (`_profile`, checked against finite differences above) to
+    round-off, with missing samples, a burn-in and two outputs, at every order; the
+    loop for every size gives the same bits as the one unrolled for ``dim_x = 3``."""
+    from rlsfilt.filters import _kernels_tuning as kernels
+    from rlsfilt.filters.tuning import _dims, _model, _profile
+
+    H, z = drifting_record(rng, N=300)
+    z[[4, 150]] = np.nan
+    Z = np.column_stack([z, 0.3 * z + 0.1 * rng.standard_normal(300)])
+    x0 = 0.1 * np.ones((3, 2))
+    P0 = 30.0 * np.eye(3) + np.array([[0.0, 1.0, -2.0], [1.0, 0.0, 0.5], [-2.0, 0.5, 0.0]])
+    for v in (np.array([-5.0, -3.0, -4.0]), np.array([-12.0, -1.0, -2.5])):
+        for order in (0, 1, 2):
+            ref = _profile(x0, P0, Z, H, _model("q_diag", v, 3, 0.98, None), 3, 2, order)
+            got = kernels.diag_profile(x0, P0, Z, H, 1.0 / 0.98, v, 3, order, _dims(3))
+            loop = kernels.diag_profile(x0, P0, Z, H, 1.0 / 0.98, v, 3, order,
+                                        np.zeros(3, dtype=np.int8))
+            assert all(np.array_equal(a, b) for a, b in zip(got, loop, strict=True))
+            assert got[2] == ref[2]
+            assert_allclose(got[:2], ref[:2], rtol=1e-13)
+            if order >= 1:
+                assert_allclose(got[3], ref[3], rtol=1e-10, atol=1e-12 * abs(ref[0]))
+            if order == 2:
+                assert_allclose(got[4], ref[4], rtol=1e-10, atol=1e-12 * abs(ref[0]))
+
+
+@pytest.mark.parametrize("seed", [0, 3])
+def test_diagonal_q_with_a_constant_parameter_equals_lbfgsb(seed):
+    """``q_diag`` with one constant parameter: its ``q`` ends tiny (seed 0) or on the
+    lower bound, held there (seed 3: ``at_bound``, no standard error for it); the compiled
+    projected Newton search reaches the likelihood of L-BFGS-B over the general
+    sensitivity pass (scipy, from the same start) or higher, with the same estimates."""
+    from scipy.optimize import minimize
+
+    from rlsfilt.filters.tuning import _model, _profile
+
+    rng = np.random.default_rng(seed)
+    N, n = 1500, 3
+    H = rng.standard_normal((N, n))
+    x = np.column_stack([np.full(N, 1.0), 1.0 + np.cumsum(0.03 * rng.standard_normal(N)),
+                         np.cumsum(0.01 * rng.standard_normal(N))])
+    z = np.sum(H * x, axis=1) + 0.1 * rng.standard_normal(N)
+    rls = RecursiveLeastSquares(n, P0=100.0)
+    fit = rls.tune(z, H, "q_diag")
+
+    def negll(v):
+        out = _profile(np.zeros((n, 1)), 100.0 * np.eye(n), z[:, None], H,
+                       _model("q_diag", v, n, 1.0, None), 0, 1, 1)
+        return -out[0], -out[3]
+
+    v0 = np.full(n, math.log(rls.tune(z, H, "q").estimate))
+    ref = minimize(negll, v0, jac=True, method="L-BFGS-B",
+                   bounds=[(math.log(1e-12), math.log(1e2))] * n,
+                   options={"ftol": 1e-15, "gtol": 1e-10, "maxiter": 1000})
+    assert fit.loglik >= -ref.fun - 1e-9
+    q_ref = np.exp(ref.x)
+    assert_allclose(fit.estimate[1:], q_ref[1:], rtol=1e-5)
+    if seed == 3:
+        assert fit.at_bound and not fit.converged and q_ref[0] < 1e-10
+        assert_allclose(fit.estimate[0], 1e-12, rtol=1e-12)         # exp(log(1e-12))
+        assert np.isnan(fit.stderr[0]) and np.all(np.isfinite(fit.stderr[1:]))
+    else:
+        assert not fit.at_bound and fit.converged
+        assert_allclose(fit.estimate[0], q_ref[0], rtol=1e-4)

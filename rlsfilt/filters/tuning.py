@@ -46,7 +46,14 @@ _PARAMS = ("lam", "q", "q_diag", "lam_diag")
 _kernels = lazy_module("rlsfilt.filters._kernels_tuning")
 _LAM_GAP = 1e-12     # lam = 1 is searched as 1 - lam = 1e-12 (u = log(1 - lam) finite)
 _F64 = np.dtype(np.float64)
-_EYES = {}           # the identity Qb of a scalar q per dim_x (read by the kernel only)
+_DIMS = {}           # the dimension witness of the scalar search per dim_x (`_dims`)
+#: The sizes whose passes (`_kernels_tuning.scalar_pass`, `diag_pass`) are compiled with
+#: ``dim_x`` a constant (loops unrolled; each size and search a compile of its own, about
+#: 6 s of CPU the first time, then loaded from numba's disk cache). A pass of 2,000
+#: samples against the loop for every size (orders 1 and 2): 0.99x and 0.97x at 1 (not
+#: kept), 0.81x at 2, 0.69x and 0.73x at 4, 0.64x and 0.73x at 6, 0.66x at 8 (sizes
+#: above 6 run the loop: each size kept is one more compile).
+_SPECIALISED = (2, 3, 4, 5, 6)
 _Q_BOUNDS = (1e-12, 1e2)                     # the default search interval of q
 _Q_SEARCH = (math.log(1e-12), math.log(1e2), math.log(1e-3))   # (low, high, start) of log q
 
@@ -360,13 +367,18 @@ def tune(filt, zs, Hs, param="q", *, bounds=None, burn=0, apply=False):
     recursions (the exact derivatives of ``x``, ``P``, the innovations and their
     variances with respect to the search variable). The search runs on
     :math:`\log(1 - \lambda)` or :math:`\log q`: one variable by a safeguarded
-    Newton search (the exact second derivative at the start, then secants of
-    the exact first derivatives, steps halved until the likelihood rises), the
-    whole search one compiled call; ``"q_diag"`` and ``"lam_diag"`` by L-BFGS-B
-    on the exact gradient (from the scalar estimate). The standard errors come
-    from the observed information :math:`-\partial^2 \ell_p / \partial v^2` in
-    the search variable ``v`` (exact for ``"q_diag"``; the converged secant for one
-    variable), mapped to the parameter by the delta method.
+    Newton search (the exact second derivative at the start, then the slopes of
+    the quadratic interpolation of the exact first derivatives, steps halved
+    until the likelihood rises), the whole search one compiled call;
+    ``"q_diag"`` by a projected Newton search on the exact gradient and Hessian
+    (from the scalar estimate), also one compiled call; ``"lam_diag"`` by
+    L-BFGS-B on the exact gradient (from the scalar estimate). A last step
+    short enough is taken on the local quadratic model of the likelihood
+    without a pass (the log-likelihood and ``R`` there from their Taylor
+    expansions). The standard errors come from the observed information
+    :math:`-\partial^2 \ell_p / \partial v^2` in the search variable ``v``
+    (exact for ``"q_diag"`` and ``"lam_diag"``; the converged interpolated slope
+    for one variable), mapped to the parameter by the delta method.
 
     References
     ----------
@@ -417,7 +429,9 @@ def tune(filt, zs, Hs, param="q", *, bounds=None, burn=0, apply=False):
             Z, Hm = filt._as_batch(zs, Hs)
             Z, Hm = np.ascontiguousarray(Z, dtype=np.float64), np.ascontiguousarray(Hm, np.float64)
         x_start = np.ascontiguousarray(filt.x, dtype=np.float64)
-        P_rel = np.ascontiguousarray(filt.P / R0, dtype=np.float64)
+        # (a copy, kept by the result's profile; P / 1 is P: no division where R is 1)
+        P_rel = np.ascontiguousarray(filt.P.copy() if R0 == 1.0 else filt.P / R0,
+                                     dtype=np.float64)
         Q_rel = None if param == "q" else np.ascontiguousarray(filt.Q / R0, dtype=np.float64)
         out = _tune_scalar(Z, Hm, x_start, P_rel, Q_rel, filt.lam, param, bounds, burn, True,
                            screen=plain is not None)
@@ -492,16 +506,27 @@ def _tune_record(Z, Hm, x_start, P_rel, Q_rel, lam0, param, bounds, burn, keep=F
     if param in ("q", "lam"):
         return _tune_scalar(Zc, Hc, x_start, P_rel, Q_rel, lam0, param, bounds, burn, keep)
     v_lo, v_hi, v0 = _search_interval(param, bounds, lam0, n)
-    one = _tune_scalar(Zc, Hc, x_start, P_rel, Q_rel, lam0, param[:-5], bounds, burn, False)
+    # (for q_diag, the Newton search needs no more than a start: the scalar search to 1e-2
+    # in log q, about two passes fewer)
+    one = _tune_scalar(Zc, Hc, x_start, P_rel, Q_rel, lam0, param[:-5], bounds, burn, False,
+                       xtol=1e-2 if param == "q_diag" else 1e-8)
     evals = [one.n_evals]                # start from the scalar estimate
     v0 = np.clip(np.full(n, math.log(one.estimate) if param == "q_diag" else one.estimate),
                  v_lo, v_hi)
 
-    def run(v, order):
-        evals[0] += 1
-        return _profile(x_start, P_rel, Zc, Hc, _model(param, v, n, lam0, Q_rel), burn, m, order)
+    if param == "q_diag":                # the whole Newton search one compiled call
+        v, ll, sigma2, n_obs, grad, hess, converged, fixed, passes = _kernels().diag_search(
+            x_start, P_rel, Zc, Hc, 1.0 / lam0, burn, v0, v_lo, v_hi, 4.0, 100, 1e-8,
+            _dims(n))
+        evals[0] += passes
+    else:
+        def run(v, order):
+            evals[0] += 1
+            return _profile(x_start, P_rel, Zc, Hc, _model(param, v, n, lam0, Q_rel), burn, m,
+                            order)
 
-    v, (ll, sigma2, n_obs, grad, hess), converged, fixed = _quasi_newton(run, v0, v_lo, v_hi)
+        v, (ll, sigma2, n_obs, grad, hess), converged, fixed = _quasi_newton(run, v0, v_lo,
+                                                                             v_hi)
     at_bound = bool(np.any(fixed))
     se_v = np.full(len(v), np.nan)
     free = ~np.asarray(fixed)            # no curvature to read on a bound
@@ -522,7 +547,8 @@ def _tune_record(Z, Hm, x_start, P_rel, Q_rel, lam0, param, bounds, burn, keep=F
     return out
 
 
-def _tune_scalar(Z, H, x_start, P_rel, Q_rel, lam0, param, bounds, burn, keep, screen=False):
+def _tune_scalar(Z, H, x_start, P_rel, Q_rel, lam0, param, bounds, burn, keep, screen=False,
+                 xtol=1e-8):
     """`_tune_record` of ``"q"`` or ``"lam"`` (contiguous float64 arrays; `Q_rel` unused
     for ``"q"``): the whole search is one compiled call (`_kernels_tuning.scalar_search`).
     With `screen`, the kernel screens the record first, and None is returned when it
@@ -530,11 +556,7 @@ def _tune_scalar(Z, H, x_start, P_rel, Q_rel, lam0, param, bounds, burn, keep, s
     kern = _kernels()
     lo, hi = bounds
     if param == "q":                     # v = log q, Q = exp(v) I
-        n = len(P_rel)
-        Qb = _EYES.get(n)
-        if Qb is None:
-            Qb = _EYES[n] = np.eye(n)
-        kind = 0
+        kind, Qb = 0, None               # None: the identity (a pass of its own, leaner)
         if bounds == _Q_BOUNDS:
             v_lo, v_hi, v0 = _Q_SEARCH
         else:
@@ -545,8 +567,12 @@ def _tune_scalar(Z, H, x_start, P_rel, Q_rel, lam0, param, bounds, burn, keep, s
         start = lam0 if lo < lam0 < hi else min(max(0.99, 0.5 * (lo + hi)), hi)
         v_lo, v_hi = math.log(max(1.0 - hi, _LAM_GAP)), math.log(1.0 - lo)
         v0 = min(max(math.log(max(1.0 - start, _LAM_GAP)), v_lo), v_hi)
+    dims = _DIMS.get(len(P_rel))
+    if dims is None:
+        dims = _DIMS[len(P_rel)] = _dims(len(P_rel))
     v, ll, sigma2, n_obs, g, h, converged, held, passes = kern.scalar_search(
-        x_start, P_rel, Z, H, Qb, kind, lam0, burn, v0, v_lo, v_hi, 4.0, 100, 1e-8, screen)
+        x_start, P_rel, Z, H, Qb, kind, lam0, burn, v0, v_lo, v_hi, 4.0, 100, xtol, screen,
+        dims)
     if n_obs < 0:
         return None
     if n_obs == 0:
@@ -560,7 +586,7 @@ def _tune_scalar(Z, H, x_start, P_rel, Q_rel, lam0, param, bounds, burn, keep, s
             gap = 0.0                    # the upper bound lam = 1 itself
             work = kern.scalar_work(*x_start.shape)
             ll, sigma2, n_obs = kern.scalar_profile(x_start, P_rel, Z, H, Qb, kind, -math.inf,
-                                                    lam0, burn, 0, work)[:3]
+                                                    lam0, burn, 0, work, dims)[:3]
         estimate, stderr = 1.0 - gap, gap * log_se
     else:
         estimate = math.exp(v)
@@ -573,7 +599,7 @@ def _tune_scalar(Z, H, x_start, P_rel, Q_rel, lam0, param, bounds, burn, keep, s
             else:
                 w = math.log(value) if value > 0 else -math.inf
             return kern.scalar_profile(x_start, P_rel, Z, H, Qb, kind, w, lam0, burn, 0,
-                                       kern.scalar_work(*x_start.shape))[0]
+                                       kern.scalar_work(*x_start.shape), dims)[0]
     out = TuneResult(param, estimate, stderr, ll, sigma2, converged and not held, held,
                      n_obs, passes, _log_stderr=log_se, _gradient=g, _hessian=h,
                      _loglik_at=loglik_at)
@@ -600,6 +626,14 @@ def _plain_record(zs, Hs, n, m):
     if len(Z) != len(Hs) or not (Z.flags.c_contiguous and Hs.flags.c_contiguous):
         return None
     return Z, Hs
+
+
+def _dims(n):
+    """The dimension witness of the searches' passes (`_kernels_tuning.scalar_pass`,
+    `diag_pass`): a tuple of `n` zeros for the sizes of `_SPECIALISED` (``n`` a constant
+    of the compiled pass), else an array of length `n` (one compiled pass for every other
+    size)."""
+    return (0,) * n if n in _SPECIALISED else np.zeros(n, dtype=np.int8)
 
 
 def _bounds(param, bounds):
