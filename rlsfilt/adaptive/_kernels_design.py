@@ -271,6 +271,46 @@ def control_law(ctrl, rpast, ypast, upast, y, r):
 
 
 @njit(cache=True, error_model="numpy")
+def design_and_law(theta, na, nb, nk, Acl, Ao, am_sum, integral, tol_design, tol_reg,
+                   reduce_tol, max_growth, scalars, i_size, i_run, i_warned, rows, ctrl,
+                   rpast, ypast, upast, y, r):
+    r"""One sample's common case in one call: the estimate's ``A, B``, `design_full`
+    and, if it accepts, the controller installed and ``u(t)`` of `control_law`.
+
+    .. math::
+
+        A = 1 + \theta_1 q^{-1} + \dots + \theta_{n_a} q^{-n_a}, \quad
+        B = q^{-n_k} (\theta_{n_a+1} + \dots + \theta_{n_a+n_b} q^{-n_b+1})
+
+    Returns ``(status, u)``. With status `ACCEPTED` the rows of `rows` are
+    copied into `ctrl`, ``scalars[0]`` (a controller is in use) is 1,
+    ``scalars[i_size]`` the new size and the run of rejected designs
+    (``scalars[i_run]``, ``scalars[i_warned]``) is reset, as the regulator's
+    Python does after an accepted design; otherwise nothing but the scratch
+    `rows` is written and ``u`` is 0. One call instead of three (the
+    polynomials, the design, the law) and the bookkeeping between them: the
+    regulator's look-ahead in a python-control diagram went from about 22 to
+    16 us (``benchmarks/bench_diagrams.py``, see `SelfTuningRegulator._fast_design`).
+    """
+    A = np.empty(na + 1)
+    A[0] = 1.0
+    A[1:] = theta[:na]
+    B = np.zeros(nk + nb)
+    B[nk:] = theta[na:na + nb]
+    status, size = design_full(A, B, Acl, Ao, am_sum, integral, tol_design, tol_reg,
+                               reduce_tol, max_growth, scalars[0] != 0.0, scalars[i_size],
+                               rows)
+    if status != ACCEPTED:
+        return status, 0.0
+    ctrl[:] = rows
+    scalars[0] = 1.0
+    scalars[i_size] = size
+    scalars[i_run] = 0.0
+    scalars[i_warned] = 0.0
+    return status, control_law(ctrl, rpast, ypast, upast, y, r)
+
+
+@njit(cache=True, error_model="numpy")
 def remember(ypast, upast, rpast, info, scalars, phi, y, u, r, saturated, i_sat, i_err2):
     r"""The end of a sample: push ``y, u, r`` into their newest-first memories,
     :math:`\sum \varphi\varphi^T` += :math:`\varphi\varphi^T`, and the watchdog's
