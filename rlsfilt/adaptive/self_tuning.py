@@ -650,7 +650,7 @@ class SelfTuningRegulator:
         None: near a common factor, a design that `rst_design` refuses or that
         fails a check, another design function. Polynomials, design and law in
         one call (`_kernels_design.design_and_law`) instead of three with the
-        Python between them: about 6 us less per sample of ``step`` and per
+        Python between them: about 3 us less per sample of ``step`` and per
         look-ahead in a python-control diagram (``benchmarks/bench_diagrams.py``).
         """
         fast = self._fast
