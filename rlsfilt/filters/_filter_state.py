@@ -82,7 +82,7 @@ class StateLayout:
         self.size = i
         self._arrays = [(name, a, b) for name, shape, a, b in self.entries if shape]
         # the scalars in runs of consecutive entries, each written as one slice
-        # (a slice from a list costs a third of a scattered index assignment)
+        # (a slice from a list: about 1 us less than one scattered index assignment)
         self._runs = []
         for name, shape, a, b in self.entries:
             if shape:
