@@ -199,10 +199,3 @@ def call_capturing(fn, *args):
         warnings.simplefilter("always")
         out = fn(*args)
     return out, [(str(w.message), w.category) for w in caught]
-
-
-def push(buf, value):
-    """Shift a newest-first memory of past samples by one and store `value` in front."""
-    if len(buf):
-        buf[1:] = buf[:-1]              # overlapping: NumPy copies through a buffer
-        buf[0] = value
