@@ -81,15 +81,25 @@ class StateLayout:
             i += size
         self.size = i
         self._arrays = [(name, a, b) for name, shape, a, b in self.entries if shape]
-        self._scalars = [name for name, shape, _, _ in self.entries if not shape]
-        self._at = np.array([a for _, shape, a, _ in self.entries if not shape], dtype=np.intp)
+        # the scalars in runs of consecutive entries, each written as one slice
+        # (a slice from a list: about 1 us less than one scattered index assignment)
+        self._runs = []
+        for name, shape, a, b in self.entries:
+            if shape:
+                continue
+            if self._runs and self._runs[-1][1] == a:
+                self._runs[-1][1] = b
+                self._runs[-1][2].append(name)
+            else:
+                self._runs.append([a, b, [name]])
 
     def pack(self, f, out):
         """Write the state of `f` into `out` (length :attr:`size`), as :func:`get_state`."""
         state = f.get_state()
         for name, a, b in self._arrays:
             out[a:b] = np.asarray(state[name]).ravel()
-        out[self._at] = [state[name] for name in self._scalars]
+        for a, b, names in self._runs:
+            out[a:b] = [state[name] for name in names]
         return out
 
     def unpack(self, f, vec):

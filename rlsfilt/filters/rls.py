@@ -15,6 +15,7 @@ is ``tests/_reference.py``.
 """
 
 import math
+import operator
 
 import numpy as np
 
@@ -592,7 +593,7 @@ class RecursiveLeastSquares(_FilterBase):
             x, k = self._x, _streaming.kernels()
             options = (self._Q_kernel, self._cfg, self._il, self._cap)
             if (like is not None and like[0] is x and like[1] is self._P
-                    and all(a is b for a, b in zip(like[3], options))):
+                    and all(map(operator.is_, like[3], options))):
                 P_prior = like[2]                   # the same predict, already done
             else:
                 # as predict: P^- = P / lam + Q (1 / lam held back after a capped step)
@@ -616,7 +617,7 @@ class RecursiveLeastSquares(_FilterBase):
             x, P, P_prior, options, step = token
             now = (self._Q_kernel, self._cfg, self._il, self._cap, self._R, self._check_every)
             if (self._x is not x or self._P is not P or self.frozen or self._recheck
-                    or any(a is not b for a, b in zip(options, now))):
+                    or not all(map(operator.is_, options, now))):
                 return False
             self._commit_predict(x, P_prior)
             self._commit_update(*step)
