@@ -496,16 +496,18 @@ def tuned_random_walk(q, R, c):
     record's units (isotropic there; ``R`` the option in the signals' units, :math:`r = 0`)
     and its image :math:`Q_{kl} = 2^{-c_k - c_l}\tilde Q_{kl}` in the signals' units
     (``0`` or subnormal where it underflows). `q`, `R` scalars, `c` ``(n,)``; or arrays
-    ``(C,)`` and ``(C, n)``. A ValueError names ``Q`` and ``R`` where the image overflows.
+    ``(C,)`` and ``(C, n)``. A ValueError names ``Q`` and ``R`` where the image is beyond
+    the filters' range (``COVARIANCE_MAX``: a filter in the signals' units cannot hold it).
     """
     q, R = np.asarray(q, dtype=float), np.asarray(R, dtype=float)
     Qs = (q * R)[..., None, None] * np.eye(c.shape[-1])
     with np.errstate(over="ignore", under="ignore"):
         Q = np.ldexp(Qs, -(c[..., :, None] + c[..., None, :]))
-    if not np.isfinite(Q).all():
+    if not np.max(Q, initial=0.0) <= COVARIANCE_MAX:
         raise ValueError("`Q='tune'` estimated a random walk q R I of the record scaled to unit "
-                         "size that overflows in the signals' units (`R` given in them, "
-                         f"{float(np.max(R)):.3g}; a coefficient's random walk there is about "
-                         "q R / max|phi_k|^2): pass `R` of about the noise variance of `y`, or "
-                         "scale the signals")
+                         f"size that is beyond the filters' range ({COVARIANCE_MAX:.0e}) in the "
+                         f"signals' units (`R` given in them, {float(np.max(R)):.3g}; a "
+                         "coefficient's random walk there is about q R / max|phi_k|^2, large "
+                         "for signals far below unit size): pass `R` of about the noise "
+                         "variance of `y`, or scale the signals")
     return Qs, Q

@@ -39,8 +39,13 @@ from ._lag_rows import LagRows, MatrixRows
 from ._offset import offset_mode as _offset_mode
 from ._summary import EQUATION_STYLES, ModelSummary
 from ._tuning_option import tuning_param
-from ._units import (RecordUnits, equivariant_forgetting, estimate_in_units, tune_start,
-                     tuned_random_walk)
+from ._units import (
+    RecordUnits,
+    equivariant_forgetting,
+    estimate_in_units,
+    tune_start,
+    tuned_random_walk,
+)
 from .regressors import (
     _as_signal,
     _build,
@@ -604,7 +609,8 @@ class ARX(IdentifiedModel):
         filt = RecursiveLeastSquares(n, dim_z=s.n_outputs, lam=user.lam, P0=P, Q=Q, x0=x0,
                                      **opts["extra"])
         fit = filt.tune(times_pow2(target, -e), times_pow2(Phi, -c), param, burn=n)
-        fit.R = float(np.ldexp(fit.R, 2 * e))     # the noise variance in the signals' units
+        with np.errstate(over="ignore", under="ignore"):    # R in the signals' units
+            fit.R = float(np.ldexp(fit.R, 2 * e))
         if param == "lam":
             opts["lam"] = fit.estimate
         else:
