@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 import pytest
-from numpy.testing import assert_allclose
+from numpy.testing import assert_allclose, assert_array_equal
 from scipy.signal import lfilter
 
 from rlsfilt import ARX, select_order, validate
@@ -230,3 +230,81 @@ def test_pow2_factors_are_the_exact_doubles_or_none():
     assert pow2_factors(np.array([3, 1024])) is None
     assert pow2_factors(np.array([-1075, 0])) is None
     assert pow2_factors(np.zeros((2, 0), dtype=int)).shape == (2, 0)
+
+
+# ----------------------------------------------------------------------
+# lam="tune" and Q="tune" (issue #30): the tune runs in the record's units
+# ----------------------------------------------------------------------
+TUNE_SCALES = [2.0 ** 531, 2.0 ** -531, 1e160, 1e-160]
+
+
+@pytest.fixture(scope="module")
+def tune_record():
+    rng = np.random.default_rng(1)
+    u = rng.standard_normal(600)
+    y = lfilter([0, 1, 0.5], [1, -1.5, 0.7], u) + 0.1 * rng.standard_normal(600)
+    return u, y
+
+
+def _scaled_pair(u, y, which, s):
+    """``(base, scaled, k)``: the record with `which` times the mantissa ``m`` of
+    ``s = m 2^k`` (``m`` in [0.5, 1)), and with `which` times `s`: the second is the
+    first times ``2^k`` exactly (one rounding either way)."""
+    m, k = math.frexp(s)
+    if which == "u":
+        return (u * m, y), (u * s, y), k
+    return (u, y * m), (u, y * s), k
+
+
+@pytest.mark.parametrize("s", TUNE_SCALES)
+@pytest.mark.parametrize("which", ["u", "y"])
+@pytest.mark.parametrize("param", ["lam", "Q"])
+def test_tuned_recursive_fit_is_the_power_of_two_image(tune_record, param, which, s):
+    """``ARX.fit(method="rls", lam="tune")`` (or ``Q="tune"``) with `u` or `y` scaled by
+    ``2^+-531`` or ``1e+-160 = m 2^k``: the tuned ``lam`` / ``q``, the log-likelihood and
+    ``lam_`` bit for bit those of the record scaled by ``m`` alone, ``tune_.R``,
+    ``theta_``, ``theta_history_`` and ``filter_.Q`` their exact power-of-two images
+    (``ldexp``); and the record scaled by ``2^+-531`` tunes to the bits of the unscaled
+    one. ``Q="tune"`` on signals far below unit size, whose random walk a filter in the
+    signals' units cannot hold (about ``q / max|phi_k|^2 > 1e150``), is a ValueError
+    naming ``Q`` and ``R``."""
+    base, scaled, k = _scaled_pair(*tune_record, which, s)
+    ref = ARX(2, 2).fit(*base, method="rls", **{param: "tune"})
+    if param == "Q" and s < 1:
+        with pytest.raises(ValueError, match=r"`Q='tune'` .* beyond the filters' range .*`R`"):
+            ARX(2, 2).fit(*scaled, method="rls", Q="tune")
+        return
+    m = ARX(2, 2).fit(*scaled, method="rls", **{param: "tune"})
+    assert m.tune_.estimate == ref.tune_.estimate and m.tune_.loglik == ref.tune_.loglik
+    assert m.tune_.n_evals == ref.tune_.n_evals and m.lam_ == ref.lam_
+    if s in (2.0 ** 531, 2.0 ** -531):       # and those of the record itself
+        one = ARX(2, 2).fit(*tune_record, method="rls", **{param: "tune"})
+        assert m.tune_.estimate == one.tune_.estimate
+    sy = k if which == "y" else 0
+    d = np.array([sy, sy, 0, 0]) if which == "y" else np.array([0, 0, k, k])   # columns
+    g = sy - d
+    with np.errstate(over="ignore", under="ignore"):
+        assert m.tune_.R == np.ldexp(ref.tune_.R, 2 * sy)
+        assert_array_equal(m.theta_, np.ldexp(ref.theta_, g))
+        assert_array_equal(m.theta_history_[5:], np.ldexp(ref.theta_history_[5:], g))
+        assert_array_equal(m.filter_.Q, np.ldexp(ref.filter_.Q, -(d[:, None] + d[None, :])))
+
+
+@pytest.mark.parametrize("param", ["lam", "Q"])
+def test_fit_many_tunes_each_channel_as_arx_fit_at_any_scale(tune_record, param):
+    """``fit_many(..., lam="tune")`` over channels scaled by ``2^+-531`` and ``1e+-160``
+    (`u` or `y`): each channel's tuned value and ``R`` bit for bit those of ``ARX.fit`` on
+    that channel (the same tune), ``theta_`` equal to 1e-13 (the bank's kernels against
+    the single filter's: the same operations, summed in another order)."""
+    from rlsfilt.models import fit_many
+
+    u, y = tune_record
+    scales = [s for s in TUNE_SCALES if param == "lam" or s > 1]   # (see above)
+    pairs = [(u, y)] + [_scaled_pair(u, y, w, s)[1] for s in scales for w in ("u", "y")]
+    U, Y = np.column_stack([p[0] for p in pairs]), np.column_stack([p[1] for p in pairs])
+    fleet = fit_many(ARX(2, 2), U, Y, "rls", **{param: "tune"}, residual_tests=False)
+    for c, (uc, yc) in enumerate(pairs):
+        one = ARX(2, 2).fit(uc, yc, method="rls", **{param: "tune"})
+        assert fleet.tune_.estimate[c] == one.tune_.estimate
+        assert fleet.tune_.R[c] == one.tune_.R
+        assert_allclose(fleet.theta_[c], one.theta_, rtol=1e-13)
