@@ -362,9 +362,21 @@ class ARX(IdentifiedModel):
             on the model's regressor rows (`rlsfilt.filters.tuning.tune` of a
             `RecursiveLeastSquares` with the other options, from its prior
             ``x0``, ``P0``, the first ``n_params`` innovations left out of the
-            likelihood; ``Q = q R I``), then fit with the estimate; the result
-            is ``tune_``. With ``forgetting="diagonal"`` (passed to the
-            filter) `lam` may be one factor per parameter, an array of
+            likelihood), then fit with the estimate; the result is ``tune_``.
+            The tune runs in the record's power-of-two units, as the fit
+            (Notes), from the exact images of ``x0``, ``P0 / R`` and (for
+            ``lam``) ``Q / R``: a record scaled by ``2^k`` tunes to the same
+            bits. Without `P0` its prior is ``P0 / R = 1e4 I`` of the record
+            scaled to unit size (diffuse at any scale). ``Q="tune"`` is
+            ``Q = q R I`` in those units, isotropic relative to each
+            regressor column's scale (so that it does not depend on the units
+            of ``u`` and ``y``), ``Q_kl = 2^-(c_k + c_l) q R`` in the
+            signals' units (``filter_.Q``; a ValueError naming ``Q`` and ``R``
+            where a filter there cannot hold it, for signals far below unit
+            size). ``tune_.R`` is in the signals' units, ``tune_.loglik``
+            (and ``tune_.profile``) those of the record at unit size. With
+            ``forgetting="diagonal"`` (passed to the filter) `lam` may be one
+            factor per parameter, an array of
             shape ``(n_params,)`` in ``param_names_`` order (a diagonal
             forgetting, :math:`P^- = L^{-1/2} P L^{-1/2} + Q`); its batch
             start does not weight the rows.

@@ -363,7 +363,10 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
         matrix per channel (shapes (C,) or (C, n_params, n_params)), `x0`
         one row per channel (C, n_params). ``lam="tune"`` or ``Q="tune"``:
         each channel's by maximum likelihood first, as :meth:`ARX.fit` does
-        (`RLSBank.tune` on the channels' regressor rows); the results are
+        (`RLSBank.tune` on the channels' regressor rows, in each channel's
+        power-of-two units, with :meth:`ARX.fit`'s prior and its ``Q = q R I``
+        of the record at unit size: each channel's estimate and ``R`` are
+        those of :meth:`ARX.fit` on it, bit for bit); the results are
         ``tune_`` of the returned bank.
     max_lag : int or "auto", default "auto"
         Largest lag of the residual tests. ``"auto"`` (as in
