@@ -256,6 +256,18 @@ def _scaled_pair(u, y, which, s):
     return (u, y * m), (u, y * s), k
 
 
+def _assert_image(actual, ref, shift):
+    """`actual` is ``ref 2^shift``: bit for bit where that is a normal double (or 0);
+    within one subnormal spacing (2^-1074) where it underflows (`actual` is one rounding of
+    the exact product, ``ldexp(ref, shift)`` a second one)."""
+    with np.errstate(over="ignore", under="ignore"):
+        expected = np.ldexp(ref, shift)
+    normal = (np.abs(expected) >= np.finfo(float).tiny) | (expected == 0) | ~np.isfinite(expected)
+    assert_array_equal(np.where(normal, actual, 0.0), np.where(normal, expected, 0.0))
+    tiny = ~normal
+    assert np.all(np.abs(np.asarray(actual)[tiny] - expected[tiny]) <= 2.0 ** -1074)
+
+
 @pytest.mark.parametrize("s", TUNE_SCALES)
 @pytest.mark.parametrize("which", ["u", "y"])
 @pytest.mark.parametrize("param", ["lam", "Q"])
@@ -283,11 +295,10 @@ def test_tuned_recursive_fit_is_the_power_of_two_image(tune_record, param, which
     sy = k if which == "y" else 0
     d = np.array([sy, sy, 0, 0]) if which == "y" else np.array([0, 0, k, k])   # columns
     g = sy - d
-    with np.errstate(over="ignore", under="ignore"):
-        assert m.tune_.R == np.ldexp(ref.tune_.R, 2 * sy)
-        assert_array_equal(m.theta_, np.ldexp(ref.theta_, g))
-        assert_array_equal(m.theta_history_[5:], np.ldexp(ref.theta_history_[5:], g))
-        assert_array_equal(m.filter_.Q, np.ldexp(ref.filter_.Q, -(d[:, None] + d[None, :])))
+    _assert_image(m.tune_.R, ref.tune_.R, 2 * sy)
+    _assert_image(m.theta_, ref.theta_, g)
+    _assert_image(m.theta_history_[5:], ref.theta_history_[5:], g)
+    _assert_image(m.filter_.Q, ref.filter_.Q, -(d[:, None] + d[None, :]))
 
 
 @pytest.mark.parametrize("param", ["lam", "Q"])
@@ -308,3 +319,31 @@ def test_fit_many_tunes_each_channel_as_arx_fit_at_any_scale(tune_record, param)
         assert fleet.tune_.estimate[c] == one.tune_.estimate
         assert fleet.tune_.R[c] == one.tune_.R
         assert_allclose(fleet.theta_[c], one.theta_, rtol=1e-13)
+
+
+@pytest.mark.parametrize("offset", [False, "mean", True])
+@pytest.mark.parametrize("param", ["lam", "Q"])
+def test_tuned_fit_of_two_outputs_is_the_power_of_two_image(param, offset):
+    """Two outputs in different units (one noise variance in the likelihood: the tune
+    divides both by one power of two), with each offset: ``y`` times ``2^531`` and ``u``
+    times ``2^300`` tune to the bits of the record itself, and ``theta_`` is the exact
+    image (the ``a`` rows unchanged, the ``b`` rows times ``2^(531 - 300)``, the intercept
+    times ``2^531``)."""
+    rng = np.random.default_rng(3)
+    N = 800
+    u = rng.standard_normal((N, 2))
+    b = 1.0 + np.cumsum(0.02 * rng.standard_normal((N, 2)), axis=0)
+    e = 0.05 * rng.standard_normal((N, 2))
+    y = np.zeros((N, 2))
+    for t in range(1, N):
+        y[t] = 0.6 * y[t - 1] + b[t] * u[t - 1] + e[t]
+    y[:, 1] *= 37.0
+    ref = ARX(1, 1, offset=offset).fit(u, y, "rls", **{param: "tune"})
+    m = ARX(1, 1, offset=offset).fit(u * 2.0 ** 300, y * 2.0 ** 531, "rls", **{param: "tune"})
+    assert not ref.tune_.at_bound               # (an estimate inside the search interval)
+    assert m.tune_.estimate == ref.tune_.estimate and m.lam_ == ref.lam_
+    assert_array_equal(m.theta_[:2], ref.theta_[:2])
+    assert_array_equal(m.theta_[2:4], np.ldexp(ref.theta_[2:4], 231))
+    assert_array_equal(m.theta_[4:], np.ldexp(ref.theta_[4:], 531))     # the intercept
+    d = np.array([531, 531, 300, 300] + [0] * (len(m.theta_) - 4))     # the columns
+    _assert_image(m.filter_.Q, ref.filter_.Q, -(d[:, None] + d[None, :]))

@@ -150,7 +150,9 @@ class ARX(IdentifiedModel):
     tune_ : TuneResult
         ``method="rls"`` with ``lam="tune"`` or ``Q="tune"`` only: the
         maximum-likelihood estimate (`rlsfilt.filters.tuning.TuneResult`:
-        estimate, standard error, interval, profile plot).
+        estimate, standard error, interval, profile plot) of the tune in the
+        record's power-of-two units (``R`` mapped to the signals' units; see
+        `fit`).
     form_ : str
         ``method="rls"`` only: ``"covariance"``, ``"square_root"`` or
         ``"window"`` (`SlidingWindowRLS`), the recursion that ran (see `form`
