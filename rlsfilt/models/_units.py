@@ -508,6 +508,6 @@ def tuned_random_walk(q, R, c):
                          f"size that is beyond the filters' range ({COVARIANCE_MAX:.0e}) in the "
                          f"signals' units (`R` given in them, {float(np.max(R)):.3g}; a "
                          "coefficient's random walk there is about q R / max|phi_k|^2, large "
-                         "for signals far below unit size): pass `R` of about the noise "
+                         "for `u` or `y` far below unit size): pass `R` of about the noise "
                          "variance of `y`, or scale the signals")
     return Qs, Q
