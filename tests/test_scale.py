@@ -347,3 +347,24 @@ def test_tuned_fit_of_two_outputs_is_the_power_of_two_image(param, offset):
     assert_array_equal(m.theta_[4:], np.ldexp(ref.theta_[4:], 531))     # the intercept
     d = np.array([531, 531, 300, 300] + [0] * (len(m.theta_) - 4))     # the columns
     _assert_image(m.filter_.Q, ref.filter_.Q, -(d[:, None] + d[None, :]))
+
+
+@pytest.mark.parametrize("param", ["lam", "Q"])
+def test_tune_from_a_given_prior_maps_it_exactly(tune_record, param):
+    """A prior ``P0``, ``x0`` (and ``R``) given in the signals' units: the record with
+    ``y`` times ``2^200`` and ``u`` times ``2^-20``, with those options mapped (``x0`` and
+    ``P0`` as the parameters and their covariance, ``R`` by ``2^400``), tunes to the bits
+    of the unscaled record and fits to the exact image (a prior start, ``k0 = 0``)."""
+    u, y = tune_record
+    x0 = np.array([-1.0, 0.5, 0.8, 0.2])
+    P0 = np.array([[50.0, 3.0, 0, 0], [3.0, 40.0, 0, 0], [0, 0, 30.0, -2.0], [0, 0, -2.0, 20.0]])
+    ref = ARX(2, 2).fit(u, y, method="rls", P0=P0, x0=x0, R=0.5, **{param: "tune"})
+    g = np.array([0, 0, 220, 220])
+    m = ARX(2, 2).fit(u * 2.0 ** -20, y * 2.0 ** 200, method="rls", P0=np.ldexp(
+        P0, g[:, None] + g[None, :]), x0=np.ldexp(x0, g), R=np.ldexp(0.5, 400),
+        **{param: "tune"})
+    assert m.k0_ == 0 and not ref.tune_.at_bound
+    assert m.tune_.estimate == ref.tune_.estimate and m.lam_ == ref.lam_
+    assert m.tune_.R == np.ldexp(ref.tune_.R, 400)
+    assert_array_equal(m.theta_, np.ldexp(ref.theta_, g))
+    assert_array_equal(m.theta_cov_, np.ldexp(ref.theta_cov_, g[:, None] + g[None, :]))
