@@ -152,7 +152,8 @@ class ARX(IdentifiedModel):
         maximum-likelihood estimate (`rlsfilt.filters.tuning.TuneResult`:
         estimate, standard error, interval, profile plot) of the tune in the
         record's power-of-two units (``R`` mapped to the signals' units; see
-        `fit`).
+        `fit`). For ``Q="tune"``, ``filter_.Q`` is the random walk the fit ran
+        (``tune_.apply`` would set ``q R I`` in the signals' units).
     form_ : str
         ``method="rls"`` only: ``"covariance"``, ``"square_root"`` or
         ``"window"`` (`SlidingWindowRLS`), the recursion that ran (see `form`
