@@ -350,6 +350,17 @@ def _arx_entries():
                 lambda v, m=m: _theta(ARX(2, 2).fit(U, v, method=m)), Y,
                 expect={"huge": b_scaled, "tiny": b_scaled, "shape": ERROR})
           for m in ("iv", "riv", "rls")],
+        # lam="tune" and Q="tune" tune in those units too (#30): a record around 1e+-160
+        # tunes (the power-of-two images: test_scale.py); Q="tune" far below unit size is
+        # refused naming `u` or `y`, `Q` and `R` (its random walk beyond a filter's range
+        # in the signals' units)
+        *[Entry(f"ARX.fit(method='rls', {p}='tune')", arg,
+                lambda v, p=p, arg=arg: _theta(ARX(2, 2).fit(
+                    *((v, Y) if arg == "u" else (U, v)), method="rls", **{p: "tune"})),
+                U if arg == "u" else Y,
+                expect={"huge": OK, "tiny": OK if p == "lam" else ERROR,
+                        **({} if arg == "u" else {"shape": ERROR})})
+          for p in ("lam", "Q") for arg in ("u", "y")],
         Entry("ARX()", "na", lambda v: _theta(ARX(v, 2).fit(U, Y)), 2, kind="int",
               expect={"negative": ERROR, "huge": ERROR}),
         Entry("ARX()", "nb", lambda v: _theta(ARX(2, v).fit(U, Y)), 2, kind="int"),
@@ -1038,6 +1049,17 @@ def _fleet_entries():
                   expect={"huge": b_inverse, "tiny": b_inverse}),
             Entry(f"fit_many(method={method!r})", "y", lambda v, run=run: run(us, v), ys,
                   expect={"huge": b_scaled, "tiny": b_scaled}),
+        ]
+    for p in ("lam", "Q"):                   # (as ARX.fit's entries of the tune, #30)
+        def tuned(u, y, p=p):
+            return fit_many(ARX(2, 2), u, y, method="rls", residual_tests=False,
+                            **{p: "tune"}).theta_.copy()
+        tiny = OK if p == "lam" else ERROR
+        entries += [
+            Entry(f"fit_many(method='rls', {p}='tune')", "u",
+                  lambda v, tuned=tuned: tuned(v, ys), us, expect={"huge": OK, "tiny": tiny}),
+            Entry(f"fit_many(method='rls', {p}='tune')", "y",
+                  lambda v, tuned=tuned: tuned(us, v), ys, expect={"huge": OK, "tiny": tiny}),
         ]
     return entries
 

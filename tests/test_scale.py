@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 import pytest
-from numpy.testing import assert_allclose
+from numpy.testing import assert_allclose, assert_array_equal
 from scipy.signal import lfilter
 
 from rlsfilt import ARX, select_order, validate
@@ -230,3 +230,141 @@ def test_pow2_factors_are_the_exact_doubles_or_none():
     assert pow2_factors(np.array([3, 1024])) is None
     assert pow2_factors(np.array([-1075, 0])) is None
     assert pow2_factors(np.zeros((2, 0), dtype=int)).shape == (2, 0)
+
+
+# ----------------------------------------------------------------------
+# lam="tune" and Q="tune" (issue #30): the tune runs in the record's units
+# ----------------------------------------------------------------------
+TUNE_SCALES = [2.0 ** 531, 2.0 ** -531, 1e160, 1e-160]
+
+
+@pytest.fixture(scope="module")
+def tune_record():
+    rng = np.random.default_rng(1)
+    u = rng.standard_normal(600)
+    y = lfilter([0, 1, 0.5], [1, -1.5, 0.7], u) + 0.1 * rng.standard_normal(600)
+    return u, y
+
+
+def _scaled_pair(u, y, which, s):
+    """``(base, scaled, k)``: the record with `which` times the mantissa ``m`` of
+    ``s = m 2^k`` (``m`` in [0.5, 1)), and with `which` times `s`: the second is the
+    first times ``2^k`` exactly (one rounding either way)."""
+    m, k = math.frexp(s)
+    if which == "u":
+        return (u * m, y), (u * s, y), k
+    return (u, y * m), (u, y * s), k
+
+
+def _assert_image(actual, ref, shift):
+    """`actual` is ``ref 2^shift``: bit for bit where that is a normal double (or 0);
+    within one subnormal spacing (2^-1074) where it underflows (`actual` is one rounding of
+    the exact product, ``ldexp(ref, shift)`` a second one)."""
+    with np.errstate(over="ignore", under="ignore"):
+        expected = np.ldexp(ref, shift)
+    normal = (np.abs(expected) >= np.finfo(float).tiny) | (expected == 0) | ~np.isfinite(expected)
+    assert_array_equal(np.where(normal, actual, 0.0), np.where(normal, expected, 0.0))
+    tiny = ~normal
+    assert np.all(np.abs(np.asarray(actual)[tiny] - expected[tiny]) <= 2.0 ** -1074)
+
+
+@pytest.mark.parametrize("s", TUNE_SCALES)
+@pytest.mark.parametrize("which", ["u", "y"])
+@pytest.mark.parametrize("param", ["lam", "Q"])
+def test_tuned_recursive_fit_is_the_power_of_two_image(tune_record, param, which, s):
+    """``ARX.fit(method="rls", lam="tune")`` (or ``Q="tune"``) with `u` or `y` scaled by
+    ``2^+-531`` or ``1e+-160 = m 2^k``: the tuned ``lam`` / ``q``, the log-likelihood and
+    ``lam_`` bit for bit those of the record scaled by ``m`` alone, ``tune_.R``,
+    ``theta_``, ``theta_history_`` and ``filter_.Q`` their exact power-of-two images
+    (``ldexp``); and the record scaled by ``2^+-531`` tunes to the bits of the unscaled
+    one. ``Q="tune"`` on signals far below unit size, whose random walk a filter in the
+    signals' units cannot hold (about ``q / max|phi_k|^2 > 1e150``), is a ValueError
+    naming ``Q`` and ``R``."""
+    base, scaled, k = _scaled_pair(*tune_record, which, s)
+    ref = ARX(2, 2).fit(*base, method="rls", **{param: "tune"})
+    if param == "Q" and s < 1:
+        with pytest.raises(ValueError, match=r"`Q='tune'` .* beyond the filters' range .*`R`"):
+            ARX(2, 2).fit(*scaled, method="rls", Q="tune")
+        return
+    m = ARX(2, 2).fit(*scaled, method="rls", **{param: "tune"})
+    assert m.tune_.estimate == ref.tune_.estimate and m.tune_.loglik == ref.tune_.loglik
+    assert m.tune_.n_evals == ref.tune_.n_evals and m.lam_ == ref.lam_
+    if s in (2.0 ** 531, 2.0 ** -531):       # and those of the record itself
+        one = ARX(2, 2).fit(*tune_record, method="rls", **{param: "tune"})
+        assert m.tune_.estimate == one.tune_.estimate
+    sy = k if which == "y" else 0
+    d = np.array([sy, sy, 0, 0]) if which == "y" else np.array([0, 0, k, k])   # columns
+    g = sy - d
+    _assert_image(m.tune_.R, ref.tune_.R, 2 * sy)
+    _assert_image(m.theta_, ref.theta_, g)
+    _assert_image(m.theta_history_[5:], ref.theta_history_[5:], g)
+    _assert_image(m.filter_.Q, ref.filter_.Q, -(d[:, None] + d[None, :]))
+
+
+@pytest.mark.parametrize("param", ["lam", "Q"])
+def test_fit_many_tunes_each_channel_as_arx_fit_at_any_scale(tune_record, param):
+    """``fit_many(..., lam="tune")`` over channels scaled by ``2^+-531`` and ``1e+-160``
+    (`u` or `y`): each channel's tuned value and ``R`` bit for bit those of ``ARX.fit`` on
+    that channel (the same tune), ``theta_`` equal to 1e-13 (the bank's kernels against
+    the single filter's: the same operations, summed in another order)."""
+    from rlsfilt.models import fit_many
+
+    u, y = tune_record
+    scales = [s for s in TUNE_SCALES if param == "lam" or s > 1]   # (see above)
+    pairs = [(u, y)] + [_scaled_pair(u, y, w, s)[1] for s in scales for w in ("u", "y")]
+    U, Y = np.column_stack([p[0] for p in pairs]), np.column_stack([p[1] for p in pairs])
+    fleet = fit_many(ARX(2, 2), U, Y, "rls", **{param: "tune"}, residual_tests=False)
+    for c, (uc, yc) in enumerate(pairs):
+        one = ARX(2, 2).fit(uc, yc, method="rls", **{param: "tune"})
+        assert fleet.tune_.estimate[c] == one.tune_.estimate
+        assert fleet.tune_.R[c] == one.tune_.R
+        assert_allclose(fleet.theta_[c], one.theta_, rtol=1e-13)
+
+
+@pytest.mark.parametrize("offset", [False, "mean", True])
+@pytest.mark.parametrize("param", ["lam", "Q"])
+def test_tuned_fit_of_two_outputs_is_the_power_of_two_image(param, offset):
+    """Two outputs in different units (one noise variance in the likelihood: the tune
+    divides both by one power of two), with each offset: ``y`` times ``2^531`` and ``u``
+    times ``2^300`` tune to the bits of the record itself, and ``theta_`` is the exact
+    image (the ``a`` rows unchanged, the ``b`` rows times ``2^(531 - 300)``, the intercept
+    times ``2^531``)."""
+    rng = np.random.default_rng(3)
+    N = 800
+    u = rng.standard_normal((N, 2))
+    b = 1.0 + np.cumsum(0.02 * rng.standard_normal((N, 2)), axis=0)
+    e = 0.05 * rng.standard_normal((N, 2))
+    y = np.zeros((N, 2))
+    for t in range(1, N):
+        y[t] = 0.6 * y[t - 1] + b[t] * u[t - 1] + e[t]
+    y[:, 1] *= 37.0
+    ref = ARX(1, 1, offset=offset).fit(u, y, "rls", **{param: "tune"})
+    m = ARX(1, 1, offset=offset).fit(u * 2.0 ** 300, y * 2.0 ** 531, "rls", **{param: "tune"})
+    assert not ref.tune_.at_bound               # (an estimate inside the search interval)
+    assert m.tune_.estimate == ref.tune_.estimate and m.lam_ == ref.lam_
+    assert_array_equal(m.theta_[:2], ref.theta_[:2])
+    assert_array_equal(m.theta_[2:4], np.ldexp(ref.theta_[2:4], 231))
+    assert_array_equal(m.theta_[4:], np.ldexp(ref.theta_[4:], 531))     # the intercept
+    d = np.array([531, 531, 300, 300] + [0] * (len(m.theta_) - 4))     # the columns
+    _assert_image(m.filter_.Q, ref.filter_.Q, -(d[:, None] + d[None, :]))
+
+
+@pytest.mark.parametrize("param", ["lam", "Q"])
+def test_tune_from_a_given_prior_maps_it_exactly(tune_record, param):
+    """A prior ``P0``, ``x0`` (and ``R``) given in the signals' units: the record with
+    ``y`` times ``2^200`` and ``u`` times ``2^-20``, with those options mapped (``x0`` and
+    ``P0`` as the parameters and their covariance, ``R`` by ``2^400``), tunes to the bits
+    of the unscaled record and fits to the exact image (a prior start, ``k0 = 0``)."""
+    u, y = tune_record
+    x0 = np.array([-1.0, 0.5, 0.8, 0.2])
+    P0 = np.array([[50.0, 3.0, 0, 0], [3.0, 40.0, 0, 0], [0, 0, 30.0, -2.0], [0, 0, -2.0, 20.0]])
+    ref = ARX(2, 2).fit(u, y, method="rls", P0=P0, x0=x0, R=0.5, **{param: "tune"})
+    g = np.array([0, 0, 220, 220])
+    m = ARX(2, 2).fit(u * 2.0 ** -20, y * 2.0 ** 200, method="rls", P0=np.ldexp(
+        P0, g[:, None] + g[None, :]), x0=np.ldexp(x0, g), R=np.ldexp(0.5, 400),
+        **{param: "tune"})
+    assert m.k0_ == 0 and not ref.tune_.at_bound
+    assert m.tune_.estimate == ref.tune_.estimate and m.lam_ == ref.lam_
+    assert m.tune_.R == np.ldexp(ref.tune_.R, 400)
+    assert_array_equal(m.theta_, np.ldexp(ref.theta_, g))
+    assert_array_equal(m.theta_cov_, np.ldexp(ref.theta_cov_, g[:, None] + g[None, :]))

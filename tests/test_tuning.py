@@ -469,20 +469,29 @@ def drifting_plant(rng, N=1500, C=None):
 @pytest.mark.parametrize("param", ["lam", "Q"])
 def test_arx_fit_tunes_on_its_regressor_rows(rng, param):
     """``ARX.fit(method="rls", lam="tune")`` (or ``Q="tune"``) equals tuning a filter on
-    ``model.regressors`` by hand, then fitting with the estimate."""
+    ``model.regressors`` by hand in the record's power-of-two units (columns and output
+    divided by ``2^c``, ``2^e``; ``P0`` mapped to ``2^(c_k + c_l) P0``), then fitting with
+    the estimate (``Q = q R I`` in those units: ``2^-(c_k + c_l) q R`` in the signals')."""
     from rlsfilt import ARX
+    from rlsfilt._scale import pow2_exponent
 
     u, y = drifting_plant(rng)
     model = ARX(1, 1).fit(u, y, "rls", **{param: "tune"}, P0=100.0)
     Phi, target = ARX(1, 1).regressors(u, y)
-    by_hand = RecursiveLeastSquares(2, P0=100.0).tune(target, Phi, param.lower(), burn=2)
+    c = np.array([pow2_exponent(y), pow2_exponent(u)])
+    assert c.any()                       # (the units matter: not the identity map)
+    cc = c[:, None] + c[None, :]
+    by_hand = RecursiveLeastSquares(2, P0=np.ldexp(100.0 * np.eye(2), cc)).tune(
+        np.ldexp(target, -c[0]), np.ldexp(Phi, -c), param.lower(), burn=2)
     assert model.tune_.estimate == by_hand.estimate and model.tune_.loglik == by_hand.loglik
+    assert model.tune_.R == np.ldexp(by_hand.R, 2 * c[0])
     if param == "lam":
         assert by_hand.estimate < 0.999 and model.lam_ == by_hand.estimate
         ref = ARX(1, 1).fit(u, y, "rls", lam=by_hand.estimate, P0=100.0)
     else:
-        assert_allclose(model.filter_.Q, by_hand.estimate * np.eye(2), rtol=1e-15)
-        ref = ARX(1, 1).fit(u, y, "rls", Q=by_hand.estimate * np.eye(2), P0=100.0)
+        Q = np.ldexp(by_hand.estimate * np.eye(2), -cc)
+        assert_array_equal(model.filter_.Q, Q)
+        ref = ARX(1, 1).fit(u, y, "rls", Q=Q, P0=100.0)
     assert_allclose(model.theta_history_, ref.theta_history_, rtol=0, atol=0)
     with pytest.raises(ValueError, match="only applies to method='rls'"):
         ARX(1, 1).fit(u, y, "riv", lam="tune")

@@ -458,3 +458,56 @@ def _warn_prior(what, rel, scale, stacklevel):
         "`x0`. Pass P0 and R in the signals' units (P0 about 1e4 * R / max|phi_k|^2 for "
         "parameter k), or scale the signals to unit size", NumericalWarning,
         stacklevel=stacklevel)
+
+
+#: The tune's prior without a given ``P0``: ``P0 / R = 1e4 I`` of the record scaled to unit
+#: size (the fit's default ``1e4 I``, read in the record's units: diffuse for a record of
+#: any size, where ``1e4 I`` in the signals' units holds the estimate or overflows).
+TUNE_P0 = 1e4
+
+
+def tune_start(c, P_rel, Q_rel, given_P0):
+    r"""The ``P / R`` and ``Q / R`` that ``lam="tune"`` / ``Q="tune"`` start from in the
+    record's units (:math:`R = 1` there): the exact images
+    :math:`2^{c_k + c_l} P_{kl} / R` and :math:`2^{c_k + c_l} Q_{kl} / R` of the options in
+    the signals' units (as `RecordUnits.recursion_start` maps them, the likelihood being
+    free of the scale of ``R``), or `TUNE_P0` times the identity without a given ``P0``.
+    `c` is ``(n,)`` or ``(C, n)`` (a channel axis, `P_rel` and `Q_rel` ``(C, n, n)``).
+    A ValueError names ``P0`` or ``Q`` when the image leaves the filters' range."""
+    cc = c[..., :, None] + c[..., None, :]
+    with np.errstate(over="ignore", under="ignore"):
+        P = (np.ldexp(P_rel, cc) if given_P0
+             else np.broadcast_to(TUNE_P0 * np.eye(c.shape[-1]), cc.shape).copy())
+        Q = np.ldexp(Q_rel, cc)
+    if not np.max(np.abs(P), initial=0.0) <= COVARIANCE_MAX:
+        raise ValueError("`P0` must suit the scale of the data for lam/Q='tune': P0 / R (in the "
+                         "signals' units) is too diffuse for double precision for the record "
+                         "scaled to unit size; pass P0 and R in the signals' units (P0 about "
+                         "1e4 * R / max|phi_k|^2 for parameter k), or leave P0 out")
+    if not np.max(np.abs(Q), initial=0.0) <= COVARIANCE_MAX:
+        raise ValueError("`Q` must suit the scale of the data for lam='tune': Q / R (in the "
+                         "signals' units) is beyond the range of the recursion for the record "
+                         "scaled to unit size; pass a smaller Q or scale the signals")
+    return P, Q
+
+
+def tuned_random_walk(q, R, c):
+    r"""``Q="tune"``'s random walk from its estimate `q`: :math:`\tilde Q = q R I` in the
+    record's units (isotropic there; ``R`` the option in the signals' units, :math:`r = 0`)
+    and its image :math:`Q_{kl} = 2^{-c_k - c_l}\tilde Q_{kl}` in the signals' units
+    (``0`` or subnormal where it underflows). `q`, `R` scalars, `c` ``(n,)``; or arrays
+    ``(C,)`` and ``(C, n)``. A ValueError names ``Q`` and ``R`` where the image is beyond
+    the filters' range (``COVARIANCE_MAX``: a filter in the signals' units cannot hold it).
+    """
+    q, R = np.asarray(q, dtype=float), np.asarray(R, dtype=float)
+    Qs = (q * R)[..., None, None] * np.eye(c.shape[-1])
+    with np.errstate(over="ignore", under="ignore"):
+        Q = np.ldexp(Qs, -(c[..., :, None] + c[..., None, :]))
+    if not np.max(Q, initial=0.0) <= COVARIANCE_MAX:
+        raise ValueError("`Q='tune'` estimated a random walk q R I of the record scaled to unit "
+                         f"size that is beyond the filters' range ({COVARIANCE_MAX:.0e}) in the "
+                         f"signals' units (`R` given in them, {float(np.max(R)):.3g}; a "
+                         "coefficient's random walk there is about q R / max|phi_k|^2, large "
+                         "for `u` or `y` far below unit size): pass `R` of about the noise "
+                         "variance of `y`, or scale the signals")
+    return Qs, Q

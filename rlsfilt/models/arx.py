@@ -39,7 +39,13 @@ from ._lag_rows import LagRows, MatrixRows
 from ._offset import offset_mode as _offset_mode
 from ._summary import EQUATION_STYLES, ModelSummary
 from ._tuning_option import tuning_param
-from ._units import RecordUnits, equivariant_forgetting, estimate_in_units
+from ._units import (
+    RecordUnits,
+    equivariant_forgetting,
+    estimate_in_units,
+    tune_start,
+    tuned_random_walk,
+)
 from .regressors import (
     _as_signal,
     _build,
@@ -144,7 +150,10 @@ class ARX(IdentifiedModel):
     tune_ : TuneResult
         ``method="rls"`` with ``lam="tune"`` or ``Q="tune"`` only: the
         maximum-likelihood estimate (`rlsfilt.filters.tuning.TuneResult`:
-        estimate, standard error, interval, profile plot).
+        estimate, standard error, interval, profile plot) of the tune in the
+        record's power-of-two units (``R`` mapped to the signals' units; see
+        `fit`). For ``Q="tune"``, ``filter_.Q`` is the random walk the fit ran
+        (``tune_.apply`` would set ``q R I`` in the signals' units).
     form_ : str
         ``method="rls"`` only: ``"covariance"``, ``"square_root"`` or
         ``"window"`` (`SlidingWindowRLS`), the recursion that ran (see `form`
@@ -356,9 +365,21 @@ class ARX(IdentifiedModel):
             on the model's regressor rows (`rlsfilt.filters.tuning.tune` of a
             `RecursiveLeastSquares` with the other options, from its prior
             ``x0``, ``P0``, the first ``n_params`` innovations left out of the
-            likelihood; ``Q = q R I``), then fit with the estimate; the result
-            is ``tune_``. With ``forgetting="diagonal"`` (passed to the
-            filter) `lam` may be one factor per parameter, an array of
+            likelihood), then fit with the estimate; the result is ``tune_``.
+            The tune runs in the record's power-of-two units, as the fit
+            (Notes), from the exact images of ``x0``, ``P0 / R`` and (for
+            ``lam``) ``Q / R``: a record scaled by ``2^k`` tunes to the same
+            bits. Without `P0` its prior is ``P0 / R = 1e4 I`` of the record
+            scaled to unit size (diffuse at any scale). ``Q="tune"`` is
+            ``Q = q R I`` in those units, isotropic relative to each
+            regressor column's scale (so that it does not depend on the units
+            of ``u`` and ``y``), ``Q_kl = 2^-(c_k + c_l) q R`` in the
+            signals' units (``filter_.Q``; a ValueError naming ``Q`` and ``R``
+            where a filter there cannot hold it, for signals far below unit
+            size). ``tune_.R`` is in the signals' units, ``tune_.loglik``
+            (and ``tune_.profile``) those of the record at unit size. With
+            ``forgetting="diagonal"`` (passed to the filter) `lam` may be one
+            factor per parameter, an array of
             shape ``(n_params,)`` in ``param_names_`` order (a diagonal
             forgetting, :math:`P^- = L^{-1/2} P L^{-1/2} + Q`); its batch
             start does not weight the rows.
@@ -531,9 +552,9 @@ class ARX(IdentifiedModel):
                 intercept=_offset_mode(self.offset) == "intercept")
         else:
             dev = records if op is None else [(U - op[0], Y - op[1]) for U, Y in records]
-            tuned = None if tuning is None else self._tune(records, s, op, opts, tuning)
             intercept = _offset_mode(self.offset) == "intercept"
             units = RecordUnits(dev, s, intercept=intercept)
+            tuned = None if tuning is None else self._tune(records, s, op, opts, tuning, units)
             # the rows read from the signals: the regressor matrix only where a path needs it
             lagged = LagRows(dev, s, intercept, lambda: self._design(records, s, op))
             theta, inv_scaled, rls, history, prior, col_scale, k0 = _fit_rls(lagged, s, opts,
@@ -574,22 +595,41 @@ class ARX(IdentifiedModel):
         self.method_ = method
         return self
 
-    def _tune(self, records, s, op, opts, param):
+    def _tune(self, records, s, op, opts, param, units):
         """Maximum likelihood of `param` (``"lam"`` or ``"q"``) on the regressor rows, by a
-        `RecursiveLeastSquares` with the other options; writes the estimate into `opts`
-        (``Q = q R I``) and returns the `TuneResult`."""
+        `RecursiveLeastSquares` with the other options, in the record's power-of-two
+        `units` (as the fit runs): writes the estimate into `opts` (``Q = q R I`` in the
+        record's units, its image in the signals' units, and the former as
+        ``"Q_scaled"`` for `_fit_rls`) and returns the `TuneResult` (``R`` mapped to the
+        signals' units; ``loglik`` that of the record scaled to unit size)."""
         Phi, target = self._design(records, s, op)
         n = Phi.shape[1]
         kw = {key: opts[key] for key in ("P0", "R", "x0") if opts[key] is not None}
         other = "Q" if param == "lam" else "lam"
         if opts[other] is not None:
             kw[other] = opts[other]
-        filt = RecursiveLeastSquares(n, dim_z=s.n_outputs, **kw, **opts["extra"])
-        fit = filt.tune(target, Phi, param, burn=n)
+        user = RecursiveLeastSquares(n, dim_z=s.n_outputs, **kw, **opts["extra"])  # validates
+        # the rows scaled to unit size: columns by 2^-c, every output by one 2^-e (the
+        # likelihood gives the outputs one noise variance: one power of two keeps it so)
+        c = units.column_exponents
+        e = int(np.max(units.output_exponents))
+        P, Q = tune_start(c, user.P if user.R == 1.0 else user.P / user.R, user.Q / user.R,
+                          opts["P0"] is not None)
+        with np.errstate(over="ignore", under="ignore"):
+            x0 = np.ldexp(user.x, c[:, None] - e)
+        if not np.isfinite(x0).all():
+            raise ValueError("`x0` must have b coefficients of the size the record's units "
+                             "allow (|b| up to about max|y| / max|u| times 1e300); got "
+                             "coefficients that overflow")
+        filt = RecursiveLeastSquares(n, dim_z=s.n_outputs, lam=user.lam, P0=P, Q=Q, x0=x0,
+                                     **opts["extra"])
+        fit = filt.tune(times_pow2(target, -e), times_pow2(Phi, -c), param, burn=n)
+        with np.errstate(over="ignore", under="ignore"):    # R in the signals' units
+            fit.R = float(np.ldexp(fit.R, 2 * e))
         if param == "lam":
             opts["lam"] = fit.estimate
         else:
-            opts["Q"] = fit.estimate * filt.R * np.eye(n)
+            opts["Q_scaled"], opts["Q"] = tuned_random_walk(fit.estimate, user.R, c)
         return fit
 
     def _store(self, theta, s, info):
@@ -1306,6 +1346,8 @@ def _fit_rls(rows, s, opts, units):
     if start is None:       # the signals' units (a prior the data cannot bear was warned about)
         return (*_run_rls(user, rows, k0), np.ones(n), k0)
     start["x0"] = x0
+    if opts.get("Q_scaled") is not None:      # Q="tune": from its value in the record's units
+        start["Q"] = np.ldexp(opts["Q_scaled"], r)
     rls = cls(n, dim_z=s.n_outputs, lam=lam, **{k: v for k, v in start.items() if v is not None},
               **extra)
     theta, C, rls, history, prior = _run_rls(rls, rows, k0, units)

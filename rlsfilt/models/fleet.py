@@ -45,7 +45,7 @@ from ..filters.bank import RLSBank, full_rank, subset
 from ..filters.gradient_bank import GradientBank
 from ._offset import offset_mode as _offset_mode
 from ._tuning_option import tuning_param
-from ._units import equivariant_forgetting, estimate_in_units
+from ._units import equivariant_forgetting, estimate_in_units, tune_start, tuned_random_walk
 from .regressors import _full_rank_rows, arx_structure
 
 __all__ = ["ARXBank", "fit_many"]
@@ -363,7 +363,10 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
         matrix per channel (shapes (C,) or (C, n_params, n_params)), `x0`
         one row per channel (C, n_params). ``lam="tune"`` or ``Q="tune"``:
         each channel's by maximum likelihood first, as :meth:`ARX.fit` does
-        (`RLSBank.tune` on the channels' regressor rows); the results are
+        (`RLSBank.tune` on the channels' regressor rows, in each channel's
+        power-of-two units, with :meth:`ARX.fit`'s prior and its ``Q = q R I``
+        of the record at unit size: each channel's estimate and ``R`` are
+        those of :meth:`ARX.fit` on it, bit for bit); the results are
         ``tune_`` of the returned bank.
     max_lag : int or "auto", default "auto"
         Largest lag of the residual tests. ``"auto"`` (as in
@@ -518,10 +521,11 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
     # (offset="mean"), or the record with a constant input of one coefficient and no
     # delay, whose column of ones is ARX's intercept column (offset=True)
     tuned = None
-    if tuning is not None:                   # (on the rows in the signals' units, as ARX.fit)
+    if tuning is not None:                   # (in each channel's power-of-two units, as ARX.fit)
+        tunits = _ChannelUnits(U, Y, s, offset == "intercept", scaled=True, good=good)
         with _one_blas_thread():
-            tuned = _tune_channels(_FitRecord(U, Y, s, offset), per_channel, todo, chunk,
-                                   buffer, tuning, C)
+            tuned = _tune_channels(_FitRecord(*tunits.scale(U, Y), s, offset), per_channel,
+                                   todo, chunk, buffer, tuning, C, tunits, P0 is not None)
     # ... each channel scaled to unit size by powers of two (exact), as ARX.fit runs
     units = _ChannelUnits(U, Y, s, offset == "intercept", good=good, scaled=(
         "far" if method == "ls" else (method == "rls" and equivariant_forgetting(
@@ -985,6 +989,11 @@ class _ChannelUnits:
         if self.identity:
             return opts["bank"]
         Q = self._to_unit(opts["Q"], r)
+        if opts.get("Q_scaled") is not None:   # Q="tune": from its value in the tune's units
+            c, ct = self.columns(), opts["Q_columns"]
+            with np.errstate(over="ignore", under="ignore"):
+                Q = np.ldexp(opts["Q_scaled"], c[:, :, None] + c[:, None, :] - ct[:, :, None]
+                             - ct[:, None, :] + r[:, None, None])
         with np.errstate(over="ignore", under="ignore"):
             x0 = np.ldexp(opts["x0"], -self.theta())
         if not np.max(np.abs(Q), initial=0.0) <= COVARIANCE_MAX:
@@ -1306,15 +1315,28 @@ def _fail(out, c, labels, message, on_error):
     out.errors[c] = message
 
 
-def _tune_channels(rec, per_channel, todo, chunk, buffer, param, C):
+def _tune_channels(rec, per_channel, todo, chunk, buffer, param, C, units, given_P0):
     """Maximum likelihood of every fitted channel's ``lam`` or ``q`` on its regressor rows
-    (`RLSBank.tune`, the first ``n_params`` innovations left out); sets the estimates in
-    `per_channel` and its bank (``Q = q R I``) and returns the `BankTuneResult` (channels
-    not fitted: NaN)."""
+    (`RLSBank.tune`, the first ``n_params`` innovations left out) in the channel's
+    power-of-two `units` (`rec` scaled by them), from the exact images of ``P0 / R``,
+    ``Q / R`` and ``x0`` there (`tune_start`: as `ARX.fit` tunes each channel); sets the
+    estimates in `per_channel` and its bank (``Q = q R I`` in the record's units: its
+    image in the signals' units, and ``"Q_scaled"`` for `_ChannelUnits.bank`) and returns
+    the `BankTuneResult` (``R`` in the signals' units; channels not fitted: NaN)."""
     from ..filters.tuning import BankTuneResult, TuneResult
 
     s, bank = rec.s, per_channel["bank"]
     n = s.n_params
+    c, R = units.columns(), bank.R
+    P, Q = tune_start(c, per_channel["P0"] / R[:, None, None],
+                      per_channel["Q"] / R[:, None, None], given_P0)
+    with np.errstate(over="ignore", under="ignore"):
+        x0 = np.ldexp(per_channel["x0"], -units.theta())
+    if not np.isfinite(x0).all():
+        raise ValueError("`x0` must have b coefficients of the size the record's units "
+                         "allow (|b| up to about max|y| / max|u| times 1e300); got "
+                         "coefficients that overflow")
+    scaled = RLSBank(C, bank.dim_x, bank.lam, R=1.0, Q=Q, P0=P, x0=x0, **per_channel["filter"])
     nan = TuneResult(param, np.nan, np.nan, np.nan, np.nan, False, False, 0, 0,
                      _log_stderr=np.nan)
     results = [nan] * C
@@ -1325,9 +1347,11 @@ def _tune_channels(rec, per_channel, todo, chunk, buffer, param, C):
         cs, sel = _as_slice(cs)
         norms = np.empty((cs.size, n))
         Phi, target = _regressors(rec.U, rec.Y, s, sel, buffer, norms)
-        fits = subset(bank, cs).tune(target, Phi, param, burn=n)
-        for j, c in enumerate(cs):
-            results[c] = fits.channel(j)
+        fits = subset(scaled, cs).tune(target, Phi, param, burn=n)
+        for j, ch in enumerate(cs):
+            results[ch] = fits.channel(j)
+            with np.errstate(over="ignore", under="ignore"):    # R in the signals' units
+                results[ch].R = float(np.ldexp(results[ch].R, 2 * units.ey[ch]))
     est = np.array([r.estimate for r in results])
     fitted = ~np.isnan(est)
     if param == "lam":
@@ -1335,9 +1359,10 @@ def _tune_channels(rec, per_channel, todo, chunk, buffer, param, C):
         lam[fitted] = est[fitted]
         bank.lam = lam
     else:
-        Q = bank.Q.copy()
-        Q[fitted] = est[fitted, None, None] * bank.R[fitted, None, None] * np.eye(n)
+        Q, Qs = bank.Q.copy(), np.zeros_like(bank.Q)
+        Qs[fitted], Q[fitted] = tuned_random_walk(est[fitted], R[fitted], c[fitted])
         bank.Q = Q
+        per_channel.update(Q_scaled=Qs, Q_columns=c)
     per_channel.update(lam=bank.lam, Q=bank.Q)
     return BankTuneResult(results)
 
