@@ -152,7 +152,7 @@ def time_update(P, il, Q, Pi, T, Pn):
 @njit(cache=True, error_model="numpy", inline="always")
 def gain(P, phi, g):
     """``g = P phi``, summed row by row (``g_j += P_ij phi_i``, ``i`` ascending: the
-    order in which `_sweep` accumulates the next gain)."""
+    order in which `_sweep_call` accumulates the next gain)."""
     n = P.shape[0]
     for j in range(n):
         g[j] = 0.0
@@ -462,7 +462,10 @@ def _health(P, basis, symmetric, cond_max, k, due, cheap_bad, state, episodes, P
     inlined: the loops stay lean).
     """
     armed = state[0] == 1
-    P = np.ascontiguousarray(P)              # one layout: the checks compile once
+    n = P.shape[0]
+    Pc = np.empty((n, n))                    # one layout (the fused loop's P is a view
+    copy2(P, Pc)                             # of padded rows): the checks compile once
+    P = Pc
     constrained = False
     bad = False
     if basis is not None:                    # None (the fused loop): not compiled in
@@ -594,34 +597,24 @@ def _time_step(x, P, il, Q, Pi, T, k, N, means_p, covs_p, x_prior, P_prior):
         copy2(P, P_prior)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
-def _sweep(P, g, cu, il, Q, h, gn, n, L):
-    """One sweep over ``P``: ``P <- (P - (g g^T) cu) il + Q``, accumulating the next
-    gain ``gn = P h`` on the way (row by row, as `gain` does); ``n``, ``L`` as in
-    `_sweep_rows`.
-
-    ``cu = 0`` is a time update alone (``P - 0 = P`` exactly), ``il = 1``
-    (without ``Q``) an update alone. The two loops (with and without ``Q``)
-    are separate functions, so that neither carries a branch in its inner
-    loop (the compiler then vectorizes it).
-    """
-    if Q.shape[0]:
-        _sweep_q(P, g, cu, il, Q, h, gn)
-    else:
-        _sweep_rows(P, g, cu, il, h, gn, n, L)
-
-
 @njit(cache=True, error_model="numpy")
 def _sweep_call(P, g, cu, il, Q, h, gn):
-    """`_sweep` as a call (``n`` the length of ``h``, ``L`` the row length of ``P``): the
-    rare steps of `exponential_batch` share this one compiled sweep instead of an inlined
-    copy at each of their call sites (the usual steps inline theirs, `_usual_steps`)."""
-    _sweep(P, g, cu, il, Q, h, gn, h.shape[0], P.shape[1])
+    """One sweep over ``P``: ``P <- (P - (g g^T) cu) il + Q``, accumulating the next
+    gain ``gn = P h`` on the way (row by row, as `gain` does; ``Q`` None when absent).
+
+    ``cu = 0`` is a time update alone (``P - 0 = P`` exactly), ``il = 1``
+    (without ``Q``) an update alone. The rare steps of `exponential_batch` share
+    this one compiled sweep, `_sweep_each_row` (a few steps in a hundred: the
+    four-row loop would not pay its compile work here); the usual steps inline
+    `_sweep_rows`, or `_sweep_each_row` with ``Q`` (`_usual_steps`). Both add the
+    same products in the same order: the same numbers.
+    """
+    _sweep_each_row(P, g, cu, il, Q, h, gn)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _sweep_rows(P, g, cu, il, h, gn, n, L):
-    """`_sweep` without ``Q``, four rows at a time.
+    """`_sweep_call`'s sweep without ``Q``, four rows at a time.
 
     ``n`` is the length of ``h`` (an argument: a compile-time constant where
     the caller has one, see `exponential_batch`); ``P`` has at least ``n``
@@ -681,19 +674,21 @@ def _sweep_rows(P, g, cu, il, h, gn, n, L):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _sweep_q(P, g, cu, il, Q, h, gn):
-    """`_sweep` with ``Q``, row by row (``n`` the length of ``h``: over the first
-    ``n`` rows and columns of a padded ``P``; ``gn`` is zeroed over its whole
-    length: its padding stays zero)."""
+def _sweep_each_row(P, g, cu, il, Q, h, gn):
+    """`_sweep_call`'s sweep row by row, with ``Q`` or without (None: numba compiles
+    the loop without the branch) (``n`` the length of ``h``: over the first ``n``
+    rows and columns of a padded ``P``; ``gn`` is zeroed over its whole length: its
+    padding stays zero)."""
     n = h.shape[0]
     for j in range(gn.shape[0]):
         gn[j] = 0.0
     for i in range(n):
-        qi = Q[i]
         ai = g[i]
         hi = h[i]
         for j in range(n):
-            v = (P[i, j] - (ai * g[j]) * cu) * il + qi[j]
+            v = (P[i, j] - (ai * g[j]) * cu) * il
+            if Q is not None:
+                v += Q[i, j]
             P[i, j] = v
             gn[j] += v * hi
 
@@ -747,7 +742,7 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
     """
     N = Z.shape[0]
     n = len(dims)                                    # a constant when dims is a tuple
-    hasq = Q.shape[0] > 0
+    hasq = Q is not None
     store = covs.shape[0] > 0
     th = x[:, 0].copy()                              # local: no aliasing in the loop
     Pv = Pw[:n, :n]                                  # P in padded rows
@@ -758,7 +753,6 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
     gn = Pw[n + 1]
     W = np.empty((n, n))
     X = np.empty((n, n))
-    no_q = np.zeros((0, 0))
     cap = state[3] == 1
     n_capped = np.int64(0)                           # a literal 0: two compiles
     w = state[4]
@@ -770,7 +764,7 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
     else:
         h = Hm[0]
     if update_first:                                 # the gain of P
-        _sweep_call(Pw, g, 0.0, 1.0, no_q, h, gn)
+        _sweep_call(Pw, g, 0.0, 1.0, None, h, gn)
     else:                                            # P^- and its gain
         w = il if cap else 1.0
         _sweep_call(Pw, g, 0.0, 1.0 if cap else il, Q, h, gn)
@@ -910,7 +904,12 @@ def _usual_steps(k, N, Z, H, off, Rv, il, Q, cfg, means, ys, th, Pw, g, gn, w, c
         if cap or check or store or k + 2 >= N or kr + 2 >= rows:
             return (k, cu, kc, updated, cap, check, due, cheap_bad, s, yk, w, countdown,
                     n_capped, odd)
-        _sweep(Pw, g, cu, il, Q, H[kr + 1], gn, n, L)
+        # the fused sweep, P <- (P - (g g^T) cu) il + Q with the next gain: the branch is
+        # on an argument, so numba drops the other loop before inlining (Q is None without)
+        if Q is None:
+            _sweep_rows(Pw, g, cu, il, H[kr + 1], gn, n, L)
+        else:
+            _sweep_each_row(Pw, g, cu, il, Q, H[kr + 1], gn)
         g, gn = gn, g
         odd = not odd
         k += 1
@@ -981,7 +980,7 @@ def _unfused_step(x, Pw, P, g, gn, cu, il, Q, h, k, last, check, update_first, d
     if not (check or last or store):
         _sweep_call(Pw, g, cu, il, Q, h, gn)
         return
-    _sweep_call(Pw, g, cu, 1.0, np.zeros((0, 0)), h, gn)         # the update half, no Q
+    _sweep_call(Pw, g, cu, 1.0, None, h, gn)         # the update half, no Q
     if store:
         copy2(P, covs[k])
     if last:
@@ -1092,7 +1091,8 @@ def run_batch(x, P, Z, Hm, Rv, cfg, Q, basis, update_first, store_covariances,
         out.ys = residuals if given else np.empty((N if residuals else 1, 1))
         out.ss = np.empty(1)
         out.s_last = exponential_batch(
-            out.x, out.P, Zc, Hc, Rv, il, Qa, cfg, bool(update_first), out.means, covs, covs_p,
+            out.x, out.P, Zc, Hc, Rv, il, Q if Q is None else Qa, cfg, bool(update_first),
+            out.means, covs, covs_p,
             out.ys, out.ss, out.x_prior, out.P_prior, out.x_post, out.P_post, K,
             int(check_every), int(step0), float(cond_max), out.state, out.episodes,
             out.P_fail, symmetric, aligned_zeros((n + 2, padded_width(n, 0))),
