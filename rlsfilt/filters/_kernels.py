@@ -448,18 +448,27 @@ MAX_EPISODES = 16
 
 
 @njit(cache=True, error_model="numpy")
-def _copy_call(a, b):
-    """``b[:] = a`` (`copy2`) as a call: the rare steps of `exponential_batch` and the
-    health check keep a dozen copies of ``x`` and ``P``; one compiled copy per layout
-    instead of an inlined loop at each (two fifths of the fused loop's code)."""
-    copy2(a, b)
+def _copy_leading(a, b):
+    """``b[:] = a[:m, :n]`` for ``b`` of shape ``(m, n)``: the leading block of `a` (the
+    padded work array of `exponential_batch` holds ``P`` in its first rows and columns).
+
+    A call, not inlined: the rare steps of `exponential_batch` and the health check
+    keep a dozen copies of ``x`` and ``P``, one compiled loop instead of an inlined
+    copy at each (two fifths of the fused loop's code), and none from a strided view
+    (whose compiled loop was five times the size).
+    """
+    for i in range(b.shape[0]):
+        for j in range(b.shape[1]):
+            b[i, j] = a[i, j]
 
 
 @njit(cache=True, error_model="numpy")
 def _health(P, basis, symmetric, cond_max, k, due, cheap_bad, state, episodes, P_fail, W, X):
     """The health check at the end of step `k` of a batch run.
 
-    `state` is ``[armed, n_episodes, ...]``; a full check runs when it is
+    ``P`` is the ``(n, n)`` covariance, or the padded work array of the fused
+    loop, which holds it in its leading block (``n`` is the size of the work
+    arrays `W`, `X`). `state` is ``[armed, n_episodes, ...]``; a full check runs when it is
     `due` (every ``check_every`` updates) or when the cheap diagonal test
     failed while armed: on the null space `basis` of the constraints (when it
     has columns), else with `unhealthy_sym` when ``P`` is exactly `symmetric`
@@ -470,9 +479,9 @@ def _health(P, basis, symmetric, cond_max, k, due, cheap_bad, state, episodes, P
     inlined: the loops stay lean).
     """
     armed = state[0] == 1
-    n = P.shape[0]
-    Pc = np.empty((n, n))                    # one layout (the fused loop's P is a view
-    _copy_call(P, Pc)                        # of padded rows): the checks compile once
+    n = W.shape[0]
+    Pc = np.empty((n, n))                    # P's n x n block (the fused loop passes its
+    _copy_leading(P, Pc)                     # padded work array)
     P = Pc
     constrained = False
     bad = False
@@ -496,7 +505,7 @@ def _health(P, basis, symmetric, cond_max, k, due, cheap_bad, state, episodes, P
         e = int(state[1])
         if e < episodes.shape[0]:
             episodes[e] = k
-            _copy_call(P, P_fail[e])
+            _copy_leading(P, P_fail[e])
         state[1] = e + 1
         state[0] = 0
     elif not bad and due:
@@ -754,7 +763,6 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
     hasq = Q is not None
     store = covs.shape[0] > 0
     th = x[:, 0].copy()                              # local: no aliasing in the loop
-    Pv = Pw[:n, :n]                                  # P in padded rows
     for i in range(n):
         for j in range(Pw.shape[1]):
             Pw[i, j] = P[i, j] if j < n else 0.0
@@ -778,11 +786,11 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
         w = il if cap else 1.0
         _sweep_call(Pw, g, 0.0, 1.0 if cap else il, Q, h, gn)
         if store:
-            _copy_call(Pv, covs_p[0])
+            _copy_leading(Pw, covs_p[0])
     g, gn = gn, g
     if not update_first and N == 1:
-        _copy_call(x, x_prior)
-        _copy_call(Pv, P_prior)
+        _copy_leading(x, x_prior)
+        _copy_leading(Pw, P_prior)
     s = np.nan
     yk = np.nan
     H = Hm if scales is None else Hb
@@ -806,26 +814,26 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
         # tests with update_first, and otherwise P / lam, whose definiteness and
         # condition number are those of P (with Q the two halves run apart)
         if last or cap or store or (check and hasq and not update_first):
-            _unfused_step(x, Pw, Pv, g, gn, cu, 1.0 if cap else il, Q, hn, k,
+            _unfused_step(x, Pw, g, gn, cu, 1.0 if cap else il, Q, hn, k,
                           last, check, update_first, due, cheap_bad, cond_max, state,
                           episodes, P_fail, W, X, symmetric, x_prior, P_prior, x_post,
                           P_post, covs, covs_p)
         else:
             _sweep_call(Pw, g, cu, il, Q, hn, gn)
             if check:
-                _health(Pv, None, symmetric, cond_max, k, due, cheap_bad, state, episodes,
+                _health(Pw, None, symmetric, cond_max, k, due, cheap_bad, state, episodes,
                         P_fail, W, X)
         g, gn = gn, g
         if k == N - 2 and not update_first:
             _store_column(th, x)
-            _copy_call(x, x_prior)
-            _copy_call(Pv, P_prior)
+            _copy_leading(x, x_prior)
+            _copy_leading(Pw, P_prior)
         if last:
             break
         k += 1
         if scales is not None and k % _SCALED_BLOCK == 0:
             _fill_block(Hm, lags, k, hsc, Hb)        # the next block (row k: the same bits)
-    _copy_call(Pv, P)
+    _copy_leading(Pw, P)
     if not update_first:
         w = 1.0                                      # no time update after the last update
     state[2] += n_capped
@@ -943,7 +951,7 @@ def _dimension_witness(n):
     return (0,) * n if n in _SPECIALISED else np.zeros(n, dtype=np.int8)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _fill_block(Hm, lags, k, hsc, Hb):
     """The block of scaled rows from row `k`: from `Hm` (`_scale_block`), or read from the
     lagged signals `lags` (`_kernels_lagged.lag_block`; ``Hm`` is then not read)."""
@@ -973,7 +981,7 @@ def _store_column(th, x):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _unfused_step(x, Pw, P, g, gn, cu, il, Q, h, k, last, check, update_first, due, cheap_bad,
+def _unfused_step(x, Pw, g, gn, cu, il, Q, h, k, last, check, update_first, due, cheap_bad,
                   cond_max, state, episodes, P_fail, W, X, symmetric, x_prior, P_prior,
                   x_post, P_post, covs, covs_p):
     """The rare steps of `exponential_batch` (inlined there: the usual steps run in
@@ -984,28 +992,30 @@ def _unfused_step(x, Pw, P, g, gn, cu, il, Q, h, k, last, check, update_first, d
     length N), whose sweep runs in two halves:
     the update, then the time update with the next gain (after the last
     update only with `update_first`). The sweeps run on the padded ``Pw``, the
-    copies and the checks read its view ``P``."""
+    copies and the checks read its leading ``n x n`` block, ``P``."""
     store = covs.shape[0] > 0
     if not (check or last or store):
         _sweep_call(Pw, g, cu, il, Q, h, gn)
         return
     _sweep_call(Pw, g, cu, 1.0, None, h, gn)         # the update half, no Q
     if store:
-        _copy_call(P, covs[k])
+        _copy_leading(Pw, covs[k])
     if last:
-        _copy_call(x, x_post)
-        _copy_call(P, P_post)
+        _copy_leading(x, x_post)
+        _copy_leading(Pw, P_post)
     if check and not update_first:
-        _health(P, None, symmetric, cond_max, k, due, cheap_bad, state, episodes, P_fail, W, X)
+        _health(Pw, None, symmetric, cond_max, k, due, cheap_bad, state, episodes, P_fail, W,
+                X)
     if not last or update_first:
         _sweep_call(Pw, g, 0.0, il, Q, h, gn)
         if store:
-            _copy_call(P, covs_p[k if update_first else k + 1])
+            _copy_leading(Pw, covs_p[k if update_first else k + 1])
     if check and update_first:
-        _health(P, None, symmetric, cond_max, k, due, cheap_bad, state, episodes, P_fail, W, X)
+        _health(Pw, None, symmetric, cond_max, k, due, cheap_bad, state, episodes, P_fail, W,
+                X)
     if last and update_first:
-        _copy_call(x, x_prior)
-        _copy_call(P, P_prior)
+        _copy_leading(x, x_prior)
+        _copy_leading(Pw, P_prior)
 
 
 class BatchResult:
