@@ -56,7 +56,11 @@ constant only where it measurably pays: `_SPECIALISED`, `_dimension_witness`).
 What the first run compiles is kept small: no literal arguments (a literal
 ``0`` compiles a callee a second time), no slice assignment of arrays (numba
 compiles its error message, string formatting included), the health
-checks in one layout and without the constrained variant in the fused loop.
+checks in one layout and without the constrained variant in the fused loop,
+the random walk ``Q`` None when absent (the fused loop compiles its ``Q``
+loops only for a ``Q``: numba prunes a branch on an argument before inlining
+what it calls), and the rare steps sweeping row by row and copying through one
+compiled `_copy_leading` (inlined copies were two fifths of the loop's code).
 
 **The health check** runs in two tiers: every update tests the diagonal of
 ``P`` (positive and finite, O(n)); every ``check_every`` updates (and at once
@@ -468,8 +472,8 @@ def _health(P, basis, symmetric, cond_max, k, due, cheap_bad, state, episodes, P
 
     ``P`` is the ``(n, n)`` covariance, or the padded work array of the fused
     loop, which holds it in its leading block (``n`` is the size of the work
-    arrays `W`, `X`). `state` is ``[armed, n_episodes, ...]``; a full check runs when it is
-    `due` (every ``check_every`` updates) or when the cheap diagonal test
+    arrays `W`, `X`). `state` is ``[armed, n_episodes, ...]``; a full check
+    runs when it is `due` (every ``check_every`` updates) or when the cheap diagonal test
     failed while armed: on the null space `basis` of the constraints (when it
     has columns), else with `unhealthy_sym` when ``P`` is exactly `symmetric`
     (it stays so when it starts so). A failure while armed starts an episode
@@ -1110,11 +1114,10 @@ def run_batch(x, P, Z, Hm, Rv, cfg, Q, basis, update_first, store_covariances,
         out.ys = residuals if given else np.empty((N if residuals else 1, 1))
         out.ss = np.empty(1)
         out.s_last = exponential_batch(
-            out.x, out.P, Zc, Hc, Rv, il, Q if Q is None else Qa, cfg, bool(update_first),
-            out.means, covs, covs_p,
-            out.ys, out.ss, out.x_prior, out.P_prior, out.x_post, out.P_post, K,
-            int(check_every), int(step0), float(cond_max), out.state, out.episodes,
-            out.P_fail, symmetric, aligned_zeros((n + 2, padded_width(n, 0))),
+            out.x, out.P, Zc, Hc, Rv, il, None if Q is None else Qa, cfg, bool(update_first),
+            out.means, covs, covs_p, out.ys, out.ss, out.x_prior, out.P_prior, out.x_post,
+            out.P_post, K, int(check_every), int(step0), float(cond_max), out.state,
+            out.episodes, out.P_fail, symmetric, aligned_zeros((n + 2, padded_width(n, 0))),
             None if scales is None else (hsc, zsc[0], msc[:, 0].copy(), ysc[0],
                                          aligned_zeros((n, _SCALED_BLOCK + 1)).T), lags,
             _dimension_witness(n))
