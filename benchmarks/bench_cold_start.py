@@ -16,17 +16,19 @@ child) with an empty cache and with the cache the first run filled:
 ``ARMAX.fit(method="rpem")`` (each in its own empty cache).
 
 Measured on the 2-core development machine (busy: load 5 to 10; the numbers
-move with the load, compare them in one run), before and after #32 (the
-fused loop compiled once for every size but 5, its rare steps sharing one
-compiled sweep, no duplicate variants):
+move with the load, compare them in one run), before #32, after its first
+round (the fused loop compiled once for every size but 5, its rare steps
+sharing one compiled sweep, no duplicate variants) and after its last (the
+``Q`` loops compiled only for a ``Q``, lean rare steps; two runs, load 6-7,
+against 10.3-10.4 / 9.0 / 12.1-12.5 s cold for the round before):
 
-=================================  ===============  ===============
-CPU seconds, cold / warm           before (#32)     after (#32)
-=================================  ===============  ===============
-``rlsfilt demo``                   23.4 / 2.5       12.8 / 2.4
-first ``ARX.fit(method="rls")``    21.6 / 1.1       11.1 / 1.1
-first ``fit(method="rpem")``       13.2 / 1.6       13.5 / 1.7
-=================================  ===============  ===============
+=================================  ============  ============  ===============
+CPU seconds, cold / warm           before #32    first round   last round
+=================================  ============  ============  ===============
+``rlsfilt demo``                   23.4 / 2.5    12.8 / 2.4    7.2-7.6 / 1.9
+first ``ARX.fit(method="rls")``    21.6 / 1.1    11.1 / 1.1    6.0-6.5 / 1.0
+first ``fit(method="rpem")``       13.2 / 1.6    13.5 / 1.7    11.9-12.1 / 1.5
+=================================  ============  ============  ===============
 
 Usage::
 

@@ -27,7 +27,7 @@ logger = logging.getLogger("rlsfilt")
 
 #: Rough CPU seconds a cold module costs on first use (a 2-core laptop-class machine).
 _COLD_SECONDS = {
-    "rlsfilt.filters._kernels": 10,
+    "rlsfilt.filters._kernels": 6,
     "rlsfilt.filters._kernels_window": 10,
     "rlsfilt.filters._kernels_bank": 15,
     "rlsfilt.models._recursive_kernels": 10,

@@ -61,7 +61,11 @@ constant only where it measurably pays: `_SPECIALISED`, `_dimension_witness`).
 What the first run compiles is kept small: no literal arguments (a literal
 ``0`` compiles a callee a second time), no slice assignment of arrays (numba
 compiles its error message, string formatting included), the health
-checks in one layout and without the constrained variant in the fused loop.
+checks in one layout and without the constrained variant in the fused loop,
+the random walk ``Q`` None when absent (the fused loop compiles its ``Q``
+loops only for a ``Q``: numba prunes a branch on an argument before inlining
+what it calls), and the rare steps sweeping row by row and copying through one
+compiled `_copy_leading` (inlined copies were two fifths of the loop's code).
 
 **The health check** runs in two tiers: every update tests the diagonal of
 ``P`` (positive and finite, O(n)); every ``check_every`` updates (and at once
@@ -75,7 +79,7 @@ import numba
 import numpy as np
 
 from .._numba import njit  # numba.njit, uncached where no cache directory is writable
-from ._kernels_lagged import lag_rows, lag_rows_numpy
+from ._kernels_lagged import lag_block, lag_rows_numpy
 from ._kernels_shared import (
     aligned_zeros,
     any_nan,
@@ -221,7 +225,7 @@ def held_back_factor(P, phi, wd):
 @njit(cache=True, error_model="numpy", inline="always")
 def gain(P, phi, g):
     """``g = P phi``, summed row by row (``g_j += P_ij phi_i``, ``i`` ascending: the
-    order in which `_sweep` accumulates the next gain)."""
+    order in which `_sweep_call` accumulates the next gain)."""
     n = P.shape[0]
     for j in range(n):
         g[j] = 0.0
@@ -560,11 +564,28 @@ MAX_EPISODES = 16
 
 
 @njit(cache=True, error_model="numpy")
+def _copy_leading(a, b):
+    """``b[:] = a[:m, :n]`` for ``b`` of shape ``(m, n)``: the leading block of `a` (the
+    padded work array of `exponential_batch` holds ``P`` in its first rows and columns).
+
+    A call, not inlined: the rare steps of `exponential_batch` and the health check
+    keep a dozen copies of ``x`` and ``P``, one compiled loop instead of an inlined
+    copy at each (two fifths of the fused loop's code), and none from a strided view
+    (whose compiled loop was five times the size).
+    """
+    for i in range(b.shape[0]):
+        for j in range(b.shape[1]):
+            b[i, j] = a[i, j]
+
+
+@njit(cache=True, error_model="numpy")
 def _health(P, basis, symmetric, cond_max, k, due, cheap_bad, state, episodes, P_fail, W, X):
     """The health check at the end of step `k` of a batch run.
 
-    `state` is ``[armed, n_episodes, ...]``; a full check runs when it is
-    `due` (every ``check_every`` updates) or when the cheap diagonal test
+    ``P`` is the ``(n, n)`` covariance, or the padded work array of the fused
+    loop, which holds it in its leading block (``n`` is the size of the work
+    arrays `W`, `X`). `state` is ``[armed, n_episodes, ...]``; a full check
+    runs when it is `due` (every ``check_every`` updates) or when the cheap diagonal test
     failed while armed: on the null space `basis` of the constraints (when it
     has columns), else with `unhealthy_sym` when ``P`` is exactly `symmetric`
     (it stays so when it starts so). A failure while armed starts an episode
@@ -574,7 +595,10 @@ def _health(P, basis, symmetric, cond_max, k, due, cheap_bad, state, episodes, P
     inlined: the loops stay lean).
     """
     armed = state[0] == 1
-    P = np.ascontiguousarray(P)              # one layout: the checks compile once
+    n = W.shape[0]
+    Pc = np.empty((n, n))                    # P's n x n block (the fused loop passes its
+    _copy_leading(P, Pc)                     # padded work array)
+    P = Pc
     constrained = False
     bad = False
     if basis is not None:                    # None (the fused loop): not compiled in
@@ -597,7 +621,7 @@ def _health(P, basis, symmetric, cond_max, k, due, cheap_bad, state, episodes, P
         e = int(state[1])
         if e < episodes.shape[0]:
             episodes[e] = k
-            copy2(P, P_fail[e])
+            _copy_leading(P, P_fail[e])
         state[1] = e + 1
         state[0] = 0
     elif not bad and due:
@@ -741,34 +765,24 @@ def _record_prior(x, P, k, N, means_p, covs_p, x_prior, P_prior):
         copy2(P, P_prior)
 
 
-@njit(cache=True, error_model="numpy", inline="always")
-def _sweep(P, g, cu, il, Q, h, gn, n, L):
-    """One sweep over ``P``: ``P <- (P - (g g^T) cu) il + Q``, accumulating the next
-    gain ``gn = P h`` on the way (row by row, as `gain` does); ``n``, ``L`` as in
-    `_sweep_rows`.
-
-    ``cu = 0`` is a time update alone (``P - 0 = P`` exactly), ``il = 1``
-    (without ``Q``) an update alone. The two loops (with and without ``Q``)
-    are separate functions, so that neither carries a branch in its inner
-    loop (the compiler then vectorizes it).
-    """
-    if Q.shape[0]:
-        _sweep_q(P, g, cu, il, Q, h, gn)
-    else:
-        _sweep_rows(P, g, cu, il, h, gn, n, L)
-
-
 @njit(cache=True, error_model="numpy")
 def _sweep_call(P, g, cu, il, Q, h, gn):
-    """`_sweep` as a call (``n`` the length of ``h``, ``L`` the row length of ``P``): the
-    rare steps of `exponential_batch` share this one compiled sweep instead of an inlined
-    copy at each of their call sites (the usual steps inline theirs, `_usual_steps`)."""
-    _sweep(P, g, cu, il, Q, h, gn, h.shape[0], P.shape[1])
+    """One sweep over ``P``: ``P <- (P - (g g^T) cu) il + Q``, accumulating the next
+    gain ``gn = P h`` on the way (row by row, as `gain` does; ``Q`` None when absent).
+
+    ``cu = 0`` is a time update alone (``P - 0 = P`` exactly), ``il = 1``
+    (without ``Q``) an update alone. The rare steps of `exponential_batch` share
+    this one compiled sweep, `_sweep_each_row` (a few steps in a hundred: the
+    four-row loop would not pay its compile work here); the usual steps inline
+    `_sweep_rows`, or `_sweep_each_row` with ``Q`` (`_usual_steps`). Both add the
+    same products in the same order: the same numbers.
+    """
+    _sweep_each_row(P, g, cu, il, Q, h, gn)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _sweep_rows(P, g, cu, il, h, gn, n, L):
-    """`_sweep` without ``Q``, four rows at a time.
+    """`_sweep_call`'s sweep without ``Q``, four rows at a time.
 
     ``n`` is the length of ``h`` (an argument: a compile-time constant where
     the caller has one, see `exponential_batch`); ``P`` has at least ``n``
@@ -828,19 +842,21 @@ def _sweep_rows(P, g, cu, il, h, gn, n, L):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _sweep_q(P, g, cu, il, Q, h, gn):
-    """`_sweep` with ``Q``, row by row (``n`` the length of ``h``: over the first
-    ``n`` rows and columns of a padded ``P``; ``gn`` is zeroed over its whole
-    length: its padding stays zero)."""
+def _sweep_each_row(P, g, cu, il, Q, h, gn):
+    """`_sweep_call`'s sweep row by row, with ``Q`` or without (None: numba compiles
+    the loop without the branch) (``n`` the length of ``h``: over the first ``n``
+    rows and columns of a padded ``P``; ``gn`` is zeroed over its whole length: its
+    padding stays zero)."""
     n = h.shape[0]
     for j in range(gn.shape[0]):
         gn[j] = 0.0
     for i in range(n):
-        qi = Q[i]
         ai = g[i]
         hi = h[i]
         for j in range(n):
-            v = (P[i, j] - (ai * g[j]) * cu) * il + qi[j]
+            v = (P[i, j] - (ai * g[j]) * cu) * il
+            if Q is not None:
+                v += Q[i, j]
             P[i, j] = v
             gn[j] += v * hi
 
@@ -870,7 +886,8 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
     writes ``means[k] = x * msc`` and ``ys[k] = y * ysc``. The factors are
     powers of two, so the products are exact (in range) and the numbers those
     of a run on scaled copies of the record mapped back, without the copies.
-    The scaled rows go through ``Hb`` (``(_SCALED_BLOCK + 1, n)``) a block at a
+    The scaled rows go through ``Hb`` (``(_SCALED_BLOCK + 1, n)``, in F order as
+    the blocks of `lag_gram`: the two share one compiled `lag_block`) a block at a
     time, written well before they are read (a row stored just before its
     loads stalls them). numba compiles the two cases apart (``scales is
     None`` is decided at compile time, the branches pruned), so the plain loop
@@ -894,10 +911,9 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
     """
     N = Z.shape[0]
     n = len(dims)                                    # a constant when dims is a tuple
-    hasq = Q.shape[0] > 0
+    hasq = Q is not None
     store = covs.shape[0] > 0
     th = x[:, 0].copy()                              # local: no aliasing in the loop
-    Pv = Pw[:n, :n]                                  # P in padded rows
     for i in range(n):
         for j in range(Pw.shape[1]):
             Pw[i, j] = P[i, j] if j < n else 0.0
@@ -905,7 +921,6 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
     gn = Pw[n + 1]
     W = np.empty((n, n))
     X = np.empty((n, n))
-    no_q = np.zeros((0, 0))
     cap = state[3] == 1
     n_capped = np.int64(0)                           # a literal 0: two compiles
     w = state[4]
@@ -917,16 +932,16 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
     else:
         h = Hm[0]
     if update_first:                                 # the gain of P
-        _sweep_call(Pw, g, 0.0, 1.0, no_q, h, gn)
+        _sweep_call(Pw, g, 0.0, 1.0, None, h, gn)
     else:                                            # P^- and its gain
         w = il if cap else 1.0
         _sweep_call(Pw, g, 0.0, 1.0 if cap else il, Q, h, gn)
         if store:
-            copy2(Pv, covs_p[0])
+            _copy_leading(Pw, covs_p[0])
     g, gn = gn, g
     if not update_first and N == 1:
-        copy2(x, x_prior)
-        copy2(Pv, P_prior)
+        _copy_leading(x, x_prior)
+        _copy_leading(Pw, P_prior)
     s = np.nan
     yk = np.nan
     H = Hm if scales is None else Hb
@@ -950,26 +965,26 @@ def exponential_batch(x, P, Z, Hm, Rv, il, Q, cfg, update_first, means, covs, co
         # tests with update_first, and otherwise P / lam, whose definiteness and
         # condition number are those of P (with Q the two halves run apart)
         if last or cap or store or (check and hasq and not update_first):
-            _unfused_step(x, Pw, Pv, g, gn, cu, 1.0 if cap else il, Q, hn, k,
+            _unfused_step(x, Pw, g, gn, cu, 1.0 if cap else il, Q, hn, k,
                           last, check, update_first, due, cheap_bad, cond_max, state,
                           episodes, P_fail, W, X, symmetric, x_prior, P_prior, x_post,
                           P_post, covs, covs_p)
         else:
             _sweep_call(Pw, g, cu, il, Q, hn, gn)
             if check:
-                _health(Pv, None, symmetric, cond_max, k, due, cheap_bad, state, episodes,
+                _health(Pw, None, symmetric, cond_max, k, due, cheap_bad, state, episodes,
                         P_fail, W, X)
         g, gn = gn, g
         if k == N - 2 and not update_first:
             _store_column(th, x)
-            copy2(x, x_prior)
-            copy2(Pv, P_prior)
+            _copy_leading(x, x_prior)
+            _copy_leading(Pw, P_prior)
         if last:
             break
         k += 1
         if scales is not None and k % _SCALED_BLOCK == 0:
             _fill_block(Hm, lags, k, hsc, Hb)        # the next block (row k: the same bits)
-    copy2(Pv, P)
+    _copy_leading(Pw, P)
     if not update_first:
         w = 1.0                                      # no time update after the last update
     state[2] += n_capped
@@ -1057,7 +1072,12 @@ def _usual_steps(k, N, Z, H, off, Rv, il, Q, cfg, means, ys, th, Pw, g, gn, w, c
         if cap or check or store or k + 2 >= N or kr + 2 >= rows:
             return (k, cu, kc, updated, cap, check, due, cheap_bad, s, yk, w, countdown,
                     n_capped, odd)
-        _sweep(Pw, g, cu, il, Q, H[kr + 1], gn, n, L)
+        # the fused sweep, P <- (P - (g g^T) cu) il + Q with the next gain: the branch is
+        # on an argument, so numba drops the other loop before inlining (Q is None without)
+        if Q is None:
+            _sweep_rows(Pw, g, cu, il, H[kr + 1], gn, n, L)
+        else:
+            _sweep_each_row(Pw, g, cu, il, Q, H[kr + 1], gn)
         g, gn = gn, g
         odd = not odd
         k += 1
@@ -1082,14 +1102,14 @@ def _dimension_witness(n):
     return (0,) * n if n in _SPECIALISED else np.zeros(n, dtype=np.int8)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _fill_block(Hm, lags, k, hsc, Hb):
     """The block of scaled rows from row `k`: from `Hm` (`_scale_block`), or read from the
-    lagged signals `lags` (`_kernels_lagged.lag_rows`; ``Hm`` is then not read)."""
+    lagged signals `lags` (`_kernels_lagged.lag_block`; ``Hm`` is then not read)."""
     if lags is None:
         _scale_block(Hm, k, hsc, Hb)
     else:
-        lag_rows(lags, k, hsc, Hb)
+        lag_block(lags, k, hsc, Hb)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -1098,8 +1118,8 @@ def _scale_block(Hm, k, hsc, Hb):
     block's first row) that exist."""
     rows = min(Hb.shape[0], Hm.shape[0] - k)
     n = hsc.shape[0]
-    for r in range(rows):
-        for i in range(n):
+    for i in range(n):                       # column by column: `Hb` is in F order
+        for r in range(rows):
             Hb[r, i] = Hm[k + r, i] * hsc[i]
 
 
@@ -1112,7 +1132,7 @@ def _store_column(th, x):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _unfused_step(x, Pw, P, g, gn, cu, il, Q, h, k, last, check, update_first, due, cheap_bad,
+def _unfused_step(x, Pw, g, gn, cu, il, Q, h, k, last, check, update_first, due, cheap_bad,
                   cond_max, state, episodes, P_fail, W, X, symmetric, x_prior, P_prior,
                   x_post, P_post, covs, covs_p):
     """The rare steps of `exponential_batch` (inlined there: the usual steps run in
@@ -1123,28 +1143,30 @@ def _unfused_step(x, Pw, P, g, gn, cu, il, Q, h, k, last, check, update_first, d
     length N), whose sweep runs in two halves:
     the update, then the time update with the next gain (after the last
     update only with `update_first`). The sweeps run on the padded ``Pw``, the
-    copies and the checks read its view ``P``."""
+    copies and the checks read its leading ``n x n`` block, ``P``."""
     store = covs.shape[0] > 0
     if not (check or last or store):
         _sweep_call(Pw, g, cu, il, Q, h, gn)
         return
-    _sweep_call(Pw, g, cu, 1.0, np.zeros((0, 0)), h, gn)         # the update half, no Q
+    _sweep_call(Pw, g, cu, 1.0, None, h, gn)         # the update half, no Q
     if store:
-        copy2(P, covs[k])
+        _copy_leading(Pw, covs[k])
     if last:
-        copy2(x, x_post)
-        copy2(P, P_post)
+        _copy_leading(x, x_post)
+        _copy_leading(Pw, P_post)
     if check and not update_first:
-        _health(P, None, symmetric, cond_max, k, due, cheap_bad, state, episodes, P_fail, W, X)
+        _health(Pw, None, symmetric, cond_max, k, due, cheap_bad, state, episodes, P_fail, W,
+                X)
     if not last or update_first:
         _sweep_call(Pw, g, 0.0, il, Q, h, gn)
         if store:
-            copy2(P, covs_p[k if update_first else k + 1])
+            _copy_leading(Pw, covs_p[k if update_first else k + 1])
     if check and update_first:
-        _health(P, None, symmetric, cond_max, k, due, cheap_bad, state, episodes, P_fail, W, X)
+        _health(Pw, None, symmetric, cond_max, k, due, cheap_bad, state, episodes, P_fail, W,
+                X)
     if last and update_first:
-        copy2(x, x_prior)
-        copy2(P, P_prior)
+        _copy_leading(x, x_prior)
+        _copy_leading(Pw, P_prior)
 
 
 class BatchResult:
@@ -1241,12 +1263,12 @@ def run_batch(x, P, Z, Hm, Rv, cfg, Q, basis, update_first, store_covariances,
         out.ys = residuals if given else np.empty((N if residuals else 1, 1))
         out.ss = np.empty(1)
         out.s_last = exponential_batch(
-            out.x, out.P, Zc, Hc, Rv, il, Qa, cfg, bool(update_first), out.means, covs, covs_p,
-            out.ys, out.ss, out.x_prior, out.P_prior, out.x_post, out.P_post, K,
-            int(check_every), int(step0), float(cond_max), out.state, out.episodes,
-            out.P_fail, symmetric, aligned_zeros((n + 2, padded_width(n, 0))),
+            out.x, out.P, Zc, Hc, Rv, il, None if Q is None else Qa, cfg, bool(update_first),
+            out.means, covs, covs_p, out.ys, out.ss, out.x_prior, out.P_prior, out.x_post,
+            out.P_post, K, int(check_every), int(step0), float(cond_max), out.state,
+            out.episodes, out.P_fail, symmetric, aligned_zeros((n + 2, padded_width(n, 0))),
             None if scales is None else (hsc, zsc[0], msc[:, 0].copy(), ysc[0],
-                                         aligned_zeros((_SCALED_BLOCK + 1, n))), lags,
+                                         aligned_zeros((n, _SCALED_BLOCK + 1)).T), lags,
             _dimension_witness(n))
         out.gated = np.zeros(1, dtype=np.bool_)
         out.lam_t_last = lam

@@ -18,14 +18,14 @@ An ARX fit's row ``t`` is :math:`\\varphi(t) = [-y(t-1) \\dots -y(t-n_a),\\ u(t-
 
 The entries are the numbers a regressor matrix built from the same signals holds
 (a negation is exact), so everything computed on them is what the matrix gives.
-`exponential_batch` fills its blocks of scaled rows with `lag_rows`.
+`exponential_batch` fills its blocks of scaled rows with `lag_block`.
 """
 
 import numpy as np
 
 from .._numba import njit  # numba.njit, uncached where no cache directory is writable
 
-__all__ = ["lag_rows", "lag_rows_numpy", "lag_gram", "lag_residuals"]
+__all__ = ["lag_rows", "lag_rows_numpy", "lag_block", "lag_gram", "lag_residuals"]
 
 _BLOCK = 1024   # rows `lag_gram` and `lag_residuals` build at a time
 
@@ -74,8 +74,8 @@ def lag_rows(lags, k, scale, out):
 def lag_rows_numpy(lags, k, scale, out):
     """`lag_rows` in NumPy, for the calls from Python (a few leading rows, the last row, a
     whole matrix): the same numbers, a strided copy times one factor per column and run
-    of rows, with nothing to compile (the compiled `lag_rows` is inlined into the
-    kernels that read rows a block at a time)."""
+    of rows, with nothing to compile (the compiled kernels read rows a block at a time,
+    `lag_block`)."""
     Y, U, cols, seg_rows, seg_t0 = lags
     rows = min(out.shape[0], int(seg_rows[-1]) - k)
     s = int(np.searchsorted(seg_rows, k, side="right")) - 1
@@ -114,10 +114,11 @@ def _segment(seg_rows, k):
 
 
 @njit(cache=True, error_model="numpy")
-def _lag_block(lags, k, scale, out):
-    """`lag_rows` as a call: `lag_gram` and `lag_residuals` (one block of rows per call,
-    into the same transposed work array) share this one compiled copy instead of an
-    inlined copy each (a third of a second of a first run's compile work)."""
+def lag_block(lags, k, scale, out):
+    """`lag_rows` as a call into a transposed (F-order) block: `lag_gram`,
+    `lag_residuals` and the fused loop of ``RecursiveLeastSquares`` (one block of rows per
+    call) share this one compiled copy instead of an inlined copy each (a third of a
+    second of a first run's compile work each)."""
     return lag_rows(lags, k, scale, out)
 
 
@@ -141,7 +142,7 @@ def lag_gram(lags, scale, G):
     G[:, :] = 0.0
     total = lags[3][-1]
     for k in range(0, total, _BLOCK):
-        rows = _lag_block(lags, k, scale, Bt.T)
+        rows = lag_block(lags, k, scale, Bt.T)
         for i in range(n):
             for j in range(i, n):
                 G[i, j] += _dot(Bt[i], Bt[j], rows)
@@ -195,7 +196,7 @@ def lag_residuals(lags, theta, out, top):
         rows_lags = (Y, U, with_target, seg_rows, seg_t0)
         top[i] = 0.0
         for k in range(0, total, _BLOCK):
-            rows = _lag_block(rows_lags, k, scale, Bt.T)
+            rows = lag_block(rows_lags, k, scale, Bt.T)
             w, un, c, o = np.uint64(rows), np.uint64(n), np.uint64(i), np.uint64(k)
             for r in range(w):                    # y(t) - sum_j phi_j(t) theta_j, in order
                 acc[r] = Bt[0, r]
