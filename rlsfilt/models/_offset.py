@@ -52,7 +52,9 @@ def offset_messages(records, names, ratio=OFFSET_RATIO):
       ``|mean| / std`` of order ``1 / sqrt(N_eff)``), and
     * none of its samples reaches zero (every sample on the side of the mean): a record
       that starts from rest at the origin (a step test from zero) is a record of the
-      deviations already, and a model without an offset describes it.
+      deviations already, and a model without an offset describes it;
+
+    a constant signal is not flagged (it is unexciting, which the fits' rank checks report).
 
     The ratio 5 (with the zero crossing and 20 samples) flagged none of 2,000 zero-mean
     records per case, white or coloured up to a pole at 0.99, of 20 to 3,000 samples
@@ -70,7 +72,9 @@ def offset_messages(records, names, ratio=OFFSET_RATIO):
         # every sample strictly on the side of the mean: zero lies outside the record's range
         one_sided = np.where(mean > 0, X.min(axis=0) > 0, X.max(axis=0) < 0)
         for j in range(X.shape[1]):
-            if abs(mean[j]) > ratio * std[j] and one_sided[j]:
+            # a constant signal (std 0) is unexciting, not an operating point: the rank
+            # checks of the fits speak of it
+            if abs(mean[j]) > ratio * std[j] > 0 and one_sided[j]:
                 default = label if X.shape[1] == 1 else f"{label}{j + 1}"
                 name = names[k][j] if names and names[k] else default
                 out.append(f"{kind} {name!r} has mean {mean[j]:.4g} against a standard "
