@@ -420,6 +420,12 @@ class ARX(IdentifiedModel):
             of 1e6, or any form above 1e10. ``"rls"``/``"riv"`` with a prior
             start from the default ``P0`` when it outweighs the data
             (signals far below unit size).
+        OperatingPointWarning
+            ``offset=False`` on a record around an operating point: a signal's
+            mean above 5 standard deviations with no sample reaching zero
+            (the rule :func:`~rlsfilt.validation.validate` applies too). The
+            fit then mostly describes the operating point; fit with
+            ``offset=True`` or ``"mean"``, or detrend the record first.
 
         Notes
         -----
