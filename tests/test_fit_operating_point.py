@@ -177,6 +177,9 @@ def test_validate_and_the_fit_apply_the_same_rule():
     assert len(val_ops) == 1
     for part in offset_messages([(u, y)], (None, None)):
         assert part in str(fit_ops[0].message) and part in str(val_ops[0].message)
+    # validate names the remedy of the model's class: OE has no offset to set
+    assert "Detrend the record first" in str(val_ops[0].message)
+    assert "offset=True" not in str(val_ops[0].message)
     # the step test from rest warns in neither
     step = np.r_[np.zeros(10), np.repeat(np.random.default_rng(0).choice([1.0, 2.0], 98), 5)]
     noise = 0.01 * np.random.default_rng(1).standard_normal(500)

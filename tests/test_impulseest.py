@@ -160,6 +160,11 @@ def test_fixed_hyperparameters_give_the_closed_form_posterior(kind):
     assert_allclose(g.hyperparameters["lam"], h["lam"], rtol=0)
     assert g.noise_order == 0 and g.regularization == kind
     assert f"regularized by the {kind.upper()} kernel" in str(g.summary())
+    import matplotlib.pyplot as plt
+
+    fig = g.plot()
+    assert f"u1 to y ({kind.upper()} kernel, posterior)" in fig.axes[0].get_title()
+    plt.close(fig)
 
 
 @pytest.mark.parametrize("kind", ["tc", "dc"])

@@ -82,22 +82,30 @@ def offset_messages(records, names, ratio=OFFSET_RATIO):
     return out
 
 
+def operating_point_remedy(model):
+    """What to do about an ignored operating point, for the class of `model`: an ``offset``
+    where the class has one (ARX), else detrending the record."""
+    name = type(model).__name__
+    detrend = ("the record first: rlsfilt.detrend(u) and rlsfilt.detrend(y), or "
+               "rlsfilt.detrend(data) of an IOData (remove the same operating point from the "
+               "validation data)")
+    if "offset" in model.get_params():
+        return (f"Fit {name}(..., offset=True) (an intercept) or offset='mean', or detrend "
+                + detrend)
+    return "Detrend " + detrend
+
+
 def warn_fit_operating_point(model, records, names, stacklevel):
     """Warn (`OperatingPointWarning`) once, at fit time, when `records` sit far from zero
     (:func:`offset_messages`) and `model` has no operating-point handling; the message
-    names the remedy for its class. `stacklevel` points at the user's ``fit`` call."""
+    names the remedy for its class (:func:`operating_point_remedy`). `stacklevel` points
+    at the user's ``fit`` call."""
     if model_offset_mode(model) != "none":
         return
     msgs = offset_messages(records, names)
     if not msgs:
         return
-    name = type(model).__name__
-    own = "offset" in model.get_params()
-    remedy = (f"fit {name}(..., offset=True) (an intercept) or offset='mean', or detrend "
-              if own else "detrend ")
-    warnings.warn(f"{name}.fit: " + "; ".join(msgs) + ", and the model has no offset "
-                  "handling: the fit mostly describes the operating point, not the dynamics. "
-                  + remedy[0].upper() + remedy[1:] + "the record first: rlsfilt.detrend(u) and "
-                  "rlsfilt.detrend(y), or rlsfilt.detrend(data) of an IOData (remove the same "
-                  "operating point from the validation data)", OperatingPointWarning,
+    warnings.warn(f"{type(model).__name__}.fit: " + "; ".join(msgs) + ", and the model has no "
+                  "offset handling: the fit mostly describes the operating point, not the "
+                  "dynamics. " + operating_point_remedy(model), OperatingPointWarning,
                   stacklevel=stacklevel + 1)

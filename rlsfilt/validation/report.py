@@ -12,7 +12,7 @@ from .._validation import check_int, check_probability
 from .._version import __version__
 from ..exceptions import ExactFitError, InsufficientDataError, OperatingPointWarning
 from ..models._base import check_is_fitted
-from ..models._offset import model_offset_mode, offset_messages
+from ..models._offset import model_offset_mode, offset_messages, operating_point_remedy
 from ..models._residual_tests import auto_max_lag
 from ..models.regressors import as_records
 from ..plotting import plot_comparison, plot_report
@@ -565,9 +565,8 @@ def validate(model, u, y=None, plant=None, *, initial="estimate", max_lag="auto"
         msgs = offset_messages(records, (info.get("u_names"), info.get("y_names")))
         if msgs:
             warnings.warn("; ".join(msgs) + ", and the model has no offset handling: the "
-                          "fit mostly describes the operating point. Detrend the data "
-                          "(rlsfilt.detrend) or fit with offset=True", OperatingPointWarning,
-                          stacklevel=2)
+                          "fit mostly describes the operating point. "
+                          + operating_point_remedy(model), OperatingPointWarning, stacklevel=2)
     Phis, Es, glued_u = [], [], []
     for k, (uk, yk) in enumerate(parts):
         Phi_k, _, E_k = one_step(model, uk, yk, "validate")   # the regressors, built once
