@@ -896,15 +896,16 @@ plt.show()"""),
 
 An ARX model has no constant term: fitted on signals around 97 degC and 40 %, its parameters
 mostly describe the operating point. On the first run the static gain comes out with the wrong
-sign and the model is unstable, so its simulation diverges. `validate` warns about the ignored
-operating point and reports the instability instead of a huge negative fit."""),
+sign and the model is unstable, so its simulation diverges. The fit and `validate` both warn
+about the ignored operating point, and the report states the instability instead of a huge
+negative fit."""),
     ("code", r"""run1, run2 = ds.getexp("run1"), ds.getexp("run2")
-raw = ARX(2, 2, 8, dt=ds.dt).fit(run1)
+with warnings.catch_warnings(record=True) as caught:   # shown below, as sentences
+    warnings.simplefilter("always")
+    raw = ARX(2, 2, 8, dt=ds.dt).fit(run1)
+    raw_report = validate(raw, run2)
 print("static gain of the raw model:", round(raw.dc_gain(), 3), "(true: -0.6)")
 print(raw.stability_text())
-with warnings.catch_warnings(record=True) as caught:   # shown below, as a sentence
-    warnings.simplefilter("always")
-    raw_report = validate(raw, run2)
 for w in caught:
     print(textwrap.fill(f"{w.category.__name__}: {w.message}", width=90))
 print("\n".join(str(raw_report.summary()).splitlines()[2:4]))"""),
@@ -972,9 +973,12 @@ i = raw_sel.best_index
 print("raw record, best by BIC:", raw_sel.best,
       "largest pole", round(raw_sel.table["max_pole"][i], 4))
 with warnings.catch_warnings():
-    warnings.simplefilter("ignore")   # the stable best sits at the grid's edge on raw data
+    # the stable best sits at the grid's edge on raw data, and its refit on the raw record
+    # warns about the operating point (as the first fit above did)
+    warnings.simplefilter("ignore")
     safe = select_order(run1, **grid, stable_only=True)
-print("with stable_only:", safe.best, safe.best_model().stability_text())
+    safe_text = safe.best_model().stability_text()
+print("with stable_only:", safe.best, safe_text)
 print("with the operating point handled:", select_order(run1, **grid, offset=True).best)"""),
     ("md", r"""## 5. Continuous time
 

@@ -495,7 +495,11 @@ def _run_identify(args):
         task = f"least squares over a window of {args.window} rows"
     with progress.task(f"{task} on {est.n_samples} samples"):
         try:
-            model.fit(est, method=args.method, **options)
+            with warnings.catch_warnings():
+                # an ignored operating point (--detrend none) is warned about once, by
+                # validate below, as the command's own warnings are (not by the fit too)
+                warnings.simplefilter("ignore", OperatingPointWarning)
+                model.fit(est, method=args.method, **options)
         except ValueError as exc:    # e.g. an input that is not exciting for these orders
             raise CLIError(f"{type(model).__name__}: {exc}") from None
     if args.method in _GRADIENT_METHODS and not np.isfinite(model.theta_).all():

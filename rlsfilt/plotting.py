@@ -1148,7 +1148,9 @@ def plot_impulse(impulse, ax=None, *, level=0.99):
         if first.size:
             axj.axvline(lags[first[0]], color=COLORS[1], lw=0.8, ls="--")
         name = impulse.input_names[j]
-        axj.set_title(f"Impulse response {name} to {impulse.output_name}: {text}\n"
+        reg = impulse.regularization
+        how = f" ({reg.upper()} kernel, posterior)" if reg else ""
+        axj.set_title(f"Impulse response {name} to {impulse.output_name}{how}: {text}\n"
                       f"shaded: {100 * level:g}% band per lag (+-{z:.3g} standard errors)",
                       fontsize="medium")
         axj.set_ylabel(rf"$\hat g(k)$ ({name})")

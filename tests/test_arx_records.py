@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy.signal import lfilter
 
-from rlsfilt import ARX
+from rlsfilt import ARX, OperatingPointWarning
 from rlsfilt.data import IOData, detrend
 from rlsfilt.datasets import heat_exchanger
 from rlsfilt.validation import fit_percent
@@ -137,7 +137,9 @@ def test_operating_point_decides_the_answer():
     fit without offset handling; either kind of offset recovers the plant."""
     ds = heat_exchanger()
     est, val = ds.getexp(0), ds.getexp(1)
-    raw = ARX(2, 2, 8, dt=1.0).fit(est)
+    with pytest.warns(OperatingPointWarning, match=r"ARX.fit: input 'flow' has mean 40.*"
+                                                   r"output 'T_out' has mean 96.8.*offset=True"):
+        raw = ARX(2, 2, 8, dt=1.0).fit(est)
     assert np.sum(raw.b_) / (1 + np.sum(raw.a_)) > 0          # true gain is -0.6
     for offset in (True, "mean"):
         model = ARX(2, 2, 8, dt=1.0, offset=offset).fit(est)

@@ -94,7 +94,9 @@ def test_validate_takes_iodata_of_several_experiments(rng):
 def test_validate_warns_about_an_ignored_operating_point(rng):
     u = 40.0 + rng.standard_normal(300)
     y = 97.0 + lfilter([0, 0.5], [1, -0.9], u - 40.0) + 0.05 * rng.standard_normal(300)
-    raw = ARX(1, 1).fit(u, y)
+    with pytest.warns(OperatingPointWarning, match=r"^ARX.fit: input 'u' has mean 39.9.*"
+                                                   r"offset=True"):
+        raw = ARX(1, 1).fit(u, y)                 # the fit says so, and validate again
     with pytest.warns(OperatingPointWarning, match=r"input 'u' has mean 39.9.*output 'y' has "
                                                    r"mean 96.6.* and the model has no offset "
                                                    r"handling.*offset=True"):

@@ -24,7 +24,6 @@ import numbers
 import numpy as np
 
 from .._display import trend_html
-from .._scale import pow2_scale
 from .._validation import as_float_array, check_finite, check_int
 from .iodata import IOData
 
@@ -344,29 +343,6 @@ def retrend(data, trend):
 # ----------------------------------------------------------------------
 # private helpers
 # ----------------------------------------------------------------------
-def _offset_messages(records, names, ratio=3.0):
-    """Messages for signals whose mean is large against their variation.
-
-    `records` is ``[(U, Y), ...]`` (2-D arrays per experiment), `names` the
-    ``(input_names, output_names)``. A signal is flagged when ``|mean| >
-    ratio * std`` over all its samples (a record centred by `detrend` never
-    is).
-    """
-    out = []
-    for k, (kind, label) in enumerate((("input", "u"), ("output", "y"))):
-        X = np.vstack([r[k] for r in records])
-        c = pow2_scale(X, axis=0)       # std of a record in any units (rlsfilt._scale)
-        Xs = X / c
-        mean, std = Xs.mean(axis=0) * c, Xs.std(axis=0) * c
-        for j in range(X.shape[1]):
-            if abs(mean[j]) > ratio * std[j]:
-                default = label if X.shape[1] == 1 else f"{label}{j + 1}"
-                name = names[k][j] if names and names[k] else default
-                out.append(f"{kind} {name!r} has mean {mean[j]:.4g} against a standard "
-                           f"deviation of {std[j]:.3g}")
-    return out
-
-
 def _as_columns(data, name):
     if hasattr(data, "to_numpy"):
         data = data.to_numpy()

@@ -22,6 +22,7 @@ from .._lazy_scipy import lfilter, lfiltic
 from .._validation import check_int
 from ._base import IdentifiedModel, Polynomials
 from ._family import param_names, split_theta
+from ._offset import warn_fit_operating_point
 from ._pem import (
     _shift,
     criterion_rows,
@@ -95,6 +96,8 @@ class PolynomialModel(IdentifiedModel):
                              f"{s.t0 + s.n_params} samples{per} for {self._orders_text()}; got "
                              f"{N}")
         check_input_rank(records, s.nb, s.nk, s.t0)     # collinear inputs: as ARMAX, ARX
+        warn_fit_operating_point(self, records, (info.get("u_names"), info.get("y_names")),
+                                 stacklevel)
 
         learned = {"method_": method}
         if method == "pem":

@@ -170,6 +170,13 @@ class ARMAX(PolynomialModel):
 
         Warns
         -----
+        OperatingPointWarning
+            Any method, on a record around an operating point (a signal's
+            mean above 5 standard deviations, no sample reaching zero): the
+            family has no offset parameter, so the fit would mostly describe
+            the operating point; detrend the record first
+            (:func:`~rlsfilt.detrend`, also of an `IOData`). The same for
+            `OE`, `BJ`, `AR` and `ARMA`.
         ConvergenceWarning
             ``"pem"``: the search ended with a zero of ``C`` (``F``, ``D``)
             on the stability boundary, stopped at ``max_nfev`` or

@@ -37,6 +37,7 @@ from ._arx_iv import fit_arx_iv
 from ._base import IdentifiedModel, Polynomials
 from ._lag_rows import LagRows, MatrixRows
 from ._offset import offset_mode as _offset_mode
+from ._offset import warn_fit_operating_point
 from ._summary import EQUATION_STYLES, ModelSummary
 from ._tuning_option import tuning_param
 from ._units import (
@@ -440,6 +441,12 @@ class ARX(IdentifiedModel):
             of 1e6, or any form above 1e10. ``"rls"``/``"riv"`` with a prior
             start from the default ``P0`` when it outweighs the data
             (signals far below unit size).
+        OperatingPointWarning
+            ``offset=False`` on a record around an operating point: a signal's
+            mean above 5 standard deviations with no sample reaching zero
+            (the rule :func:`~rlsfilt.validation.validate` applies too). The
+            fit then mostly describes the operating point; fit with
+            ``offset=True`` or ``"mean"``, or detrend the record first.
 
         Notes
         -----
@@ -515,6 +522,8 @@ class ARX(IdentifiedModel):
         check_memory(_fit_bytes(rows, n_params, s, method),
                      f"ARX.fit(method={method!r}) with {n_params} parameters on `u`, `y` of "
                      f"{sum(len(U) for U, _ in records)} samples")
+        warn_fit_operating_point(self, records, (info.get("u_names"), info.get("y_names")),
+                                 stacklevel=2)
         op = _means(records) if _offset_mode(self.offset) == "mean" else None
         # compute everything first: a fit that raises leaves the model as it was
         recursive, cov_iv = {}, None

@@ -295,7 +295,7 @@ def _impulse_check(data, delays, nk_min, nk_max, nb):
     n_most = max(n, min(data.lengths) // (4 * data.n_inputs))
     while True:
         try:
-            g = impulseest(data, n_coeffs=n)
+            g = impulseest(data, n_coeffs=n, regularization=None)
         except ValueError:        # too short a record for the FIR estimate: no check
             return []
         # the response must have died out within the lags estimated (its last _TAIL

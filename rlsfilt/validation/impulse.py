@@ -15,6 +15,13 @@ impulse response and white noise (a two-step generalized least squares
 estimate, Ljung 1999, sec. 7.6 and 8.5). The standard errors are then those
 of ordinary least squares, :math:`\hat\sigma^2 (\Phi^\top\Phi)^{-1}`, from a
 QR factorization.
+
+By default (as MATLAB's ``impulseest``) the estimate is regularized instead: a
+Gaussian prior on the coefficients, the TC kernel (or DC) whose hyperparameters
+maximize the marginal likelihood of the data (empirical Bayes), gives the posterior
+mean and covariance (:mod:`rlsfilt.validation._kernel_fir`; Chen, Ohlsson and Ljung
+2012). It sees a long response, or one through a narrow-band input such as a
+logarithmic sweep, where least squares with as many coefficients drowns in variance.
 """
 
 import html
@@ -26,6 +33,7 @@ from .._display import Summary, frame_html, table_html
 from .._validation import check_int
 from ..data.iodata import as_iodata
 from ..plotting import plot_impulse
+from ._kernel_fir import KERNEL_PARAMS, fit_kernel
 
 __all__ = ["ImpulseResponse", "impulseest"]
 
@@ -33,7 +41,7 @@ _Band = namedtuple("Band", ["lower", "upper"])
 
 
 class ImpulseResponse:
-    """Result of :func:`impulseest`.
+    r"""Result of :func:`impulseest`.
 
     Attributes
     ----------
@@ -53,9 +61,23 @@ class ImpulseResponse:
         Its polynomial ``[1, d1, .., d_p]``.
     n_rows : int
         Number of regression rows (over all experiments).
+    regularization : {"tc", "dc"} or None
+        The kernel of the regularized estimate (None: least squares).
+    hyperparameters : dict or None
+        The kernel's hyperparameters, each an array with one value per input
+        (``c``, ``lam``; and ``rho`` for DC); None without regularization.
+    log_marginal_likelihood : float or None
+        :math:`\log p(Y \mid \eta)` of the regression at those
+        hyperparameters (the maximum, unless they were given); None without
+        regularization.
+    noise_variance : float
+        :math:`\hat\sigma^2`, from the least-squares residuals of the
+        (prewhitened) regression.
     """
 
-    def __init__(self, coefficients, stderr, dt, input_names, output_name, noise_ar, n_rows):
+    def __init__(self, coefficients, stderr, dt, input_names, output_name, noise_ar, n_rows,
+                 *, regularization=None, hyperparameters=None, log_marginal_likelihood=None,
+                 noise_variance=None):
         self.coefficients = coefficients
         self.stderr = stderr
         self.lags = np.arange(coefficients.shape[0])
@@ -65,6 +87,10 @@ class ImpulseResponse:
         self.noise_ar = noise_ar
         self.noise_order = len(noise_ar) - 1
         self.n_rows = n_rows
+        self.regularization = regularization
+        self.hyperparameters = hyperparameters
+        self.log_marginal_likelihood = log_marginal_likelihood
+        self.noise_variance = noise_variance
 
     def __repr__(self):
         return (f"<ImpulseResponse: {self.coefficients.shape[0]} coefficients per input, "
@@ -157,8 +183,16 @@ class ImpulseResponse:
             ``print`` it, or display it in a notebook (a table).
         """
         z = self.z_value(level)
+        if self.regularization is None:
+            how = f"noise prewhitened by AR({self.noise_order})"
+        else:
+            hyp = ", ".join(f"{k} = " + ", ".join(f"{v:.3g}" for v in vals)
+                            for k, vals in self.hyperparameters.items())
+            how = (f"regularized by the {self.regularization.upper()} kernel ({hyp})"
+                   + (f", noise prewhitened by AR({self.noise_order})" if self.noise_order
+                      else ""))
         lines = [f"Impulse response estimate: {self.coefficients.shape[0]} coefficients per "
-                 f"input, {self.n_rows} rows, noise prewhitened by AR({self.noise_order}); "
+                 f"input, {self.n_rows} rows, {how}; "
                  f"{100 * level:g} % bands (+-{z:.3g} standard errors)"]
         sig = self.significant(level)
         rows = []
@@ -192,8 +226,9 @@ class ImpulseResponse:
         return plot_impulse(self, ax=ax, level=level)
 
 
-def impulseest(u, y=None, n_coeffs=None, *, noise_order=10, dt=None):
-    r"""Estimate the impulse response of every input, with standard errors.
+def impulseest(u, y=None, n_coeffs=None, *, regularization="tc", hyperparameters=None,
+               noise_order="auto", dt=None):
+    r"""Estimate the impulse response of every input, with confidence bands.
 
     Parameters
     ----------
@@ -206,25 +241,41 @@ def impulseest(u, y=None, n_coeffs=None, *, noise_order=10, dt=None):
     n_coeffs : int, optional
         Number of coefficients per input, lags ``0 .. n_coeffs - 1``;
         ``min(70, N // (4 nu))`` by default (MATLAB uses 70).
-    noise_order : int, default 10
+    regularization : {"tc", "dc", None}, default "tc"
+        The prior of the regularized estimate (MATLAB's
+        ``RegularizationKernel``, whose default is also TC): ``"tc"``
+        (tuned/correlated, :math:`P_{kj} = c \lambda^{\max(k, j)}`),
+        ``"dc"`` (diagonal/correlated, :math:`P_{kj} = c
+        \lambda^{(k+j)/2} \rho^{|k-j|}`), one kernel per input, lags
+        :math:`k = 1 .. n`; or None for (prewhitened) least squares.
+    hyperparameters : dict, optional
+        Fixed kernel hyperparameters instead of the marginal-likelihood
+        optimum: ``{"c": .., "lam": ..}`` (and ``"rho"`` for DC), each a
+        number or one per input, with ``c >= 0``, ``0 <= lam <= 1``,
+        ``-1 <= rho <= 1``. Only with a `regularization`.
+    noise_order : int or "auto", default "auto"
         Order of the autoregression that prewhitens the noise before the
-        final fit (0: plain least squares, whose standard errors assume
-        white noise).
+        final fit (0: none). ``"auto"``: 10 for least squares, 0 for a
+        regularized estimate (MATLAB's ``PW = 'auto'``).
     dt : float, optional
         Sampling period (for an IOData, its own).
 
     Returns
     -------
     ImpulseResponse
-        ``.coefficients`` and ``.stderr`` of shape ``(n_coeffs, nu)``,
+        ``.coefficients`` and ``.stderr`` of shape ``(n_coeffs, nu)`` (the
+        posterior mean and standard deviations of a regularized estimate),
         ``.band(level)``, ``.delay()`` (the first significant lag per
-        input), ``.summary()``, ``.plot()``.
+        input), ``.summary()``, ``.plot()``; ``.hyperparameters`` and
+        ``.log_marginal_likelihood`` of a regularized one.
 
     Raises
     ------
     ValueError
-        Several outputs, or a record too short for `n_coeffs` (fewer rows
-        than coefficients).
+        Several outputs, a record too short for `n_coeffs` (fewer rows
+        than coefficients), an unknown `regularization`, or
+        `hyperparameters` missing a name, out of range, or given without a
+        `regularization`.
 
     Notes
     -----
@@ -240,11 +291,34 @@ def impulseest(u, y=None, n_coeffs=None, *, noise_order=10, dt=None):
     The input need not be white: a swept sine (chirp) works as long as it
     excites every frequency the response has.
 
+    **Regularized estimate** (the default). The noise variance
+    :math:`\hat\sigma^2` is that of the least-squares residuals; with the
+    prior :math:`g \sim N(0, P(\eta))` the data are Gaussian,
+    :math:`Y \sim N(0, \Phi P \Phi^\top + \hat\sigma^2 I)`, and the
+    hyperparameters :math:`\eta` maximize that marginal likelihood
+    (empirical Bayes, scipy's L-BFGS-B from several decay rates). The
+    estimate is the posterior mean :math:`\hat g = (\Phi^\top\Phi +
+    \hat\sigma^2 P^{-1})^{-1} \Phi^\top Y` and the bands come from the
+    posterior covariance :math:`\hat\sigma^2 (\Phi^\top\Phi + \hat\sigma^2
+    P^{-1})^{-1}`. The prior pulls the poorly excited directions toward a
+    smooth, decaying response instead of letting them blow up: on a
+    logarithmic sweep, which spends little time at high frequencies, least
+    squares with 70 coefficients per input sees nothing while the
+    regularized estimate shows the response and its delay. Bayesian bands
+    are narrower where the prior is informative, and the estimate is
+    biased toward zero there (the price of its lower variance);
+    :func:`~rlsfilt.delayest` checks its delays with the least-squares
+    estimate (``regularization=None``), whose tests it was calibrated on.
+
     References
     ----------
     .. [1] L. Ljung, *System Identification: Theory for the User*, 2nd ed.,
        Prentice Hall, 1999, sec. 6.1 and 7.6.
-    .. [2] MATLAB System Identification Toolbox, ``impulseest``.
+    .. [2] T. Chen, H. Ohlsson and L. Ljung, "On the estimation of transfer
+       functions, regularizations and Gaussian processes - Revisited",
+       *Automatica* 48(8), 1525-1535, 2012.
+    .. [3] MATLAB System Identification Toolbox, ``impulseest`` and
+       ``impulseestOptions``.
 
     Examples
     --------
@@ -257,8 +331,8 @@ def impulseest(u, y=None, n_coeffs=None, *, noise_order=10, dt=None):
     >>> u = rng.standard_normal(2000)
     >>> y = lfilter([0] * 5 + [1.0, 0.5], [1, -0.7], u) + 0.1 * rng.standard_normal(2000)
     >>> g = impulseest(u, y, n_coeffs=30)
-    >>> g.delay()
-    5
+    >>> g.delay(), g.regularization
+    (5, 'tc')
     >>> round(float(g.coefficients[5, 0]), 2)
     1.0
     """
@@ -266,10 +340,15 @@ def impulseest(u, y=None, n_coeffs=None, *, noise_order=10, dt=None):
     if data.n_outputs != 1:
         raise ValueError(f"`y` must hold one output; got {data.n_outputs} (estimate the "
                          "impulse responses of each output separately)")
+    if regularization is not None and regularization not in KERNEL_PARAMS:
+        raise ValueError(f"`regularization` must be 'tc', 'dc' or None; got {regularization!r}")
     nu = data.n_inputs
     if n_coeffs is None:
         n_coeffs = max(min(70, min(data.lengths) // (4 * nu)), 1)
     n = check_int(n_coeffs, "n_coeffs", minimum=1)
+    hyper = _hyperparameters(hyperparameters, regularization, nu)
+    if isinstance(noise_order, str) and noise_order == "auto":
+        noise_order = 10 if regularization is None else 0
     p = check_int(noise_order, "noise_order", minimum=0)
     arrays = list(data.arrays())
     mu_u = np.vstack([U for U, _ in arrays]).mean(axis=0)
@@ -305,14 +384,22 @@ def impulseest(u, y=None, n_coeffs=None, *, noise_order=10, dt=None):
     g = np.linalg.solve(R, Q.T @ target)
     res = target - Phi @ g
     dof = max(len(target) - n_par, 1)
-    sigma2 = float(res @ res) / dof
-    Rinv = np.linalg.solve(R, np.eye(n_par))
-    var = sigma2 * np.sum(Rinv * Rinv, axis=1)     # diag(R^-1 R^-T)
+    sigma2 = float(res @ res) / dof     # the least-squares noise variance (both estimates)
+    lml = None
+    if regularization is None:
+        Rinv = np.linalg.solve(R, np.eye(n_par))
+        var = sigma2 * np.sum(Rinv * Rinv, axis=1)     # diag(R^-1 R^-T)
+    else:
+        # posterior mean and covariance under the kernel prior (module _kernel_fir)
+        g, cov, hyper, lml = fit_kernel(Phi, target, regularization, nu, n, sigma2, hyper)
+        var = np.clip(np.diag(cov), 0.0, None)
+        hyper = {k: np.array(v, dtype=float) for k, v in hyper.items()}
     # columns are ordered input by input: reshape to (nu, n) then transpose
     coeffs = g.reshape(nu, n).T
     stderr = np.sqrt(var).reshape(nu, n).T
     return ImpulseResponse(coeffs, stderr, data.dt, data.input_names, data.output_names[0], D,
-                           len(target))
+                           len(target), regularization=regularization, hyperparameters=hyper,
+                           log_marginal_likelihood=lml, noise_variance=sigma2)
 
 
 # ----------------------------------------------------------------------
@@ -331,3 +418,31 @@ def _fir_rows(arrays, n, skip):
         Phis.append(np.column_stack(cols))
         targets.append(Y[t0:])
     return np.vstack(Phis), np.concatenate(targets)
+
+
+def _hyperparameters(hyperparameters, regularization, nu):
+    """The fixed hyperparameters as ``{name: array of nu}`` (validated), or None."""
+    if hyperparameters is None:
+        return None
+    if regularization is None:
+        raise ValueError("`hyperparameters` needs a `regularization` ('tc' or 'dc'); got "
+                         "regularization=None")
+    if not isinstance(hyperparameters, dict):
+        raise TypeError(f"`hyperparameters` must be a dict such as {{'c': 1.0, 'lam': 0.9}}; "
+                        f"got {type(hyperparameters).__name__}")
+    names = KERNEL_PARAMS[regularization]
+    if set(hyperparameters) != set(names):
+        raise ValueError(f"`hyperparameters` of the {regularization.upper()} kernel must have "
+                         f"the keys {list(names)}; got {sorted(hyperparameters)}")
+    bounds = {"c": (0.0, np.inf), "lam": (0.0, 1.0), "rho": (-1.0, 1.0)}
+    out = {}
+    for name in names:
+        v = np.array(hyperparameters[name], dtype=float).reshape(-1)
+        if v.size == 1:
+            v = np.repeat(v, nu)
+        lo, hi = bounds[name]
+        if v.size != nu or not np.all(np.isfinite(v)) or np.any(v < lo) or np.any(v > hi):
+            raise ValueError(f"`hyperparameters['{name}']` must be one number in [{lo:g}, "
+                             f"{hi:g}] or one per input ({nu}); got {hyperparameters[name]!r}")
+        out[name] = v
+    return out

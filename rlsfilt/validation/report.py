@@ -10,9 +10,9 @@ from .._resources import check_memory
 from .._serialize import jsonable
 from .._validation import check_int, check_probability
 from .._version import __version__
-from ..data.trend import _offset_messages
 from ..exceptions import ExactFitError, InsufficientDataError, OperatingPointWarning
 from ..models._base import check_is_fitted
+from ..models._offset import model_offset_mode, offset_messages, operating_point_remedy
 from ..models._residual_tests import auto_max_lag
 from ..models.regressors import as_records
 from ..plotting import plot_comparison, plot_report
@@ -468,10 +468,12 @@ def validate(model, u, y=None, plant=None, *, initial="estimate", max_lag="auto"
     Warns
     -----
     OperatingPointWarning
-        When a signal's mean is large against its variation (more than 3
-        standard deviations) and the model has no offset handling (its
-        ``offset`` is False or it has none): detrend the data or fit with
-        ``offset=True``.
+        When a signal's mean is large against its variation (more than 5
+        standard deviations) and none of its samples reaches zero (a record
+        from rest at the origin is not flagged), and the model has no offset
+        handling (its ``offset`` is False or it has none): detrend the data
+        or fit with ``offset=True``. The model's ``fit`` warns by the same
+        rule.
 
     Raises
     ------
@@ -559,13 +561,12 @@ def validate(model, u, y=None, plant=None, *, initial="estimate", max_lag="auto"
     ny = records[0][1].shape[1]
     check_memory(8 * n_total * (2 * n_par + 8 + 2 * nu + 4 * ny),
                  f"validate on `u`, `y` of {n_total} samples")
-    if _offset_mode(model) == "none":
-        msgs = _offset_messages(records, (info.get("u_names"), info.get("y_names")))
+    if model_offset_mode(model) == "none":
+        msgs = offset_messages(records, (info.get("u_names"), info.get("y_names")))
         if msgs:
             warnings.warn("; ".join(msgs) + ", and the model has no offset handling: the "
-                          "fit mostly describes the operating point. Detrend the data "
-                          "(rlsfilt.detrend) or fit with offset=True", OperatingPointWarning,
-                          stacklevel=2)
+                          "fit mostly describes the operating point. "
+                          + operating_point_remedy(model), OperatingPointWarning, stacklevel=2)
     Phis, Es, glued_u = [], [], []
     for k, (uk, yk) in enumerate(parts):
         Phi_k, _, E_k = one_step(model, uk, yk, "validate")   # the regressors, built once
@@ -652,14 +653,6 @@ def _signal_labels(model, info):
         out[f"{kind}_names"] = tuple(str(v) for v in names)
         out[f"{kind}_units"] = tuple(str(v) for v in units)
     return out
-
-
-def _offset_mode(model):
-    """``"none"`` unless the model handles an operating point (an ``offset`` parameter)."""
-    offset = model.get_params().get("offset", False)
-    if isinstance(offset, str):
-        return offset
-    return "intercept" if offset else "none"
 
 
 def _is_iv(model):

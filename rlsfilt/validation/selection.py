@@ -385,9 +385,9 @@ def select_order(u, y=None, na=_NA, nb=_NB, nk=_NK, criterion="bic", validation=
     if fit_options is not None:
         raise ValueError("`fit_options` applies to the classes fitted by prediction error, "
                          "not to ARX (searched by least squares); remove it")
-    from ..models.arx import _offset_mode
+    from ..models._offset import offset_mode
 
-    mode = _offset_mode(offset)
+    mode = offset_mode(offset)
     records, info = _records(u, y, "u", "y")
     nu = records[0][0].shape[1]
     names = info["u_names"] or [f"u{j + 1}" for j in range(nu)]
