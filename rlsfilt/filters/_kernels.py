@@ -682,12 +682,8 @@ def step_batch(x, P, Z, Hm, Rv, il, Q, update_first, cfg, basis,
     for k in range(N):
         if not update_first:
             w = il if cap else 1.0
-            if wd is None:
-                _time_step(x, P, 1.0 if cap else il, Q, Pi, T, k, N, means_p, covs_p,
-                           x_prior, P_prior)
-            else:
-                _diagonal_time_step(x, P, il != 1.0 and not cap, wd, Q, Pi, T, k, N, means_p,
-                                    covs_p, x_prior, P_prior)
+            _mode_time_step(x, P, il, cap, wd, Q, Pi, T, k, N, means_p, covs_p, x_prior,
+                            P_prior)
         z = Z[k]
         n_capped += w != 1.0
         if wd is not None:
@@ -713,12 +709,8 @@ def step_batch(x, P, Z, Hm, Rv, il, Q, update_first, cfg, basis,
         cheap_bad = plain and diagonal_bad(P)
         if update_first:
             w = il if cap else 1.0
-            if wd is None:
-                _time_step(x, P, 1.0 if cap else il, Q, Pi, T, k, N, means_p, covs_p,
-                           x_prior, P_prior)
-            else:
-                _diagonal_time_step(x, P, il != 1.0 and not cap, wd, Q, Pi, T, k, N, means_p,
-                                    covs_p, x_prior, P_prior)
+            _mode_time_step(x, P, il, cap, wd, Q, Pi, T, k, N, means_p, covs_p, x_prior,
+                            P_prior)
         countdown -= 1                 # zero when (step0 + k + 1) % check_every == 0
         due = countdown == 0
         if due:
@@ -751,6 +743,18 @@ def _diagonal_time_step(x, P, forget, wd, Q, Pi, T, k, N, means_p, covs_p, x_pri
     elif Q.shape[0] or Pi.shape[0]:
         time_update(P, 1.0, Q, Pi, T, P)
     _record_prior(x, P, k, N, means_p, covs_p, x_prior, P_prior)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _mode_time_step(x, P, il, cap, wd, Q, Pi, T, k, N, means_p, covs_p, x_prior, P_prior):
+    """`step_batch`'s time update of either kind: `_time_step` (``il``, or 1 when the
+    windup `cap` holds it back), or `_diagonal_time_step` when the mode has per-parameter
+    factors `wd` (None otherwise)."""
+    if wd is None:
+        _time_step(x, P, 1.0 if cap else il, Q, Pi, T, k, N, means_p, covs_p, x_prior, P_prior)
+    else:
+        _diagonal_time_step(x, P, il != 1.0 and not cap, wd, Q, Pi, T, k, N, means_p, covs_p,
+                            x_prior, P_prior)
 
 
 @njit(cache=True, error_model="numpy", inline="always")

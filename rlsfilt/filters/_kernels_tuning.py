@@ -239,6 +239,20 @@ _LOG_2PI = math.log(2.0 * math.pi)
 
 
 @njit(cache=True)
+def _add_log(slog, prod, s):
+    """``(slog, prod)`` after adding ``log s`` to ``slog + log prod``: ``sum log s`` kept as
+    the log of running products (one ``log`` per hundred steps or so)."""
+    if s < 1e100:
+        prod *= s
+        if prod > 1e150:
+            slog += math.log(prod)
+            prod = 1.0
+    else:
+        slog += math.log(s)
+    return slog, prod
+
+
+@njit(cache=True)
 def scalar_model(kind, v, lam0):
     """``(a, da, d2a, c, dc, d2c)`` of the time update ``P^- = a P + c Qb`` at the search
     variable `v` and their derivatives in `v`: ``kind`` 0 is ``q`` (``Q = exp(v) I``:
@@ -361,13 +375,7 @@ def scalar_pass(x0, P0, Z, H, Qb, a, da, d2a, c, dc, d2c, burn, orders, dims, wo
         dr = -ds * r2                                   # d(1/s)
         d2r = -d2s * r2 + 2.0 * ds * ds * r2 * r
         if t >= burn:
-            if s < 1e100:                 # sum log s as the log of running products
-                prod *= s
-                if prod > 1e150:
-                    slog += math.log(prod)
-                    prod = 1.0
-            else:
-                slog += math.log(s)
+            slog, prod = _add_log(slog, prod, s)
             count += m
             dslog += ds * r
             d2slog += d2s * r - ds * ds * r2
@@ -705,13 +713,7 @@ def diag_pass(x0, P0, Z, H, a, q, burn, orders, dims, work):
         r2 = r * r
         r3 = r2 * r
         if t >= burn:
-            if s < 1e100:                 # sum log s as the log of running products
-                prod *= s
-                if prod > 1e150:
-                    slog += math.log(prod)
-                    prod = 1.0
-            else:
-                slog += math.log(s)
+            slog, prod = _add_log(slog, prod, s)
             count += m
             for c_ in range(m):
                 sq += y[c_] * y[c_] * r
