@@ -188,3 +188,45 @@ def test_validate_and_the_fit_apply_the_same_rule():
         warnings.simplefilter("error", OperatingPointWarning)
         m = ARX(1, 1, 1).fit(step, response)
         validate(m, step, response, max_lag=10)
+
+
+def _fleet(C=6, N=400):
+    records = [_record(N, seed=c) for c in range(C)]
+    u = np.column_stack([r[0] for r in records])
+    y = np.column_stack([r[1] for r in records])
+    return u, y
+
+
+@pytest.mark.parametrize("method", ["ls", "rls"])
+def test_fit_many_warns_once_naming_the_channels_far_from_zero(method):
+    from rlsfilt.models import fit_many
+
+    u, y = _fleet()
+    u[:, :3] -= 20.0                        # channels 0-2: their inputs centred ...
+    y[:, :3] -= 60.0                        # ... and outputs: deviations, no warning
+    fleet, ops = _caught(lambda: fit_many(ARX(2, 2, 1), u, y, method=method))
+    assert len(ops) == 1
+    text = str(ops[0].message)
+    assert "3 of 6 channels (3, 4, 5)" in text and "offset=True" in text
+    assert ops[0].filename == __file__       # points at the caller's line
+    # the channel by channel rule is ARX.fit's: the channels it flags are those ARX.fit warns of
+    for c in range(6):
+        _, single = _caught(lambda c=c: ARX(2, 2, 1).fit(u[:, c], y[:, c]))
+        assert bool(single) == (c >= 3)
+
+
+@pytest.mark.parametrize("offset", [True, "mean"])
+def test_fit_many_with_an_offset_does_not_warn(offset):
+    from rlsfilt.models import fit_many
+
+    u, y = _fleet()
+    _, ops = _caught(lambda: fit_many(ARX(2, 2, 1, offset=offset), u, y))
+    assert ops == []
+
+
+def test_fit_many_on_centred_channels_does_not_warn():
+    from rlsfilt.models import fit_many
+
+    u, y = _fleet()
+    _, ops = _caught(lambda: fit_many(ARX(2, 2, 1), u - u.mean(axis=0), y - y.mean(axis=0)))
+    assert ops == []

@@ -40,6 +40,26 @@ def model_offset_mode(model):
     return offset_mode(offset) if isinstance(offset, (str, bool, np.bool_)) else "none"
 
 
+def far_from_zero(X, ratio=OFFSET_RATIO):
+    """``(flagged, mean, std)`` of each column of `X` (time on axis 0): the rule of
+    :func:`offset_messages`, for many signals at once (the channels of a fleet).
+    Nothing is flagged with fewer than ``OFFSET_MIN_SAMPLES`` rows."""
+    X = np.asarray(X, dtype=float)
+    X = X.reshape(len(X), -1)
+    if X.shape[1] == 0 or X.shape[0] < OFFSET_MIN_SAMPLES:
+        none = np.zeros(X.shape[1], dtype=bool)
+        return none, np.zeros(X.shape[1]), np.zeros(X.shape[1])
+    c = pow2_scale(X, axis=0)           # mean and std in range for a record in any units
+    Xs = X / c
+    mean, std = Xs.mean(axis=0) * c, Xs.std(axis=0) * c
+    # every sample strictly on the side of the mean: zero lies outside the record's range
+    one_sided = np.where(mean > 0, X.min(axis=0) > 0, X.max(axis=0) < 0)
+    # a constant signal (std 0) is unexciting, not an operating point: the rank checks of
+    # the fits speak of it
+    flagged = (np.abs(mean) > ratio * std) & (std > 0) & one_sided
+    return flagged, mean, std
+
+
 def offset_messages(records, names, ratio=OFFSET_RATIO):
     """One message per signal of `records` that sits far from zero.
 
@@ -64,21 +84,12 @@ def offset_messages(records, names, ratio=OFFSET_RATIO):
     out = []
     for k, (kind, label) in enumerate((("input", "u"), ("output", "y"))):
         X = np.vstack([np.reshape(r[k], (len(r[k]), -1)) for r in records])
-        if X.shape[1] == 0 or X.shape[0] < OFFSET_MIN_SAMPLES:
-            continue
-        c = pow2_scale(X, axis=0)       # mean and std in range for a record in any units
-        Xs = X / c
-        mean, std = Xs.mean(axis=0) * c, Xs.std(axis=0) * c
-        # every sample strictly on the side of the mean: zero lies outside the record's range
-        one_sided = np.where(mean > 0, X.min(axis=0) > 0, X.max(axis=0) < 0)
-        for j in range(X.shape[1]):
-            # a constant signal (std 0) is unexciting, not an operating point: the rank
-            # checks of the fits speak of it
-            if abs(mean[j]) > ratio * std[j] > 0 and one_sided[j]:
-                default = label if X.shape[1] == 1 else f"{label}{j + 1}"
-                name = names[k][j] if names and names[k] else default
-                out.append(f"{kind} {name!r} has mean {mean[j]:.4g} against a standard "
-                           f"deviation of {std[j]:.3g}")
+        flagged, mean, std = far_from_zero(X, ratio)
+        for j in np.flatnonzero(flagged):
+            default = label if X.shape[1] == 1 else f"{label}{j + 1}"
+            name = names[k][j] if names and names[k] else default
+            out.append(f"{kind} {name!r} has mean {mean[j]:.4g} against a standard "
+                       f"deviation of {std[j]:.3g}")
     return out
 
 

@@ -39,10 +39,11 @@ from .._validation import (
     check_not_dates,
     check_probability,
 )
-from ..exceptions import NumericalWarning
+from ..exceptions import NumericalWarning, OperatingPointWarning
 from ..filters._health import warn_at_caller as _warn_at_caller
 from ..filters.bank import RLSBank, full_rank, subset
 from ..filters.gradient_bank import GradientBank
+from ._offset import far_from_zero, operating_point_remedy
 from ._offset import offset_mode as _offset_mode
 from ._tuning_option import tuning_param
 from ._units import equivariant_forgetting, estimate_in_units, tune_start, tuned_random_walk
@@ -321,6 +322,28 @@ class ARXBank:
         return opts
 
 
+def _warn_operating_points(model, U, Y, todo, labels):
+    """Warn (`OperatingPointWarning`) once when channels `todo` sit far from zero (the rule of
+    `ARX.fit`, :func:`~rlsfilt.models._offset.far_from_zero`, channel by channel) while the
+    model has no ``offset``: naming how many, the first few, and the remedy."""
+    if not len(todo):
+        return
+    whole = len(todo) == U.shape[1]                     # no copy when every channel is fitted
+    Us, Ys = (U, Y) if whole else (U[:, todo], Y[:, todo])
+    far = far_from_zero(Ys)[0] | far_from_zero(
+        Us.reshape(len(Us), -1))[0].reshape(len(todo), -1).any(axis=1)
+    if not far.any():
+        return
+    names = [str(labels[c]) for c in todo[far][:5]]
+    more = ", ..." if far.sum() > 5 else ""
+    warnings.warn(
+        f"fit_many: {int(far.sum())} of {U.shape[1]} channels ({', '.join(names)}{more}) have "
+        "an input or output far from zero (mean above 5 standard deviations, no sample "
+        "reaching zero), and the model has no offset: their fits mostly describe the "
+        "operating point, not the dynamics. " + operating_point_remedy(model),
+        OperatingPointWarning, stacklevel=3)
+
+
 def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=None, x0=None,
              max_lag="auto", alpha=0.01, residual_tests=True, on_error="raise",
              progress=False,
@@ -513,6 +536,8 @@ def fit_many(model, u, y, method="ls", *, k0=None, lam=None, P0=None, R=None, Q=
     errors = _data_errors(U, Y, sums, labels, on_error)
     out.errors = errors
     good = np.array([e is None for e in errors])
+    if offset == "none":
+        _warn_operating_points(model, U, Y, np.flatnonzero(good), labels)
     bar = _progress_bar(progress, C)
     chunk = max(1, _CHUNK_BYTES // (8 * max(rows, 1) * (n + 2)))
     todo = np.flatnonzero(good)
