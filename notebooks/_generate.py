@@ -1304,9 +1304,11 @@ print(f"95 % likelihood interval of lam: [{lo:.4f}, {hi:.4f}]")
 print("log-likelihood of the hand-picked values, relative to the maximum:")
 for lam in by_hand:
     print(f"  lam = {lam:5.3f}: {tuned_lam.tune_.profile(lam) - tuned_lam.tune_.loglik:9.1f}")"""),
-    ("md", r"""Forgetting discounts the whole covariance at the same rate. A random walk $Q = q R I$ adds
-uncertainty without forgetting the information already gathered; `Q="tune"` estimates $q$ the
-same way, and its likelihood is higher:"""),
+    ("md", r"""Forgetting discounts the whole covariance at the same rate. A random walk $Q$ adds
+uncertainty without forgetting the information already gathered; `Q="tune"` estimates its
+size $q$ the same way ($Q = q R I$ for the record scaled to unit size: each coefficient's step
+relative to its regressor's size; `tune_.apply` sets its image for the filter below), and its
+likelihood is higher:"""),
     ("code", r"""tuned_q = ARX(1, 1).fit(u, y, "rls", Q="tune")
 print(tuned_q.tune_.summary())
 print("RMS a1, b1:", np.round(rms(tuned_q.theta_history_), 4))
@@ -1321,7 +1323,7 @@ multiplies $P$ by 1000 at each alarm so the filter re-converges at once. The fil
 the model's regressor rows, one sample at a time:"""),
     ("code", r"""Phi, target = ARX(1, 1).regressors(u, y)
 
-online = tuned_q.tune_.apply(RecursiveLeastSquares(2, P0=1e4))   # Q = q R I, R estimated
+online = tuned_q.tune_.apply(RecursiveLeastSquares(2, P0=1e4))   # the fit's Q, R estimated
 detector = ChangeDetector("cusum", arl=10_000, shift=1.0, action="boost")
 detected = np.empty((len(target), 2))
 for k in range(len(target)):
@@ -1358,7 +1360,7 @@ the random walk with the detector, and the smoothed segments."""),
     ("code", r"""runs = {
     "lam = 0.98 (by hand)": by_hand[0.98].theta_history_,
     f"lam = {tuned_lam.lam_:.3f} (tuned)": tuned_lam.theta_history_,
-    f"Q = {tuned_q.tune_.estimate:.1e} R I (tuned)": tuned_q.theta_history_,
+    f"Q with q = {tuned_q.tune_.estimate:.1e} (tuned)": tuned_q.theta_history_,
     "tuned Q + detector": detected,
     "smoothed segments": smoothed,
 }

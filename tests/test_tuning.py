@@ -177,6 +177,30 @@ def test_constant_parameters_end_on_the_bound(rng):
     assert "at a bound" in str(fit.summary())
 
 
+def test_arx_q_tune_applied_runs_the_fits_random_walk(rng):
+    """ARX.fit tunes Q in its record's power-of-two units: `tune_.apply` on a filter in the
+    signals' units sets the image of that random walk (filter_.Q, with the estimated R)."""
+    from scipy.signal import lfilter
+
+    from rlsfilt import ARX
+
+    u = 8.0 * rng.standard_normal(800)                        # regressor columns of other
+    y = lfilter([0, 0.5], [1, -0.9], u) / 64 + 0.01 * rng.standard_normal(800)   # sizes
+    model = ARX(1, 1).fit(u, y, "rls", Q="tune")
+    c = np.array([np.frexp(np.max(np.abs(x)))[1] for x in (y, u)])   # column exponents
+    assert_array_equal(model.tune_.Q_shape, np.ldexp(1.0, -2 * c))
+    assert_allclose(model.filter_.Q, model.tune_.estimate * np.diag(np.ldexp(1.0, -2 * c)),
+                    rtol=1e-15)                                       # R = 1, the option
+    rls = model.tune_.apply(RecursiveLeastSquares(2))
+    assert_allclose(rls.Q, model.filter_.Q * model.tune_.R, rtol=1e-15)
+    assert rls.R == model.tune_.R
+    # a tune of the filter's own (no other units) keeps Q = q R I
+    fit = RecursiveLeastSquares(2).tune(y[1:], np.column_stack([-y[:-1], u[:-1]]), "q")
+    assert fit.Q_shape is None
+    assert_allclose(fit.apply(RecursiveLeastSquares(2)).Q, fit.estimate * fit.R * np.eye(2),
+                    rtol=1e-15)
+
+
 def test_apply_lam_and_validation(rng):
     H, z = drifting_record(rng, N=300)
     rls = RecursiveLeastSquares(3, R=2.0, Q=0.02)

@@ -89,7 +89,17 @@ class TuneResult:
     n_evals : int
         Likelihood evaluations (passes over the record) of the search and the
         standard errors.
+    Q_shape : ndarray of shape (dim_x,), or None
+        For ``"q"`` and ``"q_diag"``: the random walk :meth:`apply` sets is
+        ``Q = R diag(estimate * Q_shape)``; None (the default) is the identity, the
+        units the record was tuned in. ``ARX.fit(..., Q="tune")`` tunes in its
+        record's power-of-two units and sets it to their image, so that `apply`
+        on a filter in the signals' units runs the fit's random walk (``filter_.Q``
+        up to the estimated ``R``).
     """
+
+    #: see the class docstring (set by the caller that tuned in other units)
+    Q_shape = None
 
     def __init__(self, param, estimate, stderr, loglik, R, converged, at_bound, n_obs,
                  n_evals, _log_stderr=None, _gradient=None, _hessian=None, _loglik_at=None):
@@ -226,8 +236,11 @@ class TuneResult:
             filt.lam = self.estimate
             filt.Q = Q * self.R
         else:
+            q = np.broadcast_to(self.estimate, (filt.dim_x,))
+            if self.Q_shape is not None:
+                q = q * self.Q_shape
             filt.R = self.R
-            filt.Q = np.diag(np.broadcast_to(self.estimate, (filt.dim_x,)) * self.R)
+            filt.Q = np.diag(q * self.R)
         return filt
 
     def summary(self):

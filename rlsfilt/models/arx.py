@@ -154,7 +154,8 @@ class ARX(IdentifiedModel):
         estimate, standard error, interval, profile plot) of the tune in the
         record's power-of-two units (``R`` mapped to the signals' units; see
         `fit`). For ``Q="tune"``, ``filter_.Q`` is the random walk the fit ran
-        (``tune_.apply`` would set ``q R I`` in the signals' units).
+        (``tune_.apply(filt)`` sets its image in the signals' units,
+        ``R diag(q 2^(-2 c_k))`` with the estimated ``R``: ``tune_.Q_shape``).
     form_ : str
         ``method="rls"`` only: ``"covariance"``, ``"square_root"`` or
         ``"window"`` (`SlidingWindowRLS`), the recursion that ran (see `form`
@@ -639,6 +640,8 @@ class ARX(IdentifiedModel):
             opts["lam"] = fit.estimate
         else:
             opts["Q_scaled"], opts["Q"] = tuned_random_walk(fit.estimate, user.R, c)
+            with np.errstate(over="ignore", under="ignore"):   # apply(): the fit's Q
+                fit.Q_shape = np.ldexp(1.0, -2 * c)
         return fit
 
     def _store(self, theta, s, info):
