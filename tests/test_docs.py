@@ -426,7 +426,8 @@ def mode_list_gaps(modes, docstring, robust, theory):
     ``forgetting`` parameter of the docstring, not in the table of ``robust.md``, or
     whose reference there (first author) is not among ``theory.md``'s references."""
     gaps = []
-    param = re.search(r"^    forgetting : \{(.*?)\}", docstring, re.M | re.S)   # may wrap
+    param = re.search(r"^    forgetting : [^\n]*\n        One of \{(.*?)\}", docstring,
+                      re.M | re.S)                      # the set may wrap
     listed = re.findall(r'"(\w+)"', param.group(1)) if param else []
     rows = {m.group("mode"): m.group("ref") for m in _MODE_ROW.finditer(robust)}
     references = theory.split("## References", 1)[-1]

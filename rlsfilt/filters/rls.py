@@ -79,10 +79,9 @@ class RecursiveLeastSquares(_FilterBase):
     Q : float or array_like, default 0.0
         Covariance of the parameter random walk added in :meth:`predict`; a
         scalar means ``Q * I``.
-    forgetting : {"exponential", "directional", "constant_trace", "efra", "variable", \
-"diagonal"}, optional
-        How old data is forgotten (see Notes); ``"exponential"`` by
-        default. ``"exponential"`` divides
+    forgetting : str, default "exponential"
+        One of {"exponential", "directional", "constant_trace", "efra", "variable",
+        "diagonal"}: how old data is forgotten (see Notes). ``"exponential"`` divides
         ``P`` by `lam` in :meth:`predict` (filterpy's fading memory), and
         ``"diagonal"`` forgets each parameter with its own factor there,
         :math:`P^- = L^{-1/2} P L^{-1/2} + Q`, ``L = diag(lam)`` (the
