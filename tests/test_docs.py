@@ -451,7 +451,8 @@ def test_every_forgetting_mode_is_in_the_hand_kept_lists():
 
 
 def test_mode_list_gaps_finds_a_missing_mode():
-    doc = '    forgetting : {"exponential", "efra"}, optional\n'
+    doc = ('    forgetting : str, default "exponential"\n'
+           '        One of {"exponential",\n        "efra"}: how old data is forgotten.\n')
     robust = ('| `"exponential"` | all | Ljung (1999) |\n'
               '| `"regularized"` | some | Nobody (2030) |\n')
     theory = "## References\n- L. Ljung, ...\n"
