@@ -1364,14 +1364,18 @@ class RLSBank(BankBase):
 
         C-contiguous, or with ``strided=True`` in the caller's layout (the
         caller decides). The kernels only read it, so the caller's array is
-        passed without a copy.
+        passed without a copy, unless it is read-only (a pandas frame's values,
+        a memory map): numba types a read-only array apart and would compile every
+        kernel again for it (about 20 s of CPU), so it is copied.
         """
         arr = value if (type(value) is np.ndarray and value.dtype == np.float64) \
             else as_float_array(value, name)
         if (shape is not None and arr.shape != shape) or (ndim is not None and arr.ndim != ndim):
             expected = expected.format(C=self.n_channels, n=self.dim_x)
             raise ValueError(f"`{name}` must have shape {expected}; got {arr.shape}")
-        if not strided:
+        if not arr.flags.writeable:
+            arr = np.array(arr, order="C")
+        elif not strided:
             arr = np.ascontiguousarray(arr)
         if finite:
             with np.errstate(invalid="ignore", over="ignore"):    # inf - inf: NaN, no warning
