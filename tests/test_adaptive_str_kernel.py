@@ -98,8 +98,9 @@ def _history(stre, run):
     return stre.history, [str(w.message) for w in caught]
 
 
-@pytest.mark.parametrize("seed", [1, 2, 5])
-def test_the_lock_in_scenario_equals_the_numpy_path(seed, monkeypatch):
+@pytest.fixture
+def fast_design_calls(monkeypatch):
+    """Whether each design went through the compiled path (`_fast_design` gave a control)."""
     calls = []
     original = SelfTuningRegulator._fast_design
 
@@ -109,6 +110,12 @@ def test_the_lock_in_scenario_equals_the_numpy_path(seed, monkeypatch):
         return u
 
     monkeypatch.setattr(SelfTuningRegulator, "_fast_design", counting)
+    return calls
+
+
+@pytest.mark.parametrize("seed", [1, 2, 5])
+def test_the_lock_in_scenario_equals_the_numpy_path(seed, fast_design_calls):
+    calls = fast_design_calls
     kw = dict(u_limits=(-2.0, 2.0))
 
     def run(stre):
@@ -126,15 +133,8 @@ def test_the_lock_in_scenario_equals_the_numpy_path(seed, monkeypatch):
     assert mf == ms
 
 
-def test_a_square_wave_loop_equals_the_numpy_path(monkeypatch):
-    calls = []
-    original = SelfTuningRegulator._fast_design
-    def counting(self, theta, y, r):
-        u = original(self, theta, y, r)
-        calls.append(u is not None)
-        return u
-
-    monkeypatch.setattr(SelfTuningRegulator, "_fast_design", counting)
+def test_a_square_wave_loop_equals_the_numpy_path(fast_design_calls):
+    calls = fast_design_calls
     A, B = np.array([1.0, -1.5, 0.7]), np.array([0.0, 1.0, 0.5])
 
     def run(stre):
