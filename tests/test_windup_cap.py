@@ -129,6 +129,20 @@ def test_health_warning_rearms_in_streaming_as_in_batch():
 # ----------------------------------------------------------------------
 # the capped steps are the reference's, and every path gives the same bits
 # ----------------------------------------------------------------------
+def _stream(f, zs, Hs, update_first):
+    """Stream the record through `f` sample by sample (``update`` then ``predict`` with
+    `update_first`, else ``predict_update``); the estimate after each sample."""
+    means = []
+    for k in range(len(zs)):
+        if update_first:
+            f.update(zs[k], Hs[k])
+            f.predict()
+        else:
+            f.predict_update(zs[k], Hs[k])
+        means.append(f.x)
+    return means
+
+
 def _capped_filter(**kw):
     # a low spread_max engages the cap at a moderate condition number
     return RecursiveLeastSquares(3, lam=0.9, P0=10.0, R=0.01, check_every=0,
@@ -161,14 +175,7 @@ def test_capped_run_gives_the_same_bits_in_every_path(update_first):
     step = _capped_filter(gate=1e300)
     m_step = step.batch_filter(zs, Hs, update_first=update_first)[0]
     stream = _capped_filter()
-    m_stream = []
-    for k in range(len(zs)):
-        if update_first:
-            stream.update(zs[k], Hs[k])
-            stream.predict()
-        else:
-            stream.predict_update(zs[k], Hs[k])
-        m_stream.append(stream.x)
+    m_stream = _stream(stream, zs, Hs, update_first)
     chunks = _capped_filter()
     m_chunks = np.concatenate([chunks.batch_filter(zs[a:b], Hs[a:b], update_first=update_first,
                                                    store_covariances=False)[0]
@@ -486,12 +493,7 @@ def test_diagonal_capped_steps_equal_the_reference_and_every_path_the_same_bits(
                            (ref.means, ref.covs, ref.means_p, ref.covs_p)):
         _close(a, b, label, rtol=1e-11)
     stream = make()
-    for k in range(len(zs)):
-        if update_first:
-            stream.update(zs[k], Hs[k])
-            stream.predict()
-        else:
-            stream.predict_update(zs[k], Hs[k])
+    _stream(stream, zs, Hs, update_first)
     chunks = make()
     for a, b in [(0, 97), (97, 98), (98, 450), (450, len(zs))]:
         chunks.batch_filter(zs[a:b], Hs[a:b], update_first=update_first,
