@@ -14,9 +14,10 @@ import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
 from rlsfilt import RecursiveLeastSquares, SlidingWindowRLS, SquareRootRLS
+from rlsfilt.filters import APA, LMS, NLMS
 
 filterpy = pytest.importorskip("filterpy")
-from filterpy.common import Saver  # noqa: E402
+from filterpy.common import Saver, kinematic_kf  # noqa: E402
 from filterpy.kalman import IMMEstimator, KalmanFilter  # noqa: E402
 
 N_X = 3
@@ -25,6 +26,12 @@ FILTERS = {
     "rls": lambda: RecursiveLeastSquares(N_X, lam=0.98),
     "square_root": lambda: SquareRootRLS(N_X, lam=0.98),
     "sliding_window": lambda: SlidingWindowRLS(N_X, window=20),
+}
+# the gradient filters share the filterpy surface (F, B, inv, alpha, predict(u))
+GRADIENT = {
+    "lms": lambda: LMS(N_X, mu=0.05),
+    "nlms": lambda: NLMS(N_X, mu=0.5),
+    "apa": lambda: APA(N_X, mu=0.5),
 }
 
 
@@ -74,6 +81,37 @@ def test_imm_with_rls_equals_imm_of_kalman_filters(rng):
     assert_array_equal(rls.H, Hs[-1].reshape(1, -1))
     # the switch of the parameters shows in the mode probabilities
     assert imm_rls.mu[1] > 0.5 or imm_rls.mu[0] > 0.5
+
+
+def test_filterpys_own_imm_example_with_one_model_replaced_by_rls():
+    """The example of filterpy's ``IMMEstimator`` docstring, run as written (two
+    ``kinematic_kf`` filters, the second with ``Q = 0``, ``mu = [0.5, 0.5]``, the 0.97/0.03
+    transition matrix, measurements ``i + noise``, ``imm.predict(); imm.update(z)``) with
+    order 0, where ``F = I`` (least squares cannot follow a velocity), and its first
+    Kalman filter replaced by the RLS with the same ``P``, ``Q``, ``R`` and ``H``."""
+    def example(first):
+        kf1, kf2 = first, kinematic_kf(1, 0)
+        kf2.Q *= 0   # no prediction error in second filter
+        return IMMEstimator([kf1, kf2], [0.5, 0.5], np.array([[0.97, 0.03], [0.03, 0.97]]))
+
+    ref = kinematic_kf(1, 0)
+    assert_array_equal(ref.F, [[1.0]])
+    rls = RecursiveLeastSquares(1, P0=ref.P[0, 0], Q=ref.Q[0, 0], R=ref.R[0, 0])
+    rls.H = ref.H                               # set once, as a filterpy user would
+    imm_rls, imm_kf = example(rls), example(kinematic_kf(1, 0))
+    rng = np.random.default_rng(29)
+    for i in range(100):
+        z = np.array([[i + rng.standard_normal() * np.sqrt(ref.R[0, 0])]])
+        for imm in (imm_rls, imm_kf):
+            imm.predict()
+            imm.update(z)
+        assert_allclose(imm_rls.x, imm_kf.x, rtol=1e-14, atol=0)
+        assert_allclose(imm_rls.P, imm_kf.P, rtol=5e-14, atol=0)
+        assert_allclose(imm_rls.mu, imm_kf.mu, rtol=0, atol=5e-14)
+        assert_allclose(imm_rls.likelihood, imm_kf.likelihood, rtol=1e-12, atol=0)
+    # the ramp is tracked by the model with process noise, the RLS
+    assert imm_rls.mu[0] > 0.8
+    assert abs(imm_rls.x[0, 0] - 99.0) < 5.0
 
 
 # ----------------------------------------------------------------------
@@ -257,3 +295,46 @@ def test_get_update_equals_kalman_filter(rng):
     x_kf, P_kf = kf.get_update(zs[0])
     assert_allclose(x, x_kf, rtol=1e-12, atol=1e-12)
     assert_allclose(P, P_kf, rtol=1e-9, atol=1e-9)
+
+
+# ----------------------------------------------------------------------
+# the gradient filters: the same filterpy surface
+# ----------------------------------------------------------------------
+@pytest.mark.parametrize("name", sorted(GRADIENT))
+def test_gradient_filters_refuse_filterpys_attributes_by_name(name, rng):
+    f = GRADIENT[name]()
+    f.predict(None)                             # what IMMEstimator calls
+    f.H = rng.standard_normal(N_X)
+    f.update(1.0)
+    before = _state_gradient(f)
+    with pytest.raises(AttributeError, match=rf"`alpha` cannot be assigned: {type(f).__name__} "
+                                             r"adapts by its step size `mu`, it has no "
+                                             r"fading-memory factor"):
+        f.alpha = 1.01
+    assert f.alpha == 1.0
+    for attribute in ("F", "B", "inv"):
+        with pytest.raises(AttributeError, match=rf"`{attribute}` cannot be assigned"):
+            setattr(f, attribute, np.eye(N_X))
+    for call, arg in [(lambda: f.predict(1e-4), "u"), (lambda: f.predict(B=np.ones((N_X, 1))), "B"),
+                      (lambda: f.predict(F=np.eye(N_X)), "F")]:
+        with pytest.raises(TypeError, match=rf"(?s)`{arg}` is not an argument "
+                                            rf"{type(f).__name__}\.predict\(\) uses: .*; "
+                                            rf"got {arg}=.*\.$"):
+            call()
+    for key, value in before.items():
+        assert_array_equal(getattr(f, key), value, err_msg=key)
+
+
+@pytest.mark.parametrize("name", sorted(set(FILTERS) - {"rls"}))
+def test_the_random_walk_hint_only_where_predict_takes_Q(name):
+    """``predict(Q=...)`` is named only by the filter whose ``predict`` takes it."""
+    with pytest.raises(TypeError) as info:
+        FILTERS[name]().predict(1e-4)
+    assert "Q" not in str(info.value).split("got u=")[1]
+    with pytest.raises(TypeError, match=r"got u=0\.0001\. A random walk is predict\(Q=\.\.\.\)"):
+        FILTERS["rls"]().predict(1e-4)
+
+
+def _state_gradient(f):
+    return {name: np.array(getattr(f, name), copy=True)
+            for name in ("x", "x_prior", "x_post", "y", "z", "H")}

@@ -18,6 +18,7 @@ copied: each filter, and each copy, has its own.
 
 import copy
 import functools
+import inspect
 import math
 import threading
 import warnings
@@ -62,6 +63,8 @@ class _FilterBase(Filter):
     # a slot, not in ``__dict__``: filterpy's Saver deep-copies ``__dict__``, and a
     # lock can be neither copied nor pickled
     __slots__ = ("_lock",)
+    # why `alpha` cannot be assigned to a filter without `lam` (the message's end)
+    _NO_FADING_MEMORY = "has no fading-memory factor"
 
     def __new__(cls, *args, **kwargs):
         self = super().__new__(cls)
@@ -226,8 +229,8 @@ class _FilterBase(Filter):
     @_locked
     def alpha(self, value):
         if not hasattr(type(self), "lam"):
-            raise AttributeError(_refused("alpha", f"{type(self).__name__} forgets by its "
-                                                   "window, not by a fading-memory factor"))
+            raise AttributeError(_refused("alpha", f"{type(self).__name__} "
+                                                   f"{self._NO_FADING_MEMORY}"))
         alpha = check_scalar(value, "alpha")
         if not (math.isfinite(alpha) and alpha >= 1.0):
             raise ValueError("`alpha` must be a finite number >= 1 (filterpy's fading memory, "
@@ -236,12 +239,16 @@ class _FilterBase(Filter):
 
     def _refuse_control(self, u, B, F):
         """Raise for filterpy's `u`, `B`, `F` arguments of ``predict`` (any but None)."""
+        # the hint only where predict takes a random walk (not the square-root, window
+        # and gradient filters)
+        hint = (" A random walk is predict(Q=...)"
+                if "Q" in inspect.signature(type(self).predict).parameters else "")
         for name, value in (("u", u), ("B", B), ("F", F)):
             if value is not None:
                 raise TypeError(
                     f"`{name}` is not an argument {type(self).__name__}.predict() uses: least "
                     "squares has F = I and no control input (filterpy's predict(u, B, F)); "
-                    f"got {name}={value!r}. A random walk is predict(Q=...)")
+                    f"got {name}={value!r}.{hint}")
 
     def get_update(self, z, H=None, R=None):
         """Return ``(x, P)`` after an :meth:`update` with `z`, `H` (``self.H`` if
