@@ -1,7 +1,11 @@
 """SelfTuningRegulator guards (#29): verified designs, no lock-in near a common factor, the
 saturation watchdog, finite-value checks, offsets (the tank); rst_design(cancel_zeros=True)."""
 
+import contextlib
+import io
+import re
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -316,3 +320,197 @@ def test_example_3_4_indirect_self_tuner_with_zero_cancellation():
     ctrl = stre.controller
     assert_allclose(stre.theta, np.r_[AW_A[1:], AW_B[1:]], atol=1e-6)    # the prior's bias
     assert_allclose(np.r_[ctrl.R, ctrl.S, ctrl.T], [1.0, r1, s0, s1, t0], atol=1e-4)
+
+
+# ----------------------------------------------------------------------
+# review of #29: each check of a design, the diverging loop, the python-control system,
+# the second-order model on the tank, the guide's tank example, the anti-windup form
+# ----------------------------------------------------------------------
+INITIAL = RSTController([1.0], [0.5], [0.5])        # on A1, B1: A R + B S = 1 - 0.55 q^-1
+
+
+@pytest.mark.parametrize("bad, stable_R, why", [
+    # A R + B S = 1 - 0.55 q^-1, not the target claimed
+    (RSTController([1.0], [0.5], [0.5], target=[1.0, 0.2]), False,
+     r"misses its characteristic polynomial by 0\.75 \(A R \+ B S against target\)"),
+    # A R + B S = 1 - 2.3 q^-1: a pole at 2.3
+    (RSTController([1.0], [-3.0], [0.5]), False,
+     r"gives an unstable loop on the estimate \(largest \|pole\| = 2\.3\)"),
+    # R = 1 - 1.5 q^-1, S = 4.6 - 2.4 q^-1: A R + B S = 1 (deadbeat), but R unstable
+    (RSTController([1.0, -1.5], [4.6, -2.4], [2.2]), True,
+     r"has an unstable R \(a zero at \|z\| = 1\.5; stable_R=True\)"),
+])
+def test_each_check_of_a_design_rejects_it_and_names_why(bad, stable_R, why):
+    """Every check of `_candidate` on its own: the design is rejected, the controller in
+    use is kept, the warning after `patience` rejections names the check; the same
+    controller without the flaw is accepted (the check is not what rejects everything)."""
+    def run(ctrl, **kwargs):
+        stre = SelfTuningRegulator(RecursiveLeastSquares(2, P0=1e-6, x0=[-0.8, 0.5]),
+                                   lambda A_, B_: ctrl, na=1, nb=1, initial=INITIAL,
+                                   patience=5, **kwargs)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            _run(stre, 10, (A1, B1), noise=0.0, dither=0.0)     # the estimate stays exact
+        return stre, [str(w.message) for w in caught if w.category is RegulatorWarning]
+
+    stre, messages = run(bad, stable_R=stable_R)
+    assert stre.history.rejected.all()
+    assert len(messages) == 1 and re.search(r"5 redesigns in a row up to step 4 were rejected "
+                                            r"\(the last because the full design " + why,
+                                            messages[0]), messages
+    for name in "RST":
+        assert_array_equal(np.trim_zeros(getattr(stre.controller, name), "b"),
+                           getattr(INITIAL, name))
+    if stable_R:                                # an unstable R is fine unless asked
+        fine = bad
+        assert not run(fine, stable_R=False)[0].history.rejected.any()
+    elif bad.target is not None:                # the true characteristic polynomial passes
+        fine = RSTController(bad.R, bad.S, bad.T, target=[1.0, -0.55])
+        assert not run(fine)[0].history.rejected.any()
+
+
+@pytest.mark.parametrize("signal_limit, match", [
+    (1e100, r"the computed `u` = -5\.5e\+100 at step 36 exceeds signal_limit = 1e\+100: the "
+            r"loop is diverging"),
+    (1e300, r"the estimate became non-finite at step 68 \(`y` = -1\.8047e\+223, largest "
+            r"\|phi\| = 1\.8044e\+223\): the loop or the estimator diverged"),
+])
+def test_a_diverging_loop_ends_in_a_clear_error_at_every_later_step(signal_limit, match):
+    """An unstable plant, y = 1.5 y(t-1) + u(t-1), with the sign of b1 held wrong by the
+    bounds: the loop diverges. It ends in a ValueError naming the signal and the step (it
+    ended in LinAlgError: SVD did not converge, at every later step), not in one from
+    deep inside; the next steps raise the same, and the regulator stays as it was."""
+    stre = SelfTuningRegulator(RecursiveLeastSquares(2, P0=1.0, x0=[-1.5, -1.0]),
+                               dict(Am=np.poly([0.5])), na=1, nb=1,
+                               bounds=([-np.inf, -np.inf], [np.inf, -0.5]),
+                               signal_limit=signal_limit)
+    rng = np.random.default_rng(0)
+    y = u = 0.0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RegulatorWarning)
+        with pytest.raises(ValueError, match=match):
+            for _ in range(3000):
+                y = 1.5 * y + u + 0.01 * rng.standard_normal()
+                u = stre.step(y, 1.0)
+        before, n = stre.state, len(stre.history)
+        for _ in range(3):
+            with pytest.raises(ValueError, match=match):
+                stre.step(y, 1.0)
+    assert_array_equal(stre.state, before)
+    assert len(stre.history) == n and np.all(np.isfinite(stre.theta))
+
+
+@pytest.mark.parametrize("value, match", [
+    (np.nan, r"`y` must be finite; got nan at step 5"),
+    (1e150, r"`y` = 1e\+150 at step 5 exceeds signal_limit = 1e\+100: the loop is diverging"),
+])
+def test_the_python_control_system_refuses_the_same_measurements(value, match):
+    control = pytest.importorskip("control")
+    stre = SelfTuningRegulator(RecursiveLeastSquares(4, P0=100.0), DESIGN, na=2, nb=2)
+    before = stre.state
+    T = np.arange(10)
+    y = np.linspace(0.1, 1.0, 10)
+    y[5] = value
+    with pytest.raises(ValueError, match=match):
+        control.input_output_response(stre.as_iosystem(), T, [y, np.ones(10), np.zeros(10)])
+    assert_array_equal(stre.state, before)
+    assert len(stre.history) == 0
+
+
+@pytest.mark.parametrize("offset", [False, True])
+def test_a_second_order_model_keeps_the_tank_under_control(offset):
+    """#29: ARX(2, 2) on the tank lost the loop (level 10 against references up to 1.6).
+    It tracks now, with or without the offset (the reduced design carries it)."""
+    stre = SelfTuningRegulator(RecursiveLeastSquares(4 + offset, lam=0.995, P0=100.0),
+                               dict(Am=np.poly([0.8, 0.7]), Ao=np.poly([0.3, 0.3])), na=2,
+                               nb=2, offset=offset, u_limits=(0.0, 2.0))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RegulatorWarning)
+        y, u, r = _tank(stre)
+    rms = np.sqrt(np.mean((y[500:] - r[500:]) ** 2))
+    assert rms < 0.2, rms                                 # 0.17 / 0.16 measured
+    assert y.max() < 2.2, y.max()                         # 1.95 / 1.64 measured
+    assert np.mean((u == 0.0) | (u == 2.0)) < 0.1
+
+
+def _guide_section(title):
+    text = (Path(__file__).resolve().parents[1] / "docs" / "guide" / "control.md").read_text()
+    start = text.index(title)
+    return text[start:text.index("\n## ", start)]
+
+
+def test_the_guides_tank_example_prints_what_the_guide_says():
+    """docs/guide/control.md, 'Operating points: a tank': its code run as written, and the
+    numbers of its comments and of the prose on the run without the offset."""
+    section = _guide_section("### Operating points: a tank")
+    code = re.search(r"```python\n(.*?)```", section, re.S).group(1)
+    namespace = dict(np=np, RecursiveLeastSquares=RecursiveLeastSquares,
+                     SelfTuningRegulator=SelfTuningRegulator)
+    out = io.StringIO()
+    with warnings.catch_warnings(), contextlib.redirect_stdout(out):
+        warnings.simplefilter("error")                    # with the offset: no warning
+        exec(compile(code, "control.md", "exec"), namespace)
+    theta_said, poles_said = re.findall(r"# .*?about \[?([-0-9., ]+?)\]?[:\n]", code)
+    stre = namespace["stre"]
+    assert_array_equal(np.round(stre.theta, 3), np.array(theta_said.split(","), dtype=float))
+    A = [1.0, -(1 - 0.5 / (2 * np.sqrt(0.8)) / 5.0)]
+    poles = np.sort(stre.controller.closed_loop(A, [0.0, 0.2]).poles.real)
+    assert_array_equal(np.round(poles, 2), np.array(poles_said.split(","), dtype=float))
+    # without the offset: the estimate of b1, the poles at h = 1.6, the warning's numbers
+    plain = SelfTuningRegulator(RecursiveLeastSquares(2, lam=0.995, P0=100.0),
+                                dict(Am=np.poly([0.8]), Ao=np.poly([0.3])), na=1, nb=1,
+                                u_limits=(0.0, 2.0))
+    with pytest.warns(RegulatorWarning, match="offset=True") as caught:
+        y, _, _ = namespace["tank"](plain)
+    b1, low, ratio, mean = re.search(
+        r"estimate of \$b_1\$ is ([0-9.]+) instead of 0\.2.*?at least ([0-9.]+), ([0-9.]+) "
+        r"standard deviations, about a\s+mean of ([0-9.]+)", section, re.S).groups()
+    assert f"{plain.theta[1]:.3f}" == b1
+    A16 = [1.0, -(1 - 0.5 / (2 * np.sqrt(1.6)) / 5.0)]
+    said = re.search(r"\(at h = 1\.6\) are ([0-9.]+) and ([0-9.]+)", section).groups()
+    poles = np.sort(plain.controller.closed_loop(A16, [0.0, 0.2]).poles.real)
+    assert [f"{p:.2f}" for p in poles] == list(said)
+    message = next(str(w.message) for w in caught if "offset=True" in str(w.message))
+    assert f"at least {low} away" in message and f"mean {mean})" in message
+    told = float(re.search(r"\(([0-9.]+) of its standard deviations", message).group(1))
+    assert round(told, 1) == float(ratio)                 # the guide rounds 6.39 to 6.4
+    assert f"{np.abs(y[:50]).min():.3g}" == low and f"{np.mean(y[:50]):.3g}" == mean
+
+
+def test_the_anti_windup_form_is_the_books_with_Ao_equal_to_r0():
+    """The documented difference (class Notes, guide 'Anti-windup'): with a fixed design,
+    the regulator's law is Astrom & Wittenmark's A_o u = T r - S y + (A_o - R) sat(u)
+    with A_o = r_0 = 1; inside the limits it is the same controller as the form with the
+    design's A_o, and after a saturation the two differ."""
+    Ao = np.poly([0.6, 0.5])
+    ctrl = rst_design(AW_A, AW_B, AW_AM, Ao)              # integral action: R(1) = 0
+    assert_array_equal(ctrl.Ao, Ao) and ctrl.R[0] == 1.0
+
+    def book(y, r, Ao_, lim):
+        """The book's form on a record of y, r: returns the applied v = sat(u)."""
+        L = 8
+        R, S, T = (np.r_[p, np.zeros(L - len(p))] for p in (ctrl.R, ctrl.S, ctrl.T))
+        Aop = np.r_[Ao_, np.zeros(L - len(Ao_))]
+        us, vs = np.zeros(len(y) + L), np.zeros(len(y) + L)
+        ys, rs = np.r_[np.zeros(L), y], np.r_[np.zeros(L), r]
+        for k in range(L, len(y) + L):
+            past = slice(k, k - L, -1)
+            # u(t) = T r - S y + (Ao - R) v - (Ao - 1) u, the newest terms first
+            us[k] = (T @ rs[past] - S @ ys[past] + (Aop - R)[1:] @ vs[k - 1:k - L:-1]
+                     - Aop[1:] @ us[k - 1:k - L:-1])
+            vs[k] = np.clip(us[k], -lim, lim)
+        return vs[L:]
+
+    for lim, saturates in [(1e6, False), (1.2, True)]:
+        stre = SelfTuningRegulator(RecursiveLeastSquares(4, P0=1e-12, x0=np.r_[AW_A[1:],
+                                                                               AW_B[1:]]),
+                                   lambda A_, B_: ctrl, na=2, nb=2, initial=ctrl,
+                                   u_limits=(-lim, lim))
+        y, v, r = _run(stre, 200, (AW_A, AW_B), noise=0.0, dither=0.0, period=50)
+        assert np.any(np.abs(v) == lim) == saturates
+        assert_allclose(v, book(y, r, np.ones(1), lim), rtol=0, atol=1e-12)
+        with_Ao = book(y, r, Ao, lim)
+        if saturates:
+            assert np.abs(v - with_Ao).max() > 0.1
+        else:
+            assert_allclose(v, with_Ao, rtol=0, atol=1e-12)
