@@ -61,9 +61,9 @@ def test_the_lock_in_of_issue_29_is_reproduced_by_the_single_threshold_and_now_w
 
 def test_the_lock_in_scenario_ends_like_the_other_seeds_with_a_warning():
     stre, rms, sat, messages = _lockin(2)
-    others = [_lockin(seed)[1] for seed in (1, 5)]          # seeds the old rule handled well
+    others = [_lockin(seed)[1] for seed in (0, 1, 3, 4, 5)]     # 0.42 .. 0.45 measured
     assert rms < 0.5 and sat < 0.01
-    assert abs(rms - np.mean(others)) < 0.05
+    assert min(others) - 0.02 < rms < max(others) + 0.02, (rms, others)     # 0.45
     assert any("nearly cancels a pole against a zero" in m and "consider smaller na, nb" in m
                for m in messages)
     h = stre.history
@@ -514,3 +514,25 @@ def test_the_anti_windup_form_is_the_books_with_Ao_equal_to_r0():
             assert np.abs(v - with_Ao).max() > 0.1
         else:
             assert_allclose(v, with_Ao, rtol=0, atol=1e-12)
+
+
+def test_the_watchdog_warns_at_the_first_saturated_block_whose_error_grew():
+    """The lock-in run with the old rule: the watchdog's block, its saturation and its RMS
+    errors against NumPy on the history (monitor_every = 200 blocks), once."""
+    stre, _, _, messages = _lockin(2, reduce_tol=0.0, max_growth=1e300)
+    h = stre.history
+    watchdog = [m for m in messages if "sat at a limit" in m]
+    assert len(watchdog) == 1
+    first, last = map(int, re.search(r"in steps (\d+)\.\.(\d+)", watchdog[0]).groups())
+    n = 200
+    blocks = np.arange(len(h.u) // n)
+    sat = np.array([np.mean(np.abs(h.u[b * n:(b + 1) * n]) == 2.0) for b in blocks])
+    rms = np.array([np.sqrt(np.mean((h.r - h.y)[b * n:(b + 1) * n] ** 2)) for b in blocks])
+    grew = np.r_[rms[0] >= 0.0, rms[1:] >= rms[:-1]]
+    b = int(np.flatnonzero((sat >= 0.5) & grew)[0])
+    assert (first, last) == (b * n, (b + 1) * n - 1)
+    previous = rms[b - 1] if b else 0.0
+    assert (f"sat at a limit {100 * sat[b]:.0f} % of the time and the RMS error r - y grew to "
+            f"{rms[b]:.3g} (from {previous:.3g} in the block before)") in watchdog[0]
+    # the same seed with the default rule saturates too little to warn
+    assert not [m for m in _lockin(2)[3] if "sat at a limit" in m]
