@@ -338,3 +338,28 @@ def test_the_random_walk_hint_only_where_predict_takes_Q(name):
 def _state_gradient(f):
     return {name: np.array(getattr(f, name), copy=True)
             for name in ("x", "x_prior", "x_post", "y", "z", "H")}
+
+
+@pytest.mark.parametrize("make", [
+    lambda: RecursiveLeastSquares(N_X, 2, lam=0.98), lambda: SquareRootRLS(N_X, 2, lam=0.98),
+    lambda: SlidingWindowRLS(N_X, window=20, dim_z=2), lambda: LMS(N_X, 2, mu=0.05),
+    lambda: NLMS(N_X, 2, mu=0.5), lambda: APA(N_X, 2, mu=0.5),
+], ids=["rls", "square_root", "sliding_window", "lms", "nlms", "apa"])
+def test_every_filter_runs_the_saver_loop_with_two_outputs(make, rng):
+    """``f.H = row; f.update(z)`` under filterpy's Saver on every filter, with two outputs
+    sharing the row: the bits of ``update(z, row)``, and the Saver's record of them."""
+    Hs, Z = rng.standard_normal((40, N_X)), rng.standard_normal((40, 2))
+    a, b = make(), make()
+    saver = Saver(a)
+    for H, z in zip(Hs, Z):
+        a.predict()
+        a.H = H
+        a.update(z)
+        saver.save()
+        b.predict()
+        b.update(z, H)
+        assert_array_equal(a.x, b.x)
+    saver.to_array()
+    assert saver.x.shape == (40, N_X, 2)
+    assert_array_equal(saver.x[-1], b.x)
+    assert_array_equal(saver.H[-1], Hs[-1].reshape(1, -1))
