@@ -318,8 +318,14 @@ def test_example_3_4_indirect_self_tuner_with_zero_cancellation():
     _run(stre, 400, (AW_A, AW_B), noise=0.0, dither=0.01, period=50)
     r1, s0, s1, t0 = _example_3_1()
     ctrl = stre.controller
-    assert_allclose(stre.theta, np.r_[AW_A[1:], AW_B[1:]], atol=1e-6)    # the prior's bias
-    assert_allclose(np.r_[ctrl.R, ctrl.S, ctrl.T], [1.0, r1, s0, s1, t0], atol=1e-4)
+    # the prior's bias (1 / P0 against the data's information): 2.9e-9 and 3.3e-8 measured
+    assert_allclose(stre.theta, np.r_[AW_A[1:], AW_B[1:]], rtol=0, atol=1e-8)
+    assert_allclose(np.r_[ctrl.R, ctrl.S, ctrl.T], [1.0, r1, s0, s1, t0], rtol=0, atol=1e-7)
+    # and every controller in use from step 20 on (1.4e-6 measured at most)
+    h = stre.history
+    used = np.column_stack([h.R[20:, :2], h.S[20:, :2], h.T[20:, :1]])
+    assert_allclose(used, np.broadcast_to([1.0, r1, s0, s1, t0], used.shape), rtol=0, atol=3e-6)
+    assert not np.column_stack([h.R[20:, 2:], h.S[20:, 2:], h.T[20:, 1:]]).any()
 
 
 # ----------------------------------------------------------------------
@@ -536,3 +542,18 @@ def test_the_watchdog_warns_at_the_first_saturated_block_whose_error_grew():
             f"{rms[b]:.3g} (from {previous:.3g} in the block before)") in watchdog[0]
     # the same seed with the default rule saturates too little to warn
     assert not [m for m in _lockin(2)[3] if "sat at a limit" in m]
+
+
+@pytest.mark.parametrize("signal", ["r", "dither"])
+@pytest.mark.parametrize("value, match", [
+    (np.nan, r"`{}` must be finite; got nan at step 1"),
+    (-np.inf, r"`{}` must be finite; got -inf at step 1"),
+    (1e150, r"`{}` = 1e\+150 at step 1 exceeds signal_limit = 1e\+100: the loop is diverging"),
+])
+def test_a_bad_reference_or_dither_is_named_and_changes_nothing(signal, value, match):
+    stre = SelfTuningRegulator(RecursiveLeastSquares(4, P0=100.0), DESIGN, na=2, nb=2)
+    stre.step(0.1, 1.0)
+    before = stre.state
+    with pytest.raises(ValueError, match=match.format(signal)):
+        stre.step(0.2, **{"r": 1.0, signal: value})
+    assert_array_equal(stre.state, before) and len(stre.history) == 1
