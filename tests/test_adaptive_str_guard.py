@@ -139,9 +139,9 @@ def test_a_huge_or_nan_measurement_is_a_clear_error_and_changes_nothing(value, m
     with pytest.raises(ValueError, match=r"`r` must be finite; got nan at step 3"):
         stre.step(0.4, np.nan)
     stre.step(0.4, 1.0)                                    # and it goes on
-    # the python-control system checks the same
-    sys = stre.as_iosystem()
-    assert sys.nstates == len(stre.state)
+    assert len(stre.history) == 4
+    # the python-control system checks the same: see
+    # test_the_python_control_system_refuses_the_same_measurements
 
 
 def test_a_computed_control_beyond_the_limit_is_a_clear_error():
@@ -560,3 +560,39 @@ def test_a_bad_reference_or_dither_is_named_and_changes_nothing(signal, value, m
         stre.step(0.2, **{"r": 1.0, signal: value})
     assert_array_equal(stre.state, before)
     assert len(stre.history) == 1
+
+
+@pytest.mark.parametrize("scale_a, scale_b", [(2.0 ** 1000, 1.0), (1.0, 2.0 ** -1065),
+                                              (2.0 ** -1000, 2.0 ** 830), (2.0 ** 530, 2.0 ** -530),
+                                              (2.0 ** 1020, 2.0 ** -1070)])
+def test_coprimeness_is_scale_invariant_over_the_double_range(scale_a, scale_b):
+    """The Sylvester matrix of a, b scaled to unit norm: the same singular value at any
+    scale (np.linalg.norm overflows above about 1e154 and underflows below 1e-162, and
+    a / norm gave zeros, inf or NaN: a wrong degree, 'negative dimensions', or the
+    'LinAlgError: SVD did not converge' of #29). Powers of two: the scaled polynomials
+    are exact, also where subnormal coefficients keep a few bits only (the oracle is
+    the same polynomial at unit size)."""
+    from rlsfilt.adaptive._polynomials import coprimeness
+    for a, b in [([1.0, -0.5], [0.0, 1.0, -0.5]), ([1.0, -1.5, 0.7], [0.0, 1.0, 0.5]),
+                 ([1.0, -0.8], [0.0, 0.5, -0.4 + 1e-6])]:
+        a_s, b_s = scale_a * np.array(a), scale_b * np.array(b)
+        want = coprimeness(a_s / scale_a, b_s / scale_b)
+        assert coprimeness(a_s, b_s) == pytest.approx(want, rel=1e-12, abs=1e-15)
+
+
+@pytest.mark.parametrize("x0", [[1e300, 1e-300, 1e300, 1.0], [1e308, -1e308, 1e308, -1e308],
+                                [0.0, 0.0, 1e-320, 0.0], [1e200, 1e200, 1e-200, 1e-200],
+                                [-1.5, 0.7, 1e300, 1e300]])
+@pytest.mark.parametrize("compiled", [True, False])
+def test_an_extreme_but_finite_estimate_is_rejected_not_a_crash(x0, compiled):
+    """Estimates at the ends of the double range (a diverging or vanishing estimate): the
+    regulator starts and steps, with no controller, instead of raising IndexError,
+    'negative dimensions are not allowed' or LinAlgError from the coprimeness check."""
+    options = dict(Am=np.poly([0.5, 0.6]))
+    design = options if compiled else (lambda A_, B_: rst_design(A_, B_, **options))
+    stre = SelfTuningRegulator(RecursiveLeastSquares(4, P0=1e-300, x0=x0), design, na=2,
+                               nb=2, patience=2)
+    with pytest.warns(RegulatorWarning, match="there is no controller: the loop is open"):
+        u = [stre.step(y, 1.0) for y in (0.1, 0.2, 0.3)]
+    assert u == [0.0, 0.0, 0.0] and stre.controller is None
+    assert stre.history.rejected.all()
