@@ -2,6 +2,7 @@
 saturation watchdog, finite-value checks, offsets (the tank); rst_design(cancel_zeros=True)."""
 
 import contextlib
+import copy
 import io
 import re
 import warnings
@@ -596,3 +597,53 @@ def test_an_extreme_but_finite_estimate_is_rejected_not_a_crash(x0, compiled):
         u = [stre.step(y, 1.0) for y in (0.1, 0.2, 0.3)]
     assert u == [0.0, 0.0, 0.0] and stre.controller is None
     assert stre.history.rejected.all()
+
+
+def _affine_loop(stre, N=300, seed=4):
+    """The plant with an affine equilibrium, y(t) = 0.9 y(t-1) + 0.2 u(t-1) + 0.5 + e."""
+    rng = np.random.default_rng(seed)
+    y = u = 0.0
+    us = []
+    for t in range(N):
+        y = 0.9 * y + 0.2 * u + 0.5 + 0.01 * rng.standard_normal()
+        u = stre.step(y, 6.0 if t % 100 < 50 else 4.0, dither=0.02 * rng.choice([-1.0, 1.0]))
+        us.append(u)
+    return np.array(us)
+
+
+def _offset_regulator(integral):
+    return SelfTuningRegulator(RecursiveLeastSquares(3, P0=100.0),
+                               dict(Am=np.poly([0.6]), integral=integral), na=1, nb=1,
+                               offset=True)
+
+
+@pytest.mark.parametrize("integral", [False, True])
+def test_the_offset_regulators_compiled_design_equals_its_numpy_path(integral):
+    fast, slow = _offset_regulator(integral), _offset_regulator(integral)
+    assert fast._fast is not None
+    slow._fast = None                                      # the NumPy path only
+    assert_array_equal(_affine_loop(fast), _affine_loop(slow))
+    assert_array_equal(fast.state, slow.state)
+
+
+@pytest.mark.parametrize("integral", [False, True])
+def test_the_offset_regulator_inside_interconnect_equals_its_step_loop(integral):
+    control = pytest.importorskip("control")
+    stre = _offset_regulator(integral)
+    ref = copy.deepcopy(stre)
+    N = 200
+    r = np.where(np.arange(N) % 100 < 50, 6.0, 4.0)
+    d = 0.02 * np.random.default_rng(1).choice([-1.0, 1.0], N)
+    x, y_ref, u_ref = 0.0, np.zeros(N), np.zeros(N)
+    for k in range(N):
+        y_ref[k] = x
+        u_ref[k] = ref.step(x, r[k], d[k])
+        x = 0.9 * x + 0.2 * u_ref[k] + 0.5
+    plant = control.nlsys(lambda t, x, u, p: 0.9 * x + 0.2 * u + 0.5, lambda t, x, u, p: x,
+                          inputs="u", outputs="y", states=1, dt=True, name="plant")
+    loop = control.interconnect([plant, stre.as_iosystem()], inputs=["r", "dither"],
+                                outputs=["y", "u"])
+    resp = control.input_output_response(loop, np.arange(N), [r, d])
+    assert_allclose(resp.outputs[0], y_ref, rtol=0, atol=1e-12)
+    assert_allclose(resp.outputs[1], u_ref, rtol=0, atol=1e-12)
+    assert abs(ref.theta[2] - 0.5) < 0.1                   # the offset is in use (0.45)
