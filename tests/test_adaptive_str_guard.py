@@ -425,20 +425,28 @@ def test_the_python_control_system_refuses_the_same_measurements(value, match):
     assert len(stre.history) == 0
 
 
-@pytest.mark.parametrize("offset", [False, True])
-def test_a_second_order_model_keeps_the_tank_under_control(offset):
-    """#29: ARX(2, 2) on the tank lost the loop (level 10 against references up to 1.6).
-    It tracks now, with or without the offset (the reduced design carries it)."""
+@pytest.mark.parametrize("mode", ["plain", "offset", "deviation"])
+def test_a_second_order_model_keeps_the_tank_under_control(mode):
+    """#29: ARX(2, 2) on the tank lost the loop (level 10 against references up to 1.6),
+    also on deviation variables. It tracks now, with or without the offset, and on
+    deviations from h = 1.2 (the reduced design carries it)."""
+    offset = mode == "offset"
+    h_op, u_op = (1.2, OUTFLOW * np.sqrt(1.2)) if mode == "deviation" else (0.0, 0.0)
     stre = SelfTuningRegulator(RecursiveLeastSquares(4 + offset, lam=0.995, P0=100.0),
                                dict(Am=np.poly([0.8, 0.7]), Ao=np.poly([0.3, 0.3])), na=2,
-                               nb=2, offset=offset, u_limits=(0.0, 2.0))
+                               nb=2, offset=offset, u_limits=(0.0 - u_op, 2.0 - u_op))
+
+    class Deviations:            # the regulator on y - h_op, r - h_op; u = its output + u_op
+        def step(self, y, r, dither):
+            return stre.step(y - h_op, r - h_op, dither) + u_op
+
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RegulatorWarning)
-        y, u, r = _tank(stre)
+        y, u, r = _tank(Deviations())
     rms = np.sqrt(np.mean((y[500:] - r[500:]) ** 2))
-    assert rms < 0.2, rms                                 # 0.17 / 0.16 measured
-    assert y.max() < 2.2, y.max()                         # 1.95 / 1.64 measured
-    assert np.mean((u == 0.0) | (u == 2.0)) < 0.1
+    assert rms < 0.2, rms                           # 0.16, 0.17, 0.17 measured
+    assert y.max() < 2.2, y.max()                   # 1.64, 1.95, 1.71 measured
+    assert np.mean(np.isclose(u, 0.0) | np.isclose(u, 2.0)) < 0.1
 
 
 def _guide_section(title):
