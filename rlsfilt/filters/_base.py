@@ -221,7 +221,10 @@ class _FilterBase(Filter):
     def alpha(self):
         """filterpy's fading-memory factor, ``alpha**2 = 1 / lam`` (1 without
         forgetting; an array with ``forgetting="diagonal"``); assigning it sets `lam`
-        to ``1 / alpha**2``."""
+        to ``1 / alpha**2``. The filter then equals filterpy's ``KalmanFilter`` with
+        that ``alpha`` in the exponential mode; in the directional, constant-trace,
+        EFRA and variable modes `lam` is that mode's factor, which forgets along the
+        regressor or bounds ``P`` instead of scaling all of ``P``."""
         lam = getattr(self, "lam", 1.0)
         return 1.0 / np.sqrt(lam) if isinstance(lam, np.ndarray) else 1.0 / math.sqrt(lam)
 
