@@ -655,3 +655,26 @@ def test_the_offset_regulator_inside_interconnect_equals_its_step_loop(integral)
     assert_allclose(resp.outputs[0], y_ref, rtol=0, atol=1e-12)
     assert_allclose(resp.outputs[1], u_ref, rtol=0, atol=1e-12)
     assert abs(ref.theta[2] - 0.5) < 0.1                   # the offset is in use (0.45)
+
+
+def test_a_nearly_cancelling_complex_pair_is_removed_with_its_conjugate():
+    """The estimate A = (1 - 0.5 q^-1)(pole pair 0.6 e^{+-0.5j}), B = 0.8 q^-1 (zero pair
+    0.6003 e^{+-0.5003j}): coprimeness 5.4e-6. The reduced model removes the pair and its
+    conjugate, (1 - 0.5 q^-1) y = 0.8 q^-1 u; the controller is rst_design's on it; the
+    loop on the full estimate keeps the pair, stable; the warning names it."""
+    p, z = 0.6 * np.exp(0.5j), 0.6003 * np.exp(0.5003j)
+    A = np.real(np.poly([0.5, p, np.conj(p)]))
+    B = np.r_[0.0, 0.8 * np.real(np.poly([z, np.conj(z)]))]
+    stre = SelfTuningRegulator(RecursiveLeastSquares(6, P0=1e-12, x0=np.r_[A[1:], B[1:]]),
+                               dict(Am=np.poly([0.4])), na=3, nb=3)
+    with pytest.warns(RegulatorWarning, match=r"nearly cancels a pole against a zero \(.*"
+                                              r"closest pole 0\.52655\+0\.287655j / zero "
+                                              r"0\.526726\+0\.287957j\)"):
+        stre.step(0.0, 1.0)
+    assert stre.history.reduced[0] and not stre.history.rejected[0]
+    want = rst_design([1.0, -0.5], [0.0, 0.8], np.poly([0.4]))
+    for name in "RST":
+        assert_allclose(np.trim_zeros(getattr(stre.controller, name), "b"),
+                        getattr(want, name), rtol=0, atol=1e-13)
+    poles = np.sort(np.abs(stre.controller.closed_loop(A, B).poles))
+    assert_allclose(poles[-2:], 0.6, atol=1e-3)            # the removed pair stays, stable
