@@ -117,6 +117,27 @@ def test_filterpys_own_imm_example_with_one_model_replaced_by_rls():
     assert abs(imm_rls.x[0, 0] - 99.0) < 5.0
 
 
+@pytest.mark.parametrize("make", [lambda: SquareRootRLS(N_X, P0=1e4),
+                                  lambda: SlidingWindowRLS(N_X, window=1000, P0=1e4)],
+                         ids=["square_root", "sliding_window"])
+def test_imm_with_the_other_least_squares_filters(make, rng):
+    """The square-root filter and a window longer than the record in filterpy's IMM (the
+    IMM assigns their x and P when it mixes) equal a Kalman filter with F = I, Q = 0."""
+    Hs, zs = _record(rng)
+    M = np.array([[0.97, 0.03], [0.03, 0.97]])
+    ours = IMMEstimator([make(), _kalman(1e-2)], [0.5, 0.5], M)
+    ref = IMMEstimator([_kalman(0.0), _kalman(1e-2)], [0.5, 0.5], M)
+    for H, z in zip(Hs, zs):
+        for imm in (ours, ref):
+            imm.predict()
+            for f in imm.filters:
+                f.H = H.reshape(1, -1)
+            imm.update(z)
+        assert_allclose(ours.x, ref.x, rtol=0, atol=1e-12)      # 7e-15, 4e-14 measured
+        assert_allclose(ours.P, ref.P, rtol=0, atol=1e-12 * np.abs(ref.P).max())
+        assert_allclose(ours.mu, ref.mu, rtol=0, atol=1e-12)
+
+
 # ----------------------------------------------------------------------
 # update(z) with self.H
 # ----------------------------------------------------------------------
