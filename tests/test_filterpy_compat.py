@@ -388,3 +388,28 @@ def test_every_filter_runs_the_saver_loop_with_two_outputs(make, rng):
     assert saver.x.shape == (40, N_X, 2)
     assert_array_equal(saver.x[-1], b.x)
     assert_array_equal(saver.H[-1], Hs[-1].reshape(1, -1))
+
+
+# ----------------------------------------------------------------------
+# rts_smoother: filterpy's signature
+# ----------------------------------------------------------------------
+def test_rts_smoother_takes_filterpys_arguments_and_refuses_Fs_and_inv(rng):
+    """filterpy's ``rts_smoother(Xs, Ps, Fs=None, Qs=None, inv=...)``: ``Qs`` by keyword
+    or in fourth place equals filterpy's; a positional ``Fs`` (third) was taken as ``Qs``
+    and is now refused, as is ``inv``."""
+    Hs, zs = _record(rng, N=40)
+    rls = RecursiveLeastSquares(N_X, Q=1e-3, P0=3.0)        # (P0 = 1e4: P[0] ill-conditioned)
+    Xs, Ps, _, _ = rls.batch_filter(zs, Hs)
+    Qs = np.broadcast_to(2e-3 * np.eye(N_X), (40, N_X, N_X))
+    ref = _kalman(1e-3).rts_smoother(Xs, Ps, None, Qs)        # filterpy's, on our run
+    for ours in (rls.rts_smoother(Xs, Ps, None, Qs), rls.rts_smoother(Xs, Ps, Qs=Qs)):
+        for a, b, name in zip(ours, ref, ("x", "P", "K", "Pp"), strict=True):
+            assert_allclose(a, b, rtol=0, atol=1e-12 * max(1.0, np.abs(b).max()), err_msg=name)
+    Fs = [np.eye(N_X)] * 40
+    for call, name in [(lambda: rls.rts_smoother(Xs, Ps, Fs), "Fs"),
+                       (lambda: rls.rts_smoother(Xs, Ps, Fs=Fs, Qs=Qs), "Fs"),
+                       (lambda: rls.rts_smoother(Xs, Ps, inv=np.linalg.inv), "inv")]:
+        with pytest.raises(TypeError, match=rf"`{name}` is not an argument "
+                                            r"RecursiveLeastSquares\.rts_smoother\(\) uses: "
+                                            r"least squares has F = I"):
+            call()
