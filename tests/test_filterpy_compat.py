@@ -413,3 +413,23 @@ def test_rts_smoother_takes_filterpys_arguments_and_refuses_Fs_and_inv(rng):
                                             r"RecursiveLeastSquares\.rts_smoother\(\) uses: "
                                             r"least squares has F = I"):
             call()
+
+
+@pytest.mark.parametrize("name", sorted(set(FILTERS) - {"rls"}) + sorted(GRADIENT))
+def test_Q_of_a_filter_without_a_random_walk_is_zero_and_refused(name, rng):
+    """filterpy code sets ``f.Q`` (process noise): on a filter without a random walk it was
+    accepted and ignored; it reads as zero and assigning it names the filter."""
+    f = {**FILTERS, **GRADIENT}[name]()
+    assert_array_equal(f.Q, np.zeros((N_X, N_X)))
+    f.predict()
+    f.update(1.0, rng.standard_normal(N_X))
+    x = np.array(f.x, copy=True)
+    with pytest.raises(AttributeError, match=rf"`Q` cannot be assigned: {type(f).__name__} has "
+                                             r"no random walk \(filterpy's process noise\); "
+                                             r"RecursiveLeastSquares\(Q=\.\.\.\) has one"):
+        f.Q = 1e-3 * np.eye(N_X)
+    assert_array_equal(f.Q, np.zeros((N_X, N_X)))
+    assert_array_equal(f.x, x)
+    rls = RecursiveLeastSquares(N_X)
+    rls.Q = 1e-3                                # the RLS keeps its settable random walk
+    assert_array_equal(rls.Q, 1e-3 * np.eye(N_X))

@@ -198,6 +198,17 @@ class _FilterBase(Filter):
                                            "identity (constant parameters); model drift with Q"))
 
     @property
+    def Q(self):
+        """Random-walk covariance: zero, read-only, for the filters without a random walk
+        (`RecursiveLeastSquares` has its own, settable)."""
+        return np.zeros((self.dim_x, self.dim_x))
+
+    @Q.setter
+    def Q(self, value):
+        raise AttributeError(_refused("Q", f"{type(self).__name__} has no random walk (filterpy's "
+                                           "process noise); RecursiveLeastSquares(Q=...) has one"))
+
+    @property
     def B(self):
         """Control matrix: None (least squares has no control input); read-only."""
         return None
