@@ -29,6 +29,13 @@ since the peek). The output function then only peeks, and the update
 commits the peek made on the same ``(x, u)``, so each sample takes one step
 however often python-control evaluates the outputs.
 
+An object that can take a whole sample as one compiled call on the state
+vector also provides ``_io_vector_sample(x, inputs) -> (outputs, next
+state)`` (or None: that sample needs its Python). Both functions then try it
+first, remember its result on the bytes of ``(x, u)`` (the update returns the
+next state the outputs' evaluation computed) and never touch the working
+copy; a sample it declines goes the ways above, with the same results.
+
 python-control (``control.nlsys``, 0.10) computes a sample's outputs and then
 its update, each by passes over every subsystem's output function until the
 loop's signals settle, the first pass with those signals at zero: an output
@@ -64,8 +71,11 @@ def make_iosystem(template, *, inputs, outputs, states, dt, name=None):
     cache = {}          # (state bytes, input bytes) -> a step, see `evaluate`
     snaps = {}          # state-vector bytes -> snapshot of `work` in that state
     tokens = {}         # (state bytes, input bytes) -> (outputs, inputs, token) of a peek
+    samples = {}        # (state bytes, input bytes) -> (outputs, next state) or None
     fast = hasattr(work, "_snapshot")
     peeks = hasattr(work, "_io_peek")
+    vector = getattr(work, "_io_vector_sample", None)
+    zero = bytes(8 * len(x_start))      # the all-zero state vector: `template` now
     at = [None]         # the bytes of the state vector `work` is in now (None: unknown)
     holds = [None]      # the step whose result `work` holds now
     emitted = set()
@@ -84,7 +94,7 @@ def make_iosystem(template, *, inputs, outputs, states, dt, name=None):
         if snap is not None:
             work._restore_snapshot(snap)
         else:
-            work._set_state(x if x.any() else x_start)
+            work._set_state(x_start if xb == zero else x)
             if fast:
                 remember(xb, work._snapshot())
         at[0] = xb
@@ -109,6 +119,17 @@ def make_iosystem(template, *, inputs, outputs, states, dt, name=None):
                 cache.clear()
             cache[key] = hit
         return hit
+
+    def sample(x, w, key):
+        """The compiled sample on ``(x, w)``: ``(outputs, next state)``, remembered,
+        or None (the object's Python takes it)."""
+        if key in samples:
+            return samples[key]
+        got = vector(x_start if key[0] == zero else x, w)
+        if len(samples) >= _CACHE_SIZE:
+            samples.clear()
+        samples[key] = got
+        return got
 
     def arrays(x, u):
         """``(x, w, key)``: `x` and `u` as C-contiguous float arrays and the key
@@ -143,6 +164,10 @@ def make_iosystem(template, *, inputs, outputs, states, dt, name=None):
 
     def updfcn(t, x, u, params):
         x, w, key = arrays(x, u)
+        if vector is not None:
+            got = sample(x, w, key)
+            if got is not None:
+                return got[1].copy()
         xb = key[0]
         hit = commit(xb, key) if tokens else None
         if hit is None:
@@ -168,7 +193,10 @@ def make_iosystem(template, *, inputs, outputs, states, dt, name=None):
         if out is None:
             xb = key[0]
             hit = cache.get(key)
-            if hit is not None:
+            got = sample(x, w, key) if vector is not None else None
+            if got is not None:             # one compiled call
+                out = got[0]
+            elif hit is not None:
                 out = hit[0]
             elif peeks:                     # the outputs without a step, if it can
                 goto(x, xb)

@@ -124,6 +124,13 @@ class Filter(abc.ABC):
         (nothing done) otherwise. Only called with a token this filter returned."""
         return False
 
+    def _vector_step_constants(self):
+        """The constants with which `rlsfilt.filters._kernels_vector.vector_step` takes
+        this filter's plain step on its state vector: ``(il, Q, cfg, R,
+        check_every)``; None when the filter has no compiled step on its state
+        vector (the default)."""
+        return None
+
     #: The arrays a step writes into in place, which a snapshot must copy to stay
     #: valid (the others are replaced, not written).
     _written_in_place = ()
@@ -185,6 +192,16 @@ def commit_peeked(f, token):
     errors, if `f` is still in the state it was peeked in; False (nothing done)
     otherwise."""
     return f._commit_peeked(token)
+
+
+def vector_step_constants(f):
+    """The constants ``(il, Q, cfg, R, check_every)`` with which
+    `rlsfilt.filters._kernels_vector.vector_step` takes the plain step of filter `f`
+    on its state vector (``predict(); update(z, H)`` as one compiled call on the
+    numbers of :meth:`Filter.get_state`); None when `f` has no such step (the
+    python-control systems then step the filter's methods). Copies: changing them
+    changes nothing."""
+    return f._vector_step_constants() if isinstance(f, Filter) else None
 
 
 def check_state(filt, state):

@@ -622,6 +622,15 @@ class RecursiveLeastSquares(_FilterBase):
             self._commit_update(*step)
             return True
 
+    def _vector_step_constants(self):
+        """``(il, Q, cfg, R, check_every)`` of `_kernels_vector.vector_step` (copies), or
+        None while frozen (a frozen filter's step changes neither ``x`` nor ``P``) and for
+        a subclass (whose methods may step otherwise)."""
+        if self.frozen or type(self) is not RecursiveLeastSquares:
+            return None
+        return (float(self._il), self._Q_kernel.copy(), self._cfg.copy(), float(self._R),
+                int(self._check_every))
+
     def _check_step(self, flags, H, P, n_updates):
         """The decisions of `update` before it commits (`flags` of ``update_kernel``,
         `P` the new covariance): raise for a non-finite row, warn for a skipped
