@@ -45,12 +45,13 @@ def statuses(monkeypatch):
 
 
 def _regulator(opts):
-    n = opts["na"] + opts["nb"]
+    n = opts["na"] + opts["nb"] + opts["offset"]
     mode = opts["mode"]
     lam = np.linspace(0.95, 0.99, n) if mode == "diagonal" else 0.97
     est = RecursiveLeastSquares(n, lam=lam, P0=100.0, forgetting=mode, check_every=opts["every"])
     kw = {k: opts[k] for k in ("na", "nb", "nk", "dead_zone", "bounds", "u_limits",
-                               "redesign_every", "monitor_every", "patience", "windup_ratio")}
+                               "redesign_every", "monitor_every", "patience", "windup_ratio",
+                               "offset")}
     return SelfTuningRegulator(est, dict(DESIGN, integral=opts["integral"]), **kw)
 
 
@@ -110,6 +111,8 @@ OPTIONS = st.fixed_dictionaries({
     "patience": st.sampled_from([3, 50]),
     "windup_ratio": st.sampled_from([1e3, 2.0]),
     "integral": st.booleans(),
+    "offset": st.booleans(),
+    "level": st.sampled_from([0.0, 20.0]),          # an operating point
     "r_scale": st.sampled_from([1.0, 5.0]),
     "seed": st.integers(0, 2**16),
 })
@@ -128,7 +131,7 @@ def test_the_common_sample_is_one_compiled_call(statuses):
     compiled call; the two look-aheads of a sample reuse one result for the update."""
     opts = dict(na=2, nb=2, nk=1, mode="exponential", every=250, dead_zone=0.0, bounds=None,
                 u_limits=None, redesign_every=1, monitor_every=200, patience=50,
-                windup_ratio=1e3, integral=True, r_scale=1.0, seed=0)
+                windup_ratio=1e3, integral=True, offset=False, r_scale=1.0, seed=0)
     _run(opts, 400)
     done = np.array(statuses) == _kernels_design.DONE
     # two distinct inputs per sample (y = 0, then y): two calls; the update reuses one
@@ -143,7 +146,7 @@ def test_declined_samples_give_the_regulators_messages(statuses):
     loop's warnings."""
     base = dict(na=2, nb=2, nk=1, mode="exponential", every=250, dead_zone=0.0, bounds=None,
                 u_limits=None, redesign_every=1, monitor_every=40, patience=50,
-                windup_ratio=1e3, integral=True, r_scale=1.0, seed=1)
+                windup_ratio=1e3, integral=True, offset=False, r_scale=1.0, seed=1)
     messages = set()
     for change in (dict(u_limits=(-0.4, 0.4), r_scale=5.0), dict(windup_ratio=1.01),
                    dict(level=20.0, u_limits=(-0.4, 0.4))):     # (y and r about 20)
@@ -167,14 +170,14 @@ def test_the_scalar_entries_are_the_regulators():
 
 
 def test_options_the_compiled_sample_leaves_run_through_python(statuses):
-    """An offset, stable_R, cancelled zeros, a design callable or a filter without a
-    compiled step on its state vector: no compiled sample, the same results."""
+    """stable_R, cancelled zeros, a design callable or a filter without a compiled step
+    on its state vector: no compiled sample, the same results."""
     from rlsfilt import SquareRootRLS
     from rlsfilt.adaptive import rst_design
 
     cases = [
-        (RecursiveLeastSquares(5, P0=100.0), DESIGN, dict(offset=True)),
         (RecursiveLeastSquares(4, P0=100.0), DESIGN, dict(stable_R=True)),
+        (RecursiveLeastSquares(4, P0=100.0), dict(DESIGN, cancel_zeros=True), {}),
         (RecursiveLeastSquares(4, P0=100.0), lambda A, B: rst_design(A, B, **DESIGN), {}),
         (SquareRootRLS(4, P0=100.0), DESIGN, {}),
     ]

@@ -345,6 +345,23 @@ def prediction_error(y, phi, theta):
 
 
 @njit(cache=True, error_model="numpy")
+def offset_control(theta, na, nb, R):
+    r"""The control that holds the estimated offset ``c`` (last in `theta`):
+    ``(applies, u_c R(1) / r_0)`` with :math:`u_c = -c / B(1)`, summed in order; it
+    does not apply when :math:`|B(1)| \le 10^{-12} \sum |b_i|` (no gain to offset)."""
+    bsum = babs = 0.0
+    for i in range(nb):
+        bsum += theta[na + i]
+        babs += abs(theta[na + i])
+    if not abs(bsum) > 1e-12 * babs:
+        return False, 0.0
+    rsum = 0.0
+    for i in range(len(R)):
+        rsum += R[i]
+    return True, -theta[na + nb] / bsum * rsum / R[0]
+
+
+@njit(cache=True, error_model="numpy")
 def project_box(theta, lo, hi, out):
     """``out = clip(theta, lo, hi)`` entry by entry; returns whether an entry moved."""
     moved = False
@@ -373,7 +390,7 @@ def trace_of(P):
  S_ERR2, S_LEVEL_MEAN, S_LEVEL_M2, S_LEVEL_MIN) = 0, 1, 2, 4, 10, 6, 7, 11, 12, 14, 15, 16
 #: Entries of `sample`'s integer options.
 (I_NF, I_NA, I_NB, I_NK, I_L, I_LY, I_LU, I_REDESIGN, I_PATIENCE, I_MONITOR, I_CHECK,
- I_INTEGRAL, I_BOUNDS, I_LIMITS, I_LEVEL_WINDOW, I_SCALARS) = range(16)
+ I_INTEGRAL, I_BOUNDS, I_LIMITS, I_LEVEL_WINDOW, I_SCALARS, I_OFFSET) = range(17)
 #: Entries of `sample`'s real options.
 (R_IL, R_R, R_SIGNAL_LIMIT, R_DEAD_ZONE, R_U_LO, R_U_HI, R_COPRIME, R_REDUCE, R_GROWTH,
  R_WINDUP, R_AM_SUM, R_TOL_DESIGN, R_LEVEL_RATIO) = range(13)
@@ -407,7 +424,9 @@ def sample(v, w, out, outputs, ints, reals, Q, cfg, Acl, Ao, lo, hi):
     the estimator's plain step (`_kernels_vector.vector_step`) unless the dead
     zone skips it, the projection onto the box, the verified redesign
     (`design_and_law`) when due, else the law :math:`R u = T r - S y` with the
-    controller in use, :math:`u \leftarrow \mathrm{sat}(u + v)`, then the
+    controller in use, with an offset ``c`` (last in :math:`\varphi`, a 1) the
+    control that holds it (`offset_control`), :math:`u \leftarrow \mathrm{sat}(u
+    + v)`, then the
     memories and sums (`remember`), the windup check on
     :math:`\mathrm{tr}\,P` and the step count.
 
@@ -415,11 +434,12 @@ def sample(v, w, out, outputs, ints, reals, Q, cfg, Acl, Ao, lo, hi):
     the sample (a signal to reject, a message to issue, a design it does not
     accept here, a filter step with something to decide, the monitor's block
     end): `out` and `outputs` are then unspecified. No option of the
-    regulator's that this does not take (an offset, ``stable_R``, another
-    design) ever reaches it (`SelfTuningRegulator._vector_plan`).
+    regulator's that this does not take (``stable_R``, another design) ever
+    reaches it (`SelfTuningRegulator._vector_plan`).
     """
     nf, na, nb, nk, L = ints[I_NF], ints[I_NA], ints[I_NB], ints[I_NK], ints[I_L]
-    n = na + nb
+    offset = ints[I_OFFSET] != 0
+    n = na + nb + offset
     y, r, dv = w[0], w[1], w[2]
     lim = reals[R_SIGNAL_LIMIT]
     if not (np.isfinite(y) and np.isfinite(r) and np.isfinite(dv) and abs(y) <= lim
@@ -437,7 +457,7 @@ def sample(v, w, out, outputs, ints, reals, Q, cfg, Acl, Ao, lo, hi):
     sc = out[osc:oi]
     info = out[oi:oi + n * n].reshape((n, n))
     k = int(sc[S_STEP])
-    if k < ints[I_LEVEL_WINDOW]:
+    if not offset and k < ints[I_LEVEL_WINDOW]:
         # the operating-point check's running mean and squared deviations (Welford)
         mean, m2 = sc[S_LEVEL_MEAN], sc[S_LEVEL_M2]
         delta = y - mean
@@ -447,12 +467,14 @@ def sample(v, w, out, outputs, ints, reals, Q, cfg, Acl, Ao, lo, hi):
         sc[S_LEVEL_MEAN], sc[S_LEVEL_M2], sc[S_LEVEL_MIN] = mean, m2, low
         if k + 1 >= ints[I_LEVEL_WINDOW] and low > reals[R_LEVEL_RATIO] * np.sqrt(m2 / (k + 1)):
             return LEVEL_MESSAGE
-    # phi(t) = [-y(t-1) .. -y(t-na), u(t-nk) .. u(t-nk-nb+1)];  e = y - phi theta
+    # phi(t) = [-y(t-1) .. -y(t-na), u(t-nk) .. u(t-nk-nb+1) (, 1)];  e = y - phi theta
     phi = np.empty(n)
     for i in range(na):
         phi[i] = -ypast[i]
     for i in range(nb):
         phi[na + i] = upast[nk - 1 + i]
+    if offset:
+        phi[n - 1] = 1.0
     x, P = vector_x_P(out[:nf], n)         # the estimator's, in the new state
     theta = x.copy()
     e = prediction_error(y, phi, theta)
@@ -484,8 +506,13 @@ def sample(v, w, out, outputs, ints, reals, Q, cfg, Acl, Ao, lo, hi):
     if sc[S_HAVE] == 0.0:                   # no controller yet: the loop is open
         if k + 1 >= ints[I_PATIENCE] and sc[S_WARNED_REJECTED] == 0.0:
             return PATIENCE_MESSAGE
-    elif not designed:                      # R (u - u_c) = T r - S y, the controller in use
-        u = control_law(ctrl, rpast, ypast, upast, y, r)
+    else:                                   # R (u - u_c) = T r - S y, the controller in use
+        if not designed:
+            u = control_law(ctrl, rpast, ypast, upast, y, r)
+        if offset:
+            applies, u_c = offset_control(theta, na, nb, ctrl[0])
+            if applies:
+                u += u_c
     u = u + dv
     if not (np.isfinite(u) and abs(u) <= lim):
         return BAD_CONTROL

@@ -499,14 +499,13 @@ class SelfTuningRegulator:
                     "orders, the excitation and the design (Am, Ao)", RegulatorWarning))
         # control law R (u - u_c) = T r - S y, with the past from the memories
         if self._scalars[0]:
-            R = self._ctrl[0]
             if u is None:           # (the compiled design computed it with the controller)
                 u = _kernels().control_law(self._ctrl, self._rpast, self._ypast, self._upast,
                                            y, r)
-            if self.offset:
-                Bsum = theta[na:na + nb].sum()
-                if abs(Bsum) > 1e-12 * np.abs(theta[na:na + nb]).sum():
-                    u += -theta[-1] / Bsum * R.sum() / R[0]     # u_c R(1) / r0
+            if self.offset:         # + u_c R(1) / r0, u_c = -c / B(1) (when B(1) is not 0)
+                applies, u_c = _kernels().offset_control(theta, na, nb, self._ctrl[0])
+                if applies:
+                    u += u_c
         else:
             u = 0.0
         u = u + v
@@ -911,23 +910,22 @@ class SelfTuningRegulator:
         when every sample needs the regulator's Python: an estimator without a
         compiled step on its state vector (`contract.vector_step_constants`: any but
         `RecursiveLeastSquares`, or a frozen one), a design other than the dict of
-        `rst_design` keywords without cancelled zeros, ``stable_R``, an offset."""
+        `rst_design` keywords without cancelled zeros, ``stable_R``."""
         constants = vector_step_constants(self.estimator)
         fast = self._fast
-        if (constants is None or fast is None or self.design is not fast[0] or self.stable_R
-                or self.offset):
+        if constants is None or fast is None or self.design is not fast[0] or self.stable_R:
             return None
         il, Q, cfg, R, check_every = constants
         _, Acl, Ao, am_sum, integral, tol = fast
         k = _kernels()
-        ints = np.zeros(16, dtype=np.int64)
+        ints = np.zeros(17, dtype=np.int64)
         ints[[k.I_NF, k.I_NA, k.I_NB, k.I_NK, k.I_L, k.I_LY, k.I_LU, k.I_REDESIGN,
               k.I_PATIENCE, k.I_MONITOR, k.I_CHECK, k.I_INTEGRAL, k.I_BOUNDS, k.I_LIMITS,
-              k.I_LEVEL_WINDOW, k.I_SCALARS]] = [
+              k.I_LEVEL_WINDOW, k.I_SCALARS, k.I_OFFSET]] = [
             self._layout().size, self.na, self.nb, self.nk, self._L, len(self._ypast),
             len(self._upast), self.redesign_every, self.patience, self.monitor_every,
             check_every, integral, self.bounds is not None, self.u_limits is not None,
-            _LEVEL_WINDOW, len(_SCALARS)]
+            _LEVEL_WINDOW, len(_SCALARS), self.offset]
         lo, hi = self.u_limits if self.u_limits is not None else (0.0, 0.0)
         reals = np.zeros(13)
         reals[[k.R_IL, k.R_R, k.R_SIGNAL_LIMIT, k.R_DEAD_ZONE, k.R_U_LO, k.R_U_HI,
@@ -952,7 +950,7 @@ class SelfTuningRegulator:
         if plan is None or len(x) != self._state_size or len(w) != 3:
             return None
         out = np.empty(len(x))
-        outputs = np.empty(2 + self.na + self.nb if self._io_extra else 1)
+        outputs = np.empty(2 + self.na + self.nb + self.offset if self._io_extra else 1)
         try:
             status = _kernels().sample(x, w, out, outputs, *plan)
         except (ValueError, ZeroDivisionError, np.linalg.LinAlgError):
