@@ -29,14 +29,7 @@ from .._lazy import lazy_module
 from .._validation import check_dt, check_int, check_real, check_scalar
 from ..exceptions import ExcitationWarning, RegulatorWarning
 from ..filters import _filter_state
-from ..filters.contract import (
-    can_peek,
-    commit_peeked,
-    peek_predict_update,
-    restore_filter,
-    snapshot_filter,
-    vector_step_constants,
-)
+from ..filters.contract import restore_filter, snapshot_filter, vector_step_constants
 from ._polynomials import coprimeness, degree, fmt_complex, padd, roots, trim
 from .rst import RSTController, _prepared_design, rst_design
 
@@ -409,18 +402,13 @@ class SelfTuningRegulator:
         it done: `_advance` undoes it)."""
         return self._conclude(self._decide(y, r, v))
 
-    def _decide(self, y, r, v, peek=False, like=None):
+    def _decide(self, y, r, v):
         """The part of a sample that sets ``u``: the checks of the signals, the
         estimator's update, the projection, the redesign and the control law.
 
         Returns ``[k, y, r, phi, e, theta, updated, redesigned, rejected, reduced, u,
-        saturated, messages before the estimator's, the estimator's, messages after,
-        estimator token, projected estimate]``, for :meth:`_conclude`. With `peek`
-        the estimator is only peeked at (``peek_predict_update(est, y, phi, like)``: its
-        token, for ``commit_peeked``, is returned and the projected estimate is not
-        written back) and the caller has put copies of ``_scalars`` and ``_ctrl`` in
-        place (see :meth:`_io_peek`); None if the estimator cannot peek, or its peeked
-        estimate is not finite (the real step then raises).
+        saturated, messages before the estimator's, the estimator's, messages after]``,
+        for :meth:`_conclude`.
         """
         na, nb, nk = self.na, self.nb, self.nk
         est = self.estimator
@@ -442,25 +430,15 @@ class SelfTuningRegulator:
         theta = np.array(est.x, dtype=float).reshape(-1)     # a copy, as self.theta
         e = _kernels().prediction_error(y, phi, theta)      # e = y - phi^T theta, a priori
         updated = self.dead_zone == 0.0 or abs(e) > self.dead_zone
-        caught, token, projected = [], None, None
-        if updated and peek:
-            peeked = peek_predict_update(est, y, phi, like)
-            if peeked is None:
-                return None
-            theta, token = peeked[0].reshape(-1), peeked[1]     # a new array, not the filter's
-            if not math.isfinite(sum(theta.tolist())):  # (finite sum: finite entries)
-                return None
-        elif updated:
+        caught = []
+        if updated:
             _, caught = call_capturing(est.predict_update, y, phi)
             theta = np.array(est.x, dtype=float).reshape(-1)
             self._check_estimate(k, y, phi)
         if self.bounds is not None:               # projection onto the box
             clipped = np.empty(len(theta))
             if _kernels().project_box(theta, *self.bounds, clipped):
-                if peek:
-                    projected = clipped
-                else:
-                    est.x = clipped.reshape(-1, 1)
+                est.x = clipped.reshape(-1, 1)
                 theta = clipped
         messages = []
         redesigned = k % self.redesign_every == 0
@@ -515,7 +493,7 @@ class SelfTuningRegulator:
             saturated = not self.u_limits[0] < u < self.u_limits[1]
             u = min(max(u, self.u_limits[0]), self.u_limits[1])
         return [k, y, r, phi, e, theta, updated, redesigned, rejected, reduced, float(u),
-                saturated, before, caught, messages, token, projected]
+                saturated, before, caught, messages]
 
     def _check_estimate(self, k, y, phi):
         """Raise if the estimator's estimate or covariance is not finite."""
@@ -536,7 +514,7 @@ class SelfTuningRegulator:
         memories, the monitors, the step count. Returns ``(u, record or None,
         messages)``."""
         (k, y, r, phi, e, theta, updated, redesigned, rejected, reduced, u, saturated,
-         before, caught, after, _, _) = decided
+         before, caught, after) = decided
         messages = before + caught + after
         # the memories, the excitation monitor's sum, the saturation watchdog's block sums
         _kernels().remember(self._ypast, self._upast, self._rpast, self._info, self._scalars,
@@ -859,51 +837,6 @@ class SelfTuningRegulator:
         out[2:] = theta
         return out
 
-    def _io_peek(self, w):
-        """``(outputs, token)``: the outputs `_io_step(w)` would give (bit for bit), with
-        nothing changed, and a token for `_io_commit`; None when the step cannot be
-        computed without taking it (the estimator does not peek).
-
-        The decisions of the sample (:meth:`_decide`) are taken on copies of the
-        scalars and the controller, and the estimator is only peeked at; the
-        commit adopts them, so a sample whose outputs python-control evaluates on
-        several inputs takes one step.
-        """
-        if not can_peek(self.estimator):
-            return None                 # a filter that never peeks: the real step
-        y, r, v = w.tolist()
-        saved = (self._scalars, self._ctrl, self._why, self._checked)
-        self._scalars, self._ctrl = saved[0].copy(), saved[1].copy()
-        try:
-            decided = self._decide(y, r, v, peek=True, like=self.__dict__.get("_like"))
-            if decided is None:
-                return None
-            token = (decided, self._scalars, self._ctrl, self._why, self._checked)
-        except Exception:       # the real step decides: it raises this, or an error it
-            return None         # checks first (a covariance that is no longer finite)
-        finally:
-            self._scalars, self._ctrl, self._why, self._checked = saved
-        if decided[15] is not None:
-            self._like = decided[15]          # its predict serves the next peek in this state
-        return self._io_outputs(decided), token
-
-    def _io_commit(self, w, token):
-        """Take the step `_io_peek(w)` computed: its messages, or None (nothing done)
-        if the estimator has changed since."""
-        decided, scalars, ctrl, why, checked = token
-        k, y, phi, est_token, projected = decided[0], decided[1], decided[3], decided[15], \
-            decided[16]
-        if est_token is not None:
-            done, decided[13] = call_capturing(commit_peeked, self.estimator, est_token)
-            if not done:
-                return None
-            self._check_estimate(k, y, phi)
-        if projected is not None:
-            self.estimator.x = projected.reshape(-1, 1)
-        # the look-ahead's copies become the state (snapshots hold copies of their own)
-        self._scalars, self._ctrl, self._why, self._checked = scalars, ctrl, why, checked
-        return self._conclude(decided, record=False)[2]
-
     def _vector_plan(self):
         """The options of the compiled sample on the state vector
         (`_kernels_design.sample`: ``(ints, reals, Q, cfg, Acl, Ao, lo, hi)``), or None
@@ -941,11 +874,12 @@ class SelfTuningRegulator:
     def _io_vector_sample(self, x, w):
         """``(outputs, next state vector)`` of one sample from the state vector `x` and
         the inputs `w`, by one compiled call (`_kernels_design.sample`), with nothing
-        changed; None when the sample needs the regulator's Python (then `_io_peek` or
-        `_io_step` takes it, with the same results, its messages and errors).
+        changed; None when the sample needs the regulator's Python (then `_io_step`
+        takes it, with the same results, its messages and errors).
 
-        The common sample in python-control: 4.3 us of the 12.5 us a look-ahead took
-        through `_io_peek` (``benchmarks/bench_diagrams.py``)."""
+        The regulator in python-control's call pattern: 3.2x the bare filter step per
+        simulated step instead of 9.1x with a Python look-ahead per evaluation
+        (``benchmarks/bench_diagrams.py``, one session)."""
         plan = self.__dict__.get("_plan")
         if plan is None or len(x) != self._state_size or len(w) != 3:
             return None

@@ -70,27 +70,6 @@ class _EstimatorStepper:
             if self._upast:
                 self._upast = (u,) + self._upast[:-1]
 
-    def _io_peek(self, w):
-        """``(outputs, token)``: the outputs `_io_step(w)` would give (bit for bit),
-        with nothing changed, and a token for `_io_commit`; None when the filter
-        cannot tell without stepping."""
-        f = self.filter
-        z, H = self._measurement(w)
-        peeked = f._peek_predict_update(z, H, self.__dict__.get("_token"))
-        if peeked is None:
-            return None
-        self._token = peeked[1]             # its predict serves the next peek in this state
-        return self._outputs(peeked[0], z, H, np.asarray(f.x, dtype=float)), peeked[1]
-
-    def _io_commit(self, w, token):
-        """Take the step `_io_peek(w)` computed: its messages, or None (nothing done)
-        if the state has changed since."""
-        done, messages = call_capturing(self.filter._commit_peeked, token)
-        if not done:
-            return None
-        self._remember(w)
-        return messages
-
     def _outputs(self, xn, z, H, x):
         """``[theta after the step, z - H x]`` (`x` the estimate before it)."""
         n, m = xn.size, self.filter.dim_z
