@@ -32,7 +32,8 @@ _COLD_SECONDS = {
     "rlsfilt.filters._kernels_bank": 15,
     "rlsfilt.models._recursive_kernels": 10,
     "rlsfilt.validation._kernels_detection": 5,
-    "rlsfilt.adaptive._kernels_design": 5,
+    "rlsfilt.adaptive._kernels_design": 10,
+    "rlsfilt.filters._kernels_vector": 3,
 }
 
 _announced = []
@@ -128,11 +129,17 @@ for method in ("cusum", "glr"):
     det.g_plus
 """),
     ("SelfTuningRegulator", """
-from rlsfilt.adaptive import SelfTuningRegulator
+import control
+from rlsfilt.adaptive import SelfTuningRegulator, estimator_iosystem
 stre = SelfTuningRegulator(rlsfilt.RecursiveLeastSquares(4, P0=100.0),
                            dict(Am=np.poly([0.5, 0.6]), Ao=np.poly([0.2])), na=2, nb=2)
 for t in range(20):
     stre.step(y[t], 1.0)
+plant = control.tf([0, 1, 0.5], [1, -1.5, 0.7], True, inputs="u", outputs="y")
+est = estimator_iosystem(rlsfilt.RecursiveLeastSquares(4, P0=100.0), regressor=(2, 2, 1))
+loop = control.interconnect([plant, stre.as_iosystem(), est], inputs=["r", "dither"],
+                            outputs=["y", "u"])
+control.input_output_response(loop, np.arange(10), [np.ones(10), 0.01 * u[:10]])
 """),
 )
 

@@ -35,6 +35,7 @@ Every function is ``njit(cache=True)``.
 import numpy as np
 
 from .._numba import njit  # numba.njit, uncached where no cache directory is writable
+from ..filters._kernels_vector import PLAIN, vector_assign_x, vector_step, vector_x_P
 
 __all__ = []
 
@@ -331,3 +332,209 @@ def remember(ypast, upast, rpast, info, scalars, phi, y, u, r, saturated, i_sat,
             info[i, j] += phi[i] * phi[j]
     scalars[i_sat] += saturated
     scalars[i_err2] += (r - y) ** 2
+
+
+@njit(cache=True, error_model="numpy")
+def prediction_error(y, phi, theta):
+    r"""The a-priori prediction error :math:`e = y - \varphi^T \theta`, summed in order
+    (the same number on the regulator's Python path and in `sample`)."""
+    s = 0.0
+    for i in range(len(phi)):
+        s += phi[i] * theta[i]
+    return y - s
+
+
+@njit(cache=True, error_model="numpy")
+def offset_control(theta, na, nb, R):
+    r"""The control that holds the estimated offset ``c`` (last in `theta`):
+    ``(applies, u_c R(1) / r_0)`` with :math:`u_c = -c / B(1)`, summed in order; it
+    does not apply when :math:`|B(1)| \le 10^{-12} \sum |b_i|` (no gain to offset)."""
+    bsum = babs = 0.0
+    for i in range(nb):
+        bsum += theta[na + i]
+        babs += abs(theta[na + i])
+    if not abs(bsum) > 1e-12 * babs:
+        return False, 0.0
+    rsum = 0.0
+    for i in range(len(R)):
+        rsum += R[i]
+    return True, -theta[na + nb] / bsum * rsum / R[0]
+
+
+@njit(cache=True, error_model="numpy")
+def project_box(theta, lo, hi, out):
+    """``out = clip(theta, lo, hi)`` entry by entry; returns whether an entry moved."""
+    moved = False
+    for i in range(len(theta)):
+        t = theta[i]
+        out[i] = lo[i] if t < lo[i] else (hi[i] if t > hi[i] else t)
+        moved = moved or t < lo[i] or t > hi[i]
+    return moved
+
+
+@njit(cache=True, error_model="numpy")
+def trace_of(P):
+    """``trace(P)``, summed in order (the windup check's number on both paths)."""
+    s = 0.0
+    for i in range(P.shape[0]):
+        s += P[i, i]
+    return s
+
+
+# ----------------------------------------------------------------------
+# a whole sample on the state vector (the python-control system)
+# ----------------------------------------------------------------------
+#: Entries of the regulator's bookkeeping scalars (`self_tuning._SCALARS`) that `sample`
+#: reads and writes.
+(S_HAVE, S_STEP, S_TRACE_REF, S_WARNED_WINDUP, S_SIZE, S_RUN, S_WARNED_REJECTED, S_SAT,
+ S_ERR2, S_LEVEL_MEAN, S_LEVEL_M2, S_LEVEL_MIN) = 0, 1, 2, 4, 10, 6, 7, 11, 12, 14, 15, 16
+#: Entries of `sample`'s integer options.
+(I_NF, I_NA, I_NB, I_NK, I_L, I_LY, I_LU, I_REDESIGN, I_PATIENCE, I_MONITOR, I_CHECK,
+ I_INTEGRAL, I_BOUNDS, I_LIMITS, I_LEVEL_WINDOW, I_SCALARS, I_OFFSET) = range(17)
+#: Entries of `sample`'s real options.
+(R_IL, R_R, R_SIGNAL_LIMIT, R_DEAD_ZONE, R_U_LO, R_U_HI, R_COPRIME, R_REDUCE, R_GROWTH,
+ R_WINDUP, R_AM_SUM, R_TOL_DESIGN, R_LEVEL_RATIO) = range(13)
+#: Statuses of `sample`: 0 the sample is done; anything else, the regulator's Python
+#: takes it (a message, an error, a design or a filter step the compiled path leaves).
+(DONE, BAD_SIGNAL, LEVEL_MESSAGE, FILTER_STEP, NOT_FINITE, DESIGN, PATIENCE_MESSAGE,
+ BAD_CONTROL, WINDUP_MESSAGE, MONITOR_DUE) = range(10)
+
+
+@njit(cache=True, error_model="numpy")
+def sample(v, w, out, outputs, ints, reals, Q, cfg, Acl, Ao, lo, hi):
+    r"""One sample of the regulator on its state vector: ``out``, the state after it.
+
+    `v` is the regulator's state vector (the estimator's state, then the
+    memories ``y``, ``u``, ``r`` newest first, the rows ``R, S, T``, the
+    scalars, :math:`\sum\varphi\varphi^T`); `w` the inputs ``[y, r, dither]``.
+    The options: `ints` and `reals` (entries ``I_*`` and ``R_*``), the
+    estimator's constants (`Q`, `cfg`, and ``il``, ``R``, ``check_every`` in the
+    options: `rlsfilt.filters.contract.vector_step_constants`), the design's
+    `Acl` ``= A_m A_o`` and `Ao`, the box `lo`, `hi`. Writes ``[u]`` (or ``[u, e,
+    theta..]``) into `outputs`.
+
+    The regulator's sample (`SelfTuningRegulator.step`) on its common branch, the
+    same operations on the same numbers as its Python path:
+
+    .. math::
+
+        \varphi(t) = [-y(t-1) .. -y(t-n_a), u(t-n_k) .. u(t-n_k-n_b+1)], \quad
+        e = y - \varphi^T \hat\theta,
+
+    the estimator's plain step (`_kernels_vector.vector_step`) unless the dead
+    zone skips it, the projection onto the box, the verified redesign
+    (`design_and_law`) when due, else the law :math:`R u = T r - S y` with the
+    controller in use, with an offset ``c`` (last in :math:`\varphi`, a 1) the
+    control that holds it (`offset_control`), :math:`u \leftarrow \mathrm{sat}(u
+    + v)`, then the
+    memories and sums (`remember`), the windup check on
+    :math:`\mathrm{tr}\,P` and the step count.
+
+    Returns `DONE` (0), or the first reason the regulator's Python must take
+    the sample (a signal to reject, a message to issue, a design it does not
+    accept here, a filter step with something to decide, the monitor's block
+    end): `out` and `outputs` are then unspecified. No option of the
+    regulator's that this does not take (``stable_R``, another design) ever
+    reaches it (`SelfTuningRegulator._vector_plan`).
+    """
+    nf, na, nb, nk, L = ints[I_NF], ints[I_NA], ints[I_NB], ints[I_NK], ints[I_L]
+    offset = ints[I_OFFSET] != 0
+    n = na + nb + offset
+    y, r, dv = w[0], w[1], w[2]
+    lim = reals[R_SIGNAL_LIMIT]
+    if not (np.isfinite(y) and np.isfinite(r) and np.isfinite(dv) and abs(y) <= lim
+            and abs(r) <= lim and abs(dv) <= lim):
+        return BAD_SIGNAL
+    out[:] = v
+    oy = nf
+    ou = oy + ints[I_LY]
+    orr = ou + ints[I_LU]
+    oc = orr + L - 1
+    osc = oc + 3 * L
+    oi = osc + ints[I_SCALARS]
+    ypast, upast, rpast = out[oy:ou], out[ou:orr], out[orr:oc]
+    ctrl = out[oc:osc].reshape((3, L))
+    sc = out[osc:oi]
+    info = out[oi:oi + n * n].reshape((n, n))
+    k = int(sc[S_STEP])
+    if not offset and k < ints[I_LEVEL_WINDOW]:
+        # the operating-point check's running mean and squared deviations (Welford)
+        mean, m2 = sc[S_LEVEL_MEAN], sc[S_LEVEL_M2]
+        delta = y - mean
+        mean += delta / (k + 1)
+        m2 += delta * (y - mean)
+        low = abs(y) if k == 0 else (abs(y) if abs(y) < sc[S_LEVEL_MIN] else sc[S_LEVEL_MIN])
+        sc[S_LEVEL_MEAN], sc[S_LEVEL_M2], sc[S_LEVEL_MIN] = mean, m2, low
+        if k + 1 >= ints[I_LEVEL_WINDOW] and low > reals[R_LEVEL_RATIO] * np.sqrt(m2 / (k + 1)):
+            return LEVEL_MESSAGE
+    # phi(t) = [-y(t-1) .. -y(t-na), u(t-nk) .. u(t-nk-nb+1) (, 1)];  e = y - phi theta
+    phi = np.empty(n)
+    for i in range(na):
+        phi[i] = -ypast[i]
+    for i in range(nb):
+        phi[na + i] = upast[nk - 1 + i]
+    if offset:
+        phi[n - 1] = 1.0
+    x, P = vector_x_P(out[:nf], n)         # the estimator's, in the new state
+    theta = x.copy()
+    e = prediction_error(y, phi, theta)
+    dead_zone = reals[R_DEAD_ZONE]
+    if dead_zone == 0.0 or abs(e) > dead_zone:
+        status = vector_step(v[:nf], w[:1], phi, reals[R_IL], Q, cfg, reals[R_R], ints[I_CHECK],
+                             out[:nf])
+        if status != PLAIN:
+            return FILTER_STEP
+        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(P))):
+            return NOT_FINITE               # (the Python path raises)
+        theta = x.copy()
+    if ints[I_BOUNDS]:                      # projection onto the box
+        clipped = np.empty(n)
+        if project_box(theta, lo, hi, clipped):
+            vector_assign_x(out[:nf], clipped)
+            theta = clipped
+    u = 0.0
+    designed = False
+    if k % ints[I_REDESIGN] == 0:
+        status, u = design_and_law(theta, na, nb, nk, Acl, Ao, reals[R_AM_SUM],
+                                   ints[I_INTEGRAL] != 0, reals[R_TOL_DESIGN],
+                                   reals[R_COPRIME], reals[R_REDUCE], reals[R_GROWTH], sc,
+                                   S_SIZE, S_RUN, S_WARNED_REJECTED, np.empty((3, L)), ctrl,
+                                   rpast, ypast, upast, y, r)
+        if status != ACCEPTED:
+            return DESIGN
+        designed = True
+    if sc[S_HAVE] == 0.0:                   # no controller yet: the loop is open
+        if k + 1 >= ints[I_PATIENCE] and sc[S_WARNED_REJECTED] == 0.0:
+            return PATIENCE_MESSAGE
+    else:                                   # R (u - u_c) = T r - S y, the controller in use
+        if not designed:
+            u = control_law(ctrl, rpast, ypast, upast, y, r)
+        if offset:
+            applies, u_c = offset_control(theta, na, nb, ctrl[0])
+            if applies:
+                u += u_c
+    u = u + dv
+    if not (np.isfinite(u) and abs(u) <= lim):
+        return BAD_CONTROL
+    saturated = False
+    if ints[I_LIMITS]:                      # u = min(max(u, lo), hi)
+        u_lo, u_hi = reals[R_U_LO], reals[R_U_HI]
+        saturated = not u_lo < u < u_hi
+        u = u_lo if u_lo > u else u
+        u = u_hi if u_hi < u else u
+    remember(ypast, upast, rpast, info, sc, phi, y, u, r, 1.0 if saturated else 0.0, S_SAT,
+             S_ERR2)
+    trace = trace_of(P)
+    if trace > reals[R_WINDUP] * sc[S_TRACE_REF]:
+        if sc[S_WARNED_WINDUP] == 0.0:
+            return WINDUP_MESSAGE
+    else:
+        sc[S_WARNED_WINDUP] = 0.0
+    if ints[I_MONITOR] != 0 and (k + 1) % ints[I_MONITOR] == 0:
+        return MONITOR_DUE
+    sc[S_STEP] = k + 1
+    outputs[0] = u
+    if len(outputs) > 1:
+        outputs[1] = e
+        outputs[2:] = theta
+    return DONE

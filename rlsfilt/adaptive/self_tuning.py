@@ -29,13 +29,7 @@ from .._lazy import lazy_module
 from .._validation import check_dt, check_int, check_real, check_scalar
 from ..exceptions import ExcitationWarning, RegulatorWarning
 from ..filters import _filter_state
-from ..filters.contract import (
-    can_peek,
-    commit_peeked,
-    peek_predict_update,
-    restore_filter,
-    snapshot_filter,
-)
+from ..filters.contract import restore_filter, snapshot_filter, vector_step_constants
 from ._polynomials import coprimeness, degree, fmt_complex, padd, roots, trim
 from .rst import RSTController, _prepared_design, rst_design
 
@@ -408,18 +402,13 @@ class SelfTuningRegulator:
         it done: `_advance` undoes it)."""
         return self._conclude(self._decide(y, r, v))
 
-    def _decide(self, y, r, v, peek=False, like=None):
+    def _decide(self, y, r, v):
         """The part of a sample that sets ``u``: the checks of the signals, the
         estimator's update, the projection, the redesign and the control law.
 
         Returns ``[k, y, r, phi, e, theta, updated, redesigned, rejected, reduced, u,
-        saturated, messages before the estimator's, the estimator's, messages after,
-        estimator token, projected estimate]``, for :meth:`_conclude`. With `peek`
-        the estimator is only peeked at (``peek_predict_update(est, y, phi, like)``: its
-        token, for ``commit_peeked``, is returned and the projected estimate is not
-        written back) and the caller has put copies of ``_scalars`` and ``_ctrl`` in
-        place (see :meth:`_io_peek`); None if the estimator cannot peek, or its peeked
-        estimate is not finite (the real step then raises).
+        saturated, messages before the estimator's, the estimator's, messages after]``,
+        for :meth:`_conclude`.
         """
         na, nb, nk = self.na, self.nb, self.nk
         est = self.estimator
@@ -439,27 +428,17 @@ class SelfTuningRegulator:
         if self.offset:
             phi[-1] = 1.0
         theta = np.array(est.x, dtype=float).reshape(-1)     # a copy, as self.theta
-        e = y - phi @ theta                       # a-priori prediction error
+        e = _kernels().prediction_error(y, phi, theta)      # e = y - phi^T theta, a priori
         updated = self.dead_zone == 0.0 or abs(e) > self.dead_zone
-        caught, token, projected = [], None, None
-        if updated and peek:
-            peeked = peek_predict_update(est, y, phi, like)
-            if peeked is None:
-                return None
-            theta, token = peeked[0].reshape(-1), peeked[1]     # a new array, not the filter's
-            if not math.isfinite(sum(theta.tolist())):  # (finite sum: finite entries)
-                return None
-        elif updated:
+        caught = []
+        if updated:
             _, caught = call_capturing(est.predict_update, y, phi)
             theta = np.array(est.x, dtype=float).reshape(-1)
             self._check_estimate(k, y, phi)
         if self.bounds is not None:               # projection onto the box
-            clipped = np.clip(theta, *self.bounds)
-            if np.any(clipped != theta):
-                if peek:
-                    projected = clipped
-                else:
-                    est.x = clipped.reshape(-1, 1)
+            clipped = np.empty(len(theta))
+            if _kernels().project_box(theta, *self.bounds, clipped):
+                est.x = clipped.reshape(-1, 1)
                 theta = clipped
         messages = []
         redesigned = k % self.redesign_every == 0
@@ -498,14 +477,13 @@ class SelfTuningRegulator:
                     "orders, the excitation and the design (Am, Ao)", RegulatorWarning))
         # control law R (u - u_c) = T r - S y, with the past from the memories
         if self._scalars[0]:
-            R = self._ctrl[0]
             if u is None:           # (the compiled design computed it with the controller)
                 u = _kernels().control_law(self._ctrl, self._rpast, self._ypast, self._upast,
                                            y, r)
-            if self.offset:
-                Bsum = theta[na:na + nb].sum()
-                if abs(Bsum) > 1e-12 * np.abs(theta[na:na + nb]).sum():
-                    u += -theta[-1] / Bsum * R.sum() / R[0]     # u_c R(1) / r0
+            if self.offset:         # + u_c R(1) / r0, u_c = -c / B(1) (when B(1) is not 0)
+                applies, u_c = _kernels().offset_control(theta, na, nb, self._ctrl[0])
+                if applies:
+                    u += u_c
         else:
             u = 0.0
         u = u + v
@@ -515,7 +493,7 @@ class SelfTuningRegulator:
             saturated = not self.u_limits[0] < u < self.u_limits[1]
             u = min(max(u, self.u_limits[0]), self.u_limits[1])
         return [k, y, r, phi, e, theta, updated, redesigned, rejected, reduced, float(u),
-                saturated, before, caught, messages, token, projected]
+                saturated, before, caught, messages]
 
     def _check_estimate(self, k, y, phi):
         """Raise if the estimator's estimate or covariance is not finite."""
@@ -536,13 +514,13 @@ class SelfTuningRegulator:
         memories, the monitors, the step count. Returns ``(u, record or None,
         messages)``."""
         (k, y, r, phi, e, theta, updated, redesigned, rejected, reduced, u, saturated,
-         before, caught, after, _, _) = decided
+         before, caught, after) = decided
         messages = before + caught + after
         # the memories, the excitation monitor's sum, the saturation watchdog's block sums
         _kernels().remember(self._ypast, self._upast, self._rpast, self._info, self._scalars,
                             phi, y, u, r, float(saturated), _I["sat_block"], _I["err2_block"])
         # windup check, excitation monitor and saturation watchdog
-        trace = float(np.asarray(self.estimator.P).trace())
+        trace = _kernels().trace_of(np.ascontiguousarray(self.estimator.P, dtype=float))
         if trace > self.windup_ratio * self._scalars[2]:
             if not self._scalars[4]:
                 self._scalars[4] = 1.0
@@ -859,50 +837,59 @@ class SelfTuningRegulator:
         out[2:] = theta
         return out
 
-    def _io_peek(self, w):
-        """``(outputs, token)``: the outputs `_io_step(w)` would give (bit for bit), with
-        nothing changed, and a token for `_io_commit`; None when the step cannot be
-        computed without taking it (the estimator does not peek).
+    def _vector_plan(self):
+        """The options of the compiled sample on the state vector
+        (`_kernels_design.sample`: ``(ints, reals, Q, cfg, Acl, Ao, lo, hi)``), or None
+        when every sample needs the regulator's Python: an estimator without a
+        compiled step on its state vector (`contract.vector_step_constants`: any but
+        `RecursiveLeastSquares`, or a frozen one), a design other than the dict of
+        `rst_design` keywords without cancelled zeros, ``stable_R``."""
+        constants = vector_step_constants(self.estimator)
+        fast = self._fast
+        if constants is None or fast is None or self.design is not fast[0] or self.stable_R:
+            return None
+        il, Q, cfg, R, check_every = constants
+        _, Acl, Ao, am_sum, integral, tol = fast
+        k = _kernels()
+        ints = np.zeros(17, dtype=np.int64)
+        ints[[k.I_NF, k.I_NA, k.I_NB, k.I_NK, k.I_L, k.I_LY, k.I_LU, k.I_REDESIGN,
+              k.I_PATIENCE, k.I_MONITOR, k.I_CHECK, k.I_INTEGRAL, k.I_BOUNDS, k.I_LIMITS,
+              k.I_LEVEL_WINDOW, k.I_SCALARS, k.I_OFFSET]] = [
+            self._layout().size, self.na, self.nb, self.nk, self._L, len(self._ypast),
+            len(self._upast), self.redesign_every, self.patience, self.monitor_every,
+            check_every, integral, self.bounds is not None, self.u_limits is not None,
+            _LEVEL_WINDOW, len(_SCALARS), self.offset]
+        lo, hi = self.u_limits if self.u_limits is not None else (0.0, 0.0)
+        reals = np.zeros(13)
+        reals[[k.R_IL, k.R_R, k.R_SIGNAL_LIMIT, k.R_DEAD_ZONE, k.R_U_LO, k.R_U_HI,
+               k.R_COPRIME, k.R_REDUCE, k.R_GROWTH, k.R_WINDUP, k.R_AM_SUM, k.R_TOL_DESIGN,
+               k.R_LEVEL_RATIO]] = [
+            il, R, self.signal_limit, self.dead_zone, lo, hi, self.coprime_tol,
+            self.reduce_tol, self.max_growth, self.windup_ratio, am_sum, tol, _LEVEL_RATIO]
+        n = self.na + self.nb
+        box = self.bounds if self.bounds is not None else (np.zeros(n), np.zeros(n))
+        return (ints, reals, Q, cfg, Acl, Ao, *(np.ascontiguousarray(b, dtype=float)
+                                                  for b in box))
 
-        The decisions of the sample (:meth:`_decide`) are taken on copies of the
-        scalars and the controller, and the estimator is only peeked at; the
-        commit adopts them, so a sample whose outputs python-control evaluates on
-        several inputs takes one step.
-        """
-        if not can_peek(self.estimator):
-            return None                 # a filter that never peeks: the real step
-        y, r, v = w.tolist()
-        saved = (self._scalars, self._ctrl, self._why, self._checked)
-        self._scalars, self._ctrl = saved[0].copy(), saved[1].copy()
+    def _io_vector_sample(self, x, w):
+        """``(outputs, next state vector)`` of one sample from the state vector `x` and
+        the inputs `w`, by one compiled call (`_kernels_design.sample`), with nothing
+        changed; None when the sample needs the regulator's Python (then `_io_step`
+        takes it, with the same results, its messages and errors).
+
+        The regulator in python-control's call pattern: 3.2x the bare filter step per
+        simulated step instead of 9.1x with a Python look-ahead per evaluation
+        (``benchmarks/bench_diagrams.py``, one session)."""
+        plan = self.__dict__.get("_plan")
+        if plan is None or len(x) != self._state_size or len(w) != 3:
+            return None
+        out = np.empty(len(x))
+        outputs = np.empty(2 + self.na + self.nb + self.offset if self._io_extra else 1)
         try:
-            decided = self._decide(y, r, v, peek=True, like=self.__dict__.get("_like"))
-            if decided is None:
-                return None
-            token = (decided, self._scalars, self._ctrl, self._why, self._checked)
-        except Exception:       # the real step decides: it raises this, or an error it
-            return None         # checks first (a covariance that is no longer finite)
-        finally:
-            self._scalars, self._ctrl, self._why, self._checked = saved
-        if decided[15] is not None:
-            self._like = decided[15]          # its predict serves the next peek in this state
-        return self._io_outputs(decided), token
-
-    def _io_commit(self, w, token):
-        """Take the step `_io_peek(w)` computed: its messages, or None (nothing done)
-        if the estimator has changed since."""
-        decided, scalars, ctrl, why, checked = token
-        k, y, phi, est_token, projected = decided[0], decided[1], decided[3], decided[15], \
-            decided[16]
-        if est_token is not None:
-            done, decided[13] = call_capturing(commit_peeked, self.estimator, est_token)
-            if not done:
-                return None
-            self._check_estimate(k, y, phi)
-        if projected is not None:
-            self.estimator.x = projected.reshape(-1, 1)
-        # the look-ahead's copies become the state (snapshots hold copies of their own)
-        self._scalars, self._ctrl, self._why, self._checked = scalars, ctrl, why, checked
-        return self._conclude(decided, record=False)[2]
+            status = _kernels().sample(x, w, out, outputs, *plan)
+        except (ValueError, ZeroDivisionError, np.linalg.LinAlgError):
+            return None             # (a singular design: the Python path decides)
+        return (outputs, out) if status == 0 else None
 
     def as_iosystem(self, dt=None, name="str", extra_outputs=False):
         r"""The regulator as a discrete-time python-control `NonlinearIOSystem`.
@@ -961,6 +948,8 @@ class SelfTuningRegulator:
         template.__dict__.update(self.__dict__)
         template._io_extra = bool(extra_outputs)
         template._records = []
+        template._plan = template._vector_plan()      # None: every sample through Python
+        template._state_size = len(self.state)
         return make_iosystem(template, inputs=["y", "r", "dither"], outputs=outputs,
                              states=self._state_labels(),
                              dt=self.dt if dt is None else check_dt(dt), name=name)

@@ -16,7 +16,8 @@ import numpy as np
 from .._iosystem import call_capturing, make_iosystem
 from .._validation import check_dt, check_int
 from . import _filter_state
-from .contract import restore_filter, snapshot_filter
+from ._streaming import vector_kernels
+from .contract import restore_filter, snapshot_filter, vector_step_constants
 
 __all__ = ["estimator_iosystem"]
 
@@ -69,38 +70,42 @@ class _EstimatorStepper:
             if self._upast:
                 self._upast = (u,) + self._upast[:-1]
 
-    def _io_peek(self, w):
-        """``(outputs, token)``: the outputs `_io_step(w)` would give (bit for bit),
-        with nothing changed, and a token for `_io_commit`; None when the filter
-        cannot tell without stepping."""
-        f = self.filter
-        z, H = self._measurement(w)
-        peeked = f._peek_predict_update(z, H, self.__dict__.get("_token"))
-        if peeked is None:
-            return None
-        self._token = peeked[1]             # its predict serves the next peek in this state
-        return self._outputs(peeked[0], z, H, np.asarray(f.x, dtype=float)), peeked[1]
-
-    def _io_commit(self, w, token):
-        """Take the step `_io_peek(w)` computed: its messages, or None (nothing done)
-        if the state has changed since."""
-        done, messages = call_capturing(self.filter._commit_peeked, token)
-        if not done:
-            return None
-        self._remember(w)
-        return messages
-
     def _outputs(self, xn, z, H, x):
         """``[theta after the step, z - H x]`` (`x` the estimate before it)."""
-        n = xn.size
-        out = np.empty(n + self.filter.dim_z)
+        n, m = xn.size, self.filter.dim_z
+        out = np.empty(n + m)
         out[:n] = xn.ravel()
-        e = H.dot(x)                                       # a-priori error, z - H x
-        if isinstance(z, float) and len(e) == 1:
-            out[n] = z - e[0]
-        else:                                              # None: a missing sample
-            out[n:] = np.asarray(np.nan if z is None else z, dtype=float).reshape(-1) - e
+        # the a-priori errors e = z - H x, summed in order as the compiled sample does
+        z = np.broadcast_to(np.asarray(np.nan if z is None else z, dtype=float).reshape(-1),
+                            (m,))                         # None: a missing sample
+        vector_kernels().prediction_errors(np.ascontiguousarray(z), np.ascontiguousarray(H),
+                                           np.ascontiguousarray(x.reshape(-1, m)), out[n:])
         return out
+
+    def _vector_plan(self):
+        """``(orders, il, Q, cfg, R, check_every)`` of the compiled sample
+        (`_kernels_vector.estimator_sample`), or None: a callable regressor, or a
+        filter without a compiled step on its state vector (any but
+        `RecursiveLeastSquares`, or a frozen one)."""
+        constants = vector_step_constants(self.filter)
+        if constants is None or self.mode == "callable":
+            return None
+        f, arx = self.filter, self.mode == "arx"
+        orders = np.array([f.dim_x, f.dim_z, arx, *((self.na, self.nb, self.nk) if arx
+                                                   else (0, 0, 0))], dtype=np.int64)
+        return (orders, *constants)
+
+    def _io_vector_sample(self, x, w):
+        """``(outputs, next state vector)`` of one sample by one compiled call
+        (`_kernels_vector.estimator_sample`), nothing changed; None when the filter's
+        methods must take it (see `rlsfilt._iosystem`)."""
+        plan = self.__dict__.get("_plan")
+        if plan is None or len(x) != self._state_size or len(w) != self.n_inputs:
+            return None
+        out = np.empty(len(x))
+        outputs = np.empty(self.filter.dim_z * (self.filter.dim_x + 1))
+        status = vector_kernels().estimator_sample(x, w, out, outputs, *plan)
+        return (outputs, out) if status == 0 else None
 
     def _get_state(self):
         layout = self._layout()
@@ -242,6 +247,8 @@ def estimator_iosystem(filter, regressor="direct", dt=True, *, inputs=None, name
     states = _filter_state.state_labels(filter) + \
         [f"y[t-{i + 1}]" for i in range(len(stepper._ypast))] + \
         [f"u[t-{i + 1}]" for i in range(len(stepper._upast))]
+    stepper.n_inputs, stepper._state_size = len(in_labels), len(states)
+    stepper._plan = stepper._vector_plan()          # None: every sample by the methods
     return make_iosystem(stepper, inputs=in_labels, outputs=theta + errors, states=states,
                          dt=dt, name=name)
 

@@ -34,6 +34,8 @@ __all__ = []
 kernels = lazy_module("rlsfilt.filters._kernels")
 #: The compiled kernels of `SlidingWindowRLS` and `SquareRootRLS`, imported on first use.
 window_kernels = lazy_module("rlsfilt.filters._kernels_window")
+#: The compiled samples of the python-control systems on their state vectors.
+vector_kernels = lazy_module("rlsfilt.filters._kernels_vector")
 
 
 def c_array(a):

@@ -18,12 +18,13 @@ members:
   the batch loop behind ``batch_filter`` (compiled for the production
   filters; a plain loop is allowed) that the shared base
   (`rlsfilt.filters._base._FilterBase`) calls after validating the record;
-- **an optional look-ahead** for the python-control system, which evaluates
-  its outputs several times per sample: ``_peek_predict_update(z, H, like)``
-  returns ``(estimate, token)``, what ``predict(); update(z, H)`` would leave,
-  with nothing changed, and ``_commit_peeked(token)`` takes that step (False
-  if the filter has changed since). The default peeks nothing (None), and the
-  system then steps as usual (`rlsfilt.filters._estimator_io`);
+- **an optional compiled step on the state vector** for the python-control
+  systems, which take a whole sample as one compiled call:
+  ``_vector_step_constants()`` returns the constants with which
+  `rlsfilt.filters._kernels_vector.vector_step` steps the filter's
+  :meth:`Filter.get_state` vector as ``predict(); update(z, H)`` would
+  (`RecursiveLeastSquares`); the default is None, and the systems then call the
+  filter's methods (`rlsfilt.filters._estimator_io`);
 - **an optional cheap snapshot** for the same systems, which step one
   object back and forth between states: ``_shallow_state()`` (the attributes
   as a new dict), ``_restore(state)`` and ``_written_in_place`` (the arrays a
@@ -111,18 +112,12 @@ class Filter(abc.ABC):
         Returns ``(means, covariances, means_p, covariances_p)``; leaves the
         filter unchanged if it raises."""
 
-    def _peek_predict_update(self, z, H, like=None):
-        """``(estimate, token)``: the estimate ``predict(); update(z, H)`` would leave,
-        with nothing changed, and a token for :meth:`_commit_peeked`; None when the
-        filter cannot tell without stepping (the default). `like`, a token of an
-        earlier peek, may lend its predicted covariance."""
+    def _vector_step_constants(self):
+        """The constants with which `rlsfilt.filters._kernels_vector.vector_step` takes
+        this filter's plain step on its state vector: ``(il, Q, cfg, R,
+        check_every)``; None when the filter has no compiled step on its state
+        vector (the default)."""
         return None
-
-    def _commit_peeked(self, token):
-        """Take the step a :meth:`_peek_predict_update` computed, with its warnings
-        and errors, if the filter is still in the state it was peeked in; False
-        (nothing done) otherwise. Only called with a token this filter returned."""
-        return False
 
     #: The arrays a step writes into in place, which a snapshot must copy to stay
     #: valid (the others are replaced, not written).
@@ -165,26 +160,14 @@ def restore_filter(f, snap):
     f._restore(snap)
 
 
-def can_peek(f):
-    """Whether filter `f` can tell the estimate of a step without taking it (it
-    overrides ``_peek_predict_update``); the python-control systems otherwise step."""
-    return (isinstance(f, Filter)
-            and type(f)._peek_predict_update is not Filter._peek_predict_update)
-
-
-def peek_predict_update(f, z, H, like=None):
-    """``(estimate, token)``: the estimate ``f.predict(); f.update(z, H)`` would leave,
-    with `f` unchanged, and a token for :func:`commit_peeked`; None when `f` cannot
-    tell without stepping. `like`, a token of an earlier peek in the same state, may
-    lend its predicted covariance."""
-    return f._peek_predict_update(z, H, like) if isinstance(f, Filter) else None
-
-
-def commit_peeked(f, token):
-    """Take the step :func:`peek_predict_update` computed, with its warnings and
-    errors, if `f` is still in the state it was peeked in; False (nothing done)
-    otherwise."""
-    return f._commit_peeked(token)
+def vector_step_constants(f):
+    """The constants ``(il, Q, cfg, R, check_every)`` with which
+    `rlsfilt.filters._kernels_vector.vector_step` takes the plain step of filter `f`
+    on its state vector (``predict(); update(z, H)`` as one compiled call on the
+    numbers of :meth:`Filter.get_state`); None when `f` has no such step (the
+    python-control systems then step the filter's methods). Copies: changing them
+    changes nothing."""
+    return f._vector_step_constants() if isinstance(f, Filter) else None
 
 
 def check_state(filt, state):

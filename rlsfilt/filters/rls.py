@@ -15,7 +15,6 @@ is ``tests/_reference.py``.
 """
 
 import math
-import operator
 
 import numpy as np
 
@@ -575,52 +574,14 @@ class RecursiveLeastSquares(_FilterBase):
         self._updates_since_predict += 1
         self._recheck = self._efra_pending = False
 
-    def _peek_predict_update(self, z, H, like=None):
-        """``predict(); update(z, H)`` computed by the same compiled steps on the same
-        arrays, with nothing changed and no warning: ``(estimate, token)``, the
-        estimate ``(dim_x, dim_z)`` it would leave (bit for bit) and a token for
-        :meth:`_commit_peeked`. For the python-control system, which evaluates its
-        outputs several times per sample and commits one step. None when the step
-        is not the plain one (frozen, a state assigned or restarted since the last
-        step): the caller then runs the real step. `like`, a token of an earlier peek,
-        lends its predicted covariance if the filter is still in the same state."""
-        with self._lock:
-            if self.frozen or self._recheck or self._efra_pending:
-                return None
-            H = self._row(H)
-            z, missing = self._column(z)
-            x, k = self._x, _streaming.kernels()
-            options = (self._Q_kernel, self._cfg, self._il, self._cap)
-            if (like is not None and like[0] is x and like[1] is self._P
-                    and all(map(operator.is_, like[3], options))):
-                P_prior = like[2]                   # the same predict, already done
-            else:
-                # as predict: P^- = P / lam + Q (1 / lam held back after a capped step)
-                P_prior = np.empty(self._P.shape)
-                k.predict_kernel(self._P, 1.0 if self._cap else self._il, self._Q_kernel,
-                                 self._cfg, P_prior)
-            # as update, right after that predict
-            xn, Pn, y, K, S, SI = _step_arrays(self.dim_x, self.dim_z)
-            flags, lam_t = k.update_kernel(x, P_prior, H, z, self._R, self._cfg,
-                                           self._il if self._cap else 1.0, xn, Pn, y, K, S, SI)
-            if flags & _BAD_ROW:
-                return None                 # the real step raises the error naming H
-            return xn, (x, self._P, P_prior, options + (self._R, self._check_every),
-                        (H, z, missing, xn, Pn, y, K, S, SI, flags, lam_t))
-
-    def _commit_peeked(self, token):
-        """Commit a :meth:`_peek_predict_update` as ``predict(); update(z, H)`` would
-        (its warnings, its errors), if the filter is still in the state it was
-        peeked in; False (nothing done) otherwise."""
-        with self._lock:
-            x, P, P_prior, options, step = token
-            now = (self._Q_kernel, self._cfg, self._il, self._cap, self._R, self._check_every)
-            if (self._x is not x or self._P is not P or self.frozen or self._recheck
-                    or not all(map(operator.is_, options, now))):
-                return False
-            self._commit_predict(x, P_prior)
-            self._commit_update(*step)
-            return True
+    def _vector_step_constants(self):
+        """``(il, Q, cfg, R, check_every)`` of `_kernels_vector.vector_step` (copies), or
+        None while frozen (a frozen filter's step changes neither ``x`` nor ``P``) and for
+        a subclass (whose methods may step otherwise)."""
+        if self.frozen or type(self) is not RecursiveLeastSquares:
+            return None
+        return (float(self._il), self._Q_kernel.copy(), self._cfg.copy(), float(self._R),
+                int(self._check_every))
 
     def _check_step(self, flags, H, P, n_updates):
         """The decisions of `update` before it commits (`flags` of ``update_kernel``,
