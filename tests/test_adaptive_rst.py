@@ -189,7 +189,8 @@ def test_no_argument_is_mutated_and_the_controller_keeps_copies():
     T0 = ctrl.T.copy()
     loop = ctrl.closed_loop(A, B)
     loop.A[0] = 9.0
-    assert_array_equal(A, saved[0]) and assert_array_equal(ctrl.T, T0)
+    assert_array_equal(A, saved[0])
+    assert_array_equal(ctrl.T, T0)
 
 
 def test_repr_shows_the_control_law():

@@ -79,7 +79,8 @@ def test_arx_regressors_of_several_experiments_are_stacked_per_experiment(exchan
     assert_array_equal(target, np.concatenate([p[1] for p in parts]))
     # the model's own regressors are the same rows (plus its intercept column)
     Phi_m, target_m = model.regressors(ds)
-    assert_array_equal(Phi_m[:, :-1], Phi) and assert_array_equal(target_m, target)
+    assert_array_equal(Phi_m[:, :-1], Phi)
+    assert_array_equal(target_m, target)
     # start applies to each experiment
     Phi0, _ = arx_regressors(ds, na=2, nb=2, nk=8, start=0)
     assert Phi0.shape == (2000, 4)

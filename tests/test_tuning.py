@@ -543,7 +543,8 @@ def test_arx_fit_runs_a_tuned_diagonal_forgetting(rng, scale, tmp_path):
     f.initialize(target[:2], Phi[:2])
     f.batch_filter(target[2:], Phi[2:])
     assert_array_equal(model.theta_, f.x[:, 0])
-    assert_array_equal(model.lam_, lam) and model.filter_.forgetting == "diagonal"
+    assert_array_equal(model.lam_, lam)
+    assert model.filter_.forgetting == "diagonal"
     assert "lam=[" in str(model.summary()) and model.to_dict()["lam"] == list(lam)
     save_model(model, tmp_path / "m.json")
     assert_array_equal(load_model(tmp_path / "m.json").lam_, lam)

@@ -123,10 +123,19 @@ def coprimeness(a, b):
     a, b = trim(a), trim(b)
     if degree(b) < 0:
         return 0.0
-    M = sylvester(a / np.linalg.norm(a), b / np.linalg.norm(b))
+    M = sylvester(_unit(a), _unit(b))
     if M.size == 0:
         return np.inf
     return float(np.linalg.svd(M, compute_uv=False)[-1])
+
+
+def _unit(p):
+    """`p` scaled to unit 2-norm, by its largest magnitude first: ``np.linalg.norm``
+    overflows for coefficients around 1e155 and more, and underflows to zero for
+    subnormal ones (a diverging or a vanishing estimate), where ``p / norm`` would give
+    zeros, inf or NaN (then a wrong degree or ``LinAlgError: SVD did not converge``)."""
+    p = p / np.max(np.abs(p))
+    return p / np.linalg.norm(p)
 
 
 def closest_roots(a, b):

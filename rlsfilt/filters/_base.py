@@ -18,6 +18,7 @@ copied: each filter, and each copy, has its own.
 
 import copy
 import functools
+import inspect
 import math
 import threading
 import warnings
@@ -62,6 +63,8 @@ class _FilterBase(Filter):
     # a slot, not in ``__dict__``: filterpy's Saver deep-copies ``__dict__``, and a
     # lock can be neither copied nor pickled
     __slots__ = ("_lock",)
+    # why `alpha` cannot be assigned to a filter without `lam` (the message's end)
+    _NO_FADING_MEMORY = "has no fading-memory factor"
 
     def __new__(cls, *args, **kwargs):
         self = super().__new__(cls)
@@ -195,6 +198,17 @@ class _FilterBase(Filter):
                                            "identity (constant parameters); model drift with Q"))
 
     @property
+    def Q(self):
+        """Random-walk covariance: zero, read-only, for the filters without a random walk
+        (`RecursiveLeastSquares` has its own, settable)."""
+        return np.zeros((self.dim_x, self.dim_x))
+
+    @Q.setter
+    def Q(self, value):
+        raise AttributeError(_refused("Q", f"{type(self).__name__} has no random walk (filterpy's "
+                                           "process noise); RecursiveLeastSquares(Q=...) has one"))
+
+    @property
     def B(self):
         """Control matrix: None (least squares has no control input); read-only."""
         return None
@@ -218,7 +232,10 @@ class _FilterBase(Filter):
     def alpha(self):
         """filterpy's fading-memory factor, ``alpha**2 = 1 / lam`` (1 without
         forgetting; an array with ``forgetting="diagonal"``); assigning it sets `lam`
-        to ``1 / alpha**2``."""
+        to ``1 / alpha**2``. The filter then equals filterpy's ``KalmanFilter`` with
+        that ``alpha`` in the exponential mode; in the directional, constant-trace,
+        EFRA and variable modes `lam` is that mode's factor, which forgets along the
+        regressor or bounds ``P`` instead of scaling all of ``P``."""
         lam = getattr(self, "lam", 1.0)
         return 1.0 / np.sqrt(lam) if isinstance(lam, np.ndarray) else 1.0 / math.sqrt(lam)
 
@@ -226,8 +243,8 @@ class _FilterBase(Filter):
     @_locked
     def alpha(self, value):
         if not hasattr(type(self), "lam"):
-            raise AttributeError(_refused("alpha", f"{type(self).__name__} forgets by its "
-                                                   "window, not by a fading-memory factor"))
+            raise AttributeError(_refused("alpha", f"{type(self).__name__} "
+                                                   f"{self._NO_FADING_MEMORY}"))
         alpha = check_scalar(value, "alpha")
         if not (math.isfinite(alpha) and alpha >= 1.0):
             raise ValueError("`alpha` must be a finite number >= 1 (filterpy's fading memory, "
@@ -236,12 +253,16 @@ class _FilterBase(Filter):
 
     def _refuse_control(self, u, B, F):
         """Raise for filterpy's `u`, `B`, `F` arguments of ``predict`` (any but None)."""
+        # the hint only where predict takes a random walk (not the square-root, window
+        # and gradient filters)
+        hint = (" A random walk is predict(Q=...)"
+                if "Q" in inspect.signature(type(self).predict).parameters else "")
         for name, value in (("u", u), ("B", B), ("F", F)):
             if value is not None:
                 raise TypeError(
                     f"`{name}` is not an argument {type(self).__name__}.predict() uses: least "
                     "squares has F = I and no control input (filterpy's predict(u, B, F)); "
-                    f"got {name}={value!r}. A random walk is predict(Q=...)")
+                    f"got {name}={value!r}.{hint}")
 
     def get_update(self, z, H=None, R=None):
         """Return ``(x, P)`` after an :meth:`update` with `z`, `H` (``self.H`` if

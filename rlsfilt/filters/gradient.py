@@ -55,6 +55,8 @@ class _GradientFilter(_FilterBase):
     has_covariance = False
     least_squares = False
     _METHOD = "lms"
+    _NO_FADING_MEMORY = ("adapts by its step size `mu`, it has no fading-memory factor "
+                         "(filterpy's alpha)")
 
     def __init__(self, dim_x, dim_z=1, mu=0.01, *, eps=0.0, leak=0.0, x0=None, R=1.0):
         self.dim_x = check_int(dim_x, "dim_x", minimum=1)
@@ -85,8 +87,15 @@ class _GradientFilter(_FilterBase):
         return self._METHOD
 
     @_locked
-    def predict(self):
-        """No time update (constant weights): ``x_prior`` is a copy of ``x``."""
+    def predict(self, u=None, B=None, F=None):
+        """No time update (constant weights): ``x_prior`` is a copy of ``x``.
+
+        `u`, `B`, `F` are filterpy's control input, control matrix and state
+        transition (filterpy's ``IMMEstimator`` calls ``f.predict(u)`` with
+        ``u = None``): any value but None raises a `TypeError`.
+        """
+        if u is not None or B is not None or F is not None:
+            self._refuse_control(u, B, F)
         self.x_prior = self._x.copy()
 
     @_locked

@@ -956,14 +956,25 @@ class RecursiveLeastSquares(_FilterBase):
     # ------------------------------------------------------------------
     # filterpy helpers: smoothing and tuning (rlsfilt.filters.smoother, .tuning)
     # ------------------------------------------------------------------
-    def rts_smoother(self, Xs, Ps, Qs=None):
+    def rts_smoother(self, Xs, Ps, Fs=None, Qs=None, inv=None):
         """filterpy's ``KalmanFilter.rts_smoother`` with ``F = I``: returns ``(x, P, K, Pp)``.
 
         `Xs` (N, dim_x) or (N, dim_x, dim_z) and `Ps` (N, dim_x, dim_x) are the
         posteriors of a run (``batch_filter``'s first two results); the priors
         are ``Ps[t] / lam + Qs[t + 1]`` (``self.Q`` when `Qs` is omitted). See
-        `rlsfilt.filters.smoother.rts_smoother` for the recursion.
+        `rlsfilt.filters.smoother.rts_smoother` for the recursion. The signature
+        is filterpy's, ``(Xs, Ps, Fs=None, Qs=None, inv=...)``: `Fs` and `inv`
+        (state transitions, matrix inverse) must be None (``F = I``; nothing is
+        inverted), else a `TypeError` names them, so that a positional ``Fs``
+        is never taken as ``Qs``.
         """
+        for name, value in (("Fs", Fs), ("inv", inv)):
+            if value is not None:
+                raise TypeError(
+                    f"`{name}` is not an argument {type(self).__name__}.rts_smoother() uses: "
+                    "least squares has F = I and inverts no matrix (filterpy's "
+                    f"rts_smoother(Xs, Ps, Fs, Qs, inv)); got {name} of type "
+                    f"{type(value).__name__}. A random walk is Qs=...")
         return _smoother.filter_rts_smoother(self, Xs, Ps, Qs)
 
     def smooth(self, zs, Hs, Rs=None):

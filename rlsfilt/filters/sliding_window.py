@@ -144,6 +144,7 @@ class SlidingWindowRLS(_FilterBase):
     array([ 2., -1.])
     """
 
+    _NO_FADING_MEMORY = "forgets by its window, not by a fading-memory factor"
     _HEALTH_ADVICE = ("The estimate may be unreliable: the samples in the window do not "
                       "excite every direction of the parameters; use a longer window or more "
                       "exciting input.")
