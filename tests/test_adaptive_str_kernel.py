@@ -156,3 +156,20 @@ def test_a_design_callable_or_cancelled_zeros_or_stable_R_use_the_numpy_path():
     assert not _designs(_regulator(2, 2, 1, DESIGN, stable_R=True), A, B)
     stre = _regulator(2, 2, 1, lambda a, b: rst_design(a, b, **DESIGN))
     assert not _designs(stre, A, B)
+
+
+@pytest.mark.parametrize("sa, sb", [(1e160, 1.0), (1.0, 1e-170), (1e-300, 1e300), (1e-305, 1.0)])
+def test_the_compiled_coprimeness_is_scale_invariant(sa, sb):
+    """The compiled coprimeness decision on ``(sa a, sb b)`` is that on ``(a, b)`` over the
+    double range (the 2-norm of 1e160 coefficients overflowed, of subnormal ones
+    underflowed: a coprime pair was called near-common, or LinAlgError), and equal to
+    ``coprimeness`` of the NumPy path."""
+    from rlsfilt.adaptive import _kernels_design
+
+    a, b = np.array([1.0, -1.5, 0.7]), np.array([1.0, 0.5])
+    want = coprimeness(a, b)
+    for tau in (0.1 * want, 0.9 * want, 1.1 * want):
+        ok, sigma = _kernels_design._coprime_at_least(sa * a, sb * b, tau)
+        assert ok == (want >= tau)
+        assert ok == _kernels_design._coprime_at_least(a, b, tau)[0]
+    assert coprimeness(sa * a, sb * b) == pytest.approx(want, rel=1e-12)

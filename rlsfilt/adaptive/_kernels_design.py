@@ -99,6 +99,14 @@ def _above(M, tau):
 
 
 @njit(cache=True, error_model="numpy")
+def _unit(p):
+    """`p` scaled to unit 2-norm, by its largest magnitude first, as ``_polynomials``'
+    (the norm of coefficients around 1e155 overflows, of subnormal ones underflows)."""
+    p = p / np.max(np.abs(p))
+    return p / np.sqrt(np.dot(p, p))
+
+
+@njit(cache=True, error_model="numpy")
 def _coprime_at_least(a, b, tau):
     """``(coprimeness(a, b) >= tau, the coprimeness or NaN when not needed)``.
 
@@ -108,7 +116,7 @@ def _coprime_at_least(a, b, tau):
     """
     if len(a) + len(b) == 2:
         return True, np.inf
-    M = _sylvester(a / np.sqrt(np.dot(a, a)), b / np.sqrt(np.dot(b, b)))
+    M = _sylvester(_unit(a), _unit(b))
     if _above(M, tau):
         return True, np.nan
     sigma = np.linalg.svd(M, full_matrices=False)[1][-1]

@@ -458,8 +458,9 @@ class SelfTuningRegulator:
                     messages.append((
                         f"SelfTuningRegulator: at step {k} the estimate nearly cancels a pole "
                         f"against a zero ({self._why}); the controller is designed on the model "
-                        "with that pair removed (reduce_tol). The model is probably one order "
-                        "too large: consider smaller na, nb", RegulatorWarning))
+                        "with that pair removed (reduce_tol). The model is probably too large "
+                        "(by one order for a real pair, two for a complex one): consider "
+                        "smaller na, nb", RegulatorWarning))
             else:
                 rejected = True
                 self._scalars[5] += 1
