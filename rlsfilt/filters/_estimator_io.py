@@ -25,11 +25,12 @@ __all__ = ["estimator_iosystem"]
 class _EstimatorStepper:
     """A filter plus the memory its regressor needs; one `_io_step` per sample."""
 
-    def __init__(self, filt, mode, orders=None, fn=None, n_inputs=0):
+    def __init__(self, filt, mode, orders=None, fn=None):
         self.filter = filt
         self.mode = mode
         self.fn = fn
-        self.n_inputs = n_inputs
+        self.n_inputs = self._state_size = 0    # set by estimator_iosystem
+        self._plan = None                       # the compiled sample's, set there too
         # the memories, newest first, as tuples of floats: a sample makes new ones, so a
         # snapshot shares them (about 2 us less per sample than pushing into arrays)
         if mode == "arx":
@@ -99,7 +100,7 @@ class _EstimatorStepper:
         """``(outputs, next state vector)`` of one sample by one compiled call
         (`_kernels_vector.estimator_sample`), nothing changed; None when the filter's
         methods must take it (see `rlsfilt._iosystem`)."""
-        plan = self.__dict__.get("_plan")
+        plan = self._plan
         if plan is None or len(x) != self._state_size or len(w) != self.n_inputs:
             return None
         out = np.empty(len(x))
