@@ -182,21 +182,6 @@ def test_update_with_H_set_equals_kalman_filter(rng):
         assert rls.log_likelihood == pytest.approx(kf.log_likelihood, rel=1e-12)
 
 
-def test_saver_loop_with_H_set(rng):
-    """filterpy's Saver reads every property (F, B, inv, alpha among them) each step."""
-    Hs, zs = _record(rng, N=20)
-    rls = RecursiveLeastSquares(N_X, lam=0.99)
-    saver = Saver(rls)
-    for H, z in zip(Hs, zs):
-        rls.predict()
-        rls.H = H
-        rls.update(z)
-        saver.save()
-    saver.to_array()
-    assert saver.x.shape == (20, N_X, 1)
-    assert_array_equal(saver.H[-1], Hs[-1].reshape(1, -1))
-
-
 # ----------------------------------------------------------------------
 # alpha: filterpy's fading memory
 # ----------------------------------------------------------------------
@@ -365,16 +350,18 @@ def _state_gradient(f):
             for name in ("x", "x_prior", "x_post", "y", "z", "H")}
 
 
+@pytest.mark.parametrize("m", [1, 2])
 @pytest.mark.parametrize("make", [
-    lambda: RecursiveLeastSquares(N_X, 2, lam=0.98), lambda: SquareRootRLS(N_X, 2, lam=0.98),
-    lambda: SlidingWindowRLS(N_X, window=20, dim_z=2), lambda: LMS(N_X, 2, mu=0.05),
-    lambda: NLMS(N_X, 2, mu=0.5), lambda: APA(N_X, 2, mu=0.5),
+    lambda m: RecursiveLeastSquares(N_X, m, lam=0.98), lambda m: SquareRootRLS(N_X, m, lam=0.98),
+    lambda m: SlidingWindowRLS(N_X, window=20, dim_z=m), lambda m: LMS(N_X, m, mu=0.05),
+    lambda m: NLMS(N_X, m, mu=0.5), lambda m: APA(N_X, m, mu=0.5),
 ], ids=["rls", "square_root", "sliding_window", "lms", "nlms", "apa"])
-def test_every_filter_runs_the_saver_loop_with_two_outputs(make, rng):
-    """``f.H = row; f.update(z)`` under filterpy's Saver on every filter, with two outputs
-    sharing the row: the bits of ``update(z, row)``, and the Saver's record of them."""
-    Hs, Z = rng.standard_normal((40, N_X)), rng.standard_normal((40, 2))
-    a, b = make(), make()
+def test_every_filter_runs_the_saver_loop_with_H_set(make, m, rng):
+    """``f.H = row; f.update(z)`` under filterpy's Saver (which reads every property, F,
+    B, inv, alpha among them) on every filter, with one output or two sharing the row:
+    the bits of ``update(z, row)``, and the Saver's record of them."""
+    Hs, Z = rng.standard_normal((40, N_X)), rng.standard_normal((40, m))
+    a, b = make(m), make(m)
     saver = Saver(a)
     for H, z in zip(Hs, Z):
         a.predict()
@@ -385,7 +372,7 @@ def test_every_filter_runs_the_saver_loop_with_two_outputs(make, rng):
         b.update(z, H)
         assert_array_equal(a.x, b.x)
     saver.to_array()
-    assert saver.x.shape == (40, N_X, 2)
+    assert saver.x.shape == (40, N_X, m)
     assert_array_equal(saver.x[-1], b.x)
     assert_array_equal(saver.H[-1], Hs[-1].reshape(1, -1))
 
