@@ -59,6 +59,15 @@ def _state(f):
 # ----------------------------------------------------------------------
 # filterpy's IMMEstimator
 # ----------------------------------------------------------------------
+def _imm_step(imms, H, z):
+    """One sample of each IMM, its filters given the regressor row as filterpy's ``H``."""
+    for imm in imms:
+        imm.predict()
+        for f in imm.filters:
+            f.H = H.reshape(1, -1)
+        imm.update(z)
+
+
 def test_imm_with_rls_equals_imm_of_kalman_filters(rng):
     """One model of filterpy's IMM is an RLS (random walk Q, H set each step): the IMM's
     estimate, covariance and mode probabilities equal those of the IMM of Kalman
@@ -71,11 +80,7 @@ def test_imm_with_rls_equals_imm_of_kalman_filters(rng):
     imm_kf = IMMEstimator([_kalman(q_slow), _kalman(q_fast)], mu, M)
     fast = []
     for H, z in zip(Hs, zs):
-        for imm in (imm_rls, imm_kf):
-            imm.predict()
-            for f in imm.filters:
-                f.H = H.reshape(1, -1)
-            imm.update(z)
+        _imm_step((imm_rls, imm_kf), H, z)
         assert_allclose(imm_rls.x, imm_kf.x, rtol=1e-12, atol=1e-12)
         assert_allclose(imm_rls.P, imm_kf.P, rtol=1e-11, atol=1e-14)
         assert_allclose(imm_rls.mu, imm_kf.mu, rtol=1e-12, atol=1e-14)
@@ -128,11 +133,7 @@ def test_imm_with_the_other_least_squares_filters(make, rng):
     ours = IMMEstimator([make(), _kalman(1e-2)], [0.5, 0.5], M)
     ref = IMMEstimator([_kalman(0.0), _kalman(1e-2)], [0.5, 0.5], M)
     for H, z in zip(Hs, zs):
-        for imm in (ours, ref):
-            imm.predict()
-            for f in imm.filters:
-                f.H = H.reshape(1, -1)
-            imm.update(z)
+        _imm_step((ours, ref), H, z)
         assert_allclose(ours.x, ref.x, rtol=0, atol=1e-12)      # 7e-15, 4e-14 measured
         assert_allclose(ours.P, ref.P, rtol=0, atol=1e-12 * np.abs(ref.P).max())
         assert_allclose(ours.mu, ref.mu, rtol=0, atol=1e-12)
