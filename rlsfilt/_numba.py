@@ -95,13 +95,15 @@ def _warn_uncached(func):
 #: The directory of the rlsfilt package (the one holding this file).
 _ROOT = os.path.dirname(os.path.abspath(__file__))
 
-# ``from <base> import <names>`` (a parenthesized list may span lines) and ``import <modules>``
-_IMPORT = re.compile(r"^[ \t]*(?:from[ \t]+(?P<base>[.\w]+)[ \t]+import[ \t]+"
-                     r"(?P<names>\([^)]*\)|[^\n]*)|import[ \t]+(?P<modules>[^\n]*))", re.M)
+# ``from <base> import <names>`` (a parenthesized list may span lines and hold comments)
+# or ``import <modules>``, matched at the start of a line holding "import"
+_IMPORT = re.compile(r"[ \t]*(?:from[ \t]+(?P<base>[.\w]+)[ \t]+import[ \t]+"
+                     r"(?P<names>\((?:[^)#]|#[^\n]*)*\)|[^\n]*)|import[ \t]+(?P<modules>[^\n]*))")
 _COMMENT = re.compile(r"#[^\n]*")
 
-_imports = {}       # file -> ((mtime_ns, size), the rlsfilt files it imports)
-_stamps = {}        # file -> (the stats of its closure, the closure's digest)
+_inside = {}        # file -> whether it is a source file of this package
+_files = {}         # file -> ((mtime_ns, size), the rlsfilt files it imports, its contents' hash)
+_stamps = {}        # file -> (the module's spec when computed, the digest of its closure)
 _cache_class = []   # [the FunctionCache subclass, or None where numba's API differs]
 
 
@@ -113,7 +115,11 @@ def _enable_cache(dispatcher):
     caching API changed, a file that cannot be read) leaves numba's default.
     """
     if not _cache_class:
-        _cache_class.append(_dependency_cache_class(getattr(numba.core, "caching", None)))
+        try:
+            from numba.core import caching
+        except ImportError:
+            caching = None
+        _cache_class.append(_dependency_cache_class(caching))
     if _cache_class[0] is not None:
         try:
             dispatcher._cache = _cache_class[0](dispatcher.py_func)
@@ -136,10 +142,14 @@ class _DependencyStamp:
         locator = super().from_function(py_func, py_file)
         if locator is not None:
             locator._rlsfilt_file = os.path.abspath(py_file)
+            # the module's spec: the same object for every function of one execution
+            # of the module (a reload makes a new one)
+            locator._rlsfilt_token = getattr(py_func, "__globals__", {}).get("__spec__")
         return locator
 
     def get_source_stamp(self):
-        return super().get_source_stamp(), _dependency_stamp(self._rlsfilt_file)
+        own = super().get_source_stamp()
+        return own, _dependency_stamp(self._rlsfilt_file, self._rlsfilt_token)
 
 
 def _dependency_cache_class(caching):
@@ -171,40 +181,32 @@ def _subclass(name, bases, **attributes):
 
 def _in_package(py_file):
     """Whether `py_file` is a source file of this rlsfilt package (not a zip member)."""
-    path = os.path.abspath(py_file)
-    return path.startswith(_ROOT + os.sep) and os.path.isfile(path)
+    inside = _inside.get(py_file)
+    if inside is None:
+        path = os.path.abspath(py_file)
+        inside = _inside[py_file] = path.startswith(_ROOT + os.sep) and os.path.isfile(path)
+    return inside
 
 
-def _dependency_stamp(path):
+def _dependency_stamp(path, token=None):
     """The digest of `path` and every rlsfilt file it imports, directly or not.
 
-    Computed once per file and process; each later call checks the files' stats
-    (``mtime``, size) and recomputes only when one changed (a module reloaded
-    after an edit). The digest is of the files' contents, like numba's own stamp.
+    The digest is of the files' contents (like numba's own stamp since 0.61). It
+    is computed once per execution of the module: `token` (the module's
+    ``__spec__``, one object for all its functions, a new one after a reload)
+    finds the digest of the module's first function. Without a token, or with a
+    new one, the files are looked at again; a file is read again only when its
+    ``mtime`` or size changed.
     """
-    closure = _stamps.get(path)
-    if closure is not None:
-        stats, digest = closure
-        if stats == tuple((f, _stat(f)) for f, _ in stats):
-            return digest
-    files = _closure(path)
-    stats = tuple((f, _stat(f)) for f in files)
+    known = _stamps.get(path)
+    if token is not None and known is not None and known[0] is token:
+        return known[1]
     h = hashlib.sha256()
-    for f in files:
+    for f in _closure(path):
         h.update(os.path.relpath(f, _ROOT).replace(os.sep, "/").encode() + b"\0")
-        with open(f, "rb") as fh:
-            h.update(hashlib.sha256(fh.read()).digest())
-    digest = h.hexdigest()
-    _stamps[path] = stats, digest
-    return digest
-
-
-def _stat(path):
-    try:
-        st = os.stat(path)
-    except OSError:
-        return None
-    return st.st_mtime_ns, st.st_size
+        h.update(_file(f)[1])
+    _stamps[path] = token, h.hexdigest()
+    return _stamps[path][1]
 
 
 def _closure(path):
@@ -212,28 +214,35 @@ def _closure(path):
     seen = {path}
     todo = [path]
     while todo:
-        for dep in _imported_files(todo.pop()):
+        for dep in _file(todo.pop())[0]:
             if dep not in seen:
                 seen.add(dep)
                 todo.append(dep)
     return sorted(seen)
 
 
-def _imported_files(path):
-    """The rlsfilt files the source at `path` imports (relative or ``rlsfilt.`` imports)."""
-    stat = _stat(path)
-    known = _imports.get(path)
-    if known is not None and known[0] == stat:
-        return known[1]
-    with open(path, "rb") as fh:
-        source = _COMMENT.sub("", fh.read().decode("utf-8", "replace"))
-    package = os.path.relpath(os.path.dirname(path), _ROOT).split(os.sep)
-    package = [p for p in package if p != "."]
+def _file(path):
+    """(the rlsfilt files `path` imports, the hash of its contents), read once per version."""
+    st = os.stat(path)
+    stat = st.st_mtime_ns, st.st_size
+    known = _files.get(path)
+    if known is None or known[0] != stat:
+        with open(path, "rb") as fh:
+            data = fh.read()
+        imports = _imported_files(path, data.decode("utf-8", "replace"))
+        known = _files[path] = stat, imports, hashlib.sha256(data).digest()
+    return known[1:]
+
+
+def _imported_files(path, source):
+    """The rlsfilt files `source` (of the file `path`) imports: relative or ``rlsfilt.``."""
+    package = [p for p in os.path.relpath(os.path.dirname(path), _ROOT).split(os.sep)
+               if p != "."]
     top = os.path.basename(_ROOT)
     found = set()
-    for match in _IMPORT.finditer(source):
+    for match in _import_statements(source):
         if match["modules"] is not None:        # import rlsfilt.filters._kernels as k
-            for item in match["modules"].split(","):
+            for item in _COMMENT.sub("", match["modules"]).split(","):
                 name = item.split()[0] if item.split() else ""
                 if name.startswith(top + "."):
                     found.add(_module_file(name.split(".")[1:]))
@@ -249,14 +258,25 @@ def _imported_files(path):
             parts = rest[1:]
         else:
             continue
-        for item in match["names"].strip("()").split(","):
+        for item in _COMMENT.sub("", match["names"]).strip("() \t\n").split(","):
             name = item.split()[0] if item.split() else ""
             # a submodule is imported as itself; any other name from the module `parts`
             submodule = _module_file(parts + [name]) if name.isidentifier() else None
             found.add(submodule or _module_file(parts))
     found.discard(None)
-    _imports[path] = stat, sorted(found)
-    return _imports[path][1]
+    return sorted(found)
+
+
+def _import_statements(source):
+    """The `_IMPORT` matches of `source`, found from its occurrences of "import"."""
+    pos = 0
+    while (i := source.find("import", pos)) >= 0:
+        match = _IMPORT.match(source, source.rfind("\n", 0, i) + 1)
+        if match and match.end() > i:
+            yield match
+            pos = match.end()
+        else:
+            pos = i + 6
 
 
 def _module_file(parts):

@@ -76,7 +76,7 @@ def test_the_import_graph_is_read_as_python_reads_it():
     modules = _kernel_modules()
     assert len(modules) >= 10, modules            # every module with compiled kernels
     for path in modules + [PACKAGE / "filters" / "forgetting.py", PACKAGE / "_validation.py"]:
-        assert set(_numba._imported_files(str(path))) == _ast_imports(path), path
+        assert set(_numba._file(str(path))[0]) == _ast_imports(path), path
 
 
 def test_a_kernel_depends_on_the_modules_it_calls_into_and_no_others():
@@ -128,6 +128,17 @@ def test_the_stamp_follows_the_contents_of_the_imported_files(tmp_path, monkeypa
     assert _numba._dependency_stamp(a) not in (first, second)
 
 
+def test_the_stamp_is_computed_once_per_execution_of_a_module(tmp_path, monkeypatch):
+    root = _fake_package(tmp_path, monkeypatch)
+    a = str(root / "sub" / "a.py")
+    spec = object()                               # the module's __spec__: one per execution
+    first = _numba._dependency_stamp(a, spec)
+    (root / "c.py").write_text("K = 5\n")
+    os.utime(root / "c.py", ns=(1, 1))
+    assert _numba._dependency_stamp(a, spec) == first          # the module's next function
+    assert _numba._dependency_stamp(a, object()) != first      # reloaded: looked at again
+
+
 def test_an_rlsfilt_kernel_has_the_dependency_stamp():
     from rlsfilt.filters import _kernels_shared
 
@@ -177,7 +188,6 @@ class _BrokenCache:
 def test_numbas_default_cache_when_the_mechanism_cannot_apply(cache_dir, monkeypatch,
                                                               cache_class):
     monkeypatch.setattr(_numba, "_cache_class", [cache_class])
-    monkeypatch.setattr(_numba, "_ROOT", str(pathlib.Path(__file__).parent))   # "in rlsfilt"
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         d = _numba.njit(cache=True, error_model="numpy")(_square)
