@@ -254,3 +254,33 @@ def test_the_job_answers_as_the_kernel_does():
     from rlsfilt.filters import _kernels_window
 
     assert not _kernels_window.sr_unhealthy(np.eye(3), np.ones(3), 1e8, np.zeros((3, 3)))
+
+
+RELOAD = r"""
+import importlib, json, sys
+import numpy as np
+from rlsfilt.filters import _kernels_shared, _kernels_window
+args = np.eye(3), np.ones(3), 1e8, np.zeros((3, 3))
+before = bool(_kernels_window.sr_unhealthy(*args))
+with open(_kernels_shared.__file__, "a") as f:
+    f.write(sys.argv[1])
+importlib.reload(_kernels_shared)
+importlib.reload(_kernels_window)                 # its own file unchanged
+d = _kernels_window.sr_unhealthy
+after = bool(d(*args))
+print(json.dumps([before, after, sum(d.stats.cache_hits.values()),
+                  sum(d.stats.cache_misses.values())]))
+"""
+
+
+@pytest.mark.slow
+def test_a_module_reloaded_after_an_edit_of_its_callee_recompiles(tmp_path):
+    site = tmp_path / "site"
+    shutil.copytree(PACKAGE, site / "rlsfilt", ignore=shutil.ignore_patterns("__pycache__"))
+    env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_DISABLE_JIT", "PYTHONPATH")}
+    env.update(NUMBA_CACHE_DIR=str(tmp_path / "cache"), PYTHONPATH=str(site))
+    proc = subprocess.run([sys.executable, "-c", RELOAD, EDIT], env=env, cwd=str(tmp_path),
+                          capture_output=True, text=True, timeout=900)
+    assert proc.returncode == 0, proc.stderr
+    # the reloaded caller is compiled anew (not loaded from the cache of before the edit)
+    assert json.loads(proc.stdout.strip().splitlines()[-1]) == [False, True, 0, 1]
