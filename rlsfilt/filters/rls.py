@@ -36,7 +36,7 @@ from . import _health, _streaming
 from . import forgetting as _fg
 from . import smoother as _smoother
 from . import tuning as _tuning
-from ._base import MISSING_DIAGNOSTICS, _FilterBase, own_array
+from ._base import MISSING_DIAGNOSTICS, _FilterBase, own_array, refuse_fixed
 from .contract import check_state
 
 __all__ = ["RecursiveLeastSquares"]
@@ -337,6 +337,8 @@ class RecursiveLeastSquares(_FilterBase):
     # The filter's own x and P live in slots, outside ``__dict__``: filterpy's Saver
     # deep-copies ``__dict__`` and reads ``x`` and ``P`` through their properties.
     __slots__ = ("_x", "_P", "_cfg")
+    _options = _FilterBase._options | {"P", "Q", "lam", "alpha", "gate", "check_every",
+                                       "cond_max"}
 
     _HEALTH_ADVICE = ("The estimate may be unreliable: use a forgetting mode that bounds P "
                       "(forgetting='directional', 'efra', ...), SquareRootRLS, or more "
@@ -439,10 +441,20 @@ class RecursiveLeastSquares(_FilterBase):
         """Forgetting mode (read-only; chosen at construction)."""
         return _fg.MODES[self._mode]
 
+    @forgetting.setter
+    def forgetting(self, value):
+        refuse_fixed(self, "forgetting", "construct a new filter with forgetting=...")
+
     @property
     def forgetting_params(self):
-        """The constants of the forgetting mode, defaults filled in (a new dict)."""
+        """The constants of the forgetting mode, defaults filled in (a new dict;
+        read-only, chosen at construction)."""
         return dict(zip(_fg._PARAM_NAMES[self._mode], self._params, strict=True))
+
+    @forgetting_params.setter
+    def forgetting_params(self, value):
+        refuse_fixed(self, "forgetting_params",
+                     "construct a new filter with forgetting_params=...")
 
     @property
     def gate(self):
