@@ -71,7 +71,7 @@ class _FilterBase(Filter):
     #: on assignment (an AttributeError saying why and what to use instead) and reads as
     #: absent, unless the class defines it itself (a read-only property, the base's
     #: ``F``, ``B``, ``inv``, ``Q``, ``alpha``, ``check_every``). See `_guard`.
-    _options = frozenset({"x", "R", "H"})
+    _options = frozenset({"x", "R"})
 
     def __new__(cls, *args, **kwargs):
         self = super().__new__(cls)
@@ -263,7 +263,9 @@ class _FilterBase(Filter):
     def alpha(self, value):
         if not hasattr(type(self), "lam"):
             raise AttributeError(_refused("alpha", f"{type(self).__name__} "
-                                                   f"{self._NO_FADING_MEMORY}"))
+                                                   f"{self._NO_FADING_MEMORY}; "
+                                                   "RecursiveLeastSquares and SquareRootRLS "
+                                                   "have one (lam)"))
         alpha = check_scalar(value, "alpha")
         if not (math.isfinite(alpha) and alpha >= 1.0):
             raise ValueError("`alpha` must be a finite number >= 1 (filterpy's fading memory, "
@@ -620,9 +622,10 @@ def _refused(name, why):
 # ----------------------------------------------------------------------
 # settings a filter does not take: refused by name (#29 item 4)
 # ----------------------------------------------------------------------
-#: filterpy's ``KalmanFilter`` settings (besides its diagnostics ``z``, ``y``, ``K``,
-#: ``S``, ``SI``, the priors and posteriors, and the sizes ``dim_x``, ``dim_z``).
-FILTERPY_OPTIONS = ("x", "P", "Q", "R", "H", "F", "B", "M", "alpha", "inv", "dim_u")
+#: filterpy's ``KalmanFilter`` settings (besides the sizes ``dim_x``, ``dim_z`` and the
+#: results of a step every filter writes: ``H``, which ``update(z)`` also reads, as in
+#: filterpy, ``z``, ``y``, ``K``, ``S``, ``SI``, the priors and the posteriors).
+FILTERPY_OPTIONS = ("x", "P", "Q", "R", "F", "B", "M", "alpha", "inv", "dim_u")
 #: Parameters of the constructors that are no settings (the sizes: assigning them is
 #: not guarded, the hot paths read them as plain attributes).
 _SIZES = ("self", "dim_x", "dim_z")
@@ -633,15 +636,15 @@ _FILTER_CLASSES = weakref.WeakSet()      # every subclass of _FilterBase, to gua
 # why a filter that lacks a setting lacks it ({cls}: its class name); the message
 # then says which filters take the setting
 _WHY_NOT = {
-    "P": "{cls} keeps no covariance (has_covariance is False)",
-    "P0": "the initial covariance is fixed at construction (reset() returns to it); "
-          "assign P for the current covariance, or construct a new filter with P0=...",
-    "x0": "the initial estimate is fixed at construction (reset() returns to it); "
-          "assign x for the current estimate, or construct a new filter with x0=...",
+    "P": "{cls} keeps no covariance (has_covariance is False); a least-squares filter "
+         "has one",
+    "P0": "the initial covariance of {cls} is fixed at construction (reset() returns to "
+          "it); assign P for the current covariance, or construct a new filter with P0=...",
+    "x0": "the initial estimate of {cls} is fixed at construction (reset() returns to "
+          "it); assign x for the current estimate, or construct a new filter with x0=...",
     "M": "{cls} has no correlation between measurement and process noise (filterpy's "
-         "M); least squares' random walk Q is independent of R",
-    "dim_u": "{cls} has no control input (least squares: known inputs belong in the "
-             "regressor H)",
+         "M); least squares' random walk Q, where there is one, is independent of R",
+    "dim_u": "{cls} has no control input; known inputs belong in the regressor H",
     "gate": "{cls} has no outlier gate",
     "forgetting": "{cls} has no choice of forgetting mode",
     "forgetting_params": "{cls} has no choice of forgetting mode",
@@ -682,23 +685,25 @@ def _register(cls):
     _FILTER_CLASSES.add(cls)
     new = (_own_options(cls) - _OPTION_NAMES) if cls.__module__.startswith("rlsfilt.") else ()
     _OPTION_NAMES.update(new)
-    for c in (list(_FILTER_CLASSES) if new else [cls]):
+    # bases first: a subclass sees the refusals its bases have
+    for c in (sorted(_FILTER_CLASSES, key=lambda c: len(c.__mro__)) if new else [cls]):
         _guard(c)
 
 
 def _guard(cls):
     """Put a `_Refused` descriptor on `cls` for every name of `_OPTION_NAMES` it does not
-    take (``cls._options``) and does not define itself; a name it takes that a base
-    refuses gets a `_Plain` one (an instance attribute again)."""
+    take (``cls._options``) unless a class of its MRO defines the name and handles it
+    itself (the base's ``F``, ``Q``, ..., a read-only property such as ``forgetting``, a
+    refusal already there): where nothing defines it, or a base that takes it does.
+    A name it takes that a base refuses gets a `_Plain` one (an instance attribute)."""
     for name in _OPTION_NAMES:
         if name in vars(cls):                  # the class's own (or already guarded)
             continue
         owner = next((c for c in cls.__mro__ if name in vars(c)), None)
-        refused = owner is not None and isinstance(vars(owner)[name], _Refused)
         if name in cls._options:
-            if refused:
+            if owner is not None and isinstance(vars(owner)[name], _Refused):
                 setattr(cls, name, _Plain(name))
-        elif not refused and owner is not _FilterBase:     # the base handles its own
+        elif owner is None or name in getattr(owner, "_options", ()):
             setattr(cls, name, _Refused(name))
 
 

@@ -307,7 +307,7 @@ class LMS(_GradientFilter):
     _options = _FilterBase._options | {"mu", "leak"}
 
     def __init__(self, dim_x, dim_z=1, mu=0.01, *, leak=0.0, x0=None, R=1.0):
-        super().__init__(dim_x, dim_z, mu, leak=leak, x0=x0, R=R)
+        _GradientFilter.__init__(self, dim_x, dim_z, mu, leak=leak, x0=x0, R=R)
 
 
 class NLMS(_GradientFilter):
@@ -362,6 +362,7 @@ class SignErrorLMS(_GradientFilter):
 
     _METHOD = "sign_error"
     _options = LMS._options
+    __init__ = LMS.__init__                  # no eps: the sign rules do not normalize
 
 
 class SignDataLMS(_GradientFilter):
@@ -373,6 +374,7 @@ class SignDataLMS(_GradientFilter):
 
     _METHOD = "sign_data"
     _options = LMS._options
+    __init__ = LMS.__init__
 
 
 class SignSignLMS(_GradientFilter):
@@ -385,6 +387,7 @@ class SignSignLMS(_GradientFilter):
 
     _METHOD = "sign_sign"
     _options = LMS._options
+    __init__ = LMS.__init__
 
 
 class APA(_GradientFilter):

@@ -394,6 +394,27 @@ class RecursiveLeastSquares(_FilterBase):
         self._cap, self._w = False, 1.0     # the windup cap decides again from the new P
 
     @property
+    def R(self):
+        """Measurement-noise variance (a positive float). The forgetting mode's constants
+        that default to a multiple of it (``forgetting_params['trace']`` of the constant
+        trace mode) follow an assignment, as they follow one of `lam`."""
+        return self._R
+
+    @R.setter
+    @_locked
+    def R(self, value):
+        r = check_variance(value, "R")
+        if "_lam" not in self.__dict__:               # in __init__: configured with lam
+            self._R = r
+            return
+        old, self._R = self._R, r
+        try:
+            self._set_lam(self._mode, self._lam)     # the defaults that depend on R
+        except BaseException:
+            self._R = old
+            raise
+
+    @property
     def lam(self):
         """Forgetting factor in (0, 1]; with ``forgetting="diagonal"`` the factors of
         the parameters, a read-only array of shape ``(dim_x,)`` (assign a number or an
