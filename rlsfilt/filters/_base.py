@@ -708,10 +708,10 @@ def _guard(cls):
 
 
 class _Refused:
-    """A setting class `owner` does not take: assigning it raises an AttributeError
-    that names it, the class, why and which filters take it; reading it (on the
-    instance or the class) raises AttributeError as for any missing attribute, so
-    ``hasattr`` and ``getattr(f, name, default)`` see it absent."""
+    """A setting the class it is put on does not take: assigning it raises an
+    AttributeError that names it, the class, why and which filters take it; reading it
+    (on the instance or the class) raises AttributeError as for any missing attribute,
+    so ``hasattr`` and ``getattr(f, name, default)`` see it absent."""
 
     __slots__ = ("name",)
 
@@ -739,9 +739,10 @@ class _Refused:
         return why
 
     def __get__(self, obj, cls=None):
-        raise AttributeError(f"{type(obj).__name__ if obj is not None else cls.__name__!r} "
-                             f"object has no attribute {self.name!r} "
-                             f"({self.why(cls if obj is None else type(obj))})",
+        owner = cls if obj is None else type(obj)
+        what = (f"type object {owner.__name__!r}" if obj is None
+                else f"{owner.__name__!r} object")
+        raise AttributeError(f"{what} has no attribute {self.name!r} ({self.why(owner)})",
                              name=self.name, obj=obj)
 
     def __set__(self, obj, value):

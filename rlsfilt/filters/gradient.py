@@ -485,7 +485,7 @@ class APA(_GradientFilter):
         self.X[:len(rows)], self.D[:len(meas)] = rows, meas
 
     def _work(self):
-        k, n, m = self.order, self.dim_x, self.dim_z
+        k, n, m = self._order, self.dim_x, self.dim_z
         return (self.X.copy(), self.D.copy(), np.empty((k, k)), np.empty((k, n)),
                 np.empty((k, m)), np.empty((k, k)))
 
