@@ -5,11 +5,12 @@ have each their own settings (``lam``, ``window``, ``mu``, ``eps``, ``leak``,
 ``order``, ``gate``, ...). Assigning one of these names to a filter that does not take
 it used to create a new attribute that the filter never read (``sw.lam = 0.9`` on a
 sliding window, ``lms.P = ...``). Every registered filter of
-``tests/test_contract_filters.py`` (``FILTERS``; the banks aside, they have their own
-interface) meets every such name (`rlsfilt.filters._base.option_names`): either the
-filter declares it in ``_options`` and then the next steps equal those of a filter
-constructed with the value, or the assignment is an AttributeError naming the setting
-and the filter that leaves the filter as it was. A user's own attribute stays free.
+``tests/test_contract_filters.py`` (``FILTERS``; for `RLSBank` and `GradientBank`,
+registered through an adapter, the bank itself) meets every such name
+(`rlsfilt.filters._base.option_names`): either the filter declares it in ``_options``
+and then the next steps equal those of a filter constructed with the value, or the
+assignment is an AttributeError naming the setting and the filter that leaves the
+filter as it was. A user's own attribute stays free.
 """
 
 import copy
@@ -30,8 +31,9 @@ from test_contract_filters import DIM_X, FILTERS
 import rlsfilt.filters as filters_pkg
 from rlsfilt import LMS, RecursiveLeastSquares, SlidingWindowRLS
 from rlsfilt.filters._base import FILTERPY_OPTIONS, _FilterBase, option_names
+from rlsfilt.filters.bank import BankBase
 
-CASES = [case for case in FILTERS if isinstance(case.make(), _FilterBase)]
+CASES = FILTERS
 GUIDE = Path(__file__).resolve().parents[1] / "docs" / "guide" / "filters.md"
 
 # a value of each setting, the constructor arguments that give a filter with that value,
@@ -52,8 +54,24 @@ HONOURED = {
     "mu": (0.07, {"mu": 0.07}, {}),
     "eps": (0.3, {"eps": 0.3}, {}),
     "leak": (0.05, {"leak": 0.05}, {}),
+    "parallel": (True, {"parallel": True}, {}),
 }
 STEPS = 30                                # (the window of 40 is not full yet)
+
+
+def _target(case):
+    """The registered filter, or the bank behind a bank's adapter."""
+    f = case.make()
+    return getattr(f, "bank", f)
+
+
+def _value(f, name, value):
+    """`value` in the shapes of a bank (every channel) where a filter's differ."""
+    if isinstance(f, BankBase) and name in ("x", "P"):
+        value = np.asarray(value, dtype=float)
+        value = value.reshape(-1) if name == "x" else value
+        return np.array(np.broadcast_to(value, (f.n_channels, *value.shape)))
+    return copy.deepcopy(value)
 
 
 def _record():
@@ -69,12 +87,18 @@ def _run(f):
     predict/update steps, as bytes, and the messages of the warnings they issued."""
     zs, Hs = _record()
     out = []
+    bank = isinstance(f, BankBase)
+    scales = np.arange(1.0, f.n_channels + 1.0) if bank else None
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         for z, H in zip(zs, Hs):
             f.predict()
-            f.update(z, H)
-            arrays = [f.x, f.y, f.K, f.S] + ([f.P] if f.has_covariance else [])
+            if bank:                       # every channel: the row, a scaled measurement
+                f.update(z * scales, np.broadcast_to(H, (f.n_channels, H.size)))
+            else:
+                f.update(z, H)
+            arrays = [f.x, f.y, f.K, f.S] + ([f.P] if getattr(f, "has_covariance", True)
+                                             else [])
             out.append(b"".join(np.ascontiguousarray(a, dtype=float).tobytes() for a in arrays))
     return out, [str(w.message) for w in caught]
 
@@ -107,7 +131,7 @@ def _ids(case):
 # the names
 # ----------------------------------------------------------------------
 def _rlsfilt_filter_classes():
-    found, todo = [], [_FilterBase]
+    found, todo = [], [_FilterBase, BankBase]
     while todo:
         for c in todo.pop().__subclasses__():
             todo.append(c)
@@ -118,18 +142,19 @@ def _rlsfilt_filter_classes():
 
 def test_the_names_are_the_filters_own_settings_and_filterpys():
     """`option_names` holds every constructor argument (but the sizes) and every public
-    settable property of rlsfilt's filters, filterpy's KalmanFilter settings, and the
-    settings #29 named; nothing else."""
+    settable property (but ``adapt``) of rlsfilt's filters and banks, filterpy's
+    KalmanFilter settings, and the settings #29 named; nothing else."""
     classes = _rlsfilt_filter_classes()
     assert {c.__name__ for c in classes} >= {
         "RecursiveLeastSquares", "SquareRootRLS", "SlidingWindowRLS", "LMS", "NLMS",
         "SignErrorLMS", "SignDataLMS", "SignSignLMS", "APA"}
     expected = set(FILTERPY_OPTIONS)
     for c in classes:
-        expected |= set(inspect.signature(c).parameters) - {"dim_x", "dim_z"}
+        expected |= set(inspect.signature(c).parameters)
         expected |= {n for n, v in vars(c).items() if isinstance(v, property)
                      and v.fset is not None and not n.startswith("_")}
-    assert set(option_names()) == expected
+    # the sizes and adapt (freeze/unfreeze), which every filter and bank takes
+    assert set(option_names()) == expected - {"dim_x", "dim_z", "n_channels", "adapt"}
     assert set(option_names()) >= {"lam", "P", "P0", "Q", "window", "mu", "eps", "leak",
                                    "order", "forgetting", "gate", "x0", "refresh", "cond_max"}
     # filterpy's settings: its instance's public attributes but the diagnostics and sizes
@@ -187,15 +212,16 @@ def test_a_new_filter_s_options_join_the_others_refusals():
 # every registered filter x every name: refused or honoured
 # ----------------------------------------------------------------------
 def test_the_registry_holds_every_filter_class():
-    """Every public rlsfilt filter class is in the registry (so it meets every name)."""
+    """Every public rlsfilt filter and bank class is in the registry (so it meets every
+    name)."""
     public = {c for c in _rlsfilt_filter_classes() if not c.__name__.startswith("_")}
-    assert public <= {type(case.make()) for case in CASES}
+    assert public | set(BankBase.__subclasses__()) <= {type(_target(case)) for case in CASES}
 
 
 @pytest.mark.parametrize("name", option_names())
 @pytest.mark.parametrize("case", CASES, ids=_ids)
 def test_a_setting_is_refused_by_name_or_honoured(case, name):
-    f = case.make()
+    f = _target(case)
     if name in type(f)._options:
         _check_honoured(f, name)
     else:
@@ -209,9 +235,12 @@ def _check_honoured(f, name):
     value, constructed, both = HONOURED[name]
     assert _run(_rebuild(f)) == _run(f), "the rebuilt filter steps as the registry's"
     g = _rebuild(f, **both)
-    setattr(g, name, copy.deepcopy(value))
+    setattr(g, name, _value(f, name, value))
     with_value = _run(_rebuild(f, **both, **constructed))
     assert _run(g) == with_value
+    if name == "parallel":               # threads, the same numbers by design: stored
+        assert g.parallel is True and _rebuild(f, **constructed).parallel is True
+        return
     assert with_value != _run(_rebuild(f, **both)), f"`{name}` = {value} changes nothing"
 
 
@@ -246,13 +275,13 @@ def _check_refused(f, name):
     (lambda: LMS(2), "lam", r"LMS adapts by its step size `mu`"),
     (lambda: LMS(2), "P", r"LMS keeps no covariance"),
     (lambda: LMS(2), "eps", r"LMS has no regularized normalization; eps is an option of "
-                            r"APA, NLMS"),
+                            r"APA, GradientBank, NLMS"),
     (lambda: RecursiveLeastSquares(2), "M", r"filterpy's M"),
     (lambda: RecursiveLeastSquares(2), "P0", r"the initial covariance of "
                                              r"RecursiveLeastSquares is fixed at "
                                              r"construction .*assign P"),
     (lambda: RecursiveLeastSquares(2), "window", r"window is an option of SlidingWindowRLS"),
-    (lambda: RecursiveLeastSquares(2), "mu", r"mu is an option of APA, LMS, NLMS"),
+    (lambda: RecursiveLeastSquares(2), "mu", r"mu is an option of APA, GradientBank, LMS, NLMS"),
     (lambda: RecursiveLeastSquares(2), "forgetting", r"construct a new filter"),
 ])
 def test_the_issue_s_assignments_are_refused(make, name, match):
@@ -327,5 +356,5 @@ def test_the_guide_lists_what_each_filter_takes():
             cls = getattr(filters_pkg, cls_name)
             assert set(re.findall(r"`(\w+)`", settings)) == set(cls._options), cls_name
             seen.add(cls)
-    assert seen == {type(case.make()) for case in CASES
-                    if type(case.make()).__module__.startswith("rlsfilt.")}
+    assert seen == {type(_target(case)) for case in CASES
+                    if type(_target(case)).__module__.startswith("rlsfilt.")}

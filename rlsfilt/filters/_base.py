@@ -81,7 +81,7 @@ class _FilterBase(Filter):
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
         cls.__signature__ = init_signature(cls)   # __init__'s, not __new__'s (*args, **kwargs)
-        _register(cls)
+        register_filter_class(cls)
 
     def __getstate__(self):
         """The attributes without the lock, read under it (pickle, copy, deepcopy)."""
@@ -626,16 +626,24 @@ def _refused(name, why):
 #: results of a step every filter writes: ``H``, which ``update(z)`` also reads, as in
 #: filterpy, ``z``, ``y``, ``K``, ``S``, ``SI``, the priors and the posteriors).
 FILTERPY_OPTIONS = ("x", "P", "Q", "R", "F", "B", "M", "alpha", "inv", "dim_u")
-#: Parameters of the constructors that are no settings (the sizes: assigning them is
-#: not guarded, the hot paths read them as plain attributes).
-_SIZES = ("self", "dim_x", "dim_z")
+#: Names that are not guarded: the sizes (the hot paths read them as plain attributes)
+#: and ``adapt``, which every filter and bank takes (``freeze``/``unfreeze``).
+_NOT_GUARDED = ("self", "dim_x", "dim_z", "n_channels", "adapt")
 # every name a filter may be handed: filterpy's settings and, as rlsfilt's filters are
 # defined, their constructor arguments and settable properties (`_register`)
 _OPTION_NAMES = set(FILTERPY_OPTIONS)
-_FILTER_CLASSES = weakref.WeakSet()      # every subclass of _FilterBase, to guard
+_FILTER_CLASSES = weakref.WeakSet()      # every filter and bank class, to guard
 # why a filter that lacks a setting lacks it ({cls}: its class name); the message
 # then says which filters take the setting
 _WHY_NOT = {
+    # (the filters' base answers F, B, inv, alpha and Q itself; these are the banks')
+    "F": "the state transition of {cls} is the identity (constant parameters); model "
+         "drift with a random walk Q",
+    "B": "{cls} has no control input; known inputs belong in the regressors H",
+    "inv": "{cls} never inverts a matrix (S is a scalar per channel); there is no "
+           "inverse to replace",
+    "alpha": "{cls} has no fading-memory factor in filterpy's form (alpha**2 = 1 / lam)",
+    "Q": "{cls} has no random walk (filterpy's process noise)",
     "P": "{cls} keeps no covariance (has_covariance is False); a least-squares filter "
          "has one",
     "P0": "the initial covariance of {cls} is fixed at construction (reset() returns to "
@@ -651,6 +659,9 @@ _WHY_NOT = {
     "window": "{cls} has no sliding window",
     "refresh": "{cls} has no window to refit",
     "mu": "{cls} has no step size (it is not a gradient filter)",
+    "method": "{cls} has no choice of gradient rule",
+    "parallel": "{cls} has no multi-threaded batch loop",
+    "check_every": "{cls} keeps no covariance, so it has no health check",
     "eps": "{cls} has no regularized normalization",
     "leak": "{cls} has no leakage",
     "order": "{cls} has no projection order",
@@ -670,15 +681,15 @@ def _own_options(cls):
     """The settings `cls` introduces: its constructor's arguments (not the sizes) and
     its public properties with a setter."""
     params = inspect.signature(cls.__init__).parameters.values()
-    names = {p.name for p in params if p.name not in _SIZES
-             and p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD)}
+    names = {p.name for p in params if p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD)}
     names.update(n for n, v in vars(cls).items()
                  if isinstance(v, property) and v.fset is not None and not n.startswith("_"))
-    return names
+    return names - set(_NOT_GUARDED)
 
 
-def _register(cls):
-    """Guard the new filter class; an rlsfilt filter's own settings join `_OPTION_NAMES`
+def register_filter_class(cls):
+    """Guard the new filter (or bank) class `cls` (its ``__init_subclass__`` calls this;
+    it declares ``_options``); an rlsfilt class's own settings join `_OPTION_NAMES`
     and every class known so far is guarded again (a setting added by a later class is
     refused by the earlier ones too). A user's filter adds no names (its own attributes
     stay free on the other filters), but is guarded against rlsfilt's."""
@@ -722,9 +733,9 @@ class _Refused:
         """Why `cls` refuses the setting and where to find it instead."""
         name = self.name
         if name == "lam":
-            why = f"{cls.__name__} {cls._NO_FADING_MEMORY}"
+            why = f"{cls.__name__} {getattr(cls, '_NO_FADING_MEMORY', 'has no forgetting')}"
         else:
-            if name == "P0" and not cls.has_covariance:
+            if name == "P0" and not getattr(cls, "has_covariance", True):
                 name = "P"
             why = _WHY_NOT.get(name, f"{cls.__name__} does not take `{name}`").format(
                 cls=cls.__name__)

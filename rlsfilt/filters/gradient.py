@@ -105,8 +105,13 @@ class _GradientFilter(_FilterBase):
     @property
     def method(self):
         """The update rule: ``"lms"``, ``"nlms"``, ``"sign_error"``, ``"sign_data"``,
-        ``"sign_sign"`` or ``"apa"``."""
+        ``"sign_sign"`` or ``"apa"`` (read-only: the class's)."""
         return self._METHOD
+
+    @method.setter
+    def method(self, value):
+        refuse_fixed(self, "method", "it is the class's rule; construct the class of "
+                                     "another rule (NLMS, SignSignLMS, ...)")
 
     @_locked
     def predict(self, u=None, B=None, F=None):
