@@ -29,12 +29,12 @@ class NLMS(_FilterBase):
 
     has_covariance = False
     least_squares = False
+    _options = _FilterBase._options | {"mu"}        # the settings it honours when assigned
 
     def __init__(self, dim_x, dim_z=1, mu=0.5, *, x0=None, R=1.0):
         self.dim_x, self.dim_z = dim_x, dim_z
         self.mu = check_real(mu, "mu", minimum=0, strict=True)
-        self.R = R
-        self.check_every = 0                            # no covariance: no health check
+        self.R = R                                      # (no covariance: no health check)
         self._x0 = self._as_state(np.zeros((dim_x, dim_z)) if x0 is None else x0, "x0")
         self.reset()
 

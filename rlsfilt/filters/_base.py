@@ -22,6 +22,7 @@ import inspect
 import math
 import threading
 import warnings
+import weakref
 
 import numpy as np
 
@@ -63,8 +64,14 @@ class _FilterBase(Filter):
     # a slot, not in ``__dict__``: filterpy's Saver deep-copies ``__dict__``, and a
     # lock can be neither copied nor pickled
     __slots__ = ("_lock",)
-    # why `alpha` cannot be assigned to a filter without `lam` (the message's end)
+    # why `alpha` (and `lam`) cannot be assigned to a filter without `lam` (the message's end)
     _NO_FADING_MEMORY = "has no fading-memory factor"
+    #: The settings (of `OPTION_NAMES`) whose assignment this class honours; each class
+    #: declares its own whole set. Every other name of `OPTION_NAMES` is refused by name
+    #: on assignment (an AttributeError saying why and what to use instead) and reads as
+    #: absent, unless the class defines it itself (a read-only property, the base's
+    #: ``F``, ``B``, ``inv``, ``Q``, ``alpha``, ``check_every``). See `_guard`.
+    _options = frozenset({"x", "R"})
 
     def __new__(cls, *args, **kwargs):
         self = super().__new__(cls)
@@ -74,6 +81,7 @@ class _FilterBase(Filter):
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
         cls.__signature__ = init_signature(cls)   # __init__'s, not __new__'s (*args, **kwargs)
+        register_filter_class(cls)
 
     def __getstate__(self):
         """The attributes without the lock, read under it (pickle, copy, deepcopy)."""
@@ -96,12 +104,18 @@ class _FilterBase(Filter):
     def check_every(self):
         """Health check period in updates (0: off); assign None for the default
         ``max(250, 32 dim_x)``, which keeps the O(dim_x^3) test under 5 % of the
-        O(dim_x^2) updates at every size."""
-        return self._check_every
+        O(dim_x^2) updates at every size. A filter without a covariance
+        (``has_covariance = False``) has no health check: 0, read-only."""
+        return self._check_every if self.has_covariance else 0
 
     @check_every.setter
     @_locked
     def check_every(self, value):
+        if not self.has_covariance:
+            raise AttributeError(_refused(
+                "check_every", f"{type(self).__name__} keeps no covariance, so it has no "
+                "health check; a least-squares filter (RecursiveLeastSquares(check_every=...)) "
+                "has one"))
         self._check_every = (max(250, 32 * self.dim_x) if value is None
                              else check_int(value, "check_every", minimum=0))
 
@@ -195,7 +209,9 @@ class _FilterBase(Filter):
     @F.setter
     def F(self, value):
         raise AttributeError(_refused("F", "the state transition of least squares is the "
-                                           "identity (constant parameters); model drift with Q"))
+                                           f"identity (constant parameters) in "
+                                           f"{type(self).__name__}; model drift with Q "
+                                           "(RecursiveLeastSquares)"))
 
     @property
     def Q(self):
@@ -215,7 +231,9 @@ class _FilterBase(Filter):
 
     @B.setter
     def B(self, value):
-        raise AttributeError(_refused("B", "least squares has no control input"))
+        raise AttributeError(_refused("B", "least squares has no control input: "
+                                           f"{type(self).__name__} estimates the parameters of "
+                                           "H x; known inputs belong in the regressor H"))
 
     @property
     def inv(self):
@@ -225,8 +243,9 @@ class _FilterBase(Filter):
 
     @inv.setter
     def inv(self, value):
-        raise AttributeError(_refused("inv", "the filters never invert a matrix (S is a "
-                                             "scalar times I)"))
+        raise AttributeError(_refused("inv", f"{type(self).__name__} never inverts a matrix "
+                                             "(S is a scalar times I); there is no inverse "
+                                             "to replace"))
 
     @property
     def alpha(self):
@@ -244,7 +263,9 @@ class _FilterBase(Filter):
     def alpha(self, value):
         if not hasattr(type(self), "lam"):
             raise AttributeError(_refused("alpha", f"{type(self).__name__} "
-                                                   f"{self._NO_FADING_MEMORY}"))
+                                                   f"{self._NO_FADING_MEMORY}; "
+                                                   "RecursiveLeastSquares and SquareRootRLS "
+                                                   "have one (lam)"))
         alpha = check_scalar(value, "alpha")
         if not (math.isfinite(alpha) and alpha >= 1.0):
             raise ValueError("`alpha` must be a finite number >= 1 (filterpy's fading memory, "
@@ -596,6 +617,181 @@ def own_array(value, name):
 def _refused(name, why):
     """The message of an assignment to a filterpy attribute the filters do not use."""
     return f"`{name}` cannot be assigned: {why}"
+
+
+# ----------------------------------------------------------------------
+# settings a filter does not take: refused by name (#29 item 4)
+# ----------------------------------------------------------------------
+#: filterpy's ``KalmanFilter`` settings (besides the sizes ``dim_x``, ``dim_z`` and the
+#: results of a step every filter writes: ``H``, which ``update(z)`` also reads, as in
+#: filterpy, ``z``, ``y``, ``K``, ``S``, ``SI``, the priors and the posteriors).
+FILTERPY_OPTIONS = ("x", "P", "Q", "R", "F", "B", "M", "alpha", "inv", "dim_u")
+#: Names that are not guarded: the sizes (the hot paths read them as plain attributes)
+#: and ``adapt``, which every filter and bank takes (``freeze``/``unfreeze``).
+_NOT_GUARDED = ("self", "dim_x", "dim_z", "n_channels", "adapt")
+# every name a filter may be handed: filterpy's settings and, as rlsfilt's filters are
+# defined, their constructor arguments and settable properties (`_register`)
+_OPTION_NAMES = set(FILTERPY_OPTIONS)
+_FILTER_CLASSES = weakref.WeakSet()      # every filter and bank class, to guard
+# why a filter that lacks a setting lacks it ({cls}: its class name); the message
+# then says which filters take the setting
+_WHY_NOT = {
+    # (the filters' base answers F, B, inv, alpha and Q itself; these are the banks')
+    "F": "the state transition of {cls} is the identity (constant parameters); model "
+         "drift with a random walk Q",
+    "B": "{cls} has no control input; known inputs belong in the regressors H",
+    "inv": "{cls} never inverts a matrix (S is a scalar per channel); there is no "
+           "inverse to replace",
+    "alpha": "{cls} has no fading-memory factor in filterpy's form (alpha**2 = 1 / lam)",
+    "Q": "{cls} has no random walk (filterpy's process noise)",
+    "P": "{cls} keeps no covariance (has_covariance is False); a least-squares filter "
+         "has one",
+    "P0": "the initial covariance of {cls} is fixed at construction (reset() returns to "
+          "it); assign P for the current covariance, or construct a new filter with P0=...",
+    "x0": "the initial estimate of {cls} is fixed at construction (reset() returns to "
+          "it); assign x for the current estimate, or construct a new filter with x0=...",
+    "M": "{cls} has no correlation between measurement and process noise (filterpy's "
+         "M); least squares' random walk Q, where there is one, is independent of R",
+    "dim_u": "{cls} has no control input; known inputs belong in the regressor H",
+    "gate": "{cls} has no outlier gate",
+    "forgetting": "{cls} has no choice of forgetting mode",
+    "forgetting_params": "{cls} has no choice of forgetting mode",
+    "window": "{cls} has no sliding window",
+    "refresh": "{cls} has no window to refit",
+    "mu": "{cls} has no step size (it is not a gradient filter)",
+    "method": "{cls} has no choice of gradient rule",
+    "parallel": "{cls} has no multi-threaded batch loop",
+    "check_every": "{cls} keeps no covariance, so it has no health check",
+    "eps": "{cls} has no regularized normalization",
+    "leak": "{cls} has no leakage",
+    "order": "{cls} has no projection order",
+    "cond_max": "{cls} keeps no covariance, so no health check of its condition number",
+}
+
+
+def option_names():
+    """Every setting name a filter refuses when it does not take it: filterpy's
+    ``KalmanFilter`` settings (`FILTERPY_OPTIONS`) and the constructor arguments
+    and settable properties of rlsfilt's filters (a new filter's join as it is
+    defined). A sorted tuple."""
+    return tuple(sorted(_OPTION_NAMES))
+
+
+def _own_options(cls):
+    """The settings `cls` introduces: its constructor's arguments (not the sizes) and
+    its public properties with a setter."""
+    params = inspect.signature(cls.__init__).parameters.values()
+    names = {p.name for p in params if p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD)}
+    names.update(n for n, v in vars(cls).items()
+                 if isinstance(v, property) and v.fset is not None and not n.startswith("_"))
+    return names - set(_NOT_GUARDED)
+
+
+def register_filter_class(cls):
+    """Guard the new filter (or bank) class `cls` (its ``__init_subclass__`` calls this;
+    it declares ``_options``); an rlsfilt class's own settings join `_OPTION_NAMES`
+    and every class known so far is guarded again (a setting added by a later class is
+    refused by the earlier ones too). A user's filter adds no names (its own attributes
+    stay free on the other filters), but is guarded against rlsfilt's."""
+    _FILTER_CLASSES.add(cls)
+    new = (_own_options(cls) - _OPTION_NAMES) if cls.__module__.startswith("rlsfilt.") else ()
+    _OPTION_NAMES.update(new)
+    # bases first: a subclass sees the refusals its bases have
+    for c in (sorted(_FILTER_CLASSES, key=lambda c: len(c.__mro__)) if new else [cls]):
+        _guard(c)
+
+
+def _guard(cls):
+    """Put a `_Refused` descriptor on `cls` for every name of `_OPTION_NAMES` it does not
+    take (``cls._options``) unless a class of its MRO defines the name and handles it
+    itself (the base's ``F``, ``Q``, ..., a read-only property such as ``forgetting``, a
+    refusal already there): where nothing defines it, or a base that takes it does.
+    A name it takes that a base refuses gets a `_Plain` one (an instance attribute)."""
+    for name in _OPTION_NAMES:
+        if name in vars(cls):                  # the class's own (or already guarded)
+            continue
+        owner = next((c for c in cls.__mro__ if name in vars(c)), None)
+        if name in cls._options:
+            if owner is not None and isinstance(vars(owner)[name], _Refused):
+                setattr(cls, name, _Plain(name))
+        elif owner is None or name in getattr(owner, "_options", ()):
+            setattr(cls, name, _Refused(name))
+
+
+class _Refused:
+    """A setting the class it is put on does not take: assigning it raises an
+    AttributeError that names it, the class, why and which filters take it; reading it
+    (on the instance or the class) raises AttributeError as for any missing attribute,
+    so ``hasattr`` and ``getattr(f, name, default)`` see it absent."""
+
+    __slots__ = ("name",)
+
+    def __init__(self, name):
+        self.name = name
+
+    def why(self, cls):
+        """Why `cls` refuses the setting and where to find it instead."""
+        name = self.name
+        if name == "lam":
+            why = f"{cls.__name__} {getattr(cls, '_NO_FADING_MEMORY', 'has no forgetting')}"
+        else:
+            if name == "P0" and not getattr(cls, "has_covariance", True):
+                name = "P"
+            why = _WHY_NOT.get(name, f"{cls.__name__} does not take `{name}`").format(
+                cls=cls.__name__)
+        if self.name in ("P0", "x0"):
+            return why
+        # the public rlsfilt filters that take it (assigned, or at construction)
+        takers = sorted(c.__name__ for c in list(_FILTER_CLASSES)
+                        if c.__module__.startswith("rlsfilt.") and not c.__name__[0] == "_"
+                        and (name in c._options or name in inspect.signature(c).parameters))
+        if takers:
+            why += f"; {name} is an option of {', '.join(takers)}"
+        return why
+
+    def __get__(self, obj, cls=None):
+        owner = cls if obj is None else type(obj)
+        what = (f"type object {owner.__name__!r}" if obj is None
+                else f"{owner.__name__!r} object")
+        raise AttributeError(f"{what} has no attribute {self.name!r} ({self.why(owner)})",
+                             name=self.name, obj=obj)
+
+    def __set__(self, obj, value):
+        raise AttributeError(_refused(self.name, self.why(type(obj))), name=self.name, obj=obj)
+
+    def __delete__(self, obj):
+        self.__set__(obj, None)
+
+
+class _Plain:
+    """A setting a subclass takes although a base refuses it: an instance attribute."""
+
+    __slots__ = ("name",)
+
+    def __init__(self, name):
+        self.name = name
+
+    def __get__(self, obj, cls=None):
+        if obj is None:
+            return self
+        try:
+            return obj.__dict__[self.name]
+        except KeyError:
+            raise AttributeError(f"{type(obj).__name__!r} object has no attribute "
+                                 f"{self.name!r}", name=self.name, obj=obj) from None
+
+    def __set__(self, obj, value):
+        obj.__dict__[self.name] = value
+
+    def __delete__(self, obj):
+        del obj.__dict__[self.name]
+
+
+def refuse_fixed(f, name, instead):
+    """Raise the AttributeError of assigning `name`, a setting of filter `f` fixed at
+    construction (the setter of its read-only property); `instead` says what to do."""
+    raise AttributeError(_refused(name, f"the {name} of {type(f).__name__} is fixed at "
+                                        f"construction; {instead}"), name=name, obj=f)
 
 
 def _has_none(values):

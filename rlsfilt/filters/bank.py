@@ -54,6 +54,7 @@ from .._validation import (
 from ..exceptions import ForgettingSkippedWarning, NumericalWarning
 from . import _health
 from . import forgetting as _fg
+from ._base import refuse_fixed, register_filter_class
 
 __all__ = ["RLSBank", "BankHistory"]
 
@@ -184,6 +185,13 @@ class BankBase:
     `rlsfilt.filters.gradient_bank.GradientBank` derive from it."""
 
     __slots__ = ("_lock", "__dict__", "__weakref__")
+    #: The settings whose assignment the bank honours; every other setting of a filter
+    #: (`rlsfilt.filters._base.option_names`) is refused by name, as by the filters.
+    _options = frozenset({"x", "R"})
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        register_filter_class(cls)
 
     def __new__(cls, *args, **kwargs):
         self = super().__new__(cls)
@@ -403,6 +411,8 @@ class RLSBank(BankBase):
     P_post = _Lazy("Covariances after the last :meth:`update`, ``(C, dim_x, dim_x)``.")
 
 
+    _options = BankBase._options | {"P", "Q", "lam", "check_every", "cond_max", "parallel"}
+
     def __init__(self, n_channels, dim_x, lam=1.0, *, Q=0.0, R=1.0, P0=1e4, x0=None,
                  forgetting="exponential", forgetting_params=None, check_every=100,
                  cond_max=1e12, parallel=False):
@@ -529,7 +539,10 @@ class RLSBank(BankBase):
     @R.setter
     @_locked
     def R(self, value):
-        self._R = self._per_channel_positive(value, "R")
+        R = self._per_channel_positive(value, "R")
+        if "_lam" in self.__dict__:       # the mode's defaults that depend on R follow it
+            self._params = self._mode_params(self._lam, R)
+        self._R = R
 
     @property
     def Q(self):
@@ -547,11 +560,21 @@ class RLSBank(BankBase):
         """Forgetting mode (read-only; chosen at construction)."""
         return MODES[self._mode]
 
+    @forgetting.setter
+    def forgetting(self, value):
+        refuse_fixed(self, "forgetting", "construct a new bank with forgetting=...")
+
     @property
     def forgetting_params(self):
-        """Constants of the forgetting mode, one array of shape (C,) per name."""
+        """Constants of the forgetting mode, one array of shape (C,) per name (read-only,
+        chosen at construction)."""
         names = _SUPPORTED_PARAMS[self.forgetting]
         return {name: self._params[:, i].copy() for i, name in enumerate(names)}
+
+    @forgetting_params.setter
+    def forgetting_params(self, value):
+        refuse_fixed(self, "forgetting_params",
+                     "construct a new bank with forgetting_params=...")
 
     def _mode_params(self, lam, R):
         """``(C, 2)`` constants of the mode (those of `_SUPPORTED_PARAMS`, in its

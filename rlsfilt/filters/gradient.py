@@ -40,7 +40,7 @@ import numpy as np
 from .._lazy import lazy_module
 from .._locking import locked as _locked
 from .._validation import check_bool, check_int, check_real, check_variance
-from ._base import _FilterBase
+from ._base import _FilterBase, refuse_fixed
 from .contract import check_state
 
 __all__ = ["LMS", "NLMS", "SignErrorLMS", "SignDataLMS", "SignSignLMS", "APA"]
@@ -55,6 +55,7 @@ class _GradientFilter(_FilterBase):
     has_covariance = False
     least_squares = False
     _METHOD = "lms"
+    _options = _FilterBase._options | {"mu", "eps", "leak"}
     _NO_FADING_MEMORY = ("adapts by its step size `mu`, it has no fading-memory factor "
                          "(filterpy's alpha)")
 
@@ -62,10 +63,11 @@ class _GradientFilter(_FilterBase):
         self.dim_x = check_int(dim_x, "dim_x", minimum=1)
         self.dim_z = check_int(dim_z, "dim_z", minimum=1)
         self.mu = check_real(mu, "mu", minimum=0, strict=True)
-        self.eps = check_real(eps, "eps", minimum=0)
-        self.leak = check_real(leak, "leak", minimum=0)
+        # only the rules that take them read eps and leak (kept private, so that a
+        # filter without them refuses them by name: `_options`)
+        self._eps = check_real(eps, "eps", minimum=0)
+        self._leak = check_real(leak, "leak", minimum=0)
         self.R = R
-        self.check_every = 0                            # no covariance: no health check
         self._x0 = self._as_state(np.zeros((self.dim_x, self.dim_z)) if x0 is None else x0,
                                   "x0")
         self.reset()
@@ -81,10 +83,35 @@ class _GradientFilter(_FilterBase):
         self._x = self._as_state(value, "x")
 
     @property
+    def eps(self):
+        """Regularization of the normalization, ``>= 0`` (`NLMS`, `APA`)."""
+        return self._eps
+
+    @eps.setter
+    @_locked
+    def eps(self, value):
+        self._eps = check_real(value, "eps", minimum=0)
+
+    @property
+    def leak(self):
+        """Leakage ``a >= 0`` (`LMS`, `NLMS` and the sign variants)."""
+        return self._leak
+
+    @leak.setter
+    @_locked
+    def leak(self, value):
+        self._leak = check_real(value, "leak", minimum=0)
+
+    @property
     def method(self):
         """The update rule: ``"lms"``, ``"nlms"``, ``"sign_error"``, ``"sign_data"``,
-        ``"sign_sign"`` or ``"apa"``."""
+        ``"sign_sign"`` or ``"apa"`` (read-only: the class's)."""
         return self._METHOD
+
+    @method.setter
+    def method(self, value):
+        refuse_fixed(self, "method", "it is the class's rule; construct the class of "
+                                     "another rule (NLMS, SignSignLMS, ...)")
 
     @_locked
     def predict(self, u=None, B=None, F=None):
@@ -199,12 +226,12 @@ class _GradientFilter(_FilterBase):
     def _step(self, x, h, z, K, y, work):
         k = _kernels()
         k.lms_update(k.METHODS.index(self._METHOD), x, h.reshape(1, -1), z.reshape(1, -1),
-                     self.mu, self.eps, self.leak, K.reshape(-1), y)
+                     self.mu, self._eps, self._leak, K.reshape(-1), y)
 
     def _run(self, x, Hm, Z, K, y, work, trajectory):
         k = _kernels()
         return k.lms_batch(k.METHODS.index(self._METHOD), x, np.ascontiguousarray(Hm),
-                           np.ascontiguousarray(Z), self.mu, self.eps, self.leak,
+                           np.ascontiguousarray(Z), self.mu, self._eps, self._leak,
                            K.reshape(-1), y, trajectory)
 
     def _final_health_check(self):
@@ -234,8 +261,8 @@ class _GradientFilter(_FilterBase):
         self._x, self.n_updates = s["x"], s["n_updates"]
 
     def __repr__(self):
-        extra = f", eps={self.eps}" if self._METHOD in ("nlms", "apa") else ""
-        extra += f", leak={self.leak}" if self.leak else ""
+        extra = f", eps={self._eps}" if self._METHOD in ("nlms", "apa") else ""
+        extra += f", leak={self._leak}" if self._leak else ""
         return (f"{type(self).__name__}(dim_x={self.dim_x}, dim_z={self.dim_z}, "
                 f"mu={self.mu}{extra})")
 
@@ -282,9 +309,10 @@ class LMS(_GradientFilter):
     """
 
     _METHOD = "lms"
+    _options = _FilterBase._options | {"mu", "leak"}
 
     def __init__(self, dim_x, dim_z=1, mu=0.01, *, leak=0.0, x0=None, R=1.0):
-        super().__init__(dim_x, dim_z, mu, leak=leak, x0=x0, R=R)
+        _GradientFilter.__init__(self, dim_x, dim_z, mu, leak=leak, x0=x0, R=R)
 
 
 class NLMS(_GradientFilter):
@@ -338,6 +366,8 @@ class SignErrorLMS(_GradientFilter):
     """
 
     _METHOD = "sign_error"
+    _options = LMS._options
+    __init__ = LMS.__init__                  # no eps: the sign rules do not normalize
 
 
 class SignDataLMS(_GradientFilter):
@@ -348,6 +378,8 @@ class SignDataLMS(_GradientFilter):
     """
 
     _METHOD = "sign_data"
+    _options = LMS._options
+    __init__ = LMS.__init__
 
 
 class SignSignLMS(_GradientFilter):
@@ -359,6 +391,8 @@ class SignSignLMS(_GradientFilter):
     """
 
     _METHOD = "sign_sign"
+    _options = LMS._options
+    __init__ = LMS.__init__
 
 
 class APA(_GradientFilter):
@@ -407,11 +441,33 @@ class APA(_GradientFilter):
     """
 
     _METHOD = "apa"
+    _options = _FilterBase._options | {"mu", "eps"}
 
     def __init__(self, dim_x, dim_z=1, order=5, mu=0.1, *, eps=0.001, x0=None, R=1.0):
-        self.order = check_int(order, "order", minimum=1)
+        self._order = check_int(order, "order", minimum=1)
         super().__init__(dim_x, dim_z, mu, eps=check_real(eps, "eps", minimum=0, strict=True),
                          x0=x0, R=R)
+
+    @property
+    def order(self):
+        """Projection order (read-only: the size of the buffers ``X`` and ``D``, chosen
+        at construction)."""
+        return self._order
+
+    @order.setter
+    def order(self, value):
+        refuse_fixed(self, "order", "it is the size of the buffers X and D; construct a "
+                                    "new APA(dim_x, order=...)")
+
+    @property
+    def eps(self):
+        """Regularization of ``X X^T``, positive (padasip's ``ifc``)."""
+        return self._eps
+
+    @eps.setter
+    @_locked
+    def eps(self, value):
+        self._eps = check_real(value, "eps", minimum=0, strict=True)
 
     def _gain_shape(self):
         return (self.dim_x, self.order)
@@ -434,7 +490,7 @@ class APA(_GradientFilter):
         self.X[:len(rows)], self.D[:len(meas)] = rows, meas
 
     def _work(self):
-        k, n, m = self.order, self.dim_x, self.dim_z
+        k, n, m = self._order, self.dim_x, self.dim_z
         return (self.X.copy(), self.D.copy(), np.empty((k, k)), np.empty((k, n)),
                 np.empty((k, m)), np.empty((k, k)))
 
@@ -442,12 +498,12 @@ class APA(_GradientFilter):
         self.X, self.D = work[0], work[1]
 
     def _step(self, x, h, z, K, y, work):
-        _kernels().apa_update(x, h.reshape(1, -1), z.reshape(1, -1), self.mu, self.eps,
+        _kernels().apa_update(x, h.reshape(1, -1), z.reshape(1, -1), self.mu, self._eps,
                               *work[:2], K, y, *work[2:])
 
     def _run(self, x, Hm, Z, K, y, work, trajectory):
         return _kernels().apa_batch(x, np.ascontiguousarray(Hm), np.ascontiguousarray(Z),
-                                    self.mu, self.eps, *work[:2], K, y, *work[2:], trajectory)
+                                    self.mu, self._eps, *work[:2], K, y, *work[2:], trajectory)
 
     @_locked
     def get_state(self):
@@ -463,4 +519,4 @@ class APA(_GradientFilter):
 
     def __repr__(self):
         return (f"APA(dim_x={self.dim_x}, dim_z={self.dim_z}, order={self.order}, "
-                f"mu={self.mu}, eps={self.eps})")
+                f"mu={self.mu}, eps={self._eps})")

@@ -22,6 +22,7 @@ from .._locking import init_signature
 from .._locking import locked as _locked
 from .._validation import as_float_array, check_bool, check_dimension, check_int, check_length
 from . import gradient as _gradient
+from ._base import refuse_fixed
 from .bank import BankBase, BankHistory
 
 __all__ = ["GradientBank"]
@@ -119,6 +120,7 @@ class GradientBank(BankBase):
 
     has_covariance = False
     least_squares = False
+    _NO_FADING_MEMORY = "adapts by its step sizes `mu`, it has no fading-memory factor"
 
     def __init__(self, n_channels, dim_x, mu=0.1, *, method="nlms", eps=0.001, leak=0.0,
                  x0=None, R=1.0):
@@ -154,20 +156,36 @@ class GradientBank(BankBase):
         """The update rule (read-only; chosen at construction)."""
         return self._method
 
+    @method.setter
+    def method(self, value):
+        refuse_fixed(self, "method", "construct a new bank with method=...")
+
     @property
     def mu(self):
-        """Step sizes, shape (C,) (a copy)."""
+        """Step sizes, shape (C,) (a copy; read-only, chosen at construction)."""
         return self._mu.copy()
+
+    @mu.setter
+    def mu(self, value):
+        refuse_fixed(self, "mu", "construct a new bank with mu=...")
 
     @property
     def eps(self):
-        """Regularizations of the normalization, shape (C,) (a copy)."""
+        """Regularizations of the normalization, shape (C,) (a copy; read-only)."""
         return self._eps.copy()
+
+    @eps.setter
+    def eps(self, value):
+        refuse_fixed(self, "eps", "construct a new bank with eps=...")
 
     @property
     def leak(self):
-        """Leakages, shape (C,) (a copy)."""
+        """Leakages, shape (C,) (a copy; read-only)."""
         return self._leak.copy()
+
+    @leak.setter
+    def leak(self, value):
+        refuse_fixed(self, "leak", "construct a new bank with leak=...")
 
     @property
     def R(self):

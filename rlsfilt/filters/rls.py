@@ -36,7 +36,7 @@ from . import _health, _streaming
 from . import forgetting as _fg
 from . import smoother as _smoother
 from . import tuning as _tuning
-from ._base import MISSING_DIAGNOSTICS, _FilterBase, own_array
+from ._base import MISSING_DIAGNOSTICS, _FilterBase, own_array, refuse_fixed
 from .contract import check_state
 
 __all__ = ["RecursiveLeastSquares"]
@@ -337,6 +337,8 @@ class RecursiveLeastSquares(_FilterBase):
     # The filter's own x and P live in slots, outside ``__dict__``: filterpy's Saver
     # deep-copies ``__dict__`` and reads ``x`` and ``P`` through their properties.
     __slots__ = ("_x", "_P", "_cfg")
+    _options = _FilterBase._options | {"P", "Q", "lam", "alpha", "gate", "check_every",
+                                       "cond_max"}
 
     _HEALTH_ADVICE = ("The estimate may be unreliable: use a forgetting mode that bounds P "
                       "(forgetting='directional', 'efra', ...), SquareRootRLS, or more "
@@ -392,6 +394,27 @@ class RecursiveLeastSquares(_FilterBase):
         self._cap, self._w = False, 1.0     # the windup cap decides again from the new P
 
     @property
+    def R(self):
+        """Measurement-noise variance (a positive float). The forgetting mode's constants
+        that default to a multiple of it (``forgetting_params['trace']`` of the constant
+        trace mode) follow an assignment, as they follow one of `lam`."""
+        return self._R
+
+    @R.setter
+    @_locked
+    def R(self, value):
+        r = check_variance(value, "R")
+        if "_lam" not in self.__dict__:               # in __init__: configured with lam
+            self._R = r
+            return
+        old, self._R = self._R, r
+        try:
+            self._set_lam(self._mode, self._lam)     # the defaults that depend on R
+        except BaseException:
+            self._R = old
+            raise
+
+    @property
     def lam(self):
         """Forgetting factor in (0, 1]; with ``forgetting="diagonal"`` the factors of
         the parameters, a read-only array of shape ``(dim_x,)`` (assign a number or an
@@ -439,10 +462,20 @@ class RecursiveLeastSquares(_FilterBase):
         """Forgetting mode (read-only; chosen at construction)."""
         return _fg.MODES[self._mode]
 
+    @forgetting.setter
+    def forgetting(self, value):
+        refuse_fixed(self, "forgetting", "construct a new filter with forgetting=...")
+
     @property
     def forgetting_params(self):
-        """The constants of the forgetting mode, defaults filled in (a new dict)."""
+        """The constants of the forgetting mode, defaults filled in (a new dict;
+        read-only, chosen at construction)."""
         return dict(zip(_fg._PARAM_NAMES[self._mode], self._params, strict=True))
+
+    @forgetting_params.setter
+    def forgetting_params(self, value):
+        refuse_fixed(self, "forgetting_params",
+                     "construct a new filter with forgetting_params=...")
 
     @property
     def gate(self):

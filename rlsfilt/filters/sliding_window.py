@@ -13,7 +13,7 @@ from .._validation import (
     check_variance,
 )
 from . import _health, _streaming
-from ._base import MISSING_DIAGNOSTICS, _FilterBase, own_array
+from ._base import MISSING_DIAGNOSTICS, _FilterBase, own_array, refuse_fixed
 from ._streaming import c_array
 from .contract import check_state
 
@@ -149,6 +149,8 @@ class SlidingWindowRLS(_FilterBase):
                       "excite every direction of the parameters; use a longer window or more "
                       "exciting input.")
 
+    _options = _FilterBase._options | {"P", "refresh", "check_every", "cond_max"}
+
     # the ring buffer is written in place (a snapshot of the attributes copies it)
     _written_in_place = ("_wH", "_wZ", "_wR")
 
@@ -157,8 +159,8 @@ class SlidingWindowRLS(_FilterBase):
         self.dim_x = check_dimension(dim_x, "dim_x")
         self.dim_z = check_int(dim_z, "dim_z", minimum=1)
         # the ring buffer: rows, measurements and variances, and the batch's copies of them
-        self.window = check_length(window, "window", minimum=self.dim_x,
-                                   bytes_per_item=16 * (self.dim_x + self.dim_z + 1))
+        self._window = check_length(window, "window", minimum=self.dim_x,
+                                    bytes_per_item=16 * (self.dim_x + self.dim_z + 1))
         self.refresh = (10 * self.window if refresh is None
                         else check_int(refresh, "refresh", minimum=0))
         self.R = R
@@ -194,6 +196,17 @@ class SlidingWindowRLS(_FilterBase):
     @_locked
     def P(self, value):
         self._P = own_array(value, "P")
+
+    @property
+    def window(self):
+        """Number of samples in the window (read-only: the ring buffer's size, chosen
+        at construction)."""
+        return self._window
+
+    @window.setter
+    def window(self, value):
+        refuse_fixed(self, "window", "it is the size of the ring buffer; construct a "
+                                     "new SlidingWindowRLS(dim_x, window)")
 
     def __copy__(self):
         """A shallow copy with its own window: the compiled step writes the ring

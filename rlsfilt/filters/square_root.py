@@ -168,6 +168,8 @@ class SquareRootRLS(_FilterBase):
                       "more exciting input, lam closer to 1, or RecursiveLeastSquares with an "
                       "anti-windup forgetting mode (forgetting='directional', 'efra', ...).")
 
+    _options = _FilterBase._options | {"P", "lam", "alpha", "check_every", "cond_max"}
+
     def __init__(self, dim_x, dim_z=1, lam=1.0, *, P0=1e4, x0=None, R=1.0,
                  check_every=None, cond_max=1e12):
         self.dim_x = check_dimension(dim_x, "dim_x")
