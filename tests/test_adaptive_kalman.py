@@ -245,3 +245,17 @@ def test_the_model_method_is_the_function():
     assert a.dt == 0.1
     with pytest.raises(NotFittedError, match=r"not fitted yet"):
         ARX(2, 2, 1).to_kalman()
+
+
+@pytest.mark.parametrize("kind", ["AR", "ARMA"])
+@pytest.mark.parametrize("horizon", [1, 3])
+def test_time_series_models_become_filters_that_predict_as_they_do(kind, horizon):
+    # AR and ARMA have no input: a filter with dim_u = 0 (it crashed in max() of no B)
+    from rlsfilt import AR, ARMA
+    y = lfilter([1, 0.4], [1, -0.7, 0.2], np.random.default_rng(5).standard_normal(80))
+    model = AR(2).fit(y) if kind == "AR" else ARMA(2, 1).fit(y)
+    kf = to_kalman(model)
+    assert kf.dim_u == 0 and kf.D.shape == (1, 0)
+    got = kalman_predictions(kf, np.zeros((80, 0)), y, horizon)[:, 0]
+    want = model.predict(None, y, horizon=horizon)
+    assert_allclose(got, want, rtol=0, atol=1e-12 * np.abs(want).max())

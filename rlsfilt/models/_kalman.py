@@ -35,7 +35,8 @@ def to_kalman(model, noise_variance=None):
     model : ARX, another rlsfilt model, or an object with ``polynomials()``
         A fitted `~rlsfilt.ARX` (any numbers of inputs and outputs) or any
         rlsfilt model through ``polydata()``: ARMAX, and for one output OE
-        and BJ too (over the common denominator ``A D F``); or an object
+        and BJ too (over the common denominator ``A D F``), AR and ARMA
+        (``dim_u = 0``: call ``kf.predict()`` without `u`); or an object
         whose ``polynomials()`` gives ``(A, B)`` or ``(A, B, C)`` in
         ascending powers of :math:`q^{-1}`, such as an `InnovationsModel`.
     noise_variance : float or array_like, optional
@@ -148,9 +149,9 @@ def _matrix_polynomials(model):
             Bs = [np.convolve(np.convolve(trim(B[0, j]), d),
                               functools.reduce(np.convolve, Fs[:j] + Fs[j + 1:], np.ones(1)))
                   for j in range(nu)]
-            L = max(len(b) for b in Bs)
+            L = max((len(b) for b in Bs), default=1)    # a time series (AR, ARMA): no B
             A = Anew.reshape(1, 1, -1)
-            B = np.array([[np.pad(b, (0, L - len(b))) for b in Bs]])
+            B = np.array([[np.pad(b, (0, L - len(b))) for b in Bs]]).reshape(1, nu, L)
             C = np.convolve(trim(C[0]), prodF).reshape(1, 1, -1)
         else:
             if np.any(D[:, 1:]) or np.any(F[:, :, 1:]):
