@@ -259,3 +259,29 @@ def test_time_series_models_become_filters_that_predict_as_they_do(kind, horizon
     got = kalman_predictions(kf, np.zeros((80, 0)), y, horizon)[:, 0]
     want = model.predict(None, y, horizon=horizon)
     assert_allclose(got, want, rtol=0, atol=1e-12 * np.abs(want).max())
+
+
+@pytest.mark.parametrize("offset", [True, "mean"])
+@pytest.mark.parametrize("horizon", [1, 3])
+def test_a_model_with_an_operating_point_warns_and_its_filter_runs_on_deviations(offset,
+                                                                                 horizon):
+    # the filter is the model of the deviations: fed the data themselves its predictions are
+    # off by a constant, which went unsaid while the docstring promised model.predict
+    from rlsfilt import OperatingPointWarning
+    u, y = _siso_data(N=80)
+    u, y = u + 5.0, y + 40.0
+    model = ARX(2, 2, 1, offset=offset).fit(u, y)
+    with pytest.warns(OperatingPointWarning, match="feed it u - input_offset_"):
+        kf = to_kalman(model)
+    u_op, y_op = model.input_offset_[0], model.output_offset_[0]
+    got = kalman_predictions(kf, u - u_op, y - y_op, horizon)[:, 0] + y_op
+    want = model.predict(u, y, horizon=horizon)
+    assert_allclose(got, want, rtol=0, atol=1e-10 * np.abs(want).max())
+    raw = kalman_predictions(kf, u, y, horizon)[:, 0]
+    assert np.max(np.abs(raw - want)) > 1.0      # what the warning is about
+
+
+def test_a_model_without_an_operating_point_does_not_warn():
+    u, y = _siso_data(N=40)
+    to_kalman(ARX(2, 2, 1).fit(u, y))             # warnings are errors in the test suite
+    to_kalman(ARX(2, 2, 1, offset=False).fit(u + 1e-3, y))

@@ -14,10 +14,12 @@ innovation. `to_kalman` hands this to `filterpy.kalman.KalmanFilter`;
 """
 
 import functools
+import warnings
 
 import numpy as np
 
 from .._validation import as_float_array
+from ..exceptions import OperatingPointWarning
 from ._polynomials import model_dt, observer_form, trim
 
 __all__ = ["to_kalman"]
@@ -53,6 +55,15 @@ def to_kalman(model, noise_variance=None):
         ``P = 0``: the posterior at ``t = -1`` with everything before
         ``t = 0`` zero (the model's convention). Also an attribute ``D``
         (``ny x nu``), the feed-through, nonzero only for ``nk = 0``.
+
+    Warns
+    -----
+    OperatingPointWarning
+        For a model with an operating point (``ARX(offset=True)`` or
+        ``offset="mean"``): the filter is its model of the deviations, so
+        feed it ``u - model.input_offset_`` and ``y - model.output_offset_``
+        and add ``model.output_offset_`` to its predictions (fed the data
+        themselves, its predictions are off by a constant).
 
     Notes
     -----
@@ -99,6 +110,7 @@ def to_kalman(model, noise_variance=None):
     """
     from filterpy.kalman import KalmanFilter
 
+    _warn_operating_point(model)
     A, B, C = _matrix_polynomials(model)
     ny, nu = B.shape[0], B.shape[1]
     Sigma = _noise_covariance(model, noise_variance, ny)
@@ -128,6 +140,20 @@ def to_kalman(model, noise_variance=None):
 # ----------------------------------------------------------------------
 # private helpers
 # ----------------------------------------------------------------------
+def _warn_operating_point(model):
+    """`OperatingPointWarning` when the model's dynamics are about a nonzero operating point
+    (the filter, like `polydata`, is the model of the deviations from it)."""
+    u_op = np.asarray(getattr(model, "input_offset_", 0.0), dtype=float)
+    y_op = np.asarray(getattr(model, "output_offset_", 0.0), dtype=float)
+    if np.any(u_op != 0.0) or np.any(y_op != 0.0):
+        warnings.warn(
+            f"the {type(model).__name__} model has an operating point (input_offset_ = "
+            f"{np.round(u_op, 6).tolist()}, output_offset_ = {np.round(y_op, 6).tolist()}): the "
+            f"Kalman filter is its model of the deviations; feed it u - input_offset_ and "
+            f"y - output_offset_ and add output_offset_ to its predictions",
+            OperatingPointWarning, stacklevel=3)
+
+
 def _matrix_polynomials(model):
     r"""``A (ny, ny, *)``, ``B (ny, nu, *)``, ``C (ny, ny, *)`` of the model's ARMAX form.
 
