@@ -234,3 +234,20 @@ def test_residual_statistics_on_several_experiments_equal_statsmodels(case):
     V = np.mean(E[:, 0] ** 2) if case.ny == 1 else np.linalg.det(E.T @ E / len(E))
     assert ic.loss == pytest.approx(V, rel=1e-9)
     assert ic.n_samples == sum(max(len(y) - model.max_lag, 0) for _, y in recs)
+
+
+OE_CASES = [c for c in CASES if c.name.startswith("OE")]
+
+
+@pytest.mark.parametrize("case", OE_CASES, ids=[c.name for c in OE_CASES])
+@pytest.mark.parametrize("horizon", [2, 3])
+def test_a_model_without_noise_model_has_the_same_fit_at_every_horizon(case, horizon):
+    # H = 1 (OE): every k-step prediction is the simulation, from the estimated state too
+    model, recs = _fitted(case)
+    p = model.polydata()
+    assert not (np.any(p.A[..., 1:]) or np.any(p.C[..., 1:]) or np.any(p.D[..., 1:]))
+    d, _ = case.data(recs)
+    sim = compare(model, d)
+    pred = compare(model, d, horizon=horizon)
+    assert_allclose(pred.y_hat, sim.y_hat, rtol=1e-9, atol=1e-9)
+    assert pred.fit == pytest.approx(sim.fit, abs=1e-9)
