@@ -226,10 +226,11 @@ def test_residual_statistics_on_several_experiments_equal_statsmodels(case):
     E = np.vstack([(_arrays(case, u, y)[1] - _oracle(case, model, kf, u, y, 1))[model.max_lag:]
                    for u, y in recs])
     d, ys = case.data(recs)
-    r = residual_analysis(model, d, ys, max_lag=8)
-    assert_allclose(r.residuals, E[:, 0], rtol=0, atol=1e-9 * np.abs(E).max())
-    q = acorr_ljungbox(E[:, 0], lags=[8])["lb_stat"].iloc[0]
-    assert r.q_statistic == pytest.approx(q, rel=1e-9)
+    for i in range(case.ny):
+        r = residual_analysis(model, d, ys, max_lag=8, output=i)
+        assert_allclose(r.residuals, E[:, i], rtol=0, atol=1e-9 * np.abs(E).max())
+        q = acorr_ljungbox(E[:, i], lags=[8])["lb_stat"].iloc[0]
+        assert r.q_statistic == pytest.approx(q, rel=1e-9)
     ic = information_criteria(model, d, ys) if case.nu else information_criteria(model, None, ys)
     V = np.mean(E[:, 0] ** 2) if case.ny == 1 else np.linalg.det(E.T @ E / len(E))
     assert ic.loss == pytest.approx(V, rel=1e-9)
