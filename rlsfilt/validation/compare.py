@@ -234,7 +234,9 @@ def compare(model, u, y=None, *, initial="estimate", horizon=np.inf):
     for U, Y in records:
         N = len(Y)
         k = np.inf if horizon >= N else horizon
-        A_p, B_p = _trim_lags(*_system(polys, k, model))
+        A_p, B_p = _system(polys, k, model)
+        if np.isfinite(k):      # the simulation's zero columns are a realization's placeholders
+            A_p, B_p = _trim_lags(A_p, B_p)
         if initial == "measured":
             _check_measured(model, polys, A_p, k)
         W = np.hstack([U - u_op, Y - y_op])
