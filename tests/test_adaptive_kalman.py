@@ -285,3 +285,37 @@ def test_a_model_without_an_operating_point_does_not_warn():
     u, y = _siso_data(N=40)
     to_kalman(ARX(2, 2, 1).fit(u, y))             # warnings are errors in the test suite
     to_kalman(ARX(2, 2, 1, offset=False).fit(u + 1e-3, y))
+
+
+@pytest.mark.parametrize("kind", ["OE", "BJ", "ARMAX", "OE-2-inputs"])
+def test_streaming_estimators_become_filters_of_their_whole_model(kind):
+    # their polynomials() are (A, B, C, D, F): D and F were dropped, so the filter of a
+    # RecursiveOE predicted B u instead of B/F u, silently
+    from rlsfilt import RecursiveARMAX, RecursiveBJ, RecursiveOE
+    gen = np.random.default_rng(0)
+    U = gen.standard_normal((300, 2))
+    y = (lfilter([0, 1, 0.5], [1, -0.8], U[:, 0]) + lfilter([0, 0, 0.4], [1, -0.5], U[:, 1])
+         + lfilter([1, 0.3], [1, -0.6], 0.1 * gen.standard_normal(300)))
+    est = {"OE": lambda: RecursiveOE(2, 1, 1), "BJ": lambda: RecursiveBJ(2, 1, 1, 1, 1),
+           "ARMAX": lambda: RecursiveARMAX(1, 2, 1, 1),
+           "OE-2-inputs": lambda: RecursiveOE([2, 1], [1, 1], [1, 2])}[kind]()
+    two = kind.endswith("2-inputs")
+    u = U if two else U[:, 0]
+    for t in range(len(y)):
+        est.step(y[t], u[t])
+    A, B, C, D, F = est.polynomials()
+    # the one-step predictor y - D/C (A y - sum B_j/F_j u_j), by lfilter
+    Uc = U if two else U[:, :1]
+    v = lfilter(A, [1.0], y) - sum(lfilter(B[j], F[j], Uc[:, j]) for j in range(len(B)))
+    want = y - lfilter(D, C, v)
+    got = kalman_predictions(to_kalman(est), Uc, y, 1)[:, 0]
+    assert_allclose(got, want, rtol=0, atol=1e-10 * np.abs(want).max())
+
+
+def test_polynomials_of_another_count_are_refused():
+    class Four:
+        def polynomials(self):
+            return np.array([1.0, -0.5]), np.array([0.0, 1.0]), np.ones(1), np.ones(1)
+
+    with pytest.raises(ValueError, match=r"\(A, B\), \(A, B, C\) or \(A, B, C, D, F\); got 4"):
+        to_kalman(Four())
