@@ -245,3 +245,77 @@ def test_the_model_method_is_the_function():
     assert a.dt == 0.1
     with pytest.raises(NotFittedError, match=r"not fitted yet"):
         ARX(2, 2, 1).to_kalman()
+
+
+@pytest.mark.parametrize("kind", ["AR", "ARMA"])
+@pytest.mark.parametrize("horizon", [1, 3])
+def test_time_series_models_become_filters_that_predict_as_they_do(kind, horizon):
+    # AR and ARMA have no input: a filter with dim_u = 0 (it crashed in max() of no B)
+    from rlsfilt import AR, ARMA
+    y = lfilter([1, 0.4], [1, -0.7, 0.2], np.random.default_rng(5).standard_normal(80))
+    model = AR(2).fit(y) if kind == "AR" else ARMA(2, 1).fit(y)
+    kf = to_kalman(model)
+    assert kf.dim_u == 0 and kf.D.shape == (1, 0)
+    got = kalman_predictions(kf, np.zeros((80, 0)), y, horizon)[:, 0]
+    want = model.predict(None, y, horizon=horizon)
+    assert_allclose(got, want, rtol=0, atol=1e-12 * np.abs(want).max())
+
+
+@pytest.mark.parametrize("offset", [True, "mean"])
+@pytest.mark.parametrize("horizon", [1, 3])
+def test_a_model_with_an_operating_point_warns_and_its_filter_runs_on_deviations(offset,
+                                                                                 horizon):
+    # the filter is the model of the deviations: fed the data themselves its predictions are
+    # off by a constant, which went unsaid while the docstring promised model.predict
+    from rlsfilt import OperatingPointWarning
+    u, y = _siso_data(N=80)
+    u, y = u + 5.0, y + 40.0
+    model = ARX(2, 2, 1, offset=offset).fit(u, y)
+    with pytest.warns(OperatingPointWarning, match="feed it u - input_offset_"):
+        kf = to_kalman(model)
+    u_op, y_op = model.input_offset_[0], model.output_offset_[0]
+    got = kalman_predictions(kf, u - u_op, y - y_op, horizon)[:, 0] + y_op
+    want = model.predict(u, y, horizon=horizon)
+    assert_allclose(got, want, rtol=0, atol=1e-10 * np.abs(want).max())
+    raw = kalman_predictions(kf, u, y, horizon)[:, 0]
+    assert np.max(np.abs(raw - want)) > 1.0      # what the warning is about
+
+
+def test_a_model_without_an_operating_point_does_not_warn():
+    u, y = _siso_data(N=40)
+    to_kalman(ARX(2, 2, 1).fit(u, y))             # warnings are errors in the test suite
+    to_kalman(ARX(2, 2, 1, offset=False).fit(u + 1e-3, y))
+
+
+@pytest.mark.parametrize("kind", ["OE", "BJ", "ARMAX", "OE-2-inputs"])
+def test_streaming_estimators_become_filters_of_their_whole_model(kind):
+    # their polynomials() are (A, B, C, D, F): D and F were dropped, so the filter of a
+    # RecursiveOE predicted B u instead of B/F u, silently
+    from rlsfilt import RecursiveARMAX, RecursiveBJ, RecursiveOE
+    gen = np.random.default_rng(0)
+    U = gen.standard_normal((300, 2))
+    y = (lfilter([0, 1, 0.5], [1, -0.8], U[:, 0]) + lfilter([0, 0, 0.4], [1, -0.5], U[:, 1])
+         + lfilter([1, 0.3], [1, -0.6], 0.1 * gen.standard_normal(300)))
+    est = {"OE": lambda: RecursiveOE(2, 1, 1), "BJ": lambda: RecursiveBJ(2, 1, 1, 1, 1),
+           "ARMAX": lambda: RecursiveARMAX(1, 2, 1, 1),
+           "OE-2-inputs": lambda: RecursiveOE([2, 1], [1, 1], [1, 2])}[kind]()
+    two = kind.endswith("2-inputs")
+    u = U if two else U[:, 0]
+    for t in range(len(y)):
+        est.step(y[t], u[t])
+    A, B, C, D, F = est.polynomials()
+    # the one-step predictor y - D/C (A y - sum B_j/F_j u_j), by lfilter
+    Uc = U if two else U[:, :1]
+    v = lfilter(A, [1.0], y) - sum(lfilter(B[j], F[j], Uc[:, j]) for j in range(len(B)))
+    want = y - lfilter(D, C, v)
+    got = kalman_predictions(to_kalman(est), Uc, y, 1)[:, 0]
+    assert_allclose(got, want, rtol=0, atol=1e-10 * np.abs(want).max())
+
+
+def test_polynomials_of_another_count_are_refused():
+    class Four:
+        def polynomials(self):
+            return np.array([1.0, -0.5]), np.array([0.0, 1.0]), np.ones(1), np.ones(1)
+
+    with pytest.raises(ValueError, match=r"\(A, B\), \(A, B, C\) or \(A, B, C, D, F\); got 4"):
+        to_kalman(Four())

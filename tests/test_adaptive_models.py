@@ -86,3 +86,26 @@ def test_designs_read_the_plant_and_the_noise_model_from_polydata():
         two = _PolyModel()
         two._p = two._p._replace(B=np.zeros((1, 2, 2)))
         rst_design(two, Am=Am)
+
+
+@pytest.mark.parametrize("kind", ["OE", "BJ", "ARMAX"])
+def test_streaming_estimators_design_as_their_polynomials_over_a_common_denominator(kind):
+    # their polynomials() are (A, B, C, D, F) with B and F lists per input: refused before
+    # ("`B` must be a 1-D array ... got shape (1, 3)"); D and F must not be dropped
+    from rlsfilt import RecursiveARMAX, RecursiveBJ, RecursiveOE
+    gen = np.random.default_rng(0)
+    u = gen.standard_normal(500)
+    y = (lfilter([0, 1, 0.5], [1, -0.8], u)
+         + lfilter([1, 0.3], [1, -0.6], 0.1 * gen.standard_normal(500)))
+    est = {"OE": lambda: RecursiveOE(2, 1, 1), "BJ": lambda: RecursiveBJ(2, 1, 1, 1, 1),
+           "ARMAX": lambda: RecursiveARMAX(1, 2, 1, 1)}[kind]()
+    for t in range(len(y)):
+        est.step(y[t], u[t])
+    A, B, C, D, F = est.polynomials()
+    AF = np.convolve(A, F[0])
+    pairs = [(minimum_variance(est),
+              minimum_variance(np.convolve(AF, D), np.convolve(B[0], D), np.convolve(C, F[0]))),
+             (rst_design(est, Am=[1, -0.5]), rst_design(AF, B[0], Am=[1, -0.5]))]
+    for got, want in pairs:
+        for key in ("R", "S", "T"):
+            assert_allclose(getattr(got, key), getattr(want, key), rtol=1e-12, atol=1e-14)

@@ -161,3 +161,17 @@ def test_recursive_refined_iv_on_two_experiments_is_batch_iv_on_its_rows(rng):
         batch = np.linalg.solve(Z[:t].T @ Phi[:t], Z[:t].T @ target[:t])
         np.testing.assert_allclose(model.theta_history_[t - 1], batch, rtol=1e-9,
                                    atol=1e-10 * np.max(np.abs(batch)), err_msg=f"row {t}")
+
+
+def test_a_short_first_experiment_says_how_to_start_the_recursion(rng):
+    # the exact start is on the first experiment: a 2-sample one has no row for it; the
+    # message named only `k0`, an argument the caller had not passed
+    u, u2 = rng.standard_normal(200), rng.standard_normal(2)
+    y, y2 = lfilter([0, 1.0, 0.5], [1, -0.5], u), lfilter([0, 1.0], [1], u2)
+    data = IOData([u2, u], [y2, y])
+    with pytest.raises(ValueError, match=r"got 4 \(the default, n_params\) \(the exact start "
+                                         r"is on the first experiment: put a longer one first, "
+                                         r"or pass k0=0"):
+        ARX(2, 2, 1).fit(data, method="riv")
+    model = ARX(2, 2, 1).fit(data, method="riv", k0=0)         # the prior start works
+    assert np.all(np.isfinite(model.theta_))

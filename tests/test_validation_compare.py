@@ -89,6 +89,21 @@ def test_compare_estimates_the_least_squares_initial_state(true_oe):
     assert rest.fit < 0 < 90 < c.fit
 
 
+@pytest.mark.parametrize("horizon", [1, 2, 3, 7])
+def test_k_step_prediction_of_oe_is_its_simulation_fit_included(true_oe, horizon):
+    # an OE predictor is its simulation at every horizon (H = 1); the k-step predictor's
+    # polynomials carried k - 1 trailing zeros (h = [1, 0, ..]), each a state whose free
+    # response raised the k-step fit above the simulation fit of the same predictions
+    u, y = _two_input_record(2, 101)
+    yhat, fit = _oracle_fit(true_oe, u, y)
+    c = compare(true_oe, u, y, horizon=horizon)
+    np.testing.assert_allclose(c.y_hat, yhat, rtol=1e-9, atol=1e-8)
+    assert c.fit == pytest.approx(fit, abs=1e-8)
+    assert len(c.x0[0]) == len(compare(true_oe, u, y).x0[0]) == 4
+    np.testing.assert_allclose(true_oe.predict(u, y, horizon=horizon), true_oe.simulate(u),
+                               rtol=1e-12, atol=1e-12)
+
+
 def test_short_two_input_oe_record_gets_a_sane_validate_fit(true_oe):
     """Issue #28, 1 and 3: two inputs with different delays, an operating point far from
     zero, 101 validation samples, default arguments."""

@@ -80,3 +80,40 @@ def test_structure_search_shows_progress_when_asked(capsys):
     assert [c["orders"] for c in quiet.candidates] == [c["orders"] for c in shown.candidates]
     with pytest.raises(ValueError, match="`progress`"):
         select_structure(OE, u, y, grid, progress="yes")
+
+
+def _two_output_records(rng, lengths):
+    out = []
+    for N in lengths:
+        u, e = rng.standard_normal(N), rng.standard_normal((N, 2))
+        Y = np.column_stack([lfilter([0, 1, 0.5], [1, -0.5], u) + e[:, 0],
+                             lfilter([0, 1], [1, -0.3], u) + 0.5 * e[:, 0] + 0.3 * e[:, 1]])
+        out.append((u, Y))
+    return out
+
+
+@pytest.mark.parametrize("ny", [1, 2])
+@pytest.mark.parametrize("with_validation", [False, True])
+def test_criteria_with_or_without_validation_are_information_criteria(ny, with_validation, rng):
+    # with validation data the criteria of a two-output model used the mean of every squared
+    # error (and the constant of one output) instead of the determinant of their covariance
+    from rlsfilt import ARX, IOData
+
+    est = _two_output_records(rng, (300, 150))
+    val = _two_output_records(rng, (200, 120))
+
+    def data(recs):
+        return IOData([u for u, _ in recs], [Y if ny == 2 else Y[:, 0] for _, Y in recs])
+
+    sel = select_structure(ARX, data(est), {"na": [1, 2], "nb": [1, 2], "nk": [1]},
+                           validation=data(val) if with_validation else None)
+    for c, m in zip(sel.candidates, sel.models):
+        ic = information_criteria(m, data(val if with_validation else est))
+        assert ic.n_outputs == ny
+        for key in ("aic", "aicc", "bic", "naic", "fpe", "mdl"):
+            assert c[key] == pytest.approx(getattr(ic, key), rel=1e-12), key
+        assert c["val_loss" if with_validation else "loss"] == pytest.approx(ic.loss, rel=1e-12)
+        if ny == 2:       # the oracle of the loss: det of the residual covariance, numpy only
+            E = np.vstack([Y[m.max_lag:] - m.predict(u, Y)[m.max_lag:]
+                           for u, Y in (val if with_validation else est)])
+            assert ic.loss == pytest.approx(np.linalg.det(E.T @ E / len(E)), rel=1e-12)

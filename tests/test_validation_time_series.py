@@ -87,3 +87,35 @@ def test_two_experiments_and_the_input_argument(series):
         validate(model, np.ones(len(series)), series)
     with pytest.raises(TypeError, match="`y` is required"):
         validate(model, None)
+
+
+def _free_responses(den, n, N):
+    """Solutions of ``den(q) z = 0`` for t >= n, z(0..n-1) the unit vectors (a loop)."""
+    Z = np.zeros((N, n))
+    for j in range(n):
+        Z[j, j] = 1.0
+        for t in range(n, N):
+            Z[t, j] = -sum(den[k] * Z[t - k, j] for k in range(1, len(den)))
+    return Z
+
+
+@pytest.mark.parametrize("make", [lambda: AR(2), lambda: ARMA(2, 1), lambda: ARMA(1, 2)],
+                         ids=["AR(2)", "ARMA(2,1)", "ARMA(1,2)"])
+def test_estimated_free_response_is_least_squares_over_the_noise_models_states(make):
+    # C/(A D) realized with max(deg A D, deg C) states: for ARMA(1, 2) two, not deg A = 1
+    gen = np.random.default_rng(0)
+    ys = [lfilter([1, 0.4], [1, -1.2, 0.5], gen.standard_normal(N))
+          + 3 * np.exp(-np.arange(N) / 10) for N in (80, 50)]
+    model = make().fit(ys)
+    p = model.polydata()
+    den = np.convolve(p.A[0, 0], p.D[0])
+    n = max(len(den), len(p.C[0])) - 1
+    want = []
+    for y in ys:
+        Z = _free_responses(den, n, len(y))
+        want.append(Z @ np.linalg.lstsq(Z, y, rcond=None)[0])
+    c = compare(model, None, ys)
+    np.testing.assert_allclose(c.y_hat, np.concatenate(want), rtol=1e-9, atol=1e-9)
+    assert c.fit == pytest.approx(fit_percent(np.concatenate(ys), np.concatenate(want)),
+                                  abs=1e-9)
+    assert all(len(x0) == n for x0 in c.x0)

@@ -192,10 +192,19 @@ def model_polynomials(obj, name, want):
         a, b = trim(A[0, 0]), trim(B[0, 0])
         c, d = trim(np.asarray(p.C, float)[0]), trim(np.asarray(p.D, float)[0])
         f = trim(np.asarray(p.F, float)[0, 0])
-        if want == 2:
-            return np.convolve(a, f), b
-        return np.convolve(np.convolve(a, f), d), np.convolve(b, d), np.convolve(c, f)
+        return _armax_form(a, b, c, d, f, want)
     src = obj.polynomials() if hasattr(obj, "polynomials") else obj
+    if isinstance(src, tuple) and len(src) == 5 and hasattr(obj, "polynomials"):
+        # (A, B, C, D, F) of the streaming estimators (RecursiveOE, RecursiveBJ, ...): B and
+        # F one per input; D and F must not be dropped
+        a, b, c, d, f = src
+        bs = list(b) if isinstance(b, (list, tuple)) else [b]
+        fs = list(f) if isinstance(f, (list, tuple)) else [f]
+        if len(bs) != 1:
+            raise ValueError(f"`{name}` must be a model with one input and one output; got "
+                             f"{len(bs)} input(s)")
+        return _armax_form(*(trim(np.asarray(x, dtype=float)) for x in (a, bs[0], c, d, fs[0])),
+                           want)
     if isinstance(src, dict):
         lower = {str(k).lower(): v for k, v in src.items()}
         vals = [lower.get(k) for k in "abc"[:want]]
@@ -214,6 +223,13 @@ def model_polynomials(obj, name, want):
     return tuple(vals)
 
 
+
+
+def _armax_form(a, b, c, d, f, want):
+    """``(A F, B)`` (`want` 2) or ``(A F D, B D, C F)`` of ``A y = B/F u + C/D e``."""
+    if want == 2:
+        return np.convolve(a, f), b
+    return np.convolve(np.convolve(a, f), d), np.convolve(b, d), np.convolve(c, f)
 
 
 def _is_number_list(seq):

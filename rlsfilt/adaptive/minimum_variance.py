@@ -86,7 +86,8 @@ def minimum_variance(A, B=None, C=None, d=None, *, dt=None):
         ``[1, a1, ..]`` (monic), or a model (then omit `B` and `C`): any
         rlsfilt model through ``polydata()`` (ARX, ARMAX, and OE or BJ over
         the common denominator ``A F D``), or an object whose
-        ``polynomials()`` gives ``A, B`` and optionally ``C``.
+        ``polynomials()`` gives ``A, B`` and optionally ``C``, or
+        ``A, B, C, D, F`` (a streaming `RecursiveOE`, `RecursiveBJ`, ...).
     B : array_like
         ``q^-d B'``: ``d`` leading zeros, then ``B'`` with ``B'(0) != 0``.
         ``B'`` must be stable (minimum phase): the design cancels it.

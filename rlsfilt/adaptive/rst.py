@@ -296,7 +296,8 @@ def rst_design(A, B=None, Am=None, Ao=None, *, integral=True, cancel_zeros=False
         :math:`q^{-1}`), or a model, then leave `B` out and give `Am` by
         keyword: a fitted `~rlsfilt.ARX` or any rlsfilt model (its plant
         ``B / (A F)`` from ``polydata()``), or an object with
-        ``polynomials()`` returning ``(A, B)``.
+        ``polynomials()`` returning ``(A, B)`` (or ``(A, B, C, D, F)``, as a
+        streaming `RecursiveOE` does: the plant ``B / (A F)``).
     B : array_like
         Plant numerator ``[0]*nk + [b1, .., b_nb]`` including the delay's
         leading zeros (``ARX.polynomials()`` returns exactly this). Its

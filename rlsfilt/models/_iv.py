@@ -452,11 +452,15 @@ def recursive_iv_records(records, s, instruments="model", *, lam=1.0, Q=None, R=
     n, ny = s.n_params, records[0][1].shape[1]
     counts = [max(len(U) - s.max_lag, 0) for U, _ in records]
     rows = sum(counts)
+    given = k0 is not None
     k0 = n if k0 is None else k0
     if k0 > counts[0]:
         first = " of the first experiment" if len(records) > 1 else ""
+        hint = ("" if len(records) == 1 else
+                " (the exact start is on the first experiment: put a longer one first, or "
+                "pass k0=0 for the prior start)")
         raise ValueError(f"`k0` must be <= the number of regressor rows{first} ({counts[0]}); "
-                         f"got {k0}")
+                         f"got {k0}{'' if given else ' (the default, n_params)'}{hint}")
     il = 1.0 / lam
     q_zero = Q is None or not np.any(Q)
     Qa = np.zeros((0, 0)) if q_zero else np.ascontiguousarray(Q, dtype=float)

@@ -14,10 +14,12 @@ innovation. `to_kalman` hands this to `filterpy.kalman.KalmanFilter`;
 """
 
 import functools
+import warnings
 
 import numpy as np
 
 from .._validation import as_float_array
+from ..exceptions import OperatingPointWarning
 from ._polynomials import model_dt, observer_form, trim
 
 __all__ = ["to_kalman"]
@@ -35,9 +37,13 @@ def to_kalman(model, noise_variance=None):
     model : ARX, another rlsfilt model, or an object with ``polynomials()``
         A fitted `~rlsfilt.ARX` (any numbers of inputs and outputs) or any
         rlsfilt model through ``polydata()``: ARMAX, and for one output OE
-        and BJ too (over the common denominator ``A D F``); or an object
+        and BJ too (over the common denominator ``A D F``), AR and ARMA
+        (``dim_u = 0``: call ``kf.predict()`` without `u`); or an object
         whose ``polynomials()`` gives ``(A, B)`` or ``(A, B, C)`` in
-        ascending powers of :math:`q^{-1}`, such as an `InnovationsModel`.
+        ascending powers of :math:`q^{-1}`, such as an `InnovationsModel`,
+        or ``(A, B, C, D, F)`` (``B``, ``F`` one per input), as the
+        streaming estimators `RecursiveARMAX`, `RecursiveOE`,
+        `RecursiveBJ` give (one output, over ``A D F``).
     noise_variance : float or array_like, optional
         Covariance :math:`\Sigma` of the innovations: a positive variance,
         ``ny`` of them, or a symmetric positive definite ``(ny, ny)`` matrix;
@@ -52,6 +58,15 @@ def to_kalman(model, noise_variance=None):
         ``P = 0``: the posterior at ``t = -1`` with everything before
         ``t = 0`` zero (the model's convention). Also an attribute ``D``
         (``ny x nu``), the feed-through, nonzero only for ``nk = 0``.
+
+    Warns
+    -----
+    OperatingPointWarning
+        For a model with an operating point (``ARX(offset=True)`` or
+        ``offset="mean"``): the filter is its model of the deviations, so
+        feed it ``u - model.input_offset_`` and ``y - model.output_offset_``
+        and add ``model.output_offset_`` to its predictions (fed the data
+        themselves, its predictions are off by a constant).
 
     Notes
     -----
@@ -98,6 +113,7 @@ def to_kalman(model, noise_variance=None):
     """
     from filterpy.kalman import KalmanFilter
 
+    _warn_operating_point(model)
     A, B, C = _matrix_polynomials(model)
     ny, nu = B.shape[0], B.shape[1]
     Sigma = _noise_covariance(model, noise_variance, ny)
@@ -127,6 +143,20 @@ def to_kalman(model, noise_variance=None):
 # ----------------------------------------------------------------------
 # private helpers
 # ----------------------------------------------------------------------
+def _warn_operating_point(model):
+    """`OperatingPointWarning` when the model's dynamics are about a nonzero operating point
+    (the filter, like `polydata`, is the model of the deviations from it)."""
+    u_op = np.asarray(getattr(model, "input_offset_", 0.0), dtype=float)
+    y_op = np.asarray(getattr(model, "output_offset_", 0.0), dtype=float)
+    if np.any(u_op != 0.0) or np.any(y_op != 0.0):
+        warnings.warn(
+            f"the {type(model).__name__} model has an operating point (input_offset_ = "
+            f"{np.round(u_op, 6).tolist()}, output_offset_ = {np.round(y_op, 6).tolist()}): the "
+            f"Kalman filter is its model of the deviations; feed it u - input_offset_ and "
+            f"y - output_offset_ and add output_offset_ to its predictions",
+            OperatingPointWarning, stacklevel=3)
+
+
 def _matrix_polynomials(model):
     r"""``A (ny, ny, *)``, ``B (ny, nu, *)``, ``C (ny, ny, *)`` of the model's ARMAX form.
 
@@ -141,17 +171,8 @@ def _matrix_polynomials(model):
         C, D, F = (np.asarray(x, dtype=float) for x in (p.C, p.D, p.F))
         ny, nu = A.shape[0], B.shape[1]
         if ny == 1:
-            Fs = [trim(F[0, j]) for j in range(nu)]
-            prodF = functools.reduce(np.convolve, Fs, np.ones(1))
-            d = trim(D[0])
-            Anew = np.convolve(np.convolve(trim(A[0, 0]), d), prodF)
-            Bs = [np.convolve(np.convolve(trim(B[0, j]), d),
-                              functools.reduce(np.convolve, Fs[:j] + Fs[j + 1:], np.ones(1)))
-                  for j in range(nu)]
-            L = max(len(b) for b in Bs)
-            A = Anew.reshape(1, 1, -1)
-            B = np.array([[np.pad(b, (0, L - len(b))) for b in Bs]])
-            C = np.convolve(trim(C[0]), prodF).reshape(1, 1, -1)
+            A, B, C = _common_denominator(A[0, 0], [B[0, j] for j in range(nu)], C[0], D[0],
+                                          [F[0, j] for j in range(nu)])
         else:
             if np.any(D[:, 1:]) or np.any(F[:, :, 1:]):
                 raise ValueError("`model` with several outputs must have D = F = 1 (ARX or "
@@ -167,6 +188,14 @@ def _matrix_polynomials(model):
     polys = model.polynomials()
     if isinstance(polys, dict):
         polys = tuple(polys.get(k, polys.get(k.upper())) for k in "abc")
+    if len(polys) == 5:   # (A, B, C, D, F) of the streaming estimators (RecursiveOE, ...)
+        a, b, c, d, f = polys
+        bs = [b] if np.ndim(b) == 1 and not isinstance(b, (list, tuple)) else list(b)
+        fs = [f] if np.ndim(f) == 1 and not isinstance(f, (list, tuple)) else list(f)
+        return _check_monic(*_common_denominator(a, bs, c, d, fs))
+    if len(polys) not in (2, 3):
+        raise ValueError(f"`model.polynomials()` must give (A, B), (A, B, C) or (A, B, C, D, F); "
+                         f"got {len(polys)} polynomials")
     A, B = (np.asarray(p, dtype=float) for p in polys[:2])
     C = np.asarray(polys[2], dtype=float) if len(polys) > 2 and polys[2] is not None else None
     if A.ndim == 1:
@@ -176,6 +205,24 @@ def _matrix_polynomials(model):
     else:
         C = np.eye(A.shape[0])[:, :, None] if C is None else C
     return _check_monic(A, B, C)
+
+
+def _common_denominator(a, bs, c, d, fs):
+    r"""One output over the common denominator: :math:`A D \prod_j F_j\, y = \sum_j B_j D
+    \prod_{k \ne j} F_k\, u_j + C \prod_j F_j\, e` as ``A (1, 1, *)``, ``B (1, nu, *)``,
+    ``C (1, 1, *)`` (no input, AR or ARMA: ``B`` of shape ``(1, 0, 1)``)."""
+    Fs = [trim(np.asarray(f, dtype=float)) for f in fs]
+    prodF = functools.reduce(np.convolve, Fs, np.ones(1))
+    d = trim(np.asarray(d, dtype=float))
+    Anew = np.convolve(np.convolve(trim(np.asarray(a, dtype=float)), d), prodF)
+    Bs = [np.convolve(np.convolve(trim(np.asarray(b, dtype=float)), d),
+                      functools.reduce(np.convolve, Fs[:j] + Fs[j + 1:], np.ones(1)))
+          for j, b in enumerate(bs)]
+    nu = len(Bs)
+    L = max((len(b) for b in Bs), default=1)
+    B = np.array([[np.pad(b, (0, L - len(b))) for b in Bs]]).reshape(1, nu, L)
+    C = np.convolve(trim(np.asarray(c, dtype=float)), prodF).reshape(1, 1, -1)
+    return Anew.reshape(1, 1, -1), B, C
 
 
 def _check_monic(A, B, C):

@@ -317,7 +317,8 @@ def pem_records(records, s, theta0=None, *, ftol=1e-12, xtol=1e-12, gtol=1e-12,
     theta0 : ndarray, optional
         As `pem`; the default starts are computed on the experiments joined
         end to end (only the starts: the seams perturb them slightly, never
-        the criterion).
+        the criterion), leaving out those of at most ``t0`` samples (no
+        prediction error of the criterion).
     ftol, xtol, gtol : float, default 1e-12
         The search stops when an accepted step lowers the criterion by less
         than ``ftol`` relative, moves ``theta`` by less than
@@ -464,7 +465,9 @@ def _pem_unit(records, s, theta0, rows, *, ftol, xtol, gtol, max_nfev, n_starts=
         r, _ = fun(theta)
         return np.inf if r is None else 0.5 * float(r @ r)
 
-    U_all, y_all = joined(records)
+    # the starts see only the experiments with rows in the criterion (a shorter one would
+    # only add a seam, and move the start to another minimum: the fit would depend on it)
+    U_all, y_all = joined([r for r in records if len(r[1]) > s.t0])
     # the starts: the given one, or the lowest criterion of the consistent ones
     arx_theta, arx_exact = (None, False) if s.is_arx else arx_in_structure(U_all, y_all, s)
     arx_cost = cost_of(arx_theta) if arx_exact else None

@@ -183,8 +183,9 @@ def compare(model, u, y=None, *, initial="estimate", horizon=np.inf):
     output, over every sample of every experiment from `start` on), so with
     the default ``initial="estimate"`` it is the number MATLAB's
     ``compare(data, sys)`` prints for the same model. For an output-error
-    model (noise model 1) the one-step prediction is the simulation, and so
-    are their fits.
+    model (noise model 1) every ``k``-step prediction is the simulation, and
+    so are their fits (the predictor's state has no lags beyond its last
+    nonzero coefficient).
 
     The least-squares problem is :math:`\min_{x_0} \lVert y - \hat
     y_{\mathrm{forced}} - O x_0 \rVert` with the free-response matrix
@@ -234,6 +235,8 @@ def compare(model, u, y=None, *, initial="estimate", horizon=np.inf):
         N = len(Y)
         k = np.inf if horizon >= N else horizon
         A_p, B_p = _system(polys, k, model)
+        if np.isfinite(k):      # the simulation's zero columns are a realization's placeholders
+            A_p, B_p = _trim_lags(A_p, B_p)
         if initial == "measured":
             _check_measured(model, polys, A_p, k)
         W = np.hstack([U - u_op, Y - y_op])
@@ -355,6 +358,22 @@ def _system(polys, horizon, model):
     A_p = np.zeros((ny, ny, 1))
     A_p[:, :, 0] = np.eye(ny)
     return A_p, B_p
+
+
+def _trim_lags(A_p, B_p):
+    """`A_p`, `B_p` without the lags beyond the last nonzero coefficient of either.
+
+    The k-step predictor of a model whose noise-model impulse response ends early (an
+    output-error model: ``H = 1``, so ``h = [1, 0, .., 0]``) carries trailing zero
+    coefficients; each would add a state, a free response of ``initial="estimate"``
+    that the predictor does not have (the k-step fit of OE came out above its
+    simulation fit, for the same predictions).
+    """
+    used = np.flatnonzero(np.any(A_p != 0, axis=(0, 1))[:A_p.shape[2]])
+    last = max(int(used[-1]) if used.size else 0,
+               int(np.flatnonzero(np.any(B_p != 0, axis=(0, 1)))[-1])
+               if np.any(B_p) else 0)
+    return A_p[:, :, :last + 1], B_p[:, :, :last + 1]
 
 
 def _check_measured(model, polys, A_p, horizon):

@@ -34,7 +34,9 @@ class StructureSelection:
     candidates : list of dict
         One per structure tried, in the order tried: the orders, ``n_params``,
         ``loss`` (mean squared one-step prediction error on the estimation
-        data), ``val_loss`` (on the validation data, NaN without), the
+        data; for several outputs the determinant of its covariance, as
+        :func:`information_criteria`), ``val_loss`` (the same on the
+        validation data, NaN without), the
         criteria ``aic`` .. ``mdl`` and ``error`` (the message when the fit
         was refused, else None).
     criterion : str
@@ -328,9 +330,12 @@ def select_structure(model_class, u, y=None, grid=None, *, criterion="bic", vali
         if validation is not None:
             uv, yv = validation
             _, e, _ = one_step_records(model, uv, yv, "select_structure")
-            V = float(np.mean(e ** 2))
+            # the loss of `information_criteria`: V = mean e^2, for several outputs the
+            # determinant of the residual covariance (was the mean over all outputs' e^2)
+            n_v, ny = e.shape
+            V = float(np.mean(e ** 2)) if ny == 1 else float(np.linalg.det(e.T @ e / n_v))
             row["val_loss"] = V
-            crit = _criteria(V, len(e), ic.n_params)
+            crit = _criteria(V, n_v, ic.n_params, ny)
             crit = {k: getattr(crit, k) for k in ("aic", "aicc", "bic", "naic", "fpe", "mdl")}
         else:
             crit = {k: getattr(ic, k) for k in ("aic", "aicc", "bic", "naic", "fpe", "mdl")}
