@@ -403,3 +403,23 @@ def test_max_lag_auto_on_short_channels(rng):
                                    y[:, c])
     u, y = _fleet(rng, C=2, N=400)
     assert fit_many(model, u, y).max_lag == 25
+
+
+@pytest.mark.parametrize("nu", [1, 2])
+@pytest.mark.parametrize("method", ["ls", "rls"])
+def test_mean_offset_removes_the_means_arx_fit_removes(method, nu):
+    """offset="mean": each channel's means are ARX.fit's to the bit (a mean over axis 0
+    of the fleet's (N, C) record adds its rows in turn, the channel on its own is summed
+    pairwise: means 1 ulp apart, and a batch start of a few rows turned that into 2e-12
+    of the recursive estimate)."""
+    rng = np.random.default_rng(7)
+    u, y = _fleet(rng, C=6, N=200, nu=nu)
+    u, y = 1.0 + 3.0 * u, y + 3.0 + rng.uniform(0, 1, 6)
+    kw = {"nb": [2] * nu, "nk": list(range(1, nu + 1))} if nu > 1 else {"nb": 2, "nk": 1}
+    bank = fit_many(ARX(2, offset="mean", **kw), u, y, method, residual_tests=False)
+    for c in range(6):
+        model = ARX(2, offset="mean", **kw).fit(u[:, c], y[:, c], method)
+        assert_array_equal(bank.output_offset_[c], model.output_offset_[0])
+        assert_array_equal(bank.input_offset_[c], model.input_offset_)
+        scale = np.max(np.abs(model.theta_))
+        assert_allclose(bank.theta_[c], model.theta_, rtol=0, atol=1e-14 * scale)

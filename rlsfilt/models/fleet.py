@@ -43,7 +43,7 @@ from ..exceptions import NumericalWarning, OperatingPointWarning
 from ..filters._health import warn_at_caller as _warn_at_caller
 from ..filters.bank import RLSBank, full_rank, subset
 from ..filters.gradient_bank import GradientBank
-from ._offset import far_from_zero, operating_point_remedy
+from ._offset import far_from_zero, operating_point_remedy, record_means
 from ._offset import offset_mode as _offset_mode
 from ._tuning_option import tuning_param
 from ._units import equivariant_forgetting, estimate_in_units, tune_start, tuned_random_walk
@@ -1100,7 +1100,7 @@ class _FitRecord:
         self.U, self.Y, self.U_test = U, Y, U
         self.means = None
         if offset == "mean":
-            u_bar, y_bar = U.mean(axis=0), Y.mean(axis=0)           # (C, nu), (C,)
+            u_bar, y_bar = record_means(U), record_means(Y)         # (C, nu), (C,)
             self.means = (u_bar, y_bar)
             self.U = self.U_test = np.ascontiguousarray(U - u_bar)
             self.Y = np.ascontiguousarray(Y - y_bar)
