@@ -13,6 +13,8 @@ import warnings
 import numpy as np
 import pandas as pd
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from numpy.testing import assert_allclose, assert_array_equal
 from scipy.signal import lfilter
 
@@ -423,3 +425,39 @@ def test_mean_offset_removes_the_means_arx_fit_removes(method, nu):
         assert_array_equal(bank.input_offset_[c], model.input_offset_)
         scale = np.max(np.abs(model.theta_))
         assert_allclose(bank.theta_[c], model.theta_, rtol=0, atol=1e-14 * scale)
+
+
+@settings(max_examples=20, deadline=None)
+@given(na=st.integers(0, 2), nb=st.lists(st.integers(1, 2), min_size=1, max_size=2),
+       nk0=st.integers(0, 2), offset=st.sampled_from([False, True, "mean"]),
+       route=st.sampled_from([("ls", {}), ("rls", {}), ("rls", {"lam": 0.98}),
+                              ("rls", {"lam": 0.97, "forgetting": "directional"}),
+                              ("rls", {"k0": 0, "P0": 100.0, "R": 2.0})]),
+       exponent=st.sampled_from([0, -500, 500]), seed=st.integers(0, 2 ** 16))
+def test_every_channel_is_its_own_arx_fit(na, nb, nk0, offset, route, exponent, seed):
+    """Cross-route parity: orders with nk = 0 and inputs of different delays, the three
+    offsets, the batch and recursive methods, records around 2^+-500: each channel of a
+    fleet of 3 is ARX.fit on its record (estimates and covariances to a few ulp of the
+    recursion, the removed means to the bit)."""
+    method, options = route
+    nu = len(nb)
+    nk = [nk0 + j for j in range(nu)]
+    rng = np.random.default_rng(seed)
+    u, y = _fleet(rng, C=3, N=120, nu=nu)
+    u, y = np.ldexp(u + 0.5, exponent), np.ldexp(y + 2.0, exponent)
+    if options.get("P0") is not None and exponent:
+        return                      # a prior in the signals' units: only for unit-size data
+    kw = {"nb": nb if nu > 1 else nb[0], "nk": nk if nu > 1 else nk[0], "offset": offset}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        bank = fit_many(ARX(na, **kw), u, y, method, residual_tests=False, **options)
+        for c in range(3):
+            model = ARX(na, **kw).fit(u[:, c], y[:, c], method, form="covariance", **options) \
+                if method == "rls" else ARX(na, **kw).fit(u[:, c], y[:, c], method)
+            scale = np.max(np.abs(model.theta_))
+            assert_allclose(bank.theta_[c], model.theta_, rtol=0, atol=1e-12 * scale)
+            assert_allclose(bank.theta_cov_[c], model.theta_cov_, rtol=1e-9,
+                            atol=1e-12 * np.max(np.abs(model.theta_cov_)))
+            if offset == "mean":
+                assert_array_equal(bank.output_offset_[c], model.output_offset_[0])
+                assert_array_equal(bank.input_offset_[c], model.input_offset_)
