@@ -461,3 +461,34 @@ def test_every_channel_is_its_own_arx_fit(na, nb, nk0, offset, route, exponent, 
             if offset == "mean":
                 assert_array_equal(bank.output_offset_[c], model.output_offset_[0])
                 assert_array_equal(bank.input_offset_[c], model.input_offset_)
+
+
+def test_health_verdict_is_arx_fits_on_ill_conditioned_regressors():
+    """ARX.fit's health check allows P the condition number the regressors give it
+    (cond_max = max(1e12, 1e4 cond(Phi)^2)); the bank's is 1e12 for every channel, so a
+    fleet flagged (healthy_ False, a NumericalWarning) a channel whose own ARX.fit
+    passes, with an estimate as close to batch least squares as ARX.fit's."""
+    rng = np.random.default_rng(7)        # (channel 0 failed the bank's check)
+    N, nb = 3000, 8
+    smooth = [1.0], [1.0, -0.9999]
+    u = np.column_stack([lfilter(*smooth, lfilter(*smooth, rng.standard_normal(N)))
+                         for _ in range(2)])
+    y = np.column_stack([lfilter([0, 1, .5], [1, -1.5, .7], u[:, c])
+                         + 1e-8 * rng.standard_normal(N) for c in range(2)])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", NumericalWarning)   # no health warning
+        bank = fit_many(ARX(2, nb, 1), u, y, "rls", residual_tests=False)
+    assert bank.healthy_.all()
+    for c in range(2):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            model = ARX(2, nb, 1).fit(u[:, c], y[:, c], "rls", form="covariance")
+        assert not [w for w in caught if "health" in str(w.message)]
+        ls = ARX(2, nb, 1).fit(u[:, c], y[:, c])
+        scale = np.max(np.abs(ls.theta_))
+        assert_allclose(bank.theta_[c], ls.theta_, rtol=0, atol=1e-9 * scale)
+        assert_allclose(bank.theta_[c], model.theta_, rtol=0, atol=1e-9 * scale)
+    # a channel that fails with the data's own cond_max still fails (a user cond_max holds)
+    with pytest.warns(NumericalWarning, match="health check"):
+        tight = fit_many(ARX(2, nb, 1), u, y, "rls", residual_tests=False, cond_max=1e6)
+    assert not tight.healthy_.any()
