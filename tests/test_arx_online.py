@@ -14,7 +14,7 @@ import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 from scipy.signal import lfilter
 
-from rlsfilt import ARX, LMS, NLMS, SlidingWindowRLS
+from rlsfilt import ARX, LMS, NLMS, SlidingWindowRLS, SquareRootRLS
 
 pa = pytest.importorskip("padasip")
 
@@ -215,3 +215,24 @@ def test_save_and_load_keep_the_fit(options, tmp_path):
     for name in ("theta_", "theta_cov_", "noise_variance_"):
         assert_array_equal(getattr(again, name), getattr(model, name), err_msg=name)
     assert_array_equal(again.predict(u, y), model.predict(u, y))
+
+
+@pytest.mark.parametrize("R", [0.3, 2.0, 3.0, 8.0])
+@pytest.mark.parametrize("form, cls, options", [
+    ("window", SlidingWindowRLS, {"window": 40}),
+    ("square_root", SquareRootRLS, {"lam": 0.98}),
+])
+def test_prior_start_with_any_R_is_the_filter_on_the_regressors(R, form, cls, options):
+    """The fit runs in power-of-two units from the images of P0 and R; the window's QR
+    refit and the square-root form whiten rows by sqrt(R), so the shift of R must be even
+    for the run to be the filter's in the signals' units, bit for bit (R = 2 shifted by
+    2^-1 made the window's estimate differ in the last digits)."""
+    u, y = _siso(3, 300)
+    model = ARX(2, 2, 1)
+    kw = {"form": form} if form == "square_root" else {}
+    fit = model.fit(u, y, "rls", k0=0, P0=100.0, R=R, **kw, **options)
+    Phi, target = model.regressors(u, y)
+    f = cls(4, P0=100.0, R=R, **options)
+    f.batch_filter(target, Phi)
+    assert_array_equal(fit.theta_, f.x.reshape(fit.theta_.shape))
+    assert_array_equal(fit.filter_.x, f.x)

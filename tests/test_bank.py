@@ -1121,3 +1121,24 @@ def test_a_read_only_record_is_copied_not_compiled_for():
     bank.predict_update(Z[0], H[0])
     assert_array_equal(bank.x, writable.x)
     assert [len(kb.bank_batch.signatures), len(kb.bank_update.signatures)] == counts
+
+
+@pytest.mark.parametrize("C", [2, 3, 37])
+@pytest.mark.parametrize("n, k0", [(1, 12), (3, 3), (6, 6), (4, 20)])
+def test_initialize_gives_each_channel_the_bits_of_its_own_bank(C, n, k0):
+    """The batch start of a channel does not depend on the other channels of the bank: a
+    bank of 1 channel, or of a few, gets the bits of the same channel in a bank of C (it
+    did not: the transposed (C, k0, n) views had strides that depend on C, and matmul took
+    BLAS for 1 channel and NumPy's loop for more, 1 ulp apart; so a dask block of one
+    channel differed from fit_many on the whole fleet)."""
+    rng = np.random.default_rng(100 * C + 10 * n + k0)
+    H = rng.standard_normal((k0, C, n)) * rng.uniform(0.5, 3.0, (1, C, n))
+    z = rng.standard_normal((k0, C))
+    lam = rng.uniform(0.9, 1.0, C)
+    whole = RLSBank(C, n, lam=lam, R=rng.uniform(0.5, 2.0, C))
+    whole.initialize(z, H)
+    for sel in ([0], [C - 1], [C - 1, 0], list(range(1, C))):
+        part = RLSBank(len(sel), n, lam=lam[sel], R=whole.R[sel])
+        part.initialize(z[:, sel], H[:, sel])
+        assert_array_equal(part.x, whole.x[sel])
+        assert_array_equal(part.P, whole.P[sel])

@@ -137,3 +137,25 @@ def test_argument_errors():
         rdask.fit_many(ARX(1, 1), da.zeros(100), da.zeros(100))
     with pytest.raises(TypeError, match="`frame` must be a dask or pandas DataFrame"):
         rdask.fit_many_frame(ARX(1, 1), np.zeros((3, 3)), channel="c", input="u", output="y")
+
+
+@pytest.mark.parametrize("chunk", [1, 3])
+def test_rls_estimates_of_small_blocks_equal_the_whole_fleet_bit_for_bit(chunk):
+    """A block of one channel ran the batch start of a 1-channel RLSBank, 1 ulp off the
+    same channel in the in-memory fleet (matmul's path depended on the channel count)."""
+    rng = np.random.default_rng(11)
+    C, N = 7, 150
+    u = rng.standard_normal((N, C, 2))
+    y = np.column_stack([lfilter([0, .5, .2], [1, -.6], u[:, c, 0])
+                         + lfilter([0, 0, .3], [1, -.6], u[:, c, 1])
+                         + .1 * rng.standard_normal(N) for c in range(C)])
+    model = ARX(2, [2, 2], [0, 1])
+    ref = fit_many(model, u, y, "rls", lam=0.99, residual_tests=False).to_dataframe()
+    import dask
+
+    with dask.config.set(scheduler="synchronous"):
+        table = rdask.fit_many(model, da.from_array(u, chunks=(-1, chunk, -1)),
+                               da.from_array(y, chunks=(-1, chunk)), "rls", lam=0.99,
+                               residual_tests=False)
+    names = [c for c in ref.columns if c[:1] in "ab" or c.startswith("se_")]
+    np.testing.assert_array_equal(table[names].to_numpy(), ref[names].to_numpy())

@@ -13,6 +13,8 @@ import warnings
 import numpy as np
 import pandas as pd
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from numpy.testing import assert_allclose, assert_array_equal
 from scipy.signal import lfilter
 
@@ -403,3 +405,90 @@ def test_max_lag_auto_on_short_channels(rng):
                                    y[:, c])
     u, y = _fleet(rng, C=2, N=400)
     assert fit_many(model, u, y).max_lag == 25
+
+
+@pytest.mark.parametrize("nu", [1, 2])
+@pytest.mark.parametrize("method", ["ls", "rls"])
+def test_mean_offset_removes_the_means_arx_fit_removes(method, nu):
+    """offset="mean": each channel's means are ARX.fit's to the bit (a mean over axis 0
+    of the fleet's (N, C) record adds its rows in turn, the channel on its own is summed
+    pairwise: means 1 ulp apart, and a batch start of a few rows turned that into 2e-12
+    of the recursive estimate)."""
+    rng = np.random.default_rng(7)
+    u, y = _fleet(rng, C=6, N=200, nu=nu)
+    u, y = 1.0 + 3.0 * u, y + 3.0 + rng.uniform(0, 1, 6)
+    kw = {"nb": [2] * nu, "nk": list(range(1, nu + 1))} if nu > 1 else {"nb": 2, "nk": 1}
+    bank = fit_many(ARX(2, offset="mean", **kw), u, y, method, residual_tests=False)
+    for c in range(6):
+        model = ARX(2, offset="mean", **kw).fit(u[:, c], y[:, c], method)
+        assert_array_equal(bank.output_offset_[c], model.output_offset_[0])
+        assert_array_equal(bank.input_offset_[c], model.input_offset_)
+        scale = np.max(np.abs(model.theta_))
+        assert_allclose(bank.theta_[c], model.theta_, rtol=0, atol=1e-14 * scale)
+
+
+@settings(max_examples=20, deadline=None)
+@given(na=st.integers(0, 2), nb=st.lists(st.integers(1, 2), min_size=1, max_size=2),
+       nk0=st.integers(0, 2), offset=st.sampled_from([False, True, "mean"]),
+       route=st.sampled_from([("ls", {}), ("rls", {}), ("rls", {"lam": 0.98}),
+                              ("rls", {"lam": 0.97, "forgetting": "directional"}),
+                              ("rls", {"k0": 0, "P0": 100.0, "R": 2.0})]),
+       exponent=st.sampled_from([0, -500, 500]), seed=st.integers(0, 2 ** 16))
+def test_every_channel_is_its_own_arx_fit(na, nb, nk0, offset, route, exponent, seed):
+    """Cross-route parity: orders with nk = 0 and inputs of different delays, the three
+    offsets, the batch and recursive methods, records around 2^+-500: each channel of a
+    fleet of 3 is ARX.fit on its record (estimates and covariances to a few ulp of the
+    recursion, the removed means to the bit)."""
+    method, options = route
+    nu = len(nb)
+    nk = [nk0 + j for j in range(nu)]
+    rng = np.random.default_rng(seed)
+    u, y = _fleet(rng, C=3, N=120, nu=nu)
+    u, y = np.ldexp(u + 0.5, exponent), np.ldexp(y + 2.0, exponent)
+    if options.get("P0") is not None and exponent:
+        return                      # a prior in the signals' units: only for unit-size data
+    kw = {"nb": nb if nu > 1 else nb[0], "nk": nk if nu > 1 else nk[0], "offset": offset}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        bank = fit_many(ARX(na, **kw), u, y, method, residual_tests=False, **options)
+        for c in range(3):
+            model = ARX(na, **kw).fit(u[:, c], y[:, c], method, form="covariance", **options) \
+                if method == "rls" else ARX(na, **kw).fit(u[:, c], y[:, c], method)
+            scale = np.max(np.abs(model.theta_))
+            assert_allclose(bank.theta_[c], model.theta_, rtol=0, atol=1e-12 * scale)
+            assert_allclose(bank.theta_cov_[c], model.theta_cov_, rtol=1e-9,
+                            atol=1e-12 * np.max(np.abs(model.theta_cov_)))
+            if offset == "mean":
+                assert_array_equal(bank.output_offset_[c], model.output_offset_[0])
+                assert_array_equal(bank.input_offset_[c], model.input_offset_)
+
+
+def test_health_verdict_is_arx_fits_on_ill_conditioned_regressors():
+    """ARX.fit's health check allows P the condition number the regressors give it
+    (cond_max = max(1e12, 1e4 cond(Phi)^2)); the bank's is 1e12 for every channel, so a
+    fleet flagged (healthy_ False, a NumericalWarning) a channel whose own ARX.fit
+    passes, with an estimate as close to batch least squares as ARX.fit's."""
+    rng = np.random.default_rng(7)        # (channel 0 failed the bank's check)
+    N, nb = 3000, 8
+    smooth = [1.0], [1.0, -0.9999]
+    u = np.column_stack([lfilter(*smooth, lfilter(*smooth, rng.standard_normal(N)))
+                         for _ in range(2)])
+    y = np.column_stack([lfilter([0, 1, .5], [1, -1.5, .7], u[:, c])
+                         + 1e-8 * rng.standard_normal(N) for c in range(2)])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", NumericalWarning)   # no health warning
+        bank = fit_many(ARX(2, nb, 1), u, y, "rls", residual_tests=False)
+    assert bank.healthy_.all()
+    for c in range(2):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            model = ARX(2, nb, 1).fit(u[:, c], y[:, c], "rls", form="covariance")
+        assert not [w for w in caught if "health" in str(w.message)]
+        ls = ARX(2, nb, 1).fit(u[:, c], y[:, c])
+        scale = np.max(np.abs(ls.theta_))
+        assert_allclose(bank.theta_[c], ls.theta_, rtol=0, atol=1e-9 * scale)
+        assert_allclose(bank.theta_[c], model.theta_, rtol=0, atol=1e-9 * scale)
+    # a channel that fails with the data's own cond_max still fails (a user cond_max holds)
+    with pytest.warns(NumericalWarning, match="health check"):
+        tight = fit_many(ARX(2, nb, 1), u, y, "rls", residual_tests=False, cond_max=1e6)
+    assert not tight.healthy_.any()

@@ -191,3 +191,24 @@ def test_labelled_inputs_with_unlabelled_outputs_pair_by_label(rng):
         fit_many(ARX(2, 2), U, y, channels=["e", "a", "c", "b"])
     with pytest.raises(ValueError, match="`channels` must be distinct labels"):
         fit_many(ARX(2, 2), U, y, channels=["a", "a", "c", "b"])
+
+
+def test_unscaled_forgetting_with_intercept_on_a_tiny_record():
+    """constant-trace forgetting runs in the signals' units; beside the intercept's
+    column of ones, signals around 1e-150 give cond(Phi)^2 beyond the double range, and
+    ARX.fit's health threshold 1e4 cond^2 was inf: a ValueError about `cond_max` (never
+    passed) where fit_many fits the channel."""
+    rng = np.random.default_rng(3)
+    u = rng.standard_normal((200, 2))
+    y = np.column_stack([lfilter([0, 0.5, 0.2], [1, -0.6], u[:, c])
+                         + 0.1 * rng.standard_normal(200) + 3.0 for c in range(2)])
+    u, y = 1e-150 * u, 1e-150 * y
+    opts = {"lam": 0.99, "forgetting": "constant_trace"}
+    bank = fit_many(ARX(1, 1, 1, offset=True), u, y, "rls", residual_tests=False, **opts)
+    for c in range(2):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", NumericalWarning)
+            model = ARX(1, 1, 1, offset=True).fit(u[:, c], y[:, c], "rls", **opts)
+        assert np.isfinite(model.filter_.cond_max)
+        assert_allclose(bank.theta_[c], model.theta_, rtol=1e-12)
+        assert_allclose(bank.theta_cov_[c], model.theta_cov_, rtol=1e-10)

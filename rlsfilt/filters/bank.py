@@ -1025,8 +1025,12 @@ class RLSBank(BankBase):
         w = np.where(keep, w, 0.0)
         A = np.where(keep[:, :, None], Hm, 0.0) * w[:, :, None]        # (k0, C, n)
         B = np.where(keep, Z, 0.0) * w                                 # (k0, C)
-        A = A.transpose(1, 0, 2)                                       # (C, k0, n)
-        B = B.T[:, :, None]                                            # (C, k0, 1)
+        # (contiguous copies: every channel's matrices then have the same strides whatever
+        # the number of channels, so that matmul and the norms take the same path (BLAS, or
+        # NumPy's own loop with its own order of the sums) and a channel gets the same bits
+        # in a bank of 1 channel or of 37; a dask block of one channel as in a larger one)
+        A = np.ascontiguousarray(A.transpose(1, 0, 2))                 # (C, k0, n)
+        B = np.ascontiguousarray(B.T)[:, :, None]                      # (C, k0, 1)
         norms = np.linalg.norm(A, axis=1)                              # (C, n)
         d = np.where(norms > 0.0, norms, 1.0)
         As = A / d[:, None, :]

@@ -40,6 +40,20 @@ def model_offset_mode(model):
     return offset_mode(offset) if isinstance(offset, (str, bool, np.bool_)) else "none"
 
 
+def record_means(X):
+    """The means over time (axis 0) of the signals of `X`, shape ``X.shape[1:]``.
+
+    Each signal is summed as one contiguous row (NumPy's pairwise summation), so that a
+    signal's mean has the same bits whichever record holds it: `ARX` (``offset="mean"``)
+    on one channel and `fit_many` on a fleet whose column it is remove the same means. (A
+    mean over axis 0 of a 2-D array adds the rows in turn instead, and a fleet's column
+    then gets other roundings than the channel on its own.)
+    """
+    X = np.asarray(X, dtype=float)
+    # (signals, time): one contiguous row per signal
+    return np.ascontiguousarray(np.moveaxis(X, 0, -1)).mean(axis=-1)
+
+
 def far_from_zero(X, ratio=OFFSET_RATIO):
     """``(flagged, mean, std)`` of each column of `X` (time on axis 0): the rule of
     :func:`offset_messages`, for many signals at once (the channels of a fleet).

@@ -289,8 +289,11 @@ class RecordUnits:
     def r_for(self, R, gate=False):
         """The shift ``r`` of a recursion whose ``P`` is proportional to ``R`` (a prior start,
         or the batch start ``R (Phi_0^T Phi_0)^-1``): `gate_shift` with an outlier gate,
-        else the one that brings ``R`` to about 1 (any ``r`` gives the same numbers)."""
-        return self.gate_shift if gate else -int(np.round(np.log2(R)))
+        else the even one that brings ``R`` to within a factor 2 of 1 (any even ``r`` gives
+        the same numbers: ``sqrt(2^r R) = 2^(r/2) sqrt(R)`` is exact, and the window's QR
+        refit and the square-root form whiten the rows by ``sqrt(R)``; an odd ``r`` made
+        ``window`` with ``R = 2`` differ from the filter in the signals' units)."""
+        return self.gate_shift if gate else -2 * int(np.round(np.log2(R) / 2))
 
     def P_exponents(self, z=None, r=0):
         """Exponents of ``P``: :math:`c_k + z_l + r` (`z` the instrument columns'

@@ -37,7 +37,7 @@ from ._arx_iv import fit_arx_iv
 from ._base import IdentifiedModel, Polynomials
 from ._lag_rows import LagRows, MatrixRows
 from ._offset import offset_mode as _offset_mode
-from ._offset import warn_fit_operating_point
+from ._offset import record_means, warn_fit_operating_point
 from ._summary import EQUATION_STYLES, ModelSummary
 from ._tuning_option import tuning_param
 from ._units import (
@@ -1344,7 +1344,11 @@ def _fit_rls(rows, s, opts, units):
     # cond(P) = cond(Phi)^2 (in the units the recursion runs in) is what the data give (and
     # more on the first rows), and _choose_form has said so: the health check watches for
     # windup beyond
-    extra.setdefault("cond_max", max(1e12, 1e4 * cond_raw ** 2))
+    # (finite: a recursion in the signals' units on columns of very different sizes, an
+    # intercept beside signals around 1e-150, has cond_raw^2 beyond the double range)
+    with np.errstate(over="ignore"):
+        extra.setdefault("cond_max", min(max(1e12, 1e4 * np.float64(cond_raw) ** 2),
+                                           np.finfo(float).max))
     cls = SquareRootRLS if form == "square_root" else RecursiveLeastSquares
     user = cls(n, dim_z=s.n_outputs, lam=lam, **kw, **extra)  # validates; becomes filter_
     units.check_ratio()
@@ -1707,7 +1711,7 @@ def _means(records):
     """Means of the inputs and outputs over every sample of every experiment."""
     U = np.vstack([U for U, _ in records])
     Y = np.vstack([Y for _, Y in records])
-    return U.mean(axis=0), Y.mean(axis=0)
+    return record_means(U), record_means(Y)
 
 
 def _equilibrium(A, B, c, u_bar, y_bar):

@@ -43,7 +43,7 @@ from ..exceptions import NumericalWarning, OperatingPointWarning
 from ..filters._health import warn_at_caller as _warn_at_caller
 from ..filters.bank import RLSBank, full_rank, subset
 from ..filters.gradient_bank import GradientBank
-from ._offset import far_from_zero, operating_point_remedy
+from ._offset import far_from_zero, operating_point_remedy, record_means
 from ._offset import offset_mode as _offset_mode
 from ._tuning_option import tuning_param
 from ._units import equivariant_forgetting, estimate_in_units, tune_start, tuned_random_walk
@@ -121,7 +121,9 @@ class ARXBank:
         ``ARX.recursive_residuals_``.
     healthy_ : ndarray of bool, shape (C,)
         ``method="rls"``: the channel's covariance passed every health
-        check (always True for ``"ls"``).
+        check (always True for ``"ls"``), with the threshold ``ARX.fit`` sets
+        from the channel's regressors (``cond_max = max(1e12, 1e4 cond^2)``)
+        unless ``cond_max`` is given: the verdict of ``ARX.fit`` on the channel.
     errors_ : list of (str or None)
         With ``on_error="nan"``: why a channel could not be fitted (its
         numbers are NaN), or None.
@@ -848,7 +850,10 @@ def _recursive(cs, Phi, target, norms, opts, k0, labels, on_error, out):
         _, sel = _as_slice(cs[g])
         out.k0[sel] = kv
         out.rec[:kv, sel] = np.nan                       # the rows of the batch start
-        out.healthy[sel] = ~np.isin(np.arange(len(g)), bank.failed_channels)
+        healthy = ~np.isin(np.arange(len(g)), bank.failed_channels)
+        if not healthy.all() and "cond_max" not in opts["filter"]:
+            _health_as_arx(cs, g, int(kv), Phi, target, opts, healthy)
+        out.healthy[sel] = healthy
         ok[np.setdiff1d(np.flatnonzero(k0s == kv), g)] = False
     return ok, theta, cov
 
@@ -908,6 +913,33 @@ def _run_group(cs, g, k0, Phi, target, opts, labels, on_error, out):
         if into is None:
             out.rec[k0:, sel] = hist.residuals
     return g, bank
+
+
+def _health_as_arx(cs, g, k0, Phi, target, opts, healthy):
+    r"""The health verdicts of ``ARX.fit`` for the channels `g` that failed the bank's:
+    ``ARX.fit`` sets the check's ``cond_max`` from the data, :math:`\max(10^{12}, 10^4
+    \kappa(\Phi)^2)` (the condition number the regressors give P is no failure), the bank
+    has one ``cond_max`` (1e12) for all its channels. A failed channel whose own
+    ``cond_max`` is larger runs again alone with it (the same bits: a channel's numbers do
+    not depend on the bank's other channels) and takes that verdict; a channel healthy
+    at 1e12 is healthy at any larger ``cond_max``. Updates `healthy` in place."""
+    for j in np.flatnonzero(~healthy):
+        c = g[j]
+        sv = np.linalg.svd(Phi[:, c], compute_uv=False)
+        with np.errstate(over="ignore", divide="ignore"):
+            cond = sv[0] / sv[-1] if sv[-1] > 0 else np.inf
+            cond_max = min(max(1e12, 1e4 * cond ** 2), np.finfo(float).max)
+        bank = subset(opts["bank"], cs[[c]])
+        if not cond_max > bank.cond_max:
+            continue
+        bank.cond_max = cond_max
+        if k0 > 0:
+            bank.initialize(target[:k0, [c]], Phi[:k0, [c]])
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", NumericalWarning)
+            bank.batch_filter(target[k0:, [c]], Phi[k0:, [c]], store_covariances=False,
+                              store_means=False)
+        healthy[j] = not len(bank.failed_channels)
 
 
 _NEAR = 100
@@ -1100,7 +1132,7 @@ class _FitRecord:
         self.U, self.Y, self.U_test = U, Y, U
         self.means = None
         if offset == "mean":
-            u_bar, y_bar = U.mean(axis=0), Y.mean(axis=0)           # (C, nu), (C,)
+            u_bar, y_bar = record_means(U), record_means(Y)         # (C, nu), (C,)
             self.means = (u_bar, y_bar)
             self.U = self.U_test = np.ascontiguousarray(U - u_bar)
             self.Y = np.ascontiguousarray(Y - y_bar)

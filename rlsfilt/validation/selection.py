@@ -20,6 +20,7 @@ from .._scale import pow2_scale, safe_norm
 from .._serialize import jsonable
 from .._validation import check_dt, check_int
 from ..exceptions import ExactFitError, InsufficientDataError, OrderSelectionWarning
+from ..models._offset import record_means
 from ..models.regressors import _build, arx_structure, as_records
 from ..plotting import plot_order_selection
 from .criteria import _criteria
@@ -666,9 +667,10 @@ def _given(u, y, records, info):
 
 
 def _means(records):
+    # (the means ARX(offset="mean").fit removes, to the bit)
     U = np.vstack([U for U, _ in records])
     Y = np.vstack([Y for _, Y in records])
-    return U.mean(axis=0), Y.mean(axis=0)
+    return record_means(U), record_means(Y)
 
 
 def _stacked_regressor(records, na_max, kmins, kmaxs, t_max, op, mode):
