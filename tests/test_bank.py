@@ -798,7 +798,7 @@ def test_docstring_example_runs():
 
 
 def test_kernels_are_cached_on_disk():
-    from numba.core.caching import FunctionCache       # (rlsfilt's: a subclass, _numba.py)
+    from numba.core.caching import FunctionCache  # (rlsfilt's: a subclass, _numba.py)
 
     for name in ("bank_batch", "bank_batch_parallel", "bank_predict", "bank_update",
                  "bank_unhealthy"):
