@@ -20,11 +20,11 @@ def kalman_predictions(kf, u, y, horizon):
     """
     U = np.asarray(u, float).reshape(len(u), -1)
     Y = np.asarray(y, float).reshape(len(y), -1)
-    N, D = len(U), kf.D
-    uprev = [np.zeros((U.shape[1], 1))] + [U[t].reshape(-1, 1) for t in range(N - 1)]
+    (N, nu), D = U.shape, kf.D
+    uprev = [np.zeros((nu, 1))] + [U[t].reshape(-1, 1) for t in range(N - 1)]
     posts, f = [copy.deepcopy(kf)], copy.deepcopy(kf)
     for t in range(N):
-        f.predict(u=uprev[t])
+        f.predict(u=uprev[t] if nu else None)           # (no input: AR, ARMA)
         f.update((Y[t] - D @ U[t]).reshape(-1, 1))
         posts.append(copy.deepcopy(f))
     out = np.zeros_like(Y)
@@ -32,7 +32,7 @@ def kalman_predictions(kf, u, y, horizon):
         s = max(t - horizon, -1)           # the last measured sample
         g = copy.deepcopy(posts[s + 1])
         for j in range(s + 1, t + 1):
-            g.predict(u=uprev[j])
+            g.predict(u=uprev[j] if nu else None)
         out[t] = (g.H @ g.x).ravel() + D @ U[t]
     return out
 

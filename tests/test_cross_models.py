@@ -18,7 +18,6 @@ consumers are checked against oracles that share no code with them:
 A new model class or option joins every check with one line in `CASES`.
 """
 
-import copy
 from dataclasses import dataclass, field
 
 import control
@@ -27,6 +26,7 @@ import pytest
 from numpy.testing import assert_allclose
 from scipy.signal import lfilter
 from statsmodels.stats.diagnostic import acorr_ljungbox
+from test_adaptive_kalman import kalman_predictions
 
 from rlsfilt import AR, ARMA, ARMAX, ARX, BJ, OE, IOData, OperatingPointWarning, compare
 from rlsfilt.adaptive import to_kalman
@@ -137,25 +137,6 @@ def _filter(model):
     return to_kalman(model)
 
 
-def _kalman_predictions(kf, U, Y, horizon):
-    """``yhat[t] = H x(t|t-k) + D u(t)`` with filterpy only, everything before t = 0 zero."""
-    N, nu = U.shape
-    uprev = [np.zeros((nu, 1))] + [U[t].reshape(-1, 1) for t in range(N - 1)]
-    posts, f = [copy.deepcopy(kf)], copy.deepcopy(kf)
-    for t in range(N):
-        f.predict(u=uprev[t] if nu else None)
-        f.update((Y[t] - kf.D @ U[t]).reshape(-1, 1))
-        posts.append(copy.deepcopy(f))
-    out = np.zeros_like(Y)
-    for t in range(N):
-        s = max(t - horizon, -1)                       # the last measured sample
-        g = copy.deepcopy(posts[s + 1])
-        for j in range(s + 1, t + 1):
-            g.predict(u=uprev[j] if nu else None)
-        out[t] = (g.H @ g.x).ravel() + kf.D @ U[t]
-    return out
-
-
 def _arrays(case, u, y):
     N = len(y)
     U = np.zeros((N, 0)) if u is None else np.asarray(u, float).reshape(N, -1)
@@ -172,7 +153,7 @@ def _oracle(case, model, kf, u, y, horizon):
     u_op, y_op = _ops(model, U.shape[1], Y.shape[1])
     N = len(Y)
     if np.isfinite(horizon) and horizon < N:
-        return _kalman_predictions(kf, U - u_op, Y - y_op, int(horizon)) + y_op
+        return kalman_predictions(kf, U - u_op, Y - y_op, int(horizon)) + y_op
     if case.nu == 0:                                   # no input: the free response is zero
         return np.zeros_like(Y) + y_op
     ss = control.forced_response(model.to_ss(), np.arange(N), (U - u_op).T).outputs

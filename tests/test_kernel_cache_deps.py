@@ -224,12 +224,19 @@ factor_unhealthy = _edited
 '''
 
 
-@pytest.mark.slow
-def test_an_edited_callee_recompiles_its_callers_and_nothing_else_does(tmp_path):
+def _copied_package(tmp_path):
+    """``(site, env)``: a copy of the package under ``site`` (no caches) and the environment
+    of a process that imports it, with a numba cache of its own."""
     site = tmp_path / "site"
     shutil.copytree(PACKAGE, site / "rlsfilt", ignore=shutil.ignore_patterns("__pycache__"))
     env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_DISABLE_JIT", "PYTHONPATH")}
     env.update(NUMBA_CACHE_DIR=str(tmp_path / "cache"), PYTHONPATH=str(site))
+    return site, env
+
+
+@pytest.mark.slow
+def test_an_edited_callee_recompiles_its_callers_and_nothing_else_does(tmp_path):
+    site, env = _copied_package(tmp_path)
 
     def run():
         proc = subprocess.run([sys.executable, "-c", JOB], env=env, cwd=str(tmp_path),
@@ -275,10 +282,7 @@ print(json.dumps([before, after, sum(d.stats.cache_hits.values()),
 
 @pytest.mark.slow
 def test_a_module_reloaded_after_an_edit_of_its_callee_recompiles(tmp_path):
-    site = tmp_path / "site"
-    shutil.copytree(PACKAGE, site / "rlsfilt", ignore=shutil.ignore_patterns("__pycache__"))
-    env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_DISABLE_JIT", "PYTHONPATH")}
-    env.update(NUMBA_CACHE_DIR=str(tmp_path / "cache"), PYTHONPATH=str(site))
+    site, env = _copied_package(tmp_path)
     proc = subprocess.run([sys.executable, "-c", RELOAD, EDIT], env=env, cwd=str(tmp_path),
                           capture_output=True, text=True, timeout=900)
     assert proc.returncode == 0, proc.stderr
