@@ -57,20 +57,26 @@ def record_means(X):
 def far_from_zero(X, ratio=OFFSET_RATIO):
     """``(flagged, mean, std)`` of each column of `X` (time on axis 0): the rule of
     :func:`offset_messages`, for many signals at once (the channels of a fleet).
-    Nothing is flagged with fewer than ``OFFSET_MIN_SAMPLES`` rows."""
+    Nothing is flagged with fewer than ``OFFSET_MIN_SAMPLES`` rows. `mean` and `std`
+    are computed for the one-sided columns only (NaN for the others, which the rule
+    never flags): a zero-mean record costs its minimum and maximum, not two more passes
+    and a scaled copy (a fifth of ``ARX(2, 2).fit(method="rls")`` on 10^6 samples)."""
     X = np.asarray(X, dtype=float)
     X = X.reshape(len(X), -1)
-    if X.shape[1] == 0 or X.shape[0] < OFFSET_MIN_SAMPLES:
-        none = np.zeros(X.shape[1], dtype=bool)
-        return none, np.zeros(X.shape[1]), np.zeros(X.shape[1])
-    c = pow2_scale(X, axis=0)           # mean and std in range for a record in any units
-    Xs = X / c
-    mean, std = Xs.mean(axis=0) * c, Xs.std(axis=0) * c
-    # every sample strictly on the side of the mean: zero lies outside the record's range
-    one_sided = np.where(mean > 0, X.min(axis=0) > 0, X.max(axis=0) < 0)
+    k = X.shape[1]
+    mean, std = np.full(k, np.nan), np.full(k, np.nan)
+    if k == 0 or X.shape[0] < OFFSET_MIN_SAMPLES:
+        return np.zeros(k, dtype=bool), mean, std
+    # every sample strictly on one side of zero: zero lies outside the record's range
+    one_sided = (X.min(axis=0) > 0) | (X.max(axis=0) < 0)
+    if one_sided.any():
+        Y = X[:, one_sided]
+        c = pow2_scale(Y, axis=0)       # mean and std in range for a record in any units
+        Ys = Y / c
+        mean[one_sided], std[one_sided] = Ys.mean(axis=0) * c, Ys.std(axis=0) * c
     # a constant signal (std 0) is unexciting, not an operating point: the rank checks of
     # the fits speak of it
-    flagged = (np.abs(mean) > ratio * std) & (std > 0) & one_sided
+    flagged = one_sided & (np.abs(mean) > ratio * std) & (std > 0)
     return flagged, mean, std
 
 
@@ -97,7 +103,8 @@ def offset_messages(records, names, ratio=OFFSET_RATIO):
     """
     out = []
     for k, (kind, label) in enumerate((("input", "u"), ("output", "y"))):
-        X = np.vstack([np.reshape(r[k], (len(r[k]), -1)) for r in records])
+        parts = [np.reshape(r[k], (len(r[k]), -1)) for r in records]
+        X = parts[0] if len(parts) == 1 else np.vstack(parts)
         flagged, mean, std = far_from_zero(X, ratio)
         for j in np.flatnonzero(flagged):
             default = label if X.shape[1] == 1 else f"{label}{j + 1}"
