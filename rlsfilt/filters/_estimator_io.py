@@ -77,9 +77,9 @@ class _EstimatorStepper:
         out = np.empty(n + m)
         out[:n] = xn.ravel()
         # the a-priori errors e = z - H x, summed in order as the compiled sample does
-        z = np.broadcast_to(np.asarray(np.nan if z is None else z, dtype=float).reshape(-1),
-                            (m,))                         # None: a missing sample
-        vector_kernels().prediction_errors(np.ascontiguousarray(z), np.ascontiguousarray(H),
+        # (new writable arrays: numba would compile a read-only view's call apart)
+        z = np.full(m, np.nan) if z is None else np.array(z, dtype=float).reshape(-1)
+        vector_kernels().prediction_errors(z, np.ascontiguousarray(H),
                                            np.ascontiguousarray(x.reshape(-1, m)), out[n:])
         return out
 
